@@ -1,0 +1,359 @@
+"""The two-level curve speed warning of clauses 5 and 6 of T/ITS 0091-2018.
+
+Given a vehicle's speed and category and the curvature points of interest (CPOIs,
+3.11) ahead of it, decide which warning level is due and for which target CPOI (3.12):
+
+* 6.1: a level is triggered at a CPOI when V >= V_w(R, category, level) and the
+  distance S to the CPOI is <= S_w of formula (1), plus the distance driven during the
+  system's latency (see :class:`WarningSettings`);
+* 6.2.1: level 2 has priority over level 1; several curves triggering together keep
+  the warning on; the target is the triggering CPOI of the highest level, then the
+  nearest;
+* 5.5.1: the two levels are shown distinctly (level 1 visual, level 2 visual and audible).
+
+A CPOI here is the first point of a constant-radius part of a curve: along a part the
+radius, and so V_w and S_w, are constant, and its first point is the nearest, so it is
+the one that decides the part. A vehicle inside a part is at distance 0 from it.
+
+The core, :func:`evaluate_batch`, works on flat numpy arrays for many vehicles at once;
+:func:`evaluate` is the same computation for one vehicle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Sequence
+
+import numpy as np
+
+from .standard import (
+    DEFAULT_POLICY,
+    Category,
+    Column,
+    Level,
+    WarningSpeedPolicy,
+    kmh_to_mps,
+    warning_distance_m,
+)
+
+__all__ = [
+    "CurvaturePointOfInterest",
+    "HmiHint",
+    "PathKind",
+    "Trigger",
+    "WarningSettings",
+    "CurveWarning",
+    "evaluate",
+    "evaluate_batch",
+    "BatchWarnings",
+    "column_indices",
+]
+
+
+class PathKind(StrEnum):
+    """Where the path ahead came from: the vehicle's known route, or the most probable path."""
+
+    ROUTE = "route"
+    PREDICTED = "predicted"
+
+
+@dataclass(frozen=True)
+class CurvaturePointOfInterest:
+    """A CPOI (3.11): the start of a constant-radius part of a curve, ahead of the vehicle.
+
+    Attributes
+    ----------
+    curve_id
+        Identifier of the curve the point belongs to.
+    part_index
+        Index of the constant-radius part within the curve (0 for a single curve, 3.7).
+    distance_m
+        Distance S along the path from the vehicle to the point, m; 0 when the vehicle
+        is already inside the part.
+    radius_m
+        Radius of the part, m.
+    """
+
+    curve_id: str
+    part_index: int
+    distance_m: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class WarningSettings:
+    """What the warning engine needs beyond the standard's tables.
+
+    Attributes
+    ----------
+    policy
+        Warning speeds (Tables 1 and 2 by default; a fleet may override them).
+    update_period_s
+        How often the vehicle's position reaches the system, s. Between two updates the
+        vehicle moves v * update_period_s unseen, so the warning is raised that much
+        earlier to be on when the distance falls below S_w.
+    system_delay_s
+        Processing and display delay of the system, s.
+    g_mps2
+        g of formula (1).
+
+    Notes
+    -----
+    Latency compensation is what makes the system pass the standard's own test rows:
+    Tables 5-9 list several S_w up to 1.64 m larger than formula (1) gives (M3-N-O,
+    R=200 m, V=100 km/h), and a system that sees the vehicle only every
+    ``update_period_s`` would be late by up to ``v * update_period_s`` otherwise.
+    """
+
+    policy: WarningSpeedPolicy = field(default_factory=lambda: DEFAULT_POLICY)
+    update_period_s: float = 0.1
+    system_delay_s: float = 0.1
+    g_mps2: float = 9.8
+
+    def __post_init__(self) -> None:
+        for name in ("update_period_s", "system_delay_s"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number of seconds, got {value!r}")
+        if not (np.isfinite(self.g_mps2) and self.g_mps2 > 0):
+            raise ValueError(f"g_mps2 must be a positive number, got {self.g_mps2!r}")
+
+    @property
+    def latency_s(self) -> float:
+        """Total latency t_latency compensated for, s."""
+        return self.update_period_s + self.system_delay_s
+
+
+@dataclass(frozen=True)
+class HmiHint:
+    """How an on-board unit should present a warning level (5.5.1: the levels differ clearly).
+
+    Attributes
+    ----------
+    visual
+        The visual cue, or None.
+    audible
+        The audible cue, or None.
+    """
+
+    visual: str | None
+    audible: str | None
+
+    @classmethod
+    def for_level(cls, level: Level) -> "HmiHint":
+        """The hint of a warning level: level 1 visual, level 2 visual and audible."""
+        return _HMI_HINTS[Level(level)]
+
+
+_HMI_HINTS = {
+    Level.NONE: HmiHint(visual=None, audible=None),
+    Level.LEVEL_1: HmiHint(visual="curve-warning-amber", audible=None),
+    Level.LEVEL_2: HmiHint(visual="curve-warning-red-flashing", audible="warning-tone"),
+}
+
+
+@dataclass(frozen=True)
+class Trigger:
+    """A CPOI whose warning condition (6.1) holds at one level.
+
+    Attributes
+    ----------
+    curve_id, part_index, distance_m, radius_m
+        The CPOI.
+    level
+        The highest level triggered at this CPOI.
+    warning_speed_kmh
+        V_w of that level at the CPOI's radius.
+    warning_distance_m
+        S_w of formula (1) at the vehicle's speed, m (without the latency allowance).
+    """
+
+    curve_id: str
+    part_index: int
+    distance_m: float
+    radius_m: float
+    level: Level
+    warning_speed_kmh: float
+    warning_distance_m: float
+
+
+@dataclass(frozen=True)
+class CurveWarning:
+    """The warning for one vehicle at one instant.
+
+    Attributes
+    ----------
+    level
+        0 (none), 1 or 2; level 2 has priority (6.2.1).
+    target
+        The target CPOI (3.12): highest level, then nearest; None without a warning.
+    triggers
+        Every triggering CPOI, nearest first.
+    path_kind
+        Whether the CPOIs were found on the known route or on the predicted path.
+    hmi
+        The presentation of ``level`` (5.5.1).
+    """
+
+    level: Level
+    target: Trigger | None
+    triggers: tuple[Trigger, ...]
+    path_kind: PathKind
+    hmi: HmiHint
+
+
+@dataclass(frozen=True)
+class BatchWarnings:
+    """Warnings of many vehicles as arrays: one entry per vehicle, target index into the CPOIs.
+
+    Attributes
+    ----------
+    level
+        ``(n_vehicles,)`` warning level 0, 1 or 2.
+    target
+        ``(n_vehicles,)`` index of the target CPOI in the flat CPOI arrays, -1 without one.
+    cpoi_level
+        ``(n_cpois,)`` highest level triggered at each CPOI, 0 where none.
+    warning_speed_kmh
+        ``(n_cpois,)`` V_w of ``cpoi_level`` at each CPOI (level 1's where none is triggered).
+    warning_distance_m
+        ``(n_cpois,)`` S_w of formula (1) for that V_w, m.
+    """
+
+    level: np.ndarray
+    target: np.ndarray
+    cpoi_level: np.ndarray
+    warning_speed_kmh: np.ndarray
+    warning_distance_m: np.ndarray
+
+
+def _warning_speeds_kmh(radius_m: np.ndarray, column_index: np.ndarray, level: Level, policy: WarningSpeedPolicy):
+    """V_w per CPOI for ``level``, each at its vehicle's column of Tables 1-2."""
+    speeds = np.empty_like(radius_m)
+    for index, column in enumerate(Column):
+        mask = column_index == index
+        if mask.any():
+            speeds[mask] = policy.warning_speed_kmh(radius_m[mask], column, level)
+    return speeds
+
+
+def column_indices(categories: Sequence["str | Category"]) -> np.ndarray:
+    """Index into ``list(Column)`` of each category's column of Tables 1-2."""
+    order = {column: index for index, column in enumerate(Column)}
+    return np.array([order[Category.parse(c).column] for c in categories], dtype=np.int8)
+
+
+def evaluate_batch(
+    speed_kmh: np.ndarray,
+    column_index: np.ndarray,
+    cpoi_vehicle: np.ndarray,
+    cpoi_distance_m: np.ndarray,
+    cpoi_radius_m: np.ndarray,
+    settings: WarningSettings = WarningSettings(),
+) -> BatchWarnings:
+    """Evaluate clause 6 for many vehicles and their CPOIs at once.
+
+    Parameters
+    ----------
+    speed_kmh
+        ``(n_vehicles,)`` vehicle speeds V, km/h.
+    column_index
+        ``(n_vehicles,)`` column of Tables 1-2 per vehicle (see :func:`column_indices`).
+    cpoi_vehicle
+        ``(n_cpois,)`` index of the vehicle each CPOI belongs to.
+    cpoi_distance_m
+        ``(n_cpois,)`` distance S from the vehicle to the CPOI, m (>= 0).
+    cpoi_radius_m
+        ``(n_cpois,)`` radius at the CPOI, m.
+    settings
+        Policy and latency.
+
+    Returns
+    -------
+    BatchWarnings
+        Per-vehicle level and target, per-CPOI triggered level, V_w and S_w.
+    """
+    speed_kmh = np.asarray(speed_kmh, dtype=float)
+    cpoi_vehicle = np.asarray(cpoi_vehicle, dtype=np.intp)
+    distance = np.asarray(cpoi_distance_m, dtype=float)
+    radius = np.asarray(cpoi_radius_m, dtype=float)
+    cpoi_column = np.asarray(column_index)[cpoi_vehicle]
+    cpoi_speed_mps = kmh_to_mps(speed_kmh[cpoi_vehicle])
+    allowance_m = cpoi_speed_mps * settings.latency_s
+
+    cpoi_level = np.zeros(distance.shape, dtype=np.int8)
+    speeds_by_level, distances_by_level = [], []
+    for level in (Level.LEVEL_1, Level.LEVEL_2):
+        threshold_kmh = _warning_speeds_kmh(radius, cpoi_column, level, settings.policy)
+        sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
+        # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
+        triggered = (speed_kmh[cpoi_vehicle] >= threshold_kmh) & (distance <= sw_m + allowance_m)
+        cpoi_level[triggered] = level
+        speeds_by_level.append(threshold_kmh)
+        distances_by_level.append(sw_m)
+    at_level_2 = cpoi_level == Level.LEVEL_2
+    cpoi_speed_kmh = np.where(at_level_2, speeds_by_level[1], speeds_by_level[0])
+    cpoi_sw_m = np.where(at_level_2, distances_by_level[1], distances_by_level[0])
+
+    level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
+    return BatchWarnings(level, target, cpoi_level, cpoi_speed_kmh, cpoi_sw_m)
+
+
+def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray):
+    """Per vehicle the highest triggered level and its nearest CPOI (3.12, 6.2.1)."""
+    level = np.zeros(n_vehicles, dtype=np.int8)
+    target = np.full(n_vehicles, -1, dtype=np.intp)
+    triggered = np.flatnonzero(cpoi_level > 0)
+    if triggered.size == 0:
+        return level, target
+    # Sort by vehicle, then level descending, then distance ascending: the first of each vehicle wins.
+    order = triggered[np.lexsort((distance[triggered], -cpoi_level[triggered], cpoi_vehicle[triggered]))]
+    vehicles = cpoi_vehicle[order]
+    first = np.concatenate(([True], vehicles[1:] != vehicles[:-1]))
+    level[vehicles[first]] = cpoi_level[order[first]]
+    target[vehicles[first]] = order[first]
+    return level, target
+
+
+def evaluate(
+    speed_kmh: float,
+    category: "str | Category",
+    cpois: Sequence[CurvaturePointOfInterest],
+    path_kind: PathKind = PathKind.ROUTE,
+    settings: WarningSettings = WarningSettings(),
+) -> CurveWarning:
+    """The warning for one vehicle at speed ``speed_kmh`` with ``cpois`` ahead (clause 6).
+
+    Returns a :class:`CurveWarning` listing every triggering CPOI; below every warning
+    speed, or with no CPOI ahead (a straight), the level is 0.
+    """
+    batch = evaluate_batch(
+        np.array([speed_kmh], dtype=float),
+        column_indices([category]),
+        np.zeros(len(cpois), dtype=np.intp),
+        np.array([p.distance_m for p in cpois], dtype=float),
+        np.array([p.radius_m for p in cpois], dtype=float),
+        settings,
+    )
+    triggers = {
+        i: Trigger(
+            curve_id=cpois[i].curve_id,
+            part_index=cpois[i].part_index,
+            distance_m=cpois[i].distance_m,
+            radius_m=cpois[i].radius_m,
+            level=Level(int(batch.cpoi_level[i])),
+            warning_speed_kmh=float(batch.warning_speed_kmh[i]),
+            warning_distance_m=float(batch.warning_distance_m[i]),
+        )
+        for i in np.flatnonzero(batch.cpoi_level > 0)
+    }
+    target_index = int(batch.target[0])
+    level = Level(int(batch.level[0]))
+    return CurveWarning(
+        level=level,
+        target=triggers[target_index] if target_index >= 0 else None,
+        triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
+        path_kind=path_kind,
+        hmi=HmiHint.for_level(level),
+    )
