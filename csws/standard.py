@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from enum import IntEnum, StrEnum
 from typing import Mapping
 
@@ -161,8 +162,8 @@ class WarningSpeedPolicy:
 
     def __post_init__(self) -> None:
         radii = np.asarray(self.radii_m, dtype=float)
-        if radii.ndim != 1 or radii.size == 0 or np.any(~np.isfinite(radii)) or np.any(radii <= 0):
-            raise ValueError("policy radii must be finite positive numbers")
+        if radii.ndim != 1 or radii.size < 2 or np.any(~np.isfinite(radii)) or np.any(radii <= 0):
+            raise ValueError("policy radii must be two or more finite positive numbers")
         if np.any(np.diff(radii) <= 0):
             raise ValueError("policy radii must be strictly increasing")
         for key, speeds in self.speeds_kmh.items():
@@ -173,21 +174,52 @@ class WarningSpeedPolicy:
 
     def lateral_acceleration_mps2(self, column: Column, level: Level) -> np.ndarray:
         """The lateral acceleration a = v_w^2 / R (m/s^2) at each policy radius."""
-        speeds_mps = kmh_to_mps(np.asarray(self.speeds_kmh[(column, level)], dtype=float))
-        return speeds_mps**2 / np.asarray(self.radii_m, dtype=float)
+        return self._acceleration_table_mps2[_LEVELS.index(level), _COLUMNS.index(column)]
 
-    def warning_speed_kmh(self, radius_m: np.ndarray, column: Column, level: Level) -> np.ndarray:
-        """V_w (km/h) for an array of radii; ``inf`` where the radius is infinite (a straight).
+    @cached_property
+    def _radii_m(self) -> np.ndarray:
+        """The policy radii as an array."""
+        return np.asarray(self.radii_m, dtype=float)
 
-        The lateral acceleration of the table is interpolated linearly in R between the
-        policy radii and held constant outside them; at a policy radius the result is
-        the policy's speed (rounded to 1e-9 km/h to absorb floating-point error).
+    @cached_property
+    def _acceleration_table_mps2(self) -> np.ndarray:
+        """a = v_w^2 / R per (level, column, radius), computed once per policy."""
+        table = np.full((len(_LEVELS), len(_COLUMNS), len(self.radii_m)), np.nan)
+        for (column, level), speeds in self.speeds_kmh.items():
+            speeds_mps = kmh_to_mps(np.asarray(speeds, dtype=float))
+            table[_LEVELS.index(Level(level)), _COLUMNS.index(Column(column))] = speeds_mps**2 / np.asarray(self.radii_m)
+        return table
+
+    def warning_speeds_kmh(self, radius_m: np.ndarray, column_index: np.ndarray) -> np.ndarray:
+        """V_w (km/h) of both levels for arrays of radii and column indices (into ``list(Column)``).
+
+        Returns an array of shape ``(2, n)``: row 0 level 1, row 1 level 2; ``inf`` where
+        the radius is infinite (a straight). The lateral acceleration of the policy is
+        interpolated linearly in R between the policy radii and held constant outside
+        them; at a policy radius the result is the policy's speed (rounded to 1e-9 km/h
+        to absorb floating-point error).
         """
         radius = np.asarray(radius_m, dtype=float)
-        accel = np.interp(radius, self.radii_m, self.lateral_acceleration_mps2(column, level))
-        with np.errstate(invalid="ignore"):
-            speed_kmh = np.round(mps_to_kmh(np.sqrt(accel * radius)), 9)
-        return np.where(np.isinf(radius), np.inf, speed_kmh)
+        radii = self._radii_m
+        clipped = np.minimum(np.maximum(radius, radii[0]), radii[-1])
+        upper = np.minimum(np.searchsorted(radii, clipped, side="right"), len(radii) - 1)
+        lower = upper - 1
+        weight = (clipped - radii[lower]) / (radii[upper] - radii[lower])
+        table = self._acceleration_table_mps2[:, np.asarray(column_index)]
+        points = np.arange(radius.size)
+        accel = table[:, points, lower] * (1 - weight) + table[:, points, upper] * weight
+        return np.round(mps_to_kmh(np.sqrt(accel * radius)), 9)
+
+    def warning_speed_kmh(self, radius_m: np.ndarray, column: Column, level: Level) -> np.ndarray:
+        """V_w (km/h) of one column and level for an array of radii (see :meth:`warning_speeds_kmh`)."""
+        radius = np.asarray(radius_m, dtype=float)
+        column_index = np.full(radius.shape, _COLUMNS.index(column))
+        speeds = self.warning_speeds_kmh(radius.ravel(), column_index.ravel())[_LEVELS.index(level)]
+        return speeds.reshape(radius.shape)
+
+
+_LEVELS = (Level.LEVEL_1, Level.LEVEL_2)
+_COLUMNS = tuple(Column)
 
 
 #: The standard's own warning speeds (Tables 1 and 2).
@@ -250,8 +282,7 @@ def warning_distance_m(speed_mps: np.ndarray, warning_speed_mps: np.ndarray, g: 
     """
     speed = np.asarray(speed_mps, dtype=float)
     threshold = np.asarray(warning_speed_mps, dtype=float)
-    with np.errstate(invalid="ignore"):
-        distance = REACTION_TIME_S * speed + (speed**2 - threshold**2) / g
+    distance = REACTION_TIME_S * speed + (speed**2 - threshold**2) / g
     return np.where(speed >= threshold, distance, 0.0)
 
 

@@ -47,6 +47,7 @@ __all__ = [
     "evaluate",
     "evaluate_batch",
     "BatchWarnings",
+    "column_index",
     "column_indices",
 ]
 
@@ -228,20 +229,20 @@ class BatchWarnings:
     warning_distance_m: np.ndarray
 
 
-def _warning_speeds_kmh(radius_m: np.ndarray, column_index: np.ndarray, level: Level, policy: WarningSpeedPolicy):
-    """V_w per CPOI for ``level``, each at its vehicle's column of Tables 1-2."""
-    speeds = np.empty_like(radius_m)
-    for index, column in enumerate(Column):
-        mask = column_index == index
-        if mask.any():
-            speeds[mask] = policy.warning_speed_kmh(radius_m[mask], column, level)
-    return speeds
+_COLUMN_INDEX = {category: list(Column).index(category.column) for category in Category}
+_COLUMN_INDEX.update({category.value: index for category, index in _COLUMN_INDEX.items()})
+_LEVEL_1, _LEVEL_2 = int(Level.LEVEL_1), int(Level.LEVEL_2)
+
+
+def column_index(category: "str | Category") -> int:
+    """Index into ``list(Column)`` of a category's column of Tables 1-2."""
+    index = _COLUMN_INDEX.get(category)
+    return index if index is not None else _COLUMN_INDEX[Category.parse(category)]
 
 
 def column_indices(categories: Sequence["str | Category"]) -> np.ndarray:
     """Index into ``list(Column)`` of each category's column of Tables 1-2."""
-    order = {column: index for index, column in enumerate(Column)}
-    return np.array([order[Category.parse(c).column] for c in categories], dtype=np.int8)
+    return np.array([column_index(c) for c in categories], dtype=np.intp)
 
 
 def evaluate_batch(
@@ -282,19 +283,16 @@ def evaluate_batch(
     cpoi_speed_mps = kmh_to_mps(speed_kmh[cpoi_vehicle])
     allowance_m = cpoi_speed_mps * settings.latency_s
 
-    cpoi_level = np.zeros(distance.shape, dtype=np.int8)
-    speeds_by_level, distances_by_level = [], []
-    for level in (Level.LEVEL_1, Level.LEVEL_2):
-        threshold_kmh = _warning_speeds_kmh(radius, cpoi_column, level, settings.policy)
-        sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
-        # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
-        triggered = (speed_kmh[cpoi_vehicle] >= threshold_kmh) & (distance <= sw_m + allowance_m)
-        cpoi_level[triggered] = level
-        speeds_by_level.append(threshold_kmh)
-        distances_by_level.append(sw_m)
-    at_level_2 = cpoi_level == Level.LEVEL_2
-    cpoi_speed_kmh = np.where(at_level_2, speeds_by_level[1], speeds_by_level[0])
-    cpoi_sw_m = np.where(at_level_2, distances_by_level[1], distances_by_level[0])
+    # Row 0: level 1, row 1: level 2 (Tables 1 and 2).
+    threshold_kmh = settings.policy.warning_speeds_kmh(radius, cpoi_column)
+    sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
+    # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
+    triggered = (speed_kmh[cpoi_vehicle] >= threshold_kmh) & (distance <= sw_m + allowance_m)
+    shown = triggered[1].astype(np.intp)
+    cpoi_level = (triggered[0] | triggered[1]).astype(np.int8) + shown.astype(np.int8)
+    columns = np.arange(distance.size)
+    cpoi_speed_kmh = threshold_kmh[shown, columns]
+    cpoi_sw_m = sw_m[shown, columns]
 
     level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
     return BatchWarnings(level, target, cpoi_level, cpoi_speed_kmh, cpoi_sw_m)
@@ -330,7 +328,7 @@ def evaluate(
     """
     batch = evaluate_batch(
         np.array([speed_kmh], dtype=float),
-        column_indices([category]),
+        np.array([column_index(category)]),
         np.zeros(len(cpois), dtype=np.intp),
         np.array([p.distance_m for p in cpois], dtype=float),
         np.array([p.radius_m for p in cpois], dtype=float),
