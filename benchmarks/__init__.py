@@ -1,0 +1,1 @@
+"""Benchmarks of csws: accuracy against constructed ground truth, and speed."""

@@ -1,0 +1,232 @@
+"""Radius profiles and curves (3.4-3.8) against geometry built exactly with csws.geometry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from csws.curvature import (
+    curves_from_profile,
+    find_curves,
+    radius_profile,
+    radius_profiles,
+    three_point_radius,
+)
+from csws.geometry import arc, piece_starts_s, pose_at, sample_pieces, straight
+
+#: Warning radius used on arcs up to 500 m, so that every one of them is a curve, m.
+WIDE_WARNING_RADIUS_M = 1000.0
+
+radii_m = st.floats(25.0, 500.0)
+headings_rad = st.floats(-math.pi, math.pi)
+origins_m = st.tuples(st.floats(-5000.0, 5000.0), st.floats(-5000.0, 5000.0))
+directions = st.sampled_from(["left", "right"])
+seeds = st.integers(0, 2**32 - 1)
+
+
+def dense_shape(pieces, spacing_m, origin, heading_rad):
+    """A SUMO-like shape: evenly spaced vertices rounded to the centimetre."""
+    xy, _ = sample_pieces(pieces, spacing_m, origin, heading_rad)
+    return np.round(xy, 2)
+
+
+def sparse_way(pieces, seed, origin, heading_rad, noise_rms_m):
+    """A map-like way: nodes 5-30 m apart at irregular arc lengths, with isotropic noise."""
+    rng = np.random.default_rng(seed)
+    length_m = piece_starts_s(pieces)[-1]
+    s = np.concatenate(([0.0], np.cumsum(rng.uniform(5.0, 30.0, size=int(length_m / 5.0) + 2))))
+    s = np.append(s[s < length_m], length_m)
+    x, y, _ = pose_at(pieces, s, origin, heading_rad)
+    return np.column_stack((x, y)) + rng.normal(0.0, noise_rms_m / math.sqrt(2.0), size=(len(s), 2))
+
+
+def only_curve(xy, warning_radius_m=WIDE_WARNING_RADIUS_M):
+    curves = find_curves(xy, warning_radius_m)
+    assert len(curves) == 1, curves
+    return curves[0]
+
+
+@settings(max_examples=50, deadline=None)
+@given(radii_m, st.floats(20.0, 120.0), directions, st.floats(0.5, 1.0), origins_m, headings_rad)
+def test_dense_arc_is_one_curve_with_its_radius_start_and_end(radius_m, angle_deg, direction, spacing_m, origin, heading):
+    angle_deg = max(angle_deg, math.degrees(15.0 / radius_m))  # at least 15 m of arc
+    pieces = [straight(80.0), arc(radius_m, angle_deg, direction), straight(60.0)]
+    curve = only_curve(dense_shape(pieces, spacing_m, origin, heading))
+    start_s, end_s = piece_starts_s(pieces)[1:3]
+    assert curve.min_radius_m == pytest.approx(radius_m, rel=0.02)
+    assert abs(curve.start_s - start_s) <= 1.0
+    assert abs(curve.end_s - end_s) <= 1.0
+    assert curve.angle_deg == pytest.approx(angle_deg, abs=1.0)
+    assert curve.direction == direction
+    assert not curve.is_multi
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(60.0, 250.0), directions, seeds, origins_m, headings_rad)
+def test_sparse_exact_arc_is_found_within_sparse_tolerances(radius_m, direction, seed, origin, heading):
+    angle_deg = max(40.0, math.degrees(150.0 / radius_m))  # at least 150 m of arc: several nodes on it
+    pieces = [straight(120.0), arc(radius_m, min(angle_deg, 150.0), direction), straight(120.0)]
+    curve = only_curve(sparse_way(pieces, seed, origin, heading, noise_rms_m=0.0), warning_radius_m=300.0)
+    assert curve.min_radius_m == pytest.approx(radius_m, rel=0.05)
+    assert abs(curve.start_s - 120.0) <= 8.0
+    assert curve.direction == direction
+
+
+def test_sparse_noisy_arcs_meet_the_median_targets():
+    """Per case, noise can leave a short spurious part beside a knot; the targets are medians."""
+    rng = np.random.default_rng(91)
+    radius_errors, start_errors = [], []
+    for _ in range(40):
+        radius_m = float(rng.uniform(60.0, 250.0))
+        angle_deg = max(60.0, math.degrees(200.0 / radius_m))
+        pieces = [straight(150.0), arc(radius_m, angle_deg, str(rng.choice(["left", "right"]))), straight(150.0)]
+        origin = (float(rng.uniform(-5000, 5000)), float(rng.uniform(-5000, 5000)))
+        curves = find_curves(sparse_way(pieces, int(rng.integers(2**32)), origin, float(rng.uniform(-3, 3)), 0.5))
+        curve = max(curves, key=lambda c: c.angle_deg)
+        radius_errors.append(abs(curve.min_radius_m / radius_m - 1.0))
+        start_errors.append(abs(curve.start_s - 150.0))
+    assert np.median(radius_errors) <= 0.05
+    assert np.median(start_errors) <= 5.0
+
+
+def test_sparse_noisy_straights_rarely_show_a_curve():
+    rng = np.random.default_rng(92)
+    ways = [
+        sparse_way([straight(float(rng.uniform(50.0, 1500.0)))], int(rng.integers(2**32)), (0.0, 0.0), float(rng.uniform(-3, 3)), 0.5)
+        for _ in range(60)
+    ]
+    assert sum(len(find_curves(xy)) for xy in ways) <= 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(30.0, 250.0), st.floats(30.0, 90.0), directions, origins_m, headings_rad)
+def test_s_bend_is_two_curves_turning_opposite_ways(radius_m, angle_deg, first_direction, origin, heading):
+    second_direction = "right" if first_direction == "left" else "left"
+    pieces = [straight(60.0), arc(radius_m, angle_deg, first_direction), arc(radius_m, angle_deg, second_direction), straight(60.0)]
+    first, second = find_curves(dense_shape(pieces, 0.8, origin, heading))
+    assert (first.direction, second.direction) == (first_direction, second_direction)
+    assert abs(second.start_s - first.end_s) <= 1.0
+    assert abs(first.end_s - piece_starts_s(pieces)[2]) <= 1.0
+    assert first.min_radius_m == pytest.approx(radius_m, rel=0.01)
+    assert second.min_radius_m == pytest.approx(radius_m, rel=0.01)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.sampled_from([(200.0, 40.0, 70.0), (120.0, 15.0, 35.0)]),
+    st.floats(0.0, 1.0),
+    st.floats(28.0, 60.0),
+    directions,
+    origins_m,
+    headings_rad,
+)
+def test_standard_multi_curve_is_one_curve_with_a_sharp_step(first, where, length_2_m, direction, origin, heading):
+    radius_1_m, shortest_m, longest_m = first
+    length_1_m = shortest_m + where * (longest_m - shortest_m)
+    pieces = [
+        straight(100.0),
+        arc(radius_1_m, math.degrees(length_1_m / radius_1_m), direction),
+        arc(40.0, math.degrees(length_2_m / 40.0), direction),
+        straight(80.0),
+    ]
+    curve = only_curve(dense_shape(pieces, 0.7, origin, heading), warning_radius_m=300.0)
+    assert curve.is_multi and len(curve.parts) == 2
+    assert curve.parts[0].radius_m == pytest.approx(radius_1_m, rel=0.05)
+    assert curve.parts[1].radius_m == pytest.approx(40.0, rel=0.01)
+    assert abs(curve.parts[1].start_s - piece_starts_s(pieces)[2]) <= 1.0
+    assert curve.min_radius_m == curve.parts[1].radius_m
+
+
+def test_profile_vertex_values_come_from_its_parts():
+    pieces = [straight(50.0), arc(100.0, 45.0, "right"), straight(50.0)]
+    xy, true_s = sample_pieces(pieces, 1.0)
+    profile = radius_profile(np.round(xy, 2))
+    assert profile.s[0] == 0.0 and profile.s == pytest.approx(true_s, abs=0.05)
+    on_arc = (true_s > 55.0) & (true_s < 120.0)
+    assert profile.curvature[on_arc] == pytest.approx(-0.01, rel=0.01)
+    with np.errstate(divide="ignore"):
+        assert profile.radius == pytest.approx(1.0 / np.abs(profile.curvature))
+    assert profile.parts[0].start_s == 0.0 and profile.parts[-1].end_s == profile.s[-1]
+    assert curves_from_profile(profile)[0].direction == "right"
+
+
+def test_many_polylines_give_the_profiles_of_each_alone():
+    rng = np.random.default_rng(7)
+    polylines = [
+        dense_shape([straight(30.0), arc(60.0, 70.0, "left"), straight(30.0)], 0.6, (10.0, 20.0), 0.4),
+        np.empty((0, 2)),
+        sparse_way([straight(100.0), arc(150.0, 60.0, "right"), straight(100.0)], 3, (0.0, 0.0), 1.0, 0.5),
+        np.array([[1.0, 1.0]]),
+        rng.normal(size=(5, 2)),
+    ]
+    together = radius_profiles(polylines)
+    for polyline, profile in zip(polylines, together):
+        alone = radius_profile(polyline)
+        assert len(profile.parts) == len(alone.parts)
+        for part, part_alone in zip(profile.parts, alone.parts):
+            assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
+                (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-9, abs=1e-12
+            )
+        np.testing.assert_allclose(profile.curvature, alone.curvature, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("xy", [np.empty((0, 2)), [], np.array([[3.0, 4.0]]), np.array([[3.0, 4.0]] * 5)])
+def test_polylines_without_length_give_a_straight_profile(xy):
+    profile = radius_profile(xy)
+    count = len(np.asarray(xy))
+    assert profile.parts == ()
+    assert profile.s.shape == profile.curvature.shape == profile.radius.shape == (count,)
+    assert np.all(profile.s == 0.0) and np.all(profile.curvature == 0.0) and np.all(np.isinf(profile.radius))
+    assert find_curves(xy) == []
+
+
+def test_repeated_vertices_are_ignored():
+    xy = dense_shape([straight(40.0), arc(50.0, 90.0, "left"), straight(40.0)], 0.8, (0.0, 0.0), 0.0)
+    doubled = np.repeat(xy, 2, axis=0)
+    profile, with_repeats = radius_profile(xy), radius_profile(doubled)
+    assert with_repeats.parts == profile.parts
+    np.testing.assert_array_equal(with_repeats.s[::2], profile.s)
+    np.testing.assert_array_equal(with_repeats.s[1::2], profile.s)
+
+
+def test_two_points_are_a_straight():
+    profile = radius_profile(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    assert [(p.start_s, p.end_s, p.curvature) for p in profile.parts] == [(0.0, 10.0, 0.0)]
+
+
+@pytest.mark.parametrize(
+    "xy, message",
+    [
+        (np.array([[0.0, 0.0], [np.nan, 1.0]]), "NaN or infinite"),
+        (np.array([[0.0, 0.0], [np.inf, 1.0]]), "NaN or infinite"),
+        (np.zeros((4, 3)), "shape"),
+        (np.zeros(4), "shape"),
+        ([["a", "b"]], "array of numbers"),
+    ],
+)
+def test_bad_input_raises_a_clear_value_error(xy, message):
+    with pytest.raises(ValueError, match=message):
+        radius_profile(xy)
+
+
+def test_bad_polyline_in_a_batch_is_named():
+    with pytest.raises(ValueError, match="polyline 1"):
+        radius_profiles([np.zeros((2, 2)), np.array([[0.0, np.nan]])])
+
+
+def test_warning_radius_must_be_positive():
+    with pytest.raises(ValueError, match="warning radius"):
+        find_curves(np.array([[0.0, 0.0], [1.0, 0.0]]), warning_radius_m=0.0)
+
+
+def test_three_point_radius_is_exact_on_a_circle_and_inf_at_ends():
+    angle = np.linspace(0.0, 1.0, 9)
+    xy = 80.0 * np.column_stack((np.cos(angle), np.sin(angle)))
+    radius = three_point_radius(xy)
+    assert np.isinf(radius[[0, -1]]).all()
+    assert radius[1:-1] == pytest.approx(80.0)
+    assert np.isinf(three_point_radius(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))[1])
