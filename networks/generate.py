@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,9 +34,9 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from csws.binaries import sumo_binary, sumo_home
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
+from csws.netbuild import netconvert, shape_text
 
 __all__ = [
     "APPROACH_M",
@@ -384,11 +382,6 @@ def networks_index(specs: Sequence[TrackSpec]) -> dict:
     }
 
 
-def _points_text(shape: np.ndarray) -> str:
-    """A shape as SUMO's ``x,y x,y ...`` with micrometre digits (netconvert rounds on output)."""
-    return " ".join(f"{x:.6f},{y:.6f}" for x, y in shape)
-
-
 def _junction_shape(x_m: float, y_m: float, heading_rad: float) -> np.ndarray:
     """Custom shape of a node between two edges: a line ``JUNCTION_WIDTH_M`` wide across the road.
 
@@ -415,7 +408,7 @@ def _plain_xml(spec: TrackSpec) -> tuple[str, str]:
     for number, (node_id, index) in enumerate(zip(_NODES, node_pieces)):
         node = ElementTree.SubElement(nodes, "node", id=node_id, x=f"{x[index]:.6f}", y=f"{y[index]:.6f}")
         if 0 < number < len(_NODES) - 1:
-            node.set("shape", _points_text(_junction_shape(x[index], y[index], heading[index])))
+            node.set("shape", shape_text(_junction_shape(x[index], y[index], heading[index])))
     edges = ElementTree.Element("edges")
     for number, (edge_id, shape) in enumerate(zip(ROUTE_EDGES, _edge_shapes(pieces))):
         ElementTree.SubElement(
@@ -427,31 +420,9 @@ def _plain_xml(spec: TrackSpec) -> tuple[str, str]:
             numLanes="1",
             speed=f"{LANE_SPEED_MPS:g}",
             spreadType="center",
-            shape=_points_text(shape),
+            shape=shape_text(shape),
         )
     return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
-
-
-def _netconvert(node_file: Path, edge_file: Path, net_file: Path) -> None:
-    """Run netconvert on plain XML; RuntimeError on failure or on any warning.
-
-    Coordinates stay as authored (``--offset.disable-normalization``); no turnarounds
-    are built. A warning means netconvert changed or doubted the input, so it is an error.
-    """
-    command = [
-        str(sumo_binary("netconvert")),
-        "--node-files", node_file.name,
-        "--edge-files", edge_file.name,
-        "--output-file", str(net_file.resolve()),
-        "--no-turnarounds", "true",
-        "--offset.disable-normalization", "true",
-        "--precision", str(PRECISION_DIGITS),
-    ]  # fmt: skip
-    environment = {**os.environ, "SUMO_HOME": str(sumo_home())}
-    result = subprocess.run(command, cwd=node_file.parent, env=environment, capture_output=True, text=True)
-    messages = (result.stdout + result.stderr).strip()
-    if result.returncode != 0 or "warning" in messages.lower() or "error" in messages.lower():
-        raise RuntimeError(f"netconvert failed on {net_file.name} (exit {result.returncode}):\n{messages}")
 
 
 def _write_json(path: Path, content: dict) -> None:
@@ -464,12 +435,8 @@ def build_network(spec: TrackSpec, directory: Path) -> Path:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     net_file = directory / f"{spec.name}.net.xml"
-    with tempfile.TemporaryDirectory(prefix="csws-track-") as work:
-        node_file, edge_file = Path(work) / "track.nod.xml", Path(work) / "track.edg.xml"
-        node_text, edge_text = _plain_xml(spec)
-        node_file.write_text(node_text, encoding="utf-8")
-        edge_file.write_text(edge_text, encoding="utf-8")
-        _netconvert(node_file, edge_file, net_file)
+    node_text, edge_text = _plain_xml(spec)
+    netconvert(node_text, edge_text, net_file, ["--precision", str(PRECISION_DIGITS)], strict=True)
     _write_json(directory / f"{spec.name}.truth.json", track_truth(spec))
     return net_file
 
