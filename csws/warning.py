@@ -220,6 +220,8 @@ class BatchWarnings:
         ``(n_cpois,)`` V_w of ``cpoi_level`` at each CPOI (level 1's where none is triggered).
     warning_distance_m
         ``(n_cpois,)`` S_w of formula (1) for that V_w, m.
+    cpoi_distance_m, cpoi_radius_m
+        ``(n_cpois,)`` the CPOIs' distances and radii as given, m.
     """
 
     level: np.ndarray
@@ -227,6 +229,42 @@ class BatchWarnings:
     cpoi_level: np.ndarray
     warning_speed_kmh: np.ndarray
     warning_distance_m: np.ndarray
+    cpoi_distance_m: np.ndarray
+    cpoi_radius_m: np.ndarray
+
+    def vehicle_warning(
+        self,
+        vehicle: int,
+        first_cpoi: int,
+        curve_ids: Sequence[str],
+        part_indices: Sequence[int],
+        path_kind: PathKind,
+    ) -> CurveWarning:
+        """The :class:`CurveWarning` of one vehicle, whose CPOIs are the rows from ``first_cpoi`` on.
+
+        ``curve_ids`` and ``part_indices`` name the vehicle's CPOIs in order.
+        """
+        rows = first_cpoi + np.flatnonzero(self.cpoi_level[first_cpoi:first_cpoi + len(curve_ids)] > 0)
+        triggers = {
+            int(row): Trigger(
+                curve_id=curve_ids[row - first_cpoi],
+                part_index=int(part_indices[row - first_cpoi]),
+                distance_m=float(self.cpoi_distance_m[row]),
+                radius_m=float(self.cpoi_radius_m[row]),
+                level=Level(int(self.cpoi_level[row])),
+                warning_speed_kmh=float(self.warning_speed_kmh[row]),
+                warning_distance_m=float(self.warning_distance_m[row]),
+            )
+            for row in rows
+        }
+        level = Level(int(self.level[vehicle]))
+        return CurveWarning(
+            level=level,
+            target=triggers.get(int(self.target[vehicle])),
+            triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
+            path_kind=path_kind,
+            hmi=HmiHint.for_level(level),
+        )
 
 
 _COLUMN_INDEX = {category: list(Column).index(category.column) for category in Category}
@@ -295,7 +333,7 @@ def evaluate_batch(
     cpoi_sw_m = sw_m[shown, columns]
 
     level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
-    return BatchWarnings(level, target, cpoi_level, cpoi_speed_kmh, cpoi_sw_m)
+    return BatchWarnings(level, target, cpoi_level, cpoi_speed_kmh, cpoi_sw_m, distance, radius)
 
 
 def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray):
@@ -334,24 +372,6 @@ def evaluate(
         np.array([p.radius_m for p in cpois], dtype=float),
         settings,
     )
-    triggers = {
-        i: Trigger(
-            curve_id=cpois[i].curve_id,
-            part_index=cpois[i].part_index,
-            distance_m=cpois[i].distance_m,
-            radius_m=cpois[i].radius_m,
-            level=Level(int(batch.cpoi_level[i])),
-            warning_speed_kmh=float(batch.warning_speed_kmh[i]),
-            warning_distance_m=float(batch.warning_distance_m[i]),
-        )
-        for i in np.flatnonzero(batch.cpoi_level > 0)
-    }
-    target_index = int(batch.target[0])
-    level = Level(int(batch.level[0]))
-    return CurveWarning(
-        level=level,
-        target=triggers[target_index] if target_index >= 0 else None,
-        triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
-        path_kind=path_kind,
-        hmi=HmiHint.for_level(level),
+    return batch.vehicle_warning(
+        0, 0, [p.curve_id for p in cpois], [p.part_index for p in cpois], path_kind
     )
