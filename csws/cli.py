@@ -9,6 +9,7 @@ failure (a verification that does not hold) exits with status 1.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from pathlib import Path
 from typing import Callable, Sequence
@@ -70,6 +71,11 @@ def _default_networks_dir() -> Path:
     return networks_dir()
 
 
+#: Modules that add their own subcommands: each has ``add_commands(subparsers)`` and keeps its
+#: heavy imports inside its handlers, so that ``csws --help`` stays instant.
+COMMAND_MODULES = ("service.cli", "csws.cosim.cli", "csws.conformance.cli", "csws.osm.cli")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``csws`` and its subcommands."""
     parser = argparse.ArgumentParser(
@@ -103,6 +109,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     curves.add_argument("--format", choices=("table", "json", "csv"), default="table", help="output format")
     curves.set_defaults(handler=_cmd_curves)
+    for module_name in COMMAND_MODULES:
+        importlib.import_module(module_name).add_commands(commands)
     return parser
 
 

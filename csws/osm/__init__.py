@@ -1,0 +1,1 @@
+"""OpenStreetMap import: netconvert with options that keep curve geometry, plus a curve index."""
