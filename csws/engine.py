@@ -20,7 +20,7 @@ import numpy as np
 
 from .lookahead import LookAhead, LookAheadSettings, PathAhead
 from .roadmap import RoadMap
-from .standard import Category, Level
+from .standard import Level
 from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, switch
 from .warning import CurveWarning, HmiHint, PathKind, WarningSettings, column_index, evaluate_batch
 
@@ -187,13 +187,13 @@ class Engine:
         with_cpois = [p for p in paths if p is not None and p.cpoi_distance_m.size]
         batch = evaluate_batch(
             np.array([v.speed_kmh for v in vehicles], dtype=float),
-            np.array([column_index(Category.parse(v.category)) for v in vehicles], dtype=np.intp),
+            np.array([column_index(v.category) for v in vehicles], dtype=np.intp),
             np.repeat(np.arange(len(vehicles)), counts),
             np.concatenate([p.cpoi_distance_m for p in with_cpois]),
             np.concatenate([p.cpoi_radius_m for p in with_cpois]),
             self.settings.warning,
         )
-        offsets = np.concatenate(([0], np.cumsum(counts)))
+        offsets = (np.cumsum(counts) - counts).tolist()
         return [
             _no_warning(PathKind.PREDICTED)
             if path is None

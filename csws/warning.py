@@ -244,32 +244,31 @@ class BatchWarnings:
 
         ``curve_ids`` and ``part_indices`` name the vehicle's CPOIs in order.
         """
-        rows = first_cpoi + np.flatnonzero(self.cpoi_level[first_cpoi:first_cpoi + len(curve_ids)] > 0)
+        count = len(curve_ids)
+        levels = self.cpoi_level[first_cpoi:first_cpoi + count].tolist()
+        rows = [k for k in range(count) if levels[k]]
+        distances = self.cpoi_distance_m[first_cpoi:first_cpoi + count].tolist()
+        radii = self.cpoi_radius_m[first_cpoi:first_cpoi + count].tolist()
+        speeds = self.warning_speed_kmh[first_cpoi:first_cpoi + count].tolist()
+        warning_distances = self.warning_distance_m[first_cpoi:first_cpoi + count].tolist()
         triggers = {
-            int(row): Trigger(
-                curve_id=curve_ids[row - first_cpoi],
-                part_index=int(part_indices[row - first_cpoi]),
-                distance_m=float(self.cpoi_distance_m[row]),
-                radius_m=float(self.cpoi_radius_m[row]),
-                level=Level(int(self.cpoi_level[row])),
-                warning_speed_kmh=float(self.warning_speed_kmh[row]),
-                warning_distance_m=float(self.warning_distance_m[row]),
-            )
-            for row in rows
+            k: Trigger(curve_ids[k], int(part_indices[k]), distances[k], radii[k], _LEVELS[levels[k]], speeds[k],
+                       warning_distances[k])
+            for k in rows
         }
-        level = Level(int(self.level[vehicle]))
+        level = _LEVELS[int(self.level[vehicle])]
         return CurveWarning(
             level=level,
-            target=triggers.get(int(self.target[vehicle])),
+            target=triggers.get(int(self.target[vehicle]) - first_cpoi),
             triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
             path_kind=path_kind,
-            hmi=HmiHint.for_level(level),
+            hmi=_HMI_HINTS[level],
         )
 
 
 _COLUMN_INDEX = {category: list(Column).index(category.column) for category in Category}
 _COLUMN_INDEX.update({category.value: index for category, index in _COLUMN_INDEX.items()})
-_LEVEL_1, _LEVEL_2 = int(Level.LEVEL_1), int(Level.LEVEL_2)
+_LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
 
 
 def column_index(category: "str | Category") -> int:
@@ -337,18 +336,24 @@ def evaluate_batch(
 
 
 def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray):
-    """Per vehicle the highest triggered level and its nearest CPOI (3.12, 6.2.1)."""
+    """Per vehicle the highest triggered level and its nearest CPOI (3.12, 6.2.1).
+
+    CPOIs sorted by vehicle, then level descending, then distance: the first of each
+    vehicle is its target, if its level is not 0.
+    """
     level = np.zeros(n_vehicles, dtype=np.int8)
     target = np.full(n_vehicles, -1, dtype=np.intp)
-    triggered = np.flatnonzero(cpoi_level > 0)
-    if triggered.size == 0:
+    if distance.size == 0:
         return level, target
-    # Sort by vehicle, then level descending, then distance ascending: the first of each vehicle wins.
-    order = triggered[np.lexsort((distance[triggered], -cpoi_level[triggered], cpoi_vehicle[triggered]))]
+    order = np.lexsort((distance, -cpoi_level, cpoi_vehicle))
     vehicles = cpoi_vehicle[order]
-    first = np.concatenate(([True], vehicles[1:] != vehicles[:-1]))
-    level[vehicles[first]] = cpoi_level[order[first]]
-    target[vehicles[first]] = order[first]
+    first = np.empty(order.size, dtype=bool)
+    first[0] = True
+    np.not_equal(vehicles[1:], vehicles[:-1], out=first[1:])
+    best = order[first]
+    triggered = cpoi_level[best] > 0
+    level[vehicles[first][triggered]] = cpoi_level[best[triggered]]
+    target[vehicles[first][triggered]] = best[triggered]
     return level, target
 
 

@@ -1,0 +1,92 @@
+"""How long the warning takes per vehicle: one at a time, and a fleet in one vectorised batch.
+
+Two figures, each on a bundled test track (Table 9, M1, test 1) with vehicles spread
+over the 300 m before the curves at test speed:
+
+* one vehicle in-process: ``Engine.evaluate`` (look-ahead, warning of clause 6 and the
+  system state), median over many calls; and the warning step alone
+  (``csws.warning.evaluate`` on the vehicle's CPOIs);
+* a batch: ``Engine.evaluate_many`` for 1,000 vehicles, per vehicle.
+
+Run with ``python -m benchmarks.warning``.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import time
+
+import numpy as np
+
+from csws.engine import Engine, VehicleInput
+from csws.networks import networks_dir
+from csws.roadmap import RoadMap
+from csws.warning import evaluate
+
+TRACK = "t9_m1_test1_left"
+TARGET_SINGLE_US = 50.0
+
+
+def _vehicles(truth: dict, count: int, speed_kmh: float) -> list[VehicleInput]:
+    """``count`` vehicles on the 300 m before the first curve, at ``speed_kmh``."""
+    start_s = truth["curves"][0]["start_s"]
+    lanes = truth["lanes"]
+    vehicles = []
+    for i, s in enumerate(np.linspace(start_s - 300.0, start_s + 20.0, count)):
+        lane = next(lane for lane in reversed(lanes) if lane["start_s"] <= s)
+        vehicles.append(VehicleInput(f"v{i}", "M1", speed_kmh, lane["lane"], float(s - lane["start_s"]),
+                                     route_edges=truth["route"]["edges"]))
+    return vehicles
+
+
+def _median_us(function, arguments, repeat: int) -> float:
+    """Median wall time of ``function(argument)`` over the arguments, repeated, µs."""
+    for argument in arguments:
+        function(argument)  # warm the caches
+    samples = []
+    for _ in range(repeat):
+        for argument in arguments:
+            start = time.perf_counter()
+            function(argument)
+            samples.append(time.perf_counter() - start)
+    return statistics.median(samples) * 1e6
+
+
+def run(batch_size: int = 1000) -> dict:
+    """The figures: µs per vehicle alone (whole engine, warning step only) and in a batch."""
+    truth = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
+    engine = Engine(RoadMap.load(networks_dir() / f"{TRACK}.net.xml"))
+    singles = _vehicles(truth, 200, 130.0)
+    engine_us = _median_us(engine.evaluate, singles, repeat=5)
+    cpois = [engine.evaluate(v).path.cpois for v in singles]
+    warning_us = _median_us(lambda c: evaluate(130.0, "M1", c), cpois, repeat=5)
+    fleet = _vehicles(truth, batch_size, 130.0)
+    engine.evaluate_many(fleet)
+    timings = []
+    for _ in range(5):
+        start = time.perf_counter()
+        engine.evaluate_many(fleet)
+        timings.append(time.perf_counter() - start)
+    batch_us = min(timings) / batch_size * 1e6
+    return {
+        "engine_single_median_us": engine_us,
+        "warning_single_median_us": warning_us,
+        "engine_batch_per_vehicle_us": batch_us,
+        "batch_size": batch_size,
+        "batch_speedup": engine_us / batch_us,
+    }
+
+
+def main() -> None:
+    """Print the figures beside their targets."""
+    figures = run()
+    print(f"{'figure':<34} {'value':>10}  target")
+    print(f"{'engine, one vehicle (median)':<34} {figures['engine_single_median_us']:>8.1f}us  <= {TARGET_SINGLE_US:g} us")
+    print(f"{'warning step, one vehicle (median)':<34} {figures['warning_single_median_us']:>8.1f}us")
+    print(f"{'engine, batch of 1000, per vehicle':<34} {figures['engine_batch_per_vehicle_us']:>8.1f}us  "
+          f"({figures['batch_speedup']:.1f}x the single rate)")
+
+
+if __name__ == "__main__":
+    main()
