@@ -51,12 +51,16 @@ def _single_rows(table_key: str):
                                        distance_m, id=f"R{radius}-{direction}-{column}-V{speed_kmh}")
 
 
+def _answer_at_table_distance(track: str, category: str, speed_kmh: float, table_distance_m: float):
+    """The engine's answer for a vehicle ``table_distance_m`` before the track's curve, at the test speed."""
+    engine, truth = _track(track)
+    return engine.evaluate(_vehicle(truth, truth["curves"][0]["start_s"] - table_distance_m, speed_kmh, category))
+
+
 @pytest.mark.parametrize("track, category, speed_kmh, table_distance_m",
                          list(_single_rows("table5_single_curve_level1_tests")))
 def test_table_5_level_1_on_the_track_at_the_table_distance(track, category, speed_kmh, table_distance_m):
-    engine, truth = _track(track)
-    start_s = truth["curves"][0]["start_s"]
-    answer = engine.evaluate(_vehicle(truth, start_s - table_distance_m, speed_kmh, category))
+    answer = _answer_at_table_distance(track, category, speed_kmh, table_distance_m)
     assert answer.state is SystemState.ACTIVE
     assert answer.level >= Level.LEVEL_1
     assert answer.warning.target.distance_m == pytest.approx(table_distance_m, abs=1.0)
@@ -65,9 +69,7 @@ def test_table_5_level_1_on_the_track_at_the_table_distance(track, category, spe
 @pytest.mark.parametrize("track, category, speed_kmh, table_distance_m",
                          list(_single_rows("table6_single_curve_level2_tests")))
 def test_table_6_level_2_on_the_track_at_the_table_distance(track, category, speed_kmh, table_distance_m):
-    engine, truth = _track(track)
-    start_s = truth["curves"][0]["start_s"]
-    answer = engine.evaluate(_vehicle(truth, start_s - table_distance_m, speed_kmh, category))
+    answer = _answer_at_table_distance(track, category, speed_kmh, table_distance_m)
     assert answer.level == Level.LEVEL_2
     assert answer.warning.path_kind == "route"
 

@@ -99,13 +99,20 @@ def _multi_curve_tests(table_key: str):
             yield pytest.param(COLUMN_CATEGORY[column], test, table["R2_m"], id=f"{column}-test{test['test']}")
 
 
+def _multi_curve_onsets(category: str, test: dict, curve2_radius_m: float) -> dict:
+    """Onset distances (to each curve's start) on curve 1 of the test's R1, L1 joined directly to curve 2."""
+    starts = {"curve1": APPROACH_M, "curve2": APPROACH_M + test["L1_m"]}
+    radii = {"curve1": float(test["R1_m"]), "curve2": float(curve2_radius_m)}
+    return _onsets(test["V_kmh"], category, starts, radii)
+
+
+APPROACH_M = 300.0
+
+
 @pytest.mark.parametrize("category, test, curve2_radius_m",
                          list(_multi_curve_tests("table8_multi_curve_curve2_first_all_before_curve1")))
 def test_table_8_curve_2_warnings_come_before_curve_1(category, test, curve2_radius_m):
-    approach_m = 300.0
-    starts = {"curve1": approach_m, "curve2": approach_m + test["L1_m"]}
-    radii = {"curve1": float(test["R1_m"]), "curve2": float(curve2_radius_m)}
-    onsets = _onsets(test["V_kmh"], category, starts, radii)
+    onsets = _multi_curve_onsets(category, test, curve2_radius_m)
     for level in (1, 2):
         table_m = test["S_w_m"][f"curve2_level{level}"]
         assert onsets[("curve2", level)] >= table_m
@@ -116,12 +123,10 @@ def test_table_8_curve_2_warnings_come_before_curve_1(category, test, curve2_rad
 @pytest.mark.parametrize("category, test, curve2_radius_m",
                          list(_multi_curve_tests("table9_multi_curve_curve2_first_alternating")))
 def test_table_9_warnings_alternate_curve_2_first(category, test, curve2_radius_m):
-    approach_m = 300.0
-    starts = {"curve1": approach_m, "curve2": approach_m + test["L1_m"]}
-    radii = {"curve1": float(test["R1_m"]), "curve2": float(curve2_radius_m)}
-    onsets = _onsets(test["V_kmh"], category, starts, radii)
+    onsets = _multi_curve_onsets(category, test, curve2_radius_m)
     # Position along the road (from curve 1's start, negative before it) of each onset.
-    position = {key: starts[key[0]] - approach_m - distance for key, distance in onsets.items()}
+    curve_offset_m = {"curve1": 0.0, "curve2": test["L1_m"]}
+    position = {key: curve_offset_m[key[0]] - distance for key, distance in onsets.items()}
     order = sorted(position, key=position.get)
     assert order == [("curve2", 1), ("curve1", 1), ("curve2", 2), ("curve1", 2)]
     for (curve, level), distance in onsets.items():
