@@ -1,0 +1,300 @@
+"""From validated queries to answers: map matching, the engines, and the answers' JSON form.
+
+:class:`WarningService` is what the HTTP endpoints call. For a batch it
+
+1. checks what the models cannot (lane and edge ids, lane positions, lon/lat on
+   networks without a projection, a missing category) and reports every problem with
+   the index of its query (:class:`QueryErrors`, an HTTP 422);
+2. matches every fix without a lane id in one vectorised pass over all served networks
+   (:class:`csws.mapmatch.MapMatcher`), preferring each vehicle's previous lane;
+3. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
+4. writes each answer as the plain dict of the HTTP contract (floats unrounded).
+
+A vehicle queried twice in one batch is evaluated in order: the batch is cut into
+rounds holding each vehicle at most once.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from csws.engine import Answer, VehicleInput
+from csws.mapmatch import MapMatcher, MatchSettings, lane_point
+from csws.state import Fault
+from csws.warning import Trigger
+
+from .horizon import cpoi_points, position
+from .networks import ServedNetwork
+from .schemas import Query
+from .vehicles import VehicleRegistry
+
+__all__ = ["QueryErrors", "Placement", "WarningService"]
+
+
+class QueryErrors(ValueError):
+    """Queries the service cannot answer, with where and why (an HTTP 422).
+
+    Attributes
+    ----------
+    errors
+        ``{"loc": [...], "msg": ..., "type": ...}`` per problem, like pydantic's.
+    """
+
+    def __init__(self, errors: list[dict[str, Any]]) -> None:
+        super().__init__("; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in errors))
+        self.errors = errors
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where one query was placed on the served networks.
+
+    Attributes
+    ----------
+    network_index
+        The network whose engine answers it.
+    lane_id, lane_pos_m, distance_m
+        The lane (None when nothing matched), the lane position and the distance of the fix from it, m.
+    reason
+        Why nothing matched, else None.
+    """
+
+    network_index: int
+    lane_id: str | None
+    lane_pos_m: float
+    distance_m: float
+    reason: str | None
+
+
+def _error(loc: Sequence[Any], msg: str) -> dict[str, Any]:
+    return {"loc": list(loc), "msg": msg, "type": "value_error"}
+
+
+def _rounds(queries: Sequence[Query]) -> list[list[int]]:
+    """Query indices cut into rounds in which each vehicle appears once, in order."""
+    seen: dict[str, int] = defaultdict(int)
+    rounds: list[list[int]] = []
+    for index, query in enumerate(queries):
+        occurrence = seen[query.vehicle_id]
+        seen[query.vehicle_id] += 1
+        if occurrence == len(rounds):
+            rounds.append([])
+        rounds[occurrence].append(index)
+    return rounds
+
+
+class WarningService:
+    """Answers queries on the served networks.
+
+    Parameters
+    ----------
+    networks
+        The served networks.
+    registry
+        The vehicles' sessions and settings over the networks' engines.
+    match_settings
+        Map matching tolerances.
+    """
+
+    def __init__(
+        self, networks: Sequence[ServedNetwork], registry: VehicleRegistry, match_settings: MatchSettings
+    ) -> None:
+        self.networks = list(networks)
+        self.registry = registry
+        self.matcher = MapMatcher([n.road_map for n in self.networks], match_settings)
+        self.geo_networks = [i for i, n in enumerate(self.networks) if n.road_map.has_projection]
+        self.edge_ids = frozenset().union(*(n.edge_ids for n in self.networks))
+
+    # ------------------------------------------------------------------ queries
+    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> list[dict[str, Any]]:
+        """The answers of ``queries``, in order.
+
+        Raises
+        ------
+        QueryErrors
+            If any query names an unknown lane or edge, lies beyond its lane, sends
+            lon/lat to networks without a projection, or has no category; nothing is
+            evaluated then.
+        """
+        self.registry.expire()
+        self.check(queries, loc)
+        answers: list[dict[str, Any]] = [{} for _ in queries]
+        for indices in _rounds(queries):
+            self._answer_round([queries[i] for i in indices], indices, answers)
+        return answers
+
+    def check(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> None:
+        """Raise :class:`QueryErrors` listing what in ``queries`` the networks cannot answer."""
+        errors: list[dict[str, Any]] = []
+        for index, query in enumerate(queries):
+            where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
+            if query.category is None and self.registry.category(query.vehicle_id) is None:
+                errors.append(_error([*where, "category"], "category is required: give it in the query or "
+                                     f"set it with PUT /v1/vehicles/{query.vehicle_id}"))
+            if query.position is not None and query.position.is_geographic and not self.geo_networks:
+                errors.append(_error([*where, "position"], "the served networks are not geo-referenced: "
+                                     "give the position as x and y in network metres"))
+            if query.lane_id is not None:
+                errors += self._lane_errors(query, where)
+            unknown = [edge for edge in query.route or () if edge not in self.edge_ids]
+            if unknown:
+                errors.append(_error([*where, "route"], f"unknown edge id {unknown[0]!r}: in no served network"))
+        if errors:
+            raise QueryErrors(errors)
+
+    def _lane_errors(self, query: Query, where: list[Any]) -> list[dict[str, Any]]:
+        network_index = self._lane_network(query.vehicle_id, query.lane_id)
+        if network_index is None:
+            return [_error([*where, "lane_id"], f"unknown lane id {query.lane_id!r}: in no served network")]
+        length_m = self.networks[network_index].road_map.lane(query.lane_id).length_m
+        if query.lane_pos_m > length_m:
+            return [_error([*where, "lane_pos_m"],
+                           f"lane position {query.lane_pos_m:g} m lies beyond the end of lane {query.lane_id!r} "
+                           f"({length_m:g} m long)")]
+        return []
+
+    def _lane_network(self, vehicle_id: str, lane_id: str) -> int | None:
+        """The network a given lane id is taken on: the vehicle's own if it has it, else the first that has it."""
+        own = self.registry.network_of(vehicle_id)
+        candidates = [own] + [i for i in range(len(self.networks)) if i != own]
+        return next((i for i in candidates if _has_lane(self.networks[i], lane_id)), None)
+
+    # ------------------------------------------------------------------ evaluation
+    def place(self, queries: Sequence[Query]) -> list[Placement]:
+        """Where each query is: its given lane, or the map match of its fix (queries of distinct vehicles)."""
+        placements: list[Placement | None] = [None] * len(queries)
+        to_match = []
+        for i, query in enumerate(queries):
+            if query.lane_id is None:
+                to_match.append(i)
+                continue
+            network_index = self._lane_network(query.vehicle_id, query.lane_id)
+            placements[i] = Placement(network_index, query.lane_id, query.lane_pos_m,
+                                      self._fix_distance_m(query, network_index), None)
+        if to_match:
+            matched = self.matcher.match(
+                [self._fixes([queries[i] for i in to_match], network) for network in self.networks],
+                np.array([math.nan if queries[i].heading_deg is None else queries[i].heading_deg for i in to_match]),
+                [self.registry.previous(queries[i].vehicle_id) for i in to_match],
+            )
+            for row, i in enumerate(to_match):
+                network_index = int(matched.map_index[row])
+                if network_index < 0:
+                    network_index = self.registry.network_of(queries[i].vehicle_id)
+                placements[i] = Placement(network_index, matched.lane_id[row], float(matched.lane_pos_m[row]),
+                                          float(matched.distance_m[row]), matched.reason[row])
+        return placements
+
+    def _fixes(self, queries: Sequence[Query], network: ServedNetwork) -> np.ndarray:
+        """The queries' fixes in the coordinates of ``network``; NaN where lon/lat meets a map without projection."""
+        xy = np.full((len(queries), 2), np.nan)
+        for row, query in enumerate(queries):
+            position = query.position
+            if not position.is_geographic:
+                xy[row] = position.x, position.y
+            elif network.road_map.has_projection:
+                xy[row] = network.road_map.lonlat_to_xy(position.lon, position.lat)
+        return xy
+
+    def _fix_distance_m(self, query: Query, network_index: int) -> float:
+        """Distance from a query's fix to its given lane position, m; 0 without a fix or one on another map."""
+        network = self.networks[network_index]
+        if query.position is None:
+            return 0.0
+        (x, y), = self._fixes([query], network)
+        if not math.isfinite(x):
+            return 0.0
+        lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)
+        return float(math.hypot(x - lane_x, y - lane_y))
+
+    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], answers: list[dict[str, Any]]) -> None:
+        """Answer queries of distinct vehicles into ``answers[indices]``."""
+        placements = self.place(queries)
+        by_network: dict[int, list[int]] = defaultdict(list)
+        for row, (query, placement) in enumerate(zip(queries, placements)):
+            self.registry.place(query.vehicle_id, placement.network_index)
+            by_network[placement.network_index].append(row)
+        for network_index, rows in by_network.items():
+            network = self.networks[network_index]
+            inputs = [self.vehicle_input(queries[row], placements[row]) for row in rows]
+            for row, result in zip(rows, network.engine.evaluate_many(inputs)):
+                self.registry.seen(queries[row].vehicle_id, placements[row].lane_id)
+                answers[indices[row]] = self.encode(result, placements[row])
+
+    def vehicle_input(self, query: Query, placement: Placement) -> VehicleInput:
+        """The engine's input for a placed query."""
+        category = query.category if query.category is not None else self.registry.category(query.vehicle_id)
+        return VehicleInput(
+            vehicle_id=query.vehicle_id,
+            category=category.value,
+            speed_kmh=query.speed_kmh,
+            lane_id=placement.lane_id,
+            lane_pos_m=placement.lane_pos_m if placement.lane_id is not None else 0.0,
+            route_edges=tuple(query.route) if query.route else None,
+            timestamp_s=query.timestamp_s,
+            age_s=query.age_s,
+        )
+
+    # ------------------------------------------------------------------ answers
+    def encode(self, answer: Answer, placement: Placement) -> dict[str, Any]:
+        """The contract's WarningAnswer of an engine answer."""
+        network = self.networks[placement.network_index]
+        warning = answer.warning
+        fault = None
+        if answer.fault is not None:
+            fault = answer.fault.value
+            if answer.fault is Fault.NO_MAP_MATCH and placement.reason:
+                fault = f"{fault}: {placement.reason}"
+        located = list(warning.triggers)
+        if warning.target is not None and warning.target not in located:
+            located.append(warning.target)
+        positions = {}
+        if located:
+            points = cpoi_points(
+                answer.path,
+                np.array([t.distance_m for t in located]),
+                np.array([t.part_index for t in located]),
+                network.engine.settings.lookahead.warning_radius_m,
+            )
+            positions = {id(t): position(network, p) for t, p in zip(located, points)}
+        return {
+            "vehicle_id": answer.vehicle_id,
+            "state": answer.state.value,
+            "fault": fault,
+            "level": int(warning.level),
+            "target": None if warning.target is None else _trigger(warning.target, positions[id(warning.target)]),
+            "triggers": [_trigger(t, positions[id(t)]) for t in warning.triggers],
+            "matched": None if placement.lane_id is None else {
+                "lane_id": placement.lane_id,
+                "lane_pos_m": placement.lane_pos_m,
+                "distance_m": placement.distance_m,
+            },
+            "path_kind": answer.path.kind.value if answer.path is not None else None,
+            "hmi": {"visual": warning.hmi.visual, "audible": warning.hmi.audible},
+        }
+
+
+def _has_lane(network: ServedNetwork, lane_id: str) -> bool:
+    try:
+        network.road_map.lane(lane_id)
+    except KeyError:
+        return False
+    return True
+
+
+def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
+    return {
+        "curve_id": trigger.curve_id,
+        "part_index": trigger.part_index,
+        "level": int(trigger.level),
+        "distance_m": trigger.distance_m,
+        "radius_m": trigger.radius_m,
+        "warning_speed_kmh": trigger.warning_speed_kmh,
+        "warning_distance_m": trigger.warning_distance_m,
+        "position": point,
+    }

@@ -1,0 +1,324 @@
+"""The FastAPI application: HTTP in, :mod:`csws` library out.
+
+``create_app(settings)`` builds the app (``uvicorn --factory service.app:create_app``);
+``service.app:app`` is the app with the settings of the environment, for a plain
+``uvicorn service.app:app``. The networks are read when the app is built, so a map that
+cannot be read stops start-up. The OpenAPI documentation is at ``/docs`` (Swagger UI),
+``/redoc`` and ``/openapi.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import time
+from contextlib import asynccontextmanager
+from typing import Any, Callable
+
+from fastapi import FastAPI, HTTPException, Path, Query as QueryParam, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from pydantic import ValidationError
+
+from csws import __version__
+from csws.standard import Category
+
+from .answers import QueryErrors, WarningService
+from .curves import curve_features, feature_collection, in_bbox
+from .horizon import DEFAULT_HORIZON_M, horizon
+from .metrics import Metrics, MetricsMiddleware
+from .networks import MAX_HORIZON_M, load_networks
+from .schemas import (
+    BATCH_ADAPTER,
+    MAX_BATCH,
+    Answers,
+    Batch,
+    Query,
+    VehicleState,
+    VehicleSwitch,
+    WarningAnswer,
+)
+from .settings import ServiceSettings
+from .vehicles import SettingStore, VehicleRegistry
+
+__all__ = ["create_app", "MAX_ERRORS_SHOWN"]
+
+logger = logging.getLogger("csws.service")
+
+#: A 422 lists at most this many problems (a bad batch can have 10,000).
+MAX_ERRORS_SHOWN = 100
+
+DESCRIPTION = """Map-based curve speed warning (T/ITS 0091-2018) for on-board units and fleet backends.
+
+Positions are `x`, `y` in network metres, or `lon`, `lat` on geo-referenced networks.
+Headings are GNSS headings: degrees clockwise from north. Speeds are km/h, distances metres.
+"""
+
+
+def _clean(errors: list[dict[str, Any]]) -> dict[str, Any]:
+    """A 422 body: where and what, without echoing the (possibly huge) input."""
+    shown = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors[:MAX_ERRORS_SHOWN]]
+    body: dict[str, Any] = {"detail": shown}
+    if len(errors) > MAX_ERRORS_SHOWN:
+        body["errors_total"] = len(errors)
+    return body
+
+
+def _json(content: Any, headers: dict[str, str] | None = None) -> Response:
+    """A JSON response of plain data, floats written in full (no rounding, no re-validation)."""
+    return Response(json.dumps(content, allow_nan=False), media_type="application/json", headers=headers)
+
+
+def _bbox(text: str | None) -> tuple[float, float, float, float] | None:
+    """``min_x,min_y,max_x,max_y`` as numbers; a 422 when it is not that."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 4 or not all(map(lambda v: v == v and abs(v) != float("inf"), values)):
+        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
+                                       "msg": "bbox must be four finite numbers: min_x,min_y,max_x,max_y"}])
+    if values[0] > values[2] or values[1] > values[3]:
+        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
+                                       "msg": "bbox minimum must not exceed its maximum: min_x,min_y,max_x,max_y"}])
+    return values
+
+
+def create_app(settings: ServiceSettings | None = None, clock: Callable[[], float] = time.monotonic) -> FastAPI:
+    """Build the service.
+
+    Parameters
+    ----------
+    settings
+        What to serve and how; by default from the ``CSWS_*`` environment.
+    clock
+        Monotonic seconds for session expiry.
+
+    Raises
+    ------
+    csws.roadmap.NetworkError
+        If a network cannot be read.
+    OSError
+        If the settings database cannot be opened.
+    """
+    settings = settings if settings is not None else ServiceSettings()
+    networks = load_networks(settings.nets, settings.engine_settings())
+    store = SettingStore(settings.state_db)
+    registry = VehicleRegistry([n.engine for n in networks], store, settings.session_idle_s, clock)
+    service = WarningService(networks, registry, settings.match_settings())
+    metrics = Metrics()
+    curve_cache: dict[int, list[dict[str, Any]]] = {}
+
+    @asynccontextmanager
+    async def lifespan(_app: FastAPI):
+        yield
+        store.close()
+
+    app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
+    app.add_middleware(MetricsMiddleware, metrics=metrics)
+    app.state.service = service
+    app.state.settings = settings
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid_request(_request: Request, exc: RequestValidationError) -> JSONResponse:
+        return JSONResponse(_clean(list(exc.errors())), status_code=422)
+
+    @app.exception_handler(QueryErrors)
+    async def _unanswerable(_request: Request, exc: QueryErrors) -> JSONResponse:
+        return JSONResponse(_clean(exc.errors), status_code=422)
+
+    @app.exception_handler(Exception)
+    async def _unexpected(_request: Request, exc: Exception) -> JSONResponse:
+        logger.exception("unexpected error")
+        return JSONResponse({"detail": f"internal error: {type(exc).__name__}"}, status_code=500)
+
+    # ------------------------------------------------------------------ warnings
+    @app.post(
+        "/v1/warning",
+        summary="The warning for one vehicle",
+        response_model=None,
+        responses={200: {"model": WarningAnswer}},
+        tags=["warnings"],
+    )
+    async def warning(query: Query) -> Response:
+        answers = service.answer([query], loc=("body",))
+        metrics.observe_answers(answers)
+        return _json(answers[0])
+
+    @app.post(
+        "/v1/warnings",
+        summary=f"The warnings for a batch of up to {MAX_BATCH} queries, in order",
+        response_model=None,
+        responses={200: {"model": Answers}},
+        openapi_extra={
+            "requestBody": {
+                "required": True,
+                "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Batch"}}},
+            }
+        },
+        tags=["warnings"],
+    )
+    async def warnings(request: Request) -> Response:
+        body = await request.body()
+        started = time.perf_counter()
+        try:
+            batch = BATCH_ADAPTER.validate_json(body)
+        except ValidationError as exc:
+            raise RequestValidationError(
+                [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False)]
+            ) from None
+        answers = service.answer(batch.queries)
+        metrics.observe_answers(answers)
+        content = json.dumps({"answers": answers}, allow_nan=False)
+        elapsed_ms = (time.perf_counter() - started) * 1000.0
+        return Response(content, media_type="application/json", headers={"Server-Timing": f"csws;dur={elapsed_ms:.3f}"})
+
+    # ------------------------------------------------------------------ map
+    @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"])
+    async def curves(
+        bbox: str | None = QueryParam(
+            default=None,
+            description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres",
+            examples=["850,-50,1200,400"],
+        ),
+        network: str | None = QueryParam(default=None, description="only this network"),
+    ) -> Response:
+        box = _bbox(bbox)
+        chosen = [i for i, n in enumerate(networks) if network is None or n.name == network]
+        if not chosen:
+            raise RequestValidationError([{"loc": ("query", "network"), "type": "value_error",
+                                           "msg": f"unknown network {network!r}"}])
+        features = []
+        for i in chosen:
+            if i not in curve_cache:
+                curve_cache[i] = curve_features(networks[i])
+            features += [f for f in curve_cache[i] if in_bbox(f, box)]
+        return _json(feature_collection(features, [networks[i] for i in chosen]))
+
+    @app.get("/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", tags=["map"])
+    async def road_ahead(
+        x: float | None = QueryParam(default=None, allow_inf_nan=False, description="network x, m"),
+        y: float | None = QueryParam(default=None, allow_inf_nan=False, description="network y, m"),
+        lon: float | None = QueryParam(default=None, allow_inf_nan=False, description="longitude, degrees"),
+        lat: float | None = QueryParam(default=None, allow_inf_nan=False, description="latitude, degrees"),
+        heading_deg: float | None = QueryParam(default=None, allow_inf_nan=False, description="degrees from north"),
+        lane_id: str | None = QueryParam(default=None, description="lane id (no map matching)"),
+        lane_pos_m: float | None = QueryParam(default=None, allow_inf_nan=False, description="lane position, m"),
+        route: str | None = QueryParam(default=None, description="route edge ids, comma-separated"),
+        length_m: float = QueryParam(default=DEFAULT_HORIZON_M, gt=0, le=MAX_HORIZON_M, allow_inf_nan=False,
+                                     description="how far ahead, m"),
+    ) -> Response:
+        given = {k: v for k, v in {"x": x, "y": y, "lon": lon, "lat": lat}.items() if v is not None}
+        try:
+            query = Query(
+                vehicle_id="horizon",
+                category=Category.M1,
+                speed_kmh=0.0,
+                position=given or None,
+                heading_deg=heading_deg,
+                lane_id=lane_id,
+                lane_pos_m=lane_pos_m,
+                route=route.split(",") if route else None,
+            )
+        except ValidationError as exc:
+            raise RequestValidationError(
+                [{**e, "loc": ("query", *e["loc"])} for e in exc.errors(include_url=False)]
+            ) from None
+        service.check([query], loc=("query",))
+        (placement,) = service.place([query])
+        if placement.lane_id is None:
+            return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
+        ahead = horizon(networks[placement.network_index], placement.lane_id, placement.lane_pos_m,
+                        query.route, length_m)
+        matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m,
+                   "distance_m": placement.distance_m}
+        return _json({"matched": matched, "fault": None, **ahead})
+
+    # ------------------------------------------------------------------ vehicles
+    def _vehicle_state(vehicle_id: str) -> dict[str, Any]:
+        status = registry.status(vehicle_id)
+        session = registry.sessions.get(vehicle_id)
+        return {
+            "vehicle_id": vehicle_id,
+            "switched_on": status.switched_on,
+            "category": registry.category(vehicle_id),
+            "state": status.state.value,
+            "fault": status.fault.value if status.fault is not None else None,
+            "activated": status.activated,
+            "last_timestamp_s": status.last_timestamp_s,
+            "network": networks[session.network_index].name if session and session.lane_id else None,
+            "lane_id": session.lane_id if session else None,
+        }
+
+    vehicle_path = Path(min_length=1, max_length=128, description="the vehicle")
+
+    @app.put("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
+             summary="Switch CSWS on or off for a vehicle (5.2) and set its category")
+    async def put_vehicle(setting: VehicleSwitch, vehicle_id: str = vehicle_path) -> dict[str, Any]:
+        registry.expire()
+        registry.configure(vehicle_id, setting.switched_on, setting.category)
+        return _vehicle_state(vehicle_id)
+
+    @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
+             summary="A vehicle's switch, category and system state")
+    async def get_vehicle(vehicle_id: str = vehicle_path) -> dict[str, Any]:
+        registry.expire()
+        if not registry.known(vehicle_id):
+            raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
+        return _vehicle_state(vehicle_id)
+
+    # ------------------------------------------------------------------ operations
+    @app.get("/healthz", tags=["operations"], summary="The process is alive")
+    async def healthz() -> dict[str, str]:
+        return {"status": "ok"}
+
+    @app.get("/readyz", tags=["operations"], summary="The networks are loaded and the service answers")
+    async def readyz() -> dict[str, Any]:
+        return {
+            "status": "ready",
+            "networks": [
+                {"name": n.name, "lanes": len(n.road_map.lane_ids), "geo_referenced": n.road_map.has_projection}
+                for n in networks
+            ],
+            "vehicle_sessions": len(registry.sessions),
+        }
+
+    @app.get("/metrics", tags=["operations"], summary="Prometheus metrics", response_class=PlainTextResponse)
+    async def prometheus() -> PlainTextResponse:
+        return PlainTextResponse(metrics.exposition(), media_type="text/plain; version=0.0.4")
+
+    _document_batch(app)
+    return app
+
+
+def _document_batch(app: FastAPI) -> None:
+    """Put the batch body's schema into the OpenAPI components (its endpoint reads the body itself)."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            schema = build()
+            definitions = Batch.model_json_schema(ref_template="#/components/schemas/{model}")
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
+            components.update(definitions.pop("$defs", {}))
+            components["Batch"] = definitions
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi
+
+
+def __getattr__(name: str) -> Any:
+    """``service.app:app``: the app with the environment's settings, built on first use."""
+    if name != "app":
+        raise AttributeError(name)
+    try:
+        application = create_app()
+    except (ValueError, OSError) as exc:
+        print(f"csws: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    globals()["app"] = application
+    return application

@@ -1,0 +1,112 @@
+"""The curves of a served network as a GeoJSON FeatureCollection.
+
+One feature per curve found on a lane (:meth:`csws.roadmap.RoadMap.curves`): its
+geometry (the lane between the curve's start and end), minimum radius, angle,
+direction, constant-radius parts and the warning speeds V_w of every category at
+both levels (Tables 1-2). On a geo-referenced network coordinates are lon/lat (WGS84,
+as RFC 7946 requires); otherwise they are network metres, which the collection says
+in its ``coordinates`` member.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from csws.mapmatch import points_along
+from csws.roadmap import LaneCurve
+from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
+
+from .networks import ServedNetwork
+
+#: How a feature's coordinates are given, by whether its network is geo-referenced.
+_COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
+
+__all__ = ["warning_speeds_kmh", "curve_id", "curve_features", "in_bbox", "feature_collection"]
+
+
+def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:
+    """V_w at ``radius_m`` for every category and both levels, km/h: ``{"M1": {"1": ..., "2": ...}, ...}``."""
+    return {
+        category.value: {str(int(level)): warning_speed(radius_m, category, level, policy)
+                         for level in (Level.LEVEL_1, Level.LEVEL_2)}
+        for category in Category
+    }
+
+
+def curve_id(lane_id: str, start_pos_m: float) -> str:
+    """A curve's id, ``lane@position`` of its start: the form :class:`csws.lookahead.LookAhead` gives CPOIs."""
+    return f"{lane_id}@{start_pos_m:.0f}"
+
+
+def _curve_line(network: ServedNetwork, lane_curve: LaneCurve) -> np.ndarray:
+    """The lane's polyline from the curve's start to its end, ``(n, 2)``, m."""
+    shape = network.road_map.lane_shape(lane_curve.lane_id)
+    vertex_s = network.road_map.lane_profile(lane_curve.lane_id).s
+    start_s, end_s = lane_curve.curve.start_s, lane_curve.curve.end_s
+    inner = vertex_s[(vertex_s > start_s) & (vertex_s < end_s)]
+    return points_along(shape, np.concatenate(([start_s], inner, [end_s])), vertex_s)
+
+
+def _coordinates(network: ServedNetwork, xy: np.ndarray) -> list[list[float]]:
+    """Points as GeoJSON positions: lon/lat on a geo-referenced network, else network metres."""
+    if network.road_map.has_projection:
+        return [list(map(float, network.road_map.xy_to_lonlat(x, y))) for x, y in xy]
+    return xy.tolist()
+
+
+def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
+    """Every curve of the network as a GeoJSON Feature (with its ``bbox``)."""
+    policy = network.engine.settings.warning.policy
+    features = []
+    for lane_curve in network.road_map.curves():
+        coordinates = _coordinates(network, _curve_line(network, lane_curve))
+        xs, ys = zip(*coordinates)
+        curve = lane_curve.curve
+        features.append({
+            "type": "Feature",
+            "id": f"{network.name}/{curve_id(lane_curve.lane_id, lane_curve.start_pos_m)}",
+            "bbox": [min(xs), min(ys), max(xs), max(ys)],
+            "geometry": {"type": "LineString", "coordinates": coordinates},
+            "properties": {
+                "network": network.name,
+                "coordinates": _COORDINATES[network.road_map.has_projection],
+                "curve_id": curve_id(lane_curve.lane_id, lane_curve.start_pos_m),
+                "lane_id": lane_curve.lane_id,
+                "start_pos_m": lane_curve.start_pos_m,
+                "end_pos_m": lane_curve.end_pos_m,
+                "radius_m": curve.min_radius_m,
+                "angle_deg": curve.angle_deg,
+                "direction": curve.direction,
+                "warning_speed_kmh": warning_speeds_kmh(curve.min_radius_m, policy),
+                "parts": [
+                    {
+                        "part_index": index,
+                        "length_m": part.end_s - part.start_s,
+                        "radius_m": part.radius_m,
+                        "warning_speed_kmh": warning_speeds_kmh(part.radius_m, policy),
+                    }
+                    for index, part in enumerate(curve.parts)
+                ],
+            },
+        })
+    return features
+
+
+def in_bbox(feature: dict[str, Any], bbox: tuple[float, float, float, float] | None) -> bool:
+    """Whether a feature's bounding box meets ``bbox`` (min x, min y, max x, max y); always without one."""
+    if bbox is None:
+        return True
+    west, south, east, north = feature["bbox"]
+    return not (east < bbox[0] or west > bbox[2] or north < bbox[1] or south > bbox[3])
+
+
+def feature_collection(features: list[dict[str, Any]], networks: list[ServedNetwork]) -> dict[str, Any]:
+    """A FeatureCollection, saying which coordinates it uses (each feature says it too)."""
+    kinds = {_COORDINATES[n.road_map.has_projection] for n in networks}
+    return {
+        "type": "FeatureCollection",
+        "coordinates": kinds.pop() if len(kinds) == 1 else "per feature",
+        "features": features,
+    }

@@ -1,0 +1,104 @@
+"""The networks a service serves: one road map and one :class:`~csws.engine.Engine` each.
+
+By default the service serves the networks bundled with csws (every ``.net.xml`` and
+``.net.xml.gz`` of :func:`csws.networks.networks_dir`), so it answers right after
+installation. A network that cannot be read stops start-up with one clear line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from csws.engine import Engine, EngineSettings
+from csws.lookahead import LookAhead, LookAheadSettings
+from csws.networks import networks_dir
+from csws.roadmap import RoadMap
+
+__all__ = ["NET_SUFFIXES", "ServedNetwork", "bundled_network_paths", "network_name", "load_networks"]
+
+#: File name endings of SUMO networks.
+NET_SUFFIXES = (".net.xml", ".net.xml.gz")
+#: Longest electronic horizon the service gives, m.
+MAX_HORIZON_M = 3000.0
+
+
+def network_name(path: Path) -> str:
+    """A network's name: its file name without the ``.net.xml[.gz]`` ending."""
+    name = path.name
+    for suffix in NET_SUFFIXES:
+        if name.endswith(suffix):
+            return name[: -len(suffix)]
+    return path.stem
+
+
+def bundled_network_paths() -> list[Path]:
+    """The networks bundled with csws, sorted by name."""
+    folder = networks_dir()
+    return sorted((p for p in folder.iterdir() if p.name.endswith(NET_SUFFIXES)), key=lambda p: p.name)
+
+
+@dataclass
+class ServedNetwork:
+    """One served network.
+
+    Attributes
+    ----------
+    name
+        Its name (file name without the ending); unique among the served networks.
+    path
+        Its file.
+    road_map
+        The map.
+    engine
+        The warning system on it; it keeps the status of the vehicles last matched here.
+    horizon
+        Look-ahead for the electronic horizon: a fixed :data:`MAX_HORIZON_M`.
+    edge_ids
+        Its edges, to check routes.
+    """
+
+    name: str
+    path: Path
+    road_map: RoadMap
+    engine: Engine
+    horizon: LookAhead
+    edge_ids: frozenset[str] = field(repr=False)
+
+
+def load_networks(paths: Sequence[Path], settings: EngineSettings = EngineSettings()) -> list[ServedNetwork]:
+    """Load every network and build its engine.
+
+    Raises
+    ------
+    csws.roadmap.NetworkError
+        If a file cannot be read as a SUMO network (one line, naming the file).
+    ValueError
+        If no network is given or two share a name.
+    """
+    if not paths:
+        raise ValueError("no network to serve: give at least one --net FILE")
+    names = [network_name(Path(p)) for p in paths]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ValueError(f"two networks share the name {duplicates[0]!r}: network file names must differ")
+    served = []
+    for name, path in zip(names, paths):
+        road_map = RoadMap.load(path, warning_radius_m=settings.lookahead.warning_radius_m)
+        horizon_settings = LookAheadSettings(
+            fixed_distance_m=MAX_HORIZON_M,
+            warning_radius_m=settings.lookahead.warning_radius_m,
+            cache_size=256,
+        )
+        served.append(
+            ServedNetwork(
+                name=name,
+                path=Path(path),
+                road_map=road_map,
+                engine=Engine(road_map, settings),
+                horizon=LookAhead(road_map, horizon_settings, settings.warning),
+                edge_ids=frozenset(road_map.lane(lane_id).edge_id for lane_id in road_map.lane_ids),
+            )
+        )
+    return served

@@ -1,0 +1,235 @@
+"""The HTTP contract as pydantic models: what a query and an answer look like.
+
+Queries are validated strictly (finite numbers, ranges, known categories) so that bad
+input gets an HTTP 422 that names the query and the field. Answers are documented
+here for the OpenAPI schema; the service writes them as plain JSON without
+re-validating them (see :mod:`service.answers`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
+
+from csws.standard import Category
+
+#: Most queries one batch may hold: one fleet tick of a telematics backend.
+MAX_BATCH = 10_000
+#: Highest speed a query may report, km/h.
+MAX_SPEED_KMH = 250.0
+
+
+
+class Position(BaseModel):
+    """A fix: ``x``, ``y`` in network metres, or ``lon``, ``lat`` in degrees on geo-referenced networks."""
+
+    model_config = ConfigDict(
+        allow_inf_nan=False,
+        json_schema_extra={"examples": [{"x": 600.0, "y": 0.4}, {"lon": 9.7071, "lat": 50.8682}]},
+    )
+
+    x: float | None = Field(default=None, description="network x, m")
+    y: float | None = Field(default=None, description="network y, m")
+    lon: float | None = Field(default=None, ge=-180.0, le=180.0, description="longitude, degrees (WGS84)")
+    lat: float | None = Field(default=None, ge=-90.0, le=90.0, description="latitude, degrees (WGS84)")
+
+    @model_validator(mode="after")
+    def _one_pair(self) -> "Position":
+        has_xy = self.x is not None and self.y is not None
+        has_lonlat = self.lon is not None and self.lat is not None
+        given = [name for name in ("x", "y", "lon", "lat") if getattr(self, name) is not None]
+        if has_xy == has_lonlat or len(given) != 2:
+            raise ValueError(
+                f"a position is either x and y (network metres) or lon and lat (degrees), got {given or 'nothing'}"
+            )
+        return self
+
+    @property
+    def is_geographic(self) -> bool:
+        """Whether the fix is lon/lat."""
+        return self.lon is not None
+
+
+class Query(BaseModel):
+    """One vehicle at one instant: what it asks the service."""
+
+    model_config = ConfigDict(
+        allow_inf_nan=False,
+        json_schema_extra={
+            "examples": [
+                {
+                    "vehicle_id": "truck-17",
+                    "category": "N",
+                    "speed_kmh": 80.0,
+                    "position": {"x": 905.0, "y": 0.3},
+                    "heading_deg": 90.0,
+                    "timestamp_s": 1700000000.0,
+                },
+                {
+                    "vehicle_id": "bus-3",
+                    "category": "M3",
+                    "speed_kmh": 60.0,
+                    "lane_id": "approach_0",
+                    "lane_pos_m": 850.0,
+                    "route": ["approach", "curve", "runout"],
+                },
+            ]
+        },
+    )
+
+    vehicle_id: str = Field(min_length=1, max_length=128, description="the vehicle")
+    category: Category | None = Field(
+        default=None,
+        description="vehicle category (GB/T 15089); may be left out once set with PUT /v1/vehicles/{id}",
+    )
+    speed_kmh: float = Field(ge=0.0, le=MAX_SPEED_KMH, description="speed V, km/h")
+    position: Position | None = Field(default=None, description="the fix; optional when lane_id is given")
+    heading_deg: float | None = Field(
+        default=None, ge=0.0, lt=360.0, description="GNSS heading, degrees clockwise from north"
+    )
+    lane_id: str | None = Field(
+        default=None, min_length=1, max_length=256, description="SUMO lane id: no map matching when given"
+    )
+    lane_pos_m: float | None = Field(default=None, ge=0.0, description="lane position, m (with lane_id)")
+    route: list[str] | None = Field(default=None, max_length=MAX_BATCH, description="route as edge ids")
+    timestamp_s: float | None = Field(default=None, description="when the fix was taken, s (any epoch; ordering only)")
+    age_s: float | None = Field(default=None, ge=0.0, description="how old the fix is now, s")
+
+    @model_validator(mode="after")
+    def _located(self) -> "Query":
+        if self.lane_id is None and self.position is None:
+            raise ValueError("a query needs a position or a lane_id with lane_pos_m")
+        if (self.lane_id is None) != (self.lane_pos_m is None):
+            raise ValueError("lane_id and lane_pos_m go together: give both or neither")
+        return self
+
+
+class Batch(BaseModel):
+    """One fleet tick: up to 10,000 queries, answered in order."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "queries": [
+                        {"vehicle_id": "truck-17", "category": "N", "speed_kmh": 80.0, "position": {"x": 905.0, "y": 0.3}},
+                        {"vehicle_id": "car-2", "category": "M1", "speed_kmh": 50.0, "position": {"x": 100.0, "y": 0.0}},
+                    ]
+                }
+            ]
+        }
+    )
+
+    queries: list[Query] = Field(max_length=MAX_BATCH, description=f"at most {MAX_BATCH} queries")
+
+
+class XY(BaseModel):
+    """A point in network metres, with lon/lat on geo-referenced networks."""
+
+    x: float
+    y: float
+    lon: float | None = None
+    lat: float | None = None
+
+
+class Trigger(BaseModel):
+    """A CPOI (3.11) whose warning condition (6.1) holds."""
+
+    curve_id: str = Field(description="the curve: lane@position of its start")
+    part_index: int = Field(description="constant-radius part within the curve (0 for a single curve)")
+    level: Literal[1, 2]
+    distance_m: float = Field(description="distance S along the path to the CPOI, m (0 inside the part)")
+    radius_m: float = Field(description="radius R of the part, m")
+    warning_speed_kmh: float = Field(description="V_w of the level at R, km/h (Tables 1-2)")
+    warning_distance_m: float = Field(description="S_w of formula (1), m")
+    position: XY = Field(description="the CPOI: first point of the part")
+
+
+class Matched(BaseModel):
+    """The lane the query was placed on."""
+
+    lane_id: str
+    lane_pos_m: float
+    distance_m: float = Field(description="distance from the position to the lane, m (0 without a position)")
+
+
+class Hmi(BaseModel):
+    """How to present the level (5.5.1)."""
+
+    visual: str | None
+    audible: str | None
+
+
+class WarningAnswer(BaseModel):
+    """The system's answer for one query."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "vehicle_id": "truck-17",
+                    "state": "active",
+                    "fault": None,
+                    "level": 2,
+                    "target": {
+                        "curve_id": "curve_0@100",
+                        "part_index": 0,
+                        "level": 2,
+                        "distance_m": 95.0,
+                        "radius_m": 120.0,
+                        "warning_speed_kmh": 58.0,
+                        "warning_distance_m": 63.2,
+                        "position": {"x": 1000.0, "y": 0.0},
+                    },
+                    "triggers": [],
+                    "matched": {"lane_id": "curve_0", "lane_pos_m": 5.0, "distance_m": 0.3},
+                    "path_kind": "predicted",
+                    "hmi": {"visual": "curve-warning-red-flashing", "audible": "warning-tone"},
+                }
+            ]
+        }
+    )
+
+    vehicle_id: str
+    state: Literal["off", "standby", "active", "fault"]
+    fault: str | None
+    level: Literal[0, 1, 2]
+    target: Trigger | None
+    triggers: list[Trigger] = Field(description="every triggering CPOI, nearest first")
+    matched: Matched | None
+    path_kind: Literal["route", "predicted"] | None
+    hmi: Hmi
+
+
+class Answers(BaseModel):
+    """The answers of a batch, in the order of its queries."""
+
+    answers: list[WarningAnswer]
+
+
+class VehicleSwitch(BaseModel):
+    """The driver's switch (5.2) and the vehicle's category."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"switched_on": False, "category": "N"}]})
+
+    switched_on: bool = Field(description="CSWS on (true) or off (false)")
+    category: Category | None = Field(default=None, description="the vehicle's category, used when a query has none")
+
+
+class VehicleState(BaseModel):
+    """What the service keeps of one vehicle."""
+
+    vehicle_id: str
+    switched_on: bool
+    category: Category | None
+    state: Literal["off", "standby", "active", "fault"]
+    fault: str | None
+    activated: bool
+    last_timestamp_s: float | None
+    network: str | None = Field(description="the network of its last match")
+    lane_id: str | None = Field(description="its last matched lane")
+
+
+BATCH_ADAPTER = TypeAdapter(Batch)
+QUERY_ADAPTER = TypeAdapter(Query)

@@ -1,0 +1,77 @@
+"""The service's settings: command-line options override environment variables (``CSWS_*``).
+
+Every setting can come from the environment, so that ``uvicorn service.app:app`` and
+the workers of ``csws serve --workers N`` are configured the same way:
+
+``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
+``CSWS_WORKERS``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
+``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated
+
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
+
+from csws.engine import EngineSettings
+from csws.mapmatch import MatchSettings
+from csws.warning import WarningSettings
+
+from .networks import bundled_network_paths
+
+__all__ = ["ServiceSettings", "default_state_db", "settings_environment"]
+
+
+def default_state_db() -> Path:
+    """Where vehicle settings persist by default: ``$XDG_STATE_HOME/csws/vehicles.sqlite3``."""
+    state_home = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
+    return Path(state_home) / "csws" / "vehicles.sqlite3"
+
+
+class ServiceSettings(BaseSettings):
+    """How the service runs and what it serves."""
+
+    model_config = SettingsConfigDict(env_prefix="CSWS_", allow_inf_nan=False)
+
+    nets: Annotated[list[Path], NoDecode] = Field(
+        default_factory=bundled_network_paths, description="SUMO networks to serve (default: the bundled ones)"
+    )
+    host: str = Field(default="127.0.0.1", description="address to listen on")
+    port: int = Field(default=8000, ge=0, le=65535, description="TCP port")
+    workers: int = Field(default=1, ge=1, le=64, description="worker processes")
+    state_db: str = Field(
+        default_factory=lambda: str(default_state_db()),
+        description="SQLite file keeping vehicle switches across restarts; ':memory:' keeps them in memory only",
+    )
+    session_idle_s: float = Field(default=600.0, gt=0, description="a vehicle session idle this long expires, s")
+    match_tolerance_m: float = Field(default=10.0, gt=0, description="a fix matches lanes within this distance, m")
+    heading_tolerance_deg: float = Field(default=45.0, gt=0, le=180, description="allowed heading difference, deg")
+    update_period_s: float = Field(default=0.1, ge=0, description="how often a vehicle's fixes arrive, s")
+    system_delay_s: float = Field(default=0.1, ge=0, description="processing and display delay, s")
+
+    @field_validator("nets", mode="before")
+    @classmethod
+    def _split_paths(cls, value):
+        if isinstance(value, str):
+            return [part for part in value.split(os.pathsep) if part]
+        return value
+
+    def engine_settings(self) -> EngineSettings:
+        """The engine's settings: the latency of the updates and of the system."""
+        return EngineSettings(warning=WarningSettings(update_period_s=self.update_period_s,
+                                                      system_delay_s=self.system_delay_s))
+
+    def match_settings(self) -> MatchSettings:
+        """Map matching tolerances."""
+        return MatchSettings(tolerance_m=self.match_tolerance_m, heading_tolerance_deg=self.heading_tolerance_deg)
+
+
+def settings_environment(settings: ServiceSettings) -> dict[str, str]:
+    """The ``CSWS_*`` variables that reproduce ``settings`` (for worker processes)."""
+    values = settings.model_dump()
+    values["nets"] = os.pathsep.join(str(Path(p).resolve()) for p in settings.nets)
+    return {f"CSWS_{name.upper()}": str(value) for name, value in values.items()}

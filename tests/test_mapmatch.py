@@ -1,0 +1,149 @@
+"""Map matching against a network constructed here: a two-way main road, a one-way
+frontage road beside it and a crossing road, each built exactly with csws.geometry."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from csws.geometry import sample_pieces, straight
+from csws.mapmatch import MapMatcher, MapPosition, MatchSettings, compass_to_math_rad, lane_point, points_along
+from csws.netbuild import netconvert, shape_text
+from csws.roadmap import RoadMap
+
+#: The frontage road runs eastbound this far north of the main road's axis, m.
+FRONTAGE_OFFSET_M = 9.0
+#: Lane width SUMO gives (the two directions of the main road lie half of it either side of the axis), m.
+LANE_WIDTH_M = 3.2
+#: The crossing road runs north at this x, m.
+CROSSING_X_M = 400.0
+
+
+def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, spread: str) -> str:
+    return (f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="25.0" '
+            f'spreadType="{spread}" shape="{shape_text(xy)}"/>')
+
+
+def _node(node_id: str, x: float, y: float) -> str:
+    return f'<node id="{node_id}" x="{x:.3f}" y="{y:.3f}"/>'
+
+
+def build_side_roads(folder: Path, origin_x_m: float = 0.0) -> Path:
+    """Write and netconvert the network; ``origin_x_m`` shifts it east.
+
+    * ``main``: two-way road along y = 0 from x = 0 to 800 (``AB`` eastbound, ``BA`` westbound);
+    * ``frontage``: one-way eastbound road along y = FRONTAGE_OFFSET_M, not connected to the main road;
+    * ``crossing``: one-way northbound road along x = CROSSING_X_M from y = -300 to 300, passing
+      over the main road without a junction (a bridge).
+    """
+    main_xy, _ = sample_pieces((straight(800.0),), 2.0, (origin_x_m, 0.0), 0.0)
+    frontage_xy, _ = sample_pieces((straight(800.0),), 2.0, (origin_x_m, FRONTAGE_OFFSET_M), 0.0)
+    crossing_xy, _ = sample_pieces((straight(600.0),), 2.0, (origin_x_m + CROSSING_X_M, -300.0), np.pi / 2)
+    nodes = [_node("A", origin_x_m, 0.0), _node("B", origin_x_m + 800.0, 0.0),
+             _node("F0", origin_x_m, FRONTAGE_OFFSET_M), _node("F1", origin_x_m + 800.0, FRONTAGE_OFFSET_M),
+             _node("C0", origin_x_m + CROSSING_X_M, -300.0), _node("C1", origin_x_m + CROSSING_X_M, 300.0)]
+    edges = [
+        _edge("AB", "A", "B", main_xy, "right"),
+        _edge("BA", "B", "A", main_xy[::-1], "right"),
+        _edge("frontage", "F0", "F1", frontage_xy, "center"),
+        _edge("crossing", "C0", "C1", crossing_xy, "center"),
+    ]
+    return netconvert("<nodes>\n" + "\n".join(nodes) + "\n</nodes>\n",
+                      "<edges>\n" + "\n".join(edges) + "\n</edges>\n", folder / "side_roads.net.xml")
+
+
+@pytest.fixture(scope="module")
+def side_map(tmp_path_factory) -> RoadMap:
+    return RoadMap.load(build_side_roads(tmp_path_factory.mktemp("side")))
+
+
+def _match(matcher: MapMatcher, xy, heading_deg=None, previous=None):
+    xy = np.atleast_2d(np.asarray(xy, dtype=float))
+    heading = None if heading_deg is None else np.atleast_1d(np.asarray(heading_deg, dtype=float))
+    return matcher.match([xy] * len(matcher.road_maps), heading, previous)
+
+
+def test_compass_headings_turn_into_math_angles() -> None:
+    assert compass_to_math_rad(np.array([0.0, 90.0, 180.0, 270.0])) == pytest.approx(
+        [np.pi / 2, 0.0, -np.pi / 2, -np.pi])
+
+
+def test_points_along_a_polyline_follow_its_arc_length() -> None:
+    xy = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 5.0]])
+    assert points_along(xy, np.array([0.0, 4.0, 12.0, 99.0])) == pytest.approx(
+        np.array([[0.0, 0.0], [4.0, 0.0], [10.0, 2.0], [10.0, 5.0]]))
+
+
+def test_the_heading_picks_the_direction_of_a_two_way_road(side_map: RoadMap) -> None:
+    matcher = MapMatcher([side_map])
+    y = -LANE_WIDTH_M / 2 + 0.4  # on the eastbound lane, nearer the axis than the westbound one is
+    east = _match(matcher, [[200.0, y]], 90.0)
+    west = _match(matcher, [[200.0, y]], 270.0)
+    assert east.lane_id == ["AB_0"]
+    assert west.lane_id == ["BA_0"]
+    assert east.lane_pos_m[0] == pytest.approx(200.0, abs=0.01)
+    assert west.lane_pos_m[0] == pytest.approx(600.0, abs=0.01)
+    assert west.distance_m[0] == pytest.approx(LANE_WIDTH_M - 0.4, abs=0.01)
+
+
+def test_a_crossing_road_is_rejected_by_the_heading(side_map: RoadMap) -> None:
+    matcher = MapMatcher([side_map])
+    over_the_bridge = [[CROSSING_X_M + 0.5, -LANE_WIDTH_M / 2 - 1.0]]  # 0.5 m from the crossing, 1 m from AB
+    assert _match(matcher, over_the_bridge).lane_id == ["crossing_0"]  # nearest without a heading
+    assert _match(matcher, over_the_bridge, 90.0).lane_id == ["AB_0"]
+    assert _match(matcher, over_the_bridge, 0.0).lane_id == ["crossing_0"]
+
+
+def test_the_previous_lane_keeps_a_vehicle_off_the_parallel_road(side_map: RoadMap) -> None:
+    matcher = MapMatcher([side_map])
+    between = [[300.0, 5.0]]  # 3.4 m from the frontage road's lane, 6.6 m from the eastbound main lane
+    assert _match(matcher, between, 90.0).lane_id == ["frontage_0"]
+    kept = _match(matcher, between, 90.0, [MapPosition(0, "AB_0")])
+    assert kept.lane_id == ["AB_0"]
+    assert bool(kept.continued[0]) is True
+    assert kept.distance_m[0] == pytest.approx(5.0 + LANE_WIDTH_M / 2, abs=0.01)
+
+
+def test_a_fix_matching_nothing_says_why(side_map: RoadMap) -> None:
+    matcher = MapMatcher([side_map], MatchSettings(tolerance_m=5.0))
+    result = _match(matcher, [[300.0, 200.0], [200.0, 0.0 - LANE_WIDTH_M / 2], [100.0, FRONTAGE_OFFSET_M]],
+                    [90.0, 0.0, 180.0])
+    assert result.lane_id == [None, None, None]
+    assert list(result.map_index) == [-1, -1, -1]
+    assert np.isnan(result.distance_m).all()
+    assert result.reason[0] == "no lane within 5 m"
+    assert "heading 0 deg" in result.reason[1]
+    assert "heading 180 deg" in result.reason[2]
+
+
+def test_several_maps_are_matched_at_once(side_map: RoadMap, tmp_path: Path) -> None:
+    shifted = RoadMap.load(build_side_roads(tmp_path, origin_x_m=5000.0))
+    matcher = MapMatcher([side_map, shifted])
+    result = _match(matcher, [[5200.0, FRONTAGE_OFFSET_M + 0.5], [200.0, FRONTAGE_OFFSET_M + 0.5]], [90.0, 90.0])
+    assert list(result.map_index) == [1, 0]
+    assert result.lane_id == ["frontage_0", "frontage_0"]
+    assert result.lane_pos_m == pytest.approx([200.0, 200.0], abs=0.01)
+    same_place = MapMatcher([side_map, side_map])
+    assert list(_match(same_place, [[200.0, FRONTAGE_OFFSET_M]], 90.0).map_index) == [0]  # ties: the first map
+    assert list(_match(same_place, [[200.0, FRONTAGE_OFFSET_M]], 90.0, [MapPosition(1, "frontage_0")]).map_index) == [1]
+
+
+def test_a_fix_that_cannot_be_placed_on_a_map_is_skipped_there(side_map: RoadMap) -> None:
+    matcher = MapMatcher([side_map, side_map])
+    result = matcher.match([np.array([[np.nan, np.nan]]), np.array([[200.0, FRONTAGE_OFFSET_M]])])
+    assert list(result.map_index) == [1]
+
+
+def test_lane_point_is_the_inverse_of_matching(side_map: RoadMap) -> None:
+    x, y = lane_point(side_map, "BA_0", 250.0)
+    assert (x, y) == pytest.approx((550.0, LANE_WIDTH_M / 2), abs=0.01)
+    assert _match(MapMatcher([side_map]), [[x, y]], 270.0).lane_pos_m[0] == pytest.approx(250.0, abs=1e-6)
+
+
+def test_settings_are_checked() -> None:
+    with pytest.raises(ValueError, match="tolerance_m"):
+        MatchSettings(tolerance_m=0.0)
+    with pytest.raises(ValueError, match="heading_tolerance_deg"):
+        MatchSettings(heading_tolerance_deg=200.0)

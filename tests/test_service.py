@@ -1,0 +1,396 @@
+"""The HTTP service, served by a real uvicorn on loopback, against the library and the tracks' truth.
+
+The served networks: the Table 7 track made geo-referenced (a UTM projection added to
+its location), and the side roads of tests/test_mapmatch.py placed 10 km east of it.
+Every answer is compared with what the library (MapMatcher + Engine) gives for the
+same input, and positions and distances with the track's generator-written truth.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+
+from csws.engine import Engine, VehicleInput
+from csws.networks import networks_dir
+from csws.roadmap import RoadMap
+from csws.standard import Category, Level, warning_speed
+from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
+
+TRACK = "t7_left"
+TRUTH = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
+ROUTE = TRUTH["route"]["edges"]
+SIDE_X_M = 10_000.0
+UTM32 = "+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
+STARTUP_TIMEOUT_S = 60.0
+
+
+def write_geo_track(folder: Path) -> Path:
+    """The track with a projection: network (0, 0) lies at UTM 32N (550000, 5635000), near Bad Hersfeld."""
+    text = (networks_dir() / f"{TRACK}.net.xml").read_text()
+    text = text.replace('netOffset="0.000,0.000"', 'netOffset="-550000.00,-5635000.00"')
+    text = text.replace('projParameter="!"', f'projParameter="{UTM32}"')
+    path = folder / "t7_geo.net.xml"
+    path.write_text(text)
+    return path
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+class Server:
+    """``python -m uvicorn --factory service.app:create_app`` on loopback, stopped by :meth:`stop`."""
+
+    def __init__(self, nets: list[Path], state_db: Path) -> None:
+        self.port = _free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        env = {**os.environ, "CSWS_NETS": os.pathsep.join(map(str, nets)), "CSWS_STATE_DB": str(state_db)}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "uvicorn", "--factory", "service.app:create_app",
+             "--host", "127.0.0.1", "--port", str(self.port), "--log-level", "warning"],
+            env=env, cwd=Path(__file__).resolve().parents[1], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        )
+        self.client = httpx.Client(base_url=self.url, timeout=30.0)
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if self.process.poll() is not None:
+                raise RuntimeError(f"the service exited: {self.process.stdout.read().decode()}")
+            try:
+                if self.client.get("/readyz").status_code == 200:
+                    return
+            except httpx.TransportError:
+                time.sleep(0.1)
+        self.stop()
+        raise RuntimeError(f"the service was not ready within {STARTUP_TIMEOUT_S} s")
+
+    def stop(self) -> None:
+        self.client.close()
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def nets(tmp_path_factory) -> list[Path]:
+    folder = tmp_path_factory.mktemp("served")
+    return [write_geo_track(folder), build_side_roads(folder, origin_x_m=SIDE_X_M)]
+
+
+@pytest.fixture(scope="module")
+def server(nets, tmp_path_factory):
+    running = Server(nets, tmp_path_factory.mktemp("state") / "vehicles.sqlite3")
+    yield running
+    running.stop()
+
+
+@pytest.fixture(scope="module")
+def track_map(nets) -> RoadMap:
+    return RoadMap.load(nets[0])
+
+
+@pytest.fixture
+def client(server) -> httpx.Client:
+    return server.client
+
+
+def _route_lane(route_s: float) -> tuple[str, float]:
+    """Lane and lane position of a route arc length, from the truth's lane table."""
+    lane = next(lane for lane in reversed(TRUTH["lanes"]) if lane["start_s"] <= route_s)
+    return lane["lane"], route_s - lane["start_s"]
+
+
+def _lane_query(vehicle_id: str, route_s: float, speed_kmh: float, category: str = "N", **extra) -> dict:
+    lane_id, lane_pos_m = _route_lane(route_s)
+    return {"vehicle_id": vehicle_id, "category": category, "speed_kmh": speed_kmh,
+            "lane_id": lane_id, "lane_pos_m": lane_pos_m, "route": ROUTE, **extra}
+
+
+def _library_input(query: dict) -> VehicleInput:
+    return VehicleInput(query["vehicle_id"], query["category"], query["speed_kmh"], query["lane_id"],
+                        query["lane_pos_m"], query.get("route"), query.get("timestamp_s"), query.get("age_s"))
+
+
+def _assert_same(served: dict, library) -> None:
+    """A served answer says exactly what the library's answer says (floats compared exactly)."""
+    assert served["vehicle_id"] == library.vehicle_id
+    assert served["state"] == library.state.value
+    assert served["fault"] == (library.fault.value if library.fault else None)
+    assert served["level"] == int(library.level)
+    assert served["path_kind"] == (library.path.kind.value if library.path else None)
+    assert served["hmi"] == {"visual": library.warning.hmi.visual, "audible": library.warning.hmi.audible}
+    fields = ("curve_id", "part_index", "distance_m", "radius_m", "warning_speed_kmh", "warning_distance_m")
+    expected = [{f: getattr(t, f) for f in fields} | {"level": int(t.level)} for t in library.warning.triggers]
+    assert [{k: t[k] for k in (*fields, "level")} for t in served["triggers"]] == expected
+    if library.warning.target is None:
+        assert served["target"] is None
+    else:
+        assert served["target"]["distance_m"] == library.warning.target.distance_m
+        assert served["target"]["curve_id"] == library.warning.target.curve_id
+
+
+# ------------------------------------------------------------------ warnings
+def test_a_drive_through_the_track_gives_the_library_answers(client, track_map) -> None:
+    engine = Engine(track_map)
+    levels = []
+    for step, route_s in enumerate(np.arange(700.0, 1180.0, 10.0)):
+        query = _lane_query("drive-1", float(route_s), 75.0, timestamp_s=float(step))
+        response = client.post("/v1/warning", json=query)
+        assert response.status_code == 200, response.text
+        _assert_same(response.json(), engine.evaluate(_library_input(query)))
+        levels.append(response.json()["level"])
+    assert max(levels) == 2  # 75 km/h is above N's level-2 warning speed of both curves
+
+
+def test_the_target_lies_where_the_truth_puts_the_curve(client, track_map) -> None:
+    curve_1 = TRUTH["curves"][0]
+    route_s = curve_1["start_s"] - 20.0
+    answer = client.post("/v1/warning", json=_lane_query("target-1", route_s, 90.0)).json()
+    target = answer["target"]
+    assert target["level"] == 2
+    assert target["distance_m"] == pytest.approx(20.0, abs=0.5)
+    assert target["radius_m"] == pytest.approx(curve_1["radius_m"], rel=0.01)
+    assert target["warning_speed_kmh"] == pytest.approx(
+        warning_speed(target["radius_m"], Category.N, Level.LEVEL_2), rel=1e-9)
+    position = target["position"]
+    assert (position["x"], position["y"]) == pytest.approx(tuple(curve_1["start_xy"]), abs=0.5)
+    assert (position["lon"], position["lat"]) == pytest.approx(track_map.xy_to_lonlat(position["x"], position["y"]))
+    lane_id, lane_pos_m = _route_lane(route_s)
+    assert answer["matched"] == {"lane_id": lane_id, "lane_pos_m": lane_pos_m, "distance_m": 0.0}
+
+
+def test_a_batch_is_answered_in_order_as_the_library_answers(client, track_map) -> None:
+    rng = np.random.default_rng(3)
+    queries = [
+        _lane_query(f"fleet-{i}", float(s), float(v), str(c))
+        for i, (s, v, c) in enumerate(zip(rng.uniform(0.0, 1450.0, 2000), rng.uniform(20.0, 130.0, 2000),
+                                          rng.choice(["M1", "M2", "M3", "N", "O"], 2000)))
+    ]
+    response = client.post("/v1/warnings", json={"queries": queries})
+    assert response.status_code == 200, response.text
+    served = response.json()["answers"]
+    library = Engine(track_map).evaluate_many([_library_input(q) for q in queries])
+    assert [a["vehicle_id"] for a in served] == [q["vehicle_id"] for q in queries]
+    for answer, expected in zip(served, library):
+        _assert_same(answer, expected)
+    assert {a["level"] for a in served} == {0, 1, 2}
+    assert "csws;dur=" in response.headers["server-timing"]
+
+
+def test_a_vehicle_twice_in_one_batch_is_evaluated_in_order(client) -> None:
+    older = _lane_query("twice", 500.0, 50.0, timestamp_s=10.0)
+    newer = _lane_query("twice", 510.0, 50.0, timestamp_s=11.0)
+    stale = _lane_query("twice", 520.0, 50.0, timestamp_s=5.0)
+    answers = client.post("/v1/warnings", json={"queries": [older, newer, stale]}).json()["answers"]
+    assert [a["state"] for a in answers] == ["active", "active", "fault"]
+    assert answers[2]["fault"] == "the input is stale"
+
+
+def test_positions_are_matched_in_metres_and_in_lon_lat(client, track_map) -> None:
+    lon, lat = track_map.xy_to_lonlat(850.0, 0.4)
+    by_xy = client.post("/v1/warning", json={"vehicle_id": "xy-1", "category": "M1", "speed_kmh": 60.0,
+                                             "position": {"x": 850.0, "y": 0.4}, "heading_deg": 90.0}).json()
+    by_lonlat = client.post("/v1/warning", json={"vehicle_id": "ll-1", "category": "M1", "speed_kmh": 60.0,
+                                                 "position": {"lon": lon, "lat": lat}, "heading_deg": 90.0}).json()
+    for answer in (by_xy, by_lonlat):
+        assert answer["matched"]["lane_id"] == "approach_0"
+        assert answer["matched"]["lane_pos_m"] == pytest.approx(850.0, abs=0.01)
+        assert answer["matched"]["distance_m"] == pytest.approx(0.4, abs=0.01)
+        assert answer["path_kind"] == "predicted"
+    library = Engine(track_map).evaluate(VehicleInput("xy-1", "M1", 60.0, "approach_0",
+                                                      by_xy["matched"]["lane_pos_m"]))
+    _assert_same(by_xy, library)
+
+
+def test_consecutive_fixes_keep_to_their_road(client) -> None:
+    main_lane_y = -LANE_WIDTH_M / 2
+    first = {"vehicle_id": "parallel-1", "category": "N", "speed_kmh": 70.0,
+             "position": {"x": SIDE_X_M + 250.0, "y": main_lane_y}, "heading_deg": 90.0}
+    between = {"x": SIDE_X_M + 300.0, "y": FRONTAGE_OFFSET_M - 4.0}  # nearer the frontage road
+    assert client.post("/v1/warning", json=first).json()["matched"]["lane_id"] == "AB_0"
+    kept = client.post("/v1/warning", json={**first, "position": between}).json()
+    fresh = client.post("/v1/warning", json={**first, "vehicle_id": "parallel-2", "position": between}).json()
+    assert kept["matched"]["lane_id"] == "AB_0"
+    assert fresh["matched"]["lane_id"] == "frontage_0"
+
+
+def test_a_fix_matching_nothing_is_a_fault_answer(client) -> None:
+    response = client.post("/v1/warning", json={"vehicle_id": "lost-1", "category": "N", "speed_kmh": 50.0,
+                                                 "position": {"x": 5000.0, "y": 5000.0}})
+    assert response.status_code == 200
+    answer = response.json()
+    assert (answer["state"], answer["level"], answer["matched"]) == ("fault", 0, None)
+    assert answer["fault"] == "the position matches no lane of the map: no lane within 10 m"
+
+
+# ------------------------------------------------------------------ map
+def test_curves_are_geojson_with_the_truth_radii(client) -> None:
+    collection = client.get("/v1/curves").json()
+    assert collection["type"] == "FeatureCollection"
+    assert collection["coordinates"] == "per feature"
+    (curve,) = [f for f in collection["features"] if f["properties"]["network"] == "t7_geo"]
+    properties = curve["properties"]
+    assert properties["coordinates"] == "lon/lat (WGS84)"
+    assert [p["radius_m"] for p in properties["parts"]] == pytest.approx(
+        [c["radius_m"] for c in TRUTH["curves"]], rel=0.01)
+    assert properties["radius_m"] == pytest.approx(min(c["radius_m"] for c in TRUTH["curves"]), rel=0.01)
+    assert properties["angle_deg"] == pytest.approx(sum(c["angle_deg"] for c in TRUTH["curves"]), abs=1.0)
+    assert properties["direction"] == "left"
+    assert properties["warning_speed_kmh"]["N"]["1"] == pytest.approx(
+        warning_speed(properties["radius_m"], "N", 1), rel=1e-9)
+    west, south, east, north = curve["bbox"]
+    assert client.get("/v1/curves", params={"bbox": f"{west},{south},{east},{north}"}).json()["features"] == [curve]
+    assert client.get("/v1/curves", params={"bbox": f"{east + 1},{south},{east + 2},{north}"}).json()["features"] == []
+
+
+def test_the_horizon_lists_the_curves_ahead_at_their_truth_distances(client) -> None:
+    response = client.get("/v1/horizon", params={"lane_id": "approach_0", "lane_pos_m": 700.0, "length_m": 600.0,
+                                                 "route": ",".join(ROUTE)})
+    assert response.status_code == 200, response.text
+    ahead = response.json()
+    assert ahead["path_kind"] == "route"
+    assert [c["distance_m"] for c in ahead["cpois"]] == pytest.approx(
+        [c["start_s"] - 700.0 for c in TRUTH["curves"]], abs=0.5)
+    assert [c["radius_m"] for c in ahead["cpois"]] == pytest.approx([c["radius_m"] for c in TRUTH["curves"]], rel=0.01)
+    profile = ahead["profile"]
+    assert profile[0]["start_m"] == 0.0 and profile[-1]["end_m"] == pytest.approx(600.0)
+    assert all(a["end_m"] == b["start_m"] for a, b in zip(profile, profile[1:]))
+
+
+# ------------------------------------------------------------------ vehicles
+def test_switching_a_vehicle_off_and_on(client) -> None:
+    warning_at = _lane_query("switch-1", TRUTH["curves"][0]["start_s"] - 10.0, 90.0)
+    assert client.put("/v1/vehicles/switch-1", json={"switched_on": False, "category": "N"}).json()["state"] == "off"
+    off = client.post("/v1/warning", json={k: v for k, v in warning_at.items() if k != "category"}).json()
+    assert (off["state"], off["level"], off["target"]) == ("off", 0, None)
+    state = client.get("/v1/vehicles/switch-1").json()
+    assert (state["switched_on"], state["category"]) == (False, "N")
+    assert client.put("/v1/vehicles/switch-1", json={"switched_on": True}).json()["state"] == "standby"
+    on = client.post("/v1/warning", json=warning_at).json()
+    assert (on["state"], on["level"]) == ("active", 2)
+    assert client.get("/v1/vehicles/never-seen").status_code == 404
+
+
+def test_switches_survive_a_restart(nets, tmp_path) -> None:
+    state_db = tmp_path / "vehicles.sqlite3"
+    first = Server(nets[1:], state_db)
+    try:
+        assert first.client.put("/v1/vehicles/kept-off", json={"switched_on": False, "category": "M3"}).status_code == 200
+    finally:
+        first.stop()
+    second = Server(nets[1:], state_db)
+    try:
+        state = second.client.get("/v1/vehicles/kept-off").json()
+        assert (state["switched_on"], state["category"]) == (False, "M3")
+        answer = second.client.post("/v1/warning", json={"vehicle_id": "kept-off", "speed_kmh": 50.0,
+                                                         "position": {"x": SIDE_X_M + 100.0, "y": -1.6}}).json()
+        assert answer["state"] == "off"
+    finally:
+        second.stop()
+
+
+# ------------------------------------------------------------------ bad input
+GOOD = {"vehicle_id": "bad-input", "category": "N", "speed_kmh": 50.0, "position": {"x": 100.0, "y": 0.0}}
+
+
+def _with(**changes) -> str:
+    return json.dumps({**GOOD, **changes})
+
+
+BAD_QUERIES = {
+    "nan-speed": (_with(speed_kmh=0).replace('"speed_kmh": 0', '"speed_kmh": NaN'), "finite number"),
+    "infinite-x": (_with(position={"x": 1, "y": 0}).replace('"x": 1', '"x": Infinity'), "finite number"),
+    "negative-speed": (_with(speed_kmh=-1), "greater than or equal to 0"),
+    "speed-above-250": (_with(speed_kmh=251), "less than or equal to 250"),
+    "unknown-category": (_with(category="Q"), "Input should be 'M1', 'M2', 'M3', 'N' or 'O'"),
+    "lon-out-of-range": (_with(position={"lon": 200.0, "lat": 50.0}), "less than or equal to 180"),
+    "lat-out-of-range": (_with(position={"lon": 9.0, "lat": -95.0}), "greater than or equal to -90"),
+    "heading-360": (_with(heading_deg=360.0), "less than 360"),
+    "negative-heading": (_with(heading_deg=-0.5), "greater than or equal to 0"),
+    "unknown-lane": (_with(lane_id="nowhere_0", lane_pos_m=1.0), "unknown lane id 'nowhere_0'"),
+    "lane-pos-beyond": (_with(lane_id="approach_0", lane_pos_m=950.0), "beyond the end of lane 'approach_0'"),
+    "lane-without-pos": (_with(lane_id="approach_0"), "lane_id and lane_pos_m go together"),
+    "unknown-edge": (_with(route=["approach", "nowhere"]), "unknown edge id 'nowhere'"),
+    "half-position": (_with(position={"x": 1.0}), "either x and y"),
+    "no-position": (json.dumps({k: v for k, v in GOOD.items() if k != "position"}), "needs a position"),
+    "empty-vehicle-id": (_with(vehicle_id=""), "at least 1 character"),
+    "no-category": (json.dumps({**{k: v for k, v in GOOD.items() if k != "category"}, "vehicle_id": "anon"}),
+                    "category is required"),
+    "malformed-json": ('{"vehicle_id": "x", ', "JSON"),
+}
+
+
+@pytest.mark.parametrize("body, message", BAD_QUERIES.values(), ids=BAD_QUERIES.keys())
+def test_bad_queries_get_a_clear_422(client, body: str, message: str) -> None:
+    for path, payload in (("/v1/warning", body), ("/v1/warnings", f'{{"queries": [{json.dumps(GOOD)}, {body}]}}')):
+        response = client.post(path, content=payload, headers={"content-type": "application/json"})
+        assert response.status_code == 422, response.text
+        assert message in json.dumps(response.json()), response.text
+        if path == "/v1/warnings" and message != "JSON":
+            assert response.json()["detail"][0]["loc"][:3] == ["body", "queries", 1]
+
+
+def test_an_oversized_batch_is_refused(client) -> None:
+    response = client.post("/v1/warnings", json={"queries": [GOOD] * 10_001})
+    assert response.status_code == 422
+    assert response.json()["detail"][0]["msg"] == "List should have at most 10000 items after validation, not 10001"
+
+
+@pytest.mark.parametrize("path, params, message", [
+    ("/v1/horizon", {"lane_id": "approach_0", "lane_pos_m": 1.0, "length_m": 0.0}, "greater than 0"),
+    ("/v1/horizon", {"x": "nan", "y": 0.0}, "finite number"),
+    ("/v1/horizon", {"lane_id": "nowhere_0", "lane_pos_m": 1.0}, "unknown lane id"),
+    ("/v1/curves", {"bbox": "1,2,3"}, "four finite numbers"),
+    ("/v1/curves", {"network": "atlantis"}, "unknown network"),
+])
+def test_bad_map_requests_get_a_clear_422(client, path, params, message) -> None:
+    response = client.get(path, params=params)
+    assert response.status_code == 422, response.text
+    assert message in response.text
+
+
+def test_a_bad_switch_gets_a_clear_422(client) -> None:
+    response = client.put("/v1/vehicles/v", json={"switched_on": "maybe"})
+    assert response.status_code == 422
+    assert "valid boolean" in response.text
+
+
+# ------------------------------------------------------------------ operations
+def test_health_metrics_and_docs(client) -> None:
+    assert client.get("/healthz").json() == {"status": "ok"}
+    ready = client.get("/readyz").json()
+    assert [n["name"] for n in ready["networks"]] == ["t7_geo", "side_roads"]
+    client.post("/v1/warning", json=_lane_query("metrics-1", 100.0, 50.0))
+    metrics = client.get("/metrics").text
+    assert 'csws_http_requests_total{method="POST",route="/v1/warning",status="200"}' in metrics
+    assert 'csws_http_request_duration_seconds_count{route="/v1/warning"}' in metrics
+    assert 'csws_answers_total{state="active",level="0"}' in metrics
+    schema = client.get("/openapi.json").json()
+    assert {"/v1/warning", "/v1/warnings", "/v1/curves", "/v1/horizon", "/v1/vehicles/{vehicle_id}"} <= set(schema["paths"])
+    assert schema["components"]["schemas"]["Batch"]["properties"]["queries"]["maxItems"] == 10_000
+    assert "examples" in schema["components"]["schemas"]["Query"]
+    assert client.get("/docs").status_code == 200
+
+
+def test_a_network_that_cannot_be_read_stops_start_up_in_one_line(tmp_path) -> None:
+    broken = tmp_path / "broken.net.xml"
+    broken.write_text("<net>")
+    result = subprocess.run([sys.executable, "-m", "csws.cli", "serve", "--net", str(broken), "--state-db", ":memory:"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr.strip().count("\n") == 0
+    assert result.stderr.startswith("csws: error: ") and "broken.net.xml" in result.stderr

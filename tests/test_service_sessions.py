@@ -1,0 +1,111 @@
+"""Vehicle sessions and settings in-process: expiry on an injected clock, persistence, lon/lat refusal.
+
+The clock is a counter the test advances, so nothing depends on wall-clock time.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from fastapi.testclient import TestClient
+
+from csws.networks import networks_dir
+from service.app import create_app
+from service.settings import ServiceSettings, settings_environment
+from service.vehicles import SettingStore, VehicleSetting
+
+TRACK_NET = networks_dir() / "t7_left.net.xml"
+IDLE_S = 60.0
+
+
+class Clock:
+    """Monotonic seconds that move only when told."""
+
+    def __init__(self) -> None:
+        self.now_s = 0.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+@pytest.fixture
+def clock() -> Clock:
+    return Clock()
+
+
+@pytest.fixture
+def app(tmp_path, clock):
+    settings = ServiceSettings(nets=[TRACK_NET], state_db=str(tmp_path / "vehicles.sqlite3"), session_idle_s=IDLE_S)
+    return create_app(settings, clock=clock)
+
+
+def _query(vehicle_id: str, **extra) -> dict:
+    return {"vehicle_id": vehicle_id, "category": "N", "speed_kmh": 60.0, "lane_id": "approach_0",
+            "lane_pos_m": 500.0, **extra}
+
+
+def test_idle_sessions_expire_and_the_engine_forgets_them(app, clock) -> None:
+    engine = app.state.service.networks[0].engine
+    with TestClient(app) as client:
+        client.post("/v1/warning", json=_query("idle", timestamp_s=100.0))
+        clock.now_s = IDLE_S - 1.0
+        client.post("/v1/warning", json=_query("busy"))
+        assert set(engine.statuses) == {"idle", "busy"}
+        clock.now_s = IDLE_S + 1.0
+        assert client.get("/v1/vehicles/idle").status_code == 404
+        assert set(engine.statuses) == {"busy"}
+        # A new session starts afresh: the old timestamp no longer makes an older fix stale.
+        assert client.post("/v1/warning", json=_query("idle", timestamp_s=50.0)).json()["state"] == "active"
+
+
+def test_a_stored_switch_outlives_the_session(app, clock) -> None:
+    with TestClient(app) as client:
+        client.put("/v1/vehicles/parked", json={"switched_on": False})
+        clock.now_s = 10 * IDLE_S
+        assert client.get("/v1/vehicles/parked").json()["switched_on"] is False
+        assert client.post("/v1/warning", json=_query("parked")).json()["state"] == "off"
+
+
+def test_settings_persist_in_sqlite(tmp_path) -> None:
+    path = tmp_path / "nested" / "vehicles.sqlite3"
+    store = SettingStore(path)
+    store.save("a", VehicleSetting(False, None))
+    store.save("a", VehicleSetting(True, None))
+    store.save("b", VehicleSetting(False, None))
+    store.close()
+    assert SettingStore(path).load() == {"a": VehicleSetting(True, None), "b": VehicleSetting(False, None)}
+
+
+def test_lon_lat_on_networks_without_projection_is_refused(tmp_path) -> None:
+    app = create_app(ServiceSettings(nets=[TRACK_NET], state_db=":memory:"))
+    with TestClient(app) as client:
+        response = client.post("/v1/warning", json={"vehicle_id": "v", "category": "M1", "speed_kmh": 50.0,
+                                                    "position": {"lon": 9.7, "lat": 50.9}})
+    assert response.status_code == 422
+    assert response.json()["detail"] == [{
+        "loc": ["body", "position"], "type": "value_error",
+        "msg": "the served networks are not geo-referenced: give the position as x and y in network metres",
+    }]
+
+
+def test_settings_come_from_the_environment(monkeypatch, tmp_path) -> None:
+    settings = ServiceSettings(nets=[TRACK_NET, TRACK_NET.with_name("t7_right.net.xml")], state_db=":memory:",
+                               session_idle_s=5.0, port=9001)
+    for name, value in settings_environment(settings).items():
+        monkeypatch.setenv(name, value)
+    again = ServiceSettings()
+    assert again.nets == [p.resolve() for p in settings.nets]
+    assert (again.session_idle_s, again.port, again.state_db) == (5.0, 9001, ":memory:")
+
+
+def test_by_default_the_bundled_networks_are_served(monkeypatch) -> None:
+    monkeypatch.delenv("CSWS_NETS", raising=False)
+    index = json.loads((networks_dir() / "index.json").read_text())
+    served = {p.name for p in ServiceSettings(state_db=":memory:").nets}
+    assert {n["net_file"] for n in index["networks"]} <= served
+
+
+def test_networks_with_the_same_name_are_refused(tmp_path) -> None:
+    with pytest.raises(ValueError, match="share the name 't7_left'"):
+        create_app(ServiceSettings(nets=[TRACK_NET, TRACK_NET], state_db=":memory:"))
