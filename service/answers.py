@@ -109,6 +109,7 @@ class WarningService:
         self.matcher = MapMatcher([n.road_map for n in self.networks], match_settings)
         self.geo_networks = [i for i, n in enumerate(self.networks) if n.road_map.has_projection]
         self.edge_ids = frozenset().union(*(n.edge_ids for n in self.networks))
+        self.network_index = {n.name: i for i, n in enumerate(self.networks)}
 
     # ------------------------------------------------------------------ queries
     def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> list[dict[str, Any]]:
@@ -136,21 +137,34 @@ class WarningService:
             if query.category is None and self.registry.category(query.vehicle_id) is None:
                 errors.append(_error([*where, "category"], "category is required: give it in the query or "
                                      f"set it with PUT /v1/vehicles/{query.vehicle_id}"))
-            if query.position is not None and query.position.is_geographic and not self.geo_networks:
+            if query.network is not None and query.network not in self.network_index:
+                errors.append(_error([*where, "network"], f"unknown network {query.network!r}: served are "
+                                     + ", ".join(sorted(self.network_index))))
+                continue
+            if query.position is not None and query.position.is_geographic and not self._geographic(query):
                 errors.append(_error([*where, "position"], "the served networks are not geo-referenced: "
                                      "give the position as x and y in network metres"))
             if query.lane_id is not None:
                 errors += self._lane_errors(query, where)
-            unknown = [edge for edge in query.route or () if edge not in self.edge_ids]
+            known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
+            unknown = [edge for edge in query.route or () if edge not in known]
             if unknown:
-                errors.append(_error([*where, "route"], f"unknown edge id {unknown[0]!r}: in no served network"))
+                where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
+                errors.append(_error([*where, "route"], f"unknown edge id {unknown[0]!r}: {where_not}"))
         if errors:
             raise QueryErrors(errors)
 
+    def _geographic(self, query: Query) -> bool:
+        """Whether the query's network (or, without one, any served network) is geo-referenced."""
+        if query.network is None:
+            return bool(self.geo_networks)
+        return self.network_index[query.network] in self.geo_networks
+
     def _lane_errors(self, query: Query, where: list[Any]) -> list[dict[str, Any]]:
-        network_index = self._lane_network(query.vehicle_id, query.lane_id)
+        network_index = self._lane_network(query)
         if network_index is None:
-            return [_error([*where, "lane_id"], f"unknown lane id {query.lane_id!r}: in no served network")]
+            where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
+            return [_error([*where, "lane_id"], f"unknown lane id {query.lane_id!r}: {where_not}")]
         length_m = self.networks[network_index].road_map.lane(query.lane_id).length_m
         if query.lane_pos_m > length_m:
             return [_error([*where, "lane_pos_m"],
@@ -158,11 +172,15 @@ class WarningService:
                            f"({length_m:g} m long)")]
         return []
 
-    def _lane_network(self, vehicle_id: str, lane_id: str) -> int | None:
-        """The network a given lane id is taken on: the vehicle's own if it has it, else the first that has it."""
-        own = self.registry.network_of(vehicle_id)
-        candidates = [own] + [i for i in range(len(self.networks)) if i != own]
-        return next((i for i in candidates if _has_lane(self.networks[i], lane_id)), None)
+    def _lane_network(self, query: Query) -> int | None:
+        """The network a query's lane id is taken on: the one it names, else the vehicle's own if it has the
+        lane, else the first that has it; None if none has it."""
+        if query.network is not None:
+            candidates = [self.network_index[query.network]]
+        else:
+            own = self.registry.network_of(query.vehicle_id)
+            candidates = [own] + [i for i in range(len(self.networks)) if i != own]
+        return next((i for i in candidates if _has_lane(self.networks[i], query.lane_id)), None)
 
     # ------------------------------------------------------------------ evaluation
     def place(self, queries: Sequence[Query]) -> list[Placement]:
@@ -173,12 +191,12 @@ class WarningService:
             if query.lane_id is None:
                 to_match.append(i)
                 continue
-            network_index = self._lane_network(query.vehicle_id, query.lane_id)
+            network_index = self._lane_network(query)
             placements[i] = Placement(network_index, query.lane_id, query.lane_pos_m,
                                       self._fix_distance_m(query, network_index), None)
         if to_match:
             matched = self.matcher.match(
-                [self._fixes([queries[i] for i in to_match], network) for network in self.networks],
+                [self._fixes([queries[i] for i in to_match], index) for index in range(len(self.networks))],
                 np.array([math.nan if queries[i].heading_deg is None else queries[i].heading_deg for i in to_match]),
                 [self.registry.previous(queries[i].vehicle_id) for i in to_match],
             )
@@ -190,11 +208,18 @@ class WarningService:
                                           float(matched.distance_m[row]), matched.reason[row])
         return placements
 
-    def _fixes(self, queries: Sequence[Query], network: ServedNetwork) -> np.ndarray:
-        """The queries' fixes in the coordinates of ``network``; NaN where lon/lat meets a map without projection."""
+    def _fixes(self, queries: Sequence[Query], network_index: int) -> np.ndarray:
+        """The queries' fixes in the coordinates of one network.
+
+        NaN (no match there) where a query names another network, or lon/lat meets a map
+        without a projection.
+        """
+        network = self.networks[network_index]
         xy = np.full((len(queries), 2), np.nan)
         for row, query in enumerate(queries):
             position = query.position
+            if query.network is not None and self.network_index[query.network] != network_index:
+                continue
             if not position.is_geographic:
                 xy[row] = position.x, position.y
             elif network.road_map.has_projection:
@@ -206,7 +231,7 @@ class WarningService:
         network = self.networks[network_index]
         if query.position is None:
             return 0.0
-        (x, y), = self._fixes([query], network)
+        (x, y), = self._fixes([query], network_index)
         if not math.isfinite(x):
             return 0.0
         lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)

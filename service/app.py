@@ -208,6 +208,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         lane_id: str | None = QueryParam(default=None, description="lane id (no map matching)"),
         lane_pos_m: float | None = QueryParam(default=None, allow_inf_nan=False, description="lane position, m"),
         route: str | None = QueryParam(default=None, description="route edge ids, comma-separated"),
+        network: str | None = QueryParam(default=None, description="the served network (default: best match)"),
         length_m: float = QueryParam(default=DEFAULT_HORIZON_M, gt=0, le=MAX_HORIZON_M, allow_inf_nan=False,
                                      description="how far ahead, m"),
     ) -> Response:
@@ -222,6 +223,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
                 lane_id=lane_id,
                 lane_pos_m=lane_pos_m,
                 route=route.split(",") if route else None,
+                network=network,
             )
         except ValidationError as exc:
             raise RequestValidationError(

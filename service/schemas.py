@@ -93,6 +93,13 @@ class Query(BaseModel):
     )
     lane_pos_m: float | None = Field(default=None, ge=0.0, description="lane position, m (with lane_id)")
     route: list[str] | None = Field(default=None, max_length=MAX_BATCH, description="route as edge ids")
+    network: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=256,
+        description="the served network to answer on (its file name without .net.xml); by default the "
+        "vehicle's last network, or for a fix the best match over all networks",
+    )
     timestamp_s: float | None = Field(default=None, description="when the fix was taken, s (any epoch; ordering only)")
     age_s: float | None = Field(default=None, ge=0.0, description="how old the fix is now, s")
 

@@ -228,6 +228,14 @@ def test_consecutive_fixes_keep_to_their_road(client) -> None:
     assert fresh["matched"]["lane_id"] == "frontage_0"
 
 
+def test_a_query_naming_its_network_is_answered_on_that_network_only(client) -> None:
+    on_track = {"vehicle_id": "named-1", "category": "N", "speed_kmh": 50.0, "position": {"x": 500.0, "y": 0.0}}
+    answer = client.post("/v1/warning", json={**on_track, "network": "t7_geo"}).json()
+    assert answer["matched"]["lane_id"] == "approach_0" and answer["state"] == "active"
+    elsewhere = client.post("/v1/warning", json={**on_track, "vehicle_id": "named-2", "network": "side_roads"}).json()
+    assert elsewhere["matched"] is None and elsewhere["state"] == "fault"
+
+
 def test_a_fix_matching_nothing_is_a_fault_answer(client) -> None:
     response = client.post("/v1/warning", json={"vehicle_id": "lost-1", "category": "N", "speed_kmh": 50.0,
                                                  "position": {"x": 5000.0, "y": 5000.0}})
@@ -331,6 +339,11 @@ BAD_QUERIES = {
     "no-category": (json.dumps({**{k: v for k, v in GOOD.items() if k != "category"}, "vehicle_id": "anon"}),
                     "category is required"),
     "malformed-json": ('{"vehicle_id": "x", ', "JSON"),
+    "unknown-network": (_with(network="atlantis"), "unknown network 'atlantis': served are side_roads, t7_geo"),
+    "lane-not-in-network": (_with(network="side_roads", lane_id="approach_0", lane_pos_m=1.0),
+                            "unknown lane id 'approach_0': not in network 'side_roads'"),
+    "edge-not-in-network": (_with(network="side_roads", route=["approach"]),
+                            "unknown edge id 'approach': not in network 'side_roads'"),
 }
 
 
