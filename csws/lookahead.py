@@ -16,7 +16,11 @@ Which way the path goes:
   ``predicted``.
 
 The lanes of a path are stitched and profiled as one polyline (so a curve that runs
-across an edge boundary is one curve). Paths recur, from one step to the next and
+across an edge boundary is one curve). Junction manoeuvres, a turn inside a junction
+or a drive round a roundabout, are not curves of the road and offer no CPOI unless
+:attr:`LookAheadSettings.warn_at_junctions` is set
+(:meth:`csws.roadmap.PathProfile.road_curves`): the driver takes them at junction
+speed, and a warning at every turn would teach the driver to ignore the system. Paths recur, from one step to the next and
 from one vehicle to another, so their profiles and curves are kept in a bounded cache
 and a query costs a walk over the lanes ahead and a look-up.
 """
@@ -55,6 +59,9 @@ class LookAheadSettings:
         How many stitched paths to keep.
     max_lanes
         A path never has more lanes than this (guards against loops of tiny lanes).
+    warn_at_junctions
+        Offer the CPOIs of junction manoeuvres too (turns on internal lanes,
+        roundabouts); by default only the curves of the road are offered.
     """
 
     floor_m: float = 250.0
@@ -63,6 +70,7 @@ class LookAheadSettings:
     warning_radius_m: float = DEFAULT_WARNING_RADIUS_M
     cache_size: int = 4096
     max_lanes: int = 200
+    warn_at_junctions: bool = False
 
     def __post_init__(self) -> None:
         for name in ("floor_m", "context_m", "warning_radius_m"):
@@ -288,7 +296,8 @@ class LookAhead:
             return cached
         path = self.road_map.path_profile(lanes)
         starts, ends, radii, indices, ids = [], [], [], [], []
-        for curve in path.curves(self.settings.warning_radius_m):
+        curves_of_path = path.curves if self.settings.warn_at_junctions else path.road_curves
+        for curve in curves_of_path(self.settings.warning_radius_m):
             start_lane, start_pos_m = path.lane_position(curve.start_s)
             curve_id = f"{start_lane}@{start_pos_m:.0f}"
             for index, part in enumerate(curve.parts):

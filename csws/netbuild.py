@@ -18,7 +18,7 @@ import numpy as np
 
 from .binaries import sumo_binary, sumo_home
 
-__all__ = ["NetconvertError", "shape_text", "netconvert"]
+__all__ = ["NetconvertError", "shape_text", "netconvert", "netconvert_osm"]
 
 DEFAULT_OPTIONS = ("--no-turnarounds", "true", "--offset.disable-normalization", "true")
 
@@ -58,21 +58,39 @@ def netconvert(
     NetconvertError
         With netconvert's messages, when it fails (or warns, in strict mode).
     """
-    net_file = Path(net_file).resolve()
     with tempfile.TemporaryDirectory(prefix="csws-plain-") as work:
         node_file, edge_file = Path(work) / "plain.nod.xml", Path(work) / "plain.edg.xml"
         node_file.write_text(nodes_xml, encoding="utf-8")
         edge_file.write_text(edges_xml, encoding="utf-8")
-        command = [
-            str(sumo_binary("netconvert")),
-            "--node-files", str(node_file),
-            "--edge-files", str(edge_file),
-            "--output-file", str(net_file),
-            *DEFAULT_OPTIONS,
-            *options,
-        ]  # fmt: skip
-        environment = {**os.environ, "SUMO_HOME": str(sumo_home())}
-        result = subprocess.run(command, env=environment, capture_output=True, text=True)
+        inputs = ["--node-files", str(node_file), "--edge-files", str(edge_file)]
+        return _run_netconvert([*inputs, *DEFAULT_OPTIONS, *options], net_file, strict)
+
+
+def netconvert_osm(osm_files: Sequence[str | Path], net_file: str | Path, options: Sequence[str] = ()) -> Path:
+    """Netconvert OpenStreetMap XML files (``.osm``, ``.osm.xml``, gzipped or not) into ``net_file``.
+
+    Unlike plain XML, OSM coordinates are projected (UTM by default) and then moved to
+    the origin as SUMO does; the ``<location>`` element keeps the offset and the
+    projection so that lon/lat can be recovered. There are no turnarounds at dead ends,
+    as for every csws network.
+
+    Raises
+    ------
+    NetconvertError
+        With netconvert's messages, when it fails. Warnings about the map data are
+        expected on real extracts and are not errors.
+    """
+    inputs = ["--osm-files", ",".join(str(Path(path).resolve()) for path in osm_files)]
+    return _run_netconvert([*inputs, "--no-turnarounds", "true", *options], net_file, strict=False)
+
+
+def _run_netconvert(arguments: Sequence[str], net_file: str | Path, strict: bool) -> Path:
+    """Run netconvert with ``arguments`` writing ``net_file``; raise :class:`NetconvertError` on failure."""
+    net_file = Path(net_file).resolve()
+    command = [str(sumo_binary("netconvert")), *arguments, "--output-file", str(net_file)]
+    # PROJ_LIB: the projection data the wheel ships, for geo-referenced (OSM) networks.
+    environment = {**os.environ, "SUMO_HOME": str(sumo_home()), "PROJ_LIB": str(sumo_home() / "data" / "proj")}
+    result = subprocess.run(command, env=environment, capture_output=True, text=True)
     messages = (result.stdout + result.stderr).strip()
     warned = "warning" in messages.lower() or "error" in messages.lower()
     if result.returncode != 0 or (strict and warned):

@@ -16,6 +16,21 @@ drives through them and they carry the turns: a path runs normal lane -> interna
 "via" lane(s) -> next normal lane, exactly as SUMO moves vehicles. Pedestrian crossings
 and walking areas are left out.
 
+Junctions are not curves of the road. A turn inside a junction (an internal lane) or a
+drive round a roundabout (the edges of the network's ``<roundabout>`` elements) is a
+manoeuvre the driver makes at junction speed, not a bend taken at road speed. The
+curve index (:meth:`RoadMap.curves`) leaves out the curves of junction lanes, and a path
+offers the warning only its road curves (:meth:`PathProfile.road_curves`): a curve
+that turns mostly near junction lanes (:data:`JUNCTION_TURN_SHARE`,
+:data:`JUNCTION_MARGIN_M`) is a junction manoeuvre. A bend of the road that merely runs
+through a junction keeps most of its turning on normal lanes and stays a curve, less
+the parts inside the junction, whose shape netconvert made up.
+
+Networks imported from OpenStreetMap are geo-referenced: :meth:`RoadMap.xy_to_lonlat`
+and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) convert with
+the network's own projection (UTM for an OSM import), and :meth:`RoadMap.curves_geojson`
+gives the curve index in WGS84.
+
 Storage is columnar: the vertices of all lanes sit in one ``(n, 2)`` array with an
 offset per lane, and all lanes are profiled in one :func:`csws.curvature.radius_profiles`
 call, so a regional network of some 1,500 lane-km loads and profiles in seconds.
@@ -44,12 +59,14 @@ import numpy as np
 import shapely
 import sumolib
 
-from .curvature import Curve, RadiusProfile, curves_from_profile, radius_profile, radius_profiles
+from .curvature import ConstantRadiusPart, Curve, RadiusProfile, curves_from_profile, radius_profile, radius_profiles
 from .standard import DEFAULT_WARNING_RADIUS_M
 
 __all__ = [
     "CURVE_FIELDS",
     "JOINT_TOLERANCE_M",
+    "JUNCTION_MARGIN_M",
+    "JUNCTION_TURN_SHARE",
     "Lane",
     "LaneCurve",
     "LaneMatch",
@@ -65,6 +82,15 @@ __all__ = [
 #: connection meet exactly; a few-centimetre segment at the joint would otherwise read
 #: as a spurious sharp bend.
 JOINT_TOLERANCE_M = 0.1
+
+#: A curve is a junction manoeuvre, not a curve of the road, when at least this share of
+#: its turning angle (3.6) lies on junction lanes: internal lanes and roundabouts.
+JUNCTION_TURN_SHARE = 0.5
+
+#: Lane shapes within this distance of a junction lane are netconvert's, not the mapped
+#: road's, m: it cuts the lanes back to the junction border and joins them with internal
+#: lanes of its own making, which bends the last metres of the lanes too.
+JUNCTION_MARGIN_M = 10.0
 
 #: The columns of :meth:`RoadMap.write_curves`, in order.
 CURVE_FIELDS = ("lane_id", "start_pos_m", "end_pos_m", "min_radius_m", "angle_deg", "direction")
@@ -113,6 +139,10 @@ class Lane:
         Length of the lane's polyline, m.
     allowed_vclasses
         The vehicle classes allowed on the lane.
+    in_roundabout
+        Whether the lane belongs to a roundabout: its edge is listed in one of the
+        network's ``<roundabout>`` elements, or it is an internal lane of one of its
+        junctions.
     """
 
     lane_id: str
@@ -125,11 +155,17 @@ class Lane:
     length_m: float
     shape_length_m: float
     allowed_vclasses: frozenset[str]
+    in_roundabout: bool = False
 
     @property
     def is_internal(self) -> bool:
         """Whether the lane lies inside a junction."""
         return self.function == "internal"
+
+    @property
+    def is_junction(self) -> bool:
+        """Whether driving the lane is a junction manoeuvre: an internal lane or a roundabout."""
+        return self.is_internal or self.in_roundabout
 
     @property
     def position_factor(self) -> float:
@@ -246,6 +282,8 @@ class PathProfile:
         Path arc length at the first shape point of each lane, ``(len(lane_ids),)``, m.
     lane_shape_length_m, lane_position_factor
         Shape length and SUMO position factor of each lane (see :class:`Lane`).
+    lane_is_junction
+        Whether each lane is a junction lane (:attr:`Lane.is_junction`).
     """
 
     lane_ids: tuple[str, ...]
@@ -254,6 +292,7 @@ class PathProfile:
     lane_start_s: np.ndarray
     lane_shape_length_m: np.ndarray
     lane_position_factor: np.ndarray
+    lane_is_junction: np.ndarray
 
     @property
     def length_m(self) -> float:
@@ -263,6 +302,43 @@ class PathProfile:
     def curves(self, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
         """The curves (radius <= ``warning_radius_m``, 3.2-3.5) along the path, in path arc length."""
         return curves_from_profile(self.profile, warning_radius_m)
+
+    def road_curves(self, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
+        """The curves of the road along the path: :meth:`curves` without junction geometry.
+
+        A curve is a junction manoeuvre, and left out, when at least
+        :data:`JUNCTION_TURN_SHARE` of its turning angle lies in junction zones (junction
+        lanes, widened by :data:`JUNCTION_MARGIN_M`). Of the other curves, the parts lying
+        mostly in a junction zone are left out: there the shape is netconvert's
+        construction, not the mapped road, and the road's radius is that of the parts
+        either side.
+        """
+        zones = self.junction_zones()
+        road_curves = []
+        for curve in self.curves(warning_radius_m):
+            length_m = np.array([part.end_s - part.start_s for part in curve.parts])
+            radius_m = np.array([part.radius_m for part in curve.parts])
+            in_zone_m = np.array([_overlap_m(zones, part.start_s, part.end_s) for part in curve.parts])
+            if np.sum(in_zone_m / radius_m) >= JUNCTION_TURN_SHARE * np.sum(length_m / radius_m):
+                continue
+            kept = [part for part, inside, length in zip(curve.parts, in_zone_m, length_m) if inside < 0.5 * length]
+            if kept:
+                road_curves.append(_curve_of_parts(kept, curve.direction))
+        return road_curves
+
+    def junction_zones(self) -> np.ndarray:
+        """Path arc-length intervals of the junction lanes widened by :data:`JUNCTION_MARGIN_M`,
+        merged where they overlap, ``(k, 2)``, m."""
+        junction = np.flatnonzero(self.lane_is_junction)
+        starts = self.lane_start_s[junction] - JUNCTION_MARGIN_M
+        ends = self.lane_start_s[junction] + self.lane_shape_length_m[junction] + JUNCTION_MARGIN_M
+        merged: list[list[float]] = []
+        for start, end in zip(starts.tolist(), ends.tolist()):
+            if merged and start <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], end)
+            else:
+                merged.append([start, end])
+        return np.array(merged, dtype=float).reshape(-1, 2)
 
     def lane_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Map path arc lengths to lanes: for each ``s``, the index into :attr:`lane_ids` and the lane position.
@@ -319,7 +395,7 @@ def read_sumo_net(path: str | Path) -> sumolib.net.Net:
     return net
 
 
-def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float) -> Lane:
+def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool) -> Lane:
     """The :class:`Lane` attributes of a sumolib lane."""
     edge = lane.getEdge()
     return Lane(
@@ -333,7 +409,27 @@ def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float) -> Lane:
         length_m=float(lane.getLength()),
         shape_length_m=shape_length_m,
         allowed_vclasses=frozenset(lane.getPermissions()),
+        in_roundabout=in_roundabout,
     )
+
+
+def _internal_edge_junction(edge_id: str) -> str:
+    """The junction of an internal edge: SUMO names them ``:JUNCTION_INDEX``."""
+    return edge_id[1:].rsplit("_", 1)[0]
+
+
+def _roundabout_edge_ids(net: sumolib.net.Net) -> frozenset[str]:
+    """Ids of the edges in a roundabout: those of the ``<roundabout>`` elements and the
+    internal edges of their junctions."""
+    roundabouts = net.getRoundabouts()
+    edge_ids = {edge_id for roundabout in roundabouts for edge_id in roundabout.getEdges()}
+    junction_ids = {node_id for roundabout in roundabouts for node_id in roundabout.getNodes()}
+    internal_ids = {
+        edge.getID()
+        for edge in net.getEdges()
+        if edge.getFunction() == "internal" and _internal_edge_junction(edge.getID()) in junction_ids
+    }
+    return frozenset(edge_ids | internal_ids)
 
 
 def _successor_ids(lane: sumolib.net.lane.Lane, index: dict[str, int]) -> list[int]:
@@ -403,6 +499,41 @@ def _stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     xy = np.concatenate(pieces)
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
     return xy, s[first_vertex]
+
+
+def _overlap_m(intervals: np.ndarray, start_s: float, end_s: float) -> float:
+    """Length of ``[start_s, end_s]`` covered by disjoint ``intervals`` ``(k, 2)``, m."""
+    return float(np.clip(np.minimum(intervals[:, 1], end_s) - np.maximum(intervals[:, 0], start_s), 0.0, None).sum())
+
+
+def _curve_of_parts(parts: Sequence[ConstantRadiusPart], direction: str) -> Curve:
+    """A curve (3.4-3.8) made of some constant-radius parts of another, in order."""
+    return Curve(
+        start_s=parts[0].start_s,
+        end_s=parts[-1].end_s,
+        angle_deg=math.degrees(sum((part.end_s - part.start_s) / part.radius_m for part in parts)),
+        direction=direction,
+        min_radius_m=min(part.radius_m for part in parts),
+        parts=tuple(parts),
+    )
+
+
+def _finite_pairs(values: np.ndarray, what: str) -> np.ndarray:
+    """``values`` as a float ``(k, 2)`` array; ValueError when not finite pairs."""
+    pairs = np.asarray(values, dtype=float)
+    if pairs.ndim != 2 or pairs.shape[1] != 2:
+        raise ValueError(f"{what} must be pairs, got an array of shape {np.shape(values)}")
+    if not np.isfinite(pairs).all():
+        raise ValueError(f"{what} must be finite numbers")
+    return pairs
+
+
+def _shape_between(shape: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
+    """The part of a polyline between two arc lengths, its ends interpolated, ``(m, 2)``."""
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T))))
+    inside = (s > start_s) & (s < end_s)
+    cut_s = np.concatenate(([start_s], s[inside], [end_s]))
+    return np.column_stack((np.interp(cut_s, s, shape[:, 0]), np.interp(cut_s, s, shape[:, 1])))
 
 
 def _write_table(records: list[dict[str, str | float]], stream: TextIO) -> None:
@@ -515,7 +646,11 @@ class RoadMap:
         shape_length_m = _vertex_arc_length(xy, vertex_start)[vertex_start[1:] - 1]
         index = {lane.getID(): i for i, lane in enumerate(sumo_lanes)}
         successors = [_successor_ids(lane, index) for lane in sumo_lanes]
-        lanes = [_lane_record(lane, float(length)) for lane, length in zip(sumo_lanes, shape_length_m)]
+        roundabout_edges = _roundabout_edge_ids(net)
+        lanes = [
+            _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges)
+            for lane, length in zip(sumo_lanes, shape_length_m)
+        ]
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
         return cls(lanes, xy, vertex_start, successors, _geo_reference(net), radius)
 
@@ -567,13 +702,54 @@ class RoadMap:
         """The curves (radius <= :attr:`warning_radius_m`) on one lane, in driving order."""
         return self._lane_curves[self._lane_index(lane_id)]
 
-    def curves(self) -> list[LaneCurve]:
-        """The curves of every lane, lane by lane in network order.
+    def curves(self, include_junctions: bool = False) -> list[LaneCurve]:
+        """The curves of every lane, lane by lane in network order: the curve index.
 
         A curve that continues across a junction appears once per lane it touches;
         :meth:`path_profile` joins such pieces into one curve.
+
+        Parameters
+        ----------
+        include_junctions
+            Also list the curves of junction lanes (internal lanes and roundabouts,
+            :attr:`Lane.is_junction`), which are junction manoeuvres rather than curves
+            of the road and are left out by default.
         """
-        return list(chain.from_iterable(self._lane_curves))
+        return list(
+            chain.from_iterable(
+                curves
+                for lane, curves in zip(self._lanes, self._lane_curves)
+                if include_junctions or not lane.is_junction
+            )
+        )
+
+    def curves_geojson(self) -> dict:
+        """The curve index (:meth:`curves`) as a GeoJSON FeatureCollection in WGS84 (RFC 7946).
+
+        Each curve is a LineString of the lane shape between its start (3.4) and end (3.5)
+        in lon/lat degrees, with the :data:`CURVE_FIELDS` and the lane's street name and
+        road type as properties.
+
+        Raises
+        ------
+        ValueError
+            If the network has no geo-projection.
+        """
+        self._require_projection()
+        features = []
+        for lane_curve in self.curves():
+            lane = self.lane(lane_curve.lane_id)
+            xy = _shape_between(self.lane_shape(lane.lane_id), lane_curve.curve.start_s, lane_curve.curve.end_s)
+            lonlat = np.round(self.xy_to_lonlat_many(xy), 6)
+            properties = {**lane_curve.as_record(), "street_name": lane.street_name, "road_type": lane.road_type}
+            features.append(
+                {
+                    "type": "Feature",
+                    "geometry": {"type": "LineString", "coordinates": lonlat.tolist()},
+                    "properties": properties,
+                }
+            )
+        return {"type": "FeatureCollection", "features": features}
 
     def write_curves(self, stream: TextIO, fmt: str = "table") -> None:
         """Write :meth:`curves` as ``"table"`` (aligned text), ``"json"`` or ``"csv"`` with :data:`CURVE_FIELDS`."""
@@ -632,6 +808,7 @@ class RoadMap:
             lane_start_s=lane_start_s,
             lane_shape_length_m=np.array([self._lanes[i].shape_length_m for i in indices]),
             lane_position_factor=np.array([self._lanes[i].position_factor for i in indices]),
+            lane_is_junction=np.array([self._lanes[i].is_junction for i in indices], dtype=bool),
         )
 
     # ----------------------------------------------------------------- positions
@@ -669,14 +846,50 @@ class RoadMap:
 
     # ----------------------------------------------------------------- geo-reference
     def xy_to_lonlat(self, x: float, y: float) -> tuple[float, float]:
-        """Longitude and latitude (degrees) of network coordinates, by sumolib's ``convertXY2LonLat``."""
-        self._require_projection()
-        return self.geo.convertXY2LonLat(x, y)
+        """Longitude and latitude (degrees, WGS84) of network coordinates (see :meth:`xy_to_lonlat_many`)."""
+        lon, lat = self.xy_to_lonlat_many(np.array([[x, y]], dtype=float))[0]
+        return float(lon), float(lat)
 
     def lonlat_to_xy(self, lon: float, lat: float) -> tuple[float, float]:
-        """Network coordinates of a longitude and latitude (degrees), by sumolib's ``convertLonLat2XY``."""
+        """Network coordinates (m) of a longitude and latitude in degrees (see :meth:`lonlat_to_xy_many`)."""
+        x, y = self.lonlat_to_xy_many(np.array([[lon, lat]], dtype=float))[0]
+        return float(x), float(y)
+
+    def xy_to_lonlat_many(self, xy: np.ndarray) -> np.ndarray:
+        """Longitudes and latitudes (degrees, WGS84) of many network positions, ``(k, 2)`` -> ``(k, 2)``.
+
+        As SUMO and sumolib's ``convertXY2LonLat`` do: the network offset is taken off
+        and the network's projection (``projParameter``, UTM for an OSM import) inverted.
+
+        Raises
+        ------
+        ValueError
+            If the network has no geo-projection, or a coordinate is not finite.
+        """
         self._require_projection()
-        return self.geo.convertLonLat2XY(lon, lat)
+        xy = _finite_pairs(xy, "network coordinates")
+        offset_x, offset_y = self.geo.getLocationOffset()
+        lon, lat = self.geo.getGeoProj()(xy[:, 0] - offset_x, xy[:, 1] - offset_y, inverse=True)
+        return np.column_stack((lon, lat))
+
+    def lonlat_to_xy_many(self, lonlat: np.ndarray) -> np.ndarray:
+        """Network coordinates (m) of many longitude/latitude pairs in degrees, ``(k, 2)`` -> ``(k, 2)``.
+
+        Raises
+        ------
+        ValueError
+            If the network has no geo-projection, or a longitude is outside [-180, 180]
+            or a latitude outside [-90, 90] degrees.
+        """
+        self._require_projection()
+        lonlat = _finite_pairs(lonlat, "lon/lat")
+        bad = (np.abs(lonlat[:, 0]) > 180.0) | (np.abs(lonlat[:, 1]) > 90.0)
+        if bad.any():
+            lon, lat = lonlat[np.flatnonzero(bad)[0]]
+            raise ValueError(f"lon/lat out of range: ({lon}, {lat}); longitude is -180..180, latitude -90..90 degrees")
+        offset_x, offset_y = self.geo.getLocationOffset()
+        x, y = self.geo.getGeoProj()(lonlat[:, 0], lonlat[:, 1])
+        return np.column_stack((np.asarray(x) + offset_x, np.asarray(y) + offset_y))
 
     # ----------------------------------------------------------------- internals
     def _lane_index(self, lane_id: str) -> int:
@@ -718,7 +931,9 @@ class RoadMap:
 
     def _require_projection(self) -> None:
         if not self.has_projection:
-            raise ValueError("the network has no geo-projection: its coordinates cannot be converted to lon/lat")
+            raise ValueError(
+                "the network has no geo-projection: it takes network x/y in metres, not lon/lat"
+            )
 
     @cached_property
     def _lane_id_array(self) -> np.ndarray:

@@ -1,17 +1,73 @@
-"""The ``csws import-osm`` subcommand: its arguments; the work is in ``csws.osm.run``."""
+"""The ``csws import-osm`` and ``csws fleet-scenario`` subcommands: their arguments; the work is in
+``csws.osm.run``."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run_import(args: argparse.Namespace) -> int:
     from csws.osm import run as job
 
     return job.main(args)
 
 
+def _run_fleet(args: argparse.Namespace) -> int:
+    from csws.osm import run as job
+
+    return job.fleet_main(args)
+
+
+def _vclasses(text: str) -> tuple[str, ...]:
+    """argparse type: a comma-separated list of SUMO vehicle classes."""
+    classes = tuple(name.strip() for name in text.split(",") if name.strip())
+    if not classes:
+        raise argparse.ArgumentTypeError("give at least one vehicle class, e.g. truck,bus,coach")
+    return classes
+
+
+def _count(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1: {text!r}")
+    return value
+
+
 def add_commands(commands: argparse._SubParsersAction) -> None:
-    """Add ``csws import-osm``."""
-    parser = commands.add_parser("import-osm", help="import an OpenStreetMap extract into a SUMO network with its curve index")
-    parser.set_defaults(handler=_run)
+    """Add ``csws import-osm`` and ``csws fleet-scenario``."""
+    parser = commands.add_parser(
+        "import-osm", help="import an OpenStreetMap extract into a SUMO network with its curve index"
+    )
+    parser.add_argument("osm", type=Path, help="OpenStreetMap file: .osm, .osm.xml, .osm.gz, .osm.xml.gz or .osm.pbf")
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="network to write: NAME.net.xml or NAME.net.xml.gz"
+    )
+    parser.add_argument("--lefthand", action="store_true", help="left-hand traffic (default: right-hand)")
+    parser.add_argument(
+        "--vclasses",
+        type=_vclasses,
+        default=None,
+        help="keep the roads that allow one of these SUMO vehicle classes (default: truck,bus,coach)",
+    )
+    parser.set_defaults(handler=_run_import)
+
+    fleet = commands.add_parser(
+        "fleet-scenario", help="write a SUMO scenario of trucks and buses on the twistiest roads of a network"
+    )
+    fleet.add_argument("net", type=Path, help="a SUMO .net.xml or .net.xml.gz")
+    fleet.add_argument(
+        "-o", "--output", type=Path, required=True, help="scenario prefix: writes PREFIX.rou.xml and PREFIX.sumocfg"
+    )
+    fleet.add_argument("--routes", type=_count, default=8, help="number of distinct routes (default 8)")
+    fleet.add_argument("--vehicles", type=_count, default=48, help="number of vehicles (default 48)")
+    fleet.add_argument(
+        "--road-types",
+        default="highway.primary,highway.secondary",
+        help="road types whose curves the routes seek (default highway.primary,highway.secondary)",
+    )
+    fleet.set_defaults(handler=_run_fleet)
