@@ -824,20 +824,31 @@ class RoadMap:
         """
         if not (math.isfinite(radius_m) and radius_m > 0):
             raise ValueError(f"search radius must be a positive number of metres, got {radius_m!r}")
-        points = shapely.points(np.asarray(xy, dtype=float).reshape(-1, 2))
-        point_index, lane_index = self._tree.query(points, predicate="dwithin", distance=radius_m)
-        lines, located = self._lines[lane_index], points[point_index]
-        distance_m = shapely.distance(lines, located)
-        along_shape_m = shapely.line_locate_point(lines, located)
-        order = np.lexsort((distance_m, point_index))
-        point_index, lane_index = point_index[order], lane_index[order]
-        along_shape_m = along_shape_m[order]
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        point_index, segment_index = self._segment_tree.query(shapely.points(xy), predicate="dwithin",
+                                                              distance=radius_m)
+        start = self._segment_start[segment_index]
+        a, b, p = self._xy[start], self._xy[start + 1], xy[point_index]
+        direction = b - a
+        length_sq = np.einsum("ij,ij->i", direction, direction)
+        fraction = np.clip(np.einsum("ij,ij->i", p - a, direction) / np.where(length_sq > 0, length_sq, 1.0), 0, 1)
+        nearest = a + fraction[:, None] * direction
+        distance_m = np.hypot(*(p - nearest).T)
+        lane_index = self._segment_lane[segment_index]
+        # The nearest segment of each lane for each point: sort by point, lane, distance; keep the first.
+        order = np.lexsort((distance_m, lane_index, point_index))
+        first = np.ones(order.size, dtype=bool)
+        first[1:] = (np.diff(point_index[order]) != 0) | (np.diff(lane_index[order]) != 0)
+        keep = order[first]
+        keep = keep[np.lexsort((distance_m[keep], point_index[keep]))]
+        along_shape_m = self._vertex_s[start[keep]] + fraction[keep] * np.sqrt(length_sq[keep])
+        lane_index = lane_index[keep]
         return LaneMatches(
-            point_index=point_index,
+            point_index=point_index[keep],
             lane_id=self._lane_id_array[lane_index],
-            distance_m=distance_m[order],
+            distance_m=distance_m[keep],
             lane_pos_m=along_shape_m * self._position_factor[lane_index],
-            heading_rad=self._heading_rad(lane_index, along_shape_m),
+            heading_rad=np.arctan2(direction[keep, 1], direction[keep, 0]),
         )
 
     def nearest_lanes(self, x: float, y: float, radius_m: float) -> list[LaneMatch]:
@@ -944,31 +955,26 @@ class RoadMap:
         return np.array([lane.position_factor for lane in self._lanes])
 
     @cached_property
-    def _lines(self) -> np.ndarray:
+    def _segment_start(self) -> np.ndarray:
+        """Index of the first vertex of every shape segment (consecutive distinct vertices of one lane)."""
         lane_of_vertex = np.repeat(np.arange(len(self._lanes)), np.diff(self._vertex_start))
-        return shapely.linestrings(self._xy, indices=lane_of_vertex)
+        same_lane = lane_of_vertex[:-1] == lane_of_vertex[1:]
+        has_length = np.any(self._xy[1:] != self._xy[:-1], axis=1)
+        return np.flatnonzero(same_lane & has_length)
 
     @cached_property
-    def _tree(self) -> shapely.STRtree:
-        """Spatial index over the lane shapes, built on the first position look-up."""
-        return shapely.STRtree(self._lines)
+    def _segment_lane(self) -> np.ndarray:
+        """The lane of every shape segment."""
+        return np.searchsorted(self._vertex_start, self._segment_start, side="right") - 1
 
     @cached_property
-    def _global_vertex_s(self) -> np.ndarray:
-        """Vertex arc lengths made increasing over all lanes: each lane starts 1 m past the previous lane's end."""
-        lane_base = self._lane_base_s
-        return self._vertex_s + np.repeat(lane_base, np.diff(self._vertex_start))
+    def _segment_tree(self) -> shapely.STRtree:
+        """Spatial index over the shape segments, built on the first position look-up.
 
-    @cached_property
-    def _lane_base_s(self) -> np.ndarray:
-        shape_length_m = np.array([lane.shape_length_m for lane in self._lanes])
-        return np.concatenate(([0.0], np.cumsum(shape_length_m + 1.0)[:-1]))
+        Segments rather than whole lanes: a projection onto two points is a few numpy
+        operations, onto a lane of thousands of vertices a search along all of them.
+        """
+        start = self._segment_start
+        return shapely.STRtree(shapely.linestrings(np.stack((self._xy[start], self._xy[start + 1]), axis=1)))
 
-    def _heading_rad(self, lane: np.ndarray, along_shape_m: np.ndarray) -> np.ndarray:
-        """Direction of the shape segment at ``along_shape_m`` on each ``lane``."""
-        target = self._lane_base_s[lane] + along_shape_m
-        segment = np.searchsorted(self._global_vertex_s, target, side="right") - 1
-        segment = np.clip(segment, self._vertex_start[lane], self._vertex_start[lane + 1] - 2)
-        dx, dy = (self._xy[segment + 1] - self._xy[segment]).T
-        return np.arctan2(dy, dx)
 
