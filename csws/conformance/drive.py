@@ -1,0 +1,333 @@
+"""Driving one row of the test procedure in SUMO (libsumo): the runs of 7.5.1 and what the system said.
+
+A :class:`Task` is one row on one track at one step length. Its repetitions run in one
+simulation, one test vehicle each, departing ``REPETITION_GAP_S`` apart so that they never
+meet. Each vehicle
+
+* drives at the constant test speed (``speedFactor`` 1, ``speedDev`` 0, ``sigma`` 0, its
+  maximum speed set to the test speed) from well before the warning distance, so that it is
+  stable for more than 3 s (7.5.1); the judge checks this from the record;
+* starts at its own phase of the simulation step: its depart position is shifted by a
+  fraction of the distance driven in one step, so the repetitions sample the road at
+  different points;
+* in Table 7, brakes at 4.9 m/s^2 (its vType's ``decel``) to the curve-2 speed at the first
+  step where its true distance to curve 1 is at most curve 1's level-2 S_w (7.5.3.1.1).
+
+Every step every test vehicle is evaluated by :class:`csws.engine.Engine` (one
+``evaluate_many`` per step) from its SUMO lane and lane position with the test
+equipment's accuracy of 7.2.2 as noise: position +-0.2 m (uniform) and speed 0.05 km/h RMS
+(normal). The record keeps the true route position (from the network's truth file), the
+true speed and the warning level.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+import zlib
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from csws.binaries import sumo_binary
+from csws.engine import Engine, EngineSettings, VehicleInput
+from csws.networks import networks_dir
+from csws.roadmap import RoadMap
+from csws.standard import kmh_to_mps, mps_to_kmh
+from csws.warning import WarningSettings
+
+from .rows import Row
+
+__all__ = [
+    "POSITION_ACCURACY_M",
+    "SPEED_ACCURACY_KMH",
+    "STABLE_S",
+    "REPETITION_GAP_S",
+    "PAST_LAST_CURVE_M",
+    "Task",
+    "Trace",
+    "Truth",
+    "truth",
+    "drive",
+]
+
+#: Positioning accuracy of the test equipment, m (7.2.2: +-20 cm); uniform noise of this bound.
+POSITION_ACCURACY_M = 0.2
+#: Speed accuracy of the test equipment, km/h RMS (7.2.2); normal noise of this deviation.
+SPEED_ACCURACY_KMH = 0.05
+#: The vehicle holds the test speed at least this long before the warning distance (7.5.1), s.
+STABLE_S = 3.0
+#: Extra constant-speed time before the warning distance beyond STABLE_S, s.
+LEAD_MARGIN_S = 1.5
+#: Time between the departures of two repetitions, s: they never come near each other.
+REPETITION_GAP_S = 5.0
+#: A run ends this far past the end of the last curve, m (its record covers the straight run-out).
+PAST_LAST_CURVE_M = 40.0
+#: A run that has not ended after this much simulated time is an error, s.
+MAX_SIMULATED_S = 900.0
+
+
+@dataclass(frozen=True)
+class Task:
+    """One row on one track at one step length, with its repetitions.
+
+    Attributes
+    ----------
+    row
+        The row of the procedure.
+    track
+        The bundled network it runs on.
+    step_length_s
+        SUMO's step length, s; also the engine's update period (latency compensation).
+    repetitions
+        How many runs.
+    seed
+        Seed of the phases and the measurement noise.
+    """
+
+    row: Row
+    track: str
+    step_length_s: float
+    repetitions: int
+    seed: int
+
+    @property
+    def key(self) -> str:
+        """A readable identifier of the task."""
+        return f"{self.row.row_id}@{self.track}@{self.step_length_s:g}s"
+
+
+@dataclass(frozen=True)
+class Trace:
+    """The record of one run: one entry per simulation step while the test vehicle drove.
+
+    Attributes
+    ----------
+    repetition
+        Which run of the task (0-based).
+    phase
+        Its depart offset as a fraction of one step's travel.
+    time_s
+        Simulation time, s.
+    route_s_m
+        True position of the vehicle's front along the route (truth file), m.
+    speed_kmh
+        True speed, km/h.
+    level
+        Warning level the system gave.
+    """
+
+    repetition: int
+    phase: float
+    time_s: np.ndarray
+    route_s_m: np.ndarray
+    speed_kmh: np.ndarray
+    level: np.ndarray
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What the judge needs from a track's truth file.
+
+    Attributes
+    ----------
+    name
+        The track.
+    curve_start_s_m, curve_end_s_m
+        Start and end of each curve along the route, in driving order, m.
+    lane_start_s_m
+        Route position of the start of each lane of the route, m.
+    route_edges
+        The route.
+    """
+
+    name: str
+    curve_start_s_m: tuple[float, ...]
+    curve_end_s_m: tuple[float, ...]
+    lane_start_s_m: dict[str, float]
+    route_edges: tuple[str, ...]
+
+
+@cache
+def truth(track: str) -> Truth:
+    """The truth of a bundled track, read from ``NAME.truth.json`` (written by the track generator)."""
+    content = json.loads((networks_dir() / f"{track}.truth.json").read_text("utf-8"))
+    return Truth(
+        name=track,
+        curve_start_s_m=tuple(float(c["start_s"]) for c in content["curves"]),
+        curve_end_s_m=tuple(float(c["end_s"]) for c in content["curves"]),
+        lane_start_s_m={lane["lane"]: float(lane["start_s"]) for lane in content["lanes"]},
+        route_edges=tuple(content["route"]["edges"]),
+    )
+
+
+@cache
+def _road_map(track: str) -> RoadMap:
+    """The road map of a bundled track, loaded once per process."""
+    return RoadMap.load(networks_dir() / f"{track}.net.xml")
+
+
+def _route_s(track_truth: Truth, road_map: RoadMap, lane_id: str, lane_pos_m: float) -> float:
+    """True route position of a lane position.
+
+    A junction's internal lane has no geometric length on the tracks (netconvert's 0.1 m
+    minimum): it is placed at the start of the lane it leads to.
+    """
+    start_s = track_truth.lane_start_s_m.get(lane_id)
+    if start_s is not None:
+        return start_s + lane_pos_m
+    following = road_map.successors(lane_id)
+    return track_truth.lane_start_s_m[following[0]] if following else math.nan
+
+
+def _lead_m(row: Row) -> float:
+    """How far before curve 1 the runs start, m: the largest S_w plus the stable time and a margin."""
+    speed_mps = kmh_to_mps(row.speed_kmh)
+    reach_m = max([c.table_distance_m or 0.0 for c in row.checks])
+    return reach_m + (STABLE_S + LEAD_MARGIN_S) * speed_mps
+
+
+def _routes_xml(task: Task, depart_pos_m: list[float], depart_time_s: list[float]) -> str:
+    """The route file of a task: the test vehicle type and one vehicle per repetition."""
+    row = task.row
+    speed_mps = kmh_to_mps(row.speed_kmh)
+    decel = row.decel_mps2 or 4.5
+    vtype = (
+        f'<vType id="test" vClass="passenger" length="5" accel="2.6" decel="{decel:g}" emergencyDecel="9" '
+        f'sigma="0" speedFactor="1" speedDev="0" maxSpeed="{speed_mps:.12g}"/>'
+    )
+    edges = " ".join(truth(task.track).route_edges)
+    vehicles = "".join(
+        f'<vehicle id="run{i}" type="test" depart="{t:.6f}" departLane="0" departPos="{p:.6f}" '
+        f'departSpeed="{speed_mps:.12g}"><route edges={quoteattr(edges)}/></vehicle>'
+        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s))
+    )
+    return f"<routes>{vtype}{vehicles}</routes>"
+
+
+def _rng(task: Task) -> np.random.Generator:
+    """The task's own random stream (phases and noise), from the seed and the task's key."""
+    return np.random.default_rng([task.seed, zlib.crc32(task.key.encode())])
+
+
+def _departures(task: Task, rng: np.random.Generator) -> tuple[list[float], list[float], list[float]]:
+    """Phases, depart positions (m, on the first lane) and depart times (s) of the repetitions.
+
+    Repetition ``i`` starts at phase ``(i + u) / n`` of a step (``u`` uniform), i.e. that
+    fraction of one step's travel earlier on the road.
+    """
+    row, step = task.row, task.step_length_s
+    track_truth = truth(task.track)
+    first_lane_start_s = min(track_truth.lane_start_s_m.values())
+    base_m = track_truth.curve_start_s_m[0] - _lead_m(row) - first_lane_start_s
+    if base_m < 0:
+        raise ValueError(f"track {task.track} is too short for row {row.row_id}")
+    n = task.repetitions
+    phases = [(i + float(rng.uniform())) / n for i in range(n)]
+    travel_m = kmh_to_mps(row.speed_kmh) * step
+    positions = [base_m - phase * travel_m for phase in phases]
+    gap_steps = math.ceil(REPETITION_GAP_S / step - 1e-9)
+    times = [round(i * gap_steps * step, 9) for i in range(n)]
+    return phases, positions, times
+
+
+@dataclass
+class _Record:
+    """A run's record while it is being written."""
+
+    repetition: int
+    phase: float
+    time_s: list
+    route_s_m: list
+    speed_kmh: list
+    level: list
+    braking: bool = False
+
+    def trace(self) -> Trace:
+        return Trace(
+            self.repetition,
+            self.phase,
+            np.array(self.time_s),
+            np.array(self.route_s_m),
+            np.array(self.speed_kmh),
+            np.array(self.level, dtype=np.int8),
+        )
+
+
+def drive(task: Task) -> list[Trace]:
+    """Run a task's repetitions in SUMO and return their records, in repetition order.
+
+    Raises
+    ------
+    RuntimeError
+        When a run does not finish within ``MAX_SIMULATED_S``.
+    """
+    import libsumo
+    from traci import constants as tc
+
+    rng = _rng(task)
+    phases, positions, times = _departures(task, rng)
+    track_truth, road_map = truth(task.track), _road_map(task.track)
+    engine = Engine(road_map, EngineSettings(warning=WarningSettings(update_period_s=task.step_length_s)))
+    end_s = track_truth.curve_end_s_m[-1] + PAST_LAST_CURVE_M
+    row = task.row
+    records = {f"run{i}": _Record(i, phases[i], [], [], [], []) for i in range(task.repetitions)}
+    finished: list[_Record] = []
+    with tempfile.TemporaryDirectory(prefix="csws-conformance-") as work:
+        routes = Path(work) / "runs.rou.xml"
+        routes.write_text(_routes_xml(task, positions, times), encoding="utf-8")
+        libsumo.start([
+            str(sumo_binary("sumo")), "-n", str(networks_dir() / f"{task.track}.net.xml"), "-r", str(routes),
+            "--step-length", f"{task.step_length_s:g}", "--no-step-log", "true", "--no-warnings", "true",
+            "--duration-log.disable", "true", "--seed", "0",
+        ])  # fmt: skip
+        try:
+            while len(finished) < task.repetitions:
+                libsumo.simulationStep()
+                now_s = libsumo.simulation.getTime()
+                if now_s > MAX_SIMULATED_S:
+                    raise RuntimeError(f"{task.key}: runs did not finish within {MAX_SIMULATED_S:g} s")
+                for vehicle_id in libsumo.simulation.getDepartedIDList():
+                    libsumo.vehicle.subscribe(vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED))
+                state = libsumo.vehicle.getAllSubscriptionResults()
+                if not state:
+                    continue
+                ids = list(state)
+                lanes = [state[v][tc.VAR_LANE_ID] for v in ids]
+                lane_pos = np.array([state[v][tc.VAR_LANEPOSITION] for v in ids])
+                speed_kmh = mps_to_kmh(np.array([state[v][tc.VAR_SPEED] for v in ids]))
+                route_s = np.array([_route_s(track_truth, road_map, l, p) for l, p in zip(lanes, lane_pos)])
+                measured_pos = lane_pos + rng.uniform(-POSITION_ACCURACY_M, POSITION_ACCURACY_M, len(ids))
+                measured_speed = np.maximum(speed_kmh + rng.normal(0.0, SPEED_ACCURACY_KMH, len(ids)), 0.0)
+                answers = engine.evaluate_many([
+                    VehicleInput(v, row.category.value, float(measured_speed[i]), lanes[i], float(measured_pos[i]),
+                                 track_truth.route_edges, now_s)
+                    for i, v in enumerate(ids)
+                ])  # fmt: skip
+                for i, (vehicle_id, answer) in enumerate(zip(ids, answers)):
+                    record = records[vehicle_id]
+                    record.time_s.append(now_s)
+                    record.route_s_m.append(route_s[i])
+                    record.speed_kmh.append(speed_kmh[i])
+                    record.level.append(int(answer.level))
+                    _brake_if_due(libsumo, row, track_truth, vehicle_id, record, route_s[i])
+                    if route_s[i] > end_s:
+                        libsumo.vehicle.unsubscribe(vehicle_id)
+                        libsumo.vehicle.remove(vehicle_id)
+                        finished.append(record)
+        finally:
+            libsumo.close()
+    return [record.trace() for record in sorted(finished, key=lambda r: r.repetition)]
+
+
+def _brake_if_due(libsumo, row: Row, track_truth: Truth, vehicle_id: str, record: _Record, route_s_m: float) -> None:
+    """Table 7: at the first step within curve 1's level-2 S_w, brake to the curve-2 speed and hold it."""
+    if row.decel_trigger_m is None or record.braking:
+        return
+    if track_truth.curve_start_s_m[0] - route_s_m <= row.decel_trigger_m:
+        libsumo.vehicle.setSpeed(vehicle_id, kmh_to_mps(row.final_speed_kmh))
+        record.braking = True

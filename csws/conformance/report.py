@@ -1,0 +1,299 @@
+"""The conformance report: ``report.json``, ``report.md`` (tables shaped like the standard's) and plots.
+
+The report is built from :class:`RowOutcome` records, one per row: its runs' results,
+grouped by track and step length, and its verdict. The Markdown tables follow the
+layout of Tables 5 to 9 (one column per category and test speed for the single curves;
+one row per category and test, one column per warning for the multi curves) with the
+worst run's warning onset and margin in each cell.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .drive import Trace, Truth
+from .judge import RunResult
+from .rows import Row
+
+__all__ = ["GroupOutcome", "RowOutcome", "write_json", "write_markdown", "plot_row"]
+
+_TABLE_TITLES = {
+    5: "Table 5: single curve, level 1 (7.5.2.1)",
+    6: "Table 6: single curve, level 2 (7.5.2.2)",
+    7: "Table 7: multi curve, curve 1 warned first (7.5.3.1)",
+    8: "Table 8: multi curve, curve 2 warned first, all before curve 1 (7.5.3.2)",
+    9: "Table 9: multi curve, curve 2 and curve 1 warnings alternate (7.5.3.3)",
+    0: "Negative rows: 3 km/h below each warning speed, no warning of that level (6.1)",
+}
+
+
+@dataclass(frozen=True)
+class GroupOutcome:
+    """A row's runs on one track at one step length.
+
+    Attributes
+    ----------
+    track, step_length_s
+        Where and how finely it ran.
+    runs
+        The judged runs, in repetition order.
+    passed
+        Whether three consecutive runs passed.
+    """
+
+    track: str
+    step_length_s: float
+    runs: tuple[RunResult, ...]
+    passed: bool
+
+
+@dataclass(frozen=True)
+class RowOutcome:
+    """A row with every group of runs and its verdict.
+
+    Attributes
+    ----------
+    row
+        The row.
+    groups
+        Its runs by track and step length.
+    plot
+        File name of its plot, relative to the output folder, or None.
+    """
+
+    row: Row
+    groups: tuple[GroupOutcome, ...]
+    plot: str | None
+
+    @property
+    def passed(self) -> bool:
+        """The row passes when every group passes."""
+        return all(group.passed for group in self.groups)
+
+    def worst_earlier_m(self, check_index: int) -> float | None:
+        """The smallest margin by which the warning of a check came before the table's S_w, m."""
+        margins = [
+            run.checks[check_index].earlier_m
+            for group in self.groups
+            for run in group.runs
+            if run.checks[check_index].earlier_m is not None
+        ]
+        return min(margins) if margins else None
+
+    def max_level(self, check_index: int) -> int:
+        """The highest level any run gave (what a negative check is about)."""
+        return max(run.checks[check_index].max_level for group in self.groups for run in group.runs)
+
+
+def _row_record(outcome: RowOutcome) -> dict:
+    """A row's JSON record."""
+    row = outcome.row
+    return {
+        "row_id": row.row_id,
+        "table": row.table,
+        "clause": row.clause,
+        "category": row.category.value,
+        "column": row.column.value,
+        "test": row.test,
+        "radius_m": list(row.radius_m),
+        "speed_kmh": row.speed_kmh,
+        "final_speed_kmh": row.final_speed_kmh,
+        "checks": [
+            {
+                "label": check.label,
+                "curve_number": check.curve_number,
+                "level": int(check.level),
+                "table_distance_m": check.table_distance_m,
+                "warning_speed_kmh": row.warning_speed_kmh(check),
+                "worst_earlier_m": outcome.worst_earlier_m(index),
+                "max_level": outcome.max_level(index),
+            }
+            for index, check in enumerate(row.checks)
+        ],
+        "groups": [
+            {
+                "track": group.track,
+                "step_length_s": group.step_length_s,
+                "passed": group.passed,
+                "runs": [asdict(run) for run in group.runs],
+            }
+            for group in outcome.groups
+        ],
+        "passed": outcome.passed,
+        "plot": outcome.plot,
+    }
+
+
+def verdicts(outcomes: Sequence[RowOutcome]) -> dict:
+    """The overall verdicts: 7.6 over Tables 5-9, and our negative rows."""
+    procedure = [o for o in outcomes if not o.row.negative]
+    negative = [o for o in outcomes if o.row.negative]
+    return {
+        "clause_7_6_passed": all(o.passed for o in procedure) if procedure else None,
+        "negative_rows_passed": all(o.passed for o in negative) if negative else None,
+        "rows": len(outcomes),
+        "rows_failed": [o.row.row_id for o in outcomes if not o.passed],
+    }
+
+
+def write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
+    """Write ``report.json``: the settings, the verdicts and every row with every run."""
+    content = {
+        "format": "csws-conformance-report/1",
+        "standard": "T/ITS 0091-2018",
+        "settings": settings,
+        "verdict": verdicts(outcomes),
+        "rows": [_row_record(o) for o in outcomes],
+    }
+    path.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")
+
+
+def _mark(passed: bool) -> str:
+    """A verdict cell."""
+    return "pass" if passed else "**FAIL**"
+
+
+def _metres(value: float | None) -> str:
+    """A distance cell, or a dash."""
+    return "-" if value is None else f"{value:.1f}"
+
+
+def _single_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+    """Tables 5 and 6 as in the standard: one row block per radius, one column per category and speed."""
+    columns = sorted({(o.row.category.value, o.row.speed_kmh) for o in outcomes}, key=lambda c: (c[0], c[1]))
+    by_key = {(o.row.radius_m[0], o.row.category.value, o.row.speed_kmh): o for o in outcomes}
+    header = "| R/m | | " + " | ".join(f"{category}" for category, _ in columns) + " |"
+    lines = [header, "|" + "---|" * (len(columns) + 2)]
+    for radius_m in sorted({o.row.radius_m[0] for o in outcomes}):
+        cells = [by_key.get((radius_m, category, speed)) for category, speed in columns]
+        lines.append(f"| {radius_m:g} | V/(km/h) | " + " | ".join("" if o is None else f"{o.row.speed_kmh:g}" for o in cells) + " |")
+        lines.append("| | S_w/m | " + " | ".join("" if o is None else f"{o.row.checks[0].table_distance_m:g}" for o in cells) + " |")
+        lines.append("| | earlier/m | " + " | ".join("" if o is None else _metres(o.worst_earlier_m(0)) for o in cells) + " |")
+        lines.append("| | verdict | " + " | ".join("" if o is None else _mark(o.passed) for o in cells) + " |")
+    return lines
+
+
+def _multi_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+    """Tables 7 to 9: one line per category and test, one column group per warning."""
+    labels = [check.label for check in outcomes[0].row.checks]
+    lines = [
+        "| category | test | R1/m | V/(km/h) | " + " | ".join(f"{label}: S_w/m, earlier/m" for label in labels) + " | verdict |",
+        "|" + "---|" * (len(labels) + 5),
+    ]
+    for o in outcomes:
+        row = o.row
+        speed = f"{row.speed_kmh:g}" + (f" -> {row.final_speed_kmh:g}" if row.final_speed_kmh is not None else "")
+        cells = [f"{check.table_distance_m:g}, {_metres(o.worst_earlier_m(i))}" for i, check in enumerate(row.checks)]
+        lines.append(
+            f"| {row.category.value} | {row.test or ''} | {row.radius_m[0]:g} | {speed} | " + " | ".join(cells) + f" | {_mark(o.passed)} |"
+        )
+    return lines
+
+
+def _negative_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+    """Our negative rows: radius, category, level, speed and the highest level seen."""
+    lines = ["| R/m | category | level | V/(km/h) | highest level given | verdict |", "|---|---|---|---|---|---|"]
+    for o in outcomes:
+        row, check = o.row, o.row.checks[0]
+        lines.append(
+            f"| {row.radius_m[0]:g} | {row.category.value} | {int(check.level)} | {row.speed_kmh:.0f} | {o.max_level(0)} | {_mark(o.passed)} |"
+        )
+    return lines
+
+
+def _failures(outcomes: Sequence[RowOutcome]) -> list[str]:
+    """One line per failed run check: what went wrong where."""
+    lines = []
+    for o in outcomes:
+        for group in o.groups:
+            for run in group.runs:
+                problems = [f"{c.label}: {c.reason}" for c in run.checks if not c.passed]
+                if run.runout_level:
+                    problems.append(f"level {run.runout_level} on the straight run-out")
+                if problems:
+                    lines.append(f"- {o.row.row_id} on {group.track} at {group.step_length_s:g} s, run {run.repetition + 1}: " + "; ".join(problems))
+    return lines
+
+
+def write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
+    """Write ``report.md``: the verdicts, then one table per table of the standard."""
+    verdict = verdicts(outcomes)
+    overall = verdict["clause_7_6_passed"]
+    lines = [
+        "# CSWS conformance report (T/ITS 0091-2018, clause 7.5)",
+        "",
+        f"- 7.6 verdict: **{'PASS' if overall else 'FAIL' if overall is not None else 'not run'}**",
+        f"- negative rows: **{'PASS' if verdict['negative_rows_passed'] else 'FAIL' if verdict['negative_rows_passed'] is not None else 'not run'}**",
+        f"- step lengths: {', '.join(f'{s:g} s' for s in settings['step_lengths_s'])}; "
+        f"{settings['repetitions']} runs per row, track and step length; seed {settings['seed']}",
+        f"- rows: {verdict['rows']}, failed: {len(verdict['rows_failed'])}",
+        "",
+        "\"earlier/m\" is the smallest margin over every run, track and step length by which the",
+        "warning came on before the table's S_w (the true distance to the curve start, from the",
+        "track's truth file).",
+    ]
+    for table in (5, 6, 7, 8, 9, 0):
+        selected = [o for o in outcomes if o.row.table == table]
+        if not selected:
+            continue
+        shape = _single_table if table in (5, 6) else _negative_table if table == 0 else _multi_table
+        lines += ["", f"## {_TABLE_TITLES[table]}", "", *shape(selected)]
+    failures = _failures(outcomes)
+    if failures:
+        lines += ["", "## Failed runs", "", *failures]
+    plots = [o.plot for o in outcomes if o.plot]
+    if plots:
+        lines += ["", "## Plots", "", *(f"- [{o.row.row_id}]({o.plot})" for o in outcomes if o.plot)]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]]) -> None:
+    """Speed and warning level against the distance to the first curve's start, every run of a row.
+
+    ``traces`` holds each run with its track's truth and step length. Vertical lines mark
+    where each check's table S_w lies and where the curves start.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot
+
+    figure, (speed_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
+    steps = sorted({step for _, step, _ in traces})
+    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1)))))
+    labelled = set()
+    for track_truth, step, trace in traces:
+        distance_m = track_truth.curve_start_s_m[0] - trace.route_s_m
+        label = f"step {step:g} s" if step not in labelled else None
+        labelled.add(step)
+        speed_axis.plot(distance_m, trace.speed_kmh, color=colours[step], lw=0.8, alpha=0.7, label=label)
+        level_axis.step(distance_m, trace.level, where="post", color=colours[step], lw=0.8, alpha=0.7)
+    track_truth = traces[0][0]
+    for number, start_s in enumerate(track_truth.curve_start_s_m, start=1):
+        offset_m = track_truth.curve_start_s_m[0] - start_s
+        for axis in (speed_axis, level_axis):
+            axis.axvline(offset_m, color="black", lw=0.8)
+        level_axis.annotate(f"curve {number}", (offset_m, 2.25), fontsize=7, ha="left")
+    for check in row.checks:
+        if check.table_distance_m is None:
+            continue
+        offset_m = track_truth.curve_start_s_m[0] - track_truth.curve_start_s_m[check.curve_number - 1]
+        position_m = offset_m + check.table_distance_m
+        level_axis.axvline(position_m, color="tab:red", ls="--", lw=0.8)
+        level_axis.annotate(f"S_w {check.label}", (position_m, 0.1 + 0.35 * int(check.level)), fontsize=7, color="tab:red")
+    speed_axis.set_ylabel("speed (km/h)")
+    speed_axis.legend(fontsize=7)
+    level_axis.set_ylabel("warning level")
+    level_axis.set_yticks([0, 1, 2])
+    level_axis.set_ylim(-0.2, 2.6)
+    level_axis.set_xlabel("distance to the start of the first curve (m)")
+    level_axis.invert_xaxis()
+    speed_axis.set_title(f"{row.row_id} ({row.clause}, {row.category.value}, {row.speed_kmh:g} km/h)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    pyplot.close(figure)

@@ -1,0 +1,101 @@
+"""An optional model of the driver's response to a warning: react, brake, hold.
+
+Formula (1) sizes the warning distance for a driver who reacts in 0.8 s and then brakes
+at g/2 = 4.9 m/s^2 to the warning speed. This model is that driver:
+
+* a warning comes on (level 0 -> 1 or 2): the driver reacts after ``reaction_s``, keeping
+  the speed meanwhile (as formula (1) assumes);
+* then, while warned, the driver brakes at ``decel_mps2`` toward just below the target's
+  warning speed (the lowest seen since the warning came on: a lower target takes over);
+* the driver keeps that speed until the warning is off and the vehicle is ``hold_m``
+  past the target CPOI (the start of the curve part), then hands the vehicle back to SUMO.
+
+It sees only what an on-board unit shows (level, target warning speed and distance), so
+it works the same whether the answers come from the library or the service. With it, no
+vehicle enters a curve above its level-1 warning speed: the warning distance includes the
+reaction and braking distance, plus the latency allowance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from csws.standard import REACTION_TIME_S, kmh_to_mps
+
+__all__ = ["DriverSettings", "DriverResponse"]
+
+
+@dataclass(frozen=True)
+class DriverSettings:
+    """The modelled driver.
+
+    Attributes
+    ----------
+    reaction_s
+        Time from the warning to braking, s (formula (1): 0.8 s).
+    decel_mps2
+        Braking deceleration, m/s^2 (formula (1): g/2).
+    hold_m
+        The driver holds the reduced speed this far past the target CPOI, m: longer than
+        the longest curve of the bundled networks (177 m, Table 7), so that no one speeds
+        up inside a curve.
+    below_kmh
+        The driver aims this far below the target's warning speed, km/h: at V_w itself the
+        warning stays on (6.1 warns at V >= V_w), below it the next target (level 1 after
+        level 2) takes over.
+    """
+
+    reaction_s: float = REACTION_TIME_S
+    decel_mps2: float = 4.9
+    hold_m: float = 200.0
+    below_kmh: float = 0.5
+
+
+@dataclass
+class _Driver:
+    """One driver's state."""
+
+    warned_since_s: float | None = None
+    onset_speed_mps: float = 0.0
+    goal_mps: float | None = None
+    release_odometer_m: float = 0.0
+
+
+@dataclass
+class DriverResponse:
+    """The drivers of a fleet; :meth:`commands` gives the speed commands of one step."""
+
+    settings: DriverSettings = field(default_factory=DriverSettings)
+    drivers: dict[str, _Driver] = field(default_factory=dict)
+
+    def commands(self, time_s: float, step_s: float, vehicle_id: str, level: int, target_speed_kmh: float | None,
+                 target_distance_m: float | None, speed_mps: float, odometer_m: float) -> float | None:  # fmt: skip
+        """The speed to command this step (m/s), -1 to hand the vehicle back to SUMO, None to leave it alone.
+
+        During the reaction time the vehicle keeps the speed it had when the warning came
+        on (formula (1) assumes V for those 0.8 s); then it brakes and holds.
+        """
+        driver = self.drivers.get(vehicle_id)
+        if driver is None:
+            if level == 0:
+                return None
+            driver = self.drivers[vehicle_id] = _Driver(warned_since_s=time_s, onset_speed_mps=speed_mps)
+        if level > 0:
+            if driver.warned_since_s is None:
+                driver.warned_since_s, driver.onset_speed_mps = time_s, speed_mps
+            if time_s - driver.warned_since_s >= self.settings.reaction_s - 1e-9:
+                goal_mps = kmh_to_mps(target_speed_kmh - self.settings.below_kmh)
+                driver.goal_mps = goal_mps if driver.goal_mps is None else min(driver.goal_mps, goal_mps)
+                driver.release_odometer_m = max(driver.release_odometer_m, odometer_m + target_distance_m + self.settings.hold_m)
+            elif driver.goal_mps is None:
+                return driver.onset_speed_mps
+        else:
+            driver.warned_since_s = None
+        if level == 0 and (driver.goal_mps is None or odometer_m >= driver.release_odometer_m):
+            del self.drivers[vehicle_id]
+            return -1.0
+        return max(driver.goal_mps, speed_mps - self.settings.decel_mps2 * step_s)
+
+    def forget(self, vehicle_id: str) -> None:
+        """Drop a vehicle that left."""
+        self.drivers.pop(vehicle_id, None)

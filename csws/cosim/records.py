@@ -1,0 +1,170 @@
+"""What a co-simulation writes: per-vehicle time series, warning events, curve entries, summary.
+
+The CSV files are streamed: each step's rows are appended with one ``write`` of whole
+lines, so a run that is interrupted or whose SUMO dies leaves files that parse and end
+at a complete row. Numbers are written with Python's ``repr`` (no rounding), so two runs
+can be compared exactly.
+
+* ``timeseries.csv``: every evaluated vehicle at every step;
+* ``warnings.csv``: every change of a vehicle's warning level (onset, change, end);
+* ``entries.csv``: every entry into a curve part at or above the level-1 warning speed;
+* ``summary.json`` (see :class:`Summary`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Sequence
+
+from csws.standard import Level, warning_speed
+
+from .evaluators import VehicleWarning
+
+__all__ = [
+    "TIMESERIES_COLUMNS",
+    "EVENT_COLUMNS",
+    "ENTRY_COLUMNS",
+    "CsvStream",
+    "Summary",
+    "level1_excess_kmh",
+    "write_summary",
+    "event_of",
+]
+
+TIMESERIES_COLUMNS = (
+    "time_s", "vehicle_id", "category", "lane_id", "lane_pos_m", "x_m", "y_m", "speed_kmh", "state", "level",
+    "target_curve_id", "target_part_index", "target_distance_m", "target_warning_speed_kmh", "commanded_speed_kmh",
+)  # fmt: skip
+EVENT_COLUMNS = (
+    "time_s", "vehicle_id", "category", "event", "level", "previous_level", "curve_id", "part_index", "radius_m",
+    "distance_m", "warning_speed_kmh", "speed_kmh", "lane_id", "lane_pos_m", "x_m", "y_m",
+)  # fmt: skip
+ENTRY_COLUMNS = (
+    "time_s", "vehicle_id", "category", "curve_id", "part_index", "radius_m", "speed_kmh",
+    "level1_warning_speed_kmh", "excess_kmh", "level",
+)  # fmt: skip
+
+
+def _cell(value) -> str:
+    """A CSV cell: empty for None, repr for floats, quoted when it holds a comma or a quote."""
+    if value is None:
+        return ""
+    text = repr(value) if isinstance(value, float) else str(value)
+    if any(c in text for c in ',"\n'):
+        text = '"' + text.replace('"', '""') + '"'
+    return text
+
+
+class CsvStream:
+    """A CSV file appended one block of whole rows at a time (one ``os.write`` per block)."""
+
+    def __init__(self, path: Path, columns: Sequence[str]) -> None:
+        self.path = path
+        self.columns = tuple(columns)
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self._write([",".join(self.columns)])
+
+    def append(self, rows: Iterable[Sequence]) -> None:
+        """Append rows (each a sequence in column order)."""
+        lines = [",".join(_cell(value) for value in row) for row in rows]
+        if lines:
+            self._write(lines)
+
+    def _write(self, lines: list[str]) -> None:
+        data = ("\n".join(lines) + "\n").encode("utf-8")
+        while data:
+            written = os.write(self._fd, data)
+            data = data[written:]
+
+    def close(self) -> None:
+        """Close the file."""
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+
+@dataclass
+class Summary:
+    """Counts kept while the run goes: warnings by level, category and curve; curve entries above V_w.
+
+    A warning of level L is counted when a vehicle's level rises to L. A curve entry is the
+    first step at which a vehicle is inside a curve part (a triggering CPOI at distance 0):
+    it is above the warning speed, since the CPOI triggers. ``entries_above_level1`` counts
+    every such entry; ``entries_above_level1_margin`` those more than ``margin_kmh`` above
+    the level-1 warning speed.
+    """
+
+    margin_kmh: float = 1.0
+    onsets: Counter = field(default_factory=Counter)
+    onsets_by_category: dict = field(default_factory=lambda: defaultdict(Counter))
+    onsets_by_curve: dict = field(default_factory=lambda: defaultdict(Counter))
+    entries_above_level1: Counter = field(default_factory=Counter)
+    entries_above_level1_margin: Counter = field(default_factory=Counter)
+    max_excess_kmh: float = 0.0
+    vehicles: set = field(default_factory=set)
+    warned_vehicles: set = field(default_factory=set)
+    skipped: Counter = field(default_factory=Counter)
+    steps: int = 0
+    last_time_s: float = 0.0
+
+    def add_onset(self, category: str, level: int, curve_id: str | None) -> None:
+        """A vehicle's level rose to ``level``."""
+        self.onsets[level] += 1
+        self.onsets_by_category[category][level] += 1
+        if curve_id is not None:
+            self.onsets_by_curve[curve_id][level] += 1
+
+    def add_entry(self, category: str, excess_kmh: float) -> None:
+        """A vehicle entered a curve part ``excess_kmh`` above its level-1 warning speed."""
+        self.entries_above_level1[category] += 1
+        if excess_kmh > self.margin_kmh:
+            self.entries_above_level1_margin[category] += 1
+        self.max_excess_kmh = max(self.max_excess_kmh, excess_kmh)
+
+    def as_dict(self) -> dict:
+        """The summary as JSON-ready data."""
+        by_level = lambda counter: {f"level{level}": counter.get(level, 0) for level in (1, 2)}  # noqa: E731
+        return {
+            "steps": self.steps,
+            "simulated_until_s": self.last_time_s,
+            "vehicles_evaluated": len(self.vehicles),
+            "vehicles_warned": len(self.warned_vehicles),
+            "vehicles_not_evaluated_by_class": dict(self.skipped),
+            "warnings": {
+                "by_level": by_level(self.onsets),
+                "by_category": {c: by_level(n) for c, n in sorted(self.onsets_by_category.items())},
+                "by_curve": {c: by_level(n) for c, n in sorted(self.onsets_by_curve.items())},
+            },
+            "curve_entries_above_level1_warning_speed": {
+                "total": sum(self.entries_above_level1.values()),
+                "by_category": dict(sorted(self.entries_above_level1.items())),
+                f"more_than_{self.margin_kmh:g}_kmh_above": sum(self.entries_above_level1_margin.values()),
+                "max_excess_kmh": self.max_excess_kmh,
+            },
+        }
+
+
+def level1_excess_kmh(speed_kmh: float, category: str, radius_m: float) -> tuple[float, float]:
+    """Level-1 warning speed of a curve part (Table 1) and how far ``speed_kmh`` is above it."""
+    level1_kmh = warning_speed(radius_m, category, Level.LEVEL_1)
+    return level1_kmh, speed_kmh - level1_kmh
+
+
+def write_summary(path: Path, content: dict) -> None:
+    """Write ``summary.json`` (replaced whole, so it is never half written)."""
+    partial = path.with_suffix(".json.partial")
+    partial.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")
+    os.replace(partial, path)
+
+
+def event_of(previous_level: int, answer: VehicleWarning) -> str | None:
+    """The event a level change is: ``onset``, ``change`` or ``end``; None without a change."""
+    if answer.level == previous_level:
+        return None
+    if previous_level == 0:
+        return "onset"
+    return "end" if answer.level == 0 else "change"

@@ -1,0 +1,404 @@
+"""``csws cosim``: drive a fleet through SUMO and record who was warned where.
+
+Every step, every vehicle of a covered class is evaluated at once (the library's
+``evaluate_many``, or one HTTP batch to a service), its state and warning are appended
+to the time series, level changes to the warning events and curve entries above the
+warning speed to the entries; the summary is rewritten at the end, also when the run is
+interrupted or SUMO dies (then marked incomplete, with the reason).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Sequence
+from xml.etree import ElementTree
+
+from csws.standard import mps_to_kmh
+
+from .driver import DriverResponse, DriverSettings
+from .evaluators import Evaluator, LibraryEvaluator, ServiceError, ServiceEvaluator, VehicleWarning
+from .records import (
+    ENTRY_COLUMNS,
+    EVENT_COLUMNS,
+    TIMESERIES_COLUMNS,
+    CsvStream,
+    Summary,
+    event_of,
+    level1_excess_kmh,
+    write_summary,
+)
+from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
+
+__all__ = ["CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args", "cosimulate", "main"]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A SUMO scenario: a configuration, or a network with route files.
+
+    Attributes
+    ----------
+    config
+        A ``.sumocfg``, or None.
+    net
+        The network (read from the configuration when one is given).
+    routes
+        Route files beyond the configuration's.
+    """
+
+    config: Path | None
+    net: Path
+    routes: tuple[Path, ...] = ()
+
+
+@dataclass(frozen=True)
+class CosimConfig:
+    """How to run a co-simulation.
+
+    Attributes
+    ----------
+    scenario
+        What to simulate.
+    out
+        Output folder.
+    step_length_s
+        SUMO's step length, s (also the engine's update period).
+    end_s
+        Stop at this simulation time, s; None runs until every vehicle has arrived.
+    interface
+        ``libsumo``, ``traci`` or ``gui``.
+    service_url
+        Ask this csws service instead of the library.
+    driver
+        The driver-response model, or None.
+    seed
+        SUMO's random seed.
+    evaluate
+        False runs SUMO and reads the fleet without asking for warnings (a baseline).
+    progress
+        Show a progress bar.
+    """
+
+    scenario: Scenario
+    out: Path
+    step_length_s: float = 0.1
+    end_s: float | None = None
+    interface: str = "libsumo"
+    service_url: str | None = None
+    driver: DriverSettings | None = None
+    seed: int = 0
+    evaluate: bool = True
+    progress: bool = False
+
+
+def bundled_scenario() -> Scenario:
+    """The fleet on the bundled fleet network (``networks/fleet_scenario/fleet.sumocfg``)."""
+    from csws.networks.fleet import FLEET_NAME, fleet_dir
+
+    return _config_scenario(fleet_dir() / f"{FLEET_NAME}.sumocfg")
+
+
+def _config_scenario(config: Path) -> Scenario:
+    """A scenario from a ``.sumocfg``: its network is read from it, relative to its folder."""
+    if not config.is_file():
+        raise ValueError(f"no such SUMO configuration: {config}")
+    try:
+        root = ElementTree.parse(config).getroot()
+    except ElementTree.ParseError as exc:
+        raise ValueError(f"{config} is not a SUMO configuration: {exc}") from None
+    net = root.find("./input/net-file")
+    if net is None or not net.get("value"):
+        raise ValueError(f"{config} names no net-file")
+    return Scenario(config, (config.parent / net.get("value")).resolve())
+
+
+def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    """The scenario the command line asks for; the bundled fleet by default."""
+    routes = tuple(args.routes or ())
+    for path in routes:
+        if not path.is_file():
+            raise ValueError(f"no such route file: {path}")
+    if args.sumocfg is not None:
+        if args.net is not None:
+            raise ValueError("give either --sumocfg or --net, not both")
+        return replace(_config_scenario(args.sumocfg), routes=routes)
+    if args.net is not None:
+        if not args.net.is_file():
+            raise ValueError(f"no such network: {args.net}")
+        if not routes:
+            raise ValueError("--net needs --routes (or use --sumocfg)")
+        return Scenario(None, args.net, routes)
+    scenario = bundled_scenario()
+    if args.vehicles is None:
+        return scenario
+    from csws.networks.fleet import fleet_routes_xml
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    generated = args.out / "fleet.rou.xml"
+    generated.write_text(fleet_routes_xml(args.vehicles, period_s=args.vehicles, seed=args.seed), encoding="utf-8")
+    return Scenario(None, scenario.net, (generated,))
+
+
+def _evaluator(config: CosimConfig) -> Evaluator | None:
+    """The library or the service, or None for a baseline run."""
+    if not config.evaluate:
+        return None
+    if config.service_url is not None:
+        return ServiceEvaluator(config.service_url)
+    from csws.engine import Engine, EngineSettings
+    from csws.roadmap import RoadMap
+    from csws.warning import WarningSettings
+
+    road_map = RoadMap.load(config.scenario.net)
+    return LibraryEvaluator(Engine(road_map, EngineSettings(warning=WarningSettings(update_period_s=config.step_length_s))))
+
+
+@dataclass
+class _Streams:
+    """The run's output files."""
+
+    timeseries: CsvStream
+    warnings: CsvStream
+    entries: CsvStream
+
+    @classmethod
+    def open(cls, out: Path) -> "_Streams":
+        return cls(
+            CsvStream(out / "timeseries.csv", TIMESERIES_COLUMNS),
+            CsvStream(out / "warnings.csv", EVENT_COLUMNS),
+            CsvStream(out / "entries.csv", ENTRY_COLUMNS),
+        )
+
+    def close(self) -> None:
+        for stream in (self.timeseries, self.warnings, self.entries):
+            stream.close()
+
+
+@dataclass
+class _Tracker:
+    """What the run remembers per vehicle between steps: last level, curve parts entered."""
+
+    levels: dict[str, int] = field(default_factory=dict)
+    entered: dict[str, set] = field(default_factory=dict)
+
+    def forget(self, vehicle_id: str) -> None:
+        self.levels.pop(vehicle_id, None)
+        self.entered.pop(vehicle_id, None)
+
+
+def _record_step(fleet: FleetState, answers: Sequence[VehicleWarning], commands: dict[str, float],
+                 tracker: _Tracker, summary: Summary, streams: _Streams) -> None:  # fmt: skip
+    """Append one step to the files and the summary."""
+    speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
+    lane_pos = fleet.lane_pos_m.tolist()
+    xs, ys = fleet.x_m.tolist(), fleet.y_m.tolist()
+    t = fleet.time_s
+    series, events, entries = [], [], []
+    for i, answer in enumerate(answers):
+        vehicle_id, category, target = fleet.vehicle_id[i], fleet.category[i], answer.target
+        command = commands.get(vehicle_id)
+        series.append((
+            t, vehicle_id, category, fleet.lane_id[i], lane_pos[i], xs[i], ys[i], speeds_kmh[i], answer.state,
+            answer.level, target and target.curve_id, target and target.part_index, target and target.distance_m,
+            target and target.warning_speed_kmh, None if command is None or command < 0 else mps_to_kmh(command),
+        ))  # fmt: skip
+        previous = tracker.levels.get(vehicle_id, 0)
+        event = event_of(previous, answer)
+        if event is not None:
+            tracker.levels[vehicle_id] = answer.level
+            if answer.level > previous:
+                summary.add_onset(category, answer.level, target and target.curve_id)
+                summary.warned_vehicles.add(vehicle_id)
+            events.append((
+                t, vehicle_id, category, event, answer.level, previous, target and target.curve_id,
+                target and target.part_index, target and target.radius_m, target and target.distance_m,
+                target and target.warning_speed_kmh, speeds_kmh[i], fleet.lane_id[i], lane_pos[i], xs[i], ys[i],
+            ))  # fmt: skip
+        for trigger in answer.triggers:
+            if trigger.distance_m > 0:
+                continue
+            entered = tracker.entered.setdefault(vehicle_id, set())
+            if (trigger.curve_id, trigger.part_index) in entered:
+                continue
+            entered.add((trigger.curve_id, trigger.part_index))
+            level1_kmh, excess_kmh = level1_excess_kmh(speeds_kmh[i], category, trigger.radius_m)
+            summary.add_entry(category, excess_kmh)
+            entries.append((t, vehicle_id, category, trigger.curve_id, trigger.part_index, trigger.radius_m,
+                            speeds_kmh[i], level1_kmh, excess_kmh, int(trigger.level)))  # fmt: skip
+    streams.timeseries.append(series)
+    streams.warnings.append(events)
+    streams.entries.append(entries)
+
+
+def _drive(driver: DriverResponse, fleet: FleetState, answers: Sequence[VehicleWarning], step_s: float) -> dict[str, float]:
+    """The driver-response model's speed commands of this step, per vehicle (m/s; -1 hands back)."""
+    commands = {}
+    for i, answer in enumerate(answers):
+        vehicle_id = fleet.vehicle_id[i]
+        if answer.level == 0 and vehicle_id not in driver.drivers:
+            continue
+        target = answer.target
+        command = driver.commands(
+            fleet.time_s, step_s, vehicle_id, answer.level,
+            target and target.warning_speed_kmh, target and target.distance_m,
+            float(fleet.speed_mps[i]), float(fleet.odometer_m[i]),
+        )  # fmt: skip
+        if command is not None:
+            commands[vehicle_id] = command
+    return commands
+
+
+def _no_warning(vehicle_id: str) -> VehicleWarning:
+    """The record of a vehicle that was not evaluated (baseline runs)."""
+    return VehicleWarning(vehicle_id, "off", None, 0, None, ())
+
+
+def cosimulate(config: CosimConfig) -> dict:
+    """Run one co-simulation into ``config.out``; its summary (also written to ``summary.json``).
+
+    Raises
+    ------
+    SumoStopped
+        When SUMO dies; the files hold everything up to the last complete step.
+    KeyboardInterrupt
+        When interrupted; likewise.
+    """
+    from tqdm import tqdm
+
+    config.out.mkdir(parents=True, exist_ok=True)
+    evaluator = _evaluator(config)
+    scenario = config.scenario
+    sumo_args = sumo_arguments(scenario.config, scenario.net if scenario.config is None else None, scenario.routes,
+                               config.step_length_s, config.seed, config.end_s)  # fmt: skip
+    summary, tracker = Summary(), _Tracker()
+    driver = DriverResponse(config.driver) if config.driver is not None else None
+    streams = _Streams.open(config.out)
+    status, started = "running", time.perf_counter()
+    simulation = None
+    bar = tqdm(total=config.end_s, unit="sim s", disable=not config.progress, file=sys.stderr)
+    try:
+        simulation = Simulation(sumo_args, config.interface)
+        step_s = simulation.step_length_s
+        while simulation.expected_vehicles() > 0:
+            fleet = simulation.step()
+            for vehicle_id in fleet.arrived:
+                tracker.forget(vehicle_id)
+                if driver is not None:
+                    driver.forget(vehicle_id)
+            if evaluator is not None:
+                evaluator.forget(fleet.arrived)
+            summary.skipped.update(fleet.skipped)
+            answers = evaluator(fleet) if evaluator is not None and fleet.vehicle_id else [_no_warning(v) for v in fleet.vehicle_id]
+            commands = _drive(driver, fleet, answers, step_s) if driver is not None else {}
+            for vehicle_id, speed_mps in commands.items():
+                simulation.set_speed(vehicle_id, speed_mps)
+            _record_step(fleet, answers, commands, tracker, summary, streams)
+            summary.vehicles.update(fleet.vehicle_id)
+            summary.steps += 1
+            summary.last_time_s = fleet.time_s
+            bar.update(step_s)
+            if config.end_s is not None and fleet.time_s >= config.end_s:
+                break
+        status = "complete"
+    except SumoStopped as exc:
+        status = f"SUMO stopped: {exc}"
+        raise
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise
+    except ServiceError as exc:
+        status = f"service failed: {exc}"
+        raise
+    finally:
+        bar.close()
+        streams.close()
+        if simulation is not None:
+            simulation.close()
+        if evaluator is not None:
+            evaluator.close()
+        content = _summary_content(config, summary, status, time.perf_counter() - started)
+        write_summary(config.out / "summary.json", content)
+    return content
+
+
+def _summary_content(config: CosimConfig, summary: Summary, status: str, wall_s: float) -> dict:
+    """The summary of one run with how it was run."""
+    scenario = config.scenario
+    return {
+        "format": "csws-cosim-summary/1",
+        "status": status,
+        "complete": status == "complete",
+        "scenario": {
+            "config": None if scenario.config is None else str(scenario.config),
+            "net": str(scenario.net),
+            "routes": [str(r) for r in scenario.routes],
+        },
+        "mode": "service" if config.service_url else "library" if config.evaluate else "baseline (no evaluation)",
+        "service_url": config.service_url,
+        "interface": config.interface,
+        "step_length_s": config.step_length_s,
+        "driver_response": None if config.driver is None else vars(config.driver),
+        "wall_time_s": round(wall_s, 3),
+        **summary.as_dict(),
+    }
+
+
+def _comparison(without: dict, with_response: dict) -> dict:
+    """How the fleet did with the driver-response model against without it."""
+    def figures(summary: dict) -> dict:
+        entries = summary["curve_entries_above_level1_warning_speed"]
+        return {
+            "warnings_by_level": summary["warnings"]["by_level"],
+            "curve_entries_above_level1": entries["total"],
+            "curve_entries_more_than_1_kmh_above_level1": entries["more_than_1_kmh_above"],
+            "max_excess_kmh": entries["max_excess_kmh"],
+        }
+
+    return {"without_response": figures(without), "with_response": figures(with_response)}
+
+
+def _print_summary(summary: dict, out: Path) -> None:
+    """A few lines on the terminal."""
+    warnings = summary["warnings"]["by_level"]
+    entries = summary["curve_entries_above_level1_warning_speed"]
+    print(
+        f"{summary['vehicles_evaluated']} vehicles over {summary['simulated_until_s']:g} s "
+        f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings, "
+        f"{entries['total']} curve entries above the level-1 warning speed "
+        f"({entries['more_than_1_kmh_above']} by more than 1 km/h); output in {out}"
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """The ``csws cosim`` command: 0 when the run completes, 1 (with one line on stderr) when SUMO or the service fails."""
+    scenario = scenario_from_args(args)
+    interface = "gui" if args.gui else "traci" if args.traci else "libsumo"
+    base = CosimConfig(
+        scenario=scenario, out=args.out, step_length_s=args.step_length, end_s=args.end, interface=interface,
+        service_url=args.service, seed=args.seed, progress=sys.stderr.isatty(),
+    )  # fmt: skip
+    runs = [base] if not args.driver_response else [
+        replace(base, out=args.out / "without_response"),
+        replace(base, out=args.out / "with_response", driver=DriverSettings()),
+    ]  # fmt: skip
+    summaries = []
+    try:
+        for config in runs:
+            summaries.append(cosimulate(config))
+            _print_summary(summaries[-1], config.out)
+    except SumoStopped as exc:
+        print(f"csws: error: SUMO stopped ({exc}); the files in {args.out} hold every step before", file=sys.stderr)
+        return 1
+    except ServiceError as exc:
+        print(f"csws: error: {exc}; the files in {args.out} hold every step before", file=sys.stderr)
+        return 1
+    if args.driver_response:
+        comparison = _comparison(*summaries)
+        write_summary(args.out / "summary.json", {"format": "csws-cosim-comparison/1", "comparison": comparison,
+                                                  "runs": summaries})  # fmt: skip
+        print(f"comparison in {args.out / 'summary.json'}")
+    return 0

@@ -1,0 +1,227 @@
+"""The SUMO side of the co-simulation: start, step, read every vehicle at once, command speeds.
+
+libsumo runs SUMO inside this process (one simulation per process, the fast default);
+TraCI runs it as a separate program (``sumo``, or ``sumo-gui`` to watch). Both offer the
+same API, used the same way:
+
+* each vehicle is subscribed once, when it departs, to its lane, lane position, speed,
+  position, route id, type and odometer; every step one call returns all of them;
+* a route's edges are fetched once per route id (a rerouted vehicle gets a new route
+  id), a type's category once per type.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from csws.binaries import sumo_binary, sumo_home
+from csws.standard import Category
+
+from .categories import CATEGORY_PARAMETER, category_of
+
+__all__ = ["SumoStopped", "FleetState", "Simulation", "sumo_arguments"]
+
+_VAR_LANE_ID = 0x51
+_VAR_LANEPOSITION = 0x56
+_VAR_SPEED = 0x40
+_VAR_POSITION = 0x42
+_VAR_ROUTE_ID = 0x53
+_VAR_TYPE = 0x4F
+_VAR_DISTANCE = 0x84
+_SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_TYPE, _VAR_DISTANCE)
+
+
+class SumoStopped(RuntimeError):
+    """SUMO ended before the co-simulation did (it was killed, crashed or closed)."""
+
+
+@dataclass(frozen=True)
+class FleetState:
+    """Every evaluated vehicle at one step, as parallel sequences.
+
+    Attributes
+    ----------
+    time_s
+        Simulation time, s.
+    vehicle_id, category, lane_id, route_edges
+        Per vehicle.
+    lane_pos_m, speed_mps, x_m, y_m, odometer_m
+        Per vehicle, arrays.
+    departed, arrived
+        Vehicles that entered and left the simulation in this step.
+    skipped
+        Departed vehicles of classes outside the standard (not evaluated).
+    """
+
+    time_s: float
+    vehicle_id: list[str]
+    category: list[str]
+    lane_id: list[str]
+    route_edges: list[tuple[str, ...]]
+    lane_pos_m: np.ndarray
+    speed_mps: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    odometer_m: np.ndarray
+    departed: tuple[str, ...]
+    arrived: tuple[str, ...]
+    skipped: tuple[str, ...]
+
+
+class Simulation:
+    """A running SUMO simulation.
+
+    Parameters
+    ----------
+    sumo_args
+        SUMO's arguments without the program (``-c cfg`` or ``-n net -r routes`` and options).
+    interface
+        ``"libsumo"``, ``"traci"`` or ``"gui"`` (TraCI with sumo-gui).
+    """
+
+    def __init__(self, sumo_args: Sequence[str], interface: str = "libsumo") -> None:
+        import os
+
+        os.environ.setdefault("SUMO_HOME", str(sumo_home()))
+        if interface == "libsumo":
+            import libsumo as api
+        elif interface in ("traci", "gui"):
+            import traci as api
+        else:
+            raise ValueError(f"unknown SUMO interface {interface!r}; expected libsumo, traci or gui")
+        self.api = api
+        self.interface = interface
+        binary = sumo_binary("sumo-gui" if interface == "gui" else "sumo")
+        self._errors = self._error_types()
+        try:
+            api.start([str(binary), *sumo_args])
+        except self._errors as exc:
+            raise ValueError(f"SUMO could not start: {_one_line(exc)}") from None
+        self._routes: dict[str, tuple[str, ...]] = {}
+        self._categories: dict[str, Category | None] = {}
+        self._skipped: set[str] = set()
+        self.closed = False
+
+    def _error_types(self) -> tuple[type[BaseException], ...]:
+        """The exceptions the interface raises when SUMO fails or goes away."""
+        errors: list[type[BaseException]] = [self.api.TraCIException]
+        fatal = getattr(self.api, "FatalTraCIError", None) or getattr(getattr(self.api, "exceptions", None), "FatalTraCIError", None)
+        if fatal is not None:
+            errors.append(fatal)
+        return (*errors, ConnectionError, EOFError)
+
+    @property
+    def step_length_s(self) -> float:
+        """SUMO's step length, s."""
+        return float(self.api.simulation.getDeltaT())
+
+    def expected_vehicles(self) -> int:
+        """Vehicles running or still to depart."""
+        return int(self._call(self.api.simulation.getMinExpectedNumber))
+
+    def step(self) -> FleetState:
+        """Advance one step and read every evaluated vehicle.
+
+        Raises
+        ------
+        SumoStopped
+            When SUMO is gone or fails.
+        """
+        api = self.api
+        self._call(api.simulationStep)
+        departed = tuple(self._call(api.simulation.getDepartedIDList))
+        arrived = tuple(self._call(api.simulation.getArrivedIDList))
+        skipped = []
+        for vehicle_id in departed:
+            if self._category(self._call(api.vehicle.getTypeID, vehicle_id)) is None:
+                skipped.append(vehicle_id)
+                self._skipped.add(vehicle_id)
+                continue
+            self._call(api.vehicle.subscribe, vehicle_id, _SUBSCRIBED)
+        self._skipped.difference_update(arrived)
+        results = self._call(api.vehicle.getAllSubscriptionResults)
+        ids = list(results)
+        values = [results[v] for v in ids]
+        position = np.array([r[_VAR_POSITION] for r in values], dtype=float).reshape(-1, 2)
+        return FleetState(
+            time_s=float(self._call(api.simulation.getTime)),
+            vehicle_id=ids,
+            category=[self._category(r[_VAR_TYPE]).value for r in values],
+            lane_id=[r[_VAR_LANE_ID] for r in values],
+            route_edges=[self._route(v, r[_VAR_ROUTE_ID]) for v, r in zip(ids, values)],
+            lane_pos_m=np.array([r[_VAR_LANEPOSITION] for r in values], dtype=float),
+            speed_mps=np.array([r[_VAR_SPEED] for r in values], dtype=float),
+            x_m=position[:, 0],
+            y_m=position[:, 1],
+            odometer_m=np.array([r[_VAR_DISTANCE] for r in values], dtype=float),
+            departed=departed,
+            arrived=arrived,
+            skipped=tuple(skipped),
+        )
+
+    def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
+        """Command a vehicle's speed (m/s); a negative speed hands it back to SUMO's driver."""
+        self._call(self.api.vehicle.setSpeed, vehicle_id, speed_mps)
+
+    def close(self) -> None:
+        """End the simulation (quietly if SUMO is already gone)."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self.api.close()
+        except (*self._errors, OSError):
+            pass
+
+    def _category(self, type_id: str) -> Category | None:
+        """The category of a vType, read once per type."""
+        if type_id not in self._categories:
+            vclass = self._call(self.api.vehicletype.getVehicleClass, type_id)
+            declared = self._call(self.api.vehicletype.getParameter, type_id, CATEGORY_PARAMETER)
+            try:
+                self._categories[type_id] = category_of(vclass, declared)
+            except ValueError as exc:
+                raise ValueError(f"vType {type_id!r}: {exc}") from None
+        return self._categories[type_id]
+
+    def _route(self, vehicle_id: str, route_id: str) -> tuple[str, ...]:
+        """A route's edges, fetched once per route id."""
+        edges = self._routes.get(route_id)
+        if edges is None:
+            edges = self._routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
+        return edges
+
+    def _call(self, function, *args):
+        """Call the SUMO API; its failures become :class:`SumoStopped`."""
+        try:
+            return function(*args)
+        except self._errors as exc:
+            raise SumoStopped(_one_line(exc)) from None
+        except OSError as exc:
+            raise SumoStopped(_one_line(exc)) from None
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line."""
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+def sumo_arguments(config: Path | None, net: Path | None, routes: Sequence[Path], step_length_s: float,
+                   seed: int, end_s: float | None) -> list[str]:  # fmt: skip
+    """SUMO's arguments for a configuration or a network with route files."""
+    arguments = ["-c", str(config)] if config is not None else ["-n", str(net)]
+    if routes:
+        arguments += ["-r", ",".join(str(r) for r in routes)]
+    arguments += [
+        "--step-length", f"{step_length_s:g}", "--seed", str(seed),
+        "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
+    ]  # fmt: skip
+    if end_s is not None and math.isfinite(end_s):
+        arguments += ["--end", f"{end_s:g}"]
+    return arguments

@@ -1,0 +1,222 @@
+"""The co-simulation: a real SUMO fleet on the bundled fleet network, in-process and over a real service.
+
+Warnings are checked against the standard (Tables 1-2 and formula (1) computed here),
+the two evaluation modes against each other, and the output files after SUMO or the
+run itself is killed.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from csws.cosim.categories import category_of
+from csws.cosim.driver import DriverSettings
+from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS
+from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.networks.fleet import FLEET_TYPES, fleet_dir, fleet_routes_xml
+from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
+
+FLEET_NET = fleet_dir() / "fleet.net.xml"
+VEHICLES = 200
+END_S = 170.0
+STEP_S = 0.2
+
+
+@pytest.fixture(scope="module")
+def fleet_routes(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("fleet") / "fleet.rou.xml"
+    path.write_text(fleet_routes_xml(VEHICLES, period_s=150.0, seed=1))
+    return path
+
+
+def _config(routes: Path, out: Path, **changes) -> CosimConfig:
+    return CosimConfig(Scenario(None, FLEET_NET, (routes,)), out, step_length_s=STEP_S, end_s=END_S, **changes)
+
+
+@pytest.fixture(scope="module")
+def library_run(fleet_routes, tmp_path_factory):
+    out = tmp_path_factory.mktemp("library")
+    return out, cosimulate(_config(fleet_routes, out))
+
+
+def _rows(path: Path) -> list[dict]:
+    with path.open(newline="") as stream:
+        return list(csv.DictReader(stream))
+
+
+def test_vehicle_classes_map_to_the_standards_categories():
+    assert category_of("passenger") is Category.M1
+    assert category_of("bus") is Category.M3 and category_of("coach") is Category.M3
+    assert category_of("delivery") is Category.N and category_of("truck") is Category.N
+    assert category_of("trailer") is Category.O
+    assert category_of("bicycle") is None and category_of("motorcycle") is None
+    assert category_of("bus", "M2") is Category.M2
+    with pytest.raises(ValueError, match="csws.category"):
+        category_of("bus", "L3")
+
+
+def test_every_vehicle_is_evaluated_with_its_category(library_run):
+    out, summary = library_run
+    assert summary["complete"] and summary["vehicles_evaluated"] == VEHICLES
+    declared = {t.type_id: (t.category or category_of(t.vclass).value) for t in FLEET_TYPES}
+    seen = {}
+    for row in _rows(out / "timeseries.csv"):
+        seen[row["vehicle_id"]] = row["category"]
+    assert len(seen) == VEHICLES
+    for vehicle_id, category in seen.items():
+        assert category == declared[vehicle_id.rstrip("0123456789")]
+    assert set(seen.values()) == {"M1", "M2", "M3", "N", "O"}
+
+
+def test_warning_onsets_follow_tables_1_2_and_formula_1(library_run):
+    out, summary = library_run
+    events = _rows(out / "warnings.csv")
+    onsets = [e for e in events if int(e["level"]) > int(e["previous_level"])]
+    assert len(onsets) > 100
+    for event in onsets:
+        speed_kmh, level = float(event["speed_kmh"]), int(event["level"])
+        v_w = warning_speed(float(event["radius_m"]), event["category"], level)
+        assert float(event["warning_speed_kmh"]) == pytest.approx(v_w, abs=1e-6)
+        assert speed_kmh >= v_w
+        allowance_m = kmh_to_mps(speed_kmh) * (STEP_S + 0.1)  # one update period and the 0.1 s system delay
+        assert float(event["distance_m"]) <= warning_distance(speed_kmh, v_w) + allowance_m + 1e-6
+    levels = summary["warnings"]["by_level"]
+    assert levels["level1"] + levels["level2"] == len(onsets)
+
+
+def test_without_the_driver_model_vehicles_enter_curves_too_fast_and_with_it_none_does(library_run, fleet_routes, tmp_path):
+    _, without = library_run
+    entries = without["curve_entries_above_level1_warning_speed"]
+    assert entries["more_than_1_kmh_above"] > 20
+    with_response = cosimulate(_config(fleet_routes, tmp_path, driver=DriverSettings()))
+    assert with_response["curve_entries_above_level1_warning_speed"]["more_than_1_kmh_above"] == 0
+    for entry in _rows(tmp_path / "entries.csv"):
+        level1_kmh = warning_speed(float(entry["radius_m"]), entry["category"], 1)
+        assert float(entry["speed_kmh"]) <= level1_kmh + 1.0
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def service_url(tmp_path_factory):
+    pytest.importorskip("service.app")
+    port = _free_port()
+    environment = {**os.environ, "CSWS_NETS": str(FLEET_NET), "CSWS_STATE_DB": ":memory:", "CSWS_UPDATE_PERIOD_S": str(STEP_S)}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "uvicorn", "--factory", "service.app:create_app", "--host", "127.0.0.1", "--port", str(port)],
+        env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+            break
+        except OSError:
+            assert process.poll() is None, "the service did not start"
+            time.sleep(0.2)
+    yield f"http://127.0.0.1:{port}"
+    process.terminate()
+    process.wait(timeout=30)
+
+
+def test_service_mode_gives_identical_warnings(library_run, fleet_routes, service_url, tmp_path):
+    out, _ = library_run
+    summary = cosimulate(_config(fleet_routes, tmp_path, service_url=service_url))
+    assert summary["mode"] == "service" and summary["vehicles_evaluated"] == VEHICLES
+    for name in ("timeseries.csv", "warnings.csv", "entries.csv"):
+        assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name
+
+
+def _assert_complete_csv(path: Path, columns) -> int:
+    text = path.read_text()
+    assert text.endswith("\n")
+    rows = list(csv.reader(text.splitlines()))
+    assert tuple(rows[0]) == tuple(columns)
+    assert all(len(row) == len(columns) for row in rows)
+    return len(rows) - 1
+
+
+def _start(tmp_path: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "csws.cli", "cosim", "--out", str(tmp_path), "--vehicles", str(VEHICLES), *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def _wait_for_rows(path: Path, process: subprocess.Popen, size: int = 200_000) -> None:
+    deadline = time.monotonic() + 120
+    while not (path.is_file() and path.stat().st_size > size):
+        assert process.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="finds SUMO's process through /proc")
+def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
+    process = _start(tmp_path, "--traci")
+    _wait_for_rows(tmp_path / "timeseries.csv", process)
+    sumo = _children(process.pid)
+    assert sumo
+    for pid in sumo:
+        os.kill(pid, signal.SIGKILL)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 1
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("csws: error: SUMO stopped")
+    assert _assert_complete_csv(tmp_path / "timeseries.csv", TIMESERIES_COLUMNS) > 0
+    _assert_complete_csv(tmp_path / "warnings.csv", EVENT_COLUMNS)
+    _assert_complete_csv(tmp_path / "entries.csv", ENTRY_COLUMNS)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["complete"] is False and summary["status"].startswith("SUMO stopped")
+
+
+def test_an_interrupted_run_keeps_valid_files(tmp_path):
+    process = _start(tmp_path)
+    _wait_for_rows(tmp_path / "timeseries.csv", process)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130 and stderr.strip() == "csws: interrupted"
+    assert _assert_complete_csv(tmp_path / "timeseries.csv", TIMESERIES_COLUMNS) > 0
+    assert json.loads((tmp_path / "summary.json").read_text())["status"] == "interrupted"
+
+
+def test_a_killed_run_leaves_files_that_end_at_a_complete_row(tmp_path):
+    process = _start(tmp_path)
+    _wait_for_rows(tmp_path / "timeseries.csv", process)
+    process.kill()
+    process.wait(timeout=30)
+    assert _assert_complete_csv(tmp_path / "timeseries.csv", TIMESERIES_COLUMNS) > 0
+    _assert_complete_csv(tmp_path / "warnings.csv", EVENT_COLUMNS)
+
+
+def test_bad_scenario_is_one_error_line(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "csws.cli", "cosim", "--out", str(tmp_path), "--sumocfg", str(tmp_path / "none.sumocfg")],
+                            capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert result.returncode == 2
+    assert result.stderr.strip() == f"csws: error: no such SUMO configuration: {tmp_path / 'none.sumocfg'}"
