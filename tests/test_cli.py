@@ -16,7 +16,7 @@ SUBCOMMANDS = [["networks"], ["networks", "build"], ["networks", "verify"], ["cu
 
 
 def _csws(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "csws.cli", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "csws", *args], capture_output=True, text=True, timeout=300)
 
 
 def test_help_lists_every_subcommand():

@@ -165,14 +165,14 @@ def test_three_consecutive_passes_are_needed():
 
 
 def test_cli_rejects_too_few_repetitions_in_one_line(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws.cli", "conformance", "--out", str(tmp_path), "--repetitions", "2",
+    result = subprocess.run([sys.executable, "-m", "csws", "conformance", "--out", str(tmp_path), "--repetitions", "2",
                              "--rows", "T7-M1"], capture_output=True, text=True, timeout=120)  # fmt: skip
     assert result.returncode == 2
     assert result.stderr.strip().startswith("csws: error:") and len(result.stderr.strip().splitlines()) == 1
 
 
 def test_cli_runs_a_row_and_exits_0(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws.cli", "conformance", "--out", str(tmp_path), "--rows", "T8-M1-test2",
+    result = subprocess.run([sys.executable, "-m", "csws", "conformance", "--out", str(tmp_path), "--rows", "T8-M1-test2",
                              "--step-lengths", "0.1", "--directions", "left", "--jobs", "2"],
                             capture_output=True, text=True, timeout=300)  # fmt: skip
     assert result.returncode == 0, result.stdout + result.stderr

@@ -152,7 +152,7 @@ def _assert_complete_csv(path: Path, columns) -> int:
 
 def _start(tmp_path: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "csws.cli", "cosim", "--out", str(tmp_path), "--vehicles", str(VEHICLES), *extra],
+        [sys.executable, "-m", "csws", "cosim", "--out", str(tmp_path), "--vehicles", str(VEHICLES), *extra],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
 
@@ -216,7 +216,7 @@ def test_a_killed_run_leaves_files_that_end_at_a_complete_row(tmp_path):
 
 
 def test_bad_scenario_is_one_error_line(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws.cli", "cosim", "--out", str(tmp_path), "--sumocfg", str(tmp_path / "none.sumocfg")],
+    result = subprocess.run([sys.executable, "-m", "csws", "cosim", "--out", str(tmp_path), "--sumocfg", str(tmp_path / "none.sumocfg")],
                             capture_output=True, text=True, timeout=60)  # fmt: skip
     assert result.returncode == 2
     assert result.stderr.strip() == f"csws: error: no such SUMO configuration: {tmp_path / 'none.sumocfg'}"

@@ -402,7 +402,7 @@ def test_health_metrics_and_docs(client) -> None:
 def test_a_network_that_cannot_be_read_stops_start_up_in_one_line(tmp_path) -> None:
     broken = tmp_path / "broken.net.xml"
     broken.write_text("<net>")
-    result = subprocess.run([sys.executable, "-m", "csws.cli", "serve", "--net", str(broken), "--state-db", ":memory:"],
+    result = subprocess.run([sys.executable, "-m", "csws", "serve", "--net", str(broken), "--state-db", ":memory:"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0

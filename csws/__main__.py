@@ -1,0 +1,7 @@
+"""``python -m csws``: the ``csws`` command."""
+
+import sys
+
+from csws.cli import main
+
+sys.exit(main())
