@@ -12,7 +12,6 @@ found per vehicle, and the warning of all of them is computed in one vectorised 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -99,9 +98,8 @@ class EngineSettings:
     activation: ActivationSettings = field(default_factory=ActivationSettings)
 
 
-def _no_warning(path_kind: PathKind) -> CurveWarning:
-    """A warning of level 0."""
-    return CurveWarning(Level.NONE, None, (), path_kind, HmiHint.for_level(Level.NONE))
+#: The answer's warning when the system does not warn (not active, or no path).
+_NO_WARNING = CurveWarning(Level.NONE, None, (), PathKind.PREDICTED, HmiHint.for_level(Level.NONE))
 
 
 class Engine:
@@ -135,68 +133,77 @@ class Engine:
         self.statuses.pop(vehicle_id, None)
 
     def evaluate(self, vehicle: VehicleInput) -> Answer:
-        """The answer for one vehicle; its status is updated."""
-        return self.evaluate_many([vehicle])[0]
+        """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
+        status = self._next_status(vehicle)
+        if not status.warns:
+            return Answer(vehicle.vehicle_id, status.state, status.fault, _NO_WARNING, None)
+        path = self.lookahead(vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category,
+                              vehicle.route_edges)
+        distance_m = path.cpoi_distance_m
+        batch = evaluate_batch(np.array([vehicle.speed_kmh], dtype=float), np.array([column_index(vehicle.category)]),
+                               np.zeros(distance_m.size, dtype=np.intp), distance_m, path.cpoi_radius_m,
+                               self.settings.warning)
+        warning = batch.vehicle_warning(0, 0, path.cpoi_curve_id, path.cpoi_part_index, path.kind)
+        return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
+
+    def _next_status(self, vehicle: VehicleInput) -> VehicleStatus:
+        """Update and return the vehicle's status (5.2-5.4)."""
+        status = next_status(
+            self.status(vehicle.vehicle_id),
+            vehicle.speed_kmh,
+            timestamp_s=vehicle.timestamp_s,
+            age_s=vehicle.age_s,
+            map_fault=self._map_fault(vehicle),
+            settings=self.settings.activation,
+        )
+        self.statuses[vehicle.vehicle_id] = status
+        return status
 
     def evaluate_many(self, vehicles: Sequence[VehicleInput]) -> list[Answer]:
-        """The answers for many vehicles, in order; the warnings are computed in one vectorised step."""
-        paths: list[PathAhead | None] = []
+        """The answers for many vehicles, in order.
+
+        The state machine runs per vehicle; the look-ahead and the warning of every
+        active vehicle are computed together, in one vectorised step each.
+        """
         statuses: list[VehicleStatus] = []
-        for vehicle in vehicles:
-            path, map_fault = self._path_ahead(vehicle)
-            status = next_status(
-                self.status(vehicle.vehicle_id),
-                vehicle.speed_kmh,
-                timestamp_s=vehicle.timestamp_s,
-                age_s=vehicle.age_s,
-                map_fault=map_fault,
-                settings=self.settings.activation,
-            )
-            self.statuses[vehicle.vehicle_id] = status
-            paths.append(path if status.warns else None)
+        active: list[int] = []
+        for i, vehicle in enumerate(vehicles):
+            status = self._next_status(vehicle)
             statuses.append(status)
-        warnings = self._warnings(vehicles, paths)
+            if status.warns:
+                active.append(i)
+        warnings: list[CurveWarning] = [_NO_WARNING] * len(vehicles)
+        paths: list[PathAhead | None] = [None] * len(vehicles)
+        if active:
+            for i, warning, path in zip(active, *self._warnings([vehicles[i] for i in active])):
+                warnings[i], paths[i] = warning, path
         return [
             Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
             for vehicle, status, warning, path in zip(vehicles, statuses, warnings, paths)
         ]
 
-    def _path_ahead(self, vehicle: VehicleInput) -> tuple[PathAhead | None, Fault | None]:
-        """The path ahead, or the map fault that prevents it (5.4)."""
-        if self.lookahead is None:
-            return None, Fault.NO_MAP
-        if vehicle.lane_id is None:
-            return None, Fault.NO_MAP_MATCH
-        if not (math.isfinite(vehicle.speed_kmh) and vehicle.speed_kmh >= 0):
-            return None, None  # the state machine reports the invalid input
-        try:
-            return (
-                self.lookahead(
-                    vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category, vehicle.route_edges
-                ),
-                None,
-            )
-        except KeyError:
-            return None, Fault.NO_MAP_MATCH
+    def _map_fault(self, vehicle: VehicleInput) -> Fault | None:
+        """The map fault that prevents a path ahead (5.4), or None."""
+        if self.road_map is None:
+            return Fault.NO_MAP
+        if vehicle.lane_id is None or not self.road_map.has_lane(vehicle.lane_id):
+            return Fault.NO_MAP_MATCH
+        return None
 
-    def _warnings(self, vehicles: Sequence[VehicleInput], paths: Sequence[PathAhead | None]) -> list[CurveWarning]:
-        """Clause 6 for every vehicle with a path, in one batch."""
-        counts = np.array([0 if p is None else p.cpoi_distance_m.size for p in paths], dtype=np.intp)
-        if counts.sum() == 0:
-            return [_no_warning(p.kind if p is not None else PathKind.PREDICTED) for p in paths]
-        with_cpois = [p for p in paths if p is not None and p.cpoi_distance_m.size]
-        batch = evaluate_batch(
-            np.array([v.speed_kmh for v in vehicles], dtype=float),
-            np.array([column_index(v.category) for v in vehicles], dtype=np.intp),
-            np.repeat(np.arange(len(vehicles)), counts),
-            np.concatenate([p.cpoi_distance_m for p in with_cpois]),
-            np.concatenate([p.cpoi_radius_m for p in with_cpois]),
-            self.settings.warning,
+    def _warnings(self, vehicles: Sequence[VehicleInput]) -> tuple[list[CurveWarning], list[PathAhead]]:
+        """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
+        speed_kmh = np.array([v.speed_kmh for v in vehicles], dtype=float)
+        columns = np.array([column_index(v.category) for v in vehicles], dtype=np.intp)
+        ahead = self.lookahead.many(
+            [v.lane_id for v in vehicles], np.array([v.lane_pos_m for v in vehicles], dtype=float), speed_kmh,
+            columns, [v.route_edges for v in vehicles],
         )
-        offsets = (np.cumsum(counts) - counts).tolist()
-        return [
-            _no_warning(PathKind.PREDICTED)
-            if path is None
-            else batch.vehicle_warning(i, offsets[i], path.cpoi_curve_id, path.cpoi_part_index, path.kind)
-            for i, path in enumerate(paths)
+        batch = evaluate_batch(speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m, ahead.cpoi_radius_m,
+                               self.settings.warning)
+        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicles) + 1)).tolist()
+        warnings = [
+            batch.vehicle_warning(i, first[i], ahead.cpoi_curve_id[first[i]:first[i + 1]],
+                                  ahead.cpoi_part_index[first[i]:first[i + 1]], ahead.horizons[i].kind)
+            for i in range(len(vehicles))
         ]
+        return warnings, [ahead.path_ahead(i) for i in range(len(vehicles))]

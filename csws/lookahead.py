@@ -30,15 +30,25 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Sequence
 
 import numpy as np
 
 from .roadmap import Lane, PathProfile, RoadMap
-from .standard import DEFAULT_WARNING_RADIUS_M, Category, Level, kmh_to_mps, warning_distance_m
-from .warning import CurvaturePointOfInterest, PathKind, WarningSettings
+from .standard import DEFAULT_WARNING_RADIUS_M, Category, Column, Level, formula_1_m, kmh_to_mps
+from .warning import CurvaturePointOfInterest, PathKind, WarningSettings, column_index
 
-__all__ = ["LookAheadSettings", "PathAhead", "LookAhead", "lookahead_distance_m"]
+__all__ = [
+    "LookAheadSettings",
+    "Horizon",
+    "PathAhead",
+    "BatchAhead",
+    "LookAhead",
+    "lookahead_distance_m",
+    "lookahead_distances_m",
+    "curve_id_of",
+]
 
 
 @dataclass(frozen=True)
@@ -81,35 +91,90 @@ class LookAheadSettings:
             raise ValueError(f"fixed_distance_m must be a positive number of metres, got {self.fixed_distance_m!r}")
 
 
+def _smallest_warning_speeds_mps(warning_settings: WarningSettings) -> np.ndarray:
+    """Per column of Tables 1-2 the smallest warning speed of the policy (level 1, smallest radius), m/s."""
+    policy = warning_settings.policy
+    return kmh_to_mps(np.array([min(policy.speeds_kmh[(column, Level.LEVEL_1)]) for column in Column]))
+
+
+def _required_m(speed_mps, smallest_warning_speed_mps, warning_settings: WarningSettings):
+    """Formula (1) at the speed with the smallest warning speed, plus the latency allowance, m (floats or arrays).
+
+    Below the smallest warning speed this is less than the reaction distance; the floor
+    of S_LAD covers it, and no warning is due there anyway.
+    """
+    return formula_1_m(speed_mps, smallest_warning_speed_mps, warning_settings.g_mps2) + (
+        speed_mps * warning_settings.latency_s
+    )
+
+
+def lookahead_distances_m(
+    speed_kmh: np.ndarray,
+    column_index: np.ndarray,
+    warning_settings: WarningSettings = WarningSettings(),
+    floor_m: float = LookAheadSettings.floor_m,
+) -> np.ndarray:
+    """The look-ahead distance S_LAD (3.9) each vehicle needs at its speed, m.
+
+    Long enough for the largest warning distance the speed can need: formula (1) with
+    the smallest warning speed of the vehicle's column (the level-1 speed at the
+    smallest policy radius), plus the distance driven during the system latency; never
+    below ``floor_m``.
+    """
+    smallest_mps = _smallest_warning_speeds_mps(warning_settings)[np.asarray(column_index)]
+    return np.maximum(floor_m, _required_m(kmh_to_mps(np.asarray(speed_kmh, dtype=float)), smallest_mps,
+                                           warning_settings))
+
+
 def lookahead_distance_m(
     speed_kmh: float,
     category: "str | Category",
     warning_settings: WarningSettings = WarningSettings(),
     floor_m: float = LookAheadSettings.floor_m,
 ) -> float:
-    """The look-ahead distance S_LAD (3.9) a vehicle needs at ``speed_kmh``.
-
-    Long enough for the largest warning distance the speed can need: formula (1) with
-    the smallest warning speed of the category's column, plus the distance driven during
-    the system latency; never below ``floor_m``.
-    """
-    column = Category.parse(category).column
-    smallest_kmh = min(warning_settings.policy.speeds_kmh[(column, Level.LEVEL_1)])
-    speed_mps = kmh_to_mps(speed_kmh)
-    needed_m = float(warning_distance_m(speed_mps, kmh_to_mps(smallest_kmh), warning_settings.g_mps2))
-    return max(floor_m, needed_m + speed_mps * warning_settings.latency_s)
+    """The look-ahead distance S_LAD (3.9) of one vehicle, m (see :func:`lookahead_distances_m`)."""
+    smallest_mps = float(_smallest_warning_speeds_mps(warning_settings)[column_index(category)])
+    return max(floor_m, _required_m(kmh_to_mps(float(speed_kmh)), smallest_mps, warning_settings))
 
 
 @dataclass(frozen=True)
-class _PathCurves:
-    """A stitched path with its curve parts as flat arrays (what a query needs)."""
+class Horizon:
+    """The road ahead from the start of one lane, with every curve part on it.
+
+    One horizon serves every vehicle on its first lane with the same route (or none),
+    wherever it is on the lane, as long as S_LAD fits in ``length_m``; horizons are
+    cached.
+
+    Attributes
+    ----------
+    path
+        The stitched path, starting at the first lane's start.
+    kind
+        ``route`` when the path follows the route, else ``predicted``.
+    part_start_s, part_end_s, part_radius_m, part_index
+        The constant-radius parts of the curves on the path (3.7, 3.8): start and end
+        in path arc length, radius, index within the curve.
+    part_curve_id
+        The curve id of each part (``lane@position`` of the curve's start).
+    """
 
     path: PathProfile
+    kind: PathKind
     part_start_s: np.ndarray
     part_end_s: np.ndarray
     part_radius_m: np.ndarray
     part_index: np.ndarray
-    part_curve_id: tuple[str, ...]
+    part_curve_id: np.ndarray
+
+    @cached_property
+    def _first_lane(self) -> tuple[float, float]:
+        """Position factor and shape length of the first lane."""
+        return float(self.path.lane_position_factor[0]), float(self.path.lane_shape_length_m[0])
+
+    def vehicle_s(self, lane_pos_m: float) -> float:
+        """Path arc length of a lane position on the first lane, m."""
+        factor, shape_length_m = self._first_lane
+        return min(max(lane_pos_m / factor, 0.0), shape_length_m)
 
 
 @dataclass(frozen=True)
@@ -118,27 +183,58 @@ class PathAhead:
 
     Attributes
     ----------
-    path
-        The stitched path (lanes in driving order, polyline, radius profile).
-    kind
-        ``route`` when the path follows the vehicle's route, else ``predicted``.
+    horizon
+        The cached road ahead from the start of the vehicle's lane.
     vehicle_s
-        The vehicle's arc length along ``path``, m.
+        The vehicle's arc length along the path, m.
     lookahead_m
         S_LAD used, m.
-    cpoi_distance_m, cpoi_radius_m, cpoi_part_index, cpoi_curve_id
-        The CPOIs, nearest first: distance S from the vehicle (0 inside a part), radius,
-        part index within its curve, and the curve's id (``lane@position`` of its start).
     """
 
-    path: PathProfile
-    kind: PathKind
+    horizon: Horizon
     vehicle_s: float
     lookahead_m: float
-    cpoi_distance_m: np.ndarray
-    cpoi_radius_m: np.ndarray
-    cpoi_part_index: np.ndarray
-    cpoi_curve_id: tuple[str, ...]
+
+    @property
+    def path(self) -> PathProfile:
+        """The stitched path (lanes in driving order, polyline, radius profile)."""
+        return self.horizon.path
+
+    @property
+    def kind(self) -> PathKind:
+        """``route`` when the path follows the vehicle's route, else ``predicted``."""
+        return self.horizon.kind
+
+    @cached_property
+    def _rows(self) -> np.ndarray:
+        """The horizon's parts that are CPOIs (3.11)."""
+        h = self.horizon
+        return np.flatnonzero(_is_cpoi(h.part_start_s, h.part_end_s, self.vehicle_s, self.lookahead_m))
+
+    @property
+    def cpoi_distance_m(self) -> np.ndarray:
+        """Distance S from the vehicle to each CPOI, nearest first, m; 0 inside a part."""
+        return np.maximum(self.horizon.part_start_s[self._rows] - self.vehicle_s, 0.0)
+
+    @property
+    def cpoi_start_s(self) -> np.ndarray:
+        """Path arc length where each CPOI's part starts, m (behind the vehicle when it is inside)."""
+        return self.horizon.part_start_s[self._rows]
+
+    @property
+    def cpoi_radius_m(self) -> np.ndarray:
+        """Radius of each CPOI's part, m."""
+        return self.horizon.part_radius_m[self._rows]
+
+    @property
+    def cpoi_part_index(self) -> np.ndarray:
+        """Index of each CPOI's part within its curve."""
+        return self.horizon.part_index[self._rows]
+
+    @property
+    def cpoi_curve_id(self) -> tuple[str, ...]:
+        """The curve id of each CPOI."""
+        return tuple(self.horizon.part_curve_id[self._rows])
 
     @property
     def cpois(self) -> tuple[CurvaturePointOfInterest, ...]:
@@ -149,6 +245,40 @@ class PathAhead:
                 self.cpoi_curve_id, self.cpoi_part_index, self.cpoi_distance_m, self.cpoi_radius_m
             )
         )
+
+
+@dataclass(frozen=True)
+class BatchAhead:
+    """The roads ahead of many vehicles, with all their CPOIs as flat arrays.
+
+    Attributes
+    ----------
+    horizons
+        Each vehicle's horizon.
+    vehicle_s, lookahead_m
+        ``(n,)`` each vehicle's path arc length and S_LAD, m.
+    cpoi_vehicle
+        ``(k,)`` the vehicle of each CPOI, ascending.
+    cpoi_distance_m, cpoi_radius_m, cpoi_part_index, cpoi_curve_id
+        ``(k,)`` as in :class:`PathAhead`.
+    """
+
+    horizons: list[Horizon]
+    vehicle_s: np.ndarray
+    lookahead_m: np.ndarray
+    cpoi_vehicle: np.ndarray
+    cpoi_distance_m: np.ndarray
+    cpoi_radius_m: np.ndarray
+    cpoi_part_index: np.ndarray
+    cpoi_curve_id: np.ndarray
+
+    def path_ahead(self, vehicle: int) -> PathAhead:
+        """One vehicle's :class:`PathAhead`."""
+        return PathAhead(self.horizons[vehicle], float(self.vehicle_s[vehicle]), float(self.lookahead_m[vehicle]))
+
+
+#: Horizons are built for S_LAD rounded up to a multiple of this, so that they are shared, m.
+HORIZON_STEP_M = 250.0
 
 
 class LookAhead:
@@ -173,7 +303,8 @@ class LookAhead:
         self.road_map = road_map
         self.settings = settings
         self.warning_settings = warning_settings
-        self._paths: OrderedDict[tuple[str, ...], _PathCurves] = OrderedDict()
+        self._horizons: OrderedDict[tuple, Horizon] = OrderedDict()
+        self._smallest_mps = _smallest_warning_speeds_mps(warning_settings).tolist()
 
     def __call__(
         self,
@@ -190,39 +321,99 @@ class LookAhead:
         KeyError
             If ``lane_id`` is not a lane of the map.
         """
-        lookahead_m = self._lookahead_m(speed_kmh, category)
-        lane = self.road_map.lane(lane_id)
-        lane_pos_m = min(max(float(lane_pos_m), 0.0), lane.length_m)
-        lanes, kind = self._lanes_ahead(lane_id, lane.length_m - lane_pos_m, lookahead_m, route_edges)
-        curves = self._path_curves(lanes)
-        vehicle_s = curves.path.path_s(lane_id, lane_pos_m)
-        ahead = (curves.part_end_s > vehicle_s) & (curves.part_start_s < vehicle_s + lookahead_m)
-        selected = np.flatnonzero(ahead)
-        return PathAhead(
-            path=curves.path,
-            kind=kind,
+        if self.settings.fixed_distance_m is not None:
+            lookahead_m = self.settings.fixed_distance_m
+        else:
+            lookahead_m = max(self.settings.floor_m, _required_m(
+                kmh_to_mps(float(speed_kmh)), self._smallest_mps[column_index(category)], self.warning_settings))
+        horizon = self.horizon(lane_id, route_edges, lookahead_m)
+        return PathAhead(horizon, horizon.vehicle_s(float(lane_pos_m)), lookahead_m)
+
+    def many(
+        self,
+        lane_ids: Sequence[str],
+        lane_pos_m: np.ndarray,
+        speed_kmh: np.ndarray,
+        column_index: np.ndarray,
+        routes: Sequence[Sequence[str] | None],
+    ) -> BatchAhead:
+        """The roads ahead of many vehicles and all their CPOIs, selected in one vectorised step.
+
+        Raises
+        ------
+        KeyError
+            If a lane id is not a lane of the map.
+        """
+        lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float), np.asarray(column_index))
+        horizons = [self.horizon(lane, route, lad) for lane, route, lad in zip(lane_ids, routes, lookahead_m.tolist())]
+        unique: dict[int, int] = {}
+        for horizon in horizons:
+            unique.setdefault(id(horizon), len(unique))
+        distinct = list({id(h): h for h in horizons}.values())
+        which = np.array([unique[id(h)] for h in horizons], dtype=np.intp)
+        factor = np.array([h.path.lane_position_factor[0] for h in distinct])[which]
+        shape_length = np.array([h.path.lane_shape_length_m[0] for h in distinct])[which]
+        vehicle_s = np.clip(np.asarray(lane_pos_m, dtype=float) / factor, 0.0, shape_length)
+        # Every (vehicle, part of its horizon) pair, then the pairs that are CPOIs.
+        counts = np.array([h.part_start_s.size for h in distinct], dtype=np.intp)
+        first_part = np.cumsum(counts) - counts
+        per_vehicle = counts[which]
+        vehicle = np.repeat(np.arange(len(horizons)), per_vehicle)
+        part = np.arange(per_vehicle.sum()) - np.repeat(np.cumsum(per_vehicle) - per_vehicle, per_vehicle)
+        part += np.repeat(first_part[which], per_vehicle)
+        start, end, radius, index, curve = (
+            np.concatenate([getattr(h, name) for h in distinct]) if distinct else np.empty(0)
+            for name in ("part_start_s", "part_end_s", "part_radius_m", "part_index", "part_curve_id")
+        )
+        s = vehicle_s[vehicle]
+        keep = _is_cpoi(start[part], end[part], s, lookahead_m[vehicle])
+        vehicle, part, s = vehicle[keep], part[keep], s[keep]
+        return BatchAhead(
+            horizons=horizons,
             vehicle_s=vehicle_s,
             lookahead_m=lookahead_m,
-            cpoi_distance_m=np.maximum(curves.part_start_s[selected] - vehicle_s, 0.0),
-            cpoi_radius_m=curves.part_radius_m[selected],
-            cpoi_part_index=curves.part_index[selected],
-            cpoi_curve_id=tuple(curves.part_curve_id[i] for i in selected),
+            cpoi_vehicle=vehicle,
+            cpoi_distance_m=np.maximum(start[part] - s, 0.0),
+            cpoi_radius_m=radius[part],
+            cpoi_part_index=index[part].astype(np.intp),
+            cpoi_curve_id=curve[part],
         )
 
-    def _lookahead_m(self, speed_kmh: float, category: "str | Category") -> float:
-        """S_LAD: the fixed distance if one is set, else the speed-dependent one."""
+    def lookahead_m(self, speed_kmh: np.ndarray, column_index: np.ndarray) -> np.ndarray:
+        """S_LAD of each vehicle: the fixed distance if one is set, else the speed-dependent one, m."""
         if self.settings.fixed_distance_m is not None:
-            return self.settings.fixed_distance_m
-        return lookahead_distance_m(speed_kmh, category, self.warning_settings, self.settings.floor_m)
+            return np.full(np.shape(speed_kmh), self.settings.fixed_distance_m)
+        return lookahead_distances_m(speed_kmh, column_index, self.warning_settings, self.settings.floor_m)
+
+    def horizon(self, lane_id: str, route_edges: Sequence[str] | None, lookahead_m: float) -> Horizon:
+        """The road ahead from the start of ``lane_id`` long enough for ``lookahead_m`` anywhere on it (cached).
+
+        Raises
+        ------
+        KeyError
+            If ``lane_id`` is not a lane of the map.
+        """
+        reach_m = math.ceil((lookahead_m + self.settings.context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
+        key = (lane_id, tuple(route_edges) if route_edges else None, reach_m)
+        cached = self._horizons.get(key)
+        if cached is not None:
+            self._horizons.move_to_end(key)
+            return cached
+        lane = self.road_map.lane(lane_id)
+        lanes, kind = self._lanes_ahead(lane_id, 0.0, lane.length_m + reach_m, route_edges)
+        horizon = self._build_horizon(lanes, kind)
+        self._horizons[key] = horizon
+        if len(self._horizons) > self.settings.cache_size:
+            self._horizons.popitem(last=False)
+        return horizon
 
     def _lanes_ahead(
-        self, lane_id: str, remaining_m: float, lookahead_m: float, route_edges: Sequence[str] | None
+        self, lane_id: str, remaining_m: float, needed_m: float, route_edges: Sequence[str] | None
     ) -> tuple[tuple[str, ...], PathKind]:
-        """Lanes from ``lane_id`` on until S_LAD plus the context is covered, and the path kind."""
+        """Lanes from ``lane_id`` on until ``needed_m`` is covered, and the path kind."""
         route_next = _route_successors(route_edges, self.road_map.lane(lane_id))
         kind = PathKind.ROUTE if route_next is not None else PathKind.PREDICTED
         lanes = [lane_id]
-        needed_m = lookahead_m + self.settings.context_m
         while remaining_m < needed_m and len(lanes) < self.settings.max_lanes:
             following = self._following_lane(lanes[-1], route_next)
             if following is None:
@@ -288,36 +479,40 @@ class LookAhead:
             lane_id = successors[0]
         return lane_id
 
-    def _path_curves(self, lanes: tuple[str, ...]) -> _PathCurves:
-        """The stitched, profiled path of ``lanes`` and its curve parts, cached."""
-        cached = self._paths.get(lanes)
-        if cached is not None:
-            self._paths.move_to_end(lanes)
-            return cached
+    def _build_horizon(self, lanes: tuple[str, ...], kind: PathKind) -> Horizon:
+        """The stitched, profiled path of ``lanes`` and the parts of its curves (junction manoeuvres aside)."""
         path = self.road_map.path_profile(lanes)
         starts, ends, radii, indices, ids = [], [], [], [], []
         curves_of_path = path.curves if self.settings.warn_at_junctions else path.road_curves
         for curve in curves_of_path(self.settings.warning_radius_m):
             start_lane, start_pos_m = path.lane_position(curve.start_s)
-            curve_id = f"{start_lane}@{start_pos_m:.0f}"
+            curve_id = curve_id_of(start_lane, start_pos_m)
             for index, part in enumerate(curve.parts):
                 starts.append(part.start_s)
                 ends.append(part.end_s)
                 radii.append(part.radius_m)
                 indices.append(index)
                 ids.append(curve_id)
-        curves = _PathCurves(
+        return Horizon(
             path=path,
+            kind=kind,
             part_start_s=np.array(starts, dtype=float),
             part_end_s=np.array(ends, dtype=float),
             part_radius_m=np.array(radii, dtype=float),
             part_index=np.array(indices, dtype=np.intp),
-            part_curve_id=tuple(ids),
+            part_curve_id=np.array(ids, dtype=object),
         )
-        self._paths[lanes] = curves
-        if len(self._paths) > self.settings.cache_size:
-            self._paths.popitem(last=False)
-        return curves
+
+
+def _is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
+    """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``: not yet passed, and starting
+    closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
+    return (part_end_s > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)
+
+
+def curve_id_of(lane_id: str, lane_pos_m: float) -> str:
+    """The id of a curve: the lane and the lane position (to the metre) where it starts (3.4)."""
+    return f"{lane_id}@{lane_pos_m:.0f}"
 
 
 def _route_successors(route_edges: Sequence[str] | None, lane: Lane) -> dict[str, str] | None:

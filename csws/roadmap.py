@@ -677,6 +677,10 @@ class RoadMap:
         arrays += [array for p in self._profiles for array in (p.s, p.curvature, p.radius)]
         return int(sum(array.nbytes for array in arrays))
 
+    def has_lane(self, lane_id: str) -> bool:
+        """Whether ``lane_id`` is a lane of the map."""
+        return lane_id in self._index
+
     def lane(self, lane_id: str) -> Lane:
         """The SUMO attributes of a lane (:class:`Lane`)."""
         return self._lanes[self._lane_index(lane_id)]

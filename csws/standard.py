@@ -37,6 +37,7 @@ __all__ = [
     "DEFAULT_POLICY",
     "warning_distance",
     "warning_distance_m",
+    "formula_1_m",
     "warning_speed",
     "kmh_to_mps",
     "mps_to_kmh",
@@ -274,6 +275,11 @@ def warning_speed(
     return float(policy.warning_speed_kmh(np.asarray(radius), column, Level.parse(level)))
 
 
+def formula_1_m(speed_mps, warning_speed_mps, g: float = G_MPS2):
+    """Formula (1) as written, in SI: 0.8 v + (v^2 - v_w^2) / g, m (floats or arrays, any v)."""
+    return REACTION_TIME_S * speed_mps + (speed_mps * speed_mps - warning_speed_mps * warning_speed_mps) / g
+
+
 def warning_distance_m(speed_mps: np.ndarray, warning_speed_mps: np.ndarray, g: float = G_MPS2) -> np.ndarray:
     """Formula (1) on arrays, in SI: S_w = 0.8 v + (v^2 - v_w^2) / g, 0 where v < v_w.
 
@@ -282,8 +288,7 @@ def warning_distance_m(speed_mps: np.ndarray, warning_speed_mps: np.ndarray, g: 
     """
     speed = np.asarray(speed_mps, dtype=float)
     threshold = np.asarray(warning_speed_mps, dtype=float)
-    distance = REACTION_TIME_S * speed + (speed**2 - threshold**2) / g
-    return np.where(speed >= threshold, distance, 0.0)
+    return np.where(speed >= threshold, formula_1_m(speed, threshold, g), 0.0)
 
 
 def warning_distance(speed_kmh: float, warning_speed_kmh: float, g: float = G_MPS2) -> float:

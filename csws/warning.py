@@ -244,6 +244,9 @@ class BatchWarnings:
 
         ``curve_ids`` and ``part_indices`` name the vehicle's CPOIs in order.
         """
+        level = _LEVELS[int(self.level[vehicle])]
+        if level is Level.NONE:  # nothing triggered
+            return _NO_WARNINGS[path_kind]
         count = len(curve_ids)
         levels = self.cpoi_level[first_cpoi:first_cpoi + count].tolist()
         rows = [k for k in range(count) if levels[k]]
@@ -256,7 +259,6 @@ class BatchWarnings:
                        warning_distances[k])
             for k in rows
         }
-        level = _LEVELS[int(self.level[vehicle])]
         return CurveWarning(
             level=level,
             target=triggers.get(int(self.target[vehicle]) - first_cpoi),
@@ -317,22 +319,27 @@ def evaluate_batch(
     distance = np.asarray(cpoi_distance_m, dtype=float)
     radius = np.asarray(cpoi_radius_m, dtype=float)
     cpoi_column = np.asarray(column_index)[cpoi_vehicle]
-    cpoi_speed_mps = kmh_to_mps(speed_kmh[cpoi_vehicle])
+    cpoi_speed_kmh = speed_kmh[cpoi_vehicle]
+    cpoi_speed_mps = kmh_to_mps(cpoi_speed_kmh)
     allowance_m = cpoi_speed_mps * settings.latency_s
 
     # Row 0: level 1, row 1: level 2 (Tables 1 and 2).
     threshold_kmh = settings.policy.warning_speeds_kmh(radius, cpoi_column)
     sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
     # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
-    triggered = (speed_kmh[cpoi_vehicle] >= threshold_kmh) & (distance <= sw_m + allowance_m)
+    triggered = (cpoi_speed_kmh >= threshold_kmh) & (distance <= sw_m + allowance_m)
     shown = triggered[1].astype(np.intp)
     cpoi_level = (triggered[0] | triggered[1]).astype(np.int8) + shown.astype(np.int8)
     columns = np.arange(distance.size)
-    cpoi_speed_kmh = threshold_kmh[shown, columns]
+    cpoi_warning_speed_kmh = threshold_kmh[shown, columns]
     cpoi_sw_m = sw_m[shown, columns]
 
     level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
-    return BatchWarnings(level, target, cpoi_level, cpoi_speed_kmh, cpoi_sw_m, distance, radius)
+    return BatchWarnings(level, target, cpoi_level, cpoi_warning_speed_kmh, cpoi_sw_m, distance, radius)
+
+
+#: The warning of a vehicle for which nothing triggers, per path kind.
+_NO_WARNINGS = {kind: CurveWarning(Level.NONE, None, (), kind, _HMI_HINTS[Level.NONE]) for kind in PathKind}
 
 
 def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray):
