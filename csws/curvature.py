@@ -70,6 +70,27 @@ STRADDLE_FRACTION = 0.05
 MIN_MEDIAN_SAMPLES = 10
 #: Converts the median absolute deviation of a normal sample into its standard deviation.
 MAD_TO_SIGMA = 1.4826
+#: A polyline whose median chord is at least this long is a sparse one (a map way), m.
+SPARSE_CHORD_M = 3.0
+#: Fewest and most chords a polyline is fitted as a sparse one with (the sparse fit is
+#: per polyline and grows with the square of its chords; longer ones take the dense path).
+MIN_SPARSE_CHORDS = 4
+MAX_SPARSE_CHORDS = 80
+#: Positions tried around the best vertex or chord middle when placing a sparse knot.
+FINE_KNOT_STEPS = 16
+#: Passes moving each knot of a sparse polyline to its best place.
+SPARSE_REFINE_PASSES = 2
+#: A pair of knots added together must pass this many times the threshold of one.
+PAIR_THRESHOLD_FACTOR = 2.0
+#: Lower bound of the coordinate noise of a sparse polyline, m: a map way's nodes are not
+#: placed more precisely than this, and the fit's own approximation stays below it.
+SPARSE_MIN_NOISE_M = 0.05
+#: Sparse chords shorter than this many times the coordinate noise are joined with the next.
+SHORT_CHORD_NOISE_FACTOR = 5.0
+#: A knot of a sparse polyline must reduce the normalised residual by SPLIT_PENALTY * ln(chords) + this.
+SPARSE_KNOT_OFFSET = 10.0
+#: A part of a sparse polyline is curved only if making it straight grows the normalised residual by more.
+SPARSE_STRAIGHT_THRESHOLD = 20.0
 
 
 @dataclass(frozen=True)
@@ -641,6 +662,316 @@ class _Segmentation:
         return to_start[chord] + fraction * to_length[chord]
 
 
+# --------------------------------------------------------------------------- sparse polylines
+
+
+@dataclass(frozen=True)
+class _Chordset:
+    """One polyline's chords in an arc-length coordinate ``u``: chord i spans ``[a[i], b[i]]``.
+
+    ``heading`` is each chord's (unwrapped) heading and ``root_weight`` the square root
+    of its fit weight (its chord length: a long chord's heading is the more precise).
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    heading: np.ndarray
+    root_weight: np.ndarray
+
+    @property
+    def end(self) -> float:
+        return float(self.b[-1])
+
+
+def _chord_means_of_ramps(chords: _Chordset, ramp_start: np.ndarray, ramp_length: np.ndarray) -> np.ndarray:
+    """Mean over each chord of each ramp ``clip(u - start, 0, length)``, ``(chords, ramps)``.
+
+    A chord's direction is the mean of the road's heading over the arc it spans (exact
+    on a circle), so a heading that is continuous and piecewise linear in ``u`` (a sum
+    of ramps) predicts every chord's heading linearly, including chords across a knot.
+    """
+
+    def integral(u: np.ndarray) -> np.ndarray:
+        past = u[:, None] - ramp_start[None, :]
+        return 0.5 * np.clip(past, 0.0, ramp_length) ** 2 + ramp_length * np.fmax(past - ramp_length, 0.0)
+
+    return (integral(chords.b) - integral(chords.a)) / (chords.b - chords.a)[:, None]
+
+
+def _ramp_design(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Weighted design matrix of a continuous heading with knots at ``bounds[1:-1]``: a
+    level and one slope (curvature) per part, only for the parts marked ``free``."""
+    ramps = _chord_means_of_ramps(chords, bounds[:-1][free], np.diff(bounds)[free])
+    return np.column_stack((np.ones(len(chords.a)), ramps)) * chords.root_weight[:, None]
+
+
+def _residual_and_fit(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Weighted residual sum of squares, coefficients and their unscaled covariance."""
+    design = _ramp_design(chords, bounds, free)
+    target = chords.heading * chords.root_weight
+    coefficients, *_ = np.linalg.lstsq(design, target, rcond=None)
+    residual = target - design @ coefficients
+    covariance = np.linalg.pinv(design.T @ design)
+    return float(residual @ residual), coefficients, covariance
+
+
+def _residualised(chords: _Chordset, bounds: np.ndarray, candidates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The residual of the continuous fit with knots ``bounds[1:-1]`` (all parts free), and
+    the hinge column of a knot at each candidate with that fit's columns projected out.
+
+    Also returns whether each projected column is far enough from 0 to be a new knot.
+    """
+    design = _ramp_design(chords, bounds, np.ones(len(bounds) - 1, dtype=bool))
+    basis, _ = np.linalg.qr(design)
+    target = chords.heading * chords.root_weight
+    residual = target - basis @ (basis.T @ target)
+    hinge = _chord_means_of_ramps(chords, candidates, chords.end + 1.0 - candidates) * chords.root_weight[:, None]
+    scale = np.einsum("ij,ij->j", hinge, hinge)
+    hinge -= basis @ (basis.T @ hinge)
+    usable = np.einsum("ij,ij->j", hinge, hinge) > 1e-9 * scale
+    return residual, hinge, usable
+
+
+def _knot_gains(chords: _Chordset, bounds: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """Reduction of the weighted residual from adding a knot at each candidate to the
+    continuous fit with knots ``bounds[1:-1]`` (all parts free)."""
+    residual, hinge, usable = _residualised(chords, bounds, candidates)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = (residual @ hinge) ** 2 / np.einsum("ij,ij->j", hinge, hinge)
+    return np.where(usable, gain, 0.0)
+
+
+def _best_knot_pair(chords: _Chordset, bounds: np.ndarray) -> tuple[np.ndarray, float]:
+    """The two knots at vertices or chord middles that together reduce the residual most,
+    and that reduction. A curve between straights, or one shorter than the chords around
+    it, needs both its knots before either pays off on its own."""
+    candidates = _coarse_candidates(chords, 0.0, chords.end)
+    residual, hinge, usable = _residualised(chords, bounds, candidates)
+    hinge, candidates = hinge[:, usable], candidates[usable]
+    if len(candidates) < 2:
+        return candidates, 0.0
+    gram = hinge.T @ hinge
+    along = hinge.T @ residual
+    diagonal = np.diag(gram)
+    determinant = np.outer(diagonal, diagonal) - gram**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = (np.outer(along**2, diagonal) - 2.0 * np.outer(along, along) * gram + np.outer(diagonal, along**2)) / determinant
+    gain = np.where(determinant > 1e-6 * np.outer(diagonal, diagonal), gain, 0.0)
+    first, second = np.unravel_index(int(np.argmax(np.triu(gain, 1))), gain.shape)
+    return candidates[[first, second]], float(gain[first, second])
+
+
+def _coarse_candidates(chords: _Chordset, low: float, high: float) -> np.ndarray:
+    """The vertices and chord middles strictly between ``low`` and ``high``."""
+    coarse = np.concatenate((chords.a, 0.5 * (chords.a + chords.b), [chords.end]))
+    return np.unique(coarse[(coarse > low) & (coarse < high)])
+
+
+def _best_knot(chords: _Chordset, bounds: np.ndarray, low: float, high: float) -> tuple[float, float]:
+    """The knot strictly between ``low`` and ``high`` that reduces the residual most, and
+    that reduction: searched at the vertices and chord middles, then finely around the best."""
+    coarse = _coarse_candidates(chords, low, high)
+    if len(coarse) == 0:
+        return low, 0.0
+    gain = _knot_gains(chords, bounds, coarse)
+    best = int(np.argmax(gain))
+    fine_low = coarse[best - 1] if best > 0 else low
+    fine_high = coarse[best + 1] if best + 1 < len(coarse) else high
+    fine = np.linspace(fine_low, fine_high, FINE_KNOT_STEPS + 2)[1:-1]
+    fine_gain = _knot_gains(chords, bounds, fine)
+    if fine_gain.max() > gain[best]:
+        return float(fine[np.argmax(fine_gain)]), float(fine_gain.max())
+    return float(coarse[best]), float(gain[best])
+
+
+def _with_knot(bounds: np.ndarray, knot: float) -> np.ndarray:
+    return np.sort(np.append(bounds, knot))
+
+
+def _refined_knots(chords: _Chordset, bounds: np.ndarray) -> np.ndarray:
+    """Each knot in turn moved to where it fits best between its neighbours."""
+    for _ in range(SPARSE_REFINE_PASSES):
+        for knot in range(1, len(bounds) - 1):
+            others = np.delete(bounds, knot)
+            position, _ = _best_knot(chords, others, bounds[knot - 1], bounds[knot + 1])
+            bounds = _with_knot(others, position)
+    return bounds
+
+
+def _knot_fit(chords: _Chordset, noise_variance: float, threshold: float) -> np.ndarray:
+    """Knots of the continuous heading: added one at a time while the best one reduces
+    the normalised residual by more than ``threshold``, then the least significant
+    dropped while it does not."""
+    bounds = np.array([0.0, chords.end])
+    while len(bounds) - 2 < len(chords.a) // 2:
+        knot, gain = _best_knot(chords, bounds, 0.0, chords.end)
+        if gain > threshold * noise_variance:
+            bounds = _refined_knots(chords, _with_knot(bounds, knot))
+            continue
+        pair, gain = _best_knot_pair(chords, bounds)
+        if gain <= PAIR_THRESHOLD_FACTOR * threshold * noise_variance:
+            break
+        bounds = _refined_knots(chords, np.sort(np.concatenate((bounds, pair))))
+    while len(bounds) > 2:
+        all_free = np.ones(len(bounds) - 2, dtype=bool)
+        full = _residual_and_fit(chords, bounds, np.ones(len(bounds) - 1, dtype=bool))[0]
+        loss = [_residual_and_fit(chords, np.delete(bounds, k), all_free)[0] - full for k in range(1, len(bounds) - 1)]
+        weakest = int(np.argmin(loss))
+        if loss[weakest] > threshold * noise_variance:
+            break
+        bounds = _refined_knots(chords, np.delete(bounds, weakest + 1))
+    return bounds
+
+
+def _residuals_of_bounds(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Weighted residual sum of squares of the continuous fit for each row of ``bounds``
+    (``(trials, parts + 1)``, same ``free`` parts), by batched normal equations."""
+    ramp_start, ramp_length = bounds[:, :-1][:, free], np.diff(bounds, axis=1)[:, free]
+    past = chords.a[None, :, None], chords.b[None, :, None]
+    integral = [
+        0.5 * np.clip(u - ramp_start[:, None, :], 0.0, ramp_length[:, None, :]) ** 2
+        + ramp_length[:, None, :] * np.fmax(u - ramp_start[:, None, :] - ramp_length[:, None, :], 0.0)
+        for u in past
+    ]
+    scale = np.fmax(ramp_length[:, None, :], 1.0)
+    ramps = (integral[1] - integral[0]) / ((chords.b - chords.a)[None, :, None] * scale)
+    design = np.concatenate((np.ones(ramps.shape[:2] + (1,)), ramps), axis=2) * chords.root_weight[None, :, None]
+    target = chords.heading * chords.root_weight
+    normal = np.einsum("tij,tik->tjk", design, design)
+    normal += 1e-12 * np.eye(normal.shape[1]) * np.trace(normal, axis1=1, axis2=2)[:, None, None]
+    coefficients = np.linalg.solve(normal, np.einsum("tij,i->tj", design, target)[..., None])[..., 0]
+    residual = target[None, :] - np.einsum("tij,tj->ti", design, coefficients)
+    return np.einsum("ti,ti->t", residual, residual)
+
+
+def _refined_constrained(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, float]:
+    """Each knot in turn moved to where the fit with only the ``free`` parts curved is
+    best, between its neighbours; returns the knots and the residual."""
+    residual = float(_residuals_of_bounds(chords, bounds[None, :], free)[0])
+    for knot in range(1, len(bounds) - 1):
+        low, high = bounds[knot - 1], bounds[knot + 1]
+        positions = np.concatenate((_coarse_candidates(chords, low, high), np.linspace(low, high, FINE_KNOT_STEPS + 2)[1:-1]))
+        trials = np.repeat(bounds[None, :], len(positions), axis=0)
+        trials[:, knot] = positions
+        residuals = _residuals_of_bounds(chords, trials, free)
+        best = int(np.argmin(residuals))
+        if residuals[best] < residual:
+            bounds, residual = trials[best], float(residuals[best])
+    return bounds, residual
+
+
+def _with_straights(chords: _Chordset, bounds: np.ndarray, noise_variance: float, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Parts made straight (curvature 0) one at a time, the knots moved to fit, while the
+    residual grows by less than ``threshold`` normalised: a curvature must earn its place.
+
+    Returns the knots and which parts stay curved.
+    """
+    free = np.ones(len(bounds) - 1, dtype=bool)
+    residual = float(_residuals_of_bounds(chords, bounds[None, :], free)[0])
+    while free.any():
+        trials = []
+        for part in np.flatnonzero(free):
+            trial_free = free.copy()
+            trial_free[part] = False
+            trials.append((*_refined_constrained(chords, bounds, trial_free), trial_free))
+        trial_bounds, trial_residual, trial_free = min(trials, key=lambda trial: trial[1])
+        if trial_residual - residual > threshold * noise_variance:
+            break
+        bounds, residual, free = trial_bounds, trial_residual, trial_free
+    return bounds, free
+
+
+def _curvatures(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Curvature of each part: fitted for the ``free`` parts, 0 for the others."""
+    curvature = np.zeros(len(bounds) - 1)
+    if free.any():
+        curvature[free] = _residual_and_fit(chords, bounds, free)[1][1:]
+    return curvature
+
+
+def _heading_change(chords: _Chordset, bounds: np.ndarray, curvature: np.ndarray) -> np.ndarray:
+    """Heading change of the fitted road across each chord, rad."""
+    ramp_length = np.diff(bounds)
+    def turned(u: np.ndarray) -> np.ndarray:
+        return np.clip(u[:, None] - bounds[None, :-1], 0.0, ramp_length) @ curvature
+    return turned(chords.b) - turned(chords.a)
+
+
+def _merged_straights(bounds: np.ndarray, curvature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Knots between two parts of equal curvature (two straights) removed."""
+    keep = np.concatenate(([True], curvature[1:] != curvature[:-1]))
+    return np.append(bounds[:-1][keep], bounds[-1]), curvature[keep]
+
+
+def _map_along(u: np.ndarray, from_a: np.ndarray, from_b: np.ndarray, to_a: np.ndarray, to_b: np.ndarray) -> np.ndarray:
+    """Positions from one arc-length coordinate of the chords to another, linearly within a chord."""
+    chord = np.clip(np.searchsorted(from_a, u, side="right") - 1, 0, len(from_a) - 1)
+    fraction = np.clip((u - from_a[chord]) / (from_b[chord] - from_a[chord]), 0.0, 1.0)
+    return to_a[chord] + fraction * (to_b[chord] - to_a[chord])
+
+
+def _without_short_chords(
+    start_s: np.ndarray, length_m: np.ndarray, heading: np.ndarray, shortest_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Chords of one polyline with the vertices that leave a chord shorter than
+    ``shortest_m`` dropped (the first and last vertex are kept): the heading of a chord
+    not much longer than the coordinate noise is noise.
+
+    Returns each remaining chord's start arc length, arc length along the polyline and heading.
+    """
+    step = np.column_stack((length_m * np.cos(heading), length_m * np.sin(heading)))
+    vertex_xy = np.concatenate((np.zeros((1, 2)), np.cumsum(step, axis=0)))
+    vertex_s = np.append(start_s, start_s[-1] + length_m[-1])
+    kept = [0]
+    for vertex in range(1, len(vertex_s)):
+        if np.hypot(*(vertex_xy[vertex] - vertex_xy[kept[-1]])) >= shortest_m:
+            kept.append(vertex)
+    if kept[-1] != len(vertex_s) - 1:
+        kept[-1 if len(kept) > 1 else len(kept):] = [len(vertex_s) - 1]
+    if len(kept) == len(vertex_s):
+        return start_s, length_m, heading
+    kept_xy, kept_s = vertex_xy[kept], vertex_s[kept]
+    kept_step = np.diff(kept_xy, axis=0)
+    kept_heading = np.arctan2(kept_step[:, 1], kept_step[:, 0])
+    kept_heading = np.unwrap(np.append(heading[0], kept_heading))[1:]
+    return kept_s[:-1], np.diff(kept_s), kept_heading
+
+
+def _sparse_parts(start_s: np.ndarray, length_m: np.ndarray, heading: np.ndarray, noise_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Parts of one sparse polyline from a continuous piecewise-linear fit of its heading.
+
+    Returns the part bounds in the polyline's arc length (``[0, ..., end]``) and each
+    part's curvature per arc length of the road, 1/m.
+
+    A map way has few nodes per curve, so the independent line per part of the dense
+    method has too few chords to fit; here the heading is one continuous function
+    (the road has no kinks, 3.4-3.8) with free knots, every chord predicted by the
+    mean heading over the arc it spans, chords across a knot included. Knots are
+    added and dropped by the same significance as the dense method's splits, and a
+    part whose curvature is not significant is a straight. The chords are then
+    replaced by the arcs they span on the fitted road (a chord of a tight curve is
+    shorter than its arc) and the fit repeated.
+    """
+    start_s, length_m, heading = _without_short_chords(start_s, length_m, heading, SHORT_CHORD_NOISE_FACTOR * noise_m)
+    noise_variance = 2.0 * max(noise_m, SPARSE_MIN_NOISE_M) ** 2
+    knot_threshold = float(_split_threshold(np.array([len(start_s)]))[0]) - SPLIT_OFFSET + SPARSE_KNOT_OFFSET
+    chord_a, chord_b = start_s, start_s + length_m
+    chords = _Chordset(chord_a, chord_b, heading, length_m)
+    bounds = _knot_fit(chords, noise_variance, knot_threshold)
+    bounds, free = _with_straights(chords, bounds, noise_variance, SPARSE_STRAIGHT_THRESHOLD)
+    curvature = _curvatures(chords, bounds, free)
+    half_turn = 0.5 * np.abs(_heading_change(chords, bounds, curvature))
+    arc_m = length_m * np.where(half_turn > 1e-9, half_turn / np.sin(np.fmax(half_turn, 1e-9)), 1.0)
+    arc_b = np.cumsum(arc_m)
+    arc_chords = _Chordset(arc_b - arc_m, arc_b, heading, length_m)
+    arc_bounds = _map_along(bounds, chord_a, chord_b, arc_chords.a, arc_chords.b)
+    arc_bounds, _ = _refined_constrained(arc_chords, arc_bounds, free)
+    curvature = _curvatures(arc_chords, arc_bounds, free)
+    bounds = _map_along(arc_bounds, arc_chords.a, arc_chords.b, chord_a, chord_b)
+    bounds[0], bounds[-1] = 0.0, chord_b[-1]
+    return _merged_straights(bounds, curvature)
+
+
 # --------------------------------------------------------------------------- profiles
 
 
@@ -649,17 +980,12 @@ def _straight_profile(vertex_s: np.ndarray) -> RadiusProfile:
     return RadiusProfile(vertex_s.copy(), np.zeros(len(vertex_s)), np.full(len(vertex_s), np.inf), ())
 
 
-def _profile(segmentation: _Segmentation, fit: _Fit, polyline: int) -> RadiusProfile:
-    """The radius profile of one polyline from the network's segmentation and part fits."""
-    chords = segmentation.chords
-    vertex_s = chords.vertex_s[chords.polyline_first_vertex[polyline] : chords.polyline_first_vertex[polyline + 1]]
-    first_chord, stop_chord = chords.polyline_first_chord[polyline : polyline + 2]
-    if first_chord == stop_chord:
-        return _straight_profile(vertex_s)
-    first_part, stop_part = np.searchsorted(segmentation.starts, (first_chord, stop_chord))
-    bounds = np.append(segmentation.knot_s[first_part:stop_part], vertex_s[-1])
-    bounds[0] = 0.0
-    curvature_of_part = fit.curvature[first_part:stop_part]
+def _polyline_vertex_s(chords: _Chords, polyline: int) -> np.ndarray:
+    return chords.vertex_s[chords.polyline_first_vertex[polyline] : chords.polyline_first_vertex[polyline + 1]]
+
+
+def _profile(vertex_s: np.ndarray, bounds: np.ndarray, curvature_of_part: np.ndarray) -> RadiusProfile:
+    """The radius profile of one polyline from its part bounds (``[0, ..., end]``) and curvatures."""
     part = np.clip(np.searchsorted(bounds, vertex_s, side="right") - 1, 0, len(curvature_of_part) - 1)
     curvature = curvature_of_part[part]
     with np.errstate(divide="ignore", over="ignore"):
@@ -669,6 +995,36 @@ def _profile(segmentation: _Segmentation, fit: _Fit, polyline: int) -> RadiusPro
         for start, end, k in zip(bounds[:-1], bounds[1:], curvature_of_part)
     )
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)
+
+
+def _dense_profile(segmentation: _Segmentation, fit: _Fit, polyline: int) -> RadiusProfile:
+    """The radius profile of one polyline from the network's segmentation and part fits."""
+    chords = segmentation.chords
+    vertex_s = _polyline_vertex_s(chords, polyline)
+    first_chord, stop_chord = chords.polyline_first_chord[polyline : polyline + 2]
+    if first_chord == stop_chord:
+        return _straight_profile(vertex_s)
+    first_part, stop_part = np.searchsorted(segmentation.starts, (first_chord, stop_chord))
+    bounds = np.append(segmentation.knot_s[first_part:stop_part], vertex_s[-1])
+    bounds[0] = 0.0
+    return _profile(vertex_s, bounds, fit.curvature[first_part:stop_part])
+
+
+def _sparse_profile(chords: _Chords, noise_m: np.ndarray, polyline: int) -> RadiusProfile:
+    """The radius profile of one sparse polyline (:func:`_sparse_parts`)."""
+    first, stop = chords.polyline_first_chord[polyline : polyline + 2]
+    bounds, curvature = _sparse_parts(
+        chords.start_s[first:stop], chords.length_m[first:stop], chords.heading[first:stop], float(noise_m[polyline])
+    )
+    return _profile(_polyline_vertex_s(chords, polyline), bounds, curvature)
+
+
+def _is_sparse(chords: _Chords, polyline_count: int) -> np.ndarray:
+    """Whether each polyline is a sparse one: :data:`MIN_SPARSE_CHORDS` to
+    :data:`MAX_SPARSE_CHORDS` chords, with a median length of at least :data:`SPARSE_CHORD_M`."""
+    count = np.diff(chords.polyline_first_chord)
+    median_m = _group_median(chords.length_m, chords.polyline, polyline_count)
+    return (count >= MIN_SPARSE_CHORDS) & (count <= MAX_SPARSE_CHORDS) & (np.nan_to_num(median_m) >= SPARSE_CHORD_M)
 
 
 def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
@@ -704,12 +1060,17 @@ def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
             _straight_profile(chords.vertex_s[chords.polyline_first_vertex[p] : chords.polyline_first_vertex[p + 1]])
             for p in range(len(points))
         ]
-    segmentation = _Segmentation(chords, _coordinate_noise_m(chords, len(points)))
+    noise_m = _coordinate_noise_m(chords, len(points))
+    segmentation = _Segmentation(chords, noise_m)
     segmentation.split_until_stable()
     segmentation.open_steps()
     segmentation.refine_until_stable()
     fit = segmentation.fit_on_arc_lengths()
-    return [_profile(segmentation, fit, p) for p in range(len(points))]
+    sparse = _is_sparse(chords, len(points))
+    return [
+        _sparse_profile(chords, noise_m, p) if sparse[p] else _dense_profile(segmentation, fit, p)
+        for p in range(len(points))
+    ]
 
 
 def radius_profile(xy: np.ndarray) -> RadiusProfile:
