@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from . import __version__
+from .argtypes import positive_float
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -22,17 +23,6 @@ EXIT_BAD_INPUT = 2
 
 class CommandError(Exception):
     """A user-facing failure: printed as one line, no traceback."""
-
-
-def _positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number: {text!r}")
-    return value
 
 
 def _cmd_networks_build(args: argparse.Namespace) -> int:
@@ -98,14 +88,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     verify.add_argument("--dir", type=Path, default=None, help="networks folder (default: the bundled networks)")
     verify.add_argument(
-        "--tolerance-m", type=_positive_float, default=1.0, help="allowed curve start/end error in metres (default 1)"
+        "--tolerance-m", type=positive_float, default=1.0, help="allowed curve start/end error in metres (default 1)"
     )
     verify.set_defaults(handler=_cmd_networks_verify)
 
     curves = commands.add_parser("curves", help="list the curves (radius <= R_c) of a SUMO network")
     curves.add_argument("net", type=Path, help="a SUMO .net.xml (or .net.xml.gz)")
     curves.add_argument(
-        "--warning-radius-m", type=_positive_float, default=None, help="warning curvature radius R_c in metres"
+        "--warning-radius-m", type=positive_float, default=None, help="warning curvature radius R_c in metres"
     )
     curves.add_argument("--format", choices=("table", "json", "csv"), default="table", help="output format")
     curves.set_defaults(handler=_cmd_curves)

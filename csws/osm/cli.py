@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from csws.argtypes import positive_int
+
 
 def _run_import(args: argparse.Namespace) -> int:
     from csws.osm import run as job
@@ -25,17 +27,6 @@ def _vclasses(text: str) -> tuple[str, ...]:
     if not classes:
         raise argparse.ArgumentTypeError("give at least one vehicle class, e.g. truck,bus,coach")
     return classes
-
-
-def _count(text: str) -> int:
-    """argparse type: a whole number >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1: {text!r}")
-    return value
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -63,8 +54,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     fleet.add_argument(
         "-o", "--output", type=Path, required=True, help="scenario prefix: writes PREFIX.rou.xml and PREFIX.sumocfg"
     )
-    fleet.add_argument("--routes", type=_count, default=8, help="number of distinct routes (default 8)")
-    fleet.add_argument("--vehicles", type=_count, default=48, help="number of vehicles (default 48)")
+    fleet.add_argument("--routes", type=positive_int, default=8, help="number of distinct routes (default 8)")
+    fleet.add_argument("--vehicles", type=positive_int, default=48, help="number of vehicles (default 48)")
     fleet.add_argument(
         "--road-types",
         default="highway.primary,highway.secondary",
