@@ -26,6 +26,9 @@ circumcircle radius is <= R_c and that turn the same way; its radius is the medi
 over the run. Of several curves found on an arc, the one overlapping the arc most is
 scored; an arc where none is found scores an infinite error.
 
+Speed: vertices per second on a synthetic network of dense lane shapes and on the sparse
+ways, and the time :meth:`csws.roadmap.RoadMap.load` takes on the bundled real network.
+
 Run with ``python -m benchmarks.curvature``; :func:`run` returns the figures.
 """
 
@@ -39,6 +42,8 @@ import numpy as np
 
 from csws.curvature import find_curves, radius_profiles, three_point_radius
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
+from csws.networks import networks_dir
+from csws.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M
 
 SEED = 20180091
@@ -62,6 +67,9 @@ TARGETS = {
     "false_curves_on_straights": (0, 0),
 }
 MULTI_STEP_TARGET_M = 1.0
+#: The bundled real network (imported from OpenStreetMap) and how fast it must load and profile, s.
+REAL_NETWORK = "badhersfeld.net.xml.gz"
+REAL_NETWORK_LOAD_TARGET_S = 3.0
 
 #: A found curve: (start_s, end_s, radius_m).
 FoundCurve = tuple[float, float, float]
@@ -241,12 +249,22 @@ def throughput(rng: np.random.Generator) -> dict:
 
 
 def sparse_throughput(ways: list[np.ndarray]) -> dict:
-    """Vertices per second of :func:`radius_profiles` on map-like ways (fitted one by one)."""
+    """Vertices per second of :func:`radius_profiles` on map-like ways (the sparse fit, in batches)."""
     start = time.perf_counter()
     radius_profiles(ways)
     seconds = time.perf_counter() - start
     vertices = sum(len(xy) for xy in ways)
     return {"lanes": len(ways), "vertices": vertices, "seconds": seconds, "vertices_per_s": vertices / seconds}
+
+
+def real_network_load() -> dict:
+    """Seconds :meth:`csws.roadmap.RoadMap.load` takes on the bundled real network, whose
+    many sparse ways (map nodes metres apart) take the sparse fit."""
+    start = time.perf_counter()
+    road_map = RoadMap.load(networks_dir() / REAL_NETWORK)
+    seconds = time.perf_counter() - start
+    lane_km = sum(road_map.lane(lane_id).shape_length_m for lane_id in road_map.lane_ids) / 1000.0
+    return {"network": REAL_NETWORK, "seconds": seconds, "lane_km": lane_km}
 
 
 def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
@@ -261,6 +279,7 @@ def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
             figures["sparse_throughput"] = sparse_throughput([road.xy for road in roads] + straights)
     figures["multi_curve"] = multi_curve_step_errors(rng, cases // 3)
     figures["throughput"] = throughput(rng)
+    figures["real_network"] = real_network_load()
     return figures
 
 
@@ -299,6 +318,11 @@ def report(figures: dict) -> str:
             f"{label}: {speed['vertices']:,} vertices in {speed['lanes']:,} polylines profiled in "
             f"{speed['seconds']:.2f} s = {speed['vertices_per_s']:,.0f} vertices/s"
         )
+    real = figures["real_network"]
+    lines.append(
+        f"real network: {real['network']} ({real['lane_km']:,.0f} lane-km) loaded and profiled in {real['seconds']:.2f} s"
+        f"  (target {REAL_NETWORK_LOAD_TARGET_S:g} s)  {_verdict(real['seconds'], REAL_NETWORK_LOAD_TARGET_S)}"
+    )
     return "\n".join(lines)
 
 

@@ -26,7 +26,9 @@ no larger than the warning curvature radius R_c; its parts are the constant-radi
 parts of a single (3.7) or multi curve (3.8).
 
 All polylines of a network are processed together in flat arrays, so the number of
-numpy operations does not grow with the number of lanes.
+numpy operations does not grow with the number of lanes. Sparse polylines (map ways,
+see :func:`_sparse_batch_parts`) are fitted in a few batches of similar chord counts,
+each step for all polylines of a batch and all their trial knot positions at once.
 """
 
 from __future__ import annotations
@@ -72,8 +74,8 @@ MIN_MEDIAN_SAMPLES = 10
 MAD_TO_SIGMA = 1.4826
 #: A polyline whose median chord is at least this long is a sparse one (a map way), m.
 SPARSE_CHORD_M = 3.0
-#: Fewest and most chords a polyline is fitted as a sparse one with (the sparse fit is
-#: per polyline and grows with the square of its chords; longer ones take the dense path).
+#: Fewest and most chords a polyline is fitted as a sparse one with (the sparse fit's work
+#: grows steeply with the chords and knots of a polyline; longer ones take the dense path).
 MIN_SPARSE_CHORDS = 4
 MAX_SPARSE_CHORDS = 80
 #: Positions tried around the best vertex or chord middle when placing a sparse knot.
@@ -91,6 +93,10 @@ SHORT_CHORD_NOISE_FACTOR = 5.0
 SPARSE_KNOT_OFFSET = 10.0
 #: A part of a sparse polyline is curved only if making it straight grows the normalised residual by more.
 SPARSE_STRAIGHT_THRESHOLD = 20.0
+#: Chord counts sparse polylines are padded to, so that few batches are fitted (each in one set of array operations).
+SPARSE_BATCH_CHORDS = np.array([4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80])
+#: Most array elements (polylines x trials x chords x parts) fitted in one go.
+MAX_FIT_ELEMENTS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -663,251 +669,439 @@ class _Segmentation:
 
 
 # --------------------------------------------------------------------------- sparse polylines
+#
+# Sparse polylines are fitted in batches: the polylines of one batch have the same
+# number of chords, and every step below is done for all of them (and for all their
+# trial knot positions) in one set of array operations. Knot lists differ in length, so
+# each polyline's bounds are padded with its end: a part of no length adds a column of
+# zeros to the fit, which the regularised normal equations give a coefficient of 0.
 
 
 @dataclass(frozen=True)
-class _Chordset:
-    """One polyline's chords in an arc-length coordinate ``u``: chord i spans ``[a[i], b[i]]``.
+class _SparseBatch:
+    """Chords of sparse polylines of similar chord counts, in an arc-length coordinate
+    ``u``: chord i of polyline p spans ``[a[p, i], b[p, i]]``.
 
-    ``heading`` is each chord's (unwrapped) heading and ``root_weight`` the square root
-    of its fit weight (its chord length: a long chord's heading is the more precise).
+    ``heading`` is each chord's (unwrapped) heading, ``root_weight`` the square root of
+    its fit weight (its chord length: a long chord's heading is the more precise), ``end``
+    each polyline's length in ``u`` and ``count`` its number of chords. The rows are
+    padded to a common length with chords of no weight beyond ``end``.
     """
 
     a: np.ndarray
     b: np.ndarray
     heading: np.ndarray
     root_weight: np.ndarray
+    end: np.ndarray
+    count: np.ndarray
 
-    @property
-    def end(self) -> float:
-        return float(self.b[-1])
+    def rows(self, index: np.ndarray | slice) -> "_SparseBatch":
+        """The batch of the polylines ``index``."""
+        return _SparseBatch(*(getattr(self, field)[index] for field in ("a", "b", "heading", "root_weight", "end", "count")))
+
+    def coarse_candidates(self) -> np.ndarray:
+        """Each polyline's vertices and chord middles in order, ``(polylines, 2 chords)``."""
+        coarse = np.empty((len(self.a), 2 * self.a.shape[1]))
+        coarse[:, 0::2] = self.a
+        coarse[:, 1::2] = 0.5 * (self.a + self.b)
+        return coarse
 
 
-def _chord_means_of_ramps(chords: _Chordset, ramp_start: np.ndarray, ramp_length: np.ndarray) -> np.ndarray:
-    """Mean over each chord of each ramp ``clip(u - start, 0, length)``, ``(chords, ramps)``.
+def _chord_means_of_ramps(batch: _SparseBatch, ramp_start: np.ndarray, ramp_length: np.ndarray) -> np.ndarray:
+    """Mean over each chord of each ramp ``clip(u - start, 0, length)``.
 
-    A chord's direction is the mean of the road's heading over the arc it spans (exact
-    on a circle), so a heading that is continuous and piecewise linear in ``u`` (a sum
-    of ramps) predicts every chord's heading linearly, including chords across a knot.
+    ``ramp_start`` and ``ramp_length`` are ``(polylines, trials, ramps)``; the result is
+    ``(polylines, trials, chords, ramps)``. A chord's direction is the mean of the road's
+    heading over the arc it spans (exact on a circle), so a heading that is continuous
+    and piecewise linear in ``u`` (a sum of ramps) predicts every chord's heading
+    linearly, including chords across a knot.
     """
+    start, length = ramp_start[:, :, None, :], ramp_length[:, :, None, :]
 
     def integral(u: np.ndarray) -> np.ndarray:
-        past = u[:, None] - ramp_start[None, :]
-        return 0.5 * np.clip(past, 0.0, ramp_length) ** 2 + ramp_length * np.fmax(past - ramp_length, 0.0)
+        past = np.fmax(u[:, None, :, None] - start, 0.0)
+        within = np.minimum(past, length)
+        return within * (past - 0.5 * within)
 
-    return (integral(chords.b) - integral(chords.a)) / (chords.b - chords.a)[:, None]
-
-
-def _ramp_design(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Weighted design matrix of a continuous heading with knots at ``bounds[1:-1]``: a
-    level and one slope (curvature) per part, only for the parts marked ``free``."""
-    ramps = _chord_means_of_ramps(chords, bounds[:-1][free], np.diff(bounds)[free])
-    return np.column_stack((np.ones(len(chords.a)), ramps)) * chords.root_weight[:, None]
+    return (integral(batch.b) - integral(batch.a)) / (batch.b - batch.a)[:, None, :, None]
 
 
-def _residual_and_fit(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Weighted residual sum of squares, coefficients and their unscaled covariance."""
-    design = _ramp_design(chords, bounds, free)
-    target = chords.heading * chords.root_weight
-    coefficients, *_ = np.linalg.lstsq(design, target, rcond=None)
-    residual = target - design @ coefficients
-    covariance = np.linalg.pinv(design.T @ design)
-    return float(residual @ residual), coefficients, covariance
+def _design(batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray | bool) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted design matrices of a continuous heading with knots at ``bounds[..., 1:-1]``.
+
+    ``bounds`` is ``(polylines, trials, parts + 1)``; each matrix has a level column and
+    one slope (curvature) column per part, zero for the parts not ``free`` (straights).
+    Ramps are scaled by their length (at least 1 m) to keep the equations well
+    conditioned; also returns that scale, ``(polylines, trials, parts)``.
+    """
+    ramp_length = np.diff(bounds, axis=-1)
+    scale = np.fmax(ramp_length, 1.0)
+    ramps = _chord_means_of_ramps(batch, bounds[..., :-1], ramp_length) * (free / scale)[:, :, None, :]
+    design = np.concatenate((np.ones(ramps.shape[:-1] + (1,)), ramps), axis=-1)
+    return design * batch.root_weight[:, None, :, None], scale
 
 
-def _residualised(chords: _Chordset, bounds: np.ndarray, candidates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The residual of the continuous fit with knots ``bounds[1:-1]`` (all parts free), and
-    the hinge column of a knot at each candidate with that fit's columns projected out.
+def _least_squares(design: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """Coefficients ``(..., terms, k)`` of the least-squares fit of ``columns`` ``(..., chords, k)``
+    on ``design`` ``(..., chords, terms)``, by normal equations regularised so that a
+    zero column gets a coefficient of 0."""
+    transposed = np.swapaxes(design, -1, -2)
+    normal = transposed @ design
+    normal += 1e-12 * np.trace(normal, axis1=-2, axis2=-1)[..., None, None] * np.eye(normal.shape[-1])
+    return np.linalg.solve(normal, transposed @ columns)
+
+
+def _fitted_rows(design: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The least-squares fits ``(polylines, k, chords)`` of the vectors ``rows`` on the columns of ``design``."""
+    return np.swapaxes(design @ _least_squares(design, np.swapaxes(rows, 1, 2)), 1, 2)
+
+
+
+
+def _fits(batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray | bool) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted residual sum of squares ``(polylines, trials)`` and curvature of each part
+    ``(polylines, trials, parts)`` (0 where not ``free``) of the continuous fit for every
+    trial ``bounds[p, t]``."""
+    free = np.broadcast_to(free, bounds.shape[:2] + (bounds.shape[2] - 1,))
+    rows_per_chunk = max(1, MAX_FIT_ELEMENTS // max(1, bounds.shape[1] * batch.a.shape[1] * bounds.shape[2]))
+    if len(bounds) > rows_per_chunk:
+        chunks = [
+            _fits(batch.rows(slice(first, first + rows_per_chunk)), bounds[first : first + rows_per_chunk], free[first : first + rows_per_chunk])
+            for first in range(0, len(bounds), rows_per_chunk)
+        ]
+        return np.concatenate([c[0] for c in chunks]), np.concatenate([c[1] for c in chunks])
+    design, scale = _design(batch, bounds, free)
+    target = np.broadcast_to((batch.heading * batch.root_weight)[:, None, :, None], design.shape[:-1] + (1,))
+    coefficients = _least_squares(design, target)
+    residual = (target - design @ coefficients)[..., 0]
+    return np.einsum("ptn,ptn->pt", residual, residual), coefficients[..., 1:, 0] / scale * free
+
+
+def _projected_hinges(batch: _SparseBatch, bounds: np.ndarray, candidates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The residual of the continuous fit with knots ``bounds[:, 1:-1]`` (all parts free),
+    ``(polylines, chords)``, and the hinge column of a knot at each candidate with that
+    fit's columns projected out, ``(polylines, chords, candidates)``.
 
     Also returns whether each projected column is far enough from 0 to be a new knot.
     """
-    design = _ramp_design(chords, bounds, np.ones(len(bounds) - 1, dtype=bool))
-    basis, _ = np.linalg.qr(design)
-    target = chords.heading * chords.root_weight
-    residual = target - basis @ (basis.T @ target)
-    hinge = _chord_means_of_ramps(chords, candidates, chords.end + 1.0 - candidates) * chords.root_weight[:, None]
-    scale = np.einsum("ij,ij->j", hinge, hinge)
-    hinge -= basis @ (basis.T @ hinge)
-    usable = np.einsum("ij,ij->j", hinge, hinge) > 1e-9 * scale
-    return residual, hinge, usable
+    design, _ = _design(batch, bounds[:, None, :], True)
+    hinge_length = np.fmax(batch.end[:, None] + 1.0 - candidates, 1.0)
+    hinge = _chord_means_of_ramps(batch, candidates[:, None, :], hinge_length[:, None, :])[:, 0]
+    hinge *= batch.root_weight[:, :, None]
+    columns = np.concatenate(((batch.heading * batch.root_weight)[:, :, None], hinge), axis=2)[:, None]
+    projected = (columns - design @ _least_squares(design, columns))[:, 0]
+    scale = np.einsum("pnc,pnc->pc", hinge, hinge)
+    hinge = projected[:, :, 1:]
+    usable = np.einsum("pnc,pnc->pc", hinge, hinge) > 1e-9 * scale
+    return projected[:, :, 0], hinge, usable
 
 
-def _knot_gains(chords: _Chordset, bounds: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+def _knot_gains(batch: _SparseBatch, bounds: np.ndarray, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Reduction of the weighted residual from adding a knot at each candidate to the
-    continuous fit with knots ``bounds[1:-1]`` (all parts free)."""
-    residual, hinge, usable = _residualised(chords, bounds, candidates)
+    continuous fit with knots ``bounds[:, 1:-1]``; ``-inf`` where not ``valid``."""
+    residual, hinge, usable = _projected_hinges(batch, bounds, candidates)
     with np.errstate(divide="ignore", invalid="ignore"):
-        gain = (residual @ hinge) ** 2 / np.einsum("ij,ij->j", hinge, hinge)
-    return np.where(usable, gain, 0.0)
+        gain = np.einsum("pn,pnc->pc", residual, hinge) ** 2 / np.einsum("pnc,pnc->pc", hinge, hinge)
+    return np.where(valid, np.where(usable, gain, 0.0), -np.inf)
 
 
-def _best_knot_pair(chords: _Chordset, bounds: np.ndarray) -> tuple[np.ndarray, float]:
-    """The two knots at vertices or chord middles that together reduce the residual most,
-    and that reduction. A curve between straights, or one shorter than the chords around
-    it, needs both its knots before either pays off on its own."""
-    candidates = _coarse_candidates(chords, 0.0, chords.end)
-    residual, hinge, usable = _residualised(chords, bounds, candidates)
-    hinge, candidates = hinge[:, usable], candidates[usable]
-    if len(candidates) < 2:
-        return candidates, 0.0
-    gram = hinge.T @ hinge
-    along = hinge.T @ residual
-    diagonal = np.diag(gram)
-    determinant = np.outer(diagonal, diagonal) - gram**2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain = (np.outer(along**2, diagonal) - 2.0 * np.outer(along, along) * gram + np.outer(diagonal, along**2)) / determinant
-    gain = np.where(determinant > 1e-6 * np.outer(diagonal, diagonal), gain, 0.0)
-    first, second = np.unravel_index(int(np.argmax(np.triu(gain, 1))), gain.shape)
-    return candidates[[first, second]], float(gain[first, second])
+def _coarse_between(batch: _SparseBatch, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per polyline, its vertices and chord middles strictly between ``low`` and ``high``,
+    in order, ``(polylines, most)``, padded, and which of them are such candidates."""
+    coarse = batch.coarse_candidates()
+    first = (coarse <= low[:, None]).sum(axis=1)
+    count = (coarse < high[:, None]).sum(axis=1) - first
+    window = np.arange(max(int(count.max(initial=0)), 1))
+    index = np.minimum(first[:, None] + window, coarse.shape[1] - 1)
+    return coarse[np.arange(len(coarse))[:, None], index], window < count[:, None]
 
 
-def _coarse_candidates(chords: _Chordset, low: float, high: float) -> np.ndarray:
-    """The vertices and chord middles strictly between ``low`` and ``high``."""
-    coarse = np.concatenate((chords.a, 0.5 * (chords.a + chords.b), [chords.end]))
-    return np.unique(coarse[(coarse > low) & (coarse < high)])
+def _fine_positions(low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """:data:`FINE_KNOT_STEPS` evenly spaced positions strictly between ``low`` and ``high``."""
+    fraction = np.arange(1, FINE_KNOT_STEPS + 1) / (FINE_KNOT_STEPS + 1)
+    return low[:, None] + (high - low)[:, None] * fraction
 
 
-def _best_knot(chords: _Chordset, bounds: np.ndarray, low: float, high: float) -> tuple[float, float]:
-    """The knot strictly between ``low`` and ``high`` that reduces the residual most, and
-    that reduction: searched at the vertices and chord middles, then finely around the best."""
-    coarse = _coarse_candidates(chords, low, high)
-    if len(coarse) == 0:
-        return low, 0.0
-    gain = _knot_gains(chords, bounds, coarse)
-    best = int(np.argmax(gain))
-    fine_low = coarse[best - 1] if best > 0 else low
-    fine_high = coarse[best + 1] if best + 1 < len(coarse) else high
-    fine = np.linspace(fine_low, fine_high, FINE_KNOT_STEPS + 2)[1:-1]
-    fine_gain = _knot_gains(chords, bounds, fine)
-    if fine_gain.max() > gain[best]:
-        return float(fine[np.argmax(fine_gain)]), float(fine_gain.max())
-    return float(coarse[best]), float(gain[best])
+def _best_knots(batch: _SparseBatch, bounds: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per polyline, the knot strictly between ``low`` and ``high`` that reduces the
+    residual most, and that reduction: searched at the vertices and chord middles, then
+    finely around the best (``low`` and 0 where there is no candidate)."""
+    rows = np.arange(len(bounds))
+    coarse, valid = _coarse_between(batch, low, high)
+    gain = _knot_gains(batch, bounds, coarse, valid)
+    best = np.argmax(gain, axis=1)
+    best_gain = gain[rows, best]
+    before, after = best - 1, np.minimum(best + 1, coarse.shape[1] - 1)
+    fine_low = np.where((best > 0) & valid[rows, before], coarse[rows, before], low)
+    fine_high = np.where((best + 1 < coarse.shape[1]) & valid[rows, after], coarse[rows, after], high)
+    fine = _fine_positions(fine_low, fine_high)
+    fine_gain = _knot_gains(batch, bounds, fine, np.ones(fine.shape, dtype=bool))
+    fine_best = np.argmax(fine_gain, axis=1)
+    use_fine = fine_gain[rows, fine_best] > best_gain
+    knot = np.where(use_fine, fine[rows, fine_best], coarse[rows, best])
+    knot_gain = np.where(use_fine, fine_gain[rows, fine_best], best_gain)
+    found = valid.any(axis=1)
+    return np.where(found, knot, low), np.where(found, knot_gain, 0.0)
 
 
-def _with_knot(bounds: np.ndarray, knot: float) -> np.ndarray:
-    return np.sort(np.append(bounds, knot))
+def _best_knot_pairs(batch: _SparseBatch, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per polyline, the two knots at vertices or chord middles that together reduce the
+    residual most, ``(polylines, 2)``, and that reduction. A curve between straights, or
+    one shorter than the chords around it, needs both its knots before either pays off
+    on its own."""
+    coarse, valid = _coarse_between(batch, np.zeros(len(bounds)), batch.end)
+    residual, hinge, usable = _projected_hinges(batch, bounds, coarse)
+    gram = np.einsum("pnc,pnd->pcd", hinge, hinge)
+    along = np.einsum("pn,pnc->pc", residual, hinge)
+    diagonal = np.einsum("pcc->pc", gram)
+    outer_diagonal = diagonal[:, :, None] * diagonal[:, None, :]
+    determinant = outer_diagonal - gram**2
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        gain = (
+            along[:, :, None] ** 2 * diagonal[:, None, :]
+            - 2.0 * along[:, :, None] * along[:, None, :] * gram
+            + diagonal[:, :, None] * along[:, None, :] ** 2
+        ) / determinant
+    gain = np.where(determinant > 1e-6 * outer_diagonal, gain, 0.0)
+    candidate = valid & usable
+    pair = candidate[:, :, None] & candidate[:, None, :] & np.triu(np.ones(gram.shape[1:], dtype=bool), 1)
+    gain = np.where(pair, gain, -np.inf).reshape(len(bounds), -1)
+    best = np.argmax(gain, axis=1)
+    first, second = np.unravel_index(best, gram.shape[1:])
+    rows = np.arange(len(bounds))
+    return np.column_stack((coarse[rows, first], coarse[rows, second])), np.fmax(gain[rows, best], 0.0)
 
 
-def _refined_knots(chords: _Chordset, bounds: np.ndarray) -> np.ndarray:
+def _trimmed(bounds: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """``bounds`` without the padding columns that no polyline needs."""
+    return bounds[:, : int(knots.max(initial=0)) + 2]
+
+
+def _with_knots(bounds: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """Each row's bounds with its new ``knots`` ``(polylines, new)`` put in order (into the padding)."""
+    bounds = np.concatenate((bounds, np.repeat(bounds[:, -1:], knots.shape[1], axis=1)), axis=1)
+    bounds[:, -knots.shape[1] :] = knots
+    return np.sort(bounds, axis=1)
+
+
+def _without_knot(bounds: np.ndarray, knot: np.ndarray) -> np.ndarray:
+    """Each row's bounds with its knot ``knot[p]`` (a column index) made padding."""
+    bounds = bounds.copy()
+    bounds[np.arange(len(bounds)), knot] = bounds[:, -1]
+    return np.sort(bounds, axis=1)
+
+
+def _refined_knots(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray) -> np.ndarray:
     """Each knot in turn moved to where it fits best between its neighbours."""
+    bounds = bounds.copy()
     for _ in range(SPARSE_REFINE_PASSES):
-        for knot in range(1, len(bounds) - 1):
-            others = np.delete(bounds, knot)
-            position, _ = _best_knot(chords, others, bounds[knot - 1], bounds[knot + 1])
-            bounds = _with_knot(others, position)
+        for column in range(1, int(knots.max(initial=0)) + 1):
+            rows = np.flatnonzero(knots >= column)
+            others = _trimmed(bounds[rows], knots[rows]).copy()
+            low, high = others[:, column - 1].copy(), others[:, column + 1].copy()
+            others[:, column] = low  # a part of no length: the knot is gone
+            bounds[rows, column] = _best_knots(batch.rows(rows), others, low, high)[0]
     return bounds
 
 
-def _knot_fit(chords: _Chordset, noise_variance: float, threshold: float) -> np.ndarray:
+def _knot_fit(batch: _SparseBatch, limit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Knots of the continuous heading: added one at a time while the best one reduces
-    the normalised residual by more than ``threshold``, then the least significant
-    dropped while it does not."""
-    bounds = np.array([0.0, chords.end])
-    while len(bounds) - 2 < len(chords.a) // 2:
-        knot, gain = _best_knot(chords, bounds, 0.0, chords.end)
-        if gain > threshold * noise_variance:
-            bounds = _refined_knots(chords, _with_knot(bounds, knot))
-            continue
-        pair, gain = _best_knot_pair(chords, bounds)
-        if gain <= PAIR_THRESHOLD_FACTOR * threshold * noise_variance:
-            break
-        bounds = _refined_knots(chords, np.sort(np.concatenate((bounds, pair))))
-    while len(bounds) > 2:
-        all_free = np.ones(len(bounds) - 2, dtype=bool)
-        full = _residual_and_fit(chords, bounds, np.ones(len(bounds) - 1, dtype=bool))[0]
-        loss = [_residual_and_fit(chords, np.delete(bounds, k), all_free)[0] - full for k in range(1, len(bounds) - 1)]
-        weakest = int(np.argmin(loss))
-        if loss[weakest] > threshold * noise_variance:
-            break
-        bounds = _refined_knots(chords, np.delete(bounds, weakest + 1))
-    return bounds
+    the residual by more than ``limit``, then the least significant dropped while it
+    does not.
+
+    Returns the bounds, padded with each polyline's end, and the number of knots.
+    """
+    most_knots = batch.count // 2
+    # Room for one knot more than most_knots: a pair may be added to most_knots - 1.
+    bounds = np.column_stack((np.zeros(len(batch.a)), np.repeat(batch.end[:, None], int(most_knots.max()) + 2, axis=1)))
+    knots = np.zeros(len(bounds), dtype=np.int64)
+    adding = np.ones(len(bounds), dtype=bool)
+    while (active := np.flatnonzero(adding & (knots < most_knots))).size:
+        knot, gain = _best_knots(batch.rows(active), _trimmed(bounds[active], knots[active]), np.zeros(len(active)), batch.end[active])
+        single = gain > limit[active]
+        rest = active[~single]
+        pair, pair_gain = np.empty((0, 2)), np.empty(0)
+        if rest.size:
+            pair, pair_gain = _best_knot_pairs(batch.rows(rest), _trimmed(bounds[rest], knots[rest]))
+        paired = pair_gain > PAIR_THRESHOLD_FACTOR * limit[rest]
+        adding[rest[~paired]] = False
+        changed = np.concatenate((active[single], rest[paired]))
+        new = np.concatenate((np.column_stack((knot[single], knot[single])), pair[paired]))
+        new[: single.sum(), 1] = bounds[active[single], -1]  # one knot: the other is padding
+        knots[changed] += np.concatenate((np.ones(single.sum(), dtype=np.int64), np.full(paired.sum(), 2)))
+        bounds[changed] = _with_knots(bounds[changed], new)[:, : bounds.shape[1]]
+        bounds[changed] = _refined_knots(batch.rows(changed), bounds[changed], knots[changed])
+    dropping = knots > 0
+    while (active := np.flatnonzero(dropping & (knots > 0))).size:
+        rows = batch.rows(active)
+        trial_bounds = _trimmed(bounds[active], knots[active])
+        full = _fits(rows, trial_bounds[:, None, :], True)[0][:, 0]
+        trials = np.repeat(trial_bounds[:, None, :], trial_bounds.shape[1] - 2, axis=1)
+        column = np.arange(1, trial_bounds.shape[1] - 1)
+        trials[:, np.arange(len(column)), column] = trials[:, np.arange(len(column)), column - 1]
+        loss = _fits(rows, trials, True)[0] - full[:, None]
+        loss[column[None, :] > knots[active][:, None]] = np.inf
+        weakest = np.argmin(loss, axis=1)
+        drop = loss[np.arange(len(active)), weakest] <= limit[active]
+        dropping[active[~drop]] = False
+        changed = active[drop]
+        knots[changed] -= 1
+        bounds[changed] = _without_knot(bounds[changed], weakest[drop] + 1)
+        bounds[changed] = _refined_knots(batch.rows(changed), bounds[changed], knots[changed])
+    return bounds, knots
 
 
-def _residuals_of_bounds(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Weighted residual sum of squares of the continuous fit for each row of ``bounds``
-    (``(trials, parts + 1)``, same ``free`` parts), by batched normal equations."""
-    ramp_start, ramp_length = bounds[:, :-1][:, free], np.diff(bounds, axis=1)[:, free]
-    past = chords.a[None, :, None], chords.b[None, :, None]
-    integral = [
-        0.5 * np.clip(u - ramp_start[:, None, :], 0.0, ramp_length[:, None, :]) ** 2
-        + ramp_length[:, None, :] * np.fmax(u - ramp_start[:, None, :] - ramp_length[:, None, :], 0.0)
-        for u in past
-    ]
-    scale = np.fmax(ramp_length[:, None, :], 1.0)
-    ramps = (integral[1] - integral[0]) / ((chords.b - chords.a)[None, :, None] * scale)
-    design = np.concatenate((np.ones(ramps.shape[:2] + (1,)), ramps), axis=2) * chords.root_weight[None, :, None]
-    target = chords.heading * chords.root_weight
-    normal = np.einsum("tij,tik->tjk", design, design)
-    normal += 1e-12 * np.eye(normal.shape[1]) * np.trace(normal, axis1=1, axis2=2)[:, None, None]
-    coefficients = np.linalg.solve(normal, np.einsum("tij,i->tj", design, target)[..., None])[..., 0]
-    residual = target[None, :] - np.einsum("tij,tj->ti", design, coefficients)
-    return np.einsum("ti,ti->t", residual, residual)
+def _moved_knot_residuals(
+    batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray, column: int, positions: np.ndarray
+) -> np.ndarray:
+    """Weighted residual sum of squares ``(polylines, trials)`` of the continuous fit (only
+    the ``free`` parts curved) with the knot ``bounds[:, column]`` moved to each of
+    ``positions`` ``(polylines, trials)``.
+
+    Only the slopes of the two parts beside the knot change with it, so the fit of the
+    other columns is made once per polyline and each trial adds two projected columns.
+    """
+    fixed_free = free.copy()
+    fixed_free[:, column - 1 : column + 1] = False
+    fixed = _design(batch, bounds[:, None, :], fixed_free[:, None, :])[0][:, 0]
+    low, high = bounds[:, column - 1 : column], bounds[:, column + 1 : column + 2]
+    before_m, after_m = positions - low, high - positions
+    # The ramps of the two parts add up to one ramp from low to high, wherever the knot is.
+    before = _chord_means_of_ramps(batch, np.broadcast_to(low, positions.shape)[:, :, None], before_m[:, :, None])[..., 0]
+    both = _chord_means_of_ramps(batch, low[:, :, None], (high - low)[:, :, None])[..., 0]
+    root_weight = batch.root_weight[:, None, :]
+    after = (both - before) * (root_weight * (free[:, column, None] / np.fmax(after_m, 1.0))[:, :, None])
+    before *= root_weight * (free[:, column - 1, None] / np.fmax(before_m, 1.0))[:, :, None]
+    trials = positions.shape[1]
+    rows = np.concatenate(((batch.heading * batch.root_weight)[:, None, :], before, after), axis=1)
+    projected = rows - _fitted_rows(fixed, rows)
+    residual, added = projected[:, :1], projected[:, 1:]
+    # A column the fixed ones (nearly) contain adds nothing; its rounding noise must not either.
+    added *= (np.einsum("ptn,ptn->pt", added, added) > 1e-9 * np.einsum("ptn,ptn->pt", rows[:, 1:], rows[:, 1:]))[..., None]
+    added_before, added_after = added[:, :trials], added[:, trials:]
+    g00 = np.einsum("ptn,ptn->pt", added_before, added_before)
+    g11 = np.einsum("ptn,ptn->pt", added_after, added_after)
+    g01 = np.einsum("ptn,ptn->pt", added_before, added_after)
+    b0, b1 = (np.einsum("pn,ptn->pt", residual[:, 0], added_part) for added_part in (added_before, added_after))
+    determinant = g00 * g11 - g01**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        both_explained = (g11 * b0**2 - 2.0 * g01 * b0 * b1 + g00 * b1**2) / determinant
+        one_explained = np.fmax(np.where(g00 > 0, b0**2 / g00, 0.0), np.where(g11 > 0, b1**2 / g11, 0.0))
+    explained = np.where(determinant > 1e-12 * g00 * g11, both_explained, one_explained)
+    return np.einsum("pn,pn->p", residual[:, 0], residual[:, 0])[:, None] - explained
 
 
-def _refined_constrained(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, float]:
+def _refined_constrained(
+    batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, free: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Each knot in turn moved to where the fit with only the ``free`` parts curved is
     best, between its neighbours; returns the knots and the residual."""
-    residual = float(_residuals_of_bounds(chords, bounds[None, :], free)[0])
-    for knot in range(1, len(bounds) - 1):
-        low, high = bounds[knot - 1], bounds[knot + 1]
-        positions = np.concatenate((_coarse_candidates(chords, low, high), np.linspace(low, high, FINE_KNOT_STEPS + 2)[1:-1]))
-        trials = np.repeat(bounds[None, :], len(positions), axis=0)
-        trials[:, knot] = positions
-        residuals = _residuals_of_bounds(chords, trials, free)
-        best = int(np.argmin(residuals))
-        if residuals[best] < residual:
-            bounds, residual = trials[best], float(residuals[best])
+    bounds = bounds.copy()
+    residual = _fits(batch, bounds[:, None, :], free[:, None, :])[0][:, 0]
+    for column in range(1, int(knots.max(initial=0)) + 1):
+        rows = np.flatnonzero(knots >= column)
+        low, high = bounds[rows, column - 1], bounds[rows, column + 1]
+        coarse, coarse_valid = _coarse_between(batch.rows(rows), low, high)
+        # The knot's present place last: moves must beat it as computed the same way.
+        positions = np.concatenate((coarse, _fine_positions(low, high), bounds[rows, column : column + 1]), axis=1)
+        valid = np.concatenate((coarse_valid, np.ones((len(rows), FINE_KNOT_STEPS + 1), dtype=bool)), axis=1)
+        trial_residual = np.where(valid, _moved_knot_residuals(batch.rows(rows), bounds[rows], free[rows], column, positions), np.inf)
+        best = np.argmin(trial_residual[:, :-1], axis=1)
+        best_residual = trial_residual[np.arange(len(rows)), best]
+        better = best_residual < trial_residual[:, -1]
+        bounds[rows[better], column] = positions[better, best[better]]
+        residual[rows] = np.where(better, best_residual, trial_residual[:, -1])
     return bounds, residual
 
 
-def _with_straights(chords: _Chordset, bounds: np.ndarray, noise_variance: float, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+def _with_straights(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Parts made straight (curvature 0) one at a time, the knots moved to fit, while the
-    residual grows by less than ``threshold`` normalised: a curvature must earn its place.
+    residual grows by less than ``limit``: a curvature must earn its place.
 
-    Returns the knots and which parts stay curved.
+    Returns the bounds and which parts stay curved.
     """
-    free = np.ones(len(bounds) - 1, dtype=bool)
-    residual = float(_residuals_of_bounds(chords, bounds[None, :], free)[0])
-    while free.any():
-        trials = []
-        for part in np.flatnonzero(free):
-            trial_free = free.copy()
-            trial_free[part] = False
-            trials.append((*_refined_constrained(chords, bounds, trial_free), trial_free))
-        trial_bounds, trial_residual, trial_free = min(trials, key=lambda trial: trial[1])
-        if trial_residual - residual > threshold * noise_variance:
-            break
-        bounds, residual, free = trial_bounds, trial_residual, trial_free
+    bounds = bounds.copy()
+    free = np.arange(bounds.shape[1] - 1)[None, :] <= knots[:, None]
+    residual = _fits(batch, bounds[:, None, :], free[:, None, :])[0][:, 0]
+    going = free.any(axis=1)
+    while (active := np.flatnonzero(going)).size:
+        polyline, part = np.nonzero(free[active])
+        polyline = active[polyline]
+        trial_free = free[polyline]
+        trial_free[np.arange(len(part)), part] = False
+        trial_bounds, trial_residual = _refined_constrained(batch.rows(polyline), bounds[polyline], knots[polyline], trial_free)
+        # The best trial of each polyline (trials are grouped by polyline, in order).
+        order = np.lexsort((trial_residual, polyline))
+        best = order[np.searchsorted(polyline[order], active)]
+        accept = trial_residual[best] - residual[active] <= limit[active]
+        going[active[~accept]] = False
+        best, changed = best[accept], active[accept]
+        bounds[changed, : trial_bounds.shape[1]] = trial_bounds[best]
+        residual[changed] = trial_residual[best]
+        free[changed] = trial_free[best]
+        going[changed] = free[changed].any(axis=1)
     return bounds, free
 
 
-def _curvatures(chords: _Chordset, bounds: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Curvature of each part: fitted for the ``free`` parts, 0 for the others."""
-    curvature = np.zeros(len(bounds) - 1)
-    if free.any():
-        curvature[free] = _residual_and_fit(chords, bounds, free)[1][1:]
-    return curvature
+def _map_along(u: np.ndarray, from_batch: _SparseBatch, to_batch: _SparseBatch) -> np.ndarray:
+    """Positions ``(polylines, k)`` from one arc-length coordinate of the chords to another,
+    linearly within a chord."""
+    chord = np.clip((from_batch.a[:, None, :] <= u[:, :, None]).sum(axis=2) - 1, 0, from_batch.count[:, None] - 1)
+    rows = np.arange(len(u))[:, None]
+    from_a, from_b = from_batch.a[rows, chord], from_batch.b[rows, chord]
+    to_a, to_b = to_batch.a[rows, chord], to_batch.b[rows, chord]
+    fraction = np.clip((u - from_a) / (from_b - from_a), 0.0, 1.0)
+    return to_a + fraction * (to_b - to_a)
 
 
-def _heading_change(chords: _Chordset, bounds: np.ndarray, curvature: np.ndarray) -> np.ndarray:
-    """Heading change of the fitted road across each chord, rad."""
-    ramp_length = np.diff(bounds)
+def _on_arcs(batch: _SparseBatch, bounds: np.ndarray, curvature: np.ndarray) -> _SparseBatch:
+    """The chords replaced by the arcs they span on the fitted road (a chord of a tight
+    curve is shorter than its arc); weights and headings stay the chords'."""
     def turned(u: np.ndarray) -> np.ndarray:
-        return np.clip(u[:, None] - bounds[None, :-1], 0.0, ramp_length) @ curvature
-    return turned(chords.b) - turned(chords.a)
+        return np.einsum("pnk,pk->pn", np.clip(u[:, :, None] - bounds[:, None, :-1], 0.0, np.diff(bounds)[:, None, :]), curvature)
+
+    half_turn = 0.5 * np.abs(turned(batch.b) - turned(batch.a))
+    length_m = batch.b - batch.a
+    arc_m = length_m * np.where(half_turn > 1e-9, half_turn / np.sin(np.fmax(half_turn, 1e-9)), 1.0)
+    arc_b = np.cumsum(arc_m, axis=1)
+    end = arc_b[np.arange(len(arc_b)), batch.count - 1]
+    return _SparseBatch(arc_b - arc_m, arc_b, batch.heading, batch.root_weight, end, batch.count)
+
+
+def _sparse_batch_parts(batch: _SparseBatch, noise_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Parts of the sparse polylines of a batch from a continuous piecewise-linear fit of
+    their heading.
+
+    Returns the part bounds in each polyline's arc length (``[0, ..., end]``, padded with
+    the end), each part's curvature per arc length of the road, 1/m, and the number of
+    knots of each polyline.
+
+    A map way has few nodes per curve, so the independent line per part of the dense
+    method has too few chords to fit; here the heading is one continuous function
+    (the road has no kinks, 3.4-3.8) with free knots, every chord predicted by the
+    mean heading over the arc it spans, chords across a knot included. Knots are
+    added and dropped by the same significance as the dense method's splits, and a
+    part whose curvature is not significant is a straight. The chords are then
+    replaced by the arcs they span on the fitted road and the fit repeated.
+    """
+    noise_variance = 2.0 * np.fmax(noise_m, SPARSE_MIN_NOISE_M) ** 2
+    knot_threshold = _split_threshold(batch.count) - SPLIT_OFFSET + SPARSE_KNOT_OFFSET
+    bounds, knots = _knot_fit(batch, knot_threshold * noise_variance)
+    bounds, free = _with_straights(batch, _trimmed(bounds, knots), knots, SPARSE_STRAIGHT_THRESHOLD * noise_variance)
+    curvature = _fits(batch, bounds[:, None, :], free[:, None, :])[1][:, 0]
+    arcs = _on_arcs(batch, bounds, curvature)
+    arc_bounds, _ = _refined_constrained(arcs, _map_along(bounds, batch, arcs), knots, free)
+    curvature = _fits(arcs, arc_bounds[:, None, :], free[:, None, :])[1][:, 0]
+    bounds = _map_along(arc_bounds, arcs, batch)
+    bounds[:, 0] = 0.0
+    bounds = np.where(np.arange(bounds.shape[1])[None, :] > knots[:, None], batch.end[:, None], bounds)
+    return bounds, curvature, knots
 
 
 def _merged_straights(bounds: np.ndarray, curvature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Knots between two parts of equal curvature (two straights) removed."""
     keep = np.concatenate(([True], curvature[1:] != curvature[:-1]))
     return np.append(bounds[:-1][keep], bounds[-1]), curvature[keep]
-
-
-def _map_along(u: np.ndarray, from_a: np.ndarray, from_b: np.ndarray, to_a: np.ndarray, to_b: np.ndarray) -> np.ndarray:
-    """Positions from one arc-length coordinate of the chords to another, linearly within a chord."""
-    chord = np.clip(np.searchsorted(from_a, u, side="right") - 1, 0, len(from_a) - 1)
-    fraction = np.clip((u - from_a[chord]) / (from_b[chord] - from_a[chord]), 0.0, 1.0)
-    return to_a[chord] + fraction * (to_b[chord] - to_a[chord])
 
 
 def _without_short_chords(
@@ -919,6 +1113,8 @@ def _without_short_chords(
 
     Returns each remaining chord's start arc length, arc length along the polyline and heading.
     """
+    if length_m.min() >= shortest_m:
+        return start_s, length_m, heading
     step = np.column_stack((length_m * np.cos(heading), length_m * np.sin(heading)))
     vertex_xy = np.concatenate((np.zeros((1, 2)), np.cumsum(step, axis=0)))
     vertex_s = np.append(start_s, start_s[-1] + length_m[-1])
@@ -937,39 +1133,38 @@ def _without_short_chords(
     return kept_s[:-1], np.diff(kept_s), kept_heading
 
 
-def _sparse_parts(start_s: np.ndarray, length_m: np.ndarray, heading: np.ndarray, noise_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Parts of one sparse polyline from a continuous piecewise-linear fit of its heading.
+def _padded_batch(polylines: list[tuple[np.ndarray, np.ndarray, np.ndarray]], size: int) -> _SparseBatch:
+    """The batch of polylines given by their chords' start arc lengths, lengths and
+    headings, padded to ``size`` chords with chords of no weight, 1 m long, beyond the end."""
+    count = np.array([len(start_s) for start_s, _, _ in polylines])
+    end = np.array([start_s[-1] + length_m[-1] for start_s, length_m, _ in polylines])
+    a = end[:, None] + np.arange(size)[None, :] - count[:, None] + 1.0
+    length_m, heading = np.ones((len(polylines), size)), np.zeros((len(polylines), size))
+    real = np.arange(size)[None, :] < count[:, None]
+    a[real] = np.concatenate([start_s for start_s, _, _ in polylines])
+    length_m[real] = np.concatenate([length for _, length, _ in polylines])
+    heading[real] = np.concatenate([h for _, _, h in polylines])
+    return _SparseBatch(a, a + length_m, heading, np.where(real, length_m, 0.0), end, count)
 
-    Returns the part bounds in the polyline's arc length (``[0, ..., end]``) and each
-    part's curvature per arc length of the road, 1/m.
 
-    A map way has few nodes per curve, so the independent line per part of the dense
-    method has too few chords to fit; here the heading is one continuous function
-    (the road has no kinks, 3.4-3.8) with free knots, every chord predicted by the
-    mean heading over the arc it spans, chords across a knot included. Knots are
-    added and dropped by the same significance as the dense method's splits, and a
-    part whose curvature is not significant is a straight. The chords are then
-    replaced by the arcs they span on the fitted road (a chord of a tight curve is
-    shorter than its arc) and the fit repeated.
-    """
-    start_s, length_m, heading = _without_short_chords(start_s, length_m, heading, SHORT_CHORD_NOISE_FACTOR * noise_m)
-    noise_variance = 2.0 * max(noise_m, SPARSE_MIN_NOISE_M) ** 2
-    knot_threshold = float(_split_threshold(np.array([len(start_s)]))[0]) - SPLIT_OFFSET + SPARSE_KNOT_OFFSET
-    chord_a, chord_b = start_s, start_s + length_m
-    chords = _Chordset(chord_a, chord_b, heading, length_m)
-    bounds = _knot_fit(chords, noise_variance, knot_threshold)
-    bounds, free = _with_straights(chords, bounds, noise_variance, SPARSE_STRAIGHT_THRESHOLD)
-    curvature = _curvatures(chords, bounds, free)
-    half_turn = 0.5 * np.abs(_heading_change(chords, bounds, curvature))
-    arc_m = length_m * np.where(half_turn > 1e-9, half_turn / np.sin(np.fmax(half_turn, 1e-9)), 1.0)
-    arc_b = np.cumsum(arc_m)
-    arc_chords = _Chordset(arc_b - arc_m, arc_b, heading, length_m)
-    arc_bounds = _map_along(bounds, chord_a, chord_b, arc_chords.a, arc_chords.b)
-    arc_bounds, _ = _refined_constrained(arc_chords, arc_bounds, free)
-    curvature = _curvatures(arc_chords, arc_bounds, free)
-    bounds = _map_along(arc_bounds, arc_chords.a, arc_chords.b, chord_a, chord_b)
-    bounds[0], bounds[-1] = 0.0, chord_b[-1]
-    return _merged_straights(bounds, curvature)
+def _sparse_parts(chords: _Chords, noise_m: np.ndarray, polylines: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Part bounds (``[0, ..., end]``) and curvatures of the sparse ``polylines``, fitted
+    in batches of equal chord count (:func:`_sparse_batch_parts`)."""
+    kept = {}
+    for polyline in polylines:
+        first, stop = chords.polyline_first_chord[polyline : polyline + 2]
+        shortest_m = SHORT_CHORD_NOISE_FACTOR * float(noise_m[polyline])
+        kept[int(polyline)] = _without_short_chords(chords.start_s[first:stop], chords.length_m[first:stop], chords.heading[first:stop], shortest_m)
+    by_size: dict[int, list[int]] = {}
+    for polyline, (start_s, _, _) in kept.items():
+        size = SPARSE_BATCH_CHORDS[np.searchsorted(SPARSE_BATCH_CHORDS, len(start_s))]
+        by_size.setdefault(size, []).append(polyline)
+    parts = {}
+    for size, members in by_size.items():
+        bounds, curvature, knots = _sparse_batch_parts(_padded_batch([kept[p] for p in members], size), noise_m[members])
+        for row, polyline in enumerate(members):
+            parts[polyline] = _merged_straights(bounds[row, : knots[row] + 2], curvature[row, : knots[row] + 1])
+    return parts
 
 
 # --------------------------------------------------------------------------- profiles
@@ -1008,15 +1203,6 @@ def _dense_profile(segmentation: _Segmentation, fit: _Fit, polyline: int) -> Rad
     bounds = np.append(segmentation.knot_s[first_part:stop_part], vertex_s[-1])
     bounds[0] = 0.0
     return _profile(vertex_s, bounds, fit.curvature[first_part:stop_part])
-
-
-def _sparse_profile(chords: _Chords, noise_m: np.ndarray, polyline: int) -> RadiusProfile:
-    """The radius profile of one sparse polyline (:func:`_sparse_parts`)."""
-    first, stop = chords.polyline_first_chord[polyline : polyline + 2]
-    bounds, curvature = _sparse_parts(
-        chords.start_s[first:stop], chords.length_m[first:stop], chords.heading[first:stop], float(noise_m[polyline])
-    )
-    return _profile(_polyline_vertex_s(chords, polyline), bounds, curvature)
 
 
 def _is_sparse(chords: _Chords, polyline_count: int) -> np.ndarray:
@@ -1066,9 +1252,9 @@ def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
     segmentation.open_steps()
     segmentation.refine_until_stable()
     fit = segmentation.fit_on_arc_lengths()
-    sparse = _is_sparse(chords, len(points))
+    sparse_parts = _sparse_parts(chords, noise_m, np.flatnonzero(_is_sparse(chords, len(points))))
     return [
-        _sparse_profile(chords, noise_m, p) if sparse[p] else _dense_profile(segmentation, fit, p)
+        _profile(_polyline_vertex_s(chords, p), *sparse_parts[p]) if p in sparse_parts else _dense_profile(segmentation, fit, p)
         for p in range(len(points))
     ]
 

@@ -228,6 +228,28 @@ def test_many_polylines_give_the_profiles_of_each_alone():
         np.testing.assert_allclose(profile.curvature, alone.curvature, rtol=1e-9, atol=1e-12)
 
 
+def test_sparse_ways_fitted_together_give_the_profiles_of_each_alone():
+    """Sparse ways are fitted in batches (padded to a common chord count, knots padded to
+    the batch's most): ways of different lengths, curves and noise must not affect each other."""
+    rng = np.random.default_rng(11)
+    ways = [
+        mapped_way(
+            [straight(float(rng.uniform(20.0, 120.0))), arc(float(rng.uniform(30.0, 300.0)), float(rng.uniform(20.0, 90.0)), direction),
+             straight(float(rng.uniform(20.0, 120.0)))],
+            int(rng.integers(2**32)), (0.0, 0.0), float(rng.uniform(-3, 3)), float(rng.uniform(0.0, 0.5)),
+        )
+        for direction in ["left", "right"] * 8
+    ]
+    assert len({len(xy) for xy in ways}) > 4  # several chord counts, some sharing a batch
+    for way, profile in zip(ways, radius_profiles(ways)):
+        alone = radius_profile(way)
+        assert len(profile.parts) == len(alone.parts)
+        for part, part_alone in zip(profile.parts, alone.parts):
+            assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
+                (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-6, abs=1e-9
+            )
+
+
 @pytest.mark.parametrize("xy", [np.empty((0, 2)), [], np.array([[3.0, 4.0]]), np.array([[3.0, 4.0]] * 5)])
 def test_polylines_without_length_give_a_straight_profile(xy):
     profile = radius_profile(xy)
