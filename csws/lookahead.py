@@ -394,13 +394,14 @@ class LookAhead:
             If ``lane_id`` is not a lane of the map.
         """
         reach_m = math.ceil((lookahead_m + self.settings.context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
-        key = (lane_id, tuple(route_edges) if route_edges else None, reach_m)
+        lane = self.road_map.lane(lane_id)
+        remaining = _remaining_route(route_edges, lane)
+        key = (lane_id, remaining, reach_m)
         cached = self._horizons.get(key)
         if cached is not None:
             self._horizons.move_to_end(key)
             return cached
-        lane = self.road_map.lane(lane_id)
-        lanes, kind = self._lanes_ahead(lane_id, 0.0, lane.length_m + reach_m, route_edges)
+        lanes, kind = self._lanes_ahead(lane_id, 0.0, lane.length_m + reach_m, remaining)
         horizon = self._build_horizon(lanes, kind)
         self._horizons[key] = horizon
         if len(self._horizons) > self.settings.cache_size:
@@ -513,6 +514,23 @@ def _is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
 def curve_id_of(lane_id: str, lane_pos_m: float) -> str:
     """The id of a curve: the lane and the lane position (to the metre) where it starts (3.4)."""
     return f"{lane_id}@{lane_pos_m:.0f}"
+
+
+def _remaining_route(route_edges: Sequence[str] | None, lane: Lane) -> tuple[str, ...] | None:
+    """The part of the route still ahead of a vehicle on ``lane``: from the lane's edge on.
+
+    Vehicles whose routes differ only in the edges already driven share their horizons.
+    None without a route, or when the vehicle's (normal) edge is not on it (the path is
+    then predicted); inside a junction (an internal lane) the whole route.
+    """
+    if not route_edges:
+        return None
+    if lane.is_internal:
+        return tuple(route_edges)
+    try:
+        return tuple(route_edges[list(route_edges).index(lane.edge_id):])
+    except ValueError:
+        return None
 
 
 def _route_successors(route_edges: Sequence[str] | None, lane: Lane) -> dict[str, str] | None:
