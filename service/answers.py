@@ -8,7 +8,7 @@
 2. matches every fix without a lane id in one vectorised pass over all served networks
    (:class:`csws.mapmatch.MapMatcher`), preferring each vehicle's previous lane;
 3. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
-4. writes each answer as the plain dict of the HTTP contract (floats unrounded).
+4. writes each answer as the JSON text of the HTTP contract (floats unrounded).
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
 rounds holding each vehicle at most once.
@@ -16,24 +16,27 @@ rounds holding each vehicle at most once.
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Any, Sequence
+from functools import lru_cache
+from json.encoder import encode_basestring_ascii as _json_text
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
 from csws.engine import Answer, VehicleInput
 from csws.mapmatch import MapMatcher, MatchSettings, lane_point
 from csws.state import Fault
-from csws.warning import Trigger
+from csws.warning import HmiHint, Trigger
 
 from .horizon import cpoi_points, position
 from .networks import ServedNetwork
 from .schemas import Query
 from .vehicles import VehicleRegistry
 
-__all__ = ["QueryErrors", "Placement", "WarningService"]
+__all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
 
 
 class QueryErrors(ValueError):
@@ -50,8 +53,7 @@ class QueryErrors(ValueError):
         self.errors = errors
 
 
-@dataclass(frozen=True)
-class Placement:
+class Placement(NamedTuple):
     """Where one query was placed on the served networks.
 
     Attributes
@@ -112,8 +114,8 @@ class WarningService:
         self.network_index = {n.name: i for i, n in enumerate(self.networks)}
 
     # ------------------------------------------------------------------ queries
-    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> list[dict[str, Any]]:
-        """The answers of ``queries``, in order.
+    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> "EncodedAnswers":
+        """The answers of ``queries``, in order, as JSON.
 
         Raises
         ------
@@ -124,7 +126,7 @@ class WarningService:
         """
         self.registry.expire()
         self.check(queries, loc)
-        answers: list[dict[str, Any]] = [{} for _ in queries]
+        answers = EncodedAnswers([""] * len(queries), [""] * len(queries), [0] * len(queries))
         for indices in _rounds(queries):
             self._answer_round([queries[i] for i in indices], indices, answers)
         return answers
@@ -214,16 +216,17 @@ class WarningService:
         NaN (no match there) where a query names another network, or lon/lat meets a map
         without a projection.
         """
-        network = self.networks[network_index]
+        road_map = self.networks[network_index].road_map
         xy = np.full((len(queries), 2), np.nan)
-        for row, query in enumerate(queries):
-            position = query.position
-            if query.network is not None and self.network_index[query.network] != network_index:
-                continue
-            if not position.is_geographic:
-                xy[row] = position.x, position.y
-            elif network.road_map.has_projection:
-                xy[row] = network.road_map.lonlat_to_xy(position.lon, position.lat)
+        here = [row for row, query in enumerate(queries)
+                if query.network is None or self.network_index[query.network] == network_index]  # fmt: skip
+        metric = [row for row in here if not queries[row].position.is_geographic]
+        if metric:
+            xy[metric] = [(queries[row].position.x, queries[row].position.y) for row in metric]
+        geographic = [row for row in here if queries[row].position.is_geographic]
+        if geographic and road_map.has_projection:
+            lonlat = np.array([(queries[row].position.lon, queries[row].position.lat) for row in geographic])
+            xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
         return xy
 
     def _fix_distance_m(self, query: Query, network_index: int) -> float:
@@ -237,7 +240,7 @@ class WarningService:
         lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)
         return float(math.hypot(x - lane_x, y - lane_y))
 
-    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], answers: list[dict[str, Any]]) -> None:
+    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], answers: "EncodedAnswers") -> None:
         """Answer queries of distinct vehicles into ``answers[indices]``."""
         placements = self.place(queries)
         by_network: dict[int, list[int]] = defaultdict(list)
@@ -245,11 +248,16 @@ class WarningService:
             self.registry.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         for network_index, rows in by_network.items():
-            network = self.networks[network_index]
+            engine = self.networks[network_index].engine
             inputs = [self.vehicle_input(queries[row], placements[row]) for row in rows]
-            for row, result in zip(rows, network.engine.evaluate_many(inputs)):
+            # One vehicle skips the batch set-up; both paths give the same answer.
+            results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
+            for row, result in zip(rows, results):
                 self.registry.seen(queries[row].vehicle_id, placements[row].lane_id)
-                answers[indices[row]] = self.encode(result, placements[row])
+                index = indices[row]
+                answers.json[index] = self.encode(result, placements[row])
+                answers.state[index] = result.state.value
+                answers.level[index] = int(result.warning.level)
 
     def vehicle_input(self, query: Query, placement: Placement) -> VehicleInput:
         """The engine's input for a placed query."""
@@ -266,19 +274,24 @@ class WarningService:
         )
 
     # ------------------------------------------------------------------ answers
-    def encode(self, answer: Answer, placement: Placement) -> dict[str, Any]:
-        """The contract's WarningAnswer of an engine answer."""
+    def encode(self, answer: Answer, placement: Placement) -> str:
+        """The contract's WarningAnswer of an engine answer, as JSON text (floats unrounded).
+
+        Written field by field rather than through a dict and :func:`json.dumps`: most
+        answers of a fleet are level 0, with no CPOI to locate.
+        """
         network = self.networks[placement.network_index]
         warning = answer.warning
-        fault = None
+        fault = "null"
         if answer.fault is not None:
             fault = answer.fault.value
             if answer.fault is Fault.NO_MAP_MATCH and placement.reason:
                 fault = f"{fault}: {placement.reason}"
+            fault = _json_text(fault)
+        target, triggers = "null", "[]"
         located = list(warning.triggers)
         if warning.target is not None and warning.target not in located:
             located.append(warning.target)
-        positions = {}
         if located:
             points = cpoi_points(
                 answer.path,
@@ -287,21 +300,50 @@ class WarningService:
                 network.engine.settings.lookahead.warning_radius_m,
             )
             positions = {id(t): position(network, p) for t, p in zip(located, points)}
-        return {
-            "vehicle_id": answer.vehicle_id,
-            "state": answer.state.value,
-            "fault": fault,
-            "level": int(warning.level),
-            "target": None if warning.target is None else _trigger(warning.target, positions[id(warning.target)]),
-            "triggers": [_trigger(t, positions[id(t)]) for t in warning.triggers],
-            "matched": None if placement.lane_id is None else {
-                "lane_id": placement.lane_id,
-                "lane_pos_m": placement.lane_pos_m,
-                "distance_m": placement.distance_m,
-            },
-            "path_kind": answer.path.kind.value if answer.path is not None else None,
-            "hmi": {"visual": warning.hmi.visual, "audible": warning.hmi.audible},
-        }
+            if warning.target is not None:
+                target = _dumps(_trigger(warning.target, positions[id(warning.target)]))
+            triggers = _dumps([_trigger(t, positions[id(t)]) for t in warning.triggers])
+        matched = "null"
+        if placement.lane_id is not None:
+            matched = (f'{{"lane_id": {_json_text(placement.lane_id)}, "lane_pos_m": {_number(placement.lane_pos_m)}, '
+                       f'"distance_m": {_number(placement.distance_m)}}}')
+        path_kind = "null" if answer.path is None else f'"{answer.path.kind.value}"'
+        return (f'{{"vehicle_id": {_json_text(answer.vehicle_id)}, "state": "{answer.state.value}", "fault": {fault}, '
+                f'"level": {int(warning.level)}, "target": {target}, "triggers": {triggers}, "matched": {matched}, '
+                f'"path_kind": {path_kind}, "hmi": {_hmi_json(warning.hmi)}}}')
+
+
+@dataclass
+class EncodedAnswers:
+    """The answers of queries, in order: each the JSON text of the contract's WarningAnswer, with its
+    system state and warning level (for the metrics).
+    """
+
+    json: list[str]
+    state: list[str]
+    level: list[int]
+
+    def batch_json(self) -> str:
+        """The contract's Answers: ``{"answers": [...]}``."""
+        return '{"answers": [' + ", ".join(self.json) + "]}"
+
+
+def _dumps(content: Any) -> str:
+    """JSON text of plain data; NaN and infinities are refused."""
+    return json.dumps(content, allow_nan=False)
+
+
+def _number(value: float) -> str:
+    """A finite number as JSON, unrounded (as :func:`json.dumps` writes it)."""
+    if not math.isfinite(value):
+        raise ValueError(f"out of range float values are not JSON compliant: {value!r}")
+    return float.__repr__(float(value))
+
+
+@lru_cache(maxsize=None)
+def _hmi_json(hmi: HmiHint) -> str:
+    """The JSON of an HMI hint (there are three)."""
+    return _dumps({"visual": hmi.visual, "audible": hmi.audible})
 
 
 def _has_lane(network: ServedNetwork, lane_id: str) -> bool:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import bisect
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from typing import Any, Iterable
 
 __all__ = ["LATENCY_BUCKETS_S", "Metrics", "MetricsMiddleware"]
@@ -43,10 +43,10 @@ class Metrics:
         self.latency_sum_s[route] += seconds
         self.latency_count[route] += 1
 
-    def observe_answers(self, answers: Iterable[dict[str, Any]]) -> None:
-        """Count answers by system state and warning level."""
-        for answer in answers:
-            self.answers[(answer["state"], answer["level"])] += 1
+    def observe_answers(self, states: Iterable[str], levels: Iterable[int]) -> None:
+        """Count answers by system state and warning level (parallel sequences)."""
+        for key, count in Counter(zip(states, levels)).items():
+            self.answers[key] += count
 
     def exposition(self) -> str:
         """The metrics in Prometheus' text format."""

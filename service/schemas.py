@@ -36,10 +36,9 @@ class Position(BaseModel):
 
     @model_validator(mode="after")
     def _one_pair(self) -> "Position":
-        has_xy = self.x is not None and self.y is not None
-        has_lonlat = self.lon is not None and self.lat is not None
-        given = [name for name in ("x", "y", "lon", "lat") if getattr(self, name) is not None]
-        if has_xy == has_lonlat or len(given) != 2:
+        no_x, no_lon = self.x is None, self.lon is None
+        if no_x != (self.y is None) or no_lon != (self.lat is None) or no_x == no_lon:
+            given = [name for name in ("x", "y", "lon", "lat") if getattr(self, name) is not None]
             raise ValueError(
                 f"a position is either x and y (network metres) or lon and lat (degrees), got {given or 'nothing'}"
             )

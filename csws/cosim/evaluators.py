@@ -1,7 +1,7 @@
 """Who answers for the fleet: the library in this process, or a running csws service over HTTP.
 
 Both take the same inputs, SUMO's lane id and lane position, speed, route and simulation
-time of every vehicle, and return the same :class:`VehicleWarning` records, so a run
+time of every vehicle, and return the same :class:`FleetWarnings`, so a run
 gives identical warnings in either mode:
 
 * :class:`LibraryEvaluator` calls :meth:`csws.engine.Engine.evaluate_many` once per step;
@@ -15,18 +15,20 @@ from __future__ import annotations
 import http.client
 import json
 from dataclasses import dataclass
+from itertools import repeat
 from typing import Protocol, Sequence
 from urllib.parse import urlsplit
 
-from csws.engine import Answer, Engine, VehicleInput
+from csws.engine import Engine, VehicleInput
 from csws.standard import Level, mps_to_kmh
+from csws.state import SystemState
 from csws.warning import Trigger
 
 from .sumo import FleetState
 
 __all__ = [
     "MAX_BATCH",
-    "VehicleWarning",
+    "FleetWarnings",
     "Evaluator",
     "LibraryEvaluator",
     "ServiceEvaluator",
@@ -35,20 +37,21 @@ __all__ = [
 
 #: At most this many queries go in one ``POST /v1/warnings`` (the contract's limit).
 MAX_BATCH = 10_000
+#: The levels by number, for answers read from JSON.
+_LEVELS = tuple(Level)
 
 
 @dataclass(frozen=True)
-class VehicleWarning:
-    """What the system answered for one vehicle at one step.
+class FleetWarnings:
+    """What the system answered for every vehicle of a step, as parallel lists in the fleet's order.
+
+    Columns rather than one record per vehicle, so that a step of a large fleet is
+    recorded without per-vehicle objects.
 
     Attributes
     ----------
-    vehicle_id
-        The vehicle.
     state
         ``off``, ``standby``, ``active`` or ``fault``.
-    fault
-        The fault's reason, else None.
     level
         0, 1 or 2.
     target
@@ -57,18 +60,25 @@ class VehicleWarning:
         Every triggering CPOI, nearest first.
     """
 
-    vehicle_id: str
-    state: str
-    fault: str | None
-    level: int
-    target: Trigger | None
-    triggers: tuple[Trigger, ...]
+    state: list[str]
+    level: list[int]
+    target: list[Trigger | None]
+    triggers: list[tuple[Trigger, ...]]
+
+    @classmethod
+    def none(cls, count: int) -> "FleetWarnings":
+        """The answers of ``count`` vehicles that were not evaluated (baseline runs)."""
+        return cls([SystemState.OFF] * count, [0] * count, [None] * count, [()] * count)
+
+    def warned(self) -> list[int]:
+        """The vehicles with a warning (level 1 or 2), in order."""
+        return [i for i, level in enumerate(self.level) if level]
 
 
 class Evaluator(Protocol):
     """Answers for every vehicle of a step, in order."""
 
-    def __call__(self, fleet: FleetState) -> list[VehicleWarning]: ...
+    def __call__(self, fleet: FleetState) -> FleetWarnings: ...
 
     def forget(self, vehicle_ids: Sequence[str]) -> None: ...
 
@@ -77,7 +87,7 @@ class Evaluator(Protocol):
 
 def _speeds_kmh(fleet: FleetState) -> list[float]:
     """The fleet's speeds in km/h, as both modes send them."""
-    return [float(v) for v in mps_to_kmh(fleet.speed_mps)]
+    return mps_to_kmh(fleet.speed_mps).tolist()
 
 
 class LibraryEvaluator:
@@ -86,15 +96,17 @@ class LibraryEvaluator:
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
 
-    def __call__(self, fleet: FleetState) -> list[VehicleWarning]:
-        speeds_kmh = _speeds_kmh(fleet)
-        inputs = [
-            VehicleInput(vehicle_id, category, speed_kmh, lane_id, float(lane_pos_m), route, fleet.time_s)
-            for vehicle_id, category, speed_kmh, lane_id, lane_pos_m, route in zip(
-                fleet.vehicle_id, fleet.category, speeds_kmh, fleet.lane_id, fleet.lane_pos_m, fleet.route_edges
-            )
-        ]
-        return [_from_answer(answer) for answer in self.engine.evaluate_many(inputs)]
+    def __call__(self, fleet: FleetState) -> FleetWarnings:
+        inputs = list(map(VehicleInput, fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id,
+                          fleet.lane_pos_m.tolist(), fleet.route_edges, repeat(fleet.time_s, len(fleet.vehicle_id))))
+        answers = self.engine.evaluate_many(inputs)
+        warnings = [answer.warning for answer in answers]
+        return FleetWarnings(
+            state=[answer.state for answer in answers],
+            level=[warning.level for warning in warnings],
+            target=[warning.target for warning in warnings],
+            triggers=[warning.triggers for warning in warnings],
+        )
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
         for vehicle_id in vehicle_ids:
@@ -102,19 +114,6 @@ class LibraryEvaluator:
 
     def close(self) -> None:
         return None
-
-
-def _from_answer(answer: Answer) -> VehicleWarning:
-    """The record of a library answer."""
-    warning = answer.warning
-    return VehicleWarning(
-        answer.vehicle_id,
-        answer.state.value,
-        None if answer.fault is None else answer.fault.value,
-        int(warning.level),
-        warning.target,
-        warning.triggers,
-    )
 
 
 class ServiceError(RuntimeError):
@@ -141,26 +140,32 @@ class ServiceEvaluator:
         self.path = parts.path.rstrip("/") + "/v1/warnings"
         self.connection = connection_type(parts.hostname, parts.port, timeout=timeout_s)
 
-    def __call__(self, fleet: FleetState) -> list[VehicleWarning]:
-        speeds_kmh = _speeds_kmh(fleet)
+    def __call__(self, fleet: FleetState) -> FleetWarnings:
         queries = [
             {
                 "vehicle_id": vehicle_id,
                 "category": category,
                 "speed_kmh": speed_kmh,
                 "lane_id": lane_id,
-                "lane_pos_m": float(lane_pos_m),
-                "route": list(route),
+                "lane_pos_m": lane_pos_m,
+                "route": route,
                 "timestamp_s": fleet.time_s,
             }
             for vehicle_id, category, speed_kmh, lane_id, lane_pos_m, route in zip(
-                fleet.vehicle_id, fleet.category, speeds_kmh, fleet.lane_id, fleet.lane_pos_m, fleet.route_edges
+                fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id, fleet.lane_pos_m.tolist(),
+                fleet.route_edges,
             )
         ]
         answers = []
         for first in range(0, len(queries), MAX_BATCH):
             answers += self._post({"queries": queries[first:first + MAX_BATCH]})["answers"]
-        return [_from_json(answer) for answer in answers]
+        targets = [answer["target"] for answer in answers]
+        return FleetWarnings(
+            state=[answer["state"] for answer in answers],
+            level=[answer["level"] for answer in answers],
+            target=[None if target is None else _trigger(target) for target in targets],
+            triggers=[tuple(map(_trigger, answer["triggers"])) for answer in answers],
+        )
 
     def _post(self, body: dict) -> dict:
         """One POST; ServiceError on a refusal, the answer's JSON otherwise."""
@@ -191,20 +196,7 @@ def _trigger(record: dict) -> Trigger:
         part_index=int(record["part_index"]),
         distance_m=float(record["distance_m"]),
         radius_m=float(record["radius_m"]),
-        level=Level(int(record["level"])),
+        level=_LEVELS[record["level"]],
         warning_speed_kmh=float(record["warning_speed_kmh"]),
         warning_distance_m=float(record["warning_distance_m"]),
-    )
-
-
-def _from_json(answer: dict) -> VehicleWarning:
-    """The record of a WarningAnswer of the contract."""
-    target = answer.get("target")
-    return VehicleWarning(
-        answer["vehicle_id"],
-        answer["state"],
-        answer.get("fault"),
-        int(answer["level"]),
-        None if target is None else _trigger(target),
-        tuple(_trigger(t) for t in answer.get("triggers", ())),
     )

@@ -13,6 +13,8 @@ can be compared exactly.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import os
 from collections import Counter, defaultdict
@@ -21,8 +23,6 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from csws.standard import Level, warning_speed
-
-from .evaluators import VehicleWarning
 
 __all__ = [
     "TIMESERIES_COLUMNS",
@@ -49,33 +49,27 @@ ENTRY_COLUMNS = (
 )  # fmt: skip
 
 
-def _cell(value) -> str:
-    """A CSV cell: empty for None, repr for floats, quoted when it holds a comma or a quote."""
-    if value is None:
-        return ""
-    text = repr(value) if isinstance(value, float) else str(value)
-    if any(c in text for c in ',"\n'):
-        text = '"' + text.replace('"', '""') + '"'
-    return text
-
-
 class CsvStream:
-    """A CSV file appended one block of whole rows at a time (one ``os.write`` per block)."""
+    """A CSV file appended one block of whole rows at a time (one ``os.write`` per block).
+
+    Rows go through the C :mod:`csv` writer: None is an empty cell, floats are written
+    with ``repr`` and cells holding a comma, a quote or a line break are quoted.
+    """
 
     def __init__(self, path: Path, columns: Sequence[str]) -> None:
         self.path = path
         self.columns = tuple(columns)
+        self._buffer = io.StringIO()
+        self._writer = csv.writer(self._buffer, lineterminator="\n")
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        self._write([",".join(self.columns)])
+        self.append([self.columns])
 
     def append(self, rows: Iterable[Sequence]) -> None:
         """Append rows (each a sequence in column order)."""
-        lines = [",".join(_cell(value) for value in row) for row in rows]
-        if lines:
-            self._write(lines)
-
-    def _write(self, lines: list[str]) -> None:
-        data = ("\n".join(lines) + "\n").encode("utf-8")
+        self._writer.writerows(rows)
+        data = self._buffer.getvalue().encode("utf-8")
+        self._buffer.seek(0)
+        self._buffer.truncate()
         while data:
             written = os.write(self._fd, data)
             data = data[written:]
@@ -161,10 +155,10 @@ def write_summary(path: Path, content: dict) -> None:
     os.replace(partial, path)
 
 
-def event_of(previous_level: int, answer: VehicleWarning) -> str | None:
+def event_of(previous_level: int, level: int) -> str | None:
     """The event a level change is: ``onset``, ``change`` or ``end``; None without a change."""
-    if answer.level == previous_level:
+    if level == previous_level:
         return None
     if previous_level == 0:
         return "onset"
-    return "end" if answer.level == 0 else "change"
+    return "end" if level == 0 else "change"

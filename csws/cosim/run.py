@@ -13,14 +13,14 @@ import argparse
 import sys
 import time
 from dataclasses import dataclass, field, replace
+from itertools import repeat
 from pathlib import Path
-from typing import Sequence
 from xml.etree import ElementTree
 
 from csws.standard import mps_to_kmh
 
 from .driver import DriverResponse, DriverSettings
-from .evaluators import Evaluator, LibraryEvaluator, ServiceError, ServiceEvaluator, VehicleWarning
+from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .records import (
     ENTRY_COLUMNS,
     EVENT_COLUMNS,
@@ -190,35 +190,51 @@ class _Tracker:
         self.entered.pop(vehicle_id, None)
 
 
-def _record_step(fleet: FleetState, answers: Sequence[VehicleWarning], commands: dict[str, float],
+def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str, float],
                  tracker: _Tracker, summary: Summary, streams: _Streams) -> None:  # fmt: skip
-    """Append one step to the files and the summary."""
+    """Append one step to the files and the summary.
+
+    Every vehicle gets a time-series row, written column-wise; only the warned vehicles
+    (and those whose level changed) are looked at one by one.
+    """
+    count = len(fleet.vehicle_id)
     speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
-    lane_pos = fleet.lane_pos_m.tolist()
-    xs, ys = fleet.x_m.tolist(), fleet.y_m.tolist()
+    lane_pos, xs, ys = fleet.lane_pos_m.tolist(), fleet.x_m.tolist(), fleet.y_m.tolist()
     t = fleet.time_s
-    series, events, entries = [], [], []
-    for i, answer in enumerate(answers):
-        vehicle_id, category, target = fleet.vehicle_id[i], fleet.category[i], answer.target
-        command = commands.get(vehicle_id)
-        series.append((
-            t, vehicle_id, category, fleet.lane_id[i], lane_pos[i], xs[i], ys[i], speeds_kmh[i], answer.state,
-            answer.level, target and target.curve_id, target and target.part_index, target and target.distance_m,
-            target and target.warning_speed_kmh, None if command is None or command < 0 else mps_to_kmh(command),
-        ))  # fmt: skip
-        previous = tracker.levels.get(vehicle_id, 0)
-        event = event_of(previous, answer)
+    warned = warnings.warned()
+    curve_id, part_index, distance_m, warning_speed_kmh = ([None] * count for _ in range(4))
+    for i in warned:
+        target = warnings.target[i]
+        curve_id[i], part_index[i] = target.curve_id, target.part_index
+        distance_m[i], warning_speed_kmh[i] = target.distance_m, target.warning_speed_kmh
+    commanded_kmh = [None] * count
+    if commands:
+        row_of = {vehicle_id: i for i, vehicle_id in enumerate(fleet.vehicle_id)}
+        for vehicle_id, command in commands.items():
+            commanded_kmh[row_of[vehicle_id]] = None if command < 0 else mps_to_kmh(command)
+    streams.timeseries.append(zip(
+        repeat(t, count), fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh,
+        warnings.state, warnings.level, curve_id, part_index, distance_m, warning_speed_kmh, commanded_kmh,
+    ))  # fmt: skip
+    levels = tracker.levels
+    changed = [i for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level))
+               if level != levels.get(vehicle_id, 0)]  # fmt: skip
+    events, entries = [], []
+    for i in sorted({*changed, *warned}):
+        vehicle_id, category, level, target = fleet.vehicle_id[i], fleet.category[i], warnings.level[i], warnings.target[i]
+        previous = levels.get(vehicle_id, 0)
+        event = event_of(previous, level)
         if event is not None:
-            tracker.levels[vehicle_id] = answer.level
-            if answer.level > previous:
-                summary.add_onset(category, answer.level, target and target.curve_id)
+            levels[vehicle_id] = level
+            if level > previous:
+                summary.add_onset(category, level, target and target.curve_id)
                 summary.warned_vehicles.add(vehicle_id)
             events.append((
-                t, vehicle_id, category, event, answer.level, previous, target and target.curve_id,
+                t, vehicle_id, category, event, level, previous, target and target.curve_id,
                 target and target.part_index, target and target.radius_m, target and target.distance_m,
                 target and target.warning_speed_kmh, speeds_kmh[i], fleet.lane_id[i], lane_pos[i], xs[i], ys[i],
             ))  # fmt: skip
-        for trigger in answer.triggers:
+        for trigger in warnings.triggers[i]:
             if trigger.distance_m > 0:
                 continue
             entered = tracker.entered.setdefault(vehicle_id, set())
@@ -229,32 +245,25 @@ def _record_step(fleet: FleetState, answers: Sequence[VehicleWarning], commands:
             summary.add_entry(category, excess_kmh)
             entries.append((t, vehicle_id, category, trigger.curve_id, trigger.part_index, trigger.radius_m,
                             speeds_kmh[i], level1_kmh, excess_kmh, int(trigger.level)))  # fmt: skip
-    streams.timeseries.append(series)
     streams.warnings.append(events)
     streams.entries.append(entries)
 
 
-def _drive(driver: DriverResponse, fleet: FleetState, answers: Sequence[VehicleWarning], step_s: float) -> dict[str, float]:
+def _drive(driver: DriverResponse, fleet: FleetState, warnings: FleetWarnings, step_s: float) -> dict[str, float]:
     """The driver-response model's speed commands of this step, per vehicle (m/s; -1 hands back)."""
     commands = {}
-    for i, answer in enumerate(answers):
-        vehicle_id = fleet.vehicle_id[i]
-        if answer.level == 0 and vehicle_id not in driver.drivers:
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level)):
+        if level == 0 and vehicle_id not in driver.drivers:
             continue
-        target = answer.target
+        target = warnings.target[i]
         command = driver.commands(
-            fleet.time_s, step_s, vehicle_id, answer.level,
+            fleet.time_s, step_s, vehicle_id, level,
             target and target.warning_speed_kmh, target and target.distance_m,
             float(fleet.speed_mps[i]), float(fleet.odometer_m[i]),
         )  # fmt: skip
         if command is not None:
             commands[vehicle_id] = command
     return commands
-
-
-def _no_warning(vehicle_id: str) -> VehicleWarning:
-    """The record of a vehicle that was not evaluated (baseline runs)."""
-    return VehicleWarning(vehicle_id, "off", None, 0, None, ())
 
 
 def cosimulate(config: CosimConfig) -> dict:
@@ -292,11 +301,14 @@ def cosimulate(config: CosimConfig) -> dict:
             if evaluator is not None:
                 evaluator.forget(fleet.arrived)
             summary.skipped.update(fleet.skipped)
-            answers = evaluator(fleet) if evaluator is not None and fleet.vehicle_id else [_no_warning(v) for v in fleet.vehicle_id]
-            commands = _drive(driver, fleet, answers, step_s) if driver is not None else {}
+            if evaluator is not None and fleet.vehicle_id:
+                warnings = evaluator(fleet)
+            else:
+                warnings = FleetWarnings.none(len(fleet.vehicle_id))
+            commands = _drive(driver, fleet, warnings, step_s) if driver is not None else {}
             for vehicle_id, speed_mps in commands.items():
                 simulation.set_speed(vehicle_id, speed_mps)
-            _record_step(fleet, answers, commands, tracker, summary, streams)
+            _record_step(fleet, warnings, commands, tracker, summary, streams)
             summary.vehicles.update(fleet.vehicle_id)
             summary.steps += 1
             summary.last_time_s = fleet.time_s

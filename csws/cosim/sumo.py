@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from operator import itemgetter
 from pathlib import Path
 from typing import Sequence
 
@@ -34,6 +35,8 @@ _VAR_ROUTE_ID = 0x53
 _VAR_TYPE = 0x4F
 _VAR_DISTANCE = 0x84
 _SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_TYPE, _VAR_DISTANCE)
+#: One vehicle's subscription result as a tuple in the order of ``_SUBSCRIBED``.
+_subscribed_values = itemgetter(*_SUBSCRIBED)
 
 
 class SumoStopped(RuntimeError):
@@ -104,6 +107,7 @@ class Simulation:
             raise ValueError(f"SUMO could not start: {_one_line(exc)}") from None
         self._routes: dict[str, tuple[str, ...]] = {}
         self._categories: dict[str, Category | None] = {}
+        self._category_values: dict[str, str] = {}
         self._skipped: set[str] = set()
         self.closed = False
 
@@ -146,19 +150,20 @@ class Simulation:
         self._skipped.difference_update(arrived)
         results = self._call(api.vehicle.getAllSubscriptionResults)
         ids = list(results)
-        values = [results[v] for v in ids]
-        position = np.array([r[_VAR_POSITION] for r in values], dtype=float).reshape(-1, 2)
+        lane_id, lane_pos_m, speed_mps, position, route_id, type_id, odometer_m = (
+            zip(*map(_subscribed_values, results.values())) if ids else ((),) * len(_SUBSCRIBED)
+        )
         return FleetState(
             time_s=float(self._call(api.simulation.getTime)),
             vehicle_id=ids,
-            category=[self._category(r[_VAR_TYPE]).value for r in values],
-            lane_id=[r[_VAR_LANE_ID] for r in values],
-            route_edges=[self._route(v, r[_VAR_ROUTE_ID]) for v, r in zip(ids, values)],
-            lane_pos_m=np.array([r[_VAR_LANEPOSITION] for r in values], dtype=float),
-            speed_mps=np.array([r[_VAR_SPEED] for r in values], dtype=float),
-            x_m=position[:, 0],
-            y_m=position[:, 1],
-            odometer_m=np.array([r[_VAR_DISTANCE] for r in values], dtype=float),
+            category=[self._category_values[t] for t in type_id],
+            lane_id=list(lane_id),
+            route_edges=self._route_edges(ids, route_id),
+            lane_pos_m=np.array(lane_pos_m, dtype=float),
+            speed_mps=np.array(speed_mps, dtype=float),
+            x_m=np.array([xy[0] for xy in position], dtype=float),
+            y_m=np.array([xy[1] for xy in position], dtype=float),
+            odometer_m=np.array(odometer_m, dtype=float),
             departed=departed,
             arrived=arrived,
             skipped=tuple(skipped),
@@ -184,17 +189,20 @@ class Simulation:
             vclass = self._call(self.api.vehicletype.getVehicleClass, type_id)
             declared = self._call(self.api.vehicletype.getParameter, type_id, CATEGORY_PARAMETER)
             try:
-                self._categories[type_id] = category_of(vclass, declared)
+                category = self._categories[type_id] = category_of(vclass, declared)
             except ValueError as exc:
                 raise ValueError(f"vType {type_id!r}: {exc}") from None
+            if category is not None:
+                self._category_values[type_id] = category.value
         return self._categories[type_id]
 
-    def _route(self, vehicle_id: str, route_id: str) -> tuple[str, ...]:
-        """A route's edges, fetched once per route id."""
-        edges = self._routes.get(route_id)
-        if edges is None:
-            edges = self._routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
-        return edges
+    def _route_edges(self, vehicle_ids: Sequence[str], route_ids: Sequence[str]) -> list[tuple[str, ...]]:
+        """Each vehicle's route edges; a route's edges are fetched once per route id."""
+        routes = self._routes
+        for vehicle_id, route_id in zip(vehicle_ids, route_ids):
+            if route_id not in routes:
+                routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
+        return [routes[route_id] for route_id in route_ids]
 
     def _call(self, function, *args):
         """Call the SUMO API; its failures become :class:`SumoStopped`."""
