@@ -82,6 +82,8 @@ __all__ = [
 #: connection meet exactly; a few-centimetre segment at the joint would otherwise read
 #: as a spurious sharp bend.
 JOINT_TOLERANCE_M = 0.1
+#: Lane shapes are simplified within this distance for position look-ups, m.
+MATCH_TOLERANCE_M = 0.01
 
 #: A curve is a junction manoeuvre, not a curve of the road, when at least this share of
 #: its turning angle (3.6) lies on junction lanes: internal lanes and roundabouts.
@@ -831,8 +833,8 @@ class RoadMap:
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         point_index, segment_index = self._segment_tree.query(shapely.points(xy), predicate="dwithin",
                                                               distance=radius_m)
-        start = self._segment_start[segment_index]
-        a, b, p = self._xy[start], self._xy[start + 1], xy[point_index]
+        start, end = self._segments[0][segment_index], self._segments[1][segment_index]
+        a, b, p = self._xy[start], self._xy[end], xy[point_index]
         direction = b - a
         length_sq = np.einsum("ij,ij->i", direction, direction)
         fraction = np.clip(np.einsum("ij,ij->i", p - a, direction) / np.where(length_sq > 0, length_sq, 1.0), 0, 1)
@@ -845,7 +847,8 @@ class RoadMap:
         first[1:] = (np.diff(point_index[order]) != 0) | (np.diff(lane_index[order]) != 0)
         keep = order[first]
         keep = keep[np.lexsort((distance_m[keep], point_index[keep]))]
-        along_shape_m = self._vertex_s[start[keep]] + fraction[keep] * np.sqrt(length_sq[keep])
+        start, end = start[keep], end[keep]
+        along_shape_m = self._vertex_s[start] + fraction[keep] * (self._vertex_s[end] - self._vertex_s[start])
         lane_index = lane_index[keep]
         return LaneMatches(
             point_index=point_index[keep],
@@ -959,26 +962,44 @@ class RoadMap:
         return np.array([lane.position_factor for lane in self._lanes])
 
     @cached_property
-    def _segment_start(self) -> np.ndarray:
-        """Index of the first vertex of every shape segment (consecutive distinct vertices of one lane)."""
+    def _segments(self) -> tuple[np.ndarray, np.ndarray]:
+        """First and last vertex of every indexed segment: the lane shapes simplified within
+        :data:`MATCH_TOLERANCE_M`, as indices into the shape vertices.
+
+        A dense SUMO shape (a vertex every 0.5 m) becomes one segment per straight and a
+        few per curve, so a fix meets a handful of candidates instead of dozens. The kept
+        vertices are original ones, so lane positions stay exact there and are
+        interpolated in arc length between them.
+        """
         lane_of_vertex = np.repeat(np.arange(len(self._lanes)), np.diff(self._vertex_start))
-        same_lane = lane_of_vertex[:-1] == lane_of_vertex[1:]
-        has_length = np.any(self._xy[1:] != self._xy[:-1], axis=1)
-        return np.flatnonzero(same_lane & has_length)
+        lines = shapely.linestrings(self._xy, indices=lane_of_vertex)
+        simplified = shapely.simplify(lines, MATCH_TOLERANCE_M, preserve_topology=False)
+        kept_xy, kept_lane = shapely.get_coordinates(simplified, return_index=True)
+        position = {(lane, x, y): i for i, (lane, (x, y)) in enumerate(zip(lane_of_vertex.tolist(), self._xy.tolist()))}
+        kept = np.array([position[(lane, x, y)] for lane, (x, y) in zip(kept_lane.tolist(), kept_xy.tolist())])
+        # A lane whose kept vertices are not in order (a loop through one point) keeps every vertex.
+        disordered = np.unique(kept_lane[1:][(np.diff(kept) <= 0) & (kept_lane[1:] == kept_lane[:-1])])
+        if disordered.size:
+            keep = ~np.isin(kept_lane, disordered)
+            every = np.flatnonzero(np.isin(lane_of_vertex, disordered))
+            kept = np.sort(np.concatenate((kept[keep], every)))
+        lane = lane_of_vertex[kept]
+        segment = (lane[1:] == lane[:-1]) & np.any(self._xy[kept[1:]] != self._xy[kept[:-1]], axis=1)
+        return kept[:-1][segment], kept[1:][segment]
 
     @cached_property
     def _segment_lane(self) -> np.ndarray:
-        """The lane of every shape segment."""
-        return np.searchsorted(self._vertex_start, self._segment_start, side="right") - 1
+        """The lane of every indexed segment."""
+        return np.searchsorted(self._vertex_start, self._segments[0], side="right") - 1
 
     @cached_property
     def _segment_tree(self) -> shapely.STRtree:
-        """Spatial index over the shape segments, built on the first position look-up.
+        """Spatial index over the simplified shape segments, built on the first position look-up.
 
         Segments rather than whole lanes: a projection onto two points is a few numpy
         operations, onto a lane of thousands of vertices a search along all of them.
         """
-        start = self._segment_start
-        return shapely.STRtree(shapely.linestrings(np.stack((self._xy[start], self._xy[start + 1]), axis=1)))
+        start, end = self._segments
+        return shapely.STRtree(shapely.linestrings(np.stack((self._xy[start], self._xy[end]), axis=1)))
 
 
