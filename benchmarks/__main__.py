@@ -1,0 +1,263 @@
+"""Run every benchmark and print one table: each figure beside its target.
+
+``python -m benchmarks [--quick] [--json PATH] [--osm FILE] [--load-seconds S]`` runs
+each benchmark module's ``run()`` in turn and prints one table: each figure, its value,
+the baseline it is compared with where one was measured in the same run, its target and
+PASS or FAIL. ``--quick`` uses smaller sizes and a 10 s load test (a few
+minutes in all instead of about five); ``--json PATH`` also writes the figures and every
+module's raw results as JSON for tracking.
+
+The real-network load time is measured on the bundled Bad Hersfeld network
+(``networks/badhersfeld.net.xml.gz``). Importing OpenStreetMap needs the extract, which
+is not shipped: give it with ``--osm FILE`` to time the import too; without it the
+import row says it was skipped.
+
+A benchmark that fails to run is a FAIL row with its error; the others still run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import sys
+import time
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+from benchmarks import cosim, curvature, load, osm, roadmap, service, warning
+from csws.networks import networks_dir
+from csws.roadmap import RoadMap
+
+REAL_NET = networks_dir() / "badhersfeld.net.xml.gz"
+
+
+@dataclass(frozen=True)
+class Row:
+    """One figure of the table.
+
+    Attributes
+    ----------
+    figure
+        What is measured, with its unit.
+    value
+        The measured value (text when the figure could not be measured).
+    target
+        The target, e.g. ``<= 50``; empty for figures shown for context.
+    passed
+        Whether the value meets the target; None without one.
+    baseline
+        What the value is compared with, measured in the same run.
+    """
+
+    figure: str
+    value: float | int | str
+    target: str = ""
+    passed: bool | None = None
+    baseline: str = ""
+
+    @property
+    def verdict(self) -> str:
+        return {True: "PASS", False: "FAIL", None: ""}[self.passed]
+
+
+def at_most(figure: str, value: float, limit: float, baseline: str = "") -> Row:
+    return Row(figure, value, f"<= {limit:g}", value <= limit, baseline)
+
+
+def at_least(figure: str, value: float, limit: float, baseline: str = "") -> Row:
+    return Row(figure, value, f">= {limit:g}", value >= limit, baseline)
+
+
+def context(figure: str, value: float | int | str, baseline: str = "") -> Row:
+    return Row(figure, value, baseline=baseline)
+
+
+# ------------------------------------------------------------------ each benchmark's rows
+def curvature_rows(figures: dict) -> list[Row]:
+    """Ours beside the three-point method; dense and mapped ways are judged (sparse is shown unjudged)."""
+    rows = []
+    for kind, column in (("dense", 0), ("mapped", 1)):
+        for name, limits in curvature.TARGETS.items():
+            ours, three_point = figures[kind]["ours"][name], figures[kind]["three_point"][name]
+            rows.append(at_most(f"curvature {kind}: {name}", ours, limits[column], f"{three_point:.3g} (3-point)"))
+    sparse = figures["sparse"]
+    for name in curvature.TARGETS:
+        rows.append(context(f"curvature sparse (unjudged): {name}", sparse["ours"][name],
+                            f"{sparse['three_point'][name]:.3g} (3-point)"))
+    rows.append(at_most("curvature multi curve: max_step_error_m", figures["multi_curve"]["max_step_error_m"],
+                        curvature.MULTI_STEP_TARGET_M))
+    rows.append(context("curvature: vertices/s", round(figures["throughput"]["vertices_per_s"])))
+    return rows
+
+
+def warning_rows(figures: dict) -> list[Row]:
+    single_us = figures["engine_single_median_us"]
+    return [
+        at_most("warning: engine, one vehicle, us", single_us, warning.TARGET_SINGLE_US),
+        context("warning: engine, batch of 1,000, us per vehicle", figures["engine_batch_per_vehicle_us"],
+                f"{single_us:.1f} us alone ({figures['batch_speedup']:.1f}x)"),
+    ]
+
+
+def cosim_rows(figures: dict) -> list[Row]:
+    return [at_most(f"cosim: evaluation overhead, {cosim.VEHICLES:,} vehicles (x baseline)", figures["overhead"],
+                    cosim.TARGET_OVERHEAD,
+                    f"{figures['evaluated_ms_per_step']:.1f} vs {figures['baseline_ms_per_step']:.1f} ms/step "
+                    f"without evaluation; {figures['vehicles']} evaluated")]
+
+
+def service_rows(figures: dict) -> list[Row]:
+    return [
+        at_least("service: single-query throughput ratio", figures["single_ratio"], 0.70,
+                 f"{figures['service_rps']:.0f} vs {figures['trivial_rps']:.0f} req/s (trivial endpoint)"),
+        at_most(f"service: batch of {figures['batch_size']:,}, server ms", figures["batch_server_ms"], 100.0,
+                f"{figures['batch_round_trip_ms']:.0f} ms round trip"),
+    ]
+
+
+def real_network_load() -> dict:
+    """Seconds to load the bundled real network (parse, arrays, radius profiles and curves of every lane)."""
+    started = time.perf_counter()
+    road_map = RoadMap.load(REAL_NET)
+    return {"network": REAL_NET.name, "load_s": round(time.perf_counter() - started, 2),
+            "lanes": len(road_map.lane_ids), "lane_km": round(road_map.total_length_m / 1000.0, 1),
+            "curves": len(road_map.curves())}
+
+
+def real_network_rows(figures: dict) -> list[Row]:
+    return [at_most(f"real network ({figures['lane_km']:g} lane-km): load s", figures["load_s"],
+                    osm.TARGETS["load_s"], f"{figures['lanes']:,} lanes, {figures['curves']:,} curves")]
+
+
+def grid_rows(figures: dict) -> list[Row]:
+    load_s = round(figures["parse_s"] + figures["build_s"], 2)
+    return [at_most(f"synthetic grid ({figures['lane_km']:g} lane-km): load s", load_s, osm.TARGETS["load_s"],
+                    f"{figures['lanes']:,} lanes")]
+
+
+def osm_rows(figures: dict) -> list[Row]:
+    return [at_most(f"OSM: {name}", figures[name], limit) for name, limit in osm.TARGETS.items()]
+
+
+def load_rows(figures: dict) -> list[Row]:
+    duration = f"{figures['clients']} clients, {figures['seconds']:g} s"
+    return [
+        context("load: throughput, req/s", figures["throughput_rps"], duration),
+        context("load: latency p50 / p99, ms", f"{figures['latency_ms_p50']:g} / {figures['latency_ms_p99']:g}"),
+        at_most("load: errors", figures["errors"], load.MAX_ERRORS, figures["first_error"] or ""),
+        at_most("load: memory growth, MB", figures["rss_growth_mb"], load.MAX_RSS_GROWTH_MB,
+                f"{figures['rss_mb_start']:g} -> {figures['rss_mb_end']:g} MB; {figures['sessions_at_end']} of "
+                f"{figures['vehicles']} sessions left"),
+    ]
+
+
+# ------------------------------------------------------------------ the run
+@dataclass(frozen=True)
+class Benchmark:
+    """A benchmark: how to run it, how long that takes, and its rows."""
+
+    name: str
+    run: Callable[[], dict]
+    about: str
+    rows: Callable[[dict], list[Row]]
+
+
+def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -> list[Benchmark]:
+    """Every benchmark, in the order they run; ``quick`` shrinks the sizes that allow it."""
+    load_seconds = load_seconds or (10.0 if quick else load.SECONDS)
+    chosen = [
+        Benchmark("curvature", lambda: curvature.run(cases=60 if quick else curvature.CASES_PER_CATEGORY),
+                  "about 10-60 s", curvature_rows),
+        Benchmark("warning", warning.run, "a few seconds", warning_rows),
+        Benchmark("service", service.run, "about 20 s", service_rows),
+        Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
+        Benchmark("cosim", cosim.run, f"long: about 30-60 s, {cosim.VEHICLES:,} vehicles twice", cosim_rows),
+        Benchmark("real network", real_network_load, "a few seconds", real_network_rows),
+        Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),
+                  "a few seconds" if quick else "long: about 30-90 s", grid_rows),
+    ]
+    if osm_file is not None:
+        chosen.append(Benchmark("osm", lambda: osm.run(osm_file), "long: about 1-3 minutes", osm_rows))
+    return chosen
+
+
+def run_all(chosen: list[Benchmark], log=sys.stderr) -> tuple[list[Row], dict]:
+    """Run each benchmark; a failing one becomes a FAIL row and the rest still run."""
+    rows: list[Row] = []
+    raw: dict = {}
+    for number, benchmark in enumerate(chosen, start=1):
+        print(f"[{number}/{len(chosen)}] {benchmark.name} ({benchmark.about}) ...", file=log, flush=True)
+        started = time.perf_counter()
+        try:
+            raw[benchmark.name] = benchmark.run()
+            rows += benchmark.rows(raw[benchmark.name])
+        except Exception as error:  # noqa: BLE001 - one broken benchmark must not hide the others' figures
+            raw[benchmark.name] = {"error": f"{type(error).__name__}: {error}"}
+            rows.append(Row(benchmark.name, "error", "runs", False, raw[benchmark.name]["error"]))
+        raw[benchmark.name + "_wall_s"] = round(time.perf_counter() - started, 1)
+    return rows, raw
+
+
+def _text(value: float | int | str) -> str:
+    if isinstance(value, float):
+        return f"{value:.3g}" if abs(value) < 1000 else f"{value:,.0f}"
+    return f"{value:,}" if isinstance(value, int) else str(value)
+
+
+def table(rows: list[Row]) -> str:
+    """The rows as a fixed-width table."""
+    header = ("figure", "value", "target", "", "baseline (same run)")
+    cells = [header] + [(r.figure, _text(r.value), r.target, r.verdict, r.baseline) for r in rows]
+    widths = [max(len(c[i]) for c in cells) for i in range(4)]
+    lines = [f"{c[0]:<{widths[0]}}  {c[1]:>{widths[1]}}  {c[2]:<{widths[2]}}  {c[3]:<{widths[3]}}  {c[4]}".rstrip()
+             for c in cells]
+    lines.insert(1, "-" * max(map(len, lines)))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller sizes and a 10 s load test")
+    parser.add_argument("--json", type=Path, default=None, metavar="PATH", help="also write the results as JSON")
+    parser.add_argument("--osm", type=Path, default=None, metavar="FILE",
+                        help="an OpenStreetMap extract: also time its import (skipped without it)")
+    parser.add_argument("--load-seconds", type=float, default=None, help="length of the load test, s")
+    args = parser.parse_args(argv)
+    if args.osm is not None and not args.osm.is_file():
+        parser.error(f"no OSM file at {args.osm}")
+    started = datetime.now(timezone.utc)
+    rows, raw = run_all(benchmarks(args.quick, args.osm, args.load_seconds))
+    if args.osm is None:
+        rows.append(Row("OSM: import_s", "skipped", f"<= {osm.TARGETS['import_s']:g}", None,
+                        "no OpenStreetMap extract given (--osm FILE)"))
+    print(table(rows))
+    judged = [r for r in rows if r.passed is not None]
+    print(f"{sum(r.passed for r in judged)} of {len(judged)} judged figures meet their targets"
+          f"{' (quick sizes)' if args.quick else ''}")
+    if args.json is not None:
+        document = {"started": started.isoformat(timespec="seconds"), "quick": args.quick,
+                    "python": platform.python_version(), "machine": platform.machine(),
+                    "rows": [asdict(r) | {"verdict": r.verdict} for r in rows], "results": raw}
+        args.json.write_text(json.dumps(_plain(document), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _plain(value):
+    """Standard JSON of the raw results: numpy values as Python ones, non-finite numbers as text."""
+    if isinstance(value, dict):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    value = value.tolist() if hasattr(value, "tolist") else value
+    if isinstance(value, list):
+        return _plain(value)
+    return str(value) if isinstance(value, float) and not math.isfinite(value) else value
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,150 @@
+"""The service held at saturation on loopback: throughput, latency, errors and memory.
+
+``CLIENTS`` concurrent clients (asyncio and httpx, one keep-alive connection each) post
+single ``POST /v1/warning`` fixes back to back to one uvicorn worker serving the Table 7
+track, for a fixed time: the server always has a request waiting. Each vehicle id sends
+:data:`FIXES_PER_VEHICLE` fixes and then falls silent for good, like a vehicle leaving the
+area, and the service runs with a short session idle time, so sessions expire as fast as
+new vehicles come. The server's resident memory (``VmRSS`` of ``/proc/PID/status``) after a
+warm-up and at the end must differ by at most :data:`MAX_RSS_GROWTH_MB`; no request may
+fail.
+
+Everything is bounded: the run stops at its deadline, every request has a timeout, and
+the server is stopped at the end whatever happens.
+
+Run with ``python -m benchmarks.load [--seconds 60] [--clients 16] [--session-idle-s 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import time
+from dataclasses import dataclass, field
+
+import httpx
+import numpy as np
+
+from benchmarks.service import TRACK_NET, _fixes, _start
+
+SECONDS = 60.0
+CLIENTS = 16
+SESSION_IDLE_S = 2.0
+FIXES_PER_VEHICLE = 10
+#: Part of the run (at most :data:`MAX_WARM_UP_S`) before the starting memory is read: caches fill.
+WARM_UP_FRACTION = 0.1
+MAX_WARM_UP_S = 5.0
+REQUEST_TIMEOUT_S = 10.0
+#: Targets: no failed request, and memory at the end within this much of that after the warm-up.
+MAX_ERRORS = 0
+MAX_RSS_GROWTH_MB = 20.0
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process from ``/proc/PID/status`` (``VmRSS``), MB."""
+    with open(f"/proc/{pid}/status", encoding="ascii") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    raise RuntimeError(f"no VmRSS in /proc/{pid}/status")
+
+
+@dataclass
+class Tally:
+    """What the clients saw: latency of every answered request, and the failures."""
+
+    latencies_s: list[float] = field(default_factory=list)
+    errors: int = 0
+    first_error: str | None = None
+    vehicles: int = 0
+
+    def fail(self, reason: str) -> None:
+        self.errors += 1
+        self.first_error = self.first_error or reason
+
+
+async def _client(url: str, number: int, fixes: list[dict], deadline: float, tally: Tally) -> None:
+    """Post fixes back to back until ``deadline``; a new vehicle id every :data:`FIXES_PER_VEHICLE` fixes."""
+    headers = {"content-type": "application/json"}
+    sent = 0
+    async with httpx.AsyncClient(base_url=url, timeout=REQUEST_TIMEOUT_S) as client:
+        while time.monotonic() < deadline:
+            vehicle, fix = divmod(sent, FIXES_PER_VEHICLE)
+            tally.vehicles += fix == 0
+            body = json.dumps({**fixes[sent % len(fixes)], "vehicle_id": f"c{number}-v{vehicle}"})
+            sent += 1
+            started = time.perf_counter()
+            try:
+                response = await client.post("/v1/warning", content=body, headers=headers)
+            except httpx.HTTPError as error:
+                tally.fail(f"{type(error).__name__}: {error}")
+                continue
+            if response.status_code != 200:
+                tally.fail(f"HTTP {response.status_code}: {response.text[:200]}")
+                continue
+            tally.latencies_s.append(time.perf_counter() - started)
+
+
+async def _drive(url: str, pid: int, seconds: float, clients: int) -> tuple[Tally, float, float, float]:
+    """Run the clients; return the tally, the measured seconds and the RSS after warm-up and at the end."""
+    fixes = _fixes(1000)
+    tally = Tally()
+    started = time.monotonic()
+    deadline = started + seconds
+    runs = asyncio.gather(*(_client(url, n, fixes, deadline, tally) for n in range(clients)))
+    await asyncio.sleep(min(WARM_UP_FRACTION * seconds, MAX_WARM_UP_S))
+    warm_rss_mb = rss_mb(pid)
+    await asyncio.wait_for(runs, timeout=seconds + 2 * REQUEST_TIMEOUT_S)
+    return tally, time.monotonic() - started, warm_rss_mb, rss_mb(pid)
+
+
+def run(seconds: float = SECONDS, clients: int = CLIENTS, session_idle_s: float = SESSION_IDLE_S) -> dict:
+    """Start the service, hold it at saturation for ``seconds``, stop it; return the figures."""
+    process, url = _start(["--factory", "service.app:create_app"],
+                          {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:",
+                           "CSWS_SESSION_IDLE_S": str(session_idle_s)})
+    try:
+        start_rss_mb = rss_mb(process.pid)
+        tally, measured_s, warm_rss_mb, end_rss_mb = asyncio.run(_drive(url, process.pid, seconds, clients))
+        sessions = httpx.get(f"{url}/readyz").json()["vehicle_sessions"]
+    finally:
+        process.terminate()
+        process.wait(timeout=10)
+    latencies_ms = np.array(tally.latencies_s) * 1000.0
+    return {
+        "seconds": round(measured_s, 1),
+        "clients": clients,
+        "requests": len(latencies_ms) + tally.errors,
+        "throughput_rps": round(len(latencies_ms) / measured_s, 1),
+        "latency_ms_p50": round(float(np.percentile(latencies_ms, 50)), 2),
+        "latency_ms_p99": round(float(np.percentile(latencies_ms, 99)), 2),
+        "errors": tally.errors,
+        "first_error": tally.first_error,
+        "vehicles": tally.vehicles,
+        "session_idle_s": session_idle_s,
+        "sessions_at_end": sessions,
+        "rss_mb_idle": round(start_rss_mb, 1),
+        "rss_mb_start": round(warm_rss_mb, 1),
+        "rss_mb_end": round(end_rss_mb, 1),
+        "rss_growth_mb": round(end_rss_mb - warm_rss_mb, 1),
+    }
+
+
+def main() -> None:
+    """Print each figure beside its target."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.load", description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=SECONDS, help=f"how long to load the service (default {SECONDS:g})")
+    parser.add_argument("--clients", type=int, default=CLIENTS, help=f"concurrent clients (default {CLIENTS})")
+    parser.add_argument("--session-idle-s", type=float, default=SESSION_IDLE_S,
+                        help=f"the service's session idle time, s (default {SESSION_IDLE_S:g})")
+    args = parser.parse_args()
+    figures = run(args.seconds, args.clients, args.session_idle_s)
+    targets = {"errors": f"<= {MAX_ERRORS}", "rss_growth_mb": f"<= {MAX_RSS_GROWTH_MB:g}"}
+    for name, value in figures.items():
+        target = targets.get(name, "")
+        print(f"{name:>16}: {value!s:<12} {('target ' + target) if target else ''}")
+
+
+if __name__ == "__main__":
+    main()
