@@ -53,8 +53,10 @@ __all__ = [
     "three_point_radius",
 ]
 
-#: Chords shorter than this are treated as repeated vertices, m.
-MIN_CHORD_M = 1e-6
+#: Chords shorter than this are treated as repeated vertices, m. With coordinates rounded
+#: to the centimetre such a chord's heading is off by more than 10 degrees, and netconvert
+#: leaves centimetre-long backward chords at junctions that would read as a U-turn.
+MIN_CHORD_M = 0.05
 #: Lower bound of the coordinate noise, m: that of rounding to the centimetre, as SUMO
 #: writes shapes. Rounding a regularly spaced line can leave errors too regular for
 #: :func:`_coordinate_noise_m` to see, yet they still bend short chords.

@@ -12,6 +12,7 @@ found per vehicle, and the warning of all of them is computed in one vectorised 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -153,7 +154,7 @@ class Engine:
             vehicle.speed_kmh,
             timestamp_s=vehicle.timestamp_s,
             age_s=vehicle.age_s,
-            map_fault=self._map_fault(vehicle),
+            found_fault=self._found_fault(vehicle),
             settings=self.settings.activation,
         )
         self.statuses[vehicle.vehicle_id] = status
@@ -182,12 +183,14 @@ class Engine:
             for vehicle, status, warning, path in zip(vehicles, statuses, warnings, paths)
         ]
 
-    def _map_fault(self, vehicle: VehicleInput) -> Fault | None:
-        """The map fault that prevents a path ahead (5.4), or None."""
+    def _found_fault(self, vehicle: VehicleInput) -> Fault | None:
+        """What prevents a path ahead (5.4): no map, no lane, or a lane position that is not a number."""
         if self.road_map is None:
             return Fault.NO_MAP
         if vehicle.lane_id is None or not self.road_map.has_lane(vehicle.lane_id):
             return Fault.NO_MAP_MATCH
+        if not math.isfinite(vehicle.lane_pos_m):
+            return Fault.INVALID_INPUT
         return None
 
     def _warnings(self, vehicles: Sequence[VehicleInput]) -> tuple[list[CurveWarning], list[PathAhead]]:

@@ -397,6 +397,15 @@ def read_sumo_net(path: str | Path) -> sumolib.net.Net:
     return net
 
 
+def _check_shape(lane: sumolib.net.lane.Lane) -> None:
+    """NetworkError naming the lane if its shape is not a polyline of finite coordinates (SUMO refuses it too)."""
+    shape = lane.getShape()
+    if len(shape) < 2:
+        raise NetworkError(f"lane {lane.getID()} has a broken shape of {len(shape)} point(s); a lane needs two or more")
+    if not np.isfinite(np.asarray(shape, dtype=float)).all():
+        raise NetworkError(f"lane {lane.getID()} has a shape coordinate that is not a finite number")
+
+
 def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool) -> Lane:
     """The :class:`Lane` attributes of a sumolib lane."""
     edge = lane.getEdge()
@@ -625,7 +634,11 @@ class RoadMap:
         NetworkError
             If the file is missing, not a SUMO network, or has no lanes.
         """
-        return cls.from_net(read_sumo_net(net_path), warning_radius_m)
+        net = read_sumo_net(net_path)
+        try:
+            return cls.from_net(net, warning_radius_m)
+        except NetworkError as error:
+            raise NetworkError(f"{Path(net_path).name}: {error}") from None
 
     @classmethod
     def from_net(cls, net: sumolib.net.Net, warning_radius_m: float | None = None) -> "RoadMap":
@@ -635,14 +648,12 @@ class RoadMap:
         sumolib objects can be freed.
         """
         sumo_lanes = [
-            lane
-            for edge in net.getEdges()
-            if edge.getFunction() in _KEPT_FUNCTIONS
-            for lane in edge.getLanes()
-            if len(lane.getShape()) >= 2
+            lane for edge in net.getEdges() if edge.getFunction() in _KEPT_FUNCTIONS for lane in edge.getLanes()
         ]
         if not sumo_lanes:
             raise NetworkError("the network has no lanes with a shape")
+        for lane in sumo_lanes:
+            _check_shape(lane)
         vertex_start = np.concatenate(([0], np.cumsum([len(lane.getShape()) for lane in sumo_lanes]))).astype(np.int64)
         xy = np.array(list(chain.from_iterable(lane.getShape() for lane in sumo_lanes)), dtype=float).reshape(-1, 2)
         shape_length_m = _vertex_arc_length(xy, vertex_start)[vertex_start[1:] - 1]
@@ -830,7 +841,7 @@ class RoadMap:
         """
         if not (math.isfinite(radius_m) and radius_m > 0):
             raise ValueError(f"search radius must be a positive number of metres, got {radius_m!r}")
-        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        xy = _finite_pairs(xy, "positions")
         point_index, segment_index = self._segment_tree.query(shapely.points(xy), predicate="dwithin",
                                                               distance=radius_m)
         start, end = self._segments[0][segment_index], self._segments[1][segment_index]

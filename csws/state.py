@@ -138,7 +138,7 @@ def next_status(
     *,
     timestamp_s: float | None = None,
     age_s: float | None = None,
-    map_fault: Fault | None = None,
+    found_fault: Fault | None = None,
     settings: ActivationSettings = ActivationSettings(),
 ) -> VehicleStatus:
     """The status after one update of the vehicle's speed and position.
@@ -153,14 +153,15 @@ def next_status(
         When the position was taken, s; an update older than the last accepted one is stale.
     age_s
         How old the position is now, s, where known; older than ``stale_after_s`` is stale.
-    map_fault
-        ``Fault.NO_MAP`` or ``Fault.NO_MAP_MATCH`` when the map side failed.
+    found_fault
+        A fault found outside the state machine: ``Fault.NO_MAP`` or ``Fault.NO_MAP_MATCH``
+        when the map side failed, ``Fault.INVALID_INPUT`` for a position that is not a number.
     settings
         Activation speed, hysteresis and staleness limit.
     """
     if not status.switched_on:
         return status
-    fault = _input_fault(speed_kmh, timestamp_s, age_s, status.last_timestamp_s, settings) or map_fault
+    fault = _input_fault(speed_kmh, timestamp_s, age_s, status.last_timestamp_s, settings) or found_fault
     if fault is not None:
         return replace(status, state=SystemState.FAULT, fault=fault)
     activated = _is_activated(status.activated, speed_kmh, settings)

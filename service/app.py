@@ -34,8 +34,10 @@ from .schemas import (
     BATCH_ADAPTER,
     MAX_BATCH,
     QUERY_ADAPTER,
+    SWITCH_ADAPTER,
     Answers,
     Batch,
+    Message,
     Query,
     VehicleState,
     VehicleSwitch,
@@ -279,14 +281,17 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     vehicle_path = Path(min_length=1, max_length=128, description="the vehicle")
 
     @app.put("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
-             summary="Switch CSWS on or off for a vehicle (5.2) and set its category")
-    async def put_vehicle(setting: VehicleSwitch, vehicle_id: str = vehicle_path) -> dict[str, Any]:
+             summary="Switch CSWS on or off for a vehicle (5.2) and set its category",
+             responses={422: _INVALID_BODY}, openapi_extra=_json_body("VehicleSwitch"))
+    async def put_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
+        setting = _validated(SWITCH_ADAPTER, await request.body())
         registry.expire()
         registry.configure(vehicle_id, setting.switched_on, setting.category)
         return _vehicle_state(vehicle_id)
 
     @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
-             summary="A vehicle's switch, category and system state")
+             summary="A vehicle's switch, category and system state",
+             responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"}})
     async def get_vehicle(vehicle_id: str = vehicle_path) -> dict[str, Any]:
         registry.expire()
         if not registry.known(vehicle_id):
@@ -318,7 +323,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
 
 def _document_bodies(app: FastAPI) -> None:
-    """Put the query and batch bodies' schemas into the OpenAPI components (their endpoints read them)."""
+    """Put the bodies' schemas (query, batch, switch) into the OpenAPI components (their endpoints read them)."""
     build = app.openapi
 
     def openapi() -> dict[str, Any]:
@@ -328,6 +333,9 @@ def _document_bodies(app: FastAPI) -> None:
             components = schema.setdefault("components", {}).setdefault("schemas", {})
             components.update(definitions.pop("$defs", {}))
             components["Batch"] = definitions
+            switch = VehicleSwitch.model_json_schema(ref_template="#/components/schemas/{model}")
+            components.update(switch.pop("$defs", {}))
+            components["VehicleSwitch"] = switch
             app.openapi_schema = schema
         return app.openapi_schema
 

@@ -237,5 +237,12 @@ class VehicleState(BaseModel):
     lane_id: str | None = Field(description="its last matched lane")
 
 
+class Message(BaseModel):
+    """An answer that only says why: e.g. a vehicle the service does not know."""
+
+    detail: str
+
+
 BATCH_ADAPTER = TypeAdapter(Batch)
 QUERY_ADAPTER = TypeAdapter(Query)
+SWITCH_ADAPTER = TypeAdapter(VehicleSwitch)

@@ -184,10 +184,6 @@ def test_vehicles_on_zero_length_lanes_are_answered(tiny_map: RoadMap, route) ->
     assert before.path.path.lane_ids[-1] == "cd_0"
 
 
-@pytest.mark.xfail(strict=True, reason="csws/curvature.py: a path starting on netconvert's backward 2 cm junction "
-                                       "lane (:c_0_0, shape 600.04 -> 600.02, then 600.02 -> 1200) holds a 720 degree "
-                                       "'curve' of R 47.7 m over the straight 600 m; find_curves([[0.02, 0], [0, 0], "
-                                       "[600, 0]]) gives it too")
 @pytest.mark.parametrize("route", [None, TINY_ROUTE], ids=["predicted", "route"])
 def test_nothing_warns_on_a_straight_road_with_zero_length_lanes(tiny_map: RoadMap, route) -> None:
     for answer in Engine(tiny_map).evaluate_many(_everywhere(tiny_map, route)):
@@ -240,10 +236,6 @@ def test_a_zero_length_junction_lane_keeps_the_distances_to_the_curves() -> None
         assert path.cpoi_distance_m == pytest.approx(ahead_m[ahead_m <= path.lookahead_m], abs=0.5)
 
 
-@pytest.mark.xfail(strict=True, reason="csws/roadmap.py: RoadMap.from_net drops a lane whose shape has fewer than "
-                                       "two points, so the path ends before the junction and the curves behind it "
-                                       "are never warned of; SUMO refuses such a network ('Shape of lane ... is "
-                                       "broken')")
 @pytest.mark.parametrize("shape", ["900.000,0.000", ""], ids=["one-point", "no-point"])
 def test_a_lane_with_a_broken_shape_is_refused_naming_it(tmp_path: Path, shape: str) -> None:
     with pytest.raises(NetworkError, match=":entry_0_0"):
@@ -301,9 +293,6 @@ def test_a_non_finite_bbox_gets_a_422(client) -> None:
     assert response.status_code == 422 and "four finite numbers" in response.text
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="csws/roadmap.py: RoadMap.match_points passes NaN to shapely, which raises GEOSException "
-                          "instead of a ValueError as xy_to_lonlat_many gives")
 def test_matching_nan_coordinates_is_a_clear_value_error(straight_map: RoadMap) -> None:
     try:
         straight_map.match_points(np.array([[100.0, 0.0], [math.nan, 0.0]]), radius_m=10.0)
@@ -315,8 +304,6 @@ def test_matching_nan_coordinates_is_a_clear_value_error(straight_map: RoadMap) 
         raise AssertionError("no error for a NaN coordinate")
 
 
-@pytest.mark.xfail(strict=True, reason="csws/state.py, csws/engine.py: a NaN lane position passes the input check "
-                                       "(5.4) and the vehicle is answered active with no warning")
 def test_a_nan_lane_position_is_invalid_input() -> None:
     engine = Engine(RoadMap.load(networks_dir() / "t7_left.net.xml"))
     route = T7_TRUTH["route"]["edges"]
@@ -381,9 +368,6 @@ def test_a_missing_or_corrupt_network_is_one_line_for_every_command(tmp_path: Pa
     assert net.name in result.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="csws/roadmap.py: a lane shape with NaN is reported as "
-                                       "'polyline (polyline 0) has NaN or infinite coordinates', naming neither "
-                                       "the file nor the lane")
 def test_a_network_with_a_nan_shape_is_one_line_naming_the_file(tmp_path: Path) -> None:
     net = _t7_with_entry_shape(tmp_path, "nan,0.000 900.000,0.000")
     result = _csws("curves", net, cwd=tmp_path)

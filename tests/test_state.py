@@ -44,8 +44,8 @@ def test_the_driver_switches_it_off_and_on():
         (dict(speed_kmh=math.nan), Fault.INVALID_INPUT),
         (dict(speed_kmh=-5.0), Fault.INVALID_INPUT),
         (dict(speed_kmh=50.0, age_s=5.0), Fault.STALE_INPUT),
-        (dict(speed_kmh=50.0, map_fault=Fault.NO_MAP_MATCH), Fault.NO_MAP_MATCH),
-        (dict(speed_kmh=50.0, map_fault=Fault.NO_MAP), Fault.NO_MAP),
+        (dict(speed_kmh=50.0, found_fault=Fault.NO_MAP_MATCH), Fault.NO_MAP_MATCH),
+        (dict(speed_kmh=50.0, found_fault=Fault.NO_MAP), Fault.NO_MAP),
     ],
 )
 def test_faults_turn_warnings_off_with_a_reason_and_clear_on_good_input(kwargs, fault):
