@@ -113,7 +113,6 @@ def _free_port() -> int:
 
 @pytest.fixture(scope="module")
 def service_url(tmp_path_factory):
-    pytest.importorskip("service.app")
     port = _free_port()
     environment = {**os.environ, "CSWS_NETS": str(FLEET_NET), "CSWS_STATE_DB": ":memory:", "CSWS_UPDATE_PERIOD_S": str(STEP_S)}
     process = subprocess.Popen(
