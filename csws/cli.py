@@ -12,7 +12,7 @@ import argparse
 import importlib
 import sys
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, NoReturn, Sequence
 
 from . import __version__
 from .argtypes import positive_float
@@ -66,9 +66,16 @@ def _default_networks_dir() -> Path:
 COMMAND_MODULES = ("service.cli", "csws.cosim.cli", "csws.conformance.cli", "csws.osm.cli")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error as one line like every other bad input (subcommands inherit it)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_BAD_INPUT, f"csws: error: {message} (see: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``csws`` and its subcommands."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="csws",
         description="Map-based curve speed warning for commercial vehicles (T/ITS 0091-2018).",
     )

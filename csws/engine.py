@@ -148,7 +148,14 @@ class Engine:
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
 
     def _next_status(self, vehicle: VehicleInput) -> VehicleStatus:
-        """Update and return the vehicle's status (5.2-5.4)."""
+        """Update and return the vehicle's status (5.2-5.4).
+
+        Raises
+        ------
+        ValueError
+            For an unknown category, before anything about the vehicle changes.
+        """
+        column_index(vehicle.category)
         status = next_status(
             self.status(vehicle.vehicle_id),
             vehicle.speed_kmh,
@@ -199,7 +206,7 @@ class Engine:
         columns = np.array([column_index(v.category) for v in vehicles], dtype=np.intp)
         ahead = self.lookahead.many(
             [v.lane_id for v in vehicles], np.array([v.lane_pos_m for v in vehicles], dtype=float), speed_kmh,
-            columns, [v.route_edges for v in vehicles],
+            [v.route_edges for v in vehicles],
         )
         batch = evaluate_batch(speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m, ahead.cpoi_radius_m,
                                self.settings.warning)

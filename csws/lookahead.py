@@ -45,7 +45,6 @@ __all__ = [
     "PathAhead",
     "BatchAhead",
     "LookAhead",
-    "lookahead_distance_m",
     "lookahead_distances_m",
     "curve_id_of",
 ]
@@ -91,50 +90,26 @@ class LookAheadSettings:
             raise ValueError(f"fixed_distance_m must be a positive number of metres, got {self.fixed_distance_m!r}")
 
 
-def _smallest_warning_speeds_mps(warning_settings: WarningSettings) -> np.ndarray:
-    """Per column of Tables 1-2 the smallest warning speed of the policy (level 1, smallest radius), m/s."""
-    policy = warning_settings.policy
-    return kmh_to_mps(np.array([min(policy.speeds_kmh[(column, Level.LEVEL_1)]) for column in Column]))
+def _required_m(speed_mps, warning_settings: WarningSettings):
+    """The largest warning distance any curve can need at this speed, plus the latency allowance, m.
 
-
-def _required_m(speed_mps, smallest_warning_speed_mps, warning_settings: WarningSettings):
-    """Formula (1) at the speed with the smallest warning speed, plus the latency allowance, m (floats or arrays).
-
-    Below the smallest warning speed this is less than the reaction distance; the floor
-    of S_LAD covers it, and no warning is due there anyway.
+    Formula (1) with V_w = 0: below the table radii the warning speed falls with the
+    radius, so no positive speed bounds it (floats or arrays).
     """
-    return formula_1_m(speed_mps, smallest_warning_speed_mps, warning_settings.g_mps2) + (
-        speed_mps * warning_settings.latency_s
-    )
+    return formula_1_m(speed_mps, 0.0, warning_settings.g_mps2) + speed_mps * warning_settings.latency_s
 
 
 def lookahead_distances_m(
     speed_kmh: np.ndarray,
-    column_index: np.ndarray,
     warning_settings: WarningSettings = WarningSettings(),
     floor_m: float = LookAheadSettings.floor_m,
 ) -> np.ndarray:
     """The look-ahead distance S_LAD (3.9) each vehicle needs at its speed, m.
 
-    Long enough for the largest warning distance the speed can need: formula (1) with
-    the smallest warning speed of the vehicle's column (the level-1 speed at the
-    smallest policy radius), plus the distance driven during the system latency; never
-    below ``floor_m``.
+    Long enough for the largest warning distance its speed can need (formula (1) with
+    V_w = 0, plus the distance driven during the system latency); never below ``floor_m``.
     """
-    smallest_mps = _smallest_warning_speeds_mps(warning_settings)[np.asarray(column_index)]
-    return np.maximum(floor_m, _required_m(kmh_to_mps(np.asarray(speed_kmh, dtype=float)), smallest_mps,
-                                           warning_settings))
-
-
-def lookahead_distance_m(
-    speed_kmh: float,
-    category: "str | Category",
-    warning_settings: WarningSettings = WarningSettings(),
-    floor_m: float = LookAheadSettings.floor_m,
-) -> float:
-    """The look-ahead distance S_LAD (3.9) of one vehicle, m (see :func:`lookahead_distances_m`)."""
-    smallest_mps = float(_smallest_warning_speeds_mps(warning_settings)[column_index(category)])
-    return max(floor_m, _required_m(kmh_to_mps(float(speed_kmh)), smallest_mps, warning_settings))
+    return np.maximum(floor_m, _required_m(kmh_to_mps(np.asarray(speed_kmh, dtype=float)), warning_settings))
 
 
 @dataclass(frozen=True)
@@ -304,7 +279,6 @@ class LookAhead:
         self.settings = settings
         self.warning_settings = warning_settings
         self._horizons: OrderedDict[tuple, Horizon] = OrderedDict()
-        self._smallest_mps = _smallest_warning_speeds_mps(warning_settings).tolist()
 
     def __call__(
         self,
@@ -321,11 +295,11 @@ class LookAhead:
         KeyError
             If ``lane_id`` is not a lane of the map.
         """
+        column_index(category)  # an unknown category is refused, whatever S_LAD it would need
         if self.settings.fixed_distance_m is not None:
             lookahead_m = self.settings.fixed_distance_m
         else:
-            lookahead_m = max(self.settings.floor_m, _required_m(
-                kmh_to_mps(float(speed_kmh)), self._smallest_mps[column_index(category)], self.warning_settings))
+            lookahead_m = max(self.settings.floor_m, _required_m(kmh_to_mps(float(speed_kmh)), self.warning_settings))
         horizon = self.horizon(lane_id, route_edges, lookahead_m)
         return PathAhead(horizon, horizon.vehicle_s(float(lane_pos_m)), lookahead_m)
 
@@ -334,7 +308,6 @@ class LookAhead:
         lane_ids: Sequence[str],
         lane_pos_m: np.ndarray,
         speed_kmh: np.ndarray,
-        column_index: np.ndarray,
         routes: Sequence[Sequence[str] | None],
     ) -> BatchAhead:
         """The roads ahead of many vehicles and all their CPOIs, selected in one vectorised step.
@@ -344,7 +317,7 @@ class LookAhead:
         KeyError
             If a lane id is not a lane of the map.
         """
-        lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float), np.asarray(column_index))
+        lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float))
         horizons = [self.horizon(lane, route, lad) for lane, route, lad in zip(lane_ids, routes, lookahead_m.tolist())]
         unique: dict[int, int] = {}
         for horizon in horizons:
@@ -379,11 +352,11 @@ class LookAhead:
             cpoi_curve_id=curve[part],
         )
 
-    def lookahead_m(self, speed_kmh: np.ndarray, column_index: np.ndarray) -> np.ndarray:
+    def lookahead_m(self, speed_kmh: np.ndarray) -> np.ndarray:
         """S_LAD of each vehicle: the fixed distance if one is set, else the speed-dependent one, m."""
         if self.settings.fixed_distance_m is not None:
             return np.full(np.shape(speed_kmh), self.settings.fixed_distance_m)
-        return lookahead_distances_m(speed_kmh, column_index, self.warning_settings, self.settings.floor_m)
+        return lookahead_distances_m(speed_kmh, self.warning_settings, self.settings.floor_m)
 
     def horizon(self, lane_id: str, route_edges: Sequence[str] | None, lookahead_m: float) -> Horizon:
         """The road ahead from the start of ``lane_id`` long enough for ``lookahead_m`` anywhere on it (cached).
@@ -401,7 +374,7 @@ class LookAhead:
         if cached is not None:
             self._horizons.move_to_end(key)
             return cached
-        lanes, kind = self._lanes_ahead(lane_id, 0.0, lane.length_m + reach_m, remaining)
+        lanes, kind = self._lanes_ahead(lane_id, lane.length_m, lane.length_m + reach_m, remaining)
         horizon = self._build_horizon(lanes, kind)
         self._horizons[key] = horizon
         if len(self._horizons) > self.settings.cache_size:

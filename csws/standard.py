@@ -167,6 +167,10 @@ class WarningSpeedPolicy:
             raise ValueError("policy radii must be two or more finite positive numbers")
         if np.any(np.diff(radii) <= 0):
             raise ValueError("policy radii must be strictly increasing")
+        missing = [f"{column.value} level {int(level)}" for level in _LEVELS for column in _COLUMNS
+                   if (column, level) not in self.speeds_kmh]
+        if missing:
+            raise ValueError(f"policy has no warning speeds for {', '.join(missing)}: every column needs both levels")
         for key, speeds in self.speeds_kmh.items():
             if len(speeds) != radii.size:
                 raise ValueError(f"policy entry {key} has {len(speeds)} speeds for {radii.size} radii")

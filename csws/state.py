@@ -13,9 +13,13 @@ standby
 active
     Activated: warnings are given (5.3.1).
 fault
-    The system cannot warn: no map, no map match, stale or invalid input. Warnings are
-    off and the fault is indicated with its reason (5.4, 5.5.3). The state clears by
-    itself with the next good update.
+    The system cannot warn: no map, no map match, stale or invalid input. 5.4 asks that
+    a failing system indicate the fault and switch itself off: in this state warnings
+    are off and the fault is indicated with its reason (5.5.3). The faults a map-based
+    system meets are conditions of its input rather than broken parts, so the state
+    clears by itself with the next good update instead of waiting for the driver; the
+    activation latch is kept, so a short loss of the map match does not send an active
+    system back to standby.
 """
 
 from __future__ import annotations

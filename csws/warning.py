@@ -29,6 +29,7 @@ import numpy as np
 
 from .standard import (
     DEFAULT_POLICY,
+    G_MPS2,
     Category,
     Column,
     Level,
@@ -110,7 +111,7 @@ class WarningSettings:
     policy: WarningSpeedPolicy = field(default_factory=lambda: DEFAULT_POLICY)
     update_period_s: float = 0.1
     system_delay_s: float = 0.1
-    g_mps2: float = 9.8
+    g_mps2: float = G_MPS2
 
     def __post_init__(self) -> None:
         for name in ("update_period_s", "system_delay_s"):

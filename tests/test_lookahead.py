@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
-from csws.lookahead import LookAhead, LookAheadSettings, lookahead_distance_m
+from csws.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
+from csws.standard import warning_distance, warning_speed
 from csws.netbuild import netconvert, shape_text
 from csws.roadmap import RoadMap
 from csws.warning import PathKind
@@ -123,12 +124,21 @@ def test_cpois_beyond_the_lookahead_distance_are_not_of_interest(junction_map: R
 
 
 def test_lookahead_distance_covers_the_largest_warning_distance():
-    assert lookahead_distance_m(50.0, "N") == 250.0
-    fast = lookahead_distance_m(250.0, "M1")
-    v, v_w = 250 / 3.6, 48 / 3.6
-    assert fast == pytest.approx(0.8 * v + (v**2 - v_w**2) / 9.8 + v * 0.2)
+    assert lookahead_distances_m(np.array([50.0]))[0] == 250.0
+    v = 250 / 3.6
+    assert lookahead_distances_m(np.array([250.0]))[0] == pytest.approx(0.8 * v + v**2 / 9.8 + v * 0.2)
     with pytest.raises(ValueError, match="fixed_distance_m must be a positive number"):
         LookAheadSettings(fixed_distance_m=0.0)
+
+
+@pytest.mark.parametrize("speed_kmh", [60.0, 130.0, 180.0, 250.0])
+@pytest.mark.parametrize("radius_m", [5.0, 10.0, 25.0, 40.0, 200.0])
+def test_the_lookahead_distance_reaches_every_warning_distance(speed_kmh, radius_m):
+    """Below the table radii the warning speed keeps falling: S_LAD must still cover S_w (3.9, 3.11)."""
+    allowance_m = speed_kmh / 3.6 * 0.2
+    for category in ("M1", "M2", "N"):
+        needed_m = warning_distance(speed_kmh, warning_speed(radius_m, category, 1)) + allowance_m
+        assert lookahead_distances_m(np.array([speed_kmh]))[0] >= needed_m
 
 
 def test_paths_are_cached(junction_map: RoadMap) -> None:

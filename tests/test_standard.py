@@ -223,8 +223,13 @@ def test_a_fleet_can_override_the_policy():
     assert warning_speed(40.0, "N", 1, policy=cautious) == 34.0
     with pytest.raises(ValueError, match="strictly increasing"):
         WarningSpeedPolicy(radii_m=(40.0, 40.0, 200.0))
+    short = dict(WarningSpeedPolicy().speeds_kmh)
+    short[(Column.M1, Level.LEVEL_1)] = (1.0, 2.0)
     with pytest.raises(ValueError, match="has 2 speeds for 3 radii"):
-        WarningSpeedPolicy(speeds_kmh={(Column.M1, Level.LEVEL_1): (1.0, 2.0)})
+        WarningSpeedPolicy(speeds_kmh=short)
+    # A policy must give both levels of every column: a missing one would silently never warn.
+    with pytest.raises(ValueError, match="no warning speeds for M2 level 1, .*M3_N_O level 2"):
+        WarningSpeedPolicy(speeds_kmh={(Column.M1, Level.LEVEL_1): (48.0, 83.0, 107.0)})
 
 
 def test_the_policy_works_on_arrays():

@@ -69,11 +69,10 @@ def test_settings_reject_bad_values():
 
 @settings(max_examples=200, deadline=None)
 @given(speeds=st.lists(st.floats(0.0, 120.0), min_size=1, max_size=40))
-def test_warnings_only_when_active_and_never_active_below_the_release_speed(speeds):
+def test_never_active_below_the_release_speed_and_always_above_the_activation_speed(speeds):
     status = VehicleStatus()
     for speed_kmh in speeds:
         status = next_status(status, speed_kmh, settings=SPEED_ACTIVATION)
-        assert status.warns == (status.state is SystemState.ACTIVE)
         if speed_kmh < SPEED_ACTIVATION.activation_speed_kmh - SPEED_ACTIVATION.hysteresis_kmh:
             assert status.state is SystemState.STANDBY
         if speed_kmh >= SPEED_ACTIVATION.activation_speed_kmh:

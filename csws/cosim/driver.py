@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from csws.standard import REACTION_TIME_S, kmh_to_mps
+from csws.standard import G_MPS2, REACTION_TIME_S, kmh_to_mps
 
 __all__ = ["DriverSettings", "DriverResponse"]
 
@@ -46,7 +46,7 @@ class DriverSettings:
     """
 
     reaction_s: float = REACTION_TIME_S
-    decel_mps2: float = 4.9
+    decel_mps2: float = G_MPS2 / 2
     hold_m: float = 200.0
     below_kmh: float = 0.5
 
