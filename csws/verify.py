@@ -58,11 +58,6 @@ class CurveCheck:
         """Found minus true end, m."""
         return self.found_end_s - self.truth_end_s
 
-    @property
-    def radius_error(self) -> float:
-        """Relative radius error (found / true - 1)."""
-        return self.found_radius_m / self.truth_radius_m - 1.0
-
 
 @dataclass(frozen=True)
 class VerificationReport:

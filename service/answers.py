@@ -182,7 +182,7 @@ class WarningService:
         else:
             own = self.registry.network_of(query.vehicle_id)
             candidates = [own] + [i for i in range(len(self.networks)) if i != own]
-        return next((i for i in candidates if _has_lane(self.networks[i], query.lane_id)), None)
+        return next((i for i in candidates if self.networks[i].road_map.has_lane(query.lane_id)), None)
 
     # ------------------------------------------------------------------ evaluation
     def place(self, queries: Sequence[Query]) -> list[Placement]:
@@ -289,16 +289,9 @@ class WarningService:
                 fault = f"{fault}: {placement.reason}"
             fault = _json_text(fault)
         target, triggers = "null", "[]"
-        located = list(warning.triggers)
-        if warning.target is not None and warning.target not in located:
-            located.append(warning.target)
+        located = warning.triggers  # the target is one of them
         if located:
-            points = cpoi_points(
-                answer.path,
-                np.array([t.distance_m for t in located]),
-                np.array([t.part_index for t in located]),
-                network.engine.settings.lookahead.warning_radius_m,
-            )
+            points = cpoi_points(answer.path, [t.curve_id for t in located], [t.part_index for t in located])
             positions = {id(t): position(network, p) for t, p in zip(located, points)}
             if warning.target is not None:
                 target = _dumps(_trigger(warning.target, positions[id(warning.target)]))
@@ -344,14 +337,6 @@ def _number(value: float) -> str:
 def _hmi_json(hmi: HmiHint) -> str:
     """The JSON of an HMI hint (there are three)."""
     return _dumps({"visual": hmi.visual, "audible": hmi.audible})
-
-
-def _has_lane(network: ServedNetwork, lane_id: str) -> bool:
-    try:
-        network.road_map.lane(lane_id)
-    except KeyError:
-        return False
-    return True
 
 
 def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:

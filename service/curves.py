@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from csws.lookahead import curve_id_of
 from csws.mapmatch import points_along
 from csws.roadmap import LaneCurve
 from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
@@ -33,11 +34,6 @@ def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str,
                          for level in (Level.LEVEL_1, Level.LEVEL_2)}
         for category in Category
     }
-
-
-def curve_id(lane_id: str, start_pos_m: float) -> str:
-    """A curve's id, ``lane@position`` of its start: the form :class:`csws.lookahead.LookAhead` gives CPOIs."""
-    return f"{lane_id}@{start_pos_m:.0f}"
 
 
 def _curve_line(network: ServedNetwork, lane_curve: LaneCurve) -> np.ndarray:
@@ -66,13 +62,13 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
         curve = lane_curve.curve
         features.append({
             "type": "Feature",
-            "id": f"{network.name}/{curve_id(lane_curve.lane_id, lane_curve.start_pos_m)}",
+            "id": f"{network.name}/{curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m)}",
             "bbox": [min(xs), min(ys), max(xs), max(ys)],
             "geometry": {"type": "LineString", "coordinates": coordinates},
             "properties": {
                 "network": network.name,
                 "coordinates": _COORDINATES[network.road_map.has_projection],
-                "curve_id": curve_id(lane_curve.lane_id, lane_curve.start_pos_m),
+                "curve_id": curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m),
                 "lane_id": lane_curve.lane_id,
                 "start_pos_m": lane_curve.start_pos_m,
                 "end_pos_m": lane_curve.end_pos_m,

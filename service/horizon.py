@@ -9,7 +9,6 @@ position along the path.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Sequence
 
 import numpy as np
@@ -35,25 +34,27 @@ def position(network: ServedNetwork, point: np.ndarray) -> dict[str, float]:
     return {"x": x, "y": y, "lon": float(lon), "lat": float(lat)}
 
 
-def cpoi_points(
-    ahead: PathAhead, distance_m: np.ndarray, part_index: np.ndarray, warning_radius_m: float
-) -> np.ndarray:
-    """Where CPOIs are: the first point of each constant-radius part, ``(n, 2)``, m.
+def cpoi_points(ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> np.ndarray:
+    """Where CPOIs are: the first point of each one's constant-radius part, ``(n, 2)``, m.
 
-    A CPOI ahead lies its distance beyond the vehicle along the path; one the vehicle
-    is already inside (distance 0) lies where its part starts, behind the vehicle.
+    A CPOI ahead lies its distance beyond the vehicle; one the vehicle is already inside
+    lies where its part starts, behind the vehicle.
     """
-    s = ahead.vehicle_s + np.asarray(distance_m, dtype=float)
-    inside = np.flatnonzero(s == ahead.vehicle_s)
-    if inside.size:
-        parts = [(index, part) for curve in ahead.path.curves(warning_radius_m) for index, part in enumerate(curve.parts)]
-        for i in inside:
-            s[i] = next(
-                (part.start_s for index, part in parts
-                 if index == part_index[i] and part.start_s <= ahead.vehicle_s < part.end_s),
-                ahead.vehicle_s,
-            )
+    start_of = {(curve, int(part)): start_s
+                for curve, part, start_s in zip(ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_start_s)}
+    s = np.array([start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index)], dtype=float)
     return points_along(ahead.path.xy, s, ahead.path.profile.s)
+
+
+#: A stretch of the profile gentler than this is shown as straight (radius null), m.
+STRAIGHT_RADIUS_M = 10_000.0
+
+
+def _direction(curvature: float) -> str:
+    """``left``, ``right``, or ``straight`` for a stretch gentler than :data:`STRAIGHT_RADIUS_M`."""
+    if abs(curvature) < 1.0 / STRAIGHT_RADIUS_M:
+        return "straight"
+    return "left" if curvature > 0 else "right"
 
 
 def horizon(
@@ -77,15 +78,14 @@ def horizon(
         {
             "start_m": max(part.start_s, start_s) - start_s,
             "end_m": min(part.end_s, end_s) - start_s,
-            "radius_m": None if math.isinf(part.radius_m) else part.radius_m,
-            "direction": "straight" if part.curvature == 0 else ("left" if part.curvature > 0 else "right"),
+            "radius_m": None if part.radius_m > STRAIGHT_RADIUS_M else part.radius_m,
+            "direction": _direction(part.curvature),
         }
         for part in path.profile.parts
         if part.end_s > start_s and part.start_s < end_s
     ]
     keep = np.flatnonzero(ahead.cpoi_distance_m <= end_s - start_s)
-    points = cpoi_points(ahead, ahead.cpoi_distance_m[keep], ahead.cpoi_part_index[keep],
-                         network.horizon.settings.warning_radius_m)
+    points = cpoi_points(ahead, [ahead.cpoi_curve_id[i] for i in keep], ahead.cpoi_part_index[keep])
     policy = network.engine.settings.warning.policy
     cpois = [
         {
