@@ -141,6 +141,10 @@ class ServiceEvaluator:
         self.connection = connection_type(parts.hostname, parts.port, timeout=timeout_s)
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
+        """The service's answers; a vehicle on no lane (SUMO teleports it) is a map-match fault, as the
+        engine answers it in-process, and is not sent: the contract needs a lane or a position."""
+        on_lane = [i for i, lane_id in enumerate(fleet.lane_id) if lane_id]
+        speeds_kmh, lane_pos_m = _speeds_kmh(fleet), fleet.lane_pos_m.tolist()
         queries = [
             {
                 "vehicle_id": vehicle_id,
@@ -151,14 +155,18 @@ class ServiceEvaluator:
                 "route": route,
                 "timestamp_s": fleet.time_s,
             }
-            for vehicle_id, category, speed_kmh, lane_id, lane_pos_m, route in zip(
-                fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id, fleet.lane_pos_m.tolist(),
-                fleet.route_edges,
+            for vehicle_id, category, speed_kmh, lane_id, lane_pos_m, route in (
+                (fleet.vehicle_id[i], fleet.category[i], speeds_kmh[i], fleet.lane_id[i], lane_pos_m[i],
+                 fleet.route_edges[i])
+                for i in on_lane
             )
         ]
-        answers = []
+        answered = []
         for first in range(0, len(queries), MAX_BATCH):
-            answers += self._post({"queries": queries[first:first + MAX_BATCH]})["answers"]
+            answered += self._post({"queries": queries[first:first + MAX_BATCH]})["answers"]
+        answers = [_OFF_THE_MAP] * len(fleet.vehicle_id)
+        for i, answer in zip(on_lane, answered):
+            answers[i] = answer
         targets = [answer["target"] for answer in answers]
         return FleetWarnings(
             state=[answer["state"] for answer in answers],
@@ -187,6 +195,10 @@ class ServiceEvaluator:
 
     def close(self) -> None:
         self.connection.close()
+
+
+#: The answer for a vehicle on no lane: what the engine answers for it (5.4: fault, no warning).
+_OFF_THE_MAP = {"state": SystemState.FAULT.value, "level": 0, "target": None, "triggers": []}
 
 
 def _trigger(record: dict) -> Trigger:
