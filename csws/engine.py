@@ -22,7 +22,7 @@ from .lookahead import LookAhead, LookAheadSettings, PathAhead
 from .roadmap import RoadMap
 from .standard import Level
 from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, switch
-from .warning import CurveWarning, HmiHint, PathKind, WarningSettings, column_index, evaluate_batch
+from .warning import CurveWarning, WarningSettings, column_index, evaluate_batch, no_warning
 
 __all__ = ["VehicleInput", "Answer", "EngineSettings", "Engine"]
 
@@ -99,8 +99,6 @@ class EngineSettings:
     activation: ActivationSettings = field(default_factory=ActivationSettings)
 
 
-#: The answer's warning when the system does not warn (not active, or no path).
-_NO_WARNING = CurveWarning(Level.NONE, None, (), PathKind.PREDICTED, HmiHint.for_level(Level.NONE))
 
 
 class Engine:
@@ -137,7 +135,7 @@ class Engine:
         """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
         status = self._next_status(vehicle)
         if not status.warns:
-            return Answer(vehicle.vehicle_id, status.state, status.fault, _NO_WARNING, None)
+            return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
         path = self.lookahead(vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category,
                               vehicle.route_edges)
         distance_m = path.cpoi_distance_m
@@ -180,7 +178,7 @@ class Engine:
             statuses.append(status)
             if status.warns:
                 active.append(i)
-        warnings: list[CurveWarning] = [_NO_WARNING] * len(vehicles)
+        warnings: list[CurveWarning] = [no_warning()] * len(vehicles)
         paths: list[PathAhead | None] = [None] * len(vehicles)
         if active:
             for i, warning, path in zip(active, *self._warnings([vehicles[i] for i in active])):

@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["Piece", "straight", "arc", "piece_starts_s", "pose_at", "sample_pieces"]
+__all__ = ["Piece", "straight", "arc", "piece_starts_s", "pose_at", "sample_pieces", "wrap_angle_rad"]
 
 
 @dataclass(frozen=True)
@@ -142,3 +142,8 @@ def sample_pieces(
     s = np.concatenate(parts + [starts[-1:]])
     x, y, _ = pose_at(pieces, s, start_xy, start_heading_rad)
     return np.column_stack((x, y)), s
+
+
+def wrap_angle_rad(angle_rad):
+    """Angles wrapped to [-pi, pi) (floats or arrays)."""
+    return (angle_rad + np.pi) % (2 * np.pi) - np.pi

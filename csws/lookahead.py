@@ -35,6 +35,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .geometry import wrap_angle_rad
 from .roadmap import Lane, PathProfile, RoadMap
 from .standard import DEFAULT_WARNING_RADIUS_M, Category, Column, Level, formula_1_m, kmh_to_mps
 from .warning import CurvaturePointOfInterest, PathKind, WarningSettings, column_index
@@ -429,11 +430,11 @@ class LookAhead:
         if len(successors) == 1:
             return successors[0]
         current = self.road_map.lane(lane_id)
-        heading_out = _end_heading(self.road_map.lane_shape(lane_id))
+        heading_out = _lane_end_heading(self.road_map.lane_shape(lane_id), -1)
 
         def preference(candidate: str) -> tuple[bool, bool, float]:
             destination = self.road_map.lane(self._destination(candidate))
-            turning = abs(_wrap(_start_heading(self.road_map.lane_shape(candidate)) - heading_out))
+            turning = abs(wrap_angle_rad(_lane_end_heading(self.road_map.lane_shape(candidate), 0) - heading_out))
             return (
                 not (current.street_name and destination.street_name == current.street_name),
                 not (current.road_type and destination.road_type == current.road_type),
@@ -526,18 +527,9 @@ def _route_successors(route_edges: Sequence[str] | None, lane: Lane) -> dict[str
     return following
 
 
-def _wrap(angle_rad: float) -> float:
-    """An angle wrapped to [-pi, pi)."""
-    return (angle_rad + math.pi) % (2 * math.pi) - math.pi
-
-
-def _end_heading(shape: np.ndarray) -> float:
-    """Heading of a lane's last segment, radians."""
-    dx, dy = shape[-1] - shape[-2] if len(shape) > 1 else (1.0, 0.0)
-    return math.atan2(dy, dx)
-
-
-def _start_heading(shape: np.ndarray) -> float:
-    """Heading of a lane's first segment, radians."""
-    dx, dy = shape[1] - shape[0] if len(shape) > 1 else (1.0, 0.0)
+def _lane_end_heading(shape: np.ndarray, end: int) -> float:
+    """Heading of a lane's first (``end=0``) or last (``end=-1``) segment, radians."""
+    if len(shape) < 2:
+        return 0.0
+    dx, dy = shape[1] - shape[0] if end == 0 else shape[-1] - shape[-2]
     return math.atan2(dy, dx)

@@ -28,6 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .geometry import wrap_angle_rad
 from .roadmap import RoadMap
 
 __all__ = [
@@ -120,11 +121,6 @@ def compass_to_math_rad(heading_deg: np.ndarray) -> np.ndarray:
     return np.radians(90.0 - np.asarray(heading_deg, dtype=float))
 
 
-def _wrapped_rad(angle_rad: np.ndarray) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (angle_rad + np.pi) % (2 * np.pi) - np.pi
-
-
 def points_along(xy: np.ndarray, s: np.ndarray, vertex_s: np.ndarray | None = None) -> np.ndarray:
     """Points at arc lengths ``s`` along a polyline ``xy`` (clamped to its ends), ``(len(s), 2)``, m.
 
@@ -201,7 +197,7 @@ class MapMatcher:
         placed = np.flatnonzero(np.isfinite(xy).all(axis=1))
         found = self.road_maps[map_index].match_points(xy[placed], self.settings.tolerance_m)
         point = placed[found.point_index]
-        off_rad = _wrapped_rad(found.heading_rad - compass_to_math_rad(heading_deg[point]))
+        off_rad = wrap_angle_rad(found.heading_rad - compass_to_math_rad(heading_deg[point]))
         agrees = ~(np.abs(off_rad) > math.radians(self.settings.heading_tolerance_deg))  # NaN heading agrees
         continued = np.array(
             [

@@ -50,6 +50,7 @@ __all__ = [
     "BatchWarnings",
     "column_index",
     "column_indices",
+    "no_warning",
 ]
 
 
@@ -341,6 +342,11 @@ def evaluate_batch(
 
 #: The warning of a vehicle for which nothing triggers, per path kind.
 _NO_WARNINGS = {kind: CurveWarning(Level.NONE, None, (), kind, _HMI_HINTS[Level.NONE]) for kind in PathKind}
+
+
+def no_warning(path_kind: PathKind = PathKind.PREDICTED) -> CurveWarning:
+    """The (shared) warning of level 0: nothing triggers, or the system does not warn."""
+    return _NO_WARNINGS[path_kind]
 
 
 def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray):

@@ -32,6 +32,7 @@ import numpy as np
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.netbuild import netconvert, shape_text
+from csws.networks.generate import ANGLE_MARGIN, PRECISION_DIGITS
 
 __all__ = [
     "FLEET_NAME",
@@ -66,8 +67,6 @@ LANE_SPEED_MPS = 100 / 3.6
 LANES = 1
 #: Vertex spacing of the authored shapes, m.
 SAMPLE_SPACING_M = 1.0
-#: Turning angle of a curve whose angle the standard leaves open: twice Table 3's or Table 4's minimum.
-ANGLE_MARGIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -223,7 +222,7 @@ def sumocfg_xml(net_file: str, route_file: str) -> str:
 def build_fleet_net(net_file: Path, lanes: int = LANES) -> Path:
     """Write the fleet network with ``lanes`` lanes each way (the benchmark uses more) into ``net_file``."""
     nodes, edges = _plain_xml(lanes)
-    return netconvert(nodes, edges, net_file, ["--precision", "3"])
+    return netconvert(nodes, edges, net_file, ["--precision", str(PRECISION_DIGITS)])
 
 
 def build_fleet(directory: Path) -> Path:
