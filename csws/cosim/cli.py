@@ -5,49 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from csws.argtypes import comma_list, positive_float, positive_int, step_length
+
 
 def _run(args: argparse.Namespace) -> int:
     from csws.cosim import run as job
 
     return job.main(args)
-
-
-def _step_length(text: str) -> float:
-    """argparse type: a step length in s, a positive multiple of 1 ms (SUMO's resolution) up to 1 s."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (0 < value <= 1) or abs(value * 1000 - round(value * 1000)) > 1e-9:
-        raise argparse.ArgumentTypeError(f"a step length must be a multiple of 0.001 s in (0, 1]: {text!r}")
-    return value
-
-
-def _positive_number(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (0 < value < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a positive number: {text!r}")
-    return value
-
-
-def _vehicle_count(text: str) -> int:
-    """argparse type: a vehicle count >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1: {text!r}")
-    return value
-
-
-def _paths(text: str) -> list[Path]:
-    """argparse type: comma-separated paths."""
-    return [Path(part) for part in text.split(",") if part]
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -62,12 +26,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     scenario = parser.add_argument_group("scenario (default: the bundled fleet, networks/fleet_scenario/fleet.sumocfg)")
     scenario.add_argument("--sumocfg", type=Path, default=None, help="a SUMO configuration")
     scenario.add_argument("--net", type=Path, default=None, help="a SUMO network (with --routes)")
-    scenario.add_argument("--routes", type=_paths, default=None, help="route files, comma-separated")
-    scenario.add_argument("--vehicles", type=_vehicle_count, default=None,
+    scenario.add_argument("--routes", type=comma_list(Path, "route file"), default=None, help="route files, comma-separated")
+    scenario.add_argument("--vehicles", type=positive_int, default=None,
                           help="generate a mixed fleet of this many vehicles (one per second) on the fleet network")  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("cosim-out"), help="output folder (default: cosim-out)")
-    parser.add_argument("--step-length", type=_step_length, default=0.1, help="SUMO step length in s (default 0.1)")
-    parser.add_argument("--end", type=_positive_number, default=None, help="stop at this simulation time, s")
+    parser.add_argument("--step-length", type=step_length, default=0.1, help="SUMO step length in s (default 0.1)")
+    parser.add_argument("--end", type=positive_float, default=None, help="stop at this simulation time, s")
     parser.add_argument("--service", default=None, metavar="URL",
                         help="ask a running csws service (POST /v1/warnings) instead of the library, e.g. http://127.0.0.1:8000")  # fmt: skip
     interface = parser.add_mutually_exclusive_group()
