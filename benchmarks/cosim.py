@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
-from csws.networks.fleet import FLEET_TYPES, build_fleet_net, forward_edges, vtype_xml
+from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
 
 VEHICLES = 1000
 STEP_S = 0.1
@@ -29,15 +29,12 @@ TARGET_OVERHEAD = 0.5
 def _routes_xml(count: int, seed: int = 0) -> str:
     """``count`` vehicles of the fleet's mix, each starting at a random section of either direction at t = 0."""
     rng = np.random.default_rng(seed)
-    forward = forward_edges()
-    backward = [f"b{edge[1:]}" for edge in reversed(forward)]
-    shares = np.array([t.share for t in FLEET_TYPES])
-    types = rng.choice(len(FLEET_TYPES), size=count, p=shares / shares.sum())
+    directions = (forward_edges(), backward_edges())
     lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
-    for index in range(count):
-        edges = (forward, backward)[index % 2]
+    for index, fleet_type in enumerate(draw_types(count, rng)):
+        edges = directions[index % 2]
         first = int(rng.integers(0, len(edges) - 1))
-        type_id = FLEET_TYPES[types[index]].type_id
+        type_id = fleet_type.type_id
         lines.append(
             f'<vehicle id="{type_id}{index}" type="{type_id}" depart="0" departPos="random_free" departLane="random" '
             f'departSpeed="max"><route edges="{" ".join(edges[first:])}"/></vehicle>'

@@ -184,6 +184,17 @@ def vtype_xml(fleet_type: FleetType) -> str:
     )
 
 
+def backward_edges() -> list[str]:
+    """The edges of the backward direction, in driving order."""
+    return [f"b{edge[1:]}" for edge in reversed(forward_edges())]
+
+
+def draw_types(count: int, rng: np.random.Generator) -> list[FleetType]:
+    """``count`` vehicle types drawn with the fleet mix's shares."""
+    shares = np.array([t.share for t in FLEET_TYPES])
+    return [FLEET_TYPES[i] for i in rng.choice(len(FLEET_TYPES), size=count, p=shares / shares.sum())]
+
+
 def fleet_routes_xml(count: int = FLEET_VEHICLES, period_s: float = FLEET_PERIOD_S, seed: int = 0) -> str:
     """A route file of ``count`` vehicles of the fleet's mix departing evenly over ``period_s``.
 
@@ -192,17 +203,14 @@ def fleet_routes_xml(count: int = FLEET_VEHICLES, period_s: float = FLEET_PERIOD
     """
     if count < 1:
         raise ValueError(f"a fleet needs at least one vehicle, got {count}")
-    rng = np.random.default_rng(seed)
-    shares = np.array([t.share for t in FLEET_TYPES])
-    types = rng.choice(len(FLEET_TYPES), size=count, p=shares / shares.sum())
-    forward = forward_edges()
-    routes = (" ".join(forward), " ".join(f"b{edge[1:]}" for edge in reversed(forward)))
+    types = draw_types(count, np.random.default_rng(seed))
+    routes = (" ".join(forward_edges()), " ".join(backward_edges()))
     lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
     lines += [f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes)]
-    for index in range(count):
+    for index, fleet_type in enumerate(types):
         depart_s = round(index * period_s / count, 1)
         lines.append(
-            f'<vehicle id="{FLEET_TYPES[types[index]].type_id}{index}" type="{FLEET_TYPES[types[index]].type_id}" '
+            f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" '
             f'route="{("forward", "backward")[index % 2]}" depart="{depart_s:g}" departLane="best" departSpeed="max"/>'
         )
     lines.append("</routes>")
