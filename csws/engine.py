@@ -99,6 +99,8 @@ class EngineSettings:
     activation: ActivationSettings = field(default_factory=ActivationSettings)
 
 
+#: The status of a vehicle not seen before (shared: statuses are immutable).
+_NEW_STATUS = VehicleStatus()
 
 
 class Engine:
@@ -120,7 +122,7 @@ class Engine:
 
     def status(self, vehicle_id: str) -> VehicleStatus:
         """The vehicle's current status (a new vehicle starts switched on, in standby)."""
-        return self.statuses.get(vehicle_id, VehicleStatus())
+        return self.statuses.get(vehicle_id, _NEW_STATUS)
 
     def switch(self, vehicle_id: str, on: bool) -> VehicleStatus:
         """The driver switches CSWS on or off for a vehicle (5.2)."""
@@ -211,7 +213,8 @@ class Engine:
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicles) + 1)).tolist()
         warnings = [
             batch.vehicle_warning(i, first[i], ahead.cpoi_curve_id[first[i]:first[i + 1]],
-                                  ahead.cpoi_part_index[first[i]:first[i + 1]], ahead.horizons[i].kind)
-            for i in range(len(vehicles))
+                                  ahead.cpoi_part_index[first[i]:first[i + 1]], horizon.kind)
+            if level else no_warning(horizon.kind)  # most vehicles: nothing to look at
+            for i, (level, horizon) in enumerate(zip(batch.level.tolist(), ahead.horizons))
         ]
-        return warnings, [ahead.path_ahead(i) for i in range(len(vehicles))]
+        return warnings, ahead.paths_ahead()

@@ -252,6 +252,10 @@ class BatchAhead:
         """One vehicle's :class:`PathAhead`."""
         return PathAhead(self.horizons[vehicle], float(self.vehicle_s[vehicle]), float(self.lookahead_m[vehicle]))
 
+    def paths_ahead(self) -> list[PathAhead]:
+        """Every vehicle's :class:`PathAhead`, in order (:meth:`path_ahead` of each, without per-vehicle indexing)."""
+        return list(map(PathAhead, self.horizons, self.vehicle_s.tolist(), self.lookahead_m.tolist()))
+
 
 #: Horizons are built for S_LAD rounded up to a multiple of this, so that they are shared, m.
 HORIZON_STEP_M = 250.0
@@ -319,12 +323,8 @@ class LookAhead:
             If a lane id is not a lane of the map.
         """
         lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float))
-        horizons = [self.horizon(lane, route, lad) for lane, route, lad in zip(lane_ids, routes, lookahead_m.tolist())]
-        unique: dict[int, int] = {}
-        for horizon in horizons:
-            unique.setdefault(id(horizon), len(unique))
-        distinct = list({id(h): h for h in horizons}.values())
-        which = np.array([unique[id(h)] for h in horizons], dtype=np.intp)
+        distinct, which = self._distinct_horizons(lane_ids, routes, lookahead_m)
+        horizons = [distinct[k] for k in which.tolist()]
         factor = np.array([h.path.lane_position_factor[0] for h in distinct])[which]
         shape_length = np.array([h.path.lane_shape_length_m[0] for h in distinct])[which]
         vehicle_s = np.clip(np.asarray(lane_pos_m, dtype=float) / factor, 0.0, shape_length)
@@ -353,6 +353,27 @@ class LookAhead:
             cpoi_curve_id=curve[part],
         )
 
+    def _distinct_horizons(
+        self, lane_ids: Sequence[str], routes: Sequence[Sequence[str] | None], lookahead_m: np.ndarray
+    ) -> tuple[list[Horizon], np.ndarray]:
+        """The horizons the vehicles need, each looked up once, and the index of each vehicle's.
+
+        Vehicles on the same lane with the same route and the same horizon reach share a
+        horizon, so the cache is asked once per group rather than once per vehicle.
+        """
+        first_of: dict[tuple, int] = {}
+        distinct: list[Horizon] = []
+        which: list[int] = []
+        reaches_m = _reach_m(lookahead_m, self.settings.context_m).tolist()
+        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist()):
+            key = (lane_id, route if route is None or isinstance(route, tuple) else tuple(route), reach_m)
+            index = first_of.get(key)
+            if index is None:
+                index = first_of[key] = len(distinct)
+                distinct.append(self.horizon(lane_id, route, lad_m))
+            which.append(index)
+        return distinct, np.array(which, dtype=np.intp)
+
     def lookahead_m(self, speed_kmh: np.ndarray) -> np.ndarray:
         """S_LAD of each vehicle: the fixed distance if one is set, else the speed-dependent one, m."""
         if self.settings.fixed_distance_m is not None:
@@ -367,7 +388,7 @@ class LookAhead:
         KeyError
             If ``lane_id`` is not a lane of the map.
         """
-        reach_m = math.ceil((lookahead_m + self.settings.context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
+        reach_m = float(_reach_m(lookahead_m, self.settings.context_m))
         lane = self.road_map.lane(lane_id)
         remaining = _remaining_route(route_edges, lane)
         key = (lane_id, remaining, reach_m)
@@ -477,6 +498,12 @@ class LookAhead:
             part_index=np.array(indices, dtype=np.intp),
             part_curve_id=np.array(ids, dtype=object),
         )
+
+
+def _reach_m(lookahead_m, context_m: float):
+    """How far a horizon reaches beyond its first lane for S_LAD ``lookahead_m``: S_LAD plus the context,
+    rounded up to a multiple of :data:`HORIZON_STEP_M` so that horizons are shared, m (floats or arrays)."""
+    return np.ceil((np.asarray(lookahead_m, dtype=float) + context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
 
 
 def _is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):

@@ -353,11 +353,11 @@ def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, 
     """Per vehicle the highest triggered level and its nearest CPOI (3.12, 6.2.1).
 
     CPOIs sorted by vehicle, then level descending, then distance: the first of each
-    vehicle is its target, if its level is not 0.
+    vehicle is its target, if its level is not 0. Most steps trigger nothing: no sort then.
     """
     level = np.zeros(n_vehicles, dtype=np.int8)
     target = np.full(n_vehicles, -1, dtype=np.intp)
-    if distance.size == 0:
+    if not cpoi_level.any():
         return level, target
     order = np.lexsort((distance, -cpoi_level, cpoi_vehicle))
     vehicles = cpoi_vehicle[order]
