@@ -279,13 +279,14 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
         for axis in (speed_axis, level_axis):
             axis.axvline(offset_m, color="black", lw=0.8)
         level_axis.annotate(f"curve {number}", (offset_m, 2.25), fontsize=7, ha="left")
-    for check in row.checks:
-        if check.table_distance_m is None:
-            continue
+    marked = [check for check in row.checks if check.table_distance_m is not None]
+    for number, check in enumerate(marked):
         offset_m = track_truth.curve_start_s_m[0] - track_truth.curve_start_s_m[check.curve_number - 1]
         position_m = offset_m + check.table_distance_m
         level_axis.axvline(position_m, color="tab:red", ls="--", lw=0.8)
-        level_axis.annotate(f"S_w {check.label}", (position_m, 0.1 + 0.35 * int(check.level)), fontsize=7, color="tab:red")
+        # Marks of one row often lie a few metres apart: their labels go one above the other.
+        level_axis.annotate(f"S_w {check.label}", (position_m, 0.15 + 0.4 * number), fontsize=7, color="tab:red",
+                            ha="right", xytext=(-2, 0), textcoords="offset points")
     speed_axis.set_ylabel("speed (km/h)")
     speed_axis.legend(fontsize=7)
     level_axis.set_ylabel("warning level")
