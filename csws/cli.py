@@ -66,6 +66,16 @@ def _default_networks_dir() -> Path:
 COMMAND_MODULES = ("service.cli", "csws.cosim.cli", "csws.conformance.cli", "csws.osm.cli")
 
 
+def deferred(module_name: str, function_name: str = "main") -> Callable[[argparse.Namespace], int]:
+    """A subcommand handler that imports ``module_name`` only when the subcommand runs, then calls
+    ``function_name(args)``: heavy modules (SUMO, FastAPI) stay out of ``csws --help``."""
+
+    def handler(args: argparse.Namespace) -> int:
+        return getattr(importlib.import_module(module_name), function_name)(args)
+
+    return handler
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, with a usage error as one line like every other bad input (subcommands inherit it)."""
 

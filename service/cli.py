@@ -5,11 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-
-def _run(args: argparse.Namespace) -> int:
-    from service import run as job
-
-    return job.main(args)
+from csws.cli import deferred
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -31,4 +27,4 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                         help="a vehicle session idle this long expires, s (default 600)")
     parser.add_argument("--update-period-s", type=float, default=None,
                         help="how often a vehicle's fixes arrive, s: the warning comes that much earlier (default 0.1)")
-    parser.set_defaults(handler=_run)
+    parser.set_defaults(handler=deferred("service.run"))

@@ -6,12 +6,7 @@ import argparse
 from pathlib import Path
 
 from csws.argtypes import comma_list, one_of, positive_int, step_length
-
-
-def _run(args: argparse.Namespace) -> int:
-    from csws.conformance import run as job
-
-    return job.main(args)
+from csws.cli import deferred
 
 
 #: Tables 5-9, and 0 for our negative rows.
@@ -40,4 +35,4 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--rows", type=comma_list(str, "row pattern"), default=None, help="only rows whose id matches one of these patterns, e.g. 'T7-*,T5-R40-*'")
     parser.add_argument("--directions", type=_DIRECTIONS, default=None, help="only tracks turning this way: left, right, s (default: all)")
     parser.add_argument("--no-plots", action="store_true", help="do not draw the per-row plots")
-    parser.set_defaults(handler=_run)
+    parser.set_defaults(handler=deferred("csws.conformance.run"))

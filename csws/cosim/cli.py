@@ -6,12 +6,7 @@ import argparse
 from pathlib import Path
 
 from csws.argtypes import comma_list, positive_float, positive_int, step_length
-
-
-def _run(args: argparse.Namespace) -> int:
-    from csws.cosim import run as job
-
-    return job.main(args)
+from csws.cli import deferred
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -40,4 +35,4 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--driver-response", action="store_true",
                         help="run the fleet without and with the driver-response model (react 0.8 s, brake at 4.9 m/s^2) and compare")  # fmt: skip
     parser.add_argument("--seed", type=int, default=0, help="SUMO's random seed and the generated fleet's (default 0)")
-    parser.set_defaults(handler=_run)
+    parser.set_defaults(handler=deferred("csws.cosim.run"))

@@ -7,18 +7,7 @@ import argparse
 from pathlib import Path
 
 from csws.argtypes import positive_int
-
-
-def _run_import(args: argparse.Namespace) -> int:
-    from csws.osm import run as job
-
-    return job.main(args)
-
-
-def _run_fleet(args: argparse.Namespace) -> int:
-    from csws.osm import run as job
-
-    return job.fleet_main(args)
+from csws.cli import deferred
 
 
 def _vclasses(text: str) -> tuple[str, ...]:
@@ -45,7 +34,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         default=None,
         help="keep the roads that allow one of these SUMO vehicle classes (default: truck,bus,coach)",
     )
-    parser.set_defaults(handler=_run_import)
+    parser.set_defaults(handler=deferred("csws.osm.run"))
 
     fleet = commands.add_parser(
         "fleet-scenario", help="write a SUMO scenario of trucks and buses on the twistiest roads of a network"
@@ -61,4 +50,4 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         default="highway.primary,highway.secondary",
         help="road types whose curves the routes seek (default highway.primary,highway.secondary)",
     )
-    fleet.set_defaults(handler=_run_fleet)
+    fleet.set_defaults(handler=deferred("csws.osm.run", "fleet_main"))
