@@ -9,7 +9,9 @@ Which way the path goes:
 
 * with a route (SUMO: the vehicle's edges; HTTP: a list of edge ids) it follows the
   route, through the junctions' internal lanes; where the route ends or leaves the
-  network, the path ends;
+  network, the path ends. The route is taken from the first time it passes the
+  vehicle's edge: a route that passes an edge twice should be given from the vehicle's
+  position on (SUMO's route index tells where that is);
 * without one it follows the most probable path: at each junction the successor
   that keeps the road, i.e. the one on an edge with the same street name, then the
   same road type, then the smallest change of heading. Such a path is marked
