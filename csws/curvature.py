@@ -95,6 +95,9 @@ SHORT_CHORD_NOISE_FACTOR = 5.0
 SPARSE_KNOT_OFFSET = 10.0
 #: A part of a sparse polyline is curved only if making it straight grows the normalised residual by more.
 SPARSE_STRAIGHT_THRESHOLD = 20.0
+#: A curved part at a polyline's end gets a straight between it and the end when that
+#: reduces the normalised residual by more (the straight adds a knot but no curvature).
+SPARSE_END_STRAIGHT_THRESHOLD = 10.0
 #: Chord counts sparse polylines are padded to, so that few batches are fitted (each in one set of array operations).
 SPARSE_BATCH_CHORDS = np.array([4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80])
 #: Most array elements (polylines x trials x chords x parts) fitted in one go.
@@ -1045,6 +1048,63 @@ def _with_straights(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, 
     return bounds, free
 
 
+def _end_straight_trial(
+    batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray, column: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The best place of the knot ``bounds[:, column]`` between its neighbours with the
+    part it bounds straight, and the residual there, ``(polylines,)`` each."""
+    low, high = bounds[:, column - 1], bounds[:, column + 1]
+    coarse, coarse_valid = _coarse_between(batch, low, high)
+    positions = np.concatenate((coarse, _fine_positions(low, high)), axis=1)
+    valid = np.concatenate((coarse_valid, np.ones((len(bounds), FINE_KNOT_STEPS), dtype=bool)), axis=1)
+    residual = np.where(valid, _moved_knot_residuals(batch, bounds, free, column, positions), np.inf)
+    best = np.argmin(residual, axis=1)
+    rows = np.arange(len(bounds))
+    return positions[rows, best], residual[rows, best]
+
+
+def _with_end_straights(
+    batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, free: np.ndarray, limit: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A straight added between each curved end part and its polyline's end where it
+    reduces the residual by more than ``limit``.
+
+    A curve's first (or last) knot is missed when the straight before it has only a few
+    nodes: the straight and the curve are then fitted as one curved part that starts at
+    the polyline's start (3.4), however clearly its first chords keep one heading. Only
+    the knot is new, so it is tested alone, against the fit as it is.
+
+    Returns the bounds (one column more), the number of knots and which parts are curved.
+    """
+    residual = _fits(batch, bounds[:, None, :], free[:, None, :])[0][:, 0]
+    bounds = np.concatenate((bounds, bounds[:, -1:]), axis=1)
+    free = np.concatenate((free, np.zeros((len(free), 1), dtype=bool)), axis=1)
+    knots = knots.copy()
+    # At the start: a part of no length before the first, straight, whose end is moved.
+    start_bounds = np.concatenate((bounds[:, :1], bounds[:, :-1]), axis=1)
+    start_free = np.concatenate((np.zeros((len(free), 1), dtype=bool), free[:, :-1]), axis=1)
+    rows = np.flatnonzero(free[:, 0])
+    if rows.size:
+        knot, trial_residual = _end_straight_trial(batch.rows(rows), start_bounds[rows], start_free[rows], 1)
+        accept = residual[rows] - trial_residual > limit[rows]
+        changed = rows[accept]
+        bounds[changed], free[changed] = start_bounds[changed], start_free[changed]
+        bounds[changed, 1] = knot[accept]
+        residual[changed] = trial_residual[accept]
+        knots[changed] += 1
+    # At the end: the padding part after the last becomes the straight.
+    for count in np.unique(knots):
+        rows = np.flatnonzero((knots == count) & free[np.arange(len(free)), knots])
+        if rows.size == 0:
+            continue
+        knot, trial_residual = _end_straight_trial(batch.rows(rows), bounds[rows], free[rows], int(count) + 1)
+        accept = residual[rows] - trial_residual > limit[rows]
+        changed = rows[accept]
+        bounds[changed, count + 1] = knot[accept]
+        knots[changed] += 1
+    return bounds, knots, free
+
+
 def _map_along(u: np.ndarray, from_batch: _SparseBatch, to_batch: _SparseBatch) -> np.ndarray:
     """Positions ``(polylines, k)`` from one arc-length coordinate of the chords to another,
     linearly within a chord."""
@@ -1083,13 +1143,16 @@ def _sparse_batch_parts(batch: _SparseBatch, noise_m: np.ndarray) -> tuple[np.nd
     (the road has no kinks, 3.4-3.8) with free knots, every chord predicted by the
     mean heading over the arc it spans, chords across a knot included. Knots are
     added and dropped by the same significance as the dense method's splits, and a
-    part whose curvature is not significant is a straight. The chords are then
-    replaced by the arcs they span on the fitted road and the fit repeated.
+    part whose curvature is not significant is a straight, and a curved part at a
+    polyline's end gets a straight before (after) it where that fits significantly better
+    (:func:`_with_end_straights`). The chords are then replaced by the arcs they span on
+    the fitted road and the fit repeated.
     """
     noise_variance = 2.0 * np.fmax(noise_m, SPARSE_MIN_NOISE_M) ** 2
     knot_threshold = _split_threshold(batch.count) - SPLIT_OFFSET + SPARSE_KNOT_OFFSET
     bounds, knots = _knot_fit(batch, knot_threshold * noise_variance)
     bounds, free = _with_straights(batch, _trimmed(bounds, knots), knots, SPARSE_STRAIGHT_THRESHOLD * noise_variance)
+    bounds, knots, free = _with_end_straights(batch, bounds, knots, free, SPARSE_END_STRAIGHT_THRESHOLD * noise_variance)
     curvature = _fits(batch, bounds[:, None, :], free[:, None, :])[1][:, 0]
     arcs = _on_arcs(batch, bounds, curvature)
     arc_bounds, _ = _refined_constrained(arcs, _map_along(bounds, batch, arcs), knots, free)
