@@ -315,11 +315,12 @@ def _coordinate_noise_m(chords: _Chords, polyline_count: int) -> np.ndarray:
     sample = np.abs(curvature_change[same]) / gain[same]
     group = chords.polyline[:-2][same]
     noise = MAD_TO_SIGMA * _group_median(sample, group, polyline_count)
-    # A median of a handful of samples is often far too small; there the root mean
-    # square, which errs on the large side, is the safer estimate.
+    # A median of few samples is often far too small, and a noise estimate too small
+    # turns noise into bends; below a few dozen samples the root mean square, which
+    # errs on the large side, bounds it from below.
     count = np.bincount(group, minlength=polyline_count)
     rms = np.sqrt(np.bincount(group, sample**2, minlength=polyline_count) / np.fmax(count, 1))
-    noise = np.where(count < MIN_MEDIAN_SAMPLES, rms, noise)
+    noise = np.where(count < 3 * MIN_MEDIAN_SAMPLES, np.fmax(noise, rms), noise)
     return np.fmax(np.nan_to_num(noise, nan=MIN_NOISE_M), MIN_NOISE_M)
 
 
