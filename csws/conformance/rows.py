@@ -82,8 +82,6 @@ class Row:
         The clause that defines the test.
     category
         The vehicle category the system is told.
-    column
-        The tables' column of that category.
     test
         Test number of Tables 8 and 9, else None.
     radius_m
@@ -104,7 +102,6 @@ class Row:
     table: int
     clause: str
     category: Category
-    column: Column
     test: int | None
     radius_m: tuple[float, ...]
     speed_kmh: float
@@ -112,6 +109,11 @@ class Row:
     decel_trigger_m: float | None
     checks: tuple[Check, ...]
     tracks: tuple[str, ...]
+
+    @property
+    def column(self) -> Column:
+        """The tables' column of the row's category."""
+        return self.category.column
 
     @property
     def decel_mps2(self) -> float | None:
@@ -167,7 +169,6 @@ def _single_rows(tables: dict, table: int, level: Level) -> Iterable[Row]:
                         table=table,
                         clause=clause,
                         category=category,
-                        column=category.column,
                         test=None,
                         radius_m=(float(radius),),
                         speed_kmh=float(speed_kmh),
@@ -200,7 +201,6 @@ def _table7_rows(tables: dict) -> Iterable[Row]:
                 table=7,
                 clause="7.5.3.1",
                 category=category,
-                column=category.column,
                 test=None,
                 radius_m=(float(track["R1_m"]), float(track["R2_m"])),
                 speed_kmh=float(cells["V_curve1_kmh"]),
@@ -223,7 +223,6 @@ def _table89_rows(tables: dict, table: int) -> Iterable[Row]:
                     table=table,
                     clause=clause,
                     category=category,
-                    column=category.column,
                     test=int(cells["test"]),
                     radius_m=(float(cells["R1_m"]), float(tables[key]["R2_m"])),
                     speed_kmh=float(cells["V_kmh"]),
@@ -246,7 +245,6 @@ def _negative_rows(tables: dict) -> Iterable[Row]:
                     table=0,
                     clause="6.1",
                     category=category,
-                    column=category.column,
                     test=None,
                     radius_m=(radius_m,),
                     speed_kmh=speed_kmh,
