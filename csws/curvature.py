@@ -28,13 +28,17 @@ parts of a single (3.7) or multi curve (3.8).
 All polylines of a network are processed together in flat arrays, so the number of
 numpy operations does not grow with the number of lanes. Sparse polylines (map ways,
 see :func:`_sparse_batch_parts`) are fitted in a few batches of similar chord counts,
-each step for all polylines of a batch and all their trial knot positions at once.
+each step for all polylines of a batch and all their trial knot positions at once. A
+map way's chords are too few and too noisy for the fit of their headings to be the
+last word, so the road it finds is finally fitted to the nodes themselves, in the plane
+(:func:`_polished`): the maximum-likelihood road under isotropic node noise, exact on
+exact nodes, with straights tried at its ends where the heading fit ran a curve into one.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Sequence
 
 import numpy as np
@@ -81,7 +85,7 @@ SPARSE_CHORD_M = 3.0
 MIN_SPARSE_CHORDS = 4
 MAX_SPARSE_CHORDS = 80
 #: Positions tried around the best vertex or chord middle when placing a sparse knot.
-FINE_KNOT_STEPS = 16
+FINE_KNOT_STEPS = 4
 #: Passes moving each knot of a sparse polyline to its best place.
 SPARSE_REFINE_PASSES = 2
 #: A pair of knots added together must pass this many times the threshold of one.
@@ -96,8 +100,37 @@ SPARSE_KNOT_OFFSET = 10.0
 #: A part of a sparse polyline is curved only if making it straight grows the normalised residual by more.
 SPARSE_STRAIGHT_THRESHOLD = 20.0
 #: A curved part at a polyline's end gets a straight between it and the end when that
-#: reduces the normalised residual by more (the straight adds a knot but no curvature).
+#: reduces the nodes' sum of squared sideways distances by more than this many times their
+#: variance (the straight adds a knot but no curvature).
 SPARSE_END_STRAIGHT_THRESHOLD = 10.0
+#: Levenberg-Marquardt iterations polishing a sparse polyline's road in the plane.
+POLISH_ITERATIONS = 16
+#: Steps every straight trial is polished with before only the closest of each kind is polished on.
+FIRST_POLISH_ITERATIONS = 3
+#: A polish step gaining less than this fraction of the sum of squares ends a trial's polish.
+POLISH_TOLERANCE = 1e-3
+#: Least Levenberg-Marquardt damping (relative to the normal equations' diagonal).
+MIN_DAMPING = 1e-6
+#: Levenberg-Marquardt damping at which a trial's polish ends (its steps keep failing).
+MAX_DAMPING = 10.0
+#: Newton steps projecting the nodes onto the road before the polish (each of its steps adds one).
+PROJECTION_STEPS = 1
+#: Where an end straight's knot is first put into a curved end part, as fractions of the
+#: part from the polyline's end (the polish then moves it).
+END_STRAIGHT_FRACTIONS = (0.25, 0.5, 0.75)
+#: Where a straight is first put into the middle of a curved part, and where a curved part
+#: is first narrowed to between two straights, as fractions of the part (counted in nodes).
+MIDDLE_STRAIGHT_SPANS = ((0.25, 0.5), (0.25, 0.75), (0.5, 0.75))
+ARC_SPANS = MIDDLE_STRAIGHT_SPANS
+#: End straights are tried only on roads whose nodes' sum of squared sideways distances
+#: exceeds this many times what the noise (the polyline's own estimate) leaves on the right road.
+END_STRAIGHT_MISFIT = 1.0
+#: Fewest nodes more than parameters a road with added straights must have to be tried.
+MIN_TRIAL_FREEDOM = 1
+#: Fewest nodes more than parameters a road's residual must have to estimate the noise from.
+MIN_VARIANCE_FREEDOM = 2
+#: Shortest part the polish lets a knot make, m.
+MIN_POLISHED_PART_M = 0.1
 #: Chord counts sparse polylines are padded to, so that few batches are fitted (each in one set of array operations).
 SPARSE_BATCH_CHORDS = np.array([4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80])
 #: Most array elements (polylines x trials x chords x parts) fitted in one go.
@@ -1005,7 +1038,10 @@ def _refined_constrained(
     bounds = bounds.copy()
     residual = _fits(batch, bounds[:, None, :], free[:, None, :])[0][:, 0]
     for column in range(1, int(knots.max(initial=0)) + 1):
-        rows = np.flatnonzero(knots >= column)
+        # A knot between two straights changes nothing wherever it is.
+        rows = np.flatnonzero((knots >= column) & (free[:, column - 1] | free[:, column]))
+        if rows.size == 0:
+            continue
         low, high = bounds[rows, column - 1], bounds[rows, column + 1]
         coarse, coarse_valid = _coarse_between(batch.rows(rows), low, high)
         # The knot's present place last: moves must beat it as computed the same way.
@@ -1049,118 +1085,519 @@ def _with_straights(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, 
     return bounds, free
 
 
-def _end_straight_trial(
-    batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray, column: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """The best place of the knot ``bounds[:, column]`` between its neighbours with the
-    part it bounds straight, and the residual there, ``(polylines,)`` each."""
-    low, high = bounds[:, column - 1], bounds[:, column + 1]
-    coarse, coarse_valid = _coarse_between(batch, low, high)
-    positions = np.concatenate((coarse, _fine_positions(low, high)), axis=1)
-    valid = np.concatenate((coarse_valid, np.ones((len(bounds), FINE_KNOT_STEPS), dtype=bool)), axis=1)
-    residual = np.where(valid, _moved_knot_residuals(batch, bounds, free, column, positions), np.inf)
-    best = np.argmin(residual, axis=1)
-    rows = np.arange(len(bounds))
-    return positions[rows, best], residual[rows, best]
+# The polish: the road model fitted to the nodes themselves. A chord's heading is a poor
+# measurement on a map way: two neighbouring chords share a noisy node, and a short chord's
+# heading is mostly noise. The maximum-likelihood road is the one whose distance to the
+# nodes is least, so the heading fit's parts are finally fitted in the plane: the road
+# starts near the first node with a heading and runs through its parts (straights and
+# arcs joined without kinks, 3.4-3.8); every node is projected onto it, and knots,
+# curvatures and the start are moved by Levenberg-Marquardt steps on the nodes' sideways
+# distances. Points are complex numbers x + iy.
+
+
+@dataclass(frozen=True)
+class _Nodes:
+    """The nodes of sparse polylines relative to each one's first: ``xy`` (complex) and
+    ``s`` (arc length along the polyline), ``(polylines, nodes)``, padded; ``real`` says
+    which are nodes."""
+
+    xy: np.ndarray
+    s: np.ndarray
+    real: np.ndarray
+
+
+def _padded_nodes(polylines: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> _Nodes:
+    """The nodes of polylines given by all their chords' start arc lengths, lengths and headings."""
+    size = max(len(start_s) for start_s, _, _ in polylines) + 1
+    xy, s = np.zeros((len(polylines), size), dtype=complex), np.zeros((len(polylines), size))
+    real = np.arange(size)[None, :] <= np.array([len(start_s) for start_s, _, _ in polylines])[:, None]
+    for row, (start_s, length_m, heading) in enumerate(polylines):
+        count = len(start_s)
+        xy[row, 1 : count + 1] = np.cumsum(length_m * np.exp(1j * heading))
+        s[row, : count + 1] = np.append(start_s, start_s[-1] + length_m[-1])
+        xy[row, count + 1 :], s[row, count + 1 :] = xy[row, count], s[row, count]
+    return _Nodes(xy, s, real)
+
+
+@dataclass(frozen=True)
+class _Road:
+    """Trial roads ``(polylines, trials)``: the first node's sideways ``offset`` from the
+    road's start (m, along the normal of ``base_heading``), the start heading's ``turn``
+    from ``base_heading`` (rad), part ``bounds`` ``(..., parts + 1)`` in the road's arc
+    length, part ``curvature`` and which parts are ``free`` to curve, and ``last``, the
+    index of the last part of each (the parts after it are padding of no length). The
+    first part extends backwards and the last forwards without end."""
+
+    base_heading: np.ndarray
+    offset: np.ndarray
+    turn: np.ndarray
+    bounds: np.ndarray
+    curvature: np.ndarray
+    free: np.ndarray
+    last: np.ndarray
+
+    def start(self) -> np.ndarray:
+        """The road's start point (complex), the first node being at 0."""
+        return 1j * np.exp(1j * self.base_heading) * self.offset
+
+    def heading(self) -> np.ndarray:
+        """The road's heading at its start, rad."""
+        return self.base_heading + self.turn
+
+    def parameters(self) -> np.ndarray:
+        """The parameters the polish moves, ``(..., 2 * parts + 1)``: offset, turn, inner bounds, curvatures."""
+        return np.concatenate((self.offset[..., None], self.turn[..., None], self.bounds[..., 1:-1], self.curvature), axis=-1)
+
+    def movable(self) -> np.ndarray:
+        """Which parameters move: the offset and turn, the knots between real parts and the free curvatures."""
+        parts = self.curvature.shape[-1]
+        knots = np.arange(1, parts) <= self.last[..., None]
+        return np.concatenate((np.ones(self.offset.shape + (2,), dtype=bool), knots, self.free), axis=-1)
+
+    def with_parameters(self, parameters: np.ndarray) -> "_Road":
+        """The roads with the :meth:`parameters` ``parameters`` (a part not free stays straight)."""
+        parts = self.curvature.shape[-1]
+        bounds = self.bounds.copy()
+        bounds[..., 1:-1] = parameters[..., 2 : parts + 1]
+        return _Road(self.base_heading, parameters[..., 0], parameters[..., 1], bounds,
+                     parameters[..., parts + 1 :] * self.free, self.free, self.last)
+
+    def feasible_fraction(self, step: np.ndarray) -> np.ndarray:
+        """The largest fraction (at most 1, with a margin) of the parameter ``step`` that
+        leaves every real part at least :data:`MIN_POLISHED_PART_M` long."""
+        parts = self.curvature.shape[-1]
+        moved = np.concatenate((np.zeros_like(step[..., :1]), step[..., 2 : parts + 1], np.zeros_like(step[..., :1])), axis=-1)
+        shrink = -np.diff(moved, axis=-1)
+        room = np.diff(self.bounds, axis=-1) - MIN_POLISHED_PART_M
+        real = np.arange(parts) <= self.last[..., None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            limit = np.where(real & (shrink > 0), np.fmax(room, 0.0) / shrink, np.inf)
+        return np.fmin(1.0, 0.9 * limit.min(axis=-1))
+
+    def is_ordered(self) -> np.ndarray:
+        """Whether every real part is at least :data:`MIN_POLISHED_PART_M` long."""
+        real = np.arange(self.curvature.shape[-1]) <= self.last[..., None]
+        return np.all((np.diff(self.bounds, axis=-1) >= MIN_POLISHED_PART_M) | ~real, axis=-1)
+
+
+def _chord_factor(angle: np.ndarray) -> np.ndarray:
+    """``(exp(i a) - 1) / (i a)``: a part turning ``a`` over length l moves by l·exp(i φ) times this."""
+    small = np.abs(angle) < 1e-2
+    safe = np.where(small, 1.0, angle)
+    series = 1.0 + angle * (0.5j - angle * (1.0 / 6.0 + angle * (1j / 24.0 - angle / 120.0)))
+    return np.where(small, series, (np.exp(1j * safe) - 1.0) / (1j * safe))
+
+
+def _area_factor(angle: np.ndarray) -> np.ndarray:
+    """``(1 + i a - exp(i a)) / a²``: the integral of a part's points over its length l
+    from its start A with heading φ is ``l A + l² exp(i φ)`` times this."""
+    small = np.abs(angle) < 1e-2
+    safe = np.where(small, 1.0, angle)
+    series = 0.5 + angle * (1j / 6.0 - angle * (1.0 / 24.0 + angle * (1j / 120.0 - angle / 720.0)))
+    return np.where(small, series, (1.0 + 1j * safe - np.exp(1j * safe)) / safe**2)
+
+
+@dataclass(frozen=True)
+class _RoadPoints:
+    """The road at the nodes' positions ``t`` ``(polylines, trials, nodes)``: ``point``
+    (complex), ``heading``, the ``part`` each is on and its ``progress`` along that part
+    from the part's start; per part ``(..., parts)``, its start point ``corner``, start
+    heading ``part_heading`` and ``length``."""
+
+    point: np.ndarray
+    heading: np.ndarray
+    part: np.ndarray
+    progress: np.ndarray
+    corner: np.ndarray
+    part_heading: np.ndarray
+    length: np.ndarray
+
+
+def _road_points(road: _Road, t: np.ndarray) -> _RoadPoints:
+    """The road's points and headings at the arc lengths ``t``."""
+    length = np.diff(road.bounds, axis=-1)
+    turned = np.cumsum(road.curvature * length, axis=-1)
+    part_heading = road.heading()[..., None] + np.concatenate((np.zeros_like(turned[..., :1]), turned[..., :-1]), axis=-1)
+    moved = np.cumsum(length * np.exp(1j * part_heading) * _chord_factor(road.curvature * length), axis=-1)
+    corner = road.start()[..., None] + np.concatenate((np.zeros_like(moved[..., :1]), moved[..., :-1]), axis=-1)
+    part = np.minimum((t[..., None] >= road.bounds[..., None, 1:-1]).sum(axis=-1), road.last[..., None])
+    progress = t - np.take_along_axis(road.bounds, part, axis=-1)
+    curvature = np.take_along_axis(road.curvature, part, axis=-1)
+    heading = np.take_along_axis(part_heading, part, axis=-1)
+    point = np.take_along_axis(corner, part, axis=-1) + progress * np.exp(1j * heading) * _chord_factor(curvature * progress)
+    return _RoadPoints(point, heading + curvature * progress, part, progress, corner, part_heading, length)
+
+
+def _projected(road: _Road, nodes: _Nodes, t: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray, _RoadPoints]:
+    """The nodes projected onto the road by ``steps`` Newton steps along it from ``t``;
+    returns their arc lengths after one step more, their sideways distances (left
+    positive) from the road's tangent where they are, and the road there."""
+    xy = nodes.xy[:, None, :]
+    for _ in range(steps):
+        at = _road_points(road, t)
+        t = t + np.real(np.exp(-1j * at.heading) * (xy - at.point))
+    at = _road_points(road, t)
+    offset = np.exp(-1j * at.heading) * (xy - at.point)
+    return t + np.real(offset), np.imag(offset) * nodes.real[:, None, :], at
+
+
+def _sideways_jacobian(road: _Road, at: _RoadPoints) -> np.ndarray:
+    """Derivatives of the nodes' sideways distances by the road's parameters, ``(..., nodes, 2 * parts + 1)``.
+
+    With the nodes' arc lengths held, a parameter moves each node's road point by dP and
+    its distance by ``-Im(conj(T) dP)`` (T the unit tangent). Turning the start turns the
+    road about its start; moving knot k turns the road after it about the knot's corner
+    by the change of curvature there; a part's curvature moves a point by
+    ``i ∫ (P - P(u)) du`` over the part up to it, an integral :func:`_area_factor` gives.
+    """
+    back = np.exp(-1j * at.heading)
+    back_real, back_imag = back.real[..., None], back.imag[..., None]
+
+    def along_tangent(per_part: np.ndarray) -> np.ndarray:
+        """``Re(conj(T) z)`` of each part's ``z`` at every node, ``(..., nodes, parts)``."""
+        return back_real * per_part.real[..., None, :] - back_imag * per_part.imag[..., None, :]
+
+    point_along = np.real(back * at.point)
+    offset = -np.imag(back * 1j * np.exp(1j * road.base_heading)[..., None])
+    turn = -(point_along - np.real(back * road.start()[..., None]))
+    parts = np.arange(road.curvature.shape[-1])
+    step = (road.curvature[..., :-1] - road.curvature[..., 1:])[..., None, :]
+    knots = -step * (point_along[..., None] - along_tangent(at.corner[..., 1:])) * (at.part[..., None] >= parts[1:])
+    full_area = at.length * at.corner + at.length**2 * np.exp(1j * at.part_heading) * _area_factor(road.curvature * at.length)
+    own_curvature = np.take_along_axis(road.curvature, at.part, axis=-1)
+    own_corner = np.take_along_axis(at.corner, at.part, axis=-1)
+    own_heading = np.take_along_axis(at.part_heading, at.part, axis=-1)
+    own_area = at.progress * own_corner + at.progress**2 * np.exp(1j * own_heading) * _area_factor(own_curvature * at.progress)
+    passed = at.part[..., None] > parts
+    curvatures = np.where(passed, along_tangent(full_area) - at.length[..., None, :] * point_along[..., None], 0.0)
+    np.put_along_axis(curvatures, at.part[..., None], (np.real(back * own_area) - at.progress * point_along)[..., None], axis=-1)
+    return np.concatenate((offset[..., None], turn[..., None], knots, curvatures), axis=-1)
+
+
+def _polished(
+    road: _Road, nodes: _Nodes, iterations: int = POLISH_ITERATIONS, wanted: np.ndarray | None = None
+) -> tuple[_Road, np.ndarray]:
+    """The trial roads moved by Levenberg-Marquardt steps to where the nodes' sideways
+    distances are least; returns them and that sum of squares ``(polylines, trials)``.
+    Only the ``wanted`` trials (all if not given) are moved.
+
+    Each trial is its own problem; one stops when a step no longer gains or the damping
+    has grown to :data:`MAX_DAMPING`, so that the iterations are spent on those still moving.
+    """
+    polylines, trials = road.offset.shape
+    road = _Road(*(np.array(getattr(road, f.name).reshape((-1, 1) + getattr(road, f.name).shape[2:])) for f in fields(_Road)))
+    nodes = _Nodes(*(np.repeat(getattr(nodes, f.name), trials, axis=0) for f in fields(_Nodes)))
+    t, distance, at = _projected(road, nodes, nodes.s[:, None, :].copy(), PROJECTION_STEPS)
+    squares = np.einsum("ptn,ptn->pt", distance, distance)
+    damping = np.full(squares.shape, 1e-3)
+    active = np.arange(len(squares)) if wanted is None else np.flatnonzero(wanted)
+    for _ in range(iterations):
+        if active.size == 0:
+            break
+        here, here_nodes, here_at = _road_rows(road, active), _nodes_rows(nodes, active), _points_rows(at, active)
+        jacobian = _sideways_jacobian(here, here_at) * (here_nodes.real[:, None, :, None] * here.movable()[..., None, :])
+        normal = np.swapaxes(jacobian, -1, -2) @ jacobian
+        gradient = np.einsum("ptnm,ptn->ptm", jacobian, distance[active])
+        # A trial gone non-finite (a degenerate road) takes no step and stops.
+        sound = np.isfinite(normal).all(axis=(-2, -1)) & np.isfinite(gradient).all(axis=-1)
+        normal, gradient = np.where(sound[..., None, None], normal, 0.0), np.where(sound[..., None], gradient, 0.0)
+        diagonal = np.einsum("...mm->...m", normal)
+        normal += np.eye(normal.shape[-1]) * (damping[active][..., None] * diagonal + (diagonal <= 1e-12 * diagonal.max(axis=-1, keepdims=True)))[..., None, :]
+        step = _solved(normal, -gradient)
+        trial = here.with_parameters(here.parameters() + step * here.feasible_fraction(step)[..., None])
+        trial_t, trial_distance, trial_at = _projected(trial, here_nodes, t[active], 0)
+        trial_squares = np.einsum("ptn,ptn->pt", trial_distance, trial_distance)
+        better = (trial.is_ordered() & (trial_squares < squares[active]))[:, 0]
+        gain = squares[active, 0] - trial_squares[:, 0]
+        moved = active[better]
+        for field in fields(_Road):
+            getattr(road, field.name)[moved] = getattr(trial, field.name)[better]
+        for field in fields(_RoadPoints):
+            getattr(at, field.name)[moved] = getattr(trial_at, field.name)[better]
+        t[moved], distance[moved], squares[moved] = trial_t[better], trial_distance[better], trial_squares[better]
+        damping[active] = np.where(better, np.fmax(damping[active, 0] / 10.0, MIN_DAMPING), damping[active, 0] * 10.0)[:, None]
+        done = np.where(better, gain <= POLISH_TOLERANCE * squares[active, 0], damping[active, 0] >= MAX_DAMPING) | ~sound[:, 0]
+        active = active[~done]
+    return _Road(*(getattr(road, f.name).reshape((polylines, trials) + getattr(road, f.name).shape[2:]) for f in fields(_Road))), squares.reshape(polylines, trials)
+
+
+def _solved(normal: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """Solutions of the damped normal equations ``normal @ x = right``; where one is
+    singular in floating point (parameters the nodes cannot tell apart), the least-norm one."""
+    try:
+        return np.linalg.solve(normal, right[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return (np.linalg.pinv(normal, hermitian=True) @ right[..., None])[..., 0]
+
+
+def _points_rows(at: _RoadPoints, rows: np.ndarray) -> _RoadPoints:
+    """The road points of the trials ``rows``."""
+    return _RoadPoints(*(getattr(at, f.name)[rows] for f in fields(_RoadPoints)))
+
+
+def _base_road(batch: _SparseBatch, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray) -> _Road:
+    """The road of the heading fit, one trial per polyline: its start heading is the
+    weighted mean of the chords' headings less the turn the fit predicts over each."""
+    turn = np.einsum("pnk,pk->pn", _chord_means_of_ramps(batch, bounds[:, None, :-1], np.diff(bounds)[:, None, :])[:, 0], curvature)
+    weight = batch.root_weight**2
+    base_heading = np.sum(weight * (batch.heading - turn), axis=1) / np.sum(weight, axis=1)
+    zero = np.zeros((len(bounds), 1))
+    return _Road(base_heading[:, None], zero, zero.copy(), bounds[:, None, :], curvature[:, None, :], free[:, None, :], knots[:, None])
+
+
+def _road_rows(road: _Road, rows: np.ndarray) -> _Road:
+    """The trial roads of the polylines ``rows``."""
+    return _Road(*(getattr(road, f.name)[rows] for f in fields(_Road)))
+
+
+def _split_part(road: _Road, part: np.ndarray, knot: np.ndarray, before: np.ndarray, after: np.ndarray) -> _Road:
+    """The trial roads with their part ``part`` split at ``knot`` into two parts of
+    curvature ``before`` and ``after`` (a curvature of 0 makes a straight), all ``(polylines, trials)``."""
+    parts = road.curvature.shape[-1]
+    index = np.arange(parts + 1)
+    split = part[..., None]
+    old = np.minimum(index - (index > split), parts - 1)
+    curvature = np.take_along_axis(road.curvature, old, axis=-1)
+    free = np.take_along_axis(road.free, old, axis=-1)
+    curvature = np.where(index == split, before[..., None], np.where(index == split + 1, after[..., None], curvature))
+    free = np.where(index == split, before[..., None] != 0, np.where(index == split + 1, after[..., None] != 0, free))
+    bounds = np.sort(np.concatenate((road.bounds, knot[..., None]), axis=-1), axis=-1)
+    return _Road(road.base_heading, road.offset, road.turn, bounds, curvature * free, free, road.last + 1)
+
+
+def _among_nodes(nodes: _Nodes, first: np.ndarray, stop: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+    """Positions ``(polylines, trials)`` between ``first`` and ``stop`` at ``fraction`` of the
+    way counted in nodes: the nodes between them and the two ends are spaced evenly in
+    rank, and linearly between. Mappers put nodes close on a curve, so a curve short
+    against a long part still gets trial knots on it."""
+    s = nodes.s[:, None, :]
+    inside = nodes.real[:, None, :] & (s > first[..., None]) & (s < stop[..., None])
+    ranked = np.sort(np.where(inside, s, np.inf), axis=-1)
+    count = inside.sum(axis=-1)
+    ends = np.concatenate((first[..., None], ranked, np.full(first.shape + (1,), np.inf)), axis=-1)
+    np.put_along_axis(ends, (count + 1)[..., None], stop[..., None], axis=-1)
+    rank = fraction * (count + 1)
+    below = np.minimum(np.floor(rank).astype(np.int64), count)
+    low, high = (np.take_along_axis(ends, (below + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    return low + (rank - below) * (high - low)
+
+
+def _straight_trials(road: _Road, nodes: _Nodes, part: np.ndarray, low: np.ndarray, high: np.ndarray) -> _Road:
+    """Trial roads ``(polylines, fractions)`` from ``road`` (one trial per polyline), each
+    with a straight over the fractions ``low[f]`` to ``high[f]`` of its part ``part``,
+    counted in nodes (:func:`_among_nodes`; from the part's start when ``low`` is 0,
+    which must then be the first part; to its end when ``high`` is 1).
+
+    The trial stays close to the road: the straight takes the road's mean heading over
+    it, and the arcs beside it turn from the road's heading at the part's ends to that
+    (or the start is turned to it), so that the polish starts near its goal.
+    """
+    trials = np.shape(low)[-1]
+    road = _Road(*(np.repeat(getattr(road, f.name), trials, axis=1) for f in fields(_Road)))
+    part = np.repeat(part[:, None], trials, axis=1)
+    first, stop = (np.take_along_axis(road.bounds, (part + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    start, end = _among_nodes(nodes, first, stop, low), _among_nodes(nodes, first, stop, high)
+    start = np.where(low > 0.0, np.clip(start, first + MIN_POLISHED_PART_M, stop - 2.0 * MIN_POLISHED_PART_M), first)
+    end = np.where(high < 1.0, np.clip(end, start + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M), stop)
+    curvature = np.take_along_axis(road.curvature, part[..., None], axis=-1)[..., 0]
+    half_turn = 0.5 * curvature * (end - start)
+    before = curvature + half_turn / np.fmax(start - first, MIN_POLISHED_PART_M)
+    after = curvature + half_turn / np.fmax(stop - end, MIN_POLISHED_PART_M)
+    zero = np.zeros_like(curvature)
+    if np.all(low == 0.0):
+        road = _Road(road.base_heading, road.offset, road.turn + half_turn, *(getattr(road, f.name) for f in fields(_Road)[3:]))
+        return _split_part(road, part, end, zero, after)
+    if np.all(high == 1.0):
+        return _split_part(road, part, start, before, zero)
+    return _split_part(_split_part(road, part, start, before, after), part + 1, end, zero, after)
+
+
+def _padded_road(road: _Road) -> _Road:
+    """``road`` with a part of no length more at its end (padding)."""
+    return _Road(
+        road.base_heading, road.offset, road.turn,
+        np.concatenate((road.bounds, road.bounds[..., -1:]), axis=-1),
+        np.concatenate((road.curvature, np.zeros_like(road.curvature[..., :1])), axis=-1),
+        np.concatenate((road.free, np.zeros_like(road.free[..., :1])), axis=-1),
+        road.last,
+    )
+
+
+def _one_trial_each(road: _Road) -> _Road:
+    """The trial roads ``(polylines, trials)`` as ``(polylines * trials, 1)``."""
+    return _Road(*(getattr(road, f.name).reshape((-1, 1) + getattr(road, f.name).shape[2:]) for f in fields(_Road)))
+
+
+def _trials_of(road: _Road, polylines: int) -> _Road:
+    """Trial roads ``(polylines * k, 1)`` back as ``(polylines, k)``."""
+    return _Road(*(getattr(road, f.name).reshape((polylines, -1) + getattr(road, f.name).shape[2:]) for f in fields(_Road)))
+
+
+def _joined_trials(roads: list[_Road]) -> _Road:
+    """The trial roads of ``roads`` (of equal part counts) side by side."""
+    return _Road(*(np.concatenate([getattr(r, f.name) for r in roads], axis=1) for f in fields(_Road)))
+
+
+def _residual_variance(squares: np.ndarray, roads: _Road, real: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+    """Each polyline's sideways noise variance, m²: the smaller of its own ``estimate`` and
+    what the trial road closest to its nodes leaves (its sum of squares over the nodes less
+    the road's parameters, at least :data:`MIN_VARIANCE_FREEDOM` of them), at least
+    :data:`SPARSE_MIN_NOISE_M` squared. The estimate from the chords errs on the large
+    side where the curvature changes; a fit's residual needs a few nodes to spare."""
+    freedom = real.sum(axis=1)[:, None] - roads.movable().sum(axis=-1)
+    usable = freedom >= MIN_VARIANCE_FREEDOM
+    best = np.argmin(np.where(usable, squares, np.inf), axis=1)
+    rows = np.arange(len(squares))
+    fitted = np.where(usable[rows, best], squares[rows, best] / np.fmax(freedom[rows, best], 1), np.inf)
+    return np.fmax(np.fmin(fitted, estimate), SPARSE_MIN_NOISE_M**2)
 
 
 def _with_end_straights(
-    batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, free: np.ndarray, limit: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A straight added between each curved end part and its polyline's end where it
-    reduces the residual by more than ``limit``.
+    road: _Road, squares: np.ndarray, nodes: _Nodes, noise_variance: np.ndarray
+) -> tuple[_Road, np.ndarray]:
+    """Straights added between curved end parts and the polyline's ends where the
+    polished road then lies closer to the nodes by more than
+    :data:`SPARSE_END_STRAIGHT_THRESHOLD` times their noise variance per straight.
 
     A curve's first (or last) knot is missed when the straight before it has only a few
     nodes: the straight and the curve are then fitted as one curved part that starts at
-    the polyline's start (3.4), however clearly its first chords keep one heading. Only
-    the knot is new, so it is tested alone, against the fit as it is.
+    the polyline's start (3.4), however clearly its first nodes lie on a line. A curve
+    in the middle of a way may need both straights before either pays off, so a straight
+    at the start, at the end and at both are tried together, each from several places
+    (:data:`END_STRAIGHT_FRACTIONS`), and the road that costs least, counting that
+    threshold per straight, is kept. The noise variance is the one the closest road
+    leaves (:func:`_residual_variance`); ``noise_variance``, the polyline's own estimate,
+    only decides which roads are tried.
 
-    Returns the bounds (one column more), the number of knots and which parts are curved.
+    Returns the roads (two parts more, padding where no straight was added) and their sums of squares.
     """
-    residual = _fits(batch, bounds[:, None, :], free[:, None, :])[0][:, 0]
-    bounds = np.concatenate((bounds, bounds[:, -1:]), axis=1)
-    free = np.concatenate((free, np.zeros((len(free), 1), dtype=bool)), axis=1)
-    knots = knots.copy()
-    # At the start: a part of no length before the first, straight, whose end is moved.
-    start_bounds = np.concatenate((bounds[:, :1], bounds[:, :-1]), axis=1)
-    start_free = np.concatenate((np.zeros((len(free), 1), dtype=bool), free[:, :-1]), axis=1)
-    rows = np.flatnonzero(free[:, 0])
-    if rows.size:
-        knot, trial_residual = _end_straight_trial(batch.rows(rows), start_bounds[rows], start_free[rows], 1)
-        accept = residual[rows] - trial_residual > limit[rows]
-        changed = rows[accept]
-        bounds[changed], free[changed] = start_bounds[changed], start_free[changed]
-        bounds[changed, 1] = knot[accept]
-        residual[changed] = trial_residual[accept]
-        knots[changed] += 1
-    # At the end: the padding part after the last becomes the straight.
-    for count in np.unique(knots):
-        rows = np.flatnonzero((knots == count) & free[np.arange(len(free)), knots])
-        if rows.size == 0:
-            continue
-        knot, trial_residual = _end_straight_trial(batch.rows(rows), bounds[rows], free[rows], int(count) + 1)
-        accept = residual[rows] - trial_residual > limit[rows]
-        changed = rows[accept]
-        bounds[changed, count + 1] = knot[accept]
-        knots[changed] += 1
-    return bounds, knots, free
+    result, squares = _padded_road(_padded_road(road)), squares.copy()
+    polylines = np.arange(len(road.last))
+    last = road.last[:, 0]
+    longest = np.argmax(np.where(road.free[:, 0], np.diff(road.bounds[:, 0], axis=-1), -1.0), axis=-1)
+    # A trial must leave the nodes enough freedom to be judged by.
+    freedom = nodes.real.sum(axis=1) - road.movable()[:, 0].sum(axis=1)
+    at_start = road.free[polylines, 0, 0] & (freedom - 1 >= MIN_TRIAL_FREEDOM)
+    at_end = road.free[polylines, 0, last] & (freedom - 1 >= MIN_TRIAL_FREEDOM)
+    at_both = at_start & at_end & (freedom - 2 >= MIN_TRIAL_FREEDOM)
+    in_middle = road.free[polylines, 0, longest] & (freedom - 3 >= MIN_TRIAL_FREEDOM)
+    # A road as close to the nodes as their noise lets it be leaves nothing for a straight to explain.
+    rows = np.flatnonzero((at_start | at_end | in_middle) & (squares[:, 0] > END_STRAIGHT_MISFIT * freedom * noise_variance))
+    if rows.size == 0:
+        return result, squares
+    tried = _road_rows(road, rows)
+    fraction = np.array(END_STRAIGHT_FRACTIONS)
+    low, high = (np.array(MIDDLE_STRAIGHT_SPANS)[:, k] for k in (0, 1))
+    tried_nodes = _nodes_rows(nodes, rows)
+    start_trials = _straight_trials(tried, tried_nodes, np.zeros(len(rows), dtype=np.int64), np.zeros_like(fraction), fraction)
+    end_trials = _straight_trials(tried, tried_nodes, last[rows], 1.0 - fraction, np.ones_like(fraction))
+    # An arc between two straights: the straight before it first, then the one after it.
+    arc_low, arc_high = (np.array(ARC_SPANS)[:, k] for k in (0, 1))
+    before_arcs = _one_trial_each(_straight_trials(tried, tried_nodes, np.zeros(len(rows), dtype=np.int64), np.zeros_like(arc_low), arc_low))
+    after_share = np.tile((1.0 - arc_high) / (1.0 - arc_low), len(rows))[:, None]
+    flat_nodes = _Nodes(*(np.repeat(getattr(tried_nodes, f.name), len(arc_low), axis=0) for f in fields(_Nodes)))
+    both_trials = _trials_of(_straight_trials(before_arcs, flat_nodes, before_arcs.last[:, 0], 1.0 - after_share, np.ones_like(after_share)), len(rows))
+    middle_trials = _straight_trials(tried, tried_nodes, longest[rows], low, high)
+    trials = _joined_trials([_padded_road(start_trials), _padded_road(end_trials), both_trials, middle_trials])
+    kinds = [(len(fraction), 1, at_start), (len(fraction), 1, at_end), (len(arc_low), 2, at_both), (len(low), 3, in_middle)]
+    added = np.repeat([parameters for _, parameters, _ in kinds], [count for count, _, _ in kinds])
+    allowed = np.column_stack([np.repeat(ok[rows, None], count, axis=1) for count, _, ok in kinds]) & trials.is_ordered()
+    # A few steps show which trial of each kind leads; only those are polished to the end.
+    trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), FIRST_POLISH_ITERATIONS, allowed)
+    trial_squares = np.where(allowed, trial_squares, np.inf)
+    kind_start = np.cumsum([0] + [count for count, _, _ in kinds])
+    leading = np.column_stack([
+        first + np.argmin(trial_squares[:, first:stop], axis=1) for first, stop in zip(kind_start[:-1], kind_start[1:])
+    ])
+    trials = _Road(*(np.take_along_axis(getattr(trials, f.name), leading.reshape(leading.shape + (1,) * (getattr(trials, f.name).ndim - 2)), axis=1) for f in fields(_Road)))
+    added, allowed = added[leading], np.take_along_axis(allowed, leading, axis=1)
+    trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), wanted=allowed)
+    trial_squares = np.where(allowed, trial_squares, np.inf)
+    variance = _residual_variance(
+        np.concatenate((trial_squares, squares[rows]), axis=1), _joined_trials([trials, _padded_road(_padded_road(tried))]),
+        nodes.real[rows], noise_variance[rows],
+    )
+    cost = np.where(allowed, trial_squares + added * (SPARSE_END_STRAIGHT_THRESHOLD * variance)[:, None], np.inf)
+    best = np.argmin(cost, axis=1)
+    accept = cost[np.arange(len(rows)), best] < squares[rows, 0]
+    changed, best = rows[accept], best[accept]
+    for field in fields(_Road):
+        getattr(result, field.name)[changed, 0] = getattr(trials, field.name)[np.flatnonzero(accept), best]
+    squares[changed, 0] = trial_squares[np.flatnonzero(accept), best]
+    return result, squares
 
 
-def _map_along(u: np.ndarray, from_batch: _SparseBatch, to_batch: _SparseBatch) -> np.ndarray:
-    """Positions ``(polylines, k)`` from one arc-length coordinate of the chords to another,
-    linearly within a chord."""
-    chord = np.clip((from_batch.a[:, None, :] <= u[:, :, None]).sum(axis=2) - 1, 0, from_batch.count[:, None] - 1)
-    rows = np.arange(len(u))[:, None]
-    from_a, from_b = from_batch.a[rows, chord], from_batch.b[rows, chord]
-    to_a, to_b = to_batch.a[rows, chord], to_batch.b[rows, chord]
-    fraction = np.clip((u - from_a) / (from_b - from_a), 0.0, 1.0)
-    return to_a + fraction * (to_b - to_a)
+def _nodes_rows(nodes: _Nodes, rows: np.ndarray, most: int | None = None) -> _Nodes:
+    """The nodes of the polylines ``rows`` (the first ``most`` of each, if given)."""
+    return _Nodes(nodes.xy[rows, :most], nodes.s[rows, :most], nodes.real[rows, :most])
 
 
-def _on_arcs(batch: _SparseBatch, bounds: np.ndarray, curvature: np.ndarray) -> _SparseBatch:
-    """The chords replaced by the arcs they span on the fitted road (a chord of a tight
-    curve is shorter than its arc); weights and headings stay the chords'."""
-    def turned(u: np.ndarray) -> np.ndarray:
-        return np.einsum("pnk,pk->pn", np.clip(u[:, :, None] - bounds[:, None, :-1], 0.0, np.diff(bounds)[:, None, :]), curvature)
+def _along_polyline(t: np.ndarray, nodes: _Nodes, node_t: np.ndarray) -> np.ndarray:
+    """Arc lengths ``t`` ``(polylines, k)`` on the road converted to arc lengths along the
+    polyline, linearly between the nodes' projections ``node_t`` (beyond them, one to one)."""
+    count = nodes.real.sum(axis=1)
+    node_t = np.maximum.accumulate(np.where(nodes.real, node_t, np.inf), axis=1)
+    after = np.clip((node_t[:, None, :] <= t[:, :, None]).sum(axis=2), 1, count[:, None] - 1)
+    rows = np.arange(len(t))[:, None]
+    t0, t1 = node_t[rows, after - 1], node_t[rows, after]
+    s0, s1 = nodes.s[rows, after - 1], nodes.s[rows, after]
+    fraction = (t - t0) / np.fmax(t1 - t0, 1e-9)
+    inside = s0 + np.clip(fraction, 0.0, 1.0) * (s1 - s0)
+    return inside + np.fmax(t - t1, 0.0) * (after == count[:, None] - 1) + np.fmin(t - t0, 0.0) * (after == 1)
 
-    half_turn = 0.5 * np.abs(turned(batch.b) - turned(batch.a))
-    length_m = batch.b - batch.a
-    arc_m = length_m * np.where(half_turn > 1e-9, half_turn / np.sin(np.fmax(half_turn, 1e-9)), 1.0)
-    arc_b = np.cumsum(arc_m, axis=1)
-    end = arc_b[np.arange(len(arc_b)), batch.count - 1]
-    return _SparseBatch(arc_b - arc_m, arc_b, batch.heading, batch.root_weight, end, batch.count)
+
+def _polished_parts(
+    batch: _SparseBatch, nodes: _Nodes, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray, noise_variance: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The heading fit's parts polished in the plane (:func:`_polished`), with end straights
+    added where they fit (:func:`_with_end_straights`); returns bounds along the polyline,
+    curvatures and the number of knots, as :func:`_sparse_batch_parts`."""
+    road, squares = _polished(_base_road(batch, bounds, curvature, free, knots), nodes)
+    road, squares = _with_end_straights(road, squares, nodes, noise_variance)
+    t = np.broadcast_to(nodes.s[:, None, :], nodes.s.shape[:1] + (1,) + nodes.s.shape[1:]).copy()
+    node_t = _projected(road, nodes, t, PROJECTION_STEPS)[0][:, 0]
+    polished = _along_polyline(road.bounds[:, 0], nodes, node_t)
+    knots = road.last[:, 0]
+    polished[:, 0] = 0.0
+    polished = np.where(np.arange(polished.shape[1])[None, :] > knots[:, None], batch.end[:, None], polished)
+    return np.maximum.accumulate(polished, axis=1), road.curvature[:, 0], knots
 
 
-def _sparse_batch_parts(batch: _SparseBatch, noise_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Parts of the sparse polylines of a batch from a continuous piecewise-linear fit of
-    their heading.
+def _sparse_batch_parts(batch: _SparseBatch, nodes: _Nodes, noise_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Parts of the sparse polylines of a batch: a continuous piecewise-linear fit of their
+    heading, polished in the plane.
 
     Returns the part bounds in each polyline's arc length (``[0, ..., end]``, padded with
-    the end), each part's curvature per arc length of the road, 1/m, and the number of
-    knots of each polyline.
+    the end), each part's curvature, 1/m, and the number of knots of each polyline.
 
     A map way has few nodes per curve, so the independent line per part of the dense
     method has too few chords to fit; here the heading is one continuous function
     (the road has no kinks, 3.4-3.8) with free knots, every chord predicted by the
     mean heading over the arc it spans, chords across a knot included. Knots are
     added and dropped by the same significance as the dense method's splits, and a
-    part whose curvature is not significant is a straight, and a curved part at a
-    polyline's end gets a straight before (after) it where that fits significantly better
-    (:func:`_with_end_straights`). The chords are then replaced by the arcs they span on
-    the fitted road and the fit repeated.
+    part whose curvature is not significant is a straight. The road these parts
+    describe is then fitted to the nodes themselves (:func:`_polished_parts`).
     """
-    noise_variance = 2.0 * np.fmax(noise_m, SPARSE_MIN_NOISE_M) ** 2
+    sideways_variance = np.fmax(noise_m, SPARSE_MIN_NOISE_M) ** 2
+    noise_variance = 2.0 * sideways_variance
     knot_threshold = _split_threshold(batch.count) - SPLIT_OFFSET + SPARSE_KNOT_OFFSET
     bounds, knots = _knot_fit(batch, knot_threshold * noise_variance)
     bounds, free = _with_straights(batch, _trimmed(bounds, knots), knots, SPARSE_STRAIGHT_THRESHOLD * noise_variance)
-    bounds, knots, free = _with_end_straights(batch, bounds, knots, free, SPARSE_END_STRAIGHT_THRESHOLD * noise_variance)
     curvature = _fits(batch, bounds[:, None, :], free[:, None, :])[1][:, 0]
-    arcs = _on_arcs(batch, bounds, curvature)
-    arc_bounds, _ = _refined_constrained(arcs, _map_along(bounds, batch, arcs), knots, free)
-    curvature = _fits(arcs, arc_bounds[:, None, :], free[:, None, :])[1][:, 0]
-    bounds = _map_along(arc_bounds, arcs, batch)
-    bounds[:, 0] = 0.0
-    bounds = np.where(np.arange(bounds.shape[1])[None, :] > knots[:, None], batch.end[:, None], bounds)
+    # The polish adds two parts (end straights) to every curved polyline's road; it is
+    # done in groups of similar node counts, so that little of its work is padding.
+    curved = free.any(axis=1)
+    node_count = nodes.real.sum(axis=1)
+    group = np.searchsorted(SPARSE_BATCH_CHORDS, node_count - 1)
+    bounds = np.concatenate((bounds, np.repeat(bounds[:, -1:], 2, axis=1)), axis=1)
+    curvature = np.concatenate((curvature, np.zeros((len(curvature), 2))), axis=1)
+    knots = knots.copy()
+    for size in np.unique(group[curved]):
+        rows = np.flatnonzero(curved & (group == size))
+        bounds[rows], curvature[rows], knots[rows] = _polished_parts(
+            batch.rows(rows), _nodes_rows(nodes, rows, int(node_count[rows].max())), bounds[rows, :-2], curvature[rows, :-2],
+            free[rows], knots[rows], sideways_variance[rows],
+        )
     return bounds, curvature, knots
 
 
@@ -1216,18 +1653,19 @@ def _padded_batch(polylines: list[tuple[np.ndarray, np.ndarray, np.ndarray]], si
 def _sparse_parts(chords: _Chords, noise_m: np.ndarray, polylines: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """Part bounds (``[0, ..., end]``) and curvatures of the sparse ``polylines``, fitted
     in batches of equal chord count (:func:`_sparse_batch_parts`)."""
-    kept = {}
+    kept, every = {}, {}
     for polyline in polylines:
         first, stop = chords.polyline_first_chord[polyline : polyline + 2]
-        shortest_m = SHORT_CHORD_NOISE_FACTOR * float(noise_m[polyline])
-        kept[int(polyline)] = _without_short_chords(chords.start_s[first:stop], chords.length_m[first:stop], chords.heading[first:stop], shortest_m)
+        every[int(polyline)] = (chords.start_s[first:stop], chords.length_m[first:stop], chords.heading[first:stop])
+        kept[int(polyline)] = _without_short_chords(*every[int(polyline)], SHORT_CHORD_NOISE_FACTOR * float(noise_m[polyline]))
     by_size: dict[int, list[int]] = {}
     for polyline, (start_s, _, _) in kept.items():
         size = SPARSE_BATCH_CHORDS[np.searchsorted(SPARSE_BATCH_CHORDS, len(start_s))]
         by_size.setdefault(size, []).append(polyline)
     parts = {}
     for size, members in by_size.items():
-        bounds, curvature, knots = _sparse_batch_parts(_padded_batch([kept[p] for p in members], size), noise_m[members])
+        batch, nodes = _padded_batch([kept[p] for p in members], size), _padded_nodes([every[p] for p in members])
+        bounds, curvature, knots = _sparse_batch_parts(batch, nodes, noise_m[members])
         for row, polyline in enumerate(members):
             parts[polyline] = _merged_straights(bounds[row, : knots[row] + 2], curvature[row, : knots[row] + 1])
     return parts
@@ -1247,14 +1685,12 @@ def _polyline_vertex_s(chords: _Chords, polyline: int) -> np.ndarray:
 
 def _profile(vertex_s: np.ndarray, bounds: np.ndarray, curvature_of_part: np.ndarray) -> RadiusProfile:
     """The radius profile of one polyline from its part bounds (``[0, ..., end]``) and curvatures."""
-    part = np.clip(np.searchsorted(bounds, vertex_s, side="right") - 1, 0, len(curvature_of_part) - 1)
+    part = np.searchsorted(bounds[1:-1], vertex_s, side="right")
     curvature = curvature_of_part[part]
-    with np.errstate(divide="ignore", over="ignore"):
-        radius = 1.0 / np.abs(curvature)
-    parts = tuple(
-        ProfilePart(float(start), float(end), float(k))
-        for start, end, k in zip(bounds[:-1], bounds[1:], curvature_of_part)
-    )
+    magnitude = np.abs(curvature)
+    radius = np.divide(1.0, magnitude, out=np.full(len(magnitude), np.inf), where=magnitude > 1.0 / np.finfo(float).max)
+    edges = bounds.tolist()
+    parts = tuple(map(ProfilePart, edges[:-1], edges[1:], curvature_of_part.tolist()))
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)
 
 
@@ -1271,12 +1707,15 @@ def _dense_profile(segmentation: _Segmentation, fit: _Fit, polyline: int) -> Rad
     return _profile(vertex_s, bounds, fit.curvature[first_part:stop_part])
 
 
-def _is_sparse(chords: _Chords, polyline_count: int) -> np.ndarray:
-    """Whether each polyline is a sparse one: :data:`MIN_SPARSE_CHORDS` to
-    :data:`MAX_SPARSE_CHORDS` chords, with a median length of at least :data:`SPARSE_CHORD_M`."""
+def _is_sparse(chords: _Chords, noise_m: np.ndarray) -> np.ndarray:
+    """Whether each polyline is a map way, to be fitted as a sparse one: :data:`MIN_SPARSE_CHORDS`
+    to :data:`MAX_SPARSE_CHORDS` chords, with a median length of at least :data:`SPARSE_CHORD_M`
+    or nodes as noisy as a map's (at least :data:`SPARSE_MIN_NOISE_M`; mappers put nodes
+    closer together on a curve, and such chords' headings are mostly noise)."""
     count = np.diff(chords.polyline_first_chord)
-    median_m = _group_median(chords.length_m, chords.polyline, polyline_count)
-    return (count >= MIN_SPARSE_CHORDS) & (count <= MAX_SPARSE_CHORDS) & (np.nan_to_num(median_m) >= SPARSE_CHORD_M)
+    median_m = _group_median(chords.length_m, chords.polyline, len(noise_m))
+    sparse = (np.nan_to_num(median_m) >= SPARSE_CHORD_M) | (noise_m >= SPARSE_MIN_NOISE_M)
+    return (count >= MIN_SPARSE_CHORDS) & (count <= MAX_SPARSE_CHORDS) & sparse
 
 
 def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
@@ -1318,7 +1757,7 @@ def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
     segmentation.open_steps()
     segmentation.refine_until_stable()
     fit = segmentation.fit_on_arc_lengths()
-    sparse_parts = _sparse_parts(chords, noise_m, np.flatnonzero(_is_sparse(chords, len(points))))
+    sparse_parts = _sparse_parts(chords, noise_m, np.flatnonzero(_is_sparse(chords, noise_m)))
     return [
         _profile(_polyline_vertex_s(chords, p), *sparse_parts[p]) if p in sparse_parts else _dense_profile(segmentation, fit, p)
         for p in range(len(points))
