@@ -88,6 +88,10 @@ def curvature_rows(figures: dict) -> list[Row]:
     for name in curvature.TARGETS:
         rows.append(context(f"curvature sparse (unjudged): {name}", sparse["ours"][name],
                             f"{sparse['three_point'][name]:.3g} (3-point)"))
+    for kind in ("mapped", "sparse"):
+        bound = figures[kind]["bound"]
+        rows.append(context(f"curvature {kind}: arcs_started_over_5_m", figures[kind]["ours"]["arcs_started_over_5_m"],
+                            f"{bound['expected_beyond_limit']:.1f} expected of an efficient estimator (Cramér-Rao)"))
     rows.append(at_most("curvature multi curve: max_step_error_m", figures["multi_curve"]["max_step_error_m"],
                         curvature.MULTI_STEP_TARGET_M))
     rows.append(context("curvature: vertices/s", round(figures["throughput"]["vertices_per_s"])))

@@ -34,6 +34,7 @@ Run with ``python -m benchmarks.curvature``; :func:`run` returns the figures.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -67,6 +68,8 @@ TARGETS = {
     "false_curves_on_straights": (0, 0),
 }
 MULTI_STEP_TARGET_M = 1.0
+#: The sparse target on the curve start, m: the bound figures count the arcs started further off.
+SPARSE_START_LIMIT_M = TARGETS["max_start_error_m"][1]
 #: The bundled real network (imported from OpenStreetMap) and how fast it must load and profile, s.
 REAL_NETWORK = "badhersfeld.net.xml.gz"
 REAL_NETWORK_LOAD_TARGET_S = 3.0
@@ -147,6 +150,48 @@ def straight_road(rng: np.random.Generator, shape: Callable[[list[Piece], np.ran
     return shape([straight(float(rng.uniform(200, 1000)))], rng)
 
 
+def start_bound_m(road: Road) -> float:
+    """The Cramér-Rao bound on the standard deviation of any unbiased estimate of the arc's
+    start from the nodes of ``road`` (sparse cases), m.
+
+    The nodes are taken at their arc lengths along the polyline; each tells only its
+    sideways distance from the road (its place along the road is unknown), with the
+    noise's per-axis variance. The road's parameters are its sideways offset, heading,
+    arc start, curvature and arc length.
+    """
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(road.xy, axis=0).T))))
+    truth = np.array([0.0, 0.0, road.arc_start_s, 1.0 / road.radius_m, road.arc_end_s - road.arc_start_s])
+
+    def points(parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        offset, heading, start_s, curvature, length_m = parameters
+        pieces = [straight(start_s), Piece(length_m, curvature), straight(s[-1] + 100.0)]
+        x, y, along = pose_at(pieces, s, (0.0, offset), heading)
+        return np.column_stack((x, y)), along
+
+    _, along = points(truth)
+    normal = np.column_stack((-np.sin(along), np.cos(along)))
+    jacobian = np.empty((len(s), len(truth)))
+    for column in range(len(truth)):
+        step = np.zeros(len(truth))
+        step[column] = 1e-6 * max(abs(truth[column]), 1e-3)
+        moved = (points(truth + step)[0] - points(truth - step)[0]) / (2.0 * step[column])
+        jacobian[:, column] = np.einsum("ij,ij->i", moved, normal)
+    information = jacobian.T @ jacobian / (SPARSE_NOISE_RMS_M**2 / 2.0)
+    # Where an arc holds too few nodes to tell its length from its curvature, the
+    # information is singular; the pseudo-inverse bounds what the nodes do tell.
+    return float(np.sqrt(np.linalg.pinv(information, hermitian=True)[2, 2]))
+
+
+def bound_figures(roads: list[Road], limit_m: float) -> dict:
+    """What the Cramér-Rao bound allows: the median and p90 bound on the start's standard
+    deviation, the number of arcs an efficient estimator is expected to start more than
+    ``limit_m`` off, and the chance it misses none by that much."""
+    sigma = np.array([start_bound_m(road) for road in roads])
+    beyond = np.array([math.erfc(limit_m / (value * math.sqrt(2.0))) for value in sigma])
+    return {"median_start_bound_m": float(np.median(sigma)), "p90_start_bound_m": float(np.percentile(sigma, 90)),
+            "expected_beyond_limit": float(beyond.sum()), "chance_none_beyond_limit": float(np.prod(1.0 - beyond))}
+
+
 # --------------------------------------------------------------------------- the two methods
 
 
@@ -192,6 +237,7 @@ def accuracy(roads: list[Road], straights: list[np.ndarray], method: Callable) -
         "median_start_error_m": float(np.median(scores[:, 1])),
         "p90_start_error_m": float(np.percentile(scores[:, 1], 90)),
         "max_start_error_m": float(np.max(scores[:, 1])),
+        "arcs_started_over_5_m": int(np.sum(scores[:, 1] > SPARSE_START_LIMIT_M)),
         "missed_arcs": int(np.sum(~np.isfinite(scores[:, 0]))),
         "false_curves_on_straights": int(sum(len(method(xy, DEFAULT_WARNING_RADIUS_M)) for xy in straights)),
     }
@@ -275,6 +321,8 @@ def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
         roads = [arc_road(rng, shape) for _ in range(cases)]
         straights = [straight_road(rng, shape) for _ in range(cases // 3)]
         figures[kind] = {name: accuracy(roads, straights, method) for name, method in (("ours", ours), ("three_point", three_point))}
+        if kind != "dense":
+            figures[kind]["bound"] = bound_figures(roads, SPARSE_START_LIMIT_M)
         if kind == "sparse":
             figures["sparse_throughput"] = sparse_throughput([road.xy for road in roads] + straights)
     figures["multi_curve"] = multi_curve_step_errors(rng, cases // 3)
@@ -296,7 +344,8 @@ def report(figures: dict) -> str:
     ]
     for column, kind in ((0, "dense"), (1, "sparse"), (1, "mapped")):
         for name in ("median_radius_error_pct", "p90_radius_error_pct", "median_start_error_m", "p90_start_error_m",
-                     "max_start_error_m", "missed_arcs", "false_curves_on_straights"):
+                     "max_start_error_m", "arcs_started_over_5_m", "missed_arcs",
+                     "false_curves_on_straights"):
             ours_value, baseline = figures[kind]["ours"][name], figures[kind]["three_point"][name]
             if name in TARGETS:
                 limit = TARGETS[name][column]
@@ -305,6 +354,14 @@ def report(figures: dict) -> str:
             else:
                 verdicts, target = "", f"{'':>8}"
             lines.append(f"{kind:7} {name:27} {ours_value:>10.3f} {baseline:>10.3f} {target}{verdicts}")
+    for kind in ("sparse", "mapped"):
+        bound = figures[kind]["bound"]
+        lines.append(
+            f"{kind:7} start-error bound (Cramér-Rao, 0.5 m noise): median {bound['median_start_bound_m']:.2f} m, "
+            f"p90 {bound['p90_start_bound_m']:.2f} m; arcs started > {SPARSE_START_LIMIT_M:g} m off: ours "
+            f"{figures[kind]['ours']['arcs_started_over_5_m']}, an efficient estimator {bound['expected_beyond_limit']:.1f} expected "
+            f"(it misses none with probability {bound['chance_none_beyond_limit']:.3f})"
+        )
     multi = figures["multi_curve"]
     lines.append(
         f"multi   max_step_error_m            {multi['max_step_error_m']:>10.3f} {'':>10} {MULTI_STEP_TARGET_M:>8g}  "
