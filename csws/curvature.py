@@ -1560,7 +1560,7 @@ def _polished_parts(
     knots = road.last[:, 0]
     polished[:, 0] = 0.0
     polished = np.where(np.arange(polished.shape[1])[None, :] > knots[:, None], batch.end[:, None], polished)
-    return np.maximum.accumulate(polished, axis=1), road.curvature[:, 0], knots
+    return np.maximum.accumulate(np.clip(polished, 0.0, batch.end[:, None]), axis=1), road.curvature[:, 0], knots
 
 
 def _sparse_batch_parts(batch: _SparseBatch, nodes: _Nodes, noise_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1602,7 +1602,9 @@ def _sparse_batch_parts(batch: _SparseBatch, nodes: _Nodes, noise_m: np.ndarray)
 
 
 def _merged_straights(bounds: np.ndarray, curvature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Knots between two parts of equal curvature (two straights) removed."""
+    """Parts of no length, and knots between two parts of equal curvature (two straights), removed."""
+    keep = np.diff(bounds) > 0  # a part of no length at the start leaves its start, 0, to the next
+    bounds, curvature = np.append(bounds[:-1][keep], bounds[-1]), curvature[keep]
     keep = np.concatenate(([True], curvature[1:] != curvature[:-1]))
     return np.append(bounds[:-1][keep], bounds[-1]), curvature[keep]
 

@@ -240,6 +240,27 @@ def test_profile_vertex_values_come_from_its_parts():
     assert curves_from_profile(profile)[0].direction == "right"
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(3.0, 60.0), st.floats(-1.6, 1.6)), min_size=4, max_size=14),
+    st.floats(0.0, 2.0),
+    seeds,
+)
+def test_sparse_profile_parts_tile_the_polyline(steps, noise_rms_m, seed):
+    """Any map-like way, however short, bent or noisy (nodes 3-60 m apart turning up to
+    90 degrees each): its parts run from 0 to its end without gaps, none without length."""
+    heading = np.cumsum([turn for _, turn in steps])
+    step = np.array([length for length, _ in steps]) * np.exp(1j * heading)
+    xy = np.concatenate(([0.0], np.cumsum(step)))
+    xy = np.column_stack((xy.real, xy.imag)) + np.random.default_rng(seed).normal(0.0, noise_rms_m / 2.0, (len(xy), 2))
+    profile = radius_profile(xy)
+    starts = np.array([p.start_s for p in profile.parts])
+    ends = np.array([p.end_s for p in profile.parts])
+    assert starts[0] == 0.0 and ends[-1] == pytest.approx(profile.s[-1])
+    assert np.all(ends > starts) and np.array_equal(starts[1:], ends[:-1])
+    assert np.all(np.isfinite([p.curvature for p in profile.parts]))
+
+
 def test_many_polylines_give_the_profiles_of_each_alone():
     rng = np.random.default_rng(7)
     polylines = [
