@@ -99,9 +99,9 @@ SHORT_CHORD_NOISE_FACTOR = 5.0
 SPARSE_KNOT_OFFSET = 10.0
 #: A part of a sparse polyline is curved only if making it straight grows the normalised residual by more.
 SPARSE_STRAIGHT_THRESHOLD = 20.0
-#: A curved part at a polyline's end gets a straight between it and the end when that
-#: reduces the nodes' sum of squared sideways distances by more than this many times their
-#: variance (the straight adds a knot but no curvature).
+#: A straight tried in a curved part of a sparse polyline's road is kept when the nodes' sum
+#: of squared sideways distances falls by more than this many times their noise variance
+#: for each parameter it adds (a straight at an end adds a knot but no curvature).
 SPARSE_END_STRAIGHT_THRESHOLD = 10.0
 #: Levenberg-Marquardt iterations polishing a sparse polyline's road in the plane.
 POLISH_ITERATIONS = 16
@@ -115,15 +115,15 @@ MIN_DAMPING = 1e-6
 MAX_DAMPING = 10.0
 #: Newton steps projecting the nodes onto the road before the polish (each of its steps adds one).
 PROJECTION_STEPS = 1
-#: Where an end straight's knot is first put into a curved end part, as fractions of the
-#: part from the polyline's end (the polish then moves it).
+#: How much of a curved end part a straight tried there first takes, as fractions of the
+#: part counted in nodes from the polyline's end (the polish then moves its knot).
 END_STRAIGHT_FRACTIONS = (0.25, 0.5, 0.75)
 #: Where a straight is first put into the middle of a curved part, and where a curved part
 #: is first narrowed to between two straights, as fractions of the part (counted in nodes).
 MIDDLE_STRAIGHT_SPANS = ((0.25, 0.5), (0.25, 0.75), (0.5, 0.75))
 ARC_SPANS = MIDDLE_STRAIGHT_SPANS
-#: End straights are tried only on roads whose nodes' sum of squared sideways distances
-#: exceeds this many times what the noise (the polyline's own estimate) leaves on the right road.
+#: Straights are tried only on roads whose nodes' sum of squared sideways distances exceeds
+#: this many times what the noise (the polyline's own estimate) leaves on the right road.
 END_STRAIGHT_MISFIT = 1.0
 #: Fewest nodes more than parameters a road with added straights must have to be tried.
 MIN_TRIAL_FREEDOM = 1
@@ -1452,22 +1452,23 @@ def _residual_variance(squares: np.ndarray, roads: _Road, real: np.ndarray, esti
     return np.fmax(np.fmin(fitted, estimate), SPARSE_MIN_NOISE_M**2)
 
 
-def _with_end_straights(
+def _with_added_straights(
     road: _Road, squares: np.ndarray, nodes: _Nodes, noise_variance: np.ndarray
 ) -> tuple[_Road, np.ndarray]:
-    """Straights added between curved end parts and the polyline's ends where the
-    polished road then lies closer to the nodes by more than
-    :data:`SPARSE_END_STRAIGHT_THRESHOLD` times their noise variance per straight.
+    """Straights added into curved parts where the polished road then lies closer to the
+    nodes by more than :data:`SPARSE_END_STRAIGHT_THRESHOLD` times their noise variance
+    per parameter added.
 
     A curve's first (or last) knot is missed when the straight before it has only a few
     nodes: the straight and the curve are then fitted as one curved part that starts at
     the polyline's start (3.4), however clearly its first nodes lie on a line. A curve
-    in the middle of a way may need both straights before either pays off, so a straight
-    at the start, at the end and at both are tried together, each from several places
-    (:data:`END_STRAIGHT_FRACTIONS`), and the road that costs least, counting that
-    threshold per straight, is kept. The noise variance is the one the closest road
-    leaves (:func:`_residual_variance`); ``noise_variance``, the polyline's own estimate,
-    only decides which roads are tried.
+    in the middle of a way may need both straights before either pays off, and two
+    curves with a straight between them may have been fitted as one. So a straight at
+    the start, at the end, at both and in the middle of the longest curved part are tried
+    together, each from several places (:data:`END_STRAIGHT_FRACTIONS`,
+    :data:`MIDDLE_STRAIGHT_SPANS`), and the road that costs least is kept. The noise
+    variance is the smaller of the polyline's own estimate and what the closest road
+    leaves (:func:`_residual_variance`); the estimate alone decides which roads are tried.
 
     Returns the roads (two parts more, padding where no straight was added) and their sums of squares.
     """
@@ -1549,11 +1550,11 @@ def _along_polyline(t: np.ndarray, nodes: _Nodes, node_t: np.ndarray) -> np.ndar
 def _polished_parts(
     batch: _SparseBatch, nodes: _Nodes, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray, noise_variance: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The heading fit's parts polished in the plane (:func:`_polished`), with end straights
-    added where they fit (:func:`_with_end_straights`); returns bounds along the polyline,
+    """The heading fit's parts polished in the plane (:func:`_polished`), with straights
+    added where they fit (:func:`_with_added_straights`); returns bounds along the polyline,
     curvatures and the number of knots, as :func:`_sparse_batch_parts`."""
     road, squares = _polished(_base_road(batch, bounds, curvature, free, knots), nodes)
-    road, squares = _with_end_straights(road, squares, nodes, noise_variance)
+    road, squares = _with_added_straights(road, squares, nodes, noise_variance)
     t = np.broadcast_to(nodes.s[:, None, :], nodes.s.shape[:1] + (1,) + nodes.s.shape[1:]).copy()
     node_t = _projected(road, nodes, t, PROJECTION_STEPS)[0][:, 0]
     polished = _along_polyline(road.bounds[:, 0], nodes, node_t)
