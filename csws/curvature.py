@@ -1452,6 +1452,28 @@ def _residual_variance(squares: np.ndarray, roads: _Road, real: np.ndarray, esti
     return np.fmax(np.fmin(fitted, estimate), SPARSE_MIN_NOISE_M**2)
 
 
+def _straight_trial_roads(road: _Road, nodes: _Nodes, last: np.ndarray, longest: np.ndarray) -> tuple[_Road, list[int]]:
+    """The trial roads of the four kinds :func:`_with_added_straights` tries, side by side
+    ``(polylines, trials)``: a straight at the start, at the end, at both (an arc between
+    them) and in the middle of the ``longest`` curved part; also returns how many of each."""
+    fraction = np.array(END_STRAIGHT_FRACTIONS)
+    first_part = np.zeros(len(last), dtype=np.int64)
+    start_trials = _straight_trials(road, nodes, first_part, np.zeros_like(fraction), fraction)
+    end_trials = _straight_trials(road, nodes, last, 1.0 - fraction, np.ones_like(fraction))
+    # An arc between two straights: the straight before it first, then the one after it.
+    arc_low, arc_high = (np.array(ARC_SPANS)[:, k] for k in (0, 1))
+    before_arcs = _one_trial_each(_straight_trials(road, nodes, first_part, np.zeros_like(arc_low), arc_low))
+    after_share = np.tile((1.0 - arc_high) / (1.0 - arc_low), len(last))[:, None]
+    each_nodes = _Nodes(*(np.repeat(getattr(nodes, f.name), len(arc_low), axis=0) for f in fields(_Nodes)))
+    both_trials = _trials_of(
+        _straight_trials(before_arcs, each_nodes, before_arcs.last[:, 0], 1.0 - after_share, np.ones_like(after_share)), len(last)
+    )
+    low, high = (np.array(MIDDLE_STRAIGHT_SPANS)[:, k] for k in (0, 1))
+    middle_trials = _straight_trials(road, nodes, longest, low, high)
+    trials = _joined_trials([_padded_road(start_trials), _padded_road(end_trials), both_trials, middle_trials])
+    return trials, [len(fraction), len(fraction), len(arc_low), len(low)]
+
+
 def _with_added_straights(
     road: _Road, squares: np.ndarray, nodes: _Nodes, noise_variance: np.ndarray
 ) -> tuple[_Road, np.ndarray]:
@@ -1487,26 +1509,15 @@ def _with_added_straights(
     if rows.size == 0:
         return result, squares
     tried = _road_rows(road, rows)
-    fraction = np.array(END_STRAIGHT_FRACTIONS)
-    low, high = (np.array(MIDDLE_STRAIGHT_SPANS)[:, k] for k in (0, 1))
-    tried_nodes = _nodes_rows(nodes, rows)
-    start_trials = _straight_trials(tried, tried_nodes, np.zeros(len(rows), dtype=np.int64), np.zeros_like(fraction), fraction)
-    end_trials = _straight_trials(tried, tried_nodes, last[rows], 1.0 - fraction, np.ones_like(fraction))
-    # An arc between two straights: the straight before it first, then the one after it.
-    arc_low, arc_high = (np.array(ARC_SPANS)[:, k] for k in (0, 1))
-    before_arcs = _one_trial_each(_straight_trials(tried, tried_nodes, np.zeros(len(rows), dtype=np.int64), np.zeros_like(arc_low), arc_low))
-    after_share = np.tile((1.0 - arc_high) / (1.0 - arc_low), len(rows))[:, None]
-    flat_nodes = _Nodes(*(np.repeat(getattr(tried_nodes, f.name), len(arc_low), axis=0) for f in fields(_Nodes)))
-    both_trials = _trials_of(_straight_trials(before_arcs, flat_nodes, before_arcs.last[:, 0], 1.0 - after_share, np.ones_like(after_share)), len(rows))
-    middle_trials = _straight_trials(tried, tried_nodes, longest[rows], low, high)
-    trials = _joined_trials([_padded_road(start_trials), _padded_road(end_trials), both_trials, middle_trials])
-    kinds = [(len(fraction), 1, at_start), (len(fraction), 1, at_end), (len(arc_low), 2, at_both), (len(low), 3, in_middle)]
-    added = np.repeat([parameters for _, parameters, _ in kinds], [count for count, _, _ in kinds])
-    allowed = np.column_stack([np.repeat(ok[rows, None], count, axis=1) for count, _, ok in kinds]) & trials.is_ordered()
+    trials, counts = _straight_trial_roads(tried, _nodes_rows(nodes, rows), last[rows], longest[rows])
+    added = np.repeat([1, 1, 2, 3], counts)  # parameters each kind adds: one knot, two, two and a curvature
+    kind_allowed = (at_start, at_end, at_both, in_middle)
+    allowed = np.column_stack([np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed)])
+    allowed &= trials.is_ordered()
     # A few steps show which trial of each kind leads; only those are polished to the end.
     trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), FIRST_POLISH_ITERATIONS, allowed)
     trial_squares = np.where(allowed, trial_squares, np.inf)
-    kind_start = np.cumsum([0] + [count for count, _, _ in kinds])
+    kind_start = np.cumsum([0, *counts])
     leading = np.column_stack([
         first + np.argmin(trial_squares[:, first:stop], axis=1) for first, stop in zip(kind_start[:-1], kind_start[1:])
     ])
