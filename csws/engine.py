@@ -18,13 +18,13 @@ from typing import Sequence
 
 import numpy as np
 
-from .lookahead import LookAhead, LookAheadSettings, PathAhead
+from .lookahead import BatchAhead, LookAhead, LookAheadSettings, PathAhead
 from .roadmap import RoadMap
 from .standard import Level
-from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, switch
-from .warning import CurveWarning, WarningSettings, column_index, evaluate_batch, no_warning
+from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
+from .warning import CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
 
-__all__ = ["VehicleInput", "Answer", "EngineSettings", "Engine"]
+__all__ = ["VehicleInput", "Answer", "FleetAnswers", "EngineSettings", "Engine"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,31 @@ class Answer:
     def level(self) -> Level:
         """The warning level, 0 to 2."""
         return self.warning.level
+
+
+@dataclass(frozen=True)
+class FleetAnswers:
+    """The system's answers for many vehicles at one instant, as parallel lists in their order.
+
+    Columns rather than one :class:`Answer` per vehicle, so that a large fleet is answered
+    without per-vehicle objects beyond those of its warnings.
+
+    Attributes
+    ----------
+    vehicle_id, state, fault, warning
+        Per vehicle, as in :class:`Answer` (warnings without a warning are shared objects).
+    active
+        The vehicles whose path ahead was looked at (active ones), ascending.
+    ahead
+        Their roads ahead, in the order of ``active``; None when no vehicle is active.
+    """
+
+    vehicle_id: Sequence[str]
+    state: list[SystemState]
+    fault: list[Fault | None]
+    warning: list[CurveWarning]
+    active: list[int]
+    ahead: BatchAhead | None
 
 
 @dataclass(frozen=True)
@@ -161,60 +186,95 @@ class Engine:
             vehicle.speed_kmh,
             timestamp_s=vehicle.timestamp_s,
             age_s=vehicle.age_s,
-            found_fault=self._found_fault(vehicle),
+            found_fault=self._found_fault(vehicle.lane_id, vehicle.lane_pos_m),
             settings=self.settings.activation,
         )
         self.statuses[vehicle.vehicle_id] = status
         return status
 
     def evaluate_many(self, vehicles: Sequence[VehicleInput]) -> list[Answer]:
-        """The answers for many vehicles, in order.
-
-        The state machine runs per vehicle; the look-ahead and the warning of every
-        active vehicle are computed together, in one vectorised step each.
-        """
-        statuses: list[VehicleStatus] = []
-        active: list[int] = []
-        for i, vehicle in enumerate(vehicles):
-            status = self._next_status(vehicle)
-            statuses.append(status)
-            if status.warns:
-                active.append(i)
-        warnings: list[CurveWarning] = [no_warning()] * len(vehicles)
+        """The answers for many vehicles, in order (:meth:`evaluate_fleet` of their columns, with paths)."""
+        fleet = self.evaluate_fleet(
+            [v.vehicle_id for v in vehicles], [v.category for v in vehicles], [v.speed_kmh for v in vehicles],
+            [v.lane_id for v in vehicles], [v.lane_pos_m for v in vehicles], [v.route_edges for v in vehicles],
+            timestamp_s=[v.timestamp_s for v in vehicles], age_s=[v.age_s for v in vehicles],
+        )
         paths: list[PathAhead | None] = [None] * len(vehicles)
-        if active:
-            for i, warning, path in zip(active, *self._warnings([vehicles[i] for i in active])):
-                warnings[i], paths[i] = warning, path
-        return [
-            Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
-            for vehicle, status, warning, path in zip(vehicles, statuses, warnings, paths)
-        ]
+        if fleet.ahead is not None:
+            for i, path in zip(fleet.active, fleet.ahead.paths_ahead()):
+                paths[i] = path
+        return list(map(Answer, fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, paths))
 
-    def _found_fault(self, vehicle: VehicleInput) -> Fault | None:
+    def evaluate_fleet(
+        self,
+        vehicle_ids: Sequence[str],
+        categories: Sequence[str],
+        speed_kmh: Sequence[float],
+        lane_ids: Sequence[str | None],
+        lane_pos_m: Sequence[float],
+        route_edges: Sequence[Sequence[str] | None],
+        *,
+        timestamp_s: Sequence[float | None] | None = None,
+        age_s: Sequence[float | None] | None = None,
+    ) -> "FleetAnswers":
+        """The answers for many vehicles given as columns (the fields of :class:`VehicleInput`), in order.
+
+        The system state of every vehicle (5.2-5.4) is updated in one vectorised step; the
+        look-ahead and the warning of every active vehicle are computed together, in one
+        vectorised step each. A fleet whose vehicles keep their route objects from step to
+        step (the co-simulation's) shares the look-up of their horizons.
+
+        Raises
+        ------
+        ValueError
+            For an unknown category, before any vehicle's status changes.
+        """
+        columns = column_indices(categories)
+        speeds_kmh = np.asarray(speed_kmh, dtype=float)
+        positions_m = np.asarray(lane_pos_m, dtype=float)
+        statuses = next_statuses(
+            [self.statuses.get(vehicle_id, _NEW_STATUS) for vehicle_id in vehicle_ids], speeds_kmh,
+            timestamp_s=timestamp_s, age_s=age_s,
+            found_fault=list(map(self._found_fault, lane_ids, positions_m.tolist())),
+            settings=self.settings.activation,
+        )
+        self.statuses.update(zip(vehicle_ids, statuses))
+        active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
+        warnings = [no_warning()] * len(statuses)
+        ahead = None
+        if active:
+            rows = np.array(active, dtype=np.intp)
+            active_warnings, ahead = self._warnings(speeds_kmh[rows], columns[rows], [lane_ids[i] for i in active],
+                                                    positions_m[rows], [route_edges[i] for i in active])  # fmt: skip
+            for i, warning in zip(active, active_warnings):
+                warnings[i] = warning
+        return FleetAnswers(vehicle_ids, [status.state for status in statuses],
+                            [status.fault for status in statuses], warnings, active, ahead)  # fmt: skip
+
+    def _found_fault(self, lane_id: str | None, lane_pos_m: float) -> Fault | None:
         """What prevents a path ahead (5.4): no map, no lane, or a lane position that is not a number."""
         if self.road_map is None:
             return Fault.NO_MAP
-        if vehicle.lane_id is None or not self.road_map.has_lane(vehicle.lane_id):
+        if lane_id is None or not self.road_map.has_lane(lane_id):
             return Fault.NO_MAP_MATCH
-        if not math.isfinite(vehicle.lane_pos_m):
+        if not math.isfinite(lane_pos_m):
             return Fault.INVALID_INPUT
         return None
 
-    def _warnings(self, vehicles: Sequence[VehicleInput]) -> tuple[list[CurveWarning], list[PathAhead]]:
+    def _warnings(self, speed_kmh: np.ndarray, columns: np.ndarray, lane_ids: Sequence[str], lane_pos_m: np.ndarray,
+                  route_edges: Sequence[Sequence[str] | None]) -> tuple[list[CurveWarning], BatchAhead]:  # fmt: skip
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
-        speed_kmh = np.array([v.speed_kmh for v in vehicles], dtype=float)
-        columns = np.array([column_index(v.category) for v in vehicles], dtype=np.intp)
-        ahead = self.lookahead.many(
-            [v.lane_id for v in vehicles], np.array([v.lane_pos_m for v in vehicles], dtype=float), speed_kmh,
-            [v.route_edges for v in vehicles],
-        )
+        ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
         batch = evaluate_batch(speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m, ahead.cpoi_radius_m,
                                self.settings.warning)
-        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicles) + 1)).tolist()
-        warnings = [
-            batch.vehicle_warning(i, first[i], ahead.cpoi_curve_id[first[i]:first[i + 1]],
-                                  ahead.cpoi_part_index[first[i]:first[i + 1]], horizon.kind)
-            if level else no_warning(horizon.kind)  # most vehicles: nothing to look at
-            for i, (level, horizon) in enumerate(zip(batch.level.tolist(), ahead.horizons))
-        ]
-        return warnings, ahead.paths_ahead()
+        warnings = [no_warning(horizon.kind) for horizon in ahead.horizons]
+        warned = np.flatnonzero(batch.level).tolist()
+        if warned:  # most vehicles: nothing to look at
+            first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
+            found = batch.vehicle_warnings(
+                warned, [first[i] for i in warned], [ahead.cpoi_curve_id[first[i]:first[i + 1]] for i in warned],
+                [ahead.cpoi_part_index[first[i]:first[i + 1]] for i in warned], [ahead.horizons[i].kind for i in warned],
+            )
+            for i, warning in zip(warned, found):
+                warnings[i] = warning
+        return warnings, ahead

@@ -286,6 +286,7 @@ class LookAhead:
         self.settings = settings
         self.warning_settings = warning_settings
         self._horizons: OrderedDict[tuple, Horizon] = OrderedDict()
+        self._by_query: dict[tuple, Horizon] = {}
 
     def __call__(
         self,
@@ -361,7 +362,8 @@ class LookAhead:
         """The horizons the vehicles need, each looked up once, and the index of each vehicle's.
 
         Vehicles on the same lane with the same route and the same horizon reach share a
-        horizon, so the cache is asked once per group rather than once per vehicle.
+        horizon, so the cache is asked once per group rather than once per vehicle; groups
+        recur from step to step, so each query's horizon is remembered too (no route scan).
         """
         first_of: dict[tuple, int] = {}
         distinct: list[Horizon] = []
@@ -372,9 +374,19 @@ class LookAhead:
             index = first_of.get(key)
             if index is None:
                 index = first_of[key] = len(distinct)
-                distinct.append(self.horizon(lane_id, route, lad_m))
+                horizon = self._by_query.get(key)
+                if horizon is None:
+                    horizon = self._remember_query(key, self.horizon(lane_id, route, lad_m))
+                distinct.append(horizon)
             which.append(index)
         return distinct, np.array(which, dtype=np.intp)
+
+    def _remember_query(self, key: tuple, horizon: Horizon) -> Horizon:
+        """Remember the horizon of a (lane, route, reach) query; forgotten all at once when the cache is full."""
+        if len(self._by_query) >= self.settings.cache_size:
+            self._by_query.clear()
+        self._by_query[key] = horizon
+        return horizon
 
     def lookahead_m(self, speed_kmh: np.ndarray) -> np.ndarray:
         """S_LAD of each vehicle: the fixed distance if one is set, else the speed-dependent one, m."""

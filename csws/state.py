@@ -27,8 +27,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from enum import StrEnum
+from typing import Sequence
 
-__all__ = ["SystemState", "Fault", "ActivationSettings", "VehicleStatus", "switch", "next_status"]
+import numpy as np
+
+__all__ = ["SystemState", "Fault", "ActivationSettings", "VehicleStatus", "switch", "next_status", "next_statuses"]
 
 
 class SystemState(StrEnum):
@@ -116,24 +119,55 @@ def switch(status: VehicleStatus, on: bool) -> VehicleStatus:
     return replace(status, state=SystemState.STANDBY, switched_on=True, activated=False, fault=None)
 
 
-def _is_activated(was_activated: bool, speed_kmh: float, settings: ActivationSettings) -> bool:
-    """The activation latch with hysteresis (5.3.2)."""
-    if was_activated:
-        return speed_kmh >= settings.activation_speed_kmh - settings.hysteresis_kmh
-    return speed_kmh >= settings.activation_speed_kmh
+def _is_activated(was_activated, speed_kmh, settings: ActivationSettings):
+    """The activation latch with hysteresis (5.3.2): once activated, the threshold drops by the hysteresis.
+
+    Works on one vehicle (bool, float) and on arrays alike.
+    """
+    return speed_kmh >= settings.activation_speed_kmh - settings.hysteresis_kmh * was_activated
 
 
-def _input_fault(speed_kmh: float, timestamp_s: float | None, age_s: float | None, last_timestamp_s, settings):
-    """The fault the input itself shows, or None."""
-    if not (math.isfinite(speed_kmh) and speed_kmh >= 0):
-        return Fault.INVALID_INPUT
-    if timestamp_s is not None and not math.isfinite(timestamp_s):
-        return Fault.INVALID_INPUT
-    if timestamp_s is not None and last_timestamp_s is not None and timestamp_s < last_timestamp_s:
-        return Fault.STALE_INPUT
-    if age_s is not None and (not math.isfinite(age_s) or age_s > settings.stale_after_s):
-        return Fault.STALE_INPUT
-    return None
+def _is_number(value):
+    """Whether ``value`` is a finite number (floats or arrays; NaN and infinities are not)."""
+    return (value == value) & (abs(value) < math.inf)
+
+
+#: Fault codes of :func:`_next_fields` (0: no fault).
+_FAULTS = (None, Fault.NO_MAP, Fault.NO_MAP_MATCH, Fault.STALE_INPUT, Fault.INVALID_INPUT)
+_FAULT_CODE = {fault: code for code, fault in enumerate(_FAULTS)}
+_STALE, _INVALID = _FAULT_CODE[Fault.STALE_INPUT], _FAULT_CODE[Fault.INVALID_INPUT]
+
+
+def _next_fields(was_activated, last_timestamp_s, has_last, speed_kmh, timestamp_s, has_timestamp, age_s, has_age,
+                 found_fault_code, settings: ActivationSettings):  # fmt: skip
+    """The rules of one update of a switched-on system (5.3, 5.4), on one vehicle or on arrays of them.
+
+    An absent timestamp, last timestamp or age is flagged by ``has_*`` False (its value
+    is then ignored). The input's own faults come first: a speed or a timestamp that is
+    not a number is invalid; a timestamp older than the last accepted one, or an age
+    beyond ``stale_after_s``, is stale; else the fault found outside (map side), if any.
+
+    Returns
+    -------
+    fault_code, activated, last_timestamp_s
+        The fault (an index into ``_FAULTS``, 0 for none), the activation latch (kept
+        as it was in fault) and the last accepted timestamp.
+    """
+    invalid = ((speed_kmh >= 0) & (speed_kmh < math.inf)) ^ True
+    invalid = invalid | (has_timestamp & (_is_number(timestamp_s) ^ True))
+    stale = has_timestamp & has_last & (timestamp_s < last_timestamp_s)
+    stale = stale | (has_age & ((_is_number(age_s) & (age_s <= settings.stale_after_s)) ^ True))
+    fault_code = _select(invalid, _INVALID, _select(stale, _STALE, found_fault_code))
+    in_fault = fault_code > 0
+    activated = _select(in_fault, was_activated, _is_activated(was_activated, speed_kmh, settings))
+    return fault_code, activated, _select((in_fault ^ True) & has_timestamp, timestamp_s, last_timestamp_s)
+
+
+def _select(condition, if_true, if_false):
+    """``if_true`` where ``condition`` holds, else ``if_false`` (one vehicle, or arrays of them)."""
+    if isinstance(condition, np.ndarray):
+        return np.where(condition, if_true, if_false)
+    return if_true if condition else if_false
 
 
 def next_status(
@@ -165,14 +199,67 @@ def next_status(
     """
     if not status.switched_on:
         return status
-    fault = _input_fault(speed_kmh, timestamp_s, age_s, status.last_timestamp_s, settings) or found_fault
-    if fault is not None:
-        return replace(status, state=SystemState.FAULT, fault=fault)
-    activated = _is_activated(status.activated, speed_kmh, settings)
-    return VehicleStatus(
-        state=SystemState.ACTIVE if activated else SystemState.STANDBY,
-        switched_on=True,
-        activated=activated,
-        last_timestamp_s=timestamp_s if timestamp_s is not None else status.last_timestamp_s,
-        fault=None,
+    fault_code, activated, last_timestamp_s = _next_fields(
+        status.activated, _or_nan(status.last_timestamp_s), status.last_timestamp_s is not None,
+        speed_kmh, _or_nan(timestamp_s), timestamp_s is not None, _or_nan(age_s), age_s is not None,
+        _FAULT_CODE[found_fault], settings,
     )
+    return _switched_on_status(fault_code, activated, None if last_timestamp_s != last_timestamp_s else last_timestamp_s)
+
+
+def next_statuses(
+    statuses: Sequence[VehicleStatus],
+    speed_kmh: Sequence[float],
+    *,
+    timestamp_s: Sequence[float | None] | None = None,
+    age_s: Sequence[float | None] | None = None,
+    found_fault: Sequence[Fault | None] | None = None,
+    settings: ActivationSettings = ActivationSettings(),
+) -> list[VehicleStatus]:
+    """:func:`next_status` of many vehicles in one vectorised step: the same status each would get alone.
+
+    Parameters are those of :func:`next_status`, one entry per vehicle (None for a whole
+    column that is absent). Vehicles whose statuses come out equal share one (immutable)
+    status object, so that a fleet updated at one timestamp costs a handful of objects.
+    """
+    count = len(statuses)
+    last_s, has_last = _optional_array([status.last_timestamp_s for status in statuses], count)
+    time_s, has_time = _optional_array(timestamp_s, count)
+    age, has_age = _optional_array(age_s, count)
+    found_codes = np.zeros(count, dtype=np.intp) if found_fault is None else np.array(
+        [_FAULT_CODE[fault] for fault in found_fault], dtype=np.intp)
+    was_activated = np.array([status.activated for status in statuses], dtype=bool)
+    fault_code, activated, last_s = _next_fields(was_activated, last_s, has_last, np.asarray(speed_kmh, dtype=float),
+                                                 time_s, has_time, age, has_age, found_codes, settings)  # fmt: skip
+    last_list = last_s.tolist()
+    if np.isnan(last_s).any():
+        last_list = [None if value != value else value for value in last_list]
+    made: dict[tuple, VehicleStatus] = {}
+    updated = []
+    for status, key in zip(statuses, zip(fault_code.tolist(), activated.tolist(), last_list)):
+        if status.switched_on:
+            status = made.get(key) or made.setdefault(key, _switched_on_status(*key))
+        updated.append(status)
+    return updated
+
+
+def _switched_on_status(fault_code: int, activated: bool, last_timestamp_s: float | None) -> VehicleStatus:
+    """The status of a switched-on system from the outcome of :func:`_next_fields`."""
+    fault = _FAULTS[fault_code]
+    state = SystemState.FAULT if fault is not None else SystemState.ACTIVE if activated else SystemState.STANDBY
+    return VehicleStatus(state, True, activated, last_timestamp_s, fault)
+
+
+def _or_nan(value: float | None) -> float:
+    """``value``, or NaN when it is absent (with a separate flag, for :func:`_next_fields`)."""
+    return math.nan if value is None else value
+
+
+def _optional_array(values: Sequence[float | None] | None, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Values as floats (NaN where absent) and whether each is present."""
+    if values is None:
+        return np.full(count, math.nan), np.zeros(count, dtype=bool)
+    present = np.array([value is not None for value in values], dtype=bool)
+    if present.all():
+        return np.asarray(values, dtype=float), present
+    return np.array([_or_nan(value) for value in values], dtype=float), present

@@ -246,28 +246,42 @@ class BatchWarnings:
 
         ``curve_ids`` and ``part_indices`` name the vehicle's CPOIs in order.
         """
-        level = _LEVELS[int(self.level[vehicle])]
-        if level is Level.NONE:  # nothing triggered
+        if not self.level[vehicle]:  # nothing triggered
             return _NO_WARNINGS[path_kind]
-        count = len(curve_ids)
-        levels = self.cpoi_level[first_cpoi:first_cpoi + count].tolist()
-        rows = [k for k in range(count) if levels[k]]
-        distances = self.cpoi_distance_m[first_cpoi:first_cpoi + count].tolist()
-        radii = self.cpoi_radius_m[first_cpoi:first_cpoi + count].tolist()
-        speeds = self.warning_speed_kmh[first_cpoi:first_cpoi + count].tolist()
-        warning_distances = self.warning_distance_m[first_cpoi:first_cpoi + count].tolist()
-        triggers = {
-            k: Trigger(curve_ids[k], int(part_indices[k]), distances[k], radii[k], _LEVELS[levels[k]], speeds[k],
-                       warning_distances[k])
-            for k in rows
-        }
-        return CurveWarning(
-            level=level,
-            target=triggers.get(int(self.target[vehicle]) - first_cpoi),
-            triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
-            path_kind=path_kind,
-            hmi=_HMI_HINTS[level],
-        )
+        return self.vehicle_warnings((vehicle,), (first_cpoi,), (curve_ids,), (part_indices,), (path_kind,))[0]
+
+    def vehicle_warnings(
+        self,
+        vehicles: Sequence[int],
+        first_cpoi: Sequence[int],
+        curve_ids: Sequence[Sequence[str]],
+        part_indices: Sequence[Sequence[int]],
+        path_kinds: Sequence[PathKind],
+    ) -> list[CurveWarning]:
+        """The :class:`CurveWarning` of each of ``vehicles`` (see :meth:`vehicle_warning`), the arrays read once."""
+        vehicle_levels, targets, levels, distances, radii, speeds, warning_distances = (
+            array.tolist() for array in (self.level, self.target, self.cpoi_level, self.cpoi_distance_m,
+                                         self.cpoi_radius_m, self.warning_speed_kmh, self.warning_distance_m)
+        )  # fmt: skip
+        warnings = []
+        for vehicle, first, ids, parts, path_kind in zip(vehicles, first_cpoi, curve_ids, part_indices, path_kinds):
+            level = _LEVELS[vehicle_levels[vehicle]]
+            if level is Level.NONE:  # nothing triggered
+                warnings.append(_NO_WARNINGS[path_kind])
+                continue
+            triggers = {
+                k: Trigger(ids[k - first], int(parts[k - first]), distances[k], radii[k], _LEVELS[levels[k]],
+                           speeds[k], warning_distances[k])
+                for k in range(first, first + len(ids)) if levels[k]
+            }  # fmt: skip
+            warnings.append(CurveWarning(
+                level=level,
+                target=triggers.get(targets[vehicle]),
+                triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
+                path_kind=path_kind,
+                hmi=_HMI_HINTS[level],
+            ))  # fmt: skip
+        return warnings
 
 
 _COLUMN_INDEX = {category: list(Column).index(category.column) for category in Category}

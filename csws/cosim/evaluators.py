@@ -4,7 +4,7 @@ Both take the same inputs, SUMO's lane id and lane position, speed, route and si
 time of every vehicle, and return the same :class:`FleetWarnings`, so a run
 gives identical warnings in either mode:
 
-* :class:`LibraryEvaluator` calls :meth:`csws.engine.Engine.evaluate_many` once per step;
+* :class:`LibraryEvaluator` calls :meth:`csws.engine.Engine.evaluate_fleet` once per step;
 * :class:`ServiceEvaluator` sends one ``POST /v1/warnings`` batch per step, the way
   on-board units would ask (``lane_id`` + ``lane_pos_m`` + ``route`` + ``timestamp_s``, so
   the service does no map matching), and reads the answers back.
@@ -15,11 +15,10 @@ from __future__ import annotations
 import http.client
 import json
 from dataclasses import dataclass
-from itertools import repeat
 from typing import Protocol, Sequence
 from urllib.parse import urlsplit
 
-from csws.engine import Engine, VehicleInput
+from csws.engine import Engine
 from csws.standard import Level, mps_to_kmh
 from csws.state import SystemState
 from csws.warning import Trigger
@@ -91,18 +90,19 @@ def _speeds_kmh(fleet: FleetState) -> list[float]:
 
 
 class LibraryEvaluator:
-    """The engine in this process: one ``evaluate_many`` per step."""
+    """The engine in this process: one ``evaluate_fleet`` per step."""
 
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
-        inputs = list(map(VehicleInput, fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id,
-                          fleet.lane_pos_m.tolist(), fleet.route_edges, repeat(fleet.time_s, len(fleet.vehicle_id))))
-        answers = self.engine.evaluate_many(inputs)
-        warnings = [answer.warning for answer in answers]
+        answers = self.engine.evaluate_fleet(
+            fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id, fleet.lane_pos_m, fleet.route_edges,
+            timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
+        )
+        warnings = answers.warning
         return FleetWarnings(
-            state=[answer.state for answer in answers],
+            state=answers.state,
             level=[warning.level for warning in warnings],
             target=[warning.target for warning in warnings],
             triggers=[warning.triggers for warning in warnings],
