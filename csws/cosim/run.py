@@ -1,7 +1,7 @@
 """``csws cosim``: drive a fleet through SUMO and record who was warned where.
 
 Every step, every vehicle of a covered class is evaluated at once (the library's
-``evaluate_many``, or one HTTP batch to a service), its state and warning are appended
+``evaluate_fleet``, or one HTTP batch to a service), its state and warning are appended
 to the time series, level changes to the warning events and curve entries above the
 warning speed to the entries; the summary is rewritten at the end, also when the run is
 interrupted or SUMO dies (then marked incomplete, with the reason).
