@@ -102,7 +102,7 @@ SPARSE_STRAIGHT_THRESHOLD = 20.0
 #: A straight tried in a curved part of a sparse polyline's road is kept when the nodes' sum
 #: of squared sideways distances falls by more than this many times their noise variance
 #: for each parameter it adds (a straight at an end adds a knot but no curvature).
-SPARSE_END_STRAIGHT_THRESHOLD = 10.0
+STRAIGHT_TRIAL_THRESHOLD = 10.0
 #: Levenberg-Marquardt iterations polishing a sparse polyline's road in the plane.
 POLISH_ITERATIONS = 16
 #: Steps every straight trial is polished with before only the closest of each kind is polished on.
@@ -124,7 +124,7 @@ MIDDLE_STRAIGHT_SPANS = ((0.25, 0.5), (0.25, 0.75), (0.5, 0.75))
 ARC_SPANS = MIDDLE_STRAIGHT_SPANS
 #: Straights are tried only on roads whose nodes' sum of squared sideways distances exceeds
 #: this many times what the noise (the polyline's own estimate) leaves on the right road.
-END_STRAIGHT_MISFIT = 1.0
+STRAIGHT_TRIAL_MISFIT = 1.0
 #: Fewest nodes more than parameters a road with added straights must have to be tried.
 MIN_TRIAL_FREEDOM = 1
 #: Fewest nodes more than parameters a road's residual must have to estimate the noise from.
@@ -1478,7 +1478,7 @@ def _with_added_straights(
     road: _Road, squares: np.ndarray, nodes: _Nodes, noise_variance: np.ndarray
 ) -> tuple[_Road, np.ndarray]:
     """Straights added into curved parts where the polished road then lies closer to the
-    nodes by more than :data:`SPARSE_END_STRAIGHT_THRESHOLD` times their noise variance
+    nodes by more than :data:`STRAIGHT_TRIAL_THRESHOLD` times their noise variance
     per parameter added.
 
     A curve's first (or last) knot is missed when the straight before it has only a few
@@ -1505,7 +1505,7 @@ def _with_added_straights(
     at_both = at_start & at_end & (freedom - 2 >= MIN_TRIAL_FREEDOM)
     in_middle = road.free[polylines, 0, longest] & (freedom - 3 >= MIN_TRIAL_FREEDOM)
     # A road as close to the nodes as their noise lets it be leaves nothing for a straight to explain.
-    rows = np.flatnonzero((at_start | at_end | in_middle) & (squares[:, 0] > END_STRAIGHT_MISFIT * freedom * noise_variance))
+    rows = np.flatnonzero((at_start | at_end | in_middle) & (squares[:, 0] > STRAIGHT_TRIAL_MISFIT * freedom * noise_variance))
     if rows.size == 0:
         return result, squares
     tried = _road_rows(road, rows)
@@ -1529,7 +1529,7 @@ def _with_added_straights(
         np.concatenate((trial_squares, squares[rows]), axis=1), _joined_trials([trials, _padded_road(_padded_road(tried))]),
         nodes.real[rows], noise_variance[rows],
     )
-    cost = np.where(allowed, trial_squares + added * (SPARSE_END_STRAIGHT_THRESHOLD * variance)[:, None], np.inf)
+    cost = np.where(allowed, trial_squares + added * (STRAIGHT_TRIAL_THRESHOLD * variance)[:, None], np.inf)
     best = np.argmin(cost, axis=1)
     accept = cost[np.arange(len(rows)), best] < squares[rows, 0]
     changed, best = rows[accept], best[accept]
