@@ -99,6 +99,8 @@ SHORT_CHORD_NOISE_FACTOR = 5.0
 SPARSE_KNOT_OFFSET = 10.0
 #: A part of a sparse polyline is curved only if making it straight grows the normalised residual by more.
 SPARSE_STRAIGHT_THRESHOLD = 20.0
+#: Parts of a polyline tried straight (with knots moved) in each round: those cheapest to straighten with knots held.
+STRAIGHT_SCREEN = 2
 #: A straight tried in a curved part of a sparse polyline's road is kept when the nodes' sum
 #: of squared sideways distances falls by more than this many times their noise variance
 #: for each parameter it adds (a straight at an end adds a knot but no curvature).
@@ -930,12 +932,15 @@ def _without_knot(bounds: np.ndarray, knot: np.ndarray) -> np.ndarray:
     return np.sort(bounds, axis=1)
 
 
-def _refined_knots(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray) -> np.ndarray:
-    """Each knot in turn moved to where it fits best between its neighbours."""
+def _refined_knots(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, near: np.ndarray | None = None) -> np.ndarray:
+    """Each knot in turn moved to where it fits best between its neighbours (only the
+    knots marked ``near``, ``(polylines, columns)``, if given)."""
     bounds = bounds.copy()
     for _ in range(SPARSE_REFINE_PASSES):
         for column in range(1, int(knots.max(initial=0)) + 1):
-            rows = np.flatnonzero(knots >= column)
+            rows = np.flatnonzero((knots >= column) & (True if near is None else near[:, column]))
+            if rows.size == 0:
+                continue
             others = _trimmed(bounds[rows], knots[rows]).copy()
             low, high = others[:, column - 1].copy(), others[:, column + 1].copy()
             others[:, column] = low  # a part of no length: the knot is gone
@@ -969,7 +974,10 @@ def _knot_fit(batch: _SparseBatch, limit: np.ndarray) -> tuple[np.ndarray, np.nd
         new[: single.sum(), 1] = bounds[active[single], -1]  # one knot: the other is padding
         knots[changed] += np.concatenate((np.ones(single.sum(), dtype=np.int64), np.full(paired.sum(), 2)))
         bounds[changed] = _with_knots(bounds[changed], new)[:, : bounds.shape[1]]
-        bounds[changed] = _refined_knots(batch.rows(changed), bounds[changed], knots[changed])
+        # A new knot moves its neighbours' best places; the knots further away keep theirs.
+        is_new = (bounds[changed][:, :, None] == new[:, None, :]).any(axis=2)
+        near = is_new | np.roll(is_new, 1, axis=1) | np.roll(is_new, -1, axis=1)
+        bounds[changed] = _refined_knots(batch.rows(changed), bounds[changed], knots[changed], near)
     dropping = knots > 0
     while (active := np.flatnonzero(dropping & (knots > 0))).size:
         rows = batch.rows(active)
@@ -1071,6 +1079,12 @@ def _with_straights(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, 
         polyline = active[polyline]
         trial_free = free[polyline]
         trial_free[np.arange(len(part)), part] = False
+        # Only the parts whose straightening costs least with the knots held are tried with them moved.
+        held = _fits(batch.rows(polyline), bounds[polyline][:, None, :], trial_free[:, None, :])[0][:, 0]
+        order = np.lexsort((held, polyline))
+        rank = np.arange(len(order)) - np.searchsorted(polyline[order], polyline[order])
+        screened = np.sort(order[rank < STRAIGHT_SCREEN])
+        polyline, trial_free = polyline[screened], trial_free[screened]
         trial_bounds, trial_residual = _refined_constrained(batch.rows(polyline), bounds[polyline], knots[polyline], trial_free)
         # The best trial of each polyline (trials are grouped by polyline, in order).
         order = np.lexsort((trial_residual, polyline))
