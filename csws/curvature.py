@@ -38,8 +38,8 @@ exact nodes, with straights tried at its ends where the heading fit ran a curve 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-from typing import Sequence
+from dataclasses import dataclass, fields, is_dataclass
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -106,8 +106,9 @@ STRAIGHT_SCREEN = 2
 #: for each parameter it adds (a straight at an end adds a knot but no curvature).
 STRAIGHT_TRIAL_THRESHOLD = 10.0
 #: Levenberg-Marquardt iterations polishing a sparse polyline's road in the plane.
-POLISH_ITERATIONS = 16
-#: Steps every straight trial is polished with before only the closest of each kind is polished on.
+POLISH_ITERATIONS = 12
+#: Steps every trial road is polished with (plain steps, :data:`STEP_SCALES` not tried)
+#: before only the closest of each kind is polished on.
 FIRST_POLISH_ITERATIONS = 3
 #: A polish step gaining less than this fraction of the sum of squares ends a trial's polish.
 POLISH_TOLERANCE = 1e-3
@@ -117,6 +118,10 @@ MIN_DAMPING = 1e-6
 MAX_DAMPING = 10.0
 #: Newton steps projecting the nodes onto the road before the polish (each of its steps adds one).
 PROJECTION_STEPS = 1
+#: The longer multiples of each polish step tried beside it (:func:`_best_scaled_step`).
+STEP_SCALES = (3.0, 10.0)
+#: How far the polish's other starting roads stretch the longest curved part (shrinking below 1).
+STRETCH_FACTORS = (0.5, 2.0)
 #: How much of a curved end part a straight tried there first takes, as fractions of the
 #: part counted in nodes from the polyline's end (the polish then moves its knot).
 END_STRAIGHT_FRACTIONS = (0.25, 0.5, 0.75)
@@ -1194,12 +1199,12 @@ class _Road:
         return np.all((np.diff(self.bounds, axis=-1) >= MIN_POLISHED_PART_M) | ~real, axis=-1)
 
 
-def _chord_factor(angle: np.ndarray) -> np.ndarray:
-    """``(exp(i a) - 1) / (i a)``: a part turning ``a`` over length l moves by l·exp(i φ) times this."""
-    small = np.abs(angle) < 1e-2
-    safe = np.where(small, 1.0, angle)
-    series = 1.0 + angle * (0.5j - angle * (1.0 / 6.0 + angle * (1j / 24.0 - angle / 120.0)))
-    return np.where(small, series, (np.exp(1j * safe) - 1.0) / (1j * safe))
+def _chord(length: np.ndarray, heading: np.ndarray, curvature: np.ndarray) -> np.ndarray:
+    """The chord (complex) of a part of ``length`` that starts at ``heading`` and curves by
+    ``curvature``: ``l·exp(i(φ + a/2))·sin(a/2)/(a/2)`` with ``a = κ l`` the angle it turns,
+    exact on a straight (a = 0) and without cancellation near it."""
+    half_turn = 0.5 * curvature * length
+    return length * np.sinc(half_turn / np.pi) * np.exp(1j * (heading + half_turn))
 
 
 def _area_factor(angle: np.ndarray) -> np.ndarray:
@@ -1232,13 +1237,13 @@ def _road_points(road: _Road, t: np.ndarray) -> _RoadPoints:
     length = np.diff(road.bounds, axis=-1)
     turned = np.cumsum(road.curvature * length, axis=-1)
     part_heading = road.heading()[..., None] + np.concatenate((np.zeros_like(turned[..., :1]), turned[..., :-1]), axis=-1)
-    moved = np.cumsum(length * np.exp(1j * part_heading) * _chord_factor(road.curvature * length), axis=-1)
+    moved = np.cumsum(_chord(length, part_heading, road.curvature), axis=-1)
     corner = road.start()[..., None] + np.concatenate((np.zeros_like(moved[..., :1]), moved[..., :-1]), axis=-1)
     part = np.minimum((t[..., None] >= road.bounds[..., None, 1:-1]).sum(axis=-1), road.last[..., None])
     progress = t - np.take_along_axis(road.bounds, part, axis=-1)
     curvature = np.take_along_axis(road.curvature, part, axis=-1)
     heading = np.take_along_axis(part_heading, part, axis=-1)
-    point = np.take_along_axis(corner, part, axis=-1) + progress * np.exp(1j * heading) * _chord_factor(curvature * progress)
+    point = np.take_along_axis(corner, part, axis=-1) + _chord(progress, heading, curvature)
     return _RoadPoints(point, heading + curvature * progress, part, progress, corner, part_heading, length)
 
 
@@ -1289,11 +1294,13 @@ def _sideways_jacobian(road: _Road, at: _RoadPoints) -> np.ndarray:
 
 
 def _polished(
-    road: _Road, nodes: _Nodes, iterations: int = POLISH_ITERATIONS, wanted: np.ndarray | None = None
+    road: _Road, nodes: _Nodes, iterations: int = POLISH_ITERATIONS, wanted: np.ndarray | None = None,
+    scales: tuple[float, ...] = STEP_SCALES,
 ) -> tuple[_Road, np.ndarray]:
     """The trial roads moved by Levenberg-Marquardt steps to where the nodes' sideways
     distances are least; returns them and that sum of squares ``(polylines, trials)``.
-    Only the ``wanted`` trials (all if not given) are moved.
+    Only the ``wanted`` trials (all if not given) are moved; each step is also tried
+    ``scales`` times as long (:func:`_best_scaled_step`).
 
     Each trial is its own problem; one stops when a step no longer gains or the damping
     has grown to :data:`MAX_DAMPING`, so that the iterations are spent on those still moving.
@@ -1318,21 +1325,62 @@ def _polished(
         diagonal = np.einsum("...mm->...m", normal)
         normal += np.eye(normal.shape[-1]) * (damping[active][..., None] * diagonal + (diagonal <= 1e-12 * diagonal.max(axis=-1, keepdims=True)))[..., None, :]
         step = _solved(normal, -gradient)
-        trial = here.with_parameters(here.parameters() + step * here.feasible_fraction(step)[..., None])
-        trial_t, trial_distance, trial_at = _projected(trial, here_nodes, t[active], 0)
-        trial_squares = np.einsum("ptn,ptn->pt", trial_distance, trial_distance)
-        better = (trial.is_ordered() & (trial_squares < squares[active]))[:, 0]
-        gain = squares[active, 0] - trial_squares[:, 0]
+        trial = _best_scaled_step(here, here_nodes, t[active], step, scales)
+        better = (trial.road.is_ordered() & (trial.squares < squares[active]))[:, 0]
+        gain = squares[active, 0] - trial.squares[:, 0]
         moved = active[better]
-        for field in fields(_Road):
-            getattr(road, field.name)[moved] = getattr(trial, field.name)[better]
-        for field in fields(_RoadPoints):
-            getattr(at, field.name)[moved] = getattr(trial_at, field.name)[better]
-        t[moved], distance[moved], squares[moved] = trial_t[better], trial_distance[better], trial_squares[better]
+        _put_rows(road, moved, trial.road, better)
+        _put_rows(at, moved, trial.at, better)
+        t[moved], distance[moved], squares[moved] = trial.t[better], trial.distance[better], trial.squares[better]
         damping[active] = np.where(better, np.fmax(damping[active, 0] / 10.0, MIN_DAMPING), damping[active, 0] * 10.0)[:, None]
         done = np.where(better, gain <= POLISH_TOLERANCE * squares[active, 0], damping[active, 0] >= MAX_DAMPING) | ~sound[:, 0]
         active = active[~done]
     return _Road(*(getattr(road, f.name).reshape((polylines, trials) + getattr(road, f.name).shape[2:]) for f in fields(_Road))), squares.reshape(polylines, trials)
+
+
+@dataclass(frozen=True)
+class _Moved:
+    """Roads ``(polylines, 1)`` after a polish step: the ``road``, the nodes' arc lengths
+    ``t`` on it, their sideways ``distance``, the road ``at`` them and their sum of ``squares``."""
+
+    road: _Road
+    t: np.ndarray
+    distance: np.ndarray
+    at: _RoadPoints
+    squares: np.ndarray
+
+
+def _put_rows(target: Any, rows: np.ndarray | tuple, source: Any, take: np.ndarray | tuple) -> None:
+    """Every array of the dataclass ``target`` (and of those in it) at ``rows`` set to ``source``'s at ``take``."""
+    for field in fields(target):
+        value = getattr(target, field.name)
+        if is_dataclass(value):
+            _put_rows(value, rows, getattr(source, field.name), take)
+        else:
+            value[rows] = getattr(source, field.name)[take]
+
+
+def _moved(road: _Road, nodes: _Nodes, t: np.ndarray, step: np.ndarray) -> _Moved:
+    """The roads ``road`` moved by the parameter ``step`` (as much of it as is feasible)."""
+    trial = road.with_parameters(road.parameters() + step * road.feasible_fraction(step)[..., None])
+    trial_t, distance, at = _projected(trial, nodes, t, 0)
+    return _Moved(trial, trial_t, distance, at, np.einsum("ptn,ptn->pt", distance, distance))
+
+
+def _best_scaled_step(road: _Road, nodes: _Nodes, t: np.ndarray, step: np.ndarray, scales: tuple[float, ...]) -> _Moved:
+    """The roads ``road`` ``(polylines, 1)`` moved by the parameter ``step`` or by the
+    multiple of it in ``scales`` (:data:`STEP_SCALES` in a full polish) that leaves the
+    nodes closer.
+
+    With the nodes held at their arc lengths, the linear model of the distances bends
+    more than they do when the nodes slide along the road: along a gentle curve's start
+    and end together, Gauss-Newton steps each go a small part of the way, in the same
+    direction. A longer step in that direction goes further at the cost of a projection.
+    """
+    every = np.array((1.0, *scales))
+    roads = _Road(*(np.repeat(getattr(road, f.name), len(every), axis=1) for f in fields(_Road)))
+    moved = _moved(roads, nodes, t, step * every[:, None])
+    return _chosen(moved, np.argmin(np.where(moved.road.is_ordered(), moved.squares, np.inf), axis=1)[:, None])
 
 
 def _solved(normal: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -1424,6 +1472,45 @@ def _straight_trials(road: _Road, nodes: _Nodes, part: np.ndarray, low: np.ndarr
     if np.all(high == 1.0):
         return _split_part(road, part, start, before, zero)
     return _split_part(_split_part(road, part, start, before, after), part + 1, end, zero, after)
+
+
+def _stretched_trials(road: _Road, factors: np.ndarray) -> _Road:
+    """Trial roads ``(polylines, 1 + factors)``: ``road`` (one trial per polyline) and, for
+    each factor, its longest curved part stretched by that factor about its middle (as far
+    as its neighbours leave room), turning the same angle.
+
+    A few nodes on a curve often fit a short sharp arc about as well as a long gentle
+    one; the heading fit picks one, and the polish stays near what it is given. Polishing
+    both from the start lets the nodes decide (3.4, 3.5: where the curve starts and ends).
+    """
+    trials = len(factors)
+    stretched = _Road(*(np.repeat(getattr(road, f.name), trials, axis=1) for f in fields(_Road)))
+    parts = road.curvature.shape[-1]
+    part = np.argmax(np.where(road.free, np.diff(road.bounds, axis=-1), -1.0), axis=-1)
+    bounds = stretched.bounds
+    first, stop = (np.take_along_axis(bounds, np.repeat(part + k, trials, axis=1)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    below = np.take_along_axis(bounds, np.repeat(np.maximum(part - 1, 0), trials, axis=1)[..., None], axis=-1)[..., 0]
+    above = np.take_along_axis(bounds, np.repeat(np.minimum(part + 2, parts), trials, axis=1)[..., None], axis=-1)[..., 0]
+    middle, half = 0.5 * (first + stop), 0.5 * (stop - first) * factors
+    is_first, is_last = part == 0, part == road.last
+    start = np.where(is_first, first, np.clip(middle - half, below + MIN_POLISHED_PART_M, stop))
+    end = np.where(is_last, stop, np.clip(middle + half, start + MIN_POLISHED_PART_M, above - MIN_POLISHED_PART_M))
+    index = np.repeat(part, trials, axis=1)[..., None]
+    np.put_along_axis(bounds, index, start[..., None], axis=-1)
+    np.put_along_axis(bounds, index + 1, end[..., None], axis=-1)
+    curvature = stretched.curvature
+    angle = np.take_along_axis(curvature, index, axis=-1)[..., 0] * (stop - first)
+    np.put_along_axis(curvature, index, (angle / (end - start))[..., None], axis=-1)
+    return _joined_trials([road, stretched])
+
+
+def _chosen(trials: Any, trial: np.ndarray) -> Any:
+    """The dataclass of ``(polylines, trials, ...)`` arrays ``trials`` (and those in it) at
+    the trials ``trial`` ``(polylines, k)`` of each polyline."""
+    rows = np.arange(len(trial))[:, None]
+    def chosen(values: Any) -> Any:
+        return _chosen(values, trial) if is_dataclass(values) else values[rows, trial]
+    return type(trials)(*(chosen(getattr(trials, f.name)) for f in fields(trials)))
 
 
 def _padded_road(road: _Road) -> _Road:
@@ -1529,13 +1616,13 @@ def _with_added_straights(
     allowed = np.column_stack([np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed)])
     allowed &= trials.is_ordered()
     # A few steps show which trial of each kind leads; only those are polished to the end.
-    trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), FIRST_POLISH_ITERATIONS, allowed)
+    trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), FIRST_POLISH_ITERATIONS, allowed, scales=())
     trial_squares = np.where(allowed, trial_squares, np.inf)
     kind_start = np.cumsum([0, *counts])
     leading = np.column_stack([
         first + np.argmin(trial_squares[:, first:stop], axis=1) for first, stop in zip(kind_start[:-1], kind_start[1:])
     ])
-    trials = _Road(*(np.take_along_axis(getattr(trials, f.name), leading.reshape(leading.shape + (1,) * (getattr(trials, f.name).ndim - 2)), axis=1) for f in fields(_Road)))
+    trials = _chosen(trials, leading)
     added, allowed = added[leading], np.take_along_axis(allowed, leading, axis=1)
     trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), wanted=allowed)
     trial_squares = np.where(allowed, trial_squares, np.inf)
@@ -1547,8 +1634,7 @@ def _with_added_straights(
     best = np.argmin(cost, axis=1)
     accept = cost[np.arange(len(rows)), best] < squares[rows, 0]
     changed, best = rows[accept], best[accept]
-    for field in fields(_Road):
-        getattr(result, field.name)[changed, 0] = getattr(trials, field.name)[np.flatnonzero(accept), best]
+    _put_rows(result, (changed, 0), trials, (np.flatnonzero(accept), best))
     squares[changed, 0] = trial_squares[np.flatnonzero(accept), best]
     return result, squares
 
@@ -1575,10 +1661,15 @@ def _along_polyline(t: np.ndarray, nodes: _Nodes, node_t: np.ndarray) -> np.ndar
 def _polished_parts(
     batch: _SparseBatch, nodes: _Nodes, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray, noise_variance: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The heading fit's parts polished in the plane (:func:`_polished`), with straights
+    """The heading fit's parts polished in the plane (:func:`_polished`), from it and from
+    its longest curve stretched and shrunk (:func:`_stretched_trials`), with straights
     added where they fit (:func:`_with_added_straights`); returns bounds along the polyline,
     curvatures and the number of knots, as :func:`_sparse_batch_parts`."""
-    road, squares = _polished(_base_road(batch, bounds, curvature, free, knots), nodes)
+    trials = _stretched_trials(_base_road(batch, bounds, curvature, free, knots), np.array(STRETCH_FACTORS))
+    ordered = trials.is_ordered()
+    trials, squares = _polished(trials, nodes, FIRST_POLISH_ITERATIONS, ordered, scales=())
+    leading = np.argmin(np.where(ordered, squares, np.inf), axis=1)[:, None]
+    road, squares = _polished(_chosen(trials, leading), nodes)
     road, squares = _with_added_straights(road, squares, nodes, noise_variance)
     t = np.broadcast_to(nodes.s[:, None, :], nodes.s.shape[:1] + (1,) + nodes.s.shape[1:]).copy()
     node_t = _projected(road, nodes, t, PROJECTION_STEPS)[0][:, 0]

@@ -123,7 +123,7 @@ def test_exact_map_ways_give_their_arcs_exactly():
     """Without noise, the road fitted to a map way's nodes is the road: the model (straights
     and arcs joined without kinks) is exact, so start and radius come out exact but for
     gentle arcs, whose start the nodes pin down least and where the fit stops within
-    centimetres to decimetres of it."""
+    centimetres of it (longer steps carry it along the valley their start and end make)."""
     rng = np.random.default_rng(93)
     start_errors, radius_errors = [], []
     for _ in range(80):
@@ -134,9 +134,23 @@ def test_exact_map_ways_give_their_arcs_exactly():
         start_errors.append(abs(curve.start_s - 120.0))
         radius_errors.append(abs(curve.min_radius_m / radius_m - 1.0))
     assert np.median(start_errors) <= 0.01
-    assert np.percentile(start_errors, 95) <= 0.25
+    assert np.percentile(start_errors, 95) <= 0.05
+    assert max(start_errors) <= 0.1
     assert np.median(radius_errors) <= 1e-9
-    assert np.percentile(radius_errors, 95) <= 1e-3
+    assert np.percentile(radius_errors, 95) <= 1e-6
+    assert max(radius_errors) <= 1e-4
+
+
+@pytest.mark.parametrize(("radius_m", "angle_deg", "seed"), [(53.4, 32.7, 17), (73.4, 22.7, 88)])
+def test_a_short_noisy_arc_is_not_taken_for_a_sharper_shorter_one(radius_m, angle_deg, seed):
+    """The few noisy nodes on a 30 m arc (0.5 m noise) can fit a sharp arc of half its
+    length nearly as well; the heading fit may pick that one, so the polish also starts
+    from the curve stretched and shrunk and keeps the road closest to the nodes, which
+    here is the one that starts near the arc (each was found 6-14 m off before)."""
+    pieces = [straight(80.0), arc(radius_m, angle_deg, "left"), straight(120.0)]
+    curve = only_curve(mapped_way(pieces, seed, (300.0, 700.0), 0.4, 0.5))
+    assert abs(curve.start_s - 80.0) <= 5.0
+    assert curve.min_radius_m == pytest.approx(radius_m, rel=0.3)
 
 
 @pytest.mark.parametrize("seed", range(12))
