@@ -26,6 +26,12 @@ circumcircle radius is <= R_c and that turn the same way; its radius is the medi
 over the run. Of several curves found on an arc, the one overlapping the arc most is
 scored; an arc where none is found scores an infinite error.
 
+On the sparse ways two references say what the nodes allow: the Cramér-Rao bound on
+the start's standard deviation (:func:`start_bound_m`), and the maximum-likelihood road
+of the true form (:func:`reference_start_error_m`), a fit told that the road is
+straight-arc-straight and searched from starts about the truth. An extractor, which
+must also find the form, cannot be expected to start arcs closer than that fit does.
+
 Speed: vertices per second on a synthetic network of dense lane shapes and on the sparse
 ways, and the time :meth:`csws.roadmap.RoadMap.load` takes on the bundled real network.
 
@@ -70,6 +76,13 @@ TARGETS = {
 MULTI_STEP_TARGET_M = 1.0
 #: The sparse target on the curve start, m: the bound figures count the arcs started further off.
 SPARSE_START_LIMIT_M = TARGETS["max_start_error_m"][1]
+#: The maximum-likelihood reference (:func:`reference_start_error_m`): its starting roads
+#: (arc start moved, m; arc lengthened, curvature kept turning the same angle), its
+#: Levenberg-Marquardt iterations and the central-difference steps of its parameters.
+ORACLE_START_SHIFTS_M = (-10.0, -5.0, 0.0, 5.0, 10.0)
+ORACLE_LENGTH_FACTORS = (0.7, 1.0, 1.4)
+ORACLE_ITERATIONS = 60
+ORACLE_DIFFERENCE_STEPS = (1e-5, 1e-5, 1e-7, 1e-9, 1e-5)
 #: The bundled real network (imported from OpenStreetMap) and how fast it must load and profile, s.
 REAL_NETWORK = "badhersfeld.net.xml.gz"
 REAL_NETWORK_LOAD_TARGET_S = 3.0
@@ -80,12 +93,16 @@ FoundCurve = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class Road:
-    """A constructed polyline with its truth: the arc's start and end and its radius."""
+    """A constructed polyline with its truth: the arc's start and end, its radius and
+    signed curvature, and where the road starts (the first node's true place) and heads."""
 
     xy: np.ndarray
     arc_start_s: float
     arc_end_s: float
     radius_m: float
+    curvature: float = 0.0
+    origin_xy: tuple[float, float] = (0.0, 0.0)
+    heading: float = 0.0
 
 
 def _random_pose(rng: np.random.Generator) -> tuple[tuple[float, float], float]:
@@ -93,9 +110,13 @@ def _random_pose(rng: np.random.Generator) -> tuple[tuple[float, float], float]:
     return (float(rng.uniform(-5000, 5000)), float(rng.uniform(-5000, 5000))), float(rng.uniform(-np.pi, np.pi))
 
 
-def dense_shape(pieces: list[Piece], rng: np.random.Generator) -> np.ndarray:
-    """A SUMO-like lane shape: vertices 0.5-1 m apart, coordinates rounded to 1 cm."""
-    start_xy, heading = _random_pose(rng)
+Pose = tuple[tuple[float, float], float]
+
+
+def dense_shape(pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None) -> np.ndarray:
+    """A SUMO-like lane shape: vertices 0.5-1 m apart, coordinates rounded to 1 cm, starting
+    at ``pose`` (random if not given)."""
+    start_xy, heading = pose or _random_pose(rng)
     xy, _ = sample_pieces(pieces, float(rng.uniform(*DENSE_SPACING_M)), start_xy, heading)
     return np.round(xy / ROUNDING_M) * ROUNDING_M
 
@@ -118,22 +139,22 @@ def _node_arc_lengths(pieces: list[Piece], rng: np.random.Generator, mapped: boo
     return np.append(np.array(s[:-1]), starts[-1])
 
 
-def sparse_way(pieces: list[Piece], rng: np.random.Generator, mapped: bool = False) -> np.ndarray:
+def sparse_way(pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None, mapped: bool = False) -> np.ndarray:
     """A map-like way: nodes at irregular arc lengths 5-30 m apart (closer on arcs when
-    ``mapped``, see :func:`_node_arc_lengths`), 0.5 m RMS noise."""
-    start_xy, heading = _random_pose(rng)
+    ``mapped``, see :func:`_node_arc_lengths`), 0.5 m RMS noise, starting at ``pose``."""
+    start_xy, heading = pose or _random_pose(rng)
     s = _node_arc_lengths(pieces, rng, mapped)
     x, y, _ = pose_at(pieces, s, start_xy, heading)
     noise = rng.normal(0.0, SPARSE_NOISE_RMS_M / np.sqrt(2.0), size=(len(s), 2))
     return np.column_stack((x, y)) + noise
 
 
-def mapped_way(pieces: list[Piece], rng: np.random.Generator) -> np.ndarray:
+def mapped_way(pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None) -> np.ndarray:
     """A sparse way whose nodes follow mapping practice on arcs (:func:`sparse_way`)."""
-    return sparse_way(pieces, rng, mapped=True)
+    return sparse_way(pieces, rng, pose, mapped=True)
 
 
-def arc_road(rng: np.random.Generator, shape: Callable[[list[Piece], np.random.Generator], np.ndarray]) -> Road:
+def arc_road(rng: np.random.Generator, shape: Callable[..., np.ndarray]) -> Road:
     """Straight, arc of R 25-500 m turning 20-120 degrees either way, straight."""
     radius_m = float(np.exp(rng.uniform(np.log(25.0), np.log(500.0))))
     before_m = float(rng.uniform(50, 150))
@@ -142,7 +163,8 @@ def arc_road(rng: np.random.Generator, shape: Callable[[list[Piece], np.random.G
         arc(radius_m, float(rng.uniform(20, 120)), str(rng.choice(["left", "right"]))),
         straight(float(rng.uniform(50, 150))),
     ]
-    return Road(shape(pieces, rng), before_m, before_m + pieces[1].length_m, radius_m)
+    pose = _random_pose(rng)
+    return Road(shape(pieces, rng, pose), before_m, before_m + pieces[1].length_m, radius_m, pieces[1].curvature, *pose)
 
 
 def straight_road(rng: np.random.Generator, shape: Callable[[list[Piece], np.random.Generator], np.ndarray]) -> np.ndarray:
@@ -190,6 +212,86 @@ def bound_figures(roads: list[Road], limit_m: float) -> dict:
     beyond = np.array([math.erfc(limit_m / (value * math.sqrt(2.0))) for value in sigma])
     return {"median_start_bound_m": float(np.median(sigma)), "p90_start_bound_m": float(np.percentile(sigma, 90)),
             "expected_beyond_limit": float(beyond.sum()), "chance_none_beyond_limit": float(np.prod(1.0 - beyond))}
+
+
+def _road_distances(parameters: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Signed distances (left positive) ``(k, n)`` of the nodes ``uv`` ``(n, 2)`` from the
+    straight-arc-straight roads ``parameters`` ``(k, 5)``: the arc's start point (two
+    coordinates), the heading there, the arc's curvature and length. The straights run on
+    without end; a node beside no piece takes its distance from the nearer piece end."""
+    along, side, heading, curvature, length = (parameters[:, column, None] for column in range(5))
+    curvature = np.where(np.abs(curvature) < 1e-9, np.where(curvature < 0, -1e-9, 1e-9), curvature)
+    z = ((uv[None, :, 0] - along) + 1j * (uv[None, :, 1] - side)) * np.exp(-1j * heading)
+    centre = 1j / curvature
+    turned = np.angle((z - centre) / -centre) * np.sign(curvature)
+    turn = np.abs(curvature * length)
+    before = (np.where(z.real <= 0.0, np.abs(z.imag), np.abs(z)), z.imag)
+    on_arc = (turned >= 0.0) & (turned <= turn)
+    arc_side = (np.abs(1.0 / curvature) - np.abs(z - centre)) * np.sign(curvature)
+    arc_piece = (np.where(on_arc, np.abs(arc_side), np.inf), arc_side)
+    beyond = (z - (centre - centre * np.exp(1j * curvature * length))) * np.exp(-1j * curvature * length)
+    after = (np.where(beyond.real >= 0.0, np.abs(beyond.imag), np.abs(beyond)), beyond.imag)
+    unsigned = np.stack((before[0], arc_piece[0], after[0]))
+    signed = np.stack((before[1], arc_piece[1], after[1]))
+    return np.take_along_axis(signed, np.argmin(unsigned, axis=0)[None], axis=0)[0]
+
+
+def _fitted_roads(starts: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Levenberg-Marquardt fits of straight-arc-straight roads (:func:`_road_distances`)
+    from each of the ``starts`` ``(k, 5)`` to the nodes ``uv``; returns the fitted
+    parameters and their sums of squared distances."""
+    parameters, damping = starts.copy(), np.full(len(starts), 1e-3)
+    distances = _road_distances(parameters, uv)
+    squares = np.einsum("kn,kn->k", distances, distances)
+    for _ in range(ORACLE_ITERATIONS):
+        jacobian = np.empty(distances.shape + (5,))
+        for column, step in enumerate(ORACLE_DIFFERENCE_STEPS):
+            moved = np.zeros(5)
+            moved[column] = step
+            jacobian[..., column] = (_road_distances(parameters + moved, uv) - _road_distances(parameters - moved, uv)) / (2.0 * step)
+        normal = np.swapaxes(jacobian, 1, 2) @ jacobian
+        diagonal = np.einsum("kmm->km", normal)
+        normal += np.eye(5) * (damping[:, None] * diagonal + 1e-12)[:, None, :]
+        trial = parameters + np.linalg.solve(normal, -np.einsum("knm,kn->km", jacobian, distances)[..., None])[..., 0]
+        trial[:, 4] = np.fmax(trial[:, 4], 0.1)
+        trial_distances = _road_distances(trial, uv)
+        trial_squares = np.einsum("kn,kn->k", trial_distances, trial_distances)
+        better = trial_squares < squares
+        parameters[better], distances[better], squares[better] = trial[better], trial_distances[better], trial_squares[better]
+        damping = np.where(better, np.fmax(damping / 10.0, 1e-9), damping * 10.0)
+    return parameters, squares
+
+
+def _polyline_s(xy: np.ndarray, point: complex) -> float:
+    """Arc length along the polyline ``xy`` of the point of it nearest ``point``."""
+    start, chord = xy[:-1, 0] + 1j * xy[:-1, 1], np.diff(xy[:, 0] + 1j * xy[:, 1])
+    fraction = np.clip(np.real((point - start) * np.conj(chord)) / np.fmax(np.abs(chord) ** 2, 1e-12), 0.0, 1.0)
+    nearest = int(np.argmin(np.abs(start + fraction * chord - point)))
+    return float(np.sum(np.abs(chord[:nearest])) + fraction[nearest] * np.abs(chord[nearest]))
+
+
+def reference_start_error_m(road: Road) -> float:
+    """The start error of the maximum-likelihood road of the true form: the straight-arc-
+    straight road whose nodes' squared distances are least, searched from
+    :data:`ORACLE_START_SHIFTS_M` x :data:`ORACLE_LENGTH_FACTORS` starts about the truth.
+    Told the form, it knows more than any extractor; it is scored as the extractor is,
+    along the polyline (m)."""
+    origin = road.origin_xy[0] + 1j * road.origin_xy[1]
+    local = (road.xy[:, 0] + 1j * road.xy[:, 1] - origin) * np.exp(-1j * road.heading)
+    length_m = road.arc_end_s - road.arc_start_s
+    starts = np.array([(road.arc_start_s + shift, 0.0, 0.0, road.curvature / factor, length_m * factor)
+                       for shift in ORACLE_START_SHIFTS_M for factor in ORACLE_LENGTH_FACTORS])
+    parameters, squares = _fitted_roads(starts, np.column_stack((local.real, local.imag)))
+    best = parameters[int(np.argmin(squares))]
+    start_point = origin + (best[0] + 1j * best[1]) * np.exp(1j * road.heading)
+    return abs(_polyline_s(road.xy, start_point) - road.arc_start_s)
+
+
+def reference_figures(roads: list[Road], limit_m: float) -> dict:
+    """The start-error figures of :func:`reference_start_error_m` on ``roads``."""
+    errors = np.array([reference_start_error_m(road) for road in roads])
+    return {"median_start_error_m": float(np.median(errors)), "p90_start_error_m": float(np.percentile(errors, 90)),
+            "max_start_error_m": float(errors.max()), "arcs_started_over_5_m": int(np.sum(errors > limit_m))}
 
 
 # --------------------------------------------------------------------------- the two methods
@@ -323,6 +425,7 @@ def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
         figures[kind] = {name: accuracy(roads, straights, method) for name, method in (("ours", ours), ("three_point", three_point))}
         if kind != "dense":
             figures[kind]["bound"] = bound_figures(roads, SPARSE_START_LIMIT_M)
+            figures[kind]["reference"] = reference_figures(roads, SPARSE_START_LIMIT_M)
         if kind == "sparse":
             figures["sparse_throughput"] = sparse_throughput([road.xy for road in roads] + straights)
     figures["multi_curve"] = multi_curve_step_errors(rng, cases // 3)
@@ -361,6 +464,14 @@ def report(figures: dict) -> str:
             f"p90 {bound['p90_start_bound_m']:.2f} m; arcs started > {SPARSE_START_LIMIT_M:g} m off: ours "
             f"{figures[kind]['ours']['arcs_started_over_5_m']}, an efficient estimator {bound['expected_beyond_limit']:.1f} expected "
             f"(it misses none with probability {bound['chance_none_beyond_limit']:.3f})"
+        )
+        reference, ours_figures = figures[kind]["reference"], figures[kind]["ours"]
+        lines.append(
+            f"{kind:7} start error of the maximum-likelihood road told its form (straight-arc-straight), ours beside it: "
+            + ", ".join(f"{label} {reference[key]:.2f} m ({ours_figures[key]:.2f})" for label, key in
+                        (("median", "median_start_error_m"), ("p90", "p90_start_error_m"), ("max", "max_start_error_m")))
+            + f"; arcs started > {SPARSE_START_LIMIT_M:g} m off {reference['arcs_started_over_5_m']} "
+            f"({ours_figures['arcs_started_over_5_m']})"
         )
     multi = figures["multi_curve"]
     lines.append(
