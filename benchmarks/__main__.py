@@ -89,9 +89,12 @@ def curvature_rows(figures: dict) -> list[Row]:
         rows.append(context(f"curvature sparse (unjudged): {name}", sparse["ours"][name],
                             f"{sparse['three_point'][name]:.3g} (3-point)"))
     for kind in ("mapped", "sparse"):
-        bound = figures[kind]["bound"]
+        bound, reference = figures[kind]["bound"], figures[kind]["reference"]
         rows.append(context(f"curvature {kind}: arcs_started_over_5_m", figures[kind]["ours"]["arcs_started_over_5_m"],
+                            f"{reference['arcs_started_over_5_m']} of the ML road told its form; "
                             f"{bound['expected_beyond_limit']:.1f} expected of an efficient estimator (Cramér-Rao)"))
+        rows.append(context(f"curvature {kind}: max_start_error_m of the ML road told its form",
+                            round(reference["max_start_error_m"], 2), f"ours {figures[kind]['ours']['max_start_error_m']:.3g}"))
     rows.append(at_most("curvature multi curve: max_step_error_m", figures["multi_curve"]["max_step_error_m"],
                         curvature.MULTI_STEP_TARGET_M))
     rows.append(context("curvature: vertices/s", round(figures["throughput"]["vertices_per_s"])))
