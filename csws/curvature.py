@@ -1500,7 +1500,7 @@ def _stretched_trials(road: _Road, factors: np.ndarray) -> _Road:
     np.put_along_axis(bounds, index + 1, end[..., None], axis=-1)
     curvature = stretched.curvature
     angle = np.take_along_axis(curvature, index, axis=-1)[..., 0] * (stop - first)
-    np.put_along_axis(curvature, index, (angle / (end - start))[..., None], axis=-1)
+    np.put_along_axis(curvature, index, (angle / np.fmax(end - start, MIN_POLISHED_PART_M))[..., None], axis=-1)
     return _joined_trials([road, stretched])
 
 
