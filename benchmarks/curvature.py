@@ -100,9 +100,9 @@ class Road:
     arc_start_s: float
     arc_end_s: float
     radius_m: float
-    curvature: float = 0.0
-    origin_xy: tuple[float, float] = (0.0, 0.0)
-    heading: float = 0.0
+    curvature: float
+    origin_xy: tuple[float, float]
+    heading: float
 
 
 def _random_pose(rng: np.random.Generator) -> tuple[tuple[float, float], float]:
