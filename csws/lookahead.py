@@ -13,13 +13,13 @@ Which way the path goes:
   vehicle's edge: a route that passes an edge twice should be given from the vehicle's
   position on (SUMO's route index tells where that is);
 * without one it follows the most probable path: at each junction the successor
-  that keeps the road, i.e. the one on an edge with the same street name, then the
-  same road type, then the smallest change of heading. Such a path is marked
-  ``predicted``.
+  that keeps the road, i.e. the road's continuation (:mod:`csws.roadchain`), then the
+  one on an edge with the same street name, then the same road type, then the
+  smallest change of heading. Such a path is marked ``predicted``.
 
 The lanes of a path are stitched and profiled as one polyline (so a curve that runs
-across an edge boundary is one curve). Junction manoeuvres, a turn inside a junction
-or a drive round a roundabout, are not curves of the road and offer no CPOI unless
+across an edge boundary or a node is one curve). Junction manoeuvres, a turn from one
+road into another at a junction or a drive round a roundabout, are not curves of the road and offer no CPOI unless
 :attr:`LookAheadSettings.warn_at_junctions` is set
 (:meth:`csws.roadmap.PathProfile.road_curves`): the driver takes them at junction
 speed, and a warning at every turn would teach the driver to ignore the system. Paths recur, from one step to the next and
@@ -461,16 +461,18 @@ class LookAhead:
         return False
 
     def _predicted_successor(self, lane_id: str, successors: Sequence[str]) -> str:
-        """The successor that keeps the road: same street name, then road type, then least turning."""
+        """The successor that keeps the road: the road's continuation through the junction
+        (:attr:`Lane.continues_road`), then the same street name, then road type, then least turning."""
         if len(successors) == 1:
             return successors[0]
         current = self.road_map.lane(lane_id)
         heading_out = _lane_end_heading(self.road_map.lane_shape(lane_id), -1)
 
-        def preference(candidate: str) -> tuple[bool, bool, float]:
+        def preference(candidate: str) -> tuple[bool, bool, bool, float]:
             destination = self.road_map.lane(self._destination(candidate))
             turning = abs(wrap_angle_rad(_lane_end_heading(self.road_map.lane_shape(candidate), 0) - heading_out))
             return (
+                not self.road_map.lane(candidate).continues_road,
                 not (current.street_name and destination.street_name == current.street_name),
                 not (current.road_type and destination.road_type == current.road_type),
                 turning,

@@ -16,15 +16,15 @@ drives through them and they carry the turns: a path runs normal lane -> interna
 "via" lane(s) -> next normal lane, exactly as SUMO moves vehicles. Pedestrian crossings
 and walking areas are left out.
 
-Junctions are not curves of the road. A turn inside a junction (an internal lane) or a
-drive round a roundabout (the edges of the network's ``<roundabout>`` elements) is a
-manoeuvre the driver makes at junction speed, not a bend taken at road speed. The
-curve index (:meth:`RoadMap.curves`) leaves out the curves of junction lanes, and a path
-offers the warning only its road curves (:meth:`PathProfile.road_curves`): a curve
-that turns mostly near junction lanes (:data:`JUNCTION_TURN_SHARE`,
-:data:`JUNCTION_MARGIN_M`) is a junction manoeuvre. A bend of the road that merely runs
-through a junction keeps most of its turning on normal lanes and stays a curve, less
-the parts inside the junction, whose shape netconvert made up.
+Junction manoeuvres are not curves of the road. A turn from one road into another (an
+internal lane whose connection leaves the road chain, :mod:`csws.roadchain`) or a drive
+round a roundabout (the edges of the network's ``<roundabout>`` elements) is taken at
+junction speed, not a bend taken at road speed. A curve of the road with a node inside
+it (a way split, a side road joining) is a curve whole: the path runs on through the
+internal lane that continues the road, taken as one chord across the junction
+(:meth:`RoadMap.path_profile`). A path offers the warning only its road curves
+(:meth:`PathProfile.road_curves`): a curve that turns mostly near junction-turn lanes
+(:data:`JUNCTION_TURN_SHARE`, :data:`JUNCTION_MARGIN_M`) is a junction manoeuvre.
 
 Networks imported from OpenStreetMap are geo-referenced: :meth:`RoadMap.xy_to_lonlat`
 and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) convert with
@@ -60,6 +60,7 @@ import shapely
 import sumolib
 
 from .curvature import ConstantRadiusPart, Curve, RadiusProfile, curves_from_profile, radius_profile, radius_profiles
+from .roadchain import road_continuations
 from .standard import DEFAULT_WARNING_RADIUS_M
 
 __all__ = [
@@ -86,12 +87,12 @@ JOINT_TOLERANCE_M = 0.1
 MATCH_TOLERANCE_M = 0.01
 
 #: A curve is a junction manoeuvre, not a curve of the road, when at least this share of
-#: its turning angle (3.6) lies on junction lanes: internal lanes and roundabouts.
+#: its turning angle (3.6) lies on junction lanes: turns into another road and roundabouts.
 JUNCTION_TURN_SHARE = 0.5
 
-#: Lane shapes within this distance of a junction lane are netconvert's, not the mapped
-#: road's, m: it cuts the lanes back to the junction border and joins them with internal
-#: lanes of its own making, which bends the last metres of the lanes too.
+#: Lane shapes within this distance of a junction-turn lane are netconvert's, not the
+#: mapped road's, m: it cuts the lanes back to the junction border and joins them with
+#: internal lanes of its own making, which bends the last metres of the lanes too.
 JUNCTION_MARGIN_M = 10.0
 
 #: The columns of :meth:`RoadMap.write_curves`, in order.
@@ -145,6 +146,11 @@ class Lane:
         Whether the lane belongs to a roundabout: its edge is listed in one of the
         network's ``<roundabout>`` elements, or it is an internal lane of one of its
         junctions.
+    continues_road
+        For an internal lane, whether its connection continues the road through the
+        junction (a way split, a node inside a bend, the straight-ahead or priority
+        continuation: :func:`csws.roadchain.road_continuations`) rather than turning
+        into another road. Always False for normal lanes.
     """
 
     lane_id: str
@@ -158,6 +164,7 @@ class Lane:
     shape_length_m: float
     allowed_vclasses: frozenset[str]
     in_roundabout: bool = False
+    continues_road: bool = False
 
     @property
     def is_internal(self) -> bool:
@@ -166,8 +173,9 @@ class Lane:
 
     @property
     def is_junction(self) -> bool:
-        """Whether driving the lane is a junction manoeuvre: an internal lane or a roundabout."""
-        return self.is_internal or self.in_roundabout
+        """Whether driving the lane is a junction manoeuvre: a turn from one road into another
+        (an internal lane that does not continue the road) or a roundabout."""
+        return (self.is_internal and not self.continues_road) or self.in_roundabout
 
     @property
     def position_factor(self) -> float:
@@ -283,9 +291,10 @@ class PathProfile:
     lane_start_s
         Path arc length at the first shape point of each lane, ``(len(lane_ids),)``, m.
     lane_shape_length_m, lane_position_factor
-        Shape length and SUMO position factor of each lane (see :class:`Lane`).
+        Length of each lane's shape on the path and SUMO's position factor for it (see
+        :class:`Lane`; an internal lane that continues the road is one chord here).
     lane_is_junction
-        Whether each lane is a junction lane (:attr:`Lane.is_junction`).
+        Whether each lane is a junction manoeuvre (:attr:`Lane.is_junction`).
     """
 
     lane_ids: tuple[str, ...]
@@ -406,7 +415,7 @@ def _check_shape(lane: sumolib.net.lane.Lane) -> None:
         raise NetworkError(f"lane {lane.getID()} has a shape coordinate that is not a finite number")
 
 
-def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool) -> Lane:
+def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool, continues_road: bool) -> Lane:
     """The :class:`Lane` attributes of a sumolib lane."""
     edge = lane.getEdge()
     return Lane(
@@ -421,6 +430,7 @@ def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabo
         shape_length_m=shape_length_m,
         allowed_vclasses=frozenset(lane.getPermissions()),
         in_roundabout=in_roundabout,
+        continues_road=continues_road,
     )
 
 
@@ -451,6 +461,24 @@ def _successor_ids(lane: sumolib.net.lane.Lane, index: dict[str, int]) -> list[i
         if target in index and index[target] not in reached:
             reached.append(index[target])
     return reached
+
+
+def _continuing_internal_lanes(sumo_lanes: Sequence[sumolib.net.lane.Lane], continuations: frozenset[tuple[str, str]]) -> set[str]:
+    """Ids of the internal lanes of the connections that continue a road (edge pairs in ``continuations``)."""
+    by_id = {lane.getID(): lane for lane in sumo_lanes}
+    continuing: set[str] = set()
+    for lane in sumo_lanes:
+        for connection in lane.getOutgoing():
+            if (lane.getEdge().getID(), connection.getTo().getID()) not in continuations:
+                continue
+            via = connection.getViaLaneID()
+            # An internal lane leads on through further internal lanes (a left turn's wait
+            # position) to the connection's target.
+            while via in by_id and via not in continuing and by_id[via].getEdge().getFunction() == "internal":
+                continuing.add(via)
+                following = by_id[via].getOutgoing()
+                via = (following[0].getViaLaneID() or following[0].getToLane().getID()) if following else ""
+    return continuing
 
 
 def _geo_reference(net: sumolib.net.Net) -> sumolib.net.Net:
@@ -660,8 +688,9 @@ class RoadMap:
         index = {lane.getID(): i for i, lane in enumerate(sumo_lanes)}
         successors = [_successor_ids(lane, index) for lane in sumo_lanes]
         roundabout_edges = _roundabout_edge_ids(net)
+        continuing = _continuing_internal_lanes(sumo_lanes, road_continuations(net))
         lanes = [
-            _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges)
+            _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges, lane.getID() in continuing)
             for lane, length in zip(sumo_lanes, shape_length_m)
         ]
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
@@ -728,15 +757,16 @@ class RoadMap:
         Parameters
         ----------
         include_junctions
-            Also list the curves of junction lanes (internal lanes and roundabouts,
-            :attr:`Lane.is_junction`), which are junction manoeuvres rather than curves
-            of the road and are left out by default.
+            Also list the curves of internal lanes and roundabouts, left out by default:
+            a turn into another road or round a roundabout is a junction manoeuvre, and
+            an internal lane that continues the road has a shape of netconvert's making
+            (the road's curve there is on the normal lanes either side).
         """
         return list(
             chain.from_iterable(
                 curves
                 for lane, curves in zip(self._lanes, self._lane_curves)
-                if include_junctions or not lane.is_junction
+                if include_junctions or not (lane.is_internal or lane.in_roundabout)
             )
         )
 
@@ -817,14 +847,17 @@ class RoadMap:
         """
         path = self.expand_path(lane_ids)
         indices = [self._index[lane_id] for lane_id in path]
-        xy, lane_start_s = _stitch([self._shape(i) for i in indices])
+        shapes = [self._road_shape(i) for i in indices]
+        xy, lane_start_s = _stitch(shapes)
+        shape_length_m = np.array([np.hypot(*np.diff(shape, axis=0).T).sum() for shape in shapes])
+        length_m = np.array([self._lanes[i].length_m for i in indices])
         return PathProfile(
             lane_ids=path,
             xy=xy,
             profile=radius_profile(xy),
             lane_start_s=lane_start_s,
-            lane_shape_length_m=np.array([self._lanes[i].shape_length_m for i in indices]),
-            lane_position_factor=np.array([self._lanes[i].position_factor for i in indices]),
+            lane_shape_length_m=shape_length_m,
+            lane_position_factor=np.divide(length_m, shape_length_m, out=np.ones(len(indices)), where=shape_length_m > 0),
             lane_is_junction=np.array([self._lanes[i].is_junction for i in indices], dtype=bool),
         )
 
@@ -931,6 +964,19 @@ class RoadMap:
         view = self._xy[self._vertex_start[lane] : self._vertex_start[lane + 1]]
         view.flags.writeable = False
         return view
+
+    def _road_shape(self, lane: int) -> np.ndarray:
+        """The shape a path takes along a lane: the lane's own, but only the two ends of an
+        internal lane that continues the road (:attr:`Lane.continues_road`).
+
+        netconvert trims the edges back to the junction border and joins them with a shape
+        of its own making, which bends sharply where a side road widens the junction; the
+        mapped road is the edges either side. One chord across the junction keeps its
+        heading (on a circle a chord is parallel to the tangent at its middle) without the
+        made-up bends, so a curve through the junction is fitted from the road's own shape.
+        """
+        shape = self._shape(lane)
+        return shape[[0, -1]] if self._lanes[lane].continues_road and len(shape) > 2 else shape
 
     def _successor_indices(self, lane: int) -> np.ndarray:
         return self._successor_index[self._successor_start[lane] : self._successor_start[lane + 1]]
