@@ -1,0 +1,53 @@
+"""Radius profiles and curves of road polylines (T/ITS 0091-2018, 3.2-3.8).
+
+A road centreline arrives as a polyline: a dense SUMO lane shape (vertices 0.5-1 m
+apart, coordinates rounded to 1 cm) or a sparse map way (nodes 5-30 m apart with
+decimetre-level noise). The radius through three consecutive vertices is useless on
+both: on a dense shape a 1 cm rounding error bends a 0.5 m chord by more than a
+500 m curve does. This module therefore models the road as the standard does, as
+straights and constant-radius curves joined at points (3.4-3.8), and fits that model
+to the whole polyline:
+
+1. Each chord's heading belongs to the arc length of its midpoint (on a circle the
+   chord is parallel to the tangent there), so heading against arc length is
+   continuous and piecewise linear, its slope being the curvature.
+2. The heading is cut into parts of constant curvature by binary segmentation: a
+   part is split where two lines fit its headings significantly better than one,
+   judged against the coordinate noise estimated from the polyline itself.
+3. Each knot (curvature step) is moved to where the lines fitted to its two parts
+   intersect, chords straddling it are left out of the fits, and neighbouring parts
+   that one line fits as well are merged. Two lines that do not cross mean a curve
+   shorter than its neighbours' resolution; the chords around it become its own part.
+4. The chords of the curved parts are converted to arc lengths (a chord of length c
+   on radius R spans ``2 R asin(c / 2R)``) and the parts are fitted once more.
+
+A curve (3.4, 3.5) is then a maximal run of parts turning the same way with a radius
+no larger than the warning curvature radius R_c; its parts are the constant-radius
+parts of a single (3.7) or multi curve (3.8).
+
+All polylines of a network are processed together in flat arrays, so the number of
+numpy operations does not grow with the number of lanes. Sparse polylines (map ways,
+see :func:`_sparse_batch_parts`) are fitted in a few batches of similar chord counts,
+each step for all polylines of a batch and all their trial knot positions at once. A
+map way's chords are too few and too noisy for the fit of their headings to be the
+last word, so the road it finds is finally fitted to the nodes themselves, in the plane
+(:func:`_polished`): the maximum-likelihood road under isotropic node noise, exact on
+exact nodes, with straights tried at its ends where the heading fit ran a curve into one.
+"""
+
+
+from .curves import curves_from_profile
+from .fitting import find_curves, radius_profile, radius_profiles, three_point_radius
+from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile
+
+__all__ = [
+    "ProfilePart",
+    "RadiusProfile",
+    "ConstantRadiusPart",
+    "Curve",
+    "radius_profile",
+    "radius_profiles",
+    "curves_from_profile",
+    "find_curves",
+    "three_point_radius",
+]

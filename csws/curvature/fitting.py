@@ -1,0 +1,92 @@
+"""Radius profiles of polylines: which fit each polyline gets, and the three-point baseline."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..standard import DEFAULT_WARNING_RADIUS_M
+from .chords import _chords, _coordinate_noise_m, _validated
+from .curves import curves_from_profile
+from .dense import _dense_profile, _is_sparse, _polyline_vertex_s, _Segmentation
+from .polish import _sparse_parts
+from .profile import Curve, RadiusProfile, _profile, _straight_profile
+
+
+def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
+    """Radius profiles of many polylines at once.
+
+    All polylines are processed together in flat arrays (running sums, ``reduceat``), so
+    a network of tens of thousands of lanes takes seconds; each polyline's profile is
+    the same as when it is profiled alone.
+
+    Parameters
+    ----------
+    polylines
+        ``(n, 2)`` arrays of vertex coordinates, m. Empty, one-point and all-repeated
+        polylines give a straight profile without parts; repeated consecutive vertices
+        are ignored.
+
+    Returns
+    -------
+    list[RadiusProfile]
+        One per polyline, in order.
+
+    Raises
+    ------
+    ValueError
+        When a polyline is not ``(n, 2)`` or has NaN or infinite coordinates.
+    """
+    points = [_validated(xy, i) for i, xy in enumerate(polylines)]
+    if not points:
+        return []
+    chords = _chords(points)
+    if len(chords.length_m) == 0:
+        return [
+            _straight_profile(chords.vertex_s[chords.polyline_first_vertex[p] : chords.polyline_first_vertex[p + 1]])
+            for p in range(len(points))
+        ]
+    noise_m = _coordinate_noise_m(chords, len(points))
+    segmentation = _Segmentation(chords, noise_m)
+    segmentation.split_until_stable()
+    segmentation.open_steps()
+    segmentation.refine_until_stable()
+    fit = segmentation.fit_on_arc_lengths()
+    sparse_parts = _sparse_parts(chords, noise_m, np.flatnonzero(_is_sparse(chords, noise_m)))
+    return [
+        _profile(_polyline_vertex_s(chords, p), *sparse_parts[p]) if p in sparse_parts else _dense_profile(segmentation, fit, p)
+        for p in range(len(points))
+    ]
+
+
+def radius_profile(xy: np.ndarray) -> RadiusProfile:
+    """The radius profile of one polyline; see :func:`radius_profiles`."""
+    return radius_profiles([_validated(xy)])[0]
+
+
+def find_curves(xy: np.ndarray, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
+    """The curves (3.4-3.8) of one polyline; see :func:`curves_from_profile`."""
+    return curves_from_profile(radius_profile(xy), warning_radius_m)
+
+
+def three_point_radius(xy: np.ndarray) -> np.ndarray:
+    """Radius of the circle through each vertex and its two neighbours, m.
+
+    The textbook baseline, kept for comparison only: on cm-rounded dense shapes its
+    error exceeds the curvature of gentle curves. ``inf`` at the two end vertices and
+    where the three points are collinear or repeated.
+    """
+    points = _validated(xy)
+    radius = np.full(len(points), np.inf)
+    if len(points) < 3:
+        return radius
+    a, b, c = points[:-2], points[1:-1], points[2:]
+    ab = np.hypot(*(b - a).T)
+    bc = np.hypot(*(c - b).T)
+    ca = np.hypot(*(a - c).T)
+    doubled_area = np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inner = ab * bc * ca / (2.0 * doubled_area)
+    radius[1:-1] = np.where(doubled_area > 0, inner, np.inf)
+    return radius
