@@ -39,7 +39,7 @@ import numpy as np
 
 from .geometry import wrap_angle_rad
 from .roadmap import Lane, PathProfile, RoadMap
-from .standard import DEFAULT_WARNING_RADIUS_M, Category, Column, Level, formula_1_m, kmh_to_mps
+from .standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
 from .warning import CurvaturePointOfInterest, PathKind, WarningSettings, column_index
 
 __all__ = [

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+
 import sumolib
 
 __all__ = ["MAX_CONTINUATION_DEFLECTION_DEG", "road_continuations"]

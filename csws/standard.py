@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
 from enum import IntEnum, StrEnum
+from functools import cached_property
 from typing import Mapping
 
 import numpy as np

@@ -8,7 +8,6 @@ from pathlib import Path
 from csws.argtypes import comma_list, one_of, positive_int, step_length
 from csws.cli import deferred
 
-
 #: Tables 5-9, and 0 for our negative rows.
 _TABLES = comma_list(lambda text: int(one_of(("0", "5", "6", "7", "8", "9"))(text)), "table")
 _CATEGORIES = comma_list(one_of(("M1", "M2", "M3", "N", "O"), str.upper), "category")
