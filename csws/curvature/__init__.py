@@ -4,9 +4,10 @@ A road centreline arrives as a polyline: a dense SUMO lane shape (vertices 0.5-1
 apart, coordinates rounded to 1 cm) or a sparse map way (nodes 5-30 m apart with
 decimetre-level noise). The radius through three consecutive vertices is useless on
 both: on a dense shape a 1 cm rounding error bends a 0.5 m chord by more than a
-500 m curve does. This module therefore models the road as the standard does, as
-straights and constant-radius curves joined at points (3.4-3.8), and fits that model
-to the whole polyline:
+500 m curve does. This package therefore models the road as roads are designed (and
+as OpenDRIVE and ADAS horizons exchange them): curvature piecewise linear in arc
+length, i.e. straights, arcs and the clothoids between them, and fits that model to
+the whole polyline:
 
 1. Each chord's heading belongs to the arc length of its midpoint (on a circle the
    chord is parallel to the tangent there), so heading against arc length is
@@ -20,18 +21,23 @@ to the whole polyline:
    shorter than its neighbours' resolution; the chords around it become its own part.
 4. The chords of the curved parts are converted to arc lengths (a chord of length c
    on radius R spans ``2 R asin(c / 2R)``) and the parts are fitted once more.
+5. Where the parts of a dense polyline form a staircase (a step, or short stairs of
+   intermediate radius), a clothoid is fitted in its place and kept where the headings
+   prefer it (:mod:`csws.curvature.transitions`); the whole profile is then refitted
+   with its heading and curvature continuous.
 
-A curve (3.4, 3.5) is then a maximal run of parts turning the same way with a radius
-no larger than the warning curvature radius R_c; its parts are the constant-radius
-parts of a single (3.7) or multi curve (3.8).
+A curve (3.4, 3.5) is then a maximal stretch turning one way with a radius no larger
+than the warning curvature radius R_c, its ends inside clothoids where they cross R_c
+(:mod:`csws.curvature.curves`); its parts are its arcs, those of a single (3.7) or
+multi curve (3.8), and short pieces of its clothoids: its curvature points (3.11).
 
 All polylines of a network are processed together in flat arrays, so the number of
 numpy operations does not grow with the number of lanes. Sparse polylines (map ways,
-see :func:`_sparse_batch_parts`) are fitted in a few batches of similar chord counts,
+see :mod:`csws.curvature.polish`) are fitted in a few batches of similar chord counts,
 each step for all polylines of a batch and all their trial knot positions at once. A
 map way's chords are too few and too noisy for the fit of their headings to be the
 last word, so the road it finds is finally fitted to the nodes themselves, in the plane
-(:func:`_polished`): the maximum-likelihood road under isotropic node noise, exact on
+(:mod:`csws.curvature.road`): the maximum-likelihood road under isotropic node noise, exact on
 exact nodes, with straights tried at its ends where the heading fit ran a curve into one.
 """
 

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .chords import _Chords, _group_median
-from .profile import RadiusProfile, _profile, _straight_profile
 
 #: Fewest chords a part of constant curvature is fitted over.
 MIN_PART_CHORDS = 2
@@ -386,25 +385,30 @@ def _polyline_vertex_s(chords: _Chords, polyline: int) -> np.ndarray:
     return chords.vertex_s[chords.polyline_first_vertex[polyline] : chords.polyline_first_vertex[polyline + 1]]
 
 
-def _dense_profile(segmentation: _Segmentation, fit: _Fit, polyline: int) -> RadiusProfile:
-    """The radius profile of one polyline from the network's segmentation and part fits."""
+def _dense_parts(segmentation: _Segmentation, fit: _Fit, polyline: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Part bounds (``[0, ..., length]``) and curvatures of one polyline from the network's
+    segmentation and part fits; None for a polyline without chords."""
     chords = segmentation.chords
-    vertex_s = _polyline_vertex_s(chords, polyline)
     first_chord, stop_chord = chords.polyline_first_chord[polyline : polyline + 2]
     if first_chord == stop_chord:
-        return _straight_profile(vertex_s)
+        return None
     first_part, stop_part = np.searchsorted(segmentation.starts, (first_chord, stop_chord))
-    bounds = np.append(segmentation.knot_s[first_part:stop_part], vertex_s[-1])
+    bounds = np.append(segmentation.knot_s[first_part:stop_part], _polyline_vertex_s(chords, polyline)[-1])
     bounds[0] = 0.0
-    return _profile(vertex_s, bounds, fit.curvature[first_part:stop_part])
+    return bounds, fit.curvature[first_part:stop_part]
+
+
+def _is_mapped(chords: _Chords, noise_m: np.ndarray) -> np.ndarray:
+    """Whether each polyline is a map way rather than a dense shape: a median chord of at
+    least :data:`SPARSE_CHORD_M`, or nodes as noisy as a map's (at least
+    :data:`SPARSE_MIN_NOISE_M`; mappers put nodes closer together on a curve, and such
+    chords' headings are mostly noise)."""
+    median_m = _group_median(chords.length_m, chords.polyline, len(noise_m))
+    return (np.nan_to_num(median_m) >= SPARSE_CHORD_M) | (noise_m >= SPARSE_MIN_NOISE_M)
 
 
 def _is_sparse(chords: _Chords, noise_m: np.ndarray) -> np.ndarray:
-    """Whether each polyline is a map way, to be fitted as a sparse one: :data:`MIN_SPARSE_CHORDS`
-    to :data:`MAX_SPARSE_CHORDS` chords, with a median length of at least :data:`SPARSE_CHORD_M`
-    or nodes as noisy as a map's (at least :data:`SPARSE_MIN_NOISE_M`; mappers put nodes
-    closer together on a curve, and such chords' headings are mostly noise)."""
+    """Whether each polyline is a map way to be fitted as a sparse one: :func:`_is_mapped`,
+    with :data:`MIN_SPARSE_CHORDS` to :data:`MAX_SPARSE_CHORDS` chords."""
     count = np.diff(chords.polyline_first_chord)
-    median_m = _group_median(chords.length_m, chords.polyline, len(noise_m))
-    sparse = (np.nan_to_num(median_m) >= SPARSE_CHORD_M) | (noise_m >= SPARSE_MIN_NOISE_M)
-    return (count >= MIN_SPARSE_CHORDS) & (count <= MAX_SPARSE_CHORDS) & sparse
+    return (count >= MIN_SPARSE_CHORDS) & (count <= MAX_SPARSE_CHORDS) & _is_mapped(chords, noise_m)

@@ -8,10 +8,12 @@ import numpy as np
 
 from ..standard import DEFAULT_WARNING_RADIUS_M
 from .chords import _chords, _coordinate_noise_m, _validated
+from .corners import with_corner_rules, with_floor
 from .curves import curves_from_profile
-from .dense import _dense_profile, _is_sparse, _polyline_vertex_s, _Segmentation
+from .dense import _dense_parts, _Fit, _is_mapped, _is_sparse, _polyline_vertex_s, _Segmentation
 from .polish import _sparse_parts
 from .profile import Curve, RadiusProfile, _profile, _straight_profile
+from .transitions import with_transitions
 
 
 def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
@@ -53,11 +55,44 @@ def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
     segmentation.open_steps()
     segmentation.refine_until_stable()
     fit = segmentation.fit_on_arc_lengths()
+    mapped = _is_mapped(chords, noise_m)
     sparse_parts = _sparse_parts(chords, noise_m, np.flatnonzero(_is_sparse(chords, noise_m)))
-    return [
-        _profile(_polyline_vertex_s(chords, p), *sparse_parts[p]) if p in sparse_parts else _dense_profile(segmentation, fit, p)
-        for p in range(len(points))
-    ]
+    return [_polyline_profile(segmentation, fit, sparse_parts, bool(mapped[p]), p) for p in range(len(points))]
+
+
+def _polyline_profile(
+    segmentation: _Segmentation, fit: _Fit, sparse_parts: dict, mapped: bool, polyline: int
+) -> RadiusProfile:
+    """The profile of one polyline from the fit it was given.
+
+    A dense shape gets clothoids where its headings show them
+    (:func:`csws.curvature.transitions.with_transitions`); a map way, fitted sparse or
+    dense, is kept to what its nodes can say (:func:`csws.curvature.corners.with_corner_rules`).
+    """
+    chords = segmentation.chords
+    vertex_s = _polyline_vertex_s(chords, polyline)
+    rows = slice(*chords.polyline_first_chord[polyline : polyline + 2])
+    if polyline in sparse_parts:
+        bounds, curvature = sparse_parts[polyline]
+        parts = (bounds, curvature, curvature)
+    elif (dense := _dense_parts(segmentation, fit, polyline)) is None:
+        return _straight_profile(vertex_s)
+    elif mapped or len(dense[1]) == 1:
+        parts = (dense[0], dense[1], dense[1])
+    else:
+        parts = with_transitions(
+            chords.start_s[rows] + 0.5 * chords.length_m[rows],
+            chords.heading[rows],
+            segmentation.weight[rows],
+            float(segmentation.noise_variance[rows.start]),
+            *dense,
+        )
+    if mapped:
+        noise_m = float(segmentation.noise_variance[rows.start] / 2.0) ** 0.5
+        parts = with_corner_rules(chords.start_s[rows], chords.length_m[rows], chords.heading[rows], noise_m, *parts)
+    else:
+        parts = (parts[0], *with_floor(*parts[1:]))
+    return _profile(vertex_s, *parts)
 
 
 def radius_profile(xy: np.ndarray) -> RadiusProfile:

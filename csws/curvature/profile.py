@@ -10,30 +10,52 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ProfilePart:
-    """A stretch of constant curvature found in a polyline.
+    """A stretch of a polyline whose curvature is constant (a straight or an arc) or
+    changes linearly with arc length (a clothoid, the transition curve of road design).
 
     Attributes
     ----------
     start_s, end_s
         Arc length of its ends along the polyline, m.
     curvature
-        Signed curvature, 1/m, positive turning left.
+        Signed curvature at its start, 1/m, positive turning left.
+    end_curvature
+        Signed curvature at its end, 1/m; None where it is constant.
     """
 
     start_s: float
     end_s: float
     curvature: float
+    end_curvature: float | None = None
+
+    @property
+    def final_curvature(self) -> float:
+        """Signed curvature at the end of the part, 1/m."""
+        return self.curvature if self.end_curvature is None else self.end_curvature
+
+    @property
+    def is_spiral(self) -> bool:
+        """Whether the curvature changes along the part (a clothoid)."""
+        return self.end_curvature is not None and self.end_curvature != self.curvature
 
     @property
     def radius_m(self) -> float:
-        """Radius of the part, m; ``inf`` on a straight."""
+        """Smallest radius on the part, m; ``inf`` on a straight."""
+        largest = max(abs(self.curvature), abs(self.final_curvature))
         with np.errstate(over="ignore"):
-            return float(np.divide(1.0, abs(self.curvature))) if self.curvature else math.inf
+            return float(np.divide(1.0, largest)) if largest else math.inf
 
     @property
     def length_m(self) -> float:
         """Arc length of the part, m."""
         return self.end_s - self.start_s
+
+    def curvature_at(self, s: np.ndarray) -> np.ndarray:
+        """Signed curvature at arc lengths ``s`` of the part (clipped to it), 1/m."""
+        if not self.is_spiral or self.length_m <= 0:
+            return np.full(np.shape(s), self.curvature)
+        fraction = np.clip((np.asarray(s, dtype=float) - self.start_s) / self.length_m, 0.0, 1.0)
+        return self.curvature + (self.final_curvature - self.curvature) * fraction
 
 
 @dataclass(frozen=True)
@@ -51,8 +73,9 @@ class RadiusProfile:
     radius
         ``1 / |curvature|`` at each vertex, m; ``inf`` on straights.
     parts
-        The parts of constant curvature the vertex values come from, in order, covering
-        ``[0, s[-1]]``; empty when the polyline has no length.
+        The parts (straights, arcs and clothoids: curvature piecewise linear in arc
+        length) the vertex values come from, in order, covering ``[0, s[-1]]``; empty
+        when the polyline has no length.
     """
 
     s: np.ndarray
@@ -63,20 +86,29 @@ class RadiusProfile:
 
 @dataclass(frozen=True)
 class ConstantRadiusPart:
-    """A constant-radius part of a curve: the whole of a single curve (3.7) or one of the
-    directly joined curves of a multi curve (3.8).
+    """A part of a curve taken at one radius: a curvature point of interest (3.11) at its
+    start, standing for the road up to its end.
+
+    On an arc it is the arc: the whole of a single curve (3.7) or one of the directly
+    joined curves of a multi curve (3.8). On a clothoid it is a piece short enough that
+    the warning speed V_w of every category and level changes along it by at most
+    :data:`csws.curvature.curves.SPIRAL_PIECE_KMH`, taken at the radius of its start
+    point: a real point of the road, so a warning it raises is one the road requires.
 
     Attributes
     ----------
     start_s, end_s
         Arc length of its ends along the polyline, m.
     radius_m
-        Its radius, m.
+        Its radius, m: the arc's, or the road's radius at the piece's start.
+    spiral
+        Whether it is a piece of a clothoid (not an arc of its own).
     """
 
     start_s: float
     end_s: float
     radius_m: float
+    spiral: bool = False
 
 
 @dataclass(frozen=True)
@@ -97,8 +129,9 @@ class Curve:
     min_radius_m
         The smallest radius in the curve, m.
     parts
-        Its constant-radius parts: one for a single curve (3.7), two or more for a multi
-        curve (3.8).
+        Its parts in order (see :class:`ConstantRadiusPart`): its arcs, one for a single
+        curve (3.7), two or more for a multi curve (3.8), and the pieces of the clothoids
+        that lead into, between and out of them.
     """
 
     start_s: float
@@ -110,8 +143,8 @@ class Curve:
 
     @property
     def is_multi(self) -> bool:
-        """Whether this is a multi curve (3.8): two or more directly joined constant-radius curves."""
-        return len(self.parts) >= 2
+        """Whether this is a multi curve (3.8): two or more joined constant-radius curves (arcs)."""
+        return sum(not part.spiral for part in self.parts) >= 2
 
 
 def _straight_profile(vertex_s: np.ndarray) -> RadiusProfile:
@@ -119,12 +152,21 @@ def _straight_profile(vertex_s: np.ndarray) -> RadiusProfile:
     return RadiusProfile(vertex_s.copy(), np.zeros(len(vertex_s)), np.full(len(vertex_s), np.inf), ())
 
 
-def _profile(vertex_s: np.ndarray, bounds: np.ndarray, curvature_of_part: np.ndarray) -> RadiusProfile:
-    """The radius profile of one polyline from its part bounds (``[0, ..., end]``) and curvatures."""
+def _profile(
+    vertex_s: np.ndarray, bounds: np.ndarray, curvature_of_part: np.ndarray, end_curvature: np.ndarray | None = None
+) -> RadiusProfile:
+    """The radius profile of one polyline from its part bounds (``[0, ..., end]``) and the
+    curvature at each part's start and end (``end_curvature`` None: constant parts)."""
+    end_curvature = curvature_of_part if end_curvature is None else end_curvature
     part = np.searchsorted(bounds[1:-1], vertex_s, side="right")
-    curvature = curvature_of_part[part]
+    length = np.diff(bounds)[part]
+    fraction = np.divide(vertex_s - bounds[part], length, out=np.zeros(len(vertex_s)), where=length > 0)
+    curvature = curvature_of_part[part] + (end_curvature[part] - curvature_of_part[part]) * np.clip(fraction, 0.0, 1.0)
     magnitude = np.abs(curvature)
     radius = np.divide(1.0, magnitude, out=np.full(len(magnitude), np.inf), where=magnitude > 1.0 / np.finfo(float).max)
     edges = bounds.tolist()
-    parts = tuple(map(ProfilePart, edges[:-1], edges[1:], curvature_of_part.tolist()))
+    starts, ends = curvature_of_part.tolist(), end_curvature.tolist()
+    parts = tuple(
+        ProfilePart(a, b, k0, None if k1 == k0 else k1) for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends)
+    )
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)

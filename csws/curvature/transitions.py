@@ -1,0 +1,344 @@
+"""Transition curves: where the curvature of a dense polyline changes along a clothoid.
+
+The dense fit (:mod:`csws.curvature.dense`) cuts heading against arc length into parts
+of constant curvature. Where the road has a clothoid (a spiral, curvature linear in arc
+length) between two parts, that fit is a staircase: one or more short parts of
+intermediate radius, or a single step somewhere inside the spiral. Either puts the
+curve start (3.4) and end (3.5), where the radius crosses R_c, metres away from where
+the road's radius does.
+
+Here every such staircase is put to the data as a clothoid instead. Between two
+constant parts ``i`` and ``j`` with curvatures ``k_i`` and ``k_j``, and the stairs
+between them (parts whose curvatures lie between, in order), the heading of a road
+that runs ``k_i`` up to ``s1``, changes linearly to ``k_j`` at ``s2`` and runs ``k_j``
+on is
+
+    theta(s) = c + k_i (s - s1) + (k_j - k_i) g(s),
+    g(s) = 0 before s1, (s - s1)^2 / 2L on the spiral (L = s2 - s1), s - s1 - L/2 after,
+
+linear in ``(c, k_i, k_j - k_i)`` for given ``(s1, s2)``. Running sums of the chords'
+weighted powers of arc length give the least-squares fit for every ``(s1, s2)`` of a
+grid in a few array operations; the best is refined on a finer grid. The clothoid
+replaces the staircase when its normalised residual, plus :data:`PARAMETER_PENALTY` for
+each parameter it has more than the staircase (or less, for two or more stairs), is
+smaller, and when it beats the best single step of the same stretch (a clothoid of no
+length) by more than :data:`PARAMETER_PENALTY` (by anything, when it is :data:`LONG_SPIRAL_M`
+long or more) and is at least :data:`MIN_SPIRAL_M` long: so an arc that meets a straight at a
+point, a compound curve of directly joined arcs (3.8), or one of true constant-radius
+parts, keeps its steps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: How far beyond the outermost step of a staircase a spiral may start or end, m: the
+#: longest transition curves of road design (80-120 m at motorway radii) put a single
+#: step up to about half their length inside them.
+SPIRAL_REACH_M = 120.0
+#: Grid steps of the spiral-end search: coarse over the whole reach, then fine around the best, m.
+COARSE_STEP_M = 2.0
+FINE_STEP_M = 0.1
+#: How far the second search of a clothoid's ends looks around where they are, m.
+REPOLISH_REACH_M = 2.0
+#: Shortest clothoid kept, m. Chords straddling a step between two arcs make a clothoid of
+#: a few metres fit a little better than the step itself; road design's transitions are
+#: longer (a clothoid parameter A of at least R / 3 makes one at least R / 9 long).
+MIN_SPIRAL_M = 5.0
+#: A clothoid at least this long need only fit better than a step, m: the false clothoids
+#: that noise and chords straddling a step make are shorter (under 6 m on cm-rounded
+#: shapes), and road design's transitions longer (R / 9 for R >= 135 m). A gentle
+#: spiral fits little better than a step, yet the step puts the curve start metres off.
+LONG_SPIRAL_M = 15.0
+#: Passes searching every clothoid's ends again once all are placed.
+REPOLISH_PASSES = 2
+#: Least share of a constant part its neighbouring spiral leaves it (a spiral may not eat a part whole).
+KEPT_PART_M = 0.5
+#: What each parameter a model has more must gain in normalised residual (Akaike's 2): on
+#: dense cm-rounded arcs the best false clothoid at a step gains under 1, while the
+#: clothoids of real spirals gain from 1 to several hundred.
+PARAMETER_PENALTY = 2.0
+#: Parameters of the two models of one staircase: a clothoid has an offset, two
+#: curvatures and two ends; each part of the staircase a line (offset and slope), and
+#: a clothoid in it one more (a parabola).
+SPIRAL_PARAMETERS = 5
+PART_PARAMETERS = 2
+
+
+@dataclass(frozen=True)
+class _Chords:
+    """One polyline's chords: middle arc length, heading (unwrapped) and weight (inverse
+    heading variance in units of the noise variance ``noise_variance``)."""
+
+    mid_s: np.ndarray
+    heading: np.ndarray
+    weight: np.ndarray
+    noise_variance: float
+
+
+def _part_residual(chords: _Chords, rows: slice, spiral: bool) -> float:
+    """Weighted residual sum of squares of heading against arc length over ``rows`` fitted alone:
+    a line on a part of constant curvature, a parabola on a clothoid."""
+    w, s, h = chords.weight[rows], chords.mid_s[rows], chords.heading[rows]
+    degree = 2 if spiral else 1
+    if w.sum() <= 0 or len(s) <= degree:
+        return 0.0
+    s = s - s.mean()
+    design = np.column_stack([s**k for k in range(degree + 1)]) * np.sqrt(w)[:, None]
+    target = h * np.sqrt(w)
+    solution, *_ = np.linalg.lstsq(design, target, rcond=None)
+    return float(np.sum((design @ solution - target) ** 2))
+
+
+class _Moments:
+    """Running sums over a stretch of chords of w s^k (k = 0..4), w s^k h (k = 0..2) and w h^2,
+    in arc length and heading centred on the stretch (keeps the powers small)."""
+
+    def __init__(self, chords: _Chords, rows: slice) -> None:
+        self.mid_s = chords.mid_s[rows]
+        self.origin_s = float(self.mid_s.mean())
+        s = self.mid_s - self.origin_s
+        h = chords.heading[rows] - float(chords.heading[rows].mean())
+        w = chords.weight[rows]
+        terms = [w * s**k for k in range(5)] + [w * s**k * h for k in range(3)] + [w * h * h]
+        self.sums = np.concatenate((np.zeros((9, 1)), np.cumsum(terms, axis=1)), axis=1)
+
+    def between(self, first: np.ndarray, stop: np.ndarray) -> np.ndarray:
+        """The nine sums over chords ``first:stop``, ``(9, ...)``."""
+        return self.sums[:, stop] - self.sums[:, first]
+
+    def residual(self, s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
+        """Weighted residual of the best clothoid road with its spiral from ``s1`` to ``s2`` (arrays)."""
+        first = np.searchsorted(self.mid_s, s1)
+        stop = np.searchsorted(self.mid_s, s2)
+        end = np.full_like(first, len(self.mid_s))
+        whole = self.between(np.zeros_like(first), end)
+        spiral = self.between(first, stop)
+        after = self.between(stop, end)
+        a, length = s1 - self.origin_s, s2 - s1
+        with np.errstate(divide="ignore", invalid="ignore"):
+            half = np.where(length > 0, 0.5 / length, 0.0)
+        # On the spiral, g = u^2 / 2L with u = s - s1.
+        u2 = spiral[2] - 2 * a * spiral[1] + a * a * spiral[0]
+        su2 = spiral[3] - 2 * a * spiral[2] + a * a * spiral[1]
+        u4 = spiral[4] - 4 * a * spiral[3] + 6 * a**2 * spiral[2] - 4 * a**3 * spiral[1] + a**4 * spiral[0]
+        u2h = spiral[7] - 2 * a * spiral[6] + a * a * spiral[5]
+        # After it, g = s - m with m = s1 + L/2.
+        m = a + length / 2
+        g = half * u2 + after[1] - m * after[0]
+        sg = half * su2 + after[2] - m * after[1]
+        gg = half * half * u4 + after[2] - 2 * m * after[1] + m * m * after[0]
+        gh = half * u2h + after[6] - m * after[5]
+        normal = np.stack(
+            (
+                np.stack((whole[0], whole[1], g), axis=-1),
+                np.stack((whole[1], whole[2], sg), axis=-1),
+                np.stack((g, sg, gg), axis=-1),
+            ),
+            axis=-2,
+        )
+        right = np.stack((whole[5], whole[6], gh), axis=-1)
+        solution = _solved(normal, right)
+        return np.fmax(whole[8] - np.sum(solution * right, axis=-1), 0.0), solution
+
+
+def _solved(normal: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """Solutions of many symmetric 3 x 3 normal equations by their adjugates (Cramer's rule);
+    a singular one (a spiral over no chord, where the third column vanishes) by the first two."""
+    (a, b, c), (_, d, e), (_, _, f) = (normal[..., i, :].T for i in range(3))
+    adjugate = np.stack(
+        (
+            np.stack((d * f - e * e, c * e - b * f, b * e - c * d), axis=-1),
+            np.stack((c * e - b * f, a * f - c * c, b * c - a * e), axis=-1),
+            np.stack((b * e - c * d, b * c - a * e, a * d - b * b), axis=-1),
+        ),
+        axis=-2,
+    )
+    determinant = a * adjugate[..., 0, 0] + b * adjugate[..., 1, 0] + c * adjugate[..., 2, 0]
+    regular = np.abs(determinant) > 1e-12 * np.abs(normal).max(axis=(-2, -1)) ** 3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        solution = np.einsum("...ij,...j->...i", adjugate, right) / determinant[..., None]
+    line_determinant = a * d - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        line = np.stack(((d * right[..., 0] - b * right[..., 1]) / line_determinant,
+                         (a * right[..., 1] - b * right[..., 0]) / line_determinant, np.zeros_like(a)), axis=-1)
+    return np.nan_to_num(np.where(regular[..., None], solution, line))
+
+
+def _grid(low: float, high: float, step: float) -> np.ndarray:
+    """Points from ``low`` to ``high`` about ``step`` apart, both ends included."""
+    return np.linspace(low, high, max(2, int(np.ceil((high - low) / step)) + 1)) if high > low else np.array([low])
+
+
+def _best_spiral(moments: _Moments, s1_range: tuple[float, float], s2_range: tuple[float, float]) -> tuple[float, float, float, np.ndarray]:
+    """The spiral ends with the least residual in the given ranges: ``(residual, s1, s2, solution)``."""
+    centre1, centre2 = _least_on_grid(moments, _grid(*s1_range, COARSE_STEP_M), _grid(*s2_range, COARSE_STEP_M))[1:3]
+    fine1 = _grid(max(s1_range[0], centre1 - COARSE_STEP_M), min(s1_range[1], centre1 + COARSE_STEP_M), FINE_STEP_M)
+    fine2 = _grid(max(s2_range[0], centre2 - COARSE_STEP_M), min(s2_range[1], centre2 + COARSE_STEP_M), FINE_STEP_M)
+    return _least_on_grid(moments, fine1, fine2)
+
+
+def _best_step(moments: _Moments, low: float, high: float) -> float:
+    """The least residual of a road whose curvature steps at one point between ``low`` and
+    ``high`` (a clothoid of no length): what a clothoid must beat to be more than a step."""
+    coarse = _grid(low, high, COARSE_STEP_M)
+    centre = coarse[int(np.argmin(moments.residual(coarse, coarse)[0]))]
+    fine = _grid(max(low, centre - COARSE_STEP_M), min(high, centre + COARSE_STEP_M), FINE_STEP_M)
+    return float(moments.residual(fine, fine)[0].min())
+
+
+def _least_on_grid(moments: _Moments, s1_values: np.ndarray, s2_values: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+    """The spiral with the least residual among all ``s1 <= s2`` of two grids: ``(residual, s1, s2, solution)``."""
+    s1, s2 = (grid.ravel() for grid in np.meshgrid(s1_values, s2_values, indexing="ij"))
+    keep = s2 >= s1
+    residual, solution = moments.residual(s1[keep], s2[keep])
+    best = int(np.argmin(residual))
+    return float(residual[best]), float(s1[keep][best]), float(s2[keep][best]), solution[best]
+
+
+def _staircases(start_k: np.ndarray, end_k: np.ndarray) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)`` of constant parts, ``j > i``, whose parts between (stairs, or clothoids
+    placed earlier) take the curvature from one to the other in order: the staircases one
+    clothoid may replace."""
+    is_spiral = start_k != end_k
+    pairs = []
+    for i in np.flatnonzero(~is_spiral):
+        for j in range(i + 1, len(start_k)):
+            values = np.column_stack((start_k[i : j + 1], end_k[i : j + 1])).ravel()
+            direction = np.sign(end_k[j] - start_k[i])
+            if direction == 0 or np.any(np.diff(values) * direction < 0):
+                break
+            if not is_spiral[j] and not (j == i + 2 and is_spiral[i + 1]):  # one clothoid between is the target form
+                pairs.append((int(i), j))
+    return pairs
+
+
+def with_transitions(
+    mid_s: np.ndarray,
+    heading: np.ndarray,
+    weight: np.ndarray,
+    noise_variance: float,
+    bounds: np.ndarray,
+    curvature: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Replace the staircases of one dense polyline's constant-curvature parts by clothoids
+    where the headings say so.
+
+    Parameters
+    ----------
+    mid_s, heading, weight
+        The polyline's chords: middle arc length (ascending), unwrapped heading and weight
+        (their headings' inverse variance, up to ``noise_variance``).
+    noise_variance
+        The heading variance of a chord of weight 1.
+    bounds, curvature
+        Its parts: ``len(curvature) + 1`` bounds from 0 to its length, one curvature each.
+
+    Returns
+    -------
+    bounds, start_curvature, end_curvature
+        The parts after: constant ones with equal start and end curvature, clothoids
+        (spirals) with the curvature changing linearly from start to end.
+    """
+    chords = _Chords(mid_s, heading, weight, noise_variance)
+    bounds = np.asarray(bounds, dtype=float)
+    start_k = np.asarray(curvature, dtype=float).copy()
+    end_k = start_k.copy()
+    replaced = False
+    for _ in range(len(start_k)):  # each replacement leaves fewer stairs
+        improvement = _best_replacement(chords, bounds, start_k, end_k)
+        if improvement is None:
+            break
+        bounds, start_k, end_k = improvement
+        # Each clothoid was fitted with its two neighbours alone: one refit of the whole
+        # polyline makes every part meet its neighbours before the next staircase is judged.
+        start_k, end_k = _continuous_refit(chords, bounds, start_k != end_k, start_k)
+        replaced = True
+    if replaced:
+        for _ in range(REPOLISH_PASSES):
+            bounds = _repolished(chords, bounds, start_k != end_k)
+        start_k, end_k = _continuous_refit(chords, bounds, start_k != end_k, start_k)
+    return bounds, start_k, end_k
+
+
+def _repolished(chords: _Chords, bounds: np.ndarray, is_spiral: np.ndarray) -> np.ndarray:
+    """``bounds`` with the ends of every clothoid searched again between its neighbours as they
+    are now: a clothoid placed before its neighbour's other clothoid was lies where the
+    neighbour's first, longer extent put it."""
+    bounds = bounds.copy()
+    for part in np.flatnonzero(is_spiral):
+        low, high = bounds[part - 1] + KEPT_PART_M, bounds[part + 2] - KEPT_PART_M
+        rows = slice(*np.searchsorted(chords.mid_s, (bounds[part - 1], bounds[part + 2])))
+        if high <= low or rows.stop - rows.start < SPIRAL_PARAMETERS + 1:
+            continue
+        s1_values = _grid(max(low, bounds[part] - REPOLISH_REACH_M), min(bounds[part + 1], bounds[part] + REPOLISH_REACH_M), FINE_STEP_M)
+        s2_values = _grid(max(bounds[part], bounds[part + 1] - REPOLISH_REACH_M), min(high, bounds[part + 1] + REPOLISH_REACH_M), FINE_STEP_M)
+        _, s1, s2, _ = _least_on_grid(_Moments(chords, rows), s1_values, s2_values)
+        bounds[part], bounds[part + 1] = s1, s2
+    return bounds
+
+
+def _continuous_refit(chords: _Chords, bounds: np.ndarray, is_spiral: np.ndarray, curvature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end curvature of every part refitted to all of the polyline's headings at once,
+    with the heading continuous and each clothoid's curvature meeting its neighbours'.
+
+    Each replacement fitted its clothoid with the two parts beside it alone; a part between
+    two clothoids is refitted here with both, so the profile is one continuous road.
+    Parts of constant curvature keep one value (steps between two of them stay steps).
+    """
+    # One curvature value per constant part; a clothoid starts at the value of the part
+    # before it and ends at that of the part after it.
+    start_level = np.cumsum(~is_spiral) - 1
+    end_level = start_level + is_spiral
+    start, length = bounds[:-1], np.diff(bounds)
+    t = np.clip(chords.mid_s[:, None] - start, 0.0, length)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rising = np.where(length > 0, t * t / (2.0 * length), 0.0)
+    design = np.zeros((len(chords.mid_s), int(end_level[-1]) + 2))
+    design[:, 0] = 1.0
+    np.add.at(design.T, start_level + 1, (t - rising).T)
+    np.add.at(design.T, end_level + 1, rising.T)
+    root_weight = np.sqrt(chords.weight)
+    solution, *_ = np.linalg.lstsq(design * root_weight[:, None], chords.heading * root_weight, rcond=None)
+    values = solution[1:]
+    if not np.all(np.isfinite(values)):
+        return curvature, curvature
+    return values[start_level], values[end_level]
+
+
+def _best_replacement(chords: _Chords, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray):
+    """The parts with the one staircase replaced whose clothoid gains most, or None where none gains."""
+    is_spiral = start_k != end_k
+    best_gain, best = 0.0, None
+    for i, j in _staircases(start_k, end_k):
+        rows = slice(*np.searchsorted(chords.mid_s, (bounds[i], bounds[j + 1])))
+        if rows.stop - rows.start < SPIRAL_PARAMETERS + 1:
+            continue
+        moments = _Moments(chords, rows)
+        s1_range = (max(bounds[i] + KEPT_PART_M, bounds[i + 1] - SPIRAL_REACH_M), bounds[i + 1])
+        s2_range = (bounds[j], min(bounds[j + 1] - KEPT_PART_M, bounds[j] + SPIRAL_REACH_M))
+        if s1_range[0] > s1_range[1] or s2_range[0] > s2_range[1]:
+            continue
+        stairs = sum(
+            _part_residual(chords, slice(*np.searchsorted(chords.mid_s, (bounds[k], bounds[k + 1]))), is_spiral[k])
+            for k in range(i, j + 1)
+        )
+        residual, s1, s2, solution = _best_spiral(moments, s1_range, s2_range)
+        stair_parameters = PART_PARAMETERS * (j - i + 1) + int(is_spiral[i : j + 1].sum())
+        gain = (stairs - residual) / chords.noise_variance + PARAMETER_PENALTY * (stair_parameters - SPIRAL_PARAMETERS)
+        step = _best_step(moments, s1_range[0], s2_range[1])
+        beats_step = (step - residual) / chords.noise_variance > (PARAMETER_PENALTY if s2 - s1 < LONG_SPIRAL_M else 0.0)
+        beats_step = beats_step and s2 - s1 >= MIN_SPIRAL_M
+        if gain > best_gain and beats_step:
+            _, k_i, k_change = solution
+            best_gain = gain
+            best = (i, j, s1, s2, k_i, k_i + k_change)
+    if best is None:
+        return None
+    i, j, s1, s2, k_i, k_j = best
+    new_bounds = np.concatenate((bounds[: i + 1], [s1, s2], bounds[j + 1 :]))
+    new_start = np.concatenate((start_k[:i], [k_i, k_i, k_j], start_k[j + 1 :]))
+    new_end = np.concatenate((end_k[:i], [k_i, k_j, k_j], end_k[j + 1 :]))
+    return new_bounds, new_start, new_end
