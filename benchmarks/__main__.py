@@ -28,7 +28,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
-from benchmarks import cosim, curvature, load, osm, roadmap, service, warning
+from benchmarks import cosim, curvature, load, osm, roadmap, roads, service, warning
 from csws.networks import networks_dir
 from csws.roadmap import RoadMap
 
@@ -98,6 +98,17 @@ def curvature_rows(figures: dict) -> list[Row]:
     rows.append(at_most("curvature multi curve: max_step_error_m", figures["multi_curve"]["max_step_error_m"],
                         curvature.MULTI_STEP_TARGET_M))
     rows.append(context("curvature: vertices/s", round(figures["throughput"]["vertices_per_s"])))
+    return rows
+
+
+def roads_rows(figures: dict) -> list[Row]:
+    """Each family of constructed real-road geometry, dense and sparse, against its targets."""
+    rows = [at_most(name, value, limit) for name, value, limit, _ in roads.verdicts(figures)]
+    for family, samplings in figures.items():
+        sparse = samplings["sparse"]
+        rows.append(context(f"roads {family} sparse: start error p90 / max m",
+                            f"{sparse['p90_start_error_m']:.3g} / {sparse['max_start_error_m']:.3g}",
+                            f"{sparse['curves']} curves matched"))
     return rows
 
 
@@ -179,6 +190,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
     chosen = [
         Benchmark("curvature", lambda: curvature.run(cases=60 if quick else curvature.CASES_PER_CATEGORY),
                   "about 10-60 s", curvature_rows),
+        Benchmark("roads", lambda: roads.run(cases=10 if quick else roads.CASES_PER_FAMILY), "about 10-40 s", roads_rows),
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("service", service.run, "about 20 s", service_rows),
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
