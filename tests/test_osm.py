@@ -24,7 +24,7 @@ from csws.binaries import sumo_binary, sumo_home
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
 from csws.lookahead import LookAhead, LookAheadSettings
 from csws.networks import networks_dir
-from csws.osm.importer import OsmImportError, import_osm
+from csws.osm.importer import ImportSettings, OsmImportError, import_osm
 from csws.roadmap import RoadMap
 
 UTM32 = pyproj.Proj("+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs")
@@ -376,3 +376,54 @@ def test_real_fleet_scenario_runs_in_sumo(tmp_path: Path) -> None:
     assert "Inserted: 3" in result.stdout  # one departure every 10 s: at 0, 10 and 20 s
     routes = (networks_dir() / "badhersfeld.rou.xml").read_text()
     assert all(f'vClass="{vclass}"' in routes for vclass in ("truck", "bus", "coach"))
+
+
+# ------------------------------------------------------------------ roads netconvert does not know
+def _three_ways(tmp_path: Path, middle_highway: str) -> Path:
+    """A 900 m road of three ways in a row, the middle one tagged ``middle_highway``."""
+    osm = OsmWriter()
+    for start_m, highway in ((0.0, "primary"), (300.0, middle_highway), (600.0, "primary")):
+        osm.way(np.array([[start_m, 0.0], [start_m + 300.0, 0.0]]), highway, name="Tunnel Road")
+    (tmp_path / "road.osm").write_text(osm.text())
+    return tmp_path / "road.osm"
+
+
+def _edge_types(net_path: Path) -> set[str]:
+    road_map = RoadMap.load(net_path)
+    return {road_map.lane(lane_id).road_type for lane_id in road_map.lane_ids if not road_map.lane(lane_id).is_internal}
+
+
+@pytest.mark.parametrize("value", ["primary_tunnel", "secondary_bridge", "motorway_link_tunnel"])
+def test_a_way_tagged_with_a_tunnel_or_bridge_value_survives_import(tmp_path: Path, value: str) -> None:
+    result = import_osm(_three_ways(tmp_path, value), tmp_path / "road.net.xml")
+    assert f"highway.{value}" in _edge_types(result.net_path)
+    assert result.dropped.ways == 0 and result.dropped.lines() == []
+    assert result.dropped.motor_km == pytest.approx(0.9, rel=0.02)
+
+
+def test_what_an_import_drops_is_counted_by_highway_value_and_warned_of(tmp_path: Path) -> None:
+    osm = OsmWriter()
+    osm.way(np.array([[0.0, 0.0], [1000.0, 0.0]]), "primary", name="Main")
+    osm.way(np.array([[0.0, 5000.0], [200.0, 5000.0]]), "secondary", name="Elsewhere")  # not connected: dropped
+    (tmp_path / "two.osm").write_text(osm.text())
+    result = import_osm(tmp_path / "two.osm", tmp_path / "two.net.xml")
+    ways, km = result.dropped.by_highway["secondary"]
+    assert ways == 1 and km == pytest.approx(0.2, rel=0.02)
+    assert result.dropped.motor_km == pytest.approx(1.2, rel=0.02)
+    assert result.dropped.lines()[-1].startswith("warning: 0.2 of 1.2 km of drivable roads (16.7%)")
+    assert result.log_path.is_file() and "Parsing" in result.log_path.read_text()
+
+
+def test_a_type_file_of_the_user_adds_a_highway_value(tmp_path: Path) -> None:
+    type_file = tmp_path / "extra.typ.xml"
+    type_file.write_text('<types><type id="highway.corridor" numLanes="1" speed="13.89" priority="3" oneway="false"/></types>')
+    osm_path = _three_ways(tmp_path, "corridor")
+    without = import_osm(osm_path, tmp_path / "without.net.xml")
+    assert without.dropped.by_highway == {} or "corridor" not in _edge_types(without.net_path)
+    with_types = import_osm(osm_path, tmp_path / "with.net.xml", ImportSettings(type_files=(type_file,)))
+    assert "highway.corridor" in _edge_types(with_types.net_path)
+
+
+def test_a_missing_type_file_is_one_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(OsmImportError, match="no type file at"):
+        import_osm(_three_ways(tmp_path, "primary"), tmp_path / "x.net.xml", ImportSettings(type_files=(tmp_path / "none.xml",)))

@@ -29,6 +29,14 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--lefthand", action="store_true", help="left-hand traffic (default: right-hand)")
     parser.add_argument(
+        "--typemap",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="a SUMO type file read after SUMO's OSM type map, for highway values it lacks (may be repeated)",
+    )
+    parser.add_argument(
         "--vclasses",
         type=_vclasses,
         default=None,

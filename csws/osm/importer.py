@@ -9,9 +9,13 @@ them, so the curvature extractor sees the road as mapped:
 * coordinates to the centimetre (``--precision 2``): rounding then bends a 5 m chord
   by at most 0.004 rad, far below the heading change of a curve of R_c = 300 m
   over that chord (0.017 rad);
-* SUMO's OSM typemap, and only the edges a truck, bus or coach may use
-  (``--keep-edges.by-vclass``), in the largest connected part of the road graph, so
-  a fleet can route anywhere on the result;
+* SUMO's OSM typemap, a type for every ``highway`` value built from a known one
+  (``primary_tunnel``: :mod:`csws.osm.typemap`) and the user's own type files; only the
+  edges a truck, bus or coach may use (``--keep-edges.by-vclass``), in the largest
+  connected part of the road graph, so a fleet can route anywhere on the result. The
+  motor roads that did not make it are counted by ``highway`` value
+  (:mod:`csws.osm.coverage`), and netconvert's warnings are kept in a log beside the
+  network;
 * roundabouts (from ``junction=roundabout`` and guessed), joined junction clusters,
   signals and ramps guessed as SUMO recommends for OSM, street names kept;
 * right-hand traffic, or left-hand with ``lefthand=True``.
@@ -27,12 +31,16 @@ import gzip
 import json
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from xml.etree import ElementTree
 
-from ..binaries import sumo_home
+import numpy as np
+
 from ..netbuild import NetconvertError, netconvert_osm
 from ..roadmap import RoadMap, read_sumo_net
+from .coverage import DroppedRoads, dropped_roads
+from .typemap import base_highway, derived_highways, known_highways, sumo_type_file, type_allows, write_derived_types
 
 __all__ = [
     "OSM_ATTRIBUTION",
@@ -44,6 +52,7 @@ __all__ = [
     "OsmScan",
     "curve_index_path",
     "import_osm",
+    "netconvert_log_path",
     "netconvert_options",
     "scan_osm",
     "write_curve_index",
@@ -57,6 +66,9 @@ OSM_SUFFIXES = {
     ".osm.xml.gz": "osm.gz",
     ".osm.pbf": "pbf",
 }
+
+#: Mean Earth radius for the lengths of ways, m.
+EARTH_RADIUS_M = 6_371_008.8
 
 #: The vehicle classes of commercial vehicles: an edge is kept when it allows one of them.
 COMMERCIAL_VCLASSES = ("truck", "bus", "coach")
@@ -93,12 +105,15 @@ class ImportSettings:
         Digits after the point of output coordinates (2: centimetres).
     warning_radius_m
         R_c (3.2) of the curve index, m; None for the standard's default.
+    type_files
+        SUMO type files read after SUMO's OSM type map (a type of one of them wins).
     """
 
     lefthand: bool = False
     keep_vclasses: tuple[str, ...] = COMMERCIAL_VCLASSES
     precision_digits: int = 2
     warning_radius_m: float | None = None
+    type_files: tuple[Path, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -110,12 +125,19 @@ class OsmScan:
     nodes, ways
         Number of nodes and ways.
     motor_ways
-        Ways with a ``highway`` value of :data:`MOTOR_HIGHWAYS`.
+        Ways with a ``highway`` value of :data:`MOTOR_HIGHWAYS` or built from one
+        (``primary_tunnel``).
+    highway_values
+        Every ``highway`` value of the file.
+    motor_way_lengths
+        ``way id -> (highway value, length in m)`` of the motor ways.
     """
 
     nodes: int
     ways: int
     motor_ways: int
+    highway_values: frozenset[str] = frozenset()
+    motor_way_lengths: dict[int, tuple[str, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -133,6 +155,11 @@ class ImportResult:
     convert_s, curves_s
         Seconds spent in netconvert (PBF conversion included) and in loading the
         network and extracting its curves.
+    dropped
+        The motor roads of the extract whose type lets a kept vehicle class drive, but
+        that are not in the network.
+    log_path
+        netconvert's messages, warnings included.
     """
 
     net_path: Path
@@ -143,6 +170,8 @@ class ImportResult:
     curves: int
     convert_s: float
     curves_s: float
+    dropped: DroppedRoads
+    log_path: Path
 
 
 def osm_format(path: Path) -> str:
@@ -191,27 +220,49 @@ def scan_osm(path: str | Path) -> OsmScan:
     path = Path(path)
     fmt = osm_format(path)
     _check_not_empty(path, fmt)
-    nodes = ways = motor_ways = 0
+    nodes = ways = 0
+    values: set[str] = set()
+    motor: dict[int, tuple[str, float]] = {}
     try:
-        source = osmium.FileProcessor(osmium.io.File(str(path), fmt), osmium.osm.NODE | osmium.osm.WAY)
+        source = osmium.FileProcessor(osmium.io.File(str(path), fmt), osmium.osm.NODE | osmium.osm.WAY).with_locations()
         for item in source:
             if item.is_node():
                 nodes += 1
-            else:
-                ways += 1
-                motor_ways += item.tags.get("highway") in MOTOR_HIGHWAYS
+                continue
+            ways += 1
+            value = item.tags.get("highway")
+            if value is None:
+                continue
+            values.add(value)
+            if value in MOTOR_HIGHWAYS or base_highway(value, MOTOR_HIGHWAYS) is not None:
+                motor[item.id] = (value, _way_length_m(item))
     except RuntimeError as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise OsmImportError(f"{path} is not a readable OSM file ({reason})") from None
     if nodes == 0:
         raise OsmImportError(f"{path} holds no OSM nodes: it is not an OpenStreetMap extract or it is empty")
-    return OsmScan(nodes, ways, motor_ways)
+    return OsmScan(nodes, ways, len(motor), frozenset(values), motor)
 
 
-def netconvert_options(settings: ImportSettings = ImportSettings()) -> list[str]:
-    """The netconvert options of an OSM import (see the module docstring for the why)."""
+def _way_length_m(way) -> float:
+    """Length of an osmium way from its nodes' locations, m (0 where a location is missing)."""
+    points = [(node.lon, node.lat) for node in way.nodes if node.location.valid()]
+    if len(points) < 2:
+        return 0.0
+    lon, lat = np.radians(np.array(points)).T
+    east = np.diff(lon) * np.cos((lat[1:] + lat[:-1]) / 2.0)
+    return float(EARTH_RADIUS_M * np.hypot(east, np.diff(lat)).sum())
+
+
+def netconvert_options(settings: ImportSettings = ImportSettings(), type_files: tuple[Path, ...] | None = None) -> list[str]:
+    """The netconvert options of an OSM import (see the module docstring for the why).
+
+    ``type_files`` are all the type files in the order read; by default SUMO's OSM type
+    map and the settings' own.
+    """
+    type_files = (sumo_type_file(), *settings.type_files) if type_files is None else type_files
     options = [
-        "--type-files", str(sumo_home() / "data" / "typemap" / "osmNetconvert.typ.xml"),
+        "--type-files", ",".join(str(path) for path in type_files),
         "--keep-edges.by-vclass", ",".join(settings.keep_vclasses),
         "--keep-edges.components", "1",
         "--geometry.remove", "false",
@@ -223,7 +274,6 @@ def netconvert_options(settings: ImportSettings = ImportSettings()) -> list[str]
         "--tls.discard-simple", "true",
         "--tls.join", "true",
         "--ramps.guess", "true",
-        "--no-warnings", "true",
     ]  # fmt: skip
     if settings.lefthand:
         options += ["--lefthand", "true"]
@@ -240,13 +290,23 @@ def _pbf_to_xml(pbf_path: Path, xml_path: Path) -> Path:
     return xml_path
 
 
+def _beside(net_path: Path, suffix: str) -> Path:
+    """``NAME`` + ``suffix`` beside the network ``NAME.net.xml[.gz]``."""
+    name = net_path.name
+    for ending in (".net.xml.gz", ".net.xml", ".xml.gz", ".xml"):
+        if name.endswith(ending):
+            return net_path.with_name(name[: -len(ending)] + suffix)
+    return net_path.with_name(name + suffix)
+
+
 def curve_index_path(net_path: Path) -> Path:
     """Where the curve index of a network goes: ``NAME.curves.geojson`` beside ``NAME.net.xml[.gz]``."""
-    name = net_path.name
-    for suffix in (".net.xml.gz", ".net.xml", ".xml.gz", ".xml"):
-        if name.endswith(suffix):
-            return net_path.with_name(name[: -len(suffix)] + ".curves.geojson")
-    return net_path.with_name(name + ".curves.geojson")
+    return _beside(net_path, ".curves.geojson")
+
+
+def netconvert_log_path(net_path: Path) -> Path:
+    """Where netconvert's messages of an import go: ``NAME.netconvert.log`` beside the network."""
+    return _beside(net_path, ".netconvert.log")
 
 
 def _netconvert_reason(messages: str) -> str:
@@ -255,12 +315,41 @@ def _netconvert_reason(messages: str) -> str:
     return (errors or messages.splitlines() or ["netconvert failed"])[0]
 
 
-def _convert(osm_path: Path, fmt: str, net_path: Path, settings: ImportSettings) -> None:
-    """netconvert the OSM file (converting PBF first) into ``net_path``."""
+def _type_files(scan: OsmScan, settings: ImportSettings, work: Path) -> tuple[Path, ...]:
+    """SUMO's type map, a type file for the extract's highway values built from known ones,
+    and the user's type files, in the order netconvert reads them."""
+    for path in settings.type_files:
+        if not Path(path).is_file():
+            raise OsmImportError(f"no type file at {path}")
+    given = (sumo_type_file(), *settings.type_files)
+    try:
+        known = known_highways(given)
+    except ElementTree.ParseError as exc:
+        raise OsmImportError(f"a type file is not readable XML ({exc})") from None
+    derived = derived_highways(scan.highway_values, known)
+    if not derived:
+        return given
+    return (sumo_type_file(), write_derived_types(derived, known, work / "derived.typ.xml"), *settings.type_files)
+
+
+def _drivable_ways(scan: OsmScan, settings: ImportSettings) -> dict[int, tuple[str, float]]:
+    """The motor ways whose road type lets a kept vehicle class drive (a ``service`` way, for
+    one, is for delivery vans only in SUMO's type map): those the network should hold."""
+    known = known_highways((sumo_type_file(), *settings.type_files))
+    allowed = {}
+    for value in {value for value, _ in scan.motor_way_lengths.values()}:
+        base = value if value in known else base_highway(value, known)
+        allowed[value] = base is not None and type_allows(known[base], settings.keep_vclasses)
+    return {way: entry for way, entry in scan.motor_way_lengths.items() if allowed[entry[0]]}
+
+
+def _convert(osm_path: Path, fmt: str, net_path: Path, settings: ImportSettings, scan: OsmScan) -> None:
+    """netconvert the OSM file (converting PBF first) into ``net_path``, its messages into the log."""
     with tempfile.TemporaryDirectory(prefix="csws-osm-") as work:
         source = _pbf_to_xml(osm_path, Path(work) / "extract.osm") if fmt == "pbf" else osm_path
+        options = [*netconvert_options(settings, _type_files(scan, settings, Path(work))), "--log", str(netconvert_log_path(net_path))]
         try:
-            netconvert_osm([source], net_path, netconvert_options(settings))
+            netconvert_osm([source], net_path, options)
         except NetconvertError as exc:
             reason = _netconvert_reason(str(exc).split("\n", 1)[-1])
             if "No edges loaded" in reason or "No nodes loaded" in reason:
@@ -297,13 +386,16 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
         raise OsmImportError(f"{osm_path} has no drivable roads: none of its {scan.ways} ways is a motor road")
     net_path.parent.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    _convert(osm_path, osm_format(osm_path), net_path, settings)
+    _convert(osm_path, osm_format(osm_path), net_path, settings, scan)
     converted = time.perf_counter()
     try:
-        road_map = RoadMap.from_net(read_sumo_net(net_path), settings.warning_radius_m)
+        net = read_sumo_net(net_path)
+        road_map = RoadMap.from_net(net, settings.warning_radius_m)
     except ValueError:
         net_path.unlink(missing_ok=True)
         raise _no_roads_error(osm_path, settings) from None
+    drivable = _drivable_ways(scan, settings)
+    dropped = dropped_roads(drivable, (edge.getID() for edge in net.getEdges()))
     curves_path = curve_index_path(net_path)
     write_curve_index(road_map, curves_path, osm_path)
     indexed = time.perf_counter()
@@ -316,6 +408,8 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
         curves=len(road_map.curves()),
         convert_s=converted - started,
         curves_s=indexed - converted,
+        dropped=dropped,
+        log_path=netconvert_log_path(net_path),
     )
 
 

@@ -10,11 +10,16 @@ from .importer import COMMERCIAL_VCLASSES, ImportSettings, import_osm
 
 def main(args: argparse.Namespace) -> int:
     """Import ``args.osm`` into ``args.output`` and print what was built."""
-    settings = ImportSettings(lefthand=args.lefthand, keep_vclasses=args.vclasses or COMMERCIAL_VCLASSES)
+    settings = ImportSettings(
+        lefthand=args.lefthand, keep_vclasses=args.vclasses or COMMERCIAL_VCLASSES, type_files=tuple(args.typemap)
+    )
     result = import_osm(args.osm, args.output, settings)
     print(f"read {args.osm}: {result.scan.nodes} nodes, {result.scan.ways} ways, {result.scan.motor_ways} motor roads")
     print(f"wrote {result.net_path}: {result.lanes} lanes, {result.lane_km:.1f} lane-km ({result.convert_s:.1f} s)")
     print(f"wrote {result.curves_path}: {result.curves} curves ({result.curves_s:.1f} s)")
+    for line in result.dropped.lines():
+        print(line)
+    print(f"netconvert's messages: {result.log_path}")
     print("Data (c) OpenStreetMap contributors, ODbL 1.0: keep this attribution with the network.")
     return 0
 
