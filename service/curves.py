@@ -1,9 +1,10 @@
 """The curves of a served network as a GeoJSON FeatureCollection.
 
 One feature per curve found on a lane (:meth:`csws.roadmap.RoadMap.curves`): its
-geometry (the lane between the curve's start and end), minimum radius, angle,
-direction, constant-radius parts and the warning speeds V_w of every category at
-both levels (Tables 1-2). On a geo-referenced network coordinates are lon/lat (WGS84,
+geometry (the lane between the curve's start and end), street name and road type,
+minimum radius, angle, direction, parts (its arcs and the pieces of its clothoids,
+marked ``spiral``) and the warning speeds V_w of every category at both levels
+(Tables 1-2). On a geo-referenced network coordinates are lon/lat (WGS84,
 as RFC 7946 requires); otherwise they are network metres, which the collection says
 in its ``coordinates`` member.
 """
@@ -24,7 +25,7 @@ from .networks import ServedNetwork
 #: How a feature's coordinates are given, by whether its network is geo-referenced.
 _COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
 
-__all__ = ["warning_speeds_kmh", "curve_id", "curve_features", "in_bbox", "feature_collection"]
+__all__ = ["warning_speeds_kmh", "curve_features", "in_bbox", "feature_collection"]
 
 
 def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:
@@ -60,6 +61,7 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
         coordinates = _coordinates(network, _curve_line(network, lane_curve))
         xs, ys = zip(*coordinates)
         curve = lane_curve.curve
+        lane = network.road_map.lane(lane_curve.lane_id)
         features.append({
             "type": "Feature",
             "id": f"{network.name}/{curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m)}",
@@ -70,6 +72,8 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
                 "coordinates": _COORDINATES[network.road_map.has_projection],
                 "curve_id": curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m),
                 "lane_id": lane_curve.lane_id,
+                "street_name": lane.street_name,
+                "road_type": lane.road_type,
                 "start_pos_m": lane_curve.start_pos_m,
                 "end_pos_m": lane_curve.end_pos_m,
                 "radius_m": curve.min_radius_m,
@@ -81,6 +85,7 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
                         "part_index": index,
                         "length_m": part.end_s - part.start_s,
                         "radius_m": part.radius_m,
+                        "spiral": part.spiral,
                         "warning_speed_kmh": warning_speeds_kmh(part.radius_m, policy),
                     }
                     for index, part in enumerate(curve.parts)

@@ -260,6 +260,8 @@ def test_curves_are_geojson_with_the_truth_radii(client) -> None:
     assert properties["direction"] == "left"
     assert properties["warning_speed_kmh"]["N"]["1"] == pytest.approx(
         warning_speed(properties["radius_m"], "N", 1), rel=1e-9)
+    assert not any(part["spiral"] for part in properties["parts"])  # the track's curves are arcs
+    assert (properties["street_name"], properties["road_type"]) == ("", "")  # as the generator writes the track
     west, south, east, north = curve["bbox"]
     assert client.get("/v1/curves", params={"bbox": f"{west},{south},{east},{north}"}).json()["features"] == [curve]
     assert client.get("/v1/curves", params={"bbox": f"{east + 1},{south},{east + 2},{north}"}).json()["features"] == []
