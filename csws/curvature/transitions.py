@@ -259,8 +259,43 @@ def with_transitions(
     if replaced:
         for _ in range(REPOLISH_PASSES):
             bounds = _repolished(chords, bounds, start_k != end_k)
-        start_k, end_k = _continuous_refit(chords, bounds, start_k != end_k, start_k)
+        merged_bounds, start_k, is_spiral = _merged_steps(chords, bounds, start_k, start_k != end_k)
+        if len(merged_bounds) < len(bounds):
+            for _ in range(REPOLISH_PASSES):
+                merged_bounds = _repolished(chords, merged_bounds, is_spiral)
+        bounds = merged_bounds
+        start_k, end_k = _continuous_refit(chords, bounds, is_spiral, start_k)
     return bounds, start_k, end_k
+
+
+def _merged_steps(
+    chords: _Chords, bounds: np.ndarray, start_k: np.ndarray, is_spiral: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Neighbouring constant parts joined where one line fits their headings as well as two.
+
+    A clothoid placed beside a constant part can leave a sliver of it (down to
+    :data:`KEPT_PART_M`), or split an arc where the stairs it replaced met, with a second
+    curvature that only the noise supports. A step between two constant parts is kept
+    when its two lines gain more than :data:`PARAMETER_PENALTY` for each of their two
+    parameters more (a curvature and a knot).
+    """
+    bounds, start_k, is_spiral = bounds.copy(), start_k.copy(), is_spiral.copy()
+    while True:
+        costs = []
+        for i in np.flatnonzero(~is_spiral[:-1] & ~is_spiral[1:]):
+            rows = [slice(*np.searchsorted(chords.mid_s, (bounds[k], bounds[k + 1]))) for k in (i, i + 1, i)]
+            rows[2] = slice(rows[0].start, rows[1].stop)
+            two = _part_residual(chords, rows[0], False) + _part_residual(chords, rows[1], False)
+            gain = (_part_residual(chords, rows[2], False) - two) / chords.noise_variance
+            costs.append((gain, int(i)))
+        if not costs or min(costs)[0] >= 2 * PARAMETER_PENALTY:
+            return bounds, start_k, is_spiral
+        _, i = min(costs)
+        lengths = np.diff(bounds)[i : i + 2]
+        start_k[i] = float(np.average(start_k[i : i + 2], weights=lengths + 1e-9))
+        bounds = np.delete(bounds, i + 1)
+        start_k = np.delete(start_k, i + 1)
+        is_spiral = np.delete(is_spiral, i + 1)
 
 
 def _repolished(chords: _Chords, bounds: np.ndarray, is_spiral: np.ndarray) -> np.ndarray:
