@@ -17,13 +17,15 @@ Which way the path goes:
   one on an edge with the same street name, then the same road type, then the
   smallest change of heading. Such a path is marked ``predicted``.
 
-The lanes of a path are stitched and profiled as one polyline (so a curve that runs
-across an edge boundary or a node is one curve). Junction manoeuvres, a turn from one
-road into another at a junction or a drive round a roundabout, are not curves of the road and offer no CPOI unless
-:attr:`LookAheadSettings.warn_at_junctions` is set
-(:meth:`csws.roadmap.PathProfile.road_curves`): the driver takes them at junction
-speed, and a warning at every turn would teach the driver to ignore the system. Paths recur, from one step to the next and
-from one vehicle to another, so their profiles and curves are kept in a bounded cache
+A path reads the profiles and curves of the road chains it runs along, each fitted once
+for the whole map (:mod:`csws.roadprofile`), so a curve that runs across an edge boundary
+or a node is one curve, the one the curve index lists. Junction manoeuvres, a turn from
+one road into another at a junction or a drive round a roundabout, are not curves of the
+road and offer no CPOI unless :attr:`LookAheadSettings.warn_at_junctions` is set
+(:meth:`csws.roadprofile.PathProfile.road_curves`): the driver takes them at junction
+speed, and a warning at every turn would teach the driver to ignore the system. Paths
+recur, from one step to the next and from one vehicle to another, so their curves are
+kept in a bounded cache
 and a query costs a walk over the lanes ahead and a look-up.
 """
 
@@ -38,7 +40,8 @@ from typing import Sequence
 import numpy as np
 
 from .geometry import wrap_angle_rad
-from .roadmap import Lane, PathProfile, RoadMap
+from .roadmap import Lane, RoadMap
+from .roadprofile import PathProfile
 from .standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
 from .warning import CurvaturePointOfInterest, PathKind, WarningSettings, column_index
 
@@ -495,10 +498,8 @@ class LookAhead:
         """The stitched, profiled path of ``lanes`` and the parts of its curves (junction manoeuvres aside)."""
         path = self.road_map.path_profile(lanes)
         starts, ends, radii, indices, ids = [], [], [], [], []
-        curves_of_path = path.curves if self.settings.warn_at_junctions else path.road_curves
-        for curve in curves_of_path(self.settings.warning_radius_m):
-            start_lane, start_pos_m = path.lane_position(curve.start_s)
-            curve_id = curve_id_of(start_lane, start_pos_m)
+        for curve, chain, whole in path.curve_sources(self.settings.warning_radius_m, self.settings.warn_at_junctions):
+            curve_id = curve_id_of(*self.road_map.road_position(chain, whole.start_s))
             for index, part in enumerate(curve.parts):
                 starts.append(part.start_s)
                 ends.append(part.end_s)

@@ -20,11 +20,10 @@ Junction manoeuvres are not curves of the road. A turn from one road into anothe
 internal lane whose connection leaves the road chain, :mod:`csws.roadchain`) or a drive
 round a roundabout (the edges of the network's ``<roundabout>`` elements) is taken at
 junction speed, not a bend taken at road speed. A curve of the road with a node inside
-it (a way split, a side road joining) is a curve whole: the path runs on through the
-internal lane that continues the road, taken as one chord across the junction
-(:meth:`RoadMap.path_profile`). A path offers the warning only its road curves
-(:meth:`PathProfile.road_curves`): a curve that turns mostly near junction-turn lanes
-(:data:`JUNCTION_TURN_SHARE`, :data:`JUNCTION_MARGIN_M`) is a junction manoeuvre.
+it (a way split, a side road joining) is a curve whole: each road chain (the lanes a
+road continues on, through the internal lanes that continue it, taken as one chord
+across the junction) is fitted once, and the curve index and every path read that fit
+(:mod:`csws.roadprofile`).
 
 Networks imported from OpenStreetMap are geo-referenced: :meth:`RoadMap.xy_to_lonlat`
 and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) convert with
@@ -32,7 +31,7 @@ the network's own projection (UTM for an OSM import), and :meth:`RoadMap.curves_
 gives the curve index in WGS84.
 
 Storage is columnar: the vertices of all lanes sit in one ``(n, 2)`` array with an
-offset per lane, and all lanes are profiled in one :func:`csws.curvature.radius_profiles`
+offset per lane, and all road chains are profiled in one :func:`csws.curvature.radius_profiles`
 call, so a regional network of some 1,500 lane-km loads and profiles in seconds.
 
 Lane positions follow SUMO: a lane position runs from 0 to the lane's ``length``
@@ -51,7 +50,7 @@ import xml.sax
 import zlib
 from dataclasses import dataclass
 from functools import cached_property
-from itertools import chain, pairwise
+from itertools import chain
 from pathlib import Path
 from typing import Sequence, TextIO
 
@@ -59,15 +58,20 @@ import numpy as np
 import shapely
 import sumolib
 
-from .curvature import ConstantRadiusPart, Curve, RadiusProfile, curves_from_profile, radius_profile, radius_profiles
 from .roadchain import road_continuations
+from .roadprofile import (
+    CURVE_FIELDS,
+    LaneCurve,
+    PathProfile,
+    fit_road_chains,
+    index_curves,
+    path_profile,
+    write_curve_table,
+)
 from .standard import DEFAULT_WARNING_RADIUS_M
 
 __all__ = [
     "CURVE_FIELDS",
-    "JOINT_TOLERANCE_M",
-    "JUNCTION_MARGIN_M",
-    "JUNCTION_TURN_SHARE",
     "Lane",
     "LaneCurve",
     "LaneMatch",
@@ -78,25 +82,8 @@ __all__ = [
     "read_sumo_net",
 ]
 
-#: Two consecutive lanes of a path whose joint points are closer than this are joined
-#: at one vertex, m. SUMO writes coordinates to the centimetre and makes the lanes of a
-#: connection meet exactly; a few-centimetre segment at the joint would otherwise read
-#: as a spurious sharp bend.
-JOINT_TOLERANCE_M = 0.1
 #: Lane shapes are simplified within this distance for position look-ups, m.
 MATCH_TOLERANCE_M = 0.01
-
-#: A curve is a junction manoeuvre, not a curve of the road, when at least this share of
-#: its turning angle (3.6) lies on junction lanes: turns into another road and roundabouts.
-JUNCTION_TURN_SHARE = 0.5
-
-#: Lane shapes within this distance of a junction-turn lane are netconvert's, not the
-#: mapped road's, m: it cuts the lanes back to the junction border and joins them with
-#: internal lanes of its own making, which bends the last metres of the lanes too.
-JUNCTION_MARGIN_M = 10.0
-
-#: The columns of :meth:`RoadMap.write_curves`, in order.
-CURVE_FIELDS = ("lane_id", "start_pos_m", "end_pos_m", "min_radius_m", "angle_deg", "direction")
 
 #: SUMO edge functions kept, and the name each is known by here.
 _KEPT_FUNCTIONS = {"": "normal", "internal": "internal"}
@@ -151,6 +138,10 @@ class Lane:
         junction (a way split, a node inside a bend, the straight-ahead or priority
         continuation: :func:`csws.roadchain.road_continuations`) rather than turning
         into another road. Always False for normal lanes.
+    continues_into
+        The lane this lane's road continues on ("" where the road ends or turns, on a
+        junction turn and on a roundabout): the next lane of its road chain
+        (:mod:`csws.roadprofile`).
     """
 
     lane_id: str
@@ -165,6 +156,7 @@ class Lane:
     allowed_vclasses: frozenset[str]
     in_roundabout: bool = False
     continues_road: bool = False
+    continues_into: str = ""
 
     @property
     def is_internal(self) -> bool:
@@ -181,37 +173,6 @@ class Lane:
     def position_factor(self) -> float:
         """Lane position per metre of shape: SUMO's ``length / shape length`` (1 for a point shape)."""
         return self.length_m / self.shape_length_m if self.shape_length_m > 0 else 1.0
-
-
-@dataclass(frozen=True)
-class LaneCurve:
-    """A curve (3.4-3.5) found on one lane, with its ends as SUMO lane positions.
-
-    Attributes
-    ----------
-    lane_id
-        The lane the curve lies on.
-    start_pos_m, end_pos_m
-        Lane positions of the curve start (3.4) and end (3.5), m.
-    curve
-        The curve itself, in the lane's shape arc length.
-    """
-
-    lane_id: str
-    start_pos_m: float
-    end_pos_m: float
-    curve: Curve
-
-    def as_record(self) -> dict[str, str | float]:
-        """The :data:`CURVE_FIELDS` of the curve, lengths and angles to the centimetre / hundredth degree."""
-        return {
-            "lane_id": self.lane_id,
-            "start_pos_m": round(self.start_pos_m, 2),
-            "end_pos_m": round(self.end_pos_m, 2),
-            "min_radius_m": round(self.curve.min_radius_m, 2),
-            "angle_deg": round(self.curve.angle_deg, 2),
-            "direction": self.curve.direction,
-        }
 
 
 @dataclass(frozen=True)
@@ -272,117 +233,6 @@ class LaneMatches:
         ]
 
 
-@dataclass(frozen=True)
-class PathProfile:
-    """The radius profile of consecutive lanes stitched into one polyline.
-
-    The path arc length ``s`` starts at 0 at the first vertex of the first lane. The
-    look-ahead distance (3.9) to a curve start or to a CPOI (3.11) is a difference of
-    two path arc lengths.
-
-    Attributes
-    ----------
-    lane_ids
-        The lanes in driving order, internal via lanes included.
-    xy
-        The stitched polyline, ``(n, 2)``, m.
-    profile
-        Its radius profile.
-    lane_start_s
-        Path arc length at the first shape point of each lane, ``(len(lane_ids),)``, m.
-    lane_shape_length_m, lane_position_factor
-        Length of each lane's shape on the path and SUMO's position factor for it (see
-        :class:`Lane`; an internal lane that continues the road is one chord here).
-    lane_is_junction
-        Whether each lane is a junction manoeuvre (:attr:`Lane.is_junction`).
-    """
-
-    lane_ids: tuple[str, ...]
-    xy: np.ndarray
-    profile: RadiusProfile
-    lane_start_s: np.ndarray
-    lane_shape_length_m: np.ndarray
-    lane_position_factor: np.ndarray
-    lane_is_junction: np.ndarray
-
-    @property
-    def length_m(self) -> float:
-        """Arc length of the whole path, m."""
-        return float(self.profile.s[-1])
-
-    def curves(self, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
-        """The curves (radius <= ``warning_radius_m``, 3.2-3.5) along the path, in path arc length."""
-        return curves_from_profile(self.profile, warning_radius_m)
-
-    def road_curves(self, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
-        """The curves of the road along the path: :meth:`curves` without junction geometry.
-
-        A curve is a junction manoeuvre, and left out, when at least
-        :data:`JUNCTION_TURN_SHARE` of its turning angle lies in junction zones (junction
-        lanes, widened by :data:`JUNCTION_MARGIN_M`). Of the other curves, the parts lying
-        mostly in a junction zone are left out: there the shape is netconvert's
-        construction, not the mapped road, and the road's radius is that of the parts
-        either side.
-        """
-        zones = self.junction_zones()
-        road_curves = []
-        for curve in self.curves(warning_radius_m):
-            length_m = np.array([part.end_s - part.start_s for part in curve.parts])
-            radius_m = np.array([part.radius_m for part in curve.parts])
-            in_zone_m = np.array([_overlap_m(zones, part.start_s, part.end_s) for part in curve.parts])
-            if np.sum(in_zone_m / radius_m) >= JUNCTION_TURN_SHARE * np.sum(length_m / radius_m):
-                continue
-            kept = [part for part, inside, length in zip(curve.parts, in_zone_m, length_m) if inside < 0.5 * length]
-            if kept:
-                road_curves.append(_curve_of_parts(kept, curve.direction))
-        return road_curves
-
-    def junction_zones(self) -> np.ndarray:
-        """Path arc-length intervals of the junction lanes widened by :data:`JUNCTION_MARGIN_M`,
-        merged where they overlap, ``(k, 2)``, m."""
-        junction = np.flatnonzero(self.lane_is_junction)
-        starts = self.lane_start_s[junction] - JUNCTION_MARGIN_M
-        ends = self.lane_start_s[junction] + self.lane_shape_length_m[junction] + JUNCTION_MARGIN_M
-        merged: list[list[float]] = []
-        for start, end in zip(starts.tolist(), ends.tolist()):
-            if merged and start <= merged[-1][1]:
-                merged[-1][1] = max(merged[-1][1], end)
-            else:
-                merged.append([start, end])
-        return np.array(merged, dtype=float).reshape(-1, 2)
-
-    def lane_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Map path arc lengths to lanes: for each ``s``, the index into :attr:`lane_ids` and the lane position.
-
-        An ``s`` on a joint belongs to the lane that starts there; ``s`` outside the
-        path is clamped to its ends.
-        """
-        s = np.asarray(s, dtype=float)
-        lane = np.clip(np.searchsorted(self.lane_start_s, s, side="right") - 1, 0, len(self.lane_ids) - 1)
-        along_shape_m = np.clip(s - self.lane_start_s[lane], 0.0, self.lane_shape_length_m[lane])
-        return lane, along_shape_m * self.lane_position_factor[lane]
-
-    def lane_position(self, s: float) -> tuple[str, float]:
-        """The lane id and lane position at path arc length ``s`` (see :meth:`lane_positions`)."""
-        lane, pos_m = self.lane_positions(np.array([s]))
-        return self.lane_ids[int(lane[0])], float(pos_m[0])
-
-    def path_s(self, lane_id: str, lane_pos_m: float) -> float:
-        """Path arc length of a lane position on the first occurrence of ``lane_id`` in the path.
-
-        Raises
-        ------
-        KeyError
-            If the lane is not on the path.
-        """
-        try:
-            lane = self.lane_ids.index(lane_id)
-        except ValueError:
-            raise KeyError(f"lane {lane_id!r} is not on the path") from None
-        along_shape_m = np.clip(lane_pos_m / self.lane_position_factor[lane], 0.0, self.lane_shape_length_m[lane])
-        return float(self.lane_start_s[lane] + along_shape_m)
-
-
 def read_sumo_net(path: str | Path) -> sumolib.net.Net:
     """Read a SUMO network with its internal lanes, turning every failure into :class:`NetworkError`.
 
@@ -415,7 +265,9 @@ def _check_shape(lane: sumolib.net.lane.Lane) -> None:
         raise NetworkError(f"lane {lane.getID()} has a shape coordinate that is not a finite number")
 
 
-def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool, continues_road: bool) -> Lane:
+def _lane_record(
+    lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool, continues_road: bool, continues_into: str
+) -> Lane:
     """The :class:`Lane` attributes of a sumolib lane."""
     edge = lane.getEdge()
     return Lane(
@@ -431,6 +283,7 @@ def _lane_record(lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabo
         allowed_vclasses=frozenset(lane.getPermissions()),
         in_roundabout=in_roundabout,
         continues_road=continues_road,
+        continues_into=continues_into,
     )
 
 
@@ -481,6 +334,36 @@ def _continuing_internal_lanes(sumo_lanes: Sequence[sumolib.net.lane.Lane], cont
     return continuing
 
 
+def _continues_into(
+    lane: sumolib.net.lane.Lane, continuations: frozenset[tuple[str, str]], continuing: set[str], roundabout: frozenset[str]
+) -> str:
+    """The lane a sumolib lane's road continues on, "" where it ends or turns (:attr:`Lane.continues_into`).
+
+    From a normal lane: the lane reached by its connection into the edge that continues
+    the road (:func:`csws.roadchain.road_continuations`), the connection's internal lane
+    if it has one; of several, the one into the lane of the nearest index. From an
+    internal lane that continues the road: the lane it leads on to. A road does not
+    continue into, out of or round a roundabout: that is a junction manoeuvre.
+    """
+    edge_id = lane.getEdge().getID()
+    if edge_id in roundabout:
+        return ""
+    if lane.getEdge().getFunction() == "internal":
+        if lane.getID() not in continuing or not lane.getOutgoing():
+            return ""
+        connection = lane.getOutgoing()[0]
+    else:
+        candidates = [
+            connection
+            for connection in lane.getOutgoing()
+            if (edge_id, connection.getTo().getID()) in continuations and connection.getTo().getID() not in roundabout
+        ]
+        if not candidates:
+            return ""
+        connection = min(candidates, key=lambda c: abs(c.getToLane().getIndex() - lane.getIndex()))
+    return connection.getViaLaneID() or connection.getToLane().getID()
+
+
 def _geo_reference(net: sumolib.net.Net) -> sumolib.net.Net:
     """A bare sumolib net carrying only the location of ``net``.
 
@@ -513,50 +396,6 @@ def _compressed_rows(rows: Sequence[Sequence[int]]) -> tuple[np.ndarray, np.ndar
     return start, np.fromiter(chain.from_iterable(rows), dtype=np.int64, count=int(start[-1]))
 
 
-def _stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Join lane shapes in driving order into one polyline.
-
-    A lane's first point is dropped when it repeats the previous lane's last point
-    (within :data:`JOINT_TOLERANCE_M`), so the joint is one vertex and no zero-length
-    segment is left to disturb the curvature.
-
-    Returns
-    -------
-    xy
-        The polyline, ``(n, 2)``.
-    lane_start_s
-        Arc length along it at each lane's first point, ``(len(shapes),)``.
-    """
-    pieces = [shapes[0]]
-    first_vertex = [0]
-    vertex_count = len(shapes[0])
-    for previous, shape in pairwise(shapes):
-        joined = bool(np.hypot(*(shape[0] - previous[-1])) <= JOINT_TOLERANCE_M)
-        pieces.append(shape[1:] if joined else shape)
-        first_vertex.append(vertex_count - 1 if joined else vertex_count)
-        vertex_count += len(pieces[-1])
-    xy = np.concatenate(pieces)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    return xy, s[first_vertex]
-
-
-def _overlap_m(intervals: np.ndarray, start_s: float, end_s: float) -> float:
-    """Length of ``[start_s, end_s]`` covered by disjoint ``intervals`` ``(k, 2)``, m."""
-    return float(np.clip(np.minimum(intervals[:, 1], end_s) - np.maximum(intervals[:, 0], start_s), 0.0, None).sum())
-
-
-def _curve_of_parts(parts: Sequence[ConstantRadiusPart], direction: str) -> Curve:
-    """A curve (3.4-3.8) made of some constant-radius parts of another, in order."""
-    return Curve(
-        start_s=parts[0].start_s,
-        end_s=parts[-1].end_s,
-        angle_deg=math.degrees(sum((part.end_s - part.start_s) / part.radius_m for part in parts)),
-        direction=direction,
-        min_radius_m=min(part.radius_m for part in parts),
-        parts=tuple(parts),
-    )
-
-
 def _finite_pairs(values: np.ndarray, what: str) -> np.ndarray:
     """``values`` as a float ``(k, 2)`` array; ValueError when not finite pairs."""
     pairs = np.asarray(values, dtype=float)
@@ -573,18 +412,6 @@ def _shape_between(shape: np.ndarray, start_s: float, end_s: float) -> np.ndarra
     inside = (s > start_s) & (s < end_s)
     cut_s = np.concatenate(([start_s], s[inside], [end_s]))
     return np.column_stack((np.interp(cut_s, s, shape[:, 0]), np.interp(cut_s, s, shape[:, 1])))
-
-
-def _write_table(records: list[dict[str, str | float]], stream: TextIO) -> None:
-    """Write records as an aligned text table: ids left-aligned, numbers right-aligned."""
-    cells = [list(CURVE_FIELDS)] + [[f"{record[name]}" for name in CURVE_FIELDS] for record in records]
-    widths = [max(len(row[column]) for row in cells) for column in range(len(CURVE_FIELDS))]
-    for row in cells:
-        padded = [
-            cell.ljust(width) if name in ("lane_id", "direction") else cell.rjust(width)
-            for cell, width, name in zip(row, widths, CURVE_FIELDS)
-        ]
-        stream.write("  ".join(padded).rstrip() + "\n")
 
 
 class RoadMap:
@@ -641,8 +468,14 @@ class RoadMap:
         self._vertex_start = np.asarray(vertex_start, dtype=np.int64)
         self._vertex_s = _vertex_arc_length(self._xy, self._vertex_start)
         self._successor_start, self._successor_index = _compressed_rows(successors)
-        self._profiles = radius_profiles([self._shape(i) for i in range(len(self._lanes))])
-        self._lane_curves = tuple(self._curves_of(i) for i in range(len(self._lanes)))
+        road_shapes = [self._road_shape(i) for i in range(len(self._lanes))]
+        self._chains = fit_road_chains(
+            np.array([self._index.get(lane.continues_into, -1) for lane in self._lanes], dtype=np.int64),
+            road_shapes,
+            np.array([lane.length_m for lane in self._lanes]),
+            np.array([lane.is_junction for lane in self._lanes], dtype=bool),
+        )
+        self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m)
 
     # ----------------------------------------------------------------- construction
     @classmethod
@@ -688,11 +521,13 @@ class RoadMap:
         index = {lane.getID(): i for i, lane in enumerate(sumo_lanes)}
         successors = [_successor_ids(lane, index) for lane in sumo_lanes]
         roundabout_edges = _roundabout_edge_ids(net)
-        continuing = _continuing_internal_lanes(sumo_lanes, road_continuations(net))
+        continuations = road_continuations(net)
+        continuing = _continuing_internal_lanes(sumo_lanes, continuations)
         lanes = [
-            _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges, lane.getID() in continuing)
+            _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges, lane.getID() in continuing,
+                         _continues_into(lane, continuations, continuing, roundabout_edges))
             for lane, length in zip(sumo_lanes, shape_length_m)
-        ]
+        ]  # fmt: skip
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
         return cls(lanes, xy, vertex_start, successors, _geo_reference(net), radius)
 
@@ -714,9 +549,9 @@ class RoadMap:
 
     @property
     def nbytes(self) -> int:
-        """Bytes held by the map's arrays: vertices, arc lengths, links and radius profiles."""
+        """Bytes held by the map's arrays: vertices, arc lengths, links, road chains and their profiles."""
         arrays = [self._xy, self._vertex_s, self._vertex_start, self._successor_start, self._successor_index]
-        arrays += [array for p in self._profiles for array in (p.s, p.curvature, p.radius)]
+        arrays += list(self._chains.xy) + [a for p in self._chains.profiles for a in (p.s, p.curvature, p.radius)]
         return int(sum(array.nbytes for array in arrays))
 
     def has_lane(self, lane_id: str) -> bool:
@@ -740,40 +575,57 @@ class RoadMap:
         """
         return tuple(self._lanes[i].lane_id for i in self._successor_indices(self._lane_index(lane_id)))
 
-    def lane_profile(self, lane_id: str) -> RadiusProfile:
-        """The radius profile of one lane, in its shape arc length."""
-        return self._profiles[self._lane_index(lane_id)]
+    def road_chain(self, lane_id: str) -> tuple[str, ...]:
+        """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.roadprofile`)."""
+        chain = self._chains.lane_chain[self._lane_index(lane_id)]
+        return tuple(self._lanes[i].lane_id for i in self._chains.lanes[chain].tolist())
 
     def lane_curves(self, lane_id: str) -> tuple[LaneCurve, ...]:
-        """The curves (radius <= :attr:`warning_radius_m`) on one lane, in driving order."""
-        return self._lane_curves[self._lane_index(lane_id)]
+        """The curves of the road (radius <= :attr:`warning_radius_m`) that lie on ``lane_id``, whole
+        or in part, in driving order."""
+        lane = self._lane_index(lane_id)
+        start_s = self._chains.lane_start_s[lane]
+        end_s = start_s + self._chains.lane_road_length_m[lane]
+        return tuple(
+            lane_curve
+            for lane_curve in self._curve_index[self._chains.lane_chain[lane]]
+            if lane_curve.curve.end_s > start_s and lane_curve.curve.start_s < end_s
+        )
 
     def curves(self, include_junctions: bool = False) -> list[LaneCurve]:
-        """The curves of every lane, lane by lane in network order: the curve index.
+        """The curves of every road, road chain by road chain: the curve index.
 
-        A curve that continues across a junction appears once per lane it touches;
-        :meth:`path_profile` joins such pieces into one curve.
+        Each curve is listed once, at the lane where it starts, even where it runs on
+        through a node into further lanes of its road; the warning reads the same curves
+        (:meth:`path_profile`).
 
         Parameters
         ----------
         include_junctions
-            Also list the curves of internal lanes and roundabouts, left out by default:
-            a turn into another road or round a roundabout is a junction manoeuvre, and
-            an internal lane that continues the road has a shape of netconvert's making
-            (the road's curve there is on the normal lanes either side).
+            Also list the curves of junction manoeuvres (turns from one road into
+            another on internal lanes, roundabouts), left out by default.
         """
-        return list(
-            chain.from_iterable(
-                curves
-                for lane, curves in zip(self._lanes, self._lane_curves)
-                if include_junctions or not (lane.is_internal or lane.in_roundabout)
-            )
-        )
+        return [
+            lane_curve
+            for chain_index, lane_curves in enumerate(self._curve_index)
+            if include_junctions or not self._chains.is_junction[chain_index]
+            for lane_curve in lane_curves
+        ]
+
+    def road_position(self, chain: int, s: float) -> tuple[str, float]:
+        """The lane id and lane position of arc length ``s`` along road chain ``chain``
+        (a :attr:`LaneCurve.chain`, or a chain from :meth:`PathProfile.curve_sources`)."""
+        lane, lane_pos_m = self._chains.lane_position(chain, s)
+        return self._lanes[lane].lane_id, lane_pos_m
+
+    def curve_shape(self, lane_curve: LaneCurve) -> np.ndarray:
+        """The road's polyline from a curve's start (3.4) to its end (3.5), ``(m, 2)``, m."""
+        return _shape_between(self._chains.xy[lane_curve.chain], lane_curve.curve.start_s, lane_curve.curve.end_s)
 
     def curves_geojson(self) -> dict:
         """The curve index (:meth:`curves`) as a GeoJSON FeatureCollection in WGS84 (RFC 7946).
 
-        Each curve is a LineString of the lane shape between its start (3.4) and end (3.5)
+        Each curve is a LineString of the road between its start (3.4) and end (3.5)
         in lon/lat degrees, with the :data:`CURVE_FIELDS` and the lane's street name and
         road type as properties.
 
@@ -786,8 +638,7 @@ class RoadMap:
         features = []
         for lane_curve in self.curves():
             lane = self.lane(lane_curve.lane_id)
-            xy = _shape_between(self.lane_shape(lane.lane_id), lane_curve.curve.start_s, lane_curve.curve.end_s)
-            lonlat = np.round(self.xy_to_lonlat_many(xy), 6)
+            lonlat = np.round(self.xy_to_lonlat_many(self.curve_shape(lane_curve)), 6)
             properties = {**lane_curve.as_record(), "street_name": lane.street_name, "road_type": lane.road_type}
             features.append(
                 {
@@ -809,7 +660,7 @@ class RoadMap:
             writer.writeheader()
             writer.writerows(records)
         elif fmt == "table":
-            _write_table(records, stream)
+            write_curve_table(records, stream)
         else:
             raise ValueError(f"unknown curve format {fmt!r}: use 'table', 'json' or 'csv'")
 
@@ -838,27 +689,22 @@ class RoadMap:
         return tuple(self._lanes[i].lane_id for i in indices)
 
     def path_profile(self, lane_ids: Sequence[str]) -> PathProfile:
-        """Stitch consecutive lanes into one polyline and profile it as a whole.
+        """The road along consecutive lanes: one polyline, with the profile and curves of its road chains.
 
-        Because the profile is computed over the joined shape, a curve that crosses an
-        edge boundary or a junction is found as one curve (3.4-3.5) and not as pieces
-        cut at the lane ends. Internal via lanes missing from ``lane_ids`` are filled in
-        (:meth:`expand_path`).
+        A curve that runs across an edge boundary or through a node of its road is one
+        curve (3.4-3.5), the same curve the index lists, wherever the path starts. Where
+        the path leaves a road (a turn at a junction) it runs on along the next road's
+        chain. Internal via lanes missing from ``lane_ids`` are filled in (:meth:`expand_path`).
         """
         path = self.expand_path(lane_ids)
         indices = [self._index[lane_id] for lane_id in path]
-        shapes = [self._road_shape(i) for i in indices]
-        xy, lane_start_s = _stitch(shapes)
-        shape_length_m = np.array([np.hypot(*np.diff(shape, axis=0).T).sum() for shape in shapes])
-        length_m = np.array([self._lanes[i].length_m for i in indices])
-        return PathProfile(
-            lane_ids=path,
-            xy=xy,
-            profile=radius_profile(xy),
-            lane_start_s=lane_start_s,
-            lane_shape_length_m=shape_length_m,
-            lane_position_factor=np.divide(length_m, shape_length_m, out=np.ones(len(indices)), where=shape_length_m > 0),
-            lane_is_junction=np.array([self._lanes[i].is_junction for i in indices], dtype=bool),
+        return path_profile(
+            self._chains,
+            indices,
+            path,
+            [self._road_shape(i) for i in indices],
+            np.array([self._lanes[i].length_m for i in indices]),
+            np.array([self._lanes[i].is_junction for i in indices], dtype=bool),
         )
 
     # ----------------------------------------------------------------- positions
@@ -980,14 +826,6 @@ class RoadMap:
 
     def _successor_indices(self, lane: int) -> np.ndarray:
         return self._successor_index[self._successor_start[lane] : self._successor_start[lane + 1]]
-
-    def _curves_of(self, lane: int) -> tuple[LaneCurve, ...]:
-        """The curves of one lane with their ends as lane positions."""
-        factor = self._lanes[lane].position_factor
-        return tuple(
-            LaneCurve(self._lanes[lane].lane_id, curve.start_s * factor, curve.end_s * factor, curve)
-            for curve in curves_from_profile(self._profiles[lane], self.warning_radius_m)
-        )
 
     def _via_chain(self, lane: int, following: int) -> list[int] | None:
         """Internal lanes leading from the end of ``lane`` to ``following`` ([] if adjacent, None if unreachable)."""

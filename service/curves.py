@@ -1,7 +1,8 @@
 """The curves of a served network as a GeoJSON FeatureCollection.
 
-One feature per curve found on a lane (:meth:`csws.roadmap.RoadMap.curves`): its
-geometry (the lane between the curve's start and end), street name and road type,
+One feature per curve of a road (:meth:`csws.roadmap.RoadMap.curves`): its geometry
+(the road between the curve's start and end, through any node inside it), the lanes and
+lane positions of its ends, street name and road type,
 minimum radius, angle, direction, parts (its arcs and the pieces of its clothoids,
 marked ``spiral``) and the warning speeds V_w of every category at both levels
 (Tables 1-2). On a geo-referenced network coordinates are lon/lat (WGS84,
@@ -16,8 +17,6 @@ from typing import Any
 import numpy as np
 
 from csws.lookahead import curve_id_of
-from csws.mapmatch import points_along
-from csws.roadmap import LaneCurve
 from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
 
 from .networks import ServedNetwork
@@ -37,15 +36,6 @@ def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str,
     }
 
 
-def _curve_line(network: ServedNetwork, lane_curve: LaneCurve) -> np.ndarray:
-    """The lane's polyline from the curve's start to its end, ``(n, 2)``, m."""
-    shape = network.road_map.lane_shape(lane_curve.lane_id)
-    vertex_s = network.road_map.lane_profile(lane_curve.lane_id).s
-    start_s, end_s = lane_curve.curve.start_s, lane_curve.curve.end_s
-    inner = vertex_s[(vertex_s > start_s) & (vertex_s < end_s)]
-    return points_along(shape, np.concatenate(([start_s], inner, [end_s])), vertex_s)
-
-
 def _coordinates(network: ServedNetwork, xy: np.ndarray) -> list[list[float]]:
     """Points as GeoJSON positions: lon/lat on a geo-referenced network, else network metres."""
     if network.road_map.has_projection:
@@ -58,7 +48,7 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
     policy = network.engine.settings.warning.policy
     features = []
     for lane_curve in network.road_map.curves():
-        coordinates = _coordinates(network, _curve_line(network, lane_curve))
+        coordinates = _coordinates(network, network.road_map.curve_shape(lane_curve))
         xs, ys = zip(*coordinates)
         curve = lane_curve.curve
         lane = network.road_map.lane(lane_curve.lane_id)
@@ -75,6 +65,7 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
                 "street_name": lane.street_name,
                 "road_type": lane.road_type,
                 "start_pos_m": lane_curve.start_pos_m,
+                "end_lane_id": lane_curve.end_lane_id,
                 "end_pos_m": lane_curve.end_pos_m,
                 "radius_m": curve.min_radius_m,
                 "angle_deg": curve.angle_deg,

@@ -135,15 +135,18 @@ def test_path_profile_joins_a_curve_cut_by_a_junction(arc_map: RoadMap) -> None:
     assert curve.min_radius_m == pytest.approx(ARC_RADIUS_M, rel=0.1)
 
 
-def test_lane_curves_are_cut_at_the_junction(arc_map: RoadMap) -> None:
-    # Per lane, the arc is two curves. netconvert cuts both edges back a little at B and
-    # bends their last metres, so the pieces reach the cut only within a few metres.
-    (first,), (second,) = arc_map.lane_curves("AB_0"), arc_map.lane_curves("BC_0")
-    assert first.start_pos_m == pytest.approx(ARC_START_S, abs=1.0)
-    assert first.end_pos_m == pytest.approx(arc_map.lane("AB_0").length_m, abs=5.0)
-    assert second.start_pos_m == pytest.approx(0.0, abs=5.0)
-    assert second.end_pos_m == pytest.approx(ARC_END_S - MID_ARC_S, abs=1.0)
-    assert first.curve.angle_deg + second.curve.angle_deg == pytest.approx(60.0, abs=3.0)
+def test_the_index_lists_a_curve_through_a_junction_once_as_the_path_sees_it(arc_map: RoadMap) -> None:
+    # One road continues through B: its chain is fitted once, so the index has one curve
+    # from AB_0 into BC_0, both lanes know it, and a path reads the same curve.
+    (indexed,) = arc_map.curves()
+    assert arc_map.lane_curves("AB_0") == arc_map.lane_curves("BC_0") == (indexed,)
+    assert (indexed.lane_id, indexed.end_lane_id) == ("AB_0", "BC_0")
+    assert indexed.start_pos_m == pytest.approx(ARC_START_S, abs=1.0)
+    assert indexed.end_pos_m == pytest.approx(ARC_END_S - MID_ARC_S, abs=1.0)
+    assert indexed.curve.angle_deg == pytest.approx(60.0, abs=2.0)
+    (seen,) = arc_map.path_profile(["AB_0", "BC_0"]).curves()
+    assert seen == indexed.curve
+    assert arc_map.road_chain("BC_0")[0] == "AB_0"
 
 
 def test_path_arc_length_maps_to_lane_positions_and_back(arc_map: RoadMap) -> None:
