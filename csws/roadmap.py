@@ -58,6 +58,7 @@ import numpy as np
 import shapely
 import sumolib
 
+from .curvature import profile_cache_dir
 from .roadchain import road_continuations
 from .roadprofile import (
     CURVE_FIELDS,
@@ -439,6 +440,8 @@ class RoadMap:
         successors: Sequence[Sequence[int]],
         geo: sumolib.net.Net,
         warning_radius_m: float = DEFAULT_WARNING_RADIUS_M,
+        *,
+        cache: bool = True,
     ) -> None:
         """Profile the lanes and find their curves.
 
@@ -456,6 +459,9 @@ class RoadMap:
             A sumolib net carrying the network's location.
         warning_radius_m
             Warning curvature radius R_c (3.2), m.
+        cache
+            Whether to read the road chains' fit from the profile cache, and write it there
+            when it is not yet (:func:`csws.curvature.profile_cache_dir`).
         """
         if not (math.isfinite(warning_radius_m) and warning_radius_m > 0):
             raise ValueError(f"warning radius must be a positive number of metres, got {warning_radius_m!r}")
@@ -474,12 +480,13 @@ class RoadMap:
             road_shapes,
             np.array([lane.length_m for lane in self._lanes]),
             np.array([lane.is_junction for lane in self._lanes], dtype=bool),
+            profile_cache_dir() if cache else None,
         )
         self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m)
 
     # ----------------------------------------------------------------- construction
     @classmethod
-    def load(cls, net_path: str | Path, warning_radius_m: float | None = None) -> "RoadMap":
+    def load(cls, net_path: str | Path, warning_radius_m: float | None = None, *, cache: bool = True) -> "RoadMap":
         """Read a ``.net.xml`` / ``.net.xml.gz`` and build its road map.
 
         Parameters
@@ -489,6 +496,9 @@ class RoadMap:
         warning_radius_m
             Warning curvature radius R_c (3.2), m; ``None`` for the default
             :data:`csws.standard.DEFAULT_WARNING_RADIUS_M`.
+        cache
+            Whether to use the profile cache (see :class:`RoadMap`): a network fitted once
+            loads in a fraction of the time.
 
         Raises
         ------
@@ -497,12 +507,12 @@ class RoadMap:
         """
         net = read_sumo_net(net_path)
         try:
-            return cls.from_net(net, warning_radius_m)
+            return cls.from_net(net, warning_radius_m, cache=cache)
         except NetworkError as error:
             raise NetworkError(f"{Path(net_path).name}: {error}") from None
 
     @classmethod
-    def from_net(cls, net: sumolib.net.Net, warning_radius_m: float | None = None) -> "RoadMap":
+    def from_net(cls, net: sumolib.net.Net, warning_radius_m: float | None = None, *, cache: bool = True) -> "RoadMap":
         """Build the road map of a sumolib net read with ``withInternal=True``.
 
         Only the location of ``net`` is kept: lanes are copied into arrays so the
@@ -529,7 +539,7 @@ class RoadMap:
             for lane, length in zip(sumo_lanes, shape_length_m)
         ]  # fmt: skip
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
-        return cls(lanes, xy, vertex_start, successors, _geo_reference(net), radius)
+        return cls(lanes, xy, vertex_start, successors, _geo_reference(net), radius, cache=cache)
 
     # ----------------------------------------------------------------- lanes
     @cached_property

@@ -20,11 +20,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from itertools import pairwise
+from pathlib import Path
 from typing import Callable, Sequence, TextIO
 
 import numpy as np
 
-from .curvature import ConstantRadiusPart, Curve, RadiusProfile, curves_from_profile, radius_profiles
+from .curvature import ConstantRadiusPart, Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
 from .curvature.profile import _profile, _straight_profile
 from .standard import DEFAULT_WARNING_RADIUS_M
 
@@ -438,10 +439,16 @@ def _cut_where_straight(members: np.ndarray, road_shapes: Sequence[np.ndarray]) 
 
 
 def fit_road_chains(
-    continues_into: np.ndarray, road_shapes: Sequence[np.ndarray], lane_length_m: np.ndarray, is_junction: np.ndarray
+    continues_into: np.ndarray,
+    road_shapes: Sequence[np.ndarray],
+    lane_length_m: np.ndarray,
+    is_junction: np.ndarray,
+    cache_dir: Path | None = None,
 ) -> RoadChains:
     """Group lanes into road chains (:func:`road_chains`), stitch each chain's road shapes
-    and fit every chain at once (:func:`csws.curvature.radius_profiles`).
+    and fit every chain at once (:func:`csws.curvature.radius_profiles`), or read the fit
+    from ``cache_dir`` where these chains were fitted before
+    (:func:`csws.curvature.cached_radius_profiles`).
 
     Parameters
     ----------
@@ -453,6 +460,8 @@ def fit_road_chains(
         SUMO's length of each lane, m: lane positions run from 0 to it.
     is_junction
         Whether each lane is a junction manoeuvre; a chain is one when its lanes are.
+    cache_dir
+        The folder of fitted profiles; ``None`` fits without a cache.
     """
     members = [stretch for chain in road_chains(continues_into) for stretch in _cut_where_straight(chain, road_shapes)]
     lane_chain = np.empty(len(road_shapes), dtype=np.int64)
@@ -467,7 +476,7 @@ def fit_road_chains(
     return RoadChains(
         lanes=tuple(members),
         xy=tuple(chain_xy),
-        profiles=tuple(radius_profiles(chain_xy)),
+        profiles=tuple(cached_radius_profiles(chain_xy, cache_dir)),
         is_junction=np.array([bool(np.all(is_junction[lanes])) for lanes in members], dtype=bool),
         lane_chain=lane_chain,
         lane_start_s=lane_start_s,

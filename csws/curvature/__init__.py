@@ -42,6 +42,7 @@ exact nodes, with straights tried at its ends where the heading fit ran a curve 
 """
 
 
+from .cache import cached_radius_profiles, profile_cache_dir
 from .curves import curves_from_profile
 from .fitting import find_curves, radius_profile, radius_profiles, three_point_radius
 from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile
@@ -53,6 +54,8 @@ __all__ = [
     "Curve",
     "radius_profile",
     "radius_profiles",
+    "cached_radius_profiles",
+    "profile_cache_dir",
     "curves_from_profile",
     "find_curves",
     "three_point_radius",

@@ -1,0 +1,20 @@
+"""Shared test set-up: a fresh profile cache for the whole run, so no test reads fits an
+earlier run (or the user's own loads) left behind."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+
+@pytest.fixture(scope="session", autouse=True)
+def fresh_profile_cache(tmp_path_factory: pytest.TempPathFactory):
+    """Point ``CSWS_CACHE_DIR`` (this process and the commands it starts) at an empty folder."""
+    previous = os.environ.get("CSWS_CACHE_DIR")
+    os.environ["CSWS_CACHE_DIR"] = str(tmp_path_factory.mktemp("profile-cache"))
+    yield
+    if previous is None:
+        del os.environ["CSWS_CACHE_DIR"]
+    else:
+        os.environ["CSWS_CACHE_DIR"] = previous
