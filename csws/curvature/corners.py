@@ -11,14 +11,16 @@ can put an arc of centimetres somewhere. These rules are kept apart from the fit
    (:func:`with_floor`).
 2. **No curve where the nodes do not turn.** A curve of the fit must not turn by more than
    the polyline's vertices over its stretch (those within it and the nearest one beyond
-   either end) turn its way, added up, by more than :data:`ANGLE_TOLERANCE_DEG`: no road
-   through those nodes turns more. Node noise moves turning from one vertex to the next
-   (hence the vertex beyond either end) and otherwise only adds to the sum. A curve that
-   breaks rule 1 or 2 is removed whole.
+   either end) turn its way, added up, by more than :data:`ANGLE_TOLERANCE_DEG` and what
+   node noise can take off that sum (:data:`NOISE_DEVIATIONS` deviations of the noise of
+   the headings of the two segments it is measured between): no road through those nodes
+   turns more. Node noise moves turning from one vertex to the next (hence the vertex
+   beyond either end). A curve that breaks rule 1 or 2 is removed whole.
 3. **A corner gets a radius.** Vertices that no curved part covers (none was fitted there,
    or rule 1 or 2 removed it) and that turn the same way one after another, by
    :data:`CORNER_MIN_DEG` or more together (and by more than node noise makes them
-   turn), are a curve the fit missed. Several such vertices are an arc drawn node by
+   turn; never next to a segment so short against the noise that it has no heading),
+   are a curve the fit missed. Several such vertices are an arc drawn node by
    node: it turns by their turning, at the radius of the segments between them taken as
    chords (the turns at the first and last vertex counted half, the other half being
    onto the road beyond; on nodes evenly spaced on a circle, its radius). One such vertex is a corner mapped by one node. It gets the largest arc tangent
@@ -58,6 +60,8 @@ NOISE_DEVIATIONS = 3.0
 #: The node noise the rules allow for is the way's own estimate, but no more than this, m:
 #: a way's corners inflate the estimate, and mapped nodes lie within about this of the road.
 MAX_NOISE_M = 0.5
+#: What rule 2 leaves below its limit, so that the limit holds after rounding, rad.
+ROUNDING_RAD = 1e-9
 #: How far a corner's arc may pass from its node, m: the mapping tolerance of a way.
 CORNER_DEVIATION_M = 2.0
 
@@ -78,26 +82,38 @@ def _corner_radius_m(turn_rad: np.ndarray, before_m: np.ndarray, after_m: np.nda
 
 
 def _turning_within(
-    vertex_s: np.ndarray, turn_rad: np.ndarray, segment_m: np.ndarray, start_s: float, end_s: float, side: float
-) -> float:
+    vertex_s: np.ndarray, turn_rad: np.ndarray, segment_m: np.ndarray, noise_m: float, start_s: float, end_s: float,
+    side: float,
+) -> tuple[float, float]:
     """How much the polyline turns to one ``side`` (+1 left, -1 right) at its vertices within
     ``[start_s, end_s]`` and the nearest one beyond either end (the road may begin to turn
-    anywhere on the segment before a node): the sum of those vertices' turns that way,
-    radians. No road through the nodes turns more that way there."""
+    anywhere on the segment before a node): the sum of those vertices' turns that way, and
+    the standard deviation node noise gives that sum (:func:`_turn_noise_rad` of the two
+    segments it is measured between), radians. No road through the nodes turns more that
+    way there than the sum, give or take its noise."""
     first, stop = _window(vertex_s[1:-1], start_s, end_s)
-    return float(np.clip(side * turn_rad[first:stop], 0.0, None).sum())
+    turning = float(np.clip(side * turn_rad[first:stop], 0.0, None).sum())
+    last_segment = min(stop, len(segment_m) - 1)
+    return turning, _turn_noise_rad(noise_m, float(segment_m[first]), float(segment_m[last_segment]))
+
+
+def _turn_noise_rad(noise_m: float, before_m: float, after_m: float) -> float:
+    """Standard deviation of the turn that node noise makes between two segments of the
+    given lengths, rad. Noise lengthens short segments as often as it turns them, so each
+    is taken at the shortest length its ends' relative noise allows (:data:`NOISE_DEVIATIONS`
+    deviations of it shorter); ``inf`` where that leaves no length: such a segment has no
+    heading at all."""
+    relative_m = math.sqrt(2.0) * noise_m
+    shortest_before_m, shortest_after_m = (length - NOISE_DEVIATIONS * relative_m for length in (before_m, after_m))
+    if min(shortest_before_m, shortest_after_m) <= 0.0:
+        return math.inf
+    return relative_m * math.sqrt(1.0 / shortest_before_m**2 + 1.0 / shortest_after_m**2)
 
 
 def _window(inner_s: np.ndarray, start_s: float, end_s: float) -> tuple[int, int]:
     """The inner vertices (as a slice's start and stop) on ``[start_s, end_s]`` and the nearest one beyond either end."""
     first = max(int(np.searchsorted(inner_s, start_s, side="left")) - 1, 0)
     return first, int(np.searchsorted(inner_s, end_s, side="right")) + 1
-
-
-def _is_believable(angle_rad: float, turn_rad: float, radius_m: float) -> bool:
-    """Rules 1 and 2 for one curve: its radius at the floor or above, and its angle no larger
-    than the nodes turn its way (``turn_rad``) by more than :data:`ANGLE_TOLERANCE_DEG`."""
-    return radius_m >= FLOOR_RADIUS_M and abs(angle_rad) <= turn_rad + math.radians(ANGLE_TOLERANCE_DEG)
 
 
 def _curves(start_k: np.ndarray, end_k: np.ndarray) -> list[np.ndarray]:
@@ -144,17 +160,26 @@ def with_corner_rules(
     vertex_s = np.append(chord_start_s, chord_start_s[-1] + chord_length_m[-1])
     turn_rad = np.remainder(np.diff(chord_heading) + np.pi, 2.0 * np.pi) - np.pi
     angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
-    radius_m = 1.0 / np.fmax(np.abs(start_k), np.abs(end_k)).clip(1e-300)
+    start_k, end_k = start_k.copy(), end_k.copy()
     keep = np.ones(len(start_k), dtype=bool)
     for parts in _curves(start_k, end_k):
         angle = float(angle_rad[parts].sum())
-        turn = _turning_within(vertex_s, turn_rad, segment_m, bounds[parts[0]], bounds[parts[-1] + 1], math.copysign(1.0, angle))
-        keep[parts] = _is_believable(angle, turn, float(radius_m[parts].min()))
+        turn, turn_noise = _turning_within(
+            vertex_s, turn_rad, segment_m, noise_m, bounds[parts[0]], bounds[parts[-1] + 1], math.copysign(1.0, angle)
+        )
+        allowed = turn + math.radians(ANGLE_TOLERANCE_DEG) - ROUNDING_RAD
+        if abs(angle) > allowed:
+            # Within what node noise can take off the turning, the fit's extent is kept and its
+            # turn cut back; beyond it the curve is not the nodes' and goes whole.
+            scale = allowed / abs(angle) if abs(angle) <= allowed + NOISE_DEVIATIONS * turn_noise else 0.0
+            start_k[parts] *= scale
+            end_k[parts] *= scale
+        keep[parts] = np.fmax(np.abs(start_k[parts]), np.abs(end_k[parts])).max() * FLOOR_RADIUS_M <= 1.0
     bounds, start_k, end_k = _merged(bounds, np.where(keep, start_k, 0.0), np.where(keep, end_k, 0.0))
     covered = _covered(vertex_s[1:-1], bounds, start_k, end_k, turn_rad)
     for first, last in _turning_runs(turn_rad, covered):
         total = float(turn_rad[first : last + 1].sum())
-        deviation = noise_m * math.sqrt(2.0 / segment_m[first] ** 2 + 2.0 / segment_m[last + 1] ** 2)
+        deviation = _turn_noise_rad(noise_m, float(segment_m[first]), float(segment_m[last + 1]))
         if abs(total) < max(math.radians(CORNER_MIN_DEG), NOISE_DEVIATIONS * deviation):
             continue
         if first == last:
