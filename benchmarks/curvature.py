@@ -33,7 +33,7 @@ straight-arc-straight and searched from starts about the truth. An extractor, wh
 must also find the form, cannot be expected to start arcs closer than that fit does.
 
 Speed: vertices per second on a synthetic network of dense lane shapes and on the sparse
-ways, and the time :meth:`csws.roadmap.RoadMap.load` takes on the bundled real network.
+ways (the bundled real network's load is timed by :mod:`benchmarks.roadmap`).
 
 Run with ``python -m benchmarks.curvature``; :func:`run` returns the figures.
 """
@@ -49,8 +49,6 @@ import numpy as np
 
 from csws.curvature import find_curves, radius_profiles, three_point_radius
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.networks import networks_dir
-from csws.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M
 
 SEED = 20180091
@@ -83,9 +81,6 @@ ORACLE_START_SHIFTS_M = (-10.0, -5.0, 0.0, 5.0, 10.0)
 ORACLE_LENGTH_FACTORS = (0.7, 1.0, 1.4)
 ORACLE_ITERATIONS = 60
 ORACLE_DIFFERENCE_STEPS = (1e-5, 1e-5, 1e-7, 1e-9, 1e-5)
-#: The bundled real network (imported from OpenStreetMap) and how fast it must load and profile, s.
-REAL_NETWORK = "badhersfeld.net.xml.gz"
-REAL_NETWORK_LOAD_TARGET_S = 3.0
 
 #: A found curve: (start_s, end_s, radius_m).
 FoundCurve = tuple[float, float, float]
@@ -405,16 +400,6 @@ def sparse_throughput(ways: list[np.ndarray]) -> dict:
     return {"lanes": len(ways), "vertices": vertices, "seconds": seconds, "vertices_per_s": vertices / seconds}
 
 
-def real_network_load() -> dict:
-    """Seconds :meth:`csws.roadmap.RoadMap.load` takes on the bundled real network, whose
-    many sparse ways (map nodes metres apart) take the sparse fit."""
-    start = time.perf_counter()
-    road_map = RoadMap.load(networks_dir() / REAL_NETWORK)
-    seconds = time.perf_counter() - start
-    lane_km = sum(road_map.lane(lane_id).shape_length_m for lane_id in road_map.lane_ids) / 1000.0
-    return {"network": REAL_NETWORK, "seconds": seconds, "lane_km": lane_km}
-
-
 def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
     """All the figures: per input kind and method, the multi curves, and throughput."""
     rng = np.random.default_rng(seed)
@@ -430,7 +415,6 @@ def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
             figures["sparse_throughput"] = sparse_throughput([road.xy for road in roads] + straights)
     figures["multi_curve"] = multi_curve_step_errors(rng, cases // 3)
     figures["throughput"] = throughput(rng)
-    figures["real_network"] = real_network_load()
     return figures
 
 
@@ -486,11 +470,6 @@ def report(figures: dict) -> str:
             f"{label}: {speed['vertices']:,} vertices in {speed['lanes']:,} polylines profiled in "
             f"{speed['seconds']:.2f} s = {speed['vertices_per_s']:,.0f} vertices/s"
         )
-    real = figures["real_network"]
-    lines.append(
-        f"real network: {real['network']} ({real['lane_km']:,.0f} lane-km) loaded and profiled in {real['seconds']:.2f} s"
-        f"  (target {REAL_NETWORK_LOAD_TARGET_S:g} s)  {_verdict(real['seconds'], REAL_NETWORK_LOAD_TARGET_S)}"
-    )
     return "\n".join(lines)
 
 

@@ -1,4 +1,5 @@
-"""How fast a large curvy network loads and profiles, and how much memory it takes.
+"""How fast a large curvy network loads and profiles, and how much memory it takes; how
+fast the bundled real network loads, fitted afresh and from the profile cache.
 
 The network is generated on the fly: a square grid of junctions whose every link is a
 two-way road with a reverse-curve "bump" (straight, left arc, right arc, left arc,
@@ -6,22 +7,35 @@ straight) built exactly with :mod:`csws.geometry`, then netconverted. The defaul
 of 18 x 18 junctions holds about 1,500 lane-km, the size of a regional network a fleet
 service loads at start-up. ``netgenerate`` cannot make curved roads, hence plain XML.
 
+The real network (:func:`real_network_load`) is the bundled Bad Hersfeld import, 508
+lane-km: once with every road chain fitted, as at the first load of a network, and once
+with the fit read from the profile cache (:mod:`csws.curvature.cache`) in a fresh folder
+that the first load filled, as at every later load and after ``csws import-osm``.
+
 Run with ``python -m benchmarks.roadmap``.
 """
 
 from __future__ import annotations
 
+import os
 import resource
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
 from csws.netbuild import netconvert, shape_text
 from csws.geometry import Piece, arc, pose_at, sample_pieces, straight
 from csws.curvature import radius_profiles
+from csws.networks import networks_dir
 from csws.roadmap import RoadMap, read_sumo_net
+
+REAL_NET = networks_dir() / "badhersfeld.net.xml.gz"
+#: How long the real network may take to load, s: fitted before (the profile cache), and afresh.
+REAL_LOAD_TARGET_S = 3.0
 
 #: One grid link: a reverse-curve bump whose ends share the same heading and lateral
 #: position, so the links close into a square grid. Its arcs are 250 m (inside R_c).
@@ -124,7 +138,7 @@ def run(junctions_per_side: int = 18, fix_count: int = 10_000) -> dict:
         generated = time.perf_counter()
         net = read_sumo_net(net_path)
     parsed = time.perf_counter()
-    road_map = RoadMap.from_net(net)
+    road_map = RoadMap.from_net(net, cache=False)
     built = time.perf_counter()
     del net
     radius_profiles([road_map.lane_shape(lane_id) for lane_id in road_map.lane_ids])
@@ -154,9 +168,44 @@ def run(junctions_per_side: int = 18, fix_count: int = 10_000) -> dict:
     }
 
 
+@contextmanager
+def profile_cache_in(cache_dir: str) -> Iterator[None]:
+    """Use the profile cache folder ``cache_dir`` (an empty string: no cache) inside the block."""
+    previous = os.environ.get("CSWS_CACHE_DIR")
+    os.environ["CSWS_CACHE_DIR"] = cache_dir
+    try:
+        yield
+    finally:
+        if previous is None:
+            del os.environ["CSWS_CACHE_DIR"]
+        else:
+            os.environ["CSWS_CACHE_DIR"] = previous
+
+
+def _timed_load(cache_dir: str) -> tuple[float, RoadMap]:
+    """Seconds :meth:`RoadMap.load` takes on the real network with the profile cache in
+    ``cache_dir`` (see :func:`profile_cache_in`), and the map."""
+    with profile_cache_in(cache_dir):
+        started = time.perf_counter()
+        road_map = RoadMap.load(REAL_NET)
+        return time.perf_counter() - started, road_map
+
+
+def real_network_load() -> dict:
+    """Seconds to load the bundled real network (parse, arrays, road chains, profiles and
+    curves): ``fit_load_s`` fitting every chain, ``cached_load_s`` reading the fit back."""
+    fit_s, _ = _timed_load("")
+    with tempfile.TemporaryDirectory(prefix="csws-bench-cache-") as folder:
+        _timed_load(folder)
+        cached_s, road_map = _timed_load(folder)
+    return {"network": REAL_NET.name, "fit_load_s": round(fit_s, 2), "cached_load_s": round(cached_s, 2),
+            "lanes": len(road_map.lane_ids), "lane_km": round(road_map.total_length_m / 1000.0, 1),
+            "curves": len(road_map.curves())}
+
+
 def main() -> None:
-    """Print the figures of :func:`run`, one per line."""
-    for name, value in run().items():
+    """Print the figures of :func:`run` and :func:`real_network_load`, one per line."""
+    for name, value in (run() | real_network_load()).items():
         print(f"{name:>16}: {value}")
 
 
