@@ -47,6 +47,7 @@ from typing import Callable
 
 import numpy as np
 
+from benchmarks.bounds import start_bounds_m
 from csws.curvature import find_curves, radius_profiles, three_point_radius
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.standard import DEFAULT_WARNING_RADIUS_M
@@ -169,34 +170,12 @@ def straight_road(rng: np.random.Generator, shape: Callable[[list[Piece], np.ran
 
 def start_bound_m(road: Road) -> float:
     """The Cramér-Rao bound on the standard deviation of any unbiased estimate of the arc's
-    start from the nodes of ``road`` (sparse cases), m.
-
-    The nodes are taken at their arc lengths along the polyline; each tells only its
-    sideways distance from the road (its place along the road is unknown), with the
-    noise's per-axis variance. The road's parameters are its sideways offset, heading,
-    arc start, curvature and arc length.
-    """
+    start from the nodes of ``road`` (sparse cases), m: :func:`benchmarks.bounds.start_bounds_m`
+    of the straight-arc-straight road, the nodes taken at their arc lengths along the polyline."""
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(road.xy, axis=0).T))))
-    truth = np.array([0.0, 0.0, road.arc_start_s, 1.0 / road.radius_m, road.arc_end_s - road.arc_start_s])
-
-    def points(parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        offset, heading, start_s, curvature, length_m = parameters
-        pieces = [straight(start_s), Piece(length_m, curvature), straight(s[-1] + 100.0)]
-        x, y, along = pose_at(pieces, s, (0.0, offset), heading)
-        return np.column_stack((x, y)), along
-
-    _, along = points(truth)
-    normal = np.column_stack((-np.sin(along), np.cos(along)))
-    jacobian = np.empty((len(s), len(truth)))
-    for column in range(len(truth)):
-        step = np.zeros(len(truth))
-        step[column] = 1e-6 * max(abs(truth[column]), 1e-3)
-        moved = (points(truth + step)[0] - points(truth - step)[0]) / (2.0 * step[column])
-        jacobian[:, column] = np.einsum("ij,ij->i", moved, normal)
-    information = jacobian.T @ jacobian / (SPARSE_NOISE_RMS_M**2 / 2.0)
-    # Where an arc holds too few nodes to tell its length from its curvature, the
-    # information is singular; the pseudo-inverse bounds what the nodes do tell.
-    return float(np.sqrt(np.linalg.pinv(information, hermitian=True)[2, 2]))
+    arc_length_m = road.arc_end_s - road.arc_start_s
+    pieces = [straight(road.arc_start_s), Piece(arc_length_m, road.curvature), straight(s[-1] + 100.0)]
+    return float(start_bounds_m(pieces, s, SPARSE_NOISE_RMS_M, ARC_WARNING_RADIUS_M)[0])
 
 
 def bound_figures(roads: list[Road], limit_m: float) -> dict:

@@ -33,6 +33,11 @@ curve. Below the floor: found curves whose radius is under
 The ``spirals`` family was the one the clothoid fit was developed on; the others were
 not looked at before their figures were first printed.
 
+Beside the sparse start errors stands what the nodes allow (:mod:`benchmarks.bounds`):
+the median and p90 start error of an efficient estimator told the road's form, from the
+Cramér-Rao bound of every true curve's start on the same nodes. A target below those is
+out of reach of the nodes, whatever the extractor.
+
 Run with ``python -m benchmarks.roads``; :func:`run` returns the figures.
 """
 
@@ -44,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from benchmarks.bounds import error_quantile_m, start_bounds_m
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
@@ -197,6 +203,13 @@ def sample(pieces: list[Piece], family: str, rng: np.random.Generator) -> tuple[
     return np.column_stack((exact_xy, exact_s)), dense, noisy
 
 
+def node_start_bounds_m(pieces: list[Piece], exact: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """The Cramér-Rao bound of each true curve's start from the sparse way's ``nodes``, m,
+    taken at their places along the true road (``exact``: its dense line and arc lengths)."""
+    node_s = shapely.LineString(exact[:, :2]).project(shapely.points(nodes))
+    return start_bounds_m(pieces, np.sort(node_s), NODE_NOISE_RMS_M, WARNING_RADIUS_M)
+
+
 def _true_s(line: shapely.LineString, xy: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Arc lengths along a sampled polyline mapped to the true road's, by projecting onto it."""
     step = np.hypot(*np.diff(xy, axis=0).T)
@@ -228,6 +241,7 @@ def score(truth: list[TrueCurve], exact: np.ndarray, xy: np.ndarray) -> dict:
 
 def _summary(scores: list[dict]) -> dict:
     start = np.array([e for s in scores for e in s["start_errors"]])
+    bounds = np.array([b for s in scores for b in s.get("start_bounds_m", ())])
     radius = np.array([e for s in scores for e in s["radius_errors"]])
     return {
         "curves": int(len(start)),
@@ -238,7 +252,8 @@ def _summary(scores: list[dict]) -> dict:
         "missed": int(sum(s["missed"] for s in scores)),
         "false": int(sum(s["false"] for s in scores)),
         "below_floor": int(sum(s["below_floor"] for s in scores)),
-    }
+    } | ({"bound_median_start_error_m": error_quantile_m(bounds, 0.5),
+          "bound_p90_start_error_m": error_quantile_m(bounds, 0.9)} if len(bounds) else {})
 
 
 def run(cases: int = CASES_PER_FAMILY, seed: int = SEED) -> dict:
@@ -252,7 +267,7 @@ def run(cases: int = CASES_PER_FAMILY, seed: int = SEED) -> dict:
             truth = true_curves(pieces)
             exact, dense, sparse = sample(pieces, family, rng)
             scores["dense"].append(score(truth, exact, dense))
-            scores["sparse"].append(score(truth, exact, sparse))
+            scores["sparse"].append(score(truth, exact, sparse) | {"start_bounds_m": node_start_bounds_m(pieces, exact, sparse)})
         figures[family] = {sampling: _summary(values) for sampling, values in scores.items()}
     return figures
 
@@ -269,11 +284,11 @@ def verdicts(figures: dict) -> list[tuple[str, float, float, bool]]:
 
 def report(figures: dict) -> str:
     columns = ("curves", "median_radius_error", "median_start_error_m", "p90_start_error_m", "max_start_error_m",
-               "missed", "false", "below_floor")
+               "missed", "false", "below_floor", "bound_median_start_error_m", "bound_p90_start_error_m")
     lines = ["family    sampling  " + "  ".join(f"{c:>10.10}" for c in columns)]
     for family, samplings in figures.items():
         for sampling, values in samplings.items():
-            lines.append(f"{family:<9} {sampling:<8}  " + "  ".join(f"{values[c]:>10.3g}" for c in columns))
+            lines.append(f"{family:<9} {sampling:<8}  " + "  ".join(f"{values.get(c, math.nan):>10.3g}" for c in columns))
     lines += [f"{'PASS' if passed else 'FAIL'}  {name} = {value:.3g} (target <= {limit:g})"
               for name, value, limit, passed in verdicts(figures)]
     return "\n".join(lines)

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from csws.geometry import arc, piece_starts_s, sample_pieces, straight
+from csws.geometry import arc, sample_pieces, straight
 from csws.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
 from csws.standard import warning_distance, warning_speed
 from csws.netbuild import netconvert, shape_text

@@ -9,7 +9,6 @@ not offset from the authored shape, 7.4.1 and 7.4.2).
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -1,0 +1,152 @@
+"""What a sparse way's nodes can tell of where its curves start: the Cramér-Rao bound.
+
+A road of known form (its pieces: straights, arcs, clothoids joining their neighbours'
+curvatures) is described by a few numbers: its sideways offset and heading at the start,
+the length of every piece but the last, and the curvature of every arc. Each node of a
+map way tells only its distance from the road across it (where along the road it lies is
+unknown), with the per-axis variance of the node noise. The Fisher information of those
+distances bounds the variance of any unbiased estimate of each curve start (3.4) — the
+point where the curvature reaches 1/R_c, inside a clothoid where there is one — from
+below. An extractor, which must also find the road's form, cannot be expected to do
+better on average; where the bound itself is above a target, the target is out of reach
+of the nodes, not of the extractor.
+
+Where a piece holds too few nodes to tell its length from its curvature the information
+is singular; the pseudo-inverse then gives the bound of what the nodes do tell, which is
+smaller than the true bound (infinite along what they cannot tell), so a bound above a
+target still proves it out of reach.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+from csws.geometry import Piece, pose_at
+
+#: Relative central-difference step of each parameter (floored at 1e-3 of its unit).
+DIFFERENCE_STEP = 1e-6
+
+
+def _free_parameters(pieces: Sequence[Piece]) -> tuple[np.ndarray, list[int]]:
+    """The road's free numbers after offset and heading: every piece's length but the last,
+    then the curvature of every arc (directly joined arcs of one curvature, an arc with a
+    node inside it, share theirs); and for each piece the index of its curvature among
+    those, -1 for none (a straight or a clothoid)."""
+    curvature_of: list[int] = []
+    curvatures: list[float] = []
+    for index, piece in enumerate(pieces):
+        if piece.end_curvature is not None or piece.curvature == 0:
+            curvature_of.append(-1)
+        elif index > 0 and curvature_of[-1] >= 0 and curvatures[curvature_of[-1]] == piece.curvature:
+            curvature_of.append(curvature_of[-1])
+        else:
+            curvatures.append(piece.curvature)
+            curvature_of.append(len(curvatures) - 1)
+    return np.array([piece.length_m for piece in pieces[:-1]] + curvatures, dtype=float), curvature_of
+
+
+def _pieces(pieces: Sequence[Piece], curvature_of: list[int], values: np.ndarray) -> list[Piece]:
+    """The road with its free numbers set to ``values``: clothoids run from the curvature of
+    the piece before them to that of the piece after them (0 at a straight)."""
+    count = len(pieces)
+    lengths = list(values[: count - 1]) + [pieces[-1].length_m]
+    curvatures = values[count - 1 :]
+    constant = [
+        (float(curvatures[curvature_of[i]]) if curvature_of[i] >= 0 else 0.0) if p.end_curvature is None else None
+        for i, p in enumerate(pieces)
+    ]
+    built = []
+    for index, piece in enumerate(pieces):
+        if constant[index] is not None:
+            built.append(Piece(lengths[index], constant[index]))
+            continue
+        before = constant[index - 1] if index > 0 and constant[index - 1] is not None else piece.curvature
+        after = constant[index + 1] if index + 1 < count and constant[index + 1] is not None else piece.end_curvature
+        built.append(Piece(lengths[index], before, after))
+    return built
+
+
+def curve_starts_s(pieces: Sequence[Piece], warning_radius_m: float) -> np.ndarray:
+    """Arc lengths where the road's curvature reaches 1/R_c in magnitude from below: the curve
+    starts (3.4), exactly (inside a clothoid by its linear curvature, at a piece's start for an arc)."""
+    limit = 1.0 / warning_radius_m
+
+    def side(curvature: float) -> float:
+        return math.copysign(1.0, curvature) if abs(curvature) >= limit else 0.0
+
+    starts, s, previous = [], 0.0, 0.0
+    for piece in pieces:
+        k0, k1 = piece.curvature, piece.final_curvature
+        if side(k0) != 0.0 and side(k0) != side(previous):
+            starts.append(s)
+        for level in (limit, -limit):
+            crossing = (level - k0) / (k1 - k0) if k1 != k0 else -1.0
+            if 0.0 < crossing < 1.0 and (level > 0.0) == (k1 > k0):
+                starts.append(s + crossing * piece.length_m)
+        s += piece.length_m
+        previous = k1
+    return np.array(sorted(starts))
+
+
+def start_bounds_m(
+    pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float, warning_radius_m: float
+) -> np.ndarray:
+    """The Cramér-Rao bound on the standard deviation of each curve start, m.
+
+    Parameters
+    ----------
+    pieces
+        The true road.
+    node_s
+        Arc lengths of the way's nodes along it, m.
+    noise_rms_m
+        RMS of the isotropic node noise (both axes together), m.
+    warning_radius_m
+        R_c, m.
+    """
+    free, curvature_of = _free_parameters(pieces)
+    truth = np.concatenate(([0.0, 0.0], free))
+
+    def road(values: np.ndarray) -> list[Piece]:
+        return _pieces(pieces, curvature_of, values[2:])
+
+    def node_points(values: np.ndarray) -> np.ndarray:
+        x, y, _ = pose_at(road(values), node_s, (0.0, values[0]), values[1])
+        return np.column_stack((x, y))
+
+    _, _, heading = pose_at(pieces, node_s)
+    normal = np.column_stack((-np.sin(heading), np.cos(heading)))
+    starts = curve_starts_s(pieces, warning_radius_m)
+    jacobian = np.empty((len(node_s), len(truth)))
+    gradient = np.empty((len(starts), len(truth)))
+    for column in range(len(truth)):
+        step = np.zeros(len(truth))
+        step[column] = DIFFERENCE_STEP * max(abs(truth[column]), 1e-3)
+        ahead, behind = truth + step, truth - step
+        moved = (node_points(ahead) - node_points(behind)) / (2.0 * step[column])
+        jacobian[:, column] = np.einsum("ij,ij->i", moved, normal)
+        gradient[:, column] = (curve_starts_s(road(ahead), warning_radius_m)
+                               - curve_starts_s(road(behind), warning_radius_m)) / (2.0 * step[column])  # fmt: skip
+    information = jacobian.T @ jacobian / (noise_rms_m**2 / 2.0)
+    covariance = np.linalg.pinv(information, hermitian=True)
+    return np.sqrt(np.einsum("ij,jk,ik->i", gradient, covariance, gradient))
+
+
+def error_quantile_m(bounds_m: np.ndarray, quantile: float) -> float:
+    """The ``quantile`` of the start error of an efficient estimator over all curves: errors
+    normal with the bounds as standard deviations, pooled, m."""
+    sigma = np.asarray(bounds_m, dtype=float)
+    if len(sigma) == 0:
+        return math.nan
+
+    def share_within(error_m: float) -> float:
+        return float(np.mean([math.erf(error_m / (value * math.sqrt(2.0))) if value > 0 else 1.0 for value in sigma]))
+
+    low, high = 0.0, float(sigma.max()) * 10.0 + 1e-9
+    for _ in range(60):
+        middle = (low + high) / 2.0
+        low, high = (middle, high) if share_within(middle) < quantile else (low, middle)
+    return (low + high) / 2.0
