@@ -5,7 +5,9 @@ library users alike, so that the same input gives the same answer everywhere:
 
 road map -> look-ahead (path and CPOIs) -> warning (clause 6) -> system state (5.2-5.4).
 
-It keeps each vehicle's :class:`~csws.state.VehicleStatus` between updates. Many
+It keeps each vehicle's :class:`~csws.state.VehicleStatus` between updates, and what
+its warning needs for the release rule (:mod:`csws.release`): a level that is on goes
+off 1 km/h below V_w, not before 1 s has passed, and at once behind the curve. Many
 vehicles are evaluated together with :meth:`Engine.evaluate_many`: the path ahead is
 found per vehicle, and the warning of all of them is computed in one vectorised step.
 """
@@ -19,10 +21,11 @@ from typing import Sequence
 import numpy as np
 
 from .lookahead import BatchAhead, LookAhead, LookAheadSettings, PathAhead
+from .release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from .roadmap import RoadMap
 from .standard import Level
 from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
-from .warning import CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
+from .warning import BatchWarnings, CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
 
 __all__ = ["VehicleInput", "Answer", "FleetAnswers", "EngineSettings", "Engine"]
 
@@ -144,6 +147,7 @@ class Engine:
         self.settings = settings
         self.lookahead = LookAhead(road_map, settings.lookahead, settings.warning) if road_map is not None else None
         self.statuses: dict[str, VehicleStatus] = {}
+        self.held: dict[str, HeldWarning] = {}
 
     def status(self, vehicle_id: str) -> VehicleStatus:
         """The vehicle's current status (a new vehicle starts switched on, in standby)."""
@@ -155,20 +159,22 @@ class Engine:
         return self.statuses[vehicle_id]
 
     def forget(self, vehicle_id: str) -> None:
-        """Drop a vehicle's status (it left the simulation, or its session expired)."""
+        """Drop a vehicle's status and warning memory (it left the simulation, or its session expired)."""
         self.statuses.pop(vehicle_id, None)
+        self.held.pop(vehicle_id, None)
 
     def evaluate(self, vehicle: VehicleInput) -> Answer:
         """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
         status = self._next_status(vehicle)
         if not status.warns:
+            self.held.pop(vehicle.vehicle_id, None)
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
         path = self.lookahead(vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category,
                               vehicle.route_edges)
         distance_m = path.cpoi_distance_m
-        batch = evaluate_batch(np.array([vehicle.speed_kmh], dtype=float), np.array([column_index(vehicle.category)]),
-                               np.zeros(distance_m.size, dtype=np.intp), distance_m, path.cpoi_radius_m,
-                               self.settings.warning)
+        batch = self._judged([vehicle.vehicle_id], [vehicle.timestamp_s], np.array([vehicle.speed_kmh], dtype=float),
+                             np.array([column_index(vehicle.category)]), np.zeros(distance_m.size, dtype=np.intp),
+                             distance_m, path.cpoi_radius_m, path.cpoi_curve_id, path.cpoi_part_index)
         warning = batch.vehicle_warning(0, 0, path.cpoi_curve_id, path.cpoi_part_index, path.kind)
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
 
@@ -240,12 +246,18 @@ class Engine:
         )
         self.statuses.update(zip(vehicle_ids, statuses))
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
+        if self.held:
+            for vehicle_id, status in zip(vehicle_ids, statuses):
+                if status.state is not SystemState.ACTIVE:
+                    self.held.pop(vehicle_id, None)
         warnings = [no_warning()] * len(statuses)
         ahead = None
         if active:
             rows = np.array(active, dtype=np.intp)
-            active_warnings, ahead = self._warnings(speeds_kmh[rows], columns[rows], [lane_ids[i] for i in active],
-                                                    positions_m[rows], [route_edges[i] for i in active])  # fmt: skip
+            times_s = [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active]
+            active_warnings, ahead = self._warnings([vehicle_ids[i] for i in active], times_s, speeds_kmh[rows],
+                                                    columns[rows], [lane_ids[i] for i in active], positions_m[rows],
+                                                    [route_edges[i] for i in active])  # fmt: skip
             for i, warning in zip(active, active_warnings):
                 warnings[i] = warning
         return FleetAnswers(vehicle_ids, [status.state for status in statuses],
@@ -261,12 +273,30 @@ class Engine:
             return Fault.INVALID_INPUT
         return None
 
-    def _warnings(self, speed_kmh: np.ndarray, columns: np.ndarray, lane_ids: Sequence[str], lane_pos_m: np.ndarray,
+    def _judged(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
+                columns: np.ndarray, cpoi_vehicle: np.ndarray, distance_m: np.ndarray, radius_m: np.ndarray,
+                curve_ids: Sequence[str], part_indices: Sequence[int]) -> BatchWarnings:  # fmt: skip
+        """Clause 6 with the release rule for vehicles and their CPOIs; their warning memories are updated."""
+        first = np.searchsorted(cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
+        held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
+        latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, self.settings.warning.release_hold_s)
+        batch = evaluate_batch(speed_kmh, columns, cpoi_vehicle, distance_m, radius_m, self.settings.warning,
+                               cpoi_latched=latched, cpoi_hold=hold)
+        for vehicle_id, memory in zip(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices,
+                                                                 batch.cpoi_rule)):  # fmt: skip
+            if memory.is_on:
+                self.held[vehicle_id] = memory
+            else:
+                self.held.pop(vehicle_id, None)
+        return batch
+
+    def _warnings(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
+                  columns: np.ndarray, lane_ids: Sequence[str], lane_pos_m: np.ndarray,
                   route_edges: Sequence[Sequence[str] | None]) -> tuple[list[CurveWarning], BatchAhead]:  # fmt: skip
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
         ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
-        batch = evaluate_batch(speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m, ahead.cpoi_radius_m,
-                               self.settings.warning)
+        batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m,
+                             ahead.cpoi_radius_m, ahead.cpoi_curve_id, ahead.cpoi_part_index)
         warnings = [no_warning(horizon.kind) for horizon in ahead.horizons]
         warned = np.flatnonzero(batch.level).tolist()
         if warned:  # most vehicles: nothing to look at

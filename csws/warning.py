@@ -27,6 +27,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .release import Rule
 from .standard import (
     DEFAULT_POLICY,
     G_MPS2,
@@ -100,6 +101,11 @@ class WarningSettings:
         Processing and display delay of the system, s.
     g_mps2
         g of formula (1).
+    release_margin_kmh
+        How far below V_w a level that is on goes off, km/h (:mod:`csws.release`, rule 1).
+    release_hold_s
+        How long a level stays on after nothing keeps it on any more while a CPOI that
+        did is still ahead or under the vehicle, s (:mod:`csws.release`, rule 2).
 
     Notes
     -----
@@ -113,12 +119,15 @@ class WarningSettings:
     update_period_s: float = 0.1
     system_delay_s: float = 0.1
     g_mps2: float = G_MPS2
+    release_margin_kmh: float = 1.0
+    release_hold_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("update_period_s", "system_delay_s"):
+        for name in ("update_period_s", "system_delay_s", "release_margin_kmh", "release_hold_s"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a non-negative number of seconds, got {value!r}")
+                unit = "km/h" if name.endswith("_kmh") else "seconds"
+                raise ValueError(f"{name} must be a non-negative number of {unit}, got {value!r}")
         if not (np.isfinite(self.g_mps2) and self.g_mps2 > 0):
             raise ValueError(f"g_mps2 must be a positive number, got {self.g_mps2!r}")
 
@@ -170,6 +179,9 @@ class Trigger:
         V_w of that level at the CPOI's radius.
     warning_distance_m
         S_w of formula (1) at the vehicle's speed, m (without the latency allowance).
+    held
+        Whether the level is kept on here by the release rule (:mod:`csws.release`)
+        rather than required by 6.1's condition now.
     """
 
     curve_id: str
@@ -179,6 +191,7 @@ class Trigger:
     level: Level
     warning_speed_kmh: float
     warning_distance_m: float
+    held: bool = False
 
 
 @dataclass(frozen=True)
@@ -224,6 +237,9 @@ class BatchWarnings:
         ``(n_cpois,)`` S_w of formula (1) for that V_w, m.
     cpoi_distance_m, cpoi_radius_m
         ``(n_cpois,)`` the CPOIs' distances and radii as given, m.
+    cpoi_rule
+        ``(2, n_cpois)`` what keeps level 1 (row 0) and level 2 (row 1) on at each CPOI:
+        a :class:`csws.release.Rule` code, 0 where the level is off there.
     """
 
     level: np.ndarray
@@ -233,6 +249,7 @@ class BatchWarnings:
     warning_distance_m: np.ndarray
     cpoi_distance_m: np.ndarray
     cpoi_radius_m: np.ndarray
+    cpoi_rule: np.ndarray
 
     def vehicle_warning(
         self,
@@ -263,6 +280,8 @@ class BatchWarnings:
             array.tolist() for array in (self.level, self.target, self.cpoi_level, self.cpoi_distance_m,
                                          self.cpoi_radius_m, self.warning_speed_kmh, self.warning_distance_m)
         )  # fmt: skip
+        columns = np.arange(self.cpoi_level.size)
+        held = (self.cpoi_rule[np.fmax(self.cpoi_level - 1, 0), columns] >= Rule.MARGIN).tolist()
         warnings = []
         for vehicle, first, ids, parts, path_kind in zip(vehicles, first_cpoi, curve_ids, part_indices, path_kinds):
             level = _LEVELS[vehicle_levels[vehicle]]
@@ -271,7 +290,7 @@ class BatchWarnings:
                 continue
             triggers = {
                 k: Trigger(ids[k - first], int(parts[k - first]), distances[k], radii[k], _LEVELS[levels[k]],
-                           speeds[k], warning_distances[k])
+                           speeds[k], warning_distances[k], held[k])
                 for k in range(first, first + len(ids)) if levels[k]
             }  # fmt: skip
             warnings.append(CurveWarning(
@@ -307,6 +326,9 @@ def evaluate_batch(
     cpoi_distance_m: np.ndarray,
     cpoi_radius_m: np.ndarray,
     settings: WarningSettings = WarningSettings(),
+    *,
+    cpoi_latched: np.ndarray | None = None,
+    cpoi_hold: np.ndarray | None = None,
 ) -> BatchWarnings:
     """Evaluate clause 6 for many vehicles and their CPOIs at once.
 
@@ -323,12 +345,16 @@ def evaluate_batch(
     cpoi_radius_m
         ``(n_cpois,)`` radius at the CPOI, m.
     settings
-        Policy and latency.
+        Policy, latency and release rule.
+    cpoi_latched, cpoi_hold
+        ``(2, n_cpois)``: which CPOIs kept level 1 (row 0) and level 2 (row 1) on at the
+        last update, and which of those the hold may keep on
+        (:func:`csws.release.memory_masks`); None for vehicles without a memory (6.1 alone).
 
     Returns
     -------
     BatchWarnings
-        Per-vehicle level and target, per-CPOI triggered level, V_w and S_w.
+        Per-vehicle level and target, per-CPOI triggered level, V_w, S_w and what keeps it on.
     """
     speed_kmh = np.asarray(speed_kmh, dtype=float)
     cpoi_vehicle = np.asarray(cpoi_vehicle, dtype=np.intp)
@@ -343,15 +369,27 @@ def evaluate_batch(
     threshold_kmh = settings.policy.warning_speeds_kmh(radius, cpoi_column)
     sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
     # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
-    triggered = (cpoi_speed_kmh >= threshold_kmh) & (distance <= sw_m + allowance_m)
-    shown = triggered[1].astype(np.intp)
-    cpoi_level = (triggered[0] | triggered[1]).astype(np.int8) + shown.astype(np.int8)
+    required = (cpoi_speed_kmh >= threshold_kmh) & (distance <= sw_m + allowance_m)
+    rule = np.where(required, Rule.REQUIRED, Rule.OFF).astype(np.int8)
+    if cpoi_latched is not None and cpoi_latched.any():
+        # Release rule 1: a CPOI that kept a level on keeps it while 6.1 holds with V_w lowered by the margin.
+        lowered_kmh = np.fmax(threshold_kmh - settings.release_margin_kmh, 0.0)
+        lowered_sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(lowered_kmh), settings.g_mps2)
+        margin = cpoi_latched & (cpoi_speed_kmh >= lowered_kmh) & (distance <= lowered_sw_m + allowance_m)
+        rule[(rule == Rule.OFF) & margin] = Rule.MARGIN
+    if cpoi_hold is not None and cpoi_hold.any():
+        # Release rule 2: the hold keeps a level on only for a vehicle that nothing else keeps warned.
+        warned = np.bincount(cpoi_vehicle, np.any(rule != Rule.OFF, axis=0), len(speed_kmh)) > 0
+        rule[(rule == Rule.OFF) & cpoi_hold & ~warned[cpoi_vehicle]] = Rule.HOLD
+    kept = rule != Rule.OFF
+    shown = kept[1].astype(np.intp)
+    cpoi_level = (kept[0] | kept[1]).astype(np.int8) + shown.astype(np.int8)
     columns = np.arange(distance.size)
     cpoi_warning_speed_kmh = threshold_kmh[shown, columns]
     cpoi_sw_m = sw_m[shown, columns]
 
     level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
-    return BatchWarnings(level, target, cpoi_level, cpoi_warning_speed_kmh, cpoi_sw_m, distance, radius)
+    return BatchWarnings(level, target, cpoi_level, cpoi_warning_speed_kmh, cpoi_sw_m, distance, radius, rule)
 
 
 #: The warning of a vehicle for which nothing triggers, per path kind.

@@ -348,5 +348,6 @@ def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
         "radius_m": trigger.radius_m,
         "warning_speed_kmh": trigger.warning_speed_kmh,
         "warning_distance_m": trigger.warning_distance_m,
+        "held": trigger.held,
         "position": point,
     }

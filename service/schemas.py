@@ -149,6 +149,11 @@ class Trigger(BaseModel):
     radius_m: float = Field(description="radius R of the part, m")
     warning_speed_kmh: float = Field(description="V_w of the level at R, km/h (Tables 1-2)")
     warning_distance_m: float = Field(description="S_w of formula (1), m")
+    held: bool = Field(
+        default=False,
+        description="kept on by the release rule (1 km/h below V_w, at least 1 s, off behind the curve), "
+        "not required by 6.1 now",
+    )
     position: XY = Field(description="the CPOI: first point of the part")
 
 
@@ -186,6 +191,7 @@ class WarningAnswer(BaseModel):
                         "radius_m": 120.0,
                         "warning_speed_kmh": 58.0,
                         "warning_distance_m": 63.2,
+                        "held": False,
                         "position": {"x": 1000.0, "y": 0.0},
                     },
                     "triggers": [],

@@ -40,15 +40,16 @@ class DriverSettings:
         the longest curve of the bundled networks (177 m, Table 7), so that no one speeds
         up inside a curve.
     below_kmh
-        The driver aims this far below the target's warning speed, km/h: at V_w itself the
-        warning stays on (6.1 warns at V >= V_w), below it the next target (level 1 after
-        level 2) takes over.
+        The driver aims this far below the target's warning speed, km/h: a level that is on
+        stays on down to the release rule's margin of 1 km/h below V_w (:mod:`csws.release`),
+        below that the next target (level 1 after level 2) takes over once the rule's hold
+        has passed.
     """
 
     reaction_s: float = REACTION_TIME_S
     decel_mps2: float = G_MPS2 / 2
     hold_m: float = 200.0
-    below_kmh: float = 0.5
+    below_kmh: float = 1.5
 
 
 @dataclass

@@ -211,4 +211,5 @@ def _trigger(record: dict) -> Trigger:
         level=_LEVELS[record["level"]],
         warning_speed_kmh=float(record["warning_speed_kmh"]),
         warning_distance_m=float(record["warning_distance_m"]),
+        held=bool(record["held"]),
     )

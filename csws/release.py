@@ -1,0 +1,158 @@
+"""When a warning that is on goes off: the release rule, and what a vehicle's warning keeps for it.
+
+Clause 6.1 says when a level is due; the standard says nothing of when it ends beyond
+6.2.1's "持续发出" (the warning continues while curves keep requiring it). Taken at
+every update on its own, 6.1's condition switches a level on and off as the measured
+speed wanders round V_w by a few tenths of a km/h, or as a braking driver's S_w shrinks
+towards the distance left. The rule here keeps a level on that is on:
+
+1. **Margin.** A CPOI (3.11) that kept level L on at the last update keeps it on while
+   6.1's condition holds for it with V_w lowered by :attr:`WarningSettings.release_margin_kmh`
+   (1 km/h): V >= V_w - 1 km/h and S <= S_w(V, V_w - 1 km/h) + the latency allowance.
+   A level goes on at V_w and off only 1 km/h below it, so speed noise smaller than the
+   margin cannot switch it back and forth.
+2. **Hold.** When nothing keeps any level on any more but a CPOI that kept one on is
+   still ahead or under the vehicle, that level stays on until
+   :attr:`WarningSettings.release_hold_s` (1 s) has passed since it was last kept on. The
+   warning is so never switched off and on again by the same curve within that time. A
+   level 2 that gives way to a level 1 still required is not held: the driver then sees
+   at once the lower warning speed that is due. The hold needs the vehicle's timestamps;
+   without them only the margin applies.
+3. **Passed.** A CPOI behind the vehicle keeps nothing on: once the vehicle has left the
+   curve, the level goes off at once.
+
+Why the rule never hides a warning the standard requires: it only ever adds to 6.1. A
+level that 6.1 requires at some CPOI at this update is on, whatever was before; the rule
+decides only how long a level stays on after 6.1 stopped requiring it. Level 2 keeps its
+priority (6.2.1): the levels are held separately and the higher one on is shown, and as
+any CPOI that triggers level 2 triggers level 1 (V_w and S_w of the two levels nest), a
+held level 2 never stands where level 1 was not due first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["HeldWarning", "NOT_HELD", "Rule", "memory_masks", "next_memories"]
+
+#: A CPOI as the release rule remembers it: (curve id, part index).
+PointKey = tuple[str, int]
+
+
+class Rule:
+    """What keeps a level on at a CPOI: codes of the ``(2, n_cpois)`` array
+    :func:`csws.warning.evaluate_batch` returns (row 0 level 1, row 1 level 2)."""
+
+    OFF = 0
+    #: 6.1's condition holds now.
+    REQUIRED = 1
+    #: Rule 1: the margin.
+    MARGIN = 2
+    #: Rule 2: the hold.
+    HOLD = 3
+
+
+@dataclass(frozen=True)
+class HeldWarning:
+    """What a vehicle's warning keeps between updates for the release rule.
+
+    Attributes
+    ----------
+    points
+        For level 1 and level 2 (in that order), the CPOIs that kept the level on at the
+        last update; empty where the level is off.
+    kept_at_s
+        For each level, the timestamp of the last update at which 6.1 or the margin kept
+        it on (not the hold); None where it is off or the vehicle sends no timestamps.
+    """
+
+    points: tuple[frozenset[PointKey], frozenset[PointKey]] = (frozenset(), frozenset())
+    kept_at_s: tuple[float | None, float | None] = (None, None)
+
+    @property
+    def is_on(self) -> bool:
+        """Whether any level was on at the last update."""
+        return bool(self.points[0] or self.points[1])
+
+
+#: The memory of a vehicle whose warning is off (shared: memories are immutable).
+NOT_HELD = HeldWarning()
+
+
+def memory_masks(
+    held: Sequence[HeldWarning],
+    now_s: Sequence[float | None],
+    first_cpoi: Sequence[int],
+    curve_ids: Sequence[str],
+    part_indices: Sequence[int],
+    hold_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which CPOIs each level's memory names (rule 1), and which of those the hold may keep
+    on (rule 2: less than ``hold_s`` since the level was last kept on otherwise; it does
+    only where nothing else keeps the vehicle warned), each
+    ``(2, n_cpois)`` bool. A CPOI behind the vehicle is not among the CPOIs (rule 3).
+
+    Parameters
+    ----------
+    held, now_s
+        Each vehicle's memory and the timestamp of this update (None where unknown).
+    first_cpoi
+        Offset of each vehicle's first CPOI in the flat CPOI arrays, and their count at the end.
+    curve_ids, part_indices
+        The flat CPOIs.
+    hold_s
+        :attr:`csws.warning.WarningSettings.release_hold_s`.
+    """
+    latched = np.zeros((2, len(curve_ids)), dtype=bool)
+    hold = np.zeros((2, len(curve_ids)), dtype=bool)
+    for vehicle, memory in enumerate(held):
+        if not memory.is_on:
+            continue
+        for row in range(first_cpoi[vehicle], first_cpoi[vehicle + 1]):
+            key = (curve_ids[row], int(part_indices[row]))
+            for level in (0, 1):
+                latched[level, row] = key in memory.points[level]
+                hold[level, row] = latched[level, row] and _within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s)
+    return latched, hold
+
+
+def next_memories(
+    held: Sequence[HeldWarning],
+    now_s: Sequence[float | None],
+    first_cpoi: Sequence[int],
+    curve_ids: Sequence[str],
+    part_indices: Sequence[int],
+    cpoi_rule: np.ndarray,
+) -> list[HeldWarning]:
+    """Each vehicle's memory after this update, from what kept each level on at each of its
+    CPOIs (``cpoi_rule``, ``(2, n_cpois)`` :class:`Rule` codes)."""
+    on_vehicles = np.zeros(len(held), dtype=bool)
+    vehicle_of_row = np.repeat(np.arange(len(held)), np.diff(np.asarray(first_cpoi)))
+    on_vehicles[vehicle_of_row[np.any(cpoi_rule != Rule.OFF, axis=0)]] = True
+    memories: list[HeldWarning] = []
+    for vehicle, memory in enumerate(held):
+        if not on_vehicles[vehicle]:
+            memories.append(NOT_HELD)
+            continue
+        rows = range(first_cpoi[vehicle], first_cpoi[vehicle + 1])
+        points, kept_at_s = [], []
+        for level in (0, 1):
+            rules = cpoi_rule[level, rows.start : rows.stop]
+            points.append(frozenset((curve_ids[row], int(part_indices[row])) for row in rows if cpoi_rule[level, row]))
+            if np.any((rules == Rule.REQUIRED) | (rules == Rule.MARGIN)):
+                kept_at_s.append(now_s[vehicle])
+            else:
+                kept_at_s.append(memory.kept_at_s[level] if np.any(rules == Rule.HOLD) else None)
+        memories.append(HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1])))
+    return memories
+
+
+def _within_hold(kept_at_s: float | None, now_s: float | None, hold_s: float) -> bool:
+    """Whether less than ``hold_s`` has passed since ``kept_at_s`` (both known)."""
+    if kept_at_s is None or now_s is None or not math.isfinite(now_s):
+        return False
+    return now_s - kept_at_s < hold_s
