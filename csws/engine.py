@@ -174,7 +174,8 @@ class Engine:
         distance_m = path.cpoi_distance_m
         batch = self._judged([vehicle.vehicle_id], [vehicle.timestamp_s], np.array([vehicle.speed_kmh], dtype=float),
                              np.array([column_index(vehicle.category)]), np.zeros(distance_m.size, dtype=np.intp),
-                             distance_m, path.cpoi_radius_m, path.cpoi_curve_id, path.cpoi_part_index)
+                             distance_m, path.cpoi_radius_m, path.cpoi_curve_id, path.cpoi_part_index,
+                             path.cpoi_passed)  # fmt: skip
         warning = batch.vehicle_warning(0, 0, path.cpoi_curve_id, path.cpoi_part_index, path.kind)
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
 
@@ -275,13 +276,13 @@ class Engine:
 
     def _judged(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
                 columns: np.ndarray, cpoi_vehicle: np.ndarray, distance_m: np.ndarray, radius_m: np.ndarray,
-                curve_ids: Sequence[str], part_indices: Sequence[int]) -> BatchWarnings:  # fmt: skip
+                curve_ids: Sequence[str], part_indices: Sequence[int], passed: np.ndarray) -> BatchWarnings:  # fmt: skip
         """Clause 6 with the release rule for vehicles and their CPOIs; their warning memories are updated."""
         first = np.searchsorted(cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
         latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, self.settings.warning.release_hold_s)
         batch = evaluate_batch(speed_kmh, columns, cpoi_vehicle, distance_m, radius_m, self.settings.warning,
-                               cpoi_latched=latched, cpoi_hold=hold)
+                               cpoi_latched=latched, cpoi_hold=hold, cpoi_passed=passed)
         for vehicle_id, memory in zip(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices,
                                                                  batch.cpoi_rule)):  # fmt: skip
             if memory.is_on:
@@ -296,7 +297,7 @@ class Engine:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
         ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
         batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m,
-                             ahead.cpoi_radius_m, ahead.cpoi_curve_id, ahead.cpoi_part_index)
+                             ahead.cpoi_radius_m, ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_passed)
         warnings = [no_warning(horizon.kind) for horizon in ahead.horizons]
         warned = np.flatnonzero(batch.level).tolist()
         if warned:  # most vehicles: nothing to look at

@@ -31,6 +31,7 @@ and a query costs a walk over the lanes ahead and a look-up.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -39,6 +40,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .curvature import RadiusProfile
 from .geometry import wrap_angle_rad
 from .roadmap import Lane, RoadMap
 from .roadprofile import PathProfile
@@ -135,6 +137,9 @@ class Horizon:
     part_start_s, part_end_s, part_radius_m, part_index
         The constant-radius parts of the curves on the path (3.7, 3.8): start and end
         in path arc length, radius, index within the curve.
+    part_end_radius_m
+        The road's radius where each part ends, m: a spiral piece's radius changes along it
+        (:func:`radius_under`); an arc's is its radius.
     part_curve_id
         The curve id of each part (``lane@position`` of the curve's start).
     """
@@ -146,6 +151,7 @@ class Horizon:
     part_radius_m: np.ndarray
     part_index: np.ndarray
     part_curve_id: np.ndarray
+    part_end_radius_m: np.ndarray
 
     @cached_property
     def _first_lane(self) -> tuple[float, float]:
@@ -198,14 +204,21 @@ class PathAhead:
         return np.maximum(self.horizon.part_start_s[self._rows] - self.vehicle_s, 0.0)
 
     @property
+    def cpoi_passed(self) -> np.ndarray:
+        """Whether the vehicle is beyond each CPOI's part (by at most :data:`END_MARGIN_M`)."""
+        return self.horizon.part_end_s[self._rows] <= self.vehicle_s
+
+    @property
     def cpoi_start_s(self) -> np.ndarray:
         """Path arc length where each CPOI's part starts, m (behind the vehicle when it is inside)."""
         return self.horizon.part_start_s[self._rows]
 
     @property
     def cpoi_radius_m(self) -> np.ndarray:
-        """Radius of each CPOI's part, m."""
-        return self.horizon.part_radius_m[self._rows]
+        """Radius of each CPOI, m: its part's, or the road's under the vehicle inside a part (:func:`radius_under`)."""
+        h, rows = self.horizon, self._rows
+        return radius_under(h.part_start_s[rows], h.part_end_s[rows], h.part_radius_m[rows], h.part_end_radius_m[rows],
+                            self.vehicle_s)  # fmt: skip
 
     @property
     def cpoi_part_index(self) -> np.ndarray:
@@ -240,7 +253,7 @@ class BatchAhead:
         ``(n,)`` each vehicle's path arc length and S_LAD, m.
     cpoi_vehicle
         ``(k,)`` the vehicle of each CPOI, ascending.
-    cpoi_distance_m, cpoi_radius_m, cpoi_part_index, cpoi_curve_id
+    cpoi_distance_m, cpoi_radius_m, cpoi_part_index, cpoi_curve_id, cpoi_passed
         ``(k,)`` as in :class:`PathAhead`.
     """
 
@@ -252,6 +265,7 @@ class BatchAhead:
     cpoi_radius_m: np.ndarray
     cpoi_part_index: np.ndarray
     cpoi_curve_id: np.ndarray
+    cpoi_passed: np.ndarray
 
     def path_ahead(self, vehicle: int) -> PathAhead:
         """One vehicle's :class:`PathAhead`."""
@@ -341,9 +355,10 @@ class LookAhead:
         vehicle = np.repeat(np.arange(len(horizons)), per_vehicle)
         part = np.arange(per_vehicle.sum()) - np.repeat(np.cumsum(per_vehicle) - per_vehicle, per_vehicle)
         part += np.repeat(first_part[which], per_vehicle)
-        start, end, radius, index, curve = (
+        start, end, radius, index, curve, end_radius = (
             np.concatenate([getattr(h, name) for h in distinct]) if distinct else np.empty(0)
-            for name in ("part_start_s", "part_end_s", "part_radius_m", "part_index", "part_curve_id")
+            for name in ("part_start_s", "part_end_s", "part_radius_m", "part_index", "part_curve_id",
+                         "part_end_radius_m")
         )
         s = vehicle_s[vehicle]
         keep = _is_cpoi(start[part], end[part], s, lookahead_m[vehicle])
@@ -354,9 +369,10 @@ class LookAhead:
             lookahead_m=lookahead_m,
             cpoi_vehicle=vehicle,
             cpoi_distance_m=np.maximum(start[part] - s, 0.0),
-            cpoi_radius_m=radius[part],
+            cpoi_radius_m=radius_under(start[part], end[part], radius[part], end_radius[part], s),
             cpoi_part_index=index[part].astype(np.intp),
             cpoi_curve_id=curve[part],
+            cpoi_passed=end[part] <= s,
         )
 
     def _distinct_horizons(
@@ -497,13 +513,14 @@ class LookAhead:
     def _build_horizon(self, lanes: tuple[str, ...], kind: PathKind) -> Horizon:
         """The stitched, profiled path of ``lanes`` and the parts of its curves (junction manoeuvres aside)."""
         path = self.road_map.path_profile(lanes)
-        starts, ends, radii, indices, ids = [], [], [], [], []
+        starts, ends, radii, end_radii, indices, ids = [], [], [], [], [], []
         for curve, chain, whole in path.curve_sources(self.settings.warning_radius_m, self.settings.warn_at_junctions):
             curve_id = curve_id_of(*self.road_map.road_position(chain, whole.start_s))
             for index, part in enumerate(curve.parts):
                 starts.append(part.start_s)
                 ends.append(part.end_s)
                 radii.append(part.radius_m)
+                end_radii.append(_radius_at_end(path.profile, part.end_s) if part.spiral else part.radius_m)
                 indices.append(index)
                 ids.append(curve_id)
         return Horizon(
@@ -514,7 +531,35 @@ class LookAhead:
             part_radius_m=np.array(radii, dtype=float),
             part_index=np.array(indices, dtype=np.intp),
             part_curve_id=np.array(ids, dtype=object),
+            part_end_radius_m=np.array(end_radii, dtype=float),
         )
+
+
+def _radius_at_end(profile: RadiusProfile, end_s: float) -> float:
+    """The road's radius at arc length ``end_s``, approached from before it, m."""
+    starts = [part.start_s for part in profile.parts]
+    part = profile.parts[min(max(bisect.bisect_left(starts, end_s) - 1, 0), len(starts) - 1)]
+    curvature = abs(float(part.curvature_at(np.array(end_s))))
+    return 1.0 / curvature if curvature > 0 else math.inf
+
+
+def radius_under(start_s: np.ndarray, end_s: np.ndarray, start_radius_m: np.ndarray, end_radius_m: np.ndarray,
+                 vehicle_s) -> np.ndarray:  # fmt: skip
+    """The radius of each CPOI for a vehicle at ``vehicle_s`` (a float or one per CPOI), m.
+
+    A CPOI ahead is its part's first point, with its part's radius. Inside a part the point
+    under the vehicle counts (6.2.1: the warning lasts while the road under the vehicle
+    requires it): on an arc its radius; on a spiral piece the clothoid's radius there, its
+    curvature linear between the piece's ends. On an exit spiral the piece's first point is
+    behind the vehicle and tighter than the road under it: taken instead, it would keep
+    requiring a warning the road no longer does.
+    """
+    length_m = end_s - start_s
+    fraction = np.clip(np.divide(vehicle_s - start_s, length_m, out=np.zeros(len(length_m)), where=length_m > 0),
+                       0.0, 1.0)  # fmt: skip
+    curvature = 1.0 / start_radius_m + (1.0 / end_radius_m - 1.0 / start_radius_m) * fraction
+    with np.errstate(divide="ignore"):
+        return np.where(fraction > 0, 1.0 / curvature, start_radius_m)
 
 
 def _reach_m(lookahead_m, context_m: float):
@@ -523,10 +568,17 @@ def _reach_m(lookahead_m, context_m: float):
     return np.ceil((np.asarray(lookahead_m, dtype=float) + context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
 
 
+#: A part stays among a vehicle's CPOIs, at distance 0 and marked passed, until the vehicle
+#: is this far beyond its end, m: 6.1 no longer requires a warning there, but a level it
+#: kept on may stay on (:mod:`csws.release`), so that position noise at a curve's end
+#: cannot switch the warning off and on again.
+END_MARGIN_M = 1.0
+
+
 def _is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
-    """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``: not yet passed, and starting
-    closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
-    return (part_end_s > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)
+    """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``, or one it passed by at
+    most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
+    return (part_end_s + END_MARGIN_M > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)
 
 
 def curve_id_of(lane_id: str, lane_pos_m: float) -> str:

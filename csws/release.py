@@ -18,8 +18,10 @@ towards the distance left. The rule here keeps a level on that is on:
    level 2 that gives way to a level 1 still required is not held: the driver then sees
    at once the lower warning speed that is due. The hold needs the vehicle's timestamps;
    without them only the margin applies.
-3. **Passed.** A CPOI behind the vehicle keeps nothing on: once the vehicle has left the
-   curve, the level goes off at once.
+3. **Passed.** A CPOI behind the vehicle requires nothing; for the first
+   :data:`csws.lookahead.END_MARGIN_M` (1 m) past its part only rules 1 and 2 may keep a
+   level on there, so that position noise at the curve's end cannot switch the warning
+   off and on again; beyond that it keeps nothing on, and the level goes off at once.
 
 Why the rule never hides a warning the standard requires: it only ever adds to 6.1. A
 level that 6.1 requires at some CPOI at this update is on, whatever was before; the rule

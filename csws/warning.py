@@ -329,6 +329,7 @@ def evaluate_batch(
     *,
     cpoi_latched: np.ndarray | None = None,
     cpoi_hold: np.ndarray | None = None,
+    cpoi_passed: np.ndarray | None = None,
 ) -> BatchWarnings:
     """Evaluate clause 6 for many vehicles and their CPOIs at once.
 
@@ -350,6 +351,9 @@ def evaluate_batch(
         ``(2, n_cpois)``: which CPOIs kept level 1 (row 0) and level 2 (row 1) on at the
         last update, and which of those the hold may keep on
         (:func:`csws.release.memory_masks`); None for vehicles without a memory (6.1 alone).
+    cpoi_passed
+        ``(n_cpois,)``: CPOIs the vehicle has just passed (:data:`csws.lookahead.END_MARGIN_M`):
+        6.1 requires nothing there, only the release rule may keep a level on.
 
     Returns
     -------
@@ -370,6 +374,8 @@ def evaluate_batch(
     sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
     # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
     required = (cpoi_speed_kmh >= threshold_kmh) & (distance <= sw_m + allowance_m)
+    if cpoi_passed is not None:
+        required &= ~np.asarray(cpoi_passed, dtype=bool)
     rule = np.where(required, Rule.REQUIRED, Rule.OFF).astype(np.int8)
     if cpoi_latched is not None and cpoi_latched.any():
         # Release rule 1: a CPOI that kept a level on keeps it while 6.1 holds with V_w lowered by the margin.

@@ -51,6 +51,7 @@ __all__ = [
     "ROUTE_EDGES",
     "S_CURVE_TEST",
     "TRUTH_FORMAT",
+    "REAL_ROADS_DIR",
     "CurveSpec",
     "TrackSpec",
     "track_specs",
@@ -97,6 +98,8 @@ ROUTE_EDGES = ("approach", "curve", "runout")
 _NODES = ("start", "entry", "exit", "end")
 #: Format tag of the truth files.
 TRUTH_FORMAT = "csws-track-truth/1"
+#: The folder of the real-road tracks, beside the standard's.
+REAL_ROADS_DIR = "real_roads"
 #: Decimal places of the lengths and coordinates in the truth files (1 um): the truth is
 #: reproducible to the byte and far finer than any tolerance that uses it.
 _TRUTH_DECIMALS = 6
@@ -442,14 +445,17 @@ def build_network(spec: TrackSpec, directory: Path) -> Path:
 
 
 def build_networks(directory: Path) -> list[Path]:
-    """Build every track into ``directory`` with its truth and ``index.json``; the network paths.
+    """Build every track into ``directory`` with its truth and ``index.json``, and the real-road
+    tracks into its ``real_roads`` folder (:mod:`csws.networks.real_roads`); the network paths.
 
     This is ``csws networks build``.
     """
+    from .real_roads import build_real_roads
+
     specs = track_specs()
     written = [build_network(spec, directory) for spec in specs]
     _write_json(Path(directory) / "index.json", networks_index(specs))
-    return written
+    return written + build_real_roads(Path(directory) / REAL_ROADS_DIR)
 
 
 def read_lanes(net_file: Path) -> dict[str, tuple[float, float, np.ndarray]]:
@@ -525,4 +531,6 @@ def compare_networks(directory: Path) -> list[str]:
         index = Path(work) / "index.json"
         _write_json(index, networks_index(specs))
         differences += _json_difference(index, directory / "index.json")
-    return differences
+    from .real_roads import compare_real_roads
+
+    return differences + compare_real_roads(directory / REAL_ROADS_DIR)

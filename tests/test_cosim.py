@@ -103,6 +103,27 @@ def test_without_the_driver_model_vehicles_enter_curves_too_fast_and_with_it_non
     for entry in _rows(tmp_path / "entries.csv"):
         level1_kmh = warning_speed(float(entry["radius_m"]), entry["category"], 1)
         assert float(entry["speed_kmh"]) <= level1_kmh + 1.0
+    # No warning of the compliant driver's run goes off and on again within 2 s; counted here
+    # from the warning events themselves.
+    assert with_response["warnings"]["flickered"] == _flickers(_rows(tmp_path / "warnings.csv"), 2.0) == 0
+
+
+def _flickers(events: list[dict], window_s: float) -> int:
+    """Warnings that came on within ``window_s`` of the same vehicle's warning going off."""
+    ended: dict[str, float] = {}
+    count = 0
+    for event in events:
+        time_s = float(event["time_s"])
+        if event["event"] == "end":
+            ended[event["vehicle_id"]] = time_s
+        elif event["event"] == "onset" and time_s - ended.get(event["vehicle_id"], -1e9) <= window_s:
+            count += 1
+    return count
+
+
+def test_flickers_are_counted_as_the_warning_events_show(library_run):
+    out, summary = library_run
+    assert summary["warnings"]["flickered"] == _flickers(_rows(out / "warnings.csv"), 2.0)
 
 
 def _free_port() -> int:

@@ -1,8 +1,9 @@
 """Warnings on roads shaped like real ones, judged against geometry constructed here.
 
 A curve between clothoids: level 1 comes on where the first curvature point ahead
-requires it (formula (1) with the V_w of that point's radius) and holds while the road
-under and ahead of the vehicle requires it. A curve with a node and a side road inside
+requires it (formula (1) with the V_w of that point's radius), holds while the road
+under and ahead of the vehicle requires it, and goes off within the release rule's
+margin after that. A curve with a node and a side road inside
 it: the curve index, the horizon from any lane and the warning name the same curve.
 """
 
@@ -76,7 +77,10 @@ def test_level_1_over_a_curve_between_clothoids_comes_on_time_and_holds(spiral_m
     first, final = positions[np.flatnonzero(on)[[0, -1]]]
     assert earliest - step_m - 0.5 <= first <= latest + 0.5, (earliest, first, latest)
     assert on[(positions >= first) & (positions <= last)].all(), "level 1 released while the road still requires it"
-    assert last - step_m <= final <= beyond + 0.5, (last, final, beyond)
+    # Released within the release margin of 1 km/h of V_w (csws.release): inside the exit spiral
+    # the road's radius under the vehicle counts, and the map's spiral, fitted from the lane,
+    # puts a given radius within a metre of the constructed one.
+    assert last - step_m <= final <= beyond + 1.0, (last, final, beyond)
 
 
 def test_the_index_the_horizon_and_the_warning_name_one_curve(tmp_path: Path) -> None:

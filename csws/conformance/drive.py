@@ -32,12 +32,15 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+import shapely
 
 from csws.binaries import sumo_binary
 from csws.engine import Engine, EngineSettings, VehicleInput
+from csws.geometry import Piece, sample_pieces
 from csws.networks import networks_dir
+from csws.networks.generate import REAL_ROADS_DIR
 from csws.roadmap import RoadMap
-from csws.standard import kmh_to_mps, mps_to_kmh
+from csws.standard import formula_1_m, kmh_to_mps, mps_to_kmh
 from csws.warning import WarningSettings
 
 from .rows import Row
@@ -52,6 +55,8 @@ __all__ = [
     "Trace",
     "Truth",
     "truth",
+    "track_file",
+    "authored_pieces",
     "drive",
 ]
 
@@ -143,6 +148,10 @@ class Truth:
         Route position of the start of each lane of the route, m.
     route_edges
         The route.
+    line
+        The authored road, for tracks whose lanes do not follow it from edge to edge (the
+        real-road tracks, with netconvert's junctions inside curves): positions are
+        projected onto it. None for the standard's tracks.
     """
 
     name: str
@@ -150,33 +159,57 @@ class Truth:
     curve_end_s_m: tuple[float, ...]
     lane_start_s_m: dict[str, float]
     route_edges: tuple[str, ...]
+    line: shapely.LineString | None = None
+
+
+def track_file(track: str, suffix: str) -> Path:
+    """A bundled track's ``.net.xml`` or ``.truth.json``: the standard's, or a real-road track's."""
+    real_road = networks_dir() / REAL_ROADS_DIR / f"{track}{suffix}"
+    return real_road if real_road.is_file() else networks_dir() / f"{track}{suffix}"
+
+
+def authored_pieces(content: dict) -> list[Piece]:
+    """The authored road of a real-road track's truth file."""
+    return [Piece(p["length_m"], p["curvature"], None if p["end_curvature"] == p["curvature"] else p["end_curvature"])
+            for p in content["pieces"]]  # fmt: skip
 
 
 @cache
 def truth(track: str) -> Truth:
     """The truth of a bundled track, read from ``NAME.truth.json`` (written by the track generator)."""
-    content = json.loads((networks_dir() / f"{track}.truth.json").read_text("utf-8"))
+    content = json.loads(track_file(track, ".truth.json").read_text("utf-8"))
+    curves = content["curves"]
+    if "pieces" not in content:
+        lanes = {lane["lane"]: float(lane["start_s"]) for lane in content["lanes"]}
+        line = None
+    else:
+        lanes = {f"{edge}_0": float(start_s) for edge, start_s in content["edge_start_s"].items()}
+        line = shapely.LineString(sample_pieces(authored_pieces(content), 0.25)[0])
     return Truth(
         name=track,
-        curve_start_s_m=tuple(float(c["start_s"]) for c in content["curves"]),
-        curve_end_s_m=tuple(float(c["end_s"]) for c in content["curves"]),
-        lane_start_s_m={lane["lane"]: float(lane["start_s"]) for lane in content["lanes"]},
+        curve_start_s_m=tuple(float(c["start_s"]) for c in curves),
+        curve_end_s_m=tuple(float(c["end_s"]) for c in curves),
+        lane_start_s_m=lanes,
         route_edges=tuple(content["route"]["edges"]),
+        line=line,
     )
 
 
 @cache
 def _road_map(track: str) -> RoadMap:
     """The road map of a bundled track, loaded once per process."""
-    return RoadMap.load(networks_dir() / f"{track}.net.xml")
+    return RoadMap.load(track_file(track, ".net.xml"))
 
 
-def _route_s(track_truth: Truth, road_map: RoadMap, lane_id: str, lane_pos_m: float) -> float:
-    """True route position of a lane position.
+def _route_s(track_truth: Truth, road_map: RoadMap, lane_id: str, lane_pos_m: float, xy: tuple[float, float]) -> float:
+    """True route position of a vehicle: its place ``xy`` projected onto the authored road
+    where the truth has it, else its lane position on the route.
 
-    A junction's internal lane has no geometric length on the tracks (netconvert's 0.1 m
-    minimum): it is placed at the start of the lane it leads to.
+    A junction's internal lane has no geometric length on the standard's tracks
+    (netconvert's 0.1 m minimum): it is placed at the start of the lane it leads to.
     """
+    if track_truth.line is not None:
+        return float(track_truth.line.project(shapely.Point(xy)))
     start_s = track_truth.lane_start_s_m.get(lane_id)
     if start_s is not None:
         return start_s + lane_pos_m
@@ -185,9 +218,12 @@ def _route_s(track_truth: Truth, road_map: RoadMap, lane_id: str, lane_pos_m: fl
 
 
 def _lead_m(row: Row) -> float:
-    """How far before curve 1 the runs start, m: the largest S_w plus the stable time and a margin."""
+    """How far before curve 1 the runs start, m: the largest S_w plus the stable time and a margin.
+
+    Rows without a table's S_w reach as far as formula (1) can at their speed (V_w = 0).
+    """
     speed_mps = kmh_to_mps(row.speed_kmh)
-    reach_m = max([c.table_distance_m or 0.0 for c in row.checks])
+    reach_m = max([c.table_distance_m for c in row.checks if c.table_distance_m] or [formula_1_m(speed_mps, 0.0)])
     return reach_m + (STABLE_S + LEAD_MARGIN_S) * speed_mps
 
 
@@ -281,7 +317,7 @@ def drive(task: Task) -> list[Trace]:
         routes = Path(work) / "runs.rou.xml"
         routes.write_text(_routes_xml(task, positions, times), encoding="utf-8")
         libsumo.start([
-            str(sumo_binary("sumo")), "-n", str(networks_dir() / f"{task.track}.net.xml"), "-r", str(routes),
+            str(sumo_binary("sumo")), "-n", str(track_file(task.track, ".net.xml")), "-r", str(routes),
             "--step-length", f"{task.step_length_s:g}", "--no-step-log", "true", "--no-warnings", "true",
             "--duration-log.disable", "true", "--seed", "0",
         ])  # fmt: skip
@@ -292,7 +328,8 @@ def drive(task: Task) -> list[Trace]:
                 if now_s > MAX_SIMULATED_S:
                     raise RuntimeError(f"{task.key}: runs did not finish within {MAX_SIMULATED_S:g} s")
                 for vehicle_id in libsumo.simulation.getDepartedIDList():
-                    libsumo.vehicle.subscribe(vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED))
+                    libsumo.vehicle.subscribe(vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED,
+                                                           tc.VAR_POSITION))
                 state = libsumo.vehicle.getAllSubscriptionResults()
                 if not state:
                     continue
@@ -300,7 +337,8 @@ def drive(task: Task) -> list[Trace]:
                 lanes = [state[v][tc.VAR_LANE_ID] for v in ids]
                 lane_pos = np.array([state[v][tc.VAR_LANEPOSITION] for v in ids])
                 speed_kmh = mps_to_kmh(np.array([state[v][tc.VAR_SPEED] for v in ids]))
-                route_s = np.array([_route_s(track_truth, road_map, l, p) for l, p in zip(lanes, lane_pos)])
+                route_s = np.array([_route_s(track_truth, road_map, lane, pos, state[v][tc.VAR_POSITION])
+                                    for v, lane, pos in zip(ids, lanes, lane_pos)])  # fmt: skip
                 measured_pos = lane_pos + rng.uniform(-POSITION_ACCURACY_M, POSITION_ACCURACY_M, len(ids))
                 measured_speed = np.maximum(speed_kmh + rng.normal(0.0, SPEED_ACCURACY_KMH, len(ids)), 0.0)
                 answers = engine.evaluate_many([

@@ -18,6 +18,7 @@ import numpy as np
 
 from .drive import Trace, Truth
 from .judge import RunResult
+from .realroads import REAL_ROAD_TABLE, required_levels
 from .rows import Row
 
 __all__ = ["GroupOutcome", "RowOutcome", "write_json", "write_markdown", "plot_row"]
@@ -29,7 +30,11 @@ _TABLE_TITLES = {
     8: "Table 8: multi curve, curve 2 warned first, all before curve 1 (7.5.3.2)",
     9: "Table 9: multi curve, curve 2 and curve 1 warnings alternate (7.5.3.3)",
     0: "Negative rows: 3 km/h below each warning speed, no warning of that level (6.1)",
+    10: "Real-road tracks, judged by formula (1) on the constructed truth (6.1, 6.2.1)",
 }
+#: The tables of clause 7.5, which 7.6 judges.
+PROCEDURE_TABLES = (5, 6, 7, 8, 9)
+
 
 
 @dataclass(frozen=True)
@@ -130,12 +135,17 @@ def _row_record(outcome: RowOutcome) -> dict:
 
 
 def verdicts(outcomes: Sequence[RowOutcome]) -> dict:
-    """The overall verdicts: 7.6 over Tables 5-9, and our negative rows."""
-    procedure = [o for o in outcomes if not o.row.negative]
-    negative = [o for o in outcomes if o.row.negative]
+    """The overall verdicts: 7.6 over Tables 5-9, our negative rows, and the real-road tracks."""
+
+    def passed(table: int | tuple[int, ...]) -> bool | None:
+        tables = table if isinstance(table, tuple) else (table,)
+        selected = [o for o in outcomes if o.row.table in tables]
+        return all(o.passed for o in selected) if selected else None
+
     return {
-        "clause_7_6_passed": all(o.passed for o in procedure) if procedure else None,
-        "negative_rows_passed": all(o.passed for o in negative) if negative else None,
+        "clause_7_6_passed": passed(PROCEDURE_TABLES),
+        "negative_rows_passed": passed(0),
+        "real_road_tracks_passed": passed(REAL_ROAD_TABLE),
         "rows": len(outcomes),
         "rows_failed": [o.row.row_id for o in outcomes if not o.passed],
     }
@@ -151,6 +161,11 @@ def write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> No
         "rows": [_row_record(o) for o in outcomes],
     }
     path.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")
+
+
+def _verdict_text(passed: bool | None) -> str:
+    """An overall verdict."""
+    return "PASS" if passed else "FAIL" if passed is not None else "not run"
 
 
 def _mark(passed: bool) -> str:
@@ -206,6 +221,17 @@ def _negative_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     return lines
 
 
+def _real_road_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+    """The real-road rows: track, category, speed, and per level how much earlier than formula (1)
+    the warning came on (the smallest margin of any run; negative: later) and the verdict."""
+    lines = ["| track | category | V/(km/h) | level 1 earlier/m | level 2 earlier/m | verdict |", "|---|---|---|---|---|---|"]
+    for o in outcomes:
+        row = o.row
+        lines.append(f"| {row.tracks[0]} | {row.category.value} | {row.speed_kmh:g} | {_metres(o.worst_earlier_m(0))} | "
+                     f"{_metres(o.worst_earlier_m(1))} | {_mark(o.passed)} |")  # fmt: skip
+    return lines
+
+
 def _failures(outcomes: Sequence[RowOutcome]) -> list[str]:
     """One line per failed run check: what went wrong where."""
     lines = []
@@ -227,21 +253,24 @@ def write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -
     lines = [
         "# CSWS conformance report (T/ITS 0091-2018, clause 7.5)",
         "",
-        f"- 7.6 verdict: **{'PASS' if overall else 'FAIL' if overall is not None else 'not run'}**",
-        f"- negative rows: **{'PASS' if verdict['negative_rows_passed'] else 'FAIL' if verdict['negative_rows_passed'] is not None else 'not run'}**",
+        f"- 7.6 verdict: **{_verdict_text(overall)}**",
+        f"- negative rows: **{_verdict_text(verdict['negative_rows_passed'])}**",
+        f"- real-road tracks: **{_verdict_text(verdict['real_road_tracks_passed'])}**",
         f"- step lengths: {', '.join(f'{s:g} s' for s in settings['step_lengths_s'])}; "
         f"{settings['repetitions']} runs per row, track and step length; seed {settings['seed']}",
         f"- rows: {verdict['rows']}, failed: {len(verdict['rows_failed'])}",
         "",
         "\"earlier/m\" is the smallest margin over every run, track and step length by which the",
         "warning came on before the table's S_w (the true distance to the curve start, from the",
-        "track's truth file).",
+        "track's truth file). On the real-road tracks it is the margin by which each level came on",
+        "before formula (1) first required it at some point of the road (negative: after).",
     ]
-    for table in (5, 6, 7, 8, 9, 0):
+    for table in (*PROCEDURE_TABLES, 0, REAL_ROAD_TABLE):
         selected = [o for o in outcomes if o.row.table == table]
         if not selected:
             continue
-        shape = _single_table if table in (5, 6) else _negative_table if table == 0 else _multi_table
+        shapes = {5: _single_table, 6: _single_table, 0: _negative_table, REAL_ROAD_TABLE: _real_road_table}
+        shape = shapes.get(table, _multi_table)
         lines += ["", f"## {_TABLE_TITLES[table]}", "", *shape(selected)]
     failures = _failures(outcomes)
     if failures:
@@ -279,6 +308,14 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
         for axis in (speed_axis, level_axis):
             axis.axvline(offset_m, color="black", lw=0.8)
         level_axis.annotate(f"curve {number}", (offset_m, 2.25), fontsize=7, ha="left")
+    if row.table == REAL_ROAD_TABLE:
+        # What formula (1) requires of the first run at each of its steps, from the constructed road.
+        track_truth, _, trace = traces[0]
+        required = required_levels(row, track_truth.name, trace.route_s_m, trace.speed_kmh,
+                                   np.zeros(len(trace.route_s_m)), 0.0, 0.0)  # fmt: skip
+        level_axis.step(track_truth.curve_start_s_m[0] - trace.route_s_m, required + 0.05, where="post", color="black",
+                        ls="--", lw=0.8, label="formula (1) requires")  # fmt: skip
+        level_axis.legend(fontsize=7, loc="upper left")
     marked = [check for check in row.checks if check.table_distance_m is not None]
     for number, check in enumerate(marked):
         offset_m = track_truth.curve_start_s_m[0] - track_truth.curve_start_s_m[check.curve_number - 1]

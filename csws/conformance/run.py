@@ -20,6 +20,7 @@ from typing import Iterable, Iterator, Sequence
 
 from .drive import Task, Trace, drive, truth
 from .judge import CONSECUTIVE_PASSES, RunResult, consecutive_passes, judge_run
+from .realroads import REAL_ROAD_TABLE, judge_real_road_run, real_road_rows
 from .report import GroupOutcome, RowOutcome, plot_row, verdicts, write_json, write_markdown
 from .rows import Row, procedure_rows
 
@@ -33,8 +34,9 @@ TaskResult = tuple[Task, tuple[RunResult, ...], tuple[Trace, ...]]
 
 def select_rows(tables: Sequence[int] | None = None, categories: Sequence[str] | None = None,
                 patterns: Sequence[str] | None = None) -> list[Row]:  # fmt: skip
-    """The rows of the procedure, filtered by table (0 = negative rows), category and row-id pattern."""
-    rows = procedure_rows()
+    """The rows of the procedure and the real-road rows, filtered by table (0 = negative rows,
+    10 = real-road tracks), category and row-id pattern."""
+    rows = procedure_rows() + real_road_rows()
     if tables:
         rows = [r for r in rows if r.table in tables]
     if categories:
@@ -49,14 +51,15 @@ def select_rows(tables: Sequence[int] | None = None, categories: Sequence[str] |
 
 def make_tasks(rows: Iterable[Row], step_lengths_s: Sequence[float], repetitions: int, seed: int,
                directions: Sequence[str] | None = None) -> list[Task]:  # fmt: skip
-    """One task per row, track and step length; ``directions`` keeps only tracks ending in those (left, right, s)."""
+    """One task per row, track and step length; ``directions`` keeps only the standard's tracks ending in
+    those (left, right, s), and every real-road track."""
     if repetitions < CONSECUTIVE_PASSES:
         raise ValueError(f"at least {CONSECUTIVE_PASSES} repetitions are needed (7.5.1), got {repetitions}")
     tasks = [
         Task(row, track, step, repetitions, seed)
         for row in rows
         for track in row.tracks
-        if not directions or track.rsplit("_", 1)[-1] in directions
+        if not directions or row.table == REAL_ROAD_TABLE or track.rsplit("_", 1)[-1] in directions
         for step in step_lengths_s
     ]
     if not tasks:
@@ -69,7 +72,8 @@ def run_task(task: Task) -> TaskResult:
     """Drive and judge one task (in a worker process)."""
     traces = tuple(drive(task))
     track_truth = truth(task.track)
-    return task, tuple(judge_run(task.row, trace, track_truth) for trace in traces), traces
+    judge = judge_real_road_run if task.row.table == REAL_ROAD_TABLE else judge_run
+    return task, tuple(judge(task.row, trace, track_truth) for trace in traces), traces
 
 
 def run_tasks(tasks: Sequence[Task], jobs: int, progress: bool = False) -> Iterator[TaskResult]:
@@ -151,11 +155,10 @@ def main(args: argparse.Namespace) -> int:
     for outcome in outcomes:
         if not outcome.passed:
             print(f"FAIL {outcome.row.row_id}")
-    clause = verdict["clause_7_6_passed"]
-    negative = verdict["negative_rows_passed"]
+    said = {True: "PASS", False: "FAIL", None: "not run"}
     print(
-        f"7.6: {'PASS' if clause else 'FAIL' if clause is not None else 'not run'}; "
-        f"negative rows: {'PASS' if negative else 'FAIL' if negative is not None else 'not run'}; "
+        f"7.6: {said[verdict['clause_7_6_passed']]}; negative rows: {said[verdict['negative_rows_passed']]}; "
+        f"real-road tracks: {said[verdict['real_road_tracks_passed']]}; "
         f"{len(outcomes)} rows, {len(verdict['rows_failed'])} failed, "
         f"in {time.perf_counter() - started:.1f} s; report: {args.out / 'report.md'}"
     )

@@ -83,9 +83,11 @@ class CsvStream:
 
 @dataclass
 class Summary:
-    """Counts kept while the run goes: warnings by level, category and curve; curve entries above V_w.
+    """Counts kept while the run goes: warnings by level, category and curve; warnings that
+    flickered; curve entries above V_w.
 
-    A warning of level L is counted when a vehicle's level rises to L. A curve entry is the
+    A warning of level L is counted when a vehicle's level rises to L. A warning flickered
+    when it comes on again within ``flicker_window_s`` of going off. A curve entry is the
     first step at which a vehicle is inside a curve part (a triggering CPOI at distance 0):
     it is above the warning speed, since the CPOI triggers. ``entries_above_level1`` counts
     every such entry; ``entries_above_level1_margin`` those more than ``margin_kmh`` above
@@ -93,7 +95,9 @@ class Summary:
     """
 
     margin_kmh: float = 1.0
+    flicker_window_s: float = 2.0
     onsets: Counter = field(default_factory=Counter)
+    flickers: Counter = field(default_factory=Counter)
     onsets_by_category: dict = field(default_factory=lambda: defaultdict(Counter))
     onsets_by_curve: dict = field(default_factory=lambda: defaultdict(Counter))
     entries_above_level1: Counter = field(default_factory=Counter)
@@ -111,6 +115,10 @@ class Summary:
         self.onsets_by_category[category][level] += 1
         if curve_id is not None:
             self.onsets_by_curve[curve_id][level] += 1
+
+    def add_flicker(self, category: str) -> None:
+        """A vehicle's warning came on again within :attr:`flicker_window_s` of going off."""
+        self.flickers[category] += 1
 
     def add_entry(self, category: str, excess_kmh: float) -> None:
         """A vehicle entered a curve part ``excess_kmh`` above its level-1 warning speed."""
@@ -132,6 +140,9 @@ class Summary:
                 "by_level": by_level(self.onsets),
                 "by_category": {c: by_level(n) for c, n in sorted(self.onsets_by_category.items())},
                 "by_curve": {c: by_level(n) for c, n in sorted(self.onsets_by_curve.items())},
+                "flickered": sum(self.flickers.values()),
+                "flickered_by_category": dict(sorted(self.flickers.items())),
+                "flicker_window_s": self.flicker_window_s,
             },
             "curve_entries_above_level1_warning_speed": {
                 "total": sum(self.entries_above_level1.values()),

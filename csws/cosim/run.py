@@ -10,6 +10,7 @@ interrupted or SUMO dies (then marked incomplete, with the reason).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import dataclass, field, replace
@@ -180,13 +181,16 @@ class _Streams:
 
 @dataclass
 class _Tracker:
-    """What the run remembers per vehicle between steps: last level, curve parts entered."""
+    """What the run remembers per vehicle between steps: last level, when its warning last
+    went off, curve parts entered."""
 
     levels: dict[str, int] = field(default_factory=dict)
+    ended_s: dict[str, float] = field(default_factory=dict)
     entered: dict[str, set] = field(default_factory=dict)
 
     def forget(self, vehicle_id: str) -> None:
         self.levels.pop(vehicle_id, None)
+        self.ended_s.pop(vehicle_id, None)
         self.entered.pop(vehicle_id, None)
 
 
@@ -226,6 +230,10 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
         event = event_of(previous, level)
         if event is not None:
             levels[vehicle_id] = level
+            if event == "end":
+                tracker.ended_s[vehicle_id] = t
+            elif event == "onset" and t - tracker.ended_s.get(vehicle_id, -math.inf) <= summary.flicker_window_s:
+                summary.add_flicker(category)
             if level > previous:
                 summary.add_onset(category, level, target and target.curve_id)
                 summary.warned_vehicles.add(vehicle_id)
@@ -365,6 +373,7 @@ def _comparison(without: dict, with_response: dict) -> dict:
         entries = summary["curve_entries_above_level1_warning_speed"]
         return {
             "warnings_by_level": summary["warnings"]["by_level"],
+            "warnings_flickered": summary["warnings"]["flickered"],
             "curve_entries_above_level1": entries["total"],
             "curve_entries_more_than_1_kmh_above_level1": entries["more_than_1_kmh_above"],
             "max_excess_kmh": entries["max_excess_kmh"],
@@ -379,8 +388,9 @@ def _print_summary(summary: dict, out: Path) -> None:
     entries = summary["curve_entries_above_level1_warning_speed"]
     print(
         f"{summary['vehicles_evaluated']} vehicles over {summary['simulated_until_s']:g} s "
-        f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings, "
-        f"{entries['total']} curve entries above the level-1 warning speed "
+        f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings "
+        f"({summary['warnings']['flickered']} flickered: off and on again within "
+        f"{summary['warnings']['flicker_window_s']:g} s), {entries['total']} curve entries above the level-1 warning speed "
         f"({entries['more_than_1_kmh_above']} by more than 1 km/h); output in {out}"
     )
 
