@@ -20,7 +20,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .lookahead import BatchAhead, LookAhead, LookAheadSettings, PathAhead
+from .horizon import BatchAhead, PathAhead
+from .lookahead import LookAhead, LookAheadSettings
 from .release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from .roadmap import RoadMap
 from .standard import Level

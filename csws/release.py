@@ -19,7 +19,7 @@ towards the distance left. The rule here keeps a level on that is on:
    at once the lower warning speed that is due. The hold needs the vehicle's timestamps;
    without them only the margin applies.
 3. **Passed.** A CPOI behind the vehicle requires nothing; for the first
-   :data:`csws.lookahead.END_MARGIN_M` (1 m) past its part only rules 1 and 2 may keep a
+   :data:`csws.horizon.END_MARGIN_M` (1 m) past its part only rules 1 and 2 may keep a
    level on there, so that position noise at the curve's end cannot switch the warning
    off and on again; beyond that it keeps nothing on, and the level goes off at once.
 

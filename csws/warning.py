@@ -352,7 +352,7 @@ def evaluate_batch(
         last update, and which of those the hold may keep on
         (:func:`csws.release.memory_masks`); None for vehicles without a memory (6.1 alone).
     cpoi_passed
-        ``(n_cpois,)``: CPOIs the vehicle has just passed (:data:`csws.lookahead.END_MARGIN_M`):
+        ``(n_cpois,)``: CPOIs the vehicle has just passed (:data:`csws.horizon.END_MARGIN_M`):
         6.1 requires nothing there, only the release rule may keep a level on.
 
     Returns

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from csws.lookahead import curve_id_of
+from csws.horizon import curve_id_of
 from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
 
 from .networks import ServedNetwork

@@ -13,7 +13,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from csws.lookahead import PathAhead
+from csws.horizon import PathAhead
 from csws.mapmatch import points_along
 
 from .curves import warning_speeds_kmh

@@ -14,7 +14,7 @@ import pytest
 
 from csws.data import standard_tables
 from csws.engine import Engine, VehicleInput
-from csws.lookahead import END_MARGIN_M
+from csws.horizon import END_MARGIN_M
 from csws.networks import networks_dir
 from csws.roadmap import RoadMap
 from csws.standard import Level

@@ -17,7 +17,8 @@ import pytest
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
-from csws.lookahead import LookAhead, curve_id_of
+from csws.horizon import curve_id_of
+from csws.lookahead import LookAhead
 from csws.netbuild import netconvert
 from csws.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance, warning_speed

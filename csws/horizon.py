@@ -1,0 +1,225 @@
+"""The road ahead of a vehicle as the warning reads it: the horizon from a lane, and the CPOIs on it (3.11).
+
+A :class:`Horizon` is the stitched, profiled path from the start of a lane with the parts
+of its curves; :class:`PathAhead` (one vehicle) and :class:`BatchAhead` (many, as flat
+arrays) are the CPOIs a vehicle at a position on it has within S_LAD. :mod:`csws.lookahead`
+builds and caches horizons. A CPOI is the first point of a part ahead of the vehicle; inside
+a part the point under the vehicle counts (:func:`radius_under`), and a part stays a CPOI,
+marked passed, for :data:`END_MARGIN_M` after its end (:mod:`csws.release`).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .curvature import RadiusProfile
+from .roadprofile import PathProfile
+from .warning import CurvaturePointOfInterest, PathKind
+
+__all__ = ["END_MARGIN_M", "Horizon", "PathAhead", "BatchAhead", "is_cpoi", "radius_at_end", "radius_under", "curve_id_of"]
+
+
+@dataclass(frozen=True)
+class Horizon:
+    """The road ahead from the start of one lane, with every curve part on it.
+
+    One horizon serves every vehicle on its first lane with the same route (or none),
+    wherever it is on the lane, as long as S_LAD fits in ``length_m``; horizons are
+    cached.
+
+    Attributes
+    ----------
+    path
+        The stitched path, starting at the first lane's start.
+    kind
+        ``route`` when the path follows the route, else ``predicted``.
+    part_start_s, part_end_s, part_radius_m, part_index
+        The constant-radius parts of the curves on the path (3.7, 3.8): start and end
+        in path arc length, radius, index within the curve.
+    part_end_radius_m
+        The road's radius where each part ends, m: a spiral piece's radius changes along it
+        (:func:`radius_under`); an arc's is its radius.
+    part_curve_id
+        The curve id of each part (``lane@position`` of the curve's start).
+    """
+
+    path: PathProfile
+    kind: PathKind
+    part_start_s: np.ndarray
+    part_end_s: np.ndarray
+    part_radius_m: np.ndarray
+    part_index: np.ndarray
+    part_curve_id: np.ndarray
+    part_end_radius_m: np.ndarray
+
+    @cached_property
+    def _first_lane(self) -> tuple[float, float]:
+        """Position factor and shape length of the first lane."""
+        return float(self.path.lane_position_factor[0]), float(self.path.lane_shape_length_m[0])
+
+    def vehicle_s(self, lane_pos_m: float) -> float:
+        """Path arc length of a lane position on the first lane, m."""
+        factor, shape_length_m = self._first_lane
+        return min(max(lane_pos_m / factor, 0.0), shape_length_m)
+
+
+@dataclass(frozen=True)
+class PathAhead:
+    """The road ahead of one vehicle and the CPOIs on it.
+
+    Attributes
+    ----------
+    horizon
+        The cached road ahead from the start of the vehicle's lane.
+    vehicle_s
+        The vehicle's arc length along the path, m.
+    lookahead_m
+        S_LAD used, m.
+    """
+
+    horizon: Horizon
+    vehicle_s: float
+    lookahead_m: float
+
+    @property
+    def path(self) -> PathProfile:
+        """The stitched path (lanes in driving order, polyline, radius profile)."""
+        return self.horizon.path
+
+    @property
+    def kind(self) -> PathKind:
+        """``route`` when the path follows the vehicle's route, else ``predicted``."""
+        return self.horizon.kind
+
+    @cached_property
+    def _rows(self) -> np.ndarray:
+        """The horizon's parts that are CPOIs (3.11)."""
+        h = self.horizon
+        return np.flatnonzero(is_cpoi(h.part_start_s, h.part_end_s, self.vehicle_s, self.lookahead_m))
+
+    @property
+    def cpoi_distance_m(self) -> np.ndarray:
+        """Distance S from the vehicle to each CPOI, nearest first, m; 0 inside a part."""
+        return np.maximum(self.horizon.part_start_s[self._rows] - self.vehicle_s, 0.0)
+
+    @property
+    def cpoi_passed(self) -> np.ndarray:
+        """Whether the vehicle is beyond each CPOI's part (by at most :data:`END_MARGIN_M`)."""
+        return self.horizon.part_end_s[self._rows] <= self.vehicle_s
+
+    @property
+    def cpoi_start_s(self) -> np.ndarray:
+        """Path arc length where each CPOI's part starts, m (behind the vehicle when it is inside)."""
+        return self.horizon.part_start_s[self._rows]
+
+    @property
+    def cpoi_radius_m(self) -> np.ndarray:
+        """Radius of each CPOI, m: its part's, or the road's under the vehicle inside a part (:func:`radius_under`)."""
+        h, rows = self.horizon, self._rows
+        return radius_under(h.part_start_s[rows], h.part_end_s[rows], h.part_radius_m[rows], h.part_end_radius_m[rows],
+                            self.vehicle_s)  # fmt: skip
+
+    @property
+    def cpoi_part_index(self) -> np.ndarray:
+        """Index of each CPOI's part within its curve."""
+        return self.horizon.part_index[self._rows]
+
+    @property
+    def cpoi_curve_id(self) -> tuple[str, ...]:
+        """The curve id of each CPOI."""
+        return tuple(self.horizon.part_curve_id[self._rows])
+
+    @property
+    def cpois(self) -> tuple[CurvaturePointOfInterest, ...]:
+        """The CPOIs as objects, nearest first."""
+        return tuple(
+            CurvaturePointOfInterest(curve_id, int(part), float(distance), float(radius))
+            for curve_id, part, distance, radius in zip(
+                self.cpoi_curve_id, self.cpoi_part_index, self.cpoi_distance_m, self.cpoi_radius_m
+            )
+        )
+
+
+@dataclass(frozen=True)
+class BatchAhead:
+    """The roads ahead of many vehicles, with all their CPOIs as flat arrays.
+
+    Attributes
+    ----------
+    horizons
+        Each vehicle's horizon.
+    vehicle_s, lookahead_m
+        ``(n,)`` each vehicle's path arc length and S_LAD, m.
+    cpoi_vehicle
+        ``(k,)`` the vehicle of each CPOI, ascending.
+    cpoi_distance_m, cpoi_radius_m, cpoi_part_index, cpoi_curve_id, cpoi_passed
+        ``(k,)`` as in :class:`PathAhead`.
+    """
+
+    horizons: list[Horizon]
+    vehicle_s: np.ndarray
+    lookahead_m: np.ndarray
+    cpoi_vehicle: np.ndarray
+    cpoi_distance_m: np.ndarray
+    cpoi_radius_m: np.ndarray
+    cpoi_part_index: np.ndarray
+    cpoi_curve_id: np.ndarray
+    cpoi_passed: np.ndarray
+
+    def path_ahead(self, vehicle: int) -> PathAhead:
+        """One vehicle's :class:`PathAhead`."""
+        return PathAhead(self.horizons[vehicle], float(self.vehicle_s[vehicle]), float(self.lookahead_m[vehicle]))
+
+    def paths_ahead(self) -> list[PathAhead]:
+        """Every vehicle's :class:`PathAhead`, in order (:meth:`path_ahead` of each, without per-vehicle indexing)."""
+        return list(map(PathAhead, self.horizons, self.vehicle_s.tolist(), self.lookahead_m.tolist()))
+
+
+def radius_at_end(profile: RadiusProfile, end_s: float) -> float:
+    """The road's radius at arc length ``end_s``, approached from before it, m."""
+    starts = [part.start_s for part in profile.parts]
+    part = profile.parts[min(max(bisect.bisect_left(starts, end_s) - 1, 0), len(starts) - 1)]
+    curvature = abs(float(part.curvature_at(np.array(end_s))))
+    return 1.0 / curvature if curvature > 0 else math.inf
+
+
+def radius_under(start_s: np.ndarray, end_s: np.ndarray, start_radius_m: np.ndarray, end_radius_m: np.ndarray,
+                 vehicle_s) -> np.ndarray:  # fmt: skip
+    """The radius of each CPOI for a vehicle at ``vehicle_s`` (a float or one per CPOI), m.
+
+    A CPOI ahead is its part's first point, with its part's radius. Inside a part the point
+    under the vehicle counts (6.2.1: the warning lasts while the road under the vehicle
+    requires it): on an arc its radius; on a spiral piece the clothoid's radius there, its
+    curvature linear between the piece's ends. On an exit spiral the piece's first point is
+    behind the vehicle and tighter than the road under it: taken instead, it would keep
+    requiring a warning the road no longer does.
+    """
+    length_m = end_s - start_s
+    fraction = np.clip(np.divide(vehicle_s - start_s, length_m, out=np.zeros(len(length_m)), where=length_m > 0),
+                       0.0, 1.0)  # fmt: skip
+    curvature = 1.0 / start_radius_m + (1.0 / end_radius_m - 1.0 / start_radius_m) * fraction
+    with np.errstate(divide="ignore"):
+        return np.where(fraction > 0, 1.0 / curvature, start_radius_m)
+
+
+#: A part stays among a vehicle's CPOIs, at distance 0 and marked passed, until the vehicle
+#: is this far beyond its end, m: 6.1 no longer requires a warning there, but a level it
+#: kept on may stay on (:mod:`csws.release`), so that position noise at a curve's end
+#: cannot switch the warning off and on again.
+END_MARGIN_M = 1.0
+
+
+def is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
+    """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``, or one it passed by at
+    most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
+    return (part_end_s + END_MARGIN_M > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)
+
+
+def curve_id_of(lane_id: str, lane_pos_m: float) -> str:
+    """The id of a curve: the lane and the lane position (to the metre) where it starts (3.4)."""
+    return f"{lane_id}@{lane_pos_m:.0f}"
