@@ -52,7 +52,8 @@ import shapely
 from benchmarks.bounds import error_quantile_m, start_bounds_m
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
-from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
+from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
+from csws.networks.real_roads import true_curves as real_road_curves
 
 SEED = 20261124
 CASES_PER_FAMILY = 40
@@ -157,19 +158,10 @@ def _road(middle: list[Piece]) -> list[Piece]:
 
 
 def true_curves(pieces: list[Piece], warning_radius_m: float = WARNING_RADIUS_M) -> list[TrueCurve]:
-    """The curves of the constructed road from its exact curvature, sampled every 1 cm."""
-    s = np.arange(0.0, piece_starts_s(pieces)[-1], 0.01)
-    curvature = curvature_at(pieces, s)
-    side = np.where(curvature >= 1.0 / warning_radius_m, 1, np.where(curvature <= -1.0 / warning_radius_m, -1, 0))
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], side, [0]))) != 0)
-    curves = []
-    for first, stop in zip(edges[:-1], edges[1:]):
-        if side[first] == 0:
-            continue
-        magnitude = np.abs(curvature[first:stop])
-        curves.append(TrueCurve(float(s[first]), float(s[stop - 1]), float(1.0 / magnitude.max()),
-                                float(np.degrees(magnitude.sum() * 0.01))))
-    return curves
+    """The curves of the constructed road from its exact curvature, sampled every 1 cm
+    (:func:`csws.networks.real_roads.true_curves`)."""
+    return [TrueCurve(c["start_s"], c["end_s"], c["min_radius_m"], c["angle_deg"])
+            for c in real_road_curves(pieces, warning_radius_m, sampling_m=0.01)]  # fmt: skip
 
 
 def _node_points(pieces: list[Piece], family: str, rng: np.random.Generator, dense_xy: np.ndarray, dense_s: np.ndarray) -> np.ndarray:

@@ -130,10 +130,12 @@ def real_road_pieces(spec: RealRoadSpec) -> list[Piece]:
     return [straight(APPROACH_M), *spec.curve_pieces, straight(RUNOUT_M)]
 
 
-def true_curves(pieces: list[Piece], warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[dict]:
+def true_curves(pieces: list[Piece], warning_radius_m: float = DEFAULT_WARNING_RADIUS_M,
+                sampling_m: float = CURVE_SAMPLING_M) -> list[dict]:  # fmt: skip
     """The curves (3.3-3.5) of the exact road: maximal stretches turning one way with radius
-    at most R_c, from its curvature sampled every :data:`CURVE_SAMPLING_M`."""
-    s = np.arange(0.0, piece_starts_s(pieces)[-1], CURVE_SAMPLING_M)
+    at most R_c, from its curvature sampled every ``sampling_m``: start and end (m), smallest
+    radius (m), angle (degrees) and direction."""
+    s = np.arange(0.0, piece_starts_s(pieces)[-1], sampling_m)
     curvature = curvature_at(pieces, s)
     side = np.where(curvature >= 1.0 / warning_radius_m, 1, np.where(curvature <= -1.0 / warning_radius_m, -1, 0))
     edges = np.flatnonzero(np.diff(np.concatenate(([0], side, [0]))) != 0)
@@ -145,7 +147,7 @@ def true_curves(pieces: list[Piece], warning_radius_m: float = DEFAULT_WARNING_R
         curves.append({
             "start_s": _rounded(s[first]), "end_s": _rounded(s[stop - 1]),
             "min_radius_m": _rounded(1.0 / magnitude.max()),
-            "angle_deg": _rounded(math.degrees(magnitude.sum() * CURVE_SAMPLING_M)),
+            "angle_deg": _rounded(math.degrees(magnitude.sum() * sampling_m)),
             "direction": "left" if side[first] > 0 else "right",
         })  # fmt: skip
     return curves

@@ -103,27 +103,35 @@ def test_without_the_driver_model_vehicles_enter_curves_too_fast_and_with_it_non
     for entry in _rows(tmp_path / "entries.csv"):
         level1_kmh = warning_speed(float(entry["radius_m"]), entry["category"], 1)
         assert float(entry["speed_kmh"]) <= level1_kmh + 1.0
-    # No warning of the compliant driver's run goes off and on again within 2 s; counted here
-    # from the warning events themselves.
-    assert with_response["warnings"]["flickered"] == _flickers(_rows(tmp_path / "warnings.csv"), 2.0) == 0
+    # No warning of the compliant driver's run goes off and on again for the same curve within 2 s;
+    # counted here from the warning events themselves.
+    flickered, _ = _soon_again(_rows(tmp_path / "warnings.csv"), 2.0)
+    assert with_response["warnings"]["flickered"] == flickered == 0
 
 
-def _flickers(events: list[dict], window_s: float) -> int:
-    """Warnings that came on within ``window_s`` of the same vehicle's warning going off."""
+def _soon_again(events: list[dict], window_s: float) -> tuple[int, int]:
+    """Warnings that came on within ``window_s`` of the same vehicle's warning going off: for the
+    curve of that warning's last onset or change (flickers), and for another curve."""
     ended: dict[str, float] = {}
-    count = 0
+    curve: dict[str, str] = {}
+    same = other = 0
     for event in events:
-        time_s = float(event["time_s"])
+        vehicle, time_s = event["vehicle_id"], float(event["time_s"])
         if event["event"] == "end":
-            ended[event["vehicle_id"]] = time_s
-        elif event["event"] == "onset" and time_s - ended.get(event["vehicle_id"], -1e9) <= window_s:
-            count += 1
-    return count
+            ended[vehicle] = time_s
+            continue
+        if event["event"] == "onset" and time_s - ended.get(vehicle, -1e9) <= window_s:
+            same += curve.get(vehicle) == event["curve_id"]
+            other += curve.get(vehicle) != event["curve_id"]
+        curve[vehicle] = event["curve_id"]
+    return same, other
 
 
 def test_flickers_are_counted_as_the_warning_events_show(library_run):
     out, summary = library_run
-    assert summary["warnings"]["flickered"] == _flickers(_rows(out / "warnings.csv"), 2.0)
+    flickered, other = _soon_again(_rows(out / "warnings.csv"), 2.0)
+    assert summary["warnings"]["flickered"] == flickered
+    assert summary["warnings"]["on_again_for_another_curve"] == other
 
 
 def _free_port() -> int:

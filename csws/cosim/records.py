@@ -87,7 +87,9 @@ class Summary:
     flickered; curve entries above V_w.
 
     A warning of level L is counted when a vehicle's level rises to L. A warning flickered
-    when it comes on again within ``flicker_window_s`` of going off. A curve entry is the
+    when it comes on again within ``flicker_window_s`` of going off for the same curve (the
+    curve of its last onset or change); one that comes on that soon for another curve is
+    counted apart: a new curve that needs a lower speed, not a flicker. A curve entry is the
     first step at which a vehicle is inside a curve part (a triggering CPOI at distance 0):
     it is above the warning speed, since the CPOI triggers. ``entries_above_level1`` counts
     every such entry; ``entries_above_level1_margin`` those more than ``margin_kmh`` above
@@ -98,6 +100,7 @@ class Summary:
     flicker_window_s: float = 2.0
     onsets: Counter = field(default_factory=Counter)
     flickers: Counter = field(default_factory=Counter)
+    next_curve_soon: Counter = field(default_factory=Counter)
     onsets_by_category: dict = field(default_factory=lambda: defaultdict(Counter))
     onsets_by_curve: dict = field(default_factory=lambda: defaultdict(Counter))
     entries_above_level1: Counter = field(default_factory=Counter)
@@ -116,9 +119,10 @@ class Summary:
         if curve_id is not None:
             self.onsets_by_curve[curve_id][level] += 1
 
-    def add_flicker(self, category: str) -> None:
-        """A vehicle's warning came on again within :attr:`flicker_window_s` of going off."""
-        self.flickers[category] += 1
+    def add_soon_again(self, category: str, same_curve: bool) -> None:
+        """A vehicle's warning came on again within :attr:`flicker_window_s` of going off,
+        for the same curve (a flicker) or for another."""
+        (self.flickers if same_curve else self.next_curve_soon)[category] += 1
 
     def add_entry(self, category: str, excess_kmh: float) -> None:
         """A vehicle entered a curve part ``excess_kmh`` above its level-1 warning speed."""
@@ -142,6 +146,7 @@ class Summary:
                 "by_curve": {c: by_level(n) for c, n in sorted(self.onsets_by_curve.items())},
                 "flickered": sum(self.flickers.values()),
                 "flickered_by_category": dict(sorted(self.flickers.items())),
+                "on_again_for_another_curve": sum(self.next_curve_soon.values()),
                 "flicker_window_s": self.flicker_window_s,
             },
             "curve_entries_above_level1_warning_speed": {

@@ -181,15 +181,17 @@ class _Streams:
 
 @dataclass
 class _Tracker:
-    """What the run remembers per vehicle between steps: last level, when its warning last
-    went off, curve parts entered."""
+    """What the run remembers per vehicle between steps: last level, the curve of its last
+    onset or change, when its warning last went off, curve parts entered."""
 
     levels: dict[str, int] = field(default_factory=dict)
+    curves: dict[str, str | None] = field(default_factory=dict)
     ended_s: dict[str, float] = field(default_factory=dict)
     entered: dict[str, set] = field(default_factory=dict)
 
     def forget(self, vehicle_id: str) -> None:
         self.levels.pop(vehicle_id, None)
+        self.curves.pop(vehicle_id, None)
         self.ended_s.pop(vehicle_id, None)
         self.entered.pop(vehicle_id, None)
 
@@ -232,8 +234,10 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
             levels[vehicle_id] = level
             if event == "end":
                 tracker.ended_s[vehicle_id] = t
-            elif event == "onset" and t - tracker.ended_s.get(vehicle_id, -math.inf) <= summary.flicker_window_s:
-                summary.add_flicker(category)
+            else:
+                if event == "onset" and t - tracker.ended_s.get(vehicle_id, -math.inf) <= summary.flicker_window_s:
+                    summary.add_soon_again(category, tracker.curves.get(vehicle_id) == (target and target.curve_id))
+                tracker.curves[vehicle_id] = target and target.curve_id
             if level > previous:
                 summary.add_onset(category, level, target and target.curve_id)
                 summary.warned_vehicles.add(vehicle_id)
@@ -374,6 +378,7 @@ def _comparison(without: dict, with_response: dict) -> dict:
         return {
             "warnings_by_level": summary["warnings"]["by_level"],
             "warnings_flickered": summary["warnings"]["flickered"],
+            "warnings_on_again_for_another_curve": summary["warnings"]["on_again_for_another_curve"],
             "curve_entries_above_level1": entries["total"],
             "curve_entries_more_than_1_kmh_above_level1": entries["more_than_1_kmh_above"],
             "max_excess_kmh": entries["max_excess_kmh"],
@@ -389,7 +394,7 @@ def _print_summary(summary: dict, out: Path) -> None:
     print(
         f"{summary['vehicles_evaluated']} vehicles over {summary['simulated_until_s']:g} s "
         f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings "
-        f"({summary['warnings']['flickered']} flickered: off and on again within "
+        f"({summary['warnings']['flickered']} flickered: off and on again for the same curve within "
         f"{summary['warnings']['flicker_window_s']:g} s), {entries['total']} curve entries above the level-1 warning speed "
         f"({entries['more_than_1_kmh_above']} by more than 1 km/h); output in {out}"
     )
