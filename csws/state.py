@@ -66,14 +66,21 @@ class ActivationSettings:
         ``activation_speed_kmh - hysteresis_kmh``, so it does not flicker.
     stale_after_s
         A position older than this when it is evaluated is stale.
+    clock_jump_s
+        A position older than the last accepted one by more than this is not stale: the
+        vehicle's clock started again (a restart, a new trip) or the last timestamp was
+        wrong, and the position is accepted as a new start. One fix with a timestamp far
+        in the future therefore silences no fix after it; a fix overtaken by a newer one
+        (late by less than this) is still stale.
     """
 
     activation_speed_kmh: float = 0.0
     hysteresis_kmh: float = 5.0
     stale_after_s: float = 2.0
+    clock_jump_s: float = 60.0
 
     def __post_init__(self) -> None:
-        for name in ("activation_speed_kmh", "hysteresis_kmh", "stale_after_s"):
+        for name in ("activation_speed_kmh", "hysteresis_kmh", "stale_after_s", "clock_jump_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
@@ -144,8 +151,9 @@ def _next_fields(was_activated, last_timestamp_s, has_last, speed_kmh, timestamp
 
     An absent timestamp, last timestamp or age is flagged by ``has_*`` False (its value
     is then ignored). The input's own faults come first: a speed or a timestamp that is
-    not a number is invalid; a timestamp older than the last accepted one, or an age
-    beyond ``stale_after_s``, is stale; else the fault found outside (map side), if any.
+    not a number is invalid; a timestamp older than the last accepted one (by at most
+    ``clock_jump_s``: further back, the clock started again), or an age beyond
+    ``stale_after_s``, is stale; else the fault found outside (map side), if any.
 
     Returns
     -------
@@ -155,7 +163,8 @@ def _next_fields(was_activated, last_timestamp_s, has_last, speed_kmh, timestamp
     """
     invalid = ((speed_kmh >= 0) & (speed_kmh < math.inf)) ^ True
     invalid = invalid | (has_timestamp & (_is_number(timestamp_s) ^ True))
-    stale = has_timestamp & has_last & (timestamp_s < last_timestamp_s)
+    behind_s = last_timestamp_s - timestamp_s
+    stale = has_timestamp & has_last & (behind_s > 0) & (behind_s <= settings.clock_jump_s)
     stale = stale | (has_age & ((_is_number(age_s) & (age_s <= settings.stale_after_s)) ^ True))
     fault_code = _select(invalid, _INVALID, _select(stale, _STALE, found_fault_code))
     in_fault = fault_code > 0
@@ -188,7 +197,8 @@ def next_status(
     speed_kmh
         The vehicle's speed, km/h.
     timestamp_s
-        When the position was taken, s; an update older than the last accepted one is stale.
+        When the position was taken, s; an update older than the last accepted one is stale,
+        unless it is older by more than ``settings.clock_jump_s`` (a new start of the clock).
     age_s
         How old the position is now, s, where known; older than ``stale_after_s`` is stale.
     found_fault

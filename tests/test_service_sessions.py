@@ -109,3 +109,13 @@ def test_by_default_the_bundled_networks_are_served(monkeypatch) -> None:
 def test_networks_with_the_same_name_are_refused(tmp_path) -> None:
     with pytest.raises(ValueError, match="share the name 't7_left'"):
         create_app(ServiceSettings(nets=[TRACK_NET, TRACK_NET], state_db=":memory:"))
+
+
+def test_a_fix_from_far_in_the_future_locks_no_vehicle_out(app) -> None:
+    # One query with a wild timestamp (sent by anyone who knows the id) answers for itself;
+    # the vehicle's next good fix is answered as usual, not as stale.
+    with TestClient(app) as client:
+        assert client.post("/v1/warning", json=_query("victim", timestamp_s=1_700_000_000.0)).json()["state"] == "active"
+        client.post("/v1/warning", json=_query("victim", timestamp_s=1e308))
+        answer = client.post("/v1/warning", json=_query("victim", timestamp_s=1_700_000_000.1)).json()
+        assert answer["state"] == "active" and answer["fault"] is None

@@ -62,6 +62,23 @@ def test_an_update_older_than_the_last_one_is_stale():
     assert next_status(status, 50.0, timestamp_s=10.5).state is SystemState.ACTIVE
 
 
+def test_one_fix_from_far_in_the_future_silences_no_fix_after_it():
+    status = next_status(VehicleStatus(), 50.0, timestamp_s=1_700_000_000.0)
+    bad = next_status(status, 50.0, timestamp_s=1e308)  # one fix with a wild timestamp
+    after = next_status(bad, 50.0, timestamp_s=1_700_000_000.1)
+    assert after.state is SystemState.ACTIVE and after.fault is None
+    assert next_status(after, 50.0, timestamp_s=1_700_000_000.2).state is SystemState.ACTIVE
+
+
+def test_a_clock_that_starts_again_is_accepted_and_a_late_fix_is_still_stale():
+    settings = ActivationSettings()
+    status = next_status(VehicleStatus(), 50.0, timestamp_s=5000.0)
+    restarted = next_status(status, 50.0, timestamp_s=5000.0 - settings.clock_jump_s - 1.0)
+    assert restarted.state is SystemState.ACTIVE and restarted.last_timestamp_s == 5000.0 - settings.clock_jump_s - 1.0
+    late = next_status(status, 50.0, timestamp_s=5000.0 - settings.clock_jump_s + 1.0)
+    assert late.fault is Fault.STALE_INPUT and late.last_timestamp_s == 5000.0
+
+
 def test_settings_reject_bad_values():
     with pytest.raises(ValueError, match="activation_speed_kmh must be a non-negative number"):
         ActivationSettings(activation_speed_kmh=-1.0)
