@@ -32,6 +32,7 @@ from csws.state import Fault
 from csws.warning import HmiHint, Trigger
 
 from .horizon import cpoi_points, position
+from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .schemas import Query
 from .vehicles import VehicleRegistry
@@ -114,8 +115,8 @@ class WarningService:
         self.network_index = {n.name: i for i, n in enumerate(self.networks)}
 
     # ------------------------------------------------------------------ queries
-    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> "EncodedAnswers":
-        """The answers of ``queries``, in order, as JSON.
+    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries"), fleet: str = "") -> "EncodedAnswers":
+        """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
         Raises
         ------
@@ -124,21 +125,23 @@ class WarningService:
             lon/lat to networks without a projection, or has no category; nothing is
             evaluated then.
         """
+        if fleet:
+            queries = [query.model_copy(update={"vehicle_id": vehicle_key(fleet, query.vehicle_id)}) for query in queries]
         self.registry.expire()
-        self.check(queries, loc)
+        self.check(queries, loc, fleet)
         answers = EncodedAnswers([""] * len(queries), [""] * len(queries), [0] * len(queries))
         for indices in _rounds(queries):
-            self._answer_round([queries[i] for i in indices], indices, answers)
+            self._answer_round([queries[i] for i in indices], indices, answers, fleet)
         return answers
 
-    def check(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries")) -> None:
-        """Raise :class:`QueryErrors` listing what in ``queries`` the networks cannot answer."""
+    def check(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries"), fleet: str = "") -> None:
+        """Raise :class:`QueryErrors` listing what in ``queries`` (of ``fleet``'s vehicles) the networks cannot answer."""
         errors: list[dict[str, Any]] = []
         for index, query in enumerate(queries):
             where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
             if query.category is None and self.registry.category(query.vehicle_id) is None:
                 errors.append(_error([*where, "category"], "category is required: give it in the query or "
-                                     f"set it with PUT /v1/vehicles/{query.vehicle_id}"))
+                                     f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))
             if query.network is not None and query.network not in self.network_index:
                 errors.append(_error([*where, "network"], f"unknown network {query.network!r}: served are "
                                      + ", ".join(sorted(self.network_index))))
@@ -240,8 +243,9 @@ class WarningService:
         lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)
         return float(math.hypot(x - lane_x, y - lane_y))
 
-    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], answers: "EncodedAnswers") -> None:
-        """Answer queries of distinct vehicles into ``answers[indices]``."""
+    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], answers: "EncodedAnswers",
+                      fleet: str) -> None:  # fmt: skip
+        """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
         placements = self.place(queries)
         by_network: dict[int, list[int]] = defaultdict(list)
         for row, (query, placement) in enumerate(zip(queries, placements)):
@@ -255,7 +259,7 @@ class WarningService:
             for row, result in zip(rows, results):
                 self.registry.seen(queries[row].vehicle_id, placements[row].lane_id)
                 index = indices[row]
-                answers.json[index] = self.encode(result, placements[row])
+                answers.json[index] = self.encode(result, placements[row], shown_id(fleet, result.vehicle_id))
                 answers.state[index] = result.state.value
                 answers.level[index] = int(result.warning.level)
 
@@ -274,8 +278,9 @@ class WarningService:
         )
 
     # ------------------------------------------------------------------ answers
-    def encode(self, answer: Answer, placement: Placement) -> str:
-        """The contract's WarningAnswer of an engine answer, as JSON text (floats unrounded).
+    def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> str:
+        """The contract's WarningAnswer of an engine answer for the vehicle its fleet calls
+        ``vehicle_id``, as JSON text (floats unrounded).
 
         Written field by field rather than through a dict and :func:`json.dumps`: most
         answers of a fleet are level 0, with no CPOI to locate.
@@ -301,7 +306,7 @@ class WarningService:
             matched = (f'{{"lane_id": {_json_text(placement.lane_id)}, "lane_pos_m": {_number(placement.lane_pos_m)}, '
                        f'"distance_m": {_number(placement.distance_m)}}}')
         path_kind = "null" if answer.path is None else f'"{answer.path.kind.value}"'
-        return (f'{{"vehicle_id": {_json_text(answer.vehicle_id)}, "state": "{answer.state.value}", "fault": {fault}, '
+        return (f'{{"vehicle_id": {_json_text(vehicle_id)}, "state": "{answer.state.value}", "fault": {fault}, '
                 f'"level": {int(warning.level)}, "target": {target}, "triggers": {triggers}, "matched": {matched}, '
                 f'"path_kind": {path_kind}, "hmi": {_hmi_json(warning.hmi)}}}')
 

@@ -28,6 +28,7 @@ from csws.standard import Category
 from .answers import QueryErrors, WarningService
 from .curves import curve_features, feature_collection, in_bbox
 from .horizon import DEFAULT_HORIZON_M, horizon
+from .keys import OPEN, KeyMiddleware, KeyRing, Principal, vehicle_key
 from .metrics import Metrics, MetricsMiddleware
 from .networks import MAX_HORIZON_M, load_networks
 from .schemas import (
@@ -150,6 +151,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
     app.add_middleware(MetricsMiddleware, metrics=metrics)
+    if settings.api_keys_file is not None:
+        app.add_middleware(KeyMiddleware, keyring=KeyRing(settings.api_keys_file), public_docs=settings.public_docs)
     app.state.service = service
     app.state.settings = settings
 
@@ -177,7 +180,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     )
     async def warning(request: Request) -> Response:
         query = _validated(QUERY_ADAPTER, await request.body())
-        answers = service.answer([query], loc=("body",))
+        answers = service.answer([query], loc=("body",), fleet=_principal(request).fleet)
         metrics.observe_answers(answers.state, answers.level)
         return Response(answers.json[0], media_type="application/json")
 
@@ -193,7 +196,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         body = await request.body()
         started = time.perf_counter()
         batch = _validated(BATCH_ADAPTER, body)
-        answers = service.answer(batch.queries)
+        answers = service.answer(batch.queries, fleet=_principal(request).fleet)
         metrics.observe_answers(answers.state, answers.level)
         content = answers.batch_json()
         elapsed_ms = (time.perf_counter() - started) * 1000.0
@@ -263,13 +266,13 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         return _json({"matched": matched, "fault": None, **ahead})
 
     # ------------------------------------------------------------------ vehicles
-    def _vehicle_state(vehicle_id: str) -> dict[str, Any]:
-        status = registry.status(vehicle_id)
-        session = registry.sessions.get(vehicle_id)
+    def _vehicle_state(key: str, vehicle_id: str) -> dict[str, Any]:
+        status = registry.status(key)
+        session = registry.sessions.get(key)
         return {
             "vehicle_id": vehicle_id,
             "switched_on": status.switched_on,
-            "category": registry.category(vehicle_id),
+            "category": registry.category(key),
             "state": status.state.value,
             "fault": status.fault.value if status.fault is not None else None,
             "activated": status.activated,
@@ -282,21 +285,27 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     @app.put("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="Switch CSWS on or off for a vehicle (5.2) and set its category",
-             responses={422: _INVALID_BODY}, openapi_extra=_json_body("VehicleSwitch"))
+             responses={403: {"model": Message, "description": "the key's role may not switch vehicles"},
+                        422: _INVALID_BODY}, openapi_extra=_json_body("VehicleSwitch"))  # fmt: skip
     async def put_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
+        principal = _principal(request)
+        if not principal.may_switch:
+            raise HTTPException(403, "switching vehicles needs a key with the admin role")
         setting = _validated(SWITCH_ADAPTER, await request.body())
+        key = vehicle_key(principal.fleet, vehicle_id)
         registry.expire()
-        registry.configure(vehicle_id, setting.switched_on, setting.category)
-        return _vehicle_state(vehicle_id)
+        registry.configure(key, setting.switched_on, setting.category)
+        return _vehicle_state(key, vehicle_id)
 
     @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="A vehicle's switch, category and system state",
              responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"}})
-    async def get_vehicle(vehicle_id: str = vehicle_path) -> dict[str, Any]:
+    async def get_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
+        key = vehicle_key(_principal(request).fleet, vehicle_id)
         registry.expire()
-        if not registry.known(vehicle_id):
+        if not registry.known(key):
             raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
-        return _vehicle_state(vehicle_id)
+        return _vehicle_state(key, vehicle_id)
 
     # ------------------------------------------------------------------ operations
     @app.get("/healthz", tags=["operations"], summary="The process is alive")
@@ -320,6 +329,12 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     _document_bodies(app)
     return app
+
+
+def _principal(request: Request) -> Principal:
+    """Who asks: the fleet and role of the request's key (:class:`service.keys.KeyMiddleware`),
+    :data:`service.keys.OPEN` on a service without keys."""
+    return getattr(request.state, "principal", OPEN)
 
 
 def _document_bodies(app: FastAPI) -> None:

@@ -27,4 +27,20 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                         help="a vehicle session idle this long expires, s (default 600)")
     parser.add_argument("--update-period-s", type=float, default=None,
                         help="how often a vehicle's fixes arrive, s: the warning comes that much earlier (default 0.1)")
+    parser.add_argument("--api-keys", type=Path, default=None, metavar="FILE",
+                        help="the fleets' API keys (csws keys add); without them only a loopback address is served")
+    parser.add_argument("--insecure", action="store_true", default=None,
+                        help="serve without API keys on an address other than loopback")
+    parser.add_argument("--public-docs", action="store_true", default=None,
+                        help="with API keys: /docs, /redoc, /openapi.json and /metrics need no key")
     parser.set_defaults(handler=deferred("service.run"))
+
+    keys = commands.add_parser("keys", help="manage the fleets' API keys of the service")
+    keys_commands = keys.add_subparsers(dest="keys_command", metavar="ACTION", required=True)
+    add = keys_commands.add_parser("add", help="make a key for a fleet, add its hash to the key file, print the key once")
+    add.add_argument("fleet", help="the fleet: 1-64 letters, digits, '_', '.' or '-'")
+    add.add_argument("--role", choices=("query", "admin"), default="query",
+                     help="query: warnings, horizons, curves, reading vehicles; admin: also switching them (default query)")
+    add.add_argument("--file", type=Path, default=None,
+                     help="the key file (default: $CSWS_API_KEYS_FILE); created if missing")
+    add.set_defaults(handler=deferred("service.run", "add_key_command"))

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 from .settings import ServiceSettings, settings_environment
 
-__all__ = ["settings_from_args", "main"]
+__all__ = ["settings_from_args", "main", "add_key_command"]
 
 #: Command-line options and the settings they override.
 _OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state_db": "state_db",
-            "session_idle_s": "session_idle_s", "update_period_s": "update_period_s"}
+            "session_idle_s": "session_idle_s", "update_period_s": "update_period_s", "api_keys": "api_keys_file",
+            "insecure": "insecure", "public_docs": "public_docs"}
 
 
 def settings_from_args(args: argparse.Namespace) -> ServiceSettings:
@@ -22,8 +24,11 @@ def settings_from_args(args: argparse.Namespace) -> ServiceSettings:
         return ServiceSettings(**overrides)
     except ValueError as exc:
         first = exc.errors()[0] if hasattr(exc, "errors") else None
-        reason = f"{'.'.join(map(str, first['loc']))}: {first['msg']}" if first else str(exc)
-        raise ValueError(f"bad service setting {reason}") from None
+        if first is None:
+            raise ValueError(f"bad service setting: {exc}") from None
+        where = ".".join(map(str, first["loc"]))
+        message = first["msg"].removeprefix("Value error, ")
+        raise ValueError(f"bad service setting {where}: {message}" if where else message) from None
 
 
 def main(args: argparse.Namespace) -> int:
@@ -47,4 +52,18 @@ def main(args: argparse.Namespace) -> int:
           f" (OpenAPI docs at /docs)", flush=True)
     uvicorn.run("service.app:create_app", factory=True, host=settings.host, port=settings.port,
                 workers=settings.workers, log_level="warning")
+    return 0
+
+
+def add_key_command(args: argparse.Namespace) -> int:
+    """``csws keys add``: a new key for a fleet, printed once; its hash goes into the key file."""
+    from .keys import KeyRing, add_key
+
+    path = args.file or os.environ.get("CSWS_API_KEYS_FILE")
+    if not path:
+        raise ValueError("give the key file: --file FILE, or set CSWS_API_KEYS_FILE")
+    key = add_key(path, args.fleet, args.role)
+    print(key)
+    print(f"csws: added a key of fleet {args.fleet!r} with role {args.role} to {path} ({len(KeyRing(path))} keys "
+          "in all); the key is shown only this once", file=sys.stderr)
     return 0

@@ -5,16 +5,21 @@ the workers of ``csws serve --workers N`` are configured the same way:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
 ``CSWS_WORKERS``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
-``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``.
+``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
+``CSWS_API_KEYS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``.
+
+Without an API key file (:mod:`service.keys`) the service answers anyone, so it listens
+only on a loopback address unless ``insecure`` is set.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import os
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from csws.engine import EngineSettings
@@ -52,6 +57,25 @@ class ServiceSettings(BaseSettings):
     heading_tolerance_deg: float = Field(default=45.0, gt=0, le=180, description="allowed heading difference, deg")
     update_period_s: float = Field(default=0.1, ge=0, description="how often a vehicle's fixes arrive, s")
     system_delay_s: float = Field(default=0.1, ge=0, description="processing and display delay, s")
+    api_keys_file: Path | None = Field(
+        default=None, description="the fleets' API keys (service.keys); without it the service answers anyone"
+    )
+    insecure: bool = Field(default=False, description="serve without API keys on an address other than loopback")
+    public_docs: bool = Field(
+        default=False, description="with API keys: /docs, /redoc, /openapi.json and /metrics open to all (else a key)"
+    )
+
+    @field_validator("api_keys_file", mode="before")
+    @classmethod
+    def _no_file(cls, value):
+        return None if isinstance(value, str) and not value.strip() else value
+
+    @model_validator(mode="after")
+    def _keys_or_loopback(self) -> "ServiceSettings":
+        if self.api_keys_file is None and not self.insecure and not _is_loopback(self.host):
+            raise ValueError(f"refusing to serve without API keys on {self.host}: give an API key file "
+                             f"(--api-keys FILE), listen on 127.0.0.1, or pass --insecure")  # fmt: skip
+        return self
 
     @field_validator("nets", mode="before")
     @classmethod
@@ -70,8 +94,20 @@ class ServiceSettings(BaseSettings):
         return MatchSettings(tolerance_m=self.match_tolerance_m, heading_tolerance_deg=self.heading_tolerance_deg)
 
 
+def _is_loopback(host: str) -> bool:
+    """Whether ``host`` is a loopback address (127.0.0.0/8, ::1) or ``localhost``."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 def settings_environment(settings: ServiceSettings) -> dict[str, str]:
     """The ``CSWS_*`` variables that reproduce ``settings`` (for worker processes)."""
     values = settings.model_dump()
     values["nets"] = os.pathsep.join(str(Path(p).resolve()) for p in settings.nets)
-    return {f"CSWS_{name.upper()}": str(value) for name, value in values.items()}
+    if settings.api_keys_file is not None:
+        values["api_keys_file"] = str(Path(settings.api_keys_file).resolve())
+    return {f"CSWS_{name.upper()}": "" if value is None else str(value) for name, value in values.items()}
