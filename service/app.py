@@ -29,6 +29,7 @@ from .answers import QueryErrors, WarningService
 from .curves import curve_features, feature_collection, in_bbox
 from .horizon import DEFAULT_HORIZON_M, horizon
 from .keys import OPEN, KeyMiddleware, KeyRing, Principal, vehicle_key
+from .limits import BodyLimit, too_many_queries
 from .metrics import Metrics, MetricsMiddleware
 from .networks import MAX_HORIZON_M, load_networks
 from .schemas import (
@@ -45,7 +46,7 @@ from .schemas import (
     WarningAnswer,
 )
 from .settings import ServiceSettings
-from .vehicles import SettingStore, VehicleRegistry
+from .vehicles import SettingStore, StoreUnavailable, VehicleRegistry
 
 __all__ = ["create_app", "MAX_ERRORS_SHOWN"]
 
@@ -88,6 +89,15 @@ def _validated(adapter: TypeAdapter, body: bytes) -> Any:
             [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False)]
         ) from None
 
+
+#: What any route of the API may answer on a service with API keys (:mod:`service.keys`).
+_KEYED = {401: {"model": Message, "description": "no API key, or one not in the key file (services with keys)"}}
+#: What a route with a JSON body may answer before it reads it (:mod:`service.limits`).
+_BOUNDED = {
+    408: {"model": Message, "description": "the client paused in its body for longer than the body timeout"},
+    413: {"model": Message, "description": "the body is larger than the body limit"},
+    415: {"model": Message, "description": "the body is not declared Content-Type: application/json"},
+}
 
 #: The 422 of endpoints that read their bodies themselves, as FastAPI documents its own.
 _INVALID_BODY = {"description": "Validation Error",
@@ -150,9 +160,11 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         store.close()
 
     app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
-    app.add_middleware(MetricsMiddleware, metrics=metrics)
+    # Innermost first: bodies bounded, then keys (a 401 before any body is read), then metrics over all.
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes, timeout_s=settings.body_timeout_s)
     if settings.api_keys_file is not None:
         app.add_middleware(KeyMiddleware, keyring=KeyRing(settings.api_keys_file), public_docs=settings.public_docs)
+    app.add_middleware(MetricsMiddleware, metrics=metrics)
     app.state.service = service
     app.state.settings = settings
 
@@ -164,6 +176,11 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     async def _unanswerable(_request: Request, exc: QueryErrors) -> JSONResponse:
         return JSONResponse(_clean(exc.errors), status_code=422)
 
+    @app.exception_handler(StoreUnavailable)
+    async def _store_unavailable(_request: Request, exc: StoreUnavailable) -> JSONResponse:
+        logger.warning("%s", exc)
+        return JSONResponse({"detail": f"{exc}; retry"}, status_code=503, headers={"Retry-After": "1"})
+
     @app.exception_handler(Exception)
     async def _unexpected(_request: Request, exc: Exception) -> JSONResponse:
         logger.exception("unexpected error")
@@ -174,7 +191,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         "/v1/warning",
         summary="The warning for one vehicle",
         response_model=None,
-        responses={200: {"model": WarningAnswer}, 422: _INVALID_BODY},
+        responses={200: {"model": WarningAnswer}, 422: _INVALID_BODY, **_KEYED, **_BOUNDED},
         openapi_extra=_json_body("Query"),
         tags=["warnings"],
     )
@@ -188,13 +205,16 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         "/v1/warnings",
         summary=f"The warnings for a batch of up to {MAX_BATCH} queries, in order",
         response_model=None,
-        responses={200: {"model": Answers}, 422: _INVALID_BODY},
+        responses={200: {"model": Answers}, 422: _INVALID_BODY, **_KEYED, **_BOUNDED},
         openapi_extra=_json_body("Batch"),
         tags=["warnings"],
     )
     async def warnings(request: Request) -> Response:
         body = await request.body()
         started = time.perf_counter()
+        if (count := too_many_queries(body, MAX_BATCH)):
+            raise RequestValidationError([{"loc": ("body", "queries"), "type": "too_long",
+                                           "msg": f"List should have at most {MAX_BATCH} items, not {count}"}])
         batch = _validated(BATCH_ADAPTER, body)
         answers = service.answer(batch.queries, fleet=_principal(request).fleet)
         metrics.observe_answers(answers.state, answers.level)
@@ -203,7 +223,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         return Response(content, media_type="application/json", headers={"Server-Timing": f"csws;dur={elapsed_ms:.3f}"})
 
     # ------------------------------------------------------------------ map
-    @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"])
+    @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"], responses=_KEYED)
     async def curves(
         bbox: str | None = QueryParam(
             default=None,
@@ -224,7 +244,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
             features += [f for f in curve_cache[i] if in_bbox(f, box)]
         return _json(feature_collection(features, [networks[i] for i in chosen]))
 
-    @app.get("/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", tags=["map"])
+    @app.get("/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", tags=["map"],
+             responses=_KEYED)
     async def road_ahead(
         x: float | None = QueryParam(default=None, allow_inf_nan=False, description="network x, m"),
         y: float | None = QueryParam(default=None, allow_inf_nan=False, description="network y, m"),
@@ -286,7 +307,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     @app.put("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="Switch CSWS on or off for a vehicle (5.2) and set its category",
              responses={403: {"model": Message, "description": "the key's role may not switch vehicles"},
-                        422: _INVALID_BODY}, openapi_extra=_json_body("VehicleSwitch"))  # fmt: skip
+                        422: _INVALID_BODY,
+                        503: {"model": Message, "description": "the settings database cannot be written now; retry"},
+                        **_KEYED, **_BOUNDED}, openapi_extra=_json_body("VehicleSwitch"))  # fmt: skip
     async def put_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         principal = _principal(request)
         if not principal.may_switch:
@@ -299,7 +322,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="A vehicle's switch, category and system state",
-             responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"}})
+             responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"}, **_KEYED})
     async def get_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         key = vehicle_key(_principal(request).fleet, vehicle_id)
         registry.expire()

@@ -78,11 +78,16 @@ class Metrics:
         return "\n".join(lines) + "\n"
 
 
+#: The HTTP methods counted under their own name.
+METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "DELETE", "PATCH", "OPTIONS"})
+
+
 class MetricsMiddleware:
     """ASGI middleware that counts every HTTP request and times it.
 
     Requests are labelled by their route template (``/v1/vehicles/{vehicle_id}``), not
-    the raw path, so the number of series stays bounded.
+    the raw path, and by their method, any but the standard ones (:data:`METHODS`) as
+    ``other``, so the number of series stays bounded whatever clients send.
     """
 
     def __init__(self, app, metrics: Metrics) -> None:
@@ -107,4 +112,5 @@ class MetricsMiddleware:
         finally:
             route = scope.get("route")
             template = getattr(route, "path", None) or "unmatched"
-            self.metrics.observe_request(scope["method"], template, status, time.perf_counter() - started)
+            method = scope["method"] if scope["method"] in METHODS else "other"
+            self.metrics.observe_request(method, template, status, time.perf_counter() - started)

@@ -45,8 +45,17 @@ def main(args: argparse.Namespace) -> int:
         uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
         return 0
     from .networks import load_networks
+    from .vehicles import SettingStore
 
-    load_networks(settings.nets, settings.engine_settings())  # fail here, once, with one clear line
+    # Fail here, once, with one clear line, rather than in every worker (a respawn loop).
+    load_networks(settings.nets, settings.engine_settings())
+    store = SettingStore(settings.state_db)
+    store.load()
+    store.close()
+    if settings.api_keys_file is not None:
+        from .keys import KeyRing
+
+        KeyRing(settings.api_keys_file)
     os.environ.update(settings_environment(settings))
     print(f"csws: serving with {settings.workers} workers on http://{settings.host}:{settings.port}"
           f" (OpenAPI docs at /docs)", flush=True)

@@ -1,6 +1,7 @@
 """The HTTP contract as pydantic models: what a query and an answer look like.
 
-Queries are validated strictly (finite numbers, ranges, known categories) so that bad
+Queries are validated strictly (numbers as JSON numbers, never strings or booleans; finite;
+within their ranges; known categories) so that bad
 input gets an HTTP 422 that names the query and the field. Answers are documented
 here for the OpenAPI schema; the service writes them as plain JSON without
 re-validating them (see :mod:`service.answers`).
@@ -29,10 +30,10 @@ class Position(BaseModel):
         json_schema_extra={"examples": [{"x": 600.0, "y": 0.4}, {"lon": 9.7071, "lat": 50.8682}]},
     )
 
-    x: float | None = Field(default=None, description="network x, m")
-    y: float | None = Field(default=None, description="network y, m")
-    lon: float | None = Field(default=None, ge=-180.0, le=180.0, description="longitude, degrees (WGS84)")
-    lat: float | None = Field(default=None, ge=-90.0, le=90.0, description="latitude, degrees (WGS84)")
+    x: float | None = Field(default=None, strict=True, description="network x, m")
+    y: float | None = Field(default=None, strict=True, description="network y, m")
+    lon: float | None = Field(default=None, ge=-180.0, le=180.0, strict=True, description="longitude, degrees (WGS84)")
+    lat: float | None = Field(default=None, ge=-90.0, le=90.0, strict=True, description="latitude, degrees (WGS84)")
 
     @model_validator(mode="after")
     def _one_pair(self) -> "Position":
@@ -82,15 +83,15 @@ class Query(BaseModel):
         default=None,
         description="vehicle category (GB/T 15089); may be left out once set with PUT /v1/vehicles/{id}",
     )
-    speed_kmh: float = Field(ge=0.0, le=MAX_SPEED_KMH, description="speed V, km/h")
+    speed_kmh: float = Field(ge=0.0, le=MAX_SPEED_KMH, strict=True, description="speed V, km/h")
     position: Position | None = Field(default=None, description="the fix; optional when lane_id is given")
     heading_deg: float | None = Field(
-        default=None, ge=0.0, lt=360.0, description="GNSS heading, degrees clockwise from north"
+        default=None, ge=0.0, lt=360.0, strict=True, description="GNSS heading, degrees clockwise from north"
     )
     lane_id: str | None = Field(
         default=None, min_length=1, max_length=256, description="SUMO lane id: no map matching when given"
     )
-    lane_pos_m: float | None = Field(default=None, ge=0.0, description="lane position, m (with lane_id)")
+    lane_pos_m: float | None = Field(default=None, ge=0.0, strict=True, description="lane position, m (with lane_id)")
     route: list[str] | None = Field(default=None, max_length=MAX_BATCH, description="route as edge ids")
     network: str | None = Field(
         default=None,
@@ -99,8 +100,10 @@ class Query(BaseModel):
         description="the served network to answer on (its file name without .net.xml); by default the "
         "vehicle's last network, or for a fix the best match over all networks",
     )
-    timestamp_s: float | None = Field(default=None, description="when the fix was taken, s (any epoch; ordering only)")
-    age_s: float | None = Field(default=None, ge=0.0, description="how old the fix is now, s")
+    timestamp_s: float | None = Field(
+        default=None, strict=True, description="when the fix was taken, s (any epoch; ordering only)"
+    )
+    age_s: float | None = Field(default=None, ge=0.0, strict=True, description="how old the fix is now, s")
 
     @model_validator(mode="after")
     def _located(self) -> "Query":
@@ -225,7 +228,7 @@ class VehicleSwitch(BaseModel):
 
     model_config = ConfigDict(json_schema_extra={"examples": [{"switched_on": False, "category": "N"}]})
 
-    switched_on: bool = Field(description="CSWS on (true) or off (false)")
+    switched_on: bool = Field(strict=True, description="CSWS on (true) or off (false)")
     category: Category | None = Field(default=None, description="the vehicle's category, used when a query has none")
 
 

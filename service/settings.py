@@ -6,7 +6,8 @@ the workers of ``csws serve --workers N`` are configured the same way:
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
 ``CSWS_WORKERS``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
 ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
-``CSWS_API_KEYS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``.
+``CSWS_API_KEYS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
+``CSWS_BODY_TIMEOUT_S``.
 
 Without an API key file (:mod:`service.keys`) the service answers anyone, so it listens
 only on a loopback address unless ``insecure`` is set.
@@ -61,6 +62,8 @@ class ServiceSettings(BaseSettings):
         default=None, description="the fleets' API keys (service.keys); without it the service answers anyone"
     )
     insecure: bool = Field(default=False, description="serve without API keys on an address other than loopback")
+    max_body_bytes: int = Field(default=16 * 2**20, gt=0, description="the largest request body accepted, bytes")
+    body_timeout_s: float = Field(default=10.0, gt=0, description="a client pausing this long in its body gets 408, s")
     public_docs: bool = Field(
         default=False, description="with API keys: /docs, /redoc, /openapi.json and /metrics open to all (else a key)"
     )

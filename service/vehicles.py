@@ -23,7 +23,15 @@ from csws.mapmatch import MapPosition
 from csws.standard import Category
 from csws.state import VehicleStatus, switch
 
-__all__ = ["VehicleSetting", "Session", "SettingStore", "VehicleRegistry"]
+__all__ = ["VehicleSetting", "Session", "SettingStore", "StoreUnavailable", "VehicleRegistry"]
+
+#: How long a write waits for a database another process holds locked, s: longer would hold
+#: up every other request of the worker; the client is told to retry instead.
+STORE_BUSY_TIMEOUT_S = 0.5
+
+
+class StoreUnavailable(OSError):
+    """The settings database cannot be written now (locked, unwritable, gone): retry later."""
 
 
 @dataclass(frozen=True)
@@ -73,8 +81,10 @@ class SettingStore:
     def __init__(self, path: str | Path) -> None:
         if str(path) != ":memory:":
             Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.path = str(path)
         try:
-            self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None)
+            self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None,
+                                       timeout=STORE_BUSY_TIMEOUT_S)  # fmt: skip
             self._db.execute(
                 "CREATE TABLE IF NOT EXISTS vehicle_settings ("
                 "vehicle_id TEXT PRIMARY KEY, switched_on INTEGER NOT NULL, category TEXT)"
@@ -83,19 +93,37 @@ class SettingStore:
             raise OSError(f"cannot open the vehicle settings database {path}: {exc}") from None
 
     def load(self) -> dict[str, VehicleSetting]:
-        """Every stored setting."""
-        rows = self._db.execute("SELECT vehicle_id, switched_on, category FROM vehicle_settings").fetchall()
-        return {
-            vehicle_id: VehicleSetting(bool(on), Category(category) if category else None)
-            for vehicle_id, on, category in rows
-        }
+        """Every stored setting.
+
+        Raises
+        ------
+        OSError
+            One line naming the file, when it is not a settings database of this service.
+        """
+        try:
+            rows = self._db.execute("SELECT vehicle_id, switched_on, category FROM vehicle_settings").fetchall()
+            return {
+                vehicle_id: VehicleSetting(bool(on), Category(category) if category else None)
+                for vehicle_id, on, category in rows
+            }
+        except (sqlite3.Error, ValueError) as exc:
+            raise OSError(f"the vehicle settings database {self.path} cannot be read: {exc}") from None
 
     def save(self, vehicle_id: str, setting: VehicleSetting) -> None:
-        """Store a vehicle's setting (replacing the previous one)."""
-        self._db.execute(
-            "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)",
-            (vehicle_id, int(setting.switched_on), setting.category.value if setting.category else None),
-        )
+        """Store a vehicle's setting (replacing the previous one).
+
+        Raises
+        ------
+        StoreUnavailable
+            When the database cannot be written now; nothing was stored.
+        """
+        try:
+            self._db.execute(
+                "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)",
+                (vehicle_id, int(setting.switched_on), setting.category.value if setting.category else None),
+            )
+        except sqlite3.Error as exc:
+            raise StoreUnavailable(f"the vehicle settings database {self.path} cannot be written now: {exc}") from None
 
     def close(self) -> None:
         """Close the database."""
