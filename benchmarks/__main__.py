@@ -160,6 +160,8 @@ def load_rows(figures: dict) -> list[Row]:
     return [
         context("load: throughput, req/s", figures["throughput_rps"], duration),
         context("load: latency p50 / p99, ms", f"{figures['latency_ms_p50']:g} / {figures['latency_ms_p99']:g}"),
+        at_most("load: /healthz p99 while saturated, ms", figures["healthz_ms_p99"], load.MAX_HEALTHZ_P99_MS,
+                f"{figures['healthz_probes']} probes, one every {load.HEALTH_PERIOD_S:g} s"),
         at_most("load: errors", figures["errors"], load.MAX_ERRORS, figures["first_error"] or ""),
         at_most("load: memory growth, MB", figures["rss_growth_mb"], load.MAX_RSS_GROWTH_MB,
                 f"{figures['rss_mb_start']:g} -> {figures['rss_mb_end']:g} MB; {figures['sessions_at_end']} of "

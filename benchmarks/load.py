@@ -39,6 +39,9 @@ REQUEST_TIMEOUT_S = 10.0
 #: Targets: no failed request, and memory at the end within this much of that after the warm-up.
 MAX_ERRORS = 0
 MAX_RSS_GROWTH_MB = 20.0
+#: While the server is saturated, /healthz is asked every this many seconds; its p99 must stay within the target.
+HEALTH_PERIOD_S = 0.05
+MAX_HEALTHZ_P99_MS = 50.0
 
 
 def rss_mb(pid: int) -> float:
@@ -86,17 +89,30 @@ async def _client(url: str, number: int, fixes: list[dict], deadline: float, tal
             tally.latencies_s.append(time.perf_counter() - started)
 
 
-async def _drive(url: str, pid: int, seconds: float, clients: int) -> tuple[Tally, float, float, float]:
-    """Run the clients; return the tally, the measured seconds and the RSS after warm-up and at the end."""
+async def _health(url: str, deadline: float, latencies_s: list[float]) -> None:
+    """Ask /healthz every :data:`HEALTH_PERIOD_S` until ``deadline``, on a connection of its own."""
+    async with httpx.AsyncClient(base_url=url, timeout=REQUEST_TIMEOUT_S) as client:
+        while time.monotonic() < deadline:
+            started = time.perf_counter()
+            response = await client.get("/healthz")
+            if response.status_code == 200:
+                latencies_s.append(time.perf_counter() - started)
+            await asyncio.sleep(HEALTH_PERIOD_S)
+
+
+async def _drive(url: str, pid: int, seconds: float, clients: int) -> tuple[Tally, float, float, float, list[float]]:
+    """Run the clients and the health prober; return the tally, the measured seconds, the RSS
+    after warm-up and at the end, and the /healthz latencies."""
     fixes = _fixes(1000)
     tally = Tally()
+    health_s: list[float] = []
     started = time.monotonic()
     deadline = started + seconds
-    runs = asyncio.gather(*(_client(url, n, fixes, deadline, tally) for n in range(clients)))
+    runs = asyncio.gather(_health(url, deadline, health_s), *(_client(url, n, fixes, deadline, tally) for n in range(clients)))
     await asyncio.sleep(min(WARM_UP_FRACTION * seconds, MAX_WARM_UP_S))
     warm_rss_mb = rss_mb(pid)
     await asyncio.wait_for(runs, timeout=seconds + 2 * REQUEST_TIMEOUT_S)
-    return tally, time.monotonic() - started, warm_rss_mb, rss_mb(pid)
+    return tally, time.monotonic() - started, warm_rss_mb, rss_mb(pid), health_s
 
 
 def run(seconds: float = SECONDS, clients: int = CLIENTS, session_idle_s: float = SESSION_IDLE_S) -> dict:
@@ -106,7 +122,7 @@ def run(seconds: float = SECONDS, clients: int = CLIENTS, session_idle_s: float 
                            "CSWS_SESSION_IDLE_S": str(session_idle_s)})
     try:
         start_rss_mb = rss_mb(process.pid)
-        tally, measured_s, warm_rss_mb, end_rss_mb = asyncio.run(_drive(url, process.pid, seconds, clients))
+        tally, measured_s, warm_rss_mb, end_rss_mb, health_s = asyncio.run(_drive(url, process.pid, seconds, clients))
         sessions = httpx.get(f"{url}/readyz").json()["vehicle_sessions"]
     finally:
         process.terminate()
@@ -119,6 +135,8 @@ def run(seconds: float = SECONDS, clients: int = CLIENTS, session_idle_s: float 
         "throughput_rps": round(len(latencies_ms) / measured_s, 1),
         "latency_ms_p50": round(float(np.percentile(latencies_ms, 50)), 2),
         "latency_ms_p99": round(float(np.percentile(latencies_ms, 99)), 2),
+        "healthz_ms_p99": round(float(np.percentile(np.array(health_s) * 1000.0, 99)), 2) if health_s else None,
+        "healthz_probes": len(health_s),
         "errors": tally.errors,
         "first_error": tally.first_error,
         "vehicles": tally.vehicles,

@@ -11,9 +11,15 @@ Given a vehicle's speed and category and the curvature points of interest (CPOIs
   nearest;
 * 5.5.1: the two levels are shown distinctly (level 1 visual, level 2 visual and audible).
 
-A CPOI here is the first point of a constant-radius part of a curve: along a part the
-radius, and so V_w and S_w, are constant, and its first point is the nearest, so it is
-the one that decides the part. A vehicle inside a part is at distance 0 from it.
+A CPOI here is the first point of a constant-radius part of a curve (or of a piece of a
+clothoid short enough that V_w changes along it by under 1 km/h): along a part V_w and S_w
+hardly change, and its first point is the nearest, so it is the one that decides the part.
+A vehicle inside a part is at distance 0 from it, at the radius of the road under it
+(:func:`csws.horizon.radius_under`).
+
+This module is clause 6 at one instant. How long a level stays on once 6.1 no longer
+requires it is the release rule of :mod:`csws.release`, which the engine applies through
+``cpoi_latched``, ``cpoi_hold`` and ``cpoi_passed``.
 
 The core, :func:`evaluate_batch`, works on flat numpy arrays for many vehicles at once;
 :func:`evaluate` is the same computation for one vehicle.

@@ -9,11 +9,14 @@ cannot be read stops start-up. The OpenAPI documentation is at ``/docs`` (Swagge
 
 from __future__ import annotations
 
+import asyncio
+import functools
 import gc
 import json
 import logging
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any, Callable
 
@@ -32,6 +35,7 @@ from .keys import OPEN, KeyMiddleware, KeyRing, Principal, vehicle_key
 from .limits import BodyLimit, too_many_queries
 from .metrics import Metrics, MetricsMiddleware
 from .networks import MAX_HORIZON_M, load_networks
+from .run import leave_with_master
 from .schemas import (
     BATCH_ADAPTER,
     MAX_BATCH,
@@ -151,12 +155,29 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     service = WarningService(networks, registry, settings.match_settings())
     metrics = Metrics()
     curve_cache: dict[int, list[dict[str, Any]]] = {}
+    # The engines, sessions and settings are touched by one piece of work at a time, in
+    # arrival order (the lock). Long work (batches, the curve index, horizons, database writes)
+    # runs on a thread of its own, so that the event loop stays free for other requests and
+    # /healthz; a single query, a fraction of a millisecond, runs on the loop itself, which
+    # saves it the hop to the thread.
+    work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="csws-work")
+    state_lock = asyncio.Lock()
+
+    async def off_loop(function: Callable[..., Any], *args: Any) -> Any:
+        async with state_lock:
+            return await asyncio.get_running_loop().run_in_executor(work, functools.partial(function, *args))
+
+    async def on_loop(function: Callable[..., Any], *args: Any) -> Any:
+        async with state_lock:
+            return function(*args)
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):
+        leave_with_master()
         gc.freeze()  # the networks and engines live as long as the app: keep them out of every collection
         yield
         gc.unfreeze()
+        work.shutdown(wait=True)
         store.close()
 
     app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
@@ -196,8 +217,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         tags=["warnings"],
     )
     async def warning(request: Request) -> Response:
-        query = _validated(QUERY_ADAPTER, await request.body())
-        answers = service.answer([query], loc=("body",), fleet=_principal(request).fleet)
+        body, fleet = await request.body(), _principal(request).fleet
+        answers = await on_loop(lambda: service.answer([_validated(QUERY_ADAPTER, body)], loc=("body",), fleet=fleet))
         metrics.observe_answers(answers.state, answers.level)
         return Response(answers.json[0], media_type="application/json")
 
@@ -210,15 +231,18 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         tags=["warnings"],
     )
     async def warnings(request: Request) -> Response:
-        body = await request.body()
+        body, fleet = await request.body(), _principal(request).fleet
         started = time.perf_counter()
         if (count := too_many_queries(body, MAX_BATCH)):
             raise RequestValidationError([{"loc": ("body", "queries"), "type": "too_long",
                                            "msg": f"List should have at most {MAX_BATCH} items, not {count}"}])
-        batch = _validated(BATCH_ADAPTER, body)
-        answers = service.answer(batch.queries, fleet=_principal(request).fleet)
+
+        def answer_batch():
+            answers = service.answer(_validated(BATCH_ADAPTER, body).queries, fleet=fleet)
+            return answers, answers.batch_json()
+
+        answers, content = await off_loop(answer_batch)
         metrics.observe_answers(answers.state, answers.level)
-        content = answers.batch_json()
         elapsed_ms = (time.perf_counter() - started) * 1000.0
         return Response(content, media_type="application/json", headers={"Server-Timing": f"csws;dur={elapsed_ms:.3f}"})
 
@@ -237,12 +261,15 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         if not chosen:
             raise RequestValidationError([{"loc": ("query", "network"), "type": "value_error",
                                            "msg": f"unknown network {network!r}"}])
-        features = []
-        for i in chosen:
-            if i not in curve_cache:
-                curve_cache[i] = curve_features(networks[i])
-            features += [f for f in curve_cache[i] if in_bbox(f, box)]
-        return _json(feature_collection(features, [networks[i] for i in chosen]))
+        def collection() -> Response:
+            features = []
+            for i in chosen:
+                if i not in curve_cache:
+                    curve_cache[i] = curve_features(networks[i])
+                features += [f for f in curve_cache[i] if in_bbox(f, box)]
+            return _json(feature_collection(features, [networks[i] for i in chosen]))
+
+        return await off_loop(collection)
 
     @app.get("/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", tags=["map"],
              responses=_KEYED)
@@ -276,15 +303,19 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
             raise RequestValidationError(
                 [{**e, "loc": ("query", *e["loc"])} for e in exc.errors(include_url=False)]
             ) from None
-        service.check([query], loc=("query",))
-        (placement,) = service.place([query])
-        if placement.lane_id is None:
-            return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
-        ahead = horizon(networks[placement.network_index], placement.lane_id, placement.lane_pos_m,
-                        query.route, length_m)
-        matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m,
-                   "distance_m": placement.distance_m}
-        return _json({"matched": matched, "fault": None, **ahead})
+
+        def road() -> Response:
+            service.check([query], loc=("query",))
+            (placement,) = service.place([query])
+            if placement.lane_id is None:
+                return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
+            ahead = horizon(networks[placement.network_index], placement.lane_id, placement.lane_pos_m,
+                            query.route, length_m)
+            matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m,
+                       "distance_m": placement.distance_m}
+            return _json({"matched": matched, "fault": None, **ahead})
+
+        return await off_loop(road)
 
     # ------------------------------------------------------------------ vehicles
     def _vehicle_state(key: str, vehicle_id: str) -> dict[str, Any]:
@@ -316,19 +347,27 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
             raise HTTPException(403, "switching vehicles needs a key with the admin role")
         setting = _validated(SWITCH_ADAPTER, await request.body())
         key = vehicle_key(principal.fleet, vehicle_id)
-        registry.expire()
-        registry.configure(key, setting.switched_on, setting.category)
-        return _vehicle_state(key, vehicle_id)
+
+        def configure() -> dict[str, Any]:
+            registry.expire()
+            registry.configure(key, setting.switched_on, setting.category)
+            return _vehicle_state(key, vehicle_id)
+
+        return await off_loop(configure)
 
     @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="A vehicle's switch, category and system state",
              responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"}, **_KEYED})
     async def get_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         key = vehicle_key(_principal(request).fleet, vehicle_id)
-        registry.expire()
-        if not registry.known(key):
-            raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
-        return _vehicle_state(key, vehicle_id)
+
+        def state() -> dict[str, Any]:
+            registry.expire()
+            if not registry.known(key):
+                raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
+            return _vehicle_state(key, vehicle_id)
+
+        return await on_loop(state)
 
     # ------------------------------------------------------------------ operations
     @app.get("/healthz", tags=["operations"], summary="The process is alive")

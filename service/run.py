@@ -8,7 +8,12 @@ import sys
 
 from .settings import ServiceSettings, settings_environment
 
-__all__ = ["settings_from_args", "main", "add_key_command"]
+__all__ = ["settings_from_args", "main", "add_key_command", "MASTER_PID_VARIABLE", "leave_with_master"]
+
+#: Set by ``csws serve --workers N`` for its workers: the process id of the master.
+MASTER_PID_VARIABLE = "CSWS_MASTER_PID"
+#: How often a worker looks whether its master is still there, s.
+MASTER_CHECK_S = 1.0
 
 #: Command-line options and the settings they override.
 _OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state_db": "state_db",
@@ -57,6 +62,7 @@ def main(args: argparse.Namespace) -> int:
 
         KeyRing(settings.api_keys_file)
     os.environ.update(settings_environment(settings))
+    os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
     print(f"csws: serving with {settings.workers} workers on http://{settings.host}:{settings.port}"
           f" (OpenAPI docs at /docs)", flush=True)
     uvicorn.run("service.app:create_app", factory=True, host=settings.host, port=settings.port,
@@ -76,3 +82,29 @@ def add_key_command(args: argparse.Namespace) -> int:
     print(f"csws: added a key of fleet {args.fleet!r} with role {args.role} to {path} ({len(KeyRing(path))} keys "
           "in all); the key is shown only this once", file=sys.stderr)
     return 0
+
+
+def leave_with_master() -> None:
+    """In a worker of ``csws serve --workers N``: end this process when the master is gone.
+
+    A master killed with SIGKILL cannot stop its workers, and they would go on serving, the
+    port taken, with nobody to restart or stop them. Each worker checks every
+    :data:`MASTER_CHECK_S` whether its parent is still the master, and otherwise shuts down
+    as on SIGTERM. Outside such a worker (no master recorded) nothing is started.
+    """
+    import signal
+    import threading
+    import time
+
+    master = os.environ.get(MASTER_PID_VARIABLE)
+    if not master or os.getppid() != int(master):
+        return
+
+    def watch() -> None:
+        while os.getppid() == int(master):
+            time.sleep(MASTER_CHECK_S)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(3.0)
+        os._exit(1)  # the graceful shutdown did not end it
+
+    threading.Thread(target=watch, name="csws-master-watch", daemon=True).start()

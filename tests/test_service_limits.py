@@ -158,3 +158,54 @@ def test_a_bad_settings_database_stops_start_up_in_one_line_naming_it(tmp_path, 
                              "--port", "0", "--workers", workers], capture_output=True, text=True, timeout=120)  # fmt: skip
     assert result.returncode == 2, result.stderr
     assert result.stderr.count("\n") == 1 and result.stderr.startswith("csws: error: ") and str(state_db) in result.stderr
+
+
+# ------------------------------------------------------------------ the master killed
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid``."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    import httpx
+
+    from test_service import _free_port
+
+    port = _free_port()
+    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db", ":memory:",
+                               "--port", str(port), "--workers", "2"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline:
+            try:
+                if httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2.0).status_code == 200:
+                    break
+            except httpx.TransportError:
+                time.sleep(0.2)
+        workers = _children(master.pid)
+        assert len(workers) >= 2
+        master.send_signal(signal.SIGKILL)
+        master.wait(timeout=10)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and any(Path(f"/proc/{pid}").exists() for pid in workers):
+            time.sleep(0.2)
+        left = [pid for pid in workers if Path(f"/proc/{pid}").exists()]
+        assert not left
+    finally:
+        for pid in _children(master.pid) if master.poll() is None else []:
+            os.kill(pid, signal.SIGKILL)
+        master.kill()
