@@ -127,6 +127,7 @@ class WarningService:
         """
         if fleet:
             queries = [query.model_copy(update={"vehicle_id": vehicle_key(fleet, query.vehicle_id)}) for query in queries]
+        self.registry.refresh()
         self.registry.expire()
         self.check(queries, loc, fleet)
         answers = EncodedAnswers([""] * len(queries), [""] * len(queries), [0] * len(queries))

@@ -349,6 +349,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         key = vehicle_key(principal.fleet, vehicle_id)
 
         def configure() -> dict[str, Any]:
+            registry.refresh()
             registry.expire()
             registry.configure(key, setting.switched_on, setting.category)
             return _vehicle_state(key, vehicle_id)
@@ -362,6 +363,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         key = vehicle_key(_principal(request).fleet, vehicle_id)
 
         def state() -> dict[str, Any]:
+            registry.refresh()
             registry.expire()
             if not registry.known(key):
                 raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")

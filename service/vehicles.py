@@ -1,12 +1,15 @@
 """What the service keeps of each vehicle between requests.
 
-* The fleet's settings, the driver switch (5.2) and the category, survive a restart:
-  they are stored in SQLite (:class:`SettingStore`).
+* The fleet's settings, the driver switch (5.2) and the category, survive a restart and
+  are shared by the workers of one service: they are stored in SQLite (:class:`SettingStore`,
+  WAL), and every request first reads them again if another worker has written since
+  (:meth:`VehicleRegistry.refresh`).
 * A session per vehicle seen recently: the network and lane of its last match, for
   the continuity of map matching, and its :class:`~csws.state.VehicleStatus`, which
   lives in the engine of that network. A vehicle that moves to another network takes
   its status along. Sessions idle for longer than the idle time expire and the engine
-  forgets the vehicle, so memory stays bounded; its stored settings remain.
+  forgets the vehicle, so memory stays bounded; its stored settings remain. Sessions are
+  each worker's own.
 """
 
 from __future__ import annotations
@@ -85,12 +88,35 @@ class SettingStore:
         try:
             self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None,
                                        timeout=STORE_BUSY_TIMEOUT_S)  # fmt: skip
+            if self.path != ":memory:":
+                # Readers never wait for the writer: the workers of one service share the file.
+                self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute(
                 "CREATE TABLE IF NOT EXISTS vehicle_settings ("
                 "vehicle_id TEXT PRIMARY KEY, switched_on INTEGER NOT NULL, category TEXT)"
             )
+            self._version = self._data_version()
         except sqlite3.Error as exc:
             raise OSError(f"cannot open the vehicle settings database {path}: {exc}") from None
+
+    def _data_version(self) -> int:
+        return int(self._db.execute("PRAGMA data_version").fetchone()[0])
+
+    def changed(self) -> bool:
+        """Whether another connection (another worker of the service) has written to the
+        database since the last call: SQLite's ``data_version``, one cheap query.
+
+        Raises
+        ------
+        StoreUnavailable
+            When the database cannot be read now.
+        """
+        try:
+            version = self._data_version()
+        except sqlite3.Error as exc:
+            raise StoreUnavailable(f"the vehicle settings database {self.path} cannot be read now: {exc}") from None
+        changed, self._version = version != self._version, version
+        return changed
 
     def load(self) -> dict[str, VehicleSetting]:
         """Every stored setting.
@@ -160,6 +186,20 @@ class VehicleRegistry:
         self.clock = clock
         self.settings = store.load()
         self.sessions: OrderedDict[str, Session] = OrderedDict()
+
+    def refresh(self) -> None:
+        """Read the settings again when another worker changed them, and apply changed switches
+        to the vehicles' sessions here: after a PUT through any worker, every later request
+        through any worker sees it."""
+        if not self.store.changed():
+            return
+        settings = self.store.load()
+        for vehicle_id, session in self.sessions.items():
+            setting = settings.get(vehicle_id)
+            engine = self.engines[session.network_index]
+            if setting is not None and setting.switched_on != engine.status(vehicle_id).switched_on:
+                engine.switch(vehicle_id, setting.switched_on)
+        self.settings = settings
 
     def expire(self) -> int:
         """End the sessions idle for longer than the idle time; return how many ended."""

@@ -209,3 +209,42 @@ def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
         for pid in _children(master.pid) if master.poll() is None else []:
             os.kill(pid, signal.SIGKILL)
         master.kill()
+
+
+# ------------------------------------------------------------------ several workers, one set of switches
+def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) -> None:
+    import signal
+    import subprocess
+    import sys
+
+    import httpx
+
+    from test_service import _free_port
+
+    port = _free_port()
+    url = f"http://127.0.0.1:{port}"
+    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db",
+                               str(tmp_path / "vehicles.sqlite3"), "--port", str(port), "--workers", "2"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline:
+            try:
+                if httpx.get(f"{url}/readyz", timeout=2.0).status_code == 200:
+                    break
+            except httpx.TransportError:
+                time.sleep(0.2)
+        for vehicle in range(20):  # sessions in both workers (each request on a new connection)
+            assert httpx.post(f"{url}/v1/warning", json={**QUERY, "vehicle_id": "truck"}).status_code == 200
+        for switched_on, state in ((False, "off"), (True, "active")):
+            assert httpx.put(f"{url}/v1/vehicles/truck", json={"switched_on": switched_on}).status_code == 200
+            answers = [httpx.post(f"{url}/v1/warning", json={**QUERY, "vehicle_id": "truck"}).json() for _ in range(20)]
+            assert [a["state"] for a in answers] == [state] * 20
+            seen = [httpx.get(f"{url}/v1/vehicles/truck") for _ in range(20)]
+            assert [(r.status_code, r.json()["switched_on"]) for r in seen] == [(200, switched_on)] * 20
+    finally:
+        master.send_signal(signal.SIGTERM)
+        try:
+            master.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            master.kill()
