@@ -248,3 +248,38 @@ def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) 
             master.wait(timeout=15)
         except subprocess.TimeoutExpired:
             master.kill()
+
+
+def test_a_server_killed_during_puts_loses_no_acknowledged_one(tmp_path) -> None:
+    import signal
+    import sqlite3
+    import threading
+
+    import httpx
+
+    state_db = tmp_path / "vehicles.sqlite3"
+    running = Server([TRACK_NET], state_db)
+    acknowledged: list[str] = []
+
+    def put_many() -> None:
+        with httpx.Client(base_url=running.url, timeout=5.0) as client:
+            for number in range(1000):
+                try:
+                    answer = client.put(f"/v1/vehicles/v{number}", json={"switched_on": number % 2 == 0})
+                except httpx.TransportError:
+                    return
+                if answer.status_code == 200:
+                    acknowledged.append(f"v{number}")
+
+    writer = threading.Thread(target=put_many)
+    writer.start()
+    deadline = time.monotonic() + 30.0
+    while len(acknowledged) < 100 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    running.process.send_signal(signal.SIGKILL)
+    running.process.wait(timeout=10)
+    writer.join(timeout=30)
+    running.client.close()
+    assert 100 <= len(acknowledged) < 1000
+    stored = dict(sqlite3.connect(state_db).execute("SELECT vehicle_id, switched_on FROM vehicle_settings").fetchall())
+    assert all(stored[vehicle] == (int(vehicle[1:]) % 2 == 0) for vehicle in acknowledged)
