@@ -133,7 +133,7 @@ def _breakdown_ms(queries: list[dict]) -> dict[str, float]:
     inputs = [service.vehicle_input(q, p) for q, p in zip(batch, placements)]
     results = engine.evaluate_many(inputs)
     marks.append(time.perf_counter())
-    EncodedAnswers([service.encode(r, p) for r, p in zip(results, placements)], [], []).batch_json()
+    EncodedAnswers([service.encode(r, p, q.vehicle_id) for r, p, q in zip(results, placements, batch)], [], []).batch_json()
     marks.append(time.perf_counter())
     gc.unfreeze()
     names = ("validate_ms", "check_and_match_ms", "engine_ms", "encode_json_ms")
