@@ -35,7 +35,6 @@ from .keys import OPEN, KeyMiddleware, KeyRing, Principal, vehicle_key
 from .limits import BodyLimit, too_many_queries
 from .metrics import Metrics, MetricsMiddleware
 from .networks import MAX_HORIZON_M, load_networks
-from .run import leave_with_master
 from .schemas import (
     BATCH_ADAPTER,
     MAX_BATCH,
@@ -51,6 +50,7 @@ from .schemas import (
 )
 from .settings import ServiceSettings
 from .vehicles import SettingStore, StoreUnavailable, VehicleRegistry
+from .workers import leave_with_master
 
 __all__ = ["create_app", "MAX_ERRORS_SHOWN"]
 

@@ -7,13 +7,9 @@ import os
 import sys
 
 from .settings import ServiceSettings, settings_environment
+from .workers import MASTER_PID_VARIABLE
 
-__all__ = ["settings_from_args", "main", "add_key_command", "MASTER_PID_VARIABLE", "leave_with_master"]
-
-#: Set by ``csws serve --workers N`` for its workers: the process id of the master.
-MASTER_PID_VARIABLE = "CSWS_MASTER_PID"
-#: How often a worker looks whether its master is still there, s.
-MASTER_CHECK_S = 1.0
+__all__ = ["settings_from_args", "main", "add_key_command"]
 
 #: Command-line options and the settings they override.
 _OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state_db": "state_db",
@@ -82,29 +78,3 @@ def add_key_command(args: argparse.Namespace) -> int:
     print(f"csws: added a key of fleet {args.fleet!r} with role {args.role} to {path} ({len(KeyRing(path))} keys "
           "in all); the key is shown only this once", file=sys.stderr)
     return 0
-
-
-def leave_with_master() -> None:
-    """In a worker of ``csws serve --workers N``: end this process when the master is gone.
-
-    A master killed with SIGKILL cannot stop its workers, and they would go on serving, the
-    port taken, with nobody to restart or stop them. Each worker checks every
-    :data:`MASTER_CHECK_S` whether its parent is still the master, and otherwise shuts down
-    as on SIGTERM. Outside such a worker (no master recorded) nothing is started.
-    """
-    import signal
-    import threading
-    import time
-
-    master = os.environ.get(MASTER_PID_VARIABLE)
-    if not master or os.getppid() != int(master):
-        return
-
-    def watch() -> None:
-        while os.getppid() == int(master):
-            time.sleep(MASTER_CHECK_S)
-        os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(3.0)
-        os._exit(1)  # the graceful shutdown did not end it
-
-    threading.Thread(target=watch, name="csws-master-watch", daemon=True).start()
