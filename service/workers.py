@@ -20,12 +20,14 @@ def leave_with_master() -> None:
 
     A master killed with SIGKILL cannot stop its workers, and they would go on serving, the
     port taken, with nobody to restart or stop them. Each worker checks every
-    :data:`MASTER_CHECK_S` whether its parent is still the master, and otherwise shuts down
-    as on SIGTERM. Outside such a worker (no master recorded) nothing is started.
+    :data:`MASTER_CHECK_S` whether its parent is still the master (from its start-up on, so
+    that one still starting when the master died leaves too), and otherwise shuts down as
+    on SIGTERM. Outside such a worker (no master recorded) nothing is started.
     """
     master = os.environ.get(MASTER_PID_VARIABLE)
-    if not master or os.getppid() != int(master):
+    if not master:
         return
+    # A worker still starting when its master was killed finds another parent at once, and leaves.
 
     def watch() -> None:
         while os.getppid() == int(master):

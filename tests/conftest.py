@@ -1,11 +1,18 @@
 """Shared test set-up: a fresh profile cache for the whole run, so no test reads fits an
-earlier run (or the user's own loads) left behind."""
+earlier run (or the user's own loads) left behind; in CI (``CI`` set), hypothesis draws the
+same examples every run, so that a run's verdict is the code's and not the draw's (locally
+it keeps exploring new ones, and keeps the failures it finds)."""
 
 from __future__ import annotations
 
 import os
 
 import pytest
+from hypothesis import settings
+
+settings.register_profile("ci", derandomize=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 
 @pytest.fixture(scope="session", autouse=True)
