@@ -4,10 +4,17 @@ strict numbers, bounded metrics."""
 from __future__ import annotations
 
 import json
+import os
+import signal
 import socket
+import sqlite3
+import subprocess
+import sys
+import threading
 import time
 from pathlib import Path
 
+import httpx
 import pytest
 
 from csws.networks import networks_dir
@@ -114,8 +121,6 @@ def test_any_method_name_adds_no_metrics_series(server) -> None:
 
 # ------------------------------------------------------------------ the settings database in trouble
 def test_a_locked_settings_database_is_a_503_to_retry_and_the_service_stays_up(tmp_path) -> None:
-    import sqlite3
-
     from fastapi.testclient import TestClient
 
     from service.app import create_app
@@ -138,10 +143,6 @@ def test_a_locked_settings_database_is_a_503_to_retry_and_the_service_stays_up(t
 @pytest.mark.parametrize("workers", ["1", "2"])
 @pytest.mark.parametrize("content", ["corrupt", "foreign", "bad category"])
 def test_a_bad_settings_database_stops_start_up_in_one_line_naming_it(tmp_path, content, workers) -> None:
-    import sqlite3
-    import subprocess
-    import sys
-
     state_db = tmp_path / "vehicles.sqlite3"
     if content == "corrupt":
         state_db.write_bytes(b"not a database " * 100)
@@ -174,28 +175,29 @@ def _children(pid: int) -> list[int]:
     return found
 
 
-def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
-    import os
-    import signal
-    import subprocess
-    import sys
-
-    import httpx
-
+def _serve_workers(state_db: str) -> tuple[subprocess.Popen, str]:
+    """``csws serve --workers 2`` on a free loopback port, ready (at least one worker answers)."""
     from test_service import _free_port
 
     port = _free_port()
-    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db", ":memory:",
+    url = f"http://127.0.0.1:{port}"
+    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db", state_db,
                                "--port", str(port), "--workers", "2"], stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL)  # fmt: skip
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{url}/readyz", timeout=2.0).status_code == 200:
+                return master, url
+        except httpx.TransportError:
+            time.sleep(0.2)
+    master.kill()
+    raise RuntimeError("csws serve --workers 2 was not ready within 60 s")
+
+
+def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
+    master, _ = _serve_workers(":memory:")
     try:
-        deadline = time.monotonic() + 60.0
-        while time.monotonic() < deadline:
-            try:
-                if httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2.0).status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.2)
         workers = _children(master.pid)
         assert len(workers) >= 2
         master.send_signal(signal.SIGKILL)
@@ -203,8 +205,7 @@ def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline and any(Path(f"/proc/{pid}").exists() for pid in workers):
             time.sleep(0.2)
-        left = [pid for pid in workers if Path(f"/proc/{pid}").exists()]
-        assert not left
+        assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
     finally:
         for pid in _children(master.pid) if master.poll() is None else []:
             os.kill(pid, signal.SIGKILL)
@@ -213,27 +214,8 @@ def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
 
 # ------------------------------------------------------------------ several workers, one set of switches
 def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) -> None:
-    import signal
-    import subprocess
-    import sys
-
-    import httpx
-
-    from test_service import _free_port
-
-    port = _free_port()
-    url = f"http://127.0.0.1:{port}"
-    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db",
-                               str(tmp_path / "vehicles.sqlite3"), "--port", str(port), "--workers", "2"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    master, url = _serve_workers(str(tmp_path / "vehicles.sqlite3"))
     try:
-        deadline = time.monotonic() + 60.0
-        while time.monotonic() < deadline:
-            try:
-                if httpx.get(f"{url}/readyz", timeout=2.0).status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.2)
         for vehicle in range(20):  # sessions in both workers (each request on a new connection)
             assert httpx.post(f"{url}/v1/warning", json={**QUERY, "vehicle_id": "truck"}).status_code == 200
         for switched_on, state in ((False, "off"), (True, "active")):
@@ -251,12 +233,6 @@ def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) 
 
 
 def test_a_server_killed_during_puts_loses_no_acknowledged_one(tmp_path) -> None:
-    import signal
-    import sqlite3
-    import threading
-
-    import httpx
-
     state_db = tmp_path / "vehicles.sqlite3"
     running = Server([TRACK_NET], state_db)
     acknowledged: list[str] = []
