@@ -175,8 +175,8 @@ class Engine:
         distance_m = path.cpoi_distance_m
         batch = self._judged([vehicle.vehicle_id], [vehicle.timestamp_s], np.array([vehicle.speed_kmh], dtype=float),
                              np.array([column_index(vehicle.category)]), np.zeros(distance_m.size, dtype=np.intp),
-                             distance_m, path.cpoi_radius_m, path.cpoi_curve_id, path.cpoi_part_index,
-                             path.cpoi_passed)  # fmt: skip
+                             [0, distance_m.size], distance_m, path.cpoi_radius_m, path.cpoi_curve_id,
+                             path.cpoi_part_index, path.cpoi_passed)  # fmt: skip
         warning = batch.vehicle_warning(0, 0, path.cpoi_curve_id, path.cpoi_part_index, path.kind)
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
 
@@ -276,10 +276,11 @@ class Engine:
         return None
 
     def _judged(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
-                columns: np.ndarray, cpoi_vehicle: np.ndarray, distance_m: np.ndarray, radius_m: np.ndarray,
-                curve_ids: Sequence[str], part_indices: Sequence[int], passed: np.ndarray) -> BatchWarnings:  # fmt: skip
-        """Clause 6 with the release rule for vehicles and their CPOIs; their warning memories are updated."""
-        first = np.searchsorted(cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
+                columns: np.ndarray, cpoi_vehicle: np.ndarray, first: Sequence[int], distance_m: np.ndarray,
+                radius_m: np.ndarray, curve_ids: Sequence[str], part_indices: Sequence[int],
+                passed: np.ndarray) -> BatchWarnings:  # fmt: skip
+        """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
+        ``first[i]:first[i + 1]``); their warning memories are updated."""
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
         latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, self.settings.warning.release_hold_s)
         batch = evaluate_batch(speed_kmh, columns, cpoi_vehicle, distance_m, radius_m, self.settings.warning,
@@ -297,12 +298,12 @@ class Engine:
                   route_edges: Sequence[Sequence[str] | None]) -> tuple[list[CurveWarning], BatchAhead]:  # fmt: skip
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
         ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
-        batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, ahead.cpoi_distance_m,
+        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
+        batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, first, ahead.cpoi_distance_m,
                              ahead.cpoi_radius_m, ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_passed)
         warnings = [no_warning(horizon.kind) for horizon in ahead.horizons]
         warned = np.flatnonzero(batch.level).tolist()
         if warned:  # most vehicles: nothing to look at
-            first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
             found = batch.vehicle_warnings(
                 warned, [first[i] for i in warned], [ahead.cpoi_curve_id[first[i]:first[i + 1]] for i in warned],
                 [ahead.cpoi_part_index[first[i]:first[i + 1]] for i in warned], [ahead.horizons[i].kind for i in warned],
