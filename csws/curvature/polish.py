@@ -47,6 +47,10 @@ END_STRAIGHT_FRACTIONS = (0.25, 0.5, 0.75)
 #: is first narrowed to between two straights, as fractions of the part (counted in nodes).
 MIDDLE_STRAIGHT_SPANS = ((0.25, 0.5), (0.25, 0.75), (0.5, 0.75))
 ARC_SPANS = MIDDLE_STRAIGHT_SPANS
+#: Where the longest curved part is first cut into the two arcs of a compound curve, as
+#: fractions of it (counted in nodes), and how much sharper the one arc is than the other.
+COMPOUND_FRACTIONS = (0.25, 0.5, 0.75)
+COMPOUND_RATIO = 1.5
 #: Straights are tried only on roads whose nodes' sum of squared sideways distances exceeds
 #: this many times what the noise (the polyline's own estimate) leaves on the right road.
 STRAIGHT_TRIAL_MISFIT = 1.0
@@ -193,8 +197,26 @@ def _straight_trial_roads(road: _Road, nodes: _Nodes, last: np.ndarray, longest:
     )
     low, high = (np.array(MIDDLE_STRAIGHT_SPANS)[:, k] for k in (0, 1))
     middle_trials = _straight_trials(road, nodes, longest, low, high)
-    trials = _joined_trials([_padded_road(start_trials), _padded_road(end_trials), both_trials, middle_trials])
-    return trials, [len(fraction), len(fraction), len(arc_low), len(low)]
+    compound_trials = _compound_trials(road, nodes, longest)
+    trials = _joined_trials([_padded_road(start_trials), _padded_road(end_trials), both_trials, middle_trials,
+                             _padded_road(compound_trials)])
+    return trials, [len(fraction), len(fraction), len(arc_low), len(low), compound_trials.last.shape[1]]
+
+
+def _compound_trials(road: _Road, nodes: _Nodes, part: np.ndarray) -> _Road:
+    """Trial roads ``(polylines, 2 * fractions)`` from ``road`` (one trial per polyline), each
+    with its part ``part`` cut into two arcs at :data:`COMPOUND_FRACTIONS` of it (counted
+    in nodes), the first sharper or gentler by :data:`COMPOUND_RATIO`: a compound curve
+    (3.8) that the heading fit took for one arc of a mean radius."""
+    fraction = np.array(COMPOUND_FRACTIONS)
+    trials = 2 * len(fraction)
+    road = _Road(*(np.repeat(getattr(road, f.name), trials, axis=1) for f in fields(_Road)))
+    part = np.repeat(part[:, None], trials, axis=1)
+    first, stop = (np.take_along_axis(road.bounds, (part + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    knot = np.clip(_among_nodes(nodes, first, stop, np.tile(fraction, 2)), first + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M)
+    curvature = np.take_along_axis(road.curvature, part[..., None], axis=-1)[..., 0]
+    ratio = np.repeat([COMPOUND_RATIO, 1.0 / COMPOUND_RATIO], len(fraction))
+    return _split_part(road, part, knot, curvature * ratio, curvature / ratio)
 
 
 def _with_added_straights(
@@ -233,8 +255,9 @@ def _with_added_straights(
         return result, squares
     tried = _road_rows(road, rows)
     trials, counts = _straight_trial_roads(tried, _nodes_rows(nodes, rows), last[rows], longest[rows])
-    added = np.repeat([1, 1, 2, 3], counts)  # parameters each kind adds: one knot, two, two and a curvature
-    kind_allowed = (at_start, at_end, at_both, in_middle)
+    # Parameters each kind adds: one knot, two, two and a curvature, a knot and a curvature.
+    added = np.repeat([1, 1, 2, 3, 2], counts)
+    kind_allowed = (at_start, at_end, at_both, in_middle, in_middle)
     allowed = np.column_stack([np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed)])
     allowed &= trials.is_ordered()
     # A few steps show which trial of each kind leads; only those are polished to the end.
