@@ -108,6 +108,12 @@ def roads_rows(figures: dict) -> list[Row]:
         rows.append(context(f"roads {family} sparse: start error median / p90 m the nodes allow",
                             f"{sparse['bound_median_start_error_m']:.3g} / {sparse['bound_p90_start_error_m']:.3g}",
                             "an efficient estimator told the road's form (Cramér-Rao)"))
+        rows.append(context(f"roads {family} sparse: start error median / p90 m of the reference",
+                            f"{sparse['reference_median_start_error_m']:.3g} / {sparse['reference_p90_start_error_m']:.3g}",
+                            "the maximum-likelihood road told the road's form, started from the truth"))
+        rows.append(context(f"roads {family} sparse: median radius error the nodes allow",
+                            f"{sparse['bound_median_radius_error']:.3g}",
+                            f"ours {sparse['median_radius_error']:.3g} (Cramér-Rao)"))
     return rows
 
 

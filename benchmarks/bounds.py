@@ -24,10 +24,15 @@ from typing import Sequence
 
 import numpy as np
 
-from csws.geometry import Piece, pose_at
+from csws.geometry import Piece, piece_starts_s, pose_at
 
 #: Relative central-difference step of each parameter (floored at 1e-3 of its unit).
 DIFFERENCE_STEP = 1e-6
+#: Gauss-Newton iterations of the maximum-likelihood reference, Newton steps projecting
+#: the nodes onto its road, and the shortest piece it may make, m.
+ML_ITERATIONS = 40
+ML_PROJECTION_STEPS = 2
+ML_SHORTEST_PIECE_M = 0.1
 
 
 def _free_parameters(pieces: Sequence[Piece]) -> tuple[np.ndarray, list[int]]:
@@ -91,6 +96,42 @@ def curve_starts_s(pieces: Sequence[Piece], warning_radius_m: float) -> np.ndarr
     return np.array(sorted(starts))
 
 
+def _road_of(pieces: Sequence[Piece], curvature_of: list[int]):
+    """The road of the parameters ``[offset, heading, free numbers]`` as a function, and the
+    nodes' points on it at arc lengths ``node_s`` as another."""
+    def road(values: np.ndarray) -> list[Piece]:
+        return _pieces(pieces, curvature_of, values[2:])
+
+    def node_points(values: np.ndarray, node_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x, y, heading = pose_at(road(values), node_s, (0.0, values[0]), values[1])
+        return np.column_stack((x, y)), heading
+
+    return road, node_points
+
+
+def _sideways_jacobian(node_points, values: np.ndarray, node_s: np.ndarray) -> np.ndarray:
+    """Derivatives of the nodes' road points across the road at ``node_s`` by each parameter."""
+    _, heading = node_points(values, node_s)
+    normal = np.column_stack((-np.sin(heading), np.cos(heading)))
+    jacobian = np.empty((len(node_s), len(values)))
+    for column in range(len(values)):
+        step = np.zeros(len(values))
+        step[column] = DIFFERENCE_STEP * max(abs(values[column]), 1e-3)
+        moved = (node_points(values + step, node_s)[0] - node_points(values - step, node_s)[0]) / (2.0 * step[column])
+        jacobian[:, column] = np.einsum("ij,ij->i", moved, normal)
+    return jacobian
+
+
+def _covariance(pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The inverse Fisher information of the road's parameters from nodes at ``node_s``
+    (the pseudo-inverse where it is singular), the true parameters and which curvature each piece has."""
+    free, curvature_of = _free_parameters(pieces)
+    truth = np.concatenate(([0.0, 0.0], free))
+    jacobian = _sideways_jacobian(_road_of(pieces, curvature_of)[1], truth, node_s)
+    information = jacobian.T @ jacobian / (noise_rms_m**2 / 2.0)
+    return np.linalg.pinv(information, hermitian=True), truth, curvature_of
+
+
 def start_bounds_m(
     pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float, warning_radius_m: float
 ) -> np.ndarray:
@@ -107,32 +148,84 @@ def start_bounds_m(
     warning_radius_m
         R_c, m.
     """
-    free, curvature_of = _free_parameters(pieces)
-    truth = np.concatenate(([0.0, 0.0], free))
-
-    def road(values: np.ndarray) -> list[Piece]:
-        return _pieces(pieces, curvature_of, values[2:])
-
-    def node_points(values: np.ndarray) -> np.ndarray:
-        x, y, _ = pose_at(road(values), node_s, (0.0, values[0]), values[1])
-        return np.column_stack((x, y))
-
-    _, _, heading = pose_at(pieces, node_s)
-    normal = np.column_stack((-np.sin(heading), np.cos(heading)))
-    starts = curve_starts_s(pieces, warning_radius_m)
-    jacobian = np.empty((len(node_s), len(truth)))
-    gradient = np.empty((len(starts), len(truth)))
+    covariance, truth, curvature_of = _covariance(pieces, node_s, noise_rms_m)
+    road = _road_of(pieces, curvature_of)[0]
+    gradient = np.empty((len(curve_starts_s(pieces, warning_radius_m)), len(truth)))
     for column in range(len(truth)):
         step = np.zeros(len(truth))
         step[column] = DIFFERENCE_STEP * max(abs(truth[column]), 1e-3)
-        ahead, behind = truth + step, truth - step
-        moved = (node_points(ahead) - node_points(behind)) / (2.0 * step[column])
-        jacobian[:, column] = np.einsum("ij,ij->i", moved, normal)
-        gradient[:, column] = (curve_starts_s(road(ahead), warning_radius_m)
-                               - curve_starts_s(road(behind), warning_radius_m)) / (2.0 * step[column])  # fmt: skip
-    information = jacobian.T @ jacobian / (noise_rms_m**2 / 2.0)
-    covariance = np.linalg.pinv(information, hermitian=True)
+        gradient[:, column] = (curve_starts_s(road(truth + step), warning_radius_m)
+                               - curve_starts_s(road(truth - step), warning_radius_m)) / (2.0 * step[column])  # fmt: skip
     return np.sqrt(np.einsum("ij,jk,ik->i", gradient, covariance, gradient))
+
+
+def radius_bounds(pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float, curve_spans_s: Sequence[tuple[float, float]]) -> np.ndarray:
+    """The Cramér-Rao bound on the relative standard deviation of each curve's smallest
+    radius (that of its sharpest arc, whose curvature is one of the road's parameters),
+    for curves spanning ``curve_spans_s``; nan for a curve without an arc."""
+    covariance, truth, curvature_of = _covariance(pieces, node_s, noise_rms_m)
+    first_curvature = len(pieces) + 1
+    starts = piece_starts_s(pieces)
+    bounds = []
+    for start_s, end_s in curve_spans_s:
+        inside = [i for i, piece in enumerate(pieces)
+                  if curvature_of[i] >= 0 and starts[i] < end_s and starts[i + 1] > start_s]  # fmt: skip
+        if not inside:
+            bounds.append(math.nan)
+            continue
+        column = first_curvature + curvature_of[max(inside, key=lambda i: abs(pieces[i].curvature))]
+        bounds.append(math.sqrt(covariance[column, column]) / abs(truth[column]))
+    return np.array(bounds)
+
+
+def ml_start_errors_m(pieces: Sequence[Piece], nodes_xy: np.ndarray, node_s: np.ndarray, warning_radius_m: float) -> np.ndarray:
+    """The start error of each curve of the maximum-likelihood road told the true form, m.
+
+    The reference method: the road's form (which pieces, straights, arcs and clothoids, in
+    which order) is given, and its numbers are fitted to the nodes by damped Gauss-Newton
+    steps from the true ones, each node at its nearest point of the road. An extractor,
+    which must find the form as well and starts from nothing, can hardly do better; where
+    this reference misses a target, the nodes do not hold what the target asks. ``node_s``
+    are the nodes' first places along the road (their projections onto the true road).
+    """
+    free, curvature_of = _free_parameters(pieces)
+    values = np.concatenate(([0.0, 0.0], free))
+    road, node_points = _road_of(pieces, curvature_of)
+    node_s = np.array(node_s, dtype=float)
+
+    def distances(values: np.ndarray, node_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The nodes' sideways distances from the road, each after Newton steps to its nearest point."""
+        for _ in range(ML_PROJECTION_STEPS):
+            points, heading = node_points(values, node_s)
+            offset = nodes_xy - points
+            node_s = node_s + offset[:, 0] * np.cos(heading) + offset[:, 1] * np.sin(heading)
+        points, heading = node_points(values, node_s)
+        offset = nodes_xy - points
+        return offset[:, 1] * np.cos(heading) - offset[:, 0] * np.sin(heading), node_s
+
+    residual, node_s = distances(values, node_s)
+    damping = 1e-3
+    lengths = slice(2, len(pieces) + 1)
+    for _ in range(ML_ITERATIONS):
+        jacobian = _sideways_jacobian(node_points, values, node_s)
+        normal = jacobian.T @ jacobian
+        normal += damping * np.diag(np.diag(normal) + 1e-12)
+        trial = values + np.linalg.lstsq(normal, jacobian.T @ residual, rcond=None)[0]
+        trial[lengths] = np.fmax(trial[lengths], ML_SHORTEST_PIECE_M)
+        trial_residual, trial_s = distances(trial, node_s)
+        if trial_residual @ trial_residual < residual @ residual:
+            gain = residual @ residual - trial_residual @ trial_residual
+            values, residual, node_s, damping = trial, trial_residual, trial_s, max(damping / 10.0, 1e-9)
+            if gain < 1e-9 * (residual @ residual + 1e-12):
+                break
+        else:
+            damping *= 10.0
+            if damping > 1e6:
+                break
+    true_starts, fitted_starts = curve_starts_s(pieces, warning_radius_m), curve_starts_s(road(values), warning_radius_m)
+    if len(fitted_starts) != len(true_starts):
+        return np.full(len(true_starts), math.inf)
+    return np.abs(fitted_starts - true_starts)
 
 
 def error_quantile_m(bounds_m: np.ndarray, quantile: float) -> float:

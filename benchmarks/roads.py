@@ -33,10 +33,13 @@ curve. Below the floor: found curves whose radius is under
 The ``spirals`` family was the one the clothoid fit was developed on; the others were
 not looked at before their figures were first printed.
 
-Beside the sparse start errors stands what the nodes allow (:mod:`benchmarks.bounds`):
-the median and p90 start error of an efficient estimator told the road's form, from the
-Cramér-Rao bound of every true curve's start on the same nodes. A target below those is
-out of reach of the nodes, whatever the extractor.
+Beside the sparse figures stands what the nodes allow (:mod:`benchmarks.bounds`), on the
+same nodes: the median and p90 start error and the median radius error of an efficient
+estimator told the road's form, from the Cramér-Rao bounds of every true curve's start
+and smallest radius; and the median and p90 start error of the maximum-likelihood road
+told the road's form and started from the truth, the reference method. A target below
+the bound is out of reach of the nodes, whatever the extractor; one below the reference
+is beyond what the nodes tell even an estimator that knows which pieces the road has.
 
 Run with ``python -m benchmarks.roads``; :func:`run` returns the figures.
 """
@@ -49,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from benchmarks.bounds import error_quantile_m, start_bounds_m
+from benchmarks.bounds import error_quantile_m, ml_start_errors_m, radius_bounds, start_bounds_m
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
@@ -195,11 +198,17 @@ def sample(pieces: list[Piece], family: str, rng: np.random.Generator) -> tuple[
     return np.column_stack((exact_xy, exact_s)), dense, noisy
 
 
-def node_start_bounds_m(pieces: list[Piece], exact: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """The Cramér-Rao bound of each true curve's start from the sparse way's ``nodes``, m,
-    taken at their places along the true road (``exact``: its dense line and arc lengths)."""
+def node_references(pieces: list[Piece], truth: list[TrueCurve], exact: np.ndarray, nodes: np.ndarray) -> dict:
+    """What the sparse way's ``nodes`` allow, taken at their places along the true road
+    (``exact``: its dense line and arc lengths): the Cramér-Rao bounds of every true
+    curve's start (m) and relative smallest radius, and the start errors of the
+    maximum-likelihood road told the road's form (m)."""
     node_s = shapely.LineString(exact[:, :2]).project(shapely.points(nodes))
-    return start_bounds_m(pieces, np.sort(node_s), NODE_NOISE_RMS_M, WARNING_RADIUS_M)
+    return {
+        "start_bounds_m": start_bounds_m(pieces, np.sort(node_s), NODE_NOISE_RMS_M, WARNING_RADIUS_M),
+        "radius_bounds": radius_bounds(pieces, np.sort(node_s), NODE_NOISE_RMS_M, [(c.start_s, c.end_s) for c in truth]),
+        "ml_start_errors_m": ml_start_errors_m(pieces, nodes, node_s, WARNING_RADIUS_M),
+    }
 
 
 def _true_s(line: shapely.LineString, xy: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -234,6 +243,8 @@ def score(truth: list[TrueCurve], exact: np.ndarray, xy: np.ndarray) -> dict:
 def _summary(scores: list[dict]) -> dict:
     start = np.array([e for s in scores for e in s["start_errors"]])
     bounds = np.array([b for s in scores for b in s.get("start_bounds_m", ())])
+    radius_bound = np.array([b for s in scores for b in s.get("radius_bounds", ()) if np.isfinite(b)])
+    reference = np.array([e for s in scores for e in s.get("ml_start_errors_m", ())])
     radius = np.array([e for s in scores for e in s["radius_errors"]])
     return {
         "curves": int(len(start)),
@@ -245,7 +256,10 @@ def _summary(scores: list[dict]) -> dict:
         "false": int(sum(s["false"] for s in scores)),
         "below_floor": int(sum(s["below_floor"] for s in scores)),
     } | ({"bound_median_start_error_m": error_quantile_m(bounds, 0.5),
-          "bound_p90_start_error_m": error_quantile_m(bounds, 0.9)} if len(bounds) else {})
+          "bound_p90_start_error_m": error_quantile_m(bounds, 0.9),
+          "bound_median_radius_error": error_quantile_m(radius_bound, 0.5),
+          "reference_median_start_error_m": float(np.median(reference)),
+          "reference_p90_start_error_m": float(np.percentile(reference, 90))} if len(bounds) else {})
 
 
 def run(cases: int = CASES_PER_FAMILY, seed: int = SEED) -> dict:
@@ -259,7 +273,7 @@ def run(cases: int = CASES_PER_FAMILY, seed: int = SEED) -> dict:
             truth = true_curves(pieces)
             exact, dense, sparse = sample(pieces, family, rng)
             scores["dense"].append(score(truth, exact, dense))
-            scores["sparse"].append(score(truth, exact, sparse) | {"start_bounds_m": node_start_bounds_m(pieces, exact, sparse)})
+            scores["sparse"].append(score(truth, exact, sparse) | node_references(pieces, truth, exact, sparse))
         figures[family] = {sampling: _summary(values) for sampling, values in scores.items()}
     return figures
 
@@ -276,7 +290,8 @@ def verdicts(figures: dict) -> list[tuple[str, float, float, bool]]:
 
 def report(figures: dict) -> str:
     columns = ("curves", "median_radius_error", "median_start_error_m", "p90_start_error_m", "max_start_error_m",
-               "missed", "false", "below_floor", "bound_median_start_error_m", "bound_p90_start_error_m")
+               "missed", "false", "below_floor", "bound_median_start_error_m", "bound_p90_start_error_m",
+               "bound_median_radius_error", "reference_median_start_error_m", "reference_p90_start_error_m")
     lines = ["family    sampling  " + "  ".join(f"{c:>10.10}" for c in columns)]
     for family, samplings in figures.items():
         for sampling, values in samplings.items():
