@@ -180,6 +180,21 @@ def test_a_compound_curve_on_noisy_mapped_nodes_keeps_its_sharper_arc(gentle_m, 
     assert kept >= 20
 
 
+def test_a_curve_ending_inside_a_way_s_last_segment_is_kept():
+    """The nodes of a sparse way (Douglas-Peucker at 1-2 m, 0.5 m noise) of 150 m straight,
+    an arc of R 126.8 m turning 56.4 degrees (with a node inside it) and 150 m straight:
+    the arc ends inside the last segment, which tells only its own direction. An arc
+    taken past the last node that overshoots and a reverse arc within the segment fit it
+    as well as the truth; that curve turned more than the way and was dropped whole."""
+    pieces = [straight(150.0), arc(1.0 / 0.007886547676816897, 56.4, "left"), straight(150.0)]
+    nodes = np.array([[-0.14, 0.51], [158.94, 0.07], [185.72, 5.51], [210.07, 14.45], [231.73, 30.25],
+                      [232.25, 30.84], [249.86, 49.52], [338.38, 182.1]])
+    curve = only_curve(nodes)
+    assert abs(curve.start_s - piece_starts_s(pieces)[1]) <= 3.0
+    assert curve.angle_deg == pytest.approx(56.4, abs=5.0)
+    assert curve.min_radius_m == pytest.approx(pieces[1].radius_m, rel=0.05)
+
+
 def test_sparse_noisy_straights_rarely_show_a_curve():
     rng = np.random.default_rng(92)
     ways = [
