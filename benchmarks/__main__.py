@@ -111,6 +111,9 @@ def roads_rows(figures: dict) -> list[Row]:
         rows.append(context(f"roads {family} sparse: start error median / p90 m of the reference",
                             f"{sparse['reference_median_start_error_m']:.3g} / {sparse['reference_p90_start_error_m']:.3g}",
                             "the maximum-likelihood road told the road's form, started from the truth"))
+        rows.append(context(f"roads {family} sparse: missed on ways with too few nodes",
+                            f"{sparse['missed_undetermined']} of {sparse['missed']}",
+                            "no more nodes than the road has numbers: the road is not determined"))
         rows.append(context(f"roads {family} sparse: median radius error the nodes allow",
                             f"{sparse['bound_median_radius_error']:.3g}",
                             f"ours {sparse['median_radius_error']:.3g} (Cramér-Rao)"))

@@ -53,6 +53,13 @@ def _free_parameters(pieces: Sequence[Piece]) -> tuple[np.ndarray, list[int]]:
     return np.array([piece.length_m for piece in pieces[:-1]] + curvatures, dtype=float), curvature_of
 
 
+def parameter_count(pieces: Sequence[Piece]) -> int:
+    """How many numbers describe the road of known form: its offset and heading and its
+    free numbers. A way with no more nodes than this, each telling one sideways distance,
+    leaves the road undetermined: no estimator can place its curves from them alone."""
+    return 2 + len(_free_parameters(pieces)[0])
+
+
 def _pieces(pieces: Sequence[Piece], curvature_of: list[int], values: np.ndarray) -> list[Piece]:
     """The road with its free numbers set to ``values``: clothoids run from the curvature of
     the piece before them to that of the piece after them (0 at a straight)."""

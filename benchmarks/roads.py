@@ -26,7 +26,8 @@ Curves are searched with R_c = 500 m, so that every arc of a family is one. A tr
 is found when a found curve overlaps it (in the true road's arc length, found ends
 projected onto the true line); its start error is the distance between the starts, its
 radius error that of the smallest radii. Missed: a true curve of 20 degrees or more that
-no found curve overlaps. False: a found curve of 20 degrees or more that overlaps no true
+no found curve overlaps (also counted apart where the way has no more nodes than the road
+has numbers, so that the nodes cannot determine it). False: a found curve of 20 degrees or more that overlaps no true
 curve. Below the floor: found curves whose radius is under
 :data:`csws.curvature.corners.FLOOR_RADIUS_M` (reported as the floor, never measured).
 
@@ -52,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from benchmarks.bounds import error_quantile_m, ml_start_errors_m, radius_bounds, start_bounds_m
+from benchmarks.bounds import error_quantile_m, ml_start_errors_m, parameter_count, radius_bounds, start_bounds_m
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
@@ -202,9 +203,11 @@ def node_references(pieces: list[Piece], truth: list[TrueCurve], exact: np.ndarr
     """What the sparse way's ``nodes`` allow, taken at their places along the true road
     (``exact``: its dense line and arc lengths): the Cramér-Rao bounds of every true
     curve's start (m) and relative smallest radius, and the start errors of the
-    maximum-likelihood road told the road's form (m)."""
+    maximum-likelihood road told the road's form (m); and whether the nodes are too few to
+    determine the road (:func:`benchmarks.bounds.parameter_count`)."""
     node_s = shapely.LineString(exact[:, :2]).project(shapely.points(nodes))
     return {
+        "undetermined": len(nodes) <= parameter_count(pieces),
         "start_bounds_m": start_bounds_m(pieces, np.sort(node_s), NODE_NOISE_RMS_M, WARNING_RADIUS_M),
         "radius_bounds": radius_bounds(pieces, np.sort(node_s), NODE_NOISE_RMS_M, [(c.start_s, c.end_s) for c in truth]),
         "ml_start_errors_m": ml_start_errors_m(pieces, nodes, node_s, WARNING_RADIUS_M),
@@ -253,6 +256,7 @@ def _summary(scores: list[dict]) -> dict:
         "p90_start_error_m": float(np.percentile(start, 90)) if len(start) else math.inf,
         "max_start_error_m": float(start.max()) if len(start) else math.inf,
         "missed": int(sum(s["missed"] for s in scores)),
+        "missed_undetermined": int(sum(s["missed"] for s in scores if s.get("undetermined"))),
         "false": int(sum(s["false"] for s in scores)),
         "below_floor": int(sum(s["below_floor"] for s in scores)),
     } | ({"bound_median_start_error_m": error_quantile_m(bounds, 0.5),
