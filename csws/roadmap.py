@@ -31,8 +31,10 @@ the network's own projection (UTM for an OSM import), and :meth:`RoadMap.curves_
 gives the curve index in WGS84.
 
 Storage is columnar: the vertices of all lanes sit in one ``(n, 2)`` array with an
-offset per lane, and all road chains are profiled in one :func:`csws.curvature.radius_profiles`
-call, so a regional network of some 1,500 lane-km loads and profiles in seconds.
+offset per lane (read by :mod:`csws.sumonet`), all road chains are profiled in one
+:func:`csws.curvature.radius_profiles` call, so a regional network of some 1,500 lane-km
+loads and profiles in seconds, and positions are looked up in a spatial index of the
+lane shapes (:mod:`csws.lanesearch`).
 
 Lane positions follow SUMO: a lane position runs from 0 to the lane's ``length``
 attribute, which may differ from the length of its shape (outer lanes of a curve,
@@ -46,20 +48,16 @@ from __future__ import annotations
 import csv
 import json
 import math
-import xml.sax
-import zlib
-from dataclasses import dataclass
 from functools import cached_property
 from itertools import chain
 from pathlib import Path
 from typing import Sequence, TextIO
 
 import numpy as np
-import shapely
 import sumolib
 
 from .curvature import profile_cache_dir
-from .roadchain import road_continuations
+from .lanesearch import LaneMatch, LaneMatches, LaneSearch
 from .roadprofile import (
     CURVE_FIELDS,
     LaneCurve,
@@ -70,6 +68,7 @@ from .roadprofile import (
     write_curve_table,
 )
 from .standard import DEFAULT_WARNING_RADIUS_M
+from .sumonet import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 
 __all__ = [
     "CURVE_FIELDS",
@@ -83,319 +82,6 @@ __all__ = [
     "read_sumo_net",
 ]
 
-#: Lane shapes are simplified within this distance for position look-ups, m.
-MATCH_TOLERANCE_M = 0.01
-
-#: SUMO edge functions kept, and the name each is known by here.
-_KEPT_FUNCTIONS = {"": "normal", "internal": "internal"}
-
-#: What sumolib's reader raises on a file that is not a readable network.
-_READ_ERRORS = (
-    xml.sax.SAXException,
-    OSError,
-    EOFError,
-    zlib.error,
-    UnicodeDecodeError,
-    KeyError,
-    IndexError,
-    ValueError,
-    TypeError,
-    AttributeError,
-)
-
-
-class NetworkError(ValueError):
-    """A file that cannot be used as a road map: missing, not a SUMO network, or empty."""
-
-
-@dataclass(frozen=True, slots=True)
-class Lane:
-    """The SUMO attributes of one lane.
-
-    Attributes
-    ----------
-    lane_id, edge_id
-        SUMO ids; internal lanes start with ``:``.
-    index
-        Index of the lane in its edge (0 is the rightmost).
-    function
-        ``"normal"`` or ``"internal"`` (a lane inside a junction).
-    street_name, road_type
-        The edge's ``name`` and ``type`` attributes ("" when absent).
-    speed_limit_mps
-        The lane's speed limit, m/s.
-    length_m
-        SUMO length: lane positions run from 0 to this, m.
-    shape_length_m
-        Length of the lane's polyline, m.
-    allowed_vclasses
-        The vehicle classes allowed on the lane.
-    in_roundabout
-        Whether the lane belongs to a roundabout: its edge is listed in one of the
-        network's ``<roundabout>`` elements, or it is an internal lane of one of its
-        junctions.
-    continues_road
-        For an internal lane, whether its connection continues the road through the
-        junction (a way split, a node inside a bend, the straight-ahead or priority
-        continuation: :func:`csws.roadchain.road_continuations`) rather than turning
-        into another road. Always False for normal lanes.
-    continues_into
-        The lane this lane's road continues on ("" where the road ends or turns, on a
-        junction turn and on a roundabout): the next lane of its road chain
-        (:mod:`csws.roadprofile`).
-    """
-
-    lane_id: str
-    edge_id: str
-    index: int
-    function: str
-    street_name: str
-    road_type: str
-    speed_limit_mps: float
-    length_m: float
-    shape_length_m: float
-    allowed_vclasses: frozenset[str]
-    in_roundabout: bool = False
-    continues_road: bool = False
-    continues_into: str = ""
-
-    @property
-    def is_internal(self) -> bool:
-        """Whether the lane lies inside a junction."""
-        return self.function == "internal"
-
-    @property
-    def is_junction(self) -> bool:
-        """Whether driving the lane is a junction manoeuvre: a turn from one road into another
-        (an internal lane that does not continue the road) or a roundabout."""
-        return (self.is_internal and not self.continues_road) or self.in_roundabout
-
-    @property
-    def position_factor(self) -> float:
-        """Lane position per metre of shape: SUMO's ``length / shape length`` (1 for a point shape)."""
-        return self.length_m / self.shape_length_m if self.shape_length_m > 0 else 1.0
-
-
-@dataclass(frozen=True)
-class LaneMatch:
-    """One lane near a position.
-
-    Attributes
-    ----------
-    lane_id
-        The candidate lane.
-    distance_m
-        Distance from the position to the lane's shape, m.
-    lane_pos_m
-        Lane position of the position's projection onto the shape, m.
-    heading_rad
-        Driving direction of the lane there, radians counter-clockwise from +x
-        (the convention of :mod:`csws.geometry`).
-    """
-
-    lane_id: str
-    distance_m: float
-    lane_pos_m: float
-    heading_rad: float
-
-
-@dataclass(frozen=True)
-class LaneMatches:
-    """Lanes near many positions, as parallel arrays (one row per position-lane pair).
-
-    Rows are sorted by ``point_index`` and, for each point, by ``distance_m``; a point
-    with no lane within the search radius has no row.
-
-    Attributes
-    ----------
-    point_index
-        Index of the position in the query, ``(k,)`` int.
-    lane_id
-        Candidate lane ids, ``(k,)`` object array of str.
-    distance_m, lane_pos_m, heading_rad
-        As in :class:`LaneMatch`, ``(k,)`` float arrays.
-    """
-
-    point_index: np.ndarray
-    lane_id: np.ndarray
-    distance_m: np.ndarray
-    lane_pos_m: np.ndarray
-    heading_rad: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.point_index)
-
-    def for_point(self, point_index: int) -> list[LaneMatch]:
-        """The candidates of one position, nearest first."""
-        rows = np.flatnonzero(self.point_index == point_index)
-        return [
-            LaneMatch(str(self.lane_id[i]), *map(float, (self.distance_m[i], self.lane_pos_m[i], self.heading_rad[i])))
-            for i in rows
-        ]
-
-
-def read_sumo_net(path: str | Path) -> sumolib.net.Net:
-    """Read a SUMO network with its internal lanes, turning every failure into :class:`NetworkError`.
-
-    Raises
-    ------
-    NetworkError
-        If the file is missing, is not a SUMO network, or has no edges.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise NetworkError(f"no SUMO network at {path}: the file does not exist")
-    try:
-        net = sumolib.net.readNet(str(path), withInternal=True)
-    except _READ_ERRORS as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise NetworkError(f"{path} is not a readable SUMO network ({reason})") from None
-    if net.getVersion() is None:
-        raise NetworkError(f"{path} is not a SUMO network: it has no <net> root element")
-    if not net.getEdges():
-        raise NetworkError(f"{path} is an empty SUMO network: it has no edges")
-    return net
-
-
-def _check_shape(lane: sumolib.net.lane.Lane) -> None:
-    """NetworkError naming the lane if its shape is not a polyline of finite coordinates (SUMO refuses it too)."""
-    shape = lane.getShape()
-    if len(shape) < 2:
-        raise NetworkError(f"lane {lane.getID()} has a broken shape of {len(shape)} point(s); a lane needs two or more")
-    if not np.isfinite(np.asarray(shape, dtype=float)).all():
-        raise NetworkError(f"lane {lane.getID()} has a shape coordinate that is not a finite number")
-
-
-def _lane_record(
-    lane: sumolib.net.lane.Lane, shape_length_m: float, in_roundabout: bool, continues_road: bool, continues_into: str
-) -> Lane:
-    """The :class:`Lane` attributes of a sumolib lane."""
-    edge = lane.getEdge()
-    return Lane(
-        lane_id=lane.getID(),
-        edge_id=edge.getID(),
-        index=lane.getIndex(),
-        function=_KEPT_FUNCTIONS[edge.getFunction()],
-        street_name=edge.getName() or "",
-        road_type=edge.getType() or "",
-        speed_limit_mps=float(lane.getSpeed()),
-        length_m=float(lane.getLength()),
-        shape_length_m=shape_length_m,
-        allowed_vclasses=frozenset(lane.getPermissions()),
-        in_roundabout=in_roundabout,
-        continues_road=continues_road,
-        continues_into=continues_into,
-    )
-
-
-def _internal_edge_junction(edge_id: str) -> str:
-    """The junction of an internal edge: SUMO names them ``:JUNCTION_INDEX``."""
-    return edge_id[1:].rsplit("_", 1)[0]
-
-
-def _roundabout_edge_ids(net: sumolib.net.Net) -> frozenset[str]:
-    """Ids of the edges in a roundabout: those of the ``<roundabout>`` elements and the
-    internal edges of their junctions."""
-    roundabouts = net.getRoundabouts()
-    edge_ids = {edge_id for roundabout in roundabouts for edge_id in roundabout.getEdges()}
-    junction_ids = {node_id for roundabout in roundabouts for node_id in roundabout.getNodes()}
-    internal_ids = {
-        edge.getID()
-        for edge in net.getEdges()
-        if edge.getFunction() == "internal" and _internal_edge_junction(edge.getID()) in junction_ids
-    }
-    return frozenset(edge_ids | internal_ids)
-
-
-def _successor_ids(lane: sumolib.net.lane.Lane, index: dict[str, int]) -> list[int]:
-    """Indices of the lanes reached from the end of a sumolib lane: a connection's via lane, else its target."""
-    reached = []
-    for connection in lane.getOutgoing():
-        target = connection.getViaLaneID() or connection.getToLane().getID()
-        if target in index and index[target] not in reached:
-            reached.append(index[target])
-    return reached
-
-
-def _continuing_internal_lanes(sumo_lanes: Sequence[sumolib.net.lane.Lane], continuations: frozenset[tuple[str, str]]) -> set[str]:
-    """Ids of the internal lanes of the connections that continue a road (edge pairs in ``continuations``)."""
-    by_id = {lane.getID(): lane for lane in sumo_lanes}
-    continuing: set[str] = set()
-    for lane in sumo_lanes:
-        for connection in lane.getOutgoing():
-            if (lane.getEdge().getID(), connection.getTo().getID()) not in continuations:
-                continue
-            via = connection.getViaLaneID()
-            # An internal lane leads on through further internal lanes (a left turn's wait
-            # position) to the connection's target.
-            while via in by_id and via not in continuing and by_id[via].getEdge().getFunction() == "internal":
-                continuing.add(via)
-                following = by_id[via].getOutgoing()
-                via = (following[0].getViaLaneID() or following[0].getToLane().getID()) if following else ""
-    return continuing
-
-
-def _continues_into(
-    lane: sumolib.net.lane.Lane, continuations: frozenset[tuple[str, str]], continuing: set[str], roundabout: frozenset[str]
-) -> str:
-    """The lane a sumolib lane's road continues on, "" where it ends or turns (:attr:`Lane.continues_into`).
-
-    From a normal lane: the lane reached by its connection into the edge that continues
-    the road (:func:`csws.roadchain.road_continuations`), the connection's internal lane
-    if it has one; of several, the one into the lane of the nearest index. From an
-    internal lane that continues the road: the lane it leads on to. A road does not
-    continue into, out of or round a roundabout: that is a junction manoeuvre.
-    """
-    edge_id = lane.getEdge().getID()
-    if edge_id in roundabout:
-        return ""
-    if lane.getEdge().getFunction() == "internal":
-        if lane.getID() not in continuing or not lane.getOutgoing():
-            return ""
-        connection = lane.getOutgoing()[0]
-    else:
-        candidates = [
-            connection
-            for connection in lane.getOutgoing()
-            if (edge_id, connection.getTo().getID()) in continuations and connection.getTo().getID() not in roundabout
-        ]
-        if not candidates:
-            return ""
-        connection = min(candidates, key=lambda c: abs(c.getToLane().getIndex() - lane.getIndex()))
-    return connection.getViaLaneID() or connection.getToLane().getID()
-
-
-def _geo_reference(net: sumolib.net.Net) -> sumolib.net.Net:
-    """A bare sumolib net carrying only the location of ``net``.
-
-    sumolib keeps the ``<location>`` element in the net's ``_location`` mapping and has
-    no public getter for all of it; copying it keeps ``convertXY2LonLat`` /
-    ``convertLonLat2XY`` available without holding every lane's Python objects.
-    """
-    location = getattr(net, "_location", {})
-    geo = sumolib.net.Net()
-    geo.setLocation(
-        location.get("netOffset", "0.00,0.00"),
-        location.get("convBoundary", "0.00,0.00,0.00,0.00"),
-        location.get("origBoundary", "0.00,0.00,0.00,0.00"),
-        location.get("projParameter", "!"),
-    )
-    return geo
-
-def _vertex_arc_length(xy: np.ndarray, vertex_start: np.ndarray) -> np.ndarray:
-    """Arc length of every vertex along its own lane, for lanes stored back to back in ``xy``."""
-    step_m = np.concatenate(([0.0], np.hypot(*np.diff(xy, axis=0).T)))
-    step_m[vertex_start[:-1]] = 0.0
-    cumulative_m = np.cumsum(step_m)
-    lane_of_vertex = np.repeat(np.arange(len(vertex_start) - 1), np.diff(vertex_start))
-    return cumulative_m - cumulative_m[vertex_start[:-1]][lane_of_vertex]
-
-
-def _compressed_rows(rows: Sequence[Sequence[int]]) -> tuple[np.ndarray, np.ndarray]:
-    """Ragged integer rows as (row start offsets, concatenated values)."""
-    start = np.concatenate(([0], np.cumsum([len(row) for row in rows]))).astype(np.int64)
-    return start, np.fromiter(chain.from_iterable(rows), dtype=np.int64, count=int(start[-1]))
-
 
 def _finite_pairs(values: np.ndarray, what: str) -> np.ndarray:
     """``values`` as a float ``(k, 2)`` array; ValueError when not finite pairs."""
@@ -405,6 +91,12 @@ def _finite_pairs(values: np.ndarray, what: str) -> np.ndarray:
     if not np.isfinite(pairs).all():
         raise ValueError(f"{what} must be finite numbers")
     return pairs
+
+
+def _compressed_rows(rows: Sequence[Sequence[int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Ragged integer rows as (row start offsets, concatenated values)."""
+    start = np.concatenate(([0], np.cumsum([len(row) for row in rows]))).astype(np.int64)
+    return start, np.fromiter(chain.from_iterable(rows), dtype=np.int64, count=int(start[-1]))
 
 
 def _shape_between(shape: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
@@ -472,7 +164,7 @@ class RoadMap:
         self._index = {lane.lane_id: i for i, lane in enumerate(self._lanes)}
         self._xy = np.ascontiguousarray(xy, dtype=float)
         self._vertex_start = np.asarray(vertex_start, dtype=np.int64)
-        self._vertex_s = _vertex_arc_length(self._xy, self._vertex_start)
+        self._vertex_s = vertex_arc_length(self._xy, self._vertex_start)
         self._successor_start, self._successor_index = _compressed_rows(successors)
         road_shapes = [self._road_shape(i) for i in range(len(self._lanes))]
         self._chains = fit_road_chains(
@@ -518,28 +210,9 @@ class RoadMap:
         Only the location of ``net`` is kept: lanes are copied into arrays so the
         sumolib objects can be freed.
         """
-        sumo_lanes = [
-            lane for edge in net.getEdges() if edge.getFunction() in _KEPT_FUNCTIONS for lane in edge.getLanes()
-        ]
-        if not sumo_lanes:
-            raise NetworkError("the network has no lanes with a shape")
-        for lane in sumo_lanes:
-            _check_shape(lane)
-        vertex_start = np.concatenate(([0], np.cumsum([len(lane.getShape()) for lane in sumo_lanes]))).astype(np.int64)
-        xy = np.array(list(chain.from_iterable(lane.getShape() for lane in sumo_lanes)), dtype=float).reshape(-1, 2)
-        shape_length_m = _vertex_arc_length(xy, vertex_start)[vertex_start[1:] - 1]
-        index = {lane.getID(): i for i, lane in enumerate(sumo_lanes)}
-        successors = [_successor_ids(lane, index) for lane in sumo_lanes]
-        roundabout_edges = _roundabout_edge_ids(net)
-        continuations = road_continuations(net)
-        continuing = _continuing_internal_lanes(sumo_lanes, continuations)
-        lanes = [
-            _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges, lane.getID() in continuing,
-                         _continues_into(lane, continuations, continuing, roundabout_edges))
-            for lane, length in zip(sumo_lanes, shape_length_m)
-        ]  # fmt: skip
+        lanes = net_lanes(net)
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
-        return cls(lanes, xy, vertex_start, successors, _geo_reference(net), radius, cache=cache)
+        return cls(lanes.lanes, lanes.xy, lanes.vertex_start, lanes.successors, lanes.geo, radius, cache=cache)
 
     # ----------------------------------------------------------------- lanes
     @cached_property
@@ -730,33 +403,7 @@ class RoadMap:
         """
         if not (math.isfinite(radius_m) and radius_m > 0):
             raise ValueError(f"search radius must be a positive number of metres, got {radius_m!r}")
-        xy = _finite_pairs(xy, "positions")
-        point_index, segment_index = self._segment_tree.query(shapely.points(xy), predicate="dwithin",
-                                                              distance=radius_m)
-        start, end = self._segments[0][segment_index], self._segments[1][segment_index]
-        a, b, p = self._xy[start], self._xy[end], xy[point_index]
-        direction = b - a
-        length_sq = np.einsum("ij,ij->i", direction, direction)
-        fraction = np.clip(np.einsum("ij,ij->i", p - a, direction) / np.where(length_sq > 0, length_sq, 1.0), 0, 1)
-        nearest = a + fraction[:, None] * direction
-        distance_m = np.hypot(*(p - nearest).T)
-        lane_index = self._segment_lane[segment_index]
-        # The nearest segment of each lane for each point: sort by point, lane, distance; keep the first.
-        order = np.lexsort((distance_m, lane_index, point_index))
-        first = np.ones(order.size, dtype=bool)
-        first[1:] = (np.diff(point_index[order]) != 0) | (np.diff(lane_index[order]) != 0)
-        keep = order[first]
-        keep = keep[np.lexsort((distance_m[keep], point_index[keep]))]
-        start, end = start[keep], end[keep]
-        along_shape_m = self._vertex_s[start] + fraction[keep] * (self._vertex_s[end] - self._vertex_s[start])
-        lane_index = lane_index[keep]
-        return LaneMatches(
-            point_index=point_index[keep],
-            lane_id=self._lane_id_array[lane_index],
-            distance_m=distance_m[keep],
-            lane_pos_m=along_shape_m * self._position_factor[lane_index],
-            heading_rad=np.arctan2(direction[keep, 1], direction[keep, 0]),
-        )
+        return self._lane_search.match(_finite_pairs(xy, "positions"), radius_m)
 
     def nearest_lanes(self, x: float, y: float, radius_m: float) -> list[LaneMatch]:
         """The lanes within ``radius_m`` of (x, y), nearest first (see :meth:`match_points`)."""
@@ -867,44 +514,6 @@ class RoadMap:
         return np.array([lane.position_factor for lane in self._lanes])
 
     @cached_property
-    def _segments(self) -> tuple[np.ndarray, np.ndarray]:
-        """First and last vertex of every indexed segment: the lane shapes simplified within
-        :data:`MATCH_TOLERANCE_M`, as indices into the shape vertices.
-
-        A dense SUMO shape (a vertex every 0.5 m) becomes one segment per straight and a
-        few per curve, so a fix meets a handful of candidates instead of dozens. The kept
-        vertices are original ones, so lane positions stay exact there and are
-        interpolated in arc length between them.
-        """
-        lane_of_vertex = np.repeat(np.arange(len(self._lanes)), np.diff(self._vertex_start))
-        lines = shapely.linestrings(self._xy, indices=lane_of_vertex)
-        simplified = shapely.simplify(lines, MATCH_TOLERANCE_M, preserve_topology=False)
-        kept_xy, kept_lane = shapely.get_coordinates(simplified, return_index=True)
-        position = {(lane, x, y): i for i, (lane, (x, y)) in enumerate(zip(lane_of_vertex.tolist(), self._xy.tolist()))}
-        kept = np.array([position[(lane, x, y)] for lane, (x, y) in zip(kept_lane.tolist(), kept_xy.tolist())])
-        # A lane whose kept vertices are not in order (a loop through one point) keeps every vertex.
-        disordered = np.unique(kept_lane[1:][(np.diff(kept) <= 0) & (kept_lane[1:] == kept_lane[:-1])])
-        if disordered.size:
-            keep = ~np.isin(kept_lane, disordered)
-            every = np.flatnonzero(np.isin(lane_of_vertex, disordered))
-            kept = np.sort(np.concatenate((kept[keep], every)))
-        lane = lane_of_vertex[kept]
-        segment = (lane[1:] == lane[:-1]) & np.any(self._xy[kept[1:]] != self._xy[kept[:-1]], axis=1)
-        return kept[:-1][segment], kept[1:][segment]
-
-    @cached_property
-    def _segment_lane(self) -> np.ndarray:
-        """The lane of every indexed segment."""
-        return np.searchsorted(self._vertex_start, self._segments[0], side="right") - 1
-
-    @cached_property
-    def _segment_tree(self) -> shapely.STRtree:
-        """Spatial index over the simplified shape segments, built on the first position look-up.
-
-        Segments rather than whole lanes: a projection onto two points is a few numpy
-        operations, onto a lane of thousands of vertices a search along all of them.
-        """
-        start, end = self._segments
-        return shapely.STRtree(shapely.linestrings(np.stack((self._xy[start], self._xy[end]), axis=1)))
-
-
+    def _lane_search(self) -> LaneSearch:
+        """The spatial index of the lanes' shapes, built on the first position look-up."""
+        return LaneSearch(self._xy, self._vertex_start, self._vertex_s, self._lane_id_array, self._position_factor)
