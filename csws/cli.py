@@ -26,7 +26,7 @@ class CommandError(Exception):
 
 
 def _cmd_networks_build(args: argparse.Namespace) -> int:
-    from .networks.generate import build_networks, compare_networks
+    from .networks.build import build_networks, compare_networks
 
     if args.check:
         differences = compare_networks(args.dir)

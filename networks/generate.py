@@ -51,7 +51,6 @@ __all__ = [
     "ROUTE_EDGES",
     "S_CURVE_TEST",
     "TRUTH_FORMAT",
-    "REAL_ROADS_DIR",
     "CurveSpec",
     "TrackSpec",
     "track_specs",
@@ -59,9 +58,9 @@ __all__ = [
     "track_truth",
     "networks_index",
     "build_network",
-    "build_networks",
+    "build_tracks",
     "compare_network",
-    "compare_networks",
+    "compare_tracks",
     "read_lanes",
 ]
 
@@ -99,7 +98,6 @@ _NODES = ("start", "entry", "exit", "end")
 #: Format tag of the truth files.
 TRUTH_FORMAT = "csws-track-truth/1"
 #: The folder of the real-road tracks, beside the standard's.
-REAL_ROADS_DIR = "real_roads"
 #: Decimal places of the lengths and coordinates in the truth files (1 um): the truth is
 #: reproducible to the byte and far finer than any tolerance that uses it.
 _TRUTH_DECIMALS = 6
@@ -444,18 +442,12 @@ def build_network(spec: TrackSpec, directory: Path) -> Path:
     return net_file
 
 
-def build_networks(directory: Path) -> list[Path]:
-    """Build every track into ``directory`` with its truth and ``index.json``, and the real-road
-    tracks into its ``real_roads`` folder (:mod:`csws.networks.real_roads`); the network paths.
-
-    This is ``csws networks build``.
-    """
-    from .real_roads import build_real_roads
-
+def build_tracks(directory: Path) -> list[Path]:
+    """Build every track into ``directory`` with its truth and ``index.json``; the network paths."""
     specs = track_specs()
     written = [build_network(spec, directory) for spec in specs]
     _write_json(Path(directory) / "index.json", networks_index(specs))
-    return written + build_real_roads(Path(directory) / REAL_ROADS_DIR)
+    return written
 
 
 def read_lanes(net_file: Path) -> dict[str, tuple[float, float, np.ndarray]]:
@@ -515,11 +507,10 @@ def compare_network(spec: TrackSpec, directory: Path, tolerance_m: float = 0.01)
         )
 
 
-def compare_networks(directory: Path) -> list[str]:
+def compare_tracks(directory: Path) -> list[str]:
     """Rebuild every track and list how ``directory`` differs from the generator; empty when it matches.
 
-    This is ``csws networks build --check``. Networks in ``directory`` that the generator
-    no longer makes are reported too.
+    Networks in ``directory`` that the generator no longer makes are reported too.
     """
     directory = Path(directory)
     specs = track_specs()
@@ -531,6 +522,4 @@ def compare_networks(directory: Path) -> list[str]:
         index = Path(work) / "index.json"
         _write_json(index, networks_index(specs))
         differences += _json_difference(index, directory / "index.json")
-    from .real_roads import compare_real_roads
-
-    return differences + compare_real_roads(directory / REAL_ROADS_DIR)
+    return differences

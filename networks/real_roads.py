@@ -57,8 +57,11 @@ from .generate import (
     _write_json,
 )
 
-__all__ = ["TRUTH_FORMAT", "INDEX_FORMAT", "RealRoadSpec", "real_road_specs", "real_road_pieces", "real_road_truth",
+__all__ = ["REAL_ROADS_DIR", "TRUTH_FORMAT", "INDEX_FORMAT", "RealRoadSpec", "real_road_specs", "real_road_pieces", "real_road_truth",
            "build_real_roads", "compare_real_roads", "true_curves"]  # fmt: skip
+
+#: The folder of the bundled networks that holds the real-road tracks.
+REAL_ROADS_DIR = "real_roads"
 
 TRUTH_FORMAT = "csws-real-road-truth/1"
 INDEX_FORMAT = "csws-real-road-index/1"

@@ -38,7 +38,7 @@ from csws.binaries import sumo_binary
 from csws.engine import Engine, EngineSettings, VehicleInput
 from csws.geometry import Piece, sample_pieces
 from csws.networks import networks_dir
-from csws.networks.generate import REAL_ROADS_DIR
+from csws.networks.real_roads import REAL_ROADS_DIR
 from csws.roadmap import RoadMap
 from csws.standard import formula_1_m, kmh_to_mps, mps_to_kmh
 from csws.warning import WarningSettings

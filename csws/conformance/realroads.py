@@ -33,7 +33,7 @@ import numpy as np
 
 from csws.geometry import curvature_at
 from csws.networks import networks_dir
-from csws.networks.generate import REAL_ROADS_DIR
+from csws.networks.real_roads import REAL_ROADS_DIR
 from csws.standard import DEFAULT_POLICY, Category, Level, formula_1_m, kmh_to_mps, warning_speed
 from csws.warning import WarningSettings
 
