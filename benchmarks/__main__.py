@@ -151,6 +151,9 @@ def real_network_rows(figures: dict) -> list[Row]:
         at_most(f"real network ({figures['lane_km']:g} lane-km): load s, fitted before", figures["cached_load_s"],
                 roadmap.REAL_LOAD_TARGET_S, f"{size}; {figures['fit_load_s']:g} s when every chain is fitted"),
         at_most("real network: first load s, every chain fitted", figures["fit_load_s"], roadmap.REAL_LOAD_TARGET_S),
+        at_most("real network: first look-ahead on a lane, max ms", figures["first_lookahead_ms_max"],
+                roadmap.FIRST_LOOKAHEAD_TARGET_MS,
+                f"p50 {figures['first_lookahead_ms_p50']:g} ms over {figures['first_lookaheads']} fresh lanes"),
     ]
 
 

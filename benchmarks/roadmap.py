@@ -31,11 +31,16 @@ from csws.netbuild import netconvert, shape_text
 from csws.geometry import Piece, arc, pose_at, sample_pieces, straight
 from csws.curvature import radius_profiles
 from csws.networks import networks_dir
+from csws.lookahead import LookAhead
 from csws.roadmap import RoadMap, read_sumo_net
 
 REAL_NET = networks_dir() / "badhersfeld.net.xml.gz"
 #: How long the real network may take to load, s: fitted before (the profile cache), and afresh.
 REAL_LOAD_TARGET_S = 3.0
+#: How long the first look-ahead on any lane of a loaded real network may take, ms, and on
+#: how many lanes it is timed.
+FIRST_LOOKAHEAD_TARGET_MS = 10.0
+FIRST_LOOKAHEADS = 300
 
 #: One grid link: a reverse-curve bump whose ends share the same heading and lateral
 #: position, so the links close into a square grid. Its arcs are 250 m (inside R_c).
@@ -191,16 +196,35 @@ def _timed_load(cache_dir: str) -> tuple[float, RoadMap]:
         return time.perf_counter() - started, road_map
 
 
+def first_lookaheads_ms(road_map: RoadMap, count: int = FIRST_LOOKAHEADS, seed: int = 3) -> np.ndarray:
+    """Milliseconds of the first look-ahead on ``count`` lanes of the map drawn at random
+    (normal lanes that a truck may use), each from a fresh :class:`csws.lookahead.LookAhead`,
+    so that nothing of an earlier query is reused: an N vehicle at 80 km/h mid-lane."""
+    rng = np.random.default_rng(seed)
+    lanes = [lane_id for lane_id in road_map.lane_ids
+             if not road_map.lane(lane_id).is_internal and "truck" in road_map.lane(lane_id).allowed_vclasses]  # fmt: skip
+    took_ms = []
+    for lane_id in rng.choice(lanes, size=min(count, len(lanes)), replace=False):
+        lookahead = LookAhead(road_map)
+        started = time.perf_counter()
+        lookahead(str(lane_id), road_map.lane(str(lane_id)).length_m / 2.0, 80.0, "N")
+        took_ms.append((time.perf_counter() - started) * 1000.0)
+    return np.array(took_ms)
+
+
 def real_network_load() -> dict:
     """Seconds to load the bundled real network (parse, arrays, road chains, profiles and
-    curves): ``fit_load_s`` fitting every chain, ``cached_load_s`` reading the fit back."""
+    curves): ``fit_load_s`` fitting every chain, ``cached_load_s`` reading the fit back;
+    and the first look-ahead on fresh lanes of the loaded map, ms (:func:`first_lookaheads_ms`)."""
     fit_s, _ = _timed_load("")
     with tempfile.TemporaryDirectory(prefix="csws-bench-cache-") as folder:
         _timed_load(folder)
         cached_s, road_map = _timed_load(folder)
+    first_ms = first_lookaheads_ms(road_map)
     return {"network": REAL_NET.name, "fit_load_s": round(fit_s, 2), "cached_load_s": round(cached_s, 2),
             "lanes": len(road_map.lane_ids), "lane_km": round(road_map.total_length_m / 1000.0, 1),
-            "curves": len(road_map.curves())}
+            "curves": len(road_map.curves()), "first_lookahead_ms_p50": round(float(np.median(first_ms)), 2),
+            "first_lookahead_ms_max": round(float(first_ms.max()), 2), "first_lookaheads": len(first_ms)}
 
 
 def main() -> None:
