@@ -302,7 +302,7 @@ def cosimulate(config: CosimConfig) -> dict:
     simulation = None
     bar = tqdm(total=config.end_s, unit="sim s", disable=not config.progress, file=sys.stderr)
     try:
-        simulation = Simulation(sumo_args, config.interface)
+        simulation = Simulation(sumo_args, config.interface, odometer=driver is not None)
         step_s = simulation.step_length_s
         while simulation.expected_vehicles() > 0:
             fleet = simulation.step()
