@@ -243,7 +243,7 @@ class Engine:
         statuses = next_statuses(
             [self.statuses.get(vehicle_id, _NEW_STATUS) for vehicle_id in vehicle_ids], speeds_kmh,
             timestamp_s=timestamp_s, age_s=age_s,
-            found_fault=list(map(self._found_fault, lane_ids, positions_m.tolist())),
+            found_fault=self._found_faults(lane_ids, positions_m),
             settings=self.settings.activation,
         )
         self.statuses.update(zip(vehicle_ids, statuses))
@@ -264,6 +264,15 @@ class Engine:
                 warnings[i] = warning
         return FleetAnswers(vehicle_ids, [status.state for status in statuses],
                             [status.fault for status in statuses], warnings, active, ahead)  # fmt: skip
+
+    def _found_faults(self, lane_ids: Sequence[str | None], lane_pos_m: np.ndarray) -> list[Fault | None]:
+        """:meth:`_found_fault` of many vehicles: one look at the positions, one look-up per lane."""
+        if self.road_map is None:
+            return [Fault.NO_MAP] * len(lane_ids)
+        has_lane = self.road_map.has_lane
+        finite = np.isfinite(lane_pos_m).tolist()
+        return [None if lane_id is not None and has_lane(lane_id) and ok else self._found_fault(lane_id, float(position))
+                for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist())]  # fmt: skip
 
     def _found_fault(self, lane_id: str | None, lane_pos_m: float) -> Fault | None:
         """What prevents a path ahead (5.4): no map, no lane, or a lane position that is not a number."""
@@ -287,9 +296,9 @@ class Engine:
                                cpoi_latched=latched, cpoi_hold=hold, cpoi_passed=passed)
         for vehicle_id, memory in zip(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices,
                                                                  batch.cpoi_rule)):  # fmt: skip
-            if memory.is_on:
+            if memory is not NOT_HELD and memory.is_on:
                 self.held[vehicle_id] = memory
-            else:
+            elif self.held:
                 self.held.pop(vehicle_id, None)
         return batch
 

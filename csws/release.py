@@ -112,7 +112,7 @@ def memory_masks(
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
     for vehicle, memory in enumerate(held):
-        if not memory.is_on:
+        if memory is NOT_HELD or not memory.is_on:  # most vehicles: no warning to keep
             continue
         for row in range(first_cpoi[vehicle], first_cpoi[vehicle + 1]):
             key = (curve_ids[row], int(part_indices[row]))
@@ -132,24 +132,23 @@ def next_memories(
 ) -> list[HeldWarning]:
     """Each vehicle's memory after this update, from what kept each level on at each of its
     CPOIs (``cpoi_rule``, ``(2, n_cpois)`` :class:`Rule` codes)."""
-    on_vehicles = np.zeros(len(held), dtype=bool)
     vehicle_of_row = np.repeat(np.arange(len(held)), np.diff(np.asarray(first_cpoi)))
-    on_vehicles[vehicle_of_row[np.any(cpoi_rule != Rule.OFF, axis=0)]] = True
-    memories: list[HeldWarning] = []
-    for vehicle, memory in enumerate(held):
-        if not on_vehicles[vehicle]:
-            memories.append(NOT_HELD)
-            continue
-        rows = range(first_cpoi[vehicle], first_cpoi[vehicle + 1])
+    memories = [NOT_HELD] * len(held)
+    on = np.unique(vehicle_of_row[np.any(cpoi_rule != Rule.OFF, axis=0)]).tolist()
+    if not on:
+        return memories
+    level_rules = cpoi_rule.tolist()
+    for vehicle in on:
+        start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
         points, kept_at_s = [], []
-        for level in (0, 1):
-            rules = cpoi_rule[level, rows.start : rows.stop]
-            points.append(frozenset((curve_ids[row], int(part_indices[row])) for row in rows if cpoi_rule[level, row]))
-            if np.any((rules == Rule.REQUIRED) | (rules == Rule.MARGIN)):
+        for level, rules in enumerate(level_rules):
+            here = rules[start:stop]
+            points.append(frozenset((curve_ids[row], int(part_indices[row])) for row, rule in zip(range(start, stop), here) if rule))
+            if Rule.REQUIRED in here or Rule.MARGIN in here:
                 kept_at_s.append(now_s[vehicle])
             else:
-                kept_at_s.append(memory.kept_at_s[level] if np.any(rules == Rule.HOLD) else None)
-        memories.append(HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1])))
+                kept_at_s.append(held[vehicle].kept_at_s[level] if Rule.HOLD in here else None)
+        memories[vehicle] = HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
     return memories
 
 
