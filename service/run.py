@@ -7,7 +7,7 @@ import os
 import sys
 
 from .settings import ServiceSettings, settings_environment
-from .workers import MASTER_PID_VARIABLE
+from .workers import MASTER_PID_VARIABLE, listen_as_tcp
 
 __all__ = ["settings_from_args", "main", "add_key_command"]
 
@@ -59,6 +59,7 @@ def main(args: argparse.Namespace) -> int:
         KeyRing(settings.api_keys_file)
     os.environ.update(settings_environment(settings))
     os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
+    listen_as_tcp()
     print(f"csws: serving with {settings.workers} workers on http://{settings.host}:{settings.port}"
           f" (OpenAPI docs at /docs)", flush=True)
     uvicorn.run("service.app:create_app", factory=True, host=settings.host, port=settings.port,

@@ -18,7 +18,7 @@ import httpx
 import pytest
 
 from csws.networks import networks_dir
-from test_service import Server
+from test_service import Server, Workers
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 LIMIT_BYTES = 1_000_000
@@ -175,28 +175,8 @@ def _children(pid: int) -> list[int]:
     return found
 
 
-def _serve_workers(state_db: str) -> tuple[subprocess.Popen, str]:
-    """``csws serve --workers 2`` on a free loopback port, ready (at least one worker answers)."""
-    from test_service import _free_port
-
-    port = _free_port()
-    url = f"http://127.0.0.1:{port}"
-    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db", state_db,
-                               "--port", str(port), "--workers", "2"], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)  # fmt: skip
-    deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline:
-        try:
-            if httpx.get(f"{url}/readyz", timeout=2.0).status_code == 200:
-                return master, url
-        except httpx.TransportError:
-            time.sleep(0.2)
-    master.kill()
-    raise RuntimeError("csws serve --workers 2 was not ready within 60 s")
-
-
 def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
-    master, _ = _serve_workers(":memory:")
+    master = Workers([TRACK_NET], "--state-db", ":memory:").process
     try:
         workers = _children(master.pid)
         assert len(workers) >= 2
@@ -212,9 +192,27 @@ def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
         master.kill()
 
 
+# ------------------------------------------------------------------ keep-alive through several workers
+def test_keep_alive_requests_through_several_workers_wait_for_no_acknowledgement(tmp_path) -> None:
+    # Without TCP_NODELAY on the workers' connections, each answer after the first waits for the
+    # client's delayed acknowledgement: about 40 ms on Linux.
+    running = Workers([TRACK_NET], "--state-db", str(tmp_path / "vehicles.sqlite3"))
+    try:
+        with httpx.Client(base_url=running.url) as client:
+            latencies_s = []
+            for _ in range(21):
+                started = time.perf_counter()
+                client.get("/healthz").raise_for_status()
+                latencies_s.append(time.perf_counter() - started)
+        assert sorted(latencies_s)[10] < 0.02
+    finally:
+        running.stop()
+
+
 # ------------------------------------------------------------------ several workers, one set of switches
 def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) -> None:
-    master, url = _serve_workers(str(tmp_path / "vehicles.sqlite3"))
+    running = Workers([TRACK_NET], "--state-db", str(tmp_path / "vehicles.sqlite3"))
+    url = running.url
     try:
         for vehicle in range(20):  # sessions in both workers (each request on a new connection)
             assert httpx.post(f"{url}/v1/warning", json={**QUERY, "vehicle_id": "truck"}).status_code == 200
@@ -225,11 +223,7 @@ def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) 
             seen = [httpx.get(f"{url}/v1/vehicles/truck") for _ in range(20)]
             assert [(r.status_code, r.json()["switched_on"]) for r in seen] == [(200, switched_on)] * 20
     finally:
-        master.send_signal(signal.SIGTERM)
-        try:
-            master.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            master.kill()
+        running.stop()
 
 
 def test_a_server_killed_during_puts_loses_no_acknowledged_one(tmp_path) -> None:
