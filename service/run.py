@@ -46,13 +46,15 @@ def main(args: argparse.Namespace) -> int:
         uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
         return 0
     from .networks import load_networks
-    from .vehicles import SettingStore
+    from .store import open_store
 
     # Fail here, once, with one clear line, rather than in every worker (a respawn loop).
     load_networks(settings.nets, settings.engine_settings())
-    store = SettingStore(settings.state_db)
-    store.load()
-    store.close()
+    store = open_store(settings)
+    try:
+        store.check()
+    finally:
+        store.close()
     if settings.api_keys_file is not None:
         from .keys import KeyRing
 

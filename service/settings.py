@@ -33,7 +33,7 @@ __all__ = ["ServiceSettings", "default_state_db", "settings_environment"]
 
 
 def default_state_db() -> Path:
-    """Where vehicle settings persist by default: ``$XDG_STATE_HOME/csws/vehicles.sqlite3``."""
+    """Where the vehicles' state persists by default: ``$XDG_STATE_HOME/csws/vehicles.sqlite3``."""
     state_home = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
     return Path(state_home) / "csws" / "vehicles.sqlite3"
 
@@ -51,7 +51,8 @@ class ServiceSettings(BaseSettings):
     workers: int = Field(default=1, ge=1, le=64, description="worker processes")
     state_db: str = Field(
         default_factory=lambda: str(default_state_db()),
-        description="SQLite file keeping vehicle switches across restarts; ':memory:' keeps them in memory only",
+        description="SQLite file keeping vehicle switches, categories and sessions for the workers of this machine "
+        "and across restarts; ':memory:' keeps them in memory only, for one worker",
     )
     session_idle_s: float = Field(default=600.0, gt=0, description="a vehicle session idle this long expires, s")
     match_tolerance_m: float = Field(default=10.0, gt=0, description="a fix matches lanes within this distance, m")
@@ -78,6 +79,13 @@ class ServiceSettings(BaseSettings):
         if self.api_keys_file is None and not self.insecure and not _is_loopback(self.host):
             raise ValueError(f"refusing to serve without API keys on {self.host}: give an API key file "
                              f"(--api-keys FILE), listen on 127.0.0.1, or pass --insecure")  # fmt: skip
+        return self
+
+    @model_validator(mode="after")
+    def _shared_by_the_workers(self) -> "ServiceSettings":
+        if self.workers > 1 and self.state_db == ":memory:":
+            raise ValueError("an in-memory state database is each worker's own: give --workers N a file "
+                             "(--state-db FILE)")
         return self
 
     @field_validator("nets", mode="before")

@@ -1,7 +1,8 @@
 """Shared test set-up: a fresh profile cache for the whole run, so no test reads fits an
 earlier run (or the user's own loads) left behind; in CI (``CI`` set), hypothesis draws the
 same examples every run, so that a run's verdict is the code's and not the draw's (locally
-it keeps exploring new ones, and keeps the failures it finds)."""
+it keeps exploring new ones, and keeps the failures it finds); the ``state`` fixture that runs
+a test on each state store."""
 
 from __future__ import annotations
 
@@ -25,3 +26,9 @@ def fresh_profile_cache(tmp_path_factory: pytest.TempPathFactory):
         del os.environ["CSWS_CACHE_DIR"]
     else:
         os.environ["CSWS_CACHE_DIR"] = previous
+
+
+@pytest.fixture(params=["sqlite"])
+def state(request: pytest.FixtureRequest, tmp_path) -> dict[str, str]:
+    """The settings of each state store in turn: a SQLite file."""
+    return {"state_db": str(tmp_path / "vehicles.sqlite3")}
