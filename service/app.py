@@ -142,7 +142,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     settings
         What to serve and how; by default from the ``CSWS_*`` environment.
     clock
-        Seconds of the clock that dates sessions in the state store.
+        Seconds of the clock that dates sessions in a SQLite state store (Redis keeps its own).
 
     Raises
     ------

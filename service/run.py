@@ -12,7 +12,8 @@ from .workers import MASTER_PID_VARIABLE, listen_as_tcp
 __all__ = ["settings_from_args", "main", "add_key_command"]
 
 #: Command-line options and the settings they override.
-_OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state_db": "state_db",
+_OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state": "state",
+            "state_db": "state_db",
             "session_idle_s": "session_idle_s", "update_period_s": "update_period_s", "api_keys": "api_keys_file",
             "insecure": "insecure", "public_docs": "public_docs"}
 

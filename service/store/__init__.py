@@ -9,9 +9,10 @@ It holds, per vehicle (by its key, :func:`service.keys.vehicle_key`):
   **version**, raised by each write of it, and expires when it has not been written for the
   idle time.
 
-SQLite in WAL mode (:mod:`service.store.sqlite`) implements :class:`StateStore` for the
-workers of one machine. It reads the vehicles of a request in one statement and writes them
-back in one transaction.
+Two backends implement :class:`StateStore`: SQLite in WAL mode (:mod:`service.store.sqlite`),
+the embedded default for the workers of one machine, and Redis (:mod:`service.store.redis`),
+for replicas on several machines. Each reads the vehicles of a request in one round trip
+and writes them back in one (one transaction on SQLite, one server-side script on Redis).
 
 A write is conditional per vehicle: a vehicle's session and setting are written together,
 and only if its session still has the version read before; else nothing of that vehicle is
@@ -120,7 +121,7 @@ class StateStore(ABC):
         Raises
         ------
         OSError
-            One line naming the store, when it cannot be read, or holds what it should not.
+            One line naming the store, when it cannot be reached or read, or holds what it should not.
         """
 
     @abstractmethod
@@ -162,20 +163,26 @@ class StateStore(ABC):
 
 
 def open_store(settings: "ServiceSettings", clock: Callable[[], float] = time.time) -> StateStore:
-    """The store the settings name: the SQLite file ``settings.state_db``.
+    """The store the settings name: Redis at ``settings.state`` if given, else the SQLite file ``settings.state_db``.
 
     Parameters
     ----------
     settings
-        The service's settings (``state_db``, ``session_idle_s``).
+        The service's settings (``state``, ``state_db``, ``session_idle_s``).
     clock
-        Seconds of the clock that dates sessions.
+        Seconds of the clock that dates SQLite sessions (Redis expires its own).
 
     Raises
     ------
     OSError
         If the SQLite file cannot be opened.
+    ValueError
+        If the Redis URL is malformed.
     """
+    if settings.state:
+        from .redis import RedisStore
+
+        return RedisStore(settings.state, settings.session_idle_s)
     from .sqlite import SQLiteStore
 
     return SQLiteStore(settings.state_db, settings.session_idle_s, clock)
