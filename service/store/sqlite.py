@@ -7,7 +7,9 @@ absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`.
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction, which checks the versions and writes the sessions and
 settings with ``executemany``. Writers of the workers take turns for the length of a write,
-never for the engine's work in between. Settings are written with ``synchronous=FULL``
+never for the engine's work in between; one that finds the lock taken tries again every
+:data:`LOCK_RETRY_S` (SQLite's own busy handler would sleep from 1 ms up to 100 ms, far longer
+than a write holds the lock). Settings are written with ``synchronous=FULL``
 (on disk when the 200 goes out); a transaction of sessions alone with ``NORMAL``, which
 in WAL mode survives a crash of the service and may lose the last sessions only when the
 machine itself fails, costing those vehicles a fresh session.
@@ -25,10 +27,12 @@ from csws.standard import Category
 
 from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 
-__all__ = ["SWEEP_PERIOD_S", "SQLiteStore"]
+__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "SQLiteStore"]
 
 #: Expired sessions are deleted at most this often (by whichever write comes first), s.
 SWEEP_PERIOD_S = 60.0
+#: How long to wait before trying again for a lock another worker holds, s.
+LOCK_RETRY_S = 0.0001
 
 _SCHEMA = (
     "CREATE TABLE IF NOT EXISTS vehicle_settings ("
@@ -97,6 +101,7 @@ class SQLiteStore(StateStore):
             self._db.execute("PRAGMA synchronous=FULL")
             for statement in _SCHEMA:
                 self._db.execute(statement)
+            self._db.execute("PRAGMA busy_timeout=0")  # from now on waits are _execute's
         except sqlite3.Error as exc:
             raise OSError(f"cannot open the vehicle state database {path}: {exc}") from None
 
@@ -104,9 +109,9 @@ class SQLiteStore(StateStore):
         """Read every setting once: a database of another program, or one holding an unknown
         category, stops start-up here rather than failing requests later."""
         try:
-            for switched_on, category in self._db.execute("SELECT switched_on, category FROM vehicle_settings"):
+            for switched_on, category in self._execute("SELECT switched_on, category FROM vehicle_settings"):
                 _setting(switched_on, category)
-            self._db.execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
+            self._execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
         except (sqlite3.Error, ValueError) as exc:
             raise OSError(f"the vehicle state database {self.name} cannot be read: {exc}") from None
 
@@ -114,7 +119,7 @@ class SQLiteStore(StateStore):
         if not vehicle_ids:
             return {}
         try:
-            rows = self._db.execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
+            rows = self._execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
             return {
                 vehicle_id: StoredVehicle(None if switched_on is None else _setting(switched_on, category),
                                           session, version or 0)  # fmt: skip
@@ -128,7 +133,7 @@ class SQLiteStore(StateStore):
             return set()
         try:
             self._set_durable(any(w.setting is not None for w in writes.values()))
-            self._db.execute("BEGIN IMMEDIATE")
+            self._execute("BEGIN IMMEDIATE")
             try:
                 conflicts = self._write(writes)
                 self._db.execute("COMMIT")
@@ -156,6 +161,18 @@ class SQLiteStore(StateStore):
             self._swept_s = now_s
         return conflicts
 
+    def _execute(self, statement: str, parameters: tuple = ()) -> sqlite3.Cursor:
+        """Execute a statement that may need a lock another worker holds: tried again every
+        :data:`LOCK_RETRY_S` while the lock is taken, for at most :data:`STORE_TIMEOUT_S`."""
+        deadline_s = time.monotonic() + STORE_TIMEOUT_S
+        while True:
+            try:
+                return self._db.execute(statement, parameters)
+            except sqlite3.OperationalError as exc:
+                if exc.sqlite_errorcode & 0xFF != sqlite3.SQLITE_BUSY or time.monotonic() >= deadline_s:
+                    raise
+            time.sleep(LOCK_RETRY_S)
+
     def _set_durable(self, durable: bool) -> None:
         """``synchronous=FULL`` for a transaction with settings, ``NORMAL`` for one of sessions alone."""
         if durable != self._durable:
@@ -168,8 +185,8 @@ class SQLiteStore(StateStore):
 
     def session_count(self) -> int:
         try:
-            return int(self._db.execute("SELECT COUNT(*) FROM vehicle_sessions WHERE written_s >= ?",
-                                        (self._oldest_live_s(),)).fetchone()[0])  # fmt: skip
+            return int(self._execute("SELECT COUNT(*) FROM vehicle_sessions WHERE written_s >= ?",
+                                     (self._oldest_live_s(),)).fetchone()[0])  # fmt: skip
         except sqlite3.Error as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
 
