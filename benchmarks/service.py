@@ -61,12 +61,17 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def _start(target: list[str], env: dict[str, str]) -> tuple[subprocess.Popen, str]:
-    """A uvicorn process on a free loopback port, ready."""
+#: ``python -m`` of these serves the service and the trivial app (uvicorn).
+SERVICE = ["uvicorn", "--factory", "service.app:create_app", "--log-level", "warning"]
+TRIVIAL = ["uvicorn", "benchmarks.service:trivial_app", "--log-level", "warning"]
+
+
+def _start(command: list[str], env: dict[str, str]) -> tuple[subprocess.Popen, str]:
+    """``python -m COMMAND --host 127.0.0.1 --port PORT`` (uvicorn, or ``csws serve``) on a free port, ready."""
     port = _free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", *target, "--host", "127.0.0.1", "--port", str(port), "--log-level", "warning"],
-        env={**os.environ, **env}, cwd=Path(__file__).resolve().parents[1],
+        [sys.executable, "-m", *command, "--host", "127.0.0.1", "--port", str(port)],
+        env={**os.environ, **env}, cwd=Path(__file__).resolve().parents[1], stdout=subprocess.DEVNULL,
     )
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
@@ -77,7 +82,7 @@ def _start(target: list[str], env: dict[str, str]) -> tuple[subprocess.Popen, st
         except httpx.TransportError:
             time.sleep(0.1)
     process.kill()
-    raise RuntimeError(f"uvicorn {target} was not ready within {STARTUP_TIMEOUT_S} s")
+    raise RuntimeError(f"{' '.join(command)} was not ready within {STARTUP_TIMEOUT_S} s")
 
 
 def _fixes(count: int, seed: int = 5) -> list[dict]:
@@ -152,9 +157,8 @@ def _breakdown_ms(queries: list[dict]) -> dict[str, float]:
 
 def run() -> dict:
     """Start both servers, measure, stop them; return the figures."""
-    service, service_url = _start(["--factory", "service.app:create_app"],
-                                  {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:"})
-    trivial, trivial_url = _start(["benchmarks.service:trivial_app"], {})
+    service, service_url = _start(SERVICE, {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:"})
+    trivial, trivial_url = _start(TRIVIAL, {})
     try:
         single = json.dumps(_fixes(1)[0]).encode()
         with httpx.Client(base_url=trivial_url) as trivial_client, httpx.Client(base_url=service_url) as client:
