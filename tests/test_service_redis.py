@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import subprocess
 import sys
-import threading
 import time
 
 import httpx
@@ -22,9 +21,9 @@ from csws.networks import networks_dir
 from redis_server import RedisServer
 from service.app import create_app
 from service.settings import ServiceSettings
-from service.store import VehicleSetting, open_store
 from service.store.redis import SESSION_PREFIX, SETTING_PREFIX
 from test_service import Workers, _free_port
+from test_service_state import SwitchWriter
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 FIX = {"vehicle_id": "truck", "category": "N", "speed_kmh": 80.0, "lane_id": "curve_0", "lane_pos_m": 85.0}
@@ -82,41 +81,17 @@ def test_a_redis_down_or_hung_is_503_with_retry_after_and_one_log_line(own_redis
 def test_a_redis_killed_during_puts_loses_no_acknowledged_one(own_redis) -> None:
     # Redis as docs/service.md asks: the append-only file, fsynced at every write.
     running = Workers([TRACK_NET], "--state", own_redis.url())
-    acknowledged: list[str] = []
-    refused: list[httpx.Response] = []
-
-    def put_many() -> None:
-        with httpx.Client(base_url=running.url, timeout=10.0) as client:
-            for number in range(1000):
-                answer = client.put(f"/v1/vehicles/v{number}", json={"switched_on": number % 2 == 0})
-                if answer.status_code == 200:
-                    acknowledged.append(f"v{number}")
-                else:
-                    refused.append(answer)
-
-    writer = threading.Thread(target=put_many)
-    writer.start()
     try:
-        _wait_for(lambda: len(acknowledged) >= 100)
+        writer = SwitchWriter(running.url)
+        writer.wait_for(lambda w: len(w.acknowledged) >= 100)
         own_redis.kill()
-        _wait_for(lambda: len(refused) >= 20)
+        writer.wait_for(lambda w: len(w.refused) >= 20)
         own_redis.start()
-        writer.join(timeout=120)
+        writer.assert_stored({"state": own_redis.url()})
     finally:
         running.stop()
-    assert {(r.status_code, r.headers.get("retry-after")) for r in refused} == {(503, "1")}
-    assert 100 <= len(acknowledged) and len(acknowledged) + len(refused) == 1000
-    store = open_store(ServiceSettings(nets=[TRACK_NET], state=own_redis.url()))
-    stored = store.read(acknowledged)
-    store.close()
-    assert all(stored[vehicle].setting == VehicleSetting(int(vehicle[1:]) % 2 == 0) for vehicle in acknowledged)
-
-
-def _wait_for(condition, timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, "waited in vain"
-        time.sleep(0.01)
+    assert {(r.status_code, r.headers.get("retry-after")) for r in writer.refused} == {(503, "1")}
+    assert len(writer.acknowledged) + len(writer.refused) == 1000
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])

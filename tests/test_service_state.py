@@ -108,32 +108,51 @@ def test_concurrent_fixes_of_one_vehicle_through_both_workers_are_each_accepted_
     assert clients[0].get("/v1/vehicles/shared").json()["last_timestamp_s"] == 1000.0 + 0.2 * 49 + 0.1
 
 
-def test_a_server_killed_during_puts_loses_no_acknowledged_one(state) -> None:
-    running = Workers([TRACK_NET], *state_options(state))
-    acknowledged: list[str] = []
+class SwitchWriter:
+    """PUTs switching vehicles v0 to v999 (even ones on, odd ones off) one after the other, on a
+    thread of its own, until done or the server is gone; what was acknowledged and what refused."""
 
-    def put_many() -> None:
-        with httpx.Client(base_url=running.url, timeout=5.0) as client:
+    def __init__(self, url: str) -> None:
+        self.acknowledged: list[str] = []
+        self.refused: list[httpx.Response] = []
+        self.thread = threading.Thread(target=self._put_all, args=(url,))
+        self.thread.start()
+
+    def _put_all(self, url: str) -> None:
+        with httpx.Client(base_url=url, timeout=10.0) as client:
             for number in range(1000):
                 try:
                     answer = client.put(f"/v1/vehicles/v{number}", json={"switched_on": number % 2 == 0})
                 except httpx.TransportError:
                     return
                 if answer.status_code == 200:
-                    acknowledged.append(f"v{number}")
+                    self.acknowledged.append(f"v{number}")
+                else:
+                    self.refused.append(answer)
 
-    writer = threading.Thread(target=put_many)
-    writer.start()
-    deadline = time.monotonic() + 60.0
-    while len(acknowledged) < 100 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    def wait_for(self, condition, timeout_s: float = 60.0) -> None:
+        """Wait until ``condition(self)`` holds."""
+        deadline = time.monotonic() + timeout_s
+        while not condition(self):
+            assert time.monotonic() < deadline, "the writer did not get there"
+            time.sleep(0.01)
+
+    def assert_stored(self, state: dict[str, str]) -> None:
+        """Every acknowledged switch is in the store, as it was set."""
+        self.thread.join(timeout=120)
+        store = open_store(ServiceSettings(nets=[TRACK_NET], **state))
+        stored = store.read(self.acknowledged)
+        store.close()
+        assert all(stored[v].setting == VehicleSetting(int(v[1:]) % 2 == 0) for v in self.acknowledged)
+
+
+def test_a_server_killed_during_puts_loses_no_acknowledged_one(state) -> None:
+    running = Workers([TRACK_NET], *state_options(state))
+    writer = SwitchWriter(running.url)
+    writer.wait_for(lambda w: len(w.acknowledged) >= 100)
     running.crash()
-    writer.join(timeout=30)
-    assert 100 <= len(acknowledged) < 1000
-    store = open_store(ServiceSettings(nets=[TRACK_NET], **state))
-    stored = store.read(acknowledged)
-    store.close()
-    assert all(stored[vehicle].setting == VehicleSetting(int(vehicle[1:]) % 2 == 0) for vehicle in acknowledged)
+    writer.assert_stored(state)
+    assert 100 <= len(writer.acknowledged) < 1000 and not writer.refused
 
 
 # ------------------------------------------------------------------ requests that meet one another
