@@ -170,11 +170,11 @@ def load_rows(figures: dict) -> list[Row]:
 
 
 def workers_rows(figures: dict) -> list[Row]:
-    one, two = figures["throughput_rps_1_workers"], figures["throughput_rps_2_workers"]
+    one, two = figures["queries_per_s_1_workers"], figures["queries_per_s_2_workers"]
     return [
         at_least("load: throughput 2 workers / 1 worker", figures["ratio"], load.MIN_WORKERS_RATIO,
-                 f"{two:.0f} vs {one:.0f} req/s, {figures['clients']} clients on the same machine, "
-                 f"{figures['seconds']:g} s"),
+                 f"{two:.0f} vs {one:.0f} queries/s; {figures['clients']} clients on the same machine, "
+                 f"batches of {figures['batch_size']}, {figures['seconds']:g} s"),
         at_most("load: errors, 1 and 2 workers", figures["errors"], load.MAX_ERRORS),
     ]
 
