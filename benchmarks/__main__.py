@@ -181,6 +181,16 @@ def load_rows(figures: dict) -> list[Row]:
     ]
 
 
+def workers_rows(figures: dict) -> list[Row]:
+    one, two = figures["queries_per_s_1_workers"], figures["queries_per_s_2_workers"]
+    return [
+        at_least("load: throughput 2 workers / 1 worker", figures["ratio"], load.MIN_WORKERS_RATIO,
+                 f"{two:.0f} vs {one:.0f} queries/s; {figures['clients']} clients on the same machine, "
+                 f"batches of {figures['batch_size']}, {figures['seconds']:g} s"),
+        at_most("load: errors, 1 and 2 workers", figures["errors"], load.MAX_ERRORS),
+    ]
+
+
 # ------------------------------------------------------------------ the run
 @dataclass(frozen=True)
 class Benchmark:
@@ -202,6 +212,8 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("service", service.run, "about 20 s", service_rows),
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
+        Benchmark("workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation",
+                  workers_rows),
         Benchmark("cosim", cosim.run, f"long: about 30-60 s, {cosim.VEHICLES:,} vehicles twice", cosim_rows),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
         Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),

@@ -9,8 +9,9 @@ and answers a constant. Figures:
   rounds; the ratio is the target (>= 0.70);
 * a 10,000-query batch (one fleet tick, fixes map-matched from x, y and heading): the
   server time the service reports in its ``Server-Timing`` header (target <= 100 ms),
-  and where that time goes, measured in-process on the same batch: validation, map
-  matching, engines, answer encoding to JSON.
+  and where that time goes, measured in-process on the same batch: validation, reading
+  the vehicles from the state store, map matching, engines, writing their sessions back,
+  answer encoding to JSON.
 
 Run with ``python -m benchmarks.service``.
 """
@@ -60,12 +61,17 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def _start(target: list[str], env: dict[str, str]) -> tuple[subprocess.Popen, str]:
-    """A uvicorn process on a free loopback port, ready."""
+#: ``python -m`` of these serves the service and the trivial app (uvicorn).
+SERVICE = ["uvicorn", "--factory", "service.app:create_app", "--log-level", "warning"]
+TRIVIAL = ["uvicorn", "benchmarks.service:trivial_app", "--log-level", "warning"]
+
+
+def _start(command: list[str], env: dict[str, str]) -> tuple[subprocess.Popen, str]:
+    """``python -m COMMAND --host 127.0.0.1 --port PORT`` (uvicorn, or ``csws serve``) on a free port, ready."""
     port = _free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", *target, "--host", "127.0.0.1", "--port", str(port), "--log-level", "warning"],
-        env={**os.environ, **env}, cwd=Path(__file__).resolve().parents[1],
+        [sys.executable, "-m", *command, "--host", "127.0.0.1", "--port", str(port)],
+        env={**os.environ, **env}, cwd=Path(__file__).resolve().parents[1], stdout=subprocess.DEVNULL,
     )
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
@@ -76,7 +82,7 @@ def _start(target: list[str], env: dict[str, str]) -> tuple[subprocess.Popen, st
         except httpx.TransportError:
             time.sleep(0.1)
     process.kill()
-    raise RuntimeError(f"uvicorn {target} was not ready within {STARTUP_TIMEOUT_S} s")
+    raise RuntimeError(f"{' '.join(command)} was not ready within {STARTUP_TIMEOUT_S} s")
 
 
 def _fixes(count: int, seed: int = 5) -> list[dict]:
@@ -126,25 +132,33 @@ def _breakdown_ms(queries: list[dict]) -> dict[str, float]:
     marks = [time.perf_counter()]
     batch = BATCH_ADAPTER.validate_json(body).queries
     marks.append(time.perf_counter())
-    service.check(batch)
-    placements = service.place(batch)
+    vehicles = service.registry.read({query.vehicle_id for query in batch})
+    marks.append(time.perf_counter())
+    service.check(batch, vehicles)
+    placements = service.place(batch, vehicles)
     marks.append(time.perf_counter())
     engine = service.networks[0].engine
-    inputs = [service.vehicle_input(q, p) for q, p in zip(batch, placements)]
+    for query, placement in zip(batch, placements):
+        vehicles.place(query.vehicle_id, placement.network_index)
+    inputs = [service.vehicle_input(q, p, vehicles) for q, p in zip(batch, placements)]
     results = engine.evaluate_many(inputs)
+    marks.append(time.perf_counter())
+    for query, placement in zip(batch, placements):
+        vehicles.seen(query.vehicle_id, placement.lane_id)
+    service.registry.store.write(vehicles.writes())
+    vehicles.close()
     marks.append(time.perf_counter())
     EncodedAnswers([service.encode(r, p, q.vehicle_id) for r, p, q in zip(results, placements, batch)], [], []).batch_json()
     marks.append(time.perf_counter())
     gc.unfreeze()
-    names = ("validate_ms", "check_and_match_ms", "engine_ms", "encode_json_ms")
+    names = ("validate_ms", "read_state_ms", "check_and_match_ms", "engine_ms", "write_state_ms", "encode_json_ms")
     return {name: round((b - a) * 1000.0, 1) for name, a, b in zip(names, marks, marks[1:])}
 
 
 def run() -> dict:
     """Start both servers, measure, stop them; return the figures."""
-    service, service_url = _start(["--factory", "service.app:create_app"],
-                                  {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:"})
-    trivial, trivial_url = _start(["benchmarks.service:trivial_app"], {})
+    service, service_url = _start(SERVICE, {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:"})
+    trivial, trivial_url = _start(TRIVIAL, {})
     try:
         single = json.dumps(_fixes(1)[0]).encode()
         with httpx.Client(base_url=trivial_url) as trivial_client, httpx.Client(base_url=service_url) as client:

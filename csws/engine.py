@@ -28,7 +28,7 @@ from .standard import Level
 from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from .warning import BatchWarnings, CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
 
-__all__ = ["VehicleInput", "Answer", "FleetAnswers", "EngineSettings", "Engine"]
+__all__ = ["VehicleInput", "Answer", "FleetAnswers", "EngineSettings", "VehicleMemory", "Engine"]
 
 
 @dataclass(frozen=True)
@@ -132,6 +132,26 @@ class EngineSettings:
 _NEW_STATUS = VehicleStatus()
 
 
+@dataclass(frozen=True)
+class VehicleMemory:
+    """What the engine keeps of one vehicle from one update to the next.
+
+    A service that answers a vehicle's updates in several processes keeps this between
+    them (:meth:`Engine.memory`, :meth:`Engine.restore`), so that each update is answered
+    as if one engine had seen them all.
+
+    Attributes
+    ----------
+    status
+        The system state (5.2-5.4): switch, activation latch, last accepted timestamp, fault.
+    held
+        What the release rule keeps of the warning (:mod:`csws.release`).
+    """
+
+    status: VehicleStatus = _NEW_STATUS
+    held: HeldWarning = NOT_HELD
+
+
 class Engine:
     """The curve speed warning system for the vehicles on one road map.
 
@@ -158,6 +178,18 @@ class Engine:
         """The driver switches CSWS on or off for a vehicle (5.2)."""
         self.statuses[vehicle_id] = switch(self.status(vehicle_id), on)
         return self.statuses[vehicle_id]
+
+    def memory(self, vehicle_id: str) -> VehicleMemory:
+        """What the engine keeps of the vehicle (that of a new vehicle when it has none)."""
+        return VehicleMemory(self.status(vehicle_id), self.held.get(vehicle_id, NOT_HELD))
+
+    def restore(self, vehicle_id: str, memory: VehicleMemory) -> None:
+        """Take up a vehicle where :meth:`memory` (of this engine or another one) left it."""
+        self.statuses[vehicle_id] = memory.status
+        if memory.held.is_on:
+            self.held[vehicle_id] = memory.held
+        else:
+            self.held.pop(vehicle_id, None)
 
     def forget(self, vehicle_id: str) -> None:
         """Drop a vehicle's status and warning memory (it left the simulation, or its session expired)."""

@@ -2,13 +2,15 @@
 
 :class:`WarningService` is what the HTTP endpoints call. For a batch it
 
-1. checks what the models cannot (lane and edge ids, lane positions, lon/lat on
+1. reads the vehicles of the batch from the state store (:mod:`service.vehicles`);
+2. checks what the models cannot (lane and edge ids, lane positions, lon/lat on
    networks without a projection, a missing category) and reports every problem with
    the index of its query (:class:`QueryErrors`, an HTTP 422);
-2. matches every fix without a lane id in one vectorised pass over all served networks
+3. matches every fix without a lane id in one vectorised pass over all served networks
    (:class:`csws.mapmatch.MapMatcher`), preferring each vehicle's previous lane;
-3. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
-4. writes each answer as the JSON text of the HTTP contract (floats unrounded).
+4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
+5. writes the vehicles' sessions back to the store, and each answer as the JSON text of the
+   HTTP contract (floats unrounded).
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
 rounds holding each vehicle at most once.
@@ -22,7 +24,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
 from json.encoder import encode_basestring_ascii as _json_text
-from typing import Any, NamedTuple, Sequence
+from typing import Any, Collection, NamedTuple, Sequence
 
 import numpy as np
 
@@ -35,7 +37,7 @@ from .horizon import cpoi_points, position
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .schemas import Query
-from .vehicles import VehicleRegistry
+from .vehicles import LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
 
@@ -78,13 +80,14 @@ def _error(loc: Sequence[Any], msg: str) -> dict[str, Any]:
     return {"loc": list(loc), "msg": msg, "type": "value_error"}
 
 
-def _rounds(queries: Sequence[Query]) -> list[list[int]]:
-    """Query indices cut into rounds in which each vehicle appears once, in order."""
+def _rounds(queries: Sequence[Query], indices: Sequence[int]) -> list[list[int]]:
+    """The indices of queries cut into rounds in which each vehicle appears once, in order."""
     seen: dict[str, int] = defaultdict(int)
     rounds: list[list[int]] = []
-    for index, query in enumerate(queries):
-        occurrence = seen[query.vehicle_id]
-        seen[query.vehicle_id] += 1
+    for index in indices:
+        vehicle_id = queries[index].vehicle_id
+        occurrence = seen[vehicle_id]
+        seen[vehicle_id] += 1
         if occurrence == len(rounds):
             rounds.append([])
         rounds[occurrence].append(index)
@@ -118,29 +121,40 @@ class WarningService:
     def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries"), fleet: str = "") -> "EncodedAnswers":
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
+        The vehicles are read from the state store, answered, and their sessions written back
+        (:meth:`service.vehicles.VehicleRegistry.transact`).
+
         Raises
         ------
         QueryErrors
             If any query names an unknown lane or edge, lies beyond its lane, sends
             lon/lat to networks without a projection, or has no category; nothing is
             evaluated then.
+        StoreUnavailable
+            When the state store cannot be read or written now.
         """
         if fleet:
             queries = [query.model_copy(update={"vehicle_id": vehicle_key(fleet, query.vehicle_id)}) for query in queries]
-        self.registry.refresh()
-        self.registry.expire()
-        self.check(queries, loc, fleet)
         answers = EncodedAnswers([""] * len(queries), [""] * len(queries), [0] * len(queries))
-        for indices in _rounds(queries):
-            self._answer_round([queries[i] for i in indices], indices, answers, fleet)
+
+        def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
+            indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
+            self.check(queries, vehicles, loc, fleet, indices)
+            for round_indices in _rounds(queries, indices):
+                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet)
+
+        self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles)
         return answers
 
-    def check(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries"), fleet: str = "") -> None:
-        """Raise :class:`QueryErrors` listing what in ``queries`` (of ``fleet``'s vehicles) the networks cannot answer."""
+    def check(self, queries: Sequence[Query], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
+              fleet: str = "", indices: Sequence[int] | None = None) -> None:  # fmt: skip
+        """Raise :class:`QueryErrors` listing what in ``queries`` (of ``fleet``'s vehicles, those at
+        ``indices`` if given) the networks cannot answer."""
         errors: list[dict[str, Any]] = []
-        for index, query in enumerate(queries):
+        for index in range(len(queries)) if indices is None else indices:
+            query = queries[index]
             where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
-            if query.category is None and self.registry.category(query.vehicle_id) is None:
+            if query.category is None and vehicles.category(query.vehicle_id) is None:
                 errors.append(_error([*where, "category"], "category is required: give it in the query or "
                                      f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))
             if query.network is not None and query.network not in self.network_index:
@@ -151,7 +165,7 @@ class WarningService:
                 errors.append(_error([*where, "position"], "the served networks are not geo-referenced: "
                                      "give the position as x and y in network metres"))
             if query.lane_id is not None:
-                errors += self._lane_errors(query, where)
+                errors += self._lane_errors(query, where, vehicles)
             known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
             unknown = [edge for edge in query.route or () if edge not in known]
             if unknown:
@@ -166,8 +180,8 @@ class WarningService:
             return bool(self.geo_networks)
         return self.network_index[query.network] in self.geo_networks
 
-    def _lane_errors(self, query: Query, where: list[Any]) -> list[dict[str, Any]]:
-        network_index = self._lane_network(query)
+    def _lane_errors(self, query: Query, where: list[Any], vehicles: LoadedVehicles) -> list[dict[str, Any]]:
+        network_index = self._lane_network(query, vehicles)
         if network_index is None:
             where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
             return [_error([*where, "lane_id"], f"unknown lane id {query.lane_id!r}: {where_not}")]
@@ -178,38 +192,39 @@ class WarningService:
                            f"({length_m:g} m long)")]
         return []
 
-    def _lane_network(self, query: Query) -> int | None:
+    def _lane_network(self, query: Query, vehicles: LoadedVehicles) -> int | None:
         """The network a query's lane id is taken on: the one it names, else the vehicle's own if it has the
         lane, else the first that has it; None if none has it."""
         if query.network is not None:
             candidates = [self.network_index[query.network]]
         else:
-            own = self.registry.network_of(query.vehicle_id)
+            own = vehicles.network_of(query.vehicle_id)
             candidates = [own] + [i for i in range(len(self.networks)) if i != own]
         return next((i for i in candidates if self.networks[i].road_map.has_lane(query.lane_id)), None)
 
     # ------------------------------------------------------------------ evaluation
-    def place(self, queries: Sequence[Query]) -> list[Placement]:
-        """Where each query is: its given lane, or the map match of its fix (queries of distinct vehicles)."""
+    def place(self, queries: Sequence[Query], vehicles: LoadedVehicles) -> list[Placement]:
+        """Where each query is: its given lane, or the map match of its fix (queries of distinct
+        vehicles, preferring each one's previous lane)."""
         placements: list[Placement | None] = [None] * len(queries)
         to_match = []
         for i, query in enumerate(queries):
             if query.lane_id is None:
                 to_match.append(i)
                 continue
-            network_index = self._lane_network(query)
+            network_index = self._lane_network(query, vehicles)
             placements[i] = Placement(network_index, query.lane_id, query.lane_pos_m,
                                       self._fix_distance_m(query, network_index), None)
         if to_match:
             matched = self.matcher.match(
                 [self._fixes([queries[i] for i in to_match], index) for index in range(len(self.networks))],
                 np.array([math.nan if queries[i].heading_deg is None else queries[i].heading_deg for i in to_match]),
-                [self.registry.previous(queries[i].vehicle_id) for i in to_match],
+                [vehicles.previous(queries[i].vehicle_id) for i in to_match],
             )
             for row, i in enumerate(to_match):
                 network_index = int(matched.map_index[row])
                 if network_index < 0:
-                    network_index = self.registry.network_of(queries[i].vehicle_id)
+                    network_index = vehicles.network_of(queries[i].vehicle_id)
                 placements[i] = Placement(network_index, matched.lane_id[row], float(matched.lane_pos_m[row]),
                                           float(matched.distance_m[row]), matched.reason[row])
         return placements
@@ -244,29 +259,29 @@ class WarningService:
         lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)
         return float(math.hypot(x - lane_x, y - lane_y))
 
-    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], answers: "EncodedAnswers",
-                      fleet: str) -> None:  # fmt: skip
+    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], vehicles: LoadedVehicles,
+                      answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
         """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
-        placements = self.place(queries)
+        placements = self.place(queries, vehicles)
         by_network: dict[int, list[int]] = defaultdict(list)
         for row, (query, placement) in enumerate(zip(queries, placements)):
-            self.registry.place(query.vehicle_id, placement.network_index)
+            vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         for network_index, rows in by_network.items():
             engine = self.networks[network_index].engine
-            inputs = [self.vehicle_input(queries[row], placements[row]) for row in rows]
+            inputs = [self.vehicle_input(queries[row], placements[row], vehicles) for row in rows]
             # One vehicle skips the batch set-up; both paths give the same answer.
             results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
             for row, result in zip(rows, results):
-                self.registry.seen(queries[row].vehicle_id, placements[row].lane_id)
+                vehicles.seen(queries[row].vehicle_id, placements[row].lane_id)
                 index = indices[row]
                 answers.json[index] = self.encode(result, placements[row], shown_id(fleet, result.vehicle_id))
                 answers.state[index] = result.state.value
                 answers.level[index] = int(result.warning.level)
 
-    def vehicle_input(self, query: Query, placement: Placement) -> VehicleInput:
+    def vehicle_input(self, query: Query, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
         """The engine's input for a placed query."""
-        category = query.category if query.category is not None else self.registry.category(query.vehicle_id)
+        category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
         return VehicleInput(
             vehicle_id=query.vehicle_id,
             category=category.value,

@@ -49,7 +49,8 @@ from .schemas import (
     WarningAnswer,
 )
 from .settings import ServiceSettings
-from .vehicles import SettingStore, StoreUnavailable, VehicleRegistry
+from .store import StoreUnavailable, open_store
+from .vehicles import LoadedVehicles, VehicleRegistry
 from .workers import leave_with_master
 
 __all__ = ["create_app", "MAX_ERRORS_SHOWN"]
@@ -96,6 +97,8 @@ def _validated(adapter: TypeAdapter, body: bytes) -> Any:
 
 #: What any route of the API may answer on a service with API keys (:mod:`service.keys`).
 _KEYED = {401: {"model": Message, "description": "no API key, or one not in the key file (services with keys)"}}
+#: What a route that reads or writes vehicles may answer when the state store is in trouble (:mod:`service.store`).
+_STORE = {503: {"model": Message, "description": "the state store cannot be read or written now; retry"}}
 #: What a route with a JSON body may answer before it reads it (:mod:`service.limits`).
 _BOUNDED = {
     408: {"model": Message, "description": "the client paused in its body for longer than the body timeout"},
@@ -131,7 +134,7 @@ def _bbox(text: str | None) -> tuple[float, float, float, float] | None:
     return values
 
 
-def create_app(settings: ServiceSettings | None = None, clock: Callable[[], float] = time.monotonic) -> FastAPI:
+def create_app(settings: ServiceSettings | None = None, clock: Callable[[], float] = time.time) -> FastAPI:
     """Build the service.
 
     Parameters
@@ -139,37 +142,37 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     settings
         What to serve and how; by default from the ``CSWS_*`` environment.
     clock
-        Monotonic seconds for session expiry.
+        Seconds of the clock that dates sessions in a SQLite state store (Redis keeps its own).
 
     Raises
     ------
     csws.roadmap.NetworkError
         If a network cannot be read.
     OSError
-        If the settings database cannot be opened.
+        If the state store cannot be opened, reached or read (one line naming it).
     """
     settings = settings if settings is not None else ServiceSettings()
     networks = load_networks(settings.nets, settings.engine_settings())
-    store = SettingStore(settings.state_db)
-    registry = VehicleRegistry([n.engine for n in networks], store, settings.session_idle_s, clock)
+    store = open_store(settings, clock)
+    try:
+        store.check()
+    except OSError:
+        store.close()
+        raise
+    registry = VehicleRegistry([n.name for n in networks], [n.engine for n in networks], store)
     service = WarningService(networks, registry, settings.match_settings())
     metrics = Metrics()
     curve_cache: dict[int, list[dict[str, Any]]] = {}
-    # The engines, sessions and settings are touched by one piece of work at a time, in
-    # arrival order (the lock). Long work (batches, the curve index, horizons, database writes)
-    # runs on a thread of its own, so that the event loop stays free for other requests and
-    # /healthz; a single query, a fraction of a millisecond, runs on the loop itself, which
-    # saves it the hop to the thread.
+    # The engines hold the vehicles of one piece of work at a time, in arrival order (the
+    # lock). The work (queries and batches with their round trips to the state store, the
+    # curve index, horizons) runs on a thread of its own, so that the event loop stays free
+    # for other requests and /healthz.
     work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="csws-work")
     state_lock = asyncio.Lock()
 
     async def off_loop(function: Callable[..., Any], *args: Any) -> Any:
         async with state_lock:
             return await asyncio.get_running_loop().run_in_executor(work, functools.partial(function, *args))
-
-    async def on_loop(function: Callable[..., Any], *args: Any) -> Any:
-        async with state_lock:
-            return function(*args)
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):
@@ -212,13 +215,13 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         "/v1/warning",
         summary="The warning for one vehicle",
         response_model=None,
-        responses={200: {"model": WarningAnswer}, 422: _INVALID_BODY, **_KEYED, **_BOUNDED},
+        responses={200: {"model": WarningAnswer}, 422: _INVALID_BODY, **_KEYED, **_BOUNDED, **_STORE},
         openapi_extra=_json_body("Query"),
         tags=["warnings"],
     )
     async def warning(request: Request) -> Response:
         body, fleet = await request.body(), _principal(request).fleet
-        answers = await on_loop(lambda: service.answer([_validated(QUERY_ADAPTER, body)], loc=("body",), fleet=fleet))
+        answers = await off_loop(lambda: service.answer([_validated(QUERY_ADAPTER, body)], loc=("body",), fleet=fleet))
         metrics.observe_answers(answers.state, answers.level)
         return Response(answers.json[0], media_type="application/json")
 
@@ -226,7 +229,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         "/v1/warnings",
         summary=f"The warnings for a batch of up to {MAX_BATCH} queries, in order",
         response_model=None,
-        responses={200: {"model": Answers}, 422: _INVALID_BODY, **_KEYED, **_BOUNDED},
+        responses={200: {"model": Answers}, 422: _INVALID_BODY, **_KEYED, **_BOUNDED, **_STORE},
         openapi_extra=_json_body("Batch"),
         tags=["warnings"],
     )
@@ -305,8 +308,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
             ) from None
 
         def road() -> Response:
-            service.check([query], loc=("query",))
-            (placement,) = service.place([query])
+            with registry.read(()) as nobody:  # a position, not a vehicle: no previous lane
+                service.check([query], nobody, loc=("query",))
+                (placement,) = service.place([query], nobody)
             if placement.lane_id is None:
                 return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
             ahead = horizon(networks[placement.network_index], placement.lane_id, placement.lane_pos_m,
@@ -318,13 +322,13 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         return await off_loop(road)
 
     # ------------------------------------------------------------------ vehicles
-    def _vehicle_state(key: str, vehicle_id: str) -> dict[str, Any]:
-        status = registry.status(key)
-        session = registry.sessions.get(key)
+    def _vehicle_state(vehicles: LoadedVehicles, key: str, vehicle_id: str) -> dict[str, Any]:
+        status = vehicles.status(key)
+        session = vehicles.session(key)
         return {
             "vehicle_id": vehicle_id,
             "switched_on": status.switched_on,
-            "category": registry.category(key),
+            "category": vehicles.category(key),
             "state": status.state.value,
             "fault": status.fault.value if status.fault is not None else None,
             "activated": status.activated,
@@ -338,9 +342,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     @app.put("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="Switch CSWS on or off for a vehicle (5.2) and set its category",
              responses={403: {"model": Message, "description": "the key's role may not switch vehicles"},
-                        422: _INVALID_BODY,
-                        503: {"model": Message, "description": "the settings database cannot be written now; retry"},
-                        **_KEYED, **_BOUNDED}, openapi_extra=_json_body("VehicleSwitch"))  # fmt: skip
+                        422: _INVALID_BODY, **_STORE, **_KEYED, **_BOUNDED},
+             openapi_extra=_json_body("VehicleSwitch"))  # fmt: skip
     async def put_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         principal = _principal(request)
         if not principal.may_switch:
@@ -348,35 +351,34 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         setting = _validated(SWITCH_ADAPTER, await request.body())
         key = vehicle_key(principal.fleet, vehicle_id)
 
-        def configure() -> dict[str, Any]:
-            registry.refresh()
-            registry.expire()
-            registry.configure(key, setting.switched_on, setting.category)
-            return _vehicle_state(key, vehicle_id)
+        def configure(vehicles: LoadedVehicles, _vehicle_ids: Any) -> dict[str, Any]:
+            vehicles.configure(key, setting.switched_on, setting.category)
+            return _vehicle_state(vehicles, key, vehicle_id)
 
-        return await off_loop(configure)
+        return await off_loop(registry.transact, {key}, configure)
 
     @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
              summary="A vehicle's switch, category and system state",
-             responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"}, **_KEYED})
+             responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"},
+                        **_STORE, **_KEYED})  # fmt: skip
     async def get_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         key = vehicle_key(_principal(request).fleet, vehicle_id)
 
         def state() -> dict[str, Any]:
-            registry.refresh()
-            registry.expire()
-            if not registry.known(key):
-                raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
-            return _vehicle_state(key, vehicle_id)
+            with registry.read({key}) as vehicles:
+                if not vehicles.known(key):
+                    raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
+                return _vehicle_state(vehicles, key, vehicle_id)
 
-        return await on_loop(state)
+        return await off_loop(state)
 
     # ------------------------------------------------------------------ operations
     @app.get("/healthz", tags=["operations"], summary="The process is alive")
     async def healthz() -> dict[str, str]:
         return {"status": "ok"}
 
-    @app.get("/readyz", tags=["operations"], summary="The networks are loaded and the service answers")
+    @app.get("/readyz", tags=["operations"], summary="The networks are loaded and the state store answers",
+             responses=_STORE)
     async def readyz() -> dict[str, Any]:
         return {
             "status": "ready",
@@ -384,7 +386,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
                 {"name": n.name, "lanes": len(n.road_map.lane_ids), "geo_referenced": n.road_map.has_projection}
                 for n in networks
             ],
-            "vehicle_sessions": len(registry.sessions),
+            "vehicle_sessions": await off_loop(store.session_count),
         }
 
     @app.get("/metrics", tags=["operations"], summary="Prometheus metrics", response_class=PlainTextResponse)

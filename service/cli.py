@@ -21,8 +21,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--host", default=None, help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=None, help="TCP port (default 8000)")
     parser.add_argument("--workers", type=int, default=None, help="worker processes (default 1)")
+    parser.add_argument("--state", default=None, metavar="URL",
+                        help="redis://HOST:PORT/DB: keep vehicle switches and sessions in Redis, shared by replicas "
+                        "on several machines (default: the SQLite file of --state-db)")
     parser.add_argument("--state-db", default=None, metavar="FILE",
-                        help="SQLite file keeping vehicle switches across restarts (':memory:' for none)")
+                        help="SQLite file keeping vehicle switches and sessions for the workers of this machine "
+                        "and across restarts (':memory:' for none)")
     parser.add_argument("--session-idle-s", type=float, default=None,
                         help="a vehicle session idle this long expires, s (default 600)")
     parser.add_argument("--update-period-s", type=float, default=None,

@@ -7,12 +7,13 @@ import os
 import sys
 
 from .settings import ServiceSettings, settings_environment
-from .workers import MASTER_PID_VARIABLE
+from .workers import MASTER_PID_VARIABLE, listen_as_tcp
 
 __all__ = ["settings_from_args", "main", "add_key_command"]
 
 #: Command-line options and the settings they override.
-_OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state_db": "state_db",
+_OPTIONS = {"net": "nets", "host": "host", "port": "port", "workers": "workers", "state": "state",
+            "state_db": "state_db",
             "session_idle_s": "session_idle_s", "update_period_s": "update_period_s", "api_keys": "api_keys_file",
             "insecure": "insecure", "public_docs": "public_docs"}
 
@@ -46,19 +47,22 @@ def main(args: argparse.Namespace) -> int:
         uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
         return 0
     from .networks import load_networks
-    from .vehicles import SettingStore
+    from .store import open_store
 
     # Fail here, once, with one clear line, rather than in every worker (a respawn loop).
     load_networks(settings.nets, settings.engine_settings())
-    store = SettingStore(settings.state_db)
-    store.load()
-    store.close()
+    store = open_store(settings)
+    try:
+        store.check()
+    finally:
+        store.close()
     if settings.api_keys_file is not None:
         from .keys import KeyRing
 
         KeyRing(settings.api_keys_file)
     os.environ.update(settings_environment(settings))
     os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
+    listen_as_tcp()
     print(f"csws: serving with {settings.workers} workers on http://{settings.host}:{settings.port}"
           f" (OpenAPI docs at /docs)", flush=True)
     uvicorn.run("service.app:create_app", factory=True, host=settings.host, port=settings.port,

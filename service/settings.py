@@ -4,7 +4,7 @@ Every setting can come from the environment, so that ``uvicorn service.app:app``
 the workers of ``csws serve --workers N`` are configured the same way:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
-``CSWS_WORKERS``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
+``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
 ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``.
@@ -19,6 +19,7 @@ import ipaddress
 import os
 from pathlib import Path
 from typing import Annotated
+from urllib.parse import urlsplit
 
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
@@ -32,8 +33,12 @@ from .networks import bundled_network_paths
 __all__ = ["ServiceSettings", "default_state_db", "settings_environment"]
 
 
+#: The schemes of a Redis URL (``--state``): plain TCP, TLS, a Unix socket.
+REDIS_SCHEMES = ("redis", "rediss", "unix")
+
+
 def default_state_db() -> Path:
-    """Where vehicle settings persist by default: ``$XDG_STATE_HOME/csws/vehicles.sqlite3``."""
+    """Where the vehicles' state persists by default: ``$XDG_STATE_HOME/csws/vehicles.sqlite3``."""
     state_home = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
     return Path(state_home) / "csws" / "vehicles.sqlite3"
 
@@ -49,9 +54,15 @@ class ServiceSettings(BaseSettings):
     host: str = Field(default="127.0.0.1", description="address to listen on")
     port: int = Field(default=8000, ge=0, le=65535, description="TCP port")
     workers: int = Field(default=1, ge=1, le=64, description="worker processes")
+    state: str = Field(
+        default="",
+        description="redis://HOST:PORT/DB: the Redis keeping vehicle switches, categories and sessions for every "
+        "worker and replica; empty: the SQLite file state_db",
+    )
     state_db: str = Field(
         default_factory=lambda: str(default_state_db()),
-        description="SQLite file keeping vehicle switches across restarts; ':memory:' keeps them in memory only",
+        description="SQLite file keeping vehicle switches, categories and sessions for the workers of this machine "
+        "and across restarts, when state names no Redis; ':memory:' keeps them in memory only, for one worker",
     )
     session_idle_s: float = Field(default=600.0, gt=0, description="a vehicle session idle this long expires, s")
     match_tolerance_m: float = Field(default=10.0, gt=0, description="a fix matches lanes within this distance, m")
@@ -68,6 +79,14 @@ class ServiceSettings(BaseSettings):
         default=False, description="with API keys: /docs, /redoc, /openapi.json and /metrics open to all (else a key)"
     )
 
+    @field_validator("state")
+    @classmethod
+    def _redis_url(cls, value: str) -> str:
+        value = value.strip()
+        if value and urlsplit(value).scheme not in REDIS_SCHEMES:
+            raise ValueError("give a Redis URL, redis://HOST:PORT/DB (or rediss:// or unix://), or nothing for SQLite")
+        return value
+
     @field_validator("api_keys_file", mode="before")
     @classmethod
     def _no_file(cls, value):
@@ -78,6 +97,13 @@ class ServiceSettings(BaseSettings):
         if self.api_keys_file is None and not self.insecure and not _is_loopback(self.host):
             raise ValueError(f"refusing to serve without API keys on {self.host}: give an API key file "
                              f"(--api-keys FILE), listen on 127.0.0.1, or pass --insecure")  # fmt: skip
+        return self
+
+    @model_validator(mode="after")
+    def _shared_by_the_workers(self) -> "ServiceSettings":
+        if self.workers > 1 and not self.state and self.state_db == ":memory:":
+            raise ValueError("an in-memory state database is each worker's own: give --workers N a file "
+                             "(--state-db FILE) or a Redis (--state URL)")
         return self
 
     @field_validator("nets", mode="before")

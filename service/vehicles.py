@@ -1,218 +1,139 @@
-"""What the service keeps of each vehicle between requests.
+"""What the service keeps of each vehicle between requests, kept in the state store (:mod:`service.store`).
 
-* The fleet's settings, the driver switch (5.2) and the category, survive a restart and
-  are shared by the workers of one service: they are stored in SQLite (:class:`SettingStore`,
-  WAL), and every request first reads them again if another worker has written since
-  (:meth:`VehicleRegistry.refresh`).
-* A session per vehicle seen recently: the network and lane of its last match, for
-  the continuity of map matching, and its :class:`~csws.state.VehicleStatus`, which
-  lives in the engine of that network. A vehicle that moves to another network takes
-  its status along. Sessions idle for longer than the idle time expire and the engine
-  forgets the vehicle, so memory stays bounded; its stored settings remain. Sessions are
-  each worker's own.
+* Its **setting**: what its fleet set, the driver switch (5.2) and the category; kept until changed.
+* Its **session**: the network and lane of its last match (the continuity of map matching)
+  and what the engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and
+  activation, last timestamp, the release rule's memory). A vehicle that moves to another
+  network takes its system state along. A session not written for the idle time expires;
+  the stored setting remains.
+
+A request does not rely on anything its worker remembers: it reads the vehicles it names from
+the store (one round trip), puts their memories into the engines, is answered, and writes the
+sessions back (one round trip); the engines hold a vehicle only during a request. The write
+of a vehicle happens only if no other request wrote its session since it was read; a vehicle
+another request got to first is read and answered again (:meth:`VehicleRegistry.transact`).
+So the requests of one vehicle are answered one after the other, each from the session the
+previous one left, whichever worker or replica serves each.
 """
 
 from __future__ import annotations
 
-import sqlite3
-import time
-from collections import OrderedDict
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Collection, Sequence, TypeVar
 
-from csws.engine import Engine
+import msgspec
+
+from csws.engine import Engine, VehicleMemory
 from csws.mapmatch import MapPosition
+from csws.release import HeldWarning
 from csws.standard import Category
-from csws.state import VehicleStatus, switch
+from csws.state import Fault, SystemState, VehicleStatus, switch
 
-__all__ = ["VehicleSetting", "Session", "SettingStore", "StoreUnavailable", "VehicleRegistry"]
+from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 
-#: How long a write waits for a database another process holds locked, s: longer would hold
-#: up every other request of the worker; the client is told to retry instead.
-STORE_BUSY_TIMEOUT_S = 0.5
+__all__ = ["TRANSACTION_ATTEMPTS", "Session", "SessionRecord", "LoadedVehicles", "VehicleRegistry"]
 
+#: How often a request reads and answers again the vehicles other requests wrote meanwhile
+#: before it gives up with a 503.
+TRANSACTION_ATTEMPTS = 5
 
-class StoreUnavailable(OSError):
-    """The settings database cannot be written now (locked, unwritable, gone): retry later."""
-
-
-@dataclass(frozen=True)
-class VehicleSetting:
-    """What a fleet set for a vehicle.
-
-    Attributes
-    ----------
-    switched_on
-        The CSWS switch (5.2).
-    category
-        The vehicle's category, used when a query gives none.
-    """
-
-    switched_on: bool = True
-    category: Category | None = None
+Answered = TypeVar("Answered")
 
 
 @dataclass
 class Session:
-    """A vehicle seen recently.
+    """A vehicle seen recently, during a request.
 
     Attributes
     ----------
     network_index
-        The served network whose engine holds its status.
+        The served network whose engine holds its memory.
     lane_id
-        Its last matched lane, None when the last fix matched nothing.
-    last_seen_s
-        When it was last queried, on the registry's clock, s.
+        Its last matched lane, None when no fix of it matched yet.
     """
 
     network_index: int
     lane_id: str | None
-    last_seen_s: float
 
 
-class SettingStore:
-    """Vehicle settings in SQLite, so that a restarted service keeps them.
+class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
+    """A session as the store keeps it: a MessagePack array of about 30 to 100 bytes."""
+
+    network: str
+    lane_id: str | None
+    state: SystemState
+    switched_on: bool
+    activated: bool
+    last_timestamp_s: float | None
+    fault: Fault | None
+    #: The release rule's CPOIs (curve id, part index) of level 1 and level 2.
+    held_points: tuple[frozenset[tuple[str, int]], frozenset[tuple[str, int]]]
+    held_kept_at_s: tuple[float | None, float | None]
+
+    def memory(self) -> VehicleMemory:
+        """What the engine keeps of the vehicle."""
+        status = VehicleStatus(self.state, self.switched_on, self.activated, self.last_timestamp_s, self.fault)
+        return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s))
+
+    @classmethod
+    def of(cls, network: str, lane_id: str | None, memory: VehicleMemory) -> "SessionRecord":
+        status, held = memory.status, memory.held
+        return cls(network, lane_id, status.state, status.switched_on, status.activated, status.last_timestamp_s,
+                   status.fault, held.points, held.kept_at_s)  # fmt: skip
+
+
+_ENCODER = msgspec.msgpack.Encoder()
+_DECODER = msgspec.msgpack.Decoder(SessionRecord)
+
+
+class LoadedVehicles:
+    """The vehicles of one request as the store had them, their memories in the engines until :meth:`close`.
 
     Parameters
     ----------
-    path
-        The database file (created with its folder if missing), or ``":memory:"``.
+    registry
+        The engines and the networks' names.
+    stored
+        What the store holds of each vehicle of the request.
     """
 
-    def __init__(self, path: str | Path) -> None:
-        if str(path) != ":memory:":
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-        self.path = str(path)
-        try:
-            self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None,
-                                       timeout=STORE_BUSY_TIMEOUT_S)  # fmt: skip
-            if self.path != ":memory:":
-                # Readers never wait for the writer: the workers of one service share the file.
-                self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute(
-                "CREATE TABLE IF NOT EXISTS vehicle_settings ("
-                "vehicle_id TEXT PRIMARY KEY, switched_on INTEGER NOT NULL, category TEXT)"
-            )
-            self._version = self._data_version()
-        except sqlite3.Error as exc:
-            raise OSError(f"cannot open the vehicle settings database {path}: {exc}") from None
+    def __init__(self, registry: "VehicleRegistry", stored: dict[str, StoredVehicle]) -> None:
+        self.engines = registry.engines
+        self.network_names = registry.network_names
+        self.stored = stored
+        self.sessions: dict[str, Session] = {}
+        self.new_settings: dict[str, VehicleSetting] = {}
+        self.written: set[str] = set()
+        for vehicle_id, vehicle in stored.items():
+            record = registry.decode(vehicle.session)
+            if record is not None:
+                session = Session(registry.network_index[record.network], record.lane_id)
+                self.sessions[vehicle_id] = session
+                self.engines[session.network_index].restore(vehicle_id, record.memory())
 
-    def _data_version(self) -> int:
-        return int(self._db.execute("PRAGMA data_version").fetchone()[0])
+    def __enter__(self) -> "LoadedVehicles":
+        return self
 
-    def changed(self) -> bool:
-        """Whether another connection (another worker of the service) has written to the
-        database since the last call: SQLite's ``data_version``, one cheap query.
-
-        Raises
-        ------
-        StoreUnavailable
-            When the database cannot be read now.
-        """
-        try:
-            version = self._data_version()
-        except sqlite3.Error as exc:
-            raise StoreUnavailable(f"the vehicle settings database {self.path} cannot be read now: {exc}") from None
-        changed, self._version = version != self._version, version
-        return changed
-
-    def load(self) -> dict[str, VehicleSetting]:
-        """Every stored setting.
-
-        Raises
-        ------
-        OSError
-            One line naming the file, when it is not a settings database of this service.
-        """
-        try:
-            rows = self._db.execute("SELECT vehicle_id, switched_on, category FROM vehicle_settings").fetchall()
-            return {
-                vehicle_id: VehicleSetting(bool(on), Category(category) if category else None)
-                for vehicle_id, on, category in rows
-            }
-        except (sqlite3.Error, ValueError) as exc:
-            raise OSError(f"the vehicle settings database {self.path} cannot be read: {exc}") from None
-
-    def save(self, vehicle_id: str, setting: VehicleSetting) -> None:
-        """Store a vehicle's setting (replacing the previous one).
-
-        Raises
-        ------
-        StoreUnavailable
-            When the database cannot be written now; nothing was stored.
-        """
-        try:
-            self._db.execute(
-                "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)",
-                (vehicle_id, int(setting.switched_on), setting.category.value if setting.category else None),
-            )
-        except sqlite3.Error as exc:
-            raise StoreUnavailable(f"the vehicle settings database {self.path} cannot be written now: {exc}") from None
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
 
     def close(self) -> None:
-        """Close the database."""
-        self._db.close()
-
-
-class VehicleRegistry:
-    """Sessions and settings of the vehicles, over the engines of the served networks.
-
-    Parameters
-    ----------
-    engines
-        One engine per served network, in the served order.
-    store
-        Where settings persist.
-    idle_s
-        A session not queried for this long expires, s.
-    clock
-        Seconds of a monotonic clock (injectable so that expiry is testable without waiting).
-    """
-
-    def __init__(
-        self,
-        engines: Sequence[Engine],
-        store: SettingStore,
-        idle_s: float,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        if not idle_s > 0:
-            raise ValueError(f"the session idle time must be positive, got {idle_s!r} s")
-        self.engines = tuple(engines)
-        self.store = store
-        self.idle_s = float(idle_s)
-        self.clock = clock
-        self.settings = store.load()
-        self.sessions: OrderedDict[str, Session] = OrderedDict()
-
-    def refresh(self) -> None:
-        """Read the settings again when another worker changed them, and apply changed switches
-        to the vehicles' sessions here: after a PUT through any worker, every later request
-        through any worker sees it."""
-        if not self.store.changed():
-            return
-        settings = self.store.load()
+        """Take the vehicles out of the engines."""
         for vehicle_id, session in self.sessions.items():
-            setting = settings.get(vehicle_id)
-            engine = self.engines[session.network_index]
-            if setting is not None and setting.switched_on != engine.status(vehicle_id).switched_on:
-                engine.switch(vehicle_id, setting.switched_on)
-        self.settings = settings
-
-    def expire(self) -> int:
-        """End the sessions idle for longer than the idle time; return how many ended."""
-        oldest_kept_s = self.clock() - self.idle_s
-        ended = 0
-        while self.sessions:
-            vehicle_id, session = next(iter(self.sessions.items()))
-            if session.last_seen_s >= oldest_kept_s:
-                break
-            self.sessions.popitem(last=False)
             self.engines[session.network_index].forget(vehicle_id)
-            ended += 1
-        return ended
+
+    def setting(self, vehicle_id: str) -> VehicleSetting | None:
+        """What the fleet set for the vehicle, if anything."""
+        return self.new_settings.get(vehicle_id) or self.stored.get(vehicle_id, NOTHING_STORED).setting
+
+    def category(self, vehicle_id: str) -> Category | None:
+        """The category the fleet set for the vehicle, if any."""
+        setting = self.setting(vehicle_id)
+        return setting.category if setting is not None else None
+
+    def session(self, vehicle_id: str) -> Session | None:
+        """The vehicle's session, if it has one."""
+        return self.sessions.get(vehicle_id)
 
     def previous(self, vehicle_id: str) -> MapPosition | None:
         """Where the vehicle was last matched, if it has a session and matched."""
@@ -222,64 +143,139 @@ class VehicleRegistry:
         return MapPosition(session.network_index, session.lane_id)
 
     def network_of(self, vehicle_id: str) -> int:
-        """The network whose engine holds the vehicle's status (the first for a new vehicle)."""
+        """The network whose engine holds the vehicle's memory (the first for a new vehicle)."""
         session = self.sessions.get(vehicle_id)
         return session.network_index if session is not None else 0
-
-    def category(self, vehicle_id: str) -> Category | None:
-        """The category the fleet set for the vehicle, if any."""
-        setting = self.settings.get(vehicle_id)
-        return setting.category if setting is not None else None
 
     def place(self, vehicle_id: str, network_index: int) -> None:
         """Make sure the vehicle has a session on ``network_index`` before its engine evaluates it.
 
         A new session starts from the stored switch; a vehicle that moved to another
-        network takes its status along.
+        network takes its system state along (not the warning memory of the other map's curves).
         """
         session = self.sessions.get(vehicle_id)
         if session is None:
-            self.sessions[vehicle_id] = Session(network_index, None, self.clock())
-            setting = self.settings.get(vehicle_id)
+            self.sessions[vehicle_id] = Session(network_index, None)
+            setting = self.setting(vehicle_id)
             if setting is not None and not setting.switched_on:
                 self.engines[network_index].switch(vehicle_id, False)
         elif session.network_index != network_index:
             status = self.engines[session.network_index].status(vehicle_id)
             self.engines[session.network_index].forget(vehicle_id)
-            self.engines[network_index].statuses[vehicle_id] = status
+            self.engines[network_index].restore(vehicle_id, VehicleMemory(status))
             session.network_index = network_index
 
     def seen(self, vehicle_id: str, lane_id: str | None) -> None:
-        """Record that a vehicle (placed by :meth:`place`) was just seen, and its lane if it matched one.
+        """Record that a vehicle (placed by :meth:`place`) was just answered, and its lane if it matched one.
 
         A fix that matched nothing keeps the last matched lane, so one bad fix does not
-        break the continuity of the next.
+        break the continuity of the next. Its session is written back at the end of the request.
         """
-        session = self.sessions[vehicle_id]
         if lane_id is not None:
-            session.lane_id = lane_id
-        session.last_seen_s = self.clock()
-        self.sessions.move_to_end(vehicle_id)
+            self.sessions[vehicle_id].lane_id = lane_id
+        self.written.add(vehicle_id)
 
-    def configure(self, vehicle_id: str, switched_on: bool, category: Category | None) -> VehicleStatus:
-        """Set and store a vehicle's switch (5.2) and category; return its status."""
-        previous = self.settings.get(vehicle_id, VehicleSetting())
-        setting = VehicleSetting(switched_on, category if category is not None else previous.category)
-        self.store.save(vehicle_id, setting)
-        self.settings[vehicle_id] = setting
+    def configure(self, vehicle_id: str, switched_on: bool, category: Category | None) -> None:
+        """Set a vehicle's switch (5.2) and category; both are stored with its session."""
+        previous = self.setting(vehicle_id) or VehicleSetting()
+        self.new_settings[vehicle_id] = VehicleSetting(switched_on, category or previous.category)
         network_index = self.network_of(vehicle_id)
         self.place(vehicle_id, network_index)
         self.seen(vehicle_id, None)
-        return self.engines[network_index].switch(vehicle_id, switched_on)
+        self.engines[network_index].switch(vehicle_id, switched_on)
 
     def known(self, vehicle_id: str) -> bool:
-        """Whether the vehicle has a session or stored settings."""
-        return vehicle_id in self.sessions or vehicle_id in self.settings
+        """Whether the vehicle has a session or a stored setting."""
+        return vehicle_id in self.sessions or self.setting(vehicle_id) is not None
 
     def status(self, vehicle_id: str) -> VehicleStatus:
         """The vehicle's status: from its engine, or the stored switch when it has no session."""
         session = self.sessions.get(vehicle_id)
         if session is not None:
             return self.engines[session.network_index].status(vehicle_id)
-        setting = self.settings.get(vehicle_id, VehicleSetting())
-        return switch(VehicleStatus(), setting.switched_on)
+        return switch(VehicleStatus(), (self.setting(vehicle_id) or VehicleSetting()).switched_on)
+
+    def writes(self) -> dict[str, VehicleWrite]:
+        """What to store of the vehicles this request answered or set."""
+        writes = {}
+        for vehicle_id in self.written:
+            session = self.sessions[vehicle_id]
+            memory = self.engines[session.network_index].memory(vehicle_id)
+            record = SessionRecord.of(self.network_names[session.network_index], session.lane_id, memory)
+            writes[vehicle_id] = VehicleWrite(self.stored.get(vehicle_id, NOTHING_STORED).version,
+                                              _ENCODER.encode(record), self.new_settings.get(vehicle_id))  # fmt: skip
+        return writes
+
+
+class VehicleRegistry:
+    """The vehicles of the served networks' engines, kept in a state store.
+
+    Parameters
+    ----------
+    network_names
+        The served networks' names, in the served order (sessions name their network).
+    engines
+        One engine per served network, in the same order.
+    store
+        Where settings and sessions are kept.
+    """
+
+    def __init__(self, network_names: Sequence[str], engines: Sequence[Engine], store: StateStore) -> None:
+        self.network_names = tuple(network_names)
+        self.network_index = {name: index for index, name in enumerate(self.network_names)}
+        self.engines = tuple(engines)
+        self.store = store
+
+    def decode(self, session: bytes | None) -> SessionRecord | None:
+        """A stored session; None for none, and for one this service cannot take up (written by
+        another version of it, or naming a network it does not serve): the vehicle starts afresh."""
+        if session is None:
+            return None
+        try:
+            record = _DECODER.decode(session)
+        except msgspec.MsgspecError:
+            return None
+        return record if record.network in self.network_index else None
+
+    def read(self, vehicle_ids: Collection[str]) -> LoadedVehicles:
+        """The vehicles as the store has them, for a request that writes nothing (use as a context manager).
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be read now.
+        """
+        return LoadedVehicles(self, self.store.read(vehicle_ids))
+
+    def transact(self, vehicle_ids: Collection[str],
+                 work: Callable[[LoadedVehicles, Collection[str]], Answered]) -> Answered:  # fmt: skip
+        """Read the vehicles, do ``work`` on them, write back what it changed; for vehicles whose
+        session another request wrote in the meantime, read them again and redo ``work`` on them
+        alone, until none is left.
+
+        Parameters
+        ----------
+        vehicle_ids
+            The vehicles of the request.
+        work
+            Called with the loaded vehicles and the ids it is to work on (all at first).
+
+        Returns
+        -------
+        What the last call of ``work`` returned.
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be read or written now, or other requests still wrote some
+            of the vehicles after :data:`TRANSACTION_ATTEMPTS` attempts.
+        """
+        pending = set(vehicle_ids)
+        for _attempt in range(TRANSACTION_ATTEMPTS):
+            with self.read(pending) as vehicles:
+                answered = work(vehicles, pending)
+                pending = self.store.write(vehicles.writes())
+            if not pending:
+                return answered
+        raise StoreUnavailable(f"{len(pending)} vehicle(s) were changed by other requests during each of "
+                               f"{TRANSACTION_ATTEMPTS} attempts")  # fmt: skip

@@ -157,3 +157,22 @@ def test_the_engine_forgets_a_vehicle_s_warning_with_its_status() -> None:
     assert "v" in engine.held
     engine.forget("v")
     assert "v" not in engine.held and "v" not in engine.statuses
+
+
+def test_two_engines_taking_turns_with_the_vehicle_s_memory_answer_as_one() -> None:
+    # As the workers of a service do: each update is answered by the other engine, which takes
+    # up the vehicle where the last one left it (Engine.memory, Engine.restore).
+    road_map, truth = _track()
+    v_w1 = warning_speed(truth["curves"][0]["radius_m"], Category.N, 1)
+    speeds = v_w1 + 0.6 * np.sin(np.arange(60))  # round V_w: the margin and the hold decide
+    start_s = truth["curves"][0]["start_s"] - 40.0
+    alone = [answer.warning for *_, answer in _drive(speeds, start_s)]
+    engines, route_s, taking_turns = (Engine(road_map), Engine(road_map)), start_s, []
+    for step, speed_kmh in enumerate(speeds):
+        engine, other = engines[step % 2], engines[1 - step % 2]
+        engine.restore("v", other.memory("v"))
+        other.forget("v")
+        taking_turns.append(engine.evaluate(_input(truth, route_s, float(speed_kmh), step * STEP_S)).warning)
+        route_s += kmh_to_mps(float(speed_kmh)) * STEP_S
+    assert taking_turns == alone
+    assert any(trigger.held for warning in alone for trigger in warning.triggers)

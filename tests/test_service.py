@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -84,6 +85,73 @@ class Server:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait(timeout=10)
+
+
+class Workers:
+    """``csws serve --workers 2`` on a free loopback port, ready (at least one worker answers), in a
+    process group of its own so that the whole server can be killed at once (:meth:`crash`).
+
+    Parameters
+    ----------
+    nets
+        The networks to serve.
+    state_options
+        Where the state is kept: ``--state-db FILE`` or ``--state URL``.
+    """
+
+    def __init__(self, nets: list[Path], *state_options: str) -> None:
+        self.url = f"http://127.0.0.1:{_free_port()}"
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "csws", "serve", *(f"--net={net}" for net in nets), *state_options,
+             "--port", self.url.rsplit(":", 1)[1], "--workers", "2"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        )
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        while time.monotonic() < deadline:
+            try:
+                if httpx.get(f"{self.url}/readyz", timeout=2.0).status_code == 200:
+                    return
+            except httpx.TransportError:
+                time.sleep(0.2)
+        self.crash()
+        raise RuntimeError(f"csws serve --workers 2 was not ready within {STARTUP_TIMEOUT_S} s")
+
+    def clients(self) -> tuple[httpx.Client, httpx.Client]:
+        """Two keep-alive connections served by different workers.
+
+        A worker's ``/metrics`` counts only its own requests: a connection whose worker counts
+        another number of ``/healthz`` requests than the first connection's is served by the other.
+        """
+        first = httpx.Client(base_url=self.url, timeout=30.0)
+        for _ in range(10):
+            first.get("/healthz")
+        counted = _healthz_count(first)
+        for _ in range(100):
+            other = httpx.Client(base_url=self.url, timeout=30.0)
+            if _healthz_count(other) != counted:
+                return first, other
+            other.close()
+        raise RuntimeError("100 connections in a row were served by the same worker")
+
+    def stop(self) -> None:
+        """SIGTERM, as an operator stops it."""
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            self.crash()
+
+    def crash(self) -> None:
+        """SIGKILL to the master and its workers at once: nothing gets the chance to finish."""
+        os.killpg(self.process.pid, signal.SIGKILL)
+        self.process.wait(timeout=10)
+
+
+def _healthz_count(client: httpx.Client) -> int:
+    """How many ``/healthz`` requests the worker serving ``client``'s connection has answered."""
+    counter = 'csws_http_requests_total{method="GET",route="/healthz",status="200"} '
+    return next((int(line.removeprefix(counter)) for line in client.get("/metrics").text.splitlines()
+                 if line.startswith(counter)), 0)  # fmt: skip
 
 
 @pytest.fixture(scope="module")

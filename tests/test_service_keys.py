@@ -32,8 +32,8 @@ def keys(tmp_path_factory) -> dict:
 
 
 def _client(keys: dict, **settings) -> TestClient:
-    return TestClient(create_app(ServiceSettings(nets=[TRACK_NET], state_db=":memory:", api_keys_file=keys["path"],
-                                                 **settings)))  # fmt: skip
+    return TestClient(create_app(ServiceSettings(nets=[TRACK_NET], api_keys_file=keys["path"],
+                                                 **{"state_db": ":memory:", **settings})))  # fmt: skip
 
 
 def _auth(key: str) -> dict:
@@ -62,8 +62,8 @@ def test_docs_and_metrics_open_to_all_only_when_set(keys) -> None:
         assert client.post("/v1/warning", json=_query("truck")).status_code == 401
 
 
-def test_a_fleet_sees_and_switches_only_its_own_vehicles(keys) -> None:
-    with _client(keys) as client:
+def test_a_fleet_sees_and_switches_only_its_own_vehicles(keys, state) -> None:
+    with _client(keys, **state) as client:
         switched = client.put("/v1/vehicles/truck", json={"switched_on": False}, headers=_auth(keys["acme_admin"]))
         assert switched.status_code == 200 and switched.json()["vehicle_id"] == "truck"
         # The other fleet's "truck" is another vehicle: unknown to it, and still warned.

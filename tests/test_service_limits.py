@@ -10,7 +10,6 @@ import socket
 import sqlite3
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import httpx
 import pytest
 
 from csws.networks import networks_dir
-from test_service import Server
+from test_service import Server, Workers
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 LIMIT_BYTES = 1_000_000
@@ -119,8 +118,8 @@ def test_any_method_name_adds_no_metrics_series(server) -> None:
     assert 'method="other"' in metrics
 
 
-# ------------------------------------------------------------------ the settings database in trouble
-def test_a_locked_settings_database_is_a_503_to_retry_and_the_service_stays_up(tmp_path) -> None:
+# ------------------------------------------------------------------ the state database in trouble
+def test_a_locked_state_database_is_a_503_to_retry_and_the_service_stays_up(tmp_path) -> None:
     from fastapi.testclient import TestClient
 
     from service.app import create_app
@@ -134,6 +133,7 @@ def test_a_locked_settings_database_is_a_503_to_retry_and_the_service_stays_up(t
         answer = client.put("/v1/vehicles/bus", json={"switched_on": False})
         assert answer.status_code == 503 and answer.headers["retry-after"] == "1"
         assert "cannot be written now" in answer.json()["detail"] and time.monotonic() - started < 3.0
+        assert client.post("/v1/warning", json=QUERY).status_code == 503  # its session cannot be written either
         assert client.get("/healthz").status_code == 200
         holder.execute("ROLLBACK")
         holder.close()
@@ -142,7 +142,7 @@ def test_a_locked_settings_database_is_a_503_to_retry_and_the_service_stays_up(t
 
 @pytest.mark.parametrize("workers", ["1", "2"])
 @pytest.mark.parametrize("content", ["corrupt", "foreign", "bad category"])
-def test_a_bad_settings_database_stops_start_up_in_one_line_naming_it(tmp_path, content, workers) -> None:
+def test_a_bad_state_database_stops_start_up_in_one_line_naming_it(tmp_path, content, workers) -> None:
     state_db = tmp_path / "vehicles.sqlite3"
     if content == "corrupt":
         state_db.write_bytes(b"not a database " * 100)
@@ -175,28 +175,9 @@ def _children(pid: int) -> list[int]:
     return found
 
 
-def _serve_workers(state_db: str) -> tuple[subprocess.Popen, str]:
-    """``csws serve --workers 2`` on a free loopback port, ready (at least one worker answers)."""
-    from test_service import _free_port
-
-    port = _free_port()
-    url = f"http://127.0.0.1:{port}"
-    master = subprocess.Popen([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db", state_db,
-                               "--port", str(port), "--workers", "2"], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)  # fmt: skip
-    deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline:
-        try:
-            if httpx.get(f"{url}/readyz", timeout=2.0).status_code == 200:
-                return master, url
-        except httpx.TransportError:
-            time.sleep(0.2)
-    master.kill()
-    raise RuntimeError("csws serve --workers 2 was not ready within 60 s")
-
-
 def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
-    master, _ = _serve_workers(":memory:")
+    running = Workers([TRACK_NET], "--state-db", str(tmp_path / "vehicles.sqlite3"))
+    master = running.process
     try:
         workers = _children(master.pid)
         assert len(workers) >= 2
@@ -212,50 +193,18 @@ def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
         master.kill()
 
 
-# ------------------------------------------------------------------ several workers, one set of switches
-def test_a_switch_is_seen_by_every_later_request_through_every_worker(tmp_path) -> None:
-    master, url = _serve_workers(str(tmp_path / "vehicles.sqlite3"))
+# ------------------------------------------------------------------ keep-alive through several workers
+def test_keep_alive_requests_through_several_workers_wait_for_no_acknowledgement(tmp_path) -> None:
+    # Without TCP_NODELAY on the workers' connections, each answer after the first waits for the
+    # client's delayed acknowledgement: about 40 ms on Linux.
+    running = Workers([TRACK_NET], "--state-db", str(tmp_path / "vehicles.sqlite3"))
     try:
-        for vehicle in range(20):  # sessions in both workers (each request on a new connection)
-            assert httpx.post(f"{url}/v1/warning", json={**QUERY, "vehicle_id": "truck"}).status_code == 200
-        for switched_on, state in ((False, "off"), (True, "active")):
-            assert httpx.put(f"{url}/v1/vehicles/truck", json={"switched_on": switched_on}).status_code == 200
-            answers = [httpx.post(f"{url}/v1/warning", json={**QUERY, "vehicle_id": "truck"}).json() for _ in range(20)]
-            assert [a["state"] for a in answers] == [state] * 20
-            seen = [httpx.get(f"{url}/v1/vehicles/truck") for _ in range(20)]
-            assert [(r.status_code, r.json()["switched_on"]) for r in seen] == [(200, switched_on)] * 20
+        with httpx.Client(base_url=running.url) as client:
+            latencies_s = []
+            for _ in range(21):
+                started = time.perf_counter()
+                client.get("/healthz").raise_for_status()
+                latencies_s.append(time.perf_counter() - started)
+        assert sorted(latencies_s)[10] < 0.02
     finally:
-        master.send_signal(signal.SIGTERM)
-        try:
-            master.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            master.kill()
-
-
-def test_a_server_killed_during_puts_loses_no_acknowledged_one(tmp_path) -> None:
-    state_db = tmp_path / "vehicles.sqlite3"
-    running = Server([TRACK_NET], state_db)
-    acknowledged: list[str] = []
-
-    def put_many() -> None:
-        with httpx.Client(base_url=running.url, timeout=5.0) as client:
-            for number in range(1000):
-                try:
-                    answer = client.put(f"/v1/vehicles/v{number}", json={"switched_on": number % 2 == 0})
-                except httpx.TransportError:
-                    return
-                if answer.status_code == 200:
-                    acknowledged.append(f"v{number}")
-
-    writer = threading.Thread(target=put_many)
-    writer.start()
-    deadline = time.monotonic() + 30.0
-    while len(acknowledged) < 100 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    running.process.send_signal(signal.SIGKILL)
-    running.process.wait(timeout=10)
-    writer.join(timeout=30)
-    running.client.close()
-    assert 100 <= len(acknowledged) < 1000
-    stored = dict(sqlite3.connect(state_db).execute("SELECT vehicle_id, switched_on FROM vehicle_settings").fetchall())
-    assert all(stored[vehicle] == (int(vehicle[1:]) % 2 == 0) for vehicle in acknowledged)
+        running.stop()

@@ -1,4 +1,4 @@
-"""Vehicle sessions and settings in-process: expiry on an injected clock, persistence, lon/lat refusal.
+"""Vehicle sessions and settings in-process: expiry on an injected clock, the SQLite state store, lon/lat refusal.
 
 The clock is a counter the test advances, so nothing depends on wall-clock time.
 """
@@ -13,7 +13,8 @@ from fastapi.testclient import TestClient
 from csws.networks import networks_dir
 from service.app import create_app
 from service.settings import ServiceSettings, settings_environment
-from service.vehicles import SettingStore, VehicleSetting
+from service.store import StoredVehicle, VehicleSetting, VehicleWrite
+from service.store.sqlite import SQLiteStore
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 IDLE_S = 60.0
@@ -45,16 +46,17 @@ def _query(vehicle_id: str, **extra) -> dict:
             "lane_pos_m": 500.0, **extra}
 
 
-def test_idle_sessions_expire_and_the_engine_forgets_them(app, clock) -> None:
+def test_idle_sessions_expire_and_the_engines_hold_no_vehicle_between_requests(app, clock) -> None:
     engine = app.state.service.networks[0].engine
     with TestClient(app) as client:
         client.post("/v1/warning", json=_query("idle", timestamp_s=100.0))
         clock.now_s = IDLE_S - 1.0
         client.post("/v1/warning", json=_query("busy"))
-        assert set(engine.statuses) == {"idle", "busy"}
+        assert client.get("/readyz").json()["vehicle_sessions"] == 2
+        assert engine.statuses == {} and engine.held == {}
         clock.now_s = IDLE_S + 1.0
         assert client.get("/v1/vehicles/idle").status_code == 404
-        assert set(engine.statuses) == {"busy"}
+        assert client.get("/readyz").json()["vehicle_sessions"] == 1
         # A new session starts afresh: the old timestamp no longer makes an older fix stale.
         assert client.post("/v1/warning", json=_query("idle", timestamp_s=50.0)).json()["state"] == "active"
 
@@ -67,14 +69,20 @@ def test_a_stored_switch_outlives_the_session(app, clock) -> None:
         assert client.post("/v1/warning", json=_query("parked")).json()["state"] == "off"
 
 
-def test_settings_persist_in_sqlite(tmp_path) -> None:
+def test_the_sqlite_store_keeps_settings_and_writes_a_session_only_over_the_version_it_read(tmp_path, clock) -> None:
     path = tmp_path / "nested" / "vehicles.sqlite3"
-    store = SettingStore(path)
-    store.save("a", VehicleSetting(False, None))
-    store.save("a", VehicleSetting(True, None))
-    store.save("b", VehicleSetting(False, None))
+    store = SQLiteStore(path, IDLE_S, clock)
+    assert store.write({"a": VehicleWrite(0, b"first", VehicleSetting(False, None)), "b": VehicleWrite(0, b"b")}) == set()
+    # A writer that read "a" before the first write finds its version moved: nothing of "a" is written.
+    assert store.write({"a": VehicleWrite(0, b"late", VehicleSetting(True, None))}) == {"a"}
+    assert store.write({"a": VehicleWrite(1, b"second", VehicleSetting(True, None)),
+                        "b": VehicleWrite(0, b"stale", VehicleSetting(True, None))}) == {"b"}  # fmt: skip
     store.close()
-    assert SettingStore(path).load() == {"a": VehicleSetting(True, None), "b": VehicleSetting(False, None)}
+    again = SQLiteStore(path, IDLE_S, clock)
+    assert again.read({"a", "b", "c"}) == {"a": StoredVehicle(VehicleSetting(True, None), b"second", 2),
+                                           "b": StoredVehicle(None, b"b", 1), "c": StoredVehicle()}  # fmt: skip
+    clock.now_s = IDLE_S + 1.0  # the sessions expire; the settings stay
+    assert again.read({"a"}) == {"a": StoredVehicle(VehicleSetting(True, None))} and again.session_count() == 0
 
 
 def test_lon_lat_on_networks_without_projection_is_refused(tmp_path) -> None:
@@ -111,10 +119,10 @@ def test_networks_with_the_same_name_are_refused(tmp_path) -> None:
         create_app(ServiceSettings(nets=[TRACK_NET, TRACK_NET], state_db=":memory:"))
 
 
-def test_a_fix_from_far_in_the_future_locks_no_vehicle_out(app) -> None:
+def test_a_fix_from_far_in_the_future_locks_no_vehicle_out(state) -> None:
     # One query with a wild timestamp (sent by anyone who knows the id) answers for itself;
     # the vehicle's next good fix is answered as usual, not as stale.
-    with TestClient(app) as client:
+    with TestClient(create_app(ServiceSettings(nets=[TRACK_NET], **state))) as client:
         assert client.post("/v1/warning", json=_query("victim", timestamp_s=1_700_000_000.0)).json()["state"] == "active"
         client.post("/v1/warning", json=_query("victim", timestamp_s=1e308))
         answer = client.post("/v1/warning", json=_query("victim", timestamp_s=1_700_000_000.1)).json()

@@ -1,0 +1,188 @@
+"""The state store: the one place where every worker and replica of the service keeps its vehicles.
+
+It holds, per vehicle (by its key, :func:`service.keys.vehicle_key`):
+
+* its **setting**, what its fleet set with ``PUT /v1/vehicles/{id}``: the driver switch (5.2)
+  and the category. Settings are kept until changed;
+* its **session**, what answering its next fix needs (:mod:`service.vehicles` encodes it):
+  the last matched lane, the system state, the release rule's memory. A session carries a
+  **version**, raised by each write of it, and expires when it has not been written for the
+  idle time.
+
+Two backends implement :class:`StateStore`: SQLite in WAL mode (:mod:`service.store.sqlite`),
+the embedded default for the workers of one machine, and Redis (:mod:`service.store.redis`),
+for replicas on several machines. Each reads the vehicles of a request in one round trip
+and writes them back in one (one transaction on SQLite, one server-side script on Redis).
+
+A write is conditional per vehicle: a vehicle's session and setting are written together,
+and only if its session still has the version read before; else nothing of that vehicle is
+written and it is reported, so that the caller reads it again and redoes its work
+(:meth:`service.vehicles.VehicleRegistry.transact`). Requests for one vehicle therefore
+never overwrite one another's session.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable, Collection, Mapping
+
+from csws.standard import Category
+
+if TYPE_CHECKING:
+    from service.settings import ServiceSettings
+
+__all__ = ["STORE_TIMEOUT_S", "StoreUnavailable", "VehicleSetting", "StoredVehicle", "NOTHING_STORED",
+           "VehicleWrite", "StateStore", "open_store"]
+
+#: How long one store operation may wait (for a lock, a connection, an answer), s: longer would
+#: hold up every other request of the worker; the client is told to retry instead.
+STORE_TIMEOUT_S = 0.5
+
+
+class StoreUnavailable(OSError):
+    """The state store cannot be read or written now (locked, unreachable, timed out, gone): retry later."""
+
+
+@dataclass(frozen=True)
+class VehicleSetting:
+    """What a fleet set for a vehicle.
+
+    Attributes
+    ----------
+    switched_on
+        The CSWS switch (5.2).
+    category
+        The vehicle's category, used when a query gives none.
+    """
+
+    switched_on: bool = True
+    category: Category | None = None
+
+
+@dataclass(frozen=True)
+class StoredVehicle:
+    """What the store holds of one vehicle.
+
+    Attributes
+    ----------
+    setting
+        What its fleet set, None when nothing was ever set.
+    session
+        Its session as :mod:`service.vehicles` encoded it; None when it has none (or it expired).
+    version
+        The version of its session: 0 without one.
+    """
+
+    setting: VehicleSetting | None = None
+    session: bytes | None = None
+    version: int = 0
+
+
+#: A vehicle the store holds nothing of.
+NOTHING_STORED = StoredVehicle()
+
+
+@dataclass(frozen=True)
+class VehicleWrite:
+    """What to write of one vehicle: its session, and with it a new setting if one was made.
+
+    Attributes
+    ----------
+    expected_version
+        The version of the session the writer read: the write happens only if it is still that.
+    session
+        The new session, encoded; it is stored with the next version.
+    setting
+        A new setting to store together with the session, or None to keep the stored one.
+    """
+
+    expected_version: int
+    session: bytes
+    setting: VehicleSetting | None = None
+
+
+class StateStore(ABC):
+    """Settings and sessions of the vehicles, shared by every worker and replica.
+
+    Attributes
+    ----------
+    name
+        The store in messages: its file, or its URL without a password.
+    """
+
+    name: str
+
+    @abstractmethod
+    def check(self) -> None:
+        """Make sure the store can serve, at start-up.
+
+        Raises
+        ------
+        OSError
+            One line naming the store, when it cannot be reached or read, or holds what it should not.
+        """
+
+    @abstractmethod
+    def read(self, vehicle_ids: Collection[str]) -> dict[str, StoredVehicle]:
+        """What the store holds of each vehicle (:data:`NOTHING_STORED` for one it holds nothing of),
+        in one round trip, as of one instant.
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be read now.
+        """
+
+    @abstractmethod
+    def write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
+        """Write each vehicle's session (and setting) whose session still has the expected version,
+        all in one round trip; return the vehicles whose session another writer changed meanwhile
+        (nothing of them was written).
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be written now; then nothing was written.
+        """
+
+    @abstractmethod
+    def session_count(self) -> int:
+        """How many sessions the store holds (those not expired).
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be read now.
+        """
+
+    @abstractmethod
+    def close(self) -> None:
+        """Let go of the store's connections."""
+
+
+def open_store(settings: "ServiceSettings", clock: Callable[[], float] = time.time) -> StateStore:
+    """The store the settings name: Redis at ``settings.state`` if given, else the SQLite file ``settings.state_db``.
+
+    Parameters
+    ----------
+    settings
+        The service's settings (``state``, ``state_db``, ``session_idle_s``).
+    clock
+        Seconds of the clock that dates SQLite sessions (Redis expires its own).
+
+    Raises
+    ------
+    OSError
+        If the SQLite file cannot be opened.
+    ValueError
+        If the Redis URL is malformed.
+    """
+    if settings.state:
+        from .redis import RedisStore
+
+        return RedisStore(settings.state, settings.session_idle_s)
+    from .sqlite import SQLiteStore
+
+    return SQLiteStore(settings.state_db, settings.session_idle_s, clock)

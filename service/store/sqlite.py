@@ -1,0 +1,194 @@
+"""The state store in one SQLite file (WAL): the embedded default, shared by the workers of one machine.
+
+Two tables: ``vehicle_settings`` (kept until changed) and ``vehicle_sessions`` (with their
+version and when they were last written). A session not written for the idle time counts as
+absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`.
+
+A request reads its vehicles with one statement (one snapshot) and writes them in one
+``BEGIN IMMEDIATE`` transaction, which checks the versions and writes the sessions and
+settings with ``executemany``. Writers of the workers take turns for the length of a write,
+never for the engine's work in between; one that finds the lock taken tries again every
+:data:`LOCK_RETRY_S` (SQLite's own busy handler would sleep from 1 ms up to 100 ms, far longer
+than a write holds the lock). Settings are written with ``synchronous=FULL``
+(on disk when the 200 goes out); a transaction of sessions alone with ``NORMAL``, which
+in WAL mode survives a crash of the service and may lose the last sessions only when the
+machine itself fails, costing those vehicles a fresh session.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+from pathlib import Path
+from typing import Callable, Collection, Mapping
+
+from csws.standard import Category
+
+from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+
+__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "SQLiteStore"]
+
+#: Expired sessions are deleted at most this often (by whichever write comes first), s.
+SWEEP_PERIOD_S = 60.0
+#: How long to wait before trying again for a lock another worker holds, s.
+LOCK_RETRY_S = 0.0001
+
+_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS vehicle_settings ("
+    "vehicle_id TEXT PRIMARY KEY, switched_on INTEGER NOT NULL, category TEXT)",
+    "CREATE TABLE IF NOT EXISTS vehicle_sessions ("
+    "vehicle_id TEXT PRIMARY KEY, version INTEGER NOT NULL, written_s REAL NOT NULL, session BLOB NOT NULL)",
+)
+#: Settings and live sessions of the vehicles of a JSON list, in one statement.
+_READ = (
+    "SELECT wanted.value, settings.switched_on, settings.category, sessions.session, sessions.version "
+    "FROM json_each(?) AS wanted "
+    "LEFT JOIN vehicle_settings AS settings ON settings.vehicle_id = wanted.value "
+    "LEFT JOIN vehicle_sessions AS sessions ON sessions.vehicle_id = wanted.value AND sessions.written_s >= ?"
+)
+_LIVE_VERSIONS = ("SELECT vehicle_id, version FROM vehicle_sessions "
+                  "WHERE vehicle_id IN (SELECT value FROM json_each(?)) AND written_s >= ?")  # fmt: skip
+_WRITE_SESSION = (
+    "INSERT INTO vehicle_sessions (vehicle_id, version, written_s, session) VALUES (?, ?, ?, ?) "
+    "ON CONFLICT (vehicle_id) DO UPDATE SET version = excluded.version, written_s = excluded.written_s, "
+    "session = excluded.session"
+)
+_WRITE_SETTING = "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)"
+
+
+def _setting(switched_on: int, category: str | None) -> VehicleSetting:
+    """A stored setting from its columns; ValueError for an unknown category."""
+    return VehicleSetting(bool(switched_on), Category(category) if category else None)
+
+
+class SQLiteStore(StateStore):
+    """Settings and sessions in a SQLite file.
+
+    Parameters
+    ----------
+    path
+        The database file (created with its folder if missing), or ``":memory:"`` (one process only).
+    idle_s
+        A session not written for this long expires, s.
+    clock
+        Seconds of the clock that dates the sessions: wall-clock time, which every worker
+        shares and which goes on across restarts (injectable, so that expiry is testable
+        without waiting).
+
+    Raises
+    ------
+    OSError
+        One line naming the file, when it cannot be opened as a database.
+    """
+
+    def __init__(self, path: str | Path, idle_s: float, clock: Callable[[], float] = time.time) -> None:
+        if not idle_s > 0:
+            raise ValueError(f"the session idle time must be positive, got {idle_s!r} s")
+        if str(path) != ":memory:":
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.name = str(path)
+        self.idle_s = float(idle_s)
+        self.clock = clock
+        self._swept_s = -float("inf")
+        self._durable = True
+        try:
+            self._db = sqlite3.connect(self.name, check_same_thread=False, isolation_level=None,
+                                       timeout=STORE_TIMEOUT_S)  # fmt: skip
+            if self.name != ":memory:":
+                # Readers never wait for the writer: the workers of one service share the file.
+                self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            for statement in _SCHEMA:
+                self._db.execute(statement)
+            self._db.execute("PRAGMA busy_timeout=0")  # from now on waits are _execute's
+        except sqlite3.Error as exc:
+            raise OSError(f"cannot open the vehicle state database {path}: {exc}") from None
+
+    def check(self) -> None:
+        """Read every setting once: a database of another program, or one holding an unknown
+        category, stops start-up here rather than failing requests later."""
+        try:
+            for switched_on, category in self._execute("SELECT switched_on, category FROM vehicle_settings"):
+                _setting(switched_on, category)
+            self._execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
+        except (sqlite3.Error, ValueError) as exc:
+            raise OSError(f"the vehicle state database {self.name} cannot be read: {exc}") from None
+
+    def read(self, vehicle_ids: Collection[str]) -> dict[str, StoredVehicle]:
+        if not vehicle_ids:
+            return {}
+        try:
+            rows = self._execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
+            return {
+                vehicle_id: StoredVehicle(None if switched_on is None else _setting(switched_on, category),
+                                          session, version or 0)  # fmt: skip
+                for vehicle_id, switched_on, category, session, version in rows
+            }
+        except (sqlite3.Error, ValueError) as exc:
+            raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
+
+    def write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
+        if not writes:
+            return set()
+        try:
+            self._set_durable(any(w.setting is not None for w in writes.values()))
+            self._execute("BEGIN IMMEDIATE")
+            try:
+                conflicts = self._write(writes)
+                self._db.execute("COMMIT")
+            finally:
+                if self._db.in_transaction:
+                    self._db.execute("ROLLBACK")
+        except sqlite3.Error as exc:
+            raise StoreUnavailable(f"the vehicle state database {self.name} cannot be written now: {exc}") from None
+        return conflicts
+
+    def _write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
+        """Inside the write transaction: compare the versions, write what still matches, sweep when due."""
+        now_s = self.clock()
+        oldest_live_s = now_s - self.idle_s
+        live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
+        conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
+        done = [(vehicle_id, w) for vehicle_id, w in writes.items() if vehicle_id not in conflicts]
+        self._db.executemany(_WRITE_SESSION, [(vehicle_id, w.expected_version + 1, now_s, w.session)
+                                              for vehicle_id, w in done])  # fmt: skip
+        self._db.executemany(_WRITE_SETTING, [
+            (vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
+            for vehicle_id, w in done if w.setting is not None])  # fmt: skip
+        if now_s - self._swept_s >= SWEEP_PERIOD_S:
+            self._db.execute("DELETE FROM vehicle_sessions WHERE written_s < ?", (oldest_live_s,))
+            self._swept_s = now_s
+        return conflicts
+
+    def _execute(self, statement: str, parameters: tuple = ()) -> sqlite3.Cursor:
+        """Execute a statement that may need a lock another worker holds: tried again every
+        :data:`LOCK_RETRY_S` while the lock is taken, for at most :data:`STORE_TIMEOUT_S`."""
+        deadline_s = time.monotonic() + STORE_TIMEOUT_S
+        while True:
+            try:
+                return self._db.execute(statement, parameters)
+            except sqlite3.OperationalError as exc:
+                if exc.sqlite_errorcode & 0xFF != sqlite3.SQLITE_BUSY or time.monotonic() >= deadline_s:
+                    raise
+            time.sleep(LOCK_RETRY_S)
+
+    def _set_durable(self, durable: bool) -> None:
+        """``synchronous=FULL`` for a transaction with settings, ``NORMAL`` for one of sessions alone."""
+        if durable != self._durable:
+            self._db.execute(f"PRAGMA synchronous={'FULL' if durable else 'NORMAL'}")
+            self._durable = durable
+
+    def _oldest_live_s(self) -> float:
+        """When the oldest session that has not expired was written, on the store's clock."""
+        return self.clock() - self.idle_s
+
+    def session_count(self) -> int:
+        try:
+            return int(self._execute("SELECT COUNT(*) FROM vehicle_sessions WHERE written_s >= ?",
+                                     (self._oldest_live_s(),)).fetchone()[0])  # fmt: skip
+        except sqlite3.Error as exc:
+            raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
+
+    def close(self) -> None:
+        self._db.close()
