@@ -130,10 +130,21 @@ def warning_rows(figures: dict) -> list[Row]:
 
 
 def cosim_rows(figures: dict) -> list[Row]:
-    return [at_most(f"cosim: evaluation overhead, {cosim.VEHICLES:,} vehicles (x baseline)", figures["overhead"],
-                    cosim.TARGET_OVERHEAD,
-                    f"{figures['evaluated_ms_per_step']:.1f} vs {figures['baseline_ms_per_step']:.1f} ms/step "
-                    f"without evaluation; {figures['vehicles']} evaluated")]
+    ms, ratio = figures["ms_per_step"], figures["ratio_to_bare"]
+    components = ", ".join(f"{name} {value:.2f}" for name, value in figures["default_components_ms_per_step"].items())
+    vehicles = f"{cosim.VEHICLES:,} vehicles"
+    return [
+        at_most(f"cosim: {vehicles}, evaluation and time series (x bare SUMO)", ratio["default"],
+                cosim.TARGET_DEFAULT_RATIO, f"{ms['default']:.1f} vs {ms['bare']:.1f} ms/step of libsumo alone"),
+        at_most(f"cosim: {vehicles}, evaluation, events only (x bare SUMO)", ratio["events_only"],
+                cosim.TARGET_EVENTS_RATIO, f"{ms['events_only']:.1f} ms/step"),
+        context(f"cosim: {vehicles}, reading only (x bare SUMO)", round(ratio["read_only"], 2),
+                f"{ms['read_only']:.1f} ms/step: the least that reads every vehicle each step"),
+        at_most(f"cosim: evaluation overhead, {vehicles} (x the run without it)", figures["overhead"],
+                cosim.TARGET_OVERHEAD, f"{ms['default']:.1f} vs {ms['without_evaluation']:.1f} ms/step; "
+                f"{figures['vehicles']} evaluated"),
+        context("cosim: default run by component, ms/step", components),
+    ]
 
 
 def service_rows(figures: dict) -> list[Row]:
@@ -214,7 +225,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark("workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation",
                   workers_rows),
-        Benchmark("cosim", cosim.run, f"long: about 30-60 s, {cosim.VEHICLES:,} vehicles twice", cosim_rows),
+        Benchmark("cosim", cosim.run, f"long: about 30-60 s, {cosim.VEHICLES:,} vehicles five times", cosim_rows),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
         Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),
                   "a few seconds" if quick else "long: about 30-90 s", grid_rows),

@@ -21,8 +21,11 @@ import pytest
 
 from csws.cosim.categories import category_of
 from csws.cosim.driver import DriverSettings
+import pyarrow.parquet as pq
+
 from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.cosim.timeseries import TIMESERIES_SCHEMA
 from csws.networks.fleet import FLEET_TYPES, fleet_dir, fleet_routes_xml
 from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
 
@@ -54,6 +57,11 @@ def _rows(path: Path) -> list[dict]:
         return list(csv.DictReader(stream))
 
 
+def _timeseries(out: Path) -> list[dict]:
+    """The rows of a run's Parquet time series (every part, in order)."""
+    return pq.read_table(out / "timeseries").to_pylist()
+
+
 def test_vehicle_classes_map_to_the_standards_categories():
     assert category_of("passenger") is Category.M1
     assert category_of("bus") is Category.M3 and category_of("coach") is Category.M3
@@ -70,7 +78,7 @@ def test_every_vehicle_is_evaluated_with_its_category(library_run):
     assert summary["complete"] and summary["vehicles_evaluated"] == VEHICLES
     declared = {t.type_id: (t.category or category_of(t.vclass).value) for t in FLEET_TYPES}
     seen = {}
-    for row in _rows(out / "timeseries.csv"):
+    for row in _timeseries(out):
         seen[row["vehicle_id"]] = row["category"]
     assert len(seen) == VEHICLES
     for vehicle_id, category in seen.items():
@@ -165,7 +173,7 @@ def test_service_mode_gives_identical_warnings(library_run, fleet_routes, servic
     out, _ = library_run
     summary = cosimulate(_config(fleet_routes, tmp_path, service_url=service_url))
     assert summary["mode"] == "service" and summary["vehicles_evaluated"] == VEHICLES
-    for name in ("timeseries.csv", "warnings.csv", "entries.csv"):
+    for name in ("timeseries/part-00000.parquet", "warnings.csv", "entries.csv"):
         assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name
 
 
@@ -207,7 +215,7 @@ def _children(pid: int) -> list[int]:
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="finds SUMO's process through /proc")
 def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
-    process = _start(tmp_path, "--traci")
+    process = _start(tmp_path, "--traci", "--timeseries", "csv")
     _wait_for_rows(tmp_path / "timeseries.csv", process)
     sumo = _children(process.pid)
     assert sumo
@@ -225,7 +233,7 @@ def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
 
 
 def test_an_interrupted_run_keeps_valid_files(tmp_path):
-    process = _start(tmp_path)
+    process = _start(tmp_path, "--timeseries", "csv")
     _wait_for_rows(tmp_path / "timeseries.csv", process)
     process.send_signal(signal.SIGINT)
     _, stderr = process.communicate(timeout=60)
@@ -235,12 +243,49 @@ def test_an_interrupted_run_keeps_valid_files(tmp_path):
 
 
 def test_a_killed_run_leaves_files_that_end_at_a_complete_row(tmp_path):
-    process = _start(tmp_path)
+    process = _start(tmp_path, "--timeseries", "csv")
     _wait_for_rows(tmp_path / "timeseries.csv", process)
     process.kill()
     process.wait(timeout=30)
     assert _assert_complete_csv(tmp_path / "timeseries.csv", TIMESERIES_COLUMNS) > 0
     _assert_complete_csv(tmp_path / "warnings.csv", EVENT_COLUMNS)
+
+
+def test_an_interrupted_parquet_run_writes_what_it_gathered_as_whole_parts(tmp_path):
+    """Ctrl-C during a run with the Parquet time series: the rows gathered so far are written
+    as a last part, every part in the folder reads, and the time series ends at the last
+    step the summary counts (or the one after, when the signal came between the two)."""
+    process = _start(tmp_path)
+    _wait_for_rows(tmp_path / "warnings.csv", process, size=2_000)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130 and stderr.strip() == "csws: interrupted"
+    assert not list((tmp_path / "timeseries").glob("*.partial"))
+    table = pq.read_table(tmp_path / "timeseries")
+    assert table.schema == TIMESERIES_SCHEMA and table.num_rows > 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "interrupted"
+    last_s = max(table.column("time_s").to_pylist())
+    assert summary["simulated_until_s"] - 1e-9 <= last_s <= summary["simulated_until_s"] + 0.1 + 1e-9
+
+
+def test_the_time_series_kept_every_nth_step_or_not_at_all(library_run, fleet_routes, tmp_path):
+    """``--timeseries-every 5`` keeps every fifth step's rows as the full run wrote them, in
+    CSV the same values as in Parquet; ``none`` keeps no time series and the same warnings."""
+    out, _ = library_run
+    every = _timeseries(out)
+    times = sorted({row["time_s"] for row in every})
+    cosimulate(_config(fleet_routes, tmp_path / "fifth", timeseries="csv", timeseries_every=5))
+    kept = _rows(tmp_path / "fifth" / "timeseries.csv")
+    assert sorted({float(row["time_s"]) for row in kept}) == times[::5]
+    full = {(row["time_s"], row["vehicle_id"]): row for row in every}
+    for row in kept:
+        original = full[(float(row["time_s"]), row["vehicle_id"])]
+        assert row["lane_id"] == original["lane_id"] and float(row["speed_kmh"]) == original["speed_kmh"]
+        assert int(row["level"]) == original["level"]
+    cosimulate(_config(fleet_routes, tmp_path / "none", timeseries="none"))
+    assert not (tmp_path / "none" / "timeseries").exists() and not (tmp_path / "none" / "timeseries.csv").exists()
+    assert (tmp_path / "none" / "warnings.csv").read_bytes() == (out / "warnings.csv").read_bytes()
 
 
 def test_bad_scenario_is_one_error_line(tmp_path):

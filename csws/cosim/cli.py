@@ -8,6 +8,8 @@ from pathlib import Path
 from csws.argtypes import comma_list, positive_float, positive_int, step_length
 from csws.cli import deferred
 
+from .records import TIMESERIES_FORMATS
+
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
     """Add ``csws cosim``."""
@@ -15,8 +17,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "cosim",
         help="co-simulate a fleet in SUMO and record who was warned where",
         description="Drive a SUMO scenario (default: the bundled mixed fleet on the fleet network) and evaluate "
-        "every vehicle at every step, in this process or over HTTP against a csws service. Writes "
-        "timeseries.csv, warnings.csv, entries.csv and summary.json into --out, streamed as the run goes.",
+        "every vehicle at every step, in this process or over HTTP against a csws service. Writes the time "
+        "series (timeseries/*.parquet or timeseries.csv), warnings.csv, entries.csv and summary.json into --out, "
+        "as the run goes.",
     )
     scenario = parser.add_argument_group("scenario (default: the bundled fleet, networks/fleet_scenario/fleet.sumocfg)")
     scenario.add_argument("--sumocfg", type=Path, default=None, help="a SUMO configuration")
@@ -35,4 +38,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--driver-response", action="store_true",
                         help="run the fleet without and with the driver-response model (react 0.8 s, brake at 4.9 m/s^2) and compare")  # fmt: skip
     parser.add_argument("--seed", type=int, default=0, help="SUMO's random seed and the generated fleet's (default 0)")
+    parser.add_argument("--timeseries", choices=TIMESERIES_FORMATS, default="parquet",
+                        help="how to keep every vehicle at every step: a folder of Parquet files (default), "
+                             "timeseries.csv, or none (warning events, entries and summary only)")  # fmt: skip
+    parser.add_argument("--timeseries-every", type=positive_int, default=1, metavar="N",
+                        help="keep every N-th step in the time series (default 1: every step)")
     parser.set_defaults(handler=deferred("csws.cosim.run"))

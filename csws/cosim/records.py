@@ -5,7 +5,8 @@ lines, so a run that is interrupted or whose SUMO dies leaves files that parse a
 at a complete row. Numbers are written with Python's ``repr`` (no rounding), so two runs
 can be compared exactly.
 
-* ``timeseries.csv``: every evaluated vehicle at every step;
+* the time series, every evaluated vehicle at every recorded step, in Parquet or CSV
+  (:mod:`csws.cosim.timeseries`);
 * ``warnings.csv``: every change of a vehicle's warning level (onset, change, end);
 * ``entries.csv``: every entry into a curve part at or above the level-1 warning speed;
 * ``summary.json`` (see :class:`Summary`).
@@ -17,24 +18,30 @@ import csv
 import io
 import json
 import os
+import time
 from collections import Counter, defaultdict
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 from csws.standard import Level, warning_speed
 
 __all__ = [
     "TIMESERIES_COLUMNS",
+    "TIMESERIES_FORMATS",
     "EVENT_COLUMNS",
     "ENTRY_COLUMNS",
     "CsvStream",
+    "StepCosts",
     "Summary",
     "level1_excess_kmh",
     "write_summary",
     "event_of",
 ]
 
+#: How a run's time series can be kept (:mod:`csws.cosim.timeseries`).
+TIMESERIES_FORMATS = ("parquet", "csv", "none")
 TIMESERIES_COLUMNS = (
     "time_s", "vehicle_id", "category", "lane_id", "lane_pos_m", "x_m", "y_m", "speed_kmh", "state", "level",
     "target_curve_id", "target_part_index", "target_distance_m", "target_warning_speed_kmh", "commanded_speed_kmh",
@@ -79,6 +86,26 @@ class CsvStream:
         if self._fd >= 0:
             os.close(self._fd)
             self._fd = -1
+
+
+@dataclass
+class StepCosts:
+    """Where a run's wall time goes, summed per component over its steps, s."""
+
+    seconds: Counter = field(default_factory=Counter)
+
+    @contextmanager
+    def timed(self, component: str) -> Iterator[None]:
+        """Add the time spent in the ``with`` block to ``component``."""
+        started = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[component] += time.perf_counter() - started
+
+    def ms_per_step(self, steps: int) -> dict[str, float]:
+        """Each component's mean milliseconds per step."""
+        return {component: round(1000.0 * total / max(steps, 1), 3) for component, total in self.seconds.items()}
 
 
 @dataclass

@@ -14,7 +14,6 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field, replace
-from itertools import repeat
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -25,14 +24,15 @@ from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError
 from .records import (
     ENTRY_COLUMNS,
     EVENT_COLUMNS,
-    TIMESERIES_COLUMNS,
     CsvStream,
+    StepCosts,
     Summary,
     event_of,
     level1_excess_kmh,
     write_summary,
 )
 from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
+from .timeseries import TimeseriesWriter, open_timeseries
 
 __all__ = ["CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args", "cosimulate", "main"]
 
@@ -82,6 +82,10 @@ class CosimConfig:
         False runs SUMO and reads the fleet without asking for warnings (a baseline).
     progress
         Show a progress bar.
+    timeseries
+        How the time series is kept: ``parquet``, ``csv`` or ``none`` (:mod:`csws.cosim.timeseries`).
+    timeseries_every
+        Keep every this many steps in the time series.
     """
 
     scenario: Scenario
@@ -94,6 +98,8 @@ class CosimConfig:
     seed: int = 0
     evaluate: bool = True
     progress: bool = False
+    timeseries: str = "parquet"
+    timeseries_every: int = 1
 
 
 def bundled_scenario() -> Scenario:
@@ -162,14 +168,14 @@ def _evaluator(config: CosimConfig) -> Evaluator | None:
 class _Streams:
     """The run's output files."""
 
-    timeseries: CsvStream
+    timeseries: TimeseriesWriter
     warnings: CsvStream
     entries: CsvStream
 
     @classmethod
-    def open(cls, out: Path) -> "_Streams":
+    def open(cls, out: Path, timeseries_format: str) -> "_Streams":
         return cls(
-            CsvStream(out / "timeseries.csv", TIMESERIES_COLUMNS),
+            open_timeseries(out, timeseries_format),
             CsvStream(out / "warnings.csv", EVENT_COLUMNS),
             CsvStream(out / "entries.csv", ENTRY_COLUMNS),
         )
@@ -197,11 +203,11 @@ class _Tracker:
 
 
 def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str, float],
-                 tracker: _Tracker, summary: Summary, streams: _Streams) -> None:  # fmt: skip
+                 tracker: _Tracker, summary: Summary, streams: _Streams, sampled: bool) -> None:  # fmt: skip
     """Append one step to the files and the summary.
 
-    Every vehicle gets a time-series row, written column-wise; only the warned vehicles
-    (and those whose level changed) are looked at one by one.
+    Every vehicle gets a time-series row when the step is ``sampled``, given column-wise;
+    only the warned vehicles (and those whose level changed) are looked at one by one.
     """
     count = len(fleet.vehicle_id)
     speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
@@ -218,10 +224,11 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
         row_of = {vehicle_id: i for i, vehicle_id in enumerate(fleet.vehicle_id)}
         for vehicle_id, command in commands.items():
             commanded_kmh[row_of[vehicle_id]] = None if command < 0 else mps_to_kmh(command)
-    streams.timeseries.append(zip(
-        repeat(t, count), fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh,
-        warnings.state, warnings.level, curve_id, part_index, distance_m, warning_speed_kmh, commanded_kmh,
-    ))  # fmt: skip
+    if sampled:
+        streams.timeseries.append((
+            [t] * count, fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh,
+            warnings.state, warnings.level, curve_id, part_index, distance_m, warning_speed_kmh, commanded_kmh,
+        ))  # fmt: skip
     levels = tracker.levels
     changed = [i for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level))
                if level != levels.get(vehicle_id, 0)]  # fmt: skip
@@ -297,7 +304,8 @@ def cosimulate(config: CosimConfig) -> dict:
                                config.step_length_s, config.seed, config.end_s)  # fmt: skip
     summary, tracker = Summary(), _Tracker()
     driver = DriverResponse(config.driver) if config.driver is not None else None
-    streams = _Streams.open(config.out)
+    streams = _Streams.open(config.out, config.timeseries)
+    costs = StepCosts()
     status, started = "running", time.perf_counter()
     simulation = None
     bar = tqdm(total=config.end_s, unit="sim s", disable=not config.progress, file=sys.stderr)
@@ -305,7 +313,8 @@ def cosimulate(config: CosimConfig) -> dict:
         simulation = Simulation(sumo_args, config.interface, odometer=driver is not None)
         step_s = simulation.step_length_s
         while simulation.expected_vehicles() > 0:
-            fleet = simulation.step()
+            with costs.timed("sumo_step_and_read"):
+                fleet = simulation.step()
             for vehicle_id in fleet.arrived:
                 tracker.forget(vehicle_id)
                 if driver is not None:
@@ -313,14 +322,17 @@ def cosimulate(config: CosimConfig) -> dict:
             if evaluator is not None:
                 evaluator.forget(fleet.arrived)
             summary.skipped.update(fleet.skipped)
-            if evaluator is not None and fleet.vehicle_id:
-                warnings = evaluator(fleet)
-            else:
-                warnings = FleetWarnings.none(len(fleet.vehicle_id))
+            with costs.timed("evaluation"):
+                if evaluator is not None and fleet.vehicle_id:
+                    warnings = evaluator(fleet)
+                else:
+                    warnings = FleetWarnings.none(len(fleet.vehicle_id))
             commands = _drive(driver, fleet, warnings, step_s) if driver is not None else {}
             for vehicle_id, speed_mps in commands.items():
                 simulation.set_speed(vehicle_id, speed_mps)
-            _record_step(fleet, warnings, commands, tracker, summary, streams)
+            with costs.timed("recording"):
+                _record_step(fleet, warnings, commands, tracker, summary, streams,
+                             summary.steps % config.timeseries_every == 0)
             summary.vehicles.update(fleet.vehicle_id)
             summary.steps += 1
             summary.last_time_s = fleet.time_s
@@ -344,13 +356,13 @@ def cosimulate(config: CosimConfig) -> dict:
             simulation.close()
         if evaluator is not None:
             evaluator.close()
-        content = _summary_content(config, summary, status, time.perf_counter() - started)
+        content = _summary_content(config, summary, status, time.perf_counter() - started, costs)
         write_summary(config.out / "summary.json", content)
     return content
 
 
-def _summary_content(config: CosimConfig, summary: Summary, status: str, wall_s: float) -> dict:
-    """The summary of one run with how it was run."""
+def _summary_content(config: CosimConfig, summary: Summary, status: str, wall_s: float, costs: StepCosts) -> dict:
+    """The summary of one run with how it was run and where its time went."""
     scenario = config.scenario
     return {
         "format": "csws-cosim-summary/1",
@@ -366,7 +378,9 @@ def _summary_content(config: CosimConfig, summary: Summary, status: str, wall_s:
         "interface": config.interface,
         "step_length_s": config.step_length_s,
         "driver_response": None if config.driver is None else vars(config.driver),
+        "timeseries": {"format": config.timeseries, "every_steps": config.timeseries_every},
         "wall_time_s": round(wall_s, 3),
+        "ms_per_step": costs.ms_per_step(summary.steps),
         **summary.as_dict(),
     }
 
@@ -406,7 +420,8 @@ def main(args: argparse.Namespace) -> int:
     interface = "gui" if args.gui else "traci" if args.traci else "libsumo"
     base = CosimConfig(
         scenario=scenario, out=args.out, step_length_s=args.step_length, end_s=args.end, interface=interface,
-        service_url=args.service, seed=args.seed, progress=sys.stderr.isatty(),
+        service_url=args.service, seed=args.seed, progress=sys.stderr.isatty(), timeseries=args.timeseries,
+        timeseries_every=args.timeseries_every,
     )  # fmt: skip
     runs = [base] if not args.driver_response else [
         replace(base, out=args.out / "without_response"),
