@@ -111,14 +111,22 @@ def memory_masks(
     """
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
+    named: tuple[list[int], list[int]] = ([], [])
+    held_on: tuple[list[int], list[int]] = ([], [])
     for vehicle, memory in enumerate(held):
         if memory is NOT_HELD or not memory.is_on:  # most vehicles: no warning to keep
             continue
-        for row in range(first_cpoi[vehicle], first_cpoi[vehicle + 1]):
-            key = (curve_ids[row], int(part_indices[row]))
-            for level in (0, 1):
-                latched[level, row] = key in memory.points[level]
-                hold[level, row] = latched[level, row] and _within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s)
+        rows = range(first_cpoi[vehicle], first_cpoi[vehicle + 1])
+        for level, points in enumerate(memory.points):
+            if not points:
+                continue
+            rows_named = [row for row in rows if (curve_ids[row], int(part_indices[row])) in points]
+            named[level].extend(rows_named)
+            if _within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s):
+                held_on[level].extend(rows_named)
+    for level in (0, 1):
+        latched[level, named[level]] = True
+        hold[level, held_on[level]] = True
     return latched, hold
 
 
