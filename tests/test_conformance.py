@@ -178,3 +178,6 @@ def test_cli_runs_a_row_and_exits_0(tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     assert "7.6: PASS" in result.stdout
     assert (tmp_path / "plots" / "T8-M1-test2.png").is_file()
+    # stderr is a pipe here, not a terminal: progress comes as lines, the last at the end
+    assert result.stderr.strip().splitlines()[-1].startswith("csws conformance: ")
+    assert result.stderr.strip().endswith("(100 %)")

@@ -11,12 +11,13 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import multiprocessing
-import sys
 import time
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
+
+from csws.progress import Progress
 
 from .drive import Task, Trace, drive, truth
 from .judge import CONSECUTIVE_PASSES, RunResult, consecutive_passes, judge_run
@@ -77,10 +78,9 @@ def run_task(task: Task) -> TaskResult:
 
 
 def run_tasks(tasks: Sequence[Task], jobs: int, progress: bool = False) -> Iterator[TaskResult]:
-    """Run the tasks, in this process for one job, else in ``jobs`` spawned worker processes."""
-    from tqdm import tqdm
-
-    bar = tqdm(total=len(tasks), unit="task", disable=not progress, file=sys.stderr)
+    """Run the tasks, in this process for one job, else in ``jobs`` spawned worker processes;
+    with ``progress``, show how far they are (:class:`csws.progress.Progress`)."""
+    bar = Progress("conformance", len(tasks), "tasks", enabled=progress)
     try:
         if jobs <= 1:
             for task in tasks:
@@ -149,7 +149,7 @@ def main(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     outcomes = conformance(
         rows, args.out, args.step_lengths, args.repetitions, args.seed, args.jobs,
-        plots=not args.no_plots, directions=args.directions, progress=sys.stderr.isatty(),
+        plots=not args.no_plots, directions=args.directions, progress=True,
     )  # fmt: skip
     verdict = verdicts(outcomes)
     for outcome in outcomes:

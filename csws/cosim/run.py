@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.etree import ElementTree
 
+from csws.progress import Progress
 from csws.standard import mps_to_kmh
 
 from .driver import DriverResponse, DriverSettings
@@ -81,7 +82,7 @@ class CosimConfig:
     evaluate
         False runs SUMO and reads the fleet without asking for warnings (a baseline).
     progress
-        Show a progress bar.
+        Show how far the run is on stderr (:class:`csws.progress.Progress`).
     timeseries
         How the time series is kept: ``parquet``, ``csv`` or ``none`` (:mod:`csws.cosim.timeseries`).
     timeseries_every
@@ -295,8 +296,6 @@ def cosimulate(config: CosimConfig) -> dict:
     KeyboardInterrupt
         When interrupted; likewise.
     """
-    from tqdm import tqdm
-
     config.out.mkdir(parents=True, exist_ok=True)
     evaluator = _evaluator(config)
     scenario = config.scenario
@@ -308,7 +307,7 @@ def cosimulate(config: CosimConfig) -> dict:
     costs = StepCosts()
     status, started = "running", time.perf_counter()
     simulation = None
-    bar = tqdm(total=config.end_s, unit="sim s", disable=not config.progress, file=sys.stderr)
+    bar = Progress("cosim", config.end_s, "sim s", decimals=1, enabled=config.progress)
     try:
         simulation = Simulation(sumo_args, config.interface, odometer=driver is not None)
         step_s = simulation.step_length_s
@@ -420,7 +419,7 @@ def main(args: argparse.Namespace) -> int:
     interface = "gui" if args.gui else "traci" if args.traci else "libsumo"
     base = CosimConfig(
         scenario=scenario, out=args.out, step_length_s=args.step_length, end_s=args.end, interface=interface,
-        service_url=args.service, seed=args.seed, progress=sys.stderr.isatty(), timeseries=args.timeseries,
+        service_url=args.service, seed=args.seed, progress=True, timeseries=args.timeseries,
         timeseries_every=args.timeseries_every,
     )  # fmt: skip
     runs = [base] if not args.driver_response else [
