@@ -6,6 +6,7 @@ argparse turns the ``ArgumentTypeError`` into one line naming the option, and ex
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 import math
 from typing import Callable, TypeVar
 
@@ -66,3 +67,19 @@ def one_of(choices: tuple[str, ...], normalise: Callable[[str], str] = str) -> C
         return value
 
     return parse
+
+
+def output_folder(text: str) -> Path:
+    """A folder to write into: made when missing; a file of that name is refused."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder: give a folder (made if missing)")
+    return path
+
+
+def network_file(text: str) -> Path:
+    """A SUMO network to write: the name must end in ``.net.xml`` or ``.net.xml.gz``, so
+    that the files written beside it (curve index, log) are named after it."""
+    if not text.endswith((".net.xml", ".net.xml.gz")) or Path(text).name in (".net.xml", ".net.xml.gz"):
+        raise argparse.ArgumentTypeError(f"{text!r} is no network name: give NAME.net.xml or NAME.net.xml.gz")
+    return Path(text)

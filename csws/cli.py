@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from pathlib import Path
 from typing import Callable, NoReturn, Sequence
@@ -19,6 +20,8 @@ from .argtypes import positive_float
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
+#: Exit status when the output's reader went away, as for a program that SIGPIPE ends (128 + 13).
+EXIT_BROKEN_PIPE = 141
 
 
 class CommandError(Exception):
@@ -133,6 +136,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("csws: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader of the output went away (``csws curves NET | head``): nothing is wrong, and
+        # nothing more may be written to it, not even by the interpreter's last flush.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except (CommandError, ValueError, OSError) as exc:
         print(f"csws: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -72,6 +72,9 @@ def test_curves_lists_the_curve_of_a_track_as_json():
         (["networks", "verify", "--dir", "/"], "has no index.json"),
         (["networks", "verify", "--tolerance-m", "-1"], "must be a positive finite number"),
         (["curves", "x.net.xml", "--warning-radius-m", "nan"], "must be a positive finite number"),
+        (["conformance", "--out", __file__], "is a file, not a folder: give a folder"),
+        (["cosim", "--out", __file__], "is a file, not a folder: give a folder"),
+        (["import-osm", "x.osm", "-o", "x.txt"], "give NAME.net.xml or NAME.net.xml.gz"),
     ],
 )
 def test_bad_input_is_one_line_and_a_non_zero_exit(args, message):
@@ -80,3 +83,15 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(args, message):
     assert message in result.stderr
     assert "Traceback" not in result.stderr
     assert message in result.stderr.strip().splitlines()[-1]  # the last line says what is wrong
+
+
+def test_output_read_only_in_part_ends_quietly():
+    """``csws curves NET | head -1``: the reader goes away; csws stops without a word, with the
+    status a program ended by SIGPIPE has."""
+    with subprocess.Popen([sys.executable, "-m", "csws", "curves", str(networks_dir() / "badhersfeld.net.xml.gz")],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE) as process:  # fmt: skip
+        process.stdout.readline()
+        process.stdout.close()
+        stderr = process.stderr.read()
+        assert process.wait(timeout=120) == 141
+    assert stderr == b""

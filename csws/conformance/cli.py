@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import comma_list, one_of, positive_int, step_length
+from csws.argtypes import comma_list, one_of, output_folder, positive_int, step_length
 from csws.cli import deferred
 
 #: Tables 5-9, 0 for our negative rows and 10 for the real-road tracks.
@@ -25,7 +25,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "and the system (7.6), and write report.json, report.md and one plot per row. "
         "Exit status 1 when a row fails.",
     )
-    parser.add_argument("--out", type=Path, default=Path("conformance-report"), help="output folder (default: conformance-report)")
+    parser.add_argument("--out", type=output_folder, default=Path("conformance-report"), help="output folder (default: conformance-report)")
     parser.add_argument("--step-lengths", type=comma_list(step_length, "step length"), default=[0.01, 0.05, 0.1, 0.2],
                         help="SUMO step lengths in s, comma-separated (default: 0.01,0.05,0.1,0.2)")  # fmt: skip
     parser.add_argument("--repetitions", type=positive_int, default=3, help="runs per row, track and step length (>= 3; default 3)")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import comma_list, positive_float, positive_int, step_length
+from csws.argtypes import comma_list, output_folder, positive_float, positive_int, step_length
 from csws.cli import deferred
 
 from .records import TIMESERIES_FORMATS
@@ -27,7 +27,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     scenario.add_argument("--routes", type=comma_list(Path, "route file"), default=None, help="route files, comma-separated")
     scenario.add_argument("--vehicles", type=positive_int, default=None,
                           help="generate a mixed fleet of this many vehicles (one per second) on the fleet network")  # fmt: skip
-    parser.add_argument("--out", type=Path, default=Path("cosim-out"), help="output folder (default: cosim-out)")
+    parser.add_argument("--out", type=output_folder, default=Path("cosim-out"), help="output folder (default: cosim-out)")
     parser.add_argument("--step-length", type=step_length, default=0.1, help="SUMO step length in s (default 0.1)")
     parser.add_argument("--end", type=positive_float, default=None, help="stop at this simulation time, s")
     parser.add_argument("--service", default=None, metavar="URL",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import positive_int
+from csws.argtypes import network_file, positive_int
 from csws.cli import deferred
 
 
@@ -25,7 +25,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("osm", type=Path, help="OpenStreetMap file: .osm, .osm.xml, .osm.gz, .osm.xml.gz or .osm.pbf")
     parser.add_argument(
-        "-o", "--output", type=Path, required=True, help="network to write: NAME.net.xml or NAME.net.xml.gz"
+        "-o", "--output", type=network_file, required=True, help="network to write: NAME.net.xml or NAME.net.xml.gz"
     )
     parser.add_argument("--lefthand", action="store_true", help="left-hand traffic (default: right-hand)")
     parser.add_argument(
