@@ -6,7 +6,9 @@ over the 300 m before the curves at test speed:
 * one vehicle in-process: ``Engine.evaluate`` (look-ahead, warning of clause 6 and the
   system state), median over many calls; and the warning step alone
   (``csws.warning.evaluate`` on the vehicle's CPOIs);
-* a batch: ``Engine.evaluate_many`` for 1,000 vehicles, per vehicle.
+* a batch: ``Engine.evaluate_many`` for 1,000 vehicles, per vehicle;
+* the forward collision warning of 1,000 vehicles in one batch (:func:`csws.fcw.evaluate_fcw`),
+  per vehicle.
 
 Run with ``python -m benchmarks.warning``.
 """
@@ -20,12 +22,14 @@ import time
 import numpy as np
 
 from csws.engine import Engine, VehicleInput
+from csws.fcw import evaluate_fcw
 from csws.networks import networks_dir
 from csws.roadmap import RoadMap
 from csws.warning import evaluate
 
 TRACK = "t9_m1_test1_left"
 TARGET_SINGLE_US = 50.0
+TARGET_FCW_BATCH_US = 5.0
 
 
 def _vehicles(truth: dict, count: int, speed_kmh: float) -> list[VehicleInput]:
@@ -53,6 +57,20 @@ def _median_us(function, arguments, repeat: int) -> float:
     return statistics.median(samples) * 1e6
 
 
+def _fcw_batch_us(count: int, seed: int = 2) -> float:
+    """µs per vehicle of the forward collision warning of ``count`` subject vehicles with
+    targets drawn at random (clearance, closing speed, accelerations, some drivers braking)."""
+    rng = np.random.default_rng(seed)
+    columns = (rng.uniform(-4.0, 1.0, count), rng.uniform(1.0, 150.0, count), rng.uniform(-25.0, 5.0, count),
+               rng.uniform(-6.0, 1.0, count), rng.random(count) < 0.1)  # fmt: skip
+    timings = []
+    for _ in range(20):
+        start = time.perf_counter()
+        evaluate_fcw(*columns)
+        timings.append(time.perf_counter() - start)
+    return min(timings) / count * 1e6
+
+
 def run(batch_size: int = 1000) -> dict:
     """The figures: µs per vehicle alone (whole engine, warning step only) and in a batch."""
     truth = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
@@ -70,6 +88,7 @@ def run(batch_size: int = 1000) -> dict:
         timings.append(time.perf_counter() - start)
     batch_us = min(timings) / batch_size * 1e6
     return {
+        "fcw_batch_per_vehicle_us": _fcw_batch_us(batch_size),
         "engine_single_median_us": engine_us,
         "warning_single_median_us": warning_us,
         "engine_batch_per_vehicle_us": batch_us,
@@ -86,6 +105,7 @@ def main() -> None:
     print(f"{'warning step, one vehicle (median)':<34} {figures['warning_single_median_us']:>8.1f}us")
     print(f"{'engine, batch of 1000, per vehicle':<34} {figures['engine_batch_per_vehicle_us']:>8.1f}us  "
           f"({figures['batch_speedup']:.1f}x the single rate)")
+    print(f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  <= {TARGET_FCW_BATCH_US:g} us")
 
 
 if __name__ == "__main__":
