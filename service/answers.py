@@ -6,8 +6,9 @@
 2. checks what the models cannot (lane and edge ids, lane positions, lon/lat on
    networks without a projection, a missing category) and reports every problem with
    the index of its query (:class:`QueryErrors`, an HTTP 422);
-3. matches every fix without a lane id in one vectorised pass over all served networks
-   (:class:`csws.mapmatch.MapMatcher`), preferring each vehicle's previous lane;
+3. matches every fix without a lane id (:class:`csws.mapmatch.MapMatcher`, one spatial index
+   over all served networks): a query naming its network on that network alone, a vehicle
+   with a session on its previous network first, preferring its previous lane;
 4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
 5. writes the vehicles' sessions back to the store, and each answer as the JSON text of the
    HTTP contract (floats unrounded).
@@ -29,7 +30,7 @@ from typing import Any, Collection, NamedTuple, Sequence
 import numpy as np
 
 from csws.engine import Answer, VehicleInput
-from csws.mapmatch import MapMatcher, MatchSettings, lane_point
+from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_point
 from csws.state import Fault
 from csws.warning import HmiHint, Trigger
 
@@ -216,10 +217,11 @@ class WarningService:
             placements[i] = Placement(network_index, query.lane_id, query.lane_pos_m,
                                       self._fix_distance_m(query, network_index), None)
         if to_match:
+            fixes = [queries[i] for i in to_match]
             matched = self.matcher.match(
-                [self._fixes([queries[i] for i in to_match], index) for index in range(len(self.networks))],
-                np.array([math.nan if queries[i].heading_deg is None else queries[i].heading_deg for i in to_match]),
-                [vehicles.previous(queries[i].vehicle_id) for i in to_match],
+                self._probes(fixes),
+                np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
+                [vehicles.previous(query.vehicle_id) for query in fixes],
             )
             for row, i in enumerate(to_match):
                 network_index = int(matched.map_index[row])
@@ -229,34 +231,38 @@ class WarningService:
                                           float(matched.distance_m[row]), matched.reason[row])
         return placements
 
-    def _fixes(self, queries: Sequence[Query], network_index: int) -> np.ndarray:
-        """The queries' fixes in the coordinates of one network.
-
-        NaN (no match there) where a query names another network, or lon/lat meets a map
-        without a projection.
-        """
-        road_map = self.networks[network_index].road_map
-        xy = np.full((len(queries), 2), np.nan)
-        here = [row for row, query in enumerate(queries)
-                if query.network is None or self.network_index[query.network] == network_index]  # fmt: skip
-        metric = [row for row in here if not queries[row].position.is_geographic]
-        if metric:
-            xy[metric] = [(queries[row].position.x, queries[row].position.y) for row in metric]
-        geographic = [row for row in here if queries[row].position.is_geographic]
-        if geographic and road_map.has_projection:
-            lonlat = np.array([(queries[row].position.lon, queries[row].position.lat) for row in geographic])
-            xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
-        return xy
+    def _probes(self, queries: Sequence[Query]) -> Probes:
+        """Where to look for each query's fix: x, y on the network it names, else on every one;
+        lon, lat in the projection of the network it names, else of each geo-referenced one."""
+        rows, xy, map_index = [], [], []
+        geographic: dict[int, list[int]] = defaultdict(list)
+        for row, query in enumerate(queries):
+            named = -1 if query.network is None else self.network_index[query.network]
+            position = query.position
+            if not position.is_geographic:
+                rows.append(row)
+                xy.append((position.x, position.y))
+                map_index.append(named)
+            else:
+                for network_index in self.geo_networks if named < 0 else (named,):
+                    geographic[network_index].append(row)
+        for network_index, placed in geographic.items():
+            lonlat = np.array([(queries[row].position.lon, queries[row].position.lat) for row in placed])
+            rows += placed
+            xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
+            map_index += [network_index] * len(placed)
+        return Probes(len(queries), np.array(rows, dtype=np.intp), np.array(xy, dtype=float).reshape(-1, 2),
+                      np.array(map_index, dtype=np.intp))  # fmt: skip
 
     def _fix_distance_m(self, query: Query, network_index: int) -> float:
-        """Distance from a query's fix to its given lane position, m; 0 without a fix or one on another map."""
-        network = self.networks[network_index]
-        if query.position is None:
+        """Distance from a query's fix to its given lane position, m; 0 without a fix, or with lon/lat
+        on a network without a projection."""
+        road_map = self.networks[network_index].road_map
+        position = query.position
+        if position is None or (position.is_geographic and not road_map.has_projection):
             return 0.0
-        (x, y), = self._fixes([query], network_index)
-        if not math.isfinite(x):
-            return 0.0
-        lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)
+        x, y = (position.x, position.y) if not position.is_geographic else road_map.lonlat_to_xy(position.lon, position.lat)
+        lane_x, lane_y = lane_point(road_map, query.lane_id, query.lane_pos_m)
         return float(math.hypot(x - lane_x, y - lane_y))
 
     def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], vehicles: LoadedVehicles,
