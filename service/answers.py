@@ -10,8 +10,8 @@
    over all served networks): a query naming its network on that network alone, a vehicle
    with a session on its previous network first, preferring its previous lane;
 4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
-5. writes the vehicles' sessions back to the store, and each answer as the JSON text of the
-   HTTP contract (floats unrounded).
+5. writes the vehicles' sessions back to the store, and the answers as the JSON of the HTTP
+   contract (floats unrounded), encoded by msgspec.
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
 rounds holding each vehicle at most once.
@@ -19,14 +19,13 @@ rounds holding each vehicle at most once.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
-from json.encoder import encode_basestring_ascii as _json_text
 from typing import Any, Collection, NamedTuple, Sequence
 
+import msgspec
 import numpy as np
 
 from csws.engine import Answer, VehicleInput
@@ -34,10 +33,11 @@ from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_point
 from csws.state import Fault
 from csws.warning import HmiHint, Trigger
 
+from .decoding import DecodedQuery
 from .horizon import cpoi_points, position
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
-from .schemas import Query
+from .schemas import Hmi, Matched, WarningAnswer
 from .vehicles import LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
@@ -81,7 +81,7 @@ def _error(loc: Sequence[Any], msg: str) -> dict[str, Any]:
     return {"loc": list(loc), "msg": msg, "type": "value_error"}
 
 
-def _rounds(queries: Sequence[Query], indices: Sequence[int]) -> list[list[int]]:
+def _rounds(queries: Sequence[DecodedQuery], indices: Sequence[int]) -> list[list[int]]:
     """The indices of queries cut into rounds in which each vehicle appears once, in order."""
     seen: dict[str, int] = defaultdict(int)
     rounds: list[list[int]] = []
@@ -119,7 +119,8 @@ class WarningService:
         self.network_index = {n.name: i for i, n in enumerate(self.networks)}
 
     # ------------------------------------------------------------------ queries
-    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries"), fleet: str = "") -> "EncodedAnswers":
+    def answer(self, queries: Sequence[DecodedQuery], loc: Sequence[Any] = ("body", "queries"),
+               fleet: str = "") -> "EncodedAnswers":  # fmt: skip
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
         The vehicles are read from the state store, answered, and their sessions written back
@@ -135,8 +136,8 @@ class WarningService:
             When the state store cannot be read or written now.
         """
         if fleet:
-            queries = [query.model_copy(update={"vehicle_id": vehicle_key(fleet, query.vehicle_id)}) for query in queries]
-        answers = EncodedAnswers([""] * len(queries), [""] * len(queries), [0] * len(queries))
+            queries = [msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id)) for query in queries]
+        answers = EncodedAnswers([None] * len(queries), [""] * len(queries), [0] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
             indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
@@ -147,7 +148,7 @@ class WarningService:
         self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles)
         return answers
 
-    def check(self, queries: Sequence[Query], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
+    def check(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
               fleet: str = "", indices: Sequence[int] | None = None) -> None:  # fmt: skip
         """Raise :class:`QueryErrors` listing what in ``queries`` (of ``fleet``'s vehicles, those at
         ``indices`` if given) the networks cannot answer."""
@@ -175,13 +176,13 @@ class WarningService:
         if errors:
             raise QueryErrors(errors)
 
-    def _geographic(self, query: Query) -> bool:
+    def _geographic(self, query: DecodedQuery) -> bool:
         """Whether the query's network (or, without one, any served network) is geo-referenced."""
         if query.network is None:
             return bool(self.geo_networks)
         return self.network_index[query.network] in self.geo_networks
 
-    def _lane_errors(self, query: Query, where: list[Any], vehicles: LoadedVehicles) -> list[dict[str, Any]]:
+    def _lane_errors(self, query: DecodedQuery, where: list[Any], vehicles: LoadedVehicles) -> list[dict[str, Any]]:
         network_index = self._lane_network(query, vehicles)
         if network_index is None:
             where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
@@ -193,7 +194,7 @@ class WarningService:
                            f"({length_m:g} m long)")]
         return []
 
-    def _lane_network(self, query: Query, vehicles: LoadedVehicles) -> int | None:
+    def _lane_network(self, query: DecodedQuery, vehicles: LoadedVehicles) -> int | None:
         """The network a query's lane id is taken on: the one it names, else the vehicle's own if it has the
         lane, else the first that has it; None if none has it."""
         if query.network is not None:
@@ -204,7 +205,7 @@ class WarningService:
         return next((i for i in candidates if self.networks[i].road_map.has_lane(query.lane_id)), None)
 
     # ------------------------------------------------------------------ evaluation
-    def place(self, queries: Sequence[Query], vehicles: LoadedVehicles) -> list[Placement]:
+    def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
         """Where each query is: its given lane, or the map match of its fix (queries of distinct
         vehicles, preferring each one's previous lane)."""
         placements: list[Placement | None] = [None] * len(queries)
@@ -231,7 +232,7 @@ class WarningService:
                                           float(matched.distance_m[row]), matched.reason[row])
         return placements
 
-    def _probes(self, queries: Sequence[Query]) -> Probes:
+    def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
         """Where to look for each query's fix: x, y on the network it names, else on every one;
         lon, lat in the projection of the network it names, else of each geo-referenced one."""
         rows, xy, map_index = [], [], []
@@ -239,7 +240,7 @@ class WarningService:
         for row, query in enumerate(queries):
             named = -1 if query.network is None else self.network_index[query.network]
             position = query.position
-            if not position.is_geographic:
+            if position.lon is None:
                 rows.append(row)
                 xy.append((position.x, position.y))
                 map_index.append(named)
@@ -254,18 +255,18 @@ class WarningService:
         return Probes(len(queries), np.array(rows, dtype=np.intp), np.array(xy, dtype=float).reshape(-1, 2),
                       np.array(map_index, dtype=np.intp))  # fmt: skip
 
-    def _fix_distance_m(self, query: Query, network_index: int) -> float:
+    def _fix_distance_m(self, query: DecodedQuery, network_index: int) -> float:
         """Distance from a query's fix to its given lane position, m; 0 without a fix, or with lon/lat
         on a network without a projection."""
         road_map = self.networks[network_index].road_map
         position = query.position
-        if position is None or (position.is_geographic and not road_map.has_projection):
+        if position is None or (position.lon is not None and not road_map.has_projection):
             return 0.0
-        x, y = (position.x, position.y) if not position.is_geographic else road_map.lonlat_to_xy(position.lon, position.lat)
+        x, y = (position.x, position.y) if position.lon is None else road_map.lonlat_to_xy(position.lon, position.lat)
         lane_x, lane_y = lane_point(road_map, query.lane_id, query.lane_pos_m)
         return float(math.hypot(x - lane_x, y - lane_y))
 
-    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], vehicles: LoadedVehicles,
+    def _answer_round(self, queries: Sequence[DecodedQuery], indices: Sequence[int], vehicles: LoadedVehicles,
                       answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
         """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
         placements = self.place(queries, vehicles)
@@ -281,11 +282,11 @@ class WarningService:
             for row, result in zip(rows, results):
                 vehicles.seen(queries[row].vehicle_id, placements[row].lane_id)
                 index = indices[row]
-                answers.json[index] = self.encode(result, placements[row], shown_id(fleet, result.vehicle_id))
+                answers.documents[index] = self.encode(result, placements[row], shown_id(fleet, result.vehicle_id))
                 answers.state[index] = result.state.value
                 answers.level[index] = int(result.warning.level)
 
-    def vehicle_input(self, query: Query, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
+    def vehicle_input(self, query: DecodedQuery, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
         """The engine's input for a placed query."""
         category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
         return VehicleInput(
@@ -300,81 +301,81 @@ class WarningService:
         )
 
     # ------------------------------------------------------------------ answers
-    def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> str:
+    def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> msgspec.Struct:
         """The contract's WarningAnswer of an engine answer for the vehicle its fleet calls
-        ``vehicle_id``, as JSON text (floats unrounded).
+        ``vehicle_id``, ready for msgspec to write (floats unrounded).
 
-        Written field by field rather than through a dict and :func:`json.dumps`: most
-        answers of a fleet are level 0, with no CPOI to locate.
+        Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
+        once for all, and only CPOIs that trigger are located.
         """
-        network = self.networks[placement.network_index]
         warning = answer.warning
-        fault = "null"
+        fault = None
         if answer.fault is not None:
             fault = answer.fault.value
             if answer.fault is Fault.NO_MAP_MATCH and placement.reason:
                 fault = f"{fault}: {placement.reason}"
-            fault = _json_text(fault)
-        target, triggers = "null", "[]"
+        target, triggers = None, []
         located = warning.triggers  # the target is one of them
         if located:
+            network = self.networks[placement.network_index]
             points = cpoi_points(answer.path, [t.curve_id for t in located], [t.part_index for t in located])
             positions = {id(t): position(network, p) for t, p in zip(located, points)}
             if warning.target is not None:
-                target = _dumps(_trigger(warning.target, positions[id(warning.target)]))
-            triggers = _dumps([_trigger(t, positions[id(t)]) for t in warning.triggers])
-        matched = "null"
+                target = _trigger(warning.target, positions[id(warning.target)])
+            triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]
+        matched = None
         if placement.lane_id is not None:
-            matched = (f'{{"lane_id": {_json_text(placement.lane_id)}, "lane_pos_m": {_number(placement.lane_pos_m)}, '
-                       f'"distance_m": {_number(placement.distance_m)}}}')
-        path_kind = "null" if answer.path is None else f'"{answer.path.kind.value}"'
-        return (f'{{"vehicle_id": {_json_text(vehicle_id)}, "state": "{answer.state.value}", "fault": {fault}, '
-                f'"level": {int(warning.level)}, "target": {target}, "triggers": {triggers}, "matched": {matched}, '
-                f'"path_kind": {path_kind}, "hmi": {_hmi_json(warning.hmi)}}}')
+            matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
+        path_kind = None if answer.path is None else answer.path.kind.value
+        return _AnswerDocument(vehicle_id, answer.state.value, fault, int(warning.level), target, triggers, matched,
+                               path_kind, _hmi_json(warning.hmi))  # fmt: skip
+
+
+def _document(model: type) -> type[msgspec.Struct]:
+    """A struct with the fields of a contract's model, in its order, to write its JSON with msgspec."""
+    return msgspec.defstruct(f"{model.__name__}Document", [(name, Any) for name in model.model_fields],
+                             gc=False, module=__name__)  # fmt: skip
+
+
+_AnswerDocument = _document(WarningAnswer)
+_MatchedDocument = _document(Matched)
+_ENCODER = msgspec.json.Encoder()
 
 
 @dataclass
 class EncodedAnswers:
-    """The answers of queries, in order: each the JSON text of the contract's WarningAnswer, with its
-    system state and warning level (for the metrics).
+    """The answers of queries, in order (the contract's WarningAnswer each, see :meth:`WarningService.encode`),
+    with their system states and warning levels (for the metrics).
     """
 
-    json: list[str]
+    documents: list[msgspec.Struct]
     state: list[str]
     level: list[int]
 
-    def batch_json(self) -> str:
+    def json(self, index: int) -> bytes:
+        """One answer's JSON."""
+        return _ENCODER.encode(self.documents[index])
+
+    def batch_json(self) -> bytes:
         """The contract's Answers: ``{"answers": [...]}``."""
-        return '{"answers": [' + ", ".join(self.json) + "]}"
-
-
-def _dumps(content: Any) -> str:
-    """JSON text of plain data; NaN and infinities are refused."""
-    return json.dumps(content, allow_nan=False)
-
-
-def _number(value: float) -> str:
-    """A finite number as JSON, unrounded (as :func:`json.dumps` writes it)."""
-    if not math.isfinite(value):
-        raise ValueError(f"out of range float values are not JSON compliant: {value!r}")
-    return float.__repr__(float(value))
+        return _ENCODER.encode({"answers": self.documents})
 
 
 @lru_cache(maxsize=None)
-def _hmi_json(hmi: HmiHint) -> str:
+def _hmi_json(hmi: HmiHint) -> msgspec.Raw:
     """The JSON of an HMI hint (there are three)."""
-    return _dumps({"visual": hmi.visual, "audible": hmi.audible})
+    return msgspec.Raw(_ENCODER.encode(_document(Hmi)(hmi.visual, hmi.audible)))
 
 
 def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
     return {
         "curve_id": trigger.curve_id,
-        "part_index": trigger.part_index,
+        "part_index": int(trigger.part_index),
         "level": int(trigger.level),
-        "distance_m": trigger.distance_m,
-        "radius_m": trigger.radius_m,
-        "warning_speed_kmh": trigger.warning_speed_kmh,
-        "warning_distance_m": trigger.warning_distance_m,
-        "held": trigger.held,
+        "distance_m": float(trigger.distance_m),
+        "radius_m": float(trigger.radius_m),
+        "warning_speed_kmh": float(trigger.warning_speed_kmh),
+        "warning_distance_m": float(trigger.warning_distance_m),
+        "held": bool(trigger.held),
         "position": point,
     }
