@@ -5,8 +5,10 @@ version and when they were last written). A session not written for the idle tim
 absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`.
 
 A request reads its vehicles with one statement (one snapshot) and writes them in one
-``BEGIN IMMEDIATE`` transaction, which checks the versions and writes the sessions and
-settings with ``executemany``. Writers of the workers take turns for the length of a write,
+``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
+``executemany`` whose count of changed rows tells whether every one was; only when some were
+not (another request wrote them meanwhile) are the stored versions read to find which, and
+the others written. Writers of the workers take turns for the length of a write,
 never for the engine's work in between; one that finds the lock taken tries again every
 :data:`LOCK_RETRY_S` (SQLite's own busy handler would sleep from 1 ms up to 100 ms, far longer
 than a write holds the lock). Settings are written with ``synchronous=FULL``
@@ -21,7 +23,7 @@ import json
 import sqlite3
 import time
 from pathlib import Path
-from typing import Callable, Collection, Mapping
+from typing import Callable, Collection, Iterable, Mapping
 
 from csws.standard import Category
 
@@ -49,10 +51,14 @@ _READ = (
 )
 _LIVE_VERSIONS = ("SELECT vehicle_id, version FROM vehicle_sessions "
                   "WHERE vehicle_id IN (SELECT value FROM json_each(?)) AND written_s >= ?")  # fmt: skip
-_WRITE_SESSION = (
-    "INSERT INTO vehicle_sessions (vehicle_id, version, written_s, session) VALUES (?, ?, ?, ?) "
-    "ON CONFLICT (vehicle_id) DO UPDATE SET version = excluded.version, written_s = excluded.written_s, "
-    "session = excluded.session"
+#: A session over the live one of the version read: no row changes when the version moved or the session expired.
+_UPDATE_SESSION = ("UPDATE vehicle_sessions SET version = version + 1, written_s = ?, session = ? "
+                   "WHERE vehicle_id = ? AND version = ? AND written_s >= ?")  # fmt: skip
+#: A first session (version 1): no row changes when another request wrote a live one meanwhile.
+_INSERT_SESSION = (
+    "INSERT INTO vehicle_sessions (vehicle_id, version, written_s, session) VALUES (?, 1, ?, ?) "
+    "ON CONFLICT (vehicle_id) DO UPDATE SET version = 1, written_s = excluded.written_s, session = excluded.session "
+    "WHERE vehicle_sessions.written_s < ?"
 )
 _WRITE_SETTING = "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)"
 
@@ -145,21 +151,37 @@ class SQLiteStore(StateStore):
         return conflicts
 
     def _write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
-        """Inside the write transaction: compare the versions, write what still matches, sweep when due."""
+        """Inside the write transaction: write the sessions still at the version read (and their
+        settings), sweep when due; return the others."""
         now_s = self.clock()
         oldest_live_s = now_s - self.idle_s
-        live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
-        conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
-        done = [(vehicle_id, w) for vehicle_id, w in writes.items() if vehicle_id not in conflicts]
-        self._db.executemany(_WRITE_SESSION, [(vehicle_id, w.expected_version + 1, now_s, w.session)
-                                              for vehicle_id, w in done])  # fmt: skip
+        self._db.execute("SAVEPOINT sessions")
+        conflicts: set[str] = set()
+        if self._write_sessions(writes.items(), now_s, oldest_live_s) != len(writes):
+            self._db.execute("ROLLBACK TO sessions")
+            live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
+            conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
+            self._write_sessions([(v, w) for v, w in writes.items() if v not in conflicts], now_s, oldest_live_s)
+        self._db.execute("RELEASE sessions")
         self._db.executemany(_WRITE_SETTING, [
             (vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
-            for vehicle_id, w in done if w.setting is not None])  # fmt: skip
+            for vehicle_id, w in writes.items() if w.setting is not None and vehicle_id not in conflicts])  # fmt: skip
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             self._db.execute("DELETE FROM vehicle_sessions WHERE written_s < ?", (oldest_live_s,))
             self._swept_s = now_s
         return conflicts
+
+    def _write_sessions(self, writes: Iterable[tuple[str, VehicleWrite]], now_s: float, oldest_live_s: float) -> int:
+        """Write each session over the live one of its expected version (or as the first one);
+        how many were written."""
+        updates, inserts = [], []
+        for vehicle_id, w in writes:
+            if w.expected_version:
+                updates.append((now_s, w.session, vehicle_id, w.expected_version, oldest_live_s))
+            else:
+                inserts.append((vehicle_id, now_s, w.session, oldest_live_s))
+        return (self._db.executemany(_UPDATE_SESSION, updates).rowcount if updates else 0) + (
+            self._db.executemany(_INSERT_SESSION, inserts).rowcount if inserts else 0)
 
     def _execute(self, statement: str, parameters: tuple = ()) -> sqlite3.Cursor:
         """Execute a statement that may need a lock another worker holds: tried again every
