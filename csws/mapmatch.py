@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 from itertools import chain
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -48,6 +48,7 @@ __all__ = [
     "compass_to_math_rad",
     "points_along",
     "lane_point",
+    "lane_points",
 ]
 
 
@@ -79,9 +80,9 @@ class MatchSettings:
             raise ValueError(f"continuation_links must not be negative, got {self.continuation_links!r}")
 
 
-@dataclass(frozen=True)
-class MapPosition:
-    """A lane of one of the matched road maps: where a vehicle was last matched.
+class MapPosition(NamedTuple):
+    """A lane of one of the matched road maps: where a vehicle was last matched (a named tuple:
+    a batch has thousands).
 
     Attributes
     ----------
@@ -176,10 +177,15 @@ def points_along(xy: np.ndarray, s: np.ndarray, vertex_s: np.ndarray | None = No
     return np.column_stack((np.interp(s, vertex_s, xy[:, 0]), np.interp(s, vertex_s, xy[:, 1])))
 
 
+def lane_points(road_map: RoadMap, lane_id: str, lane_pos_m: np.ndarray) -> np.ndarray:
+    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (see :attr:`csws.roadmap.Lane.position_factor`)."""
+    shape_s = np.asarray(lane_pos_m, dtype=float) / road_map.lane(lane_id).position_factor
+    return points_along(road_map.lane_shape(lane_id), shape_s)
+
+
 def lane_point(road_map: RoadMap, lane_id: str, lane_pos_m: float) -> tuple[float, float]:
-    """The point of a lane at a SUMO lane position, m (see :attr:`csws.roadmap.Lane.position_factor`)."""
-    lane = road_map.lane(lane_id)
-    x, y = points_along(road_map.lane_shape(lane_id), np.array([lane_pos_m / lane.position_factor]))[0]
+    """The point of a lane at a SUMO lane position, m (see :func:`lane_points`)."""
+    x, y = lane_points(road_map, lane_id, np.array([lane_pos_m]))[0]
     return float(x), float(y)
 
 

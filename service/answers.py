@@ -29,8 +29,9 @@ import msgspec
 import numpy as np
 
 from csws.engine import Answer, VehicleInput
-from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_point
-from csws.state import Fault
+from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_points
+from csws.standard import Level
+from csws.state import Fault, SystemState
 from csws.warning import HmiHint, Trigger
 
 from .decoding import DecodedQuery
@@ -137,7 +138,7 @@ class WarningService:
         """
         if fleet:
             queries = [msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id)) for query in queries]
-        answers = EncodedAnswers([None] * len(queries), [""] * len(queries), [0] * len(queries))
+        answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
             indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
@@ -154,27 +155,34 @@ class WarningService:
         ``indices`` if given) the networks cannot answer."""
         errors: list[dict[str, Any]] = []
         for index in range(len(queries)) if indices is None else indices:
-            query = queries[index]
-            where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
-            if query.category is None and vehicles.category(query.vehicle_id) is None:
-                errors.append(_error([*where, "category"], "category is required: give it in the query or "
-                                     f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))
-            if query.network is not None and query.network not in self.network_index:
-                errors.append(_error([*where, "network"], f"unknown network {query.network!r}: served are "
-                                     + ", ".join(sorted(self.network_index))))
-                continue
-            if query.position is not None and query.position.is_geographic and not self._geographic(query):
-                errors.append(_error([*where, "position"], "the served networks are not geo-referenced: "
-                                     "give the position as x and y in network metres"))
-            if query.lane_id is not None:
-                errors += self._lane_errors(query, where, vehicles)
-            known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
-            unknown = [edge for edge in query.route or () if edge not in known]
-            if unknown:
-                where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
-                errors.append(_error([*where, "route"], f"unknown edge id {unknown[0]!r}: {where_not}"))
+            problems = self._problems(queries[index], vehicles, fleet)
+            if problems:
+                where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
+                errors += [_error([*where, field], message) for field, message in problems]
         if errors:
             raise QueryErrors(errors)
+
+    def _problems(self, query: DecodedQuery, vehicles: LoadedVehicles, fleet: str) -> list[tuple[str, str]]:
+        """What the networks cannot answer in one query: (field, why) each."""
+        problems = []
+        if query.category is None and vehicles.category(query.vehicle_id) is None:
+            problems.append(("category", "category is required: give it in the query or "
+                             f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))  # fmt: skip
+        if query.network is not None and query.network not in self.network_index:
+            return problems + [("network", f"unknown network {query.network!r}: served are "
+                                + ", ".join(sorted(self.network_index)))]  # fmt: skip
+        if query.position is not None and query.position.is_geographic and not self._geographic(query):
+            problems.append(("position", "the served networks are not geo-referenced: "
+                             "give the position as x and y in network metres"))  # fmt: skip
+        if query.lane_id is not None:
+            problems += self._lane_problems(query, vehicles)
+        if query.route:
+            known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
+            unknown = [edge for edge in query.route if edge not in known]
+            if unknown:
+                where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
+                problems.append(("route", f"unknown edge id {unknown[0]!r}: {where_not}"))
+        return problems
 
     def _geographic(self, query: DecodedQuery) -> bool:
         """Whether the query's network (or, without one, any served network) is geo-referenced."""
@@ -182,41 +190,41 @@ class WarningService:
             return bool(self.geo_networks)
         return self.network_index[query.network] in self.geo_networks
 
-    def _lane_errors(self, query: DecodedQuery, where: list[Any], vehicles: LoadedVehicles) -> list[dict[str, Any]]:
+    def _lane_problems(self, query: DecodedQuery, vehicles: LoadedVehicles) -> list[tuple[str, str]]:
         network_index = self._lane_network(query, vehicles)
         if network_index is None:
             where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
-            return [_error([*where, "lane_id"], f"unknown lane id {query.lane_id!r}: {where_not}")]
+            return [("lane_id", f"unknown lane id {query.lane_id!r}: {where_not}")]
         length_m = self.networks[network_index].road_map.lane(query.lane_id).length_m
         if query.lane_pos_m > length_m:
-            return [_error([*where, "lane_pos_m"],
-                           f"lane position {query.lane_pos_m:g} m lies beyond the end of lane {query.lane_id!r} "
-                           f"({length_m:g} m long)")]
+            return [("lane_pos_m", f"lane position {query.lane_pos_m:g} m lies beyond the end of lane "
+                     f"{query.lane_id!r} ({length_m:g} m long)")]  # fmt: skip
         return []
 
     def _lane_network(self, query: DecodedQuery, vehicles: LoadedVehicles) -> int | None:
         """The network a query's lane id is taken on: the one it names, else the vehicle's own if it has the
         lane, else the first that has it; None if none has it."""
         if query.network is not None:
-            candidates = [self.network_index[query.network]]
-        else:
-            own = vehicles.network_of(query.vehicle_id)
-            candidates = [own] + [i for i in range(len(self.networks)) if i != own]
-        return next((i for i in candidates if self.networks[i].road_map.has_lane(query.lane_id)), None)
+            named = self.network_index[query.network]
+            return named if self.networks[named].road_map.has_lane(query.lane_id) else None
+        own = vehicles.network_of(query.vehicle_id)
+        if self.networks[own].road_map.has_lane(query.lane_id):
+            return own
+        return next((i for i, network in enumerate(self.networks) if network.road_map.has_lane(query.lane_id)), None)
 
     # ------------------------------------------------------------------ evaluation
     def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
         """Where each query is: its given lane, or the map match of its fix (queries of distinct
         vehicles, preferring each one's previous lane)."""
         placements: list[Placement | None] = [None] * len(queries)
-        to_match = []
+        on_lanes, to_match = [], []
         for i, query in enumerate(queries):
-            if query.lane_id is None:
-                to_match.append(i)
-                continue
-            network_index = self._lane_network(query, vehicles)
-            placements[i] = Placement(network_index, query.lane_id, query.lane_pos_m,
-                                      self._fix_distance_m(query, network_index), None)
+            (to_match if query.lane_id is None else on_lanes).append(i)
+        if on_lanes:
+            networks = [self._lane_network(queries[i], vehicles) for i in on_lanes]
+            distances_m = self._fix_distances_m([queries[i] for i in on_lanes], networks)
+            for i, network_index, distance_m in zip(on_lanes, networks, distances_m):
+                placements[i] = Placement(network_index, queries[i].lane_id, queries[i].lane_pos_m, distance_m, None)
         if to_match:
             fixes = [queries[i] for i in to_match]
             matched = self.matcher.match(
@@ -224,12 +232,13 @@ class WarningService:
                 np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
                 [vehicles.previous(query.vehicle_id) for query in fixes],
             )
-            for row, i in enumerate(to_match):
-                network_index = int(matched.map_index[row])
+            for i, query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
+                to_match, fixes, matched.map_index.tolist(), matched.lane_id, matched.lane_pos_m.tolist(),
+                matched.distance_m.tolist(), matched.reason,
+            ):  # fmt: skip
                 if network_index < 0:
-                    network_index = vehicles.network_of(queries[i].vehicle_id)
-                placements[i] = Placement(network_index, matched.lane_id[row], float(matched.lane_pos_m[row]),
-                                          float(matched.distance_m[row]), matched.reason[row])
+                    network_index = vehicles.network_of(query.vehicle_id)
+                placements[i] = Placement(network_index, lane_id, lane_pos_m, distance_m, reason)
         return placements
 
     def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
@@ -255,16 +264,27 @@ class WarningService:
         return Probes(len(queries), np.array(rows, dtype=np.intp), np.array(xy, dtype=float).reshape(-1, 2),
                       np.array(map_index, dtype=np.intp))  # fmt: skip
 
-    def _fix_distance_m(self, query: DecodedQuery, network_index: int) -> float:
-        """Distance from a query's fix to its given lane position, m; 0 without a fix, or with lon/lat
-        on a network without a projection."""
-        road_map = self.networks[network_index].road_map
-        position = query.position
-        if position is None or (position.lon is not None and not road_map.has_projection):
-            return 0.0
-        x, y = (position.x, position.y) if position.lon is None else road_map.lonlat_to_xy(position.lon, position.lat)
-        lane_x, lane_y = lane_point(road_map, query.lane_id, query.lane_pos_m)
-        return float(math.hypot(x - lane_x, y - lane_y))
+    def _fix_distances_m(self, queries: Sequence[DecodedQuery], networks: Sequence[int]) -> list[float]:
+        """Distance from each query's fix to its given lane position on its network, m; 0 without a fix,
+        or with lon/lat on a network without a projection. The queries on one lane are placed on it
+        in one interpolation."""
+        distances_m = [0.0] * len(queries)
+        on_lane: dict[tuple[int, str], list[int]] = defaultdict(list)
+        for row, (query, network_index) in enumerate(zip(queries, networks)):
+            position = query.position
+            if position is not None and (position.lon is None or self.networks[network_index].road_map.has_projection):
+                on_lane[(network_index, query.lane_id)].append(row)
+        for (network_index, lane_id), rows in on_lane.items():
+            road_map = self.networks[network_index].road_map
+            fixes = [queries[row].position for row in rows]
+            geographic = [k for k, fix in enumerate(fixes) if fix.lon is not None]
+            xy = np.array([(fix.x, fix.y) if fix.lon is None else (0.0, 0.0) for fix in fixes])
+            if geographic:
+                xy[geographic] = road_map.lonlat_to_xy_many(np.array([(fixes[k].lon, fixes[k].lat) for k in geographic]))
+            lane_xy = lane_points(road_map, lane_id, np.array([queries[row].lane_pos_m for row in rows]))
+            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist()):
+                distances_m[row] = math.hypot(x - lane_x, y - lane_y)
+        return distances_m
 
     def _answer_round(self, queries: Sequence[DecodedQuery], indices: Sequence[int], vehicles: LoadedVehicles,
                       answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
@@ -280,30 +300,32 @@ class WarningService:
             # One vehicle skips the batch set-up; both paths give the same answer.
             results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
             for row, result in zip(rows, results):
-                vehicles.seen(queries[row].vehicle_id, placements[row].lane_id)
+                placement = placements[row]
+                vehicles.seen(result.vehicle_id, placement.lane_id)
                 index = indices[row]
-                answers.documents[index] = self.encode(result, placements[row], shown_id(fleet, result.vehicle_id))
-                answers.state[index] = result.state.value
-                answers.level[index] = int(result.warning.level)
+                answers.documents[index] = self.encode(result, placement, shown_id(fleet, result.vehicle_id))
+                answers.state[index] = result.state
+                answers.level[index] = result.warning.level
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
         """The engine's input for a placed query."""
-        category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
+        matched = placement.lane_id is not None
         return VehicleInput(
-            vehicle_id=query.vehicle_id,
-            category=category.value,
-            speed_kmh=query.speed_kmh,
-            lane_id=placement.lane_id,
-            lane_pos_m=placement.lane_pos_m if placement.lane_id is not None else 0.0,
-            route_edges=tuple(query.route) if query.route else None,
-            timestamp_s=query.timestamp_s,
-            age_s=query.age_s,
+            query.vehicle_id,
+            query.category if query.category is not None else vehicles.category(query.vehicle_id),
+            query.speed_kmh,
+            placement.lane_id,
+            placement.lane_pos_m if matched else 0.0,
+            tuple(query.route) if query.route else None,
+            query.timestamp_s,
+            query.age_s,
         )
 
     # ------------------------------------------------------------------ answers
     def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> msgspec.Struct:
         """The contract's WarningAnswer of an engine answer for the vehicle its fleet calls
-        ``vehicle_id``, ready for msgspec to write (floats unrounded).
+        ``vehicle_id``, ready for msgspec to write (floats unrounded; the state, level and path
+        kind as the enumerations' values).
 
         Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
         once for all, and only CPOIs that trigger are located.
@@ -326,9 +348,9 @@ class WarningService:
         matched = None
         if placement.lane_id is not None:
             matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
-        path_kind = None if answer.path is None else answer.path.kind.value
-        return _AnswerDocument(vehicle_id, answer.state.value, fault, int(warning.level), target, triggers, matched,
-                               path_kind, _hmi_json(warning.hmi))  # fmt: skip
+        path_kind = None if answer.path is None else answer.path.kind
+        return _AnswerDocument(vehicle_id, answer.state, fault, warning.level, target, triggers, matched, path_kind,
+                               _hmi_json(warning.hmi))  # fmt: skip
 
 
 def _document(model: type) -> type[msgspec.Struct]:
@@ -349,8 +371,8 @@ class EncodedAnswers:
     """
 
     documents: list[msgspec.Struct]
-    state: list[str]
-    level: list[int]
+    state: list[SystemState]
+    level: list[Level]
 
     def json(self, index: int) -> bytes:
         """One answer's JSON."""

@@ -40,7 +40,7 @@ TRANSACTION_ATTEMPTS = 5
 Answered = TypeVar("Answered")
 
 
-@dataclass
+@dataclass(slots=True)
 class Session:
     """A vehicle seen recently, during a request.
 
@@ -73,6 +73,8 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
         status = VehicleStatus(self.state, self.switched_on, self.activated, self.last_timestamp_s, self.fault)
+        if not (self.held_points[0] or self.held_points[1]):
+            return VehicleMemory(status)  # no level held: nothing of the release rule to take up
         return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s))
 
     @classmethod
@@ -107,9 +109,9 @@ class LoadedVehicles:
         for vehicle_id, vehicle in stored.items():
             record = registry.decode(vehicle.session)
             if record is not None:
-                session = Session(registry.network_index[record.network], record.lane_id)
-                self.sessions[vehicle_id] = session
-                self.engines[session.network_index].restore(vehicle_id, record.memory())
+                network_index = registry.network_index[record.network]
+                self.sessions[vehicle_id] = Session(network_index, record.lane_id)
+                self.engines[network_index].restore(vehicle_id, record.memory())
 
     def __enter__(self) -> "LoadedVehicles":
         return self
@@ -198,12 +200,13 @@ class LoadedVehicles:
     def writes(self) -> dict[str, VehicleWrite]:
         """What to store of the vehicles this request answered or set."""
         writes = {}
+        stored, new_settings, encode = self.stored, self.new_settings, _ENCODER.encode
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
             record = SessionRecord.of(self.network_names[session.network_index], session.lane_id, memory)
-            writes[vehicle_id] = VehicleWrite(self.stored.get(vehicle_id, NOTHING_STORED).version,
-                                              _ENCODER.encode(record), self.new_settings.get(vehicle_id))  # fmt: skip
+            writes[vehicle_id] = VehicleWrite(stored.get(vehicle_id, NOTHING_STORED).version, encode(record),
+                                              new_settings.get(vehicle_id))  # fmt: skip
         return writes
 
 
