@@ -36,7 +36,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from .geometry import wrap_angle_rad
-from .lanesearch import LaneMatches, LaneSearch, LaneShapes
+from .lanesearch import LaneMatches, LaneSearch, LaneShapes, least_per_group
 from .roadmap import RoadMap
 
 __all__ = [
@@ -207,14 +207,17 @@ class _Chosen:
         self.near = np.zeros(count, dtype=bool)
 
     def choose(self, candidates: _Candidates, continued: np.ndarray, decided: np.ndarray) -> None:
-        """For the fixes ``decided`` (a mask over fixes): the continuing agreeing candidate if any,
-        else the nearest agreeing one; ties to the lower lane number (the first map)."""
+        """For the fixes ``decided`` (a mask over fixes): the nearest agreeing candidate that continues
+        the previous lane if any, else the nearest agreeing one; ties to the lower lane number (the
+        first map)."""
         fix, found = candidates.fix, candidates.found
         mine = decided[fix]
         self.near[fix[mine]] = True
-        keep = np.flatnonzero(candidates.agrees & mine)
-        order = keep[np.lexsort((found.lane_index[keep], found.distance_m[keep], ~continued[keep], fix[keep]))]
-        first = order[np.concatenate(([True], fix[order][1:] != fix[order][:-1]))] if order.size else order
+        eligible = candidates.agrees & mine
+        continuing = np.zeros(len(decided), dtype=bool)
+        continuing[fix[eligible & continued]] = True
+        rows = np.flatnonzero(eligible & (continued | ~continuing[fix]))
+        first = rows[least_per_group(fix[rows], found.distance_m[rows], found.lane_index[rows])]
         chosen = fix[first]
         self.lane_index[chosen] = found.lane_index[first]
         self.lane_pos_m[chosen] = found.lane_pos_m[first]
@@ -242,12 +245,14 @@ class MapMatcher:
         self.road_maps = tuple(road_maps)
         self.settings = settings
         lane_counts = [len(road_map.lane_ids) for road_map in self.road_maps]
-        #: The number of each map's first lane in the joined index, and the lane count at the end.
-        self._first_lane = np.concatenate(([0], np.cumsum(lane_counts))).astype(np.intp)
+        first_lane = np.concatenate(([0], np.cumsum(lane_counts))).astype(np.intp)
+        #: The lanes (from, up to) of each map by its index, and of all maps in the last row (for index -1).
+        self._lane_range = np.array([*zip(first_lane[:-1], first_lane[1:]), (0, first_lane[-1])], dtype=np.intp)
         self._lane_map = np.repeat(np.arange(len(self.road_maps), dtype=np.intp), lane_counts)
         self._lane_ids = np.concatenate([road_map.lane_shapes.lane_ids for road_map in self.road_maps])
         self._search = LaneSearch(LaneShapes.joined([road_map.lane_shapes for road_map in self.road_maps]))
-        self._edge_lanes = [self._lanes_by_edge(map_index) for map_index in range(len(self.road_maps))]
+        self._edge_lanes = [self._lanes_by_edge(map_index, int(first_lane[map_index]))
+                            for map_index in range(len(self.road_maps))]  # fmt: skip
         self._continuations = lru_cache(maxsize=65536)(self._continuation_lanes)
         self._heading_tolerance_rad = math.radians(settings.heading_tolerance_deg)
 
@@ -272,21 +277,21 @@ class MapMatcher:
         """
         count = probes.count
         heading = np.full(count, np.nan) if heading_deg is None else np.asarray(heading_deg, dtype=float)
-        previous = [None] * count if previous is None else list(previous)
         chosen = _Chosen(count)
-        lane_range = self._lane_ranges(probes.map_index)
-        decided = np.zeros(count, dtype=bool)
-        previous_map = np.array([-1 if p is None else p.map_index for p in previous], dtype=np.intp)
-        if (previous_map >= 0).any():
-            decided = self._match_on_previous_maps(probes, lane_range, heading, previous, previous_map, chosen)
-        rows = np.flatnonzero(~decided[probes.fix])
+        rows = np.arange(len(probes.fix))
+        if previous is not None and any(p is not None for p in previous):
+            decided = self._match_on_previous_maps(probes, heading, previous, chosen)
+            rows = rows[~decided[probes.fix]]
+        else:
+            decided = np.zeros(count, dtype=bool)
         if rows.size:
-            candidates = self._candidates(probes, rows, lane_range[rows], heading)
+            confined = probes.map_index[rows]
+            lane_range = None if (confined < 0).all() else self._lane_range[confined]
+            candidates = self._candidates(probes, rows, lane_range, heading)
             chosen.choose(candidates, np.zeros(len(candidates.fix), dtype=bool), ~decided)
         return self._fix_matches(chosen, heading)
 
-    def _match_on_previous_maps(self, probes: Probes, lane_range: np.ndarray, heading: np.ndarray,
-                                previous: Sequence[MapPosition | None], previous_map: np.ndarray,
+    def _match_on_previous_maps(self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None],
                                 chosen: _Chosen) -> np.ndarray:  # fmt: skip
         """The first pass: the fixes of vehicles with a previous match, on their previous map alone.
 
@@ -294,32 +299,24 @@ class MapMatcher:
         (such a lane wins over any other), or when the previous map is the only one it may
         be on. Returns the decided fixes, a mask.
         """
-        rows = np.flatnonzero(previous_map[probes.fix] >= 0)
-        own = self._lane_ranges(previous_map[probes.fix[rows]])
-        covered = (lane_range[rows, 0] <= own[:, 0]) & (own[:, 1] <= lane_range[rows, 1])
-        rows, own = rows[covered], own[covered]
-        candidates = self._candidates(probes, rows, own, heading)
+        previous_map = np.array([-1 if p is None else p.map_index for p in previous], dtype=np.intp)[probes.fix]
+        probe_range = self._lane_range[probes.map_index]
+        own = self._lane_range[previous_map]
+        # The probes of such fixes that may be on the previous map (all but those confined to another).
+        rows = np.flatnonzero((previous_map >= 0) & (probe_range[:, 0] <= own[:, 0]) & (own[:, 1] <= probe_range[:, 1]))
+        candidates = self._candidates(probes, rows, None if len(self.road_maps) == 1 else own[rows], heading)
         continued = self._continued(candidates, previous)
-        probes_of_fix = np.bincount(probes.fix, minlength=probes.count)
-        only_here = np.bincount(probes.fix[rows[(lane_range[rows] == own).all(axis=1)]], minlength=probes.count)
-        decided = (only_here == probes_of_fix) & (only_here > 0)
+        only_here = np.bincount(probes.fix[rows[(probe_range[rows] == own[rows]).all(axis=1)]], minlength=probes.count)
+        decided = (only_here > 0) & (only_here == np.bincount(probes.fix, minlength=probes.count))
         decided[candidates.fix[continued & candidates.agrees]] = True
         chosen.choose(candidates, continued, decided)
         return decided
 
-    def _lane_ranges(self, map_index: np.ndarray) -> np.ndarray:
-        """``(p, 2)``: the lane numbers of each map (from, up to), all lanes for -1."""
-        everywhere = map_index < 0
-        ranges = np.column_stack((self._first_lane[map_index], self._first_lane[map_index + 1]))
-        ranges[everywhere] = (0, self._first_lane[-1])
-        return ranges
-
-    def _candidates(self, probes: Probes, rows: np.ndarray, lane_range: np.ndarray, heading_deg: np.ndarray) -> _Candidates:
-        """Every lane within the tolerance of the probes ``rows``, each confined to its lane range,
-        with the direction check of its fix's heading."""
-        everywhere = bool((lane_range[:, 0] == 0).all() and (lane_range[:, 1] == self._first_lane[-1]).all())
-        found = self._search.nearest_per_lane(probes.xy[rows], self.settings.tolerance_m,
-                                              None if everywhere else lane_range)  # fmt: skip
+    def _candidates(self, probes: Probes, rows: np.ndarray, lane_range: np.ndarray | None,
+                    heading_deg: np.ndarray) -> _Candidates:  # fmt: skip
+        """Every lane within the tolerance of the probes ``rows`` (each confined to its lane range when
+        given), with the direction check of its fix's heading."""
+        found = self._search.nearest_per_lane(probes.xy[rows], self.settings.tolerance_m, lane_range)
         fix = probes.fix[rows][found.point_index]
         off_rad = wrap_angle_rad(found.heading_rad - compass_to_math_rad(heading_deg[fix]))
         return _Candidates(fix, found, ~(np.abs(off_rad) > self._heading_tolerance_rad))  # a NaN heading agrees
@@ -368,10 +365,10 @@ class MapMatcher:
         edge_lanes = self._edge_lanes[map_index]
         return frozenset(chain.from_iterable(edge_lanes[road_map.lane(lane).edge_id] for lane in reached))
 
-    def _lanes_by_edge(self, map_index: int) -> dict[str, tuple[int, ...]]:
-        """The lanes of each edge of one map, by number in the joined index."""
+    def _lanes_by_edge(self, map_index: int, first_lane: int) -> dict[str, tuple[int, ...]]:
+        """The lanes of each edge of one map, by number in the joined index (from ``first_lane``)."""
         road_map = self.road_maps[map_index]
         edge_lanes: dict[str, list[int]] = {}
-        for number, lane_id in enumerate(road_map.lane_ids, start=int(self._first_lane[map_index])):
+        for number, lane_id in enumerate(road_map.lane_ids, start=first_lane):
             edge_lanes.setdefault(road_map.lane(lane_id).edge_id, []).append(number)
         return {edge: tuple(lanes) for edge, lanes in edge_lanes.items()}

@@ -163,9 +163,10 @@ class SQLiteStore(StateStore):
             conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
             self._write_sessions([(v, w) for v, w in writes.items() if v not in conflicts], now_s, oldest_live_s)
         self._db.execute("RELEASE sessions")
-        self._db.executemany(_WRITE_SETTING, [
-            (vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
-            for vehicle_id, w in writes.items() if w.setting is not None and vehicle_id not in conflicts])  # fmt: skip
+        settings = [(vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
+                    for vehicle_id, w in writes.items() if w.setting is not None and vehicle_id not in conflicts]
+        if settings:
+            self._db.executemany(_WRITE_SETTING, settings)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             self._db.execute("DELETE FROM vehicle_sessions WHERE written_s < ?", (oldest_live_s,))
             self._swept_s = now_s
