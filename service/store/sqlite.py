@@ -20,6 +20,7 @@ machine itself fails, costing those vehicles a fresh session.
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 import time
 from pathlib import Path
@@ -97,19 +98,43 @@ class SQLiteStore(StateStore):
         self.idle_s = float(idle_s)
         self.clock = clock
         self._swept_s = -float("inf")
+        self._pid = os.getpid()
+        self._connection = self._connect()
+
+    def _connect(self) -> sqlite3.Connection:
+        """A connection to the database, its tables made if missing.
+
+        Raises
+        ------
+        OSError
+            One line naming the file, when it cannot be opened as a database.
+        """
         self._durable = True
         try:
-            self._db = sqlite3.connect(self.name, check_same_thread=False, isolation_level=None,
-                                       timeout=STORE_TIMEOUT_S)  # fmt: skip
+            connection = sqlite3.connect(self.name, check_same_thread=False, isolation_level=None,
+                                         timeout=STORE_TIMEOUT_S)  # fmt: skip
             if self.name != ":memory:":
                 # Readers never wait for the writer: the workers of one service share the file.
-                self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=FULL")
+                connection.execute("PRAGMA journal_mode=WAL")
+            connection.execute("PRAGMA synchronous=FULL")
             for statement in _SCHEMA:
-                self._db.execute(statement)
-            self._db.execute("PRAGMA busy_timeout=0")  # from now on waits are _execute's
+                connection.execute(statement)
+            connection.execute("PRAGMA busy_timeout=0")  # from now on waits are _execute's
         except sqlite3.Error as exc:
-            raise OSError(f"cannot open the vehicle state database {path}: {exc}") from None
+            raise OSError(f"cannot open the vehicle state database {self.name}: {exc}") from None
+        return connection
+
+    @property
+    def _db(self) -> sqlite3.Connection:
+        """This process's connection: a worker forked after the store was opened makes its own, since a
+        SQLite connection must not be used on both sides of a fork."""
+        if self._pid != os.getpid():
+            try:
+                self._connection = self._connect()
+            except OSError as exc:
+                raise StoreUnavailable(str(exc)) from None
+            self._pid = os.getpid()
+        return self._connection
 
     def check(self) -> None:
         """Read every setting once: a database of another program, or one holding an unknown
@@ -214,4 +239,5 @@ class SQLiteStore(StateStore):
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
 
     def close(self) -> None:
-        self._db.close()
+        if self._pid == os.getpid():
+            self._connection.close()
