@@ -200,29 +200,34 @@ class _Chosen:
     """Per fix, the candidate chosen so far (filled pass by pass)."""
 
     def __init__(self, count: int) -> None:
-        self.lane_index = np.full(count, -1, dtype=np.intp)
-        self.lane_pos_m = np.full(count, np.nan)
-        self.distance_m = np.full(count, np.nan)
+        self.lane_index = np.empty(count, dtype=np.intp)
+        self.lane_index.fill(-1)
+        self.lane_pos_m = np.empty(count)
+        self.lane_pos_m.fill(np.nan)
+        self.distance_m = self.lane_pos_m.copy()
         self.continued = np.zeros(count, dtype=bool)
         self.near = np.zeros(count, dtype=bool)
 
-    def choose(self, candidates: _Candidates, continued: np.ndarray, decided: np.ndarray) -> None:
-        """For the fixes ``decided`` (a mask over fixes): the nearest agreeing candidate that continues
-        the previous lane if any, else the nearest agreeing one; ties to the lower lane number (the
-        first map)."""
+    def choose(self, candidates: _Candidates, continued: np.ndarray | None, decided: np.ndarray) -> None:
+        """For the fixes ``decided`` (a mask over fixes): the nearest agreeing candidate that
+        ``continued`` the previous lane if any (None: none does), else the nearest agreeing one; ties
+        to the lower lane number (the first map)."""
         fix, found = candidates.fix, candidates.found
         mine = decided[fix]
         self.near[fix[mine]] = True
         eligible = candidates.agrees & mine
-        continuing = np.zeros(len(decided), dtype=bool)
-        continuing[fix[eligible & continued]] = True
-        rows = np.flatnonzero(eligible & (continued | ~continuing[fix]))
+        if continued is not None and continued.any():
+            continuing = np.zeros(len(decided), dtype=bool)
+            continuing[fix[eligible & continued]] = True
+            eligible &= continued | ~continuing[fix]
+        rows = eligible.nonzero()[0]
         first = rows[least_per_group(fix[rows], found.distance_m[rows], found.lane_index[rows])]
         chosen = fix[first]
         self.lane_index[chosen] = found.lane_index[first]
         self.lane_pos_m[chosen] = found.lane_pos_m[first]
         self.distance_m[chosen] = found.distance_m[first]
-        self.continued[chosen] = continued[first]
+        if continued is not None:
+            self.continued[chosen] = continued[first]
 
 
 class MapMatcher:
@@ -278,17 +283,16 @@ class MapMatcher:
         count = probes.count
         heading = np.full(count, np.nan) if heading_deg is None else np.asarray(heading_deg, dtype=float)
         chosen = _Chosen(count)
-        rows = np.arange(len(probes.fix))
         if previous is not None and any(p is not None for p in previous):
             decided = self._match_on_previous_maps(probes, heading, previous, chosen)
-            rows = rows[~decided[probes.fix]]
+            rows = (~decided[probes.fix]).nonzero()[0]
         else:
             decided = np.zeros(count, dtype=bool)
+            rows = np.arange(len(probes.fix))
         if rows.size:
             confined = probes.map_index[rows]
             lane_range = None if (confined < 0).all() else self._lane_range[confined]
-            candidates = self._candidates(probes, rows, lane_range, heading)
-            chosen.choose(candidates, np.zeros(len(candidates.fix), dtype=bool), ~decided)
+            chosen.choose(self._candidates(probes, rows, lane_range, heading), None, ~decided)
         return self._fix_matches(chosen, heading)
 
     def _match_on_previous_maps(self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None],
@@ -299,15 +303,19 @@ class MapMatcher:
         (such a lane wins over any other), or when the previous map is the only one it may
         be on. Returns the decided fixes, a mask.
         """
-        previous_map = np.array([-1 if p is None else p.map_index for p in previous], dtype=np.intp)[probes.fix]
-        probe_range = self._lane_range[probes.map_index]
-        own = self._lane_range[previous_map]
-        # The probes of such fixes that may be on the previous map (all but those confined to another).
-        rows = np.flatnonzero((previous_map >= 0) & (probe_range[:, 0] <= own[:, 0]) & (own[:, 1] <= probe_range[:, 1]))
-        candidates = self._candidates(probes, rows, None if len(self.road_maps) == 1 else own[rows], heading)
+        previous_map = np.array([-1 if p is None else p.map_index for p in previous], dtype=np.intp)
+        probe_previous = previous_map[probes.fix]
+        if len(self.road_maps) == 1:  # every probe is on the one map
+            rows, lane_range = (probe_previous >= 0).nonzero()[0], None
+            elsewhere = np.zeros(probes.count, dtype=bool)
+        else:
+            here = probes.map_index == probe_previous  # confined to the previous map
+            rows = ((probe_previous >= 0) & (here | (probes.map_index < 0))).nonzero()[0]
+            lane_range = self._lane_range[probe_previous[rows]]
+            elsewhere = np.bincount(probes.fix[~here], minlength=probes.count) > 0
+        candidates = self._candidates(probes, rows, lane_range, heading)
         continued = self._continued(candidates, previous)
-        only_here = np.bincount(probes.fix[rows[(probe_range[rows] == own[rows]).all(axis=1)]], minlength=probes.count)
-        decided = (only_here > 0) & (only_here == np.bincount(probes.fix, minlength=probes.count))
+        decided = (previous_map >= 0) & ~elsewhere
         decided[candidates.fix[continued & candidates.agrees]] = True
         chosen.choose(candidates, continued, decided)
         return decided
