@@ -9,13 +9,10 @@ cannot be read stops start-up. The OpenAPI documentation is at ``/docs`` (Swagge
 
 from __future__ import annotations
 
-import asyncio
-import functools
 import gc
 import logging
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any, Callable
 
@@ -52,6 +49,7 @@ from .schemas import (
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import LoadedVehicles, VehicleRegistry
+from .work import WorkThread
 from .workers import leave_with_master
 
 __all__ = ["create_app", "MAX_ERRORS_SHOWN"]
@@ -150,16 +148,10 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     service = WarningService(networks, registry, settings.match_settings())
     metrics = Metrics()
     curve_cache: dict[int, list[dict[str, Any]]] = {}
-    # The engines hold the vehicles of one piece of work at a time, in arrival order (the
-    # lock). The work (queries and batches with their round trips to the state store, the
-    # curve index, horizons) runs on a thread of its own, so that the event loop stays free
-    # for other requests and /healthz.
-    work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="csws-work")
-    state_lock = asyncio.Lock()
-
-    async def off_loop(function: Callable[..., Any], *args: Any) -> Any:
-        async with state_lock:
-            return await asyncio.get_running_loop().run_in_executor(work, functools.partial(function, *args))
+    # The work (queries and batches with their round trips to the state store, the curve index,
+    # horizons) runs on a thread of its own, in arrival order (service.work).
+    work = WorkThread()
+    off_loop = work.run
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):
@@ -167,7 +159,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         gc.freeze()  # the networks and engines live as long as the app: keep them out of every collection
         yield
         gc.unfreeze()
-        work.shutdown(wait=True)
+        work.close()
         store.close()
 
     app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
