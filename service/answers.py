@@ -39,6 +39,7 @@ from .horizon import cpoi_points, position
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .schemas import Hmi, Matched, WarningAnswer
+from .timing import UNTIMED, Stages
 from .vehicles import LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
@@ -121,11 +122,12 @@ class WarningService:
 
     # ------------------------------------------------------------------ queries
     def answer(self, queries: Sequence[DecodedQuery], loc: Sequence[Any] = ("body", "queries"),
-               fleet: str = "") -> "EncodedAnswers":  # fmt: skip
+               fleet: str = "", stages: Stages = UNTIMED) -> "EncodedAnswers":  # fmt: skip
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
         The vehicles are read from the state store, answered, and their sessions written back
-        (:meth:`service.vehicles.VehicleRegistry.transact`).
+        (:meth:`service.vehicles.VehicleRegistry.transact`); the time of each stage is counted in
+        ``stages``.
 
         Raises
         ------
@@ -141,12 +143,14 @@ class WarningService:
         answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
-            indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
-            self.check(queries, vehicles, loc, fleet, indices)
+            with stages("check"):
+                indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
+                self.check(queries, vehicles, loc, fleet, indices)
             for round_indices in _rounds(queries, indices):
-                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet)
+                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet,
+                                   stages)  # fmt: skip
 
-        self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles)
+        self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles, stages)
         return answers
 
     def check(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
@@ -287,25 +291,33 @@ class WarningService:
         return distances_m
 
     def _answer_round(self, queries: Sequence[DecodedQuery], indices: Sequence[int], vehicles: LoadedVehicles,
-                      answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
+                      answers: "EncodedAnswers", fleet: str, stages: Stages) -> None:  # fmt: skip
         """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
-        placements = self.place(queries, vehicles)
+        with stages("match"):
+            placements = self.place(queries, vehicles)
         by_network: dict[int, list[int]] = defaultdict(list)
         for row, (query, placement) in enumerate(zip(queries, placements)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         for network_index, rows in by_network.items():
             engine = self.networks[network_index].engine
-            inputs = [self.vehicle_input(queries[row], placements[row], vehicles) for row in rows]
-            # One vehicle skips the batch set-up; both paths give the same answer.
-            results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
-            for row, result in zip(rows, results):
-                placement = placements[row]
-                vehicles.seen(result.vehicle_id, placement.lane_id)
-                index = indices[row]
-                answers.documents[index] = self.encode(result, placement, shown_id(fleet, result.vehicle_id))
-                answers.state[index] = result.state
-                answers.level[index] = result.warning.level
+            with stages("engine"):
+                inputs = [self.vehicle_input(queries[row], placements[row], vehicles) for row in rows]
+                # One vehicle skips the batch set-up; both paths give the same answer.
+                results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
+            with stages("encode"):
+                self._record(indices, placements, rows, results, vehicles, answers, fleet)
+
+    def _record(self, indices: Sequence[int], placements: Sequence[Placement], rows: Sequence[int],
+                results: Sequence[Answer], vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
+        """Note the answered vehicles' lanes in their sessions, and their answers at ``indices[rows]``."""
+        for row, result in zip(rows, results):
+            placement = placements[row]
+            vehicles.seen(result.vehicle_id, placement.lane_id)
+            index = indices[row]
+            answers.documents[index] = self.encode(result, placement, shown_id(fleet, result.vehicle_id))
+            answers.state[index] = result.state
+            answers.level[index] = result.warning.level
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
         """The engine's input for a placed query."""

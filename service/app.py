@@ -48,6 +48,7 @@ from .schemas import (
 )
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
+from .timing import Stages
 from .vehicles import LoadedVehicles, VehicleRegistry
 from .work import WorkThread
 from .workers import leave_with_master
@@ -220,14 +221,19 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
             raise RequestValidationError([{"loc": ("body", "queries"), "type": "too_long",
                                            "msg": f"List should have at most {MAX_BATCH} items, not {count}"}])
 
+        stages = Stages()
+
         def answer_batch():
-            answers = service.answer(decode(body, DecodedBatch, BATCH_ADAPTER).queries, fleet=fleet)
-            return answers, answers.batch_json()
+            with stages("decode"):
+                queries = decode(body, DecodedBatch, BATCH_ADAPTER).queries
+            answers = service.answer(queries, fleet=fleet, stages=stages)
+            with stages("encode"):
+                return answers, answers.batch_json()
 
         answers, content = await off_loop(answer_batch)
         metrics.observe_answers(answers.state, answers.level)
         elapsed_ms = (time.perf_counter() - started) * 1000.0
-        return Response(content, media_type="application/json", headers={"Server-Timing": f"csws;dur={elapsed_ms:.3f}"})
+        return Response(content, media_type="application/json", headers={"Server-Timing": stages.header(elapsed_ms)})
 
     # ------------------------------------------------------------------ map
     @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"], responses=_KEYED)

@@ -30,6 +30,7 @@ from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 
 from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from .timing import UNTIMED, Stages
 
 __all__ = ["TRANSACTION_ATTEMPTS", "Session", "SessionRecord", "LoadedVehicles", "VehicleRegistry"]
 
@@ -250,8 +251,8 @@ class VehicleRegistry:
         """
         return LoadedVehicles(self, self.store.read(vehicle_ids))
 
-    def transact(self, vehicle_ids: Collection[str],
-                 work: Callable[[LoadedVehicles, Collection[str]], Answered]) -> Answered:  # fmt: skip
+    def transact(self, vehicle_ids: Collection[str], work: Callable[[LoadedVehicles, Collection[str]], Answered],
+                 stages: Stages = UNTIMED) -> Answered:  # fmt: skip
         """Read the vehicles, do ``work`` on them, write back what it changed; for vehicles whose
         session another request wrote in the meantime, read them again and redo ``work`` on them
         alone, until none is left.
@@ -262,6 +263,8 @@ class VehicleRegistry:
             The vehicles of the request.
         work
             Called with the loaded vehicles and the ids it is to work on (all at first).
+        stages
+            Where the time of reading (``read``) and writing (``write``) the vehicles is counted.
 
         Returns
         -------
@@ -275,9 +278,14 @@ class VehicleRegistry:
         """
         pending = set(vehicle_ids)
         for _attempt in range(TRANSACTION_ATTEMPTS):
-            with self.read(pending) as vehicles:
+            with stages("read"):
+                vehicles = self.read(pending)
+            try:
                 answered = work(vehicles, pending)
-                pending = self.store.write(vehicles.writes())
+                with stages("write"):
+                    pending = self.store.write(vehicles.writes())
+            finally:
+                vehicles.close()
             if not pending:
                 return answered
         raise StoreUnavailable(f"{len(pending)} vehicle(s) were changed by other requests during each of "
