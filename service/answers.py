@@ -35,7 +35,7 @@ from csws.state import Fault, SystemState
 from csws.warning import HmiHint, Trigger
 
 from .decoding import DecodedQuery
-from .horizon import cpoi_points, position
+from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .schemas import Hmi, Matched, WarningAnswer
@@ -119,6 +119,7 @@ class WarningService:
         self.geo_networks = [i for i, n in enumerate(self.networks) if n.road_map.has_projection]
         self.edge_ids = frozenset().union(*(n.edge_ids for n in self.networks))
         self.network_index = {n.name: i for i, n in enumerate(self.networks)}
+        self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
 
     # ------------------------------------------------------------------ queries
     def answer(self, queries: Sequence[DecodedQuery], loc: Sequence[Any] = ("body", "queries"),
@@ -351,9 +352,9 @@ class WarningService:
         target, triggers = None, []
         located = warning.triggers  # the target is one of them
         if located:
-            network = self.networks[placement.network_index]
-            points = cpoi_points(answer.path, [t.curve_id for t in located], [t.part_index for t in located])
-            positions = {id(t): position(network, p) for t, p in zip(located, points)}
+            places = self.cpoi_positions[placement.network_index].of(
+                answer.path, [t.curve_id for t in located], [t.part_index for t in located])
+            positions = {id(t): place for t, place in zip(located, places)}
             if warning.target is not None:
                 target = _trigger(warning.target, positions[id(warning.target)])
             triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]

@@ -301,8 +301,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
                 (placement,) = service.place([decoded], nobody)
             if placement.lane_id is None:
                 return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
-            ahead = horizon(networks[placement.network_index], placement.lane_id, placement.lane_pos_m,
-                            query.route, length_m)
+            ahead = horizon(networks[placement.network_index], service.cpoi_positions[placement.network_index],
+                            placement.lane_id, placement.lane_pos_m, query.route, length_m)
             matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m,
                        "distance_m": placement.distance_m}
             return _json({"matched": matched, "fault": None, **ahead})
