@@ -7,7 +7,7 @@ import os
 import sys
 
 from .settings import ServiceSettings
-from .workers import listening_socket, serve_forked
+from .workers import bound_socket, serve_forked
 
 __all__ = ["settings_from_args", "main", "add_key_command"]
 
@@ -55,10 +55,10 @@ def main(args: argparse.Namespace) -> int:
               flush=True)  # fmt: skip
         uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
         return 0
-    listening = listening_socket(settings.host, settings.port)
+    master = bound_socket(settings.host, settings.port)
     print(f"csws: serving {networks} network(s) with {settings.workers} workers on http://{settings.host}:"
           f"{settings.port} (OpenAPI docs at /docs)", flush=True)  # fmt: skip
-    serve_forked(app, listening, settings.workers)
+    serve_forked(app, master, settings.workers)
     return 0
 
 
