@@ -9,11 +9,19 @@ them apart.
 A piece is handed over through a queue and its result handed back with
 ``loop.call_soon_threadsafe``: one wake-up each way, without the futures, locks and callbacks
 an executor adds for every submission (a few tens of microseconds per query).
+
+The cyclic garbage collector is held off while a piece runs. A batch of 10,000 queries makes
+and frees hundreds of thousands of objects, almost none of them in cycles; counted as they
+are made, they set off a collection every 700, each going through every object still alive
+(the engines' caches of paths ahead among them): 100 to 200 ms of a batch that takes 400 ms
+on Bad Hersfeld. Reference counting frees them anyway; the collections that are due run
+once the piece is done, over what is left.
 """
 
 from __future__ import annotations
 
 import asyncio
+import gc
 import queue
 import threading
 from typing import Any, Callable
@@ -67,12 +75,15 @@ class WorkThread:
     def _serve(self) -> None:
         while (piece := self._pieces.get()) is not None:
             loop, done, function, args = piece
+            gc.disable()
             try:
                 result = function(*args)
             except BaseException as error:  # noqa: BLE001 - handed to the request that awaits it
                 loop.call_soon_threadsafe(_settle, done, None, error)
             else:
                 loop.call_soon_threadsafe(_settle, done, result, None)
+            finally:
+                gc.enable()
 
     def close(self) -> None:
         """Let the pieces handed so far finish, then end the thread."""
