@@ -9,10 +9,17 @@ links) is preferred to any other candidate, so a parallel road or a crossing roa
 close by does not make the match jump.
 
 Several road maps may be matched against at once (a service serving several
-networks): the best candidate over all maps wins, ties going to the first map.
+networks): the best candidate over all maps wins, ties going to the first map. A fix
+may also be confined to one map (a query naming its network), and a fix given in
+lon/lat is placed on each geo-referenced map in that map's own projection: each such
+placement is a :class:`Probes` row.
 
-Every fix is matched in one vectorised pass per map (:meth:`RoadMap.match_points`).
-A fix that matches nothing is an answer too: it gets no lane and the reason why.
+The lanes of all maps sit in one spatial index (:class:`csws.lanesearch.LaneSearch`),
+built with the matcher, so a fix costs what the lanes near it cost, however many maps
+there are. Fixes are matched in two vectorised passes: first each fix of a vehicle with
+a previous match on its previous map alone, where a lane that continues the previous one
+decides; then every other fix on all the maps it may be on. A fix that matches nothing
+is an answer too: it gets no lane and the reason why.
 
 Headings follow GNSS: degrees clockwise from north. Lane headings in
 :mod:`csws.roadmap` are radians counter-clockwise from +x (east).
@@ -24,21 +31,24 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 from itertools import chain
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from .geometry import wrap_angle_rad
+from .lanesearch import LaneMatches, LaneSearch, LaneShapes, least_per_group
 from .roadmap import RoadMap
 
 __all__ = [
     "MatchSettings",
     "MapPosition",
+    "Probes",
     "FixMatches",
     "MapMatcher",
     "compass_to_math_rad",
     "points_along",
     "lane_point",
+    "lane_points",
 ]
 
 
@@ -70,9 +80,9 @@ class MatchSettings:
             raise ValueError(f"continuation_links must not be negative, got {self.continuation_links!r}")
 
 
-@dataclass(frozen=True)
-class MapPosition:
-    """A lane of one of the matched road maps: where a vehicle was last matched.
+class MapPosition(NamedTuple):
+    """A lane of one of the matched road maps: where a vehicle was last matched (a named tuple:
+    a batch has thousands).
 
     Attributes
     ----------
@@ -84,6 +94,39 @@ class MapPosition:
 
     map_index: int
     lane_id: str
+
+
+@dataclass(frozen=True)
+class Probes:
+    """Where to look for each of ``count`` fixes: one or more positions per fix, each matched
+    on one map or on every map.
+
+    Attributes
+    ----------
+    count
+        How many fixes there are.
+    fix
+        ``(p,)`` the fix each probe belongs to.
+    xy
+        ``(p, 2)`` the probe's position in the coordinates of the map(s) it is matched on,
+        finite, m.
+    map_index
+        ``(p,)`` the map the probe is matched on, -1 for every map (network metres, shared
+        by the maps).
+    """
+
+    count: int
+    fix: np.ndarray
+    xy: np.ndarray
+    map_index: np.ndarray
+
+    @classmethod
+    def everywhere(cls, xy: np.ndarray) -> "Probes":
+        """Fixes ``(k, 2)`` in network metres, each matched on every map; rows not finite are
+        matched nowhere (their fix matches nothing)."""
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        placed = np.flatnonzero(np.isfinite(xy).all(axis=1))
+        return cls(len(xy), placed, xy[placed], np.full(placed.size, -1, dtype=np.intp))
 
 
 @dataclass(frozen=True)
@@ -134,15 +177,64 @@ def points_along(xy: np.ndarray, s: np.ndarray, vertex_s: np.ndarray | None = No
     return np.column_stack((np.interp(s, vertex_s, xy[:, 0]), np.interp(s, vertex_s, xy[:, 1])))
 
 
+def lane_points(road_map: RoadMap, lane_id: str, lane_pos_m: np.ndarray) -> np.ndarray:
+    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (see :attr:`csws.roadmap.Lane.position_factor`)."""
+    shape_s = np.asarray(lane_pos_m, dtype=float) / road_map.lane(lane_id).position_factor
+    return points_along(road_map.lane_shape(lane_id), shape_s)
+
+
 def lane_point(road_map: RoadMap, lane_id: str, lane_pos_m: float) -> tuple[float, float]:
-    """The point of a lane at a SUMO lane position, m (see :attr:`csws.roadmap.Lane.position_factor`)."""
-    lane = road_map.lane(lane_id)
-    x, y = points_along(road_map.lane_shape(lane_id), np.array([lane_pos_m / lane.position_factor]))[0]
+    """The point of a lane at a SUMO lane position, m (see :func:`lane_points`)."""
+    x, y = lane_points(road_map, lane_id, np.array([lane_pos_m]))[0]
     return float(x), float(y)
+
+
+class _Candidates:
+    """The lanes near some probes, each with its fix, its lane's map and its direction check."""
+
+    def __init__(self, fix: np.ndarray, found: LaneMatches, agrees: np.ndarray) -> None:
+        self.fix, self.found, self.agrees = fix, found, agrees
+
+
+class _Chosen:
+    """Per fix, the candidate chosen so far (filled pass by pass)."""
+
+    def __init__(self, count: int) -> None:
+        self.lane_index = np.empty(count, dtype=np.intp)
+        self.lane_index.fill(-1)
+        self.lane_pos_m = np.empty(count)
+        self.lane_pos_m.fill(np.nan)
+        self.distance_m = self.lane_pos_m.copy()
+        self.continued = np.zeros(count, dtype=bool)
+        self.near = np.zeros(count, dtype=bool)
+
+    def choose(self, candidates: _Candidates, continued: np.ndarray | None, decided: np.ndarray) -> None:
+        """For the fixes ``decided`` (a mask over fixes): the nearest agreeing candidate that
+        ``continued`` the previous lane if any (None: none does), else the nearest agreeing one; ties
+        to the lower lane number (the first map)."""
+        fix, found = candidates.fix, candidates.found
+        mine = decided[fix]
+        self.near[fix[mine]] = True
+        eligible = candidates.agrees & mine
+        if continued is not None and continued.any():
+            continuing = np.zeros(len(decided), dtype=bool)
+            continuing[fix[eligible & continued]] = True
+            eligible &= continued | ~continuing[fix]
+        rows = eligible.nonzero()[0]
+        first = rows[least_per_group(fix[rows], found.distance_m[rows], found.lane_index[rows])]
+        chosen = fix[first]
+        self.lane_index[chosen] = found.lane_index[first]
+        self.lane_pos_m[chosen] = found.lane_pos_m[first]
+        self.distance_m[chosen] = found.distance_m[first]
+        if continued is not None:
+            self.continued[chosen] = continued[first]
 
 
 class MapMatcher:
     """Matches fixes to the lanes of one or more road maps.
+
+    The spatial index over every map's lanes and the lanes of every edge are built here,
+    at start-up, so that no fix waits for them.
 
     Parameters
     ----------
@@ -157,95 +249,105 @@ class MapMatcher:
             raise ValueError("map matching needs at least one road map")
         self.road_maps = tuple(road_maps)
         self.settings = settings
+        lane_counts = [len(road_map.lane_ids) for road_map in self.road_maps]
+        first_lane = np.concatenate(([0], np.cumsum(lane_counts))).astype(np.intp)
+        #: The lanes (from, up to) of each map by its index, and of all maps in the last row (for index -1).
+        self._lane_range = np.array([*zip(first_lane[:-1], first_lane[1:]), (0, first_lane[-1])], dtype=np.intp)
+        self._lane_map = np.repeat(np.arange(len(self.road_maps), dtype=np.intp), lane_counts)
+        self._lane_ids = np.concatenate([road_map.lane_shapes.lane_ids for road_map in self.road_maps])
+        self._search = LaneSearch(LaneShapes.joined([road_map.lane_shapes for road_map in self.road_maps]))
+        self._edge_lanes = [self._lanes_by_edge(map_index, int(first_lane[map_index]))
+                            for map_index in range(len(self.road_maps))]  # fmt: skip
         self._continuations = lru_cache(maxsize=65536)(self._continuation_lanes)
-        self._edge_lanes: dict[int, dict[str, tuple[str, ...]]] = {}
+        self._heading_tolerance_rad = math.radians(settings.heading_tolerance_deg)
 
     def match(
         self,
-        xy_per_map: Sequence[np.ndarray],
+        probes: Probes,
         heading_deg: np.ndarray | None = None,
         previous: Sequence[MapPosition | None] | None = None,
     ) -> FixMatches:
-        """Match ``k`` fixes.
+        """Match ``probes.count`` fixes.
 
         Parameters
         ----------
-        xy_per_map
-            For each road map, the fixes in its coordinates, ``(k, 2)``, m; rows of NaN
-            where a fix cannot be placed on that map (e.g. lon/lat on a map without a
-            projection).
+        probes
+            Where to look for each fix (:meth:`Probes.everywhere` for fixes in network
+            metres that may be on any map).
         heading_deg
-            ``(k,)`` GNSS headings, degrees clockwise from north; NaN where unknown (the
+            ``(count,)`` GNSS headings, degrees clockwise from north; NaN where unknown (the
             direction is then not checked).
         previous
             Each fix's vehicle's previous match, or None.
         """
-        count = len(xy_per_map[0])
+        count = probes.count
         heading = np.full(count, np.nan) if heading_deg is None else np.asarray(heading_deg, dtype=float)
-        previous = [None] * count if previous is None else list(previous)
-        rows = [self._candidates(m, xy, heading, previous) for m, xy in enumerate(xy_per_map)]
-        point, map_index, lane_id, distance_m, lane_pos_m, agrees, continued = (
-            np.concatenate(column) for column in zip(*rows)
-        )
-        return self._best(count, heading, point, map_index, lane_id, distance_m, lane_pos_m, agrees, continued)
+        chosen = _Chosen(count)
+        if previous is not None and any(p is not None for p in previous):
+            decided = self._match_on_previous_maps(probes, heading, previous, chosen)
+            rows = (~decided[probes.fix]).nonzero()[0]
+        else:
+            decided = np.zeros(count, dtype=bool)
+            rows = np.arange(len(probes.fix))
+        if rows.size:
+            confined = probes.map_index[rows]
+            lane_range = None if (confined < 0).all() else self._lane_range[confined]
+            chosen.choose(self._candidates(probes, rows, lane_range, heading), None, ~decided)
+        return self._fix_matches(chosen, heading)
 
-    def _candidates(
-        self, map_index: int, xy: np.ndarray, heading_deg: np.ndarray, previous: Sequence[MapPosition | None]
-    ) -> tuple[np.ndarray, ...]:
-        """Every lane of one map within the tolerance of each fix, with its direction check and continuity."""
-        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
-        placed = np.flatnonzero(np.isfinite(xy).all(axis=1))
-        found = self.road_maps[map_index].match_points(xy[placed], self.settings.tolerance_m)
-        point = placed[found.point_index]
-        off_rad = wrap_angle_rad(found.heading_rad - compass_to_math_rad(heading_deg[point]))
-        agrees = ~(np.abs(off_rad) > math.radians(self.settings.heading_tolerance_deg))  # NaN heading agrees
-        continued = np.array(
-            [
-                (before := previous[p]) is not None
-                and before.map_index == map_index
-                and lane in self._continuations(map_index, before.lane_id)
-                for p, lane in zip(point.tolist(), found.lane_id.tolist())
-            ],
+    def _match_on_previous_maps(self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None],
+                                chosen: _Chosen) -> np.ndarray:  # fmt: skip
+        """The first pass: the fixes of vehicles with a previous match, on their previous map alone.
+
+        A fix is decided here when a lane that continues its previous one agrees with it
+        (such a lane wins over any other), or when the previous map is the only one it may
+        be on. Returns the decided fixes, a mask.
+        """
+        previous_map = np.array([-1 if p is None else p.map_index for p in previous], dtype=np.intp)
+        probe_previous = previous_map[probes.fix]
+        if len(self.road_maps) == 1:  # every probe is on the one map
+            rows, lane_range = (probe_previous >= 0).nonzero()[0], None
+            elsewhere = np.zeros(probes.count, dtype=bool)
+        else:
+            here = probes.map_index == probe_previous  # confined to the previous map
+            rows = ((probe_previous >= 0) & (here | (probes.map_index < 0))).nonzero()[0]
+            lane_range = self._lane_range[probe_previous[rows]]
+            elsewhere = np.bincount(probes.fix[~here], minlength=probes.count) > 0
+        candidates = self._candidates(probes, rows, lane_range, heading)
+        continued = self._continued(candidates, previous)
+        decided = (previous_map >= 0) & ~elsewhere
+        decided[candidates.fix[continued & candidates.agrees]] = True
+        chosen.choose(candidates, continued, decided)
+        return decided
+
+    def _candidates(self, probes: Probes, rows: np.ndarray, lane_range: np.ndarray | None,
+                    heading_deg: np.ndarray) -> _Candidates:  # fmt: skip
+        """Every lane within the tolerance of the probes ``rows`` (each confined to its lane range when
+        given), with the direction check of its fix's heading."""
+        found = self._search.nearest_per_lane(probes.xy[rows], self.settings.tolerance_m, lane_range)
+        fix = probes.fix[rows][found.point_index]
+        off_rad = wrap_angle_rad(found.heading_rad - compass_to_math_rad(heading_deg[fix]))
+        return _Candidates(fix, found, ~(np.abs(off_rad) > self._heading_tolerance_rad))  # a NaN heading agrees
+
+    def _continued(self, candidates: _Candidates, previous: Sequence[MapPosition | None]) -> np.ndarray:
+        """Whether each candidate (on its fix's previous map) continues the fix's previous lane."""
+        return np.array(
+            [lane in self._continuations(previous[fix].map_index, previous[fix].lane_id)
+             for fix, lane in zip(candidates.fix.tolist(), candidates.found.lane_index.tolist())],
             dtype=bool,
-        )
-        return (
-            point,
-            np.full(len(point), map_index, dtype=np.intp),
-            found.lane_id,
-            found.distance_m,
-            found.lane_pos_m,
-            agrees,
-            continued,
-        )
+        )  # fmt: skip
 
-    def _best(self, count, heading, point, map_index, lane_id, distance_m, lane_pos_m, agrees, continued) -> FixMatches:
-        """Per fix the continuing lane if any, else the nearest; then the first map."""
-        near = np.bincount(point, minlength=count) > 0
-        keep = np.flatnonzero(agrees)
-        order = keep[np.lexsort((map_index[keep], distance_m[keep], ~continued[keep], point[keep]))]
-        first = order[np.concatenate(([True], point[order][1:] != point[order][:-1]))] if order.size else order
-        chosen = np.full(count, -1, dtype=np.intp)
-        chosen[point[first]] = first
-        matched = chosen >= 0
-
-        def pick(values: np.ndarray, missing) -> np.ndarray:
-            out = np.full(count, missing, dtype=values.dtype)
-            out[matched] = values[chosen[matched]]
-            return out
-
-        lane_ids = pick(lane_id.astype(object), None).tolist()
+    def _fix_matches(self, chosen: _Chosen, heading_deg: np.ndarray) -> FixMatches:
+        matched = chosen.lane_index >= 0
+        lane_ids = np.full(len(matched), None, dtype=object)
+        lane_ids[matched] = self._lane_ids[chosen.lane_index[matched]]
+        map_index = np.where(matched, self._lane_map[chosen.lane_index], -1)
         reasons = [
             None if is_matched else self._reason(is_near, h)
-            for is_matched, is_near, h in zip(matched.tolist(), near.tolist(), heading.tolist())
+            for is_matched, is_near, h in zip(matched.tolist(), chosen.near.tolist(), heading_deg.tolist())
         ]
-        return FixMatches(
-            map_index=pick(map_index, -1),
-            lane_id=lane_ids,
-            lane_pos_m=pick(lane_pos_m.astype(float), np.nan),
-            distance_m=pick(distance_m.astype(float), np.nan),
-            continued=pick(continued, False),
-            reason=reasons,
-        )
+        return FixMatches(map_index=map_index, lane_id=lane_ids.tolist(), lane_pos_m=chosen.lane_pos_m,
+                          distance_m=chosen.distance_m, continued=chosen.continued, reason=reasons)  # fmt: skip
 
     def _reason(self, near: bool, heading_deg: float) -> str:
         """Why a fix matched nothing."""
@@ -257,8 +359,9 @@ class MapMatcher:
             f" of the heading {heading_deg:g} deg"
         )
 
-    def _continuation_lanes(self, map_index: int, lane_id: str) -> frozenset[str]:
-        """Lanes that continue ``lane_id``: its edge's lanes and those reached within a few links, with their edges'."""
+    def _continuation_lanes(self, map_index: int, lane_id: str) -> frozenset[int]:
+        """Lanes that continue ``lane_id`` (by number in the joined index): its edge's lanes and those
+        reached within a few links, with their edges'."""
         road_map = self.road_maps[map_index]
         try:
             reached, frontier = {lane_id}, [lane_id]
@@ -267,15 +370,13 @@ class MapMatcher:
                 reached.update(frontier)
         except KeyError:
             return frozenset()
-        edge_lanes = self._lanes_by_edge(map_index)
-        return frozenset(chain(reached, *(edge_lanes[road_map.lane(lane).edge_id] for lane in reached)))
+        edge_lanes = self._edge_lanes[map_index]
+        return frozenset(chain.from_iterable(edge_lanes[road_map.lane(lane).edge_id] for lane in reached))
 
-    def _lanes_by_edge(self, map_index: int) -> dict[str, tuple[str, ...]]:
-        """The lanes of each edge of one map, built on first use."""
-        if map_index not in self._edge_lanes:
-            road_map = self.road_maps[map_index]
-            edge_lanes: dict[str, list[str]] = {}
-            for lane_id in road_map.lane_ids:
-                edge_lanes.setdefault(road_map.lane(lane_id).edge_id, []).append(lane_id)
-            self._edge_lanes[map_index] = {edge: tuple(lanes) for edge, lanes in edge_lanes.items()}
-        return self._edge_lanes[map_index]
+    def _lanes_by_edge(self, map_index: int, first_lane: int) -> dict[str, tuple[int, ...]]:
+        """The lanes of each edge of one map, by number in the joined index (from ``first_lane``)."""
+        road_map = self.road_maps[map_index]
+        edge_lanes: dict[str, list[int]] = {}
+        for number, lane_id in enumerate(road_map.lane_ids, start=first_lane):
+            edge_lanes.setdefault(road_map.lane(lane_id).edge_id, []).append(number)
+        return {edge: tuple(lanes) for edge, lanes in edge_lanes.items()}

@@ -57,7 +57,7 @@ import numpy as np
 import sumolib
 
 from .curvature import profile_cache_dir
-from .lanesearch import LaneMatch, LaneMatches, LaneSearch
+from .lanesearch import LaneMatch, LaneMatches, LaneSearch, LaneShapes
 from .roadprofile import (
     CURVE_FIELDS,
     LaneCurve,
@@ -236,6 +236,16 @@ class RoadMap:
         arrays = [self._xy, self._vertex_s, self._vertex_start, self._successor_start, self._successor_index]
         arrays += list(self._chains.xy) + [a for p in self._chains.profiles for a in (p.s, p.curvature, p.radius)]
         return int(sum(array.nbytes for array in arrays))
+
+    @cached_property
+    def lane_shapes(self) -> LaneShapes:
+        """The lanes' shapes back to back, in the order of :attr:`lane_ids`, as a spatial index of
+        lanes takes them (:class:`csws.lanesearch.LaneSearch`; the arrays are the map's own)."""
+        return LaneShapes(self._xy, self._vertex_start, self._vertex_s, self._lane_id_array, self._position_factor)
+
+    def lane_index(self, lane_id: str) -> int:
+        """The position of ``lane_id`` in :attr:`lane_ids`."""
+        return self._lane_index(lane_id)
 
     def has_lane(self, lane_id: str) -> bool:
         """Whether ``lane_id`` is a lane of the map."""
@@ -516,4 +526,4 @@ class RoadMap:
     @cached_property
     def _lane_search(self) -> LaneSearch:
         """The spatial index of the lanes' shapes, built on the first position look-up."""
-        return LaneSearch(self._xy, self._vertex_start, self._vertex_s, self._lane_id_array, self._position_factor)
+        return LaneSearch(self.lane_shapes)

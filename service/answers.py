@@ -6,11 +6,12 @@
 2. checks what the models cannot (lane and edge ids, lane positions, lon/lat on
    networks without a projection, a missing category) and reports every problem with
    the index of its query (:class:`QueryErrors`, an HTTP 422);
-3. matches every fix without a lane id in one vectorised pass over all served networks
-   (:class:`csws.mapmatch.MapMatcher`), preferring each vehicle's previous lane;
+3. matches every fix without a lane id (:class:`csws.mapmatch.MapMatcher`, one spatial index
+   over all served networks): a query naming its network on that network alone, a vehicle
+   with a session on its previous network first, preferring its previous lane;
 4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
-5. writes the vehicles' sessions back to the store, and each answer as the JSON text of the
-   HTTP contract (floats unrounded).
+5. writes the vehicles' sessions back to the store, and the answers as the JSON of the HTTP
+   contract (floats unrounded), encoded by msgspec.
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
 rounds holding each vehicle at most once.
@@ -18,25 +19,27 @@ rounds holding each vehicle at most once.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
-from json.encoder import encode_basestring_ascii as _json_text
 from typing import Any, Collection, NamedTuple, Sequence
 
+import msgspec
 import numpy as np
 
 from csws.engine import Answer, VehicleInput
-from csws.mapmatch import MapMatcher, MatchSettings, lane_point
-from csws.state import Fault
+from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_points
+from csws.standard import Level
+from csws.state import Fault, SystemState
 from csws.warning import HmiHint, Trigger
 
-from .horizon import cpoi_points, position
+from .decoding import DecodedQuery
+from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
-from .schemas import Query
+from .schemas import Hmi, Matched, WarningAnswer
+from .timing import UNTIMED, Stages
 from .vehicles import LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
@@ -80,7 +83,7 @@ def _error(loc: Sequence[Any], msg: str) -> dict[str, Any]:
     return {"loc": list(loc), "msg": msg, "type": "value_error"}
 
 
-def _rounds(queries: Sequence[Query], indices: Sequence[int]) -> list[list[int]]:
+def _rounds(queries: Sequence[DecodedQuery], indices: Sequence[int]) -> list[list[int]]:
     """The indices of queries cut into rounds in which each vehicle appears once, in order."""
     seen: dict[str, int] = defaultdict(int)
     rounds: list[list[int]] = []
@@ -116,13 +119,16 @@ class WarningService:
         self.geo_networks = [i for i, n in enumerate(self.networks) if n.road_map.has_projection]
         self.edge_ids = frozenset().union(*(n.edge_ids for n in self.networks))
         self.network_index = {n.name: i for i, n in enumerate(self.networks)}
+        self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
 
     # ------------------------------------------------------------------ queries
-    def answer(self, queries: Sequence[Query], loc: Sequence[Any] = ("body", "queries"), fleet: str = "") -> "EncodedAnswers":
+    def answer(self, queries: Sequence[DecodedQuery], loc: Sequence[Any] = ("body", "queries"),
+               fleet: str = "", stages: Stages = UNTIMED) -> "EncodedAnswers":  # fmt: skip
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
         The vehicles are read from the state store, answered, and their sessions written back
-        (:meth:`service.vehicles.VehicleRegistry.transact`).
+        (:meth:`service.vehicles.VehicleRegistry.transact`); the time of each stage is counted in
+        ``stages``.
 
         Raises
         ------
@@ -134,241 +140,277 @@ class WarningService:
             When the state store cannot be read or written now.
         """
         if fleet:
-            queries = [query.model_copy(update={"vehicle_id": vehicle_key(fleet, query.vehicle_id)}) for query in queries]
-        answers = EncodedAnswers([""] * len(queries), [""] * len(queries), [0] * len(queries))
+            queries = [msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id)) for query in queries]
+        answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
-            indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
-            self.check(queries, vehicles, loc, fleet, indices)
+            with stages("check"):
+                indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
+                self.check(queries, vehicles, loc, fleet, indices)
             for round_indices in _rounds(queries, indices):
-                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet)
+                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet,
+                                   stages)  # fmt: skip
 
-        self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles)
+        self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles, stages)
         return answers
 
-    def check(self, queries: Sequence[Query], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
+    def check(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
               fleet: str = "", indices: Sequence[int] | None = None) -> None:  # fmt: skip
         """Raise :class:`QueryErrors` listing what in ``queries`` (of ``fleet``'s vehicles, those at
         ``indices`` if given) the networks cannot answer."""
         errors: list[dict[str, Any]] = []
         for index in range(len(queries)) if indices is None else indices:
-            query = queries[index]
-            where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
-            if query.category is None and vehicles.category(query.vehicle_id) is None:
-                errors.append(_error([*where, "category"], "category is required: give it in the query or "
-                                     f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))
-            if query.network is not None and query.network not in self.network_index:
-                errors.append(_error([*where, "network"], f"unknown network {query.network!r}: served are "
-                                     + ", ".join(sorted(self.network_index))))
-                continue
-            if query.position is not None and query.position.is_geographic and not self._geographic(query):
-                errors.append(_error([*where, "position"], "the served networks are not geo-referenced: "
-                                     "give the position as x and y in network metres"))
-            if query.lane_id is not None:
-                errors += self._lane_errors(query, where, vehicles)
-            known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
-            unknown = [edge for edge in query.route or () if edge not in known]
-            if unknown:
-                where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
-                errors.append(_error([*where, "route"], f"unknown edge id {unknown[0]!r}: {where_not}"))
+            problems = self._problems(queries[index], vehicles, fleet)
+            if problems:
+                where = [*loc, index] if loc and loc[-1] == "queries" else list(loc)
+                errors += [_error([*where, field], message) for field, message in problems]
         if errors:
             raise QueryErrors(errors)
 
-    def _geographic(self, query: Query) -> bool:
+    def _problems(self, query: DecodedQuery, vehicles: LoadedVehicles, fleet: str) -> list[tuple[str, str]]:
+        """What the networks cannot answer in one query: (field, why) each."""
+        problems = []
+        if query.category is None and vehicles.category(query.vehicle_id) is None:
+            problems.append(("category", "category is required: give it in the query or "
+                             f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))  # fmt: skip
+        if query.network is not None and query.network not in self.network_index:
+            return problems + [("network", f"unknown network {query.network!r}: served are "
+                                + ", ".join(sorted(self.network_index)))]  # fmt: skip
+        if query.position is not None and query.position.is_geographic and not self._geographic(query):
+            problems.append(("position", "the served networks are not geo-referenced: "
+                             "give the position as x and y in network metres"))  # fmt: skip
+        if query.lane_id is not None:
+            problems += self._lane_problems(query, vehicles)
+        if query.route:
+            known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
+            unknown = [edge for edge in query.route if edge not in known]
+            if unknown:
+                where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
+                problems.append(("route", f"unknown edge id {unknown[0]!r}: {where_not}"))
+        return problems
+
+    def _geographic(self, query: DecodedQuery) -> bool:
         """Whether the query's network (or, without one, any served network) is geo-referenced."""
         if query.network is None:
             return bool(self.geo_networks)
         return self.network_index[query.network] in self.geo_networks
 
-    def _lane_errors(self, query: Query, where: list[Any], vehicles: LoadedVehicles) -> list[dict[str, Any]]:
+    def _lane_problems(self, query: DecodedQuery, vehicles: LoadedVehicles) -> list[tuple[str, str]]:
         network_index = self._lane_network(query, vehicles)
         if network_index is None:
             where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
-            return [_error([*where, "lane_id"], f"unknown lane id {query.lane_id!r}: {where_not}")]
+            return [("lane_id", f"unknown lane id {query.lane_id!r}: {where_not}")]
         length_m = self.networks[network_index].road_map.lane(query.lane_id).length_m
         if query.lane_pos_m > length_m:
-            return [_error([*where, "lane_pos_m"],
-                           f"lane position {query.lane_pos_m:g} m lies beyond the end of lane {query.lane_id!r} "
-                           f"({length_m:g} m long)")]
+            return [("lane_pos_m", f"lane position {query.lane_pos_m:g} m lies beyond the end of lane "
+                     f"{query.lane_id!r} ({length_m:g} m long)")]  # fmt: skip
         return []
 
-    def _lane_network(self, query: Query, vehicles: LoadedVehicles) -> int | None:
+    def _lane_network(self, query: DecodedQuery, vehicles: LoadedVehicles) -> int | None:
         """The network a query's lane id is taken on: the one it names, else the vehicle's own if it has the
         lane, else the first that has it; None if none has it."""
         if query.network is not None:
-            candidates = [self.network_index[query.network]]
-        else:
-            own = vehicles.network_of(query.vehicle_id)
-            candidates = [own] + [i for i in range(len(self.networks)) if i != own]
-        return next((i for i in candidates if self.networks[i].road_map.has_lane(query.lane_id)), None)
+            named = self.network_index[query.network]
+            return named if self.networks[named].road_map.has_lane(query.lane_id) else None
+        own = vehicles.network_of(query.vehicle_id)
+        if self.networks[own].road_map.has_lane(query.lane_id):
+            return own
+        return next((i for i, network in enumerate(self.networks) if network.road_map.has_lane(query.lane_id)), None)
 
     # ------------------------------------------------------------------ evaluation
-    def place(self, queries: Sequence[Query], vehicles: LoadedVehicles) -> list[Placement]:
+    def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
         """Where each query is: its given lane, or the map match of its fix (queries of distinct
         vehicles, preferring each one's previous lane)."""
         placements: list[Placement | None] = [None] * len(queries)
-        to_match = []
+        on_lanes, to_match = [], []
         for i, query in enumerate(queries):
-            if query.lane_id is None:
-                to_match.append(i)
-                continue
-            network_index = self._lane_network(query, vehicles)
-            placements[i] = Placement(network_index, query.lane_id, query.lane_pos_m,
-                                      self._fix_distance_m(query, network_index), None)
+            (to_match if query.lane_id is None else on_lanes).append(i)
+        if on_lanes:
+            networks = [self._lane_network(queries[i], vehicles) for i in on_lanes]
+            distances_m = self._fix_distances_m([queries[i] for i in on_lanes], networks)
+            for i, network_index, distance_m in zip(on_lanes, networks, distances_m):
+                placements[i] = Placement(network_index, queries[i].lane_id, queries[i].lane_pos_m, distance_m, None)
         if to_match:
+            fixes = [queries[i] for i in to_match]
             matched = self.matcher.match(
-                [self._fixes([queries[i] for i in to_match], index) for index in range(len(self.networks))],
-                np.array([math.nan if queries[i].heading_deg is None else queries[i].heading_deg for i in to_match]),
-                [vehicles.previous(queries[i].vehicle_id) for i in to_match],
+                self._probes(fixes),
+                np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
+                [vehicles.previous(query.vehicle_id) for query in fixes],
             )
-            for row, i in enumerate(to_match):
-                network_index = int(matched.map_index[row])
+            for i, query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
+                to_match, fixes, matched.map_index.tolist(), matched.lane_id, matched.lane_pos_m.tolist(),
+                matched.distance_m.tolist(), matched.reason,
+            ):  # fmt: skip
                 if network_index < 0:
-                    network_index = vehicles.network_of(queries[i].vehicle_id)
-                placements[i] = Placement(network_index, matched.lane_id[row], float(matched.lane_pos_m[row]),
-                                          float(matched.distance_m[row]), matched.reason[row])
+                    network_index = vehicles.network_of(query.vehicle_id)
+                placements[i] = Placement(network_index, lane_id, lane_pos_m, distance_m, reason)
         return placements
 
-    def _fixes(self, queries: Sequence[Query], network_index: int) -> np.ndarray:
-        """The queries' fixes in the coordinates of one network.
+    def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
+        """Where to look for each query's fix: x, y on the network it names, else on every one;
+        lon, lat in the projection of the network it names, else of each geo-referenced one."""
+        rows, xy, map_index = [], [], []
+        geographic: dict[int, list[int]] = defaultdict(list)
+        for row, query in enumerate(queries):
+            named = -1 if query.network is None else self.network_index[query.network]
+            position = query.position
+            if position.lon is None:
+                rows.append(row)
+                xy.append((position.x, position.y))
+                map_index.append(named)
+            else:
+                for network_index in self.geo_networks if named < 0 else (named,):
+                    geographic[network_index].append(row)
+        for network_index, placed in geographic.items():
+            lonlat = np.array([(queries[row].position.lon, queries[row].position.lat) for row in placed])
+            rows += placed
+            xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
+            map_index += [network_index] * len(placed)
+        return Probes(len(queries), np.array(rows, dtype=np.intp), np.array(xy, dtype=float).reshape(-1, 2),
+                      np.array(map_index, dtype=np.intp))  # fmt: skip
 
-        NaN (no match there) where a query names another network, or lon/lat meets a map
-        without a projection.
-        """
-        road_map = self.networks[network_index].road_map
-        xy = np.full((len(queries), 2), np.nan)
-        here = [row for row, query in enumerate(queries)
-                if query.network is None or self.network_index[query.network] == network_index]  # fmt: skip
-        metric = [row for row in here if not queries[row].position.is_geographic]
-        if metric:
-            xy[metric] = [(queries[row].position.x, queries[row].position.y) for row in metric]
-        geographic = [row for row in here if queries[row].position.is_geographic]
-        if geographic and road_map.has_projection:
-            lonlat = np.array([(queries[row].position.lon, queries[row].position.lat) for row in geographic])
-            xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
-        return xy
+    def _fix_distances_m(self, queries: Sequence[DecodedQuery], networks: Sequence[int]) -> list[float]:
+        """Distance from each query's fix to its given lane position on its network, m; 0 without a fix,
+        or with lon/lat on a network without a projection. The queries on one lane are placed on it
+        in one interpolation."""
+        distances_m = [0.0] * len(queries)
+        on_lane: dict[tuple[int, str], list[int]] = defaultdict(list)
+        for row, (query, network_index) in enumerate(zip(queries, networks)):
+            position = query.position
+            if position is not None and (position.lon is None or self.networks[network_index].road_map.has_projection):
+                on_lane[(network_index, query.lane_id)].append(row)
+        for (network_index, lane_id), rows in on_lane.items():
+            road_map = self.networks[network_index].road_map
+            fixes = [queries[row].position for row in rows]
+            geographic = [k for k, fix in enumerate(fixes) if fix.lon is not None]
+            xy = np.array([(fix.x, fix.y) if fix.lon is None else (0.0, 0.0) for fix in fixes])
+            if geographic:
+                xy[geographic] = road_map.lonlat_to_xy_many(np.array([(fixes[k].lon, fixes[k].lat) for k in geographic]))
+            lane_xy = lane_points(road_map, lane_id, np.array([queries[row].lane_pos_m for row in rows]))
+            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist()):
+                distances_m[row] = math.hypot(x - lane_x, y - lane_y)
+        return distances_m
 
-    def _fix_distance_m(self, query: Query, network_index: int) -> float:
-        """Distance from a query's fix to its given lane position, m; 0 without a fix or one on another map."""
-        network = self.networks[network_index]
-        if query.position is None:
-            return 0.0
-        (x, y), = self._fixes([query], network_index)
-        if not math.isfinite(x):
-            return 0.0
-        lane_x, lane_y = lane_point(network.road_map, query.lane_id, query.lane_pos_m)
-        return float(math.hypot(x - lane_x, y - lane_y))
-
-    def _answer_round(self, queries: Sequence[Query], indices: Sequence[int], vehicles: LoadedVehicles,
-                      answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
+    def _answer_round(self, queries: Sequence[DecodedQuery], indices: Sequence[int], vehicles: LoadedVehicles,
+                      answers: "EncodedAnswers", fleet: str, stages: Stages) -> None:  # fmt: skip
         """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
-        placements = self.place(queries, vehicles)
+        with stages("match"):
+            placements = self.place(queries, vehicles)
         by_network: dict[int, list[int]] = defaultdict(list)
         for row, (query, placement) in enumerate(zip(queries, placements)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         for network_index, rows in by_network.items():
             engine = self.networks[network_index].engine
-            inputs = [self.vehicle_input(queries[row], placements[row], vehicles) for row in rows]
-            # One vehicle skips the batch set-up; both paths give the same answer.
-            results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
-            for row, result in zip(rows, results):
-                vehicles.seen(queries[row].vehicle_id, placements[row].lane_id)
-                index = indices[row]
-                answers.json[index] = self.encode(result, placements[row], shown_id(fleet, result.vehicle_id))
-                answers.state[index] = result.state.value
-                answers.level[index] = int(result.warning.level)
+            with stages("engine"):
+                inputs = [self.vehicle_input(queries[row], placements[row], vehicles) for row in rows]
+                # One vehicle skips the batch set-up; both paths give the same answer.
+                results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
+            with stages("encode"):
+                self._record(indices, placements, rows, results, vehicles, answers, fleet)
 
-    def vehicle_input(self, query: Query, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
+    def _record(self, indices: Sequence[int], placements: Sequence[Placement], rows: Sequence[int],
+                results: Sequence[Answer], vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
+        """Note the answered vehicles' lanes in their sessions, and their answers at ``indices[rows]``."""
+        for row, result in zip(rows, results):
+            placement = placements[row]
+            vehicles.seen(result.vehicle_id, placement.lane_id)
+            index = indices[row]
+            answers.documents[index] = self.encode(result, placement, shown_id(fleet, result.vehicle_id))
+            answers.state[index] = result.state
+            answers.level[index] = result.warning.level
+
+    def vehicle_input(self, query: DecodedQuery, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
         """The engine's input for a placed query."""
-        category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
+        matched = placement.lane_id is not None
         return VehicleInput(
-            vehicle_id=query.vehicle_id,
-            category=category.value,
-            speed_kmh=query.speed_kmh,
-            lane_id=placement.lane_id,
-            lane_pos_m=placement.lane_pos_m if placement.lane_id is not None else 0.0,
-            route_edges=tuple(query.route) if query.route else None,
-            timestamp_s=query.timestamp_s,
-            age_s=query.age_s,
+            query.vehicle_id,
+            query.category if query.category is not None else vehicles.category(query.vehicle_id),
+            query.speed_kmh,
+            placement.lane_id,
+            placement.lane_pos_m if matched else 0.0,
+            tuple(query.route) if query.route else None,
+            query.timestamp_s,
+            query.age_s,
         )
 
     # ------------------------------------------------------------------ answers
-    def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> str:
+    def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> msgspec.Struct:
         """The contract's WarningAnswer of an engine answer for the vehicle its fleet calls
-        ``vehicle_id``, as JSON text (floats unrounded).
+        ``vehicle_id``, ready for msgspec to write (floats unrounded; the state, level and path
+        kind as the enumerations' values).
 
-        Written field by field rather than through a dict and :func:`json.dumps`: most
-        answers of a fleet are level 0, with no CPOI to locate.
+        Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
+        once for all, and only CPOIs that trigger are located.
         """
-        network = self.networks[placement.network_index]
         warning = answer.warning
-        fault = "null"
+        fault = None
         if answer.fault is not None:
             fault = answer.fault.value
             if answer.fault is Fault.NO_MAP_MATCH and placement.reason:
                 fault = f"{fault}: {placement.reason}"
-            fault = _json_text(fault)
-        target, triggers = "null", "[]"
+        target, triggers = None, []
         located = warning.triggers  # the target is one of them
         if located:
-            points = cpoi_points(answer.path, [t.curve_id for t in located], [t.part_index for t in located])
-            positions = {id(t): position(network, p) for t, p in zip(located, points)}
+            places = self.cpoi_positions[placement.network_index].of(
+                answer.path, [t.curve_id for t in located], [t.part_index for t in located])
+            positions = {id(t): place for t, place in zip(located, places)}
             if warning.target is not None:
-                target = _dumps(_trigger(warning.target, positions[id(warning.target)]))
-            triggers = _dumps([_trigger(t, positions[id(t)]) for t in warning.triggers])
-        matched = "null"
+                target = _trigger(warning.target, positions[id(warning.target)])
+            triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]
+        matched = None
         if placement.lane_id is not None:
-            matched = (f'{{"lane_id": {_json_text(placement.lane_id)}, "lane_pos_m": {_number(placement.lane_pos_m)}, '
-                       f'"distance_m": {_number(placement.distance_m)}}}')
-        path_kind = "null" if answer.path is None else f'"{answer.path.kind.value}"'
-        return (f'{{"vehicle_id": {_json_text(vehicle_id)}, "state": "{answer.state.value}", "fault": {fault}, '
-                f'"level": {int(warning.level)}, "target": {target}, "triggers": {triggers}, "matched": {matched}, '
-                f'"path_kind": {path_kind}, "hmi": {_hmi_json(warning.hmi)}}}')
+            matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
+        path_kind = None if answer.path is None else answer.path.kind
+        return _AnswerDocument(vehicle_id, answer.state, fault, warning.level, target, triggers, matched, path_kind,
+                               _hmi_json(warning.hmi))  # fmt: skip
+
+
+def _document(model: type) -> type[msgspec.Struct]:
+    """A struct with the fields of a contract's model, in its order, to write its JSON with msgspec."""
+    return msgspec.defstruct(f"{model.__name__}Document", [(name, Any) for name in model.model_fields],
+                             gc=False, module=__name__)  # fmt: skip
+
+
+_AnswerDocument = _document(WarningAnswer)
+_MatchedDocument = _document(Matched)
+_ENCODER = msgspec.json.Encoder()
 
 
 @dataclass
 class EncodedAnswers:
-    """The answers of queries, in order: each the JSON text of the contract's WarningAnswer, with its
-    system state and warning level (for the metrics).
+    """The answers of queries, in order (the contract's WarningAnswer each, see :meth:`WarningService.encode`),
+    with their system states and warning levels (for the metrics).
     """
 
-    json: list[str]
-    state: list[str]
-    level: list[int]
+    documents: list[msgspec.Struct]
+    state: list[SystemState]
+    level: list[Level]
 
-    def batch_json(self) -> str:
+    def json(self, index: int) -> bytes:
+        """One answer's JSON."""
+        return _ENCODER.encode(self.documents[index])
+
+    def batch_json(self) -> bytes:
         """The contract's Answers: ``{"answers": [...]}``."""
-        return '{"answers": [' + ", ".join(self.json) + "]}"
-
-
-def _dumps(content: Any) -> str:
-    """JSON text of plain data; NaN and infinities are refused."""
-    return json.dumps(content, allow_nan=False)
-
-
-def _number(value: float) -> str:
-    """A finite number as JSON, unrounded (as :func:`json.dumps` writes it)."""
-    if not math.isfinite(value):
-        raise ValueError(f"out of range float values are not JSON compliant: {value!r}")
-    return float.__repr__(float(value))
+        return _ENCODER.encode({"answers": self.documents})
 
 
 @lru_cache(maxsize=None)
-def _hmi_json(hmi: HmiHint) -> str:
+def _hmi_json(hmi: HmiHint) -> msgspec.Raw:
     """The JSON of an HMI hint (there are three)."""
-    return _dumps({"visual": hmi.visual, "audible": hmi.audible})
+    return msgspec.Raw(_ENCODER.encode(_document(Hmi)(hmi.visual, hmi.audible)))
 
 
 def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
     return {
         "curve_id": trigger.curve_id,
-        "part_index": trigger.part_index,
+        "part_index": int(trigger.part_index),
         "level": int(trigger.level),
-        "distance_m": trigger.distance_m,
-        "radius_m": trigger.radius_m,
-        "warning_speed_kmh": trigger.warning_speed_kmh,
-        "warning_distance_m": trigger.warning_distance_m,
-        "held": trigger.held,
+        "distance_m": float(trigger.distance_m),
+        "radius_m": float(trigger.radius_m),
+        "warning_speed_kmh": float(trigger.warning_speed_kmh),
+        "warning_distance_m": float(trigger.warning_distance_m),
+        "held": bool(trigger.held),
         "position": point,
     }

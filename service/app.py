@@ -9,27 +9,25 @@ cannot be read stops start-up. The OpenAPI documentation is at ``/docs`` (Swagge
 
 from __future__ import annotations
 
-import asyncio
-import functools
 import gc
-import json
 import logging
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any, Callable
 
+import msgspec
 from fastapi import FastAPI, HTTPException, Path, Query as QueryParam, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
-from pydantic import TypeAdapter, ValidationError
+from pydantic import ValidationError
 
 from csws import __version__
 from csws.standard import Category
 
 from .answers import QueryErrors, WarningService
 from .curves import curve_features, feature_collection, in_bbox
+from .decoding import DecodedBatch, DecodedQuery, DecodedSwitch, decode
 from .horizon import DEFAULT_HORIZON_M, horizon
 from .keys import OPEN, KeyMiddleware, KeyRing, Principal, vehicle_key
 from .limits import BodyLimit, too_many_queries
@@ -50,7 +48,9 @@ from .schemas import (
 )
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
+from .timing import Stages
 from .vehicles import LoadedVehicles, VehicleRegistry
+from .work import WorkThread
 from .workers import leave_with_master
 
 __all__ = ["create_app", "MAX_ERRORS_SHOWN"]
@@ -76,23 +76,9 @@ def _clean(errors: list[dict[str, Any]]) -> dict[str, Any]:
     return body
 
 
-def _json(content: Any, headers: dict[str, str] | None = None) -> Response:
+def _json(content: Any) -> Response:
     """A JSON response of plain data, floats written in full (no rounding, no re-validation)."""
-    return Response(json.dumps(content, allow_nan=False), media_type="application/json", headers=headers)
-
-
-def _validated(adapter: TypeAdapter, body: bytes) -> Any:
-    """A request body validated straight from its JSON; a 422 naming each bad field otherwise.
-
-    The endpoints read their bodies themselves: pydantic-core parses and validates in
-    one pass, cheaper than FastAPI's body parameters.
-    """
-    try:
-        return adapter.validate_json(body)
-    except ValidationError as exc:
-        raise RequestValidationError(
-            [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False)]
-        ) from None
+    return Response(msgspec.json.encode(content), media_type="application/json")
 
 
 #: What any route of the API may answer on a service with API keys (:mod:`service.keys`).
@@ -163,16 +149,10 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     service = WarningService(networks, registry, settings.match_settings())
     metrics = Metrics()
     curve_cache: dict[int, list[dict[str, Any]]] = {}
-    # The engines hold the vehicles of one piece of work at a time, in arrival order (the
-    # lock). The work (queries and batches with their round trips to the state store, the
-    # curve index, horizons) runs on a thread of its own, so that the event loop stays free
-    # for other requests and /healthz.
-    work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="csws-work")
-    state_lock = asyncio.Lock()
-
-    async def off_loop(function: Callable[..., Any], *args: Any) -> Any:
-        async with state_lock:
-            return await asyncio.get_running_loop().run_in_executor(work, functools.partial(function, *args))
+    # The work (queries and batches with their round trips to the state store, the curve index,
+    # horizons) runs on a thread of its own, in arrival order (service.work).
+    work = WorkThread()
+    off_loop = work.run
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):
@@ -180,7 +160,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         gc.freeze()  # the networks and engines live as long as the app: keep them out of every collection
         yield
         gc.unfreeze()
-        work.shutdown(wait=True)
+        work.close()
         store.close()
 
     app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
@@ -221,9 +201,10 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     )
     async def warning(request: Request) -> Response:
         body, fleet = await request.body(), _principal(request).fleet
-        answers = await off_loop(lambda: service.answer([_validated(QUERY_ADAPTER, body)], loc=("body",), fleet=fleet))
+        answers = await off_loop(lambda: service.answer([decode(body, DecodedQuery, QUERY_ADAPTER)], loc=("body",),
+                                                        fleet=fleet))  # fmt: skip
         metrics.observe_answers(answers.state, answers.level)
-        return Response(answers.json[0], media_type="application/json")
+        return Response(answers.json(0), media_type="application/json")
 
     @app.post(
         "/v1/warnings",
@@ -240,14 +221,19 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
             raise RequestValidationError([{"loc": ("body", "queries"), "type": "too_long",
                                            "msg": f"List should have at most {MAX_BATCH} items, not {count}"}])
 
+        stages = Stages()
+
         def answer_batch():
-            answers = service.answer(_validated(BATCH_ADAPTER, body).queries, fleet=fleet)
-            return answers, answers.batch_json()
+            with stages("decode"):
+                queries = decode(body, DecodedBatch, BATCH_ADAPTER).queries
+            answers = service.answer(queries, fleet=fleet, stages=stages)
+            with stages("encode"):
+                return answers, answers.batch_json()
 
         answers, content = await off_loop(answer_batch)
         metrics.observe_answers(answers.state, answers.level)
         elapsed_ms = (time.perf_counter() - started) * 1000.0
-        return Response(content, media_type="application/json", headers={"Server-Timing": f"csws;dur={elapsed_ms:.3f}"})
+        return Response(content, media_type="application/json", headers={"Server-Timing": stages.header(elapsed_ms)})
 
     # ------------------------------------------------------------------ map
     @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"], responses=_KEYED)
@@ -307,14 +293,16 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
                 [{**e, "loc": ("query", *e["loc"])} for e in exc.errors(include_url=False)]
             ) from None
 
+        decoded = msgspec.convert(query, DecodedQuery, from_attributes=True)
+
         def road() -> Response:
             with registry.read(()) as nobody:  # a position, not a vehicle: no previous lane
-                service.check([query], nobody, loc=("query",))
-                (placement,) = service.place([query], nobody)
+                service.check([decoded], nobody, loc=("query",))
+                (placement,) = service.place([decoded], nobody)
             if placement.lane_id is None:
                 return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
-            ahead = horizon(networks[placement.network_index], placement.lane_id, placement.lane_pos_m,
-                            query.route, length_m)
+            ahead = horizon(networks[placement.network_index], service.cpoi_positions[placement.network_index],
+                            placement.lane_id, placement.lane_pos_m, query.route, length_m)
             matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m,
                        "distance_m": placement.distance_m}
             return _json({"matched": matched, "fault": None, **ahead})
@@ -348,7 +336,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         principal = _principal(request)
         if not principal.may_switch:
             raise HTTPException(403, "switching vehicles needs a key with the admin role")
-        setting = _validated(SWITCH_ADAPTER, await request.body())
+        setting = decode(await request.body(), DecodedSwitch, SWITCH_ADAPTER)
         key = vehicle_key(principal.fleet, vehicle_id)
 
         def configure(vehicles: LoadedVehicles, _vehicle_ids: Any) -> dict[str, Any]:

@@ -19,19 +19,49 @@ from csws.mapmatch import points_along
 from .curves import warning_speeds_kmh
 from .networks import MAX_HORIZON_M, ServedNetwork
 
-__all__ = ["DEFAULT_HORIZON_M", "cpoi_points", "position", "horizon"]
+__all__ = ["DEFAULT_HORIZON_M", "CpoiPositions", "cpoi_points", "positions", "horizon"]
 
 #: Horizon length when none is asked for, m.
 DEFAULT_HORIZON_M = 1000.0
 
 
-def position(network: ServedNetwork, point: np.ndarray) -> dict[str, float]:
-    """A point as the contract's position: x, y and, on a geo-referenced network, lon and lat."""
-    x, y = float(point[0]), float(point[1])
+class CpoiPositions:
+    """Where the CPOIs of one network are, as the contract gives positions: each worked out once.
+
+    A CPOI is the first point of its constant-radius part (3.11), whichever path reaches it; a
+    fleet meets the same CPOIs again and again, and working one out costs an interpolation
+    along the path and, on a geo-referenced network, a projection (some 50 µs in all). The
+    first path that reaches a CPOI places it; the place is kept for as long as the network is
+    served (a network has as many CPOIs as its curves have parts).
+
+    Parameters
+    ----------
+    network
+        The network.
+    """
+
+    def __init__(self, network: ServedNetwork) -> None:
+        self.network = network
+        self._known: dict[tuple[str, int], dict[str, float]] = {}
+
+    def of(self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> list[dict[str, float]]:
+        """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
+        keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index)]
+        missing = [key for key in dict.fromkeys(keys) if key not in self._known]
+        if missing:
+            points = cpoi_points(ahead, [curve_id for curve_id, _ in missing], [part for _, part in missing])
+            self._known.update(zip(missing, positions(self.network, points)))
+        return [self._known[key] for key in keys]
+
+
+def positions(network: ServedNetwork, points: np.ndarray) -> list[dict[str, float]]:
+    """Points ``(n, 2)`` as the contract's positions: x, y and, on a geo-referenced network, lon and
+    lat (all projected in one call)."""
+    xy = np.asarray(points, dtype=float).reshape(-1, 2)
     if not network.road_map.has_projection:
-        return {"x": x, "y": y}
-    lon, lat = network.road_map.xy_to_lonlat(x, y)
-    return {"x": x, "y": y, "lon": float(lon), "lat": float(lat)}
+        return [{"x": x, "y": y} for x, y in xy.tolist()]
+    lonlat = network.road_map.xy_to_lonlat_many(xy)
+    return [{"x": x, "y": y, "lon": lon, "lat": lat} for (x, y), (lon, lat) in zip(xy.tolist(), lonlat.tolist())]
 
 
 def cpoi_points(ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> np.ndarray:
@@ -59,12 +89,14 @@ def _direction(curvature: float) -> str:
 
 def horizon(
     network: ServedNetwork,
+    cpoi_positions: CpoiPositions,
     lane_id: str,
     lane_pos_m: float,
     route_edges: Sequence[str] | None,
     length_m: float = DEFAULT_HORIZON_M,
 ) -> dict[str, Any]:
-    """The horizon of ``length_m`` (at most :data:`MAX_HORIZON_M`) ahead of a lane position.
+    """The horizon of ``length_m`` (at most :data:`MAX_HORIZON_M`) ahead of a lane position; its
+    CPOIs placed by ``cpoi_positions`` (the network's).
 
     Raises
     ------
@@ -85,7 +117,7 @@ def horizon(
         if part.end_s > start_s and part.start_s < end_s
     ]
     keep = np.flatnonzero(ahead.cpoi_distance_m <= end_s - start_s)
-    points = cpoi_points(ahead, [ahead.cpoi_curve_id[i] for i in keep], ahead.cpoi_part_index[keep])
+    places = cpoi_positions.of(ahead, [ahead.cpoi_curve_id[i] for i in keep], ahead.cpoi_part_index[keep])
     policy = network.engine.settings.warning.policy
     cpois = [
         {
@@ -93,10 +125,10 @@ def horizon(
             "part_index": int(ahead.cpoi_part_index[i]),
             "distance_m": float(ahead.cpoi_distance_m[i]),
             "radius_m": float(ahead.cpoi_radius_m[i]),
-            "position": position(network, point),
+            "position": place,
             "warning_speed_kmh": warning_speeds_kmh(float(ahead.cpoi_radius_m[i]), policy),
         }
-        for i, point in zip(keep, points)
+        for i, place in zip(keep, places)
     ]
     lanes_ahead = path.lane_ids[path.lane_ids.index(lane_id):]
     return {

@@ -11,6 +11,7 @@ from __future__ import annotations
 import bisect
 import time
 from collections import Counter, defaultdict
+from itertools import accumulate
 from typing import Any, Iterable
 
 __all__ = ["LATENCY_BUCKETS_S", "Metrics", "MetricsMiddleware"]
@@ -28,7 +29,9 @@ class Metrics:
 
     def __init__(self) -> None:
         self.requests: dict[tuple[str, str, int], int] = defaultdict(int)
-        self.latency_buckets: dict[str, list[int]] = defaultdict(lambda: [0] * len(LATENCY_BUCKETS_S))
+        #: Per route, the requests of each latency bucket alone (the last: above every bound);
+        #: the exposition adds them up into Prometheus' cumulative buckets.
+        self.latency_buckets: dict[str, list[int]] = defaultdict(lambda: [0] * (len(LATENCY_BUCKETS_S) + 1))
         self.latency_sum_s: dict[str, float] = defaultdict(float)
         self.latency_count: dict[str, int] = defaultdict(int)
         self.answers: dict[tuple[str, int], int] = defaultdict(int)
@@ -36,10 +39,7 @@ class Metrics:
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Count a request and its latency."""
         self.requests[(method, route, status)] += 1
-        first = bisect.bisect_left(LATENCY_BUCKETS_S, seconds)
-        buckets = self.latency_buckets[route]
-        for i in range(first, len(buckets)):
-            buckets[i] += 1
+        self.latency_buckets[route][bisect.bisect_left(LATENCY_BUCKETS_S, seconds)] += 1
         self.latency_sum_s[route] += seconds
         self.latency_count[route] += 1
 
@@ -61,7 +61,7 @@ class Metrics:
             "# TYPE csws_http_request_duration_seconds histogram",
         ]
         for route in sorted(self.latency_count):
-            for bound, count in zip(LATENCY_BUCKETS_S, self.latency_buckets[route]):
+            for bound, count in zip(LATENCY_BUCKETS_S, accumulate(self.latency_buckets[route])):
                 lines.append(f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le=bound)}}} {count}")
             lines.append(
                 f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le='+Inf')}}} "

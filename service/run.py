@@ -6,8 +6,8 @@ import argparse
 import os
 import sys
 
-from .settings import ServiceSettings, settings_environment
-from .workers import MASTER_PID_VARIABLE, listen_as_tcp
+from .settings import ServiceSettings
+from .workers import bound_socket, serve_forked
 
 __all__ = ["settings_from_args", "main", "add_key_command"]
 
@@ -34,39 +34,31 @@ def settings_from_args(args: argparse.Namespace) -> ServiceSettings:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Serve until interrupted; a network that cannot be read ends start-up with one line (via ``csws.cli``)."""
+    """Serve until interrupted; a network, state store or key file that cannot be read ends start-up
+    with one line (via ``csws.cli``).
+
+    With ``--workers N`` everything is loaded here, once, and the workers are forked from this
+    process (:func:`service.workers.serve_forked`).
+    """
     import uvicorn
 
     from .app import create_app
 
     settings = settings_from_args(args)
+    if settings.workers > 1 and not hasattr(os, "fork"):
+        raise ValueError(f"--workers {settings.workers} needs a platform with fork(): serve with one worker per "
+                         "process instead, e.g. several csws serve on other ports behind a load balancer")
+    app = create_app(settings)
+    networks = len(app.state.service.networks)
     if settings.workers == 1:
-        app = create_app(settings)
-        print(f"csws: serving {len(app.state.service.networks)} network(s) on http://{settings.host}:{settings.port}"
-              f" (OpenAPI docs at /docs)", flush=True)
+        print(f"csws: serving {networks} network(s) on http://{settings.host}:{settings.port} (OpenAPI docs at /docs)",
+              flush=True)  # fmt: skip
         uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
         return 0
-    from .networks import load_networks
-    from .store import open_store
-
-    # Fail here, once, with one clear line, rather than in every worker (a respawn loop).
-    load_networks(settings.nets, settings.engine_settings())
-    store = open_store(settings)
-    try:
-        store.check()
-    finally:
-        store.close()
-    if settings.api_keys_file is not None:
-        from .keys import KeyRing
-
-        KeyRing(settings.api_keys_file)
-    os.environ.update(settings_environment(settings))
-    os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
-    listen_as_tcp()
-    print(f"csws: serving with {settings.workers} workers on http://{settings.host}:{settings.port}"
-          f" (OpenAPI docs at /docs)", flush=True)
-    uvicorn.run("service.app:create_app", factory=True, host=settings.host, port=settings.port,
-                workers=settings.workers, log_level="warning")
+    master = bound_socket(settings.host, settings.port)
+    print(f"csws: serving {networks} network(s) with {settings.workers} workers on http://{settings.host}:"
+          f"{settings.port} (OpenAPI docs at /docs)", flush=True)  # fmt: skip
+    serve_forked(app, master, settings.workers)
     return 0
 
 

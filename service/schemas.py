@@ -2,14 +2,16 @@
 
 Queries are validated strictly (numbers as JSON numbers, never strings or booleans; finite;
 within their ranges; known categories) so that bad
-input gets an HTTP 422 that names the query and the field. Answers are documented
-here for the OpenAPI schema; the service writes them as plain JSON without
+input gets an HTTP 422 that names the query and the field. The service decodes bodies
+with structs made from these models (:mod:`service.decoding`), which apply the same
+constraints and the same checks (:func:`check_position`, :func:`check_located`). Answers are
+documented here for the OpenAPI schema; the service writes them as plain JSON without
 re-validating them (see :mod:`service.answers`).
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
 
@@ -20,6 +22,29 @@ MAX_BATCH = 10_000
 #: Highest speed a query may report, km/h.
 MAX_SPEED_KMH = 250.0
 
+
+def check_position(position: Any) -> None:
+    """A position is x and y (network metres) or lon and lat (degrees); ValueError otherwise.
+
+    Takes anything with the fields of :class:`Position` (the model, or its decoding struct).
+    """
+    no_x, no_lon = position.x is None, position.lon is None
+    if no_x != (position.y is None) or no_lon != (position.lat is None) or no_x == no_lon:
+        given = [name for name in ("x", "y", "lon", "lat") if getattr(position, name) is not None]
+        raise ValueError(
+            f"a position is either x and y (network metres) or lon and lat (degrees), got {given or 'nothing'}"
+        )
+
+
+def check_located(query: Any) -> None:
+    """A query has a position, or a lane id with a lane position, or both; ValueError otherwise.
+
+    Takes anything with the fields of :class:`Query` (the model, or its decoding struct).
+    """
+    if query.lane_id is None and query.position is None:
+        raise ValueError("a query needs a position or a lane_id with lane_pos_m")
+    if (query.lane_id is None) != (query.lane_pos_m is None):
+        raise ValueError("lane_id and lane_pos_m go together: give both or neither")
 
 
 class Position(BaseModel):
@@ -37,12 +62,7 @@ class Position(BaseModel):
 
     @model_validator(mode="after")
     def _one_pair(self) -> "Position":
-        no_x, no_lon = self.x is None, self.lon is None
-        if no_x != (self.y is None) or no_lon != (self.lat is None) or no_x == no_lon:
-            given = [name for name in ("x", "y", "lon", "lat") if getattr(self, name) is not None]
-            raise ValueError(
-                f"a position is either x and y (network metres) or lon and lat (degrees), got {given or 'nothing'}"
-            )
+        check_position(self)
         return self
 
     @property
@@ -107,10 +127,7 @@ class Query(BaseModel):
 
     @model_validator(mode="after")
     def _located(self) -> "Query":
-        if self.lane_id is None and self.position is None:
-            raise ValueError("a query needs a position or a lane_id with lane_pos_m")
-        if (self.lane_id is None) != (self.lane_pos_m is None):
-            raise ValueError("lane_id and lane_pos_m go together: give both or neither")
+        check_located(self)
         return self
 
 

@@ -1,7 +1,7 @@
 """The service's settings: command-line options override environment variables (``CSWS_*``).
 
-Every setting can come from the environment, so that ``uvicorn service.app:app`` and
-the workers of ``csws serve --workers N`` are configured the same way:
+Every setting can come from the environment, so that ``uvicorn service.app:app`` is configured
+the same way as ``csws serve``:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
 ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
@@ -30,7 +30,7 @@ from csws.warning import WarningSettings
 
 from .networks import bundled_network_paths
 
-__all__ = ["ServiceSettings", "default_state_db", "settings_environment"]
+__all__ = ["ServiceSettings", "default_state_db"]
 
 
 #: The schemes of a Redis URL (``--state``): plain TCP, TLS, a Unix socket.
@@ -131,12 +131,3 @@ def _is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
-
-
-def settings_environment(settings: ServiceSettings) -> dict[str, str]:
-    """The ``CSWS_*`` variables that reproduce ``settings`` (for worker processes)."""
-    values = settings.model_dump()
-    values["nets"] = os.pathsep.join(str(Path(p).resolve()) for p in settings.nets)
-    if settings.api_keys_file is not None:
-        values["api_keys_file"] = str(Path(settings.api_keys_file).resolve())
-    return {f"CSWS_{name.upper()}": "" if value is None else str(value) for name, value in values.items()}

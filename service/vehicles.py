@@ -30,6 +30,7 @@ from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 
 from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from .timing import UNTIMED, Stages
 
 __all__ = ["TRANSACTION_ATTEMPTS", "Session", "SessionRecord", "LoadedVehicles", "VehicleRegistry"]
 
@@ -40,7 +41,7 @@ TRANSACTION_ATTEMPTS = 5
 Answered = TypeVar("Answered")
 
 
-@dataclass
+@dataclass(slots=True)
 class Session:
     """A vehicle seen recently, during a request.
 
@@ -73,6 +74,8 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
         status = VehicleStatus(self.state, self.switched_on, self.activated, self.last_timestamp_s, self.fault)
+        if not (self.held_points[0] or self.held_points[1]):
+            return VehicleMemory(status)  # no level held: nothing of the release rule to take up
         return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s))
 
     @classmethod
@@ -107,9 +110,9 @@ class LoadedVehicles:
         for vehicle_id, vehicle in stored.items():
             record = registry.decode(vehicle.session)
             if record is not None:
-                session = Session(registry.network_index[record.network], record.lane_id)
-                self.sessions[vehicle_id] = session
-                self.engines[session.network_index].restore(vehicle_id, record.memory())
+                network_index = registry.network_index[record.network]
+                self.sessions[vehicle_id] = Session(network_index, record.lane_id)
+                self.engines[network_index].restore(vehicle_id, record.memory())
 
     def __enter__(self) -> "LoadedVehicles":
         return self
@@ -198,12 +201,13 @@ class LoadedVehicles:
     def writes(self) -> dict[str, VehicleWrite]:
         """What to store of the vehicles this request answered or set."""
         writes = {}
+        stored, new_settings, encode = self.stored, self.new_settings, _ENCODER.encode
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
             record = SessionRecord.of(self.network_names[session.network_index], session.lane_id, memory)
-            writes[vehicle_id] = VehicleWrite(self.stored.get(vehicle_id, NOTHING_STORED).version,
-                                              _ENCODER.encode(record), self.new_settings.get(vehicle_id))  # fmt: skip
+            writes[vehicle_id] = VehicleWrite(stored.get(vehicle_id, NOTHING_STORED).version, encode(record),
+                                              new_settings.get(vehicle_id))  # fmt: skip
         return writes
 
 
@@ -247,8 +251,8 @@ class VehicleRegistry:
         """
         return LoadedVehicles(self, self.store.read(vehicle_ids))
 
-    def transact(self, vehicle_ids: Collection[str],
-                 work: Callable[[LoadedVehicles, Collection[str]], Answered]) -> Answered:  # fmt: skip
+    def transact(self, vehicle_ids: Collection[str], work: Callable[[LoadedVehicles, Collection[str]], Answered],
+                 stages: Stages = UNTIMED) -> Answered:  # fmt: skip
         """Read the vehicles, do ``work`` on them, write back what it changed; for vehicles whose
         session another request wrote in the meantime, read them again and redo ``work`` on them
         alone, until none is left.
@@ -259,6 +263,8 @@ class VehicleRegistry:
             The vehicles of the request.
         work
             Called with the loaded vehicles and the ids it is to work on (all at first).
+        stages
+            Where the time of reading (``read``) and writing (``write``) the vehicles is counted.
 
         Returns
         -------
@@ -272,9 +278,14 @@ class VehicleRegistry:
         """
         pending = set(vehicle_ids)
         for _attempt in range(TRANSACTION_ATTEMPTS):
-            with self.read(pending) as vehicles:
+            with stages("read"):
+                vehicles = self.read(pending)
+            try:
                 answered = work(vehicles, pending)
-                pending = self.store.write(vehicles.writes())
+                with stages("write"):
+                    pending = self.store.write(vehicles.writes())
+            finally:
+                vehicles.close()
             if not pending:
                 return answered
         raise StoreUnavailable(f"{len(pending)} vehicle(s) were changed by other requests during each of "

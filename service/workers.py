@@ -1,20 +1,45 @@
-"""The workers of ``csws serve --workers N``: they leave when their master is gone, and their
-connections answer without waiting for the client's acknowledgements."""
+"""The workers of ``csws serve --workers N``: forked from a master that loaded everything once.
+
+The master builds the app (networks read, road chains fitted or read from the profile
+cache, the spatial index and the engines made, the state store checked), binds the
+address, moves every object it made out of the garbage collector's reach (``gc.freeze``),
+and forks the workers. They share the loaded networks copy-on-write: N workers cost one
+start-up, and the pages of the arrays stay shared because nothing writes to them, not even
+a collection. Each worker listens on the address with a socket of its own (Linux's
+``SO_REUSEPORT``), so that the kernel spreads new connections over the workers: on one
+shared socket, the worker that wakes first accepts every waiting connection, and a burst of
+clients can land on a single worker. Each worker has its own event loop and its own
+connection to the state store; a worker that dies is forked again from the master, ready
+at once. The master stops its workers when it is told to
+stop (SIGTERM, SIGINT), and a worker whose master is gone leaves (:func:`leave_with_master`).
+"""
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import socket
+import sys
 import threading
 import time
+from contextlib import suppress
+from typing import Any
 
-__all__ = ["MASTER_PID_VARIABLE", "MASTER_CHECK_S", "leave_with_master", "listen_as_tcp"]
+__all__ = ["MASTER_PID_VARIABLE", "MASTER_CHECK_S", "RESPAWN_PAUSE_S", "OWN_SOCKETS", "leave_with_master", "bound_socket",
+           "serve_forked"]
 
 #: Set by ``csws serve --workers N`` for its workers: the process id of the master.
 MASTER_PID_VARIABLE = "CSWS_MASTER_PID"
 #: How often a worker looks whether its master is still there, s.
 MASTER_CHECK_S = 1.0
+#: A worker that died within this long of being forked is forked again only after this pause, s,
+#: so that one failing at once does not make the master fork without end.
+RESPAWN_PAUSE_S = 1.0
+#: Whether each worker listens on a socket of its own, among which the kernel balances connections.
+OWN_SOCKETS = sys.platform.startswith("linux") and hasattr(socket, "SO_REUSEPORT")
+#: Connections waiting to be accepted, per listening socket.
+BACKLOG = 2048
 
 
 def leave_with_master() -> None:
@@ -41,25 +66,106 @@ def leave_with_master() -> None:
     threading.Thread(target=watch, name="csws-master-watch", daemon=True).start()
 
 
-def listen_as_tcp() -> None:
-    """In the master of ``csws serve --workers N``, before uvicorn starts: the socket it binds for
-    its workers says it is TCP, so that the workers' connections send small answers at once.
+def _tcp_socket(family: int) -> socket.socket:
+    """A TCP socket made as TCP (protocol ``IPPROTO_TCP``), so that asyncio switches Nagle's algorithm
+    off on its connections: small answers go out at once, never waiting about 40 ms for the
+    client's delayed acknowledgement (uvicorn issue 3149)."""
+    made = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    made.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    if OWN_SOCKETS:
+        made.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+    return made
 
-    uvicorn makes that socket with the protocol number left at 0 (uvicorn issue 3149), and
-    asyncio switches Nagle's algorithm off only on connections of sockets that say they are TCP:
-    every answer after the first on a keep-alive connection then waited about 40 ms for the
-    client's delayed acknowledgement. The socket is made again on the same descriptor, as TCP.
+
+def bound_socket(host: str, port: int) -> socket.socket:
+    """The master's socket on ``host:port``: bound, so that an address in use is an error before any
+    worker starts; listening only where the workers share it (without :data:`OWN_SOCKETS`).
+
+    Raises
+    ------
+    OSError
+        If the address cannot be bound.
     """
+    family, _kind, _protocol, _name, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM,
+                                                                  proto=socket.IPPROTO_TCP)[0]  # fmt: skip
+    bound = _tcp_socket(family)
+    bound.bind(address)
+    if not OWN_SOCKETS:
+        bound.listen(BACKLOG)
+    return bound
+
+
+def _worker_socket(master: socket.socket) -> socket.socket:
+    """In a worker: a listening socket of its own on the master's address (port 0 resolved), or the
+    master's where sockets are shared."""
+    if not OWN_SOCKETS:
+        return master
+    own = _tcp_socket(master.family)
+    own.bind(master.getsockname())
+    own.listen(BACKLOG)
+    return own
+
+
+def _run_worker(app: Any, master: socket.socket) -> None:
+    """In a forked worker: serve ``app`` on the master's address until told to stop, then exit."""
     import uvicorn
 
-    bind_socket = uvicorn.Config.bind_socket
+    status = 1
+    try:
+        uvicorn.Server(uvicorn.Config(app, log_level="warning")).run(sockets=[_worker_socket(master)])
+        status = 0
+    finally:
+        os._exit(status)  # never return into the master's code
 
-    def bind_as_tcp(config: uvicorn.Config) -> socket.socket:
-        bound = bind_socket(config)
-        if bound.family not in (socket.AF_INET, socket.AF_INET6) or bound.proto == socket.IPPROTO_TCP:
-            return bound
-        tcp = socket.socket(bound.family, bound.type, socket.IPPROTO_TCP, fileno=bound.detach())
-        tcp.set_inheritable(True)
-        return tcp
 
-    uvicorn.Config.bind_socket = bind_as_tcp
+def serve_forked(app: Any, master: socket.socket, workers: int) -> None:
+    """Fork ``workers`` processes serving ``app`` on the address of ``master``, keep that many until stopped.
+
+    Parameters
+    ----------
+    app
+        The ASGI app, built (networks loaded) in this process.
+    master
+        The master's socket (:func:`bound_socket`).
+    workers
+        How many worker processes.
+    """
+    os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
+    gc.collect()
+    gc.freeze()  # what the master made is shared with the workers: no collection may write to it
+    forked_at_s: dict[int, float] = {}
+    stopping: list[int] = []
+    stop_signals = {signal.SIGTERM, signal.SIGINT}
+
+    def fork() -> None:
+        signal.pthread_sigmask(signal.SIG_BLOCK, stop_signals)  # no stop() in a worker before it resets
+        pid = os.fork()
+        if pid == 0:
+            for number in stop_signals:
+                signal.signal(number, signal.SIG_DFL)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
+            _run_worker(app, master)
+        forked_at_s[pid] = time.monotonic()
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
+
+    def stop(signal_number: int, _frame: Any) -> None:
+        stopping.append(signal_number)
+        for pid in list(forked_at_s):
+            with suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGTERM)
+
+    previous = {number: signal.signal(number, stop) for number in stop_signals}
+    try:
+        for _ in range(workers):
+            fork()
+        while forked_at_s:
+            pid, _status = os.wait()
+            lived_s = time.monotonic() - forked_at_s.pop(pid, time.monotonic())
+            if not stopping:
+                if lived_s < RESPAWN_PAUSE_S:
+                    time.sleep(RESPAWN_PAUSE_S)
+                fork()
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        master.close()

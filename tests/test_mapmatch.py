@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from csws.geometry import sample_pieces, straight
-from csws.mapmatch import MapMatcher, MapPosition, MatchSettings, compass_to_math_rad, lane_point, points_along
+from csws.mapmatch import (MapMatcher, MapPosition, MatchSettings, Probes, compass_to_math_rad, lane_point,
+                           points_along)
 from csws.netbuild import netconvert, shape_text
 from csws.roadmap import RoadMap
 
@@ -62,7 +63,7 @@ def side_map(tmp_path_factory) -> RoadMap:
 def _match(matcher: MapMatcher, xy, heading_deg=None, previous=None):
     xy = np.atleast_2d(np.asarray(xy, dtype=float))
     heading = None if heading_deg is None else np.atleast_1d(np.asarray(heading_deg, dtype=float))
-    return matcher.match([xy] * len(matcher.road_maps), heading, previous)
+    return matcher.match(Probes.everywhere(xy), heading, previous)
 
 
 def test_compass_headings_turn_into_math_angles() -> None:
@@ -130,10 +131,29 @@ def test_several_maps_are_matched_at_once(side_map: RoadMap, tmp_path: Path) -> 
     assert list(_match(same_place, [[200.0, FRONTAGE_OFFSET_M]], 90.0, [MapPosition(1, "frontage_0")]).map_index) == [1]
 
 
-def test_a_fix_that_cannot_be_placed_on_a_map_is_skipped_there(side_map: RoadMap) -> None:
+def test_a_fix_confined_to_one_map_is_matched_there_alone(side_map: RoadMap) -> None:
     matcher = MapMatcher([side_map, side_map])
-    result = matcher.match([np.array([[np.nan, np.nan]]), np.array([[200.0, FRONTAGE_OFFSET_M]])])
-    assert list(result.map_index) == [1]
+    on_the_frontage = np.array([[200.0, FRONTAGE_OFFSET_M]])
+    assert list(matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([1]))).map_index) == [1]
+    # A vehicle last seen on the second map, now confined to the first: its previous lane counts for nothing.
+    confined = matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([0])), None, [MapPosition(1, "frontage_0")])
+    assert (list(confined.map_index), bool(confined.continued[0])) == ([0], False)
+
+
+def test_a_fix_placed_on_no_map_matches_nothing(side_map: RoadMap) -> None:
+    result = MapMatcher([side_map]).match(Probes.everywhere(np.array([[np.nan, np.nan]])))
+    assert result.lane_id == [None] and result.reason == ["no lane within 10 m"]
+
+
+def test_a_fix_given_on_each_map_in_its_own_coordinates_is_matched_on_the_best(side_map: RoadMap, tmp_path: Path) -> None:
+    # As lon/lat is placed on each geo-referenced network: one probe per map, in that map's coordinates.
+    shifted = RoadMap.load(build_side_roads(tmp_path, origin_x_m=5000.0))
+    matcher = MapMatcher([side_map, shifted])
+    probes = Probes(1, np.array([0, 0]), np.array([[200.0, FRONTAGE_OFFSET_M + 2.0], [5200.0, FRONTAGE_OFFSET_M + 1.0]]),
+                    np.array([0, 1]))
+    result = matcher.match(probes, np.array([90.0]))
+    assert (list(result.map_index), result.lane_id) == ([1], ["frontage_0"])
+    assert result.distance_m[0] == pytest.approx(1.0)
 
 
 def test_lane_point_is_the_inverse_of_matching(side_map: RoadMap) -> None:

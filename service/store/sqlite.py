@@ -5,8 +5,10 @@ version and when they were last written). A session not written for the idle tim
 absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`.
 
 A request reads its vehicles with one statement (one snapshot) and writes them in one
-``BEGIN IMMEDIATE`` transaction, which checks the versions and writes the sessions and
-settings with ``executemany``. Writers of the workers take turns for the length of a write,
+``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
+``executemany`` whose count of changed rows tells whether every one was; only when some were
+not (another request wrote them meanwhile) are the stored versions read to find which, and
+the others written. Writers of the workers take turns for the length of a write,
 never for the engine's work in between; one that finds the lock taken tries again every
 :data:`LOCK_RETRY_S` (SQLite's own busy handler would sleep from 1 ms up to 100 ms, far longer
 than a write holds the lock). Settings are written with ``synchronous=FULL``
@@ -18,10 +20,11 @@ machine itself fails, costing those vehicles a fresh session.
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 import time
 from pathlib import Path
-from typing import Callable, Collection, Mapping
+from typing import Callable, Collection, Iterable, Mapping
 
 from csws.standard import Category
 
@@ -49,10 +52,14 @@ _READ = (
 )
 _LIVE_VERSIONS = ("SELECT vehicle_id, version FROM vehicle_sessions "
                   "WHERE vehicle_id IN (SELECT value FROM json_each(?)) AND written_s >= ?")  # fmt: skip
-_WRITE_SESSION = (
-    "INSERT INTO vehicle_sessions (vehicle_id, version, written_s, session) VALUES (?, ?, ?, ?) "
-    "ON CONFLICT (vehicle_id) DO UPDATE SET version = excluded.version, written_s = excluded.written_s, "
-    "session = excluded.session"
+#: A session over the live one of the version read: no row changes when the version moved or the session expired.
+_UPDATE_SESSION = ("UPDATE vehicle_sessions SET version = version + 1, written_s = ?, session = ? "
+                   "WHERE vehicle_id = ? AND version = ? AND written_s >= ?")  # fmt: skip
+#: A first session (version 1): no row changes when another request wrote a live one meanwhile.
+_INSERT_SESSION = (
+    "INSERT INTO vehicle_sessions (vehicle_id, version, written_s, session) VALUES (?, 1, ?, ?) "
+    "ON CONFLICT (vehicle_id) DO UPDATE SET version = 1, written_s = excluded.written_s, session = excluded.session "
+    "WHERE vehicle_sessions.written_s < ?"
 )
 _WRITE_SETTING = "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)"
 
@@ -91,19 +98,43 @@ class SQLiteStore(StateStore):
         self.idle_s = float(idle_s)
         self.clock = clock
         self._swept_s = -float("inf")
+        self._pid = os.getpid()
+        self._connection = self._connect()
+
+    def _connect(self) -> sqlite3.Connection:
+        """A connection to the database, its tables made if missing.
+
+        Raises
+        ------
+        OSError
+            One line naming the file, when it cannot be opened as a database.
+        """
         self._durable = True
         try:
-            self._db = sqlite3.connect(self.name, check_same_thread=False, isolation_level=None,
-                                       timeout=STORE_TIMEOUT_S)  # fmt: skip
+            connection = sqlite3.connect(self.name, check_same_thread=False, isolation_level=None,
+                                         timeout=STORE_TIMEOUT_S)  # fmt: skip
             if self.name != ":memory:":
                 # Readers never wait for the writer: the workers of one service share the file.
-                self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=FULL")
+                connection.execute("PRAGMA journal_mode=WAL")
+            connection.execute("PRAGMA synchronous=FULL")
             for statement in _SCHEMA:
-                self._db.execute(statement)
-            self._db.execute("PRAGMA busy_timeout=0")  # from now on waits are _execute's
+                connection.execute(statement)
+            connection.execute("PRAGMA busy_timeout=0")  # from now on waits are _execute's
         except sqlite3.Error as exc:
-            raise OSError(f"cannot open the vehicle state database {path}: {exc}") from None
+            raise OSError(f"cannot open the vehicle state database {self.name}: {exc}") from None
+        return connection
+
+    @property
+    def _db(self) -> sqlite3.Connection:
+        """This process's connection: a worker forked after the store was opened makes its own, since a
+        SQLite connection must not be used on both sides of a fork."""
+        if self._pid != os.getpid():
+            try:
+                self._connection = self._connect()
+            except OSError as exc:
+                raise StoreUnavailable(str(exc)) from None
+            self._pid = os.getpid()
+        return self._connection
 
     def check(self) -> None:
         """Read every setting once: a database of another program, or one holding an unknown
@@ -145,21 +176,38 @@ class SQLiteStore(StateStore):
         return conflicts
 
     def _write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
-        """Inside the write transaction: compare the versions, write what still matches, sweep when due."""
+        """Inside the write transaction: write the sessions still at the version read (and their
+        settings), sweep when due; return the others."""
         now_s = self.clock()
         oldest_live_s = now_s - self.idle_s
-        live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
-        conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
-        done = [(vehicle_id, w) for vehicle_id, w in writes.items() if vehicle_id not in conflicts]
-        self._db.executemany(_WRITE_SESSION, [(vehicle_id, w.expected_version + 1, now_s, w.session)
-                                              for vehicle_id, w in done])  # fmt: skip
-        self._db.executemany(_WRITE_SETTING, [
-            (vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
-            for vehicle_id, w in done if w.setting is not None])  # fmt: skip
+        self._db.execute("SAVEPOINT sessions")
+        conflicts: set[str] = set()
+        if self._write_sessions(writes.items(), now_s, oldest_live_s) != len(writes):
+            self._db.execute("ROLLBACK TO sessions")
+            live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
+            conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
+            self._write_sessions([(v, w) for v, w in writes.items() if v not in conflicts], now_s, oldest_live_s)
+        self._db.execute("RELEASE sessions")
+        settings = [(vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
+                    for vehicle_id, w in writes.items() if w.setting is not None and vehicle_id not in conflicts]
+        if settings:
+            self._db.executemany(_WRITE_SETTING, settings)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             self._db.execute("DELETE FROM vehicle_sessions WHERE written_s < ?", (oldest_live_s,))
             self._swept_s = now_s
         return conflicts
+
+    def _write_sessions(self, writes: Iterable[tuple[str, VehicleWrite]], now_s: float, oldest_live_s: float) -> int:
+        """Write each session over the live one of its expected version (or as the first one);
+        how many were written."""
+        updates, inserts = [], []
+        for vehicle_id, w in writes:
+            if w.expected_version:
+                updates.append((now_s, w.session, vehicle_id, w.expected_version, oldest_live_s))
+            else:
+                inserts.append((vehicle_id, now_s, w.session, oldest_live_s))
+        return (self._db.executemany(_UPDATE_SESSION, updates).rowcount if updates else 0) + (
+            self._db.executemany(_INSERT_SESSION, inserts).rowcount if inserts else 0)
 
     def _execute(self, statement: str, parameters: tuple = ()) -> sqlite3.Cursor:
         """Execute a statement that may need a lock another worker holds: tried again every
@@ -191,4 +239,5 @@ class SQLiteStore(StateStore):
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
 
     def close(self) -> None:
-        self._db.close()
+        if self._pid == os.getpid():
+            self._connection.close()
