@@ -169,11 +169,11 @@ async def _saturate(url: str, seconds: float) -> Tally:
     port = int(url.rsplit(":", 1)[1])
     tally = Tally()
     deadline = time.monotonic() + seconds
-    connections = [
-        _post_back_to_back(port, [_post_request("/v1/warning", json.dumps({**fix, "vehicle_id": f"c{n}-{fix['vehicle_id']}"})
-                                                .encode()) for fix in fixes], deadline, tally)
-        for n in range(WORKERS_CONNECTIONS)
-    ]  # fmt: skip
+    def requests(connection: int) -> list[bytes]:
+        bodies = [json.dumps({**fix, "vehicle_id": f"c{connection}-{fix['vehicle_id']}"}).encode() for fix in fixes]
+        return [_post_request("/v1/warning", body) for body in bodies]
+
+    connections = [_post_back_to_back(port, requests(n), deadline, tally) for n in range(WORKERS_CONNECTIONS)]
     await asyncio.wait_for(asyncio.gather(*connections), timeout=seconds + 2 * REQUEST_TIMEOUT_S)
     return tally
 
@@ -190,7 +190,8 @@ def run_workers(seconds: float = SECONDS) -> dict:
     with tempfile.TemporaryDirectory(prefix="csws-bench-workers-") as folder:
         for _ in range(WORKER_ROUNDS):
             for workers in WORKER_COUNTS:
-                served = csws_serve(Path(folder) / "vehicles.sqlite3", "--net", str(TRACK_NET), "--workers", str(workers))
+                served = csws_serve(Path(folder) / "vehicles.sqlite3", "--net", str(TRACK_NET),
+                                    "--workers", str(workers))  # fmt: skip
                 try:
                     processes = [served.process.pid, *children(served.process.pid)]
                     cpu_before, service_before = time.process_time(), cpu_s(processes)

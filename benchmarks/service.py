@@ -90,8 +90,8 @@ def track_fixes(count: int, seed: int = 5) -> list[dict]:
 
 def _truck_lanes(road_map: RoadMap) -> list[str]:
     """The normal lanes of a map that trucks may use."""
-    return [lane_id for lane_id in road_map.lane_ids
-            if not road_map.lane(lane_id).is_internal and "truck" in road_map.lane(lane_id).allowed_vclasses]  # fmt: skip
+    lanes = [road_map.lane(lane_id) for lane_id in road_map.lane_ids]
+    return [lane.lane_id for lane in lanes if not lane.is_internal and "truck" in lane.allowed_vclasses]
 
 
 def road_fix(road_map: RoadMap, lane_id: str, lane_pos_m: float, rng: np.random.Generator) -> dict:
@@ -216,8 +216,9 @@ def run() -> dict:
             one = csws_serve(Path(folder) / "one.sqlite3", "--net", str(TRACK_NET))
             try:
                 rates = single_rates(one, trivial, track_fixes(1)[0])
-                figures |= {"trivial_rps": round(rates["trivial"], 1), "service_rps_one_network": round(rates["service"], 1),
-                            "single_ratio_one_network": round(rates["service"] / rates["trivial"], 3)}  # fmt: skip
+                figures |= {"trivial_rps": round(rates["trivial"], 1),
+                            "service_rps_one_network": round(rates["service"], 1),
+                            "single_ratio_one_network": round(rates["service"] / rates["trivial"], 3)}
                 lane = batch_ms(one, lane_queries(RoadMap.load(TRACK_NET), BATCH_SIZE))
                 figures |= {"batch_lane_ms": lane.pop("csws"), "batch_lane_stages_ms": lane}
             finally:

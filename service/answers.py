@@ -140,7 +140,8 @@ class WarningService:
             When the state store cannot be read or written now.
         """
         if fleet:
-            queries = [msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id)) for query in queries]
+            queries = [msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id))
+                       for query in queries]  # fmt: skip
         answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
@@ -285,7 +286,8 @@ class WarningService:
             geographic = [k for k, fix in enumerate(fixes) if fix.lon is not None]
             xy = np.array([(fix.x, fix.y) if fix.lon is None else (0.0, 0.0) for fix in fixes])
             if geographic:
-                xy[geographic] = road_map.lonlat_to_xy_many(np.array([(fixes[k].lon, fixes[k].lat) for k in geographic]))
+                lonlat = np.array([(fixes[k].lon, fixes[k].lat) for k in geographic])
+                xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
             lane_xy = lane_points(road_map, lane_id, np.array([queries[row].lane_pos_m for row in rows]))
             for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist()):
                 distances_m[row] = math.hypot(x - lane_x, y - lane_y)

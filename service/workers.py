@@ -26,8 +26,8 @@ import time
 from contextlib import suppress
 from typing import Any
 
-__all__ = ["MASTER_PID_VARIABLE", "MASTER_CHECK_S", "RESPAWN_PAUSE_S", "OWN_SOCKETS", "leave_with_master", "bound_socket",
-           "serve_forked"]
+__all__ = ["MASTER_PID_VARIABLE", "MASTER_CHECK_S", "RESPAWN_PAUSE_S", "OWN_SOCKETS", "leave_with_master",
+           "bound_socket", "serve_forked"]
 
 #: Set by ``csws serve --workers N`` for its workers: the process id of the master.
 MASTER_PID_VARIABLE = "CSWS_MASTER_PID"

@@ -136,7 +136,8 @@ def test_a_fix_confined_to_one_map_is_matched_there_alone(side_map: RoadMap) -> 
     on_the_frontage = np.array([[200.0, FRONTAGE_OFFSET_M]])
     assert list(matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([1]))).map_index) == [1]
     # A vehicle last seen on the second map, now confined to the first: its previous lane counts for nothing.
-    confined = matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([0])), None, [MapPosition(1, "frontage_0")])
+    confined = matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([0])), None,
+                             [MapPosition(1, "frontage_0")])  # fmt: skip
     assert (list(confined.map_index), bool(confined.continued[0])) == ([0], False)
 
 
@@ -145,12 +146,13 @@ def test_a_fix_placed_on_no_map_matches_nothing(side_map: RoadMap) -> None:
     assert result.lane_id == [None] and result.reason == ["no lane within 10 m"]
 
 
-def test_a_fix_given_on_each_map_in_its_own_coordinates_is_matched_on_the_best(side_map: RoadMap, tmp_path: Path) -> None:
+def test_a_fix_placed_on_each_map_in_its_own_coordinates_is_matched_on_the_best(side_map: RoadMap,
+                                                                              tmp_path: Path) -> None:
     # As lon/lat is placed on each geo-referenced network: one probe per map, in that map's coordinates.
     shifted = RoadMap.load(build_side_roads(tmp_path, origin_x_m=5000.0))
     matcher = MapMatcher([side_map, shifted])
-    probes = Probes(1, np.array([0, 0]), np.array([[200.0, FRONTAGE_OFFSET_M + 2.0], [5200.0, FRONTAGE_OFFSET_M + 1.0]]),
-                    np.array([0, 1]))
+    xy = np.array([[200.0, FRONTAGE_OFFSET_M + 2.0], [5200.0, FRONTAGE_OFFSET_M + 1.0]])
+    probes = Probes(1, np.array([0, 0]), xy, np.array([0, 1]))
     result = matcher.match(probes, np.array([90.0]))
     assert (list(result.map_index), result.lane_id) == ([1], ["frontage_0"])
     assert result.distance_m[0] == pytest.approx(1.0)

@@ -185,7 +185,8 @@ class SQLiteStore(StateStore):
         if self._write_sessions(writes.items(), now_s, oldest_live_s) != len(writes):
             self._db.execute("ROLLBACK TO sessions")
             live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
-            conflicts = {vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version}
+            conflicts = {vehicle_id for vehicle_id, w in writes.items()
+                         if live.get(vehicle_id, 0) != w.expected_version}  # fmt: skip
             self._write_sessions([(v, w) for v, w in writes.items() if v not in conflicts], now_s, oldest_live_s)
         self._db.execute("RELEASE sessions")
         settings = [(vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
