@@ -7,7 +7,7 @@ import os
 import sys
 
 from .settings import ServiceSettings
-from .workers import bound_socket, serve_forked
+from .workers import bound_socket, listening_socket, serve_forked
 
 __all__ = ["settings_from_args", "main", "add_key_command"]
 
@@ -51,9 +51,10 @@ def main(args: argparse.Namespace) -> int:
     app = create_app(settings)
     networks = len(app.state.service.networks)
     if settings.workers == 1:
+        listening = listening_socket(settings.host, settings.port)  # a port in use is one line, before "serving"
         print(f"csws: serving {networks} network(s) on http://{settings.host}:{settings.port} (OpenAPI docs at /docs)",
               flush=True)  # fmt: skip
-        uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
+        uvicorn.Server(uvicorn.Config(app, log_level="warning")).run(sockets=[listening])
         return 0
     master = bound_socket(settings.host, settings.port)
     print(f"csws: serving {networks} network(s) with {settings.workers} workers on http://{settings.host}:"

@@ -16,6 +16,7 @@ stop (SIGTERM, SIGINT), and a worker whose master is gone leaves (:func:`leave_w
 
 from __future__ import annotations
 
+import errno
 import gc
 import os
 import signal
@@ -27,7 +28,7 @@ from contextlib import suppress
 from typing import Any
 
 __all__ = ["MASTER_PID_VARIABLE", "MASTER_CHECK_S", "RESPAWN_PAUSE_S", "OWN_SOCKETS", "leave_with_master",
-           "bound_socket", "serve_forked"]
+           "bound_socket", "listening_socket", "serve_forked"]
 
 #: Set by ``csws serve --workers N`` for its workers: the process id of the master.
 MASTER_PID_VARIABLE = "CSWS_MASTER_PID"
@@ -89,10 +90,24 @@ def bound_socket(host: str, port: int) -> socket.socket:
     family, _kind, _protocol, _name, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM,
                                                                   proto=socket.IPPROTO_TCP)[0]  # fmt: skip
     bound = _tcp_socket(family)
-    bound.bind(address)
+    try:
+        bound.bind(address)
+    except OSError as error:
+        bound.close()
+        reason = "it is in use (another program, or another csws serve)" if error.errno == errno.EADDRINUSE else error.strerror
+        raise OSError(f"cannot listen on {host}:{port}: {reason}; give another --port") from None
     if not OWN_SOCKETS:
         bound.listen(BACKLOG)
     return bound
+
+
+def listening_socket(host: str, port: int) -> socket.socket:
+    """A socket listening on ``host:port`` for a single server process, bound before anything is
+    said to be served (:func:`bound_socket`)."""
+    listening = bound_socket(host, port)
+    if OWN_SOCKETS:
+        listening.listen(BACKLOG)
+    return listening
 
 
 def _worker_socket(master: socket.socket) -> socket.socket:

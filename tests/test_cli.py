@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -95,3 +96,18 @@ def test_output_read_only_in_part_ends_quietly():
         stderr = process.stderr.read()
         assert process.wait(timeout=120) == 141
     assert stderr == b""
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_port_in_use_is_one_line_before_anything_is_served(tmp_path, workers):
+    with socket.socket() as held:
+        held.bind(("127.0.0.1", 0))
+        held.listen()
+        port = held.getsockname()[1]
+        result = _csws("serve", "--port", str(port), "--net", str(networks_dir() / "t7_left.net.xml"),
+                       "--workers", workers, "--state-db", str(tmp_path / "vehicles.db"))  # fmt: skip
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.strip().splitlines() == [
+        f"csws: error: cannot listen on 127.0.0.1:{port}: it is in use (another program, or another csws serve); "
+        "give another --port"
+    ]
