@@ -20,6 +20,7 @@ target still proves it out of reach.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -129,48 +130,48 @@ def _sideways_jacobian(node_points, values: np.ndarray, node_s: np.ndarray) -> n
     return jacobian
 
 
-def _covariance(pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """The inverse Fisher information of the road's parameters from nodes at ``node_s``
-    (the pseudo-inverse where it is singular), the true parameters and which curvature each piece has."""
+@dataclass(frozen=True)
+class RoadInformation:
+    """What the nodes tell of a road of known form: the inverse Fisher information
+    ``covariance`` of its parameters (the pseudo-inverse where it is singular), the true
+    parameters ``truth`` and, for each piece, the index of its curvature among them
+    (``curvature_of``, -1 for none)."""
+
+    pieces: Sequence[Piece]
+    covariance: np.ndarray
+    truth: np.ndarray
+    curvature_of: list[int]
+
+
+def road_information(pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float) -> RoadInformation:
+    """The information of nodes at arc lengths ``node_s`` along the true road ``pieces``,
+    with isotropic node noise of ``noise_rms_m`` RMS (both axes together), m."""
     free, curvature_of = _free_parameters(pieces)
     truth = np.concatenate(([0.0, 0.0], free))
     jacobian = _sideways_jacobian(_road_of(pieces, curvature_of)[1], truth, node_s)
     information = jacobian.T @ jacobian / (noise_rms_m**2 / 2.0)
-    return np.linalg.pinv(information, hermitian=True), truth, curvature_of
+    return RoadInformation(pieces, np.linalg.pinv(information, hermitian=True), truth, curvature_of)
 
 
-def start_bounds_m(
-    pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float, warning_radius_m: float
-) -> np.ndarray:
-    """The Cramér-Rao bound on the standard deviation of each curve start, m.
-
-    Parameters
-    ----------
-    pieces
-        The true road.
-    node_s
-        Arc lengths of the way's nodes along it, m.
-    noise_rms_m
-        RMS of the isotropic node noise (both axes together), m.
-    warning_radius_m
-        R_c, m.
-    """
-    covariance, truth, curvature_of = _covariance(pieces, node_s, noise_rms_m)
-    road = _road_of(pieces, curvature_of)[0]
+def start_bounds_m(information: RoadInformation, warning_radius_m: float) -> np.ndarray:
+    """The Cramér-Rao bound on the standard deviation of each curve start (R_c
+    ``warning_radius_m``), m."""
+    pieces, truth = information.pieces, information.truth
+    road = _road_of(pieces, information.curvature_of)[0]
     gradient = np.empty((len(curve_starts_s(pieces, warning_radius_m)), len(truth)))
     for column in range(len(truth)):
         step = np.zeros(len(truth))
         step[column] = DIFFERENCE_STEP * max(abs(truth[column]), 1e-3)
         gradient[:, column] = (curve_starts_s(road(truth + step), warning_radius_m)
                                - curve_starts_s(road(truth - step), warning_radius_m)) / (2.0 * step[column])  # fmt: skip
-    return np.sqrt(np.einsum("ij,jk,ik->i", gradient, covariance, gradient))
+    return np.sqrt(np.einsum("ij,jk,ik->i", gradient, information.covariance, gradient))
 
 
-def radius_bounds(pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: float, curve_spans_s: Sequence[tuple[float, float]]) -> np.ndarray:
+def radius_bounds(information: RoadInformation, curve_spans_s: Sequence[tuple[float, float]]) -> np.ndarray:
     """The Cramér-Rao bound on the relative standard deviation of each curve's smallest
     radius (that of its sharpest arc, whose curvature is one of the road's parameters),
     for curves spanning ``curve_spans_s``; nan for a curve without an arc."""
-    covariance, truth, curvature_of = _covariance(pieces, node_s, noise_rms_m)
+    pieces, truth, curvature_of = information.pieces, information.truth, information.curvature_of
     first_curvature = len(pieces) + 1
     starts = piece_starts_s(pieces)
     bounds = []
@@ -181,7 +182,7 @@ def radius_bounds(pieces: Sequence[Piece], node_s: np.ndarray, noise_rms_m: floa
             bounds.append(math.nan)
             continue
         column = first_curvature + curvature_of[max(inside, key=lambda i: abs(pieces[i].curvature))]
-        bounds.append(math.sqrt(covariance[column, column]) / abs(truth[column]))
+        bounds.append(math.sqrt(information.covariance[column, column]) / abs(truth[column]))
     return np.array(bounds)
 
 

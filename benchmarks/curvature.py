@@ -47,7 +47,7 @@ from typing import Callable
 
 import numpy as np
 
-from benchmarks.bounds import start_bounds_m
+from benchmarks.bounds import road_information, start_bounds_m
 from csws.curvature import find_curves, radius_profiles, three_point_radius
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.standard import DEFAULT_WARNING_RADIUS_M
@@ -175,7 +175,7 @@ def start_bound_m(road: Road) -> float:
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(road.xy, axis=0).T))))
     arc_length_m = road.arc_end_s - road.arc_start_s
     pieces = [straight(road.arc_start_s), Piece(arc_length_m, road.curvature), straight(s[-1] + 100.0)]
-    return float(start_bounds_m(pieces, s, SPARSE_NOISE_RMS_M, ARC_WARNING_RADIUS_M)[0])
+    return float(start_bounds_m(road_information(pieces, s, SPARSE_NOISE_RMS_M), ARC_WARNING_RADIUS_M)[0])
 
 
 def bound_figures(roads: list[Road], limit_m: float) -> dict:

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from benchmarks.bounds import error_quantile_m, ml_start_errors_m, parameter_count, radius_bounds, start_bounds_m
+from benchmarks.bounds import error_quantile_m, ml_start_errors_m, parameter_count, radius_bounds, road_information, start_bounds_m
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
@@ -206,10 +206,11 @@ def node_references(pieces: list[Piece], truth: list[TrueCurve], exact: np.ndarr
     maximum-likelihood road told the road's form (m); and whether the nodes are too few to
     determine the road (:func:`benchmarks.bounds.parameter_count`)."""
     node_s = shapely.LineString(exact[:, :2]).project(shapely.points(nodes))
+    information = road_information(pieces, np.sort(node_s), NODE_NOISE_RMS_M)
     return {
         "undetermined": len(nodes) <= parameter_count(pieces),
-        "start_bounds_m": start_bounds_m(pieces, np.sort(node_s), NODE_NOISE_RMS_M, WARNING_RADIUS_M),
-        "radius_bounds": radius_bounds(pieces, np.sort(node_s), NODE_NOISE_RMS_M, [(c.start_s, c.end_s) for c in truth]),
+        "start_bounds_m": start_bounds_m(information, WARNING_RADIUS_M),
+        "radius_bounds": radius_bounds(information, [(c.start_s, c.end_s) for c in truth]),
         "ml_start_errors_m": ml_start_errors_m(pieces, nodes, node_s, WARNING_RADIUS_M),
     }
 

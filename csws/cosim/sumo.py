@@ -38,9 +38,9 @@ _VAR_LANEPOSITION = 0x56
 _VAR_SPEED = 0x40
 _VAR_POSITION = 0x42
 _VAR_ROUTE_ID = 0x53
-_VAR_TYPE = 0x4F
 _VAR_DISTANCE = 0x84
-_SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_TYPE, _VAR_DISTANCE)
+#: What is read of each vehicle every step; its type (and so its category) is read once, when it departs.
+_SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_DISTANCE)
 #: One vehicle's subscription result as a tuple in the order of ``_SUBSCRIBED``.
 _subscribed_values = itemgetter(*_SUBSCRIBED)
 
@@ -198,9 +198,8 @@ class Simulation:
         results = self._call(self.api.vehicle.getAllSubscriptionResults)
         ids = list(results)
         if not ids:
-            return ids, ((),) * 6
-        lane_id, lane_pos_m, speed_mps, position, route_id, _, odometer_m = zip(*map(_subscribed_values, results.values()))
-        return ids, (lane_id, lane_pos_m, speed_mps, position, route_id, odometer_m)
+            return ids, ((),) * len(_SUBSCRIBED)
+        return ids, tuple(zip(*map(_subscribed_values, results.values())))
 
     def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
         """Command a vehicle's speed (m/s); a negative speed hands it back to SUMO's driver."""

@@ -20,6 +20,7 @@ from .road import (
     _polished,
     _projected,
     _put_rows,
+    _repeated,
     _Road,
     _road_rows,
     _split_part,
@@ -79,6 +80,15 @@ def _among_nodes(nodes: _Nodes, first: np.ndarray, stop: np.ndarray, fraction: n
     return low + (rank - below) * (high - low)
 
 
+def _part_trials(road: _Road, part: np.ndarray, trials: int) -> tuple[_Road, np.ndarray, np.ndarray, np.ndarray]:
+    """``road`` (one trial per polyline) repeated ``trials`` times, with its part ``part``
+    ``(polylines,)`` and that part's first and last bound, each ``(polylines, trials)``."""
+    road = _repeated(road, trials)
+    part = np.repeat(part[:, None], trials, axis=1)
+    first, stop = (np.take_along_axis(road.bounds, (part + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    return road, part, first, stop
+
+
 def _straight_trials(road: _Road, nodes: _Nodes, part: np.ndarray, low: np.ndarray, high: np.ndarray) -> _Road:
     """Trial roads ``(polylines, fractions)`` from ``road`` (one trial per polyline), each
     with a straight over the fractions ``low[f]`` to ``high[f]`` of its part ``part``,
@@ -89,10 +99,7 @@ def _straight_trials(road: _Road, nodes: _Nodes, part: np.ndarray, low: np.ndarr
     it, and the arcs beside it turn from the road's heading at the part's ends to that
     (or the start is turned to it), so that the polish starts near its goal.
     """
-    trials = np.shape(low)[-1]
-    road = _Road(*(np.repeat(getattr(road, f.name), trials, axis=1) for f in fields(_Road)))
-    part = np.repeat(part[:, None], trials, axis=1)
-    first, stop = (np.take_along_axis(road.bounds, (part + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    road, part, first, stop = _part_trials(road, part, np.shape(low)[-1])
     start, end = _among_nodes(nodes, first, stop, low), _among_nodes(nodes, first, stop, high)
     start = np.where(low > 0.0, np.clip(start, first + MIN_POLISHED_PART_M, stop - 2.0 * MIN_POLISHED_PART_M), first)
     end = np.where(high < 1.0, np.clip(end, start + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M), stop)
@@ -119,7 +126,7 @@ def _stretched_trials(road: _Road, factors: np.ndarray) -> _Road:
     both from the start lets the nodes decide (3.4, 3.5: where the curve starts and ends).
     """
     trials = len(factors)
-    stretched = _Road(*(np.repeat(getattr(road, f.name), trials, axis=1) for f in fields(_Road)))
+    stretched = _repeated(road, trials)
     parts = road.curvature.shape[-1]
     part = np.argmax(np.where(road.free, np.diff(road.bounds, axis=-1), -1.0), axis=-1)
     bounds = stretched.bounds
@@ -209,10 +216,7 @@ def _compound_trials(road: _Road, nodes: _Nodes, part: np.ndarray) -> _Road:
     in nodes), the first sharper or gentler by :data:`COMPOUND_RATIO`: a compound curve
     (3.8) that the heading fit took for one arc of a mean radius."""
     fraction = np.array(COMPOUND_FRACTIONS)
-    trials = 2 * len(fraction)
-    road = _Road(*(np.repeat(getattr(road, f.name), trials, axis=1) for f in fields(_Road)))
-    part = np.repeat(part[:, None], trials, axis=1)
-    first, stop = (np.take_along_axis(road.bounds, (part + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    road, part, first, stop = _part_trials(road, part, 2 * len(fraction))
     knot = np.clip(_among_nodes(nodes, first, stop, np.tile(fraction, 2)), first + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M)
     curvature = np.take_along_axis(road.curvature, part[..., None], axis=-1)[..., 0]
     ratio = np.repeat([COMPOUND_RATIO, 1.0 / COMPOUND_RATIO], len(fraction))

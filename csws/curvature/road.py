@@ -292,7 +292,7 @@ def _best_scaled_step(road: _Road, nodes: _Nodes, t: np.ndarray, step: np.ndarra
     direction. A longer step in that direction goes further at the cost of a projection.
     """
     every = np.array((1.0, *scales))
-    roads = _Road(*(np.repeat(getattr(road, f.name), len(every), axis=1) for f in fields(_Road)))
+    roads = _repeated(road, len(every))
     moved = _moved(roads, nodes, t, step * every[:, None])
     return _chosen(moved, np.argmin(np.where(moved.road.is_ordered(), moved.squares, np.inf), axis=1)[:, None])
 
@@ -319,6 +319,11 @@ def _base_road(batch: _SparseBatch, bounds: np.ndarray, curvature: np.ndarray, f
     base_heading = np.sum(weight * (batch.heading - turn), axis=1) / np.sum(weight, axis=1)
     zero = np.zeros((len(bounds), 1))
     return _Road(base_heading[:, None], zero, zero.copy(), bounds[:, None, :], curvature[:, None, :], free[:, None, :], knots[:, None])
+
+
+def _repeated(road: _Road, count: int) -> _Road:
+    """The trial roads ``(polylines, 1)`` each repeated ``count`` times, ``(polylines, count)``."""
+    return _Road(*(np.repeat(getattr(road, f.name), count, axis=1) for f in fields(_Road)))
 
 
 def _road_rows(road: _Road, rows: np.ndarray) -> _Road:
