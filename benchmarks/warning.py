@@ -5,7 +5,7 @@ over the 300 m before the curves at test speed:
 
 * one vehicle in-process: ``Engine.evaluate`` (look-ahead, warning of clause 6 and the
   system state), median over many calls; and the warning step alone
-  (``csws.warning.evaluate`` on the vehicle's CPOIs);
+  (``csws.onewarning.evaluate`` on the vehicle's CPOIs);
 * a batch: ``Engine.evaluate_many`` for 1,000 vehicles, per vehicle;
 * the forward collision warning of 1,000 vehicles in one batch (:func:`csws.fcw.evaluate_fcw`),
   per vehicle.
@@ -25,10 +25,11 @@ from csws.engine import Engine, VehicleInput
 from csws.fcw import evaluate_fcw
 from csws.networks import networks_dir
 from csws.roadmap import RoadMap
-from csws.warning import evaluate
+from csws.onewarning import evaluate
 
 TRACK = "t9_m1_test1_left"
-TARGET_SINGLE_US = 50.0
+TARGET_SINGLE_US = 30.0
+TARGET_BATCH_US = 5.0
 TARGET_FCW_BATCH_US = 5.0
 
 
@@ -93,7 +94,6 @@ def run(batch_size: int = 1000) -> dict:
         "warning_single_median_us": warning_us,
         "engine_batch_per_vehicle_us": batch_us,
         "batch_size": batch_size,
-        "batch_speedup": engine_us / batch_us,
     }
 
 
@@ -104,7 +104,7 @@ def main() -> None:
     print(f"{'engine, one vehicle (median)':<34} {figures['engine_single_median_us']:>8.1f}us  <= {TARGET_SINGLE_US:g} us")
     print(f"{'warning step, one vehicle (median)':<34} {figures['warning_single_median_us']:>8.1f}us")
     print(f"{'engine, batch of 1000, per vehicle':<34} {figures['engine_batch_per_vehicle_us']:>8.1f}us  "
-          f"({figures['batch_speedup']:.1f}x the single rate)")
+          f"<= {TARGET_BATCH_US:g} us")
     print(f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  <= {TARGET_FCW_BATCH_US:g} us")
 
 

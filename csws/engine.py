@@ -22,6 +22,7 @@ import numpy as np
 
 from .horizon import BatchAhead, PathAhead
 from .lookahead import LookAhead, LookAheadSettings
+from .onewarning import judge_one
 from .release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from .roadmap import RoadMap
 from .standard import Level
@@ -204,12 +205,10 @@ class Engine:
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
         path = self.lookahead(vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category,
                               vehicle.route_edges)
-        distance_m = path.cpoi_distance_m
-        batch = self._judged([vehicle.vehicle_id], [vehicle.timestamp_s], np.array([vehicle.speed_kmh], dtype=float),
-                             np.array([column_index(vehicle.category)]), np.zeros(distance_m.size, dtype=np.intp),
-                             [0, distance_m.size], distance_m, path.cpoi_radius_m, path.cpoi_curve_id,
-                             path.cpoi_part_index, path.cpoi_passed)  # fmt: skip
-        warning = batch.vehicle_warning(0, 0, path.cpoi_curve_id, path.cpoi_part_index, path.kind)
+        warning, memory = judge_one(float(vehicle.speed_kmh), column_index(vehicle.category), path.cpoi_points(),
+                                    path.kind, self.held.get(vehicle.vehicle_id, NOT_HELD), vehicle.timestamp_s,
+                                    self.settings.warning)  # fmt: skip
+        self._keep([vehicle.vehicle_id], [memory])
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
 
     def _next_status(self, vehicle: VehicleInput) -> VehicleStatus:
@@ -326,13 +325,16 @@ class Engine:
         latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, self.settings.warning.release_hold_s)
         batch = evaluate_batch(speed_kmh, columns, cpoi_vehicle, distance_m, radius_m, self.settings.warning,
                                cpoi_latched=latched, cpoi_hold=hold, cpoi_passed=passed)
-        for vehicle_id, memory in zip(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices,
-                                                                 batch.cpoi_rule)):  # fmt: skip
+        self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule))
+        return batch
+
+    def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
+        """Keep each vehicle's warning memory while a level is on; drop it when none is."""
+        for vehicle_id, memory in zip(vehicle_ids, memories):
             if memory is not NOT_HELD and memory.is_on:
                 self.held[vehicle_id] = memory
             elif self.held:
                 self.held.pop(vehicle_id, None)
-        return batch
 
     def _warnings(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
                   columns: np.ndarray, lane_ids: Sequence[str], lane_pos_m: np.ndarray,
@@ -340,14 +342,16 @@ class Engine:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
         ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
+        # As lists: the release rule and the warnings read them one CPOI at a time.
+        curve_ids, part_indices = ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist()
         batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, first, ahead.cpoi_distance_m,
-                             ahead.cpoi_radius_m, ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_passed)
+                             ahead.cpoi_radius_m, curve_ids, part_indices, ahead.cpoi_passed)
         warnings = [no_warning(horizon.kind) for horizon in ahead.horizons]
         warned = np.flatnonzero(batch.level).tolist()
         if warned:  # most vehicles: nothing to look at
             found = batch.vehicle_warnings(
-                warned, [first[i] for i in warned], [ahead.cpoi_curve_id[first[i]:first[i + 1]] for i in warned],
-                [ahead.cpoi_part_index[first[i]:first[i + 1]] for i in warned], [ahead.horizons[i].kind for i in warned],
+                warned, [first[i] for i in warned], [curve_ids[first[i]:first[i + 1]] for i in warned],
+                [part_indices[first[i]:first[i + 1]] for i in warned], [ahead.horizons[i].kind for i in warned],
             )
             for i, warning in zip(warned, found):
                 warnings[i] = warning

@@ -58,6 +58,12 @@ class Horizon:
     part_end_radius_m: np.ndarray
 
     @cached_property
+    def parts(self) -> list[tuple[float, float, float, float, int, str]]:
+        """Each part as plain values: start and end s, radius at start and end, index, curve id."""
+        return list(zip(self.part_start_s.tolist(), self.part_end_s.tolist(), self.part_radius_m.tolist(),
+                        self.part_end_radius_m.tolist(), self.part_index.tolist(), self.part_curve_id.tolist()))
+
+    @cached_property
     def _first_lane(self) -> tuple[float, float]:
         """Position factor and shape length of the first lane."""
         return float(self.path.lane_position_factor[0]), float(self.path.lane_shape_length_m[0])
@@ -133,6 +139,22 @@ class PathAhead:
     def cpoi_curve_id(self) -> tuple[str, ...]:
         """The curve id of each CPOI."""
         return tuple(self.horizon.part_curve_id[self._rows])
+
+    def cpoi_points(self) -> list[tuple[str, int, float, float, bool]]:
+        """Each CPOI as plain values, nearest first: curve id, part index, distance S (m), radius
+        (m) and whether it is passed, equal to the arrays above (:func:`radius_under` in floats)."""
+        vehicle_s, parts = self.vehicle_s, self.horizon.parts
+        points = []
+        for row in self._rows.tolist():
+            start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id = parts[row]
+            length_m = end_s - start_s
+            fraction = min(max((vehicle_s - start_s) / length_m if length_m > 0 else 0.0, 0.0), 1.0)
+            radius_m = start_radius_m
+            if fraction > 0:
+                curvature = 1.0 / start_radius_m + (1.0 / end_radius_m - 1.0 / start_radius_m) * fraction
+                radius_m = 1.0 / curvature if curvature else math.inf
+            points.append((curve_id, part_index, max(start_s - vehicle_s, 0.0), radius_m, end_s <= vehicle_s))
+        return points
 
     @property
     def cpois(self) -> tuple[CurvaturePointOfInterest, ...]:

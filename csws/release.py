@@ -39,7 +39,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["HeldWarning", "NOT_HELD", "Rule", "memory_masks", "next_memories"]
+__all__ = ["HeldWarning", "NOT_HELD", "Rule", "memory_masks", "next_memories", "within_hold"]
 
 #: A CPOI as the release rule remembers it: (curve id, part index).
 PointKey = tuple[str, int]
@@ -122,7 +122,7 @@ def memory_masks(
                 continue
             rows_named = [row for row in rows if (curve_ids[row], int(part_indices[row])) in points]
             named[level].extend(rows_named)
-            if _within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s):
+            if within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s):
                 held_on[level].extend(rows_named)
     for level in (0, 1):
         latched[level, named[level]] = True
@@ -160,7 +160,7 @@ def next_memories(
     return memories
 
 
-def _within_hold(kept_at_s: float | None, now_s: float | None, hold_s: float) -> bool:
+def within_hold(kept_at_s: float | None, now_s: float | None, hold_s: float) -> bool:
     """Whether less than ``hold_s`` has passed since ``kept_at_s`` (both known)."""
     if kept_at_s is None or now_s is None or not math.isfinite(now_s):
         return False

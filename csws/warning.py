@@ -22,7 +22,7 @@ requires it is the release rule of :mod:`csws.release`, which the engine applies
 ``cpoi_latched``, ``cpoi_hold`` and ``cpoi_passed``.
 
 The core, :func:`evaluate_batch`, works on flat numpy arrays for many vehicles at once;
-:func:`evaluate` is the same computation for one vehicle.
+:mod:`csws.onewarning` is the same computation for one vehicle, in plain floats.
 """
 
 from __future__ import annotations
@@ -52,7 +52,6 @@ __all__ = [
     "Trigger",
     "WarningSettings",
     "CurveWarning",
-    "evaluate",
     "evaluate_batch",
     "BatchWarnings",
     "column_index",
@@ -433,28 +432,3 @@ def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, 
     level[vehicles[first][triggered]] = cpoi_level[best[triggered]]
     target[vehicles[first][triggered]] = best[triggered]
     return level, target
-
-
-def evaluate(
-    speed_kmh: float,
-    category: "str | Category",
-    cpois: Sequence[CurvaturePointOfInterest],
-    path_kind: PathKind = PathKind.ROUTE,
-    settings: WarningSettings = WarningSettings(),
-) -> CurveWarning:
-    """The warning for one vehicle at speed ``speed_kmh`` with ``cpois`` ahead (clause 6).
-
-    Returns a :class:`CurveWarning` listing every triggering CPOI; below every warning
-    speed, or with no CPOI ahead (a straight), the level is 0.
-    """
-    batch = evaluate_batch(
-        np.array([speed_kmh], dtype=float),
-        np.array([column_index(category)]),
-        np.zeros(len(cpois), dtype=np.intp),
-        np.array([p.distance_m for p in cpois], dtype=float),
-        np.array([p.radius_m for p in cpois], dtype=float),
-        settings,
-    )
-    return batch.vehicle_warning(
-        0, 0, [p.curve_id for p in cpois], [p.part_index for p in cpois], path_kind
-    )

@@ -16,7 +16,6 @@ import pytest
 from csws.conformance.drive import Trace, truth
 from csws.conformance.realroads import REAL_ROAD_TABLE, judge_real_road_run, real_road_rows
 from csws.conformance.run import conformance, select_rows
-from csws.curvature import find_curves
 from csws.geometry import Piece, curvature_at, sample_pieces
 from csws.networks import networks_dir
 from csws.networks.real_roads import compare_real_roads, real_road_specs

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csws.data import standard_tables
+from csws.onewarning import evaluate
 from csws.standard import Category, Level, warning_distance, warning_speed
 from csws.warning import (
     CurvaturePointOfInterest,
@@ -17,7 +18,6 @@ from csws.warning import (
     PathKind,
     WarningSettings,
     column_indices,
-    evaluate,
     evaluate_batch,
 )
 

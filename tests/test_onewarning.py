@@ -1,0 +1,84 @@
+"""One vehicle judged in plain floats gets the batch's answer and memory to the bit."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from hypothesis import given, settings, strategies as st
+
+from csws.engine import Engine, VehicleInput
+from csws.networks import networks_dir
+from csws.onewarning import judge_one
+from csws.release import NOT_HELD, HeldWarning, memory_masks, next_memories
+from csws.roadmap import RoadMap
+from csws.standard import TABLE_RADII_M
+from csws.warning import PathKind, WarningSettings, evaluate_batch
+
+#: Radii at and beside the tables' radii, an arc of a spiral's end, and straights.
+_radii = st.one_of(st.floats(min_value=5.0, max_value=2000.0), st.sampled_from([*TABLE_RADII_M, 39.99, 200.01, math.inf]))
+_points = st.lists(
+    st.tuples(st.sampled_from(["a@0", "b@120"]), st.integers(0, 2), st.floats(min_value=0.0, max_value=400.0),
+              _radii, st.booleans()),  # fmt: skip
+    max_size=5,
+    unique_by=lambda point: (point[0], point[1]),
+)
+_times = st.one_of(st.none(), st.floats(min_value=0.0, max_value=3.0))
+
+
+@st.composite
+def _memories(draw, points):
+    """A memory naming some of the CPOIs (and perhaps one that is no longer ahead) at each level."""
+    keys = [(point[0], point[1]) for point in points] + [("gone@5", 0)]
+    levels = tuple(frozenset(draw(st.lists(st.sampled_from(keys), max_size=3))) for _ in range(2))
+    kept = tuple(draw(_times) if level_points else None for level_points in levels)
+    return draw(st.sampled_from([NOT_HELD, HeldWarning(levels, kept)]))
+
+
+def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings):
+    """The same vehicle through :func:`evaluate_batch` and :mod:`csws.release` on arrays."""
+    curve_ids = [point[0] for point in points]
+    parts = np.array([point[1] for point in points], dtype=np.intp)
+    first = [0, len(points)]
+    latched, hold = memory_masks([held], [now_s], first, curve_ids, parts, warning_settings.release_hold_s)
+    batch = evaluate_batch(np.array([speed_kmh]), np.array([column]), np.zeros(len(points), dtype=np.intp),
+                           np.array([point[2] for point in points], dtype=float),
+                           np.array([point[3] for point in points], dtype=float), warning_settings,
+                           cpoi_latched=latched, cpoi_hold=hold,
+                           cpoi_passed=np.array([point[4] for point in points], dtype=bool))  # fmt: skip
+    memory = next_memories([held], [now_s], first, curve_ids, parts, batch.cpoi_rule)[0]
+    return batch.vehicle_warning(0, 0, curve_ids, parts, kind), memory
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.data(), _points, st.floats(min_value=0.0, max_value=160.0), st.integers(0, 2), _times,
+       st.sampled_from(list(PathKind)))  # fmt: skip
+def test_one_vehicle_is_judged_as_in_a_batch(data, points, speed_kmh, column, now_s, kind):
+    held = data.draw(_memories(points))
+    warning_settings = WarningSettings()
+    expected_warning, expected_memory = _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings)
+    warning, memory = judge_one(speed_kmh, column, points, kind, held, now_s, warning_settings)
+    assert warning == expected_warning
+    assert (memory.points, memory.kept_at_s) == (expected_memory.points, expected_memory.kept_at_s)
+
+
+def test_a_drive_through_curves_is_answered_alike_one_at_a_time_and_in_a_batch():
+    """Both engines see a truck braking too late through Table 9's curves at 0.1 s: same answers,
+    levels on and off, held and released."""
+    truth = json.loads((networks_dir() / "t9_m1_test1_left.truth.json").read_text())
+    road_map = RoadMap.load(networks_dir() / "t9_m1_test1_left.net.xml")
+    single, batch = Engine(road_map), Engine(road_map)
+    route = tuple(truth["route"]["edges"])
+    start_s = truth["curves"][0]["start_s"] - 350.0
+    s, speed_kmh, levels = start_s, 110.0, set()
+    for step in range(300):
+        lane = next(lane for lane in reversed(truth["lanes"]) if lane["start_s"] <= s)
+        vehicle = VehicleInput("truck", "N", speed_kmh, lane["lane"], s - lane["start_s"], route, timestamp_s=step * 0.1)
+        one, [many] = single.evaluate(vehicle), batch.evaluate_many([vehicle])
+        assert (one.state, one.warning) == (many.state, many.warning)
+        assert single.memory("truck") == batch.memory("truck")
+        levels.add(int(one.level))
+        s += speed_kmh / 3.6 * 0.1
+        speed_kmh = max(speed_kmh - (0.9 if one.level == 2 else 0.2), 40.0)
+    assert levels == {0, 1, 2}
