@@ -9,7 +9,7 @@
 3. matches every fix without a lane id (:class:`csws.mapmatch.MapMatcher`, one spatial index
    over all served networks): a query naming its network on that network alone, a vehicle
    with a session on its previous network first, preferring its previous lane;
-4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_many`;
+4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_fleet`;
 5. writes the vehicles' sessions back to the store, and the answers as the JSON of the HTTP
    contract (floats unrounded), encoded by msgspec.
 
@@ -23,16 +23,17 @@ import math
 from collections import defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Collection, NamedTuple, Sequence
+from typing import Any, Callable, Collection, NamedTuple, Sequence
 
 import msgspec
 import numpy as np
 
-from csws.engine import Answer, VehicleInput
+from csws.engine import VehicleInput
+from csws.horizon import PathAhead
 from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_points
 from csws.standard import Level
 from csws.state import Fault, SystemState
-from csws.warning import HmiHint, Trigger
+from csws.warning import CurveWarning, HmiHint, PathKind, Trigger
 
 from .decoding import DecodedQuery
 from .horizon import CpoiPositions
@@ -42,7 +43,7 @@ from .schemas import Hmi, Matched, WarningAnswer
 from .timing import UNTIMED, Stages
 from .vehicles import LoadedVehicles, VehicleRegistry
 
-__all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
+__all__ = ["QueryErrors", "Placement", "Evaluated", "EncodedAnswers", "WarningService"]
 
 
 class QueryErrors(ValueError):
@@ -303,24 +304,57 @@ class WarningService:
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         for network_index, rows in by_network.items():
-            engine = self.networks[network_index].engine
             with stages("engine"):
-                inputs = [self.vehicle_input(queries[row], placements[row], vehicles) for row in rows]
-                # One vehicle skips the batch set-up; both paths give the same answer.
-                results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
+                evaluated = self.evaluate(network_index, [queries[row] for row in rows],
+                                          [placements[row] for row in rows], vehicles)  # fmt: skip
             with stages("encode"):
-                self._record(indices, placements, rows, results, vehicles, answers, fleet)
+                self._record(indices, placements, rows, evaluated, vehicles, answers, fleet)
+
+    def evaluate(self, network_index: int, queries: Sequence[DecodedQuery], placements: Sequence[Placement],
+                 vehicles: LoadedVehicles) -> "Evaluated":  # fmt: skip
+        """The engine's answers for placed queries of distinct vehicles on one network, as columns.
+
+        One vehicle takes the engine's one-vehicle path; more are evaluated as columns in one
+        :meth:`csws.engine.Engine.evaluate_fleet`, with no object per vehicle beyond its warning.
+        Both give the same answers.
+        """
+        engine = self.networks[network_index].engine
+        if len(queries) == 1:
+            answer = engine.evaluate(self.vehicle_input(queries[0], placements[0], vehicles))
+            kind = None if answer.path is None else answer.path.kind
+            return Evaluated([answer.vehicle_id], [answer.state], [answer.fault], [answer.warning], [kind],
+                             lambda _row: answer.path)  # fmt: skip
+        fleet = engine.evaluate_fleet(
+            [query.vehicle_id for query in queries],
+            [query.category if query.category is not None else vehicles.category(query.vehicle_id) for query in queries],
+            [query.speed_kmh for query in queries],
+            [placement.lane_id for placement in placements],
+            [placement.lane_pos_m if placement.lane_id is not None else 0.0 for placement in placements],
+            [tuple(query.route) if query.route else None for query in queries],
+            timestamp_s=[query.timestamp_s for query in queries], age_s=[query.age_s for query in queries],
+        )
+        kinds: list[PathKind | None] = [None] * len(queries)
+        ahead_row = {}
+        if fleet.ahead is not None:
+            for k, (row, horizon) in enumerate(zip(fleet.active, fleet.ahead.horizons)):
+                kinds[row] = horizon.kind
+                ahead_row[row] = k
+        return Evaluated(fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, kinds,
+                         lambda row: fleet.ahead.path_ahead(ahead_row[row]))  # fmt: skip
 
     def _record(self, indices: Sequence[int], placements: Sequence[Placement], rows: Sequence[int],
-                results: Sequence[Answer], vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
+                evaluated: "Evaluated", vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
         """Note the answered vehicles' lanes in their sessions, and their answers at ``indices[rows]``."""
-        for row, result in zip(rows, results):
+        for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(zip(
+                rows, evaluated.vehicle_id, evaluated.state, evaluated.fault, evaluated.warning, evaluated.path_kind)):
             placement = placements[row]
-            vehicles.seen(result.vehicle_id, placement.lane_id)
+            vehicles.seen(vehicle_id, placement.lane_id)
             index = indices[row]
-            answers.documents[index] = self.encode(result, placement, shown_id(fleet, result.vehicle_id))
-            answers.state[index] = result.state
-            answers.level[index] = result.warning.level
+            path = evaluated.path(k) if warning.triggers else None
+            answers.documents[index] = self.encode(shown_id(fleet, vehicle_id), state, fault, warning, kind, path,
+                                                   placement)  # fmt: skip
+            answers.state[index] = state
+            answers.level[index] = warning.level
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
         """The engine's input for a placed query."""
@@ -337,25 +371,26 @@ class WarningService:
         )
 
     # ------------------------------------------------------------------ answers
-    def encode(self, answer: Answer, placement: Placement, vehicle_id: str) -> msgspec.Struct:
-        """The contract's WarningAnswer of an engine answer for the vehicle its fleet calls
-        ``vehicle_id``, ready for msgspec to write (floats unrounded; the state, level and path
-        kind as the enumerations' values).
+    def encode(self, vehicle_id: str, state: SystemState, fault: Fault | None, warning: CurveWarning,
+               path_kind: PathKind | None, path: PathAhead | None, placement: Placement) -> msgspec.Struct:  # fmt: skip
+        """The contract's WarningAnswer of an engine's answer (system state, fault, warning, the path
+        ahead's kind, and the path itself where the warning has CPOIs to locate) for the vehicle its
+        fleet calls ``vehicle_id``, ready for msgspec to write (floats unrounded; the state, level
+        and path kind as the enumerations' values).
 
         Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
         once for all, and only CPOIs that trigger are located.
         """
-        warning = answer.warning
-        fault = None
-        if answer.fault is not None:
-            fault = answer.fault.value
-            if answer.fault is Fault.NO_MAP_MATCH and placement.reason:
-                fault = f"{fault}: {placement.reason}"
+        fault_text = None
+        if fault is not None:
+            fault_text = fault.value
+            if fault is Fault.NO_MAP_MATCH and placement.reason:
+                fault_text = f"{fault_text}: {placement.reason}"
         target, triggers = None, []
         located = warning.triggers  # the target is one of them
         if located:
             places = self.cpoi_positions[placement.network_index].of(
-                answer.path, [t.curve_id for t in located], [t.part_index for t in located])
+                path, [t.curve_id for t in located], [t.part_index for t in located])
             positions = {id(t): place for t, place in zip(located, places)}
             if warning.target is not None:
                 target = _trigger(warning.target, positions[id(warning.target)])
@@ -363,8 +398,7 @@ class WarningService:
         matched = None
         if placement.lane_id is not None:
             matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
-        path_kind = None if answer.path is None else answer.path.kind
-        return _AnswerDocument(vehicle_id, answer.state, fault, warning.level, target, triggers, matched, path_kind,
+        return _AnswerDocument(vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind,
                                _hmi_json(warning.hmi))  # fmt: skip
 
 
@@ -372,6 +406,28 @@ def _document(model: type) -> type[msgspec.Struct]:
     """A struct with the fields of a contract's model, in its order, to write its JSON with msgspec."""
     return msgspec.defstruct(f"{model.__name__}Document", [(name, Any) for name in model.model_fields],
                              gc=False, module=__name__)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Evaluated:
+    """The engine's answers for the queries of one network, as parallel columns in their order.
+
+    Attributes
+    ----------
+    vehicle_id, state, fault, warning
+        As in :class:`csws.engine.Answer`.
+    path_kind
+        The kind of each vehicle's path ahead, None where none was looked at.
+    path
+        The path ahead of the vehicle in a row (only asked of vehicles whose warning has CPOIs).
+    """
+
+    vehicle_id: Sequence[str]
+    state: Sequence[SystemState]
+    fault: Sequence[Fault | None]
+    warning: Sequence[CurveWarning]
+    path_kind: Sequence[PathKind | None]
+    path: Callable[[int], PathAhead]
 
 
 _AnswerDocument = _document(WarningAnswer)
