@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from functools import cached_property
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from .standard import Level
 from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from .warning import BatchWarnings, CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
 
-__all__ = ["VehicleInput", "Answer", "FleetAnswers", "EngineSettings", "VehicleMemory", "Engine"]
+__all__ = ["VehicleInput", "Answer", "FleetAnswers", "TargetColumns", "EngineSettings", "VehicleMemory", "Engine"]
 
 
 @dataclass(frozen=True)
@@ -97,27 +98,103 @@ class Answer:
 
 @dataclass(frozen=True)
 class FleetAnswers:
-    """The system's answers for many vehicles at one instant, as parallel lists in their order.
+    """The system's answers for many vehicles at one instant, as parallel columns in their order.
 
     Columns rather than one :class:`Answer` per vehicle, so that a large fleet is answered
-    without per-vehicle objects beyond those of its warnings.
+    without per-vehicle objects: the warnings as objects (:attr:`warning`) are built only when
+    asked for; :meth:`targets` and :meth:`entries` read the same answers from the arrays.
 
     Attributes
     ----------
-    vehicle_id, state, fault, warning
-        Per vehicle, as in :class:`Answer` (warnings without a warning are shared objects).
+    vehicle_id, state, fault
+        Per vehicle, as in :class:`Answer`.
     active
         The vehicles whose path ahead was looked at (active ones), ascending.
     ahead
         Their roads ahead, in the order of ``active``; None when no vehicle is active.
+    judged
+        Clause 6 and the release rule on the CPOIs of ``ahead`` (vehicle ``k`` of it is
+        ``active[k]``); None when no vehicle is active.
     """
 
     vehicle_id: Sequence[str]
     state: list[SystemState]
     fault: list[Fault | None]
-    warning: list[CurveWarning]
     active: list[int]
     ahead: BatchAhead | None
+    judged: BatchWarnings | None
+
+    @cached_property
+    def _first_cpoi(self) -> list[int]:
+        """Offset of each active vehicle's first CPOI in the flat CPOI arrays, and their count at the end."""
+        return np.searchsorted(self.ahead.cpoi_vehicle, np.arange(len(self.active) + 1)).tolist()
+
+    @cached_property
+    def level(self) -> list[int]:
+        """Each vehicle's warning level, 0 to 2."""
+        levels = [0] * len(self.state)
+        if self.judged is not None:
+            for i, level in zip(self.active, self.judged.level.tolist()):
+                levels[i] = level
+        return levels
+
+    @cached_property
+    def warning(self) -> list[CurveWarning]:
+        """Each vehicle's :class:`CurveWarning` (vehicles with no warning share theirs)."""
+        warnings = [no_warning()] * len(self.state)
+        if self.judged is None:
+            return warnings
+        ahead, first = self.ahead, self._first_cpoi
+        for i, horizon in zip(self.active, ahead.horizons):
+            warnings[i] = no_warning(horizon.kind)
+        warned = np.flatnonzero(self.judged.level).tolist()
+        if warned:  # most vehicles: nothing to look at
+            curve_ids, part_indices = ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist()
+            found = self.judged.vehicle_warnings(
+                warned, [first[k] for k in warned], [curve_ids[first[k]:first[k + 1]] for k in warned],
+                [part_indices[first[k]:first[k + 1]] for k in warned], [ahead.horizons[k].kind for k in warned],
+            )
+            for k, warning in zip(warned, found):
+                warnings[self.active[k]] = warning
+        return warnings
+
+    def targets(self) -> "TargetColumns":
+        """Each vehicle's target CPOI (3.12) as columns, None where it has no warning: the values of
+        ``warning[i].target`` without the objects."""
+        count = len(self.state)
+        columns = TargetColumns(*([None] * count for _ in range(5)))
+        if self.judged is None:
+            return columns
+        warned = np.flatnonzero(self.judged.level)
+        rows = self.judged.target[warned]
+        vehicles = np.asarray(self.active, dtype=np.intp)[warned].tolist()
+        values = (self.ahead.cpoi_curve_id[rows].tolist(), self.ahead.cpoi_part_index[rows].tolist(),
+                  self.judged.cpoi_distance_m[rows].tolist(), self.judged.cpoi_radius_m[rows].tolist(),
+                  self.judged.warning_speed_kmh[rows].tolist())  # fmt: skip
+        for column, column_values in zip(columns, values):
+            for i, value in zip(vehicles, column_values):
+                column[i] = value
+        return columns
+
+    def entries(self) -> list[tuple[int, str, int, float, int]]:
+        """The triggering CPOIs each vehicle is inside (distance 0), in order: vehicle, curve id, part
+        index, radius (m) and level; the triggers of ``warning[i]`` at distance 0, without the objects."""
+        if self.judged is None:
+            return []
+        rows = np.flatnonzero((self.judged.cpoi_level > 0) & (self.judged.cpoi_distance_m <= 0.0))
+        vehicles = np.asarray(self.active, dtype=np.intp)[self.ahead.cpoi_vehicle[rows]].tolist()
+        return list(zip(vehicles, self.ahead.cpoi_curve_id[rows].tolist(), self.ahead.cpoi_part_index[rows].tolist(),
+                        self.judged.cpoi_radius_m[rows].tolist(), self.judged.cpoi_level[rows].tolist()))
+
+
+class TargetColumns(NamedTuple):
+    """The target CPOI of each vehicle of a fleet, one list per field, None without a warning."""
+
+    curve_id: list[str | None]
+    part_index: list[int | None]
+    distance_m: list[float | None]
+    radius_m: list[float | None]
+    warning_speed_kmh: list[float | None]
 
 
 @dataclass(frozen=True)
@@ -283,18 +360,15 @@ class Engine:
             for vehicle_id, status in zip(vehicle_ids, statuses):
                 if status.state is not SystemState.ACTIVE:
                     self.held.pop(vehicle_id, None)
-        warnings = [no_warning()] * len(statuses)
-        ahead = None
+        ahead = judged = None
         if active:
             rows = np.array(active, dtype=np.intp)
             times_s = [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active]
-            active_warnings, ahead = self._warnings([vehicle_ids[i] for i in active], times_s, speeds_kmh[rows],
-                                                    columns[rows], [lane_ids[i] for i in active], positions_m[rows],
-                                                    [route_edges[i] for i in active])  # fmt: skip
-            for i, warning in zip(active, active_warnings):
-                warnings[i] = warning
+            ahead, judged = self._warnings([vehicle_ids[i] for i in active], times_s, speeds_kmh[rows], columns[rows],
+                                           [lane_ids[i] for i in active], positions_m[rows],
+                                           [route_edges[i] for i in active])  # fmt: skip
         return FleetAnswers(vehicle_ids, [status.state for status in statuses],
-                            [status.fault for status in statuses], warnings, active, ahead)  # fmt: skip
+                            [status.fault for status in statuses], active, ahead, judged)  # fmt: skip
 
     def _found_faults(self, lane_ids: Sequence[str | None], lane_pos_m: np.ndarray) -> list[Fault | None]:
         """:meth:`_found_fault` of many vehicles: one look at the positions, one look-up per lane."""
@@ -338,21 +412,12 @@ class Engine:
 
     def _warnings(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
                   columns: np.ndarray, lane_ids: Sequence[str], lane_pos_m: np.ndarray,
-                  route_edges: Sequence[Sequence[str] | None]) -> tuple[list[CurveWarning], BatchAhead]:  # fmt: skip
+                  route_edges: Sequence[Sequence[str] | None]) -> tuple[BatchAhead, BatchWarnings]:  # fmt: skip
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
         ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
-        # As lists: the release rule and the warnings read them one CPOI at a time.
-        curve_ids, part_indices = ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist()
+        # As lists: the release rule reads them one CPOI at a time.
         batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, first, ahead.cpoi_distance_m,
-                             ahead.cpoi_radius_m, curve_ids, part_indices, ahead.cpoi_passed)
-        warnings = [no_warning(horizon.kind) for horizon in ahead.horizons]
-        warned = np.flatnonzero(batch.level).tolist()
-        if warned:  # most vehicles: nothing to look at
-            found = batch.vehicle_warnings(
-                warned, [first[i] for i in warned], [curve_ids[first[i]:first[i + 1]] for i in warned],
-                [part_indices[first[i]:first[i + 1]] for i in warned], [ahead.horizons[i].kind for i in warned],
-            )
-            for i, warning in zip(warned, found):
-                warnings[i] = warning
-        return warnings, ahead
+                             ahead.cpoi_radius_m, ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist(),
+                             ahead.cpoi_passed)  # fmt: skip
+        return ahead, batch

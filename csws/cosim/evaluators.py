@@ -18,10 +18,9 @@ from dataclasses import dataclass
 from typing import Protocol, Sequence
 from urllib.parse import urlsplit
 
-from csws.engine import Engine
-from csws.standard import Level, mps_to_kmh
+from csws.engine import Engine, TargetColumns
+from csws.standard import mps_to_kmh
 from csws.state import SystemState
-from csws.warning import Trigger
 
 from .sumo import FleetState
 
@@ -36,16 +35,14 @@ __all__ = [
 
 #: At most this many queries go in one ``POST /v1/warnings`` (the contract's limit).
 MAX_BATCH = 10_000
-#: The levels by number, for answers read from JSON.
-_LEVELS = tuple(Level)
 
 
 @dataclass(frozen=True)
 class FleetWarnings:
-    """What the system answered for every vehicle of a step, as parallel lists in the fleet's order.
+    """What the system answered for every vehicle of a step, as columns in the fleet's order.
 
-    Columns rather than one record per vehicle, so that a step of a large fleet is
-    recorded without per-vehicle objects.
+    Columns rather than one record or warning object per vehicle, so that a step of a large
+    fleet goes from the engine to the files without per-vehicle objects.
 
     Attributes
     ----------
@@ -54,20 +51,21 @@ class FleetWarnings:
     level
         0, 1 or 2.
     target
-        The target CPOI (3.12), or None.
-    triggers
-        Every triggering CPOI, nearest first.
+        The target CPOI (3.12) of each vehicle, field by field; None where it has no warning.
+    entries
+        The triggering CPOIs the vehicles are inside (distance 0), in the fleet's order:
+        vehicle row, curve id, part index, radius (m), level.
     """
 
     state: list[str]
     level: list[int]
-    target: list[Trigger | None]
-    triggers: list[tuple[Trigger, ...]]
+    target: TargetColumns
+    entries: list[tuple[int, str, int, float, int]]
 
     @classmethod
     def none(cls, count: int) -> "FleetWarnings":
         """The answers of ``count`` vehicles that were not evaluated (baseline runs)."""
-        return cls([SystemState.OFF] * count, [0] * count, [None] * count, [()] * count)
+        return cls([SystemState.OFF] * count, [0] * count, TargetColumns(*([None] * count for _ in range(5))), [])
 
     def warned(self) -> list[int]:
         """The vehicles with a warning (level 1 or 2), in order."""
@@ -100,13 +98,7 @@ class LibraryEvaluator:
             fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id, fleet.lane_pos_m, fleet.route_edges,
             timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
         )
-        warnings = answers.warning
-        return FleetWarnings(
-            state=answers.state,
-            level=[warning.level for warning in warnings],
-            target=[warning.target for warning in warnings],
-            triggers=[warning.triggers for warning in warnings],
-        )
+        return FleetWarnings(answers.state, answers.level, answers.targets(), answers.entries())
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
         for vehicle_id in vehicle_ids:
@@ -167,13 +159,16 @@ class ServiceEvaluator:
         answers = [_OFF_THE_MAP] * len(fleet.vehicle_id)
         for i, answer in zip(on_lane, answered):
             answers[i] = answer
-        targets = [answer["target"] for answer in answers]
-        return FleetWarnings(
-            state=[answer["state"] for answer in answers],
-            level=[answer["level"] for answer in answers],
-            target=[None if target is None else _trigger(target) for target in targets],
-            triggers=[tuple(map(_trigger, answer["triggers"])) for answer in answers],
-        )
+        target = TargetColumns(*([None] * len(answers) for _ in range(5)))
+        entries = []
+        for i, answer in enumerate(answers):
+            if answer["target"] is not None:
+                for column, field in zip(target, TargetColumns._fields):
+                    column[i] = answer["target"][field]
+            entries += [(i, trigger["curve_id"], trigger["part_index"], trigger["radius_m"], trigger["level"])
+                        for trigger in answer["triggers"] if trigger["distance_m"] <= 0.0]  # fmt: skip
+        return FleetWarnings([answer["state"] for answer in answers], [answer["level"] for answer in answers], target,
+                             entries)  # fmt: skip
 
     def _post(self, body: dict) -> dict:
         """One POST; ServiceError on a refusal, the answer's JSON otherwise."""
@@ -199,17 +194,3 @@ class ServiceEvaluator:
 
 #: The answer for a vehicle on no lane: what the engine answers for it (5.4: fault, no warning).
 _OFF_THE_MAP = {"state": SystemState.FAULT.value, "level": 0, "target": None, "triggers": []}
-
-
-def _trigger(record: dict) -> Trigger:
-    """A Trigger from the contract's JSON."""
-    return Trigger(
-        curve_id=record["curve_id"],
-        part_index=int(record["part_index"]),
-        distance_m=float(record["distance_m"]),
-        radius_m=float(record["radius_m"]),
-        level=_LEVELS[record["level"]],
-        warning_speed_kmh=float(record["warning_speed_kmh"]),
-        warning_distance_m=float(record["warning_distance_m"]),
-        held=bool(record["held"]),
-    )

@@ -214,12 +214,7 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
     speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
     lane_pos, xs, ys = fleet.lane_pos_m.tolist(), fleet.x_m.tolist(), fleet.y_m.tolist()
     t = fleet.time_s
-    warned = warnings.warned()
-    curve_id, part_index, distance_m, warning_speed_kmh = ([None] * count for _ in range(4))
-    for i in warned:
-        target = warnings.target[i]
-        curve_id[i], part_index[i] = target.curve_id, target.part_index
-        distance_m[i], warning_speed_kmh[i] = target.distance_m, target.warning_speed_kmh
+    target = warnings.target
     commanded_kmh = [None] * count
     if commands:
         row_of = {vehicle_id: i for i, vehicle_id in enumerate(fleet.vehicle_id)}
@@ -227,44 +222,42 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
             commanded_kmh[row_of[vehicle_id]] = None if command < 0 else mps_to_kmh(command)
     if sampled:
         streams.timeseries.append((
-            [t] * count, fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh,
-            warnings.state, warnings.level, curve_id, part_index, distance_m, warning_speed_kmh, commanded_kmh,
+            [t] * count, fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh, warnings.state,
+            warnings.level, target.curve_id, target.part_index, target.distance_m, target.warning_speed_kmh,
+            commanded_kmh,
         ))  # fmt: skip
     levels = tracker.levels
     changed = [i for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level))
                if level != levels.get(vehicle_id, 0)]  # fmt: skip
-    events, entries = [], []
-    for i in sorted({*changed, *warned}):
-        vehicle_id, category, level, target = fleet.vehicle_id[i], fleet.category[i], warnings.level[i], warnings.target[i]
+    events = []
+    for i in changed:
+        vehicle_id, category, level, curve_id = fleet.vehicle_id[i], fleet.category[i], warnings.level[i], target.curve_id[i]
         previous = levels.get(vehicle_id, 0)
         event = event_of(previous, level)
-        if event is not None:
-            levels[vehicle_id] = level
-            if event == "end":
-                tracker.ended_s[vehicle_id] = t
-            else:
-                if event == "onset" and t - tracker.ended_s.get(vehicle_id, -math.inf) <= summary.flicker_window_s:
-                    summary.add_soon_again(category, tracker.curves.get(vehicle_id) == (target and target.curve_id))
-                tracker.curves[vehicle_id] = target and target.curve_id
-            if level > previous:
-                summary.add_onset(category, level, target and target.curve_id)
-                summary.warned_vehicles.add(vehicle_id)
-            events.append((
-                t, vehicle_id, category, event, level, previous, target and target.curve_id,
-                target and target.part_index, target and target.radius_m, target and target.distance_m,
-                target and target.warning_speed_kmh, speeds_kmh[i], fleet.lane_id[i], lane_pos[i], xs[i], ys[i],
-            ))  # fmt: skip
-        for trigger in warnings.triggers[i]:
-            if trigger.distance_m > 0:
-                continue
-            entered = tracker.entered.setdefault(vehicle_id, set())
-            if (trigger.curve_id, trigger.part_index) in entered:
-                continue
-            entered.add((trigger.curve_id, trigger.part_index))
-            level1_kmh, excess_kmh = level1_excess_kmh(speeds_kmh[i], category, trigger.radius_m)
-            summary.add_entry(category, excess_kmh)
-            entries.append((t, vehicle_id, category, trigger.curve_id, trigger.part_index, trigger.radius_m,
-                            speeds_kmh[i], level1_kmh, excess_kmh, int(trigger.level)))  # fmt: skip
+        levels[vehicle_id] = level
+        if event == "end":
+            tracker.ended_s[vehicle_id] = t
+        else:
+            if event == "onset" and t - tracker.ended_s.get(vehicle_id, -math.inf) <= summary.flicker_window_s:
+                summary.add_soon_again(category, tracker.curves.get(vehicle_id) == curve_id)
+            tracker.curves[vehicle_id] = curve_id
+        if level > previous:
+            summary.add_onset(category, level, curve_id)
+            summary.warned_vehicles.add(vehicle_id)
+        events.append((t, vehicle_id, category, event, level, previous, curve_id, target.part_index[i],
+                       target.radius_m[i], target.distance_m[i], target.warning_speed_kmh[i], speeds_kmh[i],
+                       fleet.lane_id[i], lane_pos[i], xs[i], ys[i]))  # fmt: skip
+    entries = []
+    for i, curve_id, part_index, radius_m, level in warnings.entries:
+        vehicle_id, category = fleet.vehicle_id[i], fleet.category[i]
+        entered = tracker.entered.setdefault(vehicle_id, set())
+        if (curve_id, part_index) in entered:
+            continue
+        entered.add((curve_id, part_index))
+        level1_kmh, excess_kmh = level1_excess_kmh(speeds_kmh[i], category, radius_m)
+        summary.add_entry(category, excess_kmh)
+        entries.append((t, vehicle_id, category, curve_id, part_index, radius_m, speeds_kmh[i], level1_kmh, excess_kmh,
+                        level))  # fmt: skip
     streams.warnings.append(events)
     streams.entries.append(entries)
 
@@ -272,13 +265,12 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
 def _drive(driver: DriverResponse, fleet: FleetState, warnings: FleetWarnings, step_s: float) -> dict[str, float]:
     """The driver-response model's speed commands of this step, per vehicle (m/s; -1 hands back)."""
     commands = {}
+    target = warnings.target
     for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level)):
         if level == 0 and vehicle_id not in driver.drivers:
             continue
-        target = warnings.target[i]
         command = driver.commands(
-            fleet.time_s, step_s, vehicle_id, level,
-            target and target.warning_speed_kmh, target and target.distance_m,
+            fleet.time_s, step_s, vehicle_id, level, target.warning_speed_kmh[i], target.distance_m[i],
             float(fleet.speed_mps[i]), float(fleet.odometer_m[i]),
         )  # fmt: skip
         if command is not None:
