@@ -145,6 +145,23 @@ def cosim_rows(figures: dict) -> list[Row]:
                 cosim.TARGET_OVERHEAD, f"{ms['default']:.1f} vs {ms['without_evaluation']:.1f} ms/step; "
                 f"{figures['vehicles']} evaluated"),
         context("cosim: default run by component, ms/step", components),
+        *city_rows(figures["city"]),
+    ]
+
+
+def city_rows(city: dict) -> list[Row]:
+    """The city run: 10,000 vehicles on Bad Hersfeld against bare SUMO, with peak memory."""
+    ms, ratio, peak = city["ms_per_step"], city["ratio_to_bare"], city["peak_rss_mb"]
+    vehicles = f"{cosim.CITY_VEHICLES:,} vehicles on Bad Hersfeld"
+    components = ", ".join(f"{name} {value:.2f}" for name, value in city["default_components_ms_per_step"].items())
+    return [
+        at_most(f"cosim: {vehicles}, evaluation and time series (x bare SUMO)", ratio["default"],
+                cosim.TARGET_DEFAULT_RATIO, f"{ms['default']:.1f} vs {ms['bare']:.1f} ms/step; "
+                f"{city['vehicles']:,} evaluated"),
+        at_most(f"cosim: {vehicles}, evaluation, events only (x bare SUMO)", ratio["events_only"],
+                cosim.TARGET_EVENTS_RATIO, f"{ms['events_only']:.1f} ms/step"),
+        context(f"cosim: {vehicles}, peak memory MB (bare / default / events only)",
+                f"{peak['bare']} / {peak['default']} / {peak['events_only']}", f"by component, ms/step: {components}"),
     ]
 
 
@@ -247,7 +264,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark("workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation",
                   workers_rows),
-        Benchmark("cosim", cosim.run, f"long: about 30-60 s, {cosim.VEHICLES:,} vehicles five times", cosim_rows),
+        Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles five times, {cosim.CITY_VEHICLES:,} three times", cosim_rows),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
         Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),
                   "a few seconds" if quick else "long: about 30-90 s", grid_rows),

@@ -1,8 +1,7 @@
-"""Co-simulation cost against SUMO itself: 1,000 vehicles at 0.1 s steps.
+"""Co-simulation cost against SUMO itself: 1,000 vehicles on the fleet road, 10,000 in a city.
 
-Every run is the same libsumo simulation of the fleet network built with four lanes each
-way, 1,000 vehicles placed along the road at the start, 30 s, each run timed whole (SUMO's
-start included) in this one process:
+Every run is a libsumo simulation timed whole (SUMO's start included), each in a fresh
+process of its own, so that no run inherits another's warm caches:
 
 * ``bare``: libsumo alone, ``simulationStep()`` only: the baseline of the ratios;
 * ``read only``: csws reading every vehicle each step, no evaluation, no time series: the
@@ -12,9 +11,14 @@ start included) in this one process:
 * ``default``: evaluation with the default time series (Parquet, every step);
 * ``events only``: evaluation, no time series (warning events, entries and summary).
 
-Targets: the default run at most 1.5 times bare SUMO, the events-only run at most 1.25
-times; evaluation adds at most 50 % to the run without it. The default run's summary
-also gives its milliseconds per step by component (SUMO's step with the read,
+The fleet: the fleet network built with four lanes each way, 1,000 vehicles placed along
+the road at t = 0, 30 s at 0.1 s steps. The city: Bad Hersfeld's network, 10,000 vehicles
+of the fleet's mix placed at t = 0 on random walks through the roads every type may use,
+10 s at 0.1 s steps: bare, default and events only, each with its peak memory (RSS).
+
+Targets: the default run at most 1.5 times bare SUMO (fleet and city), the events-only run
+at most 1.25 times; evaluation adds at most 50 % to the run without it. The default runs'
+summaries also give their milliseconds per step by component (SUMO's step with the read,
 evaluation, recording).
 
 Run with ``python -m benchmarks.cosim``.
@@ -22,9 +26,12 @@ Run with ``python -m benchmarks.cosim``.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import resource
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -32,12 +39,16 @@ import numpy as np
 from csws.binaries import sumo_binary, sumo_home
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sumo import sumo_arguments
+from csws.networks import networks_dir
 from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
 
 VEHICLES = 1000
 STEP_S = 0.1
 DURATION_S = 30.0
 LANES = 4
+CITY_NET = networks_dir() / "badhersfeld.net.xml.gz"
+CITY_VEHICLES = 10_000
+CITY_DURATION_S = 10.0
 TARGET_OVERHEAD = 0.5
 TARGET_DEFAULT_RATIO = 1.5
 TARGET_EVENTS_RATIO = 1.25
@@ -59,68 +70,140 @@ def _routes_xml(count: int, seed: int = 0) -> str:
     return "\n".join(lines + ["</routes>"]) + "\n"
 
 
-def _bare_sumo_s(scenario: Scenario) -> tuple[float, int]:
-    """Seconds and steps of the scenario in libsumo alone: start, ``simulationStep()`` until the end, close."""
+def _city_routes_xml(net: Path, count: int, seed: int = 0, edges_per_route: int = 40) -> str:
+    """``count`` vehicles of the fleet's mix placed at t = 0, each on a random walk of up to
+    ``edges_per_route`` edges through the network's roads that every type of the mix may use."""
+    import sumolib
+
+    classes = {t.vclass for t in FLEET_TYPES}
+    network = sumolib.net.readNet(str(net))
+    usable = [e for e in network.getEdges() if e.getFunction() != "internal" and all(map(e.allows, classes))]
+    usable_ids = {e.getID() for e in usable}
+    starts = [e for e in usable if e.getLength() >= 20.0]
+    rng = np.random.default_rng(seed)
+    lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
+    for index, fleet_type in enumerate(draw_types(count, rng)):
+        edge = starts[int(rng.integers(len(starts)))]
+        walk = [edge.getID()]
+        for _ in range(edges_per_route - 1):
+            onward = [e for e in edge.getOutgoing() if e.getID() in usable_ids and e.getToNode() != edge.getFromNode()]
+            if not onward:
+                break
+            edge = onward[int(rng.integers(len(onward)))]
+            walk.append(edge.getID())
+        lines.append(f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="0" '
+                     f'departPos="random_free" departLane="best" departSpeed="max"><route edges="{" ".join(walk)}"/>'
+                     "</vehicle>")  # fmt: skip
+    return "\n".join(lines + ["</routes>"]) + "\n"
+
+
+def _peak_rss_mb() -> float:
+    """This process's peak resident memory, MB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _bare_run(scenario: Scenario, duration_s: float) -> dict:
+    """libsumo alone: start, ``simulationStep()`` until the end, close (run in a process of its own)."""
     os.environ.setdefault("SUMO_HOME", str(sumo_home()))
     import libsumo
 
-    arguments = sumo_arguments(None, scenario.net, scenario.routes, STEP_S, 0, DURATION_S)
+    arguments = sumo_arguments(None, scenario.net, scenario.routes, STEP_S, 0, duration_s)
     started = time.perf_counter()
     libsumo.start([str(sumo_binary("sumo")), *arguments])
     steps = 0
-    while libsumo.simulation.getMinExpectedNumber() > 0 and libsumo.simulation.getTime() < DURATION_S - 1e-9:
+    while libsumo.simulation.getMinExpectedNumber() > 0 and libsumo.simulation.getTime() < duration_s - 1e-9:
         libsumo.simulationStep()
         steps += 1
     libsumo.close()
-    return time.perf_counter() - started, steps
+    return {"seconds": time.perf_counter() - started, "steps": steps, "peak_rss_mb": _peak_rss_mb()}
 
 
-def _timed(config: CosimConfig) -> tuple[float, dict]:
+def _csws_run(config: CosimConfig) -> dict:
+    """One ``csws cosim`` run (in a process of its own): its time, summary and peak memory."""
     started = time.perf_counter()
     summary = cosimulate(config)
-    return time.perf_counter() - started, summary
+    return {"seconds": time.perf_counter() - started, "steps": summary["steps"], "summary": summary,
+            "peak_rss_mb": _peak_rss_mb()}  # fmt: skip
 
 
-def run() -> dict:
-    """Wall times of every run (ms per step), their ratios to bare SUMO, and the default
-    run's milliseconds per step by component."""
-    with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as work:
-        work_path = Path(work)
-        net = build_fleet_net(work_path / "fleet4.net.xml", lanes=LANES)
-        routes = work_path / "bench.rou.xml"
-        routes.write_text(_routes_xml(VEHICLES), encoding="utf-8")
-        scenario = Scenario(None, net, (routes,))
-        common = dict(scenario=scenario, step_length_s=STEP_S, end_s=DURATION_S)
-        bare_s, bare_steps = _bare_sumo_s(scenario)
-        runs = {
-            "read_only": CosimConfig(out=work_path / "read", evaluate=False, timeseries="none", **common),
-            "without_evaluation": CosimConfig(out=work_path / "baseline", evaluate=False, **common),
-            "default": CosimConfig(out=work_path / "default", **common),
-            "events_only": CosimConfig(out=work_path / "events", timeseries="none", **common),
-        }
-        timed = {name: _timed(config) for name, config in runs.items()}
-    ms_per_step = {"bare": 1000.0 * bare_s / bare_steps}
-    ms_per_step |= {name: 1000.0 * seconds / summary["steps"] for name, (seconds, summary) in timed.items()}
-    default = timed["default"][1]
+def _in_own_process(function, *arguments) -> dict:
+    """``function(*arguments)`` in a fresh Python process (libsumo holds one simulation per process)."""
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(function, *arguments).result()
+
+
+def _figures(runs: dict[str, dict]) -> dict:
+    """ms per step of each run, their ratios to bare SUMO, peak memory, and the default run's components."""
+    ms_per_step = {name: 1000.0 * run["seconds"] / run["steps"] for name, run in runs.items()}
+    default = runs["default"]["summary"]
     return {
         "vehicles": default["vehicles_evaluated"],
         "steps": default["steps"],
         "ms_per_step": ms_per_step,
         "ratio_to_bare": {name: value / ms_per_step["bare"] for name, value in ms_per_step.items() if name != "bare"},
-        "overhead": timed["default"][0] / timed["without_evaluation"][0] - 1.0,
+        "peak_rss_mb": {name: round(run["peak_rss_mb"]) for name, run in runs.items()},
         "default_components_ms_per_step": default["ms_per_step"],
     }
+
+
+def _fleet_figures(work: Path) -> dict:
+    """The fleet road: 1,000 vehicles, every kind of run."""
+    net = build_fleet_net(work / "fleet4.net.xml", lanes=LANES)
+    routes = work / "bench.rou.xml"
+    routes.write_text(_routes_xml(VEHICLES), encoding="utf-8")
+    scenario = Scenario(None, net, (routes,))
+    common = dict(scenario=scenario, step_length_s=STEP_S, end_s=DURATION_S)
+    runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
+    configs = {
+        "read_only": CosimConfig(out=work / "read", evaluate=False, timeseries="none", **common),
+        "without_evaluation": CosimConfig(out=work / "baseline", evaluate=False, **common),
+        "default": CosimConfig(out=work / "default", **common),
+        "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
+    }
+    runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
+    figures = _figures(runs)
+    figures["overhead"] = runs["default"]["seconds"] / runs["without_evaluation"]["seconds"] - 1.0
+    return figures
+
+
+def _city_figures(work: Path) -> dict:
+    """Bad Hersfeld: 10,000 vehicles, bare, default and events only."""
+    routes = work / "city.rou.xml"
+    routes.write_text(_city_routes_xml(CITY_NET, CITY_VEHICLES), encoding="utf-8")
+    scenario = Scenario(None, CITY_NET, (routes,))
+    common = dict(scenario=scenario, step_length_s=STEP_S, end_s=CITY_DURATION_S)
+    configs = {
+        "default": CosimConfig(out=work / "city-default", **common),
+        "events_only": CosimConfig(out=work / "city-events", timeseries="none", **common),
+    }
+    runs = {"bare": _in_own_process(_bare_run, scenario, CITY_DURATION_S)}
+    runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
+    return _figures(runs)
+
+
+def run() -> dict:
+    """The fleet road's and the city's figures."""
+    with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as work:
+        return {**_fleet_figures(Path(work)), "city": _city_figures(Path(work))}
+
+
+def _print(figures: dict) -> None:
+    """One line per run: ms per step, ratio to bare SUMO, peak memory; the default run's components."""
+    print(f"{figures['vehicles']} vehicles, {figures['steps']} steps of {STEP_S:g} s")
+    for name, value in figures["ms_per_step"].items():
+        ratio = figures["ratio_to_bare"].get(name)
+        print(f"{name:<20}{value:>8.2f} ms/step" + (f"  {ratio:.2f} x bare SUMO" if ratio else "")
+              + f"  peak {figures['peak_rss_mb'][name]} MB")  # fmt: skip
+    print("default run by component, ms/step:", figures["default_components_ms_per_step"])
 
 
 def main() -> None:
     """Print each figure beside its target."""
     figures = run()
-    print(f"{figures['vehicles']} vehicles, {figures['steps']} steps of {STEP_S:g} s")
-    for name, value in figures["ms_per_step"].items():
-        ratio = figures["ratio_to_bare"].get(name)
-        print(f"{name:<20}{value:>8.2f} ms/step" + (f"  {ratio:.2f} x bare SUMO" if ratio else ""))
+    _print(figures)
     print(f"evaluation overhead {figures['overhead']:.0%} (target <= {TARGET_OVERHEAD:.0%})")
-    print("default run by component, ms/step:", figures["default_components_ms_per_step"])
+    print("city:")
+    _print(figures["city"])
 
 
 if __name__ == "__main__":
