@@ -51,8 +51,9 @@ class Estimate:
     seeds: int
 
     @classmethod
-    def of(cls, values: list[float]) -> "Estimate":
-        values = [v for v in values if not math.isnan(v)]
+    def of(cls, values: list[float | None]) -> "Estimate":
+        """The estimate from one value per seed; None (a figure without a denominator) is left out."""
+        values = [v for v in values if v is not None]
         if not values:
             return cls(math.nan, math.nan, 0)
         if len(values) == 1:
@@ -90,7 +91,8 @@ def setting_figures(study: Study, rows: list[dict]) -> list[SettingFigures]:
             factors,
             {name: Estimate.of([row[name] for row in runs]) for name, _ in FIGURES},
             {name: Estimate.of([row[name] for row in paired_references]) for name, _ in FIGURES},
-            Estimate.of([row["mean_time_loss_s"] - ref["mean_time_loss_s"] for row, ref in paired if ref is not None]),
+            Estimate.of([row["mean_time_loss_s"] - ref["mean_time_loss_s"] for row, ref in paired
+                         if ref is not None and row["vehicles"] and ref["vehicles"]]),
             [excess for row in runs for excess in row["entry_excess_kmh"]],
         ))  # fmt: skip
     return figures

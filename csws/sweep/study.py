@@ -211,13 +211,15 @@ class _Reader:
     def fail(self, field: str, message: str) -> StudyError:
         return StudyError(f"{self.path}: {field}: {message}")
 
-    def table(self, document: dict, name: str, known: tuple[str, ...]) -> dict:
+    def table(self, document: dict, name: str, known: tuple[str, ...], field: str | None = None) -> dict:
+        """The table ``name`` of ``document`` (at ``field`` in the file, default ``name``), with known keys only."""
+        field = field or name
         table = document.get(name, {})
         if not isinstance(table, dict):
-            raise self.fail(name, "is not a table")
+            raise self.fail(field, "is not a table")
         for key in table:
             if key not in known:
-                raise self.fail(f"{name}.{key}", f"unknown field (known: {', '.join(known)})")
+                raise self.fail(f"{field}.{key}", f"unknown field (known: {', '.join(known)})")
         return table
 
     def value(self, table: dict, section: str, key: str, check: Callable[[Any], Any], default: Any = None) -> Any:
@@ -274,7 +276,7 @@ def _mixes(reader: _Reader, document: dict) -> tuple:
         field = f"category_mixes.{name}"
         if name == OWN_MIX:
             raise reader.fail(field, f"the name {OWN_MIX} is the scenario's own mix; choose another")
-        shares = reader.table(mixes, name, tuple(c.value for c in Category)) if isinstance(shares, dict) else None
+        shares = reader.table(mixes, name, tuple(c.value for c in Category), field) if isinstance(shares, dict) else None
         if not shares:
             raise reader.fail(field, "give shares per category, e.g. M1 = 0.6, N = 0.4")
         checked = tuple((c, reader.value(shares, field, c, _not_negative)) for c in sorted(shares))

@@ -21,7 +21,6 @@ is still evaluated, so its entries above V_w are those of the fleet without CSWS
 from __future__ import annotations
 
 import csv
-import math
 import tempfile
 import threading
 from pathlib import Path
@@ -128,11 +127,11 @@ def _figures(spec: RunSpec, summary: dict, out: Path) -> dict:
         "vehicle_km_equipped": equipped_km,
         "entries_above_vw1": len(above_vw1),
         "entries_above_vw2": len(above_vw2),
-        "share_vehicles_above_vw1": len({row["vehicle_id"] for row in above_vw1}) / vehicles if vehicles else math.nan,
-        "share_vehicles_above_vw2": len({row["vehicle_id"] for row in above_vw2}) / vehicles if vehicles else math.nan,
+        "share_vehicles_above_vw1": len({row["vehicle_id"] for row in above_vw1}) / vehicles if vehicles else None,
+        "share_vehicles_above_vw2": len({row["vehicle_id"] for row in above_vw2}) / vehicles if vehicles else None,
         "warnings": warnings,
-        "warnings_per_100_vehicle_km": 100.0 * warnings / equipped_km if equipped_km else math.nan,
-        "mean_time_loss_s": sum(time_loss_s) / vehicles if vehicles else math.nan,
+        "warnings_per_100_vehicle_km": 100.0 * warnings / equipped_km if equipped_km else None,
+        "mean_time_loss_s": sum(time_loss_s) / vehicles if vehicles else None,
         "entry_excess_kmh": [float(row["excess_kmh"]) for row in entries],
     }
 
