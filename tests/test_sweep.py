@@ -149,7 +149,7 @@ BAD_STUDIES = {
     "no seeds": ("[scenario]\nbundled = 'fleet'\nend_s = 10\n", "study.seeds: is missing"),
     "zero seeds": ("[study]\nseeds = 0\n[scenario]\nbundled = 'fleet'\nend_s = 10\n", "study.seeds: 0 is not a whole number"),
     "bad step": ("[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nstep_length_s = 0.0005\n",
-                 "factors.step_length_s: 0.0005 is not a multiple of 0.001 s"),
+                 "factors.step_length_s: a step length must be a multiple of 0.001 s in (0, 1]"),
     "no end": ("[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\n", "scenario.end_s: is missing"),
     "unknown scenario": ("[study]\nseeds = 1\n[scenario]\nbundled = 'paris'\nend_s = 10\n",
                          "scenario.bundled: 'paris' is not one of fleet, badhersfeld"),

@@ -12,6 +12,7 @@ share in [0, 1]``).
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import itertools
 import json
@@ -21,6 +22,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from csws.argtypes import step_length
 from csws.standard import Category
 
 __all__ = ["StudyError", "ScenarioSpec", "Factors", "RunSpec", "Study", "read_study", "RESULT_FORMAT", "FACTORS", "OWN_MIX"]
@@ -179,10 +181,10 @@ def _seed(value: Any) -> int:
 
 
 def _step_length(value: Any) -> float:
-    step_s = _positive(value)
-    if step_s > 1 or abs(step_s * 1000 - round(step_s * 1000)) > 1e-9:
-        raise ValueError(f"{value!r} is not a multiple of 0.001 s in (0, 1] (SUMO's resolution)")
-    return step_s
+    try:
+        return step_length(repr(_number(value)))
+    except argparse.ArgumentTypeError as exc:
+        raise ValueError(str(exc)) from None
 
 
 def _mix_name(value: Any) -> str:
