@@ -28,7 +28,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
-from benchmarks import cosim, curvature, load, osm, roadmap, roads, service, warning
+from benchmarks import cosim, curvature, load, osm, roadmap, roads, service, sweep, warning
 
 
 @dataclass(frozen=True)
@@ -165,6 +165,17 @@ def city_rows(city: dict) -> list[Row]:
     ]
 
 
+def sweep_rows(figures: dict) -> list[Row]:
+    context_text = f"{figures['cores']} cores, load average {figures['load_average_1min']:g} at the end"
+    return [
+        at_least(f"sweep: {figures['runs']} runs on 2 local workers, speed-up over 1", figures["speedup"],
+                 sweep.TARGET_SPEEDUP, f"{figures['two_workers_s']:g} vs {figures['one_worker_s']:g} s; {context_text}"),
+        at_most("sweep: Dask's overhead over a plain loop, 1 worker, %", figures["overhead_percent"],
+                sweep.TARGET_OVERHEAD_PERCENT, f"{figures['one_worker_s']:g} vs {figures['loop_s']:g} s; "
+                f"{figures['overhead_ms_per_task']:g} ms per task"),
+    ]
+
+
 def _stages(stages_ms: dict) -> str:
     """A batch's stages (from its Server-Timing header) in one line."""
     return ", ".join(f"{name} {ms:.0f}" for name, ms in stages_ms.items() if name != "round_trip") + " ms"
@@ -264,7 +275,9 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark("workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation",
                   workers_rows),
-        Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles five times, {cosim.CITY_VEHICLES:,} three times", cosim_rows),
+        Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles five times, "
+                  f"{cosim.CITY_VEHICLES:,} three times", cosim_rows),
+        Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
         Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),
                   "a few seconds" if quick else "long: about 30-90 s", grid_rows),

@@ -66,7 +66,7 @@ def _default_networks_dir() -> Path:
 
 #: Modules that add their own subcommands: each has ``add_commands(subparsers)`` and keeps its
 #: heavy imports inside its handlers, so that ``csws --help`` stays instant.
-COMMAND_MODULES = ("service.cli", "csws.cosim.cli", "csws.conformance.cli", "csws.osm.cli")
+COMMAND_MODULES = ("service.cli", "csws.cosim.cli", "csws.sweep.cli", "csws.conformance.cli", "csws.osm.cli")
 
 
 def deferred(module_name: str, function_name: str = "main") -> Callable[[argparse.Namespace], int]:

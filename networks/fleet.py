@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 
+from csws.cosim.categories import VCLASS_CATEGORY
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.netbuild import netconvert, shape_text
@@ -45,6 +46,7 @@ __all__ = [
     "section_pieces",
     "forward_edges",
     "vtype_xml",
+    "types_for_mix",
     "fleet_routes_xml",
     "build_fleet_net",
     "build_fleet",
@@ -189,21 +191,44 @@ def backward_edges() -> list[str]:
     return [f"b{edge[1:]}" for edge in reversed(forward_edges())]
 
 
-def draw_types(count: int, rng: np.random.Generator) -> list[FleetType]:
-    """``count`` vehicle types drawn with the fleet mix's shares."""
-    shares = np.array([t.share for t in FLEET_TYPES])
-    return [FLEET_TYPES[i] for i in rng.choice(len(FLEET_TYPES), size=count, p=shares / shares.sum())]
+def draw_types(count: int, rng: np.random.Generator, types: tuple[FleetType, ...] = FLEET_TYPES) -> list[FleetType]:
+    """``count`` vehicle types drawn with the shares of ``types`` (default: the fleet mix)."""
+    shares = np.array([t.share for t in types])
+    return [types[i] for i in rng.choice(len(types), size=count, p=shares / shares.sum())]
 
 
-def fleet_routes_xml(count: int = FLEET_VEHICLES, period_s: float = FLEET_PERIOD_S, seed: int = 0) -> str:
+def types_for_mix(category_shares: dict[str, float]) -> tuple[FleetType, ...]:
+    """The fleet's types with shares that give each category (``M1``, ``M2``, ``M3``, ``N``, ``O``) its
+    share of ``category_shares``; within a category the types keep their proportions.
+
+    Raises
+    ------
+    ValueError
+        When a category has no type in the fleet.
+    """
+    category = {t.type_id: t.category or VCLASS_CATEGORY[t.vclass].value for t in FLEET_TYPES}
+    missing = sorted(set(category_shares) - set(category.values()))
+    if missing:
+        raise ValueError(f"the fleet has no type of category {', '.join(missing)}")
+    category_total = {c: sum(t.share for t in FLEET_TYPES if category[t.type_id] == c) for c in category_shares}
+
+    def share(fleet_type: FleetType) -> float:
+        of = category[fleet_type.type_id]
+        return category_shares[of] * fleet_type.share / category_total[of] if of in category_shares else 0.0
+
+    return tuple(replace(t, share=share(t)) for t in FLEET_TYPES)
+
+
+def fleet_routes_xml(count: int = FLEET_VEHICLES, period_s: float = FLEET_PERIOD_S, seed: int = 0,
+                     types: tuple[FleetType, ...] = FLEET_TYPES) -> str:  # fmt: skip
     """A route file of ``count`` vehicles of the fleet's mix departing evenly over ``period_s``.
 
     Vehicles alternate between the forward and the backward direction; their types are
-    drawn with the mix's shares from a generator seeded with ``seed``.
+    drawn with the shares of ``types`` (default: the fleet mix) from a generator seeded with ``seed``.
     """
     if count < 1:
         raise ValueError(f"a fleet needs at least one vehicle, got {count}")
-    types = draw_types(count, np.random.default_rng(seed))
+    types = draw_types(count, np.random.default_rng(seed), types)
     routes = (" ".join(forward_edges()), " ".join(backward_edges()))
     lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
     lines += [f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes)]

@@ -35,3 +35,14 @@ def test_a_library_call_shows_nothing():
     progress.update(10.0)
     progress.close()
     assert stream.getvalue() == ""
+
+
+def test_a_resumed_run_counts_from_what_was_done_and_says_the_time_left():
+    stream = io.StringIO()
+    progress = Progress("sweep", 10, "runs", stream=stream, done=4, time_left=True)
+    for _ in range(6):
+        progress.update()
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("csws sweep: 5 of 10 runs (50 %), about ") and lines[0].endswith(" s left")
+    assert lines[-1] == "csws sweep: 10 of 10 runs (100 %)"
+    assert len(lines) == 6

@@ -10,6 +10,12 @@ at g/2 = 4.9 m/s^2 to the warning speed. This model is that driver:
 * the driver keeps that speed until the warning is off and the vehicle is ``hold_m``
   past the target CPOI (the start of the curve part), then hands the vehicle back to SUMO.
 
+Not every vehicle need respond: ``equipped_share`` of the fleet carries the system (the
+others never see a warning) and ``compliance_share`` of the equipped drivers heed it. Who is
+equipped and who complies is drawn per vehicle from a hash of its id and ``draw_seed``
+(:func:`vehicle_draw`), so the same vehicle is drawn alike in every run of that seed,
+whatever the order vehicles appear in.
+
 It sees only what an on-board unit shows (level, target warning speed and distance), so
 it works the same whether the answers come from the library or the service. With it, no
 vehicle enters a curve above its level-1 warning speed: the warning distance includes the
@@ -18,11 +24,12 @@ reaction and braking distance, plus the latency allowance.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 
 from csws.standard import G_MPS2, REACTION_TIME_S, kmh_to_mps
 
-__all__ = ["DriverSettings", "DriverResponse"]
+__all__ = ["DriverSettings", "DriverResponse", "vehicle_draw", "is_equipped"]
 
 
 @dataclass(frozen=True)
@@ -44,12 +51,39 @@ class DriverSettings:
         stays on down to the release rule's margin of 1 km/h below V_w (:mod:`csws.release`),
         below that the next target (level 1 after level 2) takes over once the rule's hold
         has passed.
+    equipped_share
+        Share of the vehicles that carry the system, 0-1; the others go on as SUMO drives them.
+    compliance_share
+        Share of the equipped vehicles' drivers that respond to a warning, 0-1.
+    draw_seed
+        Seed of the per-vehicle draws of equipment and compliance.
     """
 
     reaction_s: float = REACTION_TIME_S
     decel_mps2: float = G_MPS2 / 2
     hold_m: float = 200.0
     below_kmh: float = 1.5
+    equipped_share: float = 1.0
+    compliance_share: float = 1.0
+    draw_seed: int = 0
+
+    def responds(self, vehicle_id: str) -> bool:
+        """Whether the vehicle is equipped and its driver complies."""
+        return is_equipped(vehicle_id, self.equipped_share, self.draw_seed) and (
+            self.compliance_share >= 1.0 or vehicle_draw(vehicle_id, self.draw_seed, "complies") < self.compliance_share
+        )
+
+
+def vehicle_draw(vehicle_id: str, seed: int, what: str) -> float:
+    """A number in [0, 1) drawn for one vehicle from its id, ``seed`` and what is drawn (independent
+    draws for different ``what``): the same in every run and process."""
+    digest = hashlib.blake2b(f"{seed}:{what}:{vehicle_id}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "big") / 2.0**64
+
+
+def is_equipped(vehicle_id: str, equipped_share: float, seed: int) -> bool:
+    """Whether the vehicle carries the system, in a fleet where ``equipped_share`` of the vehicles do."""
+    return equipped_share >= 1.0 or vehicle_draw(vehicle_id, seed, "equipped") < equipped_share
 
 
 @dataclass
@@ -78,7 +112,7 @@ class DriverResponse:
         """
         driver = self.drivers.get(vehicle_id)
         if driver is None:
-            if level == 0:
+            if level == 0 or not self.settings.responds(vehicle_id):
                 return None
             driver = self.drivers[vehicle_id] = _Driver(warned_since_s=time_s, onset_speed_mps=speed_mps)
         if level > 0:

@@ -1,0 +1,1 @@
+"""``csws sweep``: fleet studies of many co-simulations (factors x seeds) on Dask, with their summary."""
