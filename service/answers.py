@@ -35,6 +35,7 @@ from csws.state import Fault, SystemState
 from csws.warning import HmiHint, Trigger
 
 from .decoding import DecodedQuery
+from .fcw import fcw_answers
 from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
@@ -310,6 +311,9 @@ class WarningService:
                 results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
             with stages("encode"):
                 self._record(indices, placements, rows, results, vehicles, answers, fleet)
+        with stages("encode"):
+            for index, fcw in zip(indices, fcw_answers(queries)):
+                answers.documents[index].fcw = fcw
 
     def _record(self, indices: Sequence[int], placements: Sequence[Placement], rows: Sequence[int],
                 results: Sequence[Answer], vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
@@ -374,7 +378,10 @@ def _document(model: type) -> type[msgspec.Struct]:
                              gc=False, module=__name__)  # fmt: skip
 
 
-_AnswerDocument = _document(WarningAnswer)
+#: An answer's ``fcw`` is left out unless the query had a forward_target: the curve warning's answers stay as they were.
+_AnswerDocument = msgspec.defstruct("WarningAnswerDocument", [*((name, Any) for name in WarningAnswer.model_fields
+                                                                 if name != "fcw"), ("fcw", Any, None)],
+                                    omit_defaults=True, gc=False, module=__name__)  # fmt: skip
 _MatchedDocument = _document(Matched)
 _ENCODER = msgspec.json.Encoder()
 
