@@ -35,14 +35,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["STANDARD_GRAVITY_MPS2", "FcwSettings", "FcwBatch", "time_to_collision_s", "enhanced_time_to_collision_s",
-           "required_deceleration_mps2", "evaluate_fcw"]
+from csws.state import SystemState
+
+__all__ = ["STANDARD_GRAVITY_MPS2", "FCW_STATES", "FcwSettings", "FcwBatch", "time_to_collision_s",
+           "enhanced_time_to_collision_s", "required_deceleration_mps2", "warning_clearance_m", "evaluate_fcw",
+           "next_fcw_states"]
 
 STANDARD_GRAVITY_MPS2 = 9.80665
 #: 4.5.3: the collision warning's a_req threshold may not exceed 0.68 g.
 MAX_COLLISION_A_REQ_MPS2 = 0.68 * STANDARD_GRAVITY_MPS2
 #: 4.5.4: the driver's reaction time to a warning is at least 0.8 s.
 MIN_REACTION_TIME_S = 0.8
+#: 4.3.3: the system works from at most 11.2 m/s up to at least 27.8 m/s.
+HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS = 11.2, 27.8
+#: The system states by code (4.3.2; fault as CSWS's, :class:`csws.state.SystemState`): ``FCW_STATES[code]``.
+FCW_STATES = (SystemState.OFF, SystemState.STANDBY, SystemState.ACTIVE, SystemState.FAULT)
+OFF, STANDBY, ACTIVE, FAULT = range(4)
 
 
 @dataclass(frozen=True)
@@ -61,6 +69,11 @@ class FcwSettings:
         T_b, the brake system's response time (4.5.4: chosen by the designer).
     max_ttc_s
         No warning while TTC exceeds this (4.5.5: 4.0 s).
+    min_speed_mps, max_speed_mps
+        V_min and V_max, the subject speeds the system is active between (4.3.3: V_min at most
+        11.2 m/s, V_max at least 27.8 m/s; a truck's or bus's speed limiter keeps it below 27.8 m/s).
+    hysteresis_mps
+        delta of Figure 2: an active system goes to standby only this far outside [V_min, V_max].
     """
 
     collision_a_req_mps2: float = 0.5 * STANDARD_GRAVITY_MPS2
@@ -68,6 +81,9 @@ class FcwSettings:
     reaction_time_s: float = 1.2
     brake_response_s: float = 0.0
     max_ttc_s: float = 4.0
+    min_speed_mps: float = 10.0
+    max_speed_mps: float = LOWEST_MAX_SPEED_MPS
+    hysteresis_mps: float = 1.0
 
     def __post_init__(self) -> None:
         if not 0.0 < self.collision_a_req_mps2 <= MAX_COLLISION_A_REQ_MPS2:
@@ -78,6 +94,9 @@ class FcwSettings:
             raise ValueError(f"the reaction time must be at least 0.8 s (4.5.4), got {self.reaction_time_s!r}")
         if not (self.brake_response_s >= 0.0 and self.max_ttc_s > 0.0):
             raise ValueError("the brake response time must be >= 0 and the TTC limit > 0")
+        if not (0.0 <= self.min_speed_mps <= HIGHEST_MIN_SPEED_MPS and self.max_speed_mps >= LOWEST_MAX_SPEED_MPS
+                and self.hysteresis_mps >= 0.0):  # fmt: skip
+            raise ValueError("4.3.3: V_min must be in [0, 11.2] m/s, V_max at least 27.8 m/s, the hysteresis >= 0")
 
 
 @dataclass(frozen=True)
@@ -176,3 +195,34 @@ def evaluate_fcw(
     level = np.where(may_warn & (a_req >= settings.collision_a_req_mps2), 2,
                      np.where(may_warn & (a_req >= settings.preliminary_a_req_mps2), 1, 0)).astype(np.int8)  # fmt: skip
     return FcwBatch(level, ttc, ettc, a_req)
+
+
+def warning_clearance_m(closing_mps: np.ndarray, target_accel_mps2: np.ndarray, settings: FcwSettings = FcwSettings(),
+                        level: int = 2) -> np.ndarray:  # fmt: skip
+    """The clearance at which a level comes on at a closing speed ``closing_mps`` (= -v_r > 0)
+    and a target acceleration a_TV: formula (4) solved for x_c at the level's threshold,
+    x_c = x_r + v_r^2 / (2 (a_thr + a_TV)). The system's set warning distance (4.7.2, 5.4.2); with
+    T_resp 0.8 s and 6.67 m/s^2 it is formula (5)."""
+    closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
+    threshold = settings.collision_a_req_mps2 if level == 2 else settings.preliminary_a_req_mps2
+    lost_s = settings.reaction_time_s + settings.brake_response_s
+    return closing * lost_s + closing**2 / (2.0 * (threshold + a_tv))
+
+
+def next_fcw_states(previous: np.ndarray, speed_mps: np.ndarray, switched_on: np.ndarray, measured: np.ndarray,
+                    settings: FcwSettings = FcwSettings()) -> np.ndarray:  # fmt: skip
+    """The system state of many subject vehicles after one update (4.3, Figure 2), as codes into
+    :data:`FCW_STATES` (arrays ``(n,)``).
+
+    Off while switched off; fault while the forward sensor gives no valid measurement (4.4.5:
+    the driver is told; it clears with the next good one, as CSWS's faults do); else active
+    between V_min and V_max, standby outside, widened by the hysteresis delta for a system that
+    was active or in fault (so that a short fault does not drop an active system to standby).
+    """
+    previous = np.asarray(previous, dtype=np.int8)
+    speed = np.asarray(speed_mps, dtype=float)
+    margin = np.where(previous >= ACTIVE, settings.hysteresis_mps, 0.0)
+    inside = (speed >= settings.min_speed_mps - margin) & (speed <= settings.max_speed_mps + margin)
+    state = np.where(inside, ACTIVE, STANDBY)
+    state = np.where(np.asarray(measured, dtype=bool) & np.isfinite(speed), state, FAULT)
+    return np.where(np.asarray(switched_on, dtype=bool), state, OFF).astype(np.int8)

@@ -36,6 +36,7 @@ from csws.state import Fault, SystemState
 from csws.warning import CurveWarning, HmiHint, PathKind, Trigger
 
 from .decoding import DecodedQuery
+from .fcw import fcw_answers
 from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
@@ -309,6 +310,9 @@ class WarningService:
                                           [placements[row] for row in rows], vehicles)  # fmt: skip
             with stages("encode"):
                 self._record(indices, placements, rows, evaluated, vehicles, answers, fleet)
+        with stages("encode"):
+            for index, fcw in zip(indices, fcw_answers(queries)):
+                answers.documents[index].fcw = fcw
 
     def evaluate(self, network_index: int, queries: Sequence[DecodedQuery], placements: Sequence[Placement],
                  vehicles: LoadedVehicles) -> "Evaluated":  # fmt: skip
@@ -430,7 +434,10 @@ class Evaluated:
     path: Callable[[int], PathAhead]
 
 
-_AnswerDocument = _document(WarningAnswer)
+#: An answer's ``fcw`` is left out unless the query had a forward_target: the curve warning's answers stay as they were.
+_AnswerDocument = msgspec.defstruct("WarningAnswerDocument", [*((name, Any) for name in WarningAnswer.model_fields
+                                                                 if name != "fcw"), ("fcw", Any, None)],
+                                    omit_defaults=True, gc=False, module=__name__)  # fmt: skip
 _MatchedDocument = _document(Matched)
 _ENCODER = msgspec.json.Encoder()
 

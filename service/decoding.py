@@ -24,7 +24,7 @@ import msgspec
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from .schemas import Batch, Position, Query, VehicleSwitch, check_located, check_position
+from .schemas import Batch, ForwardTarget, Position, Query, VehicleSwitch, check_located, check_position
 
 __all__ = ["struct_of", "decode", "DecodedPosition", "DecodedQuery", "DecodedBatch", "DecodedSwitch"]
 
@@ -84,7 +84,8 @@ def struct_of(model: type[BaseModel], structs: dict[type, type] | None = None,
 
 
 DecodedPosition = struct_of(Position, checks=(check_position,))
-DecodedQuery = struct_of(Query, {Position: DecodedPosition}, checks=(check_located,))
+DecodedForwardTarget = struct_of(ForwardTarget)
+DecodedQuery = struct_of(Query, {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget}, checks=(check_located,))
 DecodedBatch = struct_of(Batch, {Query: DecodedQuery})
 DecodedSwitch = struct_of(VehicleSwitch)
 

@@ -71,6 +71,25 @@ class Position(BaseModel):
         return self.lon is not None
 
 
+class ForwardTarget(BaseModel):
+    """What the on-board forward sensor measures of the target vehicle (GB/T 33577 3.7-3.12): the
+    service then answers the forward collision warning beside the curve warning."""
+
+    model_config = ConfigDict(
+        allow_inf_nan=False,
+        json_schema_extra={"examples": [{"range_m": 45.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0}]},
+    )
+
+    range_m: float = Field(ge=0.0, le=500.0, strict=True, description="clearance x_c to the target's rear, m")
+    range_rate_mps: float = Field(ge=-100.0, le=100.0, strict=True,
+                                  description="v_r = v_TV - v_SV, m/s (negative while closing)")
+    target_accel_mps2: float = Field(default=0.0, ge=-15.0, le=15.0, strict=True, description="a_TV, m/s^2")
+    subject_accel_mps2: float = Field(default=0.0, ge=-15.0, le=15.0, strict=True, description="a_SV, m/s^2")
+    driver_braking: bool = Field(default=False, strict=True, description="the driver brakes (4.5.4: T_resp = 0)")
+    measured: bool = Field(default=True, strict=True,
+                           description="false when the sensor has no valid measurement: the FCW state is fault")
+
+
 class Query(BaseModel):
     """One vehicle at one instant: what it asks the service."""
 
@@ -93,6 +112,7 @@ class Query(BaseModel):
                     "lane_id": "approach_0",
                     "lane_pos_m": 850.0,
                     "route": ["approach", "curve", "runout"],
+                    "forward_target": {"range_m": 45.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0},
                 },
             ]
         },
@@ -124,6 +144,9 @@ class Query(BaseModel):
         default=None, strict=True, description="when the fix was taken, s (any epoch; ordering only)"
     )
     age_s: float | None = Field(default=None, ge=0.0, strict=True, description="how old the fix is now, s")
+    forward_target: ForwardTarget | None = Field(
+        default=None, description="the forward sensor's target: the answer then carries the forward collision warning"
+    )
 
     @model_validator(mode="after")
     def _located(self) -> "Query":
@@ -192,6 +215,19 @@ class Hmi(BaseModel):
     audible: str | None
 
 
+class FcwAnswer(BaseModel):
+    """The forward collision warning of a query with a forward_target (GB/T 33577; docs/fcw.md)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"state": "active", "level": 2, "ttc_s": 3.75, "ettc_s": 3.75, "a_req_mps2": 5.14}]})
+
+    state: Literal["off", "standby", "active", "fault"] = Field(description="4.3: active between V_min and V_max")
+    level: Literal[0, 1, 2] = Field(description="0 none, 1 preliminary warning, 2 collision warning")
+    ttc_s: float | None = Field(description="TTC, formula (2), s; null where no collision follows")
+    ettc_s: float | None = Field(description="ETTC, formula (3), s; null where no collision follows")
+    a_req_mps2: float | None = Field(description="a_req, formula (4), m/s^2; null where the reaction uses up the clearance")
+
+
 class WarningAnswer(BaseModel):
     """The system's answer for one query."""
 
@@ -232,6 +268,7 @@ class WarningAnswer(BaseModel):
     matched: Matched | None
     path_kind: Literal["route", "predicted"] | None
     hmi: Hmi
+    fcw: FcwAnswer | None = Field(default=None, description="only when the query has a forward_target")
 
 
 class Answers(BaseModel):

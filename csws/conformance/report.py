@@ -21,7 +21,7 @@ from .judge import RunResult
 from .realroads import REAL_ROAD_TABLE, required_levels
 from .rows import Row
 
-__all__ = ["GroupOutcome", "RowOutcome", "write_json", "write_markdown", "plot_row"]
+__all__ = ["GroupOutcome", "RowOutcome", "verdict_text", "mark", "write_json", "write_markdown", "plot_row"]
 
 _TABLE_TITLES = {
     5: "Table 5: single curve, level 1 (7.5.2.1)",
@@ -163,12 +163,12 @@ def write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> No
     path.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")
 
 
-def _verdict_text(passed: bool | None) -> str:
+def verdict_text(passed: bool | None) -> str:
     """An overall verdict."""
     return "PASS" if passed else "FAIL" if passed is not None else "not run"
 
 
-def _mark(passed: bool) -> str:
+def mark(passed: bool) -> str:
     """A verdict cell."""
     return "pass" if passed else "**FAIL**"
 
@@ -189,7 +189,7 @@ def _single_table(outcomes: Sequence[RowOutcome]) -> list[str]:
         lines.append(f"| {radius_m:g} | V/(km/h) | " + " | ".join("" if o is None else f"{o.row.speed_kmh:g}" for o in cells) + " |")
         lines.append("| | S_w/m | " + " | ".join("" if o is None else f"{o.row.checks[0].table_distance_m:g}" for o in cells) + " |")
         lines.append("| | earlier/m | " + " | ".join("" if o is None else _metres(o.worst_earlier_m(0)) for o in cells) + " |")
-        lines.append("| | verdict | " + " | ".join("" if o is None else _mark(o.passed) for o in cells) + " |")
+        lines.append("| | verdict | " + " | ".join("" if o is None else mark(o.passed) for o in cells) + " |")
     return lines
 
 
@@ -205,7 +205,7 @@ def _multi_table(outcomes: Sequence[RowOutcome]) -> list[str]:
         speed = f"{row.speed_kmh:g}" + (f" -> {row.final_speed_kmh:g}" if row.final_speed_kmh is not None else "")
         cells = [f"{check.table_distance_m:g}, {_metres(o.worst_earlier_m(i))}" for i, check in enumerate(row.checks)]
         lines.append(
-            f"| {row.category.value} | {row.test or ''} | {row.radius_m[0]:g} | {speed} | " + " | ".join(cells) + f" | {_mark(o.passed)} |"
+            f"| {row.category.value} | {row.test or ''} | {row.radius_m[0]:g} | {speed} | " + " | ".join(cells) + f" | {mark(o.passed)} |"
         )
     return lines
 
@@ -216,7 +216,7 @@ def _negative_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     for o in outcomes:
         row, check = o.row, o.row.checks[0]
         lines.append(
-            f"| {row.radius_m[0]:g} | {row.category.value} | {int(check.level)} | {row.speed_kmh:.0f} | {o.max_level(0)} | {_mark(o.passed)} |"
+            f"| {row.radius_m[0]:g} | {row.category.value} | {int(check.level)} | {row.speed_kmh:.0f} | {o.max_level(0)} | {mark(o.passed)} |"
         )
     return lines
 
@@ -228,7 +228,7 @@ def _real_road_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     for o in outcomes:
         row = o.row
         lines.append(f"| {row.tracks[0]} | {row.category.value} | {row.speed_kmh:g} | {_metres(o.worst_earlier_m(0))} | "
-                     f"{_metres(o.worst_earlier_m(1))} | {_mark(o.passed)} |")  # fmt: skip
+                     f"{_metres(o.worst_earlier_m(1))} | {mark(o.passed)} |")  # fmt: skip
     return lines
 
 
@@ -253,9 +253,9 @@ def write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -
     lines = [
         "# CSWS conformance report (T/ITS 0091-2018, clause 7.5)",
         "",
-        f"- 7.6 verdict: **{_verdict_text(overall)}**",
-        f"- negative rows: **{_verdict_text(verdict['negative_rows_passed'])}**",
-        f"- real-road tracks: **{_verdict_text(verdict['real_road_tracks_passed'])}**",
+        f"- 7.6 verdict: **{verdict_text(overall)}**",
+        f"- negative rows: **{verdict_text(verdict['negative_rows_passed'])}**",
+        f"- real-road tracks: **{verdict_text(verdict['real_road_tracks_passed'])}**",
         f"- step lengths: {', '.join(f'{s:g} s' for s in settings['step_lengths_s'])}; "
         f"{settings['repetitions']} runs per row, track and step length; seed {settings['seed']}",
         f"- rows: {verdict['rows']}, failed: {len(verdict['rows_failed'])}",

@@ -15,7 +15,7 @@ import time
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Iterable, Iterator, Sequence
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from csws.progress import Progress
 
@@ -77,18 +77,20 @@ def run_task(task: Task) -> TaskResult:
     return task, tuple(judge(task.row, trace, track_truth) for trace in traces), traces
 
 
-def run_tasks(tasks: Sequence[Task], jobs: int, progress: bool = False) -> Iterator[TaskResult]:
-    """Run the tasks, in this process for one job, else in ``jobs`` spawned worker processes;
-    with ``progress``, show how far they are (:class:`csws.progress.Progress`)."""
+def run_tasks(tasks: Sequence[Any], jobs: int, progress: bool = False,
+              worker: Callable[[Any], Any] = run_task) -> Iterator[Any]:  # fmt: skip
+    """Run the tasks through ``worker`` (a module-level function), in this process for one job, else
+    in ``jobs`` spawned worker processes; with ``progress``, show how far they are
+    (:class:`csws.progress.Progress`)."""
     bar = Progress("conformance", len(tasks), "tasks", enabled=progress)
     try:
         if jobs <= 1:
             for task in tasks:
-                yield run_task(task)
+                yield worker(task)
                 bar.update()
             return
         with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-            for result in pool.map(run_task, tasks, chunksize=1):
+            for result in pool.map(worker, tasks, chunksize=1):
                 yield result
                 bar.update()
     finally:
@@ -145,6 +147,10 @@ def conformance(rows: Sequence[Row], out: Path, step_lengths_s: Sequence[float] 
 
 def main(args: argparse.Namespace) -> int:
     """The ``csws conformance`` command: exit 0 when every row passes, 1 when one fails."""
+    if args.system == "fcw":
+        from .fcw.run import main as fcw_main
+
+        return fcw_main(args)
     rows = select_rows(args.tables, args.categories, args.rows)
     started = time.perf_counter()
     outcomes = conformance(

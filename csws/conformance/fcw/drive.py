@@ -1,0 +1,288 @@
+"""Driving one FCW row in SUMO (libsumo): one simulation per run, what the system said at every step.
+
+A :class:`Task` is one row at one step length with its repetitions. Each run
+
+* puts the row's vehicles on the road at their start positions and speeds (``insertionChecks``
+  off, so vehicles closer than SUMO's safe gap start where the test wants them), keeps them in
+  their lanes (``laneChangeMode`` 0) and drives them by ``setSpeed`` with ``speedMode`` 6: their
+  own acceleration and deceleration limits, not SUMO's safe speed, so the subject closes on
+  a stationary target as the test asks. The targets' ``decel`` is 0.3 g: a commanded stop is
+  a constant 0.3 g braking;
+* starts at its own phase of the simulation step: the subject starts a fraction of one step's
+  travel further back, so the runs sample the approach at different points;
+* evaluates the subject every step: its target from SUMO's leaders
+  (:func:`csws.cosim.fcw.forward_targets`), the state (:func:`csws.fcw.next_fcw_states`) and
+  the warning (:func:`csws.fcw.evaluate_fcw`), through the test equipment's accuracy as noise
+  (IVISTA 4.2.2, the FCW counterpart of T/ITS 0091's 7.2.2): positions +-0.03 m per vehicle,
+  speeds +-0.1 km/h, accelerations +-0.1 m/s^2, uniform;
+* records the true clearance along the subject's lane (from the track's truth), the true
+  speeds, and what the system said, until the script's end (:attr:`Script.done`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+import zlib
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from csws.binaries import sumo_binary
+from csws.cosim.fcw import BRAKE_LIGHT, forward_targets
+from csws.fcw import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw_target import TargetSettings
+from csws.networks import networks_dir
+from csws.networks.fcw_tracks import FCW_DIR
+from csws.standard import kmh_to_mps
+
+from .rows import CAR_LENGTH_M, FcwRow
+from .scripts import script_of
+
+__all__ = ["POSITION_ACCURACY_M", "SPEED_ACCURACY_MPS", "ACCEL_ACCURACY_MPS2", "Task", "Trace", "track_truth", "drive"]
+
+#: IVISTA 4.2.2: position +-0.03 m, speed +-0.1 km/h, longitudinal acceleration +-0.1 m/s^2.
+POSITION_ACCURACY_M = 0.03
+SPEED_ACCURACY_MPS = kmh_to_mps(0.1)
+ACCEL_ACCURACY_MPS2 = 0.1
+#: A run that has not ended after this much simulated time is an error, s.
+MAX_SIMULATED_S = 200.0
+#: Where the subject starts on the track, m of lane position (its front).
+SUBJECT_START_M = {"fcw_straight": 20.0}
+#: On the curve tracks the subject starts this far into the arc, m.
+INTO_CURVE_M = 10.0
+
+_VTYPES = (
+    '<vType id="truck" vClass="truck" length="12" width="2.5" minGap="2.5" accel="1.5" decel="4" '
+    'emergencyDecel="9" sigma="0" speedFactor="1" speedDev="0" maxSpeed="40"/>'
+    f'<vType id="car" vClass="passenger" length="{CAR_LENGTH_M:g}" width="1.8" minGap="2.5" accel="2.6" '
+    'decel="2.941995" emergencyDecel="9" sigma="0" speedFactor="1" speedDev="0" maxSpeed="40"/>'
+    '<vType id="truck_target" vClass="truck" length="10" width="2.53" minGap="2.5" accel="1.5" '
+    'decel="2.941995" emergencyDecel="9" sigma="0" speedFactor="1" speedDev="0" maxSpeed="40"/>'
+)
+
+
+@dataclass(frozen=True)
+class Task:
+    """One row at one step length, with its repetitions and seed."""
+
+    row: FcwRow
+    step_length_s: float
+    repetitions: int
+    seed: int
+
+    @property
+    def key(self) -> str:
+        return f"{self.row.row_id}@{self.step_length_s:g}s"
+
+    @property
+    def track(self) -> str:
+        return self.row.track
+
+
+@dataclass(frozen=True)
+class Trace:
+    """The record of one run, one entry per step from the first.
+
+    Attributes
+    ----------
+    repetition, phase
+        Which run, and its start offset as a fraction of one step's travel.
+    time_s
+        Simulation time, s.
+    clearance_m
+        True clearance from the subject's front to the target's (``tv``) rear along its lane, m.
+    closing_mps
+        True closing speed v_SV - v_TV, m/s.
+    subject_mps, target_mps
+        True speeds of the subject and the target, m/s.
+    adjacent_ahead_m
+        How far the adjacent vehicle's rear is ahead of the subject's front, m (``nan`` without one).
+    lateral_m
+        The subject's lateral offset from the target's axis, m.
+    level
+        The warning the system gave (0 outside the active state).
+    target
+        The id of the system's target (empty without one).
+    phase_index
+        The script's phase at each step (:class:`csws.conformance.fcw.scripts.Script`).
+    """
+
+    repetition: int
+    phase: float
+    time_s: np.ndarray
+    clearance_m: np.ndarray
+    closing_mps: np.ndarray
+    subject_mps: np.ndarray
+    target_mps: np.ndarray
+    adjacent_ahead_m: np.ndarray
+    lateral_m: np.ndarray
+    level: np.ndarray
+    target: tuple[str, ...]
+    phase_index: np.ndarray
+
+    @property
+    def ttc_s(self) -> np.ndarray:
+        """True TTC, s (``inf`` while not closing)."""
+        with np.errstate(divide="ignore"):
+            return np.where(self.closing_mps > 0.0, self.clearance_m / self.closing_mps, np.inf)
+
+
+@cache
+def track_truth(track: str) -> dict:
+    """A FCW track's truth (``networks/fcw/NAME.truth.json``)."""
+    return json.loads((networks_dir() / FCW_DIR / f"{track}.truth.json").read_text("utf-8"))
+
+
+def lane_metres(track: str, lane: str, from_pos_m: float, to_pos_m: float) -> float:
+    """Metres driven on ``lane`` between two lane positions: SUMO's positions follow the road's centre
+    line, a lane on the arc is longer or shorter by its radius over the centre line's."""
+    curve = track_truth(track)["curve"]
+    if curve is None:
+        return to_pos_m - from_pos_m
+    on_arc = max(0.0, min(to_pos_m, curve["end_pos_m"]) - max(from_pos_m, curve["start_pos_m"]))
+    return to_pos_m - from_pos_m + on_arc * (curve["lane_factor"][lane] - 1.0)
+
+
+def _routes_xml(row: FcwRow, start_m: float, behind_m: float) -> str:
+    """The route file: the vehicle types and the row's vehicles, all departing at once, the subject
+    ``behind_m`` behind ``start_m`` (its phase)."""
+    lengths = {"truck": 12.0, "car": CAR_LENGTH_M, "truck_target": 10.0}
+    vehicles = []
+    for actor in row.actors:
+        front_m = start_m - behind_m if actor.vehicle_id == "sv" else start_m + actor.ahead_m + lengths[actor.vtype]
+        vehicles.append(f'<vehicle id="{actor.vehicle_id}" type="{actor.vtype}" depart="0" departLane="{actor.lane}" '
+                        f'departPos="{front_m:.6f}" departSpeed="{actor.speed_mps:.9g}" insertionChecks="none">'
+                        '<route edges="road"/></vehicle>')  # fmt: skip
+    return f"<routes>{_VTYPES}{''.join(vehicles)}</routes>"
+
+
+@dataclass
+class _Record:
+    columns: dict = field(default_factory=lambda: {name: [] for name in (
+        "time_s", "clearance_m", "closing_mps", "subject_mps", "target_mps", "adjacent_ahead_m", "lateral_m", "level",
+        "target", "phase_index")})  # fmt: skip
+
+    def add(self, **values) -> None:
+        for name, value in values.items():
+            self.columns[name].append(value)
+
+    def trace(self, repetition: int, phase: float) -> Trace:
+        c = self.columns
+        arrays = {name: np.array(values, dtype=float) for name, values in c.items() if name not in ("level", "target", "phase_index")}
+        return Trace(repetition, phase, level=np.array(c["level"], dtype=np.int8), target=tuple(c["target"]),
+                     phase_index=np.array(c["phase_index"], dtype=np.int8), **arrays)  # fmt: skip
+
+
+class _Equipment:
+    """The test equipment's accuracy as noise on what the system is given."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+
+    def uniform(self, bound: float, count: int | None = None):
+        return self.rng.uniform(-bound, bound, count)
+
+    def sensor(self, clearance_m: np.ndarray, offset_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Two vehicles' positions, each +-0.03 m: the clearance and the lateral offset."""
+        bound = 2.0 * POSITION_ACCURACY_M
+        return clearance_m + self.uniform(bound, clearance_m.size), offset_m + self.uniform(bound, offset_m.size)
+
+
+def _subject_start_m(task: Task) -> float:
+    curve = track_truth(task.track)["curve"]
+    return SUBJECT_START_M.get(task.track) or curve["start_pos_m"] + INTO_CURVE_M
+
+
+def _rng(task: Task) -> np.random.Generator:
+    return np.random.default_rng([task.seed, zlib.crc32(task.key.encode())])
+
+
+def drive(task: Task) -> list[Trace]:
+    """Run every repetition of a task in SUMO; their records, in order."""
+    rng = _rng(task)
+    return [_run(task, repetition, (repetition + float(rng.uniform())) / task.repetitions, _Equipment(rng))
+            for repetition in range(task.repetitions)]  # fmt: skip
+
+
+def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Trace:
+    """One run: the subject starts ``phase`` of one step's travel further back."""
+    import libsumo
+
+    row, step_s = task.row, task.step_length_s
+    subject = row.actor("sv")
+    behind_m = phase * subject.speed_mps * step_s
+    settings, targets = FcwSettings(), TargetSettings()
+    script = script_of(row)
+    record = _Record()
+    state = np.array([1], dtype=np.int8)
+    lane_of = {actor.vehicle_id: f"road_{actor.lane}" for actor in row.actors}
+    with tempfile.TemporaryDirectory(prefix="csws-fcw-conformance-") as work:
+        routes = Path(work) / "run.rou.xml"
+        routes.write_text(_routes_xml(row, _subject_start_m(task), behind_m), encoding="utf-8")
+        libsumo.start([
+            str(sumo_binary("sumo")), "-n", str(networks_dir() / FCW_DIR / f"{task.track}.net.xml"), "-r", str(routes),
+            "--step-length", f"{step_s:g}", "--no-step-log", "true", "--no-warnings", "true",
+            "--duration-log.disable", "true", "--seed", "0", "--collision.action", "none",
+        ])  # fmt: skip
+        try:
+            libsumo.simulationStep()
+            for actor in row.actors:
+                libsumo.vehicle.setLaneChangeMode(actor.vehicle_id, 0)
+                libsumo.vehicle.setSpeedMode(actor.vehicle_id, 6)
+                libsumo.vehicle.setSpeed(actor.vehicle_id, actor.speed_mps)
+            while not script.done:
+                now_s = libsumo.simulation.getTime()
+                if now_s > MAX_SIMULATED_S:
+                    raise RuntimeError(f"{task.key}: run {repetition + 1} did not end within {MAX_SIMULATED_S:g} s")
+                truth = _true_state(libsumo, task.track, lane_of)
+                level, target_id, state = _evaluate(libsumo, settings, targets, state, equipment)
+                record.add(time_s=now_s, level=level, target=target_id or "", phase_index=script.phase, **truth)
+                for vehicle_id, speed_mps in script.step(now_s, truth, level, target_id).items():
+                    libsumo.vehicle.setSpeed(vehicle_id, speed_mps)
+                libsumo.simulationStep()
+        finally:
+            libsumo.close()
+    return record.trace(repetition, phase)
+
+
+def _true_state(sumo, track: str, lane_of: dict[str, str]) -> dict[str, float]:
+    """The true clearance to ``tv`` along the subject's lane, speeds, the adjacent vehicle's place."""
+    vehicle = sumo.vehicle
+    subject_m = vehicle.getLanePosition("sv")
+    target_rear_m = vehicle.getLanePosition("tv") - vehicle.getLength("tv")
+    adjacent = math.nan
+    if "adj" in lane_of:
+        adjacent = lane_metres(track, lane_of["sv"], subject_m, vehicle.getLanePosition("adj") - vehicle.getLength("adj"))
+    subject_mps, target_mps = vehicle.getSpeed("sv"), vehicle.getSpeed("tv")
+    return {
+        "clearance_m": lane_metres(track, lane_of["sv"], subject_m, target_rear_m),
+        "closing_mps": subject_mps - target_mps,
+        "subject_mps": subject_mps,
+        "target_mps": target_mps,
+        "adjacent_ahead_m": adjacent,
+        "lateral_m": vehicle.getLateralLanePosition("sv") - vehicle.getLateralLanePosition("tv"),
+    }
+
+
+def _evaluate(sumo, settings: FcwSettings, target_settings: TargetSettings, state: np.ndarray,
+              equipment: _Equipment) -> tuple[int, str | None, np.ndarray]:  # fmt: skip
+    """The system on the subject, through the equipment's noise: level, target id, state."""
+    vehicle = sumo.vehicle
+    speed_mps = vehicle.getSpeed("sv") + equipment.uniform(SPEED_ACCURACY_MPS)
+    state = next_fcw_states(state, [speed_mps], [True], [True], settings)
+    found = forward_targets(sumo, ["sv"], target_settings, noise=equipment.sensor)
+    target_id = found.target_id[0]
+    if target_id is None or state[0] != ACTIVE:
+        return 0, target_id, state
+    speeds = 2.0 * SPEED_ACCURACY_MPS
+    batch = evaluate_fcw(
+        [vehicle.getAcceleration("sv") + equipment.uniform(ACCEL_ACCURACY_MPS2)], found.clearance_m,
+        found.relative_velocity_mps + equipment.uniform(speeds),
+        found.target_accel_mps2 + equipment.uniform(ACCEL_ACCURACY_MPS2),
+        [bool(vehicle.getSignals("sv") & BRAKE_LIGHT)], settings,
+    )  # fmt: skip
+    return int(batch.level[0]), target_id, state
