@@ -40,7 +40,7 @@ from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .schemas import Hmi, Matched, WarningAnswer
 from .timing import UNTIMED, Stages
-from .vehicles import LoadedVehicles, VehicleRegistry
+from .vehicles import LatestAnswer, LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "EncodedAnswers", "WarningService"]
 
@@ -309,14 +309,16 @@ class WarningService:
                 # One vehicle skips the batch set-up; both paths give the same answer.
                 results = engine.evaluate_many(inputs) if len(inputs) > 1 else [engine.evaluate(inputs[0])]
             with stages("encode"):
-                self._record(indices, placements, rows, results, vehicles, answers, fleet)
+                self._record(indices, placements, rows, inputs, results, vehicles, answers, fleet)
 
     def _record(self, indices: Sequence[int], placements: Sequence[Placement], rows: Sequence[int],
-                results: Sequence[Answer], vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
-        """Note the answered vehicles' lanes in their sessions, and their answers at ``indices[rows]``."""
-        for row, result in zip(rows, results):
+                inputs: Sequence[VehicleInput], results: Sequence[Answer], vehicles: LoadedVehicles,
+                answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
+        """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
+        for row, given, result in zip(rows, inputs, results):
             placement = placements[row]
-            vehicles.seen(result.vehicle_id, placement.lane_id)
+            latest = LatestAnswer(given.category, given.speed_kmh, int(result.warning.level), given.timestamp_s)
+            vehicles.seen(result.vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
             index = indices[row]
             answers.documents[index] = self.encode(result, placement, shown_id(fleet, result.vehicle_id))
             answers.state[index] = result.state
