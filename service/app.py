@@ -26,7 +26,8 @@ from csws import __version__
 from csws.standard import Category
 
 from .answers import QueryErrors, WarningService
-from .curves import choose_networks, curve_features, feature_collection, in_bbox, parse_bbox
+from .curves import (BBOX_QUERY, NETWORK_QUERY, choose_networks, curve_features, feature_collection, in_bbox,
+                     parse_bbox)
 from .decoding import DecodedBatch, DecodedQuery, DecodedSwitch, decode
 from .docs import add_doc_routes
 from .horizon import DEFAULT_HORIZON_M, horizon
@@ -226,12 +227,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     # ------------------------------------------------------------------ map
     @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"], responses=_KEYED)
     async def curves(
-        bbox: str | None = QueryParam(
-            default=None,
-            description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres",
-            examples=["850,-50,1200,400"],
-        ),
-        network: str | None = QueryParam(default=None, description="only this network"),
+        bbox: str | None = BBOX_QUERY,
+        network: str | None = NETWORK_QUERY,
     ) -> Response:
         box, chosen = parse_bbox(bbox), choose_networks(networks, network)
 

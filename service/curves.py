@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
+from fastapi import Query
 from fastapi.exceptions import RequestValidationError
 
 from csws.horizon import curve_id_of
@@ -25,7 +26,7 @@ from .networks import ServedNetwork
 #: How a feature's coordinates are given, by whether its network is geo-referenced.
 _COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
 
-__all__ = ["warning_speeds_kmh", "curve_features", "in_bbox", "parse_bbox", "choose_networks", "feature_collection"]
+__all__ = ["BBOX_QUERY", "NETWORK_QUERY", "warning_speeds_kmh", "curve_features", "in_bbox", "parse_bbox", "choose_networks", "feature_collection"]
 
 
 def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:
@@ -93,6 +94,13 @@ def in_bbox(feature: dict[str, Any], bbox: tuple[float, float, float, float] | N
         return True
     west, south, east, north = feature["bbox"]
     return not (east < bbox[0] or west > bbox[2] or north < bbox[1] or south > bbox[3])
+
+
+#: The ``bbox`` parameter of the map's routes (read with :func:`parse_bbox`).
+BBOX_QUERY = Query(default=None, examples=["850,-50,1200,400"],
+                   description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres")
+#: The ``network`` parameter of the map's routes (checked with :func:`choose_networks`).
+NETWORK_QUERY = Query(default=None, description="only this network")
 
 
 def parse_bbox(text: str | None) -> tuple[float, float, float, float] | None:

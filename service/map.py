@@ -20,7 +20,7 @@ from fastapi import FastAPI, Query as QueryParam, Request
 from fastapi.responses import HTMLResponse, Response
 from starlette.middleware.gzip import GZipMiddleware
 
-from .curves import choose_networks, feature_collection, parse_bbox
+from .curves import BBOX_QUERY, NETWORK_QUERY, choose_networks, feature_collection, parse_bbox
 from .fleet import fleet_features
 from .keys import principal, vehicle_key
 from .networks import ServedNetwork
@@ -112,12 +112,8 @@ def add_map_routes(app: FastAPI, networks: Sequence[ServedNetwork], registry: Ve
              tags=["map"], responses=responses)  # fmt: skip
     async def fleet(
         request: Request,
-        bbox: str | None = QueryParam(
-            default=None,
-            description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres",
-            examples=["850,-50,1200,400"],
-        ),
-        network: str | None = QueryParam(default=None, description="only this network"),
+        bbox: str | None = BBOX_QUERY,
+        network: str | None = NETWORK_QUERY,
     ) -> Response:
         box, chosen = parse_bbox(bbox), choose_networks(networks, network)
         asking = principal(request).fleet
