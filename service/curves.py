@@ -26,7 +26,8 @@ from .networks import ServedNetwork
 #: How a feature's coordinates are given, by whether its network is geo-referenced.
 _COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
 
-__all__ = ["BBOX_QUERY", "NETWORK_QUERY", "warning_speeds_kmh", "curve_features", "in_bbox", "parse_bbox", "choose_networks", "feature_collection"]
+__all__ = ["BBOX_QUERY", "NETWORK_QUERY", "warning_speeds_kmh", "curve_features", "in_bbox", "parse_bbox",
+           "choose_networks", "feature_collection"]
 
 
 def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:

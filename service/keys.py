@@ -33,8 +33,8 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
-__all__ = ["KEYS_FORMAT", "Role", "Principal", "OPEN", "principal", "KeyRing", "KeyMiddleware", "add_key", "vehicle_key",
-           "shown_id"]
+__all__ = ["KEYS_FORMAT", "Role", "Principal", "OPEN", "principal", "KeyRing", "KeyMiddleware", "add_key",
+           "vehicle_key", "shown_id"]
 
 KEYS_FORMAT = "csws-api-keys/1"
 #: Fleet names: letters, digits, ``_``, ``.`` and ``-`` (never ``/``, which joins a fleet to its vehicle ids).

@@ -56,8 +56,8 @@ def test_the_summary_compares_both_runs_with_the_runs_own_figures(compared) -> N
         with open(folder / "entries.csv", newline="") as file:
             entries = list(csv.DictReader(file))
         # A warning of a level is counted when a vehicle's level rises to it.
-        rises = {level: sum(1 for e in events if int(e["level"]) == level and int(e["level"]) > int(e["previous_level"]))
-                 for level in (1, 2)}  # fmt: skip
+        levels = [(int(e["level"]), int(e["previous_level"])) for e in events]
+        rises = {level: sum(1 for now, before in levels if now == level > before) for level in (1, 2)}
         vehicle_km = float(table["vehicle-km"][column])
         assert vehicle_km == pytest.approx(_path_km(folder), rel=0.02)
         assert int(table["level-1 warnings"][column]) == rises[1] > 0
@@ -79,8 +79,8 @@ def test_a_csv_time_series_gives_the_figures_of_parquet(tmp_path) -> None:
 
 
 def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
-    subprocess.run([sys.executable, "-m", "csws", "cosim", "--end", "20", "--timeseries", "none", "--out", str(tmp_path)],
-                   check=True, capture_output=True)  # fmt: skip
+    subprocess.run([sys.executable, "-m", "csws", "cosim", "--end", "20", "--timeseries", "none",
+                    "--out", str(tmp_path)], check=True, capture_output=True)  # fmt: skip
     table = _table((tmp_path / "summary.md").read_text())
     assert table["vehicle-km"] == ["n/a (no time series)"]
     assert re.fullmatch(r"\d+", table["level-1 warnings"][0])
