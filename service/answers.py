@@ -42,7 +42,7 @@ from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .schemas import Hmi, Matched, WarningAnswer
 from .timing import UNTIMED, Stages
-from .vehicles import LoadedVehicles, VehicleRegistry
+from .vehicles import LatestAnswer, LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "Evaluated", "EncodedAnswers", "WarningService"]
 
@@ -309,7 +309,7 @@ class WarningService:
                 evaluated = self.evaluate(network_index, [queries[row] for row in rows],
                                           [placements[row] for row in rows], vehicles)  # fmt: skip
             with stages("encode"):
-                self._record(indices, placements, rows, evaluated, vehicles, answers, fleet)
+                self._record(queries, indices, placements, rows, evaluated, vehicles, answers, fleet)
         with stages("encode"):
             for index, fcw in zip(indices, fcw_answers(queries)):
                 answers.documents[index].fcw = fcw
@@ -346,13 +346,16 @@ class WarningService:
         return Evaluated(fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, kinds,
                          lambda row: fleet.ahead.path_ahead(ahead_row[row]))  # fmt: skip
 
-    def _record(self, indices: Sequence[int], placements: Sequence[Placement], rows: Sequence[int],
-                evaluated: "Evaluated", vehicles: LoadedVehicles, answers: "EncodedAnswers", fleet: str) -> None:
-        """Note the answered vehicles' lanes in their sessions, and their answers at ``indices[rows]``."""
+    def _record(self, queries: Sequence[DecodedQuery], indices: Sequence[int], placements: Sequence[Placement],
+                rows: Sequence[int], evaluated: "Evaluated", vehicles: LoadedVehicles, answers: "EncodedAnswers",
+                fleet: str) -> None:  # fmt: skip
+        """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
         for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(zip(
                 rows, evaluated.vehicle_id, evaluated.state, evaluated.fault, evaluated.warning, evaluated.path_kind)):
-            placement = placements[row]
-            vehicles.seen(vehicle_id, placement.lane_id)
+            placement, query = placements[row], queries[row]
+            category = query.category if query.category is not None else vehicles.category(vehicle_id)
+            latest = LatestAnswer(category, query.speed_kmh, int(warning.level), query.timestamp_s)
+            vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
             answers.documents[index] = self.encode(shown_id(fleet, vehicle_id), state, fault, warning, kind, path,

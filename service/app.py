@@ -26,12 +26,15 @@ from csws import __version__
 from csws.standard import Category
 
 from .answers import QueryErrors, WarningService
-from .curves import curve_features, feature_collection, in_bbox
+from .curves import (BBOX_QUERY, NETWORK_QUERY, choose_networks, curve_features, feature_collection, in_bbox,
+                     parse_bbox)
 from .decoding import DecodedBatch, DecodedQuery, DecodedSwitch, decode
+from .docs import add_doc_routes
 from .horizon import DEFAULT_HORIZON_M, horizon
-from .keys import OPEN, KeyMiddleware, KeyRing, Principal, vehicle_key
+from .keys import KeyMiddleware, KeyRing, principal as _principal, vehicle_key
 from .limits import BodyLimit, too_many_queries
 from .metrics import Metrics, MetricsMiddleware
+from .map import add_map_routes
 from .networks import MAX_HORIZON_M, load_networks
 from .schemas import (
     BATCH_ADAPTER,
@@ -103,23 +106,6 @@ def _json_body(schema: str) -> dict[str, Any]:
                             "content": {"application/json": {"schema": {"$ref": f"#/components/schemas/{schema}"}}}}}
 
 
-def _bbox(text: str | None) -> tuple[float, float, float, float] | None:
-    """``min_x,min_y,max_x,max_y`` as numbers; a 422 when it is not that."""
-    if text is None:
-        return None
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 4 or not all(map(lambda v: v == v and abs(v) != float("inf"), values)):
-        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
-                                       "msg": "bbox must be four finite numbers: min_x,min_y,max_x,max_y"}])
-    if values[0] > values[2] or values[1] > values[3]:
-        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
-                                       "msg": "bbox minimum must not exceed its maximum: min_x,min_y,max_x,max_y"}])
-    return values
-
-
 def create_app(settings: ServiceSettings | None = None, clock: Callable[[], float] = time.time) -> FastAPI:
     """Build the service.
 
@@ -163,7 +149,10 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         work.close()
         store.close()
 
-    app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan)
+    app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan, docs_url=None,
+                  redoc_url=None)  # served from the package (service.docs)
+    add_doc_routes(app)
+    add_map_routes(app, networks, registry, store, off_loop, {**_KEYED, **_STORE})
     # Innermost first: bodies bounded, then keys (a 401 before any body is read), then metrics over all.
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes, timeout_s=settings.body_timeout_s)
     if settings.api_keys_file is not None:
@@ -238,18 +227,11 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     # ------------------------------------------------------------------ map
     @app.get("/v1/curves", summary="The curves of the served networks as GeoJSON", tags=["map"], responses=_KEYED)
     async def curves(
-        bbox: str | None = QueryParam(
-            default=None,
-            description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres",
-            examples=["850,-50,1200,400"],
-        ),
-        network: str | None = QueryParam(default=None, description="only this network"),
+        bbox: str | None = BBOX_QUERY,
+        network: str | None = NETWORK_QUERY,
     ) -> Response:
-        box = _bbox(bbox)
-        chosen = [i for i, n in enumerate(networks) if network is None or n.name == network]
-        if not chosen:
-            raise RequestValidationError([{"loc": ("query", "network"), "type": "value_error",
-                                           "msg": f"unknown network {network!r}"}])
+        box, chosen = parse_bbox(bbox), choose_networks(networks, network)
+
         def collection() -> Response:
             features = []
             for i in chosen:
@@ -383,12 +365,6 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     _document_bodies(app)
     return app
-
-
-def _principal(request: Request) -> Principal:
-    """Who asks: the fleet and role of the request's key (:class:`service.keys.KeyMiddleware`),
-    :data:`service.keys.OPEN` on a service without keys."""
-    return getattr(request.state, "principal", OPEN)
 
 
 def _document_bodies(app: FastAPI) -> None:

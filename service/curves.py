@@ -12,9 +12,11 @@ in its ``coordinates`` member.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
+from fastapi import Query
+from fastapi.exceptions import RequestValidationError
 
 from csws.horizon import curve_id_of
 from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
@@ -24,7 +26,8 @@ from .networks import ServedNetwork
 #: How a feature's coordinates are given, by whether its network is geo-referenced.
 _COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
 
-__all__ = ["warning_speeds_kmh", "curve_features", "in_bbox", "feature_collection"]
+__all__ = ["BBOX_QUERY", "NETWORK_QUERY", "warning_speeds_kmh", "curve_features", "in_bbox", "parse_bbox",
+           "choose_networks", "feature_collection"]
 
 
 def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:
@@ -92,6 +95,39 @@ def in_bbox(feature: dict[str, Any], bbox: tuple[float, float, float, float] | N
         return True
     west, south, east, north = feature["bbox"]
     return not (east < bbox[0] or west > bbox[2] or north < bbox[1] or south > bbox[3])
+
+
+#: The ``bbox`` parameter of the map's routes (read with :func:`parse_bbox`).
+BBOX_QUERY = Query(default=None, examples=["850,-50,1200,400"],
+                   description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres")
+#: The ``network`` parameter of the map's routes (checked with :func:`choose_networks`).
+NETWORK_QUERY = Query(default=None, description="only this network")
+
+
+def parse_bbox(text: str | None) -> tuple[float, float, float, float] | None:
+    """``min_x,min_y,max_x,max_y`` as numbers; a 422 when it is not that."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 4 or not all(map(lambda v: v == v and abs(v) != float("inf"), values)):
+        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
+                                       "msg": "bbox must be four finite numbers: min_x,min_y,max_x,max_y"}])
+    if values[0] > values[2] or values[1] > values[3]:
+        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
+                                       "msg": "bbox minimum must not exceed its maximum: min_x,min_y,max_x,max_y"}])
+    return values
+
+
+def choose_networks(networks: Sequence[ServedNetwork], name: str | None) -> list[int]:
+    """The indices of the networks a request names: ``name``'s, or all without one; a 422 for an unknown name."""
+    chosen = [i for i, n in enumerate(networks) if name is None or n.name == name]
+    if not chosen:
+        raise RequestValidationError([{"loc": ("query", "network"), "type": "value_error",
+                                       "msg": f"unknown network {name!r}"}])
+    return chosen
 
 
 def feature_collection(features: list[dict[str, Any]], networks: list[ServedNetwork]) -> dict[str, Any]:

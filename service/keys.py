@@ -31,9 +31,10 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from enum import StrEnum
 from pathlib import Path
+from typing import Any
 
-__all__ = ["KEYS_FORMAT", "Role", "Principal", "OPEN", "KeyRing", "KeyMiddleware", "add_key", "vehicle_key",
-           "shown_id"]
+__all__ = ["KEYS_FORMAT", "Role", "Principal", "OPEN", "principal", "KeyRing", "KeyMiddleware", "add_key",
+           "vehicle_key", "shown_id"]
 
 KEYS_FORMAT = "csws-api-keys/1"
 #: Fleet names: letters, digits, ``_``, ``.`` and ``-`` (never ``/``, which joins a fleet to its vehicle ids).
@@ -64,6 +65,12 @@ class Principal:
 
 #: Everyone, on a service without keys (loopback only, or ``--insecure``).
 OPEN = Principal("", Role.ADMIN)
+
+
+def principal(request: Any) -> Principal:
+    """Who asks: the fleet and role of the request's key (:class:`KeyMiddleware`), :data:`OPEN` on a
+    service without keys."""
+    return getattr(request.state, "principal", OPEN)
 
 
 def vehicle_key(fleet: str, vehicle_id: str) -> str:
@@ -153,15 +160,18 @@ def add_key(path: str | Path, fleet: str, role: Role | str) -> str:
     return key
 
 
-#: Paths that answer without a key: liveness and readiness, for load balancers and orchestrators.
-OPEN_PATHS = frozenset({"/healthz", "/readyz"})
+#: Paths that answer without a key: liveness and readiness, for load balancers and orchestrators; the live
+#: map's page, which holds no data (it asks for it with the key given after ``#key=`` in its address).
+OPEN_PATHS = frozenset({"/healthz", "/readyz", "/map"})
+#: Paths under these answer without a key: the files of the map page and of the docs, as packaged.
+OPEN_PREFIXES = ("/static/",)
 #: Paths open without a key only with ``public_docs``.
 DOC_PATHS = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json", "/metrics"})
 _CHALLENGE = [(b"www-authenticate", b'Bearer realm="csws"')]
 
 
 class KeyMiddleware:
-    """ASGI middleware: every request but :data:`OPEN_PATHS` (and, with ``public_docs``,
+    """ASGI middleware: every request but :data:`OPEN_PATHS`, :data:`OPEN_PREFIXES` (and, with ``public_docs``,
     :data:`DOC_PATHS`) needs ``Authorization: Bearer KEY`` of a key in ``keyring``; the
     key's :class:`Principal` goes into the request's state as ``principal``. A missing or
     unknown key is a 401 with ``WWW-Authenticate``, before the body is read."""
@@ -172,7 +182,7 @@ class KeyMiddleware:
         self.open_paths = OPEN_PATHS | DOC_PATHS if public_docs else OPEN_PATHS
 
     async def __call__(self, scope, receive, send) -> None:
-        if scope["type"] != "http" or scope["path"] in self.open_paths:
+        if scope["type"] != "http" or scope["path"] in self.open_paths or scope["path"].startswith(OPEN_PREFIXES):
             await self.app(scope, receive, send)
             return
         principal = None

@@ -32,13 +32,22 @@ from csws.state import Fault, SystemState, VehicleStatus, switch
 from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 from .timing import UNTIMED, Stages
 
-__all__ = ["TRANSACTION_ATTEMPTS", "Session", "SessionRecord", "LoadedVehicles", "VehicleRegistry"]
+__all__ = ["TRANSACTION_ATTEMPTS", "Session", "LatestAnswer", "SessionRecord", "LoadedVehicles", "VehicleRegistry"]
 
 #: How often a request reads and answers again the vehicles other requests wrote meanwhile
 #: before it gives up with a 503.
 TRANSACTION_ATTEMPTS = 5
 
 Answered = TypeVar("Answered")
+
+
+class LatestAnswer(msgspec.Struct, array_like=True, frozen=True, gc=False):
+    """What the latest answer of a vehicle said, kept with its session for the live map (``GET /v1/fleet``)."""
+
+    category: Category | None
+    speed_kmh: float
+    level: int
+    timestamp_s: float | None
 
 
 @dataclass(slots=True)
@@ -51,10 +60,16 @@ class Session:
         The served network whose engine holds its memory.
     lane_id
         Its last matched lane, None when no fix of it matched yet.
+    lane_pos_m
+        Its position on that lane, m.
+    latest
+        What its latest answer said (the live map's view of it, ``GET /v1/fleet``).
     """
 
     network_index: int
     lane_id: str | None
+    lane_pos_m: float = 0.0
+    latest: LatestAnswer | None = None
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -70,6 +85,10 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     #: The release rule's CPOIs (curve id, part index) of level 1 and level 2.
     held_points: tuple[frozenset[tuple[str, int]], frozenset[tuple[str, int]]]
     held_kept_at_s: tuple[float | None, float | None]
+    #: Where on ``lane_id`` it was last matched, m, and what its latest answer said (sessions written
+    #: before these were kept have neither).
+    lane_pos_m: float = 0.0
+    latest: LatestAnswer | None = None
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
@@ -79,10 +98,11 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
         return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s))
 
     @classmethod
-    def of(cls, network: str, lane_id: str | None, memory: VehicleMemory) -> "SessionRecord":
+    def of(cls, network: str, session: Session, memory: VehicleMemory) -> "SessionRecord":
         status, held = memory.status, memory.held
-        return cls(network, lane_id, status.state, status.switched_on, status.activated, status.last_timestamp_s,
-                   status.fault, held.points, held.kept_at_s)  # fmt: skip
+        return cls(network, session.lane_id, status.state, status.switched_on, status.activated,
+                   status.last_timestamp_s, status.fault, held.points, held.kept_at_s, session.lane_pos_m,
+                   session.latest)  # fmt: skip
 
 
 _ENCODER = msgspec.msgpack.Encoder()
@@ -111,7 +131,7 @@ class LoadedVehicles:
             record = registry.decode(vehicle.session)
             if record is not None:
                 network_index = registry.network_index[record.network]
-                self.sessions[vehicle_id] = Session(network_index, record.lane_id)
+                self.sessions[vehicle_id] = Session(network_index, record.lane_id, record.lane_pos_m, record.latest)
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
     def __enter__(self) -> "LoadedVehicles":
@@ -168,14 +188,19 @@ class LoadedVehicles:
             self.engines[network_index].restore(vehicle_id, VehicleMemory(status))
             session.network_index = network_index
 
-    def seen(self, vehicle_id: str, lane_id: str | None) -> None:
-        """Record that a vehicle (placed by :meth:`place`) was just answered, and its lane if it matched one.
+    def seen(self, vehicle_id: str, lane_id: str | None, lane_pos_m: float = 0.0,
+             latest: LatestAnswer | None = None) -> None:  # fmt: skip
+        """Record that a vehicle (placed by :meth:`place`) was just answered, its lane and lane position if
+        it matched one, and what its answer said.
 
         A fix that matched nothing keeps the last matched lane, so one bad fix does not
         break the continuity of the next. Its session is written back at the end of the request.
         """
+        session = self.sessions[vehicle_id]
         if lane_id is not None:
-            self.sessions[vehicle_id].lane_id = lane_id
+            session.lane_id, session.lane_pos_m = lane_id, lane_pos_m
+        if latest is not None:
+            session.latest = latest
         self.written.add(vehicle_id)
 
     def configure(self, vehicle_id: str, switched_on: bool, category: Category | None) -> None:
@@ -205,7 +230,7 @@ class LoadedVehicles:
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
-            record = SessionRecord.of(self.network_names[session.network_index], session.lane_id, memory)
+            record = SessionRecord.of(self.network_names[session.network_index], session, memory)
             writes[vehicle_id] = VehicleWrite(stored.get(vehicle_id, NOTHING_STORED).version, encode(record),
                                               new_settings.get(vehicle_id))  # fmt: skip
         return writes

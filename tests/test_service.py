@@ -97,13 +97,15 @@ class Workers:
         The networks to serve.
     state_options
         Where the state is kept: ``--state-db FILE`` or ``--state URL``.
+    workers
+        How many workers.
     """
 
-    def __init__(self, nets: list[Path], *state_options: str) -> None:
+    def __init__(self, nets: list[Path], *state_options: str, workers: int = 2) -> None:
         self.url = f"http://127.0.0.1:{_free_port()}"
         self.process = subprocess.Popen(
             [sys.executable, "-m", "csws", "serve", *(f"--net={net}" for net in nets), *state_options,
-             "--port", self.url.rsplit(":", 1)[1], "--workers", "2"],
+             "--port", self.url.rsplit(":", 1)[1], "--workers", str(workers)],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
         )
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
@@ -114,7 +116,7 @@ class Workers:
             except httpx.TransportError:
                 time.sleep(0.2)
         self.crash()
-        raise RuntimeError(f"csws serve --workers 2 was not ready within {STARTUP_TIMEOUT_S} s")
+        raise RuntimeError(f"csws serve --workers {workers} was not ready within {STARTUP_TIMEOUT_S} s")
 
     def clients(self) -> tuple[httpx.Client, httpx.Client]:
         """Two keep-alive connections served by different workers.

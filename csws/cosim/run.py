@@ -33,6 +33,7 @@ from .records import (
     write_summary,
 )
 from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
+from .summary import write_run_summary
 from .timeseries import TimeseriesWriter, open_timeseries
 
 __all__ = ["CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args", "cosimulate", "main"]
@@ -434,4 +435,6 @@ def main(args: argparse.Namespace) -> int:
         write_summary(args.out / "summary.json", {"format": "csws-cosim-comparison/1", "comparison": comparison,
                                                   "runs": summaries})  # fmt: skip
         print(f"comparison in {args.out / 'summary.json'}")
+    write_run_summary({"with driver response" if c.driver else "without driver response": c.out for c in runs}, args.out)
+    print(f"summary plot in {args.out / 'summary.png'}, figures in {args.out / 'summary.md'}")
     return 0

@@ -147,6 +147,17 @@ class StateStore(ABC):
         """
 
     @abstractmethod
+    def sessions(self, prefix: str = "") -> dict[str, bytes]:
+        """Every live session of the vehicles whose key starts with ``prefix`` (a fleet's, see
+        :func:`service.keys.vehicle_key`), by key, as of one instant.
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be read now.
+        """
+
+    @abstractmethod
     def session_count(self) -> int:
         """How many sessions the store holds (those not expired).
 

@@ -167,6 +167,22 @@ class RedisStore(StateStore):
             raise self._unavailable(exc) from None
         return {vehicle_ids[number - 1] for number in conflicts}
 
+    def sessions(self, prefix: str = "") -> dict[str, bytes]:
+        """Found with ``SCAN`` (the keys of the pattern, a batch at a time) and read with one ``MGET``: a
+        session written between the two is read as written, one that expired between them is left out."""
+        pattern = SESSION_PREFIX + prefix + "*"  # fleet names hold no glob characters (service.keys)
+        try:
+            keys = list(self._redis.scan_iter(match=pattern, count=1000))
+            values = self._redis.mget(keys) if keys else []
+        except redis.RedisError as exc:
+            raise self._unavailable(exc) from None
+        found = {}
+        for key, value in zip(keys, values):
+            session, _version = _decode_session(value)
+            if session is not None:
+                found[key.decode()[len(SESSION_PREFIX):]] = session
+        return found
+
     def session_count(self) -> int:
         """The keys with a TTL in the service's database: its sessions (a database of its own).
         Counted by Redis as it goes (``INFO keyspace``), so keys that have just expired may

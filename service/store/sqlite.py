@@ -232,6 +232,15 @@ class SQLiteStore(StateStore):
         """When the oldest session that has not expired was written, on the store's clock."""
         return self.clock() - self.idle_s
 
+    def sessions(self, prefix: str = "") -> dict[str, bytes]:
+        try:
+            rows = self._execute("SELECT vehicle_id, session FROM vehicle_sessions "
+                                 "WHERE written_s >= ? AND substr(vehicle_id, 1, ?) = ?",
+                                 (self._oldest_live_s(), len(prefix), prefix)).fetchall()  # fmt: skip
+        except sqlite3.Error as exc:
+            raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
+        return dict(rows)
+
     def session_count(self) -> int:
         try:
             return int(self._execute("SELECT COUNT(*) FROM vehicle_sessions WHERE written_s >= ?",
