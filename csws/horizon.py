@@ -21,7 +21,7 @@ from .curvature import RadiusProfile
 from .roadprofile import PathProfile
 from .warning import CurvaturePointOfInterest, PathKind
 
-__all__ = ["END_MARGIN_M", "Horizon", "PathAhead", "BatchAhead", "is_cpoi", "radius_at_end", "radius_under", "curve_id_of"]
+__all__ = ["END_MARGIN_M", "Horizon", "PathAhead", "BatchAhead", "PartPool", "is_cpoi", "radius_at_end", "radius_under", "curve_id_of"]
 
 
 @dataclass(frozen=True)
@@ -200,6 +200,54 @@ class BatchAhead:
     def paths_ahead(self) -> list[PathAhead]:
         """Every vehicle's :class:`PathAhead`, in order (:meth:`path_ahead` of each, without per-vehicle indexing)."""
         return list(map(PathAhead, self.horizons, self.vehicle_s.tolist(), self.lookahead_m.tolist()))
+
+
+class PartPool:
+    """The curve parts of many horizons in flat arrays, each horizon in a slot: a batch of vehicles
+    reads the parts of its horizons with one gather instead of joining each horizon's arrays.
+
+    The pool only grows, and keeps every horizon it holds alive (so that a horizon's ``id``
+    names its slot); its owner empties it with :meth:`clear` when it has grown too large.
+    """
+
+    _PART_FIELDS = ("part_start_s", "part_end_s", "part_radius_m", "part_index", "part_curve_id", "part_end_radius_m")
+
+    def __init__(self) -> None:
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget every horizon; slots handed out before are no longer valid."""
+        self.horizons: list[Horizon] = []
+        self._slot_of: dict[int, int] = {}
+        self._joined = 0
+        self.first = np.zeros(0, dtype=np.intp)
+        self.count = np.zeros(0, dtype=np.intp)
+        self.position_factor = np.zeros(0)
+        self.shape_length_m = np.zeros(0)
+        self.parts = tuple(np.zeros(0, dtype=object if name == "part_curve_id" else float) for name in self._PART_FIELDS)
+
+    def slot(self, horizon: Horizon) -> int:
+        """The slot of ``horizon``, given it on first sight."""
+        slot = self._slot_of.get(id(horizon))
+        if slot is None:
+            slot = self._slot_of[id(horizon)] = len(self.horizons)
+            self.horizons.append(horizon)
+        return slot
+
+    def join(self) -> None:
+        """Append the parts of the horizons given slots since the last call to the flat arrays."""
+        new = self.horizons[self._joined:]
+        if not new:
+            return
+        self._joined = len(self.horizons)
+        counts = np.array([h.part_start_s.size for h in new], dtype=np.intp)
+        total = int(self.count.sum()) if self.count.size else 0
+        self.first = np.concatenate((self.first, total + np.cumsum(counts) - counts))
+        self.count = np.concatenate((self.count, counts))
+        self.position_factor = np.concatenate((self.position_factor, [h.path.lane_position_factor[0] for h in new]))
+        self.shape_length_m = np.concatenate((self.shape_length_m, [h.path.lane_shape_length_m[0] for h in new]))
+        self.parts = tuple(np.concatenate((joined, *(getattr(h, name) for h in new)))
+                           for joined, name in zip(self.parts, self._PART_FIELDS))  # fmt: skip
 
 
 def radius_at_end(profile: RadiusProfile, end_s: float) -> float:

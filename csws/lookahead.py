@@ -39,7 +39,7 @@ from typing import Sequence
 import numpy as np
 
 from .geometry import wrap_angle_rad
-from .horizon import BatchAhead, Horizon, PathAhead, is_cpoi, radius_at_end, curve_id_of, radius_under
+from .horizon import BatchAhead, Horizon, PartPool, PathAhead, is_cpoi, radius_at_end, curve_id_of, radius_under
 from .roadmap import Lane, RoadMap
 from .standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
 from .warning import PathKind, WarningSettings, column_index
@@ -66,7 +66,8 @@ class LookAheadSettings:
     warning_radius_m
         The warning curvature radius R_c (3.2), m.
     cache_size
-        How many stitched paths to keep.
+        How many stitched paths to keep at least (a batch of more vehicles raises it to
+        :data:`HORIZONS_PER_VEHICLE` per vehicle).
     max_lanes
         A path never has more lanes than this (guards against loops of tiny lanes).
     warn_at_junctions
@@ -115,6 +116,12 @@ def lookahead_distances_m(
 
 #: Horizons are built for S_LAD rounded up to a multiple of this, so that they are shared, m.
 HORIZON_STEP_M = 250.0
+#: A batch of vehicles keeps at least this many horizons per vehicle cached: the one each
+#: vehicle needs now, and the one it needs after its next lane change or junction.
+HORIZONS_PER_VEHICLE = 2
+#: The part pool is emptied when it holds this many horizons per cached one (those evicted from
+#: the caches stay in the pool until then).
+POOLED_PER_CACHED = 2
 
 
 class LookAhead:
@@ -140,7 +147,10 @@ class LookAhead:
         self.settings = settings
         self.warning_settings = warning_settings
         self._horizons: OrderedDict[tuple, Horizon] = OrderedDict()
-        self._by_query: dict[tuple, Horizon] = {}
+        self._by_lanes: OrderedDict[tuple, Horizon] = OrderedDict()
+        self._by_query: dict[tuple, int] = {}
+        self._pool = PartPool()
+        self._capacity = settings.cache_size
 
     def __call__(
         self,
@@ -180,23 +190,20 @@ class LookAhead:
             If a lane id is not a lane of the map.
         """
         lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float))
-        distinct, which = self._distinct_horizons(lane_ids, routes, lookahead_m)
-        horizons = [distinct[k] for k in which.tolist()]
-        factor = np.array([h.path.lane_position_factor[0] for h in distinct])[which]
-        shape_length = np.array([h.path.lane_shape_length_m[0] for h in distinct])[which]
-        vehicle_s = np.clip(np.asarray(lane_pos_m, dtype=float) / factor, 0.0, shape_length)
+        # A fleet larger than the cache would evict at every step what the next step needs again.
+        self._capacity = max(self._capacity, HORIZONS_PER_VEHICLE * len(lane_ids))
+        slots = self._horizon_slots(lane_ids, routes, lookahead_m)
+        pool = self._pool
+        pool.join()
+        horizons = [pool.horizons[slot] for slot in slots.tolist()]
+        vehicle_s = np.clip(np.asarray(lane_pos_m, dtype=float) / pool.position_factor[slots], 0.0,
+                            pool.shape_length_m[slots])  # fmt: skip
         # Every (vehicle, part of its horizon) pair, then the pairs that are CPOIs.
-        counts = np.array([h.part_start_s.size for h in distinct], dtype=np.intp)
-        first_part = np.cumsum(counts) - counts
-        per_vehicle = counts[which]
+        per_vehicle = pool.count[slots]
         vehicle = np.repeat(np.arange(len(horizons)), per_vehicle)
         part = np.arange(per_vehicle.sum()) - np.repeat(np.cumsum(per_vehicle) - per_vehicle, per_vehicle)
-        part += np.repeat(first_part[which], per_vehicle)
-        start, end, radius, index, curve, end_radius = (
-            np.concatenate([getattr(h, name) for h in distinct]) if distinct else np.empty(0)
-            for name in ("part_start_s", "part_end_s", "part_radius_m", "part_index", "part_curve_id",
-                         "part_end_radius_m")
-        )
+        part += np.repeat(pool.first[slots], per_vehicle)
+        start, end, radius, index, curve, end_radius = pool.parts
         s = vehicle_s[vehicle]
         keep = is_cpoi(start[part], end[part], s, lookahead_m[vehicle])
         vehicle, part, s = vehicle[keep], part[keep], s[keep]
@@ -212,37 +219,28 @@ class LookAhead:
             cpoi_passed=end[part] <= s,
         )
 
-    def _distinct_horizons(
+    def _horizon_slots(
         self, lane_ids: Sequence[str], routes: Sequence[Sequence[str] | None], lookahead_m: np.ndarray
-    ) -> tuple[list[Horizon], np.ndarray]:
-        """The horizons the vehicles need, each looked up once, and the index of each vehicle's.
+    ) -> np.ndarray:
+        """The slot in the part pool of each vehicle's horizon.
 
-        Vehicles on the same lane with the same route and the same horizon reach share a
-        horizon, so the cache is asked once per group rather than once per vehicle; groups
-        recur from step to step, so each query's horizon is remembered too (no route scan).
+        A (lane, route, reach) query remembers its slot, so that vehicles keeping their
+        route objects from step to step (the co-simulation's) find it with one look-up.
         """
-        first_of: dict[tuple, int] = {}
-        distinct: list[Horizon] = []
-        which: list[int] = []
+        if len(self._pool.horizons) > POOLED_PER_CACHED * self._capacity:
+            self._pool.clear()
+            self._by_query.clear()
+        by_query, slots = self._by_query, []
         reaches_m = _reach_m(lookahead_m, self.settings.context_m).tolist()
         for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist()):
             key = (lane_id, route if route is None or isinstance(route, tuple) else tuple(route), reach_m)
-            index = first_of.get(key)
-            if index is None:
-                index = first_of[key] = len(distinct)
-                horizon = self._by_query.get(key)
-                if horizon is None:
-                    horizon = self._remember_query(key, self.horizon(lane_id, route, lad_m))
-                distinct.append(horizon)
-            which.append(index)
-        return distinct, np.array(which, dtype=np.intp)
-
-    def _remember_query(self, key: tuple, horizon: Horizon) -> Horizon:
-        """Remember the horizon of a (lane, route, reach) query; forgotten all at once when the cache is full."""
-        if len(self._by_query) >= self.settings.cache_size:
-            self._by_query.clear()
-        self._by_query[key] = horizon
-        return horizon
+            slot = by_query.get(key)
+            if slot is None:
+                if len(by_query) >= self._capacity:
+                    by_query.clear()
+                slot = by_query[key] = self._pool.slot(self.horizon(lane_id, route, lad_m))
+            slots.append(slot)
+        return np.array(slots, dtype=np.intp)
 
     def lookahead_m(self, speed_kmh: np.ndarray) -> np.ndarray:
         """S_LAD of each vehicle: the fixed distance if one is set, else the speed-dependent one, m."""
@@ -267,11 +265,11 @@ class LookAhead:
             self._horizons.move_to_end(key)
             return cached
         lanes, kind = self._lanes_ahead(lane_id, lane.length_m, lane.length_m + reach_m, remaining)
-        horizon = self._build_horizon(lanes, kind)
-        self._horizons[key] = horizon
-        if len(self._horizons) > self.settings.cache_size:
-            self._horizons.popitem(last=False)
-        return horizon
+        # Vehicles on different routes share a horizon while their lanes ahead are the same.
+        horizon = self._by_lanes.get((lanes, kind))
+        if horizon is None:
+            horizon = _remember(self._by_lanes, (lanes, kind), self._build_horizon(lanes, kind), self._capacity)
+        return _remember(self._horizons, key, horizon, self._capacity)
 
     def _lanes_ahead(
         self, lane_id: str, remaining_m: float, needed_m: float, route_edges: Sequence[str] | None
@@ -370,6 +368,14 @@ class LookAhead:
             part_curve_id=np.array(ids, dtype=object),
             part_end_radius_m=np.array(end_radii, dtype=float),
         )
+
+
+def _remember(cache: OrderedDict, key: tuple, horizon: Horizon, capacity: int) -> Horizon:
+    """Keep ``horizon`` as the newest entry of an LRU cache of ``capacity`` entries."""
+    cache[key] = horizon
+    if len(cache) > capacity:
+        cache.popitem(last=False)
+    return horizon
 
 
 def _reach_m(lookahead_m, context_m: float):
