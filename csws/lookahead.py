@@ -150,6 +150,7 @@ class LookAhead:
         self._by_lanes: OrderedDict[tuple, Horizon] = OrderedDict()
         self._by_query: dict[tuple, int] = {}
         self._pool = PartPool()
+        self._predicted: dict[tuple[str, tuple[str, ...]], str] = {}
         self._capacity = settings.cache_size
 
     def __call__(
@@ -319,6 +320,14 @@ class LookAhead:
         (:attr:`Lane.continues_road`), then the same street name, then road type, then least turning."""
         if len(successors) == 1:
             return successors[0]
+        key = (lane_id, tuple(successors))
+        chosen = self._predicted.get(key)
+        if chosen is None:
+            chosen = self._predicted[key] = self._most_probable(lane_id, successors)
+        return chosen
+
+    def _most_probable(self, lane_id: str, successors: Sequence[str]) -> str:
+        """:meth:`_predicted_successor` worked out (it depends on the map alone, so it is remembered)."""
         current = self.road_map.lane(lane_id)
         heading_out = _lane_end_heading(self.road_map.lane_shape(lane_id), -1)
 

@@ -266,7 +266,15 @@ class RoadMap:
         next normal lanes where a connection has no via lane); from an internal lane,
         the next internal lane or the normal lane it leads to.
         """
-        return tuple(self._lanes[i].lane_id for i in self._successor_indices(self._lane_index(lane_id)))
+        return self._successor_ids[self._lane_index(lane_id)]
+
+    @cached_property
+    def _successor_ids(self) -> tuple[tuple[str, ...], ...]:
+        """The successors of every lane by ids, in the order of :attr:`lane_ids` (asked for at every
+        step of every path built)."""
+        ids = [lane.lane_id for lane in self._lanes]
+        starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
+        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:]))
 
     def road_chain(self, lane_id: str) -> tuple[str, ...]:
         """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.roadprofile`)."""

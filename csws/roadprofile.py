@@ -405,8 +405,7 @@ def path_profile_parts(
             if part.end_s <= start_s or part.start_s >= end_s:
                 continue
             a, b = max(part.start_s, start_s), min(part.end_s, end_s)
-            k0, k1 = part.curvature_at(np.array([a, b])).tolist()
-            add(b + offset_s, k0, k1)
+            add(b + offset_s, part.curvature_at_one(a), part.curvature_at_one(b))
     add(float(vertex_s[-1]), 0.0, 0.0)
     if len(bounds) < 2:
         return _straight_profile(vertex_s)
