@@ -10,7 +10,8 @@ module's raw results as JSON for tracking.
 The real-network load time is measured on the bundled Bad Hersfeld network
 (``networks/badhersfeld.net.xml.gz``). Importing OpenStreetMap needs the extract, which
 is not shipped: give it with ``--osm FILE`` to time the import too; without it the
-import row says it was skipped.
+import row says it was skipped. The live map is measured in headless Chromium (the Debian
+package ``chromium``, driven by Playwright): without them its row says it was skipped.
 
 A benchmark that fails to run is a FAIL row with its error; the others still run.
 """
@@ -29,6 +30,7 @@ from pathlib import Path
 from typing import Callable
 
 from benchmarks import cosim, curvature, load, osm, roadmap, roads, service, sweep, warning
+from benchmarks import map as live_map
 
 
 @dataclass(frozen=True)
@@ -204,6 +206,30 @@ def service_rows(figures: dict) -> list[Row]:
     ]
 
 
+def map_rows(figures: dict) -> list[Row]:
+    """The live map of Bad Hersfeld with 1,000 vehicles fed at 1 Hz, in headless Chromium."""
+    if "not_run" in figures:
+        return [context("map: live map in a real browser", "skipped", figures["not_run"])]
+    vehicles = f"{figures['vehicles']:,} vehicles"
+    by_kind = ", ".join(f"{kind} {kb:g}" for kind, kb in figures["initial_kb_by_kind"].items())
+    return [
+        at_most("map: initial data of Bad Hersfeld until the first complete draw, MB", figures["initial_mb"],
+                live_map.TARGET_INITIAL_MB, f"{figures['initial_requests']} requests, kB: {by_kind}"),
+        context("map: page open to first complete draw, s", figures["first_draw_s"],
+                f"roads, curves of the view and {vehicles}"),
+        Row(f"map: refresh at 1 Hz, {vehicles}, page's own time p99 ms", figures["refresh_ms_p99"],
+            f"< {live_map.TARGET_REFRESH_P99_MS:g}", figures["refresh_ms_p99"] < live_map.TARGET_REFRESH_P99_MS,
+            f"p50 {figures['refresh_ms_p50']:g}, max {figures['refresh_ms_max']:g} ms over {figures['refreshes']} "
+            f"refreshes (fetch, decode, marker update)"),
+        at_most(f"map: refreshes skipped or failed in {figures['window_s']:g} s", figures["skipped_or_failed"],
+                live_map.TARGET_SKIPPED, f"longest gap between refreshes {figures['refresh_gap_ms_max']:g} ms; "
+                f"{figures['vehicles_drawn']:,} vehicles drawn, {figures['feeder_ticks']} batches fed"),
+        context(f"map: GET /v1/fleet of {vehicles} in the view, round trip p50 / p99 ms",
+                f"{figures['fleet_get_ms_p50']:g} / {figures['fleet_get_ms_p99']:g}",
+                f"{figures['fleet_get_kb']:g} kB gzipped; while fed at 1 Hz; no Server-Timing on this route"),
+    ]
+
+
 def real_network_rows(figures: dict) -> list[Row]:
     size = f"{figures['lanes']:,} lanes, {figures['curves']:,} curves"
     return [
@@ -278,6 +304,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles five times, "
                   f"{cosim.CITY_VEHICLES:,} three times", cosim_rows),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
+        Benchmark("map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", map_rows),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
         Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),
                   "a few seconds" if quick else "long: about 30-90 s", grid_rows),
