@@ -21,8 +21,8 @@ from xml.etree import ElementTree
 from csws.progress import Progress
 from csws.standard import mps_to_kmh
 
-from .driver import DriverResponse, DriverSettings
 from .cli import SYSTEMS
+from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .fcw import FCW_EVENT_COLUMNS, FcwColumns, FleetFcw, fcw_events, respond_to_fcw
 from .records import (
