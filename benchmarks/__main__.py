@@ -147,6 +147,11 @@ def cosim_rows(figures: dict) -> list[Row]:
                 cosim.TARGET_OVERHEAD, f"{ms['default']:.1f} vs {ms['without_evaluation']:.1f} ms/step; "
                 f"{figures['vehicles']} evaluated"),
         context("cosim: default run by component, ms/step", components),
+        at_most(f"cosim: both systems (csws,fcw), {vehicles} (overhead over the run without evaluation)",
+                figures["both_systems_overhead"], cosim.TARGET_BOTH_SYSTEMS_OVERHEAD,
+                f"{ms['both_systems']:.1f} vs {ms['without_evaluation']:.1f} ms/step"),
+        context("cosim: FCW's own cost (both systems over the default run)", round(figures["fcw_over_default"], 2),
+                "fcw ms/step: " + str(figures["both_systems_components_ms_per_step"].get("fcw"))),
         *city_rows(figures["city"]),
     ]
 
@@ -301,7 +306,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark("workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation",
                   workers_rows),
-        Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles five times, "
+        Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles six times, "
                   f"{cosim.CITY_VEHICLES:,} three times", cosim_rows),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
         Benchmark("map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", map_rows),

@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import comma_list, output_folder, positive_float, positive_int, step_length
+from csws.argtypes import comma_list, one_of, output_folder, positive_float, positive_int, step_length
 from csws.cli import deferred
 
 from .records import TIMESERIES_FORMATS
+
+#: The warning systems a co-simulation can evaluate (``--systems``).
+SYSTEMS = ("csws", "fcw")
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -30,6 +33,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=output_folder, default=Path("cosim-out"), help="output folder (default: cosim-out)")
     parser.add_argument("--step-length", type=step_length, default=0.1, help="SUMO step length in s (default 0.1)")
     parser.add_argument("--end", type=positive_float, default=None, help="stop at this simulation time, s")
+    parser.add_argument("--systems", type=comma_list(one_of(SYSTEMS), "system"), default=["csws"],
+                        help="warning systems to evaluate, comma-separated: csws (curve speed warning, the default), "
+                             "fcw (forward collision warning, docs/fcw.md), or csws,fcw")  # fmt: skip
     parser.add_argument("--service", default=None, metavar="URL",
                         help="ask a running csws service (POST /v1/warnings) instead of the library, e.g. http://127.0.0.1:8000")  # fmt: skip
     interface = parser.add_mutually_exclusive_group()

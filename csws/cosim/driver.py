@@ -16,6 +16,10 @@ equipped and who complies is drawn per vehicle from a hash of its id and ``draw_
 (:func:`vehicle_draw`), so the same vehicle is drawn alike in every run of that seed,
 whatever the order vehicles appear in.
 
+With the forward collision warning on, the same driver answers its warnings too
+(:meth:`DriverResponse.fcw_command`): as a level-2 curve warning, braking toward the speed of
+the vehicle ahead; where both warnings ask for a speed, the lower one is commanded.
+
 It sees only what an on-board unit shows (level, target warning speed and distance), so
 it works the same whether the answers come from the library or the service. With it, no
 vehicle enters a curve above its level-1 warning speed: the warning distance includes the
@@ -97,11 +101,20 @@ class _Driver:
 
 
 @dataclass
+class _FcwDriver:
+    """One driver's answer to a forward collision warning: since when warned, and the speed it brakes to."""
+
+    warned_since_s: float
+    goal_mps: float | None = None
+
+
+@dataclass
 class DriverResponse:
     """The drivers of a fleet; :meth:`commands` gives the speed commands of one step."""
 
     settings: DriverSettings = field(default_factory=DriverSettings)
     drivers: dict[str, _Driver] = field(default_factory=dict)
+    fcw_drivers: dict[str, _FcwDriver] = field(default_factory=dict)
 
     def commands(self, time_s: float, step_s: float, vehicle_id: str, level: int, target_speed_kmh: float | None,
                  target_distance_m: float | None, speed_mps: float, odometer_m: float) -> float | None:  # fmt: skip
@@ -131,6 +144,34 @@ class DriverResponse:
             return -1.0
         return max(driver.goal_mps, speed_mps - self.settings.decel_mps2 * step_s)
 
+    def fcw_command(self, time_s: float, step_s: float, vehicle_id: str, level: int, range_rate_mps: float | None,
+                    speed_mps: float) -> float | None:  # fmt: skip
+        """The answer to a forward collision warning (``csws cosim --systems csws,fcw``): the speed to
+        command this step (m/s), -1 to hand the vehicle back to SUMO, None to leave it alone.
+
+        The driver answers a warning of either FCW level as a level-2 curve warning: after
+        ``reaction_s`` (SUMO's driver keeps driving meanwhile) it brakes at ``decel_mps2`` toward
+        ``below_kmh`` under the target's speed (v_SV + v_r, at least 0; the last one seen while the
+        system sees no target, e.g. below V_min), and hands the vehicle back once the warning is
+        off and it no longer closes on the target or has come down to that speed.
+        """
+        driver = self.fcw_drivers.get(vehicle_id)
+        if driver is None:
+            if level == 0 or not self.settings.responds(vehicle_id):
+                return None
+            driver = self.fcw_drivers[vehicle_id] = _FcwDriver(time_s)
+        reacted = time_s - driver.warned_since_s >= self.settings.reaction_s - 1e-9
+        if reacted and range_rate_mps is not None:
+            driver.goal_mps = max(0.0, speed_mps + range_rate_mps - kmh_to_mps(self.settings.below_kmh))
+        if level == 0 and (driver.goal_mps is None or speed_mps <= driver.goal_mps
+                           or (range_rate_mps is not None and range_rate_mps >= 0.0)):  # fmt: skip
+            del self.fcw_drivers[vehicle_id]
+            return -1.0
+        if driver.goal_mps is None:
+            return None
+        return max(driver.goal_mps, speed_mps - self.settings.decel_mps2 * step_s)
+
     def forget(self, vehicle_id: str) -> None:
         """Drop a vehicle that left."""
         self.drivers.pop(vehicle_id, None)
+        self.fcw_drivers.pop(vehicle_id, None)

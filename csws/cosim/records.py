@@ -138,6 +138,8 @@ class Summary:
     skipped: Counter = field(default_factory=Counter)
     steps: int = 0
     last_time_s: float = 0.0
+    fcw_onsets: Counter | None = None
+    fcw_warned_vehicles: set = field(default_factory=set)
 
     def add_onset(self, category: str, level: int, curve_id: str | None) -> None:
         """A vehicle's level rose to ``level``."""
@@ -158,9 +160,16 @@ class Summary:
             self.entries_above_level1_margin[category] += 1
         self.max_excess_kmh = max(self.max_excess_kmh, excess_kmh)
 
+    def add_fcw_onset(self, vehicle_id: str, level: int) -> None:
+        """A vehicle's forward collision warning rose to ``level`` (with ``fcw_onsets`` set: FCW is on)."""
+        self.fcw_onsets[level] += 1
+        self.fcw_warned_vehicles.add(vehicle_id)
+
     def as_dict(self) -> dict:
-        """The summary as JSON-ready data."""
+        """The summary as JSON-ready data; ``fcw`` only when the forward collision warning was on."""
         by_level = lambda counter: {f"level{level}": counter.get(level, 0) for level in (1, 2)}  # noqa: E731
+        fcw = {} if self.fcw_onsets is None else {
+            "fcw": {"by_level": by_level(self.fcw_onsets), "vehicles_warned": len(self.fcw_warned_vehicles)}}
         return {
             "steps": self.steps,
             "simulated_until_s": self.last_time_s,
@@ -182,6 +191,7 @@ class Summary:
                 f"more_than_{self.margin_kmh:g}_kmh_above": sum(self.entries_above_level1_margin.values()),
                 "max_excess_kmh": self.max_excess_kmh,
             },
+            **fcw,
         }
 
 

@@ -13,6 +13,7 @@ import argparse
 import math
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.etree import ElementTree
@@ -20,8 +21,10 @@ from xml.etree import ElementTree
 from csws.progress import Progress
 from csws.standard import mps_to_kmh
 
+from .cli import SYSTEMS
 from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
+from .fcw import FCW_EVENT_COLUMNS, FcwColumns, FleetFcw, fcw_events, respond_to_fcw
 from .records import (
     ENTRY_COLUMNS,
     EVENT_COLUMNS,
@@ -36,7 +39,7 @@ from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
 from .summary import write_run_summary
 from .timeseries import TimeseriesWriter, open_timeseries
 
-__all__ = ["CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args", "cosimulate", "main"]
+__all__ = ["SYSTEMS", "CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args", "cosimulate", "main"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +91,9 @@ class CosimConfig:
         How the time series is kept: ``parquet``, ``csv`` or ``none`` (:mod:`csws.cosim.timeseries`).
     timeseries_every
         Keep every this many steps in the time series.
+    systems
+        The warning systems evaluated: ``csws`` (curve speed warning) and ``fcw`` (forward
+        collision warning, :mod:`csws.cosim.fcw`), either or both.
     """
 
     scenario: Scenario
@@ -102,6 +108,19 @@ class CosimConfig:
     progress: bool = False
     timeseries: str = "parquet"
     timeseries_every: int = 1
+    systems: tuple[str, ...] = ("csws",)
+
+    def __post_init__(self) -> None:
+        if not self.systems or not set(self.systems) <= set(SYSTEMS):
+            raise ValueError(f"--systems takes one or both of {', '.join(SYSTEMS)}, got {','.join(self.systems)!r}")
+        if "fcw" in self.systems and self.service_url is not None:
+            raise ValueError("the forward collision warning is evaluated in this process only: drop --service, "
+                             "or run --systems csws with it")  # fmt: skip
+
+    @property
+    def fcw(self) -> bool:
+        """Whether the forward collision warning is evaluated."""
+        return self.evaluate and "fcw" in self.systems
 
 
 def bundled_scenario() -> Scenario:
@@ -153,8 +172,8 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 
 
 def _evaluator(config: CosimConfig) -> Evaluator | None:
-    """The library or the service, or None for a baseline run."""
-    if not config.evaluate:
+    """The library or the service, or None for a baseline run or one without the curve warning."""
+    if not config.evaluate or "csws" not in config.systems:
         return None
     if config.service_url is not None:
         return ServiceEvaluator(config.service_url)
@@ -175,10 +194,10 @@ class _Streams:
     entries: CsvStream
 
     @classmethod
-    def open(cls, out: Path, timeseries_format: str) -> "_Streams":
+    def open(cls, out: Path, timeseries_format: str, fcw: bool) -> "_Streams":
         return cls(
-            open_timeseries(out, timeseries_format),
-            CsvStream(out / "warnings.csv", EVENT_COLUMNS),
+            open_timeseries(out, timeseries_format, fcw),
+            CsvStream(out / "warnings.csv", EVENT_COLUMNS + (FCW_EVENT_COLUMNS if fcw else ())),
             CsvStream(out / "entries.csv", ENTRY_COLUMNS),
         )
 
@@ -196,20 +215,23 @@ class _Tracker:
     curves: dict[str, str | None] = field(default_factory=dict)
     ended_s: dict[str, float] = field(default_factory=dict)
     entered: dict[str, set] = field(default_factory=dict)
+    fcw_levels: dict[str, int] = field(default_factory=dict)
 
     def forget(self, vehicle_id: str) -> None:
         self.levels.pop(vehicle_id, None)
+        self.fcw_levels.pop(vehicle_id, None)
         self.curves.pop(vehicle_id, None)
         self.ended_s.pop(vehicle_id, None)
         self.entered.pop(vehicle_id, None)
 
 
-def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str, float],
+def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | None, commands: dict[str, float],
                  tracker: _Tracker, summary: Summary, streams: _Streams, sampled: bool) -> None:  # fmt: skip
     """Append one step to the files and the summary.
 
     Every vehicle gets a time-series row when the step is ``sampled``, given column-wise;
-    only the warned vehicles (and those whose level changed) are looked at one by one.
+    only the warned vehicles (and those whose level changed) are looked at one by one. With
+    the forward collision warning (``fcw``), its columns and events go beside the curve warning's.
     """
     count = len(fleet.vehicle_id)
     speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
@@ -225,9 +247,9 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
         streams.timeseries.append((
             [t] * count, fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh, warnings.state,
             warnings.level, target.curve_id, target.part_index, target.distance_m, target.warning_speed_kmh,
-            commanded_kmh,
+            commanded_kmh, *(fcw.columns() if fcw else ()),
         ))  # fmt: skip
-    levels = tracker.levels
+    levels, pad = tracker.levels, (None,) * len(FCW_EVENT_COLUMNS) if fcw else ()
     changed = [i for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level))
                if level != levels.get(vehicle_id, 0)]  # fmt: skip
     events = []
@@ -247,7 +269,7 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
             summary.warned_vehicles.add(vehicle_id)
         events.append((t, vehicle_id, category, event, level, previous, curve_id, target.part_index[i],
                        target.radius_m[i], target.distance_m[i], target.warning_speed_kmh[i], speeds_kmh[i],
-                       fleet.lane_id[i], lane_pos[i], xs[i], ys[i]))  # fmt: skip
+                       fleet.lane_id[i], lane_pos[i], xs[i], ys[i], *pad))  # fmt: skip
     entries = []
     for i, curve_id, part_index, radius_m, level in warnings.entries:
         vehicle_id, category = fleet.vehicle_id[i], fleet.category[i]
@@ -259,6 +281,8 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, commands: dict[str,
         summary.add_entry(category, excess_kmh)
         entries.append((t, vehicle_id, category, curve_id, part_index, radius_m, speeds_kmh[i], level1_kmh, excess_kmh,
                         level))  # fmt: skip
+    if fcw:
+        events += fcw_events(fleet, fcw, tracker.fcw_levels, summary, (speeds_kmh, lane_pos, xs, ys))
     streams.warnings.append(events)
     streams.entries.append(entries)
 
@@ -294,15 +318,16 @@ def cosimulate(config: CosimConfig) -> dict:
     scenario = config.scenario
     sumo_args = sumo_arguments(scenario.config, scenario.net if scenario.config is None else None, scenario.routes,
                                config.step_length_s, config.seed, config.end_s)  # fmt: skip
-    summary, tracker = Summary(), _Tracker()
+    summary, tracker = Summary(fcw_onsets=Counter() if config.fcw else None), _Tracker()
     driver = DriverResponse(config.driver) if config.driver is not None else None
-    streams = _Streams.open(config.out, config.timeseries)
+    streams = _Streams.open(config.out, config.timeseries, config.fcw)
     costs = StepCosts()
     status, started = "running", time.perf_counter()
     simulation = None
     bar = Progress("cosim", config.end_s, "sim s", decimals=1, enabled=config.progress)
     try:
         simulation = Simulation(sumo_args, config.interface, odometer=driver is not None)
+        forward = FleetFcw(simulation.api) if config.fcw else None
         step_s = simulation.step_length_s
         while simulation.expected_vehicles() > 0:
             with costs.timed("sumo_step_and_read"):
@@ -311,19 +336,26 @@ def cosimulate(config: CosimConfig) -> dict:
                 tracker.forget(vehicle_id)
                 if driver is not None:
                     driver.forget(vehicle_id)
-            if evaluator is not None:
-                evaluator.forget(fleet.arrived)
+            for forgetting in (evaluator, forward):
+                if forgetting is not None:
+                    forgetting.forget(fleet.arrived)
             summary.skipped.update(fleet.skipped)
             with costs.timed("evaluation"):
                 if evaluator is not None and fleet.vehicle_id:
                     warnings = evaluator(fleet)
                 else:
                     warnings = FleetWarnings.none(len(fleet.vehicle_id))
+            fcw = None
+            if forward is not None:
+                with costs.timed("fcw"):
+                    fcw = forward(fleet.vehicle_id, fleet.lane_id, fleet.speed_mps)
             commands = _drive(driver, fleet, warnings, step_s) if driver is not None else {}
+            if fcw is not None and driver is not None:
+                respond_to_fcw(driver, fleet, fcw, step_s, commands)
             for vehicle_id, speed_mps in commands.items():
                 simulation.set_speed(vehicle_id, speed_mps)
             with costs.timed("recording"):
-                _record_step(fleet, warnings, commands, tracker, summary, streams,
+                _record_step(fleet, warnings, fcw, commands, tracker, summary, streams,
                              summary.steps % config.timeseries_every == 0)
             summary.vehicles.update(fleet.vehicle_id)
             summary.steps += 1
@@ -367,6 +399,7 @@ def _summary_content(config: CosimConfig, summary: Summary, status: str, wall_s:
         },
         "mode": "service" if config.service_url else "library" if config.evaluate else "baseline (no evaluation)",
         "service_url": config.service_url,
+        "systems": list(config.systems),
         "interface": config.interface,
         "step_length_s": config.step_length_s,
         "driver_response": None if config.driver is None else vars(config.driver),
@@ -402,7 +435,10 @@ def _print_summary(summary: dict, out: Path) -> None:
         f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings "
         f"({summary['warnings']['flickered']} flickered: off and on again for the same curve within "
         f"{summary['warnings']['flicker_window_s']:g} s), {entries['total']} curve entries above the level-1 warning speed "
-        f"({entries['more_than_1_kmh_above']} by more than 1 km/h); output in {out}"
+        f"({entries['more_than_1_kmh_above']} by more than 1 km/h)"
+        + ("" if "fcw" not in summary else f"; forward collision: {summary['fcw']['by_level']['level1']} preliminary and "
+           f"{summary['fcw']['by_level']['level2']} collision warnings")
+        + f"; output in {out}"
     )
 
 
@@ -413,7 +449,7 @@ def main(args: argparse.Namespace) -> int:
     base = CosimConfig(
         scenario=scenario, out=args.out, step_length_s=args.step_length, end_s=args.end, interface=interface,
         service_url=args.service, seed=args.seed, progress=True, timeseries=args.timeseries,
-        timeseries_every=args.timeseries_every,
+        timeseries_every=args.timeseries_every, systems=tuple(args.systems),
     )  # fmt: skip
     runs = [base] if not args.driver_response else [
         replace(base, out=args.out / "without_response"),

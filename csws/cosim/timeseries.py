@@ -29,9 +29,10 @@ from typing import Protocol, Sequence
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .fcw import FCW_TIMESERIES_FIELDS
 from .records import TIMESERIES_COLUMNS, TIMESERIES_FORMATS, CsvStream
 
-__all__ = ["TIMESERIES_FORMATS", "TIMESERIES_SCHEMA", "PART_ROWS", "TimeseriesWriter", "open_timeseries"]
+__all__ = ["TIMESERIES_FORMATS", "TIMESERIES_SCHEMA", "PART_ROWS", "TimeseriesWriter", "timeseries_schema", "open_timeseries"]
 
 #: The Parquet columns: the CSV's, typed. A vehicle without a warning has no target (null).
 TIMESERIES_SCHEMA = pa.schema([
@@ -57,15 +58,24 @@ class TimeseriesWriter(Protocol):
     def close(self) -> None: ...
 
 
+def timeseries_schema(fcw: bool = False) -> pa.Schema:
+    """The time series' columns: :data:`TIMESERIES_SCHEMA`, and with the forward collision warning
+    its columns after them (:data:`csws.cosim.fcw.FCW_TIMESERIES_FIELDS`)."""
+    if not fcw:
+        return TIMESERIES_SCHEMA
+    return pa.schema([*TIMESERIES_SCHEMA, *((name, pa.type_for_alias(kind)) for name, kind in FCW_TIMESERIES_FIELDS)])
+
+
 class _ParquetParts:
     """The time series as a folder of whole Parquet parts (see the module's description)."""
 
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, schema: pa.Schema) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         for stale in folder.glob("part-*.parquet"):
             stale.unlink()
         self.folder = folder
-        self._columns: list[list] = [[] for _ in TIMESERIES_COLUMNS]
+        self.schema = schema
+        self._columns: list[list] = [[] for _ in schema]
         self._rows = 0
         self._parts = 0
 
@@ -81,22 +91,22 @@ class _ParquetParts:
             self._write_part()  # an empty run still leaves one (empty) part with the schema
 
     def _write_part(self) -> None:
-        table = pa.table([pa.array(values, type=field.type) for values, field in zip(self._columns, TIMESERIES_SCHEMA)],
-                         schema=TIMESERIES_SCHEMA)  # fmt: skip
+        table = pa.table([pa.array(values, type=field.type) for values, field in zip(self._columns, self.schema)],
+                         schema=self.schema)  # fmt: skip
         path = self.folder / f"part-{self._parts:05d}.parquet"
         partial = path.with_suffix(".parquet.partial")
         pq.write_table(table, partial)
         os.replace(partial, path)
         self._parts += 1
-        self._columns = [[] for _ in TIMESERIES_COLUMNS]
+        self._columns = [[] for _ in self.schema]
         self._rows = 0
 
 
 class _CsvTimeseries:
     """The time series as ``timeseries.csv``, appended at every step."""
 
-    def __init__(self, path: Path) -> None:
-        self._stream = CsvStream(path, TIMESERIES_COLUMNS)
+    def __init__(self, path: Path, columns: Sequence[str]) -> None:
+        self._stream = CsvStream(path, columns)
 
     def append(self, columns: Sequence[Sequence]) -> None:
         self._stream.append(zip(*columns))
@@ -115,12 +125,14 @@ class _NoTimeseries:
         pass
 
 
-def open_timeseries(out: Path, timeseries_format: str) -> TimeseriesWriter:
-    """The writer of a run's time series in ``out`` in one of :data:`TIMESERIES_FORMATS`."""
+def open_timeseries(out: Path, timeseries_format: str, fcw: bool = False) -> TimeseriesWriter:
+    """The writer of a run's time series in ``out`` in one of :data:`TIMESERIES_FORMATS`, with the
+    forward collision warning's columns when ``fcw`` (:func:`timeseries_schema`)."""
+    schema = timeseries_schema(fcw)
     if timeseries_format == "parquet":
-        return _ParquetParts(out / "timeseries")
+        return _ParquetParts(out / "timeseries", schema)
     if timeseries_format == "csv":
-        return _CsvTimeseries(out / "timeseries.csv")
+        return _CsvTimeseries(out / "timeseries.csv", schema.names)
     if timeseries_format == "none":
         return _NoTimeseries()
     raise ValueError(f"unknown time-series format {timeseries_format!r}; expected one of {', '.join(TIMESERIES_FORMATS)}")
