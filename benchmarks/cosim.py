@@ -16,7 +16,7 @@ process of its own, so that no run inherits another's warm caches:
 The fleet: the fleet network built with four lanes each way, 1,000 vehicles placed along
 the road at t = 0, 30 s at 0.1 s steps. The city: Bad Hersfeld's network, 10,000 vehicles
 of the fleet's mix placed at t = 0 on random walks through the roads every type may use,
-10 s at 0.1 s steps: bare, default and events only, each with its peak memory (RSS).
+30 s at 0.1 s steps: bare, default and events only, each with its peak memory (RSS).
 
 Targets: the default run at most 1.5 times bare SUMO (fleet and city), the events-only run
 at most 1.25 times; evaluation adds at most 50 % to the run without it, both systems at most
@@ -51,7 +51,7 @@ DURATION_S = 30.0
 LANES = 4
 CITY_NET = networks_dir() / "badhersfeld.net.xml.gz"
 CITY_VEHICLES = 10_000
-CITY_DURATION_S = 10.0
+CITY_DURATION_S = 30.0
 TARGET_OVERHEAD = 0.5
 TARGET_DEFAULT_RATIO = 1.5
 TARGET_EVENTS_RATIO = 1.25

@@ -271,10 +271,10 @@ def fcw_events(fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any
     """The ``warnings.csv`` rows of the step's FCW level changes (``fcw_onset``, ``fcw_change``,
     ``fcw_end``), counted in ``summary``; ``levels`` holds each vehicle's last FCW level.
 
-    ``places`` are the step's speeds (km/h), lane positions, x and y as lists. The curve's columns
-    stay empty; the target's are :data:`FCW_EVENT_COLUMNS`.
+    ``places`` are the step's speeds (km/h) and lane positions as lists, and a function giving
+    a row's x and y. The curve's columns stay empty; the target's are :data:`FCW_EVENT_COLUMNS`.
     """
-    speeds_kmh, lane_pos, xs, ys = places
+    speeds_kmh, lane_pos, place = places
     rows = []
     for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level)):
         previous = levels.get(vehicle_id, 0)
@@ -285,7 +285,7 @@ def fcw_events(fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any
             summary.add_fcw_onset(vehicle_id, level)
         event = "fcw_onset" if previous == 0 else "fcw_end" if level == 0 else "fcw_change"
         rows.append((fleet.time_s, vehicle_id, fleet.category[i], event, level, previous, None, None, None, None, None,
-                     speeds_kmh[i], fleet.lane_id[i], lane_pos[i], xs[i], ys[i], fcw.target_id[i], fcw.range_m[i],
+                     speeds_kmh[i], fleet.lane_id[i], lane_pos[i], *place(i), fcw.target_id[i], fcw.range_m[i],
                      fcw.range_rate_mps[i], fcw.ttc_s[i]))  # fmt: skip
     return rows
 

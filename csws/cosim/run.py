@@ -16,6 +16,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 from xml.etree import ElementTree
 
 from csws.progress import Progress
@@ -226,16 +227,22 @@ class _Tracker:
 
 
 def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | None, commands: dict[str, float],
-                 tracker: _Tracker, summary: Summary, streams: _Streams, sampled: bool) -> None:  # fmt: skip
+                 tracker: _Tracker, summary: Summary, streams: _Streams, sampled: bool,
+                 position: Callable[[str], tuple[float, float]] | None = None) -> None:  # fmt: skip
     """Append one step to the files and the summary.
 
     Every vehicle gets a time-series row when the step is ``sampled``, given column-wise;
     only the warned vehicles (and those whose level changed) are looked at one by one. With
     the forward collision warning (``fcw``), its columns and events go beside the curve warning's.
+    ``position`` gives a vehicle's x, y where the step was read without them (an event's row needs them).
     """
     count = len(fleet.vehicle_id)
     speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
     lane_pos, xs, ys = fleet.lane_pos_m.tolist(), fleet.x_m.tolist(), fleet.y_m.tolist()
+
+    def place(i: int) -> tuple[float, float]:
+        return (xs[i], ys[i]) if position is None else position(fleet.vehicle_id[i])
+
     t = fleet.time_s
     target = warnings.target
     commanded_kmh = [None] * count
@@ -269,7 +276,7 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | N
             summary.warned_vehicles.add(vehicle_id)
         events.append((t, vehicle_id, category, event, level, previous, curve_id, target.part_index[i],
                        target.radius_m[i], target.distance_m[i], target.warning_speed_kmh[i], speeds_kmh[i],
-                       fleet.lane_id[i], lane_pos[i], xs[i], ys[i], *pad))  # fmt: skip
+                       fleet.lane_id[i], lane_pos[i], *place(i), *pad))  # fmt: skip
     entries = []
     for i, curve_id, part_index, radius_m, level in warnings.entries:
         vehicle_id, category = fleet.vehicle_id[i], fleet.category[i]
@@ -282,7 +289,7 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | N
         entries.append((t, vehicle_id, category, curve_id, part_index, radius_m, speeds_kmh[i], level1_kmh, excess_kmh,
                         level))  # fmt: skip
     if fcw:
-        events += fcw_events(fleet, fcw, tracker.fcw_levels, summary, (speeds_kmh, lane_pos, xs, ys))
+        events += fcw_events(fleet, fcw, tracker.fcw_levels, summary, (speeds_kmh, lane_pos, place))
     streams.warnings.append(events)
     streams.entries.append(entries)
 
@@ -330,8 +337,11 @@ def cosimulate(config: CosimConfig) -> dict:
         forward = FleetFcw(simulation.api) if config.fcw else None
         step_s = simulation.step_length_s
         while simulation.expected_vehicles() > 0:
+            sampled = summary.steps % config.timeseries_every == 0
+            # Without a time-series row this step, x and y are read only for the vehicles with an event.
+            positions = sampled and config.timeseries != "none"
             with costs.timed("sumo_step_and_read"):
-                fleet = simulation.step()
+                fleet = simulation.step(positions)
             for vehicle_id in fleet.arrived:
                 tracker.forget(vehicle_id)
                 if driver is not None:
@@ -355,8 +365,8 @@ def cosimulate(config: CosimConfig) -> dict:
             for vehicle_id, speed_mps in commands.items():
                 simulation.set_speed(vehicle_id, speed_mps)
             with costs.timed("recording"):
-                _record_step(fleet, warnings, fcw, commands, tracker, summary, streams,
-                             summary.steps % config.timeseries_every == 0)
+                _record_step(fleet, warnings, fcw, commands, tracker, summary, streams, sampled,
+                             None if positions else simulation.position)
             summary.vehicles.update(fleet.vehicle_id)
             summary.steps += 1
             summary.last_time_s = fleet.time_s

@@ -138,8 +138,9 @@ class Simulation:
         """Vehicles running or still to depart."""
         return int(self._call(self.api.simulation.getMinExpectedNumber))
 
-    def step(self) -> FleetState:
-        """Advance one step and read every evaluated vehicle.
+    def step(self, positions: bool = True) -> FleetState:
+        """Advance one step and read every evaluated vehicle; its x, y only with ``positions``
+        (NaN otherwise: :meth:`position` reads one vehicle's when it is needed).
 
         Raises
         ------
@@ -164,8 +165,10 @@ class Simulation:
         for vehicle_id in arrived:
             self._evaluated.pop(vehicle_id, None)
         ids, (lane_id, lane_pos_m, speed_mps, position, route_id, odometer_m) = (
-            self._subscribed_fleet() if self._subscribed else self._fleet_by_getters()
+            self._subscribed_fleet() if self._subscribed else self._fleet_by_getters(positions)
         )
+        if not position:
+            position = [(math.nan, math.nan)] * len(ids)
         evaluated = self._evaluated
         return FleetState(
             time_s=float(self._call(api.simulation.getTime)),
@@ -183,15 +186,21 @@ class Simulation:
             skipped=tuple(skipped),
         )
 
-    def _fleet_by_getters(self) -> tuple[list[str], tuple[Sequence, ...]]:
-        """The evaluated vehicles and their values, read by one getter call per vehicle and variable (libsumo)."""
+    def _fleet_by_getters(self, positions: bool) -> tuple[list[str], tuple[Sequence, ...]]:
+        """The evaluated vehicles and their values, read by one getter call per vehicle and variable
+        (libsumo); x, y only with ``positions`` (empty otherwise)."""
         vehicle = self.api.vehicle
         evaluated = self._evaluated
         ids = [vehicle_id for vehicle_id in self._call(vehicle.getIDList) if vehicle_id in evaluated]
-        getters = [vehicle.getLaneID, vehicle.getLanePosition, vehicle.getSpeed, vehicle.getPosition, vehicle.getRouteID]
-        values = [self._call(lambda getter=getter: list(map(getter, ids))) for getter in getters]
+        getters = [vehicle.getLaneID, vehicle.getLanePosition, vehicle.getSpeed,
+                   vehicle.getPosition if positions else None, vehicle.getRouteID]  # fmt: skip
+        values = [self._call(lambda getter=getter: list(map(getter, ids))) if getter else () for getter in getters]
         odometer = self._call(lambda: list(map(vehicle.getDistance, ids))) if self._odometer else ()
         return ids, (*values, odometer)
+
+    def position(self, vehicle_id: str) -> tuple[float, float]:
+        """One vehicle's x, y, m (for a step read without positions)."""
+        return tuple(self._call(self.api.vehicle.getPosition, vehicle_id))
 
     def _subscribed_fleet(self) -> tuple[list[str], tuple[Sequence, ...]]:
         """The evaluated vehicles and their values, from one call for every subscription (TraCI)."""
