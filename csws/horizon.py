@@ -202,6 +202,30 @@ class BatchAhead:
         return list(map(PathAhead, self.horizons, self.vehicle_s.tolist(), self.lookahead_m.tolist()))
 
 
+class _Column:
+    """A flat array that grows by appending, its buffer doubled when full (appending costs what is
+    appended, not what is already there)."""
+
+    def __init__(self, dtype: type) -> None:
+        self._buffer = np.zeros(64, dtype=dtype)
+        self._size = 0
+
+    def extend(self, values: np.ndarray) -> None:
+        """Append ``values``."""
+        end = self._size + len(values)
+        if end > len(self._buffer):
+            grown = np.zeros(max(end, 2 * len(self._buffer)), dtype=self._buffer.dtype)
+            grown[:self._size] = self._buffer[:self._size]
+            self._buffer = grown
+        self._buffer[self._size:end] = values
+        self._size = end
+
+    @property
+    def values(self) -> np.ndarray:
+        """What was appended, in order (a view)."""
+        return self._buffer[:self._size]
+
+
 class PartPool:
     """The curve parts of many horizons in flat arrays, each horizon in a slot: a batch of vehicles
     reads the parts of its horizons with one gather instead of joining each horizon's arrays.
@@ -220,11 +244,9 @@ class PartPool:
         self.horizons: list[Horizon] = []
         self._slot_of: dict[int, int] = {}
         self._joined = 0
-        self.first = np.zeros(0, dtype=np.intp)
-        self.count = np.zeros(0, dtype=np.intp)
-        self.position_factor = np.zeros(0)
-        self.shape_length_m = np.zeros(0)
-        self.parts = tuple(np.zeros(0, dtype=object if name == "part_curve_id" else float) for name in self._PART_FIELDS)
+        self._first, self._count = _Column(np.intp), _Column(np.intp)
+        self._position_factor, self._shape_length_m = _Column(float), _Column(float)
+        self._parts = tuple(_Column(object if name == "part_curve_id" else float) for name in self._PART_FIELDS)
 
     def slot(self, horizon: Horizon) -> int:
         """The slot of ``horizon``, given it on first sight."""
@@ -241,13 +263,37 @@ class PartPool:
             return
         self._joined = len(self.horizons)
         counts = np.array([h.part_start_s.size for h in new], dtype=np.intp)
-        total = int(self.count.sum()) if self.count.size else 0
-        self.first = np.concatenate((self.first, total + np.cumsum(counts) - counts))
-        self.count = np.concatenate((self.count, counts))
-        self.position_factor = np.concatenate((self.position_factor, [h.path.lane_position_factor[0] for h in new]))
-        self.shape_length_m = np.concatenate((self.shape_length_m, [h.path.lane_shape_length_m[0] for h in new]))
-        self.parts = tuple(np.concatenate((joined, *(getattr(h, name) for h in new)))
-                           for joined, name in zip(self.parts, self._PART_FIELDS))  # fmt: skip
+        self._first.extend(len(self._parts[0].values) + np.cumsum(counts) - counts)
+        self._count.extend(counts)
+        self._position_factor.extend(np.array([h.path.lane_position_factor[0] for h in new]))
+        self._shape_length_m.extend(np.array([h.path.lane_shape_length_m[0] for h in new]))
+        for column, name in zip(self._parts, self._PART_FIELDS):
+            column.extend(np.concatenate([getattr(h, name) for h in new]))
+
+    @property
+    def first(self) -> np.ndarray:
+        """Each slot's first part in the part arrays."""
+        return self._first.values
+
+    @property
+    def count(self) -> np.ndarray:
+        """Each slot's number of parts."""
+        return self._count.values
+
+    @property
+    def position_factor(self) -> np.ndarray:
+        """Each slot's first lane's lane-position factor (SUMO length over shape length)."""
+        return self._position_factor.values
+
+    @property
+    def shape_length_m(self) -> np.ndarray:
+        """Each slot's first lane's shape length, m."""
+        return self._shape_length_m.values
+
+    @property
+    def parts(self) -> tuple[np.ndarray, ...]:
+        """Start and end s, radius, index in the curve, curve id and end radius of every part, slot after slot."""
+        return tuple(column.values for column in self._parts)
 
 
 def radius_at_end(profile: RadiusProfile, end_s: float) -> float:

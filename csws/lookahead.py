@@ -120,8 +120,8 @@ HORIZON_STEP_M = 250.0
 #: vehicle needs now, and the one it needs after its next lane change or junction.
 HORIZONS_PER_VEHICLE = 2
 #: The part pool is emptied when it holds this many horizons per cached one (those evicted from
-#: the caches stay in the pool until then).
-POOLED_PER_CACHED = 2
+#: the caches stay in the pool until then, so this bounds what evicted horizons keep alive).
+POOLED_PER_CACHED = 1.25
 
 
 class LookAhead:
@@ -268,7 +268,9 @@ class LookAhead:
         lanes, kind = self._lanes_ahead(lane_id, lane.length_m, lane.length_m + reach_m, remaining)
         # Vehicles on different routes share a horizon while their lanes ahead are the same.
         horizon = self._by_lanes.get((lanes, kind))
-        if horizon is None:
+        if horizon is not None:
+            self._by_lanes.move_to_end((lanes, kind))
+        else:
             horizon = _remember(self._by_lanes, (lanes, kind), self._build_horizon(lanes, kind), self._capacity)
         return _remember(self._horizons, key, horizon, self._capacity)
 

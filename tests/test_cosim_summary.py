@@ -85,3 +85,18 @@ def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
     assert table["vehicle-km"] == ["n/a (no time series)"]
     assert re.fullmatch(r"\d+", table["level-1 warnings"][0])
     assert (tmp_path / "summary.png").read_bytes().startswith(PNG_SIGNATURE)
+
+
+def test_the_drawn_warnings_are_those_of_the_first_vehicles_warned(tmp_path, monkeypatch) -> None:
+    """With room for one vehicle, the plot draws the vehicle warned first, whatever its id."""
+    cosimulate(CosimConfig(bundled_scenario(), tmp_path, end_s=60.0))
+    rows = pq.read_table(tmp_path / "timeseries").to_pylist()
+    warned = sorted((row["time_s"], row["vehicle_id"]) for row in rows if row["target_distance_m"] is not None)
+    first_time_s, first_vehicle = warned[0]
+    assert len({vehicle for _, vehicle in warned}) > 1 and first_vehicle != min(v for _, v in warned)
+    monkeypatch.setattr("csws.cosim.summary.MAX_DRAWN_VEHICLES", 1)
+    tracks = run_figures(tmp_path).warned_tracks
+    first_row = next(row for row in rows if row["vehicle_id"] == first_vehicle and row["time_s"] == first_time_s)
+    assert tuple(tracks[0][0]) == (first_row["target_distance_m"], first_row["speed_kmh"])
+    drawn = {tuple(point) for track in tracks for point in track}
+    assert drawn <= {(row["target_distance_m"], row["speed_kmh"]) for row in rows if row["vehicle_id"] == first_vehicle}

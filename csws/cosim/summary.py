@@ -88,15 +88,17 @@ def _vehicle_km(vehicle: np.ndarray, time_s: np.ndarray, speed_kmh: np.ndarray) 
     return float(np.sum(np.where(same, 0.5 * (speed_kmh[1:] + speed_kmh[:-1]) * step_h, 0.0)))
 
 
-def _warned_tracks(vehicle: np.ndarray, distance_m: np.ndarray, speed_kmh: np.ndarray) -> list[np.ndarray]:
+def _warned_tracks(vehicle: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray,
+                   speed_kmh: np.ndarray) -> list[np.ndarray]:  # fmt: skip
     """Distance to target and speed along each warning of the first :data:`MAX_DRAWN_VEHICLES` vehicles
-    warned (rows sorted by vehicle, then time): a warning's track ends where the vehicle's warning does
-    or its distance to the target grows (a new target)."""
+    warned, in the order of their first warning (rows sorted by vehicle, then time): a warning's track
+    ends where the vehicle's warning does or its distance to the target grows (a new target)."""
     rows = np.flatnonzero(~np.isnan(distance_m))
     if not rows.size:
         return []
     codes, first = np.unique(vehicle[rows], return_index=True)
-    rows = rows[np.isin(vehicle[rows], codes[np.argsort(first)][:MAX_DRAWN_VEHICLES])]
+    earliest = codes[np.lexsort((codes, time_s[rows[first]]))][:MAX_DRAWN_VEHICLES]
+    rows = rows[np.isin(vehicle[rows], earliest)]
     breaks = (np.diff(rows) != 1) | (vehicle[rows[1:]] != vehicle[rows[:-1]]) | (np.diff(distance_m[rows]) > 0.0)
     points = np.column_stack([distance_m[rows], speed_kmh[rows]])
     return np.split(points, np.flatnonzero(breaks) + 1)
@@ -122,7 +124,7 @@ def run_figures(folder: Path) -> RunFigures:
         speed_kmh = table["speed_kmh"].to_numpy()
         distance_m = table["target_distance_m"].fill_null(np.nan).to_numpy()
         vehicle_km = _vehicle_km(vehicle, time_s, speed_kmh)
-        tracks = _warned_tracks(vehicle, distance_m, speed_kmh)
+        tracks = _warned_tracks(vehicle, time_s, distance_m, speed_kmh)
     return RunFigures({1: by_level["level1"], 2: by_level["level2"]}, excess_kmh, vehicle_km, tracks)
 
 
