@@ -28,9 +28,9 @@ __all__ = ["END_MARGIN_M", "Horizon", "PathAhead", "BatchAhead", "PartPool", "is
 class Horizon:
     """The road ahead from the start of one lane, with every curve part on it.
 
-    One horizon serves every vehicle on its first lane with the same route (or none),
-    wherever it is on the lane, as long as S_LAD fits in ``length_m``; horizons are
-    cached.
+    One horizon serves every vehicle whose lanes ahead are its lanes (whatever its route
+    beyond them), wherever it is on the first lane, as long as S_LAD fits; horizons are
+    cached (:mod:`csws.lookahead`).
 
     Attributes
     ----------

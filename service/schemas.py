@@ -77,7 +77,7 @@ class ForwardTarget(BaseModel):
 
     model_config = ConfigDict(
         allow_inf_nan=False,
-        json_schema_extra={"examples": [{"range_m": 45.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0}]},
+        json_schema_extra={"examples": [{"range_m": 30.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0}]},
     )
 
     range_m: float = Field(ge=0.0, le=500.0, strict=True, description="clearance x_c to the target's rear, m")
@@ -112,7 +112,7 @@ class Query(BaseModel):
                     "lane_id": "approach_0",
                     "lane_pos_m": 850.0,
                     "route": ["approach", "curve", "runout"],
-                    "forward_target": {"range_m": 45.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0},
+                    "forward_target": {"range_m": 30.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0},
                 },
             ]
         },
@@ -219,7 +219,7 @@ class FcwAnswer(BaseModel):
     """The forward collision warning of a query with a forward_target (GB/T 33577; docs/fcw.md)."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [
-        {"state": "active", "level": 2, "ttc_s": 3.75, "ettc_s": 3.75, "a_req_mps2": 5.14}]})
+        {"state": "active", "level": 1, "ttc_s": 2.5, "ettc_s": 2.5, "a_req_mps2": 4.62}]})
 
     state: Literal["off", "standby", "active", "fault"] = Field(description="4.3: active between V_min and V_max")
     level: Literal[0, 1, 2] = Field(description="0 none, 1 preliminary warning, 2 collision warning")

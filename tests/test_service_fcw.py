@@ -11,6 +11,7 @@ from fastapi.testclient import TestClient
 from csws.fcw import evaluate_fcw
 from csws.networks import networks_dir
 from service.app import create_app
+from service.schemas import FcwAnswer, ForwardTarget
 from service.settings import ServiceSettings
 
 TRACK_NET = str(networks_dir() / "single_r120_left.net.xml")
@@ -66,3 +67,13 @@ def test_a_bad_forward_target_is_a_422_naming_the_field(client, target, field):
     assert response.status_code == 422
     locs = [error["loc"] for error in response.json()["detail"]]
     assert ["body", "queries", 0, "forward_target", field] in locs
+
+
+def test_the_schema_examples_of_a_target_and_its_answer_agree(client):
+    """The OpenAPI example of an fcw answer is what the service answers to the example target."""
+    target = ForwardTarget.model_config["json_schema_extra"]["examples"][0]
+    answer = client.post("/v1/warning", json=_query("truck-ex", speed_kmh=60.0, forward_target=target)).json()["fcw"]
+    example = FcwAnswer.model_config["json_schema_extra"]["examples"][0]
+    assert {name: answer[name] for name in ("state", "level")} == {name: example[name] for name in ("state", "level")}
+    for name in ("ttc_s", "ettc_s", "a_req_mps2"):
+        assert answer[name] == pytest.approx(example[name], abs=0.005)

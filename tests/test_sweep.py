@@ -70,6 +70,13 @@ def test_the_study_has_every_setting_per_seed_and_the_fleet_without_csws(study_f
     assert sum(spec.reference for spec in runs) == 2
 
 
+def test_a_mix_named_but_not_run_leaves_the_runs_done(study_file, tmp_path):
+    """A run's key hashes its own category mix: naming another mix in the study does not make it new."""
+    more = tmp_path / "more.toml"
+    more.write_text(STUDY + "\n[category_mixes.heavy]\nN = 0.6\nO = 0.4\n", encoding="utf-8")
+    assert [spec.key for spec in read_study(more).runs()] == [spec.key for spec in read_study(study_file).runs()]
+
+
 def test_two_workers_write_every_run_once_as_a_serial_run_does(study_file, serial_rows, cluster, tmp_path):
     study = read_study(study_file)
     report = run_sweep(study.runs(), tmp_path, scheduler=cluster.scheduler_address, progress=False)

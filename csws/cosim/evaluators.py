@@ -67,10 +67,6 @@ class FleetWarnings:
         """The answers of ``count`` vehicles that were not evaluated (baseline runs)."""
         return cls([SystemState.OFF] * count, [0] * count, TargetColumns(*([None] * count for _ in range(5))), [])
 
-    def warned(self) -> list[int]:
-        """The vehicles with a warning (level 1 or 2), in order."""
-        return [i for i, level in enumerate(self.level) if level]
-
 
 class Evaluator(Protocol):
     """Answers for every vehicle of a step, in order."""

@@ -366,7 +366,7 @@ def cosimulate(config: CosimConfig) -> dict:
                 simulation.set_speed(vehicle_id, speed_mps)
             with costs.timed("recording"):
                 _record_step(fleet, warnings, fcw, commands, tracker, summary, streams, sampled,
-                             None if positions else simulation.position)
+                             None if positions or simulation.reads_positions else simulation.position)
             summary.vehicles.update(fleet.vehicle_id)
             summary.steps += 1
             summary.last_time_s = fleet.time_s

@@ -119,6 +119,8 @@ class Simulation:
         self._evaluated: dict[str, str] = {}
         self._odometer = odometer
         self._subscribed = interface != "libsumo"
+        #: Whether every step reads x and y whatever :meth:`step` is asked (TraCI's subscriptions hold them).
+        self.reads_positions = self._subscribed
         self.closed = False
 
     def _error_types(self) -> tuple[type[BaseException], ...]:

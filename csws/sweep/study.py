@@ -109,7 +109,9 @@ class RunSpec:
     @property
     def key(self) -> str:
         """A hash of everything that decides the run's result: its file name, how a resumed sweep knows it is done."""
-        text = json.dumps([RESULT_FORMAT, asdict(self.scenario), asdict(self.factors), self.seed], sort_keys=True)
+        # The run's own category mix, not every mix the study names: naming another leaves it done.
+        scenario = {**asdict(self.scenario), "mixes": self.scenario.mix(self.factors.category_mix)}
+        text = json.dumps([RESULT_FORMAT, scenario, asdict(self.factors), self.seed], sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
