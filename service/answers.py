@@ -31,7 +31,7 @@ import numpy as np
 from csws.engine import VehicleInput
 from csws.horizon import PathAhead
 from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_points
-from csws.standard import Level
+from csws.standard import Category, Level
 from csws.state import Fault, SystemState
 from csws.warning import CurveWarning, HmiHint, PathKind, Trigger
 
@@ -304,19 +304,22 @@ class WarningService:
         for row, (query, placement) in enumerate(zip(queries, placements)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
+        # The query's category, else the one its fleet set (the checks made sure one of them is there).
+        categories = [query.category if query.category is not None else vehicles.category(query.vehicle_id)
+                      for query in queries]  # fmt: skip
         for network_index, rows in by_network.items():
             with stages("engine"):
                 evaluated = self.evaluate(network_index, [queries[row] for row in rows],
-                                          [placements[row] for row in rows], vehicles)  # fmt: skip
+                                          [placements[row] for row in rows], [categories[row] for row in rows])
             with stages("encode"):
-                self._record(queries, indices, placements, rows, evaluated, vehicles, answers, fleet)
+                self._record(queries, categories, indices, placements, rows, evaluated, vehicles, answers, fleet)
         with stages("encode"):
             for index, fcw in zip(indices, fcw_answers(queries)):
                 answers.documents[index].fcw = fcw
 
     def evaluate(self, network_index: int, queries: Sequence[DecodedQuery], placements: Sequence[Placement],
-                 vehicles: LoadedVehicles) -> "Evaluated":  # fmt: skip
-        """The engine's answers for placed queries of distinct vehicles on one network, as columns.
+                 categories: Sequence[Category]) -> "Evaluated":  # fmt: skip
+        """The engine's answers for placed queries of distinct vehicles of ``categories`` on one network, as columns.
 
         One vehicle takes the engine's one-vehicle path; more are evaluated as columns in one
         :meth:`csws.engine.Engine.evaluate_fleet`, with no object per vehicle beyond its warning.
@@ -324,13 +327,13 @@ class WarningService:
         """
         engine = self.networks[network_index].engine
         if len(queries) == 1:
-            answer = engine.evaluate(self.vehicle_input(queries[0], placements[0], vehicles))
+            answer = engine.evaluate(self.vehicle_input(queries[0], placements[0], categories[0]))
             kind = None if answer.path is None else answer.path.kind
             return Evaluated([answer.vehicle_id], [answer.state], [answer.fault], [answer.warning], [kind],
                              lambda _row: answer.path)  # fmt: skip
         fleet = engine.evaluate_fleet(
             [query.vehicle_id for query in queries],
-            [query.category if query.category is not None else vehicles.category(query.vehicle_id) for query in queries],
+            categories,
             [query.speed_kmh for query in queries],
             [placement.lane_id for placement in placements],
             [placement.lane_pos_m if placement.lane_id is not None else 0.0 for placement in placements],
@@ -346,15 +349,14 @@ class WarningService:
         return Evaluated(fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, kinds,
                          lambda row: fleet.ahead.path_ahead(ahead_row[row]))  # fmt: skip
 
-    def _record(self, queries: Sequence[DecodedQuery], indices: Sequence[int], placements: Sequence[Placement],
-                rows: Sequence[int], evaluated: "Evaluated", vehicles: LoadedVehicles, answers: "EncodedAnswers",
-                fleet: str) -> None:  # fmt: skip
+    def _record(self, queries: Sequence[DecodedQuery], categories: Sequence[Category], indices: Sequence[int],
+                placements: Sequence[Placement], rows: Sequence[int], evaluated: "Evaluated", vehicles: LoadedVehicles,
+                answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
         """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
         for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(zip(
                 rows, evaluated.vehicle_id, evaluated.state, evaluated.fault, evaluated.warning, evaluated.path_kind)):
             placement, query = placements[row], queries[row]
-            category = query.category if query.category is not None else vehicles.category(vehicle_id)
-            latest = LatestAnswer(category, query.speed_kmh, int(warning.level), query.timestamp_s)
+            latest = LatestAnswer(categories[row], query.speed_kmh, int(warning.level), query.timestamp_s)
             vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
@@ -363,12 +365,12 @@ class WarningService:
             answers.state[index] = state
             answers.level[index] = warning.level
 
-    def vehicle_input(self, query: DecodedQuery, placement: Placement, vehicles: LoadedVehicles) -> VehicleInput:
-        """The engine's input for a placed query."""
+    def vehicle_input(self, query: DecodedQuery, placement: Placement, category: Category) -> VehicleInput:
+        """The engine's input for a placed query of a vehicle of ``category``."""
         matched = placement.lane_id is not None
         return VehicleInput(
             query.vehicle_id,
-            query.category if query.category is not None else vehicles.category(query.vehicle_id),
+            category,
             query.speed_kmh,
             placement.lane_id,
             placement.lane_pos_m if matched else 0.0,
