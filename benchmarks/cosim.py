@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csws.binaries import sumo_binary, sumo_home
+from csws.sumo.binaries import sumo_binary, sumo_home
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sumo import sumo_arguments
 from csws.networks import networks_dir

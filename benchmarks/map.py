@@ -41,7 +41,7 @@ import httpx
 import numpy as np
 
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 
 from .servers import Running, csws_serve
 from .service import lane_queries

@@ -29,7 +29,7 @@ import shapely
 
 from benchmarks.roadmap import profile_cache_in
 from csws.osm.importer import import_osm
-from csws.roadmap import LaneCurve, RoadMap
+from csws.road.roadmap import LaneCurve, RoadMap
 
 #: Targets: what a user waits for at most. Import and load are those for a city of about
 #: 500 lane-km (the Bad Hersfeld extract imports to 508): import (netconvert and the fit of

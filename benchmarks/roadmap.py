@@ -27,12 +27,12 @@ from typing import Iterator
 
 import numpy as np
 
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 from csws.geometry import Piece, arc, pose_at, sample_pieces, straight
 from csws.curvature import radius_profiles
 from csws.networks import networks_dir
-from csws.lookahead import LookAhead
-from csws.roadmap import RoadMap, read_sumo_net
+from csws.ahead.lookahead import LookAhead
+from csws.road.roadmap import RoadMap, read_sumo_net
 
 REAL_NET = networks_dir() / "badhersfeld.net.xml.gz"
 #: How long the real network may take to load, s: fitted before (the profile cache), and afresh.
@@ -198,7 +198,7 @@ def _timed_load(cache_dir: str) -> tuple[float, RoadMap]:
 
 def first_lookaheads_ms(road_map: RoadMap, count: int = FIRST_LOOKAHEADS, seed: int = 3) -> np.ndarray:
     """Milliseconds of the first look-ahead on ``count`` lanes of the map drawn at random
-    (normal lanes that a truck may use), each from a fresh :class:`csws.lookahead.LookAhead`,
+    (normal lanes that a truck may use), each from a fresh :class:`csws.ahead.lookahead.LookAhead`,
     so that nothing of an earlier query is reused: an N vehicle at 80 km/h mid-lane."""
     rng = np.random.default_rng(seed)
     lanes = [lane_id for lane_id in road_map.lane_ids

@@ -34,9 +34,9 @@ import numpy as np
 from fastapi import FastAPI, Request
 from fastapi.responses import Response
 
-from csws.mapmatch import lane_points
+from csws.road.matching import lane_points
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 
 from .servers import Running, children, csws_serve, memory_mb, start
 

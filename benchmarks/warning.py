@@ -5,9 +5,9 @@ over the 300 m before the curves at test speed:
 
 * one vehicle in-process: ``Engine.evaluate`` (look-ahead, warning of clause 6 and the
   system state), median over many calls; and the warning step alone
-  (``csws.onewarning.evaluate`` on the vehicle's CPOIs);
+  (``csws.warning.single.evaluate`` on the vehicle's CPOIs);
 * a batch: ``Engine.evaluate_many`` for 1,000 vehicles, per vehicle;
-* the forward collision warning of 1,000 vehicles in one batch (:func:`csws.fcw.evaluate_fcw`),
+* the forward collision warning of 1,000 vehicles in one batch (:func:`csws.fcw.physics.evaluate_fcw`),
   per vehicle.
 
 Run with ``python -m benchmarks.warning``.
@@ -22,10 +22,10 @@ import time
 import numpy as np
 
 from csws.engine import Engine, VehicleInput
-from csws.fcw import evaluate_fcw
+from csws.fcw.physics import evaluate_fcw
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
-from csws.onewarning import evaluate
+from csws.road.roadmap import RoadMap
+from csws.warning.single import evaluate
 
 TRACK = "t9_m1_test1_left"
 TARGET_SINGLE_US = 30.0

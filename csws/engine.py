@@ -6,7 +6,7 @@ library users alike, so that the same input gives the same answer everywhere:
 road map -> look-ahead (path and CPOIs) -> warning (clause 6) -> system state (5.2-5.4).
 
 It keeps each vehicle's :class:`~csws.state.VehicleStatus` between updates, and what
-its warning needs for the release rule (:mod:`csws.release`): a level that is on goes
+its warning needs for the release rule (:mod:`csws.warning.release`): a level that is on goes
 off 1 km/h below V_w, not before 1 s has passed, and at once behind the curve. Many
 vehicles are evaluated together with :meth:`Engine.evaluate_many`: the path ahead is
 found per vehicle, and the warning of all of them is computed in one vectorised step.
@@ -21,14 +21,14 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .horizon import BatchAhead, PathAhead
-from .lookahead import LookAhead, LookAheadSettings
-from .onewarning import judge_one
-from .release import NOT_HELD, HeldWarning, memory_masks, next_memories
-from .roadmap import RoadMap
-from .standard import Level
-from .state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
-from .warning import BatchWarnings, CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
+from csws.ahead.horizon import BatchAhead, PathAhead
+from csws.ahead.lookahead import LookAhead, LookAheadSettings
+from csws.warning.single import judge_one
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
+from csws.road.roadmap import RoadMap
+from csws.standard import Level
+from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
+from csws.warning.rules import BatchWarnings, CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
 
 __all__ = ["VehicleInput", "Answer", "FleetAnswers", "TargetColumns", "EngineSettings", "VehicleMemory", "Engine"]
 
@@ -223,7 +223,7 @@ class VehicleMemory:
     status
         The system state (5.2-5.4): switch, activation latch, last accepted timestamp, fault.
     held
-        What the release rule keeps of the warning (:mod:`csws.release`).
+        What the release rule keeps of the warning (:mod:`csws.warning.release`).
     """
 
     status: VehicleStatus = _NEW_STATUS

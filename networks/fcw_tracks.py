@@ -26,7 +26,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 
 from .generate import PRECISION_DIGITS, SAMPLE_SPACING_M, _json_difference, _lane_differences, _rounded, _write_json
 

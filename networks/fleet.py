@@ -32,7 +32,7 @@ import numpy as np
 from csws.cosim.categories import VCLASS_CATEGORY
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 from csws.networks.generate import ANGLE_MARGIN, PRECISION_DIGITS
 
 __all__ = [

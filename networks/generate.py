@@ -36,7 +36,7 @@ import numpy as np
 
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 
 __all__ = [
     "APPROACH_M",

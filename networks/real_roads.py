@@ -39,7 +39,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, pose_at, straight
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 from csws.standard import DEFAULT_WARNING_RADIUS_M
 
 from .generate import (

@@ -6,7 +6,7 @@
 2. checks what the models cannot (lane and edge ids, lane positions, lon/lat on
    networks without a projection, a missing category) and reports every problem with
    the index of its query (:class:`QueryErrors`, an HTTP 422);
-3. matches every fix without a lane id (:class:`csws.mapmatch.MapMatcher`, one spatial index
+3. matches every fix without a lane id (:class:`csws.road.matching.MapMatcher`, one spatial index
    over all served networks): a query naming its network on that network alone, a vehicle
    with a session on its previous network first, preferring its previous lane;
 4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_fleet`;
@@ -29,11 +29,11 @@ import msgspec
 import numpy as np
 
 from csws.engine import VehicleInput
-from csws.horizon import PathAhead
-from csws.mapmatch import MapMatcher, MatchSettings, Probes, lane_points
+from csws.ahead.horizon import PathAhead
+from csws.road.matching import MapMatcher, MatchSettings, Probes, lane_points
 from csws.standard import Category, Level
 from csws.state import Fault, SystemState
-from csws.warning import CurveWarning, HmiHint, PathKind, Trigger
+from csws.warning.rules import CurveWarning, HmiHint, PathKind, Trigger
 
 from .decoding import DecodedQuery
 from .fcw import fcw_answers

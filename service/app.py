@@ -118,7 +118,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     Raises
     ------
-    csws.roadmap.NetworkError
+    csws.road.roadmap.NetworkError
         If a network cannot be read.
     OSError
         If the state store cannot be opened, reached or read (one line naming it).

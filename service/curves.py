@@ -1,6 +1,6 @@
 """The curves of a served network as a GeoJSON FeatureCollection.
 
-One feature per curve of a road (:meth:`csws.roadmap.RoadMap.curves`): its geometry
+One feature per curve of a road (:meth:`csws.road.roadmap.RoadMap.curves`): its geometry
 (the road between the curve's start and end, through any node inside it), the lanes and
 lane positions of its ends, street name and road type,
 minimum radius, angle, direction, parts (its arcs and the pieces of its clothoids,
@@ -18,7 +18,7 @@ import numpy as np
 from fastapi import Query
 from fastapi.exceptions import RequestValidationError
 
-from csws.horizon import curve_id_of
+from csws.ahead.horizon import curve_id_of
 from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
 
 from .networks import ServedNetwork

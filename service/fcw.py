@@ -1,5 +1,5 @@
 """The forward collision warning of queries that carry a ``forward_target``: the library's
-:func:`csws.fcw.evaluate_fcw` and :func:`csws.fcw.next_fcw_states`, once for all such queries
+:func:`csws.fcw.physics.evaluate_fcw` and :func:`csws.fcw.physics.next_fcw_states`, once for all such queries
 of a round, written into their answers' ``fcw``.
 
 The target is the one the on-board unit's sensor selected (GB/T 33577 4.4.3); the service
@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from csws.fcw import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
 from csws.standard import kmh_to_mps
 
 from .decoding import DecodedQuery

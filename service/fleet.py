@@ -16,7 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from csws.mapmatch import lane_points
+from csws.road.matching import lane_points
 
 from .curves import feature_collection, in_bbox
 from .keys import shown_id

@@ -13,8 +13,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from csws.horizon import PathAhead
-from csws.mapmatch import points_along
+from csws.ahead.horizon import PathAhead
+from csws.road.matching import points_along
 
 from .curves import warning_speeds_kmh
 from .networks import MAX_HORIZON_M, ServedNetwork

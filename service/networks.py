@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Sequence
 
 from csws.engine import Engine, EngineSettings
-from csws.lookahead import LookAhead, LookAheadSettings
+from csws.ahead.lookahead import LookAhead, LookAheadSettings
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 
 __all__ = ["NET_SUFFIXES", "HORIZONS_PER_LANE", "ServedNetwork", "bundled_network_paths", "network_name",
            "load_networks"]
@@ -78,7 +78,7 @@ def load_networks(paths: Sequence[Path], settings: EngineSettings = EngineSettin
 
     Raises
     ------
-    csws.roadmap.NetworkError
+    csws.road.roadmap.NetworkError
         If a file cannot be read as a SUMO network (one line, naming the file).
     ValueError
         If no network is given or two share a name.

@@ -25,8 +25,8 @@ from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from csws.engine import EngineSettings
-from csws.mapmatch import MatchSettings
-from csws.warning import WarningSettings
+from csws.road.matching import MatchSettings
+from csws.warning.rules import WarningSettings
 
 from .networks import bundled_network_paths
 

@@ -24,8 +24,8 @@ from typing import Callable, Collection, Sequence, TypeVar
 import msgspec
 
 from csws.engine import Engine, VehicleMemory
-from csws.mapmatch import MapPosition
-from csws.release import HeldWarning
+from csws.road.matching import MapPosition
+from csws.warning.release import HeldWarning
 from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 

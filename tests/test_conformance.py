@@ -20,7 +20,7 @@ from csws.conformance.rows import procedure_rows
 from csws.conformance.run import conformance, select_rows
 from csws.data import standard_tables
 from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
-from csws.warning import WarningSettings
+from csws.warning.rules import WarningSettings
 
 TABLES = standard_tables()
 #: One row per table (and the negative rows), spread over the categories and radii.

@@ -14,9 +14,9 @@ import pytest
 
 from csws.data import standard_tables
 from csws.engine import Engine, VehicleInput
-from csws.horizon import END_MARGIN_M
+from csws.ahead.horizon import END_MARGIN_M
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from csws.standard import Level
 from csws.state import Fault, SystemState
 
@@ -173,6 +173,6 @@ def test_passing_the_curve_or_slowing_down_ends_the_warning():
     curve = truth["curves"][0]
     assert engine.evaluate(_vehicle(truth, curve["start_s"] - 20.0, 100.0, "N")).level == Level.LEVEL_2
     assert engine.evaluate(_vehicle(truth, curve["start_s"] + 5.0, 100.0, "N")).level == Level.LEVEL_2
-    # Past the curve's end by more than the margin for position noise there (rule 3 of csws.release).
+    # Past the curve's end by more than the margin for position noise there (rule 3 of csws.warning.release).
     assert engine.evaluate(_vehicle(truth, curve["end_s"] + END_MARGIN_M + 0.5, 100.0, "N")).level == Level.NONE
     assert engine.evaluate(_vehicle(truth, curve["start_s"] - 20.0, 60.0, "N")).level == Level.NONE

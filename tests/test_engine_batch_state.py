@@ -10,7 +10,7 @@ from hypothesis import given, settings, strategies as st
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 
 TRACK = "t9_m1_test1_left"

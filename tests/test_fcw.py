@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from csws.fcw import (
+from csws.fcw.physics import (
     STANDARD_GRAVITY_MPS2,
     FcwSettings,
     enhanced_time_to_collision_s,

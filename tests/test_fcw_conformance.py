@@ -16,7 +16,7 @@ from csws.conformance.fcw.judge import judge_fcw_run
 from csws.conformance.fcw.rows import LEAD_BRAKE_MPS2, fcw_rows
 from csws.conformance.fcw.run import fcw_conformance, select_fcw_rows
 from csws.conformance.fcw.scripts import TARGET_BRAKES
-from csws.fcw import STANDARD_GRAVITY_MPS2
+from csws.fcw.physics import STANDARD_GRAVITY_MPS2
 
 SUBSET = ("GB-5.4.2", "GB-5.5.2.1.2", "GB-5.5.2.2", "GB-5.5.3.2-III", "IVISTA-A.1.2")
 STEPS_S = (0.01, 0.2)

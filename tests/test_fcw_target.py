@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from csws.binaries import sumo_binary, sumo_home
-from csws.fcw import ACTIVE, FAULT, OFF, STANDBY, FcwSettings, required_deceleration_mps2, warning_clearance_m, next_fcw_states
-from csws.fcw_target import CurveClass, TargetSettings, curve_start_speed_mps, select_targets
+from csws.sumo.binaries import sumo_binary, sumo_home
+from csws.fcw.physics import ACTIVE, FAULT, OFF, STANDBY, FcwSettings, required_deceleration_mps2, warning_clearance_m, next_fcw_states
+from csws.fcw.target import CurveClass, TargetSettings, curve_start_speed_mps, select_targets
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR, LANE_WIDTH_M, compare_fcw_tracks
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from csws.geometry import arc, sample_pieces, straight
-from csws.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
+from csws.ahead.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
 from csws.standard import warning_distance, warning_speed
-from csws.netbuild import netconvert, shape_text
-from csws.roadmap import RoadMap
-from csws.warning import PathKind
+from csws.sumo.netbuild import netconvert, shape_text
+from csws.road.roadmap import RoadMap
+from csws.warning.rules import PathKind
 
 #: A road "Main" runs east into junction J and on through a left curve; a side road
 #: "Side" leaves J to the south-east and turns sharply right. Both curves are exact.

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from csws.geometry import sample_pieces, straight
-from csws.mapmatch import (MapMatcher, MapPosition, MatchSettings, Probes, compass_to_math_rad, lane_point,
+from csws.road.matching import (MapMatcher, MapPosition, MatchSettings, Probes, compass_to_math_rad, lane_point,
                            points_along)
-from csws.netbuild import netconvert, shape_text
-from csws.roadmap import RoadMap
+from csws.sumo.netbuild import netconvert, shape_text
+from csws.road.roadmap import RoadMap
 
 #: The frontage road runs eastbound this far north of the main road's axis, m.
 FRONTAGE_OFFSET_M = 9.0

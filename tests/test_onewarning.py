@@ -10,11 +10,11 @@ from hypothesis import given, settings, strategies as st
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
-from csws.onewarning import judge_one
-from csws.release import NOT_HELD, HeldWarning, memory_masks, next_memories
-from csws.roadmap import RoadMap
+from csws.warning.single import judge_one
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
+from csws.road.roadmap import RoadMap
 from csws.standard import TABLE_RADII_M
-from csws.warning import PathKind, WarningSettings, evaluate_batch
+from csws.warning.rules import PathKind, WarningSettings, evaluate_batch
 
 #: Radii at and beside the tables' radii, an arc of a spiral's end, and straights.
 _radii = st.one_of(st.floats(min_value=5.0, max_value=2000.0), st.sampled_from([*TABLE_RADII_M, 39.99, 200.01, math.inf]))
@@ -37,7 +37,7 @@ def _memories(draw, points):
 
 
 def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings):
-    """The same vehicle through :func:`evaluate_batch` and :mod:`csws.release` on arrays."""
+    """The same vehicle through :func:`evaluate_batch` and :mod:`csws.warning.release` on arrays."""
     curve_ids = [point[0] for point in points]
     parts = np.array([point[1] for point in points], dtype=np.intp)
     first = [0, len(points)]

@@ -20,12 +20,12 @@ import pytest
 import sumolib
 
 from csws import cli
-from csws.binaries import sumo_binary, sumo_home
+from csws.sumo.binaries import sumo_binary, sumo_home
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
-from csws.lookahead import LookAhead, LookAheadSettings
+from csws.ahead.lookahead import LookAhead, LookAheadSettings
 from csws.networks import networks_dir
 from csws.osm.importer import ImportSettings, OsmImportError, import_osm
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 
 UTM32 = pyproj.Proj("+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs")
 ORIGIN_LONLAT = (9.70, 50.80)

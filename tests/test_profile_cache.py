@@ -13,7 +13,7 @@ import csws.curvature.cache as cache_module
 from csws.curvature import RadiusProfile, cached_radius_profiles, profile_cache_dir, radius_profiles
 from csws.geometry import arc, clothoid, sample_pieces, straight
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 
 
 def _polylines() -> list[np.ndarray]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import io
 
-from csws.progress import Progress
+from csws.cli.progress import Progress
 
 
 def test_a_known_total_prints_a_line_every_tenth_of_the_way():

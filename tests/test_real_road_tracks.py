@@ -19,7 +19,7 @@ from csws.conformance.run import conformance, select_rows
 from csws.geometry import Piece, curvature_at, sample_pieces
 from csws.networks import networks_dir
 from csws.networks.real_roads import compare_real_roads, real_road_specs
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
 
 REAL_ROADS = networks_dir() / "real_roads"

@@ -17,12 +17,12 @@ import pytest
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
-from csws.horizon import curve_id_of
-from csws.lookahead import LookAhead
-from csws.netbuild import netconvert
-from csws.roadmap import RoadMap
+from csws.ahead.horizon import curve_id_of
+from csws.ahead.lookahead import LookAhead
+from csws.sumo.netbuild import netconvert
+from csws.road.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance, warning_speed
-from csws.warning import WarningSettings
+from csws.warning.rules import WarningSettings
 from test_roadchain import APPROACH_M, CURVE_RADIUS_M, _edge, _node, _split_curve_map
 
 #: A curve of R 150 m between two 60 m clothoids, on one edge.
@@ -78,7 +78,7 @@ def test_level_1_over_a_curve_between_clothoids_comes_on_time_and_holds(spiral_m
     first, final = positions[np.flatnonzero(on)[[0, -1]]]
     assert earliest - step_m - 0.5 <= first <= latest + 0.5, (earliest, first, latest)
     assert on[(positions >= first) & (positions <= last)].all(), "level 1 released while the road still requires it"
-    # Released within the release margin of 1 km/h of V_w (csws.release): inside the exit spiral
+    # Released within the release margin of 1 km/h of V_w (csws.warning.release): inside the exit spiral
     # the road's radius under the vehicle counts, and the map's spiral, fitted from the lane,
     # puts a given radius within a metre of the constructed one.
     assert last - step_m <= final <= beyond + 1.0, (last, final, beyond)

@@ -1,4 +1,4 @@
-"""The release rule (csws.release): a level that is on goes off 1 km/h below V_w, not
+"""The release rule (csws.warning.release): a level that is on goes off 1 km/h below V_w, not
 within 1 s, and at once behind the curve; it never hides what clause 6.1 requires.
 
 Drives run on the bundled R 120 m track; distances come from its truth file, and what
@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 
 from csws.engine import Engine, EngineSettings, VehicleInput
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
-from csws.warning import WarningSettings
+from csws.warning.rules import WarningSettings
 
 TRACK = "single_r120_left"
 STEP_S = 0.1

@@ -12,12 +12,12 @@ import sumolib
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, pose_at, sample_pieces, straight
-from csws.lookahead import LookAhead
-from csws.netbuild import netconvert, shape_text
-from csws.roadchain import road_continuations
-from csws.roadmap import RoadMap
+from csws.ahead.lookahead import LookAhead
+from csws.sumo.netbuild import netconvert, shape_text
+from csws.road.continuations import road_continuations
+from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps, warning_distance, warning_speed
-from csws.warning import WarningSettings
+from csws.warning.rules import WarningSettings
 
 #: The short curve of the report: R 71 m, 25.7 m long, after a 300 m straight.
 APPROACH_M = 300.0

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 from csws.geometry import arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.roadmap import CURVE_FIELDS, NetworkError, RoadMap
+from csws.road.roadmap import CURVE_FIELDS, NetworkError, RoadMap
 
 #: A straight, a 60 degree left arc of 200 m cut in two halves, a straight: the node
 #: between the two halves puts an edge boundary (and a junction) in the middle of the arc.

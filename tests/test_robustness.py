@@ -29,9 +29,9 @@ import pytest
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import sample_pieces, straight
-from csws.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, shape_text
 from csws.networks import networks_dir
-from csws.roadmap import NetworkError, RoadMap
+from csws.road.roadmap import NetworkError, RoadMap
 from csws.state import Fault, SystemState
 from test_service import Server
 

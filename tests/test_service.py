@@ -23,7 +23,7 @@ import pytest
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from csws.standard import Category, Level, warning_speed
 from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
 

@@ -8,7 +8,7 @@ import math
 import pytest
 from fastapi.testclient import TestClient
 
-from csws.fcw import evaluate_fcw
+from csws.fcw.physics import evaluate_fcw
 from csws.networks import networks_dir
 from service.app import create_app
 from service.schemas import FcwAnswer, ForwardTarget

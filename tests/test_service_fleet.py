@@ -7,9 +7,9 @@ from __future__ import annotations
 import pytest
 from fastapi.testclient import TestClient
 
-from csws.mapmatch import lane_point
+from csws.road.matching import lane_point
 from csws.networks import networks_dir
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from service.app import create_app
 from service.keys import Role, add_key
 from service.settings import ServiceSettings

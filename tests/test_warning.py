@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csws.data import standard_tables
-from csws.onewarning import evaluate
+from csws.warning.single import evaluate
 from csws.standard import Category, Level, warning_distance, warning_speed
-from csws.warning import (
+from csws.warning.rules import (
     CurvaturePointOfInterest,
     HmiHint,
     PathKind,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import comma_list, one_of, output_folder, positive_int, step_length
+from csws.cli.argtypes import comma_list, one_of, output_folder, positive_int, step_length
 from csws.cli import deferred
 
 #: Tables 5-9, 0 for our negative rows and 10 for the real-road tracks.

@@ -34,14 +34,14 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 import shapely
 
-from csws.binaries import sumo_binary
+from csws.sumo.binaries import sumo_binary
 from csws.engine import Engine, EngineSettings, VehicleInput
 from csws.geometry import Piece, sample_pieces
 from csws.networks import networks_dir
 from csws.networks.real_roads import REAL_ROADS_DIR
-from csws.roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 from csws.standard import formula_1_m, kmh_to_mps, mps_to_kmh
-from csws.warning import WarningSettings
+from csws.warning.rules import WarningSettings
 
 from .rows import Row
 

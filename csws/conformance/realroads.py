@@ -17,7 +17,7 @@ level when, at any step,
   allowance, one update's travel and :data:`EARLY_EXTRA_M`, and the speed lowered by
   :data:`SPEED_TOLERANCE_KMH` (early, or raised where formula (1) never requires it).
 
-A level that stays on after nothing requires it (the release rule, :mod:`csws.release`)
+A level that stays on after nothing requires it (the release rule, :mod:`csws.warning.release`)
 is not judged, but the straight run-out after the last curve must be quiet, as for every
 row. Each track runs for every category at two speeds: between the level-1 and level-2
 warning speeds of its smallest radius (level 1 due, level 2 never) and
@@ -35,7 +35,7 @@ from csws.geometry import curvature_at
 from csws.networks import networks_dir
 from csws.networks.real_roads import REAL_ROADS_DIR
 from csws.standard import DEFAULT_POLICY, Category, Level, formula_1_m, kmh_to_mps, warning_speed
-from csws.warning import WarningSettings
+from csws.warning.rules import WarningSettings
 
 from .drive import STABLE_S, Trace, Truth, authored_pieces, track_file
 from .judge import RUNOUT_MARGIN_M, STABLE_TOLERANCE_KMH, CheckResult, RunResult

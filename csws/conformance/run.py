@@ -17,7 +17,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
-from csws.progress import Progress
+from csws.cli.progress import Progress
 
 from .drive import Task, Trace, drive, truth
 from .judge import CONSECUTIVE_PASSES, RunResult, consecutive_passes, judge_run
@@ -81,7 +81,7 @@ def run_tasks(tasks: Sequence[Any], jobs: int, progress: bool = False,
               worker: Callable[[Any], Any] = run_task) -> Iterator[Any]:  # fmt: skip
     """Run the tasks through ``worker`` (a module-level function), in this process for one job, else
     in ``jobs`` spawned worker processes; with ``progress``, show how far they are
-    (:class:`csws.progress.Progress`)."""
+    (:class:`csws.cli.progress.Progress`)."""
     bar = Progress("conformance", len(tasks), "tasks", enabled=progress)
     try:
         if jobs <= 1:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import comma_list, one_of, output_folder, positive_float, positive_int, step_length
+from csws.cli.argtypes import comma_list, one_of, output_folder, positive_float, positive_int, step_length
 from csws.cli import deferred
 
 from .records import TIMESERIES_FORMATS

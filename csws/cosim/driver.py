@@ -52,7 +52,7 @@ class DriverSettings:
         up inside a curve.
     below_kmh
         The driver aims this far below the target's warning speed, km/h: a level that is on
-        stays on down to the release rule's margin of 1 km/h below V_w (:mod:`csws.release`),
+        stays on down to the release rule's margin of 1 km/h below V_w (:mod:`csws.warning.release`),
         below that the next target (level 1 after level 2) takes over once the rule's hold
         has passed.
     equipped_share

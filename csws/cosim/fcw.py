@@ -13,7 +13,7 @@ SUMO in the vehicle's path coordinates:
   lateral offset from the path's centre line: half of each lane's width plus the two
   vehicles' lateral offsets in their lanes.
 
-:func:`csws.fcw_target.select_targets` keeps the in-path one reached first; the radius of the
+:func:`csws.fcw.target.select_targets` keeps the in-path one reached first; the radius of the
 path up to a candidate is its length over the change of heading between the two vehicles
 (SUMO's angle of a vehicle is its body's, rear to front: the road's heading at its middle).
 """
@@ -26,8 +26,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from csws.fcw import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
-from csws.fcw_target import TargetSettings, select_targets
+from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw.target import TargetSettings, select_targets
 
 __all__ = ["ForwardTargets", "VehicleSizes", "forward_targets", "FcwColumns", "FleetFcw", "FCW_TIMESERIES_FIELDS",
            "FCW_EVENT_COLUMNS", "fcw_events"]
@@ -87,7 +87,7 @@ def _candidates(sumo: Any, subject: str, range_m: float, sizes: VehicleSizes,
     Without SUMO's sublane model (``sublanes`` False) every vehicle drives on its lane's centre
     line: a leader in the subject's lanes is 0 m off its path, and the nearest vehicle in an
     adjacent lane is half of each lane's width off it, beyond half a lane width (the path,
-    :func:`csws.fcw_target.select_targets`) wherever the two lanes are 3.5 m wide together:
+    :func:`csws.fcw.target.select_targets`) wherever the two lanes are 3.5 m wide together:
     neither offset is read from SUMO, and the adjacent lanes are not searched.
     """
     vehicle = sumo.vehicle
@@ -201,11 +201,11 @@ class FcwColumns:
 class FleetFcw:
     """The forward collision warning of a fleet in SUMO, one vectorised evaluation per step.
 
-    Each step, the state of every vehicle follows its speed (:func:`csws.fcw.next_fcw_states`,
+    Each step, the state of every vehicle follows its speed (:func:`csws.fcw.physics.next_fcw_states`,
     with the hysteresis of Figure 2 kept per vehicle; fault while it is on no lane); only the
     active ones are looked at further: their targets from SUMO's leaders (:func:`forward_targets`),
     and only those with a target have their own acceleration and brake light read, for one
-    :func:`csws.fcw.evaluate_fcw` call.
+    :func:`csws.fcw.physics.evaluate_fcw` call.
 
     Parameters
     ----------

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Callable
 from xml.etree import ElementTree
 
-from csws.progress import Progress
+from csws.cli.progress import Progress
 from csws.standard import mps_to_kmh
 
 from .cli import SYSTEMS
@@ -87,7 +87,7 @@ class CosimConfig:
     evaluate
         False runs SUMO and reads the fleet without asking for warnings (a baseline).
     progress
-        Show how far the run is on stderr (:class:`csws.progress.Progress`).
+        Show how far the run is on stderr (:class:`csws.cli.progress.Progress`).
     timeseries
         How the time series is kept: ``parquet``, ``csv`` or ``none`` (:mod:`csws.cosim.timeseries`).
     timeseries_every
@@ -179,8 +179,8 @@ def _evaluator(config: CosimConfig) -> Evaluator | None:
     if config.service_url is not None:
         return ServiceEvaluator(config.service_url)
     from csws.engine import Engine, EngineSettings
-    from csws.roadmap import RoadMap
-    from csws.warning import WarningSettings
+    from csws.road.roadmap import RoadMap
+    from csws.warning.rules import WarningSettings
 
     road_map = RoadMap.load(config.scenario.net)
     return LibraryEvaluator(Engine(road_map, EngineSettings(warning=WarningSettings(update_period_s=config.step_length_s))))

@@ -26,7 +26,7 @@ from typing import Sequence
 
 import numpy as np
 
-from csws.binaries import sumo_binary, sumo_home
+from csws.sumo.binaries import sumo_binary, sumo_home
 from csws.standard import Category
 
 from .categories import CATEGORY_PARAMETER, category_of

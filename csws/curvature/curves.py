@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, Column
+from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, Column
 from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile
 
 __all__ = ["SPIRAL_PIECE_KMH", "curves_from_profile"]

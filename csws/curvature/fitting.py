@@ -6,7 +6,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..standard import DEFAULT_WARNING_RADIUS_M
+from csws.standard import DEFAULT_WARNING_RADIUS_M
 from .chords import _chords, _coordinate_noise_m, _validated
 from .corners import with_corner_rules, with_floor
 from .curves import curves_from_profile

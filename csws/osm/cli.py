@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import network_file, positive_int
+from csws.cli.argtypes import network_file, positive_int
 from csws.cli import deferred
 
 

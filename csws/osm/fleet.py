@@ -22,7 +22,7 @@ from xml.sax.saxutils import quoteattr
 
 import sumolib
 
-from ..roadmap import RoadMap, read_sumo_net
+from csws.road.roadmap import RoadMap, read_sumo_net
 
 __all__ = ["FleetRoute", "VEHICLE_TYPES", "twisty_routes", "write_fleet_scenario"]
 

@@ -37,8 +37,8 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from ..netbuild import NetconvertError, netconvert_osm
-from ..roadmap import RoadMap, read_sumo_net
+from csws.sumo.netbuild import NetconvertError, netconvert_osm
+from csws.road.roadmap import RoadMap, read_sumo_net
 from .coverage import DroppedRoads, dropped_roads
 from .typemap import base_highway, derived_highways, known_highways, sumo_type_file, type_allows, write_derived_types
 

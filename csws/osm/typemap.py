@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Iterable
 from xml.etree import ElementTree
 
-from ..binaries import sumo_home
+from csws.sumo.binaries import sumo_home
 
 __all__ = ["sumo_type_file", "known_highways", "base_highway", "derived_highways", "write_derived_types", "type_allows"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.argtypes import output_folder, positive_int
+from csws.cli.argtypes import output_folder, positive_int
 from csws.cli import deferred
 
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, TextIO
 
-from csws.progress import Progress
+from csws.cli.progress import Progress
 
 from .results import result_path, write_result
 from .study import RunSpec

@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from csws.argtypes import step_length
+from csws.cli.argtypes import step_length
 from csws.standard import Category
 
 __all__ = ["StudyError", "ScenarioSpec", "Factors", "RunSpec", "Study", "read_study", "RESULT_FORMAT", "FACTORS", "OWN_MIX"]

@@ -1,7 +1,7 @@
 """Draw docs/figures/junctions.png: which lanes through a junction continue the road.
 
 Two constructed roads, netconverted and read back with csws, as the rule in
-``csws.roadchain`` classifies them: a crossroads of a major and a minor road, and a left
+``csws.road.continuations`` classifies them: a crossroads of a major and a minor road, and a left
 curve of R 71 m with a side road joining at its outside. Run: ``python docs/figures/junctions.py``.
 """
 
@@ -15,9 +15,9 @@ import numpy as np
 from matplotlib import pyplot
 
 from csws.geometry import arc, pose_at, sample_pieces, straight
-from csws.lookahead import LookAhead
-from csws.netbuild import netconvert, shape_text
-from csws.roadmap import RoadMap
+from csws.ahead.lookahead import LookAhead
+from csws.sumo.netbuild import netconvert, shape_text
+from csws.road.roadmap import RoadMap
 
 CURVE = (straight(60.0), arc(71.0, 60.0, "left"), straight(60.0))
 

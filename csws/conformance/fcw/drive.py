@@ -11,8 +11,8 @@ A :class:`Task` is one row at one step length with its repetitions. Each run
 * starts at its own phase of the simulation step: the subject starts a fraction of one step's
   travel further back, so the runs sample the approach at different points;
 * evaluates the subject every step: its target from SUMO's leaders
-  (:func:`csws.cosim.fcw.forward_targets`), the state (:func:`csws.fcw.next_fcw_states`) and
-  the warning (:func:`csws.fcw.evaluate_fcw`), through the test equipment's accuracy as noise
+  (:func:`csws.cosim.fcw.forward_targets`), the state (:func:`csws.fcw.physics.next_fcw_states`) and
+  the warning (:func:`csws.fcw.physics.evaluate_fcw`), through the test equipment's accuracy as noise
   (IVISTA 4.2.2, the FCW counterpart of T/ITS 0091's 7.2.2): positions +-0.03 m per vehicle,
   speeds +-0.1 km/h, accelerations +-0.1 m/s^2, uniform;
 * records the true clearance along the subject's lane (from the track's truth), the true
@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from csws.binaries import sumo_binary
+from csws.sumo.binaries import sumo_binary
 from csws.cosim.fcw import BRAKE_LIGHT, forward_targets
-from csws.fcw import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states
-from csws.fcw_target import TargetSettings
+from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw.target import TargetSettings
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR
 from csws.standard import kmh_to_mps

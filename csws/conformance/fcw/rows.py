@@ -24,8 +24,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from csws.fcw import STANDARD_GRAVITY_MPS2, FcwSettings, warning_clearance_m
-from csws.fcw_target import CurveClass, curve_start_speed_mps
+from csws.fcw.physics import STANDARD_GRAVITY_MPS2, FcwSettings, warning_clearance_m
+from csws.fcw.target import CurveClass, curve_start_speed_mps
 from csws.networks.fcw_tracks import CURVE_RADII_M
 from csws.standard import kmh_to_mps
 

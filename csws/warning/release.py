@@ -19,7 +19,7 @@ towards the distance left. The rule here keeps a level on that is on:
    at once the lower warning speed that is due. The hold needs the vehicle's timestamps;
    without them only the margin applies.
 3. **Passed.** A CPOI behind the vehicle requires nothing; for the first
-   :data:`csws.horizon.END_MARGIN_M` (1 m) past its part only rules 1 and 2 may keep a
+   :data:`csws.ahead.horizon.END_MARGIN_M` (1 m) past its part only rules 1 and 2 may keep a
    level on there, so that position noise at the curve's end cannot switch the warning
    off and on again; beyond that it keeps nothing on, and the level goes off at once.
 
@@ -47,7 +47,7 @@ PointKey = tuple[str, int]
 
 class Rule:
     """What keeps a level on at a CPOI: codes of the ``(2, n_cpois)`` array
-    :func:`csws.warning.evaluate_batch` returns (row 0 level 1, row 1 level 2)."""
+    :func:`csws.warning.rules.evaluate_batch` returns (row 0 level 1, row 1 level 2)."""
 
     OFF = 0
     #: 6.1's condition holds now.
@@ -107,7 +107,7 @@ def memory_masks(
     curve_ids, part_indices
         The flat CPOIs.
     hold_s
-        :attr:`csws.warning.WarningSettings.release_hold_s`.
+        :attr:`csws.warning.rules.WarningSettings.release_hold_s`.
     """
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)

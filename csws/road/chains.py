@@ -1,18 +1,13 @@
-"""Road profiles: every road of a network fitted once, and every path read from those fits.
+"""Road chains: every road of a network stitched into one polyline and fitted once, with its curves.
 
 A road is a chain of lanes through the nodes where it continues (a way split, a side
-road joining, the straight-ahead or priority continuation: :mod:`csws.roadchain`), each
-lane handing on to the lane its road continues on (:attr:`csws.roadmap.Lane.continues_into`).
+road joining, the straight-ahead or priority continuation: :mod:`csws.road.continuations`), each
+lane handing on to the lane its road continues on (:attr:`csws.road.network.Lane.continues_into`).
 Each chain is stitched into one polyline and fitted once, all chains of a network
 together (:func:`csws.curvature.radius_profiles`); its curves (3.3-3.8) are found once.
 The curve index, the path ahead of a vehicle (the horizon, the CPOIs of the look-ahead,
-the warning) all read these fits: the answer for a point of a road does not depend on
-the lane a path starts from or on how far back it was stitched.
-
-A path runs along stretches of chains. Where it leaves a chain (a turn into another road
-at a junction), the turn's internal lane is a chain of its own, a junction manoeuvre,
-as is every lane of a roundabout: their curves are offered only on request
-(:meth:`PathProfile.curves` against :meth:`PathProfile.road_curves`).
+the warning) all read these fits (:mod:`csws.road.path`): the answer for a point of a road
+does not depend on the lane a path starts from or on how far back it was stitched.
 """
 
 from __future__ import annotations
@@ -21,27 +16,21 @@ import math
 from dataclasses import dataclass, field
 from itertools import pairwise
 from pathlib import Path
-from typing import Callable, Sequence, TextIO
+from typing import Sequence
 
 import numpy as np
 
-from .curvature import ConstantRadiusPart, Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
-from .curvature.profile import _profile, _straight_profile
-from .standard import DEFAULT_WARNING_RADIUS_M
+from csws.curvature import ConstantRadiusPart, Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
 
 __all__ = [
-    "CURVE_FIELDS",
     "JOINT_TOLERANCE_M",
     "LaneCurve",
-    "PathProfile",
     "RoadChains",
     "clip_curve",
     "fit_road_chains",
     "index_curves",
-    "path_profile",
     "road_chains",
     "stitch",
-    "write_curve_table",
 ]
 
 #: Two consecutive lanes of a path whose joint points are closer than this are joined
@@ -58,8 +47,6 @@ JOINT_TOLERANCE_M = 0.1
 STRAIGHT_WINDOW_M = 40.0
 #: See :data:`STRAIGHT_WINDOW_M`, m.
 STRAIGHT_DEVIATION_M = 0.15
-#: Columns of the curve index (``csws curves``).
-CURVE_FIELDS = ("lane_id", "start_pos_m", "end_lane_id", "end_pos_m", "min_radius_m", "angle_deg", "direction")
 
 
 @dataclass(frozen=True)
@@ -87,7 +74,7 @@ class LaneCurve:
     chain: int
 
     def as_record(self) -> dict[str, str | float]:
-        """The :data:`CURVE_FIELDS` of the curve, lengths and angles to the centimetre / hundredth degree."""
+        """The :data:`csws.road.export.CURVE_FIELDS` of the curve, lengths and angles to the centimetre / hundredth degree."""
         return {
             "lane_id": self.lane_id,
             "start_pos_m": round(self.start_pos_m, 2),
@@ -97,18 +84,6 @@ class LaneCurve:
             "angle_deg": round(self.curve.angle_deg, 2),
             "direction": self.curve.direction,
         }
-
-
-def write_curve_table(records: list[dict[str, str | float]], stream: TextIO) -> None:
-    """Write curve records as an aligned text table: ids left-aligned, numbers right-aligned."""
-    cells = [list(CURVE_FIELDS)] + [[f"{record[name]}" for name in CURVE_FIELDS] for record in records]
-    widths = [max(len(row[column]) for row in cells) for column in range(len(CURVE_FIELDS))]
-    for row in cells:
-        padded = [
-            cell.ljust(width) if name in ("lane_id", "end_lane_id", "direction") else cell.rjust(width)
-            for cell, width, name in zip(row, widths, CURVE_FIELDS)
-        ]
-        stream.write("  ".join(padded).rstrip() + "\n")
 
 
 def stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -253,165 +228,6 @@ class RoadChains:
         return lane, float((s - self.lane_start_s[lane]) * self.lane_position_factor[lane])
 
 
-@dataclass(frozen=True)
-class PathProfile:
-    """The road along consecutive lanes: one polyline, and the fitted profiles of the roads it runs on.
-
-    The path arc length ``s`` starts at 0 at the first vertex of the first lane. The
-    look-ahead distance (3.9) to a curve start or to a CPOI (3.11) is a difference of
-    two path arc lengths. The path is cut into runs, each a stretch of one road chain;
-    its profile and curves are those of the chains, cut to the runs.
-
-    Attributes
-    ----------
-    lane_ids
-        The lanes in driving order, internal via lanes included.
-    xy
-        The stitched polyline, ``(n, 2)``.
-    profile
-        Its radius profile: the chains' profiles on the runs.
-    lane_start_s
-        Path arc length at the first shape point of each lane, ``(len(lane_ids),)``, m.
-    lane_shape_length_m, lane_position_factor
-        Length of each lane's shape on the path and SUMO's position factor for it (see
-        :class:`csws.roadmap.Lane`; an internal lane that continues the road is one chord here).
-    lane_is_junction
-        Whether each lane is a junction manoeuvre (:attr:`csws.roadmap.Lane.is_junction`).
-    run_chain, run_chain_start_s, run_chain_end_s, run_path_start_s, run_is_junction
-        Per run: its chain, where it starts and ends in the chain's arc length, where it
-        starts on the path, and whether it is a junction manoeuvre.
-    """
-
-    lane_ids: tuple[str, ...]
-    xy: np.ndarray
-    profile: RadiusProfile
-    lane_start_s: np.ndarray
-    lane_shape_length_m: np.ndarray
-    lane_position_factor: np.ndarray
-    lane_is_junction: np.ndarray
-    run_chain: np.ndarray
-    run_chain_start_s: np.ndarray
-    run_chain_end_s: np.ndarray
-    run_path_start_s: np.ndarray
-    run_is_junction: np.ndarray
-    chain_curves: Callable[[int, float], list[Curve]] = field(repr=False, compare=False)
-
-    @property
-    def length_m(self) -> float:
-        """Arc length of the whole path, m."""
-        return float(self.profile.s[-1])
-
-    def curves(self, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
-        """The curves (radius <= ``warning_radius_m``, 3.2-3.8) along the path, junction manoeuvres included."""
-        return [curve for curve, _, _ in self.curve_sources(warning_radius_m, junctions=True)]
-
-    def road_curves(self, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
-        """The curves of the road along the path: :meth:`curves` without junction manoeuvres.
-
-        A turn from one road into another (the path leaves a road chain at a junction)
-        and a drive round a roundabout are junction manoeuvres; a curve of a road with a
-        node inside it is a curve of the road, whole.
-        """
-        return [curve for curve, _, _ in self.curve_sources(warning_radius_m, junctions=False)]
-
-    def curve_sources(self, warning_radius_m: float, junctions: bool) -> list[tuple[Curve, int, Curve]]:
-        """The curves along the path with where they come from: ``(curve in path arc length,
-        chain, the chain's whole curve)``; junction manoeuvres only with ``junctions``.
-
-        The chain's curve says which curve of the index it is (where it starts, 3.4),
-        also when the path starts inside it or turns off the road before its end.
-        """
-        found = []
-        for run in range(len(self.run_chain)):
-            if self.run_is_junction[run] and not junctions:
-                continue
-            chain = int(self.run_chain[run])
-            start_s, end_s = float(self.run_chain_start_s[run]), float(self.run_chain_end_s[run])
-            offset_m = float(self.run_path_start_s[run]) - start_s
-            for curve in self.chain_curves(chain, warning_radius_m):
-                clipped = clip_curve(curve, start_s, end_s, offset_m)
-                if clipped is not None:
-                    found.append((clipped, chain, curve))
-        return found
-
-    def lane_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Map path arc lengths to lanes: for each ``s``, the index into :attr:`lane_ids` and the lane position.
-
-        An ``s`` on a joint belongs to the lane that starts there; ``s`` outside the
-        path is clamped to its ends.
-        """
-        s = np.asarray(s, dtype=float)
-        lane = np.clip(np.searchsorted(self.lane_start_s, s, side="right") - 1, 0, len(self.lane_ids) - 1)
-        along_shape_m = np.clip(s - self.lane_start_s[lane], 0.0, self.lane_shape_length_m[lane])
-        return lane, along_shape_m * self.lane_position_factor[lane]
-
-    def lane_position(self, s: float) -> tuple[str, float]:
-        """The lane id and lane position at path arc length ``s`` (see :meth:`lane_positions`)."""
-        lane, pos_m = self.lane_positions(np.array([s]))
-        return self.lane_ids[int(lane[0])], float(pos_m[0])
-
-    def path_s(self, lane_id: str, lane_pos_m: float) -> float:
-        """Path arc length of a lane position on the first occurrence of ``lane_id`` in the path.
-
-        Raises
-        ------
-        KeyError
-            If the lane is not on the path.
-        """
-        try:
-            lane = self.lane_ids.index(lane_id)
-        except ValueError:
-            raise KeyError(f"lane {lane_id!r} is not on the path") from None
-        along_shape_m = np.clip(lane_pos_m / self.lane_position_factor[lane], 0.0, self.lane_shape_length_m[lane])
-        return float(self.lane_start_s[lane] + along_shape_m)
-
-
-def path_runs(chains: RoadChains, lanes: Sequence[int]) -> list[tuple[int, int]]:
-    """The path's lanes cut into runs along one chain each: ``(first, last)`` indices into ``lanes``."""
-    runs: list[tuple[int, int]] = []
-    first = 0
-    for position in range(1, len(lanes) + 1):
-        if position == len(lanes):
-            runs.append((first, position - 1))
-            break
-        previous, lane = lanes[position - 1], lanes[position]
-        same_chain = chains.lane_chain[lane] == chains.lane_chain[previous]
-        if not (same_chain and chains.lane_start_s[lane] > chains.lane_start_s[previous]):
-            runs.append((first, position - 1))
-            first = position
-    return runs
-
-
-def path_profile_parts(
-    chains: RoadChains, chain_of_run: np.ndarray, chain_start_s: np.ndarray, chain_end_s: np.ndarray,
-    path_start_s: np.ndarray, vertex_s: np.ndarray,
-) -> RadiusProfile:  # fmt: skip
-    """The radius profile of a path: each run's stretch of its chain's profile, shifted onto
-    the path; a gap between runs (lanes that do not meet) is straight."""
-    bounds: list[float] = [0.0]
-    start_k: list[float] = []
-    end_k: list[float] = []
-
-    def add(end_s: float, k0: float, k1: float) -> None:
-        if end_s > bounds[-1] + 1e-9:
-            bounds.append(end_s)
-            start_k.append(k0)
-            end_k.append(k1)
-
-    for chain, start_s, end_s, offset_s in zip(chain_of_run.tolist(), chain_start_s.tolist(), chain_end_s.tolist(),
-                                               (path_start_s - chain_start_s).tolist()):  # fmt: skip
-        add(start_s + offset_s, 0.0, 0.0)
-        for part in chains.profiles[chain].parts:
-            if part.end_s <= start_s or part.start_s >= end_s:
-                continue
-            a, b = max(part.start_s, start_s), min(part.end_s, end_s)
-            add(b + offset_s, part.curvature_at_one(a), part.curvature_at_one(b))
-    add(float(vertex_s[-1]), 0.0, 0.0)
-    if len(bounds) < 2:
-        return _straight_profile(vertex_s)
-    return _profile(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
-
-
 def _straight_joints(xy: np.ndarray, joint_s: np.ndarray) -> np.ndarray:
     """Which joints of a stitched chain lie on a straight stretch (:data:`STRAIGHT_WINDOW_M`)."""
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
@@ -496,47 +312,3 @@ def index_curves(chains: RoadChains, lane_ids: Sequence[str], warning_radius_m: 
             lane_curves.append(LaneCurve(lane_ids[start_lane], start_pos_m, lane_ids[end_lane], end_pos_m, curve, chain))
         index.append(lane_curves)
     return index
-
-
-def path_profile(chains: RoadChains, lanes: Sequence[int], lane_ids: Sequence[str], road_shapes: Sequence[np.ndarray],
-                 lane_length_m: np.ndarray, lane_is_junction: np.ndarray) -> PathProfile:  # fmt: skip
-    """The profile of a path of consecutive lanes (internal lanes included) read from the road chains.
-
-    Parameters
-    ----------
-    chains
-        The network's fitted road chains.
-    lanes, lane_ids
-        The path's lane indices and ids.
-    road_shapes
-        The shape each lane of the path gives its road, ``(n, 2)``, m.
-    lane_length_m
-        The SUMO length of each lane of the path, m.
-    lane_is_junction
-        Whether each lane of the path is a junction manoeuvre.
-    """
-    xy, lane_start_s = stitch(road_shapes)
-    shape_length_m = chains.lane_road_length_m[list(lanes)]
-    runs = path_runs(chains, lanes)
-    first = np.array([lanes[a] for a, _ in runs], dtype=np.int64)
-    last = np.array([lanes[b] for _, b in runs], dtype=np.int64)
-    run_chain = chains.lane_chain[first]
-    run_chain_start_s = chains.lane_start_s[first]
-    run_chain_end_s = chains.lane_start_s[last] + chains.lane_road_length_m[last]
-    run_path_start_s = lane_start_s[[a for a, _ in runs]]
-    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    return PathProfile(
-        lane_ids=tuple(lane_ids),
-        xy=xy,
-        profile=path_profile_parts(chains, run_chain, run_chain_start_s, run_chain_end_s, run_path_start_s, vertex_s),
-        lane_start_s=lane_start_s,
-        lane_shape_length_m=shape_length_m,
-        lane_position_factor=np.divide(lane_length_m, shape_length_m, out=np.ones(len(lanes)), where=shape_length_m > 0),
-        lane_is_junction=np.asarray(lane_is_junction, dtype=bool),
-        run_chain=run_chain,
-        run_chain_start_s=run_chain_start_s,
-        run_chain_end_s=run_chain_end_s,
-        run_path_start_s=run_path_start_s,
-        run_is_junction=chains.is_junction[run_chain],
-        chain_curves=chains.curves,
-    )

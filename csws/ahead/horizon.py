@@ -2,10 +2,10 @@
 
 A :class:`Horizon` is the stitched, profiled path from the start of a lane with the parts
 of its curves; :class:`PathAhead` (one vehicle) and :class:`BatchAhead` (many, as flat
-arrays) are the CPOIs a vehicle at a position on it has within S_LAD. :mod:`csws.lookahead`
+arrays) are the CPOIs a vehicle at a position on it has within S_LAD. :mod:`csws.ahead.lookahead`
 builds and caches horizons. A CPOI is the first point of a part ahead of the vehicle; inside
 a part the point under the vehicle counts (:func:`radius_under`), and a part stays a CPOI,
-marked passed, for :data:`END_MARGIN_M` after its end (:mod:`csws.release`).
+marked passed, for :data:`END_MARGIN_M` after its end (:mod:`csws.warning.release`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from functools import cached_property
 
 import numpy as np
 
-from .curvature import RadiusProfile
-from .roadprofile import PathProfile
-from .warning import CurvaturePointOfInterest, PathKind
+from csws.curvature import RadiusProfile
+from csws.road.path import PathProfile
+from csws.warning.rules import CurvaturePointOfInterest, PathKind
 
 __all__ = ["END_MARGIN_M", "Horizon", "PathAhead", "BatchAhead", "PartPool", "is_cpoi", "radius_at_end", "radius_under", "curve_id_of"]
 
@@ -30,7 +30,7 @@ class Horizon:
 
     One horizon serves every vehicle whose lanes ahead are its lanes (whatever its route
     beyond them), wherever it is on the first lane, as long as S_LAD fits; horizons are
-    cached (:mod:`csws.lookahead`).
+    cached (:mod:`csws.ahead.lookahead`).
 
     Attributes
     ----------
@@ -325,7 +325,7 @@ def radius_under(start_s: np.ndarray, end_s: np.ndarray, start_radius_m: np.ndar
 
 #: A part stays among a vehicle's CPOIs, at distance 0 and marked passed, until the vehicle
 #: is this far beyond its end, m: 6.1 no longer requires a warning there, but a level it
-#: kept on may stay on (:mod:`csws.release`), so that position noise at a curve's end
+#: kept on may stay on (:mod:`csws.warning.release`), so that position noise at a curve's end
 #: cannot switch the warning off and on again.
 END_MARGIN_M = 1.0
 

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 from typing import Callable, NoReturn, Sequence
 
-from . import __version__
-from .argtypes import positive_float
+from csws import __version__
+from csws.cli.argtypes import positive_float
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -29,7 +29,7 @@ class CommandError(Exception):
 
 
 def _cmd_networks_build(args: argparse.Namespace) -> int:
-    from .networks.build import build_networks, compare_networks
+    from csws.networks.build import build_networks, compare_networks
 
     if args.check:
         differences = compare_networks(args.dir)
@@ -43,7 +43,7 @@ def _cmd_networks_build(args: argparse.Namespace) -> int:
 
 
 def _cmd_networks_verify(args: argparse.Namespace) -> int:
-    from .verify import verify_networks
+    from csws.networks.verify import verify_networks
 
     report = verify_networks(args.dir, tolerance_m=args.tolerance_m)
     print(report.as_table())
@@ -51,7 +51,7 @@ def _cmd_networks_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
-    from .roadmap import RoadMap
+    from csws.road.roadmap import RoadMap
 
     road_map = RoadMap.load(args.net, warning_radius_m=args.warning_radius_m)
     road_map.write_curves(sys.stdout, fmt=args.format)
@@ -59,7 +59,7 @@ def _cmd_curves(args: argparse.Namespace) -> int:
 
 
 def _default_networks_dir() -> Path:
-    from .networks import networks_dir
+    from csws.networks import networks_dir
 
     return networks_dir()
 

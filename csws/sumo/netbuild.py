@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .binaries import sumo_binary, sumo_home
+from csws.sumo.binaries import sumo_binary, sumo_home
 
 __all__ = ["NetconvertError", "shape_text", "netconvert", "netconvert_osm"]
 

@@ -14,7 +14,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from .roadmap import RoadMap
+from csws.road.roadmap import RoadMap
 
 __all__ = ["CurveCheck", "VerificationReport", "verify_networks", "verify_network"]
 

@@ -15,14 +15,14 @@ A CPOI here is the first point of a constant-radius part of a curve (or of a pie
 clothoid short enough that V_w changes along it by under 1 km/h): along a part V_w and S_w
 hardly change, and its first point is the nearest, so it is the one that decides the part.
 A vehicle inside a part is at distance 0 from it, at the radius of the road under it
-(:func:`csws.horizon.radius_under`).
+(:func:`csws.ahead.horizon.radius_under`).
 
 This module is clause 6 at one instant. How long a level stays on once 6.1 no longer
-requires it is the release rule of :mod:`csws.release`, which the engine applies through
+requires it is the release rule of :mod:`csws.warning.release`, which the engine applies through
 ``cpoi_latched``, ``cpoi_hold`` and ``cpoi_passed``.
 
 The core, :func:`evaluate_batch`, works on flat numpy arrays for many vehicles at once;
-:mod:`csws.onewarning` is the same computation for one vehicle, in plain floats.
+:mod:`csws.warning.single` is the same computation for one vehicle, in plain floats.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .release import Rule
-from .standard import (
+from csws.warning.release import Rule
+from csws.standard import (
     DEFAULT_POLICY,
     G_MPS2,
     Category,
@@ -107,10 +107,10 @@ class WarningSettings:
     g_mps2
         g of formula (1).
     release_margin_kmh
-        How far below V_w a level that is on goes off, km/h (:mod:`csws.release`, rule 1).
+        How far below V_w a level that is on goes off, km/h (:mod:`csws.warning.release`, rule 1).
     release_hold_s
         How long a level stays on after nothing keeps it on any more while a CPOI that
-        did is still ahead or under the vehicle, s (:mod:`csws.release`, rule 2).
+        did is still ahead or under the vehicle, s (:mod:`csws.warning.release`, rule 2).
 
     Notes
     -----
@@ -185,7 +185,7 @@ class Trigger:
     warning_distance_m
         S_w of formula (1) at the vehicle's speed, m (without the latency allowance).
     held
-        Whether the level is kept on here by the release rule (:mod:`csws.release`)
+        Whether the level is kept on here by the release rule (:mod:`csws.warning.release`)
         rather than required by 6.1's condition now.
     """
 
@@ -244,7 +244,7 @@ class BatchWarnings:
         ``(n_cpois,)`` the CPOIs' distances and radii as given, m.
     cpoi_rule
         ``(2, n_cpois)`` what keeps level 1 (row 0) and level 2 (row 1) on at each CPOI:
-        a :class:`csws.release.Rule` code, 0 where the level is off there.
+        a :class:`csws.warning.release.Rule` code, 0 where the level is off there.
     """
 
     level: np.ndarray
@@ -355,9 +355,9 @@ def evaluate_batch(
     cpoi_latched, cpoi_hold
         ``(2, n_cpois)``: which CPOIs kept level 1 (row 0) and level 2 (row 1) on at the
         last update, and which of those the hold may keep on
-        (:func:`csws.release.memory_masks`); None for vehicles without a memory (6.1 alone).
+        (:func:`csws.warning.release.memory_masks`); None for vehicles without a memory (6.1 alone).
     cpoi_passed
-        ``(n_cpois,)``: CPOIs the vehicle has just passed (:data:`csws.horizon.END_MARGIN_M`):
+        ``(n_cpois,)``: CPOIs the vehicle has just passed (:data:`csws.ahead.horizon.END_MARGIN_M`):
         6.1 requires nothing there, only the release rule may keep a level on.
 
     Returns

@@ -13,16 +13,16 @@ Which way the path goes:
   vehicle's edge: a route that passes an edge twice should be given from the vehicle's
   position on (SUMO's route index tells where that is);
 * without one it follows the most probable path: at each junction the successor
-  that keeps the road, i.e. the road's continuation (:mod:`csws.roadchain`), then the
+  that keeps the road, i.e. the road's continuation (:mod:`csws.road.continuations`), then the
   one on an edge with the same street name, then the same road type, then the
   smallest change of heading. Such a path is marked ``predicted``.
 
 A path reads the profiles and curves of the road chains it runs along, each fitted once
-for the whole map (:mod:`csws.roadprofile`), so a curve that runs across an edge boundary
+for the whole map (:mod:`csws.road.chains`), so a curve that runs across an edge boundary
 or a node is one curve, the one the curve index lists. Junction manoeuvres, a turn from
 one road into another at a junction or a drive round a roundabout, are not curves of the
 road and offer no CPOI unless :attr:`LookAheadSettings.warn_at_junctions` is set
-(:meth:`csws.roadprofile.PathProfile.road_curves`): the driver takes them at junction
+(:meth:`csws.road.path.PathProfile.road_curves`): the driver takes them at junction
 speed, and a warning at every turn would teach the driver to ignore the system. Paths
 recur, from one step to the next and from one vehicle to another, so their curves are
 kept in a bounded cache
@@ -38,11 +38,11 @@ from typing import Sequence
 
 import numpy as np
 
-from .geometry import wrap_angle_rad
-from .horizon import BatchAhead, Horizon, PartPool, PathAhead, is_cpoi, radius_at_end, curve_id_of, radius_under
-from .roadmap import Lane, RoadMap
-from .standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
-from .warning import PathKind, WarningSettings, column_index
+from csws.geometry import wrap_angle_rad
+from csws.ahead.horizon import BatchAhead, Horizon, PartPool, PathAhead, is_cpoi, radius_at_end, curve_id_of, radius_under
+from csws.road.roadmap import Lane, RoadMap
+from csws.standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
+from csws.warning.rules import PathKind, WarningSettings, column_index
 
 __all__ = [
     "LookAheadSettings",

@@ -17,13 +17,13 @@ drives through them and they carry the turns: a path runs normal lane -> interna
 and walking areas are left out.
 
 Junction manoeuvres are not curves of the road. A turn from one road into another (an
-internal lane whose connection leaves the road chain, :mod:`csws.roadchain`) or a drive
+internal lane whose connection leaves the road chain, :mod:`csws.road.continuations`) or a drive
 round a roundabout (the edges of the network's ``<roundabout>`` elements) is taken at
 junction speed, not a bend taken at road speed. A curve of the road with a node inside
 it (a way split, a side road joining) is a curve whole: each road chain (the lanes a
 road continues on, through the internal lanes that continue it, taken as one chord
 across the junction) is fitted once, and the curve index and every path read that fit
-(:mod:`csws.roadprofile`).
+(:mod:`csws.road.chains`).
 
 Networks imported from OpenStreetMap are geo-referenced: :meth:`RoadMap.xy_to_lonlat`
 and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) convert with
@@ -31,10 +31,10 @@ the network's own projection (UTM for an OSM import), and :meth:`RoadMap.curves_
 gives the curve index in WGS84.
 
 Storage is columnar: the vertices of all lanes sit in one ``(n, 2)`` array with an
-offset per lane (read by :mod:`csws.sumonet`), all road chains are profiled in one
+offset per lane (read by :mod:`csws.road.network`), all road chains are profiled in one
 :func:`csws.curvature.radius_profiles` call, so a regional network of some 1,500 lane-km
 loads and profiles in seconds, and positions are looked up in a spatial index of the
-lane shapes (:mod:`csws.lanesearch`).
+lane shapes (:mod:`csws.road.search`).
 
 Lane positions follow SUMO: a lane position runs from 0 to the lane's ``length``
 attribute, which may differ from the length of its shape (outer lanes of a curve,
@@ -56,19 +56,13 @@ from typing import Sequence, TextIO
 import numpy as np
 import sumolib
 
-from .curvature import profile_cache_dir
-from .lanesearch import LaneMatch, LaneMatches, LaneSearch, LaneShapes
-from .roadprofile import (
-    CURVE_FIELDS,
-    LaneCurve,
-    PathProfile,
-    fit_road_chains,
-    index_curves,
-    path_profile,
-    write_curve_table,
-)
-from .standard import DEFAULT_WARNING_RADIUS_M
-from .sumonet import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
+from csws.curvature import profile_cache_dir
+from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
+from csws.road.chains import LaneCurve, fit_road_chains, index_curves
+from csws.road.export import CURVE_FIELDS, write_curve_table
+from csws.road.path import PathProfile, path_profile
+from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 
 __all__ = [
     "CURVE_FIELDS",
@@ -240,7 +234,7 @@ class RoadMap:
     @cached_property
     def lane_shapes(self) -> LaneShapes:
         """The lanes' shapes back to back, in the order of :attr:`lane_ids`, as a spatial index of
-        lanes takes them (:class:`csws.lanesearch.LaneSearch`; the arrays are the map's own)."""
+        lanes takes them (:class:`csws.road.search.LaneSearch`; the arrays are the map's own)."""
         return LaneShapes(self._xy, self._vertex_start, self._vertex_s, self._lane_id_array, self._position_factor)
 
     def lane_index(self, lane_id: str) -> int:
@@ -277,7 +271,7 @@ class RoadMap:
         return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:]))
 
     def road_chain(self, lane_id: str) -> tuple[str, ...]:
-        """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.roadprofile`)."""
+        """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.road.chains`)."""
         chain = self._chains.lane_chain[self._lane_index(lane_id)]
         return tuple(self._lanes[i].lane_id for i in self._chains.lanes[chain].tolist())
 

@@ -14,7 +14,7 @@ may also be confined to one map (a query naming its network), and a fix given in
 lon/lat is placed on each geo-referenced map in that map's own projection: each such
 placement is a :class:`Probes` row.
 
-The lanes of all maps sit in one spatial index (:class:`csws.lanesearch.LaneSearch`),
+The lanes of all maps sit in one spatial index (:class:`csws.road.search.LaneSearch`),
 built with the matcher, so a fix costs what the lanes near it cost, however many maps
 there are. Fixes are matched in two vectorised passes: first each fix of a vehicle with
 a previous match on its previous map alone, where a lane that continues the previous one
@@ -22,7 +22,7 @@ decides; then every other fix on all the maps it may be on. A fix that matches n
 is an answer too: it gets no lane and the reason why.
 
 Headings follow GNSS: degrees clockwise from north. Lane headings in
-:mod:`csws.roadmap` are radians counter-clockwise from +x (east).
+:mod:`csws.road.roadmap` are radians counter-clockwise from +x (east).
 """
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .geometry import wrap_angle_rad
-from .lanesearch import LaneMatches, LaneSearch, LaneShapes, least_per_group
-from .roadmap import RoadMap
+from csws.geometry import wrap_angle_rad
+from csws.road.search import LaneMatches, LaneSearch, LaneShapes, least_per_group
+from csws.road.roadmap import RoadMap
 
 __all__ = [
     "MatchSettings",
@@ -178,7 +178,7 @@ def points_along(xy: np.ndarray, s: np.ndarray, vertex_s: np.ndarray | None = No
 
 
 def lane_points(road_map: RoadMap, lane_id: str, lane_pos_m: np.ndarray) -> np.ndarray:
-    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (see :attr:`csws.roadmap.Lane.position_factor`)."""
+    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (see :attr:`csws.road.roadmap.Lane.position_factor`)."""
     shape_s = np.asarray(lane_pos_m, dtype=float) / road_map.lane(lane_id).position_factor
     return points_along(road_map.lane_shape(lane_id), shape_s)
 

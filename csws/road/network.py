@@ -7,7 +7,7 @@ crossings and walking areas are left out), the vertices of all lane shapes back 
 the lanes reached from each lane's end, and the network's geo-reference.
 
 Each lane also says whether the road continues through it (:attr:`Lane.continues_road`,
-:attr:`Lane.continues_into`), from :func:`csws.roadchain.road_continuations`, and whether
+:attr:`Lane.continues_into`), from :func:`csws.road.continuations.road_continuations`, and whether
 it belongs to a roundabout: the road map fits road chains and tells junction manoeuvres
 from curves of the road with them.
 """
@@ -24,7 +24,7 @@ from typing import Sequence
 import numpy as np
 import sumolib
 
-from .roadchain import road_continuations
+from csws.road.continuations import road_continuations
 
 __all__ = ["Lane", "NetLanes", "NetworkError", "net_lanes", "read_sumo_net"]
 
@@ -79,12 +79,12 @@ class Lane:
     continues_road
         For an internal lane, whether its connection continues the road through the
         junction (a way split, a node inside a bend, the straight-ahead or priority
-        continuation: :func:`csws.roadchain.road_continuations`) rather than turning
+        continuation: :func:`csws.road.continuations.road_continuations`) rather than turning
         into another road. Always False for normal lanes.
     continues_into
         The lane this lane's road continues on ("" where the road ends or turns, on a
         junction turn and on a roundabout): the next lane of its road chain
-        (:mod:`csws.roadprofile`).
+        (:mod:`csws.road.chains`).
     """
 
     lane_id: str
@@ -289,7 +289,7 @@ def _continues_into(
     """The lane a sumolib lane's road continues on, "" where it ends or turns (:attr:`Lane.continues_into`).
 
     From a normal lane: the lane reached by its connection into the edge that continues
-    the road (:func:`csws.roadchain.road_continuations`), the connection's internal lane
+    the road (:func:`csws.road.continuations.road_continuations`), the connection's internal lane
     if it has one; of several, the one into the lane of the nearest index. From an
     internal lane that continues the road: the lane it leads on to. A road does not
     continue into, out of or round a roundabout: that is a junction manoeuvre.

@@ -1,6 +1,6 @@
 """Clause 6 and the release rule for one vehicle, in plain floats.
 
-:func:`csws.warning.evaluate_batch` and :mod:`csws.release` judge the CPOIs of a fleet in
+:func:`csws.warning.rules.evaluate_batch` and :mod:`csws.warning.release` judge the CPOIs of a fleet in
 numpy arrays. One vehicle has a few CPOIs (one or two on most roads), and on arrays that
 small numpy's cost per call is most of the work: an on-board unit's query, or the service's
 answer to one vehicle, would wait on it. :func:`judge_one` applies the same rules with the
@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from .release import NOT_HELD, HeldWarning, Rule, within_hold
-from .standard import Category, Level, formula_1_m, kmh_to_mps
-from .warning import (
+from csws.warning.release import NOT_HELD, HeldWarning, Rule, within_hold
+from csws.standard import Category, Level, formula_1_m, kmh_to_mps
+from csws.warning.rules import (
     CurvaturePointOfInterest,
     CurveWarning,
     HmiHint,
@@ -28,7 +28,7 @@ from .warning import (
 
 __all__ = ["CpoiPoint", "evaluate", "judge_one"]
 
-#: A CPOI as :meth:`csws.horizon.PathAhead.cpoi_points` gives it: curve id, part index,
+#: A CPOI as :meth:`csws.ahead.horizon.PathAhead.cpoi_points` gives it: curve id, part index,
 #: distance S (m), radius (m), passed.
 CpoiPoint = tuple[str, int, float, float, bool]
 _LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
@@ -77,8 +77,8 @@ def judge_one(
     Returns
     -------
     tuple
-        The :class:`CurveWarning` (as :meth:`csws.warning.BatchWarnings.vehicle_warning` gives
-        it) and the vehicle's memory after this update (:func:`csws.release.next_memories`).
+        The :class:`CurveWarning` (as :meth:`csws.warning.rules.BatchWarnings.vehicle_warning` gives
+        it) and the vehicle's memory after this update (:func:`csws.warning.release.next_memories`).
     """
     speed_mps = kmh_to_mps(speed_kmh)
     allowance_m = speed_mps * settings.latency_s
@@ -101,7 +101,7 @@ def _warning_distance_m(speed_mps: float, warning_speed_mps: float, g_mps2: floa
 def _apply_release(rules: list[list[int]], speed_kmh: float, speed_mps: float, allowance_m: float,
                    points: Sequence[CpoiPoint], speeds: list[tuple[float, float]], held: HeldWarning,
                    now_s: float | None, settings: WarningSettings) -> None:  # fmt: skip
-    """Release rules 1 (margin) and 2 (hold) of :mod:`csws.release` on ``rules``, in place."""
+    """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place."""
     named = [[(point[0], point[1]) in level_points for level_points in held.points] for point in points]
     for point, pair, point_rules, point_named in zip(points, speeds, rules, named):
         for level in (0, 1):
@@ -139,7 +139,7 @@ def _warning(rules: list[list[int]], points: Sequence[CpoiPoint], speeds: list[t
 
 def _next_memory(rules: list[list[int]], points: Sequence[CpoiPoint], held: HeldWarning,
                  now_s: float | None) -> HeldWarning:  # fmt: skip
-    """What the release rule keeps after this update (:func:`csws.release.next_memories` of one vehicle)."""
+    """What the release rule keeps after this update (:func:`csws.warning.release.next_memories` of one vehicle)."""
     if not any(rule for point_rules in rules for rule in point_rules):
         return NOT_HELD
     points_on, kept_at_s = [], []
