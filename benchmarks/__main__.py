@@ -24,10 +24,10 @@ import math
 import platform
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Callable
 
 from benchmarks import cosim, curvature, load, osm, roadmap, roads, service, sweep, warning
 from benchmarks import map as live_map
@@ -84,17 +84,37 @@ def curvature_rows(figures: dict) -> list[Row]:
             rows.append(at_most(f"curvature {kind}: {name}", ours, limits[column], f"{three_point:.3g} (3-point)"))
     sparse = figures["sparse"]
     for name in curvature.TARGETS:
-        rows.append(context(f"curvature sparse (unjudged): {name}", sparse["ours"][name],
-                            f"{sparse['three_point'][name]:.3g} (3-point)"))
+        rows.append(
+            context(
+                f"curvature sparse (unjudged): {name}",
+                sparse["ours"][name],
+                f"{sparse['three_point'][name]:.3g} (3-point)",
+            )
+        )
     for kind in ("mapped", "sparse"):
         bound, reference = figures[kind]["bound"], figures[kind]["reference"]
-        rows.append(context(f"curvature {kind}: arcs_started_over_5_m", figures[kind]["ours"]["arcs_started_over_5_m"],
-                            f"{reference['arcs_started_over_5_m']} of the ML road told its form; "
-                            f"{bound['expected_beyond_limit']:.1f} expected of an efficient estimator (Cramér-Rao)"))
-        rows.append(context(f"curvature {kind}: max_start_error_m of the ML road told its form",
-                            round(reference["max_start_error_m"], 2), f"ours {figures[kind]['ours']['max_start_error_m']:.3g}"))
-    rows.append(at_most("curvature multi curve: max_step_error_m", figures["multi_curve"]["max_step_error_m"],
-                        curvature.MULTI_STEP_TARGET_M))
+        rows.append(
+            context(
+                f"curvature {kind}: arcs_started_over_5_m",
+                figures[kind]["ours"]["arcs_started_over_5_m"],
+                f"{reference['arcs_started_over_5_m']} of the ML road told its form; "
+                f"{bound['expected_beyond_limit']:.1f} expected of an efficient estimator (Cramér-Rao)",
+            )
+        )
+        rows.append(
+            context(
+                f"curvature {kind}: max_start_error_m of the ML road told its form",
+                round(reference["max_start_error_m"], 2),
+                f"ours {figures[kind]['ours']['max_start_error_m']:.3g}",
+            )
+        )
+    rows.append(
+        at_most(
+            "curvature multi curve: max_step_error_m",
+            figures["multi_curve"]["max_step_error_m"],
+            curvature.MULTI_STEP_TARGET_M,
+        )
+    )
     rows.append(context("curvature: vertices/s", round(figures["throughput"]["vertices_per_s"])))
     return rows
 
@@ -104,21 +124,41 @@ def roads_rows(figures: dict) -> list[Row]:
     rows = [at_most(name, value, limit) for name, value, limit, _ in roads.verdicts(figures)]
     for family, samplings in figures.items():
         sparse = samplings["sparse"]
-        rows.append(context(f"roads {family} sparse: start error p90 / max m",
-                            f"{sparse['p90_start_error_m']:.3g} / {sparse['max_start_error_m']:.3g}",
-                            f"{sparse['curves']} curves matched"))
-        rows.append(context(f"roads {family} sparse: start error median / p90 m the nodes allow",
-                            f"{sparse['bound_median_start_error_m']:.3g} / {sparse['bound_p90_start_error_m']:.3g}",
-                            "an efficient estimator told the road's form (Cramér-Rao)"))
-        rows.append(context(f"roads {family} sparse: start error median / p90 m of the reference",
-                            f"{sparse['reference_median_start_error_m']:.3g} / {sparse['reference_p90_start_error_m']:.3g}",
-                            "the maximum-likelihood road told the road's form, started from the truth"))
-        rows.append(context(f"roads {family} sparse: missed on ways with too few nodes",
-                            f"{sparse['missed_undetermined']} of {sparse['missed']}",
-                            "no more nodes than the road has numbers: the road is not determined"))
-        rows.append(context(f"roads {family} sparse: median radius error the nodes allow",
-                            f"{sparse['bound_median_radius_error']:.3g}",
-                            f"ours {sparse['median_radius_error']:.3g} (Cramér-Rao)"))
+        rows.append(
+            context(
+                f"roads {family} sparse: start error p90 / max m",
+                f"{sparse['p90_start_error_m']:.3g} / {sparse['max_start_error_m']:.3g}",
+                f"{sparse['curves']} curves matched",
+            )
+        )
+        rows.append(
+            context(
+                f"roads {family} sparse: start error median / p90 m the nodes allow",
+                f"{sparse['bound_median_start_error_m']:.3g} / {sparse['bound_p90_start_error_m']:.3g}",
+                "an efficient estimator told the road's form (Cramér-Rao)",
+            )
+        )
+        rows.append(
+            context(
+                f"roads {family} sparse: start error median / p90 m of the reference",
+                f"{sparse['reference_median_start_error_m']:.3g} / {sparse['reference_p90_start_error_m']:.3g}",
+                "the maximum-likelihood road told the road's form, started from the truth",
+            )
+        )
+        rows.append(
+            context(
+                f"roads {family} sparse: missed on ways with too few nodes",
+                f"{sparse['missed_undetermined']} of {sparse['missed']}",
+                "no more nodes than the road has numbers: the road is not determined",
+            )
+        )
+        rows.append(
+            context(
+                f"roads {family} sparse: median radius error the nodes allow",
+                f"{sparse['bound_median_radius_error']:.3g}",
+                f"ours {sparse['median_radius_error']:.3g} (Cramér-Rao)",
+            )
+        )
     return rows
 
 
@@ -126,9 +166,14 @@ def warning_rows(figures: dict) -> list[Row]:
     single_us = figures["engine_single_median_us"]
     return [
         at_most("warning: engine, one vehicle, us", single_us, warning.TARGET_SINGLE_US),
-        at_most("warning: engine, batch of 1,000, us per vehicle", figures["engine_batch_per_vehicle_us"],
-                warning.TARGET_BATCH_US),
-        at_most("FCW: batch of 1,000, us per vehicle", figures["fcw_batch_per_vehicle_us"], warning.TARGET_FCW_BATCH_US),
+        at_most(
+            "warning: engine, batch of 1,000, us per vehicle",
+            figures["engine_batch_per_vehicle_us"],
+            warning.TARGET_BATCH_US,
+        ),
+        at_most(
+            "FCW: batch of 1,000, us per vehicle", figures["fcw_batch_per_vehicle_us"], warning.TARGET_FCW_BATCH_US
+        ),
     ]
 
 
@@ -137,21 +182,41 @@ def cosim_rows(figures: dict) -> list[Row]:
     components = ", ".join(f"{name} {value:.2f}" for name, value in figures["default_components_ms_per_step"].items())
     vehicles = f"{cosim.VEHICLES:,} vehicles"
     return [
-        at_most(f"cosim: {vehicles}, evaluation and time series (x bare SUMO)", ratio["default"],
-                cosim.TARGET_DEFAULT_RATIO, f"{ms['default']:.1f} vs {ms['bare']:.1f} ms/step of libsumo alone"),
-        at_most(f"cosim: {vehicles}, evaluation, events only (x bare SUMO)", ratio["events_only"],
-                cosim.TARGET_EVENTS_RATIO, f"{ms['events_only']:.1f} ms/step"),
-        context(f"cosim: {vehicles}, reading only (x bare SUMO)", round(ratio["read_only"], 2),
-                f"{ms['read_only']:.1f} ms/step: the least that reads every vehicle each step"),
-        at_most(f"cosim: evaluation overhead, {vehicles} (x the run without it)", figures["overhead"],
-                cosim.TARGET_OVERHEAD, f"{ms['default']:.1f} vs {ms['without_evaluation']:.1f} ms/step; "
-                f"{figures['vehicles']} evaluated"),
+        at_most(
+            f"cosim: {vehicles}, evaluation and time series (x bare SUMO)",
+            ratio["default"],
+            cosim.TARGET_DEFAULT_RATIO,
+            f"{ms['default']:.1f} vs {ms['bare']:.1f} ms/step of libsumo alone",
+        ),
+        at_most(
+            f"cosim: {vehicles}, evaluation, events only (x bare SUMO)",
+            ratio["events_only"],
+            cosim.TARGET_EVENTS_RATIO,
+            f"{ms['events_only']:.1f} ms/step",
+        ),
+        context(
+            f"cosim: {vehicles}, reading only (x bare SUMO)",
+            round(ratio["read_only"], 2),
+            f"{ms['read_only']:.1f} ms/step: the least that reads every vehicle each step",
+        ),
+        at_most(
+            f"cosim: evaluation overhead, {vehicles} (x the run without it)",
+            figures["overhead"],
+            cosim.TARGET_OVERHEAD,
+            f"{ms['default']:.1f} vs {ms['without_evaluation']:.1f} ms/step; {figures['vehicles']} evaluated",
+        ),
         context("cosim: default run by component, ms/step", components),
-        at_most(f"cosim: both systems (csws,fcw), {vehicles} (overhead over the run without evaluation)",
-                figures["both_systems_overhead"], cosim.TARGET_BOTH_SYSTEMS_OVERHEAD,
-                f"{ms['both_systems']:.1f} vs {ms['without_evaluation']:.1f} ms/step"),
-        context("cosim: FCW's own cost (both systems over the default run)", round(figures["fcw_over_default"], 2),
-                "fcw ms/step: " + str(figures["both_systems_components_ms_per_step"].get("fcw"))),
+        at_most(
+            f"cosim: both systems (csws,fcw), {vehicles} (overhead over the run without evaluation)",
+            figures["both_systems_overhead"],
+            cosim.TARGET_BOTH_SYSTEMS_OVERHEAD,
+            f"{ms['both_systems']:.1f} vs {ms['without_evaluation']:.1f} ms/step",
+        ),
+        context(
+            "cosim: FCW's own cost (both systems over the default run)",
+            round(figures["fcw_over_default"], 2),
+            "fcw ms/step: " + str(figures["both_systems_components_ms_per_step"].get("fcw")),
+        ),
         *city_rows(figures["city"]),
     ]
 
@@ -162,24 +227,41 @@ def city_rows(city: dict) -> list[Row]:
     vehicles = f"{cosim.CITY_VEHICLES:,} vehicles on Bad Hersfeld"
     components = ", ".join(f"{name} {value:.2f}" for name, value in city["default_components_ms_per_step"].items())
     return [
-        at_most(f"cosim: {vehicles}, evaluation and time series (x bare SUMO)", ratio["default"],
-                cosim.TARGET_DEFAULT_RATIO, f"{ms['default']:.1f} vs {ms['bare']:.1f} ms/step; "
-                f"{city['vehicles']:,} evaluated"),
-        at_most(f"cosim: {vehicles}, evaluation, events only (x bare SUMO)", ratio["events_only"],
-                cosim.TARGET_EVENTS_RATIO, f"{ms['events_only']:.1f} ms/step"),
-        context(f"cosim: {vehicles}, peak memory MB (bare / default / events only)",
-                f"{peak['bare']} / {peak['default']} / {peak['events_only']}", f"by component, ms/step: {components}"),
+        at_most(
+            f"cosim: {vehicles}, evaluation and time series (x bare SUMO)",
+            ratio["default"],
+            cosim.TARGET_DEFAULT_RATIO,
+            f"{ms['default']:.1f} vs {ms['bare']:.1f} ms/step; {city['vehicles']:,} evaluated",
+        ),
+        at_most(
+            f"cosim: {vehicles}, evaluation, events only (x bare SUMO)",
+            ratio["events_only"],
+            cosim.TARGET_EVENTS_RATIO,
+            f"{ms['events_only']:.1f} ms/step",
+        ),
+        context(
+            f"cosim: {vehicles}, peak memory MB (bare / default / events only)",
+            f"{peak['bare']} / {peak['default']} / {peak['events_only']}",
+            f"by component, ms/step: {components}",
+        ),
     ]
 
 
 def sweep_rows(figures: dict) -> list[Row]:
     context_text = f"{figures['cores']} cores, load average {figures['load_average_1min']:g} at the end"
     return [
-        at_least(f"sweep: {figures['runs']} runs on 2 local workers, speed-up over 1", figures["speedup"],
-                 sweep.TARGET_SPEEDUP, f"{figures['two_workers_s']:g} vs {figures['one_worker_s']:g} s; {context_text}"),
-        at_most("sweep: Dask's overhead over a plain loop, 1 worker, %", figures["overhead_percent"],
-                sweep.TARGET_OVERHEAD_PERCENT, f"{figures['one_worker_s']:g} vs {figures['loop_s']:g} s; "
-                f"{figures['overhead_ms_per_task']:g} ms per task"),
+        at_least(
+            f"sweep: {figures['runs']} runs on 2 local workers, speed-up over 1",
+            figures["speedup"],
+            sweep.TARGET_SPEEDUP,
+            f"{figures['two_workers_s']:g} vs {figures['one_worker_s']:g} s; {context_text}",
+        ),
+        at_most(
+            "sweep: Dask's overhead over a plain loop, 1 worker, %",
+            figures["overhead_percent"],
+            sweep.TARGET_OVERHEAD_PERCENT,
+            f"{figures['one_worker_s']:g} vs {figures['loop_s']:g} s; {figures['overhead_ms_per_task']:g} ms per task",
+        ),
     ]
 
 
@@ -191,23 +273,49 @@ def _stages(stages_ms: dict) -> str:
 def service_rows(figures: dict) -> list[Row]:
     trivial = f"vs {figures['trivial_rps']:.0f} req/s (trivial endpoint)"
     return [
-        at_least("service: single-query throughput ratio, one network", figures["single_ratio_one_network"], 0.70,
-                 f"{figures['service_rps_one_network']:.0f} {trivial}"),
-        at_least("service: single-query throughput ratio, default serve (x/y)", figures["single_ratio_default"], 0.70,
-                 f"{figures['service_rps_default']:.0f} {trivial}"),
-        at_most("service: batch of 10,000 by lane id, one network, server ms", figures["batch_lane_ms"], 100.0,
-                _stages(figures["batch_lane_stages_ms"])),
-        at_most("service: batch of 10,000 by x/y, default serve, server ms", figures["batch_xy_default_ms"], 150.0,
-                _stages(figures["batch_xy_default_stages_ms"])),
-        at_most(f"service: first query on {figures['first_queries']:,} fresh Bad Hersfeld lanes, p99 ms",
-                figures["first_query_ms_p99"], 10.0,
-                f"p50 {figures['first_query_ms_p50']:g}, max {figures['first_query_ms_max']:g} ms (server time)"),
-        context("service: start-up s, default serve / Bad Hersfeld / default serve with 2 workers",
-                f"{figures['startup_default_s']:g} / {figures['startup_real_s']:g} / "
-                f"{figures['startup_default_2_workers_s']:g}", "profile cache filled"),
-        context("service: memory per worker, 2 workers on the default serve, RSS / PSS MB",
-                " + ".join(f"{rss} / {pss}" for rss, pss in zip(figures["worker_rss_mb"], figures["worker_pss_mb"])),
-                "PSS shares the pages the workers share among them"),
+        at_least(
+            "service: single-query throughput ratio, one network",
+            figures["single_ratio_one_network"],
+            0.70,
+            f"{figures['service_rps_one_network']:.0f} {trivial}",
+        ),
+        at_least(
+            "service: single-query throughput ratio, default serve (x/y)",
+            figures["single_ratio_default"],
+            0.70,
+            f"{figures['service_rps_default']:.0f} {trivial}",
+        ),
+        at_most(
+            "service: batch of 10,000 by lane id, one network, server ms",
+            figures["batch_lane_ms"],
+            100.0,
+            _stages(figures["batch_lane_stages_ms"]),
+        ),
+        at_most(
+            "service: batch of 10,000 by x/y, default serve, server ms",
+            figures["batch_xy_default_ms"],
+            150.0,
+            _stages(figures["batch_xy_default_stages_ms"]),
+        ),
+        at_most(
+            f"service: first query on {figures['first_queries']:,} fresh Bad Hersfeld lanes, p99 ms",
+            figures["first_query_ms_p99"],
+            10.0,
+            f"p50 {figures['first_query_ms_p50']:g}, max {figures['first_query_ms_max']:g} ms (server time)",
+        ),
+        context(
+            "service: start-up s, default serve / Bad Hersfeld / default serve with 2 workers",
+            f"{figures['startup_default_s']:g} / {figures['startup_real_s']:g} / "
+            f"{figures['startup_default_2_workers_s']:g}",
+            "profile cache filled",
+        ),
+        context(
+            "service: memory per worker, 2 workers on the default serve, RSS / PSS MB",
+            " + ".join(
+                f"{rss} / {pss}" for rss, pss in zip(figures["worker_rss_mb"], figures["worker_pss_mb"], strict=True)
+            ),
+            "PSS shares the pages the workers share among them",
+        ),
     ]
 
 
@@ -218,39 +326,69 @@ def map_rows(figures: dict) -> list[Row]:
     vehicles = f"{figures['vehicles']:,} vehicles"
     by_kind = ", ".join(f"{kind} {kb:g}" for kind, kb in figures["initial_kb_by_kind"].items())
     return [
-        at_most("map: initial data of Bad Hersfeld until the first complete draw, MB", figures["initial_mb"],
-                live_map.TARGET_INITIAL_MB, f"{figures['initial_requests']} requests, kB: {by_kind}"),
-        context("map: page open to first complete draw, s", figures["first_draw_s"],
-                f"roads, curves of the view and {vehicles}"),
-        Row(f"map: refresh at 1 Hz, {vehicles}, page's own time p99 ms", figures["refresh_ms_p99"],
-            f"< {live_map.TARGET_REFRESH_P99_MS:g}", figures["refresh_ms_p99"] < live_map.TARGET_REFRESH_P99_MS,
+        at_most(
+            "map: initial data of Bad Hersfeld until the first complete draw, MB",
+            figures["initial_mb"],
+            live_map.TARGET_INITIAL_MB,
+            f"{figures['initial_requests']} requests, kB: {by_kind}",
+        ),
+        context(
+            "map: page open to first complete draw, s",
+            figures["first_draw_s"],
+            f"roads, curves of the view and {vehicles}",
+        ),
+        Row(
+            f"map: refresh at 1 Hz, {vehicles}, page's own time p99 ms",
+            figures["refresh_ms_p99"],
+            f"< {live_map.TARGET_REFRESH_P99_MS:g}",
+            figures["refresh_ms_p99"] < live_map.TARGET_REFRESH_P99_MS,
             f"p50 {figures['refresh_ms_p50']:g}, max {figures['refresh_ms_max']:g} ms over {figures['refreshes']} "
-            f"refreshes (fetch, decode, marker update)"),
-        at_most(f"map: refreshes skipped or failed in {figures['window_s']:g} s", figures["skipped_or_failed"],
-                live_map.TARGET_SKIPPED, f"longest gap between refreshes {figures['refresh_gap_ms_max']:g} ms; "
-                f"{figures['vehicles_drawn']:,} vehicles drawn, {figures['feeder_ticks']} batches fed"),
-        context(f"map: GET /v1/fleet of {vehicles} in the view, round trip p50 / p99 ms",
-                f"{figures['fleet_get_ms_p50']:g} / {figures['fleet_get_ms_p99']:g}",
-                f"{figures['fleet_get_kb']:g} kB gzipped; while fed at 1 Hz; no Server-Timing on this route"),
+            f"refreshes (fetch, decode, marker update)",
+        ),
+        at_most(
+            f"map: refreshes skipped or failed in {figures['window_s']:g} s",
+            figures["skipped_or_failed"],
+            live_map.TARGET_SKIPPED,
+            f"longest gap between refreshes {figures['refresh_gap_ms_max']:g} ms; "
+            f"{figures['vehicles_drawn']:,} vehicles drawn, {figures['feeder_ticks']} batches fed",
+        ),
+        context(
+            f"map: GET /v1/fleet of {vehicles} in the view, round trip p50 / p99 ms",
+            f"{figures['fleet_get_ms_p50']:g} / {figures['fleet_get_ms_p99']:g}",
+            f"{figures['fleet_get_kb']:g} kB gzipped; while fed at 1 Hz; no Server-Timing on this route",
+        ),
     ]
 
 
 def real_network_rows(figures: dict) -> list[Row]:
     size = f"{figures['lanes']:,} lanes, {figures['curves']:,} curves"
     return [
-        at_most(f"real network ({figures['lane_km']:g} lane-km): load s, fitted before", figures["cached_load_s"],
-                roadmap.REAL_LOAD_TARGET_S, f"{size}; {figures['fit_load_s']:g} s when every chain is fitted"),
+        at_most(
+            f"real network ({figures['lane_km']:g} lane-km): load s, fitted before",
+            figures["cached_load_s"],
+            roadmap.REAL_LOAD_TARGET_S,
+            f"{size}; {figures['fit_load_s']:g} s when every chain is fitted",
+        ),
         at_most("real network: first load s, every chain fitted", figures["fit_load_s"], roadmap.REAL_LOAD_TARGET_S),
-        at_most("real network: first look-ahead on a lane, max ms", figures["first_lookahead_ms_max"],
-                roadmap.FIRST_LOOKAHEAD_TARGET_MS,
-                f"p50 {figures['first_lookahead_ms_p50']:g} ms over {figures['first_lookaheads']} fresh lanes"),
+        at_most(
+            "real network: first look-ahead on a lane, max ms",
+            figures["first_lookahead_ms_max"],
+            roadmap.FIRST_LOOKAHEAD_TARGET_MS,
+            f"p50 {figures['first_lookahead_ms_p50']:g} ms over {figures['first_lookaheads']} fresh lanes",
+        ),
     ]
 
 
 def grid_rows(figures: dict) -> list[Row]:
     load_s = round(figures["parse_s"] + figures["build_s"], 2)
-    return [at_most(f"synthetic grid ({figures['lane_km']:g} lane-km): load s", load_s, osm.TARGETS["load_s"],
-                    f"{figures['lanes']:,} lanes")]
+    return [
+        at_most(
+            f"synthetic grid ({figures['lane_km']:g} lane-km): load s",
+            load_s,
+            osm.TARGETS["load_s"],
+            f"{figures['lanes']:,} lanes",
+        )
+    ]
 
 
 def osm_rows(figures: dict) -> list[Row]:
@@ -262,23 +400,35 @@ def load_rows(figures: dict) -> list[Row]:
     return [
         context("load: throughput, req/s", figures["throughput_rps"], duration),
         context("load: latency p50 / p99, ms", f"{figures['latency_ms_p50']:g} / {figures['latency_ms_p99']:g}"),
-        at_most("load: /healthz p99 while saturated, ms", figures["healthz_ms_p99"], load.MAX_HEALTHZ_P99_MS,
-                f"{figures['healthz_probes']} probes, one every {load.HEALTH_PERIOD_S:g} s"),
+        at_most(
+            "load: /healthz p99 while saturated, ms",
+            figures["healthz_ms_p99"],
+            load.MAX_HEALTHZ_P99_MS,
+            f"{figures['healthz_probes']} probes, one every {load.HEALTH_PERIOD_S:g} s",
+        ),
         at_most("load: errors", figures["errors"], load.MAX_ERRORS, figures["first_error"] or ""),
-        at_most("load: memory growth, MB", figures["rss_growth_mb"], load.MAX_RSS_GROWTH_MB,
-                f"{figures['rss_mb_start']:g} -> {figures['rss_mb_end']:g} MB; {figures['sessions_at_end']} of "
-                f"{figures['vehicles']} sessions left"),
+        at_most(
+            "load: memory growth, MB",
+            figures["rss_growth_mb"],
+            load.MAX_RSS_GROWTH_MB,
+            f"{figures['rss_mb_start']:g} -> {figures['rss_mb_end']:g} MB; {figures['sessions_at_end']} of "
+            f"{figures['vehicles']} sessions left",
+        ),
     ]
 
 
 def workers_rows(figures: dict) -> list[Row]:
     one, two = figures["queries_per_s_1_workers"], figures["queries_per_s_2_workers"]
     return [
-        at_least("load: single-query throughput 2 workers / 1 worker", figures["ratio"], load.MIN_WORKERS_RATIO,
-                 f"{two:.0f} vs {one:.0f} queries/s on {figures['service_cores_2_workers']:g} vs "
-                 f"{figures['service_cores_1_workers']:g} cores; {figures['connections']} lean connections on the "
-                 f"same machine ({figures['client_core_share']:g} of a core), load average "
-                 f"{figures['load_average_1min']:g}, {figures['seconds']:g} s"),
+        at_least(
+            "load: single-query throughput 2 workers / 1 worker",
+            figures["ratio"],
+            load.MIN_WORKERS_RATIO,
+            f"{two:.0f} vs {one:.0f} queries/s on {figures['service_cores_2_workers']:g} vs "
+            f"{figures['service_cores_1_workers']:g} cores; {figures['connections']} lean connections on the "
+            f"same machine ({figures['client_core_share']:g} of a core), load average "
+            f"{figures['load_average_1min']:g}, {figures['seconds']:g} s",
+        ),
         at_most("load: errors, 1 and 2 workers", figures["errors"], load.MAX_ERRORS, figures["first_error"] or ""),
     ]
 
@@ -298,21 +448,36 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
     """Every benchmark, in the order they run; ``quick`` shrinks the sizes that allow it."""
     load_seconds = load_seconds or (10.0 if quick else load.SECONDS)
     chosen = [
-        Benchmark("curvature", lambda: curvature.run(cases=60 if quick else curvature.CASES_PER_CATEGORY),
-                  "about 10-60 s", curvature_rows),
-        Benchmark("roads", lambda: roads.run(cases=10 if quick else roads.CASES_PER_FAMILY), "about 10-40 s", roads_rows),
+        Benchmark(
+            "curvature",
+            lambda: curvature.run(cases=60 if quick else curvature.CASES_PER_CATEGORY),
+            "about 10-60 s",
+            curvature_rows,
+        ),
+        Benchmark(
+            "roads", lambda: roads.run(cases=10 if quick else roads.CASES_PER_FAMILY), "about 10-40 s", roads_rows
+        ),
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("service", service.run, "about 1-2 minutes", service_rows),
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
-        Benchmark("workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation",
-                  workers_rows),
-        Benchmark("cosim", cosim.run, f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles six times, "
-                  f"{cosim.CITY_VEHICLES:,} three times", cosim_rows),
+        Benchmark(
+            "workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation", workers_rows
+        ),
+        Benchmark(
+            "cosim",
+            cosim.run,
+            f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles six times, {cosim.CITY_VEHICLES:,} three times",
+            cosim_rows,
+        ),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
         Benchmark("map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", map_rows),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
-        Benchmark("grid", lambda: roadmap.run(junctions_per_side=8 if quick else 18),
-                  "a few seconds" if quick else "long: about 30-90 s", grid_rows),
+        Benchmark(
+            "grid",
+            lambda: roadmap.run(junctions_per_side=8 if quick else 18),
+            "a few seconds" if quick else "long: about 30-90 s",
+            grid_rows,
+        ),
     ]
     if osm_file is not None:
         chosen.append(Benchmark("osm", lambda: osm.run(osm_file), "long: about 1-3 minutes", osm_rows))
@@ -347,8 +512,10 @@ def table(rows: list[Row]) -> str:
     header = ("figure", "value", "target", "", "baseline (same run)")
     cells = [header] + [(r.figure, _text(r.value), r.target, r.verdict, r.baseline) for r in rows]
     widths = [max(len(c[i]) for c in cells) for i in range(4)]
-    lines = [f"{c[0]:<{widths[0]}}  {c[1]:>{widths[1]}}  {c[2]:<{widths[2]}}  {c[3]:<{widths[3]}}  {c[4]}".rstrip()
-             for c in cells]
+    lines = [
+        f"{c[0]:<{widths[0]}}  {c[1]:>{widths[1]}}  {c[2]:<{widths[2]}}  {c[3]:<{widths[3]}}  {c[4]}".rstrip()
+        for c in cells
+    ]
     lines.insert(1, "-" * max(map(len, lines)))
     return "\n".join(lines)
 
@@ -357,25 +524,44 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes and a 10 s load test")
     parser.add_argument("--json", type=Path, default=None, metavar="PATH", help="also write the results as JSON")
-    parser.add_argument("--osm", type=Path, default=None, metavar="FILE",
-                        help="an OpenStreetMap extract: also time its import (skipped without it)")
+    parser.add_argument(
+        "--osm",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="an OpenStreetMap extract: also time its import (skipped without it)",
+    )
     parser.add_argument("--load-seconds", type=float, default=None, help="length of the load test, s")
     args = parser.parse_args(argv)
     if args.osm is not None and not args.osm.is_file():
         parser.error(f"no OSM file at {args.osm}")
-    started = datetime.now(timezone.utc)
+    started = datetime.now(UTC)
     rows, raw = run_all(benchmarks(args.quick, args.osm, args.load_seconds))
     if args.osm is None:
-        rows.append(Row("OSM: import_s", "skipped", f"<= {osm.TARGETS['import_s']:g}", None,
-                        "no OpenStreetMap extract given (--osm FILE)"))
+        rows.append(
+            Row(
+                "OSM: import_s",
+                "skipped",
+                f"<= {osm.TARGETS['import_s']:g}",
+                None,
+                "no OpenStreetMap extract given (--osm FILE)",
+            )
+        )
     print(table(rows))
     judged = [r for r in rows if r.passed is not None]
-    print(f"{sum(r.passed for r in judged)} of {len(judged)} judged figures meet their targets"
-          f"{' (quick sizes)' if args.quick else ''}")
+    print(
+        f"{sum(r.passed for r in judged)} of {len(judged)} judged figures meet their targets"
+        f"{' (quick sizes)' if args.quick else ''}"
+    )
     if args.json is not None:
-        document = {"started": started.isoformat(timespec="seconds"), "quick": args.quick,
-                    "python": platform.python_version(), "machine": platform.machine(),
-                    "rows": [asdict(r) | {"verdict": r.verdict} for r in rows], "results": raw}
+        document = {
+            "started": started.isoformat(timespec="seconds"),
+            "quick": args.quick,
+            "python": platform.python_version(),
+            "machine": platform.machine(),
+            "rows": [asdict(r) | {"verdict": r.verdict} for r in rows],
+            "results": raw,
+        }
         args.json.write_text(json.dumps(_plain(document), indent=1, allow_nan=False) + "\n", encoding="utf-8")
         print(f"wrote {args.json}")
     return 0

@@ -20,8 +20,8 @@ target still proves it out of reach.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -107,6 +107,7 @@ def curve_starts_s(pieces: Sequence[Piece], warning_radius_m: float) -> np.ndarr
 def _road_of(pieces: Sequence[Piece], curvature_of: list[int]):
     """The road of the parameters ``[offset, heading, free numbers]`` as a function, and the
     nodes' points on it at arc lengths ``node_s`` as another."""
+
     def road(values: np.ndarray) -> list[Piece]:
         return _pieces(pieces, curvature_of, values[2:])
 
@@ -162,8 +163,9 @@ def start_bounds_m(information: RoadInformation, warning_radius_m: float) -> np.
     for column in range(len(truth)):
         step = np.zeros(len(truth))
         step[column] = DIFFERENCE_STEP * max(abs(truth[column]), 1e-3)
-        gradient[:, column] = (curve_starts_s(road(truth + step), warning_radius_m)
-                               - curve_starts_s(road(truth - step), warning_radius_m)) / (2.0 * step[column])  # fmt: skip
+        gradient[:, column] = (
+            curve_starts_s(road(truth + step), warning_radius_m) - curve_starts_s(road(truth - step), warning_radius_m)
+        ) / (2.0 * step[column])
     return np.sqrt(np.einsum("ij,jk,ik->i", gradient, information.covariance, gradient))
 
 
@@ -176,8 +178,11 @@ def radius_bounds(information: RoadInformation, curve_spans_s: Sequence[tuple[fl
     starts = piece_starts_s(pieces)
     bounds = []
     for start_s, end_s in curve_spans_s:
-        inside = [i for i, piece in enumerate(pieces)
-                  if curvature_of[i] >= 0 and starts[i] < end_s and starts[i + 1] > start_s]  # fmt: skip
+        inside = [
+            i
+            for i, piece in enumerate(pieces)
+            if curvature_of[i] >= 0 and starts[i] < end_s and starts[i + 1] > start_s
+        ]
         if not inside:
             bounds.append(math.nan)
             continue
@@ -186,7 +191,9 @@ def radius_bounds(information: RoadInformation, curve_spans_s: Sequence[tuple[fl
     return np.array(bounds)
 
 
-def ml_start_errors_m(pieces: Sequence[Piece], nodes_xy: np.ndarray, node_s: np.ndarray, warning_radius_m: float) -> np.ndarray:
+def ml_start_errors_m(
+    pieces: Sequence[Piece], nodes_xy: np.ndarray, node_s: np.ndarray, warning_radius_m: float
+) -> np.ndarray:
     """The start error of each curve of the maximum-likelihood road told the true form, m.
 
     The reference method: the road's form (which pieces, straights, arcs and clothoids, in
@@ -230,7 +237,10 @@ def ml_start_errors_m(pieces: Sequence[Piece], nodes_xy: np.ndarray, node_s: np.
             damping *= 10.0
             if damping > 1e6:
                 break
-    true_starts, fitted_starts = curve_starts_s(pieces, warning_radius_m), curve_starts_s(road(values), warning_radius_m)
+    true_starts, fitted_starts = (
+        curve_starts_s(pieces, warning_radius_m),
+        curve_starts_s(road(values), warning_radius_m),
+    )
     if len(fitted_starts) != len(true_starts):
         return np.full(len(true_starts), math.inf)
     return np.abs(fitted_starts - true_starts)

@@ -39,11 +39,11 @@ from pathlib import Path
 
 import numpy as np
 
-from csws.sumo.binaries import sumo_binary, sumo_home
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sumo import sumo_arguments
 from csws.networks import networks_dir
 from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
+from csws.sumo.binaries import sumo_binary, sumo_home
 
 VEHICLES = 1000
 STEP_S = 0.1
@@ -95,9 +95,11 @@ def _city_routes_xml(net: Path, count: int, seed: int = 0, edges_per_route: int 
                 break
             edge = onward[int(rng.integers(len(onward)))]
             walk.append(edge.getID())
-        lines.append(f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="0" '
-                     f'departPos="random_free" departLane="best" departSpeed="max"><route edges="{" ".join(walk)}"/>'
-                     "</vehicle>")  # fmt: skip
+        lines.append(
+            f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="0" '
+            f'departPos="random_free" departLane="best" departSpeed="max"><route edges="{" ".join(walk)}"/>'
+            "</vehicle>"
+        )
     return "\n".join(lines + ["</routes>"]) + "\n"
 
 
@@ -130,8 +132,12 @@ def _csws_run(config: CosimConfig) -> dict:
 
     started = time.perf_counter()
     summary = cosimulate(config)
-    return {"seconds": time.perf_counter() - started, "steps": summary["steps"], "summary": summary,
-            "peak_rss_mb": _peak_rss_mb()}  # fmt: skip
+    return {
+        "seconds": time.perf_counter() - started,
+        "steps": summary["steps"],
+        "summary": summary,
+        "peak_rss_mb": _peak_rss_mb(),
+    }
 
 
 def _in_own_process(function, *arguments) -> dict:
@@ -205,8 +211,11 @@ def _print(figures: dict) -> None:
     print(f"{figures['vehicles']} vehicles, {figures['steps']} steps of {STEP_S:g} s")
     for name, value in figures["ms_per_step"].items():
         ratio = figures["ratio_to_bare"].get(name)
-        print(f"{name:<20}{value:>8.2f} ms/step" + (f"  {ratio:.2f} x bare SUMO" if ratio else "")
-              + f"  peak {figures['peak_rss_mb'][name]} MB")  # fmt: skip
+        print(
+            f"{name:<20}{value:>8.2f} ms/step"
+            + (f"  {ratio:.2f} x bare SUMO" if ratio else "")
+            + f"  peak {figures['peak_rss_mb'][name]} MB"
+        )
     print("default run by component, ms/step:", figures["default_components_ms_per_step"])
 
 
@@ -215,8 +224,10 @@ def main() -> None:
     figures = run()
     _print(figures)
     print(f"evaluation overhead {figures['overhead']:.0%} (target <= {TARGET_OVERHEAD:.0%})")
-    print(f"both systems' overhead {figures['both_systems_overhead']:.0%} (target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
-          f"FCW over the default run {figures['fcw_over_default']:.0%}")
+    print(
+        f"both systems' overhead {figures['both_systems_overhead']:.0%} (target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
+        f"FCW over the default run {figures['fcw_over_default']:.0%}"
+    )
     print("city:")
     _print(figures["city"])
 

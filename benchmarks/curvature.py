@@ -42,8 +42,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -129,13 +129,17 @@ def _node_arc_lengths(pieces: list[Piece], rng: np.random.Generator, mapped: boo
         gap = float(rng.uniform(*SPARSE_SPACING_M))
         for arc_start, arc_end, piece in arcs if mapped else ():
             if s[-1] < arc_end and s[-1] + gap > arc_start:
-                longest_m = min(SPARSE_SPACING_M[1], MAPPED_ARC_FRACTION * piece.length_m, MAPPED_RADIUS_FRACTION * piece.radius_m)
+                longest_m = min(
+                    SPARSE_SPACING_M[1], MAPPED_ARC_FRACTION * piece.length_m, MAPPED_RADIUS_FRACTION * piece.radius_m
+                )
                 gap *= longest_m / SPARSE_SPACING_M[1]
         s.append(s[-1] + gap)
     return np.append(np.array(s[:-1]), starts[-1])
 
 
-def sparse_way(pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None, mapped: bool = False) -> np.ndarray:
+def sparse_way(
+    pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None, mapped: bool = False
+) -> np.ndarray:
     """A map-like way: nodes at irregular arc lengths 5-30 m apart (closer on arcs when
     ``mapped``, see :func:`_node_arc_lengths`), 0.5 m RMS noise, starting at ``pose``."""
     start_xy, heading = pose or _random_pose(rng)
@@ -163,7 +167,9 @@ def arc_road(rng: np.random.Generator, shape: Callable[..., np.ndarray]) -> Road
     return Road(shape(pieces, rng, pose), before_m, before_m + pieces[1].length_m, radius_m, pieces[1].curvature, *pose)
 
 
-def straight_road(rng: np.random.Generator, shape: Callable[[list[Piece], np.random.Generator], np.ndarray]) -> np.ndarray:
+def straight_road(
+    rng: np.random.Generator, shape: Callable[[list[Piece], np.random.Generator], np.ndarray]
+) -> np.ndarray:
     """A straight of 200-1,000 m."""
     return shape([straight(float(rng.uniform(200, 1000)))], rng)
 
@@ -184,8 +190,12 @@ def bound_figures(roads: list[Road], limit_m: float) -> dict:
     ``limit_m`` off, and the chance it misses none by that much."""
     sigma = np.array([start_bound_m(road) for road in roads])
     beyond = np.array([math.erfc(limit_m / (value * math.sqrt(2.0))) for value in sigma])
-    return {"median_start_bound_m": float(np.median(sigma)), "p90_start_bound_m": float(np.percentile(sigma, 90)),
-            "expected_beyond_limit": float(beyond.sum()), "chance_none_beyond_limit": float(np.prod(1.0 - beyond))}
+    return {
+        "median_start_bound_m": float(np.median(sigma)),
+        "p90_start_bound_m": float(np.percentile(sigma, 90)),
+        "expected_beyond_limit": float(beyond.sum()),
+        "chance_none_beyond_limit": float(np.prod(1.0 - beyond)),
+    }
 
 
 def _road_distances(parameters: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -222,7 +232,9 @@ def _fitted_roads(starts: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.nd
         for column, step in enumerate(ORACLE_DIFFERENCE_STEPS):
             moved = np.zeros(5)
             moved[column] = step
-            jacobian[..., column] = (_road_distances(parameters + moved, uv) - _road_distances(parameters - moved, uv)) / (2.0 * step)
+            jacobian[..., column] = (
+                _road_distances(parameters + moved, uv) - _road_distances(parameters - moved, uv)
+            ) / (2.0 * step)
         normal = np.swapaxes(jacobian, 1, 2) @ jacobian
         diagonal = np.einsum("kmm->km", normal)
         normal += np.eye(5) * (damping[:, None] * diagonal + 1e-12)[:, None, :]
@@ -231,7 +243,11 @@ def _fitted_roads(starts: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.nd
         trial_distances = _road_distances(trial, uv)
         trial_squares = np.einsum("kn,kn->k", trial_distances, trial_distances)
         better = trial_squares < squares
-        parameters[better], distances[better], squares[better] = trial[better], trial_distances[better], trial_squares[better]
+        parameters[better], distances[better], squares[better] = (
+            trial[better],
+            trial_distances[better],
+            trial_squares[better],
+        )
         damping = np.where(better, np.fmax(damping / 10.0, 1e-9), damping * 10.0)
     return parameters, squares
 
@@ -253,8 +269,13 @@ def reference_start_error_m(road: Road) -> float:
     origin = road.origin_xy[0] + 1j * road.origin_xy[1]
     local = (road.xy[:, 0] + 1j * road.xy[:, 1] - origin) * np.exp(-1j * road.heading)
     length_m = road.arc_end_s - road.arc_start_s
-    starts = np.array([(road.arc_start_s + shift, 0.0, 0.0, road.curvature / factor, length_m * factor)
-                       for shift in ORACLE_START_SHIFTS_M for factor in ORACLE_LENGTH_FACTORS])
+    starts = np.array(
+        [
+            (road.arc_start_s + shift, 0.0, 0.0, road.curvature / factor, length_m * factor)
+            for shift in ORACLE_START_SHIFTS_M
+            for factor in ORACLE_LENGTH_FACTORS
+        ]
+    )
     parameters, squares = _fitted_roads(starts, np.column_stack((local.real, local.imag)))
     best = parameters[int(np.argmin(squares))]
     start_point = origin + (best[0] + 1j * best[1]) * np.exp(1j * road.heading)
@@ -264,8 +285,12 @@ def reference_start_error_m(road: Road) -> float:
 def reference_figures(roads: list[Road], limit_m: float) -> dict:
     """The start-error figures of :func:`reference_start_error_m` on ``roads``."""
     errors = np.array([reference_start_error_m(road) for road in roads])
-    return {"median_start_error_m": float(np.median(errors)), "p90_start_error_m": float(np.percentile(errors, 90)),
-            "max_start_error_m": float(errors.max()), "arcs_started_over_5_m": int(np.sum(errors > limit_m))}
+    return {
+        "median_start_error_m": float(np.median(errors)),
+        "p90_start_error_m": float(np.percentile(errors, 90)),
+        "max_start_error_m": float(errors.max()),
+        "arcs_started_over_5_m": int(np.sum(errors > limit_m)),
+    }
 
 
 # --------------------------------------------------------------------------- the two methods
@@ -289,7 +314,7 @@ def three_point(xy: np.ndarray, warning_radius_m: float) -> list[FoundCurve]:
     label = np.where(radius <= warning_radius_m, turn, 0.0)
     curves = []
     change = np.flatnonzero(np.diff(np.concatenate(([0.0], label, [0.0]))) != 0)
-    for first, stop in zip(change[:-1], change[1:]):
+    for first, stop in zip(change[:-1], change[1:], strict=True):
         if label[first] != 0:
             curves.append((float(s[first]), float(s[stop - 1]), float(np.median(radius[first:stop]))))
     return curves
@@ -338,8 +363,12 @@ def multi_curve_step_errors(rng: np.random.Generator, count: int) -> dict:
         multi += len(curves) == 1 and len(parts) == 2
         starts = [p.start_s for p in parts if abs(p.radius_m - 40.0) < 4.0]
         errors.append(abs(starts[0] - step_s) if starts else np.inf)
-    return {"max_step_error_m": float(np.max(errors)), "median_step_error_m": float(np.median(errors)),
-            "found_as_one_multi_curve": multi, "cases": count}
+    return {
+        "max_step_error_m": float(np.max(errors)),
+        "median_step_error_m": float(np.median(errors)),
+        "found_as_one_multi_curve": multi,
+        "cases": count,
+    }
 
 
 def _network_lane(rng: np.random.Generator) -> np.ndarray:
@@ -349,8 +378,11 @@ def _network_lane(rng: np.random.Generator) -> np.ndarray:
         return dense_shape([straight(float(rng.uniform(20, 300)))], rng)[[0, -1]]
     if kind < 0.8:
         return dense_shape([arc(float(rng.uniform(8, 30)), float(rng.uniform(30, 90)), "right")], rng)
-    pieces = [straight(float(rng.uniform(10, 100))), arc(float(rng.uniform(50, 500)), float(rng.uniform(10, 60))),
-              straight(float(rng.uniform(10, 100)))]
+    pieces = [
+        straight(float(rng.uniform(10, 100))),
+        arc(float(rng.uniform(50, 500)), float(rng.uniform(10, 60))),
+        straight(float(rng.uniform(10, 100))),
+    ]
     return dense_shape(pieces, rng)
 
 
@@ -386,7 +418,9 @@ def run(cases: int = CASES_PER_CATEGORY, seed: int = SEED) -> dict:
     for kind, shape in (("dense", dense_shape), ("sparse", sparse_way), ("mapped", mapped_way)):
         roads = [arc_road(rng, shape) for _ in range(cases)]
         straights = [straight_road(rng, shape) for _ in range(cases // 3)]
-        figures[kind] = {name: accuracy(roads, straights, method) for name, method in (("ours", ours), ("three_point", three_point))}
+        figures[kind] = {
+            name: accuracy(roads, straights, method) for name, method in (("ours", ours), ("three_point", three_point))
+        }
         if kind != "dense":
             figures[kind]["bound"] = bound_figures(roads, SPARSE_START_LIMIT_M)
             figures[kind]["reference"] = reference_figures(roads, SPARSE_START_LIMIT_M)
@@ -409,9 +443,16 @@ def report(figures: dict) -> str:
         f"{'case':7} {'figure':27} {'ours':>10} {'3-point':>10} {'target':>8}  ours  3-point",
     ]
     for column, kind in ((0, "dense"), (1, "sparse"), (1, "mapped")):
-        for name in ("median_radius_error_pct", "p90_radius_error_pct", "median_start_error_m", "p90_start_error_m",
-                     "max_start_error_m", "arcs_started_over_5_m", "missed_arcs",
-                     "false_curves_on_straights"):
+        for name in (
+            "median_radius_error_pct",
+            "p90_radius_error_pct",
+            "median_start_error_m",
+            "p90_start_error_m",
+            "max_start_error_m",
+            "arcs_started_over_5_m",
+            "missed_arcs",
+            "false_curves_on_straights",
+        ):
             ours_value, baseline = figures[kind]["ours"][name], figures[kind]["three_point"][name]
             if name in TARGETS:
                 limit = TARGETS[name][column]
@@ -431,8 +472,14 @@ def report(figures: dict) -> str:
         reference, ours_figures = figures[kind]["reference"], figures[kind]["ours"]
         lines.append(
             f"{kind:7} start error of the maximum-likelihood road told its form (straight-arc-straight), ours beside it: "
-            + ", ".join(f"{label} {reference[key]:.2f} m ({ours_figures[key]:.2f})" for label, key in
-                        (("median", "median_start_error_m"), ("p90", "p90_start_error_m"), ("max", "max_start_error_m")))
+            + ", ".join(
+                f"{label} {reference[key]:.2f} m ({ours_figures[key]:.2f})"
+                for label, key in (
+                    ("median", "median_start_error_m"),
+                    ("p90", "p90_start_error_m"),
+                    ("max", "max_start_error_m"),
+                )
+            )
             + f"; arcs started > {SPARSE_START_LIMIT_M:g} m off {reference['arcs_started_over_5_m']} "
             f"({ours_figures['arcs_started_over_5_m']})"
         )

@@ -130,7 +130,9 @@ async def _drive(url: str, pid: int, seconds: float, clients: int) -> tuple[Tall
     health_s: list[float] = []
     started = time.monotonic()
     deadline = started + seconds
-    runs = asyncio.gather(_health(url, deadline, health_s), *(_client(url, n, fixes, deadline, tally) for n in range(clients)))
+    runs = asyncio.gather(
+        _health(url, deadline, health_s), *(_client(url, n, fixes, deadline, tally) for n in range(clients))
+    )
     await asyncio.sleep(min(WARM_UP_FRACTION * seconds, MAX_WARM_UP_S))
     warm_rss_mb = rss_mb(pid)
     await asyncio.wait_for(runs, timeout=seconds + 2 * REQUEST_TIMEOUT_S)
@@ -139,8 +141,10 @@ async def _drive(url: str, pid: int, seconds: float, clients: int) -> tuple[Tall
 
 def _post_request(path: str, body: bytes) -> bytes:
     """A keep-alive HTTP/1.1 POST of a JSON body, as bytes."""
-    return (f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-            f"Content-Length: {len(body)}\r\n\r\n").encode() + body  # fmt: skip
+    return (
+        f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+        f"Content-Length: {len(body)}\r\n\r\n"
+    ).encode() + body
 
 
 async def _post_back_to_back(port: int, requests: list[bytes], deadline: float, tally: Tally) -> None:
@@ -169,6 +173,7 @@ async def _saturate(url: str, seconds: float) -> Tally:
     port = int(url.rsplit(":", 1)[1])
     tally = Tally()
     deadline = time.monotonic() + seconds
+
     def requests(connection: int) -> list[bytes]:
         bodies = [json.dumps({**fix, "vehicle_id": f"c{connection}-{fix['vehicle_id']}"}).encode() for fix in fixes]
         return [_post_request("/v1/warning", body) for body in bodies]
@@ -190,8 +195,9 @@ def run_workers(seconds: float = SECONDS) -> dict:
     with tempfile.TemporaryDirectory(prefix="csws-bench-workers-") as folder:
         for _ in range(WORKER_ROUNDS):
             for workers in WORKER_COUNTS:
-                served = csws_serve(Path(folder) / "vehicles.sqlite3", "--net", str(TRACK_NET),
-                                    "--workers", str(workers))  # fmt: skip
+                served = csws_serve(
+                    Path(folder) / "vehicles.sqlite3", "--net", str(TRACK_NET), "--workers", str(workers)
+                )
                 try:
                     processes = [served.process.pid, *children(served.process.pid)]
                     cpu_before, service_before = time.process_time(), cpu_s(processes)
@@ -205,23 +211,32 @@ def run_workers(seconds: float = SECONDS) -> dict:
                 first_error = first_error or tally.first_error
     rps = {workers: count / (round_s * WORKER_ROUNDS) for workers, count in answered.items()}
     first, last = WORKER_COUNTS[0], WORKER_COUNTS[-1]
-    return {"seconds": round(seconds, 1), "connections": WORKERS_CONNECTIONS, "errors": errors,
-            "first_error": first_error,
-            **{f"queries_per_s_{workers}_workers": round(value, 1) for workers, value in rps.items()},
-            **{f"service_cores_{workers}_workers": round(used_s / (round_s * WORKER_ROUNDS), 2)
-               for workers, used_s in service_cpu_s.items()},
-            "ratio": round(rps[last] / rps[first], 2), "client_core_share": round(client_cpu_s / seconds, 2),
-            "load_average_1min": round(load_average, 2)}
+    return {
+        "seconds": round(seconds, 1),
+        "connections": WORKERS_CONNECTIONS,
+        "errors": errors,
+        "first_error": first_error,
+        **{f"queries_per_s_{workers}_workers": round(value, 1) for workers, value in rps.items()},
+        **{
+            f"service_cores_{workers}_workers": round(used_s / (round_s * WORKER_ROUNDS), 2)
+            for workers, used_s in service_cpu_s.items()
+        },
+        "ratio": round(rps[last] / rps[first], 2),
+        "client_core_share": round(client_cpu_s / seconds, 2),
+        "load_average_1min": round(load_average, 2),
+    }
 
 
 def run(seconds: float = SECONDS, clients: int = CLIENTS, session_idle_s: float = SESSION_IDLE_S) -> dict:
     """Start the service, hold it at saturation for ``seconds``, stop it; return the figures."""
-    served = start(SERVICE, {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:",
-                             "CSWS_SESSION_IDLE_S": str(session_idle_s)})  # fmt: skip
+    served = start(
+        SERVICE, {"CSWS_NETS": str(TRACK_NET), "CSWS_STATE_DB": ":memory:", "CSWS_SESSION_IDLE_S": str(session_idle_s)}
+    )
     try:
         start_rss_mb = rss_mb(served.process.pid)
         tally, measured_s, warm_rss_mb, end_rss_mb, health_s = asyncio.run(
-            _drive(served.url, served.process.pid, seconds, clients))
+            _drive(served.url, served.process.pid, seconds, clients)
+        )
         sessions = httpx.get(f"{served.url}/readyz").json()["vehicle_sessions"]
     finally:
         served.stop()
@@ -250,17 +265,29 @@ def run(seconds: float = SECONDS, clients: int = CLIENTS, session_idle_s: float 
 def main() -> None:
     """Print each figure beside its target."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.load", description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=SECONDS, help=f"how long to load the service (default {SECONDS:g})")
+    parser.add_argument(
+        "--seconds", type=float, default=SECONDS, help=f"how long to load the service (default {SECONDS:g})"
+    )
     parser.add_argument("--clients", type=int, default=CLIENTS, help=f"concurrent clients (default {CLIENTS})")
-    parser.add_argument("--session-idle-s", type=float, default=SESSION_IDLE_S,
-                        help=f"the service's session idle time, s (default {SESSION_IDLE_S:g})")
-    parser.add_argument("--workers", action="store_true",
-                        help=f"compare the single-query throughput of csws serve with 1 and with 2 workers instead "
-                        f"({WORKERS_CONNECTIONS} lean keep-alive connections)")
+    parser.add_argument(
+        "--session-idle-s",
+        type=float,
+        default=SESSION_IDLE_S,
+        help=f"the service's session idle time, s (default {SESSION_IDLE_S:g})",
+    )
+    parser.add_argument(
+        "--workers",
+        action="store_true",
+        help=f"compare the single-query throughput of csws serve with 1 and with 2 workers instead "
+        f"({WORKERS_CONNECTIONS} lean keep-alive connections)",
+    )
     args = parser.parse_args()
     figures = run_workers(args.seconds) if args.workers else run(args.seconds, args.clients, args.session_idle_s)
-    targets = {"errors": f"<= {MAX_ERRORS}", "rss_growth_mb": f"<= {MAX_RSS_GROWTH_MB:g}",
-               "ratio": f">= {MIN_WORKERS_RATIO:g}"}
+    targets = {
+        "errors": f"<= {MAX_ERRORS}",
+        "rss_growth_mb": f"<= {MAX_RSS_GROWTH_MB:g}",
+        "ratio": f">= {MIN_WORKERS_RATIO:g}",
+    }
     for name, value in figures.items():
         target = targets.get(name, "")
         print(f"{name:>26}: {value!s:<12} {('target ' + target) if target else ''}")

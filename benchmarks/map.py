@@ -47,8 +47,16 @@ from .servers import Running, csws_serve
 from .service import lane_queries
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 REAL_NET = networks_dir() / "badhersfeld.net.xml.gz"
 NETWORK = "badhersfeld"
 VEHICLES = 1000
@@ -90,8 +98,10 @@ class Feeder(threading.Thread):
     def tick(self, client: httpx.Client) -> None:
         """One batch: every vehicle where it is ``ticks`` seconds after the start."""
         lane_pos_m = (self.start_m + self.speeds_ms * self.ticks) % self.lane_lengths_m
-        queries = [{**query, "lane_pos_m": float(pos_m), "timestamp_s": 1000.0 + self.ticks}
-                   for query, pos_m in zip(self.queries, lane_pos_m)]  # fmt: skip
+        queries = [
+            {**query, "lane_pos_m": float(pos_m), "timestamp_s": 1000.0 + self.ticks}
+            for query, pos_m in zip(self.queries, lane_pos_m, strict=True)
+        ]
         client.post("/v1/warnings", json={"queries": queries}).raise_for_status()
         self.ticks += 1
 
@@ -119,8 +129,11 @@ def _initial_data(page, first_draw_ms: float) -> dict:
         path = entry["name"].split("://", 1)[-1].split("/", 1)[-1].split("?")[0]
         kind = path if path.startswith("v1/") else "page and Leaflet"
         by_kind[kind] = by_kind.get(kind, 0) + entry["bytes"]
-    return {"initial_mb": round(sum(by_kind.values()) / 1e6, 3), "initial_requests": len(ended),
-            "initial_kb_by_kind": {kind: round(size / 1e3, 1) for kind, size in by_kind.items()}}
+    return {
+        "initial_mb": round(sum(by_kind.values()) / 1e6, 3),
+        "initial_requests": len(ended),
+        "initial_kb_by_kind": {kind: round(size / 1e3, 1) for kind, size in by_kind.items()},
+    }
 
 
 def _refreshes(times: dict, first_draw_ms: float) -> dict:
@@ -128,12 +141,17 @@ def _refreshes(times: dict, first_draw_ms: float) -> dict:
     window = [r for r in times["refreshes"] if r["started_ms"] > first_draw_ms]
     took_ms = np.array([r["took_ms"] for r in window])
     gaps_ms = np.diff([r["started_ms"] for r in window])
-    return {"refreshes": len(window), "refresh_ms_p50": round(float(np.median(took_ms)), 1),
-            "refresh_ms_p99": round(float(np.percentile(took_ms, 99)), 1),
-            "refresh_ms_max": round(float(took_ms.max()), 1),
-            "refresh_gap_ms_max": round(float(gaps_ms.max()), 1), "ticks_skipped": times["skipped"],
-            "refreshes_failed": times["failed"], "skipped_or_failed": times["skipped"] + times["failed"],
-            "vehicles_drawn": min(r["vehicles"] for r in window)}  # fmt: skip
+    return {
+        "refreshes": len(window),
+        "refresh_ms_p50": round(float(np.median(took_ms)), 1),
+        "refresh_ms_p99": round(float(np.percentile(took_ms, 99)), 1),
+        "refresh_ms_max": round(float(took_ms.max()), 1),
+        "refresh_gap_ms_max": round(float(gaps_ms.max()), 1),
+        "ticks_skipped": times["skipped"],
+        "refreshes_failed": times["failed"],
+        "skipped_or_failed": times["skipped"] + times["failed"],
+        "vehicles_drawn": min(r["vehicles"] for r in window),
+    }
 
 
 def browse(served: Running) -> dict:
@@ -146,8 +164,7 @@ def browse(served: Running) -> dict:
         try:
             page = browser.new_page(viewport={"width": 1200, "height": 800})
             page.goto(f"{served.url}/map?network={NETWORK}")
-            page.wait_for_function(f"cswsMap.fleetTimes.refreshes.some(r => r.vehicles >= {VEHICLES})",
-                                   timeout=WAIT_MS)  # fmt: skip
+            page.wait_for_function(f"cswsMap.fleetTimes.refreshes.some(r => r.vehicles >= {VEHICLES})", timeout=WAIT_MS)
             first = page.evaluate(f"cswsMap.fleetTimes.refreshes.find(r => r.vehicles >= {VEHICLES})")
             first_draw_ms = first["started_ms"] + first["took_ms"]
             figures = _initial_data(page, first_draw_ms) | {"first_draw_s": round(first_draw_ms / 1000.0, 2)}
@@ -171,10 +188,12 @@ def fleet_round_trips(served: Running, bbox: str) -> dict:
             took_ms.append((time.perf_counter() - started) * 1000.0)
             sizes.append(response.num_bytes_downloaded)
             time.sleep(0.2)
-    return {"fleet_get_ms_p50": round(float(np.median(took_ms)), 1),
-            "fleet_get_ms_p99": round(float(np.percentile(took_ms, 99)), 1),
-            "fleet_get_vehicles": len(response.json()["features"]),
-            "fleet_get_kb": round(float(np.median(sizes)) / 1e3, 1)}  # fmt: skip
+    return {
+        "fleet_get_ms_p50": round(float(np.median(took_ms)), 1),
+        "fleet_get_ms_p99": round(float(np.percentile(took_ms, 99)), 1),
+        "fleet_get_vehicles": len(response.json()["features"]),
+        "fleet_get_kb": round(float(np.median(sizes)) / 1e3, 1),
+    }
 
 
 def run() -> dict:

@@ -67,9 +67,10 @@ def _way_nodes_lonlat(osm_path: Path, way_ids: set[int]) -> dict[int, np.ndarray
 def mapped_curve_table(road_map: RoadMap, osm_path: Path, count: int = 12) -> list[dict]:
     """The ``count`` tightest curves on primary roads, with the circle through the mapped way's nodes."""
     primary = [
-        c for c in road_map.curves()
+        c
+        for c in road_map.curves()
         if road_map.lane(c.lane_id).road_type == "highway.primary" and c.curve.angle_deg >= 20.0
-    ]  # fmt: skip
+    ]
     tightest: list[LaneCurve] = []
     for lane_curve in sorted(primary, key=lambda c: c.curve.min_radius_m):
         edge_id = road_map.lane(lane_curve.lane_id).edge_id
@@ -85,26 +86,33 @@ def mapped_curve_table(road_map: RoadMap, osm_path: Path, count: int = 12) -> li
         nodes_xy = road_map.lonlat_to_xy_many(ways[_way_id(lane.edge_id)])
         along_m = shapely.line_locate_point(shapely.linestrings(shape), shapely.points(nodes_xy))
         inside = nodes_xy[(along_m >= lane_curve.curve.start_s) & (along_m <= lane_curve.curve.end_s)]
-        start_xy = shape[np.searchsorted(np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T)))),
-                                         lane_curve.curve.start_s).clip(0, len(shape) - 1)]
+        start_xy = shape[
+            np.searchsorted(
+                np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T)))), lane_curve.curve.start_s
+            ).clip(0, len(shape) - 1)
+        ]
         lon, lat = road_map.xy_to_lonlat(*start_xy)
-        rows.append({
-            "street": lane.street_name or "(unnamed)",
-            "lane": lane.lane_id,
-            "lon": round(lon, 5),
-            "lat": round(lat, 5),
-            "angle_deg": round(lane_curve.curve.angle_deg, 1),
-            "radius_m": round(lane_curve.curve.min_radius_m, 1),
-            "mapped_nodes": len(inside),
-            "mapped_radius_m": round(_circle_radius_m(inside), 1),
-        })  # fmt: skip
+        rows.append(
+            {
+                "street": lane.street_name or "(unnamed)",
+                "lane": lane.lane_id,
+                "lon": round(lon, 5),
+                "lat": round(lat, 5),
+                "angle_deg": round(lane_curve.curve.angle_deg, 1),
+                "radius_m": round(lane_curve.curve.min_radius_m, 1),
+                "mapped_nodes": len(inside),
+                "mapped_radius_m": round(_circle_radius_m(inside), 1),
+            }
+        )
     return rows
 
 
 def _fixes_on_routes(road_map: RoadMap, count: int) -> list[dict]:
     """Warning queries at lon/lat on the rightmost lanes of primary roads, heading along the lane."""
     rng = np.random.default_rng(5)
-    lanes = [i for i in road_map.lane_ids if road_map.lane(i).road_type == "highway.primary" and road_map.lane(i).index == 0]
+    lanes = [
+        i for i in road_map.lane_ids if road_map.lane(i).road_type == "highway.primary" and road_map.lane(i).index == 0
+    ]
     queries = []
     for number, lane_id in enumerate(rng.choice(lanes, count)):
         shape = road_map.lane_shape(lane_id)
@@ -112,10 +120,15 @@ def _fixes_on_routes(road_map: RoadMap, count: int) -> list[dict]:
         (x0, y0), (x1, y1) = shape[segment], shape[segment + 1]
         lon, lat = road_map.xy_to_lonlat((x0 + x1) / 2, (y0 + y1) / 2)
         heading_deg = (90.0 - np.degrees(np.arctan2(y1 - y0, x1 - x0))) % 360.0
-        queries.append({
-            "vehicle_id": f"truck-{number}", "category": "N", "speed_kmh": 70.0,
-            "position": {"lon": lon, "lat": lat}, "heading_deg": float(heading_deg),
-        })  # fmt: skip
+        queries.append(
+            {
+                "vehicle_id": f"truck-{number}",
+                "category": "N",
+                "speed_kmh": 70.0,
+                "position": {"lon": lon, "lat": lat},
+                "heading_deg": float(heading_deg),
+            }
+        )
     return queries
 
 

@@ -21,18 +21,18 @@ import os
 import resource
 import tempfile
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
-from csws.sumo.netbuild import netconvert, shape_text
-from csws.geometry import Piece, arc, pose_at, sample_pieces, straight
-from csws.curvature import radius_profiles
-from csws.networks import networks_dir
 from csws.ahead.lookahead import LookAhead
+from csws.curvature import radius_profiles
+from csws.geometry import Piece, arc, pose_at, sample_pieces, straight
+from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap, read_sumo_net
+from csws.sumo.netbuild import netconvert, shape_text
 
 REAL_NET = networks_dir() / "badhersfeld.net.xml.gz"
 #: How long the real network may take to load, s: fitted before (the profile cache), and afresh.
@@ -201,8 +201,11 @@ def first_lookaheads_ms(road_map: RoadMap, count: int = FIRST_LOOKAHEADS, seed: 
     (normal lanes that a truck may use), each from a fresh :class:`csws.ahead.lookahead.LookAhead`,
     so that nothing of an earlier query is reused: an N vehicle at 80 km/h mid-lane."""
     rng = np.random.default_rng(seed)
-    lanes = [lane_id for lane_id in road_map.lane_ids
-             if not road_map.lane(lane_id).is_internal and "truck" in road_map.lane(lane_id).allowed_vclasses]  # fmt: skip
+    lanes = [
+        lane_id
+        for lane_id in road_map.lane_ids
+        if not road_map.lane(lane_id).is_internal and "truck" in road_map.lane(lane_id).allowed_vclasses
+    ]
     took_ms = []
     for lane_id in rng.choice(lanes, size=min(count, len(lanes)), replace=False):
         lookahead = LookAhead(road_map)
@@ -221,10 +224,17 @@ def real_network_load() -> dict:
         _timed_load(folder)
         cached_s, road_map = _timed_load(folder)
     first_ms = first_lookaheads_ms(road_map)
-    return {"network": REAL_NET.name, "fit_load_s": round(fit_s, 2), "cached_load_s": round(cached_s, 2),
-            "lanes": len(road_map.lane_ids), "lane_km": round(road_map.total_length_m / 1000.0, 1),
-            "curves": len(road_map.curves()), "first_lookahead_ms_p50": round(float(np.median(first_ms)), 2),
-            "first_lookahead_ms_max": round(float(first_ms.max()), 2), "first_lookaheads": len(first_ms)}
+    return {
+        "network": REAL_NET.name,
+        "fit_load_s": round(fit_s, 2),
+        "cached_load_s": round(cached_s, 2),
+        "lanes": len(road_map.lane_ids),
+        "lane_km": round(road_map.total_length_m / 1000.0, 1),
+        "curves": len(road_map.curves()),
+        "first_lookahead_ms_p50": round(float(np.median(first_ms)), 2),
+        "first_lookahead_ms_max": round(float(first_ms.max()), 2),
+        "first_lookaheads": len(first_ms),
+    }
 
 
 def main() -> None:

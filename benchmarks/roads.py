@@ -53,7 +53,14 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from benchmarks.bounds import error_quantile_m, ml_start_errors_m, parameter_count, radius_bounds, road_information, start_bounds_m
+from benchmarks.bounds import (
+    error_quantile_m,
+    ml_start_errors_m,
+    parameter_count,
+    radius_bounds,
+    road_information,
+    start_bounds_m,
+)
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
@@ -97,13 +104,18 @@ def _direction(rng: np.random.Generator) -> str:
 def _spirals(rng: np.random.Generator) -> list[Piece]:
     radius, side = rng.uniform(30.0, 450.0), _direction(rng)
     angle = max(rng.uniform(10.0, 60.0), math.degrees(15.0 / radius))
-    return [clothoid(rng.uniform(20.0, 80.0), math.inf, radius, side), arc(radius, angle, side),
-            clothoid(rng.uniform(20.0, 80.0), radius, math.inf, side)]
+    return [
+        clothoid(rng.uniform(20.0, 80.0), math.inf, radius, side),
+        arc(radius, angle, side),
+        clothoid(rng.uniform(20.0, 80.0), radius, math.inf, side),
+    ]
 
 
 def _compound(rng: np.random.Generator) -> list[Piece]:
     side = _direction(rng)
-    radii = sorted(rng.choice([250.0, 180.0, 120.0, 90.0, 60.0, 35.0], size=int(rng.integers(2, 4)), replace=False))[::-1]
+    radii = sorted(rng.choice([250.0, 180.0, 120.0, 90.0, 60.0, 35.0], size=int(rng.integers(2, 4)), replace=False))[
+        ::-1
+    ]
     with_spirals = bool(rng.integers(0, 2))
     pieces: list[Piece] = [clothoid(40.0, math.inf, radii[0], side)] if with_spirals else []
     for index, radius in enumerate(radii):
@@ -143,7 +155,11 @@ def _corners(rng: np.random.Generator) -> list[Piece]:
 
 def _gentle(rng: np.random.Generator) -> list[Piece]:
     radius, side = rng.uniform(350.0, 450.0), _direction(rng)
-    return [clothoid(40.0, math.inf, radius, side), arc(radius, rng.uniform(30.0, 60.0), side), clothoid(40.0, radius, math.inf, side)]
+    return [
+        clothoid(40.0, math.inf, radius, side),
+        arc(radius, rng.uniform(30.0, 60.0), side),
+        clothoid(40.0, radius, math.inf, side),
+    ]
 
 
 FAMILIES = {
@@ -164,11 +180,15 @@ def _road(middle: list[Piece]) -> list[Piece]:
 def true_curves(pieces: list[Piece], warning_radius_m: float = WARNING_RADIUS_M) -> list[TrueCurve]:
     """The curves of the constructed road from its exact curvature, sampled every 1 cm
     (:func:`csws.networks.real_roads.true_curves`)."""
-    return [TrueCurve(c["start_s"], c["end_s"], c["min_radius_m"], c["angle_deg"])
-            for c in real_road_curves(pieces, warning_radius_m, sampling_m=0.01)]  # fmt: skip
+    return [
+        TrueCurve(c["start_s"], c["end_s"], c["min_radius_m"], c["angle_deg"])
+        for c in real_road_curves(pieces, warning_radius_m, sampling_m=0.01)
+    ]
 
 
-def _node_points(pieces: list[Piece], family: str, rng: np.random.Generator, dense_xy: np.ndarray, dense_s: np.ndarray) -> np.ndarray:
+def _node_points(
+    pieces: list[Piece], family: str, rng: np.random.Generator, dense_xy: np.ndarray, dense_s: np.ndarray
+) -> np.ndarray:
     """The sparse way's nodes on the true road: Douglas-Peucker of the dense line, plus the
     family's own nodes (the split node; a corner's one to three nodes and its straights')."""
     simplified = shapely.simplify(shapely.LineString(dense_xy), float(rng.uniform(*SIMPLIFY_TOLERANCE_M)))
@@ -181,7 +201,9 @@ def _node_points(pieces: list[Piece], family: str, rng: np.random.Generator, den
         count = int(rng.integers(1, 4))
         extra_s += list(starts[1] + (np.arange(count) + 0.5) / count * pieces[1].length_m)
         nodes = nodes[[0, -1]]  # a corner's way: its ends, nodes along the straights and on the arc
-        extra_s += list(np.arange(10.0, APPROACH_M - 5.0, 25.0)) + list(starts[2] + np.arange(5.0, APPROACH_M - 10.0, 25.0))
+        extra_s += list(np.arange(10.0, APPROACH_M - 5.0, 25.0)) + list(
+            starts[2] + np.arange(5.0, APPROACH_M - 10.0, 25.0)
+        )
     if extra_s:
         extra = np.column_stack([np.interp(extra_s, dense_s, dense_xy[:, k]) for k in (0, 1)])
         line = shapely.LineString(dense_xy)
@@ -227,7 +249,11 @@ def score(truth: list[TrueCurve], exact: np.ndarray, xy: np.ndarray) -> dict:
     """Per true curve the start and radius errors; the missed, false and below-floor counts."""
     line = shapely.LineString(exact[:, :2])
     found = find_curves(xy, WARNING_RADIUS_M)
-    ends = _true_s(line, xy, np.array([[c.start_s, c.end_s] for c in found]).reshape(-1)).reshape(-1, 2) if found else np.zeros((0, 2))
+    ends = (
+        _true_s(line, xy, np.array([[c.start_s, c.end_s] for c in found]).reshape(-1)).reshape(-1, 2)
+        if found
+        else np.zeros((0, 2))
+    )
     start_errors, radius_errors, missed, matched = [], [], 0, set()
     for curve in truth:
         overlap = np.minimum(ends[:, 1], curve.end_s) - np.maximum(ends[:, 0], curve.start_s)
@@ -238,10 +264,21 @@ def score(truth: list[TrueCurve], exact: np.ndarray, xy: np.ndarray) -> dict:
         matched.add(best)
         start_errors.append(abs(ends[best, 0] - curve.start_s))
         radius_errors.append(abs(found[best].min_radius_m / curve.min_radius_m - 1.0))
-    false = sum(1 for index, curve in enumerate(found) if index not in matched and curve.angle_deg >= MIN_COUNTED_ANGLE_DEG
-                and not any(min(ends[index, 1], t.end_s) > max(ends[index, 0], t.start_s) for t in truth))
+    false = sum(
+        1
+        for index, curve in enumerate(found)
+        if index not in matched
+        and curve.angle_deg >= MIN_COUNTED_ANGLE_DEG
+        and not any(min(ends[index, 1], t.end_s) > max(ends[index, 0], t.start_s) for t in truth)
+    )
     below = sum(curve.min_radius_m < FLOOR_RADIUS_M - 1e-9 for curve in found)
-    return {"start_errors": start_errors, "radius_errors": radius_errors, "missed": missed, "false": false, "below_floor": below}
+    return {
+        "start_errors": start_errors,
+        "radius_errors": radius_errors,
+        "missed": missed,
+        "false": false,
+        "below_floor": below,
+    }
 
 
 def _summary(scores: list[dict]) -> dict:
@@ -260,11 +297,17 @@ def _summary(scores: list[dict]) -> dict:
         "missed_undetermined": int(sum(s["missed"] for s in scores if s.get("undetermined"))),
         "false": int(sum(s["false"] for s in scores)),
         "below_floor": int(sum(s["below_floor"] for s in scores)),
-    } | ({"bound_median_start_error_m": error_quantile_m(bounds, 0.5),
-          "bound_p90_start_error_m": error_quantile_m(bounds, 0.9),
-          "bound_median_radius_error": error_quantile_m(radius_bound, 0.5),
-          "reference_median_start_error_m": float(np.median(reference)),
-          "reference_p90_start_error_m": float(np.percentile(reference, 90))} if len(bounds) else {})
+    } | (
+        {
+            "bound_median_start_error_m": error_quantile_m(bounds, 0.5),
+            "bound_p90_start_error_m": error_quantile_m(bounds, 0.9),
+            "bound_median_radius_error": error_quantile_m(radius_bound, 0.5),
+            "reference_median_start_error_m": float(np.median(reference)),
+            "reference_p90_start_error_m": float(np.percentile(reference, 90)),
+        }
+        if len(bounds)
+        else {}
+    )
 
 
 def run(cases: int = CASES_PER_FAMILY, seed: int = SEED) -> dict:
@@ -294,15 +337,31 @@ def verdicts(figures: dict) -> list[tuple[str, float, float, bool]]:
 
 
 def report(figures: dict) -> str:
-    columns = ("curves", "median_radius_error", "median_start_error_m", "p90_start_error_m", "max_start_error_m",
-               "missed", "false", "below_floor", "bound_median_start_error_m", "bound_p90_start_error_m",
-               "bound_median_radius_error", "reference_median_start_error_m", "reference_p90_start_error_m")
+    columns = (
+        "curves",
+        "median_radius_error",
+        "median_start_error_m",
+        "p90_start_error_m",
+        "max_start_error_m",
+        "missed",
+        "false",
+        "below_floor",
+        "bound_median_start_error_m",
+        "bound_p90_start_error_m",
+        "bound_median_radius_error",
+        "reference_median_start_error_m",
+        "reference_p90_start_error_m",
+    )
     lines = ["family    sampling  " + "  ".join(f"{c:>10.10}" for c in columns)]
     for family, samplings in figures.items():
         for sampling, values in samplings.items():
-            lines.append(f"{family:<9} {sampling:<8}  " + "  ".join(f"{values.get(c, math.nan):>10.3g}" for c in columns))
-    lines += [f"{'PASS' if passed else 'FAIL'}  {name} = {value:.3g} (target <= {limit:g})"
-              for name, value, limit, passed in verdicts(figures)]
+            lines.append(
+                f"{family:<9} {sampling:<8}  " + "  ".join(f"{values.get(c, math.nan):>10.3g}" for c in columns)
+            )
+    lines += [
+        f"{'PASS' if passed else 'FAIL'}  {name} = {value:.3g} (target <= {limit:g})"
+        for name, value, limit, passed in verdicts(figures)
+    ]
     return "\n".join(lines)
 
 

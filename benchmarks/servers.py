@@ -74,8 +74,10 @@ def start(command: list[str], env: dict[str, str] | None = None) -> Running:
     started = time.perf_counter()
     process = subprocess.Popen(
         [sys.executable, "-m", *command, "--host", "127.0.0.1", "--port", str(port)],
-        env={**os.environ, **(env or {})}, cwd=Path(__file__).resolve().parents[1], stdout=subprocess.DEVNULL,
-    )  # fmt: skip
+        env={**os.environ, **(env or {})},
+        cwd=Path(__file__).resolve().parents[1],
+        stdout=subprocess.DEVNULL,
+    )
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
     while time.monotonic() < deadline and process.poll() is None:

@@ -34,8 +34,8 @@ import numpy as np
 from fastapi import FastAPI, Request
 from fastapi.responses import Response
 
-from csws.road.matching import lane_points
 from csws.networks import networks_dir
+from csws.road.matching import lane_points
 from csws.road.roadmap import RoadMap
 
 from .servers import Running, children, csws_serve, memory_mb, start
@@ -52,8 +52,13 @@ GNSS_SIGMA_M = 1.0
 HEADING_SIGMA_DEG = 3.0
 #: Targets: single-query throughput over the trivial endpoint's; batch server time by lane id on
 #: one network and by x, y on the default serve, ms; p99 of the first query on a lane, ms.
-TARGETS = {"single_ratio_one_network": ">= 0.70", "single_ratio_default": ">= 0.70", "batch_lane_ms": "<= 100",
-           "batch_xy_default_ms": "<= 150", "first_query_ms_p99": "<= 10"}
+TARGETS = {
+    "single_ratio_one_network": ">= 0.70",
+    "single_ratio_default": ">= 0.70",
+    "batch_lane_ms": "<= 100",
+    "batch_xy_default_ms": "<= 150",
+    "first_query_ms_p99": "<= 10",
+}
 
 trivial_app = FastAPI()
 
@@ -82,9 +87,14 @@ def track_fixes(count: int, seed: int = 5) -> list[dict]:
     speed = rng.uniform(30.0, 120.0, count)
     categories = rng.choice(["M1", "M2", "M3", "N", "O"], count)
     return [
-        {"vehicle_id": f"v{i}", "category": str(c), "speed_kmh": float(v), "position": {"x": float(a), "y": float(b)},
-         "heading_deg": 90.0}
-        for i, (a, b, v, c) in enumerate(zip(x, y, speed, categories))
+        {
+            "vehicle_id": f"v{i}",
+            "category": str(c),
+            "speed_kmh": float(v),
+            "position": {"x": float(a), "y": float(b)},
+            "heading_deg": 90.0,
+        }
+        for i, (a, b, v, c) in enumerate(zip(x, y, speed, categories, strict=True))
     ]
 
 
@@ -100,8 +110,10 @@ def road_fix(road_map: RoadMap, lane_id: str, lane_pos_m: float, rng: np.random.
     (x, y), (ahead_x, ahead_y) = lane_points(road_map, lane_id, np.array([lane_pos_m, min(lane_pos_m + 1.0, length_m)]))
     heading_deg = (90.0 - math.degrees(math.atan2(ahead_y - y, ahead_x - x))) % 360.0
     noisy_heading_deg = (heading_deg + rng.normal(0.0, HEADING_SIGMA_DEG)) % 360.0
-    return {"position": {"x": float(x + rng.normal(0.0, GNSS_SIGMA_M)), "y": float(y + rng.normal(0.0, GNSS_SIGMA_M))},
-            "heading_deg": noisy_heading_deg if noisy_heading_deg < 360.0 else 0.0}  # fmt: skip
+    return {
+        "position": {"x": float(x + rng.normal(0.0, GNSS_SIGMA_M)), "y": float(y + rng.normal(0.0, GNSS_SIGMA_M))},
+        "heading_deg": noisy_heading_deg if noisy_heading_deg < 360.0 else 0.0,
+    }
 
 
 def road_fixes(road_map: RoadMap, count: int, seed: int = 7) -> list[dict]:
@@ -112,8 +124,14 @@ def road_fixes(road_map: RoadMap, count: int, seed: int = 7) -> list[dict]:
     for i, lane_index in enumerate(rng.integers(0, len(lanes), count)):
         lane_id = lanes[lane_index]
         fix = road_fix(road_map, lane_id, float(rng.uniform(0.0, road_map.lane(lane_id).length_m)), rng)
-        queries.append({"vehicle_id": f"r{i}", "category": str(rng.choice(["M3", "N", "O"])),
-                        "speed_kmh": float(rng.uniform(30.0, 90.0)), **fix})  # fmt: skip
+        queries.append(
+            {
+                "vehicle_id": f"r{i}",
+                "category": str(rng.choice(["M3", "N", "O"])),
+                "speed_kmh": float(rng.uniform(30.0, 90.0)),
+                **fix,
+            }
+        )
     return queries
 
 
@@ -124,9 +142,15 @@ def lane_queries(road_map: RoadMap, count: int, seed: int = 9) -> list[dict]:
     queries = []
     for i, lane_index in enumerate(rng.integers(0, len(lanes), count)):
         lane_id = lanes[lane_index]
-        queries.append({"vehicle_id": f"l{i}", "category": str(rng.choice(["M1", "M2", "M3", "N", "O"])),
-                        "speed_kmh": float(rng.uniform(30.0, 120.0)), "lane_id": lane_id,
-                        "lane_pos_m": float(rng.uniform(0.0, road_map.lane(lane_id).length_m))})  # fmt: skip
+        queries.append(
+            {
+                "vehicle_id": f"l{i}",
+                "category": str(rng.choice(["M1", "M2", "M3", "N", "O"])),
+                "speed_kmh": float(rng.uniform(30.0, 120.0)),
+                "lane_id": lane_id,
+                "lane_pos_m": float(rng.uniform(0.0, road_map.lane(lane_id).length_m)),
+            }
+        )
     return queries
 
 
@@ -202,8 +226,11 @@ def _workers_memory(state_db: Path) -> dict:
         memory = [memory_mb(pid) for pid in children(served.process.pid)]
     finally:
         served.stop()
-    return {"startup_default_2_workers_s": round(served.startup_s, 2),
-            "worker_rss_mb": [round(rss) for rss, _ in memory], "worker_pss_mb": [round(pss) for _, pss in memory]}
+    return {
+        "startup_default_2_workers_s": round(served.startup_s, 2),
+        "worker_rss_mb": [round(rss) for rss, _ in memory],
+        "worker_pss_mb": [round(pss) for _, pss in memory],
+    }
 
 
 def run() -> dict:
@@ -216,9 +243,11 @@ def run() -> dict:
             one = csws_serve(Path(folder) / "one.sqlite3", "--net", str(TRACK_NET))
             try:
                 rates = single_rates(one, trivial, track_fixes(1)[0])
-                figures |= {"trivial_rps": round(rates["trivial"], 1),
-                            "service_rps_one_network": round(rates["service"], 1),
-                            "single_ratio_one_network": round(rates["service"] / rates["trivial"], 3)}
+                figures |= {
+                    "trivial_rps": round(rates["trivial"], 1),
+                    "service_rps_one_network": round(rates["service"], 1),
+                    "single_ratio_one_network": round(rates["service"] / rates["trivial"], 3),
+                }
                 lane = batch_ms(one, lane_queries(RoadMap.load(TRACK_NET), BATCH_SIZE))
                 figures |= {"batch_lane_ms": lane.pop("csws"), "batch_lane_stages_ms": lane}
             finally:
@@ -227,8 +256,10 @@ def run() -> dict:
             try:
                 figures["startup_default_s"] = round(default.startup_s, 2)
                 rates = single_rates(default, trivial, road_fixes(real_map, 1)[0])
-                figures |= {"service_rps_default": round(rates["service"], 1),
-                            "single_ratio_default": round(rates["service"] / rates["trivial"], 3)}  # fmt: skip
+                figures |= {
+                    "service_rps_default": round(rates["service"], 1),
+                    "single_ratio_default": round(rates["service"] / rates["trivial"], 3),
+                }
                 xy = batch_ms(default, road_fixes(real_map, BATCH_SIZE))
                 figures |= {"batch_xy_default_ms": xy.pop("csws"), "batch_xy_default_stages_ms": xy}
             finally:
@@ -240,10 +271,13 @@ def run() -> dict:
             first_ms = first_queries_ms(real, real_map)
         finally:
             real.stop()
-        figures |= {"startup_real_s": round(real.startup_s, 2), "first_queries": len(first_ms),
-                    "first_query_ms_p50": round(float(np.median(first_ms)), 2),
-                    "first_query_ms_p99": round(float(np.percentile(first_ms, 99)), 2),
-                    "first_query_ms_max": round(float(first_ms.max()), 2)}  # fmt: skip
+        figures |= {
+            "startup_real_s": round(real.startup_s, 2),
+            "first_queries": len(first_ms),
+            "first_query_ms_p50": round(float(np.median(first_ms)), 2),
+            "first_query_ms_p99": round(float(np.percentile(first_ms, 99)), 2),
+            "first_query_ms_max": round(float(first_ms.max()), 2),
+        }
         figures |= _workers_memory(Path(folder) / "workers.sqlite3")
     return figures
 

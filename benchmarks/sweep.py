@@ -45,8 +45,11 @@ def _on_cluster(workers: int, runs: list[RunSpec]) -> float:
     from dask.distributed import Client, LocalCluster
 
     warm_up = _runs(range(1000, 1000 + workers))
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
-            Client(cluster) as client, tempfile.TemporaryDirectory() as folder:  # fmt: skip
+    with (
+        LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster,
+        Client(cluster) as client,
+        tempfile.TemporaryDirectory() as folder,
+    ):
         client.gather(client.map(run_task, warm_up, pure=False))
         started = time.perf_counter()
         report = run_sweep(runs, Path(folder), scheduler=cluster.scheduler_address, progress=False)

@@ -40,8 +40,11 @@ def _vehicles(truth: dict, count: int, speed_kmh: float) -> list[VehicleInput]:
     vehicles = []
     for i, s in enumerate(np.linspace(start_s - 300.0, start_s + 20.0, count)):
         lane = next(lane for lane in reversed(lanes) if lane["start_s"] <= s)
-        vehicles.append(VehicleInput(f"v{i}", "M1", speed_kmh, lane["lane"], float(s - lane["start_s"]),
-                                     route_edges=truth["route"]["edges"]))
+        vehicles.append(
+            VehicleInput(
+                f"v{i}", "M1", speed_kmh, lane["lane"], float(s - lane["start_s"]), route_edges=truth["route"]["edges"]
+            )
+        )
     return vehicles
 
 
@@ -62,8 +65,13 @@ def _fcw_batch_us(count: int, seed: int = 2) -> float:
     """µs per vehicle of the forward collision warning of ``count`` subject vehicles with
     targets drawn at random (clearance, closing speed, accelerations, some drivers braking)."""
     rng = np.random.default_rng(seed)
-    columns = (rng.uniform(-4.0, 1.0, count), rng.uniform(1.0, 150.0, count), rng.uniform(-25.0, 5.0, count),
-               rng.uniform(-6.0, 1.0, count), rng.random(count) < 0.1)  # fmt: skip
+    columns = (
+        rng.uniform(-4.0, 1.0, count),
+        rng.uniform(1.0, 150.0, count),
+        rng.uniform(-25.0, 5.0, count),
+        rng.uniform(-6.0, 1.0, count),
+        rng.random(count) < 0.1,
+    )
     timings = []
     for _ in range(20):
         start = time.perf_counter()
@@ -101,11 +109,17 @@ def main() -> None:
     """Print the figures beside their targets."""
     figures = run()
     print(f"{'figure':<34} {'value':>10}  target")
-    print(f"{'engine, one vehicle (median)':<34} {figures['engine_single_median_us']:>8.1f}us  <= {TARGET_SINGLE_US:g} us")
+    print(
+        f"{'engine, one vehicle (median)':<34} {figures['engine_single_median_us']:>8.1f}us  <= {TARGET_SINGLE_US:g} us"
+    )
     print(f"{'warning step, one vehicle (median)':<34} {figures['warning_single_median_us']:>8.1f}us")
-    print(f"{'engine, batch of 1000, per vehicle':<34} {figures['engine_batch_per_vehicle_us']:>8.1f}us  "
-          f"<= {TARGET_BATCH_US:g} us")
-    print(f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  <= {TARGET_FCW_BATCH_US:g} us")
+    print(
+        f"{'engine, batch of 1000, per vehicle':<34} {figures['engine_batch_per_vehicle_us']:>8.1f}us  "
+        f"<= {TARGET_BATCH_US:g} us"
+    )
+    print(
+        f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  <= {TARGET_FCW_BATCH_US:g} us"
+    )
 
 
 if __name__ == "__main__":

@@ -15,20 +15,29 @@ found per vehicle, and the warning of all of them is computed in one vectorised 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from csws.ahead.horizon import BatchAhead, PathAhead
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
-from csws.warning.single import judge_one
-from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from csws.road.roadmap import RoadMap
 from csws.standard import Level
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
-from csws.warning.rules import BatchWarnings, CurveWarning, WarningSettings, column_index, column_indices, evaluate_batch, no_warning
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
+from csws.warning.rules import (
+    BatchWarnings,
+    CurveWarning,
+    WarningSettings,
+    column_index,
+    column_indices,
+    evaluate_batch,
+    no_warning,
+)
+from csws.warning.single import judge_one
 
 __all__ = ["VehicleInput", "Answer", "FleetAnswers", "TargetColumns", "EngineSettings", "VehicleMemory", "Engine"]
 
@@ -134,7 +143,7 @@ class FleetAnswers:
         """Each vehicle's warning level, 0 to 2."""
         levels = [0] * len(self.state)
         if self.judged is not None:
-            for i, level in zip(self.active, self.judged.level.tolist()):
+            for i, level in zip(self.active, self.judged.level.tolist(), strict=True):
                 levels[i] = level
         return levels
 
@@ -145,20 +154,23 @@ class FleetAnswers:
         if self.judged is None:
             return warnings
         ahead, first = self.ahead, self._first_cpoi
-        for i, horizon in zip(self.active, ahead.horizons):
+        for i, horizon in zip(self.active, ahead.horizons, strict=True):
             warnings[i] = no_warning(horizon.kind)
         warned = np.flatnonzero(self.judged.level).tolist()
         if warned:  # most vehicles: nothing to look at
             curve_ids, part_indices = ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist()
             found = self.judged.vehicle_warnings(
-                warned, [first[k] for k in warned], [curve_ids[first[k]:first[k + 1]] for k in warned],
-                [part_indices[first[k]:first[k + 1]] for k in warned], [ahead.horizons[k].kind for k in warned],
+                warned,
+                [first[k] for k in warned],
+                [curve_ids[first[k] : first[k + 1]] for k in warned],
+                [part_indices[first[k] : first[k + 1]] for k in warned],
+                [ahead.horizons[k].kind for k in warned],
             )
-            for k, warning in zip(warned, found):
+            for k, warning in zip(warned, found, strict=True):
                 warnings[self.active[k]] = warning
         return warnings
 
-    def targets(self) -> "TargetColumns":
+    def targets(self) -> TargetColumns:
         """Each vehicle's target CPOI (3.12) as columns, None where it has no warning: the values of
         ``warning[i].target`` without the objects."""
         count = len(self.state)
@@ -168,11 +180,15 @@ class FleetAnswers:
         warned = np.flatnonzero(self.judged.level)
         rows = self.judged.target[warned]
         vehicles = np.asarray(self.active, dtype=np.intp)[warned].tolist()
-        values = (self.ahead.cpoi_curve_id[rows].tolist(), self.ahead.cpoi_part_index[rows].tolist(),
-                  self.judged.cpoi_distance_m[rows].tolist(), self.judged.cpoi_radius_m[rows].tolist(),
-                  self.judged.warning_speed_kmh[rows].tolist())  # fmt: skip
-        for column, column_values in zip(columns, values):
-            for i, value in zip(vehicles, column_values):
+        values = (
+            self.ahead.cpoi_curve_id[rows].tolist(),
+            self.ahead.cpoi_part_index[rows].tolist(),
+            self.judged.cpoi_distance_m[rows].tolist(),
+            self.judged.cpoi_radius_m[rows].tolist(),
+            self.judged.warning_speed_kmh[rows].tolist(),
+        )
+        for column, column_values in zip(columns, values, strict=True):
+            for i, value in zip(vehicles, column_values, strict=True):
                 column[i] = value
         return columns
 
@@ -183,8 +199,16 @@ class FleetAnswers:
             return []
         rows = np.flatnonzero((self.judged.cpoi_level > 0) & (self.judged.cpoi_distance_m <= 0.0))
         vehicles = np.asarray(self.active, dtype=np.intp)[self.ahead.cpoi_vehicle[rows]].tolist()
-        return list(zip(vehicles, self.ahead.cpoi_curve_id[rows].tolist(), self.ahead.cpoi_part_index[rows].tolist(),
-                        self.judged.cpoi_radius_m[rows].tolist(), self.judged.cpoi_level[rows].tolist()))
+        return list(
+            zip(
+                vehicles,
+                self.ahead.cpoi_curve_id[rows].tolist(),
+                self.ahead.cpoi_part_index[rows].tolist(),
+                self.judged.cpoi_radius_m[rows].tolist(),
+                self.judged.cpoi_level[rows].tolist(),
+                strict=True,
+            )
+        )
 
 
 class TargetColumns(NamedTuple):
@@ -280,11 +304,18 @@ class Engine:
         if not status.warns:
             self.held.pop(vehicle.vehicle_id, None)
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
-        path = self.lookahead(vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category,
-                              vehicle.route_edges)
-        warning, memory = judge_one(float(vehicle.speed_kmh), column_index(vehicle.category), path.cpoi_points(),
-                                    path.kind, self.held.get(vehicle.vehicle_id, NOT_HELD), vehicle.timestamp_s,
-                                    self.settings.warning)  # fmt: skip
+        path = self.lookahead(
+            vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category, vehicle.route_edges
+        )
+        warning, memory = judge_one(
+            float(vehicle.speed_kmh),
+            column_index(vehicle.category),
+            path.cpoi_points(),
+            path.kind,
+            self.held.get(vehicle.vehicle_id, NOT_HELD),
+            vehicle.timestamp_s,
+            self.settings.warning,
+        )
         self._keep([vehicle.vehicle_id], [memory])
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
 
@@ -311,13 +342,18 @@ class Engine:
     def evaluate_many(self, vehicles: Sequence[VehicleInput]) -> list[Answer]:
         """The answers for many vehicles, in order (:meth:`evaluate_fleet` of their columns, with paths)."""
         fleet = self.evaluate_fleet(
-            [v.vehicle_id for v in vehicles], [v.category for v in vehicles], [v.speed_kmh for v in vehicles],
-            [v.lane_id for v in vehicles], [v.lane_pos_m for v in vehicles], [v.route_edges for v in vehicles],
-            timestamp_s=[v.timestamp_s for v in vehicles], age_s=[v.age_s for v in vehicles],
+            [v.vehicle_id for v in vehicles],
+            [v.category for v in vehicles],
+            [v.speed_kmh for v in vehicles],
+            [v.lane_id for v in vehicles],
+            [v.lane_pos_m for v in vehicles],
+            [v.route_edges for v in vehicles],
+            timestamp_s=[v.timestamp_s for v in vehicles],
+            age_s=[v.age_s for v in vehicles],
         )
         paths: list[PathAhead | None] = [None] * len(vehicles)
         if fleet.ahead is not None:
-            for i, path in zip(fleet.active, fleet.ahead.paths_ahead()):
+            for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=True):
                 paths[i] = path
         return list(map(Answer, fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, paths))
 
@@ -332,7 +368,7 @@ class Engine:
         *,
         timestamp_s: Sequence[float | None] | None = None,
         age_s: Sequence[float | None] | None = None,
-    ) -> "FleetAnswers":
+    ) -> FleetAnswers:
         """The answers for many vehicles given as columns (the fields of :class:`VehicleInput`), in order.
 
         The system state of every vehicle (5.2-5.4) is updated in one vectorised step; the
@@ -349,26 +385,40 @@ class Engine:
         speeds_kmh = np.asarray(speed_kmh, dtype=float)
         positions_m = np.asarray(lane_pos_m, dtype=float)
         statuses = next_statuses(
-            [self.statuses.get(vehicle_id, _NEW_STATUS) for vehicle_id in vehicle_ids], speeds_kmh,
-            timestamp_s=timestamp_s, age_s=age_s,
+            [self.statuses.get(vehicle_id, _NEW_STATUS) for vehicle_id in vehicle_ids],
+            speeds_kmh,
+            timestamp_s=timestamp_s,
+            age_s=age_s,
             found_fault=self._found_faults(lane_ids, positions_m),
             settings=self.settings.activation,
         )
-        self.statuses.update(zip(vehicle_ids, statuses))
+        self.statuses.update(zip(vehicle_ids, statuses, strict=True))
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
         if self.held:
-            for vehicle_id, status in zip(vehicle_ids, statuses):
+            for vehicle_id, status in zip(vehicle_ids, statuses, strict=True):
                 if status.state is not SystemState.ACTIVE:
                     self.held.pop(vehicle_id, None)
         ahead = judged = None
         if active:
             rows = np.array(active, dtype=np.intp)
             times_s = [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active]
-            ahead, judged = self._warnings([vehicle_ids[i] for i in active], times_s, speeds_kmh[rows], columns[rows],
-                                           [lane_ids[i] for i in active], positions_m[rows],
-                                           [route_edges[i] for i in active])  # fmt: skip
-        return FleetAnswers(vehicle_ids, [status.state for status in statuses],
-                            [status.fault for status in statuses], active, ahead, judged)  # fmt: skip
+            ahead, judged = self._warnings(
+                [vehicle_ids[i] for i in active],
+                times_s,
+                speeds_kmh[rows],
+                columns[rows],
+                [lane_ids[i] for i in active],
+                positions_m[rows],
+                [route_edges[i] for i in active],
+            )
+        return FleetAnswers(
+            vehicle_ids,
+            [status.state for status in statuses],
+            [status.fault for status in statuses],
+            active,
+            ahead,
+            judged,
+        )
 
     def _found_faults(self, lane_ids: Sequence[str | None], lane_pos_m: np.ndarray) -> list[Fault | None]:
         """:meth:`_found_fault` of many vehicles: one look at the positions, one look-up per lane."""
@@ -376,8 +426,10 @@ class Engine:
             return [Fault.NO_MAP] * len(lane_ids)
         has_lane = self.road_map.has_lane
         finite = np.isfinite(lane_pos_m).tolist()
-        return [None if lane_id is not None and has_lane(lane_id) and ok else self._found_fault(lane_id, float(position))
-                for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist())]  # fmt: skip
+        return [
+            None if lane_id is not None and has_lane(lane_id) and ok else self._found_fault(lane_id, float(position))
+            for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist(), strict=True)
+        ]
 
     def _found_fault(self, lane_id: str | None, lane_pos_m: float) -> Fault | None:
         """What prevents a path ahead (5.4): no map, no lane, or a lane position that is not a number."""
@@ -389,35 +441,71 @@ class Engine:
             return Fault.INVALID_INPUT
         return None
 
-    def _judged(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
-                columns: np.ndarray, cpoi_vehicle: np.ndarray, first: Sequence[int], distance_m: np.ndarray,
-                radius_m: np.ndarray, curve_ids: Sequence[str], part_indices: Sequence[int],
-                passed: np.ndarray) -> BatchWarnings:  # fmt: skip
+    def _judged(
+        self,
+        vehicle_ids: Sequence[str],
+        now_s: Sequence[float | None],
+        speed_kmh: np.ndarray,
+        columns: np.ndarray,
+        cpoi_vehicle: np.ndarray,
+        first: Sequence[int],
+        distance_m: np.ndarray,
+        radius_m: np.ndarray,
+        curve_ids: Sequence[str],
+        part_indices: Sequence[int],
+        passed: np.ndarray,
+    ) -> BatchWarnings:
         """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
         ``first[i]:first[i + 1]``); their warning memories are updated."""
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
         latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, self.settings.warning.release_hold_s)
-        batch = evaluate_batch(speed_kmh, columns, cpoi_vehicle, distance_m, radius_m, self.settings.warning,
-                               cpoi_latched=latched, cpoi_hold=hold, cpoi_passed=passed)
+        batch = evaluate_batch(
+            speed_kmh,
+            columns,
+            cpoi_vehicle,
+            distance_m,
+            radius_m,
+            self.settings.warning,
+            cpoi_latched=latched,
+            cpoi_hold=hold,
+            cpoi_passed=passed,
+        )
         self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule))
         return batch
 
     def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is."""
-        for vehicle_id, memory in zip(vehicle_ids, memories):
+        for vehicle_id, memory in zip(vehicle_ids, memories, strict=True):
             if memory is not NOT_HELD and memory.is_on:
                 self.held[vehicle_id] = memory
             elif self.held:
                 self.held.pop(vehicle_id, None)
 
-    def _warnings(self, vehicle_ids: Sequence[str], now_s: Sequence[float | None], speed_kmh: np.ndarray,
-                  columns: np.ndarray, lane_ids: Sequence[str], lane_pos_m: np.ndarray,
-                  route_edges: Sequence[Sequence[str] | None]) -> tuple[BatchAhead, BatchWarnings]:  # fmt: skip
+    def _warnings(
+        self,
+        vehicle_ids: Sequence[str],
+        now_s: Sequence[float | None],
+        speed_kmh: np.ndarray,
+        columns: np.ndarray,
+        lane_ids: Sequence[str],
+        lane_pos_m: np.ndarray,
+        route_edges: Sequence[Sequence[str] | None],
+    ) -> tuple[BatchAhead, BatchWarnings]:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
         ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
         # As lists: the release rule reads them one CPOI at a time.
-        batch = self._judged(vehicle_ids, now_s, speed_kmh, columns, ahead.cpoi_vehicle, first, ahead.cpoi_distance_m,
-                             ahead.cpoi_radius_m, ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist(),
-                             ahead.cpoi_passed)  # fmt: skip
+        batch = self._judged(
+            vehicle_ids,
+            now_s,
+            speed_kmh,
+            columns,
+            ahead.cpoi_vehicle,
+            first,
+            ahead.cpoi_distance_m,
+            ahead.cpoi_radius_m,
+            ahead.cpoi_curve_id.tolist(),
+            ahead.cpoi_part_index.tolist(),
+            ahead.cpoi_passed,
+        )
         return ahead, batch

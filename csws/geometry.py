@@ -12,8 +12,8 @@ truth: the curvature at every arc length is known, so curve start and end points
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

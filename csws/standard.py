@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import IntEnum, StrEnum
 from functools import cached_property
-from typing import Mapping
 
 import numpy as np
 
@@ -64,12 +64,12 @@ class Category(StrEnum):
     O = "O"  # noqa: E741 - the standard's name
 
     @property
-    def column(self) -> "Column":
+    def column(self) -> Column:
         """The column of Tables 1-2 (and 5-9) that applies to this category."""
         return _CATEGORY_COLUMN[self]
 
     @classmethod
-    def parse(cls, value: "str | Category") -> "Category":
+    def parse(cls, value: str | Category) -> Category:
         """Category from its name (``"M1"``, ``"n"``, ...); ValueError names the valid ones.
 
         ``"M3_N_O"`` (the merged column of the tables) is read as M3, the first of its members.
@@ -111,7 +111,7 @@ class Level(IntEnum):
     LEVEL_2 = 2
 
     @classmethod
-    def parse(cls, value: "int | Level") -> "Level":
+    def parse(cls, value: int | Level) -> Level:
         """A warning level 1 or 2; ValueError otherwise."""
         if value in (1, 2):
             return cls(int(value))
@@ -168,8 +168,12 @@ class WarningSpeedPolicy:
             raise ValueError("policy radii must be two or more finite positive numbers")
         if np.any(np.diff(radii) <= 0):
             raise ValueError("policy radii must be strictly increasing")
-        missing = [f"{column.value} level {int(level)}" for level in _LEVELS for column in _COLUMNS
-                   if (column, level) not in self.speeds_kmh]
+        missing = [
+            f"{column.value} level {int(level)}"
+            for level in _LEVELS
+            for column in _COLUMNS
+            if (column, level) not in self.speeds_kmh
+        ]
         if missing:
             raise ValueError(f"policy has no warning speeds for {', '.join(missing)}: every column needs both levels")
         for key, speeds in self.speeds_kmh.items():
@@ -199,7 +203,7 @@ class WarningSpeedPolicy:
         """The lateral acceleration a = v_w^2 / R (m/s^2) at each policy radius."""
         _, _, accelerations = self._interpolation_axis
         row = _LEVELS.index(level) * len(_COLUMNS) + _COLUMNS.index(column)
-        return accelerations[row * len(self.radii_m):(row + 1) * len(self.radii_m)]
+        return accelerations[row * len(self.radii_m) : (row + 1) * len(self.radii_m)]
 
     def warning_speeds_kmh(self, radius_m: np.ndarray, column_index: np.ndarray) -> np.ndarray:
         """V_w (km/h) of both levels for arrays of radii and column indices (into ``list(Column)``).
@@ -224,8 +228,10 @@ class WarningSpeedPolicy:
             return math.inf, math.inf
         offsets, axis, accelerations = self._interpolation_lists
         clipped = min(max(radius_m, self.radii_m[0]), self.radii_m[-1])
-        return tuple(round(math.sqrt(_interp(offset[column_index] + clipped, axis, accelerations) * radius_m) * 3.6
-                           * 1e9) / 1e9 for offset in offsets)  # fmt: skip
+        return tuple(
+            round(math.sqrt(_interp(offset[column_index] + clipped, axis, accelerations) * radius_m) * 3.6 * 1e9) / 1e9
+            for offset in offsets
+        )
 
     @cached_property
     def _interpolation_lists(self) -> tuple[list[list[float]], list[float], list[float]]:
@@ -274,8 +280,8 @@ def _require_finite_non_negative(name: str, value: float) -> float:
 
 def warning_speed(
     radius_m: float,
-    category: "str | Category",
-    level: "int | Level",
+    category: str | Category,
+    level: int | Level,
     policy: WarningSpeedPolicy = DEFAULT_POLICY,
 ) -> float:
     """Warning speed V_w in km/h for a curvature point of radius ``radius_m`` (6.1, Tables 1-2).

@@ -25,9 +25,9 @@ fault
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from enum import StrEnum
-from typing import Sequence
 
 import numpy as np
 
@@ -145,8 +145,18 @@ _FAULT_CODE = {fault: code for code, fault in enumerate(_FAULTS)}
 _STALE, _INVALID = _FAULT_CODE[Fault.STALE_INPUT], _FAULT_CODE[Fault.INVALID_INPUT]
 
 
-def _next_fields(was_activated, last_timestamp_s, has_last, speed_kmh, timestamp_s, has_timestamp, age_s, has_age,
-                 found_fault_code, settings: ActivationSettings):  # fmt: skip
+def _next_fields(
+    was_activated,
+    last_timestamp_s,
+    has_last,
+    speed_kmh,
+    timestamp_s,
+    has_timestamp,
+    age_s,
+    has_age,
+    found_fault_code,
+    settings: ActivationSettings,
+):
     """The rules of one update of a switched-on system (5.3, 5.4), on one vehicle or on arrays of them.
 
     An absent timestamp, last timestamp or age is flagged by ``has_*`` False (its value
@@ -210,11 +220,20 @@ def next_status(
     if not status.switched_on:
         return status
     fault_code, activated, last_timestamp_s = _next_fields(
-        status.activated, _or_nan(status.last_timestamp_s), status.last_timestamp_s is not None,
-        speed_kmh, _or_nan(timestamp_s), timestamp_s is not None, _or_nan(age_s), age_s is not None,
-        _FAULT_CODE[found_fault], settings,
+        status.activated,
+        _or_nan(status.last_timestamp_s),
+        status.last_timestamp_s is not None,
+        speed_kmh,
+        _or_nan(timestamp_s),
+        timestamp_s is not None,
+        _or_nan(age_s),
+        age_s is not None,
+        _FAULT_CODE[found_fault],
+        settings,
     )
-    return _switched_on_status(fault_code, activated, None if last_timestamp_s != last_timestamp_s else last_timestamp_s)
+    return _switched_on_status(
+        fault_code, activated, None if last_timestamp_s != last_timestamp_s else last_timestamp_s
+    )
 
 
 def next_statuses(
@@ -236,17 +255,30 @@ def next_statuses(
     last_s, has_last = _optional_array([status.last_timestamp_s for status in statuses], count)
     time_s, has_time = _optional_array(timestamp_s, count)
     age, has_age = _optional_array(age_s, count)
-    found_codes = np.zeros(count, dtype=np.intp) if found_fault is None else np.array(
-        [_FAULT_CODE[fault] for fault in found_fault], dtype=np.intp)
+    found_codes = (
+        np.zeros(count, dtype=np.intp)
+        if found_fault is None
+        else np.array([_FAULT_CODE[fault] for fault in found_fault], dtype=np.intp)
+    )
     was_activated = np.array([status.activated for status in statuses], dtype=bool)
-    fault_code, activated, last_s = _next_fields(was_activated, last_s, has_last, np.asarray(speed_kmh, dtype=float),
-                                                 time_s, has_time, age, has_age, found_codes, settings)  # fmt: skip
+    fault_code, activated, last_s = _next_fields(
+        was_activated,
+        last_s,
+        has_last,
+        np.asarray(speed_kmh, dtype=float),
+        time_s,
+        has_time,
+        age,
+        has_age,
+        found_codes,
+        settings,
+    )
     last_list = last_s.tolist()
     if np.isnan(last_s).any():
         last_list = [None if value != value else value for value in last_list]
     made: dict[tuple, VehicleStatus] = {}
     updated = []
-    for status, key in zip(statuses, zip(fault_code.tolist(), activated.tolist(), last_list)):
+    for status, key in zip(statuses, zip(fault_code.tolist(), activated.tolist(), last_list, strict=True), strict=True):
         if status.switched_on:
             status = made.get(key) or made.setdefault(key, _switched_on_status(*key))
         updated.append(status)

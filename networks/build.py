@@ -17,11 +17,17 @@ __all__ = ["build_networks", "compare_networks"]
 
 def build_networks(directory: Path) -> list[Path]:
     """Build every bundled network into ``directory`` with its ground truth; the network paths."""
-    return (build_tracks(directory) + build_real_roads(Path(directory) / REAL_ROADS_DIR)
-            + build_fcw_tracks(Path(directory) / FCW_DIR))
+    return (
+        build_tracks(directory)
+        + build_real_roads(Path(directory) / REAL_ROADS_DIR)
+        + build_fcw_tracks(Path(directory) / FCW_DIR)
+    )
 
 
 def compare_networks(directory: Path) -> list[str]:
     """Rebuild every bundled network and list how ``directory`` differs; empty when it matches."""
-    return (compare_tracks(directory) + compare_real_roads(Path(directory) / REAL_ROADS_DIR)
-            + compare_fcw_tracks(Path(directory) / FCW_DIR))
+    return (
+        compare_tracks(directory)
+        + compare_real_roads(Path(directory) / REAL_ROADS_DIR)
+        + compare_fcw_tracks(Path(directory) / FCW_DIR)
+    )

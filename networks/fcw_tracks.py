@@ -30,8 +30,15 @@ from csws.sumo.netbuild import netconvert, shape_text
 
 from .generate import PRECISION_DIGITS, SAMPLE_SPACING_M, _json_difference, _lane_differences, _rounded, _write_json
 
-__all__ = ["FCW_DIR", "LANE_WIDTH_M", "CURVE_RADII_M", "fcw_track_names", "fcw_track_truth", "build_fcw_tracks",
-           "compare_fcw_tracks"]  # fmt: skip
+__all__ = [
+    "FCW_DIR",
+    "LANE_WIDTH_M",
+    "CURVE_RADII_M",
+    "fcw_track_names",
+    "fcw_track_truth",
+    "build_fcw_tracks",
+    "compare_fcw_tracks",
+]
 
 #: The folder of the bundled networks that holds the FCW tracks.
 FCW_DIR = "fcw"
@@ -57,8 +64,11 @@ def _pieces(name: str) -> list:
     inner_m = float(name.removeprefix("fcw_curve_r"))
     edge_m = inner_m + LANE_WIDTH_M / 2.0
     arc_m = min(CURVE_ARC_M, CURVE_ARC_SHARE * 2.0 * math.pi * inner_m)
-    return [straight(CURVE_APPROACH_M), arc(edge_m, math.degrees(arc_m * edge_m / inner_m / edge_m)),
-            straight(CURVE_RUNOUT_M)]  # fmt: skip
+    return [
+        straight(CURVE_APPROACH_M),
+        arc(edge_m, math.degrees(arc_m * edge_m / inner_m / edge_m)),
+        straight(CURVE_RUNOUT_M),
+    ]
 
 
 def fcw_track_truth(name: str) -> dict:
@@ -66,17 +76,25 @@ def fcw_track_truth(name: str) -> dict:
     each lane's radius and lane-position factor on the arc."""
     pieces = _pieces(name)
     starts = piece_starts_s(pieces)
-    truth = {"format": TRUTH_FORMAT, "name": name, "lane_width_m": LANE_WIDTH_M, "length_m": _rounded(starts[-1]),
-             "edge": "road", "curve": None}  # fmt: skip
+    truth = {
+        "format": TRUTH_FORMAT,
+        "name": name,
+        "lane_width_m": LANE_WIDTH_M,
+        "length_m": _rounded(starts[-1]),
+        "edge": "road",
+        "curve": None,
+    }
     if len(pieces) > 1:
         edge_radius_m = 1.0 / pieces[1].curvature
         lanes = {f"road_{index}": edge_radius_m + side * LANE_WIDTH_M / 2.0 for index, side in ((0, 1.0), (1, -1.0))}
         truth["curve"] = {
-            "direction": "left", "start_pos_m": _rounded(starts[1]), "end_pos_m": _rounded(starts[2]),
+            "direction": "left",
+            "start_pos_m": _rounded(starts[1]),
+            "end_pos_m": _rounded(starts[2]),
             "edge_radius_m": _rounded(edge_radius_m),
             "lane_radius_m": {lane: _rounded(radius_m) for lane, radius_m in lanes.items()},
             "lane_factor": {lane: _rounded(radius_m / edge_radius_m) for lane, radius_m in lanes.items()},
-        }  # fmt: skip
+        }
     return truth
 
 
@@ -86,9 +104,18 @@ def _plain_xml(name: str) -> tuple[str, str]:
     nodes, edges = ElementTree.Element("nodes"), ElementTree.Element("edges")
     for node_id, (x, y) in (("start", xy[0]), ("end", xy[-1])):
         ElementTree.SubElement(nodes, "node", id=node_id, x=f"{x:.6f}", y=f"{y:.6f}")
-    ElementTree.SubElement(edges, "edge", id="road", attrib={"from": "start"}, to="end", numLanes="2",
-                           speed=f"{LANE_SPEED_MPS:g}", width=f"{LANE_WIDTH_M:g}", spreadType="center",
-                           shape=shape_text(xy))  # fmt: skip
+    ElementTree.SubElement(
+        edges,
+        "edge",
+        id="road",
+        attrib={"from": "start"},
+        to="end",
+        numLanes="2",
+        speed=f"{LANE_SPEED_MPS:g}",
+        width=f"{LANE_WIDTH_M:g}",
+        spreadType="center",
+        shape=shape_text(xy),
+    )
     return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
 
 

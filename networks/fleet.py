@@ -32,8 +32,8 @@ import numpy as np
 from csws.cosim.categories import VCLASS_CATEGORY
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.sumo.netbuild import netconvert, shape_text
 from csws.networks.generate import ANGLE_MARGIN, PRECISION_DIGITS
+from csws.sumo.netbuild import netconvert, shape_text
 
 __all__ = [
     "FLEET_NAME",
@@ -169,10 +169,20 @@ def _plain_xml(lanes: int = LANES) -> tuple[str, str]:
     for index, section in enumerate(sections):
         shape, _ = sample_pieces(section, SAMPLE_SPACING_M, (x[index], y[index]), heading[index])
         common = {"numLanes": str(lanes), "speed": f"{LANE_SPEED_MPS:.6f}", "priority": "10"}
-        ElementTree.SubElement(edges, "edge", id=f"f{index}", attrib={"from": f"n{index}", "to": f"n{index + 1}", **common},
-                               shape=shape_text(shape))  # fmt: skip
-        ElementTree.SubElement(edges, "edge", id=f"b{index}", attrib={"from": f"n{index + 1}", "to": f"n{index}", **common},
-                               shape=shape_text(shape[::-1]))  # fmt: skip
+        ElementTree.SubElement(
+            edges,
+            "edge",
+            id=f"f{index}",
+            attrib={"from": f"n{index}", "to": f"n{index + 1}", **common},
+            shape=shape_text(shape),
+        )
+        ElementTree.SubElement(
+            edges,
+            "edge",
+            id=f"b{index}",
+            attrib={"from": f"n{index + 1}", "to": f"n{index}", **common},
+            shape=shape_text(shape[::-1]),
+        )
     return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
 
 
@@ -219,8 +229,12 @@ def types_for_mix(category_shares: dict[str, float]) -> tuple[FleetType, ...]:
     return tuple(replace(t, share=share(t)) for t in FLEET_TYPES)
 
 
-def fleet_routes_xml(count: int = FLEET_VEHICLES, period_s: float = FLEET_PERIOD_S, seed: int = 0,
-                     types: tuple[FleetType, ...] = FLEET_TYPES) -> str:  # fmt: skip
+def fleet_routes_xml(
+    count: int = FLEET_VEHICLES,
+    period_s: float = FLEET_PERIOD_S,
+    seed: int = 0,
+    types: tuple[FleetType, ...] = FLEET_TYPES,
+) -> str:
     """A route file of ``count`` vehicles of the fleet's mix departing evenly over ``period_s``.
 
     Vehicles alternate between the forward and the backward direction; their types are
@@ -231,7 +245,9 @@ def fleet_routes_xml(count: int = FLEET_VEHICLES, period_s: float = FLEET_PERIOD
     types = draw_types(count, np.random.default_rng(seed), types)
     routes = (" ".join(forward_edges()), " ".join(backward_edges()))
     lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
-    lines += [f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes)]
+    lines += [
+        f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes, strict=True)
+    ]
     for index, fleet_type in enumerate(types):
         depart_s = round(index * period_s / count, 1)
         lines.append(

@@ -39,8 +39,8 @@ from xml.etree import ElementTree
 import numpy as np
 
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, pose_at, straight
-from csws.sumo.netbuild import netconvert, shape_text
 from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.sumo.netbuild import netconvert, shape_text
 
 from .generate import (
     APPROACH_M,
@@ -57,8 +57,18 @@ from .generate import (
     _write_json,
 )
 
-__all__ = ["REAL_ROADS_DIR", "TRUTH_FORMAT", "INDEX_FORMAT", "RealRoadSpec", "real_road_specs", "real_road_pieces", "real_road_truth",
-           "build_real_roads", "compare_real_roads", "true_curves"]  # fmt: skip
+__all__ = [
+    "REAL_ROADS_DIR",
+    "TRUTH_FORMAT",
+    "INDEX_FORMAT",
+    "RealRoadSpec",
+    "real_road_specs",
+    "real_road_pieces",
+    "real_road_truth",
+    "build_real_roads",
+    "compare_real_roads",
+    "true_curves",
+]
 
 #: The folder of the bundled networks that holds the real-road tracks.
 REAL_ROADS_DIR = "real_roads"
@@ -97,8 +107,11 @@ class RealRoadSpec:
 
 
 def _spiral_curve(radius_m: float, spiral_m: float, angle_deg: float, direction: str = "left") -> tuple[Piece, ...]:
-    return (clothoid(spiral_m, math.inf, radius_m, direction), arc(radius_m, angle_deg, direction),
-            clothoid(spiral_m, radius_m, math.inf, direction))  # fmt: skip
+    return (
+        clothoid(spiral_m, math.inf, radius_m, direction),
+        arc(radius_m, angle_deg, direction),
+        clothoid(spiral_m, radius_m, math.inf, direction),
+    )
 
 
 def real_road_specs() -> list[RealRoadSpec]:
@@ -112,19 +125,37 @@ def real_road_specs() -> list[RealRoadSpec]:
         RealRoadSpec(
             "rr_compound",
             "compound curve R 250 -> 90 -> 35 m, clothoids at both ends and between the arcs",
-            (clothoid(50.0, math.inf, 250.0), arc(250.0, 12.0), clothoid(40.0, 250.0, 90.0), arc(90.0, 20.0),
-             clothoid(40.0, 90.0, 35.0), arc(35.0, 40.0), clothoid(40.0, 35.0, math.inf)),  # fmt: skip
+            (
+                clothoid(50.0, math.inf, 250.0),
+                arc(250.0, 12.0),
+                clothoid(40.0, 250.0, 90.0),
+                arc(90.0, 20.0),
+                clothoid(40.0, 90.0, 35.0),
+                arc(35.0, 40.0),
+                clothoid(40.0, 35.0, math.inf),
+            ),
         ),
         RealRoadSpec(
             "rr_s_bend",
             "S-bend: two R 100 m curves turning opposite ways, joined through one clothoid",
-            (clothoid(40.0, math.inf, 100.0), arc(100.0, 20.0), Piece(60.0, 1.0 / 100.0, -1.0 / 100.0),
-             arc(100.0, 20.0, "right"), clothoid(40.0, 100.0, math.inf, "right")),  # fmt: skip
+            (
+                clothoid(40.0, math.inf, 100.0),
+                arc(100.0, 20.0),
+                Piece(60.0, 1.0 / 100.0, -1.0 / 100.0),
+                arc(100.0, 20.0, "right"),
+                clothoid(40.0, 100.0, math.inf, "right"),
+            ),
         ),
-        RealRoadSpec("rr_node_in_curve", "25.7 m arc of R 71 m with a node 9.5 m after its start",
-                     (node_arc,), nodes_at_m=(9.5,)),  # fmt: skip
-        RealRoadSpec("rr_side_road", "R 150 m curve between 40 m clothoids, a side road joining in its middle",
-                     side, nodes_at_m=(40.0 + side[1].length_m / 2.0,), side_road_at=0),  # fmt: skip
+        RealRoadSpec(
+            "rr_node_in_curve", "25.7 m arc of R 71 m with a node 9.5 m after its start", (node_arc,), nodes_at_m=(9.5,)
+        ),
+        RealRoadSpec(
+            "rr_side_road",
+            "R 150 m curve between 40 m clothoids, a side road joining in its middle",
+            side,
+            nodes_at_m=(40.0 + side[1].length_m / 2.0,),
+            side_road_at=0,
+        ),
     ]
 
 
@@ -133,8 +164,9 @@ def real_road_pieces(spec: RealRoadSpec) -> list[Piece]:
     return [straight(APPROACH_M), *spec.curve_pieces, straight(RUNOUT_M)]
 
 
-def true_curves(pieces: list[Piece], warning_radius_m: float = DEFAULT_WARNING_RADIUS_M,
-                sampling_m: float = CURVE_SAMPLING_M) -> list[dict]:  # fmt: skip
+def true_curves(
+    pieces: list[Piece], warning_radius_m: float = DEFAULT_WARNING_RADIUS_M, sampling_m: float = CURVE_SAMPLING_M
+) -> list[dict]:
     """The curves (3.3-3.5) of the exact road: maximal stretches turning one way with radius
     at most R_c, from its curvature sampled every ``sampling_m``: start and end (m), smallest
     radius (m), angle (degrees) and direction."""
@@ -143,16 +175,19 @@ def true_curves(pieces: list[Piece], warning_radius_m: float = DEFAULT_WARNING_R
     side = np.where(curvature >= 1.0 / warning_radius_m, 1, np.where(curvature <= -1.0 / warning_radius_m, -1, 0))
     edges = np.flatnonzero(np.diff(np.concatenate(([0], side, [0]))) != 0)
     curves = []
-    for first, stop in zip(edges[:-1], edges[1:]):
+    for first, stop in zip(edges[:-1], edges[1:], strict=True):
         if side[first] == 0:
             continue
         magnitude = np.abs(curvature[first:stop])
-        curves.append({
-            "start_s": _rounded(s[first]), "end_s": _rounded(s[stop - 1]),
-            "min_radius_m": _rounded(1.0 / magnitude.max()),
-            "angle_deg": _rounded(math.degrees(magnitude.sum() * sampling_m)),
-            "direction": "left" if side[first] > 0 else "right",
-        })  # fmt: skip
+        curves.append(
+            {
+                "start_s": _rounded(s[first]),
+                "end_s": _rounded(s[stop - 1]),
+                "min_radius_m": _rounded(1.0 / magnitude.max()),
+                "angle_deg": _rounded(math.degrees(magnitude.sum() * sampling_m)),
+                "direction": "left" if side[first] > 0 else "right",
+            }
+        )
     return curves
 
 
@@ -183,21 +218,42 @@ def _plain_xml(spec: RealRoadSpec) -> tuple[str, str]:
     inside = set(range(2, 2 + len(spec.nodes_at_m)))
     nodes, edges = ElementTree.Element("nodes"), ElementTree.Element("edges")
     for number in range(len(bounds)):
-        node = ElementTree.SubElement(nodes, "node", id=f"n{number}", x=f"{x[number]:.6f}", y=f"{y[number]:.6f}",
-                                      type="priority")  # fmt: skip
+        node = ElementTree.SubElement(
+            nodes, "node", id=f"n{number}", x=f"{x[number]:.6f}", y=f"{y[number]:.6f}", type="priority"
+        )
         if 0 < number < len(bounds) - 1 and number not in inside:
             node.set("shape", shape_text(_junction_shape(x[number], y[number], heading[number])))
     for number, edge_id in enumerate(_edge_ids(spec)):
-        ElementTree.SubElement(edges, "edge", id=edge_id, attrib={"from": f"n{number}"}, to=f"n{number + 1}",
-                               numLanes="1", speed=f"{LANE_SPEED_MPS:g}", priority="2", spreadType="center",
-                               shape=shape_text(_shape(pieces, bounds[number], bounds[number + 1])))  # fmt: skip
+        ElementTree.SubElement(
+            edges,
+            "edge",
+            id=edge_id,
+            attrib={"from": f"n{number}"},
+            to=f"n{number + 1}",
+            numLanes="1",
+            speed=f"{LANE_SPEED_MPS:g}",
+            priority="2",
+            spreadType="center",
+            shape=shape_text(_shape(pieces, bounds[number], bounds[number + 1])),
+        )
     if spec.side_road_at is not None:
         joint = 2 + spec.side_road_at
-        outward = heading[joint] + (math.pi / 2 if curvature_at(pieces, np.array([bounds[joint]]))[0] < 0 else -math.pi / 2)
+        outward = heading[joint] + (
+            math.pi / 2 if curvature_at(pieces, np.array([bounds[joint]]))[0] < 0 else -math.pi / 2
+        )
         side_xy = (x[joint] + SIDE_ROAD_M * math.cos(outward), y[joint] + SIDE_ROAD_M * math.sin(outward))
         ElementTree.SubElement(nodes, "node", id="side", x=f"{side_xy[0]:.6f}", y=f"{side_xy[1]:.6f}", type="priority")
-        ElementTree.SubElement(edges, "edge", id="side", attrib={"from": "side"}, to=f"n{joint}", numLanes="1",
-                               speed="13.89", priority="1", spreadType="center")  # fmt: skip
+        ElementTree.SubElement(
+            edges,
+            "edge",
+            id="side",
+            attrib={"from": "side"},
+            to=f"n{joint}",
+            numLanes="1",
+            speed="13.89",
+            priority="1",
+            spreadType="center",
+        )
     return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
 
 
@@ -217,9 +273,11 @@ def real_road_truth(spec: RealRoadSpec) -> dict:
             for p in pieces
         ],
         "route": {"edges": _edge_ids(spec), "length_m": _rounded(bounds[-1])},
-        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds)},
+        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds, strict=True)},
         "nodes_in_curves_s": [_rounded(APPROACH_M + at_m) for at_m in spec.nodes_at_m],
-        "side_road": None if spec.side_road_at is None else {"edge": "side", "joins_at_s": _rounded(bounds[2 + spec.side_road_at])},
+        "side_road": None
+        if spec.side_road_at is None
+        else {"edge": "side", "joins_at_s": _rounded(bounds[2 + spec.side_road_at])},
         "warning_radius_m": DEFAULT_WARNING_RADIUS_M,
         "curves": true_curves(pieces),
     }
@@ -238,9 +296,13 @@ def _index(specs: list[RealRoadSpec]) -> dict:
     return {
         "format": INDEX_FORMAT,
         "tracks": [
-            {"name": spec.name, "description": spec.description, "net_file": f"{spec.name}.net.xml",
-             "truth_file": f"{spec.name}.truth.json",
-             "min_radius_m": min(c["min_radius_m"] for c in true_curves(real_road_pieces(spec)))}  # fmt: skip
+            {
+                "name": spec.name,
+                "description": spec.description,
+                "net_file": f"{spec.name}.net.xml",
+                "truth_file": f"{spec.name}.truth.json",
+                "min_radius_m": min(c["min_radius_m"] for c in true_curves(real_road_pieces(spec))),
+            }
             for spec in specs
         ],
     }
@@ -266,7 +328,9 @@ def compare_real_roads(directory: Path, tolerance_m: float = 0.01) -> list[str]:
                 continue
             built = _build(spec, Path(work))
             differences += _lane_differences(spec.name, built, committed, tolerance_m)
-            differences += _json_difference(Path(work) / f"{spec.name}.truth.json", directory / f"{spec.name}.truth.json")
+            differences += _json_difference(
+                Path(work) / f"{spec.name}.truth.json", directory / f"{spec.name}.truth.json"
+            )
         _write_json(Path(work) / "index.json", _index(real_road_specs()))
         differences += _json_difference(Path(work) / "index.json", directory / "index.json")
     return differences

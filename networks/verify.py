@@ -74,7 +74,9 @@ class VerificationReport:
 
     def as_table(self) -> str:
         """A fixed-width table, one line per check, and a verdict line."""
-        header = f"{'network':<24} {'curve':<8} {'start err m':>11} {'end err m':>10} {'R true':>7} {'R found':>8}  result"
+        header = (
+            f"{'network':<24} {'curve':<8} {'start err m':>11} {'end err m':>10} {'R true':>7} {'R found':>8}  result"
+        )
         lines = [header, "-" * len(header)]
         for c in self.checks:
             lines.append(
@@ -112,12 +114,26 @@ def verify_network(
         )
         if passed:
             matched.add(index)
-        checks.append(CurveCheck(truth["name"], curve["name"], curve["start_s"], curve["end_s"], curve["radius_m"],
-                                 *found, passed=passed))
+        checks.append(
+            CurveCheck(
+                truth["name"], curve["name"], curve["start_s"], curve["end_s"], curve["radius_m"], *found, passed=passed
+            )
+        )
     for i, part in enumerate(parts):
         if i not in matched:
-            checks.append(CurveCheck(truth["name"], "extra", float("nan"), float("nan"), float("nan"),
-                                     part.start_s, part.end_s, part.radius_m, passed=False))
+            checks.append(
+                CurveCheck(
+                    truth["name"],
+                    "extra",
+                    float("nan"),
+                    float("nan"),
+                    float("nan"),
+                    part.start_s,
+                    part.end_s,
+                    part.radius_m,
+                    passed=False,
+                )
+            )
     return checks
 
 

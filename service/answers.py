@@ -21,15 +21,16 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import Any, Callable, Collection, NamedTuple, Sequence
+from functools import cache
+from typing import Any, NamedTuple
 
 import msgspec
 import numpy as np
 
-from csws.engine import VehicleInput
 from csws.ahead.horizon import PathAhead
+from csws.engine import VehicleInput
 from csws.road.matching import MapMatcher, MatchSettings, Probes, lane_points
 from csws.standard import Category, Level
 from csws.state import Fault, SystemState
@@ -124,8 +125,13 @@ class WarningService:
         self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
 
     # ------------------------------------------------------------------ queries
-    def answer(self, queries: Sequence[DecodedQuery], loc: Sequence[Any] = ("body", "queries"),
-               fleet: str = "", stages: Stages = UNTIMED) -> "EncodedAnswers":  # fmt: skip
+    def answer(
+        self,
+        queries: Sequence[DecodedQuery],
+        loc: Sequence[Any] = ("body", "queries"),
+        fleet: str = "",
+        stages: Stages = UNTIMED,
+    ) -> EncodedAnswers:
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
         The vehicles are read from the state store, answered, and their sessions written back
@@ -142,8 +148,9 @@ class WarningService:
             When the state store cannot be read or written now.
         """
         if fleet:
-            queries = [msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id))
-                       for query in queries]  # fmt: skip
+            queries = [
+                msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id)) for query in queries
+            ]
         answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
@@ -151,14 +158,19 @@ class WarningService:
                 indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
                 self.check(queries, vehicles, loc, fleet, indices)
             for round_indices in _rounds(queries, indices):
-                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet,
-                                   stages)  # fmt: skip
+                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet, stages)
 
         self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles, stages)
         return answers
 
-    def check(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles, loc: Sequence[Any] = ("body", "queries"),
-              fleet: str = "", indices: Sequence[int] | None = None) -> None:  # fmt: skip
+    def check(
+        self,
+        queries: Sequence[DecodedQuery],
+        vehicles: LoadedVehicles,
+        loc: Sequence[Any] = ("body", "queries"),
+        fleet: str = "",
+        indices: Sequence[int] | None = None,
+    ) -> None:
         """Raise :class:`QueryErrors` listing what in ``queries`` (of ``fleet``'s vehicles, those at
         ``indices`` if given) the networks cannot answer."""
         errors: list[dict[str, Any]] = []
@@ -174,18 +186,30 @@ class WarningService:
         """What the networks cannot answer in one query: (field, why) each."""
         problems = []
         if query.category is None and vehicles.category(query.vehicle_id) is None:
-            problems.append(("category", "category is required: give it in the query or "
-                             f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}"))  # fmt: skip
+            problems.append(
+                (
+                    "category",
+                    "category is required: give it in the query or "
+                    f"set it with PUT /v1/vehicles/{shown_id(fleet, query.vehicle_id)}",
+                )
+            )
         if query.network is not None and query.network not in self.network_index:
-            return problems + [("network", f"unknown network {query.network!r}: served are "
-                                + ", ".join(sorted(self.network_index)))]  # fmt: skip
+            return problems + [
+                ("network", f"unknown network {query.network!r}: served are " + ", ".join(sorted(self.network_index)))
+            ]
         if query.position is not None and query.position.is_geographic and not self._geographic(query):
-            problems.append(("position", "the served networks are not geo-referenced: "
-                             "give the position as x and y in network metres"))  # fmt: skip
+            problems.append(
+                (
+                    "position",
+                    "the served networks are not geo-referenced: give the position as x and y in network metres",
+                )
+            )
         if query.lane_id is not None:
             problems += self._lane_problems(query, vehicles)
         if query.route:
-            known = self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
+            known = (
+                self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
+            )
             unknown = [edge for edge in query.route if edge not in known]
             if unknown:
                 where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
@@ -205,8 +229,13 @@ class WarningService:
             return [("lane_id", f"unknown lane id {query.lane_id!r}: {where_not}")]
         length_m = self.networks[network_index].road_map.lane(query.lane_id).length_m
         if query.lane_pos_m > length_m:
-            return [("lane_pos_m", f"lane position {query.lane_pos_m:g} m lies beyond the end of lane "
-                     f"{query.lane_id!r} ({length_m:g} m long)")]  # fmt: skip
+            return [
+                (
+                    "lane_pos_m",
+                    f"lane position {query.lane_pos_m:g} m lies beyond the end of lane "
+                    f"{query.lane_id!r} ({length_m:g} m long)",
+                )
+            ]
         return []
 
     def _lane_network(self, query: DecodedQuery, vehicles: LoadedVehicles) -> int | None:
@@ -231,7 +260,7 @@ class WarningService:
         if on_lanes:
             networks = [self._lane_network(queries[i], vehicles) for i in on_lanes]
             distances_m = self._fix_distances_m([queries[i] for i in on_lanes], networks)
-            for i, network_index, distance_m in zip(on_lanes, networks, distances_m):
+            for i, network_index, distance_m in zip(on_lanes, networks, distances_m, strict=True):
                 placements[i] = Placement(network_index, queries[i].lane_id, queries[i].lane_pos_m, distance_m, None)
         if to_match:
             fixes = [queries[i] for i in to_match]
@@ -241,9 +270,15 @@ class WarningService:
                 [vehicles.previous(query.vehicle_id) for query in fixes],
             )
             for i, query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
-                to_match, fixes, matched.map_index.tolist(), matched.lane_id, matched.lane_pos_m.tolist(),
-                matched.distance_m.tolist(), matched.reason,
-            ):  # fmt: skip
+                to_match,
+                fixes,
+                matched.map_index.tolist(),
+                matched.lane_id,
+                matched.lane_pos_m.tolist(),
+                matched.distance_m.tolist(),
+                matched.reason,
+                strict=True,
+            ):
                 if network_index < 0:
                     network_index = vehicles.network_of(query.vehicle_id)
                 placements[i] = Placement(network_index, lane_id, lane_pos_m, distance_m, reason)
@@ -269,8 +304,12 @@ class WarningService:
             rows += placed
             xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
             map_index += [network_index] * len(placed)
-        return Probes(len(queries), np.array(rows, dtype=np.intp), np.array(xy, dtype=float).reshape(-1, 2),
-                      np.array(map_index, dtype=np.intp))  # fmt: skip
+        return Probes(
+            len(queries),
+            np.array(rows, dtype=np.intp),
+            np.array(xy, dtype=float).reshape(-1, 2),
+            np.array(map_index, dtype=np.intp),
+        )
 
     def _fix_distances_m(self, queries: Sequence[DecodedQuery], networks: Sequence[int]) -> list[float]:
         """Distance from each query's fix to its given lane position on its network, m; 0 without a fix,
@@ -278,7 +317,7 @@ class WarningService:
         in one interpolation."""
         distances_m = [0.0] * len(queries)
         on_lane: dict[tuple[int, str], list[int]] = defaultdict(list)
-        for row, (query, network_index) in enumerate(zip(queries, networks)):
+        for row, (query, network_index) in enumerate(zip(queries, networks, strict=True)):
             position = query.position
             if position is not None and (position.lon is None or self.networks[network_index].road_map.has_projection):
                 on_lane[(network_index, query.lane_id)].append(row)
@@ -291,34 +330,51 @@ class WarningService:
                 lonlat = np.array([(fixes[k].lon, fixes[k].lat) for k in geographic])
                 xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
             lane_xy = lane_points(road_map, lane_id, np.array([queries[row].lane_pos_m for row in rows]))
-            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist()):
+            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist(), strict=True):
                 distances_m[row] = math.hypot(x - lane_x, y - lane_y)
         return distances_m
 
-    def _answer_round(self, queries: Sequence[DecodedQuery], indices: Sequence[int], vehicles: LoadedVehicles,
-                      answers: "EncodedAnswers", fleet: str, stages: Stages) -> None:  # fmt: skip
+    def _answer_round(
+        self,
+        queries: Sequence[DecodedQuery],
+        indices: Sequence[int],
+        vehicles: LoadedVehicles,
+        answers: EncodedAnswers,
+        fleet: str,
+        stages: Stages,
+    ) -> None:
         """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
         with stages("match"):
             placements = self.place(queries, vehicles)
         by_network: dict[int, list[int]] = defaultdict(list)
-        for row, (query, placement) in enumerate(zip(queries, placements)):
+        for row, (query, placement) in enumerate(zip(queries, placements, strict=True)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         # The query's category, else the one its fleet set (the checks made sure one of them is there).
-        categories = [query.category if query.category is not None else vehicles.category(query.vehicle_id)
-                      for query in queries]  # fmt: skip
+        categories = [
+            query.category if query.category is not None else vehicles.category(query.vehicle_id) for query in queries
+        ]
         for network_index, rows in by_network.items():
             with stages("engine"):
-                evaluated = self.evaluate(network_index, [queries[row] for row in rows],
-                                          [placements[row] for row in rows], [categories[row] for row in rows])
+                evaluated = self.evaluate(
+                    network_index,
+                    [queries[row] for row in rows],
+                    [placements[row] for row in rows],
+                    [categories[row] for row in rows],
+                )
             with stages("encode"):
                 self._record(queries, categories, indices, placements, rows, evaluated, vehicles, answers, fleet)
         with stages("encode"):
-            for index, fcw in zip(indices, fcw_answers(queries)):
+            for index, fcw in zip(indices, fcw_answers(queries), strict=True):
                 answers.documents[index].fcw = fcw
 
-    def evaluate(self, network_index: int, queries: Sequence[DecodedQuery], placements: Sequence[Placement],
-                 categories: Sequence[Category]) -> "Evaluated":  # fmt: skip
+    def evaluate(
+        self,
+        network_index: int,
+        queries: Sequence[DecodedQuery],
+        placements: Sequence[Placement],
+        categories: Sequence[Category],
+    ) -> Evaluated:
         """The engine's answers for placed queries of distinct vehicles of ``categories`` on one network, as columns.
 
         One vehicle takes the engine's one-vehicle path; more are evaluated as columns in one
@@ -329,8 +385,9 @@ class WarningService:
         if len(queries) == 1:
             answer = engine.evaluate(self.vehicle_input(queries[0], placements[0], categories[0]))
             kind = None if answer.path is None else answer.path.kind
-            return Evaluated([answer.vehicle_id], [answer.state], [answer.fault], [answer.warning], [kind],
-                             lambda _row: answer.path)  # fmt: skip
+            return Evaluated(
+                [answer.vehicle_id], [answer.state], [answer.fault], [answer.warning], [kind], lambda _row: answer.path
+            )
         fleet = engine.evaluate_fleet(
             [query.vehicle_id for query in queries],
             categories,
@@ -338,30 +395,56 @@ class WarningService:
             [placement.lane_id for placement in placements],
             [placement.lane_pos_m if placement.lane_id is not None else 0.0 for placement in placements],
             [tuple(query.route) if query.route else None for query in queries],
-            timestamp_s=[query.timestamp_s for query in queries], age_s=[query.age_s for query in queries],
+            timestamp_s=[query.timestamp_s for query in queries],
+            age_s=[query.age_s for query in queries],
         )
         kinds: list[PathKind | None] = [None] * len(queries)
         ahead_row = {}
         if fleet.ahead is not None:
-            for k, (row, horizon) in enumerate(zip(fleet.active, fleet.ahead.horizons)):
+            for k, (row, horizon) in enumerate(zip(fleet.active, fleet.ahead.horizons, strict=True)):
                 kinds[row] = horizon.kind
                 ahead_row[row] = k
-        return Evaluated(fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, kinds,
-                         lambda row: fleet.ahead.path_ahead(ahead_row[row]))  # fmt: skip
+        return Evaluated(
+            fleet.vehicle_id,
+            fleet.state,
+            fleet.fault,
+            fleet.warning,
+            kinds,
+            lambda row: fleet.ahead.path_ahead(ahead_row[row]),
+        )
 
-    def _record(self, queries: Sequence[DecodedQuery], categories: Sequence[Category], indices: Sequence[int],
-                placements: Sequence[Placement], rows: Sequence[int], evaluated: "Evaluated", vehicles: LoadedVehicles,
-                answers: "EncodedAnswers", fleet: str) -> None:  # fmt: skip
+    def _record(
+        self,
+        queries: Sequence[DecodedQuery],
+        categories: Sequence[Category],
+        indices: Sequence[int],
+        placements: Sequence[Placement],
+        rows: Sequence[int],
+        evaluated: Evaluated,
+        vehicles: LoadedVehicles,
+        answers: EncodedAnswers,
+        fleet: str,
+    ) -> None:
         """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
-        for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(zip(
-                rows, evaluated.vehicle_id, evaluated.state, evaluated.fault, evaluated.warning, evaluated.path_kind)):
+        for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(
+            zip(
+                rows,
+                evaluated.vehicle_id,
+                evaluated.state,
+                evaluated.fault,
+                evaluated.warning,
+                evaluated.path_kind,
+                strict=True,
+            )
+        ):
             placement, query = placements[row], queries[row]
             latest = LatestAnswer(categories[row], query.speed_kmh, int(warning.level), query.timestamp_s)
             vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
-            answers.documents[index] = self.encode(shown_id(fleet, vehicle_id), state, fault, warning, kind, path,
-                                                   placement)  # fmt: skip
+            answers.documents[index] = self.encode(
+                shown_id(fleet, vehicle_id), state, fault, warning, kind, path, placement
+            )
             answers.state[index] = state
             answers.level[index] = warning.level
 
@@ -380,8 +463,16 @@ class WarningService:
         )
 
     # ------------------------------------------------------------------ answers
-    def encode(self, vehicle_id: str, state: SystemState, fault: Fault | None, warning: CurveWarning,
-               path_kind: PathKind | None, path: PathAhead | None, placement: Placement) -> msgspec.Struct:  # fmt: skip
+    def encode(
+        self,
+        vehicle_id: str,
+        state: SystemState,
+        fault: Fault | None,
+        warning: CurveWarning,
+        path_kind: PathKind | None,
+        path: PathAhead | None,
+        placement: Placement,
+    ) -> msgspec.Struct:
         """The contract's WarningAnswer of an engine's answer (system state, fault, warning, the path
         ahead's kind, and the path itself where the warning has CPOIs to locate) for the vehicle its
         fleet calls ``vehicle_id``, ready for msgspec to write (floats unrounded; the state, level
@@ -399,22 +490,25 @@ class WarningService:
         located = warning.triggers  # the target is one of them
         if located:
             places = self.cpoi_positions[placement.network_index].of(
-                path, [t.curve_id for t in located], [t.part_index for t in located])
-            positions = {id(t): place for t, place in zip(located, places)}
+                path, [t.curve_id for t in located], [t.part_index for t in located]
+            )
+            positions = {id(t): place for t, place in zip(located, places, strict=True)}
             if warning.target is not None:
                 target = _trigger(warning.target, positions[id(warning.target)])
             triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]
         matched = None
         if placement.lane_id is not None:
             matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
-        return _AnswerDocument(vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind,
-                               _hmi_json(warning.hmi))  # fmt: skip
+        return _AnswerDocument(
+            vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind, _hmi_json(warning.hmi)
+        )
 
 
 def _document(model: type) -> type[msgspec.Struct]:
     """A struct with the fields of a contract's model, in its order, to write its JSON with msgspec."""
-    return msgspec.defstruct(f"{model.__name__}Document", [(name, Any) for name in model.model_fields],
-                             gc=False, module=__name__)  # fmt: skip
+    return msgspec.defstruct(
+        f"{model.__name__}Document", [(name, Any) for name in model.model_fields], gc=False, module=__name__
+    )
 
 
 @dataclass(frozen=True)
@@ -440,9 +534,13 @@ class Evaluated:
 
 
 #: An answer's ``fcw`` is left out unless the query had a forward_target: the curve warning's answers stay as they were.
-_AnswerDocument = msgspec.defstruct("WarningAnswerDocument", [*((name, Any) for name in WarningAnswer.model_fields
-                                                                 if name != "fcw"), ("fcw", Any, None)],
-                                    omit_defaults=True, gc=False, module=__name__)  # fmt: skip
+_AnswerDocument = msgspec.defstruct(
+    "WarningAnswerDocument",
+    [*((name, Any) for name in WarningAnswer.model_fields if name != "fcw"), ("fcw", Any, None)],
+    omit_defaults=True,
+    gc=False,
+    module=__name__,
+)
 _MatchedDocument = _document(Matched)
 _ENCODER = msgspec.json.Encoder()
 
@@ -466,7 +564,7 @@ class EncodedAnswers:
         return _ENCODER.encode({"answers": self.documents})
 
 
-@lru_cache(maxsize=None)
+@cache
 def _hmi_json(hmi: HmiHint) -> msgspec.Raw:
     """The JSON of an HMI hint (there are three)."""
     return msgspec.Raw(_ENCODER.encode(_document(Hmi)(hmi.visual, hmi.audible)))

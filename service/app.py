@@ -13,11 +13,13 @@ import gc
 import logging
 import sys
 import time
+from collections.abc import Callable
 from contextlib import asynccontextmanager
-from typing import Any, Callable
+from typing import Any
 
 import msgspec
-from fastapi import FastAPI, HTTPException, Path, Query as QueryParam, Request
+from fastapi import FastAPI, HTTPException, Path, Request
+from fastapi import Query as QueryParam
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
 from pydantic import ValidationError
@@ -26,15 +28,15 @@ from csws import __version__
 from csws.standard import Category
 
 from .answers import QueryErrors, WarningService
-from .curves import (BBOX_QUERY, NETWORK_QUERY, choose_networks, curve_features, feature_collection, in_bbox,
-                     parse_bbox)
+from .curves import BBOX_QUERY, NETWORK_QUERY, choose_networks, curve_features, feature_collection, in_bbox, parse_bbox
 from .decoding import DecodedBatch, DecodedQuery, DecodedSwitch, decode
 from .docs import add_doc_routes
 from .horizon import DEFAULT_HORIZON_M, horizon
-from .keys import KeyMiddleware, KeyRing, principal as _principal, vehicle_key
+from .keys import KeyMiddleware, KeyRing, vehicle_key
+from .keys import principal as _principal
 from .limits import BodyLimit, too_many_queries
-from .metrics import Metrics, MetricsMiddleware
 from .map import add_map_routes
+from .metrics import Metrics, MetricsMiddleware
 from .networks import MAX_HORIZON_M, load_networks
 from .schemas import (
     BATCH_ADAPTER,
@@ -96,14 +98,20 @@ _BOUNDED = {
 }
 
 #: The 422 of endpoints that read their bodies themselves, as FastAPI documents its own.
-_INVALID_BODY = {"description": "Validation Error",
-                 "content": {"application/json": {"schema": {"$ref": "#/components/schemas/HTTPValidationError"}}}}
+_INVALID_BODY = {
+    "description": "Validation Error",
+    "content": {"application/json": {"schema": {"$ref": "#/components/schemas/HTTPValidationError"}}},
+}
 
 
 def _json_body(schema: str) -> dict[str, Any]:
     """The OpenAPI request body of an endpoint that reads its body itself (see :func:`_document_bodies`)."""
-    return {"requestBody": {"required": True,
-                            "content": {"application/json": {"schema": {"$ref": f"#/components/schemas/{schema}"}}}}}
+    return {
+        "requestBody": {
+            "required": True,
+            "content": {"application/json": {"schema": {"$ref": f"#/components/schemas/{schema}"}}},
+        }
+    }
 
 
 def create_app(settings: ServiceSettings | None = None, clock: Callable[[], float] = time.time) -> FastAPI:
@@ -149,8 +157,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         work.close()
         store.close()
 
-    app = FastAPI(title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan, docs_url=None,
-                  redoc_url=None)  # served from the package (service.docs)
+    app = FastAPI(
+        title="csws", version=__version__, description=DESCRIPTION, lifespan=lifespan, docs_url=None, redoc_url=None
+    )  # served from the package (service.docs)
     add_doc_routes(app)
     add_map_routes(app, networks, registry, store, off_loop, {**_KEYED, **_STORE})
     # Innermost first: bodies bounded, then keys (a 401 before any body is read), then metrics over all.
@@ -190,8 +199,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     )
     async def warning(request: Request) -> Response:
         body, fleet = await request.body(), _principal(request).fleet
-        answers = await off_loop(lambda: service.answer([decode(body, DecodedQuery, QUERY_ADAPTER)], loc=("body",),
-                                                        fleet=fleet))  # fmt: skip
+        answers = await off_loop(
+            lambda: service.answer([decode(body, DecodedQuery, QUERY_ADAPTER)], loc=("body",), fleet=fleet)
+        )
         metrics.observe_answers(answers.state, answers.level)
         return Response(answers.json(0), media_type="application/json")
 
@@ -206,9 +216,16 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     async def warnings(request: Request) -> Response:
         body, fleet = await request.body(), _principal(request).fleet
         started = time.perf_counter()
-        if (count := too_many_queries(body, MAX_BATCH)):
-            raise RequestValidationError([{"loc": ("body", "queries"), "type": "too_long",
-                                           "msg": f"List should have at most {MAX_BATCH} items, not {count}"}])
+        if count := too_many_queries(body, MAX_BATCH):
+            raise RequestValidationError(
+                [
+                    {
+                        "loc": ("body", "queries"),
+                        "type": "too_long",
+                        "msg": f"List should have at most {MAX_BATCH} items, not {count}",
+                    }
+                ]
+            )
 
         stages = Stages()
 
@@ -242,8 +259,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
         return await off_loop(collection)
 
-    @app.get("/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", tags=["map"],
-             responses=_KEYED)
+    @app.get(
+        "/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", tags=["map"], responses=_KEYED
+    )
     async def road_ahead(
         x: float | None = QueryParam(default=None, allow_inf_nan=False, description="network x, m"),
         y: float | None = QueryParam(default=None, allow_inf_nan=False, description="network y, m"),
@@ -254,8 +272,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         lane_pos_m: float | None = QueryParam(default=None, allow_inf_nan=False, description="lane position, m"),
         route: str | None = QueryParam(default=None, description="route edge ids, comma-separated"),
         network: str | None = QueryParam(default=None, description="the served network (default: best match)"),
-        length_m: float = QueryParam(default=DEFAULT_HORIZON_M, gt=0, le=MAX_HORIZON_M, allow_inf_nan=False,
-                                     description="how far ahead, m"),
+        length_m: float = QueryParam(
+            default=DEFAULT_HORIZON_M, gt=0, le=MAX_HORIZON_M, allow_inf_nan=False, description="how far ahead, m"
+        ),
     ) -> Response:
         given = {k: v for k, v in {"x": x, "y": y, "lon": lon, "lat": lat}.items() if v is not None}
         try:
@@ -283,10 +302,19 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
                 (placement,) = service.place([decoded], nobody)
             if placement.lane_id is None:
                 return _json({"matched": None, "fault": placement.reason, "profile": [], "cpois": []})
-            ahead = horizon(networks[placement.network_index], service.cpoi_positions[placement.network_index],
-                            placement.lane_id, placement.lane_pos_m, query.route, length_m)
-            matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m,
-                       "distance_m": placement.distance_m}
+            ahead = horizon(
+                networks[placement.network_index],
+                service.cpoi_positions[placement.network_index],
+                placement.lane_id,
+                placement.lane_pos_m,
+                query.route,
+                length_m,
+            )
+            matched = {
+                "lane_id": placement.lane_id,
+                "lane_pos_m": placement.lane_pos_m,
+                "distance_m": placement.distance_m,
+            }
             return _json({"matched": matched, "fault": None, **ahead})
 
         return await off_loop(road)
@@ -309,11 +337,20 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
     vehicle_path = Path(min_length=1, max_length=128, description="the vehicle")
 
-    @app.put("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
-             summary="Switch CSWS on or off for a vehicle (5.2) and set its category",
-             responses={403: {"model": Message, "description": "the key's role may not switch vehicles"},
-                        422: _INVALID_BODY, **_STORE, **_KEYED, **_BOUNDED},
-             openapi_extra=_json_body("VehicleSwitch"))  # fmt: skip
+    @app.put(
+        "/v1/vehicles/{vehicle_id}",
+        response_model=VehicleState,
+        tags=["vehicles"],
+        summary="Switch CSWS on or off for a vehicle (5.2) and set its category",
+        responses={
+            403: {"model": Message, "description": "the key's role may not switch vehicles"},
+            422: _INVALID_BODY,
+            **_STORE,
+            **_KEYED,
+            **_BOUNDED,
+        },
+        openapi_extra=_json_body("VehicleSwitch"),
+    )
     async def put_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         principal = _principal(request)
         if not principal.may_switch:
@@ -327,17 +364,26 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
 
         return await off_loop(registry.transact, {key}, configure)
 
-    @app.get("/v1/vehicles/{vehicle_id}", response_model=VehicleState, tags=["vehicles"],
-             summary="A vehicle's switch, category and system state",
-             responses={404: {"model": Message, "description": "a vehicle never queried or set, or expired"},
-                        **_STORE, **_KEYED})  # fmt: skip
+    @app.get(
+        "/v1/vehicles/{vehicle_id}",
+        response_model=VehicleState,
+        tags=["vehicles"],
+        summary="A vehicle's switch, category and system state",
+        responses={
+            404: {"model": Message, "description": "a vehicle never queried or set, or expired"},
+            **_STORE,
+            **_KEYED,
+        },
+    )
     async def get_vehicle(request: Request, vehicle_id: str = vehicle_path) -> dict[str, Any]:
         key = vehicle_key(_principal(request).fleet, vehicle_id)
 
         def state() -> dict[str, Any]:
             with registry.read({key}) as vehicles:
                 if not vehicles.known(key):
-                    raise HTTPException(404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired")
+                    raise HTTPException(
+                        404, f"unknown vehicle {vehicle_id!r}: never queried or set, or its session expired"
+                    )
                 return _vehicle_state(vehicles, key, vehicle_id)
 
         return await off_loop(state)
@@ -347,8 +393,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     async def healthz() -> dict[str, str]:
         return {"status": "ok"}
 
-    @app.get("/readyz", tags=["operations"], summary="The networks are loaded and the state store answers",
-             responses=_STORE)
+    @app.get(
+        "/readyz", tags=["operations"], summary="The networks are loaded and the state store answers", responses=_STORE
+    )
     async def readyz() -> dict[str, Any]:
         return {
             "status": "ready",

@@ -16,35 +16,71 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         description="Serve curve speed warnings over HTTP. Options override the CSWS_* environment variables; "
         "without --net the bundled networks are served. OpenAPI docs at /docs.",
     )
-    parser.add_argument("--net", type=Path, action="append", default=None, metavar="FILE",
-                        help="a SUMO network to serve (.net.xml or .net.xml.gz); repeat for several")
+    parser.add_argument(
+        "--net",
+        type=Path,
+        action="append",
+        default=None,
+        metavar="FILE",
+        help="a SUMO network to serve (.net.xml or .net.xml.gz); repeat for several",
+    )
     parser.add_argument("--host", default=None, help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=None, help="TCP port (default 8000)")
     parser.add_argument("--workers", type=int, default=None, help="worker processes (default 1)")
-    parser.add_argument("--state", default=None, metavar="URL",
-                        help="redis://HOST:PORT/DB: keep vehicle switches and sessions in Redis, shared by replicas "
-                        "on several machines (default: the SQLite file of --state-db)")
-    parser.add_argument("--state-db", default=None, metavar="FILE",
-                        help="SQLite file keeping vehicle switches and sessions for the workers of this machine "
-                        "and across restarts (':memory:' for none)")
-    parser.add_argument("--session-idle-s", type=float, default=None,
-                        help="a vehicle session idle this long expires, s (default 600)")
-    parser.add_argument("--update-period-s", type=float, default=None,
-                        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier (default 0.1)")
-    parser.add_argument("--api-keys", type=Path, default=None, metavar="FILE",
-                        help="the fleets' API keys (csws keys add); without them only a loopback address is served")
-    parser.add_argument("--insecure", action="store_true", default=None,
-                        help="serve without API keys on an address other than loopback")
-    parser.add_argument("--public-docs", action="store_true", default=None,
-                        help="with API keys: /docs, /redoc, /openapi.json and /metrics need no key")
+    parser.add_argument(
+        "--state",
+        default=None,
+        metavar="URL",
+        help="redis://HOST:PORT/DB: keep vehicle switches and sessions in Redis, shared by replicas "
+        "on several machines (default: the SQLite file of --state-db)",
+    )
+    parser.add_argument(
+        "--state-db",
+        default=None,
+        metavar="FILE",
+        help="SQLite file keeping vehicle switches and sessions for the workers of this machine "
+        "and across restarts (':memory:' for none)",
+    )
+    parser.add_argument(
+        "--session-idle-s", type=float, default=None, help="a vehicle session idle this long expires, s (default 600)"
+    )
+    parser.add_argument(
+        "--update-period-s",
+        type=float,
+        default=None,
+        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier (default 0.1)",
+    )
+    parser.add_argument(
+        "--api-keys",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the fleets' API keys (csws keys add); without them only a loopback address is served",
+    )
+    parser.add_argument(
+        "--insecure", action="store_true", default=None, help="serve without API keys on an address other than loopback"
+    )
+    parser.add_argument(
+        "--public-docs",
+        action="store_true",
+        default=None,
+        help="with API keys: /docs, /redoc, /openapi.json and /metrics need no key",
+    )
     parser.set_defaults(handler=deferred("service.run"))
 
     keys = commands.add_parser("keys", help="manage the fleets' API keys of the service")
     keys_commands = keys.add_subparsers(dest="keys_command", metavar="ACTION", required=True)
-    add = keys_commands.add_parser("add", help="make a key for a fleet, add its hash to the key file, print the key once")
+    add = keys_commands.add_parser(
+        "add", help="make a key for a fleet, add its hash to the key file, print the key once"
+    )
     add.add_argument("fleet", help="the fleet: 1-64 letters, digits, '_', '.' or '-'")
-    add.add_argument("--role", choices=("query", "admin"), default="query",
-                     help="query: warnings, horizons, curves, reading vehicles; admin: also switching them (default query)")
-    add.add_argument("--file", type=Path, default=None,
-                     help="the key file (default: $CSWS_API_KEYS_FILE); created if missing")
+    add.add_argument(
+        "--role",
+        choices=("query", "admin"),
+        default="query",
+        help="query: warnings, horizons, curves, reading vehicles; admin: also switching them (default query)",
+    )
+    add.add_argument(
+        "--file", type=Path, default=None, help="the key file (default: $CSWS_API_KEYS_FILE); created if missing"
+    )
     add.set_defaults(handler=deferred("service.run", "add_key_command"))

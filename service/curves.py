@@ -12,7 +12,8 @@ in its ``coordinates`` member.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from fastapi import Query
@@ -26,15 +27,25 @@ from .networks import ServedNetwork
 #: How a feature's coordinates are given, by whether its network is geo-referenced.
 _COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
 
-__all__ = ["BBOX_QUERY", "NETWORK_QUERY", "warning_speeds_kmh", "curve_features", "in_bbox", "parse_bbox",
-           "choose_networks", "feature_collection"]
+__all__ = [
+    "BBOX_QUERY",
+    "NETWORK_QUERY",
+    "warning_speeds_kmh",
+    "curve_features",
+    "in_bbox",
+    "parse_bbox",
+    "choose_networks",
+    "feature_collection",
+]
 
 
 def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:
     """V_w at ``radius_m`` for every category and both levels, km/h: ``{"M1": {"1": ..., "2": ...}, ...}``."""
     return {
-        category.value: {str(int(level)): warning_speed(radius_m, category, level, policy)
-                         for level in (Level.LEVEL_1, Level.LEVEL_2)}
+        category.value: {
+            str(int(level)): warning_speed(radius_m, category, level, policy)
+            for level in (Level.LEVEL_1, Level.LEVEL_2)
+        }
         for category in Category
     }
 
@@ -52,40 +63,42 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
     features = []
     for lane_curve in network.road_map.curves():
         coordinates = _coordinates(network, network.road_map.curve_shape(lane_curve))
-        xs, ys = zip(*coordinates)
+        xs, ys = zip(*coordinates, strict=True)
         curve = lane_curve.curve
         lane = network.road_map.lane(lane_curve.lane_id)
-        features.append({
-            "type": "Feature",
-            "id": f"{network.name}/{curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m)}",
-            "bbox": [min(xs), min(ys), max(xs), max(ys)],
-            "geometry": {"type": "LineString", "coordinates": coordinates},
-            "properties": {
-                "network": network.name,
-                "coordinates": _COORDINATES[network.road_map.has_projection],
-                "curve_id": curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m),
-                "lane_id": lane_curve.lane_id,
-                "street_name": lane.street_name,
-                "road_type": lane.road_type,
-                "start_pos_m": lane_curve.start_pos_m,
-                "end_lane_id": lane_curve.end_lane_id,
-                "end_pos_m": lane_curve.end_pos_m,
-                "radius_m": curve.min_radius_m,
-                "angle_deg": curve.angle_deg,
-                "direction": curve.direction,
-                "warning_speed_kmh": warning_speeds_kmh(curve.min_radius_m, policy),
-                "parts": [
-                    {
-                        "part_index": index,
-                        "length_m": part.end_s - part.start_s,
-                        "radius_m": part.radius_m,
-                        "spiral": part.spiral,
-                        "warning_speed_kmh": warning_speeds_kmh(part.radius_m, policy),
-                    }
-                    for index, part in enumerate(curve.parts)
-                ],
-            },
-        })
+        features.append(
+            {
+                "type": "Feature",
+                "id": f"{network.name}/{curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m)}",
+                "bbox": [min(xs), min(ys), max(xs), max(ys)],
+                "geometry": {"type": "LineString", "coordinates": coordinates},
+                "properties": {
+                    "network": network.name,
+                    "coordinates": _COORDINATES[network.road_map.has_projection],
+                    "curve_id": curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m),
+                    "lane_id": lane_curve.lane_id,
+                    "street_name": lane.street_name,
+                    "road_type": lane.road_type,
+                    "start_pos_m": lane_curve.start_pos_m,
+                    "end_lane_id": lane_curve.end_lane_id,
+                    "end_pos_m": lane_curve.end_pos_m,
+                    "radius_m": curve.min_radius_m,
+                    "angle_deg": curve.angle_deg,
+                    "direction": curve.direction,
+                    "warning_speed_kmh": warning_speeds_kmh(curve.min_radius_m, policy),
+                    "parts": [
+                        {
+                            "part_index": index,
+                            "length_m": part.end_s - part.start_s,
+                            "radius_m": part.radius_m,
+                            "spiral": part.spiral,
+                            "warning_speed_kmh": warning_speeds_kmh(part.radius_m, policy),
+                        }
+                        for index, part in enumerate(curve.parts)
+                    ],
+                },
+            }
+        )
     return features
 
 
@@ -98,8 +111,11 @@ def in_bbox(feature: dict[str, Any], bbox: tuple[float, float, float, float] | N
 
 
 #: The ``bbox`` parameter of the map's routes (read with :func:`parse_bbox`).
-BBOX_QUERY = Query(default=None, examples=["850,-50,1200,400"],
-                   description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres")
+BBOX_QUERY = Query(
+    default=None,
+    examples=["850,-50,1200,400"],
+    description="min_x,min_y,max_x,max_y: lon/lat on geo-referenced networks, else network metres",
+)
 #: The ``network`` parameter of the map's routes (checked with :func:`choose_networks`).
 NETWORK_QUERY = Query(default=None, description="only this network")
 
@@ -113,11 +129,25 @@ def parse_bbox(text: str | None) -> tuple[float, float, float, float] | None:
     except ValueError:
         values = ()
     if len(values) != 4 or not all(map(lambda v: v == v and abs(v) != float("inf"), values)):
-        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
-                                       "msg": "bbox must be four finite numbers: min_x,min_y,max_x,max_y"}])
+        raise RequestValidationError(
+            [
+                {
+                    "loc": ("query", "bbox"),
+                    "type": "value_error",
+                    "msg": "bbox must be four finite numbers: min_x,min_y,max_x,max_y",
+                }
+            ]
+        )
     if values[0] > values[2] or values[1] > values[3]:
-        raise RequestValidationError([{"loc": ("query", "bbox"), "type": "value_error",
-                                       "msg": "bbox minimum must not exceed its maximum: min_x,min_y,max_x,max_y"}])
+        raise RequestValidationError(
+            [
+                {
+                    "loc": ("query", "bbox"),
+                    "type": "value_error",
+                    "msg": "bbox minimum must not exceed its maximum: min_x,min_y,max_x,max_y",
+                }
+            ]
+        )
     return values
 
 
@@ -125,8 +155,9 @@ def choose_networks(networks: Sequence[ServedNetwork], name: str | None) -> list
     """The indices of the networks a request names: ``name``'s, or all without one; a 422 for an unknown name."""
     chosen = [i for i, n in enumerate(networks) if name is None or n.name == name]
     if not chosen:
-        raise RequestValidationError([{"loc": ("query", "network"), "type": "value_error",
-                                       "msg": f"unknown network {name!r}"}])
+        raise RequestValidationError(
+            [{"loc": ("query", "network"), "type": "value_error", "msg": f"unknown network {name!r}"}]
+        )
     return chosen
 
 

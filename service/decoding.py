@@ -16,8 +16,9 @@ pydantic accepts it, its values are taken as they are.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from types import UnionType
-from typing import Annotated, Any, Callable, Optional, Sequence, Union, get_args, get_origin
+from typing import Annotated, Any, Optional, Union, get_args, get_origin
 
 import annotated_types
 import msgspec
@@ -48,15 +49,17 @@ def _field_type(annotation: Any, metadata: Sequence[Any], structs: dict[type, ty
         inner = list[structs.get(item, item)]
     else:
         inner = structs.get(inner, inner)
-    meta = {name: getattr(item, name) for item in metadata for kind, name in _CONSTRAINTS.items()
-            if isinstance(item, kind)}  # fmt: skip
+    meta = {
+        name: getattr(item, name) for item in metadata for kind, name in _CONSTRAINTS.items() if isinstance(item, kind)
+    }
     if meta:
         inner = Annotated[inner, msgspec.Meta(**meta)]
     return Optional[inner] if optional else inner
 
 
-def struct_of(model: type[BaseModel], structs: dict[type, type] | None = None,
-              checks: Sequence[Callable[[Any], None]] = ()) -> type[msgspec.Struct]:  # fmt: skip
+def struct_of(
+    model: type[BaseModel], structs: dict[type, type] | None = None, checks: Sequence[Callable[[Any], None]] = ()
+) -> type[msgspec.Struct]:
     """A msgspec struct that decodes what ``model`` validates.
 
     Parameters
@@ -79,13 +82,21 @@ def struct_of(model: type[BaseModel], structs: dict[type, type] | None = None,
             check(self)
 
     namespace = {name: value for name, value in vars(model).items() if isinstance(value, property)}
-    return msgspec.defstruct(model.__name__, fields, namespace={**namespace, "__post_init__": __post_init__},
-                             kw_only=True, gc=False, module=__name__)  # fmt: skip
+    return msgspec.defstruct(
+        model.__name__,
+        fields,
+        namespace={**namespace, "__post_init__": __post_init__},
+        kw_only=True,
+        gc=False,
+        module=__name__,
+    )
 
 
 DecodedPosition = struct_of(Position, checks=(check_position,))
 DecodedForwardTarget = struct_of(ForwardTarget)
-DecodedQuery = struct_of(Query, {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget}, checks=(check_located,))
+DecodedQuery = struct_of(
+    Query, {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget}, checks=(check_located,)
+)
 DecodedBatch = struct_of(Batch, {Query: DecodedQuery})
 DecodedSwitch = struct_of(VehicleSwitch)
 

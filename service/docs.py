@@ -31,13 +31,14 @@ def add_doc_routes(app: FastAPI) -> None:
     @app.get("/docs", include_in_schema=False)
     async def swagger_ui() -> HTMLResponse:
         return get_swagger_ui_html(
-            openapi_url=app.openapi_url, title=f"{title}: Swagger UI",
+            openapi_url=app.openapi_url,
+            title=f"{title}: Swagger UI",
             oauth2_redirect_url=app.swagger_ui_oauth2_redirect_url,
             swagger_js_url=f"{STATIC_PATH}/swagger-ui/swagger-ui-bundle.js",
             swagger_css_url=f"{STATIC_PATH}/swagger-ui/swagger-ui.css",
             swagger_favicon_url=f"{STATIC_PATH}/swagger-ui/favicon-32x32.png",
             swagger_ui_parameters={"validatorUrl": None},
-        )  # fmt: skip
+        )
 
     @app.get(app.swagger_ui_oauth2_redirect_url, include_in_schema=False)
     async def swagger_ui_redirect() -> HTMLResponse:
@@ -45,7 +46,10 @@ def add_doc_routes(app: FastAPI) -> None:
 
     @app.get("/redoc", include_in_schema=False)
     async def redoc() -> HTMLResponse:
-        return get_redoc_html(openapi_url=app.openapi_url, title=f"{title}: ReDoc",
-                              redoc_js_url=f"{STATIC_PATH}/redoc/redoc.standalone.js",
-                              redoc_favicon_url=f"{STATIC_PATH}/swagger-ui/favicon-32x32.png",
-                              with_google_fonts=False)  # fmt: skip
+        return get_redoc_html(
+            openapi_url=app.openapi_url,
+            title=f"{title}: ReDoc",
+            redoc_js_url=f"{STATIC_PATH}/redoc/redoc.standalone.js",
+            redoc_favicon_url=f"{STATIC_PATH}/swagger-ui/favicon-32x32.png",
+            with_google_fonts=False,
+        )

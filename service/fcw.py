@@ -10,7 +10,7 @@ keeps no FCW state between queries, so the state is taken from each query's spee
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -35,12 +35,28 @@ def fcw_answers(queries: Sequence[DecodedQuery], settings: FcwSettings = FcwSett
         return answers
     targets = [queries[i].forward_target for i in rows]
     column = lambda name: np.array([getattr(target, name) for target in targets])  # noqa: E731
-    states = next_fcw_states(np.full(len(rows), STANDBY), kmh_to_mps(np.array([queries[i].speed_kmh for i in rows])),
-                             np.ones(len(rows), dtype=bool), column("measured"), settings)  # fmt: skip
-    batch = evaluate_fcw(column("subject_accel_mps2"), column("range_m"), column("range_rate_mps"),
-                         column("target_accel_mps2"), column("driver_braking"), settings)  # fmt: skip
+    states = next_fcw_states(
+        np.full(len(rows), STANDBY),
+        kmh_to_mps(np.array([queries[i].speed_kmh for i in rows])),
+        np.ones(len(rows), dtype=bool),
+        column("measured"),
+        settings,
+    )
+    batch = evaluate_fcw(
+        column("subject_accel_mps2"),
+        column("range_m"),
+        column("range_rate_mps"),
+        column("target_accel_mps2"),
+        column("driver_braking"),
+        settings,
+    )
     levels = np.where(states == ACTIVE, batch.level, 0)
     for k, i in enumerate(rows):
-        answers[i] = {"state": FCW_STATES[states[k]].value, "level": int(levels[k]), "ttc_s": _finite(float(batch.ttc_s[k])),
-                      "ettc_s": _finite(float(batch.ettc_s[k])), "a_req_mps2": _finite(float(batch.a_req_mps2[k]))}  # fmt: skip
+        answers[i] = {
+            "state": FCW_STATES[states[k]].value,
+            "level": int(levels[k]),
+            "ttc_s": _finite(float(batch.ttc_s[k])),
+            "ettc_s": _finite(float(batch.ettc_s[k])),
+            "a_req_mps2": _finite(float(batch.a_req_mps2[k])),
+        }
     return answers

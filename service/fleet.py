@@ -12,7 +12,8 @@ with state ``fault``.
 from __future__ import annotations
 
 from collections import defaultdict
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -39,12 +40,17 @@ def _placed(records: dict[str, SessionRecord], network: ServedNetwork) -> dict[s
     xy = np.concatenate(points) if points else np.empty((0, 2))
     if network.road_map.has_projection:
         xy = network.road_map.xy_to_lonlat_many(xy)
-    return dict(zip(keys, xy.tolist()))
+    return dict(zip(keys, xy.tolist(), strict=True))
 
 
-def fleet_features(sessions: dict[str, bytes], registry: VehicleRegistry, networks: Sequence[ServedNetwork],
-                   fleet: str, bbox: tuple[float, float, float, float] | None,
-                   chosen: Sequence[int]) -> dict[str, Any]:  # fmt: skip
+def fleet_features(
+    sessions: dict[str, bytes],
+    registry: VehicleRegistry,
+    networks: Sequence[ServedNetwork],
+    fleet: str,
+    bbox: tuple[float, float, float, float] | None,
+    chosen: Sequence[int],
+) -> dict[str, Any]:
     """The vehicles of ``fleet`` (its live ``sessions`` by key) on the networks at ``chosen`` within
     ``bbox`` as a GeoJSON FeatureCollection of points: id, network, system state and fault, the
     level, category, speed and timestamp of its latest answer, its lane.

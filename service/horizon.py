@@ -9,7 +9,8 @@ position along the path.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -46,11 +47,11 @@ class CpoiPositions:
 
     def of(self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> list[dict[str, float]]:
         """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
-        keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index)]
+        keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=True)]
         missing = [key for key in dict.fromkeys(keys) if key not in self._known]
         if missing:
             points = cpoi_points(ahead, [curve_id for curve_id, _ in missing], [part for _, part in missing])
-            self._known.update(zip(missing, positions(self.network, points)))
+            self._known.update(zip(missing, positions(self.network, points), strict=True))
         return [self._known[key] for key in keys]
 
 
@@ -61,7 +62,10 @@ def positions(network: ServedNetwork, points: np.ndarray) -> list[dict[str, floa
     if not network.road_map.has_projection:
         return [{"x": x, "y": y} for x, y in xy.tolist()]
     lonlat = network.road_map.xy_to_lonlat_many(xy)
-    return [{"x": x, "y": y, "lon": lon, "lat": lat} for (x, y), (lon, lat) in zip(xy.tolist(), lonlat.tolist())]
+    return [
+        {"x": x, "y": y, "lon": lon, "lat": lat}
+        for (x, y), (lon, lat) in zip(xy.tolist(), lonlat.tolist(), strict=True)
+    ]
 
 
 def cpoi_points(ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> np.ndarray:
@@ -70,9 +74,11 @@ def cpoi_points(ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence
     A CPOI ahead lies its distance beyond the vehicle; one the vehicle is already inside
     lies where its part starts, behind the vehicle.
     """
-    start_of = {(curve, int(part)): start_s
-                for curve, part, start_s in zip(ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_start_s)}
-    s = np.array([start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index)], dtype=float)
+    start_of = {
+        (curve, int(part)): start_s
+        for curve, part, start_s in zip(ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_start_s, strict=True)
+    }
+    s = np.array([start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index, strict=True)], dtype=float)
     return points_along(ahead.path.xy, s, ahead.path.profile.s)
 
 
@@ -128,9 +134,9 @@ def horizon(
             "position": place,
             "warning_speed_kmh": warning_speeds_kmh(float(ahead.cpoi_radius_m[i]), policy),
         }
-        for i, place in zip(keep, places)
+        for i, place in zip(keep, places, strict=True)
     ]
-    lanes_ahead = path.lane_ids[path.lane_ids.index(lane_id):]
+    lanes_ahead = path.lane_ids[path.lane_ids.index(lane_id) :]
     return {
         "network": network.name,
         "lane_id": lane_id,

@@ -28,13 +28,23 @@ import re
 import secrets
 import tempfile
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
-__all__ = ["KEYS_FORMAT", "Role", "Principal", "OPEN", "principal", "KeyRing", "KeyMiddleware", "add_key",
-           "vehicle_key", "shown_id"]
+__all__ = [
+    "KEYS_FORMAT",
+    "Role",
+    "Principal",
+    "OPEN",
+    "principal",
+    "KeyRing",
+    "KeyMiddleware",
+    "add_key",
+    "vehicle_key",
+    "shown_id",
+]
 
 KEYS_FORMAT = "csws-api-keys/1"
 #: Fleet names: letters, digits, ``_``, ``.`` and ``-`` (never ``/``, which joins a fleet to its vehicle ids).
@@ -98,7 +108,9 @@ class KeyRing:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self._principals = {entry["sha256"]: Principal(entry["fleet"], Role(entry["role"])) for entry in _entries(self.path)}
+        self._principals = {
+            entry["sha256"]: Principal(entry["fleet"], Role(entry["role"])) for entry in _entries(self.path)
+        }
 
     def __len__(self) -> int:
         return len(self._principals)
@@ -116,18 +128,26 @@ def _entries(path: Path) -> list[dict]:
         raise ValueError(f"{path}: no such API key file") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{path}: not an API key file ({exc})") from None
-    if not isinstance(content, dict) or content.get("format") != KEYS_FORMAT or not isinstance(content.get("keys"), list):
+    if (
+        not isinstance(content, dict)
+        or content.get("format") != KEYS_FORMAT
+        or not isinstance(content.get("keys"), list)
+    ):
         raise ValueError(f"{path}: not an API key file (expected format {KEYS_FORMAT!r})")
     for number, entry in enumerate(content["keys"], start=1):
         valid = (
             isinstance(entry, dict)
-            and isinstance(entry.get("fleet"), str) and FLEET_PATTERN.fullmatch(entry["fleet"]) is not None
+            and isinstance(entry.get("fleet"), str)
+            and FLEET_PATTERN.fullmatch(entry["fleet"]) is not None
             and entry.get("role") in {role.value for role in Role}
-            and isinstance(entry.get("sha256"), str) and re.fullmatch(r"[0-9a-f]{64}", entry["sha256"]) is not None
-        )  # fmt: skip
+            and isinstance(entry.get("sha256"), str)
+            and re.fullmatch(r"[0-9a-f]{64}", entry["sha256"]) is not None
+        )
         if not valid:
-            raise ValueError(f"{path}: key {number} needs a fleet ({FLEET_PATTERN.pattern}), a role (query, admin) "
-                             f"and a sha256 of 64 hex digits")  # fmt: skip
+            raise ValueError(
+                f"{path}: key {number} needs a fleet ({FLEET_PATTERN.pattern}), a role (query, admin) "
+                f"and a sha256 of 64 hex digits"
+            )
     return content["keys"]
 
 
@@ -145,7 +165,7 @@ def add_key(path: str | Path, fleet: str, role: Role | str) -> str:
     role = Role(role)
     entries = _entries(path) if path.exists() else []
     key = KEY_PREFIX + secrets.token_urlsafe(32)
-    added = datetime.now(timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z")
+    added = datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
     entries.append({"fleet": fleet, "role": role.value, "sha256": _digest(key), "added": added})
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".api-keys-", suffix=".json")
@@ -194,9 +214,17 @@ class KeyMiddleware:
                 break
         if principal is None:
             body = json.dumps({"detail": "an API key is needed: Authorization: Bearer KEY"}).encode()
-            await send({"type": "http.response.start", "status": 401,
-                        "headers": [(b"content-type", b"application/json"),
-                                    (b"content-length", str(len(body)).encode()), *_CHALLENGE]})  # fmt: skip
+            await send(
+                {
+                    "type": "http.response.start",
+                    "status": 401,
+                    "headers": [
+                        (b"content-type", b"application/json"),
+                        (b"content-length", str(len(body)).encode()),
+                        *_CHALLENGE,
+                    ],
+                }
+            )
             await send({"type": "http.response.body", "body": body})
             return
         scope.setdefault("state", {})["principal"] = principal

@@ -11,12 +11,14 @@ key given after ``#key=`` in its address with every request for data.
 from __future__ import annotations
 
 import json
+from collections.abc import Awaitable, Callable, Sequence
 from importlib.resources import files
-from typing import Any, Awaitable, Callable, Sequence
+from typing import Any
 
 import msgspec
 import shapely
-from fastapi import FastAPI, Query as QueryParam, Request
+from fastapi import FastAPI, Request
+from fastapi import Query as QueryParam
 from fastapi.responses import HTMLResponse, Response
 from starlette.middleware.gzip import GZipMiddleware
 
@@ -46,12 +48,18 @@ def road_features(network: ServedNetwork) -> list[dict[str, Any]]:
         lane = road_map.lane(lane_id)
         if lane.function == "internal" or lane.index != 0:
             continue
-        xy = shapely.get_coordinates(shapely.simplify(shapely.LineString(road_map.lane_shape(lane_id)),
-                                                      ROAD_TOLERANCE_M))  # fmt: skip
+        xy = shapely.get_coordinates(
+            shapely.simplify(shapely.LineString(road_map.lane_shape(lane_id)), ROAD_TOLERANCE_M)
+        )
         coordinates = road_map.xy_to_lonlat_many(xy).round(6) if road_map.has_projection else xy.round(1)
-        features.append({"type": "Feature", "id": lane.edge_id,
-                         "geometry": {"type": "LineString", "coordinates": coordinates.tolist()},
-                         "properties": {"street_name": lane.street_name, "road_type": lane.road_type}})  # fmt: skip
+        features.append(
+            {
+                "type": "Feature",
+                "id": lane.edge_id,
+                "geometry": {"type": "LineString", "coordinates": coordinates.tolist()},
+                "properties": {"street_name": lane.street_name, "road_type": lane.road_type},
+            }
+        )
     return features
 
 
@@ -75,8 +83,14 @@ def _json(content: Any) -> Response:
     return Response(msgspec.json.encode(content), media_type="application/json")
 
 
-def add_map_routes(app: FastAPI, networks: Sequence[ServedNetwork], registry: VehicleRegistry, store: StateStore,
-                   off_loop: Callable[..., Awaitable[Any]], responses: dict[int, Any]) -> None:  # fmt: skip
+def add_map_routes(
+    app: FastAPI,
+    networks: Sequence[ServedNetwork],
+    registry: VehicleRegistry,
+    store: StateStore,
+    off_loop: Callable[..., Awaitable[Any]],
+    responses: dict[int, Any],
+) -> None:
     """Add ``/map``, ``/v1/roads`` and ``/v1/fleet`` to ``app``, and gzip its answers to ``GET`` requests.
 
     Parameters
@@ -95,21 +109,30 @@ def add_map_routes(app: FastAPI, networks: Sequence[ServedNetwork], registry: Ve
     async def live_map() -> HTMLResponse:
         return HTMLResponse(page)
 
-    @app.get("/v1/roads", summary="The roads of a served network as GeoJSON, simplified for drawing", tags=["map"],
-             responses=responses)  # fmt: skip
+    @app.get(
+        "/v1/roads",
+        summary="The roads of a served network as GeoJSON, simplified for drawing",
+        tags=["map"],
+        responses=responses,
+    )
     async def roads(network: str = QueryParam(description="the network")) -> Response:
         (index,) = choose_networks(networks, network)
 
         def collection() -> bytes:
             if index not in roads_cache:
-                roads_cache[index] = msgspec.json.encode(feature_collection(road_features(networks[index]),
-                                                                            [networks[index]]))  # fmt: skip
+                roads_cache[index] = msgspec.json.encode(
+                    feature_collection(road_features(networks[index]), [networks[index]])
+                )
             return roads_cache[index]
 
         return Response(await off_loop(collection), media_type="application/json")
 
-    @app.get("/v1/fleet", summary="Where the fleet's live vehicles are and what their latest answers said",
-             tags=["map"], responses=responses)  # fmt: skip
+    @app.get(
+        "/v1/fleet",
+        summary="Where the fleet's live vehicles are and what their latest answers said",
+        tags=["map"],
+        responses=responses,
+    )
     async def fleet(
         request: Request,
         bbox: str | None = BBOX_QUERY,

@@ -11,8 +11,9 @@ from __future__ import annotations
 import bisect
 import time
 from collections import Counter, defaultdict
+from collections.abc import Iterable
 from itertools import accumulate
-from typing import Any, Iterable
+from typing import Any
 
 __all__ = ["LATENCY_BUCKETS_S", "Metrics", "MetricsMiddleware"]
 
@@ -45,7 +46,7 @@ class Metrics:
 
     def observe_answers(self, states: Iterable[str], levels: Iterable[int]) -> None:
         """Count answers by system state and warning level (parallel sequences)."""
-        for key, count in Counter(zip(states, levels)).items():
+        for key, count in Counter(zip(states, levels, strict=True)).items():
             self.answers[key] += count
 
     def exposition(self) -> str:
@@ -61,14 +62,18 @@ class Metrics:
             "# TYPE csws_http_request_duration_seconds histogram",
         ]
         for route in sorted(self.latency_count):
-            for bound, count in zip(LATENCY_BUCKETS_S, accumulate(self.latency_buckets[route])):
+            for bound, count in zip(LATENCY_BUCKETS_S, accumulate(self.latency_buckets[route]), strict=True):
                 lines.append(f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le=bound)}}} {count}")
             lines.append(
                 f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le='+Inf')}}} "
                 f"{self.latency_count[route]}"
             )
-            lines.append(f"csws_http_request_duration_seconds_sum{{{_labels(route=route)}}} {self.latency_sum_s[route]}")
-            lines.append(f"csws_http_request_duration_seconds_count{{{_labels(route=route)}}} {self.latency_count[route]}")
+            lines.append(
+                f"csws_http_request_duration_seconds_sum{{{_labels(route=route)}}} {self.latency_sum_s[route]}"
+            )
+            lines.append(
+                f"csws_http_request_duration_seconds_count{{{_labels(route=route)}}} {self.latency_count[route]}"
+            )
         lines += [
             "# HELP csws_answers_total Answers given, by system state and warning level.",
             "# TYPE csws_answers_total counter",

@@ -7,17 +7,23 @@ installation. A network that cannot be read stops start-up with one clear line.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Sequence
 
-from csws.engine import Engine, EngineSettings
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
+from csws.engine import Engine, EngineSettings
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 
-__all__ = ["NET_SUFFIXES", "HORIZONS_PER_LANE", "ServedNetwork", "bundled_network_paths", "network_name",
-           "load_networks"]
+__all__ = [
+    "NET_SUFFIXES",
+    "HORIZONS_PER_LANE",
+    "ServedNetwork",
+    "bundled_network_paths",
+    "network_name",
+    "load_networks",
+]
 
 #: File name endings of SUMO networks.
 NET_SUFFIXES = (".net.xml", ".net.xml.gz")
@@ -90,7 +96,7 @@ def load_networks(paths: Sequence[Path], settings: EngineSettings = EngineSettin
     if duplicates:
         raise ValueError(f"two networks share the name {duplicates[0]!r}: network file names must differ")
     served = []
-    for name, path in zip(names, paths):
+    for name, path in zip(names, paths, strict=True):
         road_map = RoadMap.load(path, warning_radius_m=settings.lookahead.warning_radius_m)
         cache_size = max(settings.lookahead.cache_size, HORIZONS_PER_LANE * len(road_map.lane_ids))
         engine_settings = replace(settings, lookahead=replace(settings.lookahead, cache_size=cache_size))

@@ -61,7 +61,7 @@ class Position(BaseModel):
     lat: float | None = Field(default=None, ge=-90.0, le=90.0, strict=True, description="latitude, degrees (WGS84)")
 
     @model_validator(mode="after")
-    def _one_pair(self) -> "Position":
+    def _one_pair(self) -> Position:
         check_position(self)
         return self
 
@@ -81,13 +81,15 @@ class ForwardTarget(BaseModel):
     )
 
     range_m: float = Field(ge=0.0, le=500.0, strict=True, description="clearance x_c to the target's rear, m")
-    range_rate_mps: float = Field(ge=-100.0, le=100.0, strict=True,
-                                  description="v_r = v_TV - v_SV, m/s (negative while closing)")
+    range_rate_mps: float = Field(
+        ge=-100.0, le=100.0, strict=True, description="v_r = v_TV - v_SV, m/s (negative while closing)"
+    )
     target_accel_mps2: float = Field(default=0.0, ge=-15.0, le=15.0, strict=True, description="a_TV, m/s^2")
     subject_accel_mps2: float = Field(default=0.0, ge=-15.0, le=15.0, strict=True, description="a_SV, m/s^2")
     driver_braking: bool = Field(default=False, strict=True, description="the driver brakes (4.5.4: T_resp = 0)")
-    measured: bool = Field(default=True, strict=True,
-                           description="false when the sensor has no valid measurement: the FCW state is fault")
+    measured: bool = Field(
+        default=True, strict=True, description="false when the sensor has no valid measurement: the FCW state is fault"
+    )
 
 
 class Query(BaseModel):
@@ -149,7 +151,7 @@ class Query(BaseModel):
     )
 
     @model_validator(mode="after")
-    def _located(self) -> "Query":
+    def _located(self) -> Query:
         check_located(self)
         return self
 
@@ -162,8 +164,18 @@ class Batch(BaseModel):
             "examples": [
                 {
                     "queries": [
-                        {"vehicle_id": "truck-17", "category": "N", "speed_kmh": 80.0, "position": {"x": 905.0, "y": 0.3}},
-                        {"vehicle_id": "car-2", "category": "M1", "speed_kmh": 50.0, "position": {"x": 100.0, "y": 0.0}},
+                        {
+                            "vehicle_id": "truck-17",
+                            "category": "N",
+                            "speed_kmh": 80.0,
+                            "position": {"x": 905.0, "y": 0.3},
+                        },
+                        {
+                            "vehicle_id": "car-2",
+                            "category": "M1",
+                            "speed_kmh": 50.0,
+                            "position": {"x": 100.0, "y": 0.0},
+                        },
                     ]
                 }
             ]
@@ -218,14 +230,19 @@ class Hmi(BaseModel):
 class FcwAnswer(BaseModel):
     """The forward collision warning of a query with a forward_target (GB/T 33577; docs/fcw.md)."""
 
-    model_config = ConfigDict(json_schema_extra={"examples": [
-        {"state": "active", "level": 1, "ttc_s": 2.5, "ettc_s": 2.5, "a_req_mps2": 4.62}]})
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [{"state": "active", "level": 1, "ttc_s": 2.5, "ettc_s": 2.5, "a_req_mps2": 4.62}]
+        }
+    )
 
     state: Literal["off", "standby", "active", "fault"] = Field(description="4.3: active between V_min and V_max")
     level: Literal[0, 1, 2] = Field(description="0 none, 1 preliminary warning, 2 collision warning")
     ttc_s: float | None = Field(description="TTC, formula (2), s; null where no collision follows")
     ettc_s: float | None = Field(description="ETTC, formula (3), s; null where no collision follows")
-    a_req_mps2: float | None = Field(description="a_req, formula (4), m/s^2; null where the reaction uses up the clearance")
+    a_req_mps2: float | None = Field(
+        description="a_req, formula (4), m/s^2; null where the reaction uses up the clearance"
+    )
 
 
 class WarningAnswer(BaseModel):

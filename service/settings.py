@@ -93,17 +93,21 @@ class ServiceSettings(BaseSettings):
         return None if isinstance(value, str) and not value.strip() else value
 
     @model_validator(mode="after")
-    def _keys_or_loopback(self) -> "ServiceSettings":
+    def _keys_or_loopback(self) -> ServiceSettings:
         if self.api_keys_file is None and not self.insecure and not _is_loopback(self.host):
-            raise ValueError(f"refusing to serve without API keys on {self.host}: give an API key file "
-                             f"(--api-keys FILE), listen on 127.0.0.1, or pass --insecure")  # fmt: skip
+            raise ValueError(
+                f"refusing to serve without API keys on {self.host}: give an API key file "
+                f"(--api-keys FILE), listen on 127.0.0.1, or pass --insecure"
+            )
         return self
 
     @model_validator(mode="after")
-    def _shared_by_the_workers(self) -> "ServiceSettings":
+    def _shared_by_the_workers(self) -> ServiceSettings:
         if self.workers > 1 and not self.state and self.state_db == ":memory:":
-            raise ValueError("an in-memory state database is each worker's own: give --workers N a file "
-                             "(--state-db FILE) or a Redis (--state URL)")
+            raise ValueError(
+                "an in-memory state database is each worker's own: give --workers N a file "
+                "(--state-db FILE) or a Redis (--state URL)"
+            )
         return self
 
     @field_validator("nets", mode="before")
@@ -115,8 +119,9 @@ class ServiceSettings(BaseSettings):
 
     def engine_settings(self) -> EngineSettings:
         """The engine's settings: the latency of the updates and of the system."""
-        return EngineSettings(warning=WarningSettings(update_period_s=self.update_period_s,
-                                                      system_delay_s=self.system_delay_s))
+        return EngineSettings(
+            warning=WarningSettings(update_period_s=self.update_period_s, system_delay_s=self.system_delay_s)
+        )
 
     def match_settings(self) -> MatchSettings:
         """Map matching tolerances."""

@@ -17,10 +17,10 @@ __all__ = ["Stages", "UNTIMED"]
 class _Stage(AbstractContextManager):
     """Adds the time spent inside the ``with`` block to one stage of :class:`Stages`."""
 
-    def __init__(self, stages: "Stages", name: str) -> None:
+    def __init__(self, stages: Stages, name: str) -> None:
         self.stages, self.name = stages, name
 
-    def __enter__(self) -> "_Stage":
+    def __enter__(self) -> _Stage:
         self.started = time.perf_counter()
         return self
 

@@ -18,16 +18,17 @@ previous one left, whichever worker or replica serves each.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from typing import Callable, Collection, Sequence, TypeVar
+from typing import TypeVar
 
 import msgspec
 
 from csws.engine import Engine, VehicleMemory
 from csws.road.matching import MapPosition
-from csws.warning.release import HeldWarning
 from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
+from csws.warning.release import HeldWarning
 
 from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 from .timing import UNTIMED, Stages
@@ -98,11 +99,21 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
         return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s))
 
     @classmethod
-    def of(cls, network: str, session: Session, memory: VehicleMemory) -> "SessionRecord":
+    def of(cls, network: str, session: Session, memory: VehicleMemory) -> SessionRecord:
         status, held = memory.status, memory.held
-        return cls(network, session.lane_id, status.state, status.switched_on, status.activated,
-                   status.last_timestamp_s, status.fault, held.points, held.kept_at_s, session.lane_pos_m,
-                   session.latest)  # fmt: skip
+        return cls(
+            network,
+            session.lane_id,
+            status.state,
+            status.switched_on,
+            status.activated,
+            status.last_timestamp_s,
+            status.fault,
+            held.points,
+            held.kept_at_s,
+            session.lane_pos_m,
+            session.latest,
+        )
 
 
 _ENCODER = msgspec.msgpack.Encoder()
@@ -120,7 +131,7 @@ class LoadedVehicles:
         What the store holds of each vehicle of the request.
     """
 
-    def __init__(self, registry: "VehicleRegistry", stored: dict[str, StoredVehicle]) -> None:
+    def __init__(self, registry: VehicleRegistry, stored: dict[str, StoredVehicle]) -> None:
         self.engines = registry.engines
         self.network_names = registry.network_names
         self.stored = stored
@@ -134,7 +145,7 @@ class LoadedVehicles:
                 self.sessions[vehicle_id] = Session(network_index, record.lane_id, record.lane_pos_m, record.latest)
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
-    def __enter__(self) -> "LoadedVehicles":
+    def __enter__(self) -> LoadedVehicles:
         return self
 
     def __exit__(self, *_exc: object) -> None:
@@ -188,8 +199,9 @@ class LoadedVehicles:
             self.engines[network_index].restore(vehicle_id, VehicleMemory(status))
             session.network_index = network_index
 
-    def seen(self, vehicle_id: str, lane_id: str | None, lane_pos_m: float = 0.0,
-             latest: LatestAnswer | None = None) -> None:  # fmt: skip
+    def seen(
+        self, vehicle_id: str, lane_id: str | None, lane_pos_m: float = 0.0, latest: LatestAnswer | None = None
+    ) -> None:
         """Record that a vehicle (placed by :meth:`place`) was just answered, its lane and lane position if
         it matched one, and what its answer said.
 
@@ -231,8 +243,9 @@ class LoadedVehicles:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
             record = SessionRecord.of(self.network_names[session.network_index], session, memory)
-            writes[vehicle_id] = VehicleWrite(stored.get(vehicle_id, NOTHING_STORED).version, encode(record),
-                                              new_settings.get(vehicle_id))  # fmt: skip
+            writes[vehicle_id] = VehicleWrite(
+                stored.get(vehicle_id, NOTHING_STORED).version, encode(record), new_settings.get(vehicle_id)
+            )
         return writes
 
 
@@ -276,8 +289,12 @@ class VehicleRegistry:
         """
         return LoadedVehicles(self, self.store.read(vehicle_ids))
 
-    def transact(self, vehicle_ids: Collection[str], work: Callable[[LoadedVehicles, Collection[str]], Answered],
-                 stages: Stages = UNTIMED) -> Answered:  # fmt: skip
+    def transact(
+        self,
+        vehicle_ids: Collection[str],
+        work: Callable[[LoadedVehicles, Collection[str]], Answered],
+        stages: Stages = UNTIMED,
+    ) -> Answered:
         """Read the vehicles, do ``work`` on them, write back what it changed; for vehicles whose
         session another request wrote in the meantime, read them again and redo ``work`` on them
         alone, until none is left.
@@ -313,5 +330,6 @@ class VehicleRegistry:
                 vehicles.close()
             if not pending:
                 return answered
-        raise StoreUnavailable(f"{len(pending)} vehicle(s) were changed by other requests during each of "
-                               f"{TRANSACTION_ATTEMPTS} attempts")  # fmt: skip
+        raise StoreUnavailable(
+            f"{len(pending)} vehicle(s) were changed by other requests during each of {TRANSACTION_ATTEMPTS} attempts"
+        )

@@ -24,7 +24,8 @@ import asyncio
 import gc
 import queue
 import threading
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 __all__ = ["WorkThread"]
 

@@ -27,8 +27,16 @@ import time
 from contextlib import suppress
 from typing import Any
 
-__all__ = ["MASTER_PID_VARIABLE", "MASTER_CHECK_S", "RESPAWN_PAUSE_S", "OWN_SOCKETS", "leave_with_master",
-           "bound_socket", "listening_socket", "serve_forked"]
+__all__ = [
+    "MASTER_PID_VARIABLE",
+    "MASTER_CHECK_S",
+    "RESPAWN_PAUSE_S",
+    "OWN_SOCKETS",
+    "leave_with_master",
+    "bound_socket",
+    "listening_socket",
+    "serve_forked",
+]
 
 #: Set by ``csws serve --workers N`` for its workers: the process id of the master.
 MASTER_PID_VARIABLE = "CSWS_MASTER_PID"
@@ -87,14 +95,19 @@ def bound_socket(host: str, port: int) -> socket.socket:
     OSError
         If the address cannot be bound.
     """
-    family, _kind, _protocol, _name, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM,
-                                                                  proto=socket.IPPROTO_TCP)[0]  # fmt: skip
+    family, _kind, _protocol, _name, address = socket.getaddrinfo(
+        host, port, type=socket.SOCK_STREAM, proto=socket.IPPROTO_TCP
+    )[0]
     bound = _tcp_socket(family)
     try:
         bound.bind(address)
     except OSError as error:
         bound.close()
-        reason = "it is in use (another program, or another csws serve)" if error.errno == errno.EADDRINUSE else error.strerror
+        reason = (
+            "it is in use (another program, or another csws serve)"
+            if error.errno == errno.EADDRINUSE
+            else error.strerror
+        )
         raise OSError(f"cannot listen on {host}:{port}: {reason}; give another --port") from None
     if not OWN_SOCKETS:
         bound.listen(BACKLOG)

@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 import redis
-
 from test_service import _free_port
 
 __all__ = ["RedisServer"]
@@ -36,8 +35,21 @@ class RedisServer:
         binary = shutil.which("redis-server")
         if binary is None:
             raise RuntimeError("the Redis tests need redis-server: apt-get install redis-server (.ci/run installs it)")
-        self.command = [binary, "--bind", "127.0.0.1", "--port", str(_free_port()), "--dir", str(folder),
-                        "--save", "", "--appendonly", "yes", "--appendfsync", "always"]  # fmt: skip
+        self.command = [
+            binary,
+            "--bind",
+            "127.0.0.1",
+            "--port",
+            str(_free_port()),
+            "--dir",
+            str(folder),
+            "--save",
+            "",
+            "--appendonly",
+            "yes",
+            "--appendfsync",
+            "always",
+        ]
         self.port = int(self.command[4])
         self.process: subprocess.Popen | None = None
         self.start()

@@ -89,8 +89,11 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(args, message):
 def test_output_read_only_in_part_ends_quietly():
     """``csws curves NET | head -1``: the reader goes away; csws stops without a word, with the
     status a program ended by SIGPIPE has."""
-    with subprocess.Popen([sys.executable, "-m", "csws", "curves", str(networks_dir() / "badhersfeld.net.xml.gz")],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE) as process:  # fmt: skip
+    with subprocess.Popen(
+        [sys.executable, "-m", "csws", "curves", str(networks_dir() / "badhersfeld.net.xml.gz")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    ) as process:
         process.stdout.readline()
         process.stdout.close()
         stderr = process.stderr.read()
@@ -104,8 +107,17 @@ def test_a_port_in_use_is_one_line_before_anything_is_served(tmp_path, workers):
         held.bind(("127.0.0.1", 0))
         held.listen()
         port = held.getsockname()[1]
-        result = _csws("serve", "--port", str(port), "--net", str(networks_dir() / "t7_left.net.xml"),
-                       "--workers", workers, "--state-db", str(tmp_path / "vehicles.db"))  # fmt: skip
+        result = _csws(
+            "serve",
+            "--port",
+            str(port),
+            "--net",
+            str(networks_dir() / "t7_left.net.xml"),
+            "--workers",
+            workers,
+            "--state-db",
+            str(tmp_path / "vehicles.db"),
+        )
     assert result.returncode == 2 and result.stdout == ""
     assert result.stderr.strip().splitlines() == [
         f"csws: error: cannot listen on 127.0.0.1:{port}: it is in use (another program, or another csws serve); "

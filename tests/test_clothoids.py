@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_curvature import dense_shape as curvature_dense_shape
 
 from csws.curvature import find_curves, radius_profile
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, straight
 from csws.standard import Category, warning_speed
-from test_curvature import dense_shape as curvature_dense_shape
 
 ORIGIN = (1234.0, -567.0)
 
@@ -67,7 +67,12 @@ def test_a_curve_between_spirals_starts_and_ends_inside_them(
 @settings(max_examples=25, deadline=None)
 @given(st.floats(40.0, 250.0), st.floats(30.0, 80.0), directions)
 def test_spiral_pieces_are_points_of_the_road_one_km_h_of_warning_speed_apart(radius_m, spiral_m, direction) -> None:
-    pieces = [straight(100.0), clothoid(spiral_m, math.inf, radius_m, direction), arc(radius_m, 20.0, direction), straight(100.0)]
+    pieces = [
+        straight(100.0),
+        clothoid(spiral_m, math.inf, radius_m, direction),
+        arc(radius_m, 20.0, direction),
+        straight(100.0),
+    ]
     (curve,) = find_curves(dense_shape(pieces), 300.0)
     spiral_parts = [part for part in curve.parts if part.spiral]
     assert len(spiral_parts) >= 2
@@ -98,7 +103,7 @@ def test_a_compound_curve_with_spirals_keeps_its_three_arcs() -> None:
     assert curve.is_multi
     assert [part.radius_m for part in arcs] == pytest.approx([250.0, 90.0, 35.0], rel=0.01)
     starts = piece_starts_s(pieces)
-    for part, truth_start in zip(arcs, starts[[2, 4, 6]]):
+    for part, truth_start in zip(arcs, starts[[2, 4, 6]], strict=True):
         assert abs(part.start_s - truth_start) <= 1.0
 
 

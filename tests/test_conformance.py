@@ -61,8 +61,12 @@ def test_rows_cover_every_cell_of_tables_5_to_9_for_every_category():
 def test_the_subset_passes_at_both_step_lengths(subset_report):
     out, outcomes = subset_report
     assert [o.row.row_id for o in outcomes] == list(SUBSET)
-    failed = [(o.row.row_id, g.track, g.step_length_s, [c.reason for r in g.runs for c in r.checks if not c.passed])
-              for o in outcomes for g in o.groups if not g.passed]  # fmt: skip
+    failed = [
+        (o.row.row_id, g.track, g.step_length_s, [c.reason for r in g.runs for c in r.checks if not c.passed])
+        for o in outcomes
+        for g in o.groups
+        if not g.passed
+    ]
     assert not failed
     steps = {g.step_length_s for o in outcomes for g in o.groups}
     assert steps == set(STEPS_S)
@@ -76,7 +80,7 @@ def test_warnings_come_before_the_table_distance_and_single_curves_not_long_befo
         for group in outcome.groups:
             speed_mps = kmh_to_mps(row.speed_kmh)
             for run in group.runs:
-                for check, result in zip(row.checks, run.checks):
+                for check, result in zip(row.checks, run.checks, strict=True):
                     if check.negative or row.final_speed_kmh is not None:
                         continue
                     v_w = warning_speed(row.radius_m[check.curve_number - 1], row.category, check.level)
@@ -128,8 +132,14 @@ def test_table_7_brakes_at_4_9_mps2_within_curve_1s_level_2_distance():
 
 
 def _trace(distance_m: np.ndarray, level: np.ndarray, speed_kmh: float, start_s: float) -> Trace:
-    return Trace(0, 0.0, np.arange(distance_m.size) * 0.1, start_s - distance_m,
-                 np.full(distance_m.size, speed_kmh), np.asarray(level, dtype=np.int8))  # fmt: skip
+    return Trace(
+        0,
+        0.0,
+        np.arange(distance_m.size) * 0.1,
+        start_s - distance_m,
+        np.full(distance_m.size, speed_kmh),
+        np.asarray(level, dtype=np.int8),
+    )
 
 
 def test_the_judge_fails_a_late_warning_and_one_that_goes_off_before_the_curve():
@@ -157,24 +167,48 @@ def test_three_consecutive_passes_are_needed():
     start_s = track_truth.curve_start_s_m[0]
     distance_m = np.arange(200.0, -100.0, -1.4)
     good = np.where((distance_m < 20) & (distance_m > 0), 1, 0)
-    runs = [judge_run(row, _trace(distance_m, level, row.speed_kmh, start_s), track_truth)
-            for level in (good, good, good * 0, good, good)]  # fmt: skip
+    runs = [
+        judge_run(row, _trace(distance_m, level, row.speed_kmh, start_s), track_truth)
+        for level in (good, good, good * 0, good, good)
+    ]
     runs = [type(r)(i, r.phase, r.stable_s, r.runout_level, r.checks, r.passed) for i, r in enumerate(runs)]
     assert not consecutive_passes(runs)
     assert consecutive_passes(runs + [type(runs[0])(5, 0.0, 10.0, 0, runs[0].checks, True)])
 
 
 def test_cli_rejects_too_few_repetitions_in_one_line(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws", "conformance", "--out", str(tmp_path), "--repetitions", "2",
-                             "--rows", "T7-M1"], capture_output=True, text=True, timeout=120)  # fmt: skip
+    result = subprocess.run(
+        [sys.executable, "-m", "csws", "conformance", "--out", str(tmp_path), "--repetitions", "2", "--rows", "T7-M1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2
     assert result.stderr.strip().startswith("csws: error:") and len(result.stderr.strip().splitlines()) == 1
 
 
 def test_cli_runs_a_row_and_exits_0(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws", "conformance", "--out", str(tmp_path), "--rows", "T8-M1-test2",
-                             "--step-lengths", "0.1", "--directions", "left", "--jobs", "2"],
-                            capture_output=True, text=True, timeout=300)  # fmt: skip
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "csws",
+            "conformance",
+            "--out",
+            str(tmp_path),
+            "--rows",
+            "T8-M1-test2",
+            "--step-lengths",
+            "0.1",
+            "--directions",
+            "left",
+            "--jobs",
+            "2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert "7.6: PASS" in result.stdout
     assert (tmp_path / "plots" / "T8-M1-test2.png").is_file()

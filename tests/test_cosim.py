@@ -17,12 +17,11 @@ import sys
 import time
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 
 from csws.cosim.categories import category_of
 from csws.cosim.driver import DriverSettings
-import pyarrow.parquet as pq
-
 from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.timeseries import TIMESERIES_SCHEMA
@@ -102,7 +101,9 @@ def test_warning_onsets_follow_tables_1_2_and_formula_1(library_run):
     assert levels["level1"] + levels["level2"] == len(onsets)
 
 
-def test_without_the_driver_model_vehicles_enter_curves_too_fast_and_with_it_none_does(library_run, fleet_routes, tmp_path):
+def test_without_the_driver_model_vehicles_enter_curves_too_fast_and_with_it_none_does(
+    library_run, fleet_routes, tmp_path
+):
     _, without = library_run
     entries = without["curve_entries_above_level1_warning_speed"]
     assert entries["more_than_1_kmh_above"] > 20
@@ -151,11 +152,28 @@ def _free_port() -> int:
 @pytest.fixture(scope="module")
 def service_url(tmp_path_factory):
     port = _free_port()
-    environment = {**os.environ, "CSWS_NETS": str(FLEET_NET), "CSWS_STATE_DB": ":memory:", "CSWS_UPDATE_PERIOD_S": str(STEP_S)}
+    environment = {
+        **os.environ,
+        "CSWS_NETS": str(FLEET_NET),
+        "CSWS_STATE_DB": ":memory:",
+        "CSWS_UPDATE_PERIOD_S": str(STEP_S),
+    }
     process = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", "--factory", "service.app:create_app", "--host", "127.0.0.1", "--port", str(port)],
-        env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "uvicorn",
+            "--factory",
+            "service.app:create_app",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+        ],
+        env=environment,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         try:
@@ -189,8 +207,10 @@ def _assert_complete_csv(path: Path, columns) -> int:
 def _start(tmp_path: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "csws", "cosim", "--out", str(tmp_path), "--vehicles", str(VEHICLES), *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _without_progress(stderr: str) -> list[str]:
@@ -294,7 +314,11 @@ def test_the_time_series_kept_every_nth_step_or_not_at_all(library_run, fleet_ro
 
 
 def test_bad_scenario_is_one_error_line(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws", "cosim", "--out", str(tmp_path), "--sumocfg", str(tmp_path / "none.sumocfg")],
-                            capture_output=True, text=True, timeout=60)  # fmt: skip
+    result = subprocess.run(
+        [sys.executable, "-m", "csws", "cosim", "--out", str(tmp_path), "--sumocfg", str(tmp_path / "none.sumocfg")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 2
     assert result.stderr.strip() == f"csws: error: no such SUMO configuration: {tmp_path / 'none.sumocfg'}"

@@ -67,10 +67,23 @@ def approach(tmp_path_factory) -> dict:
     ssm = folder / "ssm.xml"
     runs = {"ssm": ssm}
     for name, driver in (("without", None), ("with", DriverSettings())):
-        scenario = Scenario(_sumocfg(folder, routes, ssm), STRAIGHT_NET) if driver is None else Scenario(None, STRAIGHT_NET, (routes,))
+        scenario = (
+            Scenario(_sumocfg(folder, routes, ssm), STRAIGHT_NET)
+            if driver is None
+            else Scenario(None, STRAIGHT_NET, (routes,))
+        )
         out = folder / name
-        summary = cosimulate(CosimConfig(scenario, out, step_length_s=STEP_S, end_s=END_S, driver=driver,
-                                         systems=("csws", "fcw"), timeseries="csv"))  # fmt: skip
+        summary = cosimulate(
+            CosimConfig(
+                scenario,
+                out,
+                step_length_s=STEP_S,
+                end_s=END_S,
+                driver=driver,
+                systems=("csws", "fcw"),
+                timeseries="csv",
+            )
+        )
         runs[name] = (summary, _rows(out / "timeseries.csv"), _rows(out / "warnings.csv"))
     return runs
 
@@ -91,13 +104,16 @@ def _true_clearance_m(row: dict) -> float:
 
 def test_csws_ttc_agrees_with_sumos_ssm_device(approach):
     ours = {round(float(row["time_s"]), 6): row for row in _subject(approach["without"][1])}
-    conflicts = [c for c in ElementTree.parse(approach["ssm"]).getroot().iter("conflict")
-                 if c.get("ego") == "sv" and c.get("foe") == "lead"]  # fmt: skip
+    conflicts = [
+        c
+        for c in ElementTree.parse(approach["ssm"]).getroot().iter("conflict")
+        if c.get("ego") == "sv" and c.get("foe") == "lead"
+    ]
     assert len(conflicts) == 1
     times = [float(t) for t in conflicts[0].find("timeSpan").get("values").split()]
     ssm_ttc = conflicts[0].find("TTCSpan").get("values").split()
     compared = 0
-    for time_s, value in zip(times, ssm_ttc):
+    for time_s, value in zip(times, ssm_ttc, strict=True):
         now, after = ours.get(round(time_s, 6)), ours.get(round(time_s + STEP_S, 6))
         if value == "NA" or not now or not after or not now["fcw_ttc_s"] or not after["fcw_ttc_s"]:
             continue
@@ -113,8 +129,15 @@ def test_csws_ttc_agrees_with_sumos_ssm_device(approach):
 
 def test_fcw_warnings_are_recorded_beside_the_curve_warning(approach):
     summary, timeseries, events = approach["without"]
-    assert tuple(timeseries[0]) == (*TIMESERIES_COLUMNS, "fcw_state", "fcw_level", "fcw_target_id", "fcw_range_m",
-                                    "fcw_range_rate_mps", "fcw_ttc_s")  # fmt: skip
+    assert tuple(timeseries[0]) == (
+        *TIMESERIES_COLUMNS,
+        "fcw_state",
+        "fcw_level",
+        "fcw_target_id",
+        "fcw_range_m",
+        "fcw_range_rate_mps",
+        "fcw_ttc_s",
+    )
     assert tuple(events[0]) == EVENT_COLUMNS + FCW_EVENT_COLUMNS
     assert summary["systems"] == ["csws", "fcw"]
     assert summary["fcw"] == {"by_level": {"level1": 1, "level2": 1}, "vehicles_warned": 1}
@@ -129,7 +152,9 @@ def test_fcw_warnings_are_recorded_beside_the_curve_warning(approach):
     # TTC = x_c / v (formula (2)): each level comes on in the first step in which a_req reaches its
     # threshold with TTC at most 4 s (4.5.5).
     rows = _subject(timeseries)
-    for event, threshold in zip(events[:2], (settings.preliminary_a_req_mps2, settings.collision_a_req_mps2)):
+    for event, threshold in zip(
+        events[:2], (settings.preliminary_a_req_mps2, settings.collision_a_req_mps2), strict=True
+    ):
         step = next(i for i, row in enumerate(rows) if row["time_s"] == event["time_s"])
         for row, reached in ((rows[step], True), (rows[step - 1], False)):
             clearance_m = _true_clearance_m(row)
@@ -147,7 +172,7 @@ def test_the_driver_brakes_on_the_fcw_warning_and_stops_short_of_the_lead(approa
     # After the reaction time the driver brakes at its deceleration, before SUMO's own driver would.
     assert float(commanded[0]["time_s"]) == pytest.approx(onset_s + settings.reaction_s, abs=1e-6)
     first = rows.index(commanded[0])  # commanded after this step's reading: the next step is slower
-    for before, row in zip(rows[first:first + 10], rows[first + 1:first + 11]):
+    for before, row in zip(rows[first : first + 10], rows[first + 1 : first + 11], strict=True):
         drop_mps = (float(before["speed_kmh"]) - float(row["speed_kmh"])) / 3.6
         assert drop_mps == pytest.approx(settings.decel_mps2 * STEP_S, abs=1e-6)
 
@@ -175,9 +200,24 @@ def test_the_curve_warnings_files_are_the_same_with_fcw_on(tmp_path):
 
 
 def test_fcw_with_a_service_is_one_error_line(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "csws", "cosim", "--systems", "csws,fcw", "--service",
-                             "http://127.0.0.1:9", "--out", str(tmp_path)], capture_output=True, text=True)  # fmt: skip
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "csws",
+            "cosim",
+            "--systems",
+            "csws,fcw",
+            "--service",
+            "http://127.0.0.1:9",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode != 0
     assert result.stderr.strip().splitlines() == [
         "csws: error: the forward collision warning is evaluated in this process only: drop --service, "
-        "or run --systems csws with it"]  # fmt: skip
+        "or run --systems csws with it"
+    ]

@@ -25,15 +25,22 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 def compared(tmp_path_factory) -> Path:
     """``csws cosim --driver-response`` over the first minute of the bundled fleet."""
     out = tmp_path_factory.mktemp("cosim")
-    subprocess.run([sys.executable, "-m", "csws", "cosim", "--driver-response", "--end", END_S, "--out", str(out)],
-                   check=True, capture_output=True)  # fmt: skip
+    subprocess.run(
+        [sys.executable, "-m", "csws", "cosim", "--driver-response", "--end", END_S, "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
     return out
 
 
 def _table(markdown: str) -> dict[str, list[str]]:
     """The rows of summary.md's table, by name."""
-    return {cells[0]: cells[1:] for line in markdown.splitlines() if line.startswith("| ")
-            for cells in [[c.strip() for c in line.strip("|").split("|")]]}  # fmt: skip
+    return {
+        cells[0]: cells[1:]
+        for line in markdown.splitlines()
+        if line.startswith("| ")
+        for cells in [[c.strip() for c in line.strip("|").split("|")]]
+    }
 
 
 def _path_km(folder: Path) -> float:
@@ -63,7 +70,8 @@ def test_the_summary_compares_both_runs_with_the_runs_own_figures(compared) -> N
         assert int(table["level-1 warnings"][column]) == rises[1] > 0
         assert int(table["level-2 warnings"][column]) == rises[2]
         assert float(table["level-1 warnings per 100 vehicle-km"][column]) == pytest.approx(
-            100.0 * rises[1] / vehicle_km, rel=1e-3, abs=0.01)
+            100.0 * rises[1] / vehicle_km, rel=1e-3, abs=0.01
+        )
         assert int(table["curve-part entries at or above the level-1 warning speed"][column]) == len(entries)
     more_than_1 = [int(n) for n in table["of them more than 1 km/h above"]]
     assert more_than_1[0] > 0 and more_than_1[1] == 0  # the driver response keeps every entry near V_w
@@ -79,8 +87,11 @@ def test_a_csv_time_series_gives_the_figures_of_parquet(tmp_path) -> None:
 
 
 def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
-    subprocess.run([sys.executable, "-m", "csws", "cosim", "--end", "20", "--timeseries", "none",
-                    "--out", str(tmp_path)], check=True, capture_output=True)  # fmt: skip
+    subprocess.run(
+        [sys.executable, "-m", "csws", "cosim", "--end", "20", "--timeseries", "none", "--out", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
     table = _table((tmp_path / "summary.md").read_text())
     assert table["vehicle-km"] == ["n/a (no time series)"]
     assert re.fullmatch(r"\d+", table["level-1 warnings"][0])

@@ -52,7 +52,9 @@ def only_curve(xy, warning_radius_m=WIDE_WARNING_RADIUS_M):
 
 @settings(max_examples=50, deadline=None)
 @given(radii_m, st.floats(20.0, 120.0), directions, st.floats(0.5, 1.0), origins_m, headings_rad)
-def test_dense_arc_is_one_curve_with_its_radius_start_and_end(radius_m, angle_deg, direction, spacing_m, origin, heading):
+def test_dense_arc_is_one_curve_with_its_radius_start_and_end(
+    radius_m, angle_deg, direction, spacing_m, origin, heading
+):
     angle_deg = max(angle_deg, math.degrees(15.0 / radius_m))  # at least 15 m of arc
     pieces = [straight(80.0), arc(radius_m, angle_deg, direction), straight(60.0)]
     curve = only_curve(dense_shape(pieces, spacing_m, origin, heading))
@@ -84,7 +86,7 @@ def mapped_way(pieces, seed, origin, heading_rad, noise_rms_m):
     s = [0.0]
     while s[-1] < starts[-1]:
         gap = float(rng.uniform(5.0, 30.0))
-        for first, end, piece in zip(starts[:-1], starts[1:], pieces):
+        for first, end, piece in zip(starts[:-1], starts[1:], pieces, strict=True):
             if piece.curvature and s[-1] < end and s[-1] + gap > first:
                 gap *= min(30.0, piece.length_m / 3.0, piece.radius_m / 2.0) / 30.0
         s.append(s[-1] + gap)
@@ -128,7 +130,11 @@ def test_exact_map_ways_give_their_arcs_exactly():
     start_errors, radius_errors = [], []
     for _ in range(80):
         radius_m = float(np.exp(rng.uniform(np.log(25.0), np.log(500.0))))
-        pieces = [straight(120.0), arc(radius_m, float(rng.uniform(20.0, 120.0)), str(rng.choice(["left", "right"]))), straight(120.0)]
+        pieces = [
+            straight(120.0),
+            arc(radius_m, float(rng.uniform(20.0, 120.0)), str(rng.choice(["left", "right"]))),
+            straight(120.0),
+        ]
         xy = mapped_way(pieces, int(rng.integers(2**32)), (1000.0, -2000.0), float(rng.uniform(-3, 3)), 0.0)
         curve = only_curve(xy)
         start_errors.append(abs(curve.start_s - 120.0))
@@ -165,7 +171,9 @@ def test_a_sharp_short_arc_between_closely_mapped_nodes_is_found_where_it_starts
     assert curves[0].direction == "left"
 
 
-@pytest.mark.parametrize("gentle_m, gentle_deg, sharp_m, sharp_deg", [(120.0, 30.0, 40.0, 25.0), (180.0, 20.0, 35.0, 30.0)])
+@pytest.mark.parametrize(
+    "gentle_m, gentle_deg, sharp_m, sharp_deg", [(120.0, 30.0, 40.0, 25.0), (180.0, 20.0, 35.0, 30.0)]
+)
 def test_a_compound_curve_on_noisy_mapped_nodes_keeps_its_sharper_arc(gentle_m, gentle_deg, sharp_m, sharp_deg):
     """A compound curve (3.8) whose sharper arc is short, mapped with 0.3 m noise: its few
     nodes fit one arc of a mean radius nearly as well, so the polish also tries the
@@ -187,8 +195,18 @@ def test_a_curve_ending_inside_a_way_s_last_segment_is_kept():
     taken past the last node that overshoots and a reverse arc within the segment fit it
     as well as the truth; that curve turned more than the way and was dropped whole."""
     pieces = [straight(150.0), arc(1.0 / 0.007886547676816897, 56.4, "left"), straight(150.0)]
-    nodes = np.array([[-0.14, 0.51], [158.94, 0.07], [185.72, 5.51], [210.07, 14.45], [231.73, 30.25],
-                      [232.25, 30.84], [249.86, 49.52], [338.38, 182.1]])
+    nodes = np.array(
+        [
+            [-0.14, 0.51],
+            [158.94, 0.07],
+            [185.72, 5.51],
+            [210.07, 14.45],
+            [231.73, 30.25],
+            [232.25, 30.84],
+            [249.86, 49.52],
+            [338.38, 182.1],
+        ]
+    )
     curve = only_curve(nodes)
     assert abs(curve.start_s - piece_starts_s(pieces)[1]) <= 3.0
     assert curve.angle_deg == pytest.approx(56.4, abs=5.0)
@@ -198,7 +216,13 @@ def test_a_curve_ending_inside_a_way_s_last_segment_is_kept():
 def test_sparse_noisy_straights_rarely_show_a_curve():
     rng = np.random.default_rng(92)
     ways = [
-        sparse_way([straight(float(rng.uniform(50.0, 1500.0)))], int(rng.integers(2**32)), (0.0, 0.0), float(rng.uniform(-3, 3)), 0.5)
+        sparse_way(
+            [straight(float(rng.uniform(50.0, 1500.0)))],
+            int(rng.integers(2**32)),
+            (0.0, 0.0),
+            float(rng.uniform(-3, 3)),
+            0.5,
+        )
         for _ in range(60)
     ]
     assert sum(len(find_curves(xy)) for xy in ways) == 0
@@ -226,7 +250,7 @@ def test_offset_lanes_of_a_reverse_curve_are_three_curves_of_their_own_radii(rev
     curves = find_curves(xy)
     assert [len(c.parts) for c in curves] == [1, 1, 1]
     truth_s = piece_starts_s(pieces)
-    for curve, piece, start_s in zip(curves, pieces[1:4], truth_s[1:4]):
+    for curve, piece, start_s in zip(curves, pieces[1:4], truth_s[1:4], strict=True):
         assert curve.min_radius_m == pytest.approx(piece.radius_m, rel=0.005)
         assert curve.direction == ("left" if piece.curvature > 0 else "right")
         assert abs(curve.start_s - start_s) <= 1.0
@@ -236,7 +260,12 @@ def test_offset_lanes_of_a_reverse_curve_are_three_curves_of_their_own_radii(rev
 @given(st.floats(30.0, 250.0), st.floats(30.0, 90.0), directions, origins_m, headings_rad)
 def test_s_bend_is_two_curves_turning_opposite_ways(radius_m, angle_deg, first_direction, origin, heading):
     second_direction = "right" if first_direction == "left" else "left"
-    pieces = [straight(60.0), arc(radius_m, angle_deg, first_direction), arc(radius_m, angle_deg, second_direction), straight(60.0)]
+    pieces = [
+        straight(60.0),
+        arc(radius_m, angle_deg, first_direction),
+        arc(radius_m, angle_deg, second_direction),
+        straight(60.0),
+    ]
     first, second = find_curves(dense_shape(pieces, 0.8, origin, heading))
     assert (first.direction, second.direction) == (first_direction, second_direction)
     assert abs(second.start_s - first.end_s) <= 1.0
@@ -315,10 +344,10 @@ def test_many_polylines_give_the_profiles_of_each_alone():
         rng.normal(size=(5, 2)),
     ]
     together = radius_profiles(polylines)
-    for polyline, profile in zip(polylines, together):
+    for polyline, profile in zip(polylines, together, strict=True):
         alone = radius_profile(polyline)
         assert len(profile.parts) == len(alone.parts)
-        for part, part_alone in zip(profile.parts, alone.parts):
+        for part, part_alone in zip(profile.parts, alone.parts, strict=True):
             assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
                 (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-9, abs=1e-12
             )
@@ -331,17 +360,23 @@ def test_sparse_ways_fitted_together_give_the_profiles_of_each_alone():
     rng = np.random.default_rng(11)
     ways = [
         mapped_way(
-            [straight(float(rng.uniform(20.0, 120.0))), arc(float(rng.uniform(30.0, 300.0)), float(rng.uniform(20.0, 90.0)), direction),
-             straight(float(rng.uniform(20.0, 120.0)))],
-            int(rng.integers(2**32)), (0.0, 0.0), float(rng.uniform(-3, 3)), float(rng.uniform(0.0, 0.5)),
+            [
+                straight(float(rng.uniform(20.0, 120.0))),
+                arc(float(rng.uniform(30.0, 300.0)), float(rng.uniform(20.0, 90.0)), direction),
+                straight(float(rng.uniform(20.0, 120.0))),
+            ],
+            int(rng.integers(2**32)),
+            (0.0, 0.0),
+            float(rng.uniform(-3, 3)),
+            float(rng.uniform(0.0, 0.5)),
         )
         for direction in ["left", "right"] * 8
     ]
     assert len({len(xy) for xy in ways}) > 4  # several chord counts, some sharing a batch
-    for way, profile in zip(ways, radius_profiles(ways)):
+    for way, profile in zip(ways, radius_profiles(ways), strict=True):
         alone = radius_profile(way)
         assert len(profile.parts) == len(alone.parts)
-        for part, part_alone in zip(profile.parts, alone.parts):
+        for part, part_alone in zip(profile.parts, alone.parts, strict=True):
             assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
                 (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-6, abs=1e-9
             )

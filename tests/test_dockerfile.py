@@ -34,8 +34,9 @@ def test_the_image_is_a_slim_python_with_csws_installed_from_its_sources() -> No
     assert {"pyproject.toml", "csws", "service", "networks"} <= copied
     assert all((ROOT / path).exists() for path in copied)
     installs = [shlex.split(run) for run in _all("RUN") if "pip install" in run]
-    assert any("." in words[words.index("install") + 1 : words.index("&&") if "&&" in words else None]
-               for words in installs)  # fmt: skip
+    assert any(
+        "." in words[words.index("install") + 1 : words.index("&&") if "&&" in words else None] for words in installs
+    )
 
 
 def test_it_serves_on_all_addresses_at_the_exposed_port_with_a_key_file_the_service_reads(monkeypatch) -> None:

@@ -12,9 +12,9 @@ from functools import cache
 import numpy as np
 import pytest
 
+from csws.ahead.horizon import END_MARGIN_M
 from csws.data import standard_tables
 from csws.engine import Engine, VehicleInput
-from csws.ahead.horizon import END_MARGIN_M
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.standard import Level
@@ -48,8 +48,13 @@ def _single_rows(table_key: str):
         for column, cells in row.items():
             for speed_kmh, distance_m in cells:
                 for direction in ("left", "right"):
-                    yield pytest.param(f"single_r{radius}_{direction}", COLUMN_CATEGORY[column], speed_kmh,
-                                       distance_m, id=f"R{radius}-{direction}-{column}-V{speed_kmh}")
+                    yield pytest.param(
+                        f"single_r{radius}_{direction}",
+                        COLUMN_CATEGORY[column],
+                        speed_kmh,
+                        distance_m,
+                        id=f"R{radius}-{direction}-{column}-V{speed_kmh}",
+                    )
 
 
 def _answer_at_table_distance(track: str, category: str, speed_kmh: float, table_distance_m: float):
@@ -58,8 +63,9 @@ def _answer_at_table_distance(track: str, category: str, speed_kmh: float, table
     return engine.evaluate(_vehicle(truth, truth["curves"][0]["start_s"] - table_distance_m, speed_kmh, category))
 
 
-@pytest.mark.parametrize("track, category, speed_kmh, table_distance_m",
-                         list(_single_rows("table5_single_curve_level1_tests")))
+@pytest.mark.parametrize(
+    "track, category, speed_kmh, table_distance_m", list(_single_rows("table5_single_curve_level1_tests"))
+)
 def test_table_5_level_1_on_the_track_at_the_table_distance(track, category, speed_kmh, table_distance_m):
     answer = _answer_at_table_distance(track, category, speed_kmh, table_distance_m)
     assert answer.state is SystemState.ACTIVE
@@ -67,8 +73,9 @@ def test_table_5_level_1_on_the_track_at_the_table_distance(track, category, spe
     assert answer.warning.target.distance_m == pytest.approx(table_distance_m, abs=1.0)
 
 
-@pytest.mark.parametrize("track, category, speed_kmh, table_distance_m",
-                         list(_single_rows("table6_single_curve_level2_tests")))
+@pytest.mark.parametrize(
+    "track, category, speed_kmh, table_distance_m", list(_single_rows("table6_single_curve_level2_tests"))
+)
 def test_table_6_level_2_on_the_track_at_the_table_distance(track, category, speed_kmh, table_distance_m):
     answer = _answer_at_table_distance(track, category, speed_kmh, table_distance_m)
     assert answer.level == Level.LEVEL_2
@@ -83,7 +90,7 @@ def _onsets_along(track: str, category: str, speed_kmh: float, step_m: float = 0
     vehicles = [_vehicle(truth, s, speed_kmh, category, f"v{i}") for i, s in enumerate(positions)]
     number_of = {}
     onsets: dict[tuple[int, int], float] = {}
-    for s, answer in zip(positions, engine.evaluate_many(vehicles)):
+    for s, answer in zip(positions, engine.evaluate_many(vehicles), strict=True):
         for trigger in answer.warning.triggers:
             curve_start_s = s + trigger.distance_m
             if trigger.distance_m <= 0:
@@ -110,7 +117,9 @@ def _multi_rows(table_key: str, directions=("left", "right")):
                 yield pytest.param(track, COLUMN_CATEGORY[column], test, id=track)
 
 
-@pytest.mark.parametrize("track, category, test", list(_multi_rows("table8_multi_curve_curve2_first_all_before_curve1")))
+@pytest.mark.parametrize(
+    "track, category, test", list(_multi_rows("table8_multi_curve_curve2_first_all_before_curve1"))
+)
 def test_table_8_on_the_track_curve_2_warns_first_and_in_time(track, category, test):
     _, truth = _track(track)
     curve1_s, curve2_s = (c["start_s"] for c in truth["curves"])
@@ -123,8 +132,11 @@ def test_table_8_on_the_track_curve_2_warns_first_and_in_time(track, category, t
 @pytest.mark.parametrize(
     "track, category, test",
     list(_multi_rows("table9_multi_curve_curve2_first_alternating"))
-    + [pytest.param("t9_m1_test1_s", "M1", TABLES["table9_multi_curve_curve2_first_alternating"]["M1"][0],
-                    id="t9_m1_test1_s")],
+    + [
+        pytest.param(
+            "t9_m1_test1_s", "M1", TABLES["table9_multi_curve_curve2_first_alternating"]["M1"][0], id="t9_m1_test1_s"
+        )
+    ],
 )
 def test_table_9_on_the_track_warnings_alternate_and_come_in_time(track, category, test):
     _, truth = _track(track)
@@ -141,8 +153,14 @@ def test_many_vehicles_at_once_get_the_answers_they_get_alone():
     rng = np.random.default_rng(3)
     vehicles = [
         _vehicle(truth, start_s - d, v, c, f"v{i}")
-        for i, (d, v, c) in enumerate(zip(rng.uniform(-20, 200, 100), rng.uniform(30, 130, 100),
-                                          rng.choice(["M1", "M2", "M3", "N", "O"], 100)))
+        for i, (d, v, c) in enumerate(
+            zip(
+                rng.uniform(-20, 200, 100),
+                rng.uniform(30, 130, 100),
+                rng.choice(["M1", "M2", "M3", "N", "O"], 100),
+                strict=True,
+            )
+        )
     ]
     together = engine.evaluate_many(vehicles)
     alone = [Engine(engine.road_map).evaluate(v) for v in vehicles]

@@ -6,7 +6,8 @@ import json
 import math
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
@@ -32,17 +33,22 @@ _updates = st.tuples(_statuses, _speeds, _times, _times, st.one_of(st.none(), st
 @given(st.lists(_updates, min_size=1, max_size=12), st.floats(min_value=0.0, max_value=60.0))
 def test_batch_state_update_is_the_single_update_of_each_vehicle(updates, activation_speed_kmh):
     activation = ActivationSettings(activation_speed_kmh=activation_speed_kmh, hysteresis_kmh=5.0)
-    statuses, speeds, times, ages, faults = map(list, zip(*updates))
+    statuses, speeds, times, ages, faults = map(list, zip(*updates, strict=True))
     batch = next_statuses(statuses, speeds, timestamp_s=times, age_s=ages, found_fault=faults, settings=activation)
-    for status, speed, time_s, age_s, fault, updated in zip(statuses, speeds, times, ages, faults, batch):
-        assert updated == next_status(status, speed, timestamp_s=time_s, age_s=age_s, found_fault=fault,
-                                      settings=activation)  # fmt: skip
+    for status, speed, time_s, age_s, fault, updated in zip(statuses, speeds, times, ages, faults, batch, strict=True):
+        assert updated == next_status(
+            status, speed, timestamp_s=time_s, age_s=age_s, found_fault=fault, settings=activation
+        )
 
 
 def test_stale_and_invalid_inputs_are_found_in_a_batch():
     active = next_status(VehicleStatus(), 50.0, timestamp_s=10.0)
-    updated = next_statuses([active, active, active, active, switch(active, False)], [50.0, math.nan, 50.0, 50.0, 50.0],
-                            timestamp_s=[9.0, 11.0, 11.0, 11.0, 11.0], age_s=[None, None, 3.0, None, None])  # fmt: skip
+    updated = next_statuses(
+        [active, active, active, active, switch(active, False)],
+        [50.0, math.nan, 50.0, 50.0, 50.0],
+        timestamp_s=[9.0, 11.0, 11.0, 11.0, 11.0],
+        age_s=[None, None, 3.0, None, None],
+    )
     assert [s.fault for s in updated] == [Fault.STALE_INPUT, Fault.INVALID_INPUT, Fault.STALE_INPUT, None, None]
     assert [s.state for s in updated] == [SystemState.FAULT] * 3 + [SystemState.ACTIVE, SystemState.OFF]
     assert updated[3].last_timestamp_s == 11.0 and updated[0].last_timestamp_s == 10.0
@@ -62,13 +68,26 @@ def test_fleet_answers_are_the_single_answers(track):
     vehicles = []
     for i, s in enumerate([curve_s - 400.0, curve_s - 150.0, curve_s - 40.0, curve_s + 10.0, curve_s - 100.0]):
         lane = next(lane for lane in reversed(truth["lanes"]) if lane["start_s"] <= s)
-        vehicles.append(VehicleInput(f"v{i}", "M1" if i % 2 else "N", 60.0 + 25.0 * i, lane["lane"],
-                                     s - lane["start_s"], route if i != 4 else None, timestamp_s=1.0))  # fmt: skip
+        vehicles.append(
+            VehicleInput(
+                f"v{i}",
+                "M1" if i % 2 else "N",
+                60.0 + 25.0 * i,
+                lane["lane"],
+                s - lane["start_s"],
+                route if i != 4 else None,
+                timestamp_s=1.0,
+            )
+        )
     vehicles.append(VehicleInput("lost", "M1", 80.0, None, 0.0, route, timestamp_s=1.0))
     vehicles.append(VehicleInput("nan", "M1", 80.0, vehicles[0].lane_id, math.nan, route, timestamp_s=1.0))
     fleet = Engine(road_map).evaluate_fleet(
-        [v.vehicle_id for v in vehicles], [v.category for v in vehicles], [v.speed_kmh for v in vehicles],
-        [v.lane_id for v in vehicles], [v.lane_pos_m for v in vehicles], [v.route_edges for v in vehicles],
+        [v.vehicle_id for v in vehicles],
+        [v.category for v in vehicles],
+        [v.speed_kmh for v in vehicles],
+        [v.lane_id for v in vehicles],
+        [v.lane_pos_m for v in vehicles],
+        [v.route_edges for v in vehicles],
         timestamp_s=[v.timestamp_s for v in vehicles],
     )
     single = Engine(road_map)
@@ -84,6 +103,7 @@ def test_an_unknown_category_changes_no_status(track):
     road_map, _ = track
     engine = Engine(road_map)
     with pytest.raises(ValueError):
-        engine.evaluate_fleet(["a", "b"], ["M1", "X9"], [50.0, 50.0], ["approach_0", "approach_0"], [1.0, 1.0],
-                              [None, None])  # fmt: skip
+        engine.evaluate_fleet(
+            ["a", "b"], ["M1", "X9"], [50.0, 50.0], ["approach_0", "approach_0"], [1.0, 1.0], [None, None]
+        )
     assert engine.statuses == {}

@@ -122,7 +122,12 @@ def test_closer_is_never_a_lower_warning(closing_mps, clearance_m, lead_accel_mp
     required deceleration never falls."""
     clearances = np.array([clearance_m * 2.0, clearance_m * 1.5, clearance_m])
     count = len(clearances)
-    batch = evaluate_fcw(np.zeros(count), clearances, np.full(count, -closing_mps), np.full(count, lead_accel_mps2),
-                         np.zeros(count, dtype=bool))  # fmt: skip
+    batch = evaluate_fcw(
+        np.zeros(count),
+        clearances,
+        np.full(count, -closing_mps),
+        np.full(count, lead_accel_mps2),
+        np.zeros(count, dtype=bool),
+    )
     assert np.all(np.diff(batch.level) >= 0)
     assert np.all(batch.a_req_mps2[1:] >= batch.a_req_mps2[:-1])  # inf where the reaction uses up the clearance

@@ -40,7 +40,9 @@ def test_the_rows_hold_the_standards_numbers():
     assert {rows[r].least_ttc_s for r in ("GB-5.5.2.1.1", "IVISTA-A.1.1-car", "IVISTA-A.1.1-truck")} == {2.1}
     assert rows["GB-5.5.2.1.2"].least_ttc_s == 2.4 and rows["GB-5.5.2.1.3"].least_ttc_s == 2.0
     braking = rows["GB-5.5.2.1.2"]
-    assert braking.actor("tv").ahead_m == 30.0 and braking.actor("sv").speed_mps == braking.actor("tv").speed_mps == 20.0
+    assert (
+        braking.actor("tv").ahead_m == 30.0 and braking.actor("sv").speed_mps == braking.actor("tv").speed_mps == 20.0
+    )
     assert LEAD_BRAKE_MPS2 == pytest.approx(0.3 * STANDARD_GRAVITY_MPS2)
     assert rows["GB-5.4.1"].least_clearance_m == pytest.approx(12.0**2 / (2 * 6.67) + 0.8 * 12.0)
     ivista = rows["IVISTA-A.1.2"]
@@ -54,7 +56,9 @@ def test_the_subset_passes_at_both_step_lengths_and_the_report_is_written(subset
     assert all(o.passed for o in outcomes.values()), [o.row.row_id for o in outcomes.values() if not o.passed]
     report = json.loads((out / "report.json").read_text())
     assert report["verdict"]["passed"] and len(report["rows"]) == len(SUBSET)
-    assert all(len(row["groups"]) == len(STEPS_S) and all(len(g["runs"]) == 3 for g in row["groups"]) for row in report["rows"])
+    assert all(
+        len(row["groups"]) == len(STEPS_S) and all(len(g["runs"]) == 3 for g in row["groups"]) for row in report["rows"]
+    )
     assert "| GB-5.5.2.1.2 |" in (out / "report.md").read_text()
     assert all((out / "plots" / f"{row_id}.png").stat().st_size > 0 for row_id in SUBSET)
 
@@ -80,13 +84,15 @@ def test_the_judge_fails_a_late_warning_a_wrong_target_and_a_warning_beside_the_
     trace = _traces(outcomes["IVISTA-A.1.2"])[0]
     late = np.where(trace.ttc_s >= 1.9, 0, 2).astype(np.int8)  # first on below 1.9 s
     assert not judge_fcw_run(row, replace(trace, level=late)).passed
-    wrong = tuple("tv2" if level else target for target, level in zip(trace.target, trace.level))
+    wrong = tuple("tv2" if level else target for target, level in zip(trace.target, trace.level, strict=True))
     assert not judge_fcw_run(row, replace(trace, target=wrong)).passed
     curve = outcomes["GB-5.5.3.2-III"].row
     curve_trace = _traces(outcomes["GB-5.5.3.2-III"])[0]
     beside = (np.abs(curve_trace.adjacent_ahead_m) < 5.0) & (curve_trace.phase_index == 1)
     assert beside.any() and judge_fcw_run(curve, curve_trace).passed
-    assert not judge_fcw_run(curve, replace(curve_trace, level=np.where(beside, 1, curve_trace.level).astype(np.int8))).passed
+    assert not judge_fcw_run(
+        curve, replace(curve_trace, level=np.where(beside, 1, curve_trace.level).astype(np.int8))
+    ).passed
 
 
 def test_the_two_lead_test_warns_twice_for_the_nearer_lead(subset):
@@ -94,14 +100,28 @@ def test_the_two_lead_test_warns_twice_for_the_nearer_lead(subset):
     for trace in _traces(outcomes["GB-5.5.2.2"]):
         warned = trace.level >= 2
         assert (warned & (trace.phase_index == 1)).any() and (warned & (trace.phase_index == TARGET_BRAKES)).any()
-        assert {target for target, level in zip(trace.target, trace.level) if level} == {"tv"}
+        assert {target for target, level in zip(trace.target, trace.level, strict=True) if level} == {"tv"}
 
 
 def test_cli_runs_one_fcw_row_and_refuses_csws_options(tmp_path):
-    command = [sys.executable, "-m", "csws", "conformance", "--system", "fcw", "--rows", "GB-5.5.2.1.1",
-               "--step-lengths", "0.1", "--out", str(tmp_path), "--no-plots"]  # fmt: skip
+    command = [
+        sys.executable,
+        "-m",
+        "csws",
+        "conformance",
+        "--system",
+        "fcw",
+        "--rows",
+        "GB-5.5.2.1.1",
+        "--step-lengths",
+        "0.1",
+        "--out",
+        str(tmp_path),
+        "--no-plots",
+    ]
     done = subprocess.run(command, capture_output=True, text=True)
     assert done.returncode == 0 and "FCW: PASS; 1 rows" in done.stdout
     refused = subprocess.run([*command, "--tables", "5"], capture_output=True, text=True)
     assert refused.returncode == 2 and refused.stderr.strip().splitlines() == [
-        "csws: error: --tables applies to --system csws only"]
+        "csws: error: --tables applies to --system csws only"
+    ]

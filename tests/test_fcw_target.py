@@ -11,11 +11,20 @@ from pathlib import Path
 
 import pytest
 
-from csws.sumo.binaries import sumo_binary, sumo_home
-from csws.fcw.physics import ACTIVE, FAULT, OFF, STANDBY, FcwSettings, required_deceleration_mps2, warning_clearance_m, next_fcw_states
+from csws.fcw.physics import (
+    ACTIVE,
+    FAULT,
+    OFF,
+    STANDBY,
+    FcwSettings,
+    next_fcw_states,
+    required_deceleration_mps2,
+    warning_clearance_m,
+)
 from csws.fcw.target import CurveClass, TargetSettings, curve_start_speed_mps, select_targets
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR, LANE_WIDTH_M, compare_fcw_tracks
+from csws.sumo.binaries import sumo_binary, sumo_home
 
 
 def _on_arc(radius_m: float, arc_m: float, offset_m: float) -> tuple[float, float]:
@@ -36,15 +45,18 @@ def test_on_a_curve_the_adjacent_lane_vehicle_is_no_target_though_straight_ahead
     assert targets.tolist() == [1]
 
 
-@pytest.mark.parametrize(("distance_m", "offset_m", "radius_m", "seen"), [
-    (50.0, 0.0, math.inf, True),
-    (50.0, 1.7, math.inf, True),  # within half a lane
-    (50.0, 1.8, math.inf, False),  # beyond it
-    (250.0, 0.0, math.inf, False),  # beyond the range
-    (-1.0, 0.0, math.inf, False),  # behind
-    (50.0, 0.0, 100.0, False),  # tighter than class III's 125 m
-    (50.0, 0.0, 125.0, True),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("distance_m", "offset_m", "radius_m", "seen"),
+    [
+        (50.0, 0.0, math.inf, True),
+        (50.0, 1.7, math.inf, True),  # within half a lane
+        (50.0, 1.8, math.inf, False),  # beyond it
+        (250.0, 0.0, math.inf, False),  # beyond the range
+        (-1.0, 0.0, math.inf, False),  # behind
+        (50.0, 0.0, 100.0, False),  # tighter than class III's 125 m
+        (50.0, 0.0, 125.0, True),
+    ],
+)
 def test_a_candidate_is_seen_in_the_lane_within_range_on_curves_of_the_class(distance_m, offset_m, radius_m, seen):
     assert bool(select_targets([0], [distance_m], [offset_m], [radius_m], 1)[0] == 0) is seen
 
@@ -71,7 +83,14 @@ def test_the_state_follows_figure_2_with_the_hysteresis():
     switched = [True] * 5 + [False, True]
     measured = [True] * 6 + [False]
     assert next_fcw_states(previous, speed, switched, measured, settings).tolist() == [
-        STANDBY, ACTIVE, ACTIVE, STANDBY, ACTIVE, OFF, FAULT]
+        STANDBY,
+        ACTIVE,
+        ACTIVE,
+        STANDBY,
+        ACTIVE,
+        OFF,
+        FAULT,
+    ]
     with pytest.raises(ValueError, match="4.3.3"):
         FcwSettings(min_speed_mps=12.0)
 
@@ -97,12 +116,23 @@ def _sumo_targets(track: str, vehicles: str):
 
     from csws.cosim.fcw import forward_targets
 
-    types = ('<vType id="t" length="12" minGap="2.5" sigma="0"/><vType id="c" length="4.5" minGap="3" sigma="0"/>')
+    types = '<vType id="t" length="12" minGap="2.5" sigma="0"/><vType id="c" length="4.5" minGap="3" sigma="0"/>'
     with tempfile.TemporaryDirectory() as work:
         routes = Path(work) / "r.rou.xml"
         routes.write_text(f"<routes>{types}{vehicles}</routes>", encoding="utf-8")
-        libsumo.start([str(sumo_binary("sumo")), "-n", str(networks_dir() / FCW_DIR / f"{track}.net.xml"), "-r",
-                       str(routes), "--no-step-log", "true", "--no-warnings", "true"])  # fmt: skip
+        libsumo.start(
+            [
+                str(sumo_binary("sumo")),
+                "-n",
+                str(networks_dir() / FCW_DIR / f"{track}.net.xml"),
+                "-r",
+                str(routes),
+                "--no-step-log",
+                "true",
+                "--no-warnings",
+                "true",
+            ]
+        )
         try:
             libsumo.simulationStep()
             return forward_targets(libsumo, ["sv"], TargetSettings())
@@ -111,22 +141,29 @@ def _sumo_targets(track: str, vehicles: str):
 
 
 def _vehicle(vehicle_id: str, vtype: str, lane: int, pos_m: float) -> str:
-    return (f'<vehicle id="{vehicle_id}" type="{vtype}" depart="0" departLane="{lane}" departPos="{pos_m}" '
-            f'departSpeed="0" insertionChecks="none"><route edges="road"/></vehicle>')  # fmt: skip
+    return (
+        f'<vehicle id="{vehicle_id}" type="{vtype}" depart="0" departLane="{lane}" departPos="{pos_m}" '
+        f'departSpeed="0" insertionChecks="none"><route edges="road"/></vehicle>'
+    )
 
 
 def test_sumo_leaders_give_the_clearance_with_min_gap_and_beyond_the_default_search():
     """sv's front at 100 m, tv's rear 150 m ahead (front at 254.5 m): SUMO's gap leaves out sv's
     minGap (2.5 m); the clearance is the lane positions' difference. The nearer vehicle in the
     other lane is not the target."""
-    found = _sumo_targets("fcw_straight", _vehicle("sv", "t", 0, 100.0) + _vehicle("tv", "c", 0, 254.5)
-                          + _vehicle("adj", "c", 1, 130.0))  # fmt: skip
+    found = _sumo_targets(
+        "fcw_straight", _vehicle("sv", "t", 0, 100.0) + _vehicle("tv", "c", 0, 254.5) + _vehicle("adj", "c", 1, 130.0)
+    )
     assert found.target_id == ["tv"] and found.clearance_m[0] == pytest.approx(150.0)
 
 
 def test_on_the_r125_curve_the_target_is_in_the_lane_and_the_outer_lane_vehicle_is_not():
     curve_start_m = 60.0
-    found = _sumo_targets("fcw_curve_r125", _vehicle("sv", "t", 1, curve_start_m + 20.0)
-                          + _vehicle("adj", "c", 0, curve_start_m + 35.0) + _vehicle("tv", "c", 1, curve_start_m + 80.0))
+    found = _sumo_targets(
+        "fcw_curve_r125",
+        _vehicle("sv", "t", 1, curve_start_m + 20.0)
+        + _vehicle("adj", "c", 0, curve_start_m + 35.0)
+        + _vehicle("tv", "c", 1, curve_start_m + 80.0),
+    )
     assert found.target_id == ["tv"]
     assert found.clearance_m[0] == pytest.approx(80.0 - 20.0 - 4.5)  # along SUMO's lane positions

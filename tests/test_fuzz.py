@@ -23,11 +23,11 @@ import pytest
 import schemathesis
 from hypothesis import settings
 from schemathesis import checks
+from test_service import Server, write_geo_track
 
 from csws.networks import networks_dir
 from service.app import create_app
 from service.settings import ServiceSettings
-from test_service import Server, write_geo_track
 
 SEED = 20180091
 MAX_EXAMPLES = 100

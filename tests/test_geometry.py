@@ -21,7 +21,9 @@ def _integrated_pose(curvature_of_s, length_m: float, steps: int = 400_000) -> t
 
 @settings(max_examples=20, deadline=None)
 @given(st.floats(10.0, 120.0), st.floats(25.0, 500.0), st.sampled_from(["left", "right"]))
-def test_a_spiral_into_an_arc_ends_where_its_curvature_takes_it(spiral_m: float, radius_m: float, direction: str) -> None:
+def test_a_spiral_into_an_arc_ends_where_its_curvature_takes_it(
+    spiral_m: float, radius_m: float, direction: str
+) -> None:
     sign = 1.0 if direction == "left" else -1.0
     pieces = [straight(20.0), clothoid(spiral_m, math.inf, radius_m, direction), arc(radius_m, 30.0, direction)]
     length_m = 20.0 + spiral_m + radius_m * math.radians(30.0)

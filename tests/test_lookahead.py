@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from csws.geometry import arc, sample_pieces, straight
 from csws.ahead.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
+from csws.geometry import arc, sample_pieces, straight
+from csws.road.roadmap import RoadMap
 from csws.standard import warning_distance, warning_speed
 from csws.sumo.netbuild import netconvert, shape_text
-from csws.road.roadmap import RoadMap
 from csws.warning.rules import PathKind
 
 #: A road "Main" runs east into junction J and on through a left curve; a side road
@@ -46,8 +46,9 @@ def junction_map(tmp_path_factory) -> RoadMap:
         _edge("side", "J", "C", side_xy, "Side"),
     ]
     folder = tmp_path_factory.mktemp("junction")
-    net = netconvert("<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>",
-                     folder / "junction.net.xml")
+    net = netconvert(
+        "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "junction.net.xml"
+    )
     return RoadMap.load(net)
 
 

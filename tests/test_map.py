@@ -15,13 +15,21 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 from playwright.sync_api import Page, sync_playwright
-
-from csws.networks import networks_dir
 from test_service import Workers
 
+from csws.networks import networks_dir
+
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 GEO_NET = networks_dir() / "badhersfeld.net.xml.gz"
 #: The most the map page of the Bad Hersfeld network may fetch before it shows its curves, bytes.
@@ -34,8 +42,9 @@ WAIT_MS = 30_000
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    running = Workers([TRACK_NET, GEO_NET], "--state-db", str(tmp_path_factory.mktemp("state") / "v.sqlite3"),
-                      workers=1)  # fmt: skip
+    running = Workers(
+        [TRACK_NET, GEO_NET], "--state-db", str(tmp_path_factory.mktemp("state") / "v.sqlite3"), workers=1
+    )
     yield running
     running.stop()
 
@@ -72,8 +81,11 @@ class Recorded:
     def assert_offline(self) -> None:
         """Nothing left the machine: every request went to the loopback service (or to the page's own
         ``data:`` and ``blob:`` contents), and nothing failed."""
-        remote = [url for url in self.urls
-                  if urlsplit(url).scheme not in ("data", "blob") and urlsplit(url).hostname != "127.0.0.1"]
+        remote = [
+            url
+            for url in self.urls
+            if urlsplit(url).scheme not in ("data", "blob") and urlsplit(url).hostname != "127.0.0.1"
+        ]
         assert self.urls and not remote, remote
         assert not self.errors, self.errors
 
@@ -119,17 +131,20 @@ def test_vehicle_markers_appear_and_change_colour_when_a_warning_comes_on(browse
     fix = {"vehicle_id": "truck-18", "category": "N", "speed_kmh": 80.0, "heading_deg": 90.0, "network": "t7_left"}
     far = client.post("/v1/warning", json={**fix, "position": {"x": 300.0, "y": 0.4}, "timestamp_s": 1.0}).json()
     page.wait_for_function("cswsMap.vehicles.has('truck-18')", timeout=WAIT_MS)
-    page.wait_for_function("c => cswsMap.vehicles.get('truck-18').options.fillColor === c",
-                           arg=_colour_of(page, far), timeout=WAIT_MS)  # fmt: skip
+    page.wait_for_function(
+        "c => cswsMap.vehicles.get('truck-18').options.fillColor === c", arg=_colour_of(page, far), timeout=WAIT_MS
+    )
     near = client.post("/v1/warning", json={**fix, "position": {"x": 985.0, "y": 0.4}, "timestamp_s": 2.0}).json()
     assert (far["level"], near["level"]) == (0, 2)
     assert _colour_of(page, near) != _colour_of(page, far)
-    page.wait_for_function("c => cswsMap.vehicles.get('truck-18').options.fillColor === c",
-                           arg=_colour_of(page, near), timeout=WAIT_MS)  # fmt: skip
+    page.wait_for_function(
+        "c => cswsMap.vehicles.get('truck-18').options.fillColor === c", arg=_colour_of(page, near), timeout=WAIT_MS
+    )
     # Where the page puts it is where the service's fleet view does (x, y as Leaflet's lng, lat).
     placed = page.evaluate("(({lat, lng}) => [lng, lat])(cswsMap.vehicles.get('truck-18').getLatLng())")
-    [served] = [f for f in client.get("/v1/fleet", params={"network": "t7_left"}).json()["features"]
-                if f["id"] == "truck-18"]  # fmt: skip
+    [served] = [
+        f for f in client.get("/v1/fleet", params={"network": "t7_left"}).json()["features"] if f["id"] == "truck-18"
+    ]
     assert placed == pytest.approx(served["geometry"]["coordinates"])
     recorded.assert_offline()
 
@@ -137,8 +152,17 @@ def test_vehicle_markers_appear_and_change_colour_when_a_warning_comes_on(browse
 def test_a_fleet_of_a_thousand_on_a_real_network_is_drawn_from_little_data(browser, server, client, tmp_path) -> None:
     roads = client.get("/v1/roads", params={"network": "badhersfeld"}).json()["features"]
     lanes = [f"{road['id']}_0" for road in roads][:FLEET_SIZE]
-    queries = [{"vehicle_id": f"truck-{i}", "category": "N", "speed_kmh": 30.0 + i % 70, "lane_id": lane,
-                "lane_pos_m": 0.0, "network": "badhersfeld"} for i, lane in enumerate(lanes)]  # fmt: skip
+    queries = [
+        {
+            "vehicle_id": f"truck-{i}",
+            "category": "N",
+            "speed_kmh": 30.0 + i % 70,
+            "lane_id": lane,
+            "lane_pos_m": 0.0,
+            "network": "badhersfeld",
+        }
+        for i, lane in enumerate(lanes)
+    ]
     answers = client.post("/v1/warnings", json={"queries": queries}).json()["answers"]
     recorded = _open_map(browser, server, "badhersfeld")
     page = recorded.page

@@ -9,10 +9,17 @@ import numpy as np
 import pytest
 
 from csws.geometry import sample_pieces, straight
-from csws.road.matching import (MapMatcher, MapPosition, MatchSettings, Probes, compass_to_math_rad, lane_point,
-                           points_along)
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.road.matching import (
+    MapMatcher,
+    MapPosition,
+    MatchSettings,
+    Probes,
+    compass_to_math_rad,
+    lane_point,
+    points_along,
+)
 from csws.road.roadmap import RoadMap
+from csws.sumo.netbuild import netconvert, shape_text
 
 #: The frontage road runs eastbound this far north of the main road's axis, m.
 FRONTAGE_OFFSET_M = 9.0
@@ -23,8 +30,10 @@ CROSSING_X_M = 400.0
 
 
 def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, spread: str) -> str:
-    return (f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="25.0" '
-            f'spreadType="{spread}" shape="{shape_text(xy)}"/>')
+    return (
+        f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="25.0" '
+        f'spreadType="{spread}" shape="{shape_text(xy)}"/>'
+    )
 
 
 def _node(node_id: str, x: float, y: float) -> str:
@@ -42,17 +51,25 @@ def build_side_roads(folder: Path, origin_x_m: float = 0.0) -> Path:
     main_xy, _ = sample_pieces((straight(800.0),), 2.0, (origin_x_m, 0.0), 0.0)
     frontage_xy, _ = sample_pieces((straight(800.0),), 2.0, (origin_x_m, FRONTAGE_OFFSET_M), 0.0)
     crossing_xy, _ = sample_pieces((straight(600.0),), 2.0, (origin_x_m + CROSSING_X_M, -300.0), np.pi / 2)
-    nodes = [_node("A", origin_x_m, 0.0), _node("B", origin_x_m + 800.0, 0.0),
-             _node("F0", origin_x_m, FRONTAGE_OFFSET_M), _node("F1", origin_x_m + 800.0, FRONTAGE_OFFSET_M),
-             _node("C0", origin_x_m + CROSSING_X_M, -300.0), _node("C1", origin_x_m + CROSSING_X_M, 300.0)]
+    nodes = [
+        _node("A", origin_x_m, 0.0),
+        _node("B", origin_x_m + 800.0, 0.0),
+        _node("F0", origin_x_m, FRONTAGE_OFFSET_M),
+        _node("F1", origin_x_m + 800.0, FRONTAGE_OFFSET_M),
+        _node("C0", origin_x_m + CROSSING_X_M, -300.0),
+        _node("C1", origin_x_m + CROSSING_X_M, 300.0),
+    ]
     edges = [
         _edge("AB", "A", "B", main_xy, "right"),
         _edge("BA", "B", "A", main_xy[::-1], "right"),
         _edge("frontage", "F0", "F1", frontage_xy, "center"),
         _edge("crossing", "C0", "C1", crossing_xy, "center"),
     ]
-    return netconvert("<nodes>\n" + "\n".join(nodes) + "\n</nodes>\n",
-                      "<edges>\n" + "\n".join(edges) + "\n</edges>\n", folder / "side_roads.net.xml")
+    return netconvert(
+        "<nodes>\n" + "\n".join(nodes) + "\n</nodes>\n",
+        "<edges>\n" + "\n".join(edges) + "\n</edges>\n",
+        folder / "side_roads.net.xml",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -68,13 +85,15 @@ def _match(matcher: MapMatcher, xy, heading_deg=None, previous=None):
 
 def test_compass_headings_turn_into_math_angles() -> None:
     assert compass_to_math_rad(np.array([0.0, 90.0, 180.0, 270.0])) == pytest.approx(
-        [np.pi / 2, 0.0, -np.pi / 2, -np.pi])
+        [np.pi / 2, 0.0, -np.pi / 2, -np.pi]
+    )
 
 
 def test_points_along_a_polyline_follow_its_arc_length() -> None:
     xy = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 5.0]])
     assert points_along(xy, np.array([0.0, 4.0, 12.0, 99.0])) == pytest.approx(
-        np.array([[0.0, 0.0], [4.0, 0.0], [10.0, 2.0], [10.0, 5.0]]))
+        np.array([[0.0, 0.0], [4.0, 0.0], [10.0, 2.0], [10.0, 5.0]])
+    )
 
 
 def test_the_heading_picks_the_direction_of_a_two_way_road(side_map: RoadMap) -> None:
@@ -109,8 +128,9 @@ def test_the_previous_lane_keeps_a_vehicle_off_the_parallel_road(side_map: RoadM
 
 def test_a_fix_matching_nothing_says_why(side_map: RoadMap) -> None:
     matcher = MapMatcher([side_map], MatchSettings(tolerance_m=5.0))
-    result = _match(matcher, [[300.0, 200.0], [200.0, 0.0 - LANE_WIDTH_M / 2], [100.0, FRONTAGE_OFFSET_M]],
-                    [90.0, 0.0, 180.0])
+    result = _match(
+        matcher, [[300.0, 200.0], [200.0, 0.0 - LANE_WIDTH_M / 2], [100.0, FRONTAGE_OFFSET_M]], [90.0, 0.0, 180.0]
+    )
     assert result.lane_id == [None, None, None]
     assert list(result.map_index) == [-1, -1, -1]
     assert np.isnan(result.distance_m).all()
@@ -136,8 +156,9 @@ def test_a_fix_confined_to_one_map_is_matched_there_alone(side_map: RoadMap) -> 
     on_the_frontage = np.array([[200.0, FRONTAGE_OFFSET_M]])
     assert list(matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([1]))).map_index) == [1]
     # A vehicle last seen on the second map, now confined to the first: its previous lane counts for nothing.
-    confined = matcher.match(Probes(1, np.array([0]), on_the_frontage, np.array([0])), None,
-                             [MapPosition(1, "frontage_0")])  # fmt: skip
+    confined = matcher.match(
+        Probes(1, np.array([0]), on_the_frontage, np.array([0])), None, [MapPosition(1, "frontage_0")]
+    )
     assert (list(confined.map_index), bool(confined.continued[0])) == ([0], False)
 
 
@@ -146,8 +167,9 @@ def test_a_fix_placed_on_no_map_matches_nothing(side_map: RoadMap) -> None:
     assert result.lane_id == [None] and result.reason == ["no lane within 10 m"]
 
 
-def test_a_fix_placed_on_each_map_in_its_own_coordinates_is_matched_on_the_best(side_map: RoadMap,
-                                                                              tmp_path: Path) -> None:
+def test_a_fix_placed_on_each_map_in_its_own_coordinates_is_matched_on_the_best(
+    side_map: RoadMap, tmp_path: Path
+) -> None:
     # As lon/lat is placed on each geo-referenced network: one probe per map, in that map's coordinates.
     shifted = RoadMap.load(build_side_roads(tmp_path, origin_x_m=5000.0))
     matcher = MapMatcher([side_map, shifted])

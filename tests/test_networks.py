@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 import sumolib
 
+from csws.curvature import find_curves
 from csws.data import standard_tables
 from csws.networks import networks_dir
 from csws.networks.generate import compare_network, networks_index, track_specs
-from csws.curvature import find_curves
 
 NETWORKS = sorted(path.name.removesuffix(".net.xml") for path in networks_dir().glob("*.net.xml"))
 #: Acceleration from rest assumed when checking that the approach is long enough (7.5.1), m/s^2.
@@ -144,7 +144,7 @@ def test_extractor_finds_the_truth(name: str) -> None:
         assert curve.end_s == pytest.approx(curve.parts[-1].end_s, abs=1e-6)
     parts = [part for curve in found for part in curve.parts]
     assert len(parts) == len(truth["curves"])
-    for part, expected in zip(parts, truth["curves"]):
+    for part, expected in zip(parts, truth["curves"], strict=True):
         assert part.start_s == pytest.approx(expected["start_s"], abs=1.0)
         assert part.end_s == pytest.approx(expected["end_s"], abs=1.0)
         assert part.radius_m == pytest.approx(expected["radius_m"], rel=0.01)

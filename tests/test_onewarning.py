@@ -6,21 +6,29 @@ import json
 import math
 
 import numpy as np
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
-from csws.warning.single import judge_one
-from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from csws.road.roadmap import RoadMap
 from csws.standard import TABLE_RADII_M
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from csws.warning.rules import PathKind, WarningSettings, evaluate_batch
+from csws.warning.single import judge_one
 
 #: Radii at and beside the tables' radii, an arc of a spiral's end, and straights.
-_radii = st.one_of(st.floats(min_value=5.0, max_value=2000.0), st.sampled_from([*TABLE_RADII_M, 39.99, 200.01, math.inf]))
+_radii = st.one_of(
+    st.floats(min_value=5.0, max_value=2000.0), st.sampled_from([*TABLE_RADII_M, 39.99, 200.01, math.inf])
+)
 _points = st.lists(
-    st.tuples(st.sampled_from(["a@0", "b@120"]), st.integers(0, 2), st.floats(min_value=0.0, max_value=400.0),
-              _radii, st.booleans()),  # fmt: skip
+    st.tuples(
+        st.sampled_from(["a@0", "b@120"]),
+        st.integers(0, 2),
+        st.floats(min_value=0.0, max_value=400.0),
+        _radii,
+        st.booleans(),
+    ),
     max_size=5,
     unique_by=lambda point: (point[0], point[1]),
 )
@@ -42,18 +50,30 @@ def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_setti
     parts = np.array([point[1] for point in points], dtype=np.intp)
     first = [0, len(points)]
     latched, hold = memory_masks([held], [now_s], first, curve_ids, parts, warning_settings.release_hold_s)
-    batch = evaluate_batch(np.array([speed_kmh]), np.array([column]), np.zeros(len(points), dtype=np.intp),
-                           np.array([point[2] for point in points], dtype=float),
-                           np.array([point[3] for point in points], dtype=float), warning_settings,
-                           cpoi_latched=latched, cpoi_hold=hold,
-                           cpoi_passed=np.array([point[4] for point in points], dtype=bool))  # fmt: skip
+    batch = evaluate_batch(
+        np.array([speed_kmh]),
+        np.array([column]),
+        np.zeros(len(points), dtype=np.intp),
+        np.array([point[2] for point in points], dtype=float),
+        np.array([point[3] for point in points], dtype=float),
+        warning_settings,
+        cpoi_latched=latched,
+        cpoi_hold=hold,
+        cpoi_passed=np.array([point[4] for point in points], dtype=bool),
+    )
     memory = next_memories([held], [now_s], first, curve_ids, parts, batch.cpoi_rule)[0]
     return batch.vehicle_warning(0, 0, curve_ids, parts, kind), memory
 
 
 @settings(max_examples=400, deadline=None)
-@given(st.data(), _points, st.floats(min_value=0.0, max_value=160.0), st.integers(0, 2), _times,
-       st.sampled_from(list(PathKind)))  # fmt: skip
+@given(
+    st.data(),
+    _points,
+    st.floats(min_value=0.0, max_value=160.0),
+    st.integers(0, 2),
+    _times,
+    st.sampled_from(list(PathKind)),
+)
 def test_one_vehicle_is_judged_as_in_a_batch(data, points, speed_kmh, column, now_s, kind):
     held = data.draw(_memories(points))
     warning_settings = WarningSettings()
@@ -74,7 +94,9 @@ def test_a_drive_through_curves_is_answered_alike_one_at_a_time_and_in_a_batch()
     s, speed_kmh, levels = start_s, 110.0, set()
     for step in range(300):
         lane = next(lane for lane in reversed(truth["lanes"]) if lane["start_s"] <= s)
-        vehicle = VehicleInput("truck", "N", speed_kmh, lane["lane"], s - lane["start_s"], route, timestamp_s=step * 0.1)
+        vehicle = VehicleInput(
+            "truck", "N", speed_kmh, lane["lane"], s - lane["start_s"], route, timestamp_s=step * 0.1
+        )
         one, [many] = single.evaluate(vehicle), batch.evaluate_many([vehicle])
         assert (one.state, one.warning) == (many.state, many.warning)
         assert single.memory("truck") == batch.memory("truck")

@@ -20,12 +20,12 @@ import pytest
 import sumolib
 
 from csws import cli
-from csws.sumo.binaries import sumo_binary, sumo_home
-from csws.geometry import arc, piece_starts_s, sample_pieces, straight
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
+from csws.geometry import arc, piece_starts_s, sample_pieces, straight
 from csws.networks import networks_dir
 from csws.osm.importer import ImportSettings, OsmImportError, import_osm
 from csws.road.roadmap import RoadMap
+from csws.sumo.binaries import sumo_binary, sumo_home
 
 UTM32 = pyproj.Proj("+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs")
 ORIGIN_LONLAT = (9.70, 50.80)
@@ -72,7 +72,11 @@ class OsmWriter:
             for node_id in self.nodes
             for lon, lat in [self.lonlat(node_id)]
         ]
-        return '<?xml version="1.0" encoding="UTF-8"?>\n<osm version="0.6">\n' + "\n".join(nodes + self.ways) + "\n</osm>\n"
+        return (
+            '<?xml version="1.0" encoding="UTF-8"?>\n<osm version="0.6">\n'
+            + "\n".join(nodes + self.ways)
+            + "\n</osm>\n"
+        )
 
 
 def _arc_xy() -> np.ndarray:
@@ -180,7 +184,7 @@ def _with_nodes_every(corners: list, spacing_m: float) -> np.ndarray:
     corners = np.asarray(corners, dtype=float)
     pieces = [
         a + np.linspace(0.0, 1.0, max(2, math.ceil(np.hypot(*(b - a)) / spacing_m) + 1))[:-1, None] * (b - a)
-        for a, b in zip(corners[:-1], corners[1:])
+        for a, b in zip(corners[:-1], corners[1:], strict=True)
     ]
     return np.concatenate(pieces + [corners[-1:]])
 
@@ -215,7 +219,9 @@ def junction_map(junction_net: Path) -> RoadMap:
 def _route(net_path: Path, road_map: RoadMap, from_lane: str, to_lane: str) -> list[str]:
     """The shortest route (edge ids) between the edges of two lanes, by sumolib."""
     net = sumolib.net.readNet(str(net_path))
-    edges, _ = net.getShortestPath(net.getEdge(road_map.lane(from_lane).edge_id), net.getEdge(road_map.lane(to_lane).edge_id))
+    edges, _ = net.getShortestPath(
+        net.getEdge(road_map.lane(from_lane).edge_id), net.getEdge(road_map.lane(to_lane).edge_id)
+    )
     return [edge.getID() for edge in edges]
 
 
@@ -367,11 +373,22 @@ def test_real_network_roundabouts_and_curve_index(badhersfeld: RoadMap) -> None:
 def test_real_fleet_scenario_runs_in_sumo(tmp_path: Path) -> None:
     config = networks_dir() / "badhersfeld.sumocfg"
     result = subprocess.run(
-        [str(sumo_binary("sumo")), "-c", str(config), "--end", "30", "--duration-log.statistics", "true",
-         "--tripinfo-output", str(tmp_path / "trips.xml")],
+        [
+            str(sumo_binary("sumo")),
+            "-c",
+            str(config),
+            "--end",
+            "30",
+            "--duration-log.statistics",
+            "true",
+            "--tripinfo-output",
+            str(tmp_path / "trips.xml"),
+        ],
         env={"SUMO_HOME": str(sumo_home()), "PROJ_LIB": str(sumo_home() / "data" / "proj"), "PATH": ""},
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 0, result.stderr
     assert "Inserted: 3" in result.stdout  # one departure every 10 s: at 0, 10 and 20 s
     routes = (networks_dir() / "badhersfeld.rou.xml").read_text()
@@ -416,7 +433,9 @@ def test_what_an_import_drops_is_counted_by_highway_value_and_warned_of(tmp_path
 
 def test_a_type_file_of_the_user_adds_a_highway_value(tmp_path: Path) -> None:
     type_file = tmp_path / "extra.typ.xml"
-    type_file.write_text('<types><type id="highway.corridor" numLanes="1" speed="13.89" priority="3" oneway="false"/></types>')
+    type_file.write_text(
+        '<types><type id="highway.corridor" numLanes="1" speed="13.89" priority="3" oneway="false"/></types>'
+    )
     osm_path = _three_ways(tmp_path, "corridor")
     without = import_osm(osm_path, tmp_path / "without.net.xml")
     assert without.dropped.by_highway == {} or "corridor" not in _edge_types(without.net_path)
@@ -426,4 +445,8 @@ def test_a_type_file_of_the_user_adds_a_highway_value(tmp_path: Path) -> None:
 
 def test_a_missing_type_file_is_one_clear_error(tmp_path: Path) -> None:
     with pytest.raises(OsmImportError, match="no type file at"):
-        import_osm(_three_ways(tmp_path, "primary"), tmp_path / "x.net.xml", ImportSettings(type_files=(tmp_path / "none.xml",)))
+        import_osm(
+            _three_ways(tmp_path, "primary"),
+            tmp_path / "x.net.xml",
+            ImportSettings(type_files=(tmp_path / "none.xml",)),
+        )

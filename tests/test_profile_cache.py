@@ -20,7 +20,13 @@ def _polylines() -> list[np.ndarray]:
     """Roads of every kind the fit meets: dense arcs and clothoids, a sparse noisy way, degenerate lines."""
     rng = np.random.default_rng(91)
     spiral, _ = sample_pieces(
-        [straight(80), clothoid(40, math.inf, 90, "left"), arc(90, 40, "left"), clothoid(40, 90, math.inf), straight(80)],
+        [
+            straight(80),
+            clothoid(40, math.inf, 90, "left"),
+            arc(90, 40, "left"),
+            clothoid(40, 90, math.inf),
+            straight(80),
+        ],
         0.5,
     )
     compound, _ = sample_pieces([straight(60), arc(200, 20, "right"), arc(45, 70, "right"), straight(60)], 1.0)
@@ -37,7 +43,7 @@ def _polylines() -> list[np.ndarray]:
 
 def _assert_same(read: list[RadiusProfile], fitted: list[RadiusProfile]) -> None:
     assert len(read) == len(fitted)
-    for a, b in zip(read, fitted):
+    for a, b in zip(read, fitted, strict=True):
         assert a.parts == b.parts
         for name in ("s", "curvature", "radius"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))

@@ -31,8 +31,10 @@ def _content(track: str) -> dict:
 
 
 def _pieces(content: dict) -> list[Piece]:
-    return [Piece(p["length_m"], p["curvature"], None if p["end_curvature"] == p["curvature"] else p["end_curvature"])
-            for p in content["pieces"]]  # fmt: skip
+    return [
+        Piece(p["length_m"], p["curvature"], None if p["end_curvature"] == p["curvature"] else p["end_curvature"])
+        for p in content["pieces"]
+    ]
 
 
 def test_the_shipped_real_road_networks_are_the_generator_s() -> None:
@@ -46,7 +48,7 @@ def test_the_map_s_curves_are_the_constructed_ones(track: str) -> None:
     path = road_map.path_profile(road_map.expand_path([f"{edge}_0" for edge in content["route"]["edges"]]))
     found = path.road_curves()
     assert len(found) == len(content["curves"])
-    for curve, true in zip(found, content["curves"]):
+    for curve, true in zip(found, content["curves"], strict=True):
         assert curve.start_s == pytest.approx(true["start_s"], abs=0.5)
         assert curve.end_s == pytest.approx(true["end_s"], abs=0.5)
         assert curve.min_radius_m == pytest.approx(true["min_radius_m"], rel=0.01)
@@ -59,8 +61,12 @@ def test_the_truth_curves_follow_from_the_pieces() -> None:
         content = _content(track)
         pieces = _pieces(content)
         for curve in content["curves"]:
-            for s, inside in ((curve["start_s"] - 0.01, False), (curve["start_s"] + 0.01, True),
-                              (curve["end_s"] - 0.01, True), (curve["end_s"] + 0.01, False)):  # fmt: skip
+            for s, inside in (
+                (curve["start_s"] - 0.01, False),
+                (curve["start_s"] + 0.01, True),
+                (curve["end_s"] - 0.01, True),
+                (curve["end_s"] + 0.01, False),
+            ):
                 radius_m = 1.0 / max(abs(float(curvature_at(pieces, np.array([s]))[0])), 1e-12)
                 assert (radius_m <= content["warning_radius_m"]) == inside, (track, s, radius_m)
 
@@ -89,8 +95,11 @@ def _trace(track: str, row, levels: np.ndarray, route_s: np.ndarray, step_s: flo
 
 def test_the_judge_passes_formula_1_and_fails_late_early_and_short_warnings() -> None:
     track = "rr_compound"
-    row = next(r for r in real_road_rows() if r.tracks == (track,) and r.category is Category.N
-               and r.speed_kmh > warning_speed(35.0, Category.N, 2))  # fmt: skip
+    row = next(
+        r
+        for r in real_road_rows()
+        if r.tracks == (track,) and r.category is Category.N and r.speed_kmh > warning_speed(35.0, Category.N, 2)
+    )
     step_s = 0.05
     travel_m = kmh_to_mps(row.speed_kmh) * step_s
     first = truth(track).curve_start_s_m[0]
@@ -106,13 +115,13 @@ def test_the_judge_passes_formula_1_and_fails_late_early_and_short_warnings() ->
 
     early = exact.copy()
     onset = int(np.flatnonzero(exact >= 1)[0])
-    early[onset - round(15.0 / travel_m): onset] = 1  # 15 m before formula (1) asks
+    early[onset - round(15.0 / travel_m) : onset] = 1  # 15 m before formula (1) asks
     result = judge_real_road_run(row, _trace(track, row, early, route_s, step_s), truth(track))
     assert not result.passed and "raised" in result.checks[0].reason
 
     short = exact.copy()
     last = int(np.flatnonzero(exact >= 1)[-1])
-    short[last - round(5.0 / travel_m): last + 1] = 0  # off 5 m before the last point that requires it
+    short[last - round(5.0 / travel_m) : last + 1] = 0  # off 5 m before the last point that requires it
     result = judge_real_road_run(row, _trace(track, row, short, route_s, step_s), truth(track))
     assert not result.passed and " off at" in result.checks[0].reason
 

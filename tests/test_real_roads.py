@@ -14,16 +14,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_roadchain import APPROACH_M, CURVE_RADIUS_M, _edge, _node, _split_curve_map
 
-from csws.engine import Engine, VehicleInput
-from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
 from csws.ahead.horizon import curve_id_of
 from csws.ahead.lookahead import LookAhead
-from csws.sumo.netbuild import netconvert
+from csws.engine import Engine, VehicleInput
+from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
 from csws.road.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance, warning_speed
+from csws.sumo.netbuild import netconvert
 from csws.warning.rules import WarningSettings
-from test_roadchain import APPROACH_M, CURVE_RADIUS_M, _edge, _node, _split_curve_map
 
 #: A curve of R 150 m between two 60 m clothoids, on one edge.
 ARC_RADIUS_M = 150.0
@@ -40,8 +40,11 @@ SPIRAL_PIECES = (
 def spiral_map(tmp_path_factory) -> RoadMap:
     xy, _ = sample_pieces(SPIRAL_PIECES, 1.0, (0.0, 0.0), 0.0)
     nodes = _node("A", xy[0]) + _node("B", xy[-1])
-    net = netconvert(f"<nodes>{nodes}</nodes>", f"<edges>{_edge('road', 'A', 'B', xy)}</edges>",
-                     tmp_path_factory.mktemp("spiral") / "spiral.net.xml")  # fmt: skip
+    net = netconvert(
+        f"<nodes>{nodes}</nodes>",
+        f"<edges>{_edge('road', 'A', 'B', xy)}</edges>",
+        tmp_path_factory.mktemp("spiral") / "spiral.net.xml",
+    )
     return RoadMap.load(net)
 
 
@@ -71,10 +74,12 @@ def test_level_1_over_a_curve_between_clothoids_comes_on_time_and_holds(spiral_m
     earliest, latest, last, beyond = _level_1_truth(speed_kmh, category, allowance_m)
     engine = Engine(spiral_map)
     positions = np.arange(0.0, spiral_map.lane("road_0").length_m, step_m)
-    on = np.array([
-        engine.evaluate(VehicleInput("truck", category, speed_kmh, "road_0", float(x), ["road"])).level >= 1
-        for x in positions
-    ])  # fmt: skip
+    on = np.array(
+        [
+            engine.evaluate(VehicleInput("truck", category, speed_kmh, "road_0", float(x), ["road"])).level >= 1
+            for x in positions
+        ]
+    )
     first, final = positions[np.flatnonzero(on)[[0, -1]]]
     assert earliest - step_m - 0.5 <= first <= latest + 0.5, (earliest, first, latest)
     assert on[(positions >= first) & (positions <= last)].all(), "level 1 released while the road still requires it"

@@ -33,8 +33,15 @@ def _track() -> tuple[RoadMap, dict]:
 
 def _input(truth: dict, route_s: float, speed_kmh: float, time_s: float | None, vehicle_id: str = "v") -> VehicleInput:
     lane = next(lane for lane in reversed(truth["lanes"]) if lane["start_s"] <= route_s)
-    return VehicleInput(vehicle_id, "N", speed_kmh, lane["lane"], route_s - lane["start_s"],
-                        route_edges=truth["route"]["edges"], timestamp_s=time_s)  # fmt: skip
+    return VehicleInput(
+        vehicle_id,
+        "N",
+        speed_kmh,
+        lane["lane"],
+        route_s - lane["start_s"],
+        route_edges=truth["route"]["edges"],
+        timestamp_s=time_s,
+    )
 
 
 #: How far the map may be from the constructed truth: its radius by millimetres (V_w by a few
@@ -86,7 +93,7 @@ def test_speed_noise_round_the_warning_speed_does_not_switch_level_1_on_and_off(
     assert _switches(required) >= 6  # 6.1 alone would flicker
     inside = [level for (s, _, level, _) in rows if s <= truth["curves"][0]["end_s"]]
     assert _switches(inside) == 1 and inside[-1] == 1  # on once, and on until the curve ends
-    assert all(level >= need for level, need in zip(levels, required))
+    assert all(level >= need for level, need in zip(levels, required, strict=True))
 
 
 def test_a_level_goes_off_a_margin_below_warning_speed_after_the_hold() -> None:

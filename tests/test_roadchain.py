@@ -10,25 +10,31 @@ import numpy as np
 import pytest
 import sumolib
 
+from csws.ahead.lookahead import LookAhead
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, pose_at, sample_pieces, straight
-from csws.ahead.lookahead import LookAhead
-from csws.sumo.netbuild import netconvert, shape_text
 from csws.road.continuations import road_continuations
 from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps, warning_distance, warning_speed
+from csws.sumo.netbuild import netconvert, shape_text
 from csws.warning.rules import WarningSettings
 
 #: The short curve of the report: R 71 m, 25.7 m long, after a 300 m straight.
 APPROACH_M = 300.0
 CURVE_RADIUS_M = 71.0
 CURVE_LENGTH_M = 25.7
-PIECES = (straight(APPROACH_M), arc(CURVE_RADIUS_M, math.degrees(CURVE_LENGTH_M / CURVE_RADIUS_M), "left"), straight(200.0))
+PIECES = (
+    straight(APPROACH_M),
+    arc(CURVE_RADIUS_M, math.degrees(CURVE_LENGTH_M / CURVE_RADIUS_M), "left"),
+    straight(200.0),
+)
 
 
 def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, priority: int = 1) -> str:
-    return (f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="30" priority="{priority}" '
-            f'spreadType="center" shape="{shape_text(xy)}"/>')
+    return (
+        f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="30" priority="{priority}" '
+        f'spreadType="center" shape="{shape_text(xy)}"/>'
+    )
 
 
 def _node(node_id: str, xy) -> str:
@@ -56,8 +62,11 @@ def _split_curve_map(folder: Path, node_after_start_m: float, side_road: bool = 
         end = cut + 150.0 * np.array([math.cos(outward), math.sin(outward)])
         nodes.append(_node("S", end))
         edges.append(_edge("side", "J", "S", np.array([cut, end]), priority=1))
-    return RoadMap.load(netconvert("<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>",
-                                   folder / "split.net.xml"))
+    return RoadMap.load(
+        netconvert(
+            "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "split.net.xml"
+        )
+    )
 
 
 @pytest.mark.parametrize("node_after_start_m", [2.0, 9.5, 18.0, 24.0])
@@ -108,8 +117,9 @@ def _crossroads(folder: Path) -> sumolib.net.Net:
         priority = 3 if name in "WE" else 1
         edges.append(_edge(f"{name}in", name, "C", np.array([xy, (0.0, 0.0)]), priority))
         edges.append(_edge(f"{name}out", "C", name, np.array([(0.0, 0.0), xy]), priority))
-    path = netconvert("<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>",
-                      folder / "cross.net.xml")
+    path = netconvert(
+        "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "cross.net.xml"
+    )
     return sumolib.net.readNet(str(path), withInternal=True)
 
 

@@ -26,14 +26,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_service import Server
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import sample_pieces, straight
-from csws.sumo.netbuild import netconvert, shape_text
 from csws.networks import networks_dir
 from csws.road.roadmap import NetworkError, RoadMap
 from csws.state import Fault, SystemState
-from test_service import Server
+from csws.sumo.netbuild import netconvert, shape_text
 
 #: The straight network: a one-way road A -> J -> B along y = 0, J at this x, B at twice it, m.
 STRAIGHT_HALF_M = 500.0
@@ -51,8 +51,10 @@ def _node(node_id: str, x: float, y: float) -> str:
 
 
 def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray) -> str:
-    return (f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="27.8" spreadType="center" '
-            f'shape="{shape_text(xy)}"/>')
+    return (
+        f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="27.8" spreadType="center" '
+        f'shape="{shape_text(xy)}"/>'
+    )
 
 
 def build_straight(folder: Path) -> Path:
@@ -61,8 +63,9 @@ def build_straight(folder: Path) -> Path:
     second, _ = sample_pieces((straight(STRAIGHT_HALF_M),), 5.0, (STRAIGHT_HALF_M, 0.0), 0.0)
     nodes = [_node("A", 0.0, 0.0), _node("J", STRAIGHT_HALF_M, 0.0), _node("B", 2 * STRAIGHT_HALF_M, 0.0)]
     edges = [_edge("aj", "A", "J", first), _edge("jb", "J", "B", second)]
-    return netconvert(f"<nodes>{''.join(nodes)}</nodes>", f"<edges>{''.join(edges)}</edges>",
-                      folder / "straight.net.xml")
+    return netconvert(
+        f"<nodes>{''.join(nodes)}</nodes>", f"<edges>{''.join(edges)}</edges>", folder / "straight.net.xml"
+    )
 
 
 def build_tiny_edge(folder: Path) -> Path:
@@ -70,10 +73,13 @@ def build_tiny_edge(folder: Path) -> Path:
     and the junction lanes around it 0.1 m long with shapes of a few centimetres."""
     points = {"a": 0.0, "b": 600.0, "c": 600.0 + TINY_EDGE_M, "d": 1200.0}
     nodes = [_node(name, x, TINY_Y_M) for name, x in points.items()]
-    edges = [_edge(f"{start}{end}", start, end, np.array([[points[start], TINY_Y_M], [points[end], TINY_Y_M]]))
-             for start, end in ("ab", "bc", "cd")]
-    return netconvert(f"<nodes>{''.join(nodes)}</nodes>", f"<edges>{''.join(edges)}</edges>",
-                      folder / "tiny_edge.net.xml")
+    edges = [
+        _edge(f"{start}{end}", start, end, np.array([[points[start], TINY_Y_M], [points[end], TINY_Y_M]]))
+        for start, end in ("ab", "bc", "cd")
+    ]
+    return netconvert(
+        f"<nodes>{''.join(nodes)}</nodes>", f"<edges>{''.join(edges)}</edges>", folder / "tiny_edge.net.xml"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -112,8 +118,11 @@ def _everywhere(road_map: RoadMap, route: list[str] | None) -> list[VehicleInput
         for pos_m in (0.0, length_m / 2, length_m, length_m + 10.0):
             for speed_kmh in (0.0, 60.0, 250.0):
                 for category in CATEGORIES:
-                    vehicles.append(VehicleInput(f"{lane_id}@{pos_m}/{speed_kmh}/{category}", category, speed_kmh,
-                                                 lane_id, pos_m, route))
+                    vehicles.append(
+                        VehicleInput(
+                            f"{lane_id}@{pos_m}/{speed_kmh}/{category}", category, speed_kmh, lane_id, pos_m, route
+                        )
+                    )
     return vehicles
 
 
@@ -145,10 +154,21 @@ def test_the_service_on_a_network_without_curves(client, straight_map: RoadMap) 
 def test_the_very_end_of_a_dead_end_lane_through_the_service(client, straight_map: RoadMap) -> None:
     end_x, end_y = straight_map.lane_shape("jb_0")[-1]
     length_m = straight_map.lane("jb_0").length_m
-    by_fix = {"vehicle_id": "dead-end-fix", "category": "N", "speed_kmh": 90.0,
-              "position": {"x": float(end_x), "y": float(end_y)}, "heading_deg": 90.0}
-    by_lane = {"vehicle_id": "dead-end-lane", "category": "N", "speed_kmh": 90.0, "lane_id": "jb_0",
-               "lane_pos_m": length_m, "route": ["aj", "jb"]}
+    by_fix = {
+        "vehicle_id": "dead-end-fix",
+        "category": "N",
+        "speed_kmh": 90.0,
+        "position": {"x": float(end_x), "y": float(end_y)},
+        "heading_deg": 90.0,
+    }
+    by_lane = {
+        "vehicle_id": "dead-end-lane",
+        "category": "N",
+        "speed_kmh": 90.0,
+        "lane_id": "jb_0",
+        "lane_pos_m": length_m,
+        "route": ["aj", "jb"],
+    }
     for query in (by_fix, by_lane):
         response = client.post("/v1/warning", json=query)
         assert response.status_code == 200, response.text
@@ -198,12 +218,28 @@ def test_matching_on_a_zero_length_edge(tiny_map: RoadMap) -> None:
 
 def test_the_service_answers_on_zero_length_lanes(client, tiny_map: RoadMap) -> None:
     tiny = [lane_id for lane_id in tiny_map.lane_ids if tiny_map.lane(lane_id).shape_length_m < 0.1]
-    queries = [{"vehicle_id": f"tiny-{i}", "category": "M3", "speed_kmh": 70.0, "lane_id": lane_id,
-                "lane_pos_m": pos_m, "route": TINY_ROUTE}
-               for i, (lane_id, pos_m) in enumerate((lane_id, pos_m) for lane_id in tiny
-                                                    for pos_m in (0.0, tiny_map.lane(lane_id).length_m))]
-    queries.append({"vehicle_id": "tiny-fix", "category": "M3", "speed_kmh": 70.0,
-                    "position": {"x": 600.0 + TINY_EDGE_M / 2, "y": TINY_Y_M - 1.0}, "heading_deg": 90.0})
+    queries = [
+        {
+            "vehicle_id": f"tiny-{i}",
+            "category": "M3",
+            "speed_kmh": 70.0,
+            "lane_id": lane_id,
+            "lane_pos_m": pos_m,
+            "route": TINY_ROUTE,
+        }
+        for i, (lane_id, pos_m) in enumerate(
+            (lane_id, pos_m) for lane_id in tiny for pos_m in (0.0, tiny_map.lane(lane_id).length_m)
+        )
+    ]
+    queries.append(
+        {
+            "vehicle_id": "tiny-fix",
+            "category": "M3",
+            "speed_kmh": 70.0,
+            "position": {"x": 600.0 + TINY_EDGE_M / 2, "y": TINY_Y_M - 1.0},
+            "heading_deg": 90.0,
+        }
+    )
     response = client.post("/v1/warnings", json={"queries": queries})
     assert response.status_code == 200, response.text
     assert [a["state"] for a in response.json()["answers"]] == ["active"] * len(queries)
@@ -229,8 +265,11 @@ def test_a_zero_length_junction_lane_keeps_the_distances_to_the_curves() -> None
     route = T7_TRUTH["route"]["edges"]
     curve_starts_s = np.array([c["start_s"] for c in T7_TRUTH["curves"]])
     entry_s = T7_TRUTH["lanes"][1]["start_s"]  # the junction lane (two identical points) lies here
-    for lane_id, pos_m, route_s in (("approach_0", 850.0, 850.0), (":entry_0_0", 0.0, entry_s),
-                                    (":entry_0_0", 0.1, entry_s)):
+    for lane_id, pos_m, route_s in (
+        ("approach_0", 850.0, 850.0),
+        (":entry_0_0", 0.0, entry_s),
+        (":entry_0_0", 0.1, entry_s),
+    ):
         path = engine.evaluate(VehicleInput(f"on-{lane_id}", "N", 90.0, lane_id, pos_m, route)).path
         ahead_m = curve_starts_s - route_s
         assert path.cpoi_distance_m == pytest.approx(ahead_m[ahead_m <= path.lookahead_m], abs=0.5)
@@ -279,10 +318,17 @@ def test_non_finite_numbers_get_a_422_naming_the_field(client, changes: dict, lo
     assert client.get("/healthz").json() == {"status": "ok"}
 
 
-@pytest.mark.parametrize("params", [
-    {"lon": "nan", "lat": 50.0}, {"x": 1.0, "y": "-inf"}, {"x": 1.0, "y": 0.0, "heading_deg": "nan"},
-    {"lane_id": "aj_0", "lane_pos_m": "nan"}, {"lane_id": "aj_0", "lane_pos_m": 1.0, "length_m": "nan"},
-], ids=["lon", "y", "heading", "lane-pos", "length"])
+@pytest.mark.parametrize(
+    "params",
+    [
+        {"lon": "nan", "lat": 50.0},
+        {"x": 1.0, "y": "-inf"},
+        {"x": 1.0, "y": 0.0, "heading_deg": "nan"},
+        {"lane_id": "aj_0", "lane_pos_m": "nan"},
+        {"lane_id": "aj_0", "lane_pos_m": 1.0, "length_m": "nan"},
+    ],
+    ids=["lon", "y", "heading", "lane-pos", "length"],
+)
 def test_non_finite_horizon_parameters_get_a_422(client, params: dict) -> None:
     response = client.get("/v1/horizon", params=params)
     assert response.status_code == 422 and "finite number" in response.text
@@ -317,16 +363,18 @@ def test_a_nan_lane_position_is_invalid_input() -> None:
 
 # ------------------------------------------------------------------ missing and corrupt networks, every command
 def _csws(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "csws", *map(str, args)], capture_output=True, text=True,
-                          timeout=120, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, "-m", "csws", *map(str, args)], capture_output=True, text=True, timeout=120, cwd=cwd
+    )
 
 
 def _sumocfg(folder: Path, net: Path) -> Path:
     routes = folder / "empty.rou.xml"
     routes.write_text("<routes/>\n")
     config = folder / "scenario.sumocfg"
-    config.write_text(f'<configuration><input><net-file value="{net}"/><route-files value="{routes}"/></input>'
-                      f"</configuration>\n")
+    config.write_text(
+        f'<configuration><input><net-file value="{net}"/><route-files value="{routes}"/></input></configuration>\n'
+    )
     return config
 
 
@@ -344,8 +392,15 @@ def _tracks_folder(folder: Path, net: Path) -> Path:
 COMMANDS = {
     "curves": lambda net, folder: ["curves", net],
     "serve": lambda net, folder: ["serve", "--net", net, "--state-db", ":memory:", "--port", "0"],
-    "cosim --net": lambda net, folder: ["cosim", "--net", net, "--routes", _sumocfg(folder, net).with_name("empty.rou.xml"),
-                                        "--out", folder / "out"],
+    "cosim --net": lambda net, folder: [
+        "cosim",
+        "--net",
+        net,
+        "--routes",
+        _sumocfg(folder, net).with_name("empty.rou.xml"),
+        "--out",
+        folder / "out",
+    ],
     "cosim --sumocfg": lambda net, folder: ["cosim", "--sumocfg", _sumocfg(folder, net), "--out", folder / "out"],
     "fleet-scenario": lambda net, folder: ["fleet-scenario", net, "-o", folder / "fleet"],
     "networks verify": lambda net, folder: ["networks", "verify", "--dir", _tracks_folder(folder, net)],
@@ -378,8 +433,9 @@ def test_a_network_with_a_nan_shape_is_one_line_naming_the_file(tmp_path: Path) 
 def test_a_corrupt_settings_database_is_one_line(tmp_path: Path) -> None:
     state_db = tmp_path / "vehicles.sqlite3"
     state_db.write_bytes(b"not a database " * 100)
-    result = _csws("serve", "--net", networks_dir() / "t7_left.net.xml", "--state-db", state_db, "--port", "0",
-                   cwd=tmp_path)
+    result = _csws(
+        "serve", "--net", networks_dir() / "t7_left.net.xml", "--state-db", state_db, "--port", "0", cwd=tmp_path
+    )
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and result.stderr.startswith("csws: error: ")
     assert state_db.name in result.stderr

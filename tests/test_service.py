@@ -15,17 +15,18 @@ import socket
 import subprocess
 import sys
 import time
+from itertools import pairwise
 from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
+from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.standard import Category, Level, warning_speed
-from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
 
 TRACK = "t7_left"
 TRUTH = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
@@ -57,12 +58,30 @@ class Server:
     def __init__(self, nets: list[Path], state_db: Path, **settings: str) -> None:
         self.port = _free_port()
         self.url = f"http://127.0.0.1:{self.port}"
-        env = {**os.environ, "CSWS_NETS": os.pathsep.join(map(str, nets)), "CSWS_STATE_DB": str(state_db),
-               **{f"CSWS_{name.upper()}": value for name, value in settings.items()}}  # fmt: skip
+        env = {
+            **os.environ,
+            "CSWS_NETS": os.pathsep.join(map(str, nets)),
+            "CSWS_STATE_DB": str(state_db),
+            **{f"CSWS_{name.upper()}": value for name, value in settings.items()},
+        }
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "--factory", "service.app:create_app",
-             "--host", "127.0.0.1", "--port", str(self.port), "--log-level", "warning"],
-            env=env, cwd=Path(__file__).resolve().parents[1], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            [
+                sys.executable,
+                "-m",
+                "uvicorn",
+                "--factory",
+                "service.app:create_app",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--log-level",
+                "warning",
+            ],
+            env=env,
+            cwd=Path(__file__).resolve().parents[1],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
         )
         self.client = httpx.Client(base_url=self.url, timeout=30.0)
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
@@ -104,9 +123,21 @@ class Workers:
     def __init__(self, nets: list[Path], *state_options: str, workers: int = 2) -> None:
         self.url = f"http://127.0.0.1:{_free_port()}"
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "csws", "serve", *(f"--net={net}" for net in nets), *state_options,
-             "--port", self.url.rsplit(":", 1)[1], "--workers", str(workers)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+            [
+                sys.executable,
+                "-m",
+                "csws",
+                "serve",
+                *(f"--net={net}" for net in nets),
+                *state_options,
+                "--port",
+                self.url.rsplit(":", 1)[1],
+                "--workers",
+                str(workers),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
         )
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while time.monotonic() < deadline:
@@ -152,8 +183,14 @@ class Workers:
 def _healthz_count(client: httpx.Client) -> int:
     """How many ``/healthz`` requests the worker serving ``client``'s connection has answered."""
     counter = 'csws_http_requests_total{method="GET",route="/healthz",status="200"} '
-    return next((int(line.removeprefix(counter)) for line in client.get("/metrics").text.splitlines()
-                 if line.startswith(counter)), 0)  # fmt: skip
+    return next(
+        (
+            int(line.removeprefix(counter))
+            for line in client.get("/metrics").text.splitlines()
+            if line.startswith(counter)
+        ),
+        0,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -187,13 +224,28 @@ def _route_lane(route_s: float) -> tuple[str, float]:
 
 def _lane_query(vehicle_id: str, route_s: float, speed_kmh: float, category: str = "N", **extra) -> dict:
     lane_id, lane_pos_m = _route_lane(route_s)
-    return {"vehicle_id": vehicle_id, "category": category, "speed_kmh": speed_kmh,
-            "lane_id": lane_id, "lane_pos_m": lane_pos_m, "route": ROUTE, **extra}
+    return {
+        "vehicle_id": vehicle_id,
+        "category": category,
+        "speed_kmh": speed_kmh,
+        "lane_id": lane_id,
+        "lane_pos_m": lane_pos_m,
+        "route": ROUTE,
+        **extra,
+    }
 
 
 def _library_input(query: dict) -> VehicleInput:
-    return VehicleInput(query["vehicle_id"], query["category"], query["speed_kmh"], query["lane_id"],
-                        query["lane_pos_m"], query.get("route"), query.get("timestamp_s"), query.get("age_s"))
+    return VehicleInput(
+        query["vehicle_id"],
+        query["category"],
+        query["speed_kmh"],
+        query["lane_id"],
+        query["lane_pos_m"],
+        query.get("route"),
+        query.get("timestamp_s"),
+        query.get("age_s"),
+    )
 
 
 def _assert_same(served: dict, library) -> None:
@@ -236,7 +288,8 @@ def test_the_target_lies_where_the_truth_puts_the_curve(client, track_map) -> No
     assert target["distance_m"] == pytest.approx(20.0, abs=0.5)
     assert target["radius_m"] == pytest.approx(curve_1["radius_m"], rel=0.01)
     assert target["warning_speed_kmh"] == pytest.approx(
-        warning_speed(target["radius_m"], Category.N, Level.LEVEL_2), rel=1e-9)
+        warning_speed(target["radius_m"], Category.N, Level.LEVEL_2), rel=1e-9
+    )
     position = target["position"]
     assert (position["x"], position["y"]) == pytest.approx(tuple(curve_1["start_xy"]), abs=0.5)
     assert (position["lon"], position["lat"]) == pytest.approx(track_map.xy_to_lonlat(position["x"], position["y"]))
@@ -248,15 +301,21 @@ def test_a_batch_is_answered_in_order_as_the_library_answers(client, track_map) 
     rng = np.random.default_rng(3)
     queries = [
         _lane_query(f"fleet-{i}", float(s), float(v), str(c))
-        for i, (s, v, c) in enumerate(zip(rng.uniform(0.0, 1450.0, 2000), rng.uniform(20.0, 130.0, 2000),
-                                          rng.choice(["M1", "M2", "M3", "N", "O"], 2000)))
+        for i, (s, v, c) in enumerate(
+            zip(
+                rng.uniform(0.0, 1450.0, 2000),
+                rng.uniform(20.0, 130.0, 2000),
+                rng.choice(["M1", "M2", "M3", "N", "O"], 2000),
+                strict=True,
+            )
+        )
     ]
     response = client.post("/v1/warnings", json={"queries": queries})
     assert response.status_code == 200, response.text
     served = response.json()["answers"]
     library = Engine(track_map).evaluate_many([_library_input(q) for q in queries])
     assert [a["vehicle_id"] for a in served] == [q["vehicle_id"] for q in queries]
-    for answer, expected in zip(served, library):
+    for answer, expected in zip(served, library, strict=True):
         _assert_same(answer, expected)
     assert {a["level"] for a in served} == {0, 1, 2}
     assert "csws;dur=" in response.headers["server-timing"]
@@ -273,24 +332,44 @@ def test_a_vehicle_twice_in_one_batch_is_evaluated_in_order(client) -> None:
 
 def test_positions_are_matched_in_metres_and_in_lon_lat(client, track_map) -> None:
     lon, lat = track_map.xy_to_lonlat(850.0, 0.4)
-    by_xy = client.post("/v1/warning", json={"vehicle_id": "xy-1", "category": "M1", "speed_kmh": 60.0,
-                                             "position": {"x": 850.0, "y": 0.4}, "heading_deg": 90.0}).json()
-    by_lonlat = client.post("/v1/warning", json={"vehicle_id": "ll-1", "category": "M1", "speed_kmh": 60.0,
-                                                 "position": {"lon": lon, "lat": lat}, "heading_deg": 90.0}).json()
+    by_xy = client.post(
+        "/v1/warning",
+        json={
+            "vehicle_id": "xy-1",
+            "category": "M1",
+            "speed_kmh": 60.0,
+            "position": {"x": 850.0, "y": 0.4},
+            "heading_deg": 90.0,
+        },
+    ).json()
+    by_lonlat = client.post(
+        "/v1/warning",
+        json={
+            "vehicle_id": "ll-1",
+            "category": "M1",
+            "speed_kmh": 60.0,
+            "position": {"lon": lon, "lat": lat},
+            "heading_deg": 90.0,
+        },
+    ).json()
     for answer in (by_xy, by_lonlat):
         assert answer["matched"]["lane_id"] == "approach_0"
         assert answer["matched"]["lane_pos_m"] == pytest.approx(850.0, abs=0.01)
         assert answer["matched"]["distance_m"] == pytest.approx(0.4, abs=0.01)
         assert answer["path_kind"] == "predicted"
-    library = Engine(track_map).evaluate(VehicleInput("xy-1", "M1", 60.0, "approach_0",
-                                                      by_xy["matched"]["lane_pos_m"]))
+    library = Engine(track_map).evaluate(VehicleInput("xy-1", "M1", 60.0, "approach_0", by_xy["matched"]["lane_pos_m"]))
     _assert_same(by_xy, library)
 
 
 def test_consecutive_fixes_keep_to_their_road(client) -> None:
     main_lane_y = -LANE_WIDTH_M / 2
-    first = {"vehicle_id": "parallel-1", "category": "N", "speed_kmh": 70.0,
-             "position": {"x": SIDE_X_M + 250.0, "y": main_lane_y}, "heading_deg": 90.0}
+    first = {
+        "vehicle_id": "parallel-1",
+        "category": "N",
+        "speed_kmh": 70.0,
+        "position": {"x": SIDE_X_M + 250.0, "y": main_lane_y},
+        "heading_deg": 90.0,
+    }
     between = {"x": SIDE_X_M + 300.0, "y": FRONTAGE_OFFSET_M - 4.0}  # nearer the frontage road
     assert client.post("/v1/warning", json=first).json()["matched"]["lane_id"] == "AB_0"
     kept = client.post("/v1/warning", json={**first, "position": between}).json()
@@ -308,8 +387,10 @@ def test_a_query_naming_its_network_is_answered_on_that_network_only(client) -> 
 
 
 def test_a_fix_matching_nothing_is_a_fault_answer(client) -> None:
-    response = client.post("/v1/warning", json={"vehicle_id": "lost-1", "category": "N", "speed_kmh": 50.0,
-                                                 "position": {"x": 5000.0, "y": 5000.0}})
+    response = client.post(
+        "/v1/warning",
+        json={"vehicle_id": "lost-1", "category": "N", "speed_kmh": 50.0, "position": {"x": 5000.0, "y": 5000.0}},
+    )
     assert response.status_code == 200
     answer = response.json()
     assert (answer["state"], answer["level"], answer["matched"]) == ("fault", 0, None)
@@ -325,12 +406,14 @@ def test_curves_are_geojson_with_the_truth_radii(client) -> None:
     properties = curve["properties"]
     assert properties["coordinates"] == "lon/lat (WGS84)"
     assert [p["radius_m"] for p in properties["parts"]] == pytest.approx(
-        [c["radius_m"] for c in TRUTH["curves"]], rel=0.01)
+        [c["radius_m"] for c in TRUTH["curves"]], rel=0.01
+    )
     assert properties["radius_m"] == pytest.approx(min(c["radius_m"] for c in TRUTH["curves"]), rel=0.01)
     assert properties["angle_deg"] == pytest.approx(sum(c["angle_deg"] for c in TRUTH["curves"]), abs=1.0)
     assert properties["direction"] == "left"
     assert properties["warning_speed_kmh"]["N"]["1"] == pytest.approx(
-        warning_speed(properties["radius_m"], "N", 1), rel=1e-9)
+        warning_speed(properties["radius_m"], "N", 1), rel=1e-9
+    )
     assert not any(part["spiral"] for part in properties["parts"])  # the track's curves are arcs
     assert (properties["street_name"], properties["road_type"]) == ("", "")  # as the generator writes the track
     west, south, east, north = curve["bbox"]
@@ -339,17 +422,20 @@ def test_curves_are_geojson_with_the_truth_radii(client) -> None:
 
 
 def test_the_horizon_lists_the_curves_ahead_at_their_truth_distances(client) -> None:
-    response = client.get("/v1/horizon", params={"lane_id": "approach_0", "lane_pos_m": 700.0, "length_m": 600.0,
-                                                 "route": ",".join(ROUTE)})
+    response = client.get(
+        "/v1/horizon",
+        params={"lane_id": "approach_0", "lane_pos_m": 700.0, "length_m": 600.0, "route": ",".join(ROUTE)},
+    )
     assert response.status_code == 200, response.text
     ahead = response.json()
     assert ahead["path_kind"] == "route"
     assert [c["distance_m"] for c in ahead["cpois"]] == pytest.approx(
-        [c["start_s"] - 700.0 for c in TRUTH["curves"]], abs=0.5)
+        [c["start_s"] - 700.0 for c in TRUTH["curves"]], abs=0.5
+    )
     assert [c["radius_m"] for c in ahead["cpois"]] == pytest.approx([c["radius_m"] for c in TRUTH["curves"]], rel=0.01)
     profile = ahead["profile"]
     assert profile[0]["start_m"] == 0.0 and profile[-1]["end_m"] == pytest.approx(600.0)
-    assert all(a["end_m"] == b["start_m"] for a, b in zip(profile, profile[1:]))
+    assert all(a["end_m"] == b["start_m"] for a, b in pairwise(profile))
 
 
 # ------------------------------------------------------------------ vehicles
@@ -370,15 +456,19 @@ def test_switches_survive_a_restart(nets, tmp_path) -> None:
     state_db = tmp_path / "vehicles.sqlite3"
     first = Server(nets[1:], state_db)
     try:
-        assert first.client.put("/v1/vehicles/kept-off", json={"switched_on": False, "category": "M3"}).status_code == 200
+        assert (
+            first.client.put("/v1/vehicles/kept-off", json={"switched_on": False, "category": "M3"}).status_code == 200
+        )
     finally:
         first.stop()
     second = Server(nets[1:], state_db)
     try:
         state = second.client.get("/v1/vehicles/kept-off").json()
         assert (state["switched_on"], state["category"]) == (False, "M3")
-        answer = second.client.post("/v1/warning", json={"vehicle_id": "kept-off", "speed_kmh": 50.0,
-                                                         "position": {"x": SIDE_X_M + 100.0, "y": -1.6}}).json()
+        answer = second.client.post(
+            "/v1/warning",
+            json={"vehicle_id": "kept-off", "speed_kmh": 50.0, "position": {"x": SIDE_X_M + 100.0, "y": -1.6}},
+        ).json()
         assert answer["state"] == "off"
     finally:
         second.stop()
@@ -409,14 +499,20 @@ BAD_QUERIES = {
     "half-position": (_with(position={"x": 1.0}), "either x and y"),
     "no-position": (json.dumps({k: v for k, v in GOOD.items() if k != "position"}), "needs a position"),
     "empty-vehicle-id": (_with(vehicle_id=""), "at least 1 character"),
-    "no-category": (json.dumps({**{k: v for k, v in GOOD.items() if k != "category"}, "vehicle_id": "anon"}),
-                    "category is required"),
+    "no-category": (
+        json.dumps({**{k: v for k, v in GOOD.items() if k != "category"}, "vehicle_id": "anon"}),
+        "category is required",
+    ),
     "malformed-json": ('{"vehicle_id": "x", ', "JSON"),
     "unknown-network": (_with(network="atlantis"), "unknown network 'atlantis': served are side_roads, t7_geo"),
-    "lane-not-in-network": (_with(network="side_roads", lane_id="approach_0", lane_pos_m=1.0),
-                            "unknown lane id 'approach_0': not in network 'side_roads'"),
-    "edge-not-in-network": (_with(network="side_roads", route=["approach"]),
-                            "unknown edge id 'approach': not in network 'side_roads'"),
+    "lane-not-in-network": (
+        _with(network="side_roads", lane_id="approach_0", lane_pos_m=1.0),
+        "unknown lane id 'approach_0': not in network 'side_roads'",
+    ),
+    "edge-not-in-network": (
+        _with(network="side_roads", route=["approach"]),
+        "unknown edge id 'approach': not in network 'side_roads'",
+    ),
 }
 
 
@@ -436,13 +532,16 @@ def test_an_oversized_batch_is_refused(client) -> None:
     assert response.json()["detail"][0]["msg"] == "List should have at most 10000 items, not 10001"
 
 
-@pytest.mark.parametrize("path, params, message", [
-    ("/v1/horizon", {"lane_id": "approach_0", "lane_pos_m": 1.0, "length_m": 0.0}, "greater than 0"),
-    ("/v1/horizon", {"x": "nan", "y": 0.0}, "finite number"),
-    ("/v1/horizon", {"lane_id": "nowhere_0", "lane_pos_m": 1.0}, "unknown lane id"),
-    ("/v1/curves", {"bbox": "1,2,3"}, "four finite numbers"),
-    ("/v1/curves", {"network": "atlantis"}, "unknown network"),
-])
+@pytest.mark.parametrize(
+    "path, params, message",
+    [
+        ("/v1/horizon", {"lane_id": "approach_0", "lane_pos_m": 1.0, "length_m": 0.0}, "greater than 0"),
+        ("/v1/horizon", {"x": "nan", "y": 0.0}, "finite number"),
+        ("/v1/horizon", {"lane_id": "nowhere_0", "lane_pos_m": 1.0}, "unknown lane id"),
+        ("/v1/curves", {"bbox": "1,2,3"}, "four finite numbers"),
+        ("/v1/curves", {"network": "atlantis"}, "unknown network"),
+    ],
+)
 def test_bad_map_requests_get_a_clear_422(client, path, params, message) -> None:
     response = client.get(path, params=params)
     assert response.status_code == 422, response.text
@@ -466,7 +565,9 @@ def test_health_metrics_and_docs(client) -> None:
     assert 'csws_http_request_duration_seconds_count{route="/v1/warning"}' in metrics
     assert 'csws_answers_total{state="active",level="0"}' in metrics
     schema = client.get("/openapi.json").json()
-    assert {"/v1/warning", "/v1/warnings", "/v1/curves", "/v1/horizon", "/v1/vehicles/{vehicle_id}"} <= set(schema["paths"])
+    assert {"/v1/warning", "/v1/warnings", "/v1/curves", "/v1/horizon", "/v1/vehicles/{vehicle_id}"} <= set(
+        schema["paths"]
+    )
     assert schema["components"]["schemas"]["Batch"]["properties"]["queries"]["maxItems"] == 10_000
     assert "examples" in schema["components"]["schemas"]["Query"]
     assert client.get("/docs").status_code == 200
@@ -475,8 +576,12 @@ def test_health_metrics_and_docs(client) -> None:
 def test_a_network_that_cannot_be_read_stops_start_up_in_one_line(tmp_path) -> None:
     broken = tmp_path / "broken.net.xml"
     broken.write_text("<net>")
-    result = subprocess.run([sys.executable, "-m", "csws", "serve", "--net", str(broken), "--state-db", ":memory:"],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "csws", "serve", "--net", str(broken), "--state-db", ":memory:"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0
     assert result.stderr.startswith("csws: error: ") and "broken.net.xml" in result.stderr

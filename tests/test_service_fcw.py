@@ -25,8 +25,15 @@ def client(tmp_path):
 
 
 def _query(vehicle_id: str, speed_kmh: float = 72.0, **extra) -> dict:
-    return {"vehicle_id": vehicle_id, "category": "N", "speed_kmh": speed_kmh, "lane_id": "approach_0",
-            "lane_pos_m": 100.0, "timestamp_s": 1.0, **extra}  # fmt: skip
+    return {
+        "vehicle_id": vehicle_id,
+        "category": "N",
+        "speed_kmh": speed_kmh,
+        "lane_id": "approach_0",
+        "lane_pos_m": 100.0,
+        "timestamp_s": 1.0,
+        **extra,
+    }
 
 
 def test_a_forward_target_gets_the_fcw_of_the_seeds_formulas(client):
@@ -42,12 +49,19 @@ def test_a_forward_target_gets_the_fcw_of_the_seeds_formulas(client):
 
 
 def test_the_batch_answers_fcw_only_where_asked_and_the_state_follows_the_speed(client):
-    queries = [_query("a"), _query("b", speed_kmh=20.0, forward_target={"range_m": 10.0, "range_rate_mps": -5.0}),
-               _query("c", forward_target={"range_m": 10.0, "range_rate_mps": -5.0, "measured": False}),
-               _query("d", forward_target={"range_m": 80.0, "range_rate_mps": 2.0})]  # fmt: skip
+    queries = [
+        _query("a"),
+        _query("b", speed_kmh=20.0, forward_target={"range_m": 10.0, "range_rate_mps": -5.0}),
+        _query("c", forward_target={"range_m": 10.0, "range_rate_mps": -5.0, "measured": False}),
+        _query("d", forward_target={"range_m": 80.0, "range_rate_mps": 2.0}),
+    ]
     answers = client.post("/v1/warnings", json={"queries": queries}).json()["answers"]
     assert "fcw" not in answers[0]
-    assert [(a["fcw"]["state"], a["fcw"]["level"]) for a in answers[1:]] == [("standby", 0), ("fault", 0), ("active", 0)]
+    assert [(a["fcw"]["state"], a["fcw"]["level"]) for a in answers[1:]] == [
+        ("standby", 0),
+        ("fault", 0),
+        ("active", 0),
+    ]
     assert answers[3]["fcw"]["ttc_s"] is None  # opening: no collision
 
 
@@ -56,12 +70,15 @@ def test_without_a_forward_target_the_answer_is_as_before(client):
     assert b"fcw" not in plain
 
 
-@pytest.mark.parametrize(("target", "field"), [
-    ({"range_rate_mps": -5.0}, "range_m"),
-    ({"range_m": -1.0, "range_rate_mps": -5.0}, "range_m"),
-    ({"range_m": 10.0, "range_rate_mps": "fast"}, "range_rate_mps"),
-    ({"range_m": 10.0, "range_rate_mps": -5.0, "measured": 1}, "measured"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("target", "field"),
+    [
+        ({"range_rate_mps": -5.0}, "range_m"),
+        ({"range_m": -1.0, "range_rate_mps": -5.0}, "range_m"),
+        ({"range_m": 10.0, "range_rate_mps": "fast"}, "range_rate_mps"),
+        ({"range_m": 10.0, "range_rate_mps": -5.0, "measured": 1}, "measured"),
+    ],
+)
 def test_a_bad_forward_target_is_a_422_naming_the_field(client, target, field):
     response = client.post("/v1/warnings", json={"queries": [_query("f", forward_target=target)]})
     assert response.status_code == 422

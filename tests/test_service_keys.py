@@ -26,14 +26,23 @@ TRACK_NET = networks_dir() / "t7_left.net.xml"
 @pytest.fixture(scope="module")
 def keys(tmp_path_factory) -> dict:
     path = tmp_path_factory.mktemp("keys") / "api-keys.json"
-    made = {name: add_key(path, fleet, role) for name, fleet, role in (
-        ("acme_admin", "acme", Role.ADMIN), ("acme_query", "acme", Role.QUERY), ("other_admin", "other", Role.ADMIN))}
+    made = {
+        name: add_key(path, fleet, role)
+        for name, fleet, role in (
+            ("acme_admin", "acme", Role.ADMIN),
+            ("acme_query", "acme", Role.QUERY),
+            ("other_admin", "other", Role.ADMIN),
+        )
+    }
     return {"path": path, **made}
 
 
 def _client(keys: dict, **settings) -> TestClient:
-    return TestClient(create_app(ServiceSettings(nets=[TRACK_NET], api_keys_file=keys["path"],
-                                                 **{"state_db": ":memory:", **settings})))  # fmt: skip
+    return TestClient(
+        create_app(
+            ServiceSettings(nets=[TRACK_NET], api_keys_file=keys["path"], **{"state_db": ":memory:", **settings})
+        )
+    )
 
 
 def _auth(key: str) -> dict:
@@ -72,8 +81,9 @@ def test_a_fleet_sees_and_switches_only_its_own_vehicles(keys, state) -> None:
         assert theirs["vehicle_id"] == "truck" and theirs["state"] == "active" and theirs["level"] == 2
         ours = client.post("/v1/warning", json=_query("truck"), headers=_auth(keys["acme_query"])).json()
         assert ours["vehicle_id"] == "truck" and ours["state"] == "off" and ours["level"] == 0
-        batch = client.post("/v1/warnings", json={"queries": [_query("truck"), _query("van")]},
-                            headers=_auth(keys["acme_query"])).json()["answers"]  # fmt: skip
+        batch = client.post(
+            "/v1/warnings", json={"queries": [_query("truck"), _query("van")]}, headers=_auth(keys["acme_query"])
+        ).json()["answers"]
         assert [(a["vehicle_id"], a["state"]) for a in batch] == [("truck", "off"), ("van", "active")]
         state = client.get("/v1/vehicles/truck", headers=_auth(keys["acme_query"])).json()
         assert state["vehicle_id"] == "truck" and state["switched_on"] is False
@@ -97,9 +107,14 @@ def test_the_key_file_keeps_hashes_only_and_its_owner_alone_reads_it(keys) -> No
     assert ring.principal(keys["acme_query"] + "x") is None
 
 
-@pytest.mark.parametrize("content", ["not json", json.dumps({"format": "other", "keys": []}),
-                                     json.dumps({"format": KEYS_FORMAT, "keys": [{"fleet": "a/b", "role": "admin",
-                                                                                  "sha256": "0" * 64}]})])
+@pytest.mark.parametrize(
+    "content",
+    [
+        "not json",
+        json.dumps({"format": "other", "keys": []}),
+        json.dumps({"format": KEYS_FORMAT, "keys": [{"fleet": "a/b", "role": "admin", "sha256": "0" * 64}]}),
+    ],
+)
 def test_a_bad_key_file_stops_start_up_in_one_line_naming_it(tmp_path, content) -> None:
     path = tmp_path / "keys.json"
     path.write_text(content, encoding="utf-8")
@@ -108,8 +123,13 @@ def test_a_bad_key_file_stops_start_up_in_one_line_naming_it(tmp_path, content) 
 
 
 def _csws(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "csws", *args], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, **(env or {})})  # fmt: skip
+    return subprocess.run(
+        [sys.executable, "-m", "csws", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, **(env or {})},
+    )
 
 
 def test_keys_add_prints_a_working_key_once(tmp_path) -> None:

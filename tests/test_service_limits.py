@@ -15,9 +15,9 @@ from pathlib import Path
 
 import httpx
 import pytest
+from test_service import Server, Workers
 
 from csws.networks import networks_dir
-from test_service import Server, Workers
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 LIMIT_BYTES = 1_000_000
@@ -27,8 +27,12 @@ QUERY = {"vehicle_id": "truck", "category": "N", "speed_kmh": 80.0, "lane_id": "
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    running = Server([TRACK_NET], tmp_path_factory.mktemp("state") / "vehicles.sqlite3",
-                     max_body_bytes=str(LIMIT_BYTES), body_timeout_s=str(TIMEOUT_S))  # fmt: skip
+    running = Server(
+        [TRACK_NET],
+        tmp_path_factory.mktemp("state") / "vehicles.sqlite3",
+        max_body_bytes=str(LIMIT_BYTES),
+        body_timeout_s=str(TIMEOUT_S),
+    )
     yield running
     running.stop()
 
@@ -55,8 +59,9 @@ def _raw(port: int, head: bytes, body: bytes = b"", wait_s: float = 10.0) -> byt
 
 def test_a_declared_body_over_the_limit_is_413_before_it_is_read(server) -> None:
     before = _rss_mb(server.process.pid)
-    head = (b"POST /v1/warnings HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
-            b"Content-Length: 52428800\r\n\r\n")  # fmt: skip
+    head = (
+        b"POST /v1/warnings HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 52428800\r\n\r\n"
+    )
     started = time.monotonic()
     answer = _raw(server.port, head, b'{"queries": [')
     assert answer.startswith(b"HTTP/1.1 413") and time.monotonic() - started < 5.0
@@ -66,8 +71,11 @@ def test_a_declared_body_over_the_limit_is_413_before_it_is_read(server) -> None
 def test_a_body_that_grows_past_the_limit_is_413(server) -> None:
     body = json.dumps({"queries": [QUERY] * 20_000}).encode()
     assert len(body) > LIMIT_BYTES
-    answer = server.client.post("/v1/warnings", content=iter([body[i:i + 65536] for i in range(0, len(body), 65536)]),
-                                headers={"Content-Type": "application/json"})  # fmt: skip
+    answer = server.client.post(
+        "/v1/warnings",
+        content=iter([body[i : i + 65536] for i in range(0, len(body), 65536)]),
+        headers={"Content-Type": "application/json"},
+    )
     assert answer.status_code == 413
 
 
@@ -79,8 +87,7 @@ def test_a_body_not_declared_json_is_415(server) -> None:
 
 
 def test_clients_that_stall_in_their_body_are_answered_and_closed_within_the_timeout(server) -> None:
-    head = (b"POST /v1/warning HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
-            b"Content-Length: 100000\r\n\r\n")  # fmt: skip
+    head = b"POST /v1/warning HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 100000\r\n\r\n"
     sockets = []
     for _ in range(50):
         sock = socket.create_connection(("127.0.0.1", server.port), timeout=10.0)
@@ -151,14 +158,35 @@ def test_a_bad_state_database_stops_start_up_in_one_line_naming_it(tmp_path, con
         if content == "foreign":
             db.execute("CREATE TABLE vehicle_settings (name TEXT)")
         else:
-            db.execute("CREATE TABLE vehicle_settings (vehicle_id TEXT PRIMARY KEY, switched_on INTEGER, category TEXT)")
+            db.execute(
+                "CREATE TABLE vehicle_settings (vehicle_id TEXT PRIMARY KEY, switched_on INTEGER, category TEXT)"
+            )
             db.execute("INSERT INTO vehicle_settings VALUES ('bus', 1, 'Q')")
         db.commit()
         db.close()
-    result = subprocess.run([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state-db", str(state_db),
-                             "--port", "0", "--workers", workers], capture_output=True, text=True, timeout=120)  # fmt: skip
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "csws",
+            "serve",
+            "--net",
+            str(TRACK_NET),
+            "--state-db",
+            str(state_db),
+            "--port",
+            "0",
+            "--workers",
+            workers,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2, result.stderr
-    assert result.stderr.count("\n") == 1 and result.stderr.startswith("csws: error: ") and str(state_db) in result.stderr
+    assert (
+        result.stderr.count("\n") == 1 and result.stderr.startswith("csws: error: ") and str(state_db) in result.stderr
+    )
 
 
 # ------------------------------------------------------------------ the master killed

@@ -16,14 +16,14 @@ import time
 import httpx
 import pytest
 from fastapi.testclient import TestClient
+from redis_server import RedisServer
+from test_service import Workers, _free_port
+from test_service_state import SwitchWriter
 
 from csws.networks import networks_dir
-from redis_server import RedisServer
 from service.app import create_app
 from service.settings import ServiceSettings
 from service.store.redis import SESSION_PREFIX, SETTING_PREFIX
-from test_service import Workers, _free_port
-from test_service_state import SwitchWriter
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 FIX = {"vehicle_id": "truck", "category": "N", "speed_kmh": 80.0, "lane_id": "curve_0", "lane_pos_m": 85.0}
@@ -55,9 +55,13 @@ def own_redis(tmp_path):
 
 def _store_requests(client: TestClient) -> list[httpx.Response]:
     """One request of each kind that reads or writes the state store."""
-    return [client.post("/v1/warning", json=FIX), client.post("/v1/warnings", json={"queries": [FIX]}),
-            client.put("/v1/vehicles/truck", json={"switched_on": False}), client.get("/v1/vehicles/truck"),
-            client.get("/readyz")]  # fmt: skip
+    return [
+        client.post("/v1/warning", json=FIX),
+        client.post("/v1/warnings", json={"queries": [FIX]}),
+        client.put("/v1/vehicles/truck", json={"switched_on": False}),
+        client.get("/v1/vehicles/truck"),
+        client.get("/readyz"),
+    ]
 
 
 def test_a_redis_down_or_hung_is_503_with_retry_after_and_one_log_line(own_redis, caplog) -> None:
@@ -97,8 +101,25 @@ def test_a_redis_killed_during_puts_loses_no_acknowledged_one(own_redis) -> None
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_an_unreachable_redis_stops_start_up_in_one_line_naming_it(workers) -> None:
     url = f"redis://:secret@127.0.0.1:{_free_port()}/0"
-    result = subprocess.run([sys.executable, "-m", "csws", "serve", "--net", str(TRACK_NET), "--state", url,
-                             "--port", "0", "--workers", workers], capture_output=True, text=True, timeout=120)  # fmt: skip
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "csws",
+            "serve",
+            "--net",
+            str(TRACK_NET),
+            "--state",
+            url,
+            "--port",
+            "0",
+            "--workers",
+            workers,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2, result.stderr
     assert result.stderr.count("\n") == 1 and result.stderr.startswith("csws: error: cannot reach the state store ")
     assert url.replace("secret", "***") in result.stderr and "secret" not in result.stderr

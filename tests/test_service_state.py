@@ -14,6 +14,8 @@ from pathlib import Path
 
 import httpx
 import pytest
+from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
+from test_service import SIDE_X_M, Workers
 
 from csws.networks import networks_dir
 from csws.standard import Category
@@ -22,8 +24,6 @@ from service.app import create_app
 from service.settings import ServiceSettings
 from service.store import StoreUnavailable, VehicleSetting, open_store
 from service.vehicles import TRANSACTION_ATTEMPTS
-from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
-from test_service import SIDE_X_M, Workers
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 #: On the Table 7 track, 15 m before curve 1 (R 120 m): level 2 of category N from 78.0 km/h.
@@ -80,9 +80,15 @@ def test_a_vehicle_is_one_session_whichever_worker_answers(workers) -> None:
     # Map matching keeps to the road of the last fix: the frontage road is nearer, the main road is kept.
     main_road = {"position": {"x": SIDE_X_M + 250.0, "y": -LANE_WIDTH_M / 2}, "heading_deg": 90.0, "category": "N"}
     between = {**main_road, "position": {"x": SIDE_X_M + 300.0, "y": FRONTAGE_OFFSET_M - 4.0}}
-    assert first.post("/v1/warning", json=_fix("parallel", 70.0, 1.0, **main_road)).json()["matched"]["lane_id"] == "AB_0"
-    assert second.post("/v1/warning", json=_fix("parallel", 70.0, 1.1, **between)).json()["matched"]["lane_id"] == "AB_0"
-    assert second.post("/v1/warning", json=_fix("new", 70.0, 1.1, **between)).json()["matched"]["lane_id"] == "frontage_0"
+    assert (
+        first.post("/v1/warning", json=_fix("parallel", 70.0, 1.0, **main_road)).json()["matched"]["lane_id"] == "AB_0"
+    )
+    assert (
+        second.post("/v1/warning", json=_fix("parallel", 70.0, 1.1, **between)).json()["matched"]["lane_id"] == "AB_0"
+    )
+    assert (
+        second.post("/v1/warning", json=_fix("new", 70.0, 1.1, **between)).json()["matched"]["lane_id"] == "frontage_0"
+    )
 
 
 def test_concurrent_fixes_of_one_vehicle_through_both_workers_are_each_accepted_or_stale(workers) -> None:
@@ -103,8 +109,10 @@ def test_concurrent_fixes_of_one_vehicle_through_both_workers_are_each_accepted_
     for thread in threads:
         thread.join(timeout=120)
     given = answers[0] + answers[1]
-    assert len(given) == 100 and {(a["state"], a["fault"]) for a in given} <= {("active", None),
-                                                                                ("fault", "the input is stale")}
+    assert len(given) == 100 and {(a["state"], a["fault"]) for a in given} <= {
+        ("active", None),
+        ("fault", "the input is stale"),
+    }
     assert clients[0].get("/v1/vehicles/shared").json()["last_timestamp_s"] == 1000.0 + 0.2 * 49 + 0.1
 
 

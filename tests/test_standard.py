@@ -54,7 +54,10 @@ def _warning_distance_cells():
             radius_m = table7["track"]["R1_m"] if curve == "curve1" else table7["track"]["R2_m"]
             speed_kmh = row["V_curve1_kmh"] if curve == "curve1" else row["V_curve2_kmh"]
             yield f"T7-{column}-{cell}", speed_kmh, radius_m, column, int(level_name[-1]), table_distance_m
-    for number, key in ((8, "table8_multi_curve_curve2_first_all_before_curve1"), (9, "table9_multi_curve_curve2_first_alternating")):
+    for number, key in (
+        (8, "table8_multi_curve_curve2_first_all_before_curve1"),
+        (9, "table9_multi_curve_curve2_first_alternating"),
+    ):
         table = TABLES[key]
         for column in COLUMN_MEMBERS:
             for test in table[column]:
@@ -170,9 +173,12 @@ def test_categories_fall_in_the_columns_of_the_tables():
 @pytest.mark.parametrize(
     "column, level, lateral_acceleration_mps2",
     [
-        ("M1", 1, 4.4), ("M1", 2, 5.9),
-        ("M2", 1, 3.9), ("M2", 2, 4.9),
-        ("M3", 1, 2.9), ("M3", 2, 3.9),
+        ("M1", 1, 4.4),
+        ("M1", 2, 5.9),
+        ("M2", 1, 3.9),
+        ("M2", 2, 4.9),
+        ("M3", 1, 2.9),
+        ("M3", 2, 3.9),
     ],
 )
 def test_off_table_radii_follow_the_tables_lateral_acceleration(column, level, lateral_acceleration_mps2):
@@ -217,8 +223,10 @@ def test_warning_distance_grows_with_speed(speed_kmh, extra_kmh, warning_speed_k
 
 def test_a_fleet_can_override_the_policy():
     cautious = WarningSpeedPolicy(
-        speeds_kmh={(column, level): tuple(v - 5 for v in speeds) for (column, level), speeds in
-                    WarningSpeedPolicy().speeds_kmh.items()}
+        speeds_kmh={
+            (column, level): tuple(v - 5 for v in speeds)
+            for (column, level), speeds in WarningSpeedPolicy().speeds_kmh.items()
+        }
     )
     assert warning_speed(40.0, "N", 1, policy=cautious) == 34.0
     with pytest.raises(ValueError, match="strictly increasing"):

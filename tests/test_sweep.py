@@ -93,8 +93,11 @@ def test_a_worker_killed_mid_sweep_loses_no_run_and_counts_none_twice(study_file
 
     study = read_study(study_file)
     result: dict = {}
-    sweep = threading.Thread(target=lambda: result.update(report=run_sweep(
-        study.runs(), tmp_path, scheduler=cluster.scheduler_address, progress=False)))  # fmt: skip
+    sweep = threading.Thread(
+        target=lambda: result.update(
+            report=run_sweep(study.runs(), tmp_path, scheduler=cluster.scheduler_address, progress=False)
+        )
+    )
     with Client(cluster.scheduler_address) as client:
         pids = client.run(os.getpid)
         sweep.start()
@@ -109,8 +112,11 @@ def test_a_worker_killed_mid_sweep_loses_no_run_and_counts_none_twice(study_file
             pytest.fail("no worker was running a task")
         sweep.join(timeout=120)
         keys = [f"csws-run-{spec.key}" for spec in study.runs()]
-        started = client.run_on_scheduler(lambda dask_scheduler: [
-            sum(transition[2] == "processing" for transition in dask_scheduler.story(key)) for key in keys])  # fmt: skip
+        started = client.run_on_scheduler(
+            lambda dask_scheduler: [
+                sum(transition[2] == "processing" for transition in dask_scheduler.story(key)) for key in keys
+            ]
+        )
         assert client.run(os.getpid) != pids  # the killed worker was replaced
     assert max(started) >= 2  # the killed worker's run was started again elsewhere
     report = result["report"]
@@ -149,25 +155,42 @@ def test_the_command_summarises_the_study_with_intervals_and_plots(study_file, s
 
 
 BAD_STUDIES = {
-    "share above 1": ("[study]\nseeds = 2\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nequipped_share = [0.5, 1.5]\n",
-                      "factors.equipped_share: 1.5 is not a share in [0, 1]"),
-    "unknown factor": ("[study]\nseeds = 2\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nspeed = 3\n",
-                       "factors.speed: unknown field"),
+    "share above 1": (
+        "[study]\nseeds = 2\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nequipped_share = [0.5, 1.5]\n",
+        "factors.equipped_share: 1.5 is not a share in [0, 1]",
+    ),
+    "unknown factor": (
+        "[study]\nseeds = 2\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nspeed = 3\n",
+        "factors.speed: unknown field",
+    ),
     "no seeds": ("[scenario]\nbundled = 'fleet'\nend_s = 10\n", "study.seeds: is missing"),
-    "zero seeds": ("[study]\nseeds = 0\n[scenario]\nbundled = 'fleet'\nend_s = 10\n", "study.seeds: 0 is not a whole number"),
-    "bad step": ("[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nstep_length_s = 0.0005\n",
-                 "factors.step_length_s: a step length must be a multiple of 0.001 s in (0, 1]"),
+    "zero seeds": (
+        "[study]\nseeds = 0\n[scenario]\nbundled = 'fleet'\nend_s = 10\n",
+        "study.seeds: 0 is not a whole number",
+    ),
+    "bad step": (
+        "[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\nstep_length_s = 0.0005\n",
+        "factors.step_length_s: a step length must be a multiple of 0.001 s in (0, 1]",
+    ),
     "no end": ("[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\n", "scenario.end_s: is missing"),
-    "unknown scenario": ("[study]\nseeds = 1\n[scenario]\nbundled = 'paris'\nend_s = 10\n",
-                         "scenario.bundled: 'paris' is not one of fleet, badhersfeld"),
-    "missing sumocfg": ("[study]\nseeds = 1\n[scenario]\nsumocfg = 'nowhere.sumocfg'\nend_s = 10\n",
-                        "scenario.sumocfg: no such SUMO configuration"),
-    "unknown mix": ("[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\ncategory_mix = ['heavy']\n",
-                    "factors.category_mix: 'heavy' is neither scenario nor a [category_mixes.heavy] table"),
-    "bad category": ("[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[category_mixes.heavy]\nN3 = 1\n",
-                     "category_mixes.heavy.N3: unknown field"),
+    "unknown scenario": (
+        "[study]\nseeds = 1\n[scenario]\nbundled = 'paris'\nend_s = 10\n",
+        "scenario.bundled: 'paris' is not one of fleet, badhersfeld",
+    ),
+    "missing sumocfg": (
+        "[study]\nseeds = 1\n[scenario]\nsumocfg = 'nowhere.sumocfg'\nend_s = 10\n",
+        "scenario.sumocfg: no such SUMO configuration",
+    ),
+    "unknown mix": (
+        "[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[factors]\ncategory_mix = ['heavy']\n",
+        "factors.category_mix: 'heavy' is neither scenario nor a [category_mixes.heavy] table",
+    ),
+    "bad category": (
+        "[study]\nseeds = 1\n[scenario]\nbundled = 'fleet'\nend_s = 10\n[category_mixes.heavy]\nN3 = 1\n",
+        "category_mixes.heavy.N3: unknown field",
+    ),
     "not toml": ("[study\nseeds = 1\n", "not TOML"),
-}  # fmt: skip
+}
 
 
 @pytest.mark.parametrize("text, message", BAD_STUDIES.values(), ids=BAD_STUDIES.keys())

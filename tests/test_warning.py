@@ -10,7 +10,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csws.data import standard_tables
-from csws.warning.single import evaluate
 from csws.standard import Category, Level, warning_distance, warning_speed
 from csws.warning.rules import (
     CurvaturePointOfInterest,
@@ -20,6 +19,7 @@ from csws.warning.rules import (
     column_indices,
     evaluate_batch,
 )
+from csws.warning.single import evaluate
 
 TABLES = standard_tables()
 COLUMN_CATEGORY = {"M1": "M1", "M2": "M2", "M3_N_O": "N"}
@@ -32,24 +32,27 @@ def _single_curve_rows(table_key: str):
             continue
         for column, cells in row.items():
             for speed_kmh, distance_m in cells:
-                yield pytest.param(float(radius), COLUMN_CATEGORY[column], speed_kmh, distance_m,
-                                   id=f"R{radius}-{column}-V{speed_kmh}")
+                yield pytest.param(
+                    float(radius), COLUMN_CATEGORY[column], speed_kmh, distance_m, id=f"R{radius}-{column}-V{speed_kmh}"
+                )
 
 
 def _cpoi(distance_m: float, radius_m: float, curve_id: str = "c1", part_index: int = 0):
     return CurvaturePointOfInterest(curve_id, part_index, distance_m, radius_m)
 
 
-@pytest.mark.parametrize("radius_m, category, speed_kmh, table_distance_m",
-                         list(_single_curve_rows("table5_single_curve_level1_tests")))
+@pytest.mark.parametrize(
+    "radius_m, category, speed_kmh, table_distance_m", list(_single_curve_rows("table5_single_curve_level1_tests"))
+)
 def test_table_5_level_1_is_on_at_the_table_distance(radius_m, category, speed_kmh, table_distance_m):
     result = evaluate(speed_kmh, category, [_cpoi(table_distance_m, radius_m)])
     assert result.level >= Level.LEVEL_1
     assert result.target.curve_id == "c1"
 
 
-@pytest.mark.parametrize("radius_m, category, speed_kmh, table_distance_m",
-                         list(_single_curve_rows("table6_single_curve_level2_tests")))
+@pytest.mark.parametrize(
+    "radius_m, category, speed_kmh, table_distance_m", list(_single_curve_rows("table6_single_curve_level2_tests"))
+)
 def test_table_6_level_2_is_on_at_the_table_distance(radius_m, category, speed_kmh, table_distance_m):
     result = evaluate(speed_kmh, category, [_cpoi(table_distance_m, radius_m)])
     assert result.level == Level.LEVEL_2
@@ -63,8 +66,9 @@ def test_without_latency_compensation_the_rows_where_the_table_exceeds_formula_1
     assert evaluate(100.0, "N", cpois).level == Level.LEVEL_1
 
 
-@pytest.mark.parametrize("radius_m, category, speed_kmh, table_distance_m",
-                         list(_single_curve_rows("table5_single_curve_level1_tests")))
+@pytest.mark.parametrize(
+    "radius_m, category, speed_kmh, table_distance_m", list(_single_curve_rows("table5_single_curve_level1_tests"))
+)
 def test_no_warning_3_kmh_below_the_level_1_warning_speed(radius_m, category, speed_kmh, table_distance_m):
     slow_kmh = warning_speed(radius_m, category, 1) - 3.0
     assert evaluate(slow_kmh, category, [_cpoi(0.0, radius_m)]).level == Level.NONE
@@ -81,8 +85,9 @@ def _onsets(speed_kmh: float, category: str, curve_starts_m: dict, radii_m: dict
     owner, which = np.divmod(np.arange(positions_m.size * len(curves)), len(curves))
     distance = np.maximum(starts[which] - positions_m[owner], 0.0)
     radius = np.array([radii_m[c] for c in curves])[which]
-    batch = evaluate_batch(np.full(positions_m.size, speed_kmh), column_indices([category] * positions_m.size),
-                           owner, distance, radius)
+    batch = evaluate_batch(
+        np.full(positions_m.size, speed_kmh), column_indices([category] * positions_m.size), owner, distance, radius
+    )
     onsets = {}
     for index, curve in enumerate(curves):
         for level in (1, 2):
@@ -109,8 +114,9 @@ def _multi_curve_onsets(category: str, test: dict, curve2_radius_m: float) -> di
 APPROACH_M = 300.0
 
 
-@pytest.mark.parametrize("category, test, curve2_radius_m",
-                         list(_multi_curve_tests("table8_multi_curve_curve2_first_all_before_curve1")))
+@pytest.mark.parametrize(
+    "category, test, curve2_radius_m", list(_multi_curve_tests("table8_multi_curve_curve2_first_all_before_curve1"))
+)
 def test_table_8_curve_2_warnings_come_before_curve_1(category, test, curve2_radius_m):
     onsets = _multi_curve_onsets(category, test, curve2_radius_m)
     for level in (1, 2):
@@ -120,8 +126,9 @@ def test_table_8_curve_2_warnings_come_before_curve_1(category, test, curve2_rad
         assert onsets[("curve2", level)] > test["L1_m"]
 
 
-@pytest.mark.parametrize("category, test, curve2_radius_m",
-                         list(_multi_curve_tests("table9_multi_curve_curve2_first_alternating")))
+@pytest.mark.parametrize(
+    "category, test, curve2_radius_m", list(_multi_curve_tests("table9_multi_curve_curve2_first_alternating"))
+)
 def test_table_9_warnings_alternate_curve_2_first(category, test, curve2_radius_m):
     onsets = _multi_curve_onsets(category, test, curve2_radius_m)
     # Position along the road (from curve 1's start, negative before it) of each onset.
@@ -142,7 +149,10 @@ def test_level_2_has_priority_and_the_target_is_the_nearest_of_the_highest_level
     assert result.level == Level.LEVEL_2
     assert result.target.curve_id == "far"
     assert [(t.curve_id, t.level) for t in result.triggers] == [
-        ("near", Level.LEVEL_1), ("far", Level.LEVEL_2), ("farther", Level.LEVEL_2)]
+        ("near", Level.LEVEL_1),
+        ("far", Level.LEVEL_2),
+        ("farther", Level.LEVEL_2),
+    ]
     only_level_1 = evaluate(90.0, "M1", [near_level_1])
     assert only_level_1.level == Level.LEVEL_1
     assert only_level_1.hmi.audible is None and only_level_1.hmi.visual is not None
@@ -223,8 +233,9 @@ def _drive_compliant(speed_kmh: float, radius_m: float, category: str, update_pe
     category=st.sampled_from(list(Category)),
     update_period_s=st.sampled_from([0.01, 0.05, 0.1]),
 )
-def test_a_compliant_driver_reaches_the_curve_at_the_level_1_warning_speed(radius_m, excess_kmh, category,
-                                                                            update_period_s):
+def test_a_compliant_driver_reaches_the_curve_at_the_level_1_warning_speed(
+    radius_m, excess_kmh, category, update_period_s
+):
     """What formula (1) promises: 0.8 s reaction then 4.9 m/s^2 (= g/2) reaches V_w1 by the curve."""
     v_w1 = warning_speed(radius_m, category, 1)
     assert _drive_compliant(v_w1 + excess_kmh, radius_m, category, update_period_s) <= v_w1 + 1.0
@@ -240,8 +251,7 @@ def test_batch_evaluation_equals_one_vehicle_at_a_time():
     batch = evaluate_batch(speeds, column_indices(categories), owners, distances, radii)
     for vehicle in range(200):
         mine = np.flatnonzero(owners == vehicle)
-        single = evaluate(speeds[vehicle], categories[vehicle],
-                          [_cpoi(distances[i], radii[i], str(i)) for i in mine])
+        single = evaluate(speeds[vehicle], categories[vehicle], [_cpoi(distances[i], radii[i], str(i)) for i in mine])
         assert int(batch.level[vehicle]) == single.level
         target = int(batch.target[vehicle])
         assert (target >= 0) == (single.target is not None)

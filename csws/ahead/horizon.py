@@ -21,7 +21,17 @@ from csws.curvature import RadiusProfile
 from csws.road.path import PathProfile
 from csws.warning.rules import CurvaturePointOfInterest, PathKind
 
-__all__ = ["END_MARGIN_M", "Horizon", "PathAhead", "BatchAhead", "PartPool", "is_cpoi", "radius_at_end", "radius_under", "curve_id_of"]
+__all__ = [
+    "END_MARGIN_M",
+    "Horizon",
+    "PathAhead",
+    "BatchAhead",
+    "PartPool",
+    "is_cpoi",
+    "radius_at_end",
+    "radius_under",
+    "curve_id_of",
+]
 
 
 @dataclass(frozen=True)
@@ -60,8 +70,17 @@ class Horizon:
     @cached_property
     def parts(self) -> list[tuple[float, float, float, float, int, str]]:
         """Each part as plain values: start and end s, radius at start and end, index, curve id."""
-        return list(zip(self.part_start_s.tolist(), self.part_end_s.tolist(), self.part_radius_m.tolist(),
-                        self.part_end_radius_m.tolist(), self.part_index.tolist(), self.part_curve_id.tolist()))
+        return list(
+            zip(
+                self.part_start_s.tolist(),
+                self.part_end_s.tolist(),
+                self.part_radius_m.tolist(),
+                self.part_end_radius_m.tolist(),
+                self.part_index.tolist(),
+                self.part_curve_id.tolist(),
+                strict=True,
+            )
+        )
 
     @cached_property
     def _first_lane(self) -> tuple[float, float]:
@@ -127,8 +146,9 @@ class PathAhead:
     def cpoi_radius_m(self) -> np.ndarray:
         """Radius of each CPOI, m: its part's, or the road's under the vehicle inside a part (:func:`radius_under`)."""
         h, rows = self.horizon, self._rows
-        return radius_under(h.part_start_s[rows], h.part_end_s[rows], h.part_radius_m[rows], h.part_end_radius_m[rows],
-                            self.vehicle_s)  # fmt: skip
+        return radius_under(
+            h.part_start_s[rows], h.part_end_s[rows], h.part_radius_m[rows], h.part_end_radius_m[rows], self.vehicle_s
+        )
 
     @property
     def cpoi_part_index(self) -> np.ndarray:
@@ -162,7 +182,7 @@ class PathAhead:
         return tuple(
             CurvaturePointOfInterest(curve_id, int(part), float(distance), float(radius))
             for curve_id, part, distance, radius in zip(
-                self.cpoi_curve_id, self.cpoi_part_index, self.cpoi_distance_m, self.cpoi_radius_m
+                self.cpoi_curve_id, self.cpoi_part_index, self.cpoi_distance_m, self.cpoi_radius_m, strict=True
             )
         )
 
@@ -215,15 +235,15 @@ class _Column:
         end = self._size + len(values)
         if end > len(self._buffer):
             grown = np.zeros(max(end, 2 * len(self._buffer)), dtype=self._buffer.dtype)
-            grown[:self._size] = self._buffer[:self._size]
+            grown[: self._size] = self._buffer[: self._size]
             self._buffer = grown
-        self._buffer[self._size:end] = values
+        self._buffer[self._size : end] = values
         self._size = end
 
     @property
     def values(self) -> np.ndarray:
         """What was appended, in order (a view)."""
-        return self._buffer[:self._size]
+        return self._buffer[: self._size]
 
 
 class PartPool:
@@ -258,7 +278,7 @@ class PartPool:
 
     def join(self) -> None:
         """Append the parts of the horizons given slots since the last call to the flat arrays."""
-        new = self.horizons[self._joined:]
+        new = self.horizons[self._joined :]
         if not new:
             return
         self._joined = len(self.horizons)
@@ -267,7 +287,7 @@ class PartPool:
         self._count.extend(counts)
         self._position_factor.extend(np.array([h.path.lane_position_factor[0] for h in new]))
         self._shape_length_m.extend(np.array([h.path.lane_shape_length_m[0] for h in new]))
-        for column, name in zip(self._parts, self._PART_FIELDS):
+        for column, name in zip(self._parts, self._PART_FIELDS, strict=True):
             column.extend(np.concatenate([getattr(h, name) for h in new]))
 
     @property
@@ -304,8 +324,9 @@ def radius_at_end(profile: RadiusProfile, end_s: float) -> float:
     return 1.0 / curvature if curvature > 0 else math.inf
 
 
-def radius_under(start_s: np.ndarray, end_s: np.ndarray, start_radius_m: np.ndarray, end_radius_m: np.ndarray,
-                 vehicle_s) -> np.ndarray:  # fmt: skip
+def radius_under(
+    start_s: np.ndarray, end_s: np.ndarray, start_radius_m: np.ndarray, end_radius_m: np.ndarray, vehicle_s
+) -> np.ndarray:
     """The radius of each CPOI for a vehicle at ``vehicle_s`` (a float or one per CPOI), m.
 
     A CPOI ahead is its part's first point, with its part's radius. Inside a part the point
@@ -316,8 +337,9 @@ def radius_under(start_s: np.ndarray, end_s: np.ndarray, start_radius_m: np.ndar
     requiring a warning the road no longer does.
     """
     length_m = end_s - start_s
-    fraction = np.clip(np.divide(vehicle_s - start_s, length_m, out=np.zeros(len(length_m)), where=length_m > 0),
-                       0.0, 1.0)  # fmt: skip
+    fraction = np.clip(
+        np.divide(vehicle_s - start_s, length_m, out=np.zeros(len(length_m)), where=length_m > 0), 0.0, 1.0
+    )
     curvature = 1.0 / start_radius_m + (1.0 / end_radius_m - 1.0 / start_radius_m) * fraction
     with np.errstate(divide="ignore"):
         return np.where(fraction > 0, 1.0 / curvature, start_radius_m)

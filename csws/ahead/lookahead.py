@@ -33,13 +33,23 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
+from itertools import pairwise
 
 import numpy as np
 
+from csws.ahead.horizon import (
+    BatchAhead,
+    Horizon,
+    PartPool,
+    PathAhead,
+    curve_id_of,
+    is_cpoi,
+    radius_at_end,
+    radius_under,
+)
 from csws.geometry import wrap_angle_rad
-from csws.ahead.horizon import BatchAhead, Horizon, PartPool, PathAhead, is_cpoi, radius_at_end, curve_id_of, radius_under
 from csws.road.roadmap import Lane, RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
 from csws.warning.rules import PathKind, WarningSettings, column_index
@@ -88,7 +98,9 @@ class LookAheadSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a non-negative number of metres, got {value!r}")
-        if self.fixed_distance_m is not None and not (math.isfinite(self.fixed_distance_m) and self.fixed_distance_m > 0):
+        if self.fixed_distance_m is not None and not (
+            math.isfinite(self.fixed_distance_m) and self.fixed_distance_m > 0
+        ):
             raise ValueError(f"fixed_distance_m must be a positive number of metres, got {self.fixed_distance_m!r}")
 
 
@@ -158,7 +170,7 @@ class LookAhead:
         lane_id: str,
         lane_pos_m: float,
         speed_kmh: float,
-        category: "str | Category",
+        category: str | Category,
         route_edges: Sequence[str] | None = None,
     ) -> PathAhead:
         """The path ahead of a vehicle at ``lane_pos_m`` on ``lane_id`` and its CPOIs.
@@ -197,8 +209,9 @@ class LookAhead:
         pool = self._pool
         pool.join()
         horizons = [pool.horizons[slot] for slot in slots.tolist()]
-        vehicle_s = np.clip(np.asarray(lane_pos_m, dtype=float) / pool.position_factor[slots], 0.0,
-                            pool.shape_length_m[slots])  # fmt: skip
+        vehicle_s = np.clip(
+            np.asarray(lane_pos_m, dtype=float) / pool.position_factor[slots], 0.0, pool.shape_length_m[slots]
+        )
         # Every (vehicle, part of its horizon) pair, then the pairs that are CPOIs.
         per_vehicle = pool.count[slots]
         vehicle = np.repeat(np.arange(len(horizons)), per_vehicle)
@@ -233,7 +246,7 @@ class LookAhead:
             self._by_query.clear()
         by_query, slots = self._by_query, []
         reaches_m = _reach_m(lookahead_m, self.settings.context_m).tolist()
-        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist()):
+        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist(), strict=True):
             key = (lane_id, route if route is None or isinstance(route, tuple) else tuple(route), reach_m)
             slot = by_query.get(key)
             if slot is None:
@@ -407,7 +420,7 @@ def _remaining_route(route_edges: Sequence[str] | None, lane: Lane) -> tuple[str
     if lane.is_internal:
         return tuple(route_edges)
     try:
-        return tuple(route_edges[list(route_edges).index(lane.edge_id):])
+        return tuple(route_edges[list(route_edges).index(lane.edge_id) :])
     except ValueError:
         return None
 
@@ -427,7 +440,7 @@ def _route_successors(route_edges: Sequence[str] | None, lane: Lane) -> dict[str
     else:
         return None
     following: dict[str, str] = {}
-    for edge, next_edge in zip(route_edges[start:], route_edges[start + 1:]):
+    for edge, next_edge in pairwise(route_edges[start:]):
         following.setdefault(edge, next_edge)
     return following
 

@@ -12,8 +12,9 @@ import argparse
 import importlib
 import os
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, NoReturn, Sequence
+from typing import NoReturn
 
 from csws import __version__
 from csws.cli.argtypes import positive_float

@@ -6,9 +6,10 @@ argparse turns the ``ArgumentTypeError`` into one line naming the option, and ex
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 import math
-from typing import Callable, TypeVar
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
 
 __all__ = ["positive_int", "positive_float", "step_length", "comma_list", "one_of"]
 

@@ -48,23 +48,45 @@ class Progress:
         Also show an estimate of the time left, from the pace so far (needs ``total``).
     """
 
-    def __init__(self, command: str, total: float | None, unit: str, decimals: int = 0, enabled: bool = True,
-                 stream: TextIO | None = None, *, done: float = 0.0, time_left: bool = False) -> None:  # fmt: skip
+    def __init__(
+        self,
+        command: str,
+        total: float | None,
+        unit: str,
+        decimals: int = 0,
+        enabled: bool = True,
+        stream: TextIO | None = None,
+        *,
+        done: float = 0.0,
+        time_left: bool = False,
+    ) -> None:
         self.command, self.total, self.unit, self.decimals = command, total, unit, decimals
         self.stream = sys.stderr if stream is None else stream
         self.enabled = enabled
         self.done = self._done_before = done
         self._time_left = time_left and total is not None
         self._bar = None
-        self._next_percent = (math.floor(100.0 * done / total / STEP_PERCENT) + 1) * STEP_PERCENT if total else STEP_PERCENT
+        self._next_percent = (
+            (math.floor(100.0 * done / total / STEP_PERCENT) + 1) * STEP_PERCENT if total else STEP_PERCENT
+        )
         self._started_s = self._last_line_s = time.monotonic()
         if enabled and self.stream.isatty():
             from tqdm import tqdm
 
             amount = f"{{n:.{decimals}f}}" + ("" if total is None else f"/{{total:.{decimals}f}}")
-            self._bar = tqdm(total=total, initial=done, unit=unit, file=self.stream, desc=f"csws {command}",
-                             bar_format="{desc}: " + ("{percentage:3.0f}%|{bar}| " if total else "") + amount
-                             + f" {unit} [{{elapsed}}" + ("<{remaining}" if self._time_left else "") + "]")  # fmt: skip
+            self._bar = tqdm(
+                total=total,
+                initial=done,
+                unit=unit,
+                file=self.stream,
+                desc=f"csws {command}",
+                bar_format="{desc}: "
+                + ("{percentage:3.0f}%|{bar}| " if total else "")
+                + amount
+                + f" {unit} [{{elapsed}}"
+                + ("<{remaining}" if self._time_left else "")
+                + "]",
+            )
 
     def update(self, amount: float = 1.0) -> None:
         """The run has done ``amount`` more."""
@@ -76,8 +98,10 @@ class Progress:
         elif self.total:
             percent = 100.0 * self.done / self.total
             if percent + 1e-9 >= self._next_percent:
-                self._line(f"{self._amount(self.done)} of {self._amount(self.total)} {self.unit} "
-                           f"({math.floor(percent + 1e-9):.0f} %){self._left()}")
+                self._line(
+                    f"{self._amount(self.done)} of {self._amount(self.total)} {self.unit} "
+                    f"({math.floor(percent + 1e-9):.0f} %){self._left()}"
+                )
                 self._next_percent = (math.floor((percent + 1e-9) / STEP_PERCENT) + 1) * STEP_PERCENT
         elif time.monotonic() - self._last_line_s >= QUIET_S:
             self._line(f"{self._amount(self.done)} {self.unit}")

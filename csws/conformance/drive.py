@@ -34,13 +34,13 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 import shapely
 
-from csws.sumo.binaries import sumo_binary
 from csws.engine import Engine, EngineSettings, VehicleInput
 from csws.geometry import Piece, sample_pieces
 from csws.networks import networks_dir
 from csws.networks.real_roads import REAL_ROADS_DIR
 from csws.road.roadmap import RoadMap
 from csws.standard import formula_1_m, kmh_to_mps, mps_to_kmh
+from csws.sumo.binaries import sumo_binary
 from csws.warning.rules import WarningSettings
 
 from .rows import Row
@@ -170,8 +170,10 @@ def track_file(track: str, suffix: str) -> Path:
 
 def authored_pieces(content: dict) -> list[Piece]:
     """The authored road of a real-road track's truth file."""
-    return [Piece(p["length_m"], p["curvature"], None if p["end_curvature"] == p["curvature"] else p["end_curvature"])
-            for p in content["pieces"]]  # fmt: skip
+    return [
+        Piece(p["length_m"], p["curvature"], None if p["end_curvature"] == p["curvature"] else p["end_curvature"])
+        for p in content["pieces"]
+    ]
 
 
 @cache
@@ -240,7 +242,7 @@ def _routes_xml(task: Task, depart_pos_m: list[float], depart_time_s: list[float
     vehicles = "".join(
         f'<vehicle id="run{i}" type="test" depart="{t:.6f}" departLane="0" departPos="{p:.6f}" '
         f'departSpeed="{speed_mps:.12g}"><route edges={quoteattr(edges)}/></vehicle>'
-        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s))
+        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=True))
     )
     return f"<routes>{vtype}{vehicles}</routes>"
 
@@ -316,11 +318,25 @@ def drive(task: Task) -> list[Trace]:
     with tempfile.TemporaryDirectory(prefix="csws-conformance-") as work:
         routes = Path(work) / "runs.rou.xml"
         routes.write_text(_routes_xml(task, positions, times), encoding="utf-8")
-        libsumo.start([
-            str(sumo_binary("sumo")), "-n", str(track_file(task.track, ".net.xml")), "-r", str(routes),
-            "--step-length", f"{task.step_length_s:g}", "--no-step-log", "true", "--no-warnings", "true",
-            "--duration-log.disable", "true", "--seed", "0",
-        ])  # fmt: skip
+        libsumo.start(
+            [
+                str(sumo_binary("sumo")),
+                "-n",
+                str(track_file(task.track, ".net.xml")),
+                "-r",
+                str(routes),
+                "--step-length",
+                f"{task.step_length_s:g}",
+                "--no-step-log",
+                "true",
+                "--no-warnings",
+                "true",
+                "--duration-log.disable",
+                "true",
+                "--seed",
+                "0",
+            ]
+        )
         try:
             while len(finished) < task.repetitions:
                 libsumo.simulationStep()
@@ -328,8 +344,9 @@ def drive(task: Task) -> list[Trace]:
                 if now_s > MAX_SIMULATED_S:
                     raise RuntimeError(f"{task.key}: runs did not finish within {MAX_SIMULATED_S:g} s")
                 for vehicle_id in libsumo.simulation.getDepartedIDList():
-                    libsumo.vehicle.subscribe(vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED,
-                                                           tc.VAR_POSITION))
+                    libsumo.vehicle.subscribe(
+                        vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED, tc.VAR_POSITION)
+                    )
                 state = libsumo.vehicle.getAllSubscriptionResults()
                 if not state:
                     continue
@@ -337,16 +354,29 @@ def drive(task: Task) -> list[Trace]:
                 lanes = [state[v][tc.VAR_LANE_ID] for v in ids]
                 lane_pos = np.array([state[v][tc.VAR_LANEPOSITION] for v in ids])
                 speed_kmh = mps_to_kmh(np.array([state[v][tc.VAR_SPEED] for v in ids]))
-                route_s = np.array([_route_s(track_truth, road_map, lane, pos, state[v][tc.VAR_POSITION])
-                                    for v, lane, pos in zip(ids, lanes, lane_pos)])  # fmt: skip
+                route_s = np.array(
+                    [
+                        _route_s(track_truth, road_map, lane, pos, state[v][tc.VAR_POSITION])
+                        for v, lane, pos in zip(ids, lanes, lane_pos, strict=True)
+                    ]
+                )
                 measured_pos = lane_pos + rng.uniform(-POSITION_ACCURACY_M, POSITION_ACCURACY_M, len(ids))
                 measured_speed = np.maximum(speed_kmh + rng.normal(0.0, SPEED_ACCURACY_KMH, len(ids)), 0.0)
-                answers = engine.evaluate_many([
-                    VehicleInput(v, row.category.value, float(measured_speed[i]), lanes[i], float(measured_pos[i]),
-                                 track_truth.route_edges, now_s)
-                    for i, v in enumerate(ids)
-                ])  # fmt: skip
-                for i, (vehicle_id, answer) in enumerate(zip(ids, answers)):
+                answers = engine.evaluate_many(
+                    [
+                        VehicleInput(
+                            v,
+                            row.category.value,
+                            float(measured_speed[i]),
+                            lanes[i],
+                            float(measured_pos[i]),
+                            track_truth.route_edges,
+                            now_s,
+                        )
+                        for i, v in enumerate(ids)
+                    ]
+                )
+                for i, (vehicle_id, answer) in enumerate(zip(ids, answers, strict=True)):
                     record = records[vehicle_id]
                     record.time_s.append(now_s)
                     record.route_s_m.append(route_s[i])

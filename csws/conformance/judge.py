@@ -19,8 +19,8 @@ passes (7.6).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -119,8 +119,16 @@ def _positive(row: Row, check: Check, trace: Trace, distance_m: np.ndarray) -> C
     below = np.flatnonzero(distance_m < check.table_distance_m)
     max_level = int(trace.level.max(initial=0))
     if below.size == 0:
-        return CheckResult(check.label, int(check.level), check.table_distance_m, False, None, None, max_level,
-                           "the run never came within the table's S_w")  # fmt: skip
+        return CheckResult(
+            check.label,
+            int(check.level),
+            check.table_distance_m,
+            False,
+            None,
+            None,
+            max_level,
+            "the run never came within the table's S_w",
+        )
     first = below[0]
     window = np.flatnonzero((np.arange(on.size) >= first) & (distance_m > 0))
     due = window[(window == first) | _still_due(row, check, trace.speed_kmh[window], distance_m[window])]
@@ -131,11 +139,14 @@ def _positive(row: Row, check: Check, trace: Trace, distance_m: np.ndarray) -> C
     if missing.size == 0:
         reason = ""
     elif missing[0] == first:
-        reason = f"level {int(check.level)} was not on at {distance_m[first]:.2f} m (table S_w {check.table_distance_m:g} m)"
+        reason = (
+            f"level {int(check.level)} was not on at {distance_m[first]:.2f} m (table S_w {check.table_distance_m:g} m)"
+        )
     else:
         reason = f"level {int(check.level)} went off at {distance_m[missing[0]]:.2f} m before the curve"
-    return CheckResult(check.label, int(check.level), check.table_distance_m, missing.size == 0, onset_m, earlier_m,
-                       max_level, reason)  # fmt: skip
+    return CheckResult(
+        check.label, int(check.level), check.table_distance_m, missing.size == 0, onset_m, earlier_m, max_level, reason
+    )
 
 
 def _still_due(row: Row, check: Check, speed_kmh: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
@@ -166,9 +177,7 @@ def _negative(check: Check, trace: Trace) -> CheckResult:
 
 def _stable_s(row: Row, trace: Trace, track_truth: Truth) -> float:
     """How long the vehicle held the test speed before the first warning distance (or the curve), s (7.5.1)."""
-    reach_m = [
-        track_truth.curve_start_s_m[c.curve_number - 1] - (c.table_distance_m or 0.0) for c in row.checks
-    ]
+    reach_m = [track_truth.curve_start_s_m[c.curve_number - 1] - (c.table_distance_m or 0.0) for c in row.checks]
     before = np.flatnonzero(trace.route_s_m < min(reach_m))
     if before.size == 0:
         return 0.0

@@ -74,14 +74,24 @@ def real_road_rows() -> list[Row]:
         for category in Category:
             level1, level2 = (warning_speed(radius_m, category, level) for level in (1, 2))
             for speed_kmh in (round((level1 + level2) / 2.0, 1), round(level2 + LEVEL2_EXCESS_KMH, 1)):
-                rows.append(Row(
-                    row_id=f"RR-{track['name'].removeprefix('rr_')}-{category}-V{speed_kmh:g}",
-                    table=REAL_ROAD_TABLE, clause="6.1, 6.2.1", category=category, test=None,
-                    radius_m=(radius_m,), speed_kmh=speed_kmh, final_speed_kmh=None, decel_trigger_m=None,
-                    checks=tuple(Check(1, level, None, f"level {int(level)} where formula (1) requires it")
-                                 for level in (Level.LEVEL_1, Level.LEVEL_2)),
-                    tracks=(track["name"],),
-                ))  # fmt: skip
+                rows.append(
+                    Row(
+                        row_id=f"RR-{track['name'].removeprefix('rr_')}-{category}-V{speed_kmh:g}",
+                        table=REAL_ROAD_TABLE,
+                        clause="6.1, 6.2.1",
+                        category=category,
+                        test=None,
+                        radius_m=(radius_m,),
+                        speed_kmh=speed_kmh,
+                        final_speed_kmh=None,
+                        decel_trigger_m=None,
+                        checks=tuple(
+                            Check(1, level, None, f"level {int(level)} where formula (1) requires it")
+                            for level in (Level.LEVEL_1, Level.LEVEL_2)
+                        ),
+                        tracks=(track["name"],),
+                    )
+                )
     return rows
 
 
@@ -90,12 +100,21 @@ def _curve_points(track: str) -> tuple[np.ndarray, np.ndarray]:
     """Route positions and radii of the truth's curve points, every :data:`POINT_SPACING_M`."""
     content = json.loads(track_file(track, ".truth.json").read_text("utf-8"))
     pieces = authored_pieces(content)
-    s = np.concatenate([np.append(np.arange(c["start_s"], c["end_s"], POINT_SPACING_M), c["end_s"]) for c in content["curves"]])
+    s = np.concatenate(
+        [np.append(np.arange(c["start_s"], c["end_s"], POINT_SPACING_M), c["end_s"]) for c in content["curves"]]
+    )
     return s, 1.0 / np.abs(curvature_at(pieces, s))
 
 
-def required_levels(row: Row, track: str, route_s_m: np.ndarray, speed_kmh: np.ndarray, reach_extra_m: np.ndarray,
-                    speed_extra_kmh: float, min_ahead_m: float) -> np.ndarray:  # fmt: skip
+def required_levels(
+    row: Row,
+    track: str,
+    route_s_m: np.ndarray,
+    speed_kmh: np.ndarray,
+    reach_extra_m: np.ndarray,
+    speed_extra_kmh: float,
+    min_ahead_m: float,
+) -> np.ndarray:
     """Per step, the highest level formula (1) requires at some curve point ``min_ahead_m`` or
     more ahead, its S_w lengthened by ``reach_extra_m`` (per step) and V_w raised by ``speed_extra_kmh``."""
     point_s, radius_m = _curve_points(track)
@@ -121,10 +140,18 @@ def judge_real_road_run(row: Row, trace: Trace, track_truth: Truth) -> RunResult
     track = track_truth.name
     travel_m = kmh_to_mps(trace.speed_kmh) * _step_s(trace)
     allowance_m = kmh_to_mps(trace.speed_kmh) * (_step_s(trace) + WarningSettings().system_delay_s)
-    must = required_levels(row, track, trace.route_s_m, trace.speed_kmh, -(travel_m + LATE_EXTRA_M),
-                           SPEED_TOLERANCE_KMH, RELEASE_TOLERANCE_M)  # fmt: skip
-    may = required_levels(row, track, trace.route_s_m, trace.speed_kmh, allowance_m + travel_m + EARLY_EXTRA_M,
-                          -SPEED_TOLERANCE_KMH, 0.0)  # fmt: skip
+    must = required_levels(
+        row,
+        track,
+        trace.route_s_m,
+        trace.speed_kmh,
+        -(travel_m + LATE_EXTRA_M),
+        SPEED_TOLERANCE_KMH,
+        RELEASE_TOLERANCE_M,
+    )
+    may = required_levels(
+        row, track, trace.route_s_m, trace.speed_kmh, allowance_m + travel_m + EARLY_EXTRA_M, -SPEED_TOLERANCE_KMH, 0.0
+    )
     exact = required_levels(row, track, trace.route_s_m, trace.speed_kmh, np.zeros(len(travel_m)), 0.0, 0.0)
     checks = tuple(_check(check, trace, track_truth, must, may, exact) for check in row.checks)
     runout = trace.route_s_m > track_truth.curve_end_s_m[-1] + RUNOUT_MARGIN_M
@@ -134,8 +161,9 @@ def judge_real_road_run(row: Row, trace: Trace, track_truth: Truth) -> RunResult
     return RunResult(trace.repetition, trace.phase, stable_s, runout_level, checks, passed)
 
 
-def _check(check: Check, trace: Trace, track_truth: Truth, must: np.ndarray, may: np.ndarray,
-           exact: np.ndarray) -> CheckResult:  # fmt: skip
+def _check(
+    check: Check, trace: Trace, track_truth: Truth, must: np.ndarray, may: np.ndarray, exact: np.ndarray
+) -> CheckResult:
     """One level of one run: never off where required, never raised where not."""
     level = int(check.level)
     on = trace.level >= level
@@ -146,20 +174,26 @@ def _check(check: Check, trace: Trace, track_truth: Truth, must: np.ndarray, may
     onset = np.flatnonzero(on)
     first_exact = np.flatnonzero(exact >= level)
     onset_m = float(start_s - trace.route_s_m[onset[0]]) if onset.size else None
-    earlier_m = (float(trace.route_s_m[first_exact[0]] - trace.route_s_m[onset[0]])
-                 if onset.size and first_exact.size else None)  # fmt: skip
+    earlier_m = (
+        float(trace.route_s_m[first_exact[0]] - trace.route_s_m[onset[0]]) if onset.size and first_exact.size else None
+    )
     reasons = []
     if missing.size:
         where = float(trace.route_s_m[missing[0]] - start_s)
         late = not onset.size or onset[0] > missing[0]
-        reasons.append(f"level {level} {'not yet on' if late else 'off'} at {where:+.2f} m from the first curve's "
-                       f"start, where formula (1) requires it")  # fmt: skip
+        reasons.append(
+            f"level {level} {'not yet on' if late else 'off'} at {where:+.2f} m from the first curve's "
+            f"start, where formula (1) requires it"
+        )
     if wrong.size:
         where = float(trace.route_s_m[wrong[0]] - start_s)
-        reasons.append(f"level {level} raised at {where:+.2f} m from the first curve's start, "
-                       f"where formula (1) does not require it")  # fmt: skip
-    return CheckResult(check.label, level, None, not reasons, onset_m, earlier_m,
-                       int(trace.level.max(initial=0)), "; ".join(reasons))  # fmt: skip
+        reasons.append(
+            f"level {level} raised at {where:+.2f} m from the first curve's start, "
+            f"where formula (1) does not require it"
+        )
+    return CheckResult(
+        check.label, level, None, not reasons, onset_m, earlier_m, int(trace.level.max(initial=0)), "; ".join(reasons)
+    )
 
 
 def _stable_s(row: Row, trace: Trace, may: np.ndarray) -> float:

@@ -10,9 +10,9 @@ worst run's warning onset and margin in each cell.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -34,7 +34,6 @@ _TABLE_TITLES = {
 }
 #: The tables of clause 7.5, which 7.6 judges.
 PROCEDURE_TABLES = (5, 6, 7, 8, 9)
-
 
 
 @dataclass(frozen=True)
@@ -186,9 +185,19 @@ def _single_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     lines = [header, "|" + "---|" * (len(columns) + 2)]
     for radius_m in sorted({o.row.radius_m[0] for o in outcomes}):
         cells = [by_key.get((radius_m, category, speed)) for category, speed in columns]
-        lines.append(f"| {radius_m:g} | V/(km/h) | " + " | ".join("" if o is None else f"{o.row.speed_kmh:g}" for o in cells) + " |")
-        lines.append("| | S_w/m | " + " | ".join("" if o is None else f"{o.row.checks[0].table_distance_m:g}" for o in cells) + " |")
-        lines.append("| | earlier/m | " + " | ".join("" if o is None else _metres(o.worst_earlier_m(0)) for o in cells) + " |")
+        lines.append(
+            f"| {radius_m:g} | V/(km/h) | "
+            + " | ".join("" if o is None else f"{o.row.speed_kmh:g}" for o in cells)
+            + " |"
+        )
+        lines.append(
+            "| | S_w/m | "
+            + " | ".join("" if o is None else f"{o.row.checks[0].table_distance_m:g}" for o in cells)
+            + " |"
+        )
+        lines.append(
+            "| | earlier/m | " + " | ".join("" if o is None else _metres(o.worst_earlier_m(0)) for o in cells) + " |"
+        )
         lines.append("| | verdict | " + " | ".join("" if o is None else mark(o.passed) for o in cells) + " |")
     return lines
 
@@ -197,7 +206,9 @@ def _multi_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     """Tables 7 to 9: one line per category and test, one column group per warning."""
     labels = [check.label for check in outcomes[0].row.checks]
     lines = [
-        "| category | test | R1/m | V/(km/h) | " + " | ".join(f"{label}: S_w/m, earlier/m" for label in labels) + " | verdict |",
+        "| category | test | R1/m | V/(km/h) | "
+        + " | ".join(f"{label}: S_w/m, earlier/m" for label in labels)
+        + " | verdict |",
         "|" + "---|" * (len(labels) + 5),
     ]
     for o in outcomes:
@@ -205,7 +216,9 @@ def _multi_table(outcomes: Sequence[RowOutcome]) -> list[str]:
         speed = f"{row.speed_kmh:g}" + (f" -> {row.final_speed_kmh:g}" if row.final_speed_kmh is not None else "")
         cells = [f"{check.table_distance_m:g}, {_metres(o.worst_earlier_m(i))}" for i, check in enumerate(row.checks)]
         lines.append(
-            f"| {row.category.value} | {row.test or ''} | {row.radius_m[0]:g} | {speed} | " + " | ".join(cells) + f" | {mark(o.passed)} |"
+            f"| {row.category.value} | {row.test or ''} | {row.radius_m[0]:g} | {speed} | "
+            + " | ".join(cells)
+            + f" | {mark(o.passed)} |"
         )
     return lines
 
@@ -224,11 +237,16 @@ def _negative_table(outcomes: Sequence[RowOutcome]) -> list[str]:
 def _real_road_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     """The real-road rows: track, category, speed, and per level how much earlier than formula (1)
     the warning came on (the smallest margin of any run; negative: later) and the verdict."""
-    lines = ["| track | category | V/(km/h) | level 1 earlier/m | level 2 earlier/m | verdict |", "|---|---|---|---|---|---|"]
+    lines = [
+        "| track | category | V/(km/h) | level 1 earlier/m | level 2 earlier/m | verdict |",
+        "|---|---|---|---|---|---|",
+    ]
     for o in outcomes:
         row = o.row
-        lines.append(f"| {row.tracks[0]} | {row.category.value} | {row.speed_kmh:g} | {_metres(o.worst_earlier_m(0))} | "
-                     f"{_metres(o.worst_earlier_m(1))} | {mark(o.passed)} |")  # fmt: skip
+        lines.append(
+            f"| {row.tracks[0]} | {row.category.value} | {row.speed_kmh:g} | {_metres(o.worst_earlier_m(0))} | "
+            f"{_metres(o.worst_earlier_m(1))} | {mark(o.passed)} |"
+        )
     return lines
 
 
@@ -242,7 +260,10 @@ def _failures(outcomes: Sequence[RowOutcome]) -> list[str]:
                 if run.runout_level:
                     problems.append(f"level {run.runout_level} on the straight run-out")
                 if problems:
-                    lines.append(f"- {o.row.row_id} on {group.track} at {group.step_length_s:g} s, run {run.repetition + 1}: " + "; ".join(problems))
+                    lines.append(
+                        f"- {o.row.row_id} on {group.track} at {group.step_length_s:g} s, run {run.repetition + 1}: "
+                        + "; ".join(problems)
+                    )
     return lines
 
 
@@ -260,7 +281,7 @@ def write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -
         f"{settings['repetitions']} runs per row, track and step length; seed {settings['seed']}",
         f"- rows: {verdict['rows']}, failed: {len(verdict['rows_failed'])}",
         "",
-        "\"earlier/m\" is the smallest margin over every run, track and step length by which the",
+        '"earlier/m" is the smallest margin over every run, track and step length by which the',
         "warning came on before the table's S_w (the true distance to the curve start, from the",
         "track's truth file). On the real-road tracks it is the margin by which each level came on",
         "before formula (1) first required it at some point of the road (negative: after).",
@@ -294,7 +315,7 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
 
     figure, (speed_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     steps = sorted({step for _, step, _ in traces})
-    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1)))))
+    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=True))
     labelled = set()
     for track_truth, step, trace in traces:
         distance_m = track_truth.curve_start_s_m[0] - trace.route_s_m
@@ -311,10 +332,18 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
     if row.table == REAL_ROAD_TABLE:
         # What formula (1) requires of the first run at each of its steps, from the constructed road.
         track_truth, _, trace = traces[0]
-        required = required_levels(row, track_truth.name, trace.route_s_m, trace.speed_kmh,
-                                   np.zeros(len(trace.route_s_m)), 0.0, 0.0)  # fmt: skip
-        level_axis.step(track_truth.curve_start_s_m[0] - trace.route_s_m, required + 0.05, where="post", color="black",
-                        ls="--", lw=0.8, label="formula (1) requires")  # fmt: skip
+        required = required_levels(
+            row, track_truth.name, trace.route_s_m, trace.speed_kmh, np.zeros(len(trace.route_s_m)), 0.0, 0.0
+        )
+        level_axis.step(
+            track_truth.curve_start_s_m[0] - trace.route_s_m,
+            required + 0.05,
+            where="post",
+            color="black",
+            ls="--",
+            lw=0.8,
+            label="formula (1) requires",
+        )
         level_axis.legend(fontsize=7, loc="upper left")
     marked = [check for check in row.checks if check.table_distance_m is not None]
     for number, check in enumerate(marked):
@@ -322,8 +351,15 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
         position_m = offset_m + check.table_distance_m
         level_axis.axvline(position_m, color="tab:red", ls="--", lw=0.8)
         # Marks of one row often lie a few metres apart: their labels go one above the other.
-        level_axis.annotate(f"S_w {check.label}", (position_m, 0.15 + 0.4 * number), fontsize=7, color="tab:red",
-                            ha="right", xytext=(-2, 0), textcoords="offset points")
+        level_axis.annotate(
+            f"S_w {check.label}",
+            (position_m, 0.15 + 0.4 * number),
+            fontsize=7,
+            color="tab:red",
+            ha="right",
+            xytext=(-2, 0),
+            textcoords="offset points",
+        )
     speed_axis.set_ylabel("speed (km/h)")
     speed_axis.legend(fontsize=7)
     level_axis.set_ylabel("warning level")

@@ -18,9 +18,9 @@ run on every track that implements it (left and right turning, and the one S-cur
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cache
-from typing import Iterable
 
 from csws.data import standard_tables
 from csws.networks import networks_dir
@@ -136,14 +136,14 @@ def _index() -> tuple[dict, ...]:
     return tuple(json.loads((networks_dir() / "index.json").read_text("utf-8"))["networks"])
 
 
-def track_names(table: int, column: str | None = None, test: int | None = None, radius_m: float | None = None) -> tuple[str, ...]:
+def track_names(
+    table: int, column: str | None = None, test: int | None = None, radius_m: float | None = None
+) -> tuple[str, ...]:
     """The bundled tracks of a table row: single curves by radius (Table 3), multi curves by table, column and test."""
     if table in (5, 6, 0):
         found = [n["name"] for n in _index() if n["table"] == 3 and n["radius_m"] == [radius_m]]
     else:
-        found = [
-            n["name"] for n in _index() if n["table"] == table and n["category"] == column and n["test"] == test
-        ]
+        found = [n["name"] for n in _index() if n["table"] == table and n["category"] == column and n["test"] == test]
     if not found:
         raise ValueError(f"no bundled track for table {table}, column {column}, test {test}, radius {radius_m}")
     return tuple(found)
@@ -266,4 +266,3 @@ def procedure_rows() -> list[Row]:
         *_table89_rows(tables, 9),
         *_negative_rows(tables),
     ]
-

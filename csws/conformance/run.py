@@ -13,9 +13,10 @@ import fnmatch
 import multiprocessing
 import time
 from collections import defaultdict
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator, Sequence
+from typing import Any
 
 from csws.cli.progress import Progress
 
@@ -33,8 +34,9 @@ DEFAULT_STEP_LENGTHS_S = (0.01, 0.05, 0.1, 0.2)
 TaskResult = tuple[Task, tuple[RunResult, ...], tuple[Trace, ...]]
 
 
-def select_rows(tables: Sequence[int] | None = None, categories: Sequence[str] | None = None,
-                patterns: Sequence[str] | None = None) -> list[Row]:  # fmt: skip
+def select_rows(
+    tables: Sequence[int] | None = None, categories: Sequence[str] | None = None, patterns: Sequence[str] | None = None
+) -> list[Row]:
     """The rows of the procedure and the real-road rows, filtered by table (0 = negative rows,
     10 = real-road tracks), category and row-id pattern."""
     rows = procedure_rows() + real_road_rows()
@@ -50,8 +52,13 @@ def select_rows(tables: Sequence[int] | None = None, categories: Sequence[str] |
     return rows
 
 
-def make_tasks(rows: Iterable[Row], step_lengths_s: Sequence[float], repetitions: int, seed: int,
-               directions: Sequence[str] | None = None) -> list[Task]:  # fmt: skip
+def make_tasks(
+    rows: Iterable[Row],
+    step_lengths_s: Sequence[float],
+    repetitions: int,
+    seed: int,
+    directions: Sequence[str] | None = None,
+) -> list[Task]:
     """One task per row, track and step length; ``directions`` keeps only the standard's tracks ending in
     those (left, right, s), and every real-road track."""
     if repetitions < CONSECUTIVE_PASSES:
@@ -77,8 +84,9 @@ def run_task(task: Task) -> TaskResult:
     return task, tuple(judge(task.row, trace, track_truth) for trace in traces), traces
 
 
-def run_tasks(tasks: Sequence[Any], jobs: int, progress: bool = False,
-              worker: Callable[[Any], Any] = run_task) -> Iterator[Any]:  # fmt: skip
+def run_tasks(
+    tasks: Sequence[Any], jobs: int, progress: bool = False, worker: Callable[[Any], Any] = run_task
+) -> Iterator[Any]:
     """Run the tasks through ``worker`` (a module-level function), in this process for one job, else
     in ``jobs`` spawned worker processes; with ``progress``, show how far they are
     (:class:`csws.cli.progress.Progress`)."""
@@ -113,9 +121,17 @@ def _outcomes(results: Iterable[TaskResult], rows: Sequence[Row]) -> tuple[list[
     return outcomes, records
 
 
-def conformance(rows: Sequence[Row], out: Path, step_lengths_s: Sequence[float] = DEFAULT_STEP_LENGTHS_S,
-                repetitions: int = CONSECUTIVE_PASSES, seed: int = 0, jobs: int = 1, plots: bool = True,
-                directions: Sequence[str] | None = None, progress: bool = False) -> list[RowOutcome]:  # fmt: skip
+def conformance(
+    rows: Sequence[Row],
+    out: Path,
+    step_lengths_s: Sequence[float] = DEFAULT_STEP_LENGTHS_S,
+    repetitions: int = CONSECUTIVE_PASSES,
+    seed: int = 0,
+    jobs: int = 1,
+    plots: bool = True,
+    directions: Sequence[str] | None = None,
+    progress: bool = False,
+) -> list[RowOutcome]:
     """Run, judge and report the rows; the outcomes, one per row.
 
     Writes ``report.json``, ``report.md`` and (with ``plots``) ``plots/ROW.png`` into ``out``.
@@ -154,9 +170,16 @@ def main(args: argparse.Namespace) -> int:
     rows = select_rows(args.tables, args.categories, args.rows)
     started = time.perf_counter()
     outcomes = conformance(
-        rows, args.out, args.step_lengths, args.repetitions, args.seed, args.jobs,
-        plots=not args.no_plots, directions=args.directions, progress=True,
-    )  # fmt: skip
+        rows,
+        args.out,
+        args.step_lengths,
+        args.repetitions,
+        args.seed,
+        args.jobs,
+        plots=not args.no_plots,
+        directions=args.directions,
+        progress=True,
+    )
     verdict = verdicts(outcomes)
     for outcome in outcomes:
         if not outcome.passed:

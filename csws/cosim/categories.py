@@ -19,7 +19,19 @@ CATEGORY_PARAMETER = "csws.category"
 #: SUMO vehicle class -> category.
 VCLASS_CATEGORY: dict[str, Category] = {
     **dict.fromkeys(
-        ("passenger", "private", "taxi", "evehicle", "hov", "emergency", "authority", "army", "vip", "custom1", "custom2"),
+        (
+            "passenger",
+            "private",
+            "taxi",
+            "evehicle",
+            "hov",
+            "emergency",
+            "authority",
+            "army",
+            "vip",
+            "custom1",
+            "custom2",
+        ),
         Category.M1,
     ),
     "bus": Category.M3,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.cli.argtypes import comma_list, one_of, output_folder, positive_float, positive_int, step_length
 from csws.cli import deferred
+from csws.cli.argtypes import comma_list, one_of, output_folder, positive_float, positive_int, step_length
 
 from .records import TIMESERIES_FORMATS
 
@@ -27,26 +27,56 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     scenario = parser.add_argument_group("scenario (default: the bundled fleet, networks/fleet_scenario/fleet.sumocfg)")
     scenario.add_argument("--sumocfg", type=Path, default=None, help="a SUMO configuration")
     scenario.add_argument("--net", type=Path, default=None, help="a SUMO network (with --routes)")
-    scenario.add_argument("--routes", type=comma_list(Path, "route file"), default=None, help="route files, comma-separated")
-    scenario.add_argument("--vehicles", type=positive_int, default=None,
-                          help="generate a mixed fleet of this many vehicles (one per second) on the fleet network")  # fmt: skip
-    parser.add_argument("--out", type=output_folder, default=Path("cosim-out"), help="output folder (default: cosim-out)")
+    scenario.add_argument(
+        "--routes", type=comma_list(Path, "route file"), default=None, help="route files, comma-separated"
+    )
+    scenario.add_argument(
+        "--vehicles",
+        type=positive_int,
+        default=None,
+        help="generate a mixed fleet of this many vehicles (one per second) on the fleet network",
+    )
+    parser.add_argument(
+        "--out", type=output_folder, default=Path("cosim-out"), help="output folder (default: cosim-out)"
+    )
     parser.add_argument("--step-length", type=step_length, default=0.1, help="SUMO step length in s (default 0.1)")
     parser.add_argument("--end", type=positive_float, default=None, help="stop at this simulation time, s")
-    parser.add_argument("--systems", type=comma_list(one_of(SYSTEMS), "system"), default=["csws"],
-                        help="warning systems to evaluate, comma-separated: csws (curve speed warning, the default), "
-                             "fcw (forward collision warning, docs/fcw.md), or csws,fcw")  # fmt: skip
-    parser.add_argument("--service", default=None, metavar="URL",
-                        help="ask a running csws service (POST /v1/warnings) instead of the library, e.g. http://127.0.0.1:8000")  # fmt: skip
+    parser.add_argument(
+        "--systems",
+        type=comma_list(one_of(SYSTEMS), "system"),
+        default=["csws"],
+        help="warning systems to evaluate, comma-separated: csws (curve speed warning, the default), "
+        "fcw (forward collision warning, docs/fcw.md), or csws,fcw",
+    )
+    parser.add_argument(
+        "--service",
+        default=None,
+        metavar="URL",
+        help="ask a running csws service (POST /v1/warnings) instead of the library, e.g. http://127.0.0.1:8000",
+    )
     interface = parser.add_mutually_exclusive_group()
-    interface.add_argument("--traci", action="store_true", help="run SUMO as a separate program over TraCI (default: libsumo)")
+    interface.add_argument(
+        "--traci", action="store_true", help="run SUMO as a separate program over TraCI (default: libsumo)"
+    )
     interface.add_argument("--gui", action="store_true", help="run sumo-gui over TraCI")
-    parser.add_argument("--driver-response", action="store_true",
-                        help="run the fleet without and with the driver-response model (react 0.8 s, brake at 4.9 m/s^2) and compare")  # fmt: skip
+    parser.add_argument(
+        "--driver-response",
+        action="store_true",
+        help="run the fleet without and with the driver-response model (react 0.8 s, brake at 4.9 m/s^2) and compare",
+    )
     parser.add_argument("--seed", type=int, default=0, help="SUMO's random seed and the generated fleet's (default 0)")
-    parser.add_argument("--timeseries", choices=TIMESERIES_FORMATS, default="parquet",
-                        help="how to keep every vehicle at every step: a folder of Parquet files (default), "
-                             "timeseries.csv, or none (warning events, entries and summary only)")  # fmt: skip
-    parser.add_argument("--timeseries-every", type=positive_int, default=1, metavar="N",
-                        help="keep every N-th step in the time series (default 1: every step)")
+    parser.add_argument(
+        "--timeseries",
+        choices=TIMESERIES_FORMATS,
+        default="parquet",
+        help="how to keep every vehicle at every step: a folder of Parquet files (default), "
+        "timeseries.csv, or none (warning events, entries and summary only)",
+    )
+    parser.add_argument(
+        "--timeseries-every",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="keep every N-th step in the time series (default 1: every step)",
+    )
     parser.set_defaults(handler=deferred("csws.cosim.run"))

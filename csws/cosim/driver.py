@@ -116,8 +116,17 @@ class DriverResponse:
     drivers: dict[str, _Driver] = field(default_factory=dict)
     fcw_drivers: dict[str, _FcwDriver] = field(default_factory=dict)
 
-    def commands(self, time_s: float, step_s: float, vehicle_id: str, level: int, target_speed_kmh: float | None,
-                 target_distance_m: float | None, speed_mps: float, odometer_m: float) -> float | None:  # fmt: skip
+    def commands(
+        self,
+        time_s: float,
+        step_s: float,
+        vehicle_id: str,
+        level: int,
+        target_speed_kmh: float | None,
+        target_distance_m: float | None,
+        speed_mps: float,
+        odometer_m: float,
+    ) -> float | None:
         """The speed to command this step (m/s), -1 to hand the vehicle back to SUMO, None to leave it alone.
 
         During the reaction time the vehicle keeps the speed it had when the warning came
@@ -134,7 +143,9 @@ class DriverResponse:
             if time_s - driver.warned_since_s >= self.settings.reaction_s - 1e-9:
                 goal_mps = kmh_to_mps(target_speed_kmh - self.settings.below_kmh)
                 driver.goal_mps = goal_mps if driver.goal_mps is None else min(driver.goal_mps, goal_mps)
-                driver.release_odometer_m = max(driver.release_odometer_m, odometer_m + target_distance_m + self.settings.hold_m)
+                driver.release_odometer_m = max(
+                    driver.release_odometer_m, odometer_m + target_distance_m + self.settings.hold_m
+                )
             elif driver.goal_mps is None:
                 return driver.onset_speed_mps
         else:
@@ -144,8 +155,9 @@ class DriverResponse:
             return -1.0
         return max(driver.goal_mps, speed_mps - self.settings.decel_mps2 * step_s)
 
-    def fcw_command(self, time_s: float, step_s: float, vehicle_id: str, level: int, range_rate_mps: float | None,
-                    speed_mps: float) -> float | None:  # fmt: skip
+    def fcw_command(
+        self, time_s: float, step_s: float, vehicle_id: str, level: int, range_rate_mps: float | None, speed_mps: float
+    ) -> float | None:
         """The answer to a forward collision warning (``csws cosim --systems csws,fcw``): the speed to
         command this step (m/s), -1 to hand the vehicle back to SUMO, None to leave it alone.
 
@@ -163,8 +175,11 @@ class DriverResponse:
         reacted = time_s - driver.warned_since_s >= self.settings.reaction_s - 1e-9
         if reacted and range_rate_mps is not None:
             driver.goal_mps = max(0.0, speed_mps + range_rate_mps - kmh_to_mps(self.settings.below_kmh))
-        if level == 0 and (driver.goal_mps is None or speed_mps <= driver.goal_mps
-                           or (range_rate_mps is not None and range_rate_mps >= 0.0)):  # fmt: skip
+        if level == 0 and (
+            driver.goal_mps is None
+            or speed_mps <= driver.goal_mps
+            or (range_rate_mps is not None and range_rate_mps >= 0.0)
+        ):
             del self.fcw_drivers[vehicle_id]
             return -1.0
         if driver.goal_mps is None:

@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import http.client
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from typing import Protocol
 from urllib.parse import urlsplit
 
 from csws.engine import Engine, TargetColumns
@@ -63,7 +64,7 @@ class FleetWarnings:
     entries: list[tuple[int, str, int, float, int]]
 
     @classmethod
-    def none(cls, count: int) -> "FleetWarnings":
+    def none(cls, count: int) -> FleetWarnings:
         """The answers of ``count`` vehicles that were not evaluated (baseline runs)."""
         return cls([SystemState.OFF] * count, [0] * count, TargetColumns(*([None] * count for _ in range(5))), [])
 
@@ -91,7 +92,12 @@ class LibraryEvaluator:
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
         answers = self.engine.evaluate_fleet(
-            fleet.vehicle_id, fleet.category, _speeds_kmh(fleet), fleet.lane_id, fleet.lane_pos_m, fleet.route_edges,
+            fleet.vehicle_id,
+            fleet.category,
+            _speeds_kmh(fleet),
+            fleet.lane_id,
+            fleet.lane_pos_m,
+            fleet.route_edges,
             timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
         )
         return FleetWarnings(answers.state, answers.level, answers.targets(), answers.entries())
@@ -144,27 +150,37 @@ class ServiceEvaluator:
                 "timestamp_s": fleet.time_s,
             }
             for vehicle_id, category, speed_kmh, lane_id, lane_pos_m, route in (
-                (fleet.vehicle_id[i], fleet.category[i], speeds_kmh[i], fleet.lane_id[i], lane_pos_m[i],
-                 fleet.route_edges[i])
+                (
+                    fleet.vehicle_id[i],
+                    fleet.category[i],
+                    speeds_kmh[i],
+                    fleet.lane_id[i],
+                    lane_pos_m[i],
+                    fleet.route_edges[i],
+                )
                 for i in on_lane
             )
         ]
         answered = []
         for first in range(0, len(queries), MAX_BATCH):
-            answered += self._post({"queries": queries[first:first + MAX_BATCH]})["answers"]
+            answered += self._post({"queries": queries[first : first + MAX_BATCH]})["answers"]
         answers = [_OFF_THE_MAP] * len(fleet.vehicle_id)
-        for i, answer in zip(on_lane, answered):
+        for i, answer in zip(on_lane, answered, strict=True):
             answers[i] = answer
         target = TargetColumns(*([None] * len(answers) for _ in range(5)))
         entries = []
         for i, answer in enumerate(answers):
             if answer["target"] is not None:
-                for column, field in zip(target, TargetColumns._fields):
+                for column, field in zip(target, TargetColumns._fields, strict=True):
                     column[i] = answer["target"][field]
-            entries += [(i, trigger["curve_id"], trigger["part_index"], trigger["radius_m"], trigger["level"])
-                        for trigger in answer["triggers"] if trigger["distance_m"] <= 0.0]  # fmt: skip
-        return FleetWarnings([answer["state"] for answer in answers], [answer["level"] for answer in answers], target,
-                             entries)  # fmt: skip
+            entries += [
+                (i, trigger["curve_id"], trigger["part_index"], trigger["radius_m"], trigger["level"])
+                for trigger in answer["triggers"]
+                if trigger["distance_m"] <= 0.0
+            ]
+        return FleetWarnings(
+            [answer["state"] for answer in answers], [answer["level"] for answer in answers], target, entries
+        )
 
     def _post(self, body: dict) -> dict:
         """One POST; ServiceError on a refusal, the answer's JSON otherwise."""

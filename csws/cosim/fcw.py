@@ -21,16 +21,25 @@ path up to a candidate is its length over the change of heading between the two 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
 from csws.fcw.target import TargetSettings, select_targets
 
-__all__ = ["ForwardTargets", "VehicleSizes", "forward_targets", "FcwColumns", "FleetFcw", "FCW_TIMESERIES_FIELDS",
-           "FCW_EVENT_COLUMNS", "fcw_events"]
+__all__ = [
+    "ForwardTargets",
+    "VehicleSizes",
+    "forward_targets",
+    "FcwColumns",
+    "FleetFcw",
+    "FCW_TIMESERIES_FIELDS",
+    "FCW_EVENT_COLUMNS",
+    "fcw_events",
+]
 
 #: SUMO's brake-light bit of ``vehicle.getSignals`` (the driver brakes, 4.5.4).
 BRAKE_LIGHT = 8
@@ -80,8 +89,9 @@ def _heading_radius_m(distance_m: np.ndarray, subject_deg: np.ndarray, candidate
         return np.where(turn_rad > 1e-9, distance_m / turn_rad, np.inf)
 
 
-def _candidates(sumo: Any, subject: str, range_m: float, sizes: VehicleSizes,
-                sublanes: bool = True) -> list[tuple[str, float, float]]:  # fmt: skip
+def _candidates(
+    sumo: Any, subject: str, range_m: float, sizes: VehicleSizes, sublanes: bool = True
+) -> list[tuple[str, float, float]]:
     """(id, clearance along the path m, lateral offset m) of what the subject's sensor sees ahead.
 
     Without SUMO's sublane model (``sublanes`` False) every vehicle drives on its lane's centre
@@ -102,7 +112,9 @@ def _candidates(sumo: Any, subject: str, range_m: float, sizes: VehicleSizes,
         leader_id, gap_m = leader
         length_m, min_gap_m = sizes[follower]
         ahead_m += gap_m + min_gap_m + (length_m if follower != subject else 0.0)
-        offset_m = vehicle.getLateralLanePosition(leader_id) - vehicle.getLateralLanePosition(subject) if sublanes else 0.0
+        offset_m = (
+            vehicle.getLateralLanePosition(leader_id) - vehicle.getLateralLanePosition(subject) if sublanes else 0.0
+        )
         seen.append((leader_id, ahead_m, offset_m))
         follower = leader_id
     if not sublanes:
@@ -111,13 +123,21 @@ def _candidates(sumo: Any, subject: str, range_m: float, sizes: VehicleSizes,
     for side, neighbours in ((1.0, vehicle.getLeftLeaders(subject)), (-1.0, vehicle.getRightLeaders(subject))):
         for neighbour_id, gap_m in neighbours[:1]:
             beside_m = own_half_m + sumo.lane.getWidth(vehicle.getLaneID(neighbour_id)) / 2.0
-            offset_m = side * beside_m + vehicle.getLateralLanePosition(neighbour_id) - vehicle.getLateralLanePosition(subject)
+            offset_m = (
+                side * beside_m + vehicle.getLateralLanePosition(neighbour_id) - vehicle.getLateralLanePosition(subject)
+            )
             seen.append((neighbour_id, gap_m + sizes[subject][1], offset_m))
     return seen
 
 
-def forward_targets(sumo: Any, subjects: Sequence[str], settings: TargetSettings = TargetSettings(),
-                    noise: Any = None, sublanes: bool = True, sizes: VehicleSizes | None = None) -> ForwardTargets:  # fmt: skip
+def forward_targets(
+    sumo: Any,
+    subjects: Sequence[str],
+    settings: TargetSettings = TargetSettings(),
+    noise: Any = None,
+    sublanes: bool = True,
+    sizes: VehicleSizes | None = None,
+) -> ForwardTargets:
     """The target of each of ``subjects`` (libsumo or traci as ``sumo``), its clearance, relative
     velocity and acceleration.
 
@@ -133,13 +153,18 @@ def forward_targets(sumo: Any, subjects: Sequence[str], settings: TargetSettings
         found = _candidates(sumo, subject, settings.range_m, sizes, sublanes)
         owner += [index] * len(found)
         seen += found
-    ids, distance, offset = zip(*seen) if seen else ((), (), ())
+    ids, distance, offset = zip(*seen, strict=True) if seen else ((), (), ())
     owners = np.array(owner, dtype=np.intp)
     distance_m, offset_m = np.array(distance, dtype=float), np.array(offset, dtype=float)
     radius_m = np.empty(0)
     if ids:
         subject_deg = np.array([vehicle.getAngle(subject) for subject in subjects])[owners]
-        half_lengths_m = np.array([sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids)]) / 2.0
+        half_lengths_m = (
+            np.array(
+                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=True)]
+            )
+            / 2.0
+        )
         candidate_deg = np.array([vehicle.getAngle(candidate) for candidate in ids])
         radius_m = _heading_radius_m(half_lengths_m + distance_m, subject_deg, candidate_deg)
     if noise is not None and ids:
@@ -152,16 +177,21 @@ def forward_targets(sumo: Any, subjects: Sequence[str], settings: TargetSettings
     targets = [target_id[row] for row in rows.tolist()]
     clearance[rows] = distance_m[chosen[rows]]
     relative[rows] = np.array([vehicle.getSpeed(target) for target in targets], dtype=float) - np.array(
-        [vehicle.getSpeed(subjects[row]) for row in rows.tolist()], dtype=float)
+        [vehicle.getSpeed(subjects[row]) for row in rows.tolist()], dtype=float
+    )
     accel[rows] = np.array([vehicle.getAcceleration(target) for target in targets], dtype=float)
     return ForwardTargets(target_id, clearance, relative, accel)
 
 
 #: The time series' FCW columns (``csws cosim --systems ...,fcw``), beside the curve warning's, with their Arrow types.
 FCW_TIMESERIES_FIELDS = (
-    ("fcw_state", "string"), ("fcw_level", "int8"), ("fcw_target_id", "string"), ("fcw_range_m", "float64"),
-    ("fcw_range_rate_mps", "float64"), ("fcw_ttc_s", "float64"),
-)  # fmt: skip
+    ("fcw_state", "string"),
+    ("fcw_level", "int8"),
+    ("fcw_target_id", "string"),
+    ("fcw_range_m", "float64"),
+    ("fcw_range_rate_mps", "float64"),
+    ("fcw_ttc_s", "float64"),
+)
 #: Columns ``warnings.csv`` gains with FCW: the FCW events' target (empty in the curve warning's events).
 FCW_EVENT_COLUMNS = ("fcw_target_id", "fcw_range_m", "fcw_range_rate_mps", "fcw_ttc_s")
 
@@ -215,7 +245,9 @@ class FleetFcw:
         The warning's thresholds and the target selection.
     """
 
-    def __init__(self, sumo: Any, settings: FcwSettings = FcwSettings(), targets: TargetSettings = TargetSettings()) -> None:
+    def __init__(
+        self, sumo: Any, settings: FcwSettings = FcwSettings(), targets: TargetSettings = TargetSettings()
+    ) -> None:
         self.sumo = sumo
         self.settings = settings
         self.targets = targets
@@ -229,7 +261,7 @@ class FleetFcw:
         previous = np.array([self.states.get(vehicle_id, STANDBY) for vehicle_id in vehicle_ids], dtype=np.int8)
         on_lane = np.array([bool(lane_id) for lane_id in lane_ids], dtype=bool)
         states = next_fcw_states(previous, speed_mps, np.ones(count, dtype=bool), on_lane, self.settings)
-        self.states.update(zip(vehicle_ids, states.tolist()))
+        self.states.update(zip(vehicle_ids, states.tolist(), strict=True))
         level: list[int] = [0] * count
         target_id: list[str | None] = [None] * count
         range_m, range_rate_mps, ttc_s = ([None] * count for _ in range(3))
@@ -240,11 +272,13 @@ class FleetFcw:
             seen = np.flatnonzero(np.isfinite(found.clearance_m))
             if seen.size:
                 self._evaluate(subjects, found, seen, active, level, target_id, range_m, range_rate_mps, ttc_s)
-        return FcwColumns([FCW_STATES[code].value for code in states.tolist()], level, target_id, range_m,
-                          range_rate_mps, ttc_s)  # fmt: skip
+        return FcwColumns(
+            [FCW_STATES[code].value for code in states.tolist()], level, target_id, range_m, range_rate_mps, ttc_s
+        )
 
-    def _evaluate(self, subjects: list[str], found: ForwardTargets, seen: np.ndarray, active: np.ndarray,
-                  *columns: list) -> None:  # fmt: skip
+    def _evaluate(
+        self, subjects: list[str], found: ForwardTargets, seen: np.ndarray, active: np.ndarray, *columns: list
+    ) -> None:
         """Evaluate the subjects with a target and write their values into ``columns`` (level, target,
         range, range rate, TTC) at their rows of the fleet."""
         vehicle = self.sumo.vehicle
@@ -254,7 +288,7 @@ class FleetFcw:
         x_c, v_r = found.clearance_m[seen], found.relative_velocity_mps[seen]
         batch = evaluate_fcw(accel_mps2, x_c, v_r, found.target_accel_mps2[seen], braking, self.settings)
         level, target_id, range_m, range_rate_mps, ttc_s = columns
-        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist())):
+        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=True)):
             ttc = float(batch.ttc_s[j])
             level[row], target_id[row] = int(batch.level[j]), found.target_id[k]
             range_m[row], range_rate_mps[row] = float(x_c[j]), float(v_r[j])
@@ -267,7 +301,9 @@ class FleetFcw:
             self.sizes.pop(vehicle_id, None)
 
 
-def fcw_events(fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any, places: tuple[list, ...]) -> list[tuple]:
+def fcw_events(
+    fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any, places: tuple[list, ...]
+) -> list[tuple]:
     """The ``warnings.csv`` rows of the step's FCW level changes (``fcw_onset``, ``fcw_change``,
     ``fcw_end``), counted in ``summary``; ``levels`` holds each vehicle's last FCW level.
 
@@ -276,7 +312,7 @@ def fcw_events(fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any
     """
     speeds_kmh, lane_pos, place = places
     rows = []
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
         previous = levels.get(vehicle_id, 0)
         if level == previous:
             continue
@@ -284,9 +320,29 @@ def fcw_events(fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any
         if level > previous:
             summary.add_fcw_onset(vehicle_id, level)
         event = "fcw_onset" if previous == 0 else "fcw_end" if level == 0 else "fcw_change"
-        rows.append((fleet.time_s, vehicle_id, fleet.category[i], event, level, previous, None, None, None, None, None,
-                     speeds_kmh[i], fleet.lane_id[i], lane_pos[i], *place(i), fcw.target_id[i], fcw.range_m[i],
-                     fcw.range_rate_mps[i], fcw.ttc_s[i]))  # fmt: skip
+        rows.append(
+            (
+                fleet.time_s,
+                vehicle_id,
+                fleet.category[i],
+                event,
+                level,
+                previous,
+                None,
+                None,
+                None,
+                None,
+                None,
+                speeds_kmh[i],
+                fleet.lane_id[i],
+                lane_pos[i],
+                *place(i),
+                fcw.target_id[i],
+                fcw.range_m[i],
+                fcw.range_rate_mps[i],
+                fcw.ttc_s[i],
+            )
+        )
     return rows
 
 
@@ -294,12 +350,15 @@ def respond_to_fcw(driver: Any, fleet: Any, fcw: FcwColumns, step_s: float, comm
     """Add the driver-response model's answers to the FCW warnings to the step's ``commands`` (m/s,
     -1 hands back): where both warnings ask for a speed, the lower one."""
     responding = driver.fcw_drivers
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
         if level == 0 and vehicle_id not in responding:
             continue
-        command = driver.fcw_command(fleet.time_s, step_s, vehicle_id, level, fcw.range_rate_mps[i],
-                                     float(fleet.speed_mps[i]))  # fmt: skip
+        command = driver.fcw_command(
+            fleet.time_s, step_s, vehicle_id, level, fcw.range_rate_mps[i], float(fleet.speed_mps[i])
+        )
         if command is None:
             continue
         curve_command = commands.get(vehicle_id, -1.0)
-        commands[vehicle_id] = command if curve_command < 0 else curve_command if command < 0 else min(command, curve_command)
+        commands[vehicle_id] = (
+            command if curve_command < 0 else curve_command if command < 0 else min(command, curve_command)
+        )

@@ -20,10 +20,10 @@ import json
 import os
 import time
 from collections import Counter, defaultdict
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Iterator, Sequence
 
 from csws.standard import Level, warning_speed
 
@@ -43,17 +43,52 @@ __all__ = [
 #: How a run's time series can be kept (:mod:`csws.cosim.timeseries`).
 TIMESERIES_FORMATS = ("parquet", "csv", "none")
 TIMESERIES_COLUMNS = (
-    "time_s", "vehicle_id", "category", "lane_id", "lane_pos_m", "x_m", "y_m", "speed_kmh", "state", "level",
-    "target_curve_id", "target_part_index", "target_distance_m", "target_warning_speed_kmh", "commanded_speed_kmh",
-)  # fmt: skip
+    "time_s",
+    "vehicle_id",
+    "category",
+    "lane_id",
+    "lane_pos_m",
+    "x_m",
+    "y_m",
+    "speed_kmh",
+    "state",
+    "level",
+    "target_curve_id",
+    "target_part_index",
+    "target_distance_m",
+    "target_warning_speed_kmh",
+    "commanded_speed_kmh",
+)
 EVENT_COLUMNS = (
-    "time_s", "vehicle_id", "category", "event", "level", "previous_level", "curve_id", "part_index", "radius_m",
-    "distance_m", "warning_speed_kmh", "speed_kmh", "lane_id", "lane_pos_m", "x_m", "y_m",
-)  # fmt: skip
+    "time_s",
+    "vehicle_id",
+    "category",
+    "event",
+    "level",
+    "previous_level",
+    "curve_id",
+    "part_index",
+    "radius_m",
+    "distance_m",
+    "warning_speed_kmh",
+    "speed_kmh",
+    "lane_id",
+    "lane_pos_m",
+    "x_m",
+    "y_m",
+)
 ENTRY_COLUMNS = (
-    "time_s", "vehicle_id", "category", "curve_id", "part_index", "radius_m", "speed_kmh",
-    "level1_warning_speed_kmh", "excess_kmh", "level",
-)  # fmt: skip
+    "time_s",
+    "vehicle_id",
+    "category",
+    "curve_id",
+    "part_index",
+    "radius_m",
+    "speed_kmh",
+    "level1_warning_speed_kmh",
+    "excess_kmh",
+    "level",
+)
 
 
 class CsvStream:
@@ -168,8 +203,11 @@ class Summary:
     def as_dict(self) -> dict:
         """The summary as JSON-ready data; ``fcw`` only when the forward collision warning was on."""
         by_level = lambda counter: {f"level{level}": counter.get(level, 0) for level in (1, 2)}  # noqa: E731
-        fcw = {} if self.fcw_onsets is None else {
-            "fcw": {"by_level": by_level(self.fcw_onsets), "vehicles_warned": len(self.fcw_warned_vehicles)}}
+        fcw = (
+            {}
+            if self.fcw_onsets is None
+            else {"fcw": {"by_level": by_level(self.fcw_onsets), "vehicles_warned": len(self.fcw_warned_vehicles)}}
+        )
         return {
             "steps": self.steps,
             "simulated_until_s": self.last_time_s,

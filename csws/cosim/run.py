@@ -14,9 +14,9 @@ import math
 import sys
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
 from xml.etree import ElementTree
 
 from csws.cli.progress import Progress
@@ -36,8 +36,8 @@ from .records import (
     level1_excess_kmh,
     write_summary,
 )
-from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
 from .summary import write_run_summary
+from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
 from .timeseries import TimeseriesWriter, open_timeseries
 
 __all__ = ["SYSTEMS", "CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args", "cosimulate", "main"]
@@ -115,8 +115,10 @@ class CosimConfig:
         if not self.systems or not set(self.systems) <= set(SYSTEMS):
             raise ValueError(f"--systems takes one or both of {', '.join(SYSTEMS)}, got {','.join(self.systems)!r}")
         if "fcw" in self.systems and self.service_url is not None:
-            raise ValueError("the forward collision warning is evaluated in this process only: drop --service, "
-                             "or run --systems csws with it")  # fmt: skip
+            raise ValueError(
+                "the forward collision warning is evaluated in this process only: drop --service, "
+                "or run --systems csws with it"
+            )
 
     @property
     def fcw(self) -> bool:
@@ -183,7 +185,9 @@ def _evaluator(config: CosimConfig) -> Evaluator | None:
     from csws.warning.rules import WarningSettings
 
     road_map = RoadMap.load(config.scenario.net)
-    return LibraryEvaluator(Engine(road_map, EngineSettings(warning=WarningSettings(update_period_s=config.step_length_s))))
+    return LibraryEvaluator(
+        Engine(road_map, EngineSettings(warning=WarningSettings(update_period_s=config.step_length_s)))
+    )
 
 
 @dataclass
@@ -195,7 +199,7 @@ class _Streams:
     entries: CsvStream
 
     @classmethod
-    def open(cls, out: Path, timeseries_format: str, fcw: bool) -> "_Streams":
+    def open(cls, out: Path, timeseries_format: str, fcw: bool) -> _Streams:
         return cls(
             open_timeseries(out, timeseries_format, fcw),
             CsvStream(out / "warnings.csv", EVENT_COLUMNS + (FCW_EVENT_COLUMNS if fcw else ())),
@@ -226,9 +230,17 @@ class _Tracker:
         self.entered.pop(vehicle_id, None)
 
 
-def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | None, commands: dict[str, float],
-                 tracker: _Tracker, summary: Summary, streams: _Streams, sampled: bool,
-                 position: Callable[[str], tuple[float, float]] | None = None) -> None:  # fmt: skip
+def _record_step(
+    fleet: FleetState,
+    warnings: FleetWarnings,
+    fcw: FcwColumns | None,
+    commands: dict[str, float],
+    tracker: _Tracker,
+    summary: Summary,
+    streams: _Streams,
+    sampled: bool,
+    position: Callable[[str], tuple[float, float]] | None = None,
+) -> None:
     """Append one step to the files and the summary.
 
     Every vehicle gets a time-series row when the step is ``sampled``, given column-wise;
@@ -251,17 +263,40 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | N
         for vehicle_id, command in commands.items():
             commanded_kmh[row_of[vehicle_id]] = None if command < 0 else mps_to_kmh(command)
     if sampled:
-        streams.timeseries.append((
-            [t] * count, fleet.vehicle_id, fleet.category, fleet.lane_id, lane_pos, xs, ys, speeds_kmh, warnings.state,
-            warnings.level, target.curve_id, target.part_index, target.distance_m, target.warning_speed_kmh,
-            commanded_kmh, *(fcw.columns() if fcw else ()),
-        ))  # fmt: skip
+        streams.timeseries.append(
+            (
+                [t] * count,
+                fleet.vehicle_id,
+                fleet.category,
+                fleet.lane_id,
+                lane_pos,
+                xs,
+                ys,
+                speeds_kmh,
+                warnings.state,
+                warnings.level,
+                target.curve_id,
+                target.part_index,
+                target.distance_m,
+                target.warning_speed_kmh,
+                commanded_kmh,
+                *(fcw.columns() if fcw else ()),
+            )
+        )
     levels, pad = tracker.levels, (None,) * len(FCW_EVENT_COLUMNS) if fcw else ()
-    changed = [i for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level))
-               if level != levels.get(vehicle_id, 0)]  # fmt: skip
+    changed = [
+        i
+        for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=True))
+        if level != levels.get(vehicle_id, 0)
+    ]
     events = []
     for i in changed:
-        vehicle_id, category, level, curve_id = fleet.vehicle_id[i], fleet.category[i], warnings.level[i], target.curve_id[i]
+        vehicle_id, category, level, curve_id = (
+            fleet.vehicle_id[i],
+            fleet.category[i],
+            warnings.level[i],
+            target.curve_id[i],
+        )
         previous = levels.get(vehicle_id, 0)
         event = event_of(previous, level)
         levels[vehicle_id] = level
@@ -274,9 +309,26 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | N
         if level > previous:
             summary.add_onset(category, level, curve_id)
             summary.warned_vehicles.add(vehicle_id)
-        events.append((t, vehicle_id, category, event, level, previous, curve_id, target.part_index[i],
-                       target.radius_m[i], target.distance_m[i], target.warning_speed_kmh[i], speeds_kmh[i],
-                       fleet.lane_id[i], lane_pos[i], *place(i), *pad))  # fmt: skip
+        events.append(
+            (
+                t,
+                vehicle_id,
+                category,
+                event,
+                level,
+                previous,
+                curve_id,
+                target.part_index[i],
+                target.radius_m[i],
+                target.distance_m[i],
+                target.warning_speed_kmh[i],
+                speeds_kmh[i],
+                fleet.lane_id[i],
+                lane_pos[i],
+                *place(i),
+                *pad,
+            )
+        )
     entries = []
     for i, curve_id, part_index, radius_m, level in warnings.entries:
         vehicle_id, category = fleet.vehicle_id[i], fleet.category[i]
@@ -286,8 +338,9 @@ def _record_step(fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | N
         entered.add((curve_id, part_index))
         level1_kmh, excess_kmh = level1_excess_kmh(speeds_kmh[i], category, radius_m)
         summary.add_entry(category, excess_kmh)
-        entries.append((t, vehicle_id, category, curve_id, part_index, radius_m, speeds_kmh[i], level1_kmh, excess_kmh,
-                        level))  # fmt: skip
+        entries.append(
+            (t, vehicle_id, category, curve_id, part_index, radius_m, speeds_kmh[i], level1_kmh, excess_kmh, level)
+        )
     if fcw:
         events += fcw_events(fleet, fcw, tracker.fcw_levels, summary, (speeds_kmh, lane_pos, place))
     streams.warnings.append(events)
@@ -298,13 +351,19 @@ def _drive(driver: DriverResponse, fleet: FleetState, warnings: FleetWarnings, s
     """The driver-response model's speed commands of this step, per vehicle (m/s; -1 hands back)."""
     commands = {}
     target = warnings.target
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=True)):
         if level == 0 and vehicle_id not in driver.drivers:
             continue
         command = driver.commands(
-            fleet.time_s, step_s, vehicle_id, level, target.warning_speed_kmh[i], target.distance_m[i],
-            float(fleet.speed_mps[i]), float(fleet.odometer_m[i]),
-        )  # fmt: skip
+            fleet.time_s,
+            step_s,
+            vehicle_id,
+            level,
+            target.warning_speed_kmh[i],
+            target.distance_m[i],
+            float(fleet.speed_mps[i]),
+            float(fleet.odometer_m[i]),
+        )
         if command is not None:
             commands[vehicle_id] = command
     return commands
@@ -323,8 +382,14 @@ def cosimulate(config: CosimConfig) -> dict:
     config.out.mkdir(parents=True, exist_ok=True)
     evaluator = _evaluator(config)
     scenario = config.scenario
-    sumo_args = sumo_arguments(scenario.config, scenario.net if scenario.config is None else None, scenario.routes,
-                               config.step_length_s, config.seed, config.end_s)  # fmt: skip
+    sumo_args = sumo_arguments(
+        scenario.config,
+        scenario.net if scenario.config is None else None,
+        scenario.routes,
+        config.step_length_s,
+        config.seed,
+        config.end_s,
+    )
     summary, tracker = Summary(fcw_onsets=Counter() if config.fcw else None), _Tracker()
     driver = DriverResponse(config.driver) if config.driver is not None else None
     streams = _Streams.open(config.out, config.timeseries, config.fcw)
@@ -365,8 +430,17 @@ def cosimulate(config: CosimConfig) -> dict:
             for vehicle_id, speed_mps in commands.items():
                 simulation.set_speed(vehicle_id, speed_mps)
             with costs.timed("recording"):
-                _record_step(fleet, warnings, fcw, commands, tracker, summary, streams, sampled,
-                             None if positions or simulation.reads_positions else simulation.position)
+                _record_step(
+                    fleet,
+                    warnings,
+                    fcw,
+                    commands,
+                    tracker,
+                    summary,
+                    streams,
+                    sampled,
+                    None if positions or simulation.reads_positions else simulation.position,
+                )
             summary.vehicles.update(fleet.vehicle_id)
             summary.steps += 1
             summary.last_time_s = fleet.time_s
@@ -422,6 +496,7 @@ def _summary_content(config: CosimConfig, summary: Summary, status: str, wall_s:
 
 def _comparison(without: dict, with_response: dict) -> dict:
     """How the fleet did with the driver-response model against without it."""
+
     def figures(summary: dict) -> dict:
         entries = summary["curve_entries_above_level1_warning_speed"]
         return {
@@ -446,8 +521,12 @@ def _print_summary(summary: dict, out: Path) -> None:
         f"({summary['warnings']['flickered']} flickered: off and on again for the same curve within "
         f"{summary['warnings']['flicker_window_s']:g} s), {entries['total']} curve entries above the level-1 warning speed "
         f"({entries['more_than_1_kmh_above']} by more than 1 km/h)"
-        + ("" if "fcw" not in summary else f"; forward collision: {summary['fcw']['by_level']['level1']} preliminary and "
-           f"{summary['fcw']['by_level']['level2']} collision warnings")
+        + (
+            ""
+            if "fcw" not in summary
+            else f"; forward collision: {summary['fcw']['by_level']['level1']} preliminary and "
+            f"{summary['fcw']['by_level']['level2']} collision warnings"
+        )
         + f"; output in {out}"
     )
 
@@ -457,14 +536,26 @@ def main(args: argparse.Namespace) -> int:
     scenario = scenario_from_args(args)
     interface = "gui" if args.gui else "traci" if args.traci else "libsumo"
     base = CosimConfig(
-        scenario=scenario, out=args.out, step_length_s=args.step_length, end_s=args.end, interface=interface,
-        service_url=args.service, seed=args.seed, progress=True, timeseries=args.timeseries,
-        timeseries_every=args.timeseries_every, systems=tuple(args.systems),
-    )  # fmt: skip
-    runs = [base] if not args.driver_response else [
-        replace(base, out=args.out / "without_response"),
-        replace(base, out=args.out / "with_response", driver=DriverSettings()),
-    ]  # fmt: skip
+        scenario=scenario,
+        out=args.out,
+        step_length_s=args.step_length,
+        end_s=args.end,
+        interface=interface,
+        service_url=args.service,
+        seed=args.seed,
+        progress=True,
+        timeseries=args.timeseries,
+        timeseries_every=args.timeseries_every,
+        systems=tuple(args.systems),
+    )
+    runs = (
+        [base]
+        if not args.driver_response
+        else [
+            replace(base, out=args.out / "without_response"),
+            replace(base, out=args.out / "with_response", driver=DriverSettings()),
+        ]
+    )
     summaries = []
     try:
         for config in runs:
@@ -478,9 +569,13 @@ def main(args: argparse.Namespace) -> int:
         return 1
     if args.driver_response:
         comparison = _comparison(*summaries)
-        write_summary(args.out / "summary.json", {"format": "csws-cosim-comparison/1", "comparison": comparison,
-                                                  "runs": summaries})  # fmt: skip
+        write_summary(
+            args.out / "summary.json",
+            {"format": "csws-cosim-comparison/1", "comparison": comparison, "runs": summaries},
+        )
         print(f"comparison in {args.out / 'summary.json'}")
-    write_run_summary({"with driver response" if c.driver else "without driver response": c.out for c in runs}, args.out)
+    write_run_summary(
+        {"with driver response" if c.driver else "without driver response": c.out for c in runs}, args.out
+    )
     print(f"summary plot in {args.out / 'summary.png'}, figures in {args.out / 'summary.md'}")
     return 0

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 import pyarrow as pa
@@ -74,9 +74,10 @@ def _timeseries(folder: Path) -> pa.Table | None:
     if (folder / "timeseries").is_dir():
         return pq.read_table(folder / "timeseries", columns=_COLUMNS)
     if (folder / "timeseries.csv").is_file():
-        options = pa_csv.ConvertOptions(include_columns=_COLUMNS,
-                                        column_types={"vehicle_id": pa.string(), "target_distance_m": pa.float64()})
-        return pa_csv.read_csv(folder / "timeseries.csv", convert_options=options)  # fmt: skip
+        options = pa_csv.ConvertOptions(
+            include_columns=_COLUMNS, column_types={"vehicle_id": pa.string(), "target_distance_m": pa.float64()}
+        )
+        return pa_csv.read_csv(folder / "timeseries.csv", convert_options=options)
     return None
 
 
@@ -88,8 +89,9 @@ def _vehicle_km(vehicle: np.ndarray, time_s: np.ndarray, speed_kmh: np.ndarray) 
     return float(np.sum(np.where(same, 0.5 * (speed_kmh[1:] + speed_kmh[:-1]) * step_h, 0.0)))
 
 
-def _warned_tracks(vehicle: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray,
-                   speed_kmh: np.ndarray) -> list[np.ndarray]:  # fmt: skip
+def _warned_tracks(
+    vehicle: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, speed_kmh: np.ndarray
+) -> list[np.ndarray]:
     """Distance to target and speed along each warning of the first :data:`MAX_DRAWN_VEHICLES` vehicles
     warned, in the order of their first warning (rows sorted by vehicle, then time): a warning's track
     ends where the vehicle's warning does or its distance to the target grows (a new target)."""
@@ -137,26 +139,38 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
     from matplotlib.collections import LineCollection
 
     figure, (speeds, excess, rates) = pyplot.subplots(1, 3, figsize=(16, 4.8))
-    for (label, run), colour in zip(runs.items(), _RUN_COLOURS):
+    for (label, run), colour in zip(runs.items(), _RUN_COLOURS, strict=True):
         if run.warned_tracks:
-            speeds.add_collection(LineCollection(run.warned_tracks, colors=colour, linewidths=0.6, alpha=0.35,
-                                                 label=label))  # fmt: skip
+            speeds.add_collection(
+                LineCollection(run.warned_tracks, colors=colour, linewidths=0.6, alpha=0.35, label=label)
+            )
     speeds.autoscale()
     speeds.invert_xaxis()
-    speeds.set(xlabel="distance to the target curve point, m", ylabel="speed, km/h",
-               title="warned vehicles: speed approaching the curve")  # fmt: skip
+    speeds.set(
+        xlabel="distance to the target curve point, m",
+        ylabel="speed, km/h",
+        title="warned vehicles: speed approaching the curve",
+    )
     if not any(run.warned_tracks for run in runs.values()):
         speeds.text(0.5, 0.5, "no time series kept, or nobody warned", ha="center", transform=speeds.transAxes)
     all_excess = np.concatenate([run.entry_excess_kmh for run in runs.values()] + [np.zeros(1)])
     bins = np.linspace(min(0.0, float(all_excess.min())), max(1.0, float(all_excess.max())), 40)
-    for (label, run), colour in zip(runs.items(), _RUN_COLOURS):
-        excess.hist(run.entry_excess_kmh, bins=bins, color=colour, alpha=0.55,
-                    label=f"{label}: {run.entry_excess_kmh.size} entries")  # fmt: skip
+    for (label, run), colour in zip(runs.items(), _RUN_COLOURS, strict=True):
+        excess.hist(
+            run.entry_excess_kmh,
+            bins=bins,
+            color=colour,
+            alpha=0.55,
+            label=f"{label}: {run.entry_excess_kmh.size} entries",
+        )
     excess.axvline(0.0, color="black", linewidth=0.8)
-    excess.set(xlabel="speed above the level-1 warning speed at curve entry, km/h", ylabel="curve-part entries",
-               title="excess speed at curve entry")  # fmt: skip
+    excess.set(
+        xlabel="speed above the level-1 warning speed at curve entry, km/h",
+        ylabel="curve-part entries",
+        title="excess speed at curve entry",
+    )
     width = 0.8 / len(runs)
-    for offset, ((label, run), colour) in enumerate(zip(runs.items(), _RUN_COLOURS)):
+    for offset, ((label, run), colour) in enumerate(zip(runs.items(), _RUN_COLOURS, strict=True)):
         values = [run.per_100_vehicle_km(level) or 0.0 for level in (1, 2)]
         rates.bar(np.arange(2) + offset * width, values, width, color=colour, label=label)
     rates.set_xticks(np.arange(2) + width * (len(runs) - 1) / 2, ["level 1", "level 2"])
@@ -172,23 +186,33 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
 
 def _markdown(runs: Mapping[str, RunFigures]) -> str:
     """The figures of each run as a table, and the plot."""
+
     def number(value: float | None, digits: int = 1) -> str:
         return "n/a (no time series)" if value is None else f"{value:.{digits}f}"
 
-    lines = ["# Co-simulation summary", "", "![summary](summary.png)", "",
-             "| run | " + " | ".join(runs) + " |", "|---|" + "---|" * len(runs)]  # fmt: skip
+    lines = [
+        "# Co-simulation summary",
+        "",
+        "![summary](summary.png)",
+        "",
+        "| run | " + " | ".join(runs) + " |",
+        "|---|" + "---|" * len(runs),
+    ]
     rows = {
         "vehicle-km": [number(run.vehicle_km) for run in runs.values()],
         "level-1 warnings": [str(run.warnings_by_level[1]) for run in runs.values()],
         "level-2 warnings": [str(run.warnings_by_level[2]) for run in runs.values()],
         "level-1 warnings per 100 vehicle-km": [number(run.per_100_vehicle_km(1), 2) for run in runs.values()],
         "level-2 warnings per 100 vehicle-km": [number(run.per_100_vehicle_km(2), 2) for run in runs.values()],
-        "curve-part entries at or above the level-1 warning speed": [str(run.entry_excess_kmh.size)
-                                                                     for run in runs.values()],
+        "curve-part entries at or above the level-1 warning speed": [
+            str(run.entry_excess_kmh.size) for run in runs.values()
+        ],
         "of them more than 1 km/h above": [str(int((run.entry_excess_kmh > 1.0).sum())) for run in runs.values()],
-        "median excess at entry, km/h": [number(float(np.median(run.entry_excess_kmh)) if run.entry_excess_kmh.size
-                                                else 0.0) for run in runs.values()],
-    }  # fmt: skip
+        "median excess at entry, km/h": [
+            number(float(np.median(run.entry_excess_kmh)) if run.entry_excess_kmh.size else 0.0)
+            for run in runs.values()
+        ],
+    }
     lines += [f"| {name} | " + " | ".join(values) + " |" for name, values in rows.items()]
     return "\n".join(lines) + "\n"
 

@@ -19,15 +19,15 @@ a type's category once per type.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
-from csws.sumo.binaries import sumo_binary, sumo_home
 from csws.standard import Category
+from csws.sumo.binaries import sumo_binary, sumo_home
 
 from .categories import CATEGORY_PARAMETER, category_of
 
@@ -126,7 +126,9 @@ class Simulation:
     def _error_types(self) -> tuple[type[BaseException], ...]:
         """The exceptions the interface raises when SUMO fails or goes away."""
         errors: list[type[BaseException]] = [self.api.TraCIException]
-        fatal = getattr(self.api, "FatalTraCIError", None) or getattr(getattr(self.api, "exceptions", None), "FatalTraCIError", None)
+        fatal = getattr(self.api, "FatalTraCIError", None) or getattr(
+            getattr(self.api, "exceptions", None), "FatalTraCIError", None
+        )
         if fatal is not None:
             errors.append(fatal)
         return (*errors, ConnectionError, EOFError)
@@ -194,8 +196,13 @@ class Simulation:
         vehicle = self.api.vehicle
         evaluated = self._evaluated
         ids = [vehicle_id for vehicle_id in self._call(vehicle.getIDList) if vehicle_id in evaluated]
-        getters = [vehicle.getLaneID, vehicle.getLanePosition, vehicle.getSpeed,
-                   vehicle.getPosition if positions else None, vehicle.getRouteID]  # fmt: skip
+        getters = [
+            vehicle.getLaneID,
+            vehicle.getLanePosition,
+            vehicle.getSpeed,
+            vehicle.getPosition if positions else None,
+            vehicle.getRouteID,
+        ]
         values = [self._call(lambda getter=getter: list(map(getter, ids))) if getter else () for getter in getters]
         odometer = self._call(lambda: list(map(vehicle.getDistance, ids))) if self._odometer else ()
         return ids, (*values, odometer)
@@ -210,7 +217,7 @@ class Simulation:
         ids = list(results)
         if not ids:
             return ids, ((),) * len(_SUBSCRIBED)
-        return ids, tuple(zip(*map(_subscribed_values, results.values())))
+        return ids, tuple(zip(*map(_subscribed_values, results.values()), strict=True))
 
     def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
         """Command a vehicle's speed (m/s); a negative speed hands it back to SUMO's driver."""
@@ -240,7 +247,7 @@ class Simulation:
     def _route_edges(self, vehicle_ids: Sequence[str], route_ids: Sequence[str]) -> list[tuple[str, ...]]:
         """Each vehicle's route edges; a route's edges are fetched once per route id."""
         routes = self._routes
-        for vehicle_id, route_id in zip(vehicle_ids, route_ids):
+        for vehicle_id, route_id in zip(vehicle_ids, route_ids, strict=True):
             if route_id not in routes:
                 routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
         return [routes[route_id] for route_id in route_ids]
@@ -261,16 +268,25 @@ def _one_line(exc: BaseException) -> str:
     return text or type(exc).__name__
 
 
-def sumo_arguments(config: Path | None, net: Path | None, routes: Sequence[Path], step_length_s: float,
-                   seed: int, end_s: float | None) -> list[str]:  # fmt: skip
+def sumo_arguments(
+    config: Path | None, net: Path | None, routes: Sequence[Path], step_length_s: float, seed: int, end_s: float | None
+) -> list[str]:
     """SUMO's arguments for a configuration or a network with route files."""
     arguments = ["-c", str(config)] if config is not None else ["-n", str(net)]
     if routes:
         arguments += ["-r", ",".join(str(r) for r in routes)]
     arguments += [
-        "--step-length", f"{step_length_s:g}", "--seed", str(seed),
-        "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
-    ]  # fmt: skip
+        "--step-length",
+        f"{step_length_s:g}",
+        "--seed",
+        str(seed),
+        "--no-step-log",
+        "true",
+        "--no-warnings",
+        "true",
+        "--duration-log.disable",
+        "true",
+    ]
     if end_s is not None and math.isfinite(end_s):
         arguments += ["--end", f"{end_s:g}"]
     return arguments

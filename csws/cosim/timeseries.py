@@ -23,8 +23,9 @@ holds the numbers as numbers (a few times smaller than the CSV text).
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Protocol, Sequence
+from typing import Protocol
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -32,16 +33,35 @@ import pyarrow.parquet as pq
 from .fcw import FCW_TIMESERIES_FIELDS
 from .records import TIMESERIES_COLUMNS, TIMESERIES_FORMATS, CsvStream
 
-__all__ = ["TIMESERIES_FORMATS", "TIMESERIES_SCHEMA", "PART_ROWS", "TimeseriesWriter", "timeseries_schema", "open_timeseries"]
+__all__ = [
+    "TIMESERIES_FORMATS",
+    "TIMESERIES_SCHEMA",
+    "PART_ROWS",
+    "TimeseriesWriter",
+    "timeseries_schema",
+    "open_timeseries",
+]
 
 #: The Parquet columns: the CSV's, typed. A vehicle without a warning has no target (null).
-TIMESERIES_SCHEMA = pa.schema([
-    ("time_s", pa.float64()), ("vehicle_id", pa.string()), ("category", pa.string()), ("lane_id", pa.string()),
-    ("lane_pos_m", pa.float64()), ("x_m", pa.float64()), ("y_m", pa.float64()), ("speed_kmh", pa.float64()),
-    ("state", pa.string()), ("level", pa.int8()), ("target_curve_id", pa.string()), ("target_part_index", pa.int32()),
-    ("target_distance_m", pa.float64()), ("target_warning_speed_kmh", pa.float64()),
-    ("commanded_speed_kmh", pa.float64()),
-])  # fmt: skip
+TIMESERIES_SCHEMA = pa.schema(
+    [
+        ("time_s", pa.float64()),
+        ("vehicle_id", pa.string()),
+        ("category", pa.string()),
+        ("lane_id", pa.string()),
+        ("lane_pos_m", pa.float64()),
+        ("x_m", pa.float64()),
+        ("y_m", pa.float64()),
+        ("speed_kmh", pa.float64()),
+        ("state", pa.string()),
+        ("level", pa.int8()),
+        ("target_curve_id", pa.string()),
+        ("target_part_index", pa.int32()),
+        ("target_distance_m", pa.float64()),
+        ("target_warning_speed_kmh", pa.float64()),
+        ("commanded_speed_kmh", pa.float64()),
+    ]
+)
 
 #: Rows of one Parquet part: about 70 s of a 1,000-vehicle fleet at 0.1 s steps, some 20 MB
 #: of memory while gathered.
@@ -80,7 +100,7 @@ class _ParquetParts:
         self._parts = 0
 
     def append(self, columns: Sequence[Sequence]) -> None:
-        for gathered, values in zip(self._columns, columns):
+        for gathered, values in zip(self._columns, columns, strict=True):
             gathered.extend(values)
         self._rows += len(columns[0])
         if self._rows >= PART_ROWS:
@@ -91,8 +111,10 @@ class _ParquetParts:
             self._write_part()  # an empty run still leaves one (empty) part with the schema
 
     def _write_part(self) -> None:
-        table = pa.table([pa.array(values, type=field.type) for values, field in zip(self._columns, self.schema)],
-                         schema=self.schema)  # fmt: skip
+        table = pa.table(
+            [pa.array(values, type=field.type) for values, field in zip(self._columns, self.schema, strict=True)],
+            schema=self.schema,
+        )
         path = self.folder / f"part-{self._parts:05d}.parquet"
         partial = path.with_suffix(".parquet.partial")
         pq.write_table(table, partial)
@@ -109,7 +131,7 @@ class _CsvTimeseries:
         self._stream = CsvStream(path, columns)
 
     def append(self, columns: Sequence[Sequence]) -> None:
-        self._stream.append(zip(*columns))
+        self._stream.append(zip(*columns, strict=True))
 
     def close(self) -> None:
         self._stream.close()
@@ -135,4 +157,6 @@ def open_timeseries(out: Path, timeseries_format: str, fcw: bool = False) -> Tim
         return _CsvTimeseries(out / "timeseries.csv", schema.names)
     if timeseries_format == "none":
         return _NoTimeseries()
-    raise ValueError(f"unknown time-series format {timeseries_format!r}; expected one of {', '.join(TIMESERIES_FORMATS)}")
+    raise ValueError(
+        f"unknown time-series format {timeseries_format!r}; expected one of {', '.join(TIMESERIES_FORMATS)}"
+    )

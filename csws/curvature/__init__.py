@@ -41,7 +41,6 @@ last word, so the road it finds is finally fitted to the nodes themselves, in th
 exact nodes, with straights tried at its ends where the heading fit ran a curve into one.
 """
 
-
 from .cache import cached_radius_profiles, profile_cache_dir
 from .curves import curves_from_profile
 from .fitting import find_curves, radius_profile, radius_profiles, three_point_radius

@@ -46,7 +46,14 @@ import math
 
 import numpy as np
 
-__all__ = ["FLOOR_RADIUS_M", "CORNER_MIN_DEG", "ANGLE_TOLERANCE_DEG", "CORNER_DEVIATION_M", "with_corner_rules", "with_floor"]
+__all__ = [
+    "FLOOR_RADIUS_M",
+    "CORNER_MIN_DEG",
+    "ANGLE_TOLERANCE_DEG",
+    "CORNER_DEVIATION_M",
+    "with_corner_rules",
+    "with_floor",
+]
 
 #: The smallest radius a road curve is given, m: the tightest turning circle of a car is
 #: about 5 m (trucks and buses need 10-12 m).
@@ -82,7 +89,12 @@ def _corner_radius_m(turn_rad: np.ndarray, before_m: np.ndarray, after_m: np.nda
 
 
 def _turning_within(
-    vertex_s: np.ndarray, turn_rad: np.ndarray, segment_m: np.ndarray, noise_m: float, start_s: float, end_s: float,
+    vertex_s: np.ndarray,
+    turn_rad: np.ndarray,
+    segment_m: np.ndarray,
+    noise_m: float,
+    start_s: float,
+    end_s: float,
     side: float,
 ) -> tuple[float, float]:
     """How much the polyline turns to one ``side`` (+1 left, -1 right) at its vertices within
@@ -207,7 +219,9 @@ def _turning_runs(turn_rad: np.ndarray, covered: np.ndarray) -> list[tuple[int, 
     return runs
 
 
-def _covered(inner_s: np.ndarray, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, turn_rad: np.ndarray) -> np.ndarray:
+def _covered(
+    inner_s: np.ndarray, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, turn_rad: np.ndarray
+) -> np.ndarray:
     """Whether each inner vertex's turning belongs to a curve of the profile: the vertex turns
     the curve's way and lies within the stretch whose turning rule 2 gave the curve (on
     it, or the nearest vertex beyond either end)."""

@@ -18,11 +18,12 @@ by at most what 1 km/h of V_w makes (about 2 v_w / g per m/s: 1.4 m at 90 km/h).
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, Column
+
 from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile
 
 __all__ = ["SPIRAL_PIECE_KMH", "curves_from_profile"]
@@ -59,7 +60,9 @@ def _spiral_samples(part: ProfilePart, start_s: float, end_s: float) -> np.ndarr
     follows (V_w = sqrt(a R) for a lateral acceleration a)."""
     k_start, k_end = np.abs(part.curvature_at(np.array([start_s, end_s])))
     speeds = _warning_speeds_kmh(1.0 / np.array([k_start, k_end]))
-    count = int(min(MAX_SPIRAL_SAMPLES, max(2, math.ceil(np.max(np.abs(speeds[:, 1] - speeds[:, 0])) / SPIRAL_SAMPLE_KMH) + 1)))
+    count = int(
+        min(MAX_SPIRAL_SAMPLES, max(2, math.ceil(np.max(np.abs(speeds[:, 1] - speeds[:, 0])) / SPIRAL_SAMPLE_KMH) + 1))
+    )
     magnitude = np.linspace(k_start**-0.5, k_end**-0.5, count) ** -2.0
     fraction = (magnitude - k_start) / (k_end - k_start) if k_end != k_start else np.linspace(0.0, 1.0, count)
     return start_s + np.clip(fraction, 0.0, 1.0) * (end_s - start_s)
@@ -79,7 +82,10 @@ def _spiral_pieces(part: ProfilePart, start_s: float, end_s: float) -> list[Cons
             break
         starts.append(starts[-1] + max(1, int(np.argmax(moved)) - 1))
     ends = starts[1:] + [len(s) - 1]
-    return [ConstantRadiusPart(float(s[a]), float(s[b]), float(radius[a]), spiral=True) for a, b in zip(starts, ends)]
+    return [
+        ConstantRadiusPart(float(s[a]), float(s[b]), float(radius[a]), spiral=True)
+        for a, b in zip(starts, ends, strict=True)
+    ]
 
 
 def _pieces(part: ProfilePart, span: tuple[float, float]) -> list[ConstantRadiusPart]:
@@ -133,7 +139,9 @@ def curves_from_profile(profile: RadiusProfile, warning_radius_m: float = DEFAUL
     run: list[tuple[ProfilePart, tuple[float, float]]] = []
     run_sign = 0.0
     for part in profile.parts:
-        spans = [(span, sign) for sign in (1.0, -1.0) if (span := _curved_span(part, limit, sign)) and span[1] > span[0]]
+        spans = [
+            (span, sign) for sign in (1.0, -1.0) if (span := _curved_span(part, limit, sign)) and span[1] > span[0]
+        ]
         for span, sign in sorted(spans):
             joined = run and sign == run_sign and span[0] <= run[-1][1][1]
             if run and not joined:

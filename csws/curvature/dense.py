@@ -164,7 +164,7 @@ class _Segmentation:
         rank = np.arange(len(part)) - np.repeat(np.cumsum(candidate_counts) - candidate_counts, candidate_counts)
         split = first[part] + MIN_PART_CHORDS + rank
         whole = _residual(prefix, first, stop)[part]
-        gain = (whole - _residual(prefix, first[part], split) - _residual(prefix, split, stop[part]))
+        gain = whole - _residual(prefix, first[part], split) - _residual(prefix, split, stop[part])
         gain /= self.noise_variance[split]
         order = np.lexsort((-gain, part))
         best = order[np.searchsorted(part[order], np.unique(part))]
@@ -264,7 +264,7 @@ class _Segmentation:
         )
         step = step[room]
         self.starts = np.concatenate((np.delete(self.starts, step), self.starts[step] - 1, self.starts[step] + 1))
-        self.knot_s = np.concatenate((np.delete(self.knot_s, step), self.start_s[self.starts[-2 * len(step):]]))
+        self.knot_s = np.concatenate((np.delete(self.knot_s, step), self.start_s[self.starts[-2 * len(step) :]]))
         order = np.argsort(self.starts, kind="stable")
         self.starts, self.knot_s = self.starts[order], self.knot_s[order]
 
@@ -376,7 +376,9 @@ class _Segmentation:
         offset = self._polyline_offset_s()
         from_g = from_start + offset[self.chords.polyline]
         knot_g = knot_s + offset[polyline]
-        chord = np.clip(np.searchsorted(from_g, knot_g, side="right") - 1, self.chords.polyline_first_chord[polyline], None)
+        chord = np.clip(
+            np.searchsorted(from_g, knot_g, side="right") - 1, self.chords.polyline_first_chord[polyline], None
+        )
         fraction = np.clip((knot_g - from_g[chord]) / from_length[chord], 0.0, 1.0)
         return to_start[chord] + fraction * to_length[chord]
 

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from csws.standard import DEFAULT_WARNING_RADIUS_M
+
 from .chords import _chords, _coordinate_noise_m, _validated
 from .corners import with_corner_rules, with_floor
 from .curves import curves_from_profile

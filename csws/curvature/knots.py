@@ -45,9 +45,11 @@ class _SparseBatch:
     end: np.ndarray
     count: np.ndarray
 
-    def rows(self, index: np.ndarray | slice) -> "_SparseBatch":
+    def rows(self, index: np.ndarray | slice) -> _SparseBatch:
         """The batch of the polylines ``index``."""
-        return _SparseBatch(*(getattr(self, field)[index] for field in ("a", "b", "heading", "root_weight", "end", "count")))
+        return _SparseBatch(
+            *(getattr(self, field)[index] for field in ("a", "b", "heading", "root_weight", "end", "count"))
+        )
 
     def coarse_candidates(self) -> np.ndarray:
         """Each polyline's vertices and chord middles in order, ``(polylines, 2 chords)``."""
@@ -106,8 +108,6 @@ def _fitted_rows(design: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return np.swapaxes(design @ _least_squares(design, np.swapaxes(rows, 1, 2)), 1, 2)
 
 
-
-
 def _fits(batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray | bool) -> tuple[np.ndarray, np.ndarray]:
     """Weighted residual sum of squares ``(polylines, trials)`` and curvature of each part
     ``(polylines, trials, parts)`` (0 where not ``free``) of the continuous fit for every
@@ -116,7 +116,11 @@ def _fits(batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray | bool) -> t
     rows_per_chunk = max(1, MAX_FIT_ELEMENTS // max(1, bounds.shape[1] * batch.a.shape[1] * bounds.shape[2]))
     if len(bounds) > rows_per_chunk:
         chunks = [
-            _fits(batch.rows(slice(first, first + rows_per_chunk)), bounds[first : first + rows_per_chunk], free[first : first + rows_per_chunk])
+            _fits(
+                batch.rows(slice(first, first + rows_per_chunk)),
+                bounds[first : first + rows_per_chunk],
+                free[first : first + rows_per_chunk],
+            )
             for first in range(0, len(bounds), rows_per_chunk)
         ]
         return np.concatenate([c[0] for c in chunks]), np.concatenate([c[1] for c in chunks])
@@ -127,7 +131,9 @@ def _fits(batch: _SparseBatch, bounds: np.ndarray, free: np.ndarray | bool) -> t
     return np.einsum("ptn,ptn->pt", residual, residual), coefficients[..., 1:, 0] / scale * free
 
 
-def _projected_hinges(batch: _SparseBatch, bounds: np.ndarray, candidates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _projected_hinges(
+    batch: _SparseBatch, bounds: np.ndarray, candidates: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The residual of the continuous fit with knots ``bounds[:, 1:-1]`` (all parts free),
     ``(polylines, chords)``, and the hinge column of a knot at each candidate with that
     fit's columns projected out, ``(polylines, chords, candidates)``.
@@ -172,7 +178,9 @@ def _fine_positions(low: np.ndarray, high: np.ndarray) -> np.ndarray:
     return low[:, None] + (high - low)[:, None] * fraction
 
 
-def _best_knots(batch: _SparseBatch, bounds: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _best_knots(
+    batch: _SparseBatch, bounds: np.ndarray, low: np.ndarray, high: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Per polyline, the knot strictly between ``low`` and ``high`` that reduces the
     residual most, and that reduction: searched at the vertices and chord middles, then
     finely around the best (``low`` and 0 where there is no candidate)."""
@@ -241,7 +249,9 @@ def _without_knot(bounds: np.ndarray, knot: np.ndarray) -> np.ndarray:
     return np.sort(bounds, axis=1)
 
 
-def _refined_knots(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, near: np.ndarray | None = None) -> np.ndarray:
+def _refined_knots(
+    batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, near: np.ndarray | None = None
+) -> np.ndarray:
     """Each knot in turn moved to where it fits best between its neighbours (only the
     knots marked ``near``, ``(polylines, columns)``, if given)."""
     bounds = bounds.copy()
@@ -270,7 +280,9 @@ def _knot_fit(batch: _SparseBatch, limit: np.ndarray) -> tuple[np.ndarray, np.nd
     knots = np.zeros(len(bounds), dtype=np.int64)
     adding = np.ones(len(bounds), dtype=bool)
     while (active := np.flatnonzero(adding & (knots < most_knots))).size:
-        knot, gain = _best_knots(batch.rows(active), _trimmed(bounds[active], knots[active]), np.zeros(len(active)), batch.end[active])
+        knot, gain = _best_knots(
+            batch.rows(active), _trimmed(bounds[active], knots[active]), np.zeros(len(active)), batch.end[active]
+        )
         single = gain > limit[active]
         rest = active[~single]
         pair, pair_gain = np.empty((0, 2)), np.empty(0)
@@ -323,7 +335,9 @@ def _moved_knot_residuals(
     low, high = bounds[:, column - 1 : column], bounds[:, column + 1 : column + 2]
     before_m, after_m = positions - low, high - positions
     # The ramps of the two parts add up to one ramp from low to high, wherever the knot is.
-    before = _chord_means_of_ramps(batch, np.broadcast_to(low, positions.shape)[:, :, None], before_m[:, :, None])[..., 0]
+    before = _chord_means_of_ramps(batch, np.broadcast_to(low, positions.shape)[:, :, None], before_m[:, :, None])[
+        ..., 0
+    ]
     both = _chord_means_of_ramps(batch, low[:, :, None], (high - low)[:, :, None])[..., 0]
     root_weight = batch.root_weight[:, None, :]
     after = (both - before) * (root_weight * (free[:, column, None] / np.fmax(after_m, 1.0))[:, :, None])
@@ -333,7 +347,9 @@ def _moved_knot_residuals(
     projected = rows - _fitted_rows(fixed, rows)
     residual, added = projected[:, :1], projected[:, 1:]
     # A column the fixed ones (nearly) contain adds nothing; its rounding noise must not either.
-    added *= (np.einsum("ptn,ptn->pt", added, added) > 1e-9 * np.einsum("ptn,ptn->pt", rows[:, 1:], rows[:, 1:]))[..., None]
+    added *= (np.einsum("ptn,ptn->pt", added, added) > 1e-9 * np.einsum("ptn,ptn->pt", rows[:, 1:], rows[:, 1:]))[
+        ..., None
+    ]
     added_before, added_after = added[:, :trials], added[:, trials:]
     g00 = np.einsum("ptn,ptn->pt", added_before, added_before)
     g11 = np.einsum("ptn,ptn->pt", added_after, added_after)
@@ -364,7 +380,9 @@ def _refined_constrained(
         # The knot's present place last: moves must beat it as computed the same way.
         positions = np.concatenate((coarse, _fine_positions(low, high), bounds[rows, column : column + 1]), axis=1)
         valid = np.concatenate((coarse_valid, np.ones((len(rows), FINE_KNOT_STEPS + 1), dtype=bool)), axis=1)
-        trial_residual = np.where(valid, _moved_knot_residuals(batch.rows(rows), bounds[rows], free[rows], column, positions), np.inf)
+        trial_residual = np.where(
+            valid, _moved_knot_residuals(batch.rows(rows), bounds[rows], free[rows], column, positions), np.inf
+        )
         best = np.argmin(trial_residual[:, :-1], axis=1)
         best_residual = trial_residual[np.arange(len(rows)), best]
         better = best_residual < trial_residual[:, -1]
@@ -373,7 +391,9 @@ def _refined_constrained(
     return bounds, residual
 
 
-def _with_straights(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _with_straights(
+    batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, limit: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Parts made straight (curvature 0) one at a time, the knots moved to fit, while the
     residual grows by less than ``limit``: a curvature must earn its place.
 
@@ -394,7 +414,9 @@ def _with_straights(batch: _SparseBatch, bounds: np.ndarray, knots: np.ndarray, 
         rank = np.arange(len(order)) - np.searchsorted(polyline[order], polyline[order])
         screened = np.sort(order[rank < STRAIGHT_SCREEN])
         polyline, trial_free = polyline[screened], trial_free[screened]
-        trial_bounds, trial_residual = _refined_constrained(batch.rows(polyline), bounds[polyline], knots[polyline], trial_free)
+        trial_bounds, trial_residual = _refined_constrained(
+            batch.rows(polyline), bounds[polyline], knots[polyline], trial_free
+        )
         # The best trial of each polyline (trials are grouped by polyline, in order).
         order = np.lexsort((trial_residual, polyline))
         best = order[np.searchsorted(polyline[order], active)]

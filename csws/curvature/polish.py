@@ -109,7 +109,9 @@ def _straight_trials(road: _Road, nodes: _Nodes, part: np.ndarray, low: np.ndarr
     after = curvature + half_turn / np.fmax(stop - end, MIN_POLISHED_PART_M)
     zero = np.zeros_like(curvature)
     if np.all(low == 0.0):
-        road = _Road(road.base_heading, road.offset, road.turn + half_turn, *(getattr(road, f.name) for f in fields(_Road)[3:]))
+        road = _Road(
+            road.base_heading, road.offset, road.turn + half_turn, *(getattr(road, f.name) for f in fields(_Road)[3:])
+        )
         return _split_part(road, part, end, zero, after)
     if np.all(high == 1.0):
         return _split_part(road, part, start, before, zero)
@@ -130,9 +132,13 @@ def _stretched_trials(road: _Road, factors: np.ndarray) -> _Road:
     parts = road.curvature.shape[-1]
     part = np.argmax(np.where(road.free, np.diff(road.bounds, axis=-1), -1.0), axis=-1)
     bounds = stretched.bounds
-    first, stop = (np.take_along_axis(bounds, np.repeat(part + k, trials, axis=1)[..., None], axis=-1)[..., 0] for k in (0, 1))
+    first, stop = (
+        np.take_along_axis(bounds, np.repeat(part + k, trials, axis=1)[..., None], axis=-1)[..., 0] for k in (0, 1)
+    )
     below = np.take_along_axis(bounds, np.repeat(np.maximum(part - 1, 0), trials, axis=1)[..., None], axis=-1)[..., 0]
-    above = np.take_along_axis(bounds, np.repeat(np.minimum(part + 2, parts), trials, axis=1)[..., None], axis=-1)[..., 0]
+    above = np.take_along_axis(bounds, np.repeat(np.minimum(part + 2, parts), trials, axis=1)[..., None], axis=-1)[
+        ..., 0
+    ]
     middle, half = 0.5 * (first + stop), 0.5 * (stop - first) * factors
     is_first, is_last = part == 0, part == road.last
     start = np.where(is_first, first, np.clip(middle - half, below + MIN_POLISHED_PART_M, stop))
@@ -149,7 +155,9 @@ def _stretched_trials(road: _Road, factors: np.ndarray) -> _Road:
 def _padded_road(road: _Road) -> _Road:
     """``road`` with a part of no length more at its end (padding)."""
     return _Road(
-        road.base_heading, road.offset, road.turn,
+        road.base_heading,
+        road.offset,
+        road.turn,
         np.concatenate((road.bounds, road.bounds[..., -1:]), axis=-1),
         np.concatenate((road.curvature, np.zeros_like(road.curvature[..., :1])), axis=-1),
         np.concatenate((road.free, np.zeros_like(road.free[..., :1])), axis=-1),
@@ -164,7 +172,9 @@ def _one_trial_each(road: _Road) -> _Road:
 
 def _trials_of(road: _Road, polylines: int) -> _Road:
     """Trial roads ``(polylines * k, 1)`` back as ``(polylines, k)``."""
-    return _Road(*(getattr(road, f.name).reshape((polylines, -1) + getattr(road, f.name).shape[2:]) for f in fields(_Road)))
+    return _Road(
+        *(getattr(road, f.name).reshape((polylines, -1) + getattr(road, f.name).shape[2:]) for f in fields(_Road))
+    )
 
 
 def _joined_trials(roads: list[_Road]) -> _Road:
@@ -200,13 +210,21 @@ def _straight_trial_roads(road: _Road, nodes: _Nodes, last: np.ndarray, longest:
     after_share = np.tile((1.0 - arc_high) / (1.0 - arc_low), len(last))[:, None]
     each_nodes = _Nodes(*(np.repeat(getattr(nodes, f.name), len(arc_low), axis=0) for f in fields(_Nodes)))
     both_trials = _trials_of(
-        _straight_trials(before_arcs, each_nodes, before_arcs.last[:, 0], 1.0 - after_share, np.ones_like(after_share)), len(last)
+        _straight_trials(before_arcs, each_nodes, before_arcs.last[:, 0], 1.0 - after_share, np.ones_like(after_share)),
+        len(last),
     )
     low, high = (np.array(MIDDLE_STRAIGHT_SPANS)[:, k] for k in (0, 1))
     middle_trials = _straight_trials(road, nodes, longest, low, high)
     compound_trials = _compound_trials(road, nodes, longest)
-    trials = _joined_trials([_padded_road(start_trials), _padded_road(end_trials), both_trials, middle_trials,
-                             _padded_road(compound_trials)])
+    trials = _joined_trials(
+        [
+            _padded_road(start_trials),
+            _padded_road(end_trials),
+            both_trials,
+            middle_trials,
+            _padded_road(compound_trials),
+        ]
+    )
     return trials, [len(fraction), len(fraction), len(arc_low), len(low), compound_trials.last.shape[1]]
 
 
@@ -217,7 +235,9 @@ def _compound_trials(road: _Road, nodes: _Nodes, part: np.ndarray) -> _Road:
     (3.8) that the heading fit took for one arc of a mean radius."""
     fraction = np.array(COMPOUND_FRACTIONS)
     road, part, first, stop = _part_trials(road, part, 2 * len(fraction))
-    knot = np.clip(_among_nodes(nodes, first, stop, np.tile(fraction, 2)), first + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M)
+    knot = np.clip(
+        _among_nodes(nodes, first, stop, np.tile(fraction, 2)), first + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M
+    )
     curvature = np.take_along_axis(road.curvature, part[..., None], axis=-1)[..., 0]
     ratio = np.repeat([COMPOUND_RATIO, 1.0 / COMPOUND_RATIO], len(fraction))
     return _split_part(road, part, knot, curvature * ratio, curvature / ratio)
@@ -254,7 +274,9 @@ def _with_added_straights(
     at_both = at_start & at_end & (freedom - 2 >= MIN_TRIAL_FREEDOM)
     in_middle = road.free[polylines, 0, longest] & (freedom - 3 >= MIN_TRIAL_FREEDOM)
     # A road as close to the nodes as their noise lets it be leaves nothing for a straight to explain.
-    rows = np.flatnonzero((at_start | at_end | in_middle) & (squares[:, 0] > STRAIGHT_TRIAL_MISFIT * freedom * noise_variance))
+    rows = np.flatnonzero(
+        (at_start | at_end | in_middle) & (squares[:, 0] > STRAIGHT_TRIAL_MISFIT * freedom * noise_variance)
+    )
     if rows.size == 0:
         return result, squares
     tried = _road_rows(road, rows)
@@ -262,22 +284,29 @@ def _with_added_straights(
     # Parameters each kind adds: one knot, two, two and a curvature, a knot and a curvature.
     added = np.repeat([1, 1, 2, 3, 2], counts)
     kind_allowed = (at_start, at_end, at_both, in_middle, in_middle)
-    allowed = np.column_stack([np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed)])
+    allowed = np.column_stack(
+        [np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed, strict=True)]
+    )
     allowed &= trials.is_ordered()
     # A few steps show which trial of each kind leads; only those are polished to the end.
     trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), FIRST_POLISH_ITERATIONS, allowed, scales=())
     trial_squares = np.where(allowed, trial_squares, np.inf)
     kind_start = np.cumsum([0, *counts])
-    leading = np.column_stack([
-        first + np.argmin(trial_squares[:, first:stop], axis=1) for first, stop in zip(kind_start[:-1], kind_start[1:])
-    ])
+    leading = np.column_stack(
+        [
+            first + np.argmin(trial_squares[:, first:stop], axis=1)
+            for first, stop in zip(kind_start[:-1], kind_start[1:], strict=True)
+        ]
+    )
     trials = _chosen(trials, leading)
     added, allowed = added[leading], np.take_along_axis(allowed, leading, axis=1)
     trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), wanted=allowed)
     trial_squares = np.where(allowed, trial_squares, np.inf)
     variance = _residual_variance(
-        np.concatenate((trial_squares, squares[rows]), axis=1), _joined_trials([trials, _padded_road(_padded_road(tried))]),
-        nodes.real[rows], noise_variance[rows],
+        np.concatenate((trial_squares, squares[rows]), axis=1),
+        _joined_trials([trials, _padded_road(_padded_road(tried))]),
+        nodes.real[rows],
+        noise_variance[rows],
     )
     cost = np.where(allowed, trial_squares + added * (STRAIGHT_TRIAL_THRESHOLD * variance)[:, None], np.inf)
     best = np.argmin(cost, axis=1)
@@ -318,8 +347,12 @@ def _with_unseen_ends_straight(
     free[np.flatnonzero(unseen_last[changed]), 0, last[changed][unseen_last[changed]]] = False
     trial = _Road(trial.base_heading, trial.offset, trial.turn, trial.bounds, curvature * free, free, trial.last)
     trial, trial_squares = _polished(trial, _nodes_rows(nodes, changed))
-    variance = _residual_variance(np.concatenate((trial_squares, squares[changed]), axis=1),
-                                  _joined_trials([trial, _road_rows(road, changed)]), nodes.real[changed], noise_variance[changed])
+    variance = _residual_variance(
+        np.concatenate((trial_squares, squares[changed]), axis=1),
+        _joined_trials([trial, _road_rows(road, changed)]),
+        nodes.real[changed],
+        noise_variance[changed],
+    )
     accept = trial_squares[:, 0] <= squares[changed, 0] + STRAIGHT_TRIAL_THRESHOLD * variance
     result, squares = _Road(*(np.array(getattr(road, f.name)) for f in fields(_Road))), squares.copy()
     _put_rows(result, (changed[accept], 0), trial, (np.flatnonzero(accept), 0))
@@ -342,7 +375,13 @@ def _along_polyline(t: np.ndarray, nodes: _Nodes, node_t: np.ndarray) -> np.ndar
 
 
 def _polished_parts(
-    batch: _SparseBatch, nodes: _Nodes, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray, noise_variance: np.ndarray
+    batch: _SparseBatch,
+    nodes: _Nodes,
+    bounds: np.ndarray,
+    curvature: np.ndarray,
+    free: np.ndarray,
+    knots: np.ndarray,
+    noise_variance: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The heading fit's parts polished in the plane (:func:`_polished`), from it and from
     its longest curve stretched and shrunk (:func:`_stretched_trials`), with straights
@@ -364,7 +403,9 @@ def _polished_parts(
     return np.maximum.accumulate(np.clip(polished, 0.0, batch.end[:, None]), axis=1), road.curvature[:, 0], knots
 
 
-def _sparse_batch_parts(batch: _SparseBatch, nodes: _Nodes, noise_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sparse_batch_parts(
+    batch: _SparseBatch, nodes: _Nodes, noise_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Parts of the sparse polylines of a batch: a continuous piecewise-linear fit of their
     heading, polished in the plane.
 
@@ -396,8 +437,13 @@ def _sparse_batch_parts(batch: _SparseBatch, nodes: _Nodes, noise_m: np.ndarray)
     for size in np.unique(group[curved]):
         rows = np.flatnonzero(curved & (group == size))
         bounds[rows], curvature[rows], knots[rows] = _polished_parts(
-            batch.rows(rows), _nodes_rows(nodes, rows, int(node_count[rows].max())), bounds[rows, :-2], curvature[rows, :-2],
-            free[rows], knots[rows], sideways_variance[rows],
+            batch.rows(rows),
+            _nodes_rows(nodes, rows, int(node_count[rows].max())),
+            bounds[rows, :-2],
+            curvature[rows, :-2],
+            free[rows],
+            knots[rows],
+            sideways_variance[rows],
         )
     return bounds, curvature, knots
 
@@ -429,7 +475,7 @@ def _without_short_chords(
         if np.hypot(*(vertex_xy[vertex] - vertex_xy[kept[-1]])) >= shortest_m:
             kept.append(vertex)
     if kept[-1] != len(vertex_s) - 1:
-        kept[-1 if len(kept) > 1 else len(kept):] = [len(vertex_s) - 1]
+        kept[-1 if len(kept) > 1 else len(kept) :] = [len(vertex_s) - 1]
     if len(kept) == len(vertex_s):
         return start_s, length_m, heading
     kept_xy, kept_s = vertex_xy[kept], vertex_s[kept]
@@ -453,14 +499,18 @@ def _padded_batch(polylines: list[tuple[np.ndarray, np.ndarray, np.ndarray]], si
     return _SparseBatch(a, a + length_m, heading, np.where(real, length_m, 0.0), end, count)
 
 
-def _sparse_parts(chords: _Chords, noise_m: np.ndarray, polylines: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+def _sparse_parts(
+    chords: _Chords, noise_m: np.ndarray, polylines: np.ndarray
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """Part bounds (``[0, ..., end]``) and curvatures of the sparse ``polylines``, fitted
     in batches of equal chord count (:func:`_sparse_batch_parts`)."""
     kept, every = {}, {}
     for polyline in polylines:
         first, stop = chords.polyline_first_chord[polyline : polyline + 2]
         every[int(polyline)] = (chords.start_s[first:stop], chords.length_m[first:stop], chords.heading[first:stop])
-        kept[int(polyline)] = _without_short_chords(*every[int(polyline)], SHORT_CHORD_NOISE_FACTOR * float(noise_m[polyline]))
+        kept[int(polyline)] = _without_short_chords(
+            *every[int(polyline)], SHORT_CHORD_NOISE_FACTOR * float(noise_m[polyline])
+        )
     by_size: dict[int, list[int]] = {}
     for polyline, (start_s, _, _) in kept.items():
         size = SPARSE_BATCH_CHORDS[np.searchsorted(SPARSE_BATCH_CHORDS, len(start_s))]

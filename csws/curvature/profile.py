@@ -177,6 +177,7 @@ def _profile(
     edges = bounds.tolist()
     starts, ends = curvature_of_part.tolist(), end_curvature.tolist()
     parts = tuple(
-        ProfilePart(a, b, k0, None if k1 == k0 else k1) for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends)
+        ProfilePart(a, b, k0, None if k1 == k0 else k1)
+        for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends, strict=True)
     )
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)

@@ -79,7 +79,9 @@ class _Road:
 
     def parameters(self) -> np.ndarray:
         """The parameters the polish moves, ``(..., 2 * parts + 1)``: offset, turn, inner bounds, curvatures."""
-        return np.concatenate((self.offset[..., None], self.turn[..., None], self.bounds[..., 1:-1], self.curvature), axis=-1)
+        return np.concatenate(
+            (self.offset[..., None], self.turn[..., None], self.bounds[..., 1:-1], self.curvature), axis=-1
+        )
 
     def movable(self) -> np.ndarray:
         """Which parameters move: the offset and turn, the knots between real parts and the free curvatures."""
@@ -87,19 +89,28 @@ class _Road:
         knots = np.arange(1, parts) <= self.last[..., None]
         return np.concatenate((np.ones(self.offset.shape + (2,), dtype=bool), knots, self.free), axis=-1)
 
-    def with_parameters(self, parameters: np.ndarray) -> "_Road":
+    def with_parameters(self, parameters: np.ndarray) -> _Road:
         """The roads with the :meth:`parameters` ``parameters`` (a part not free stays straight)."""
         parts = self.curvature.shape[-1]
         bounds = self.bounds.copy()
         bounds[..., 1:-1] = parameters[..., 2 : parts + 1]
-        return _Road(self.base_heading, parameters[..., 0], parameters[..., 1], bounds,
-                     parameters[..., parts + 1 :] * self.free, self.free, self.last)
+        return _Road(
+            self.base_heading,
+            parameters[..., 0],
+            parameters[..., 1],
+            bounds,
+            parameters[..., parts + 1 :] * self.free,
+            self.free,
+            self.last,
+        )
 
     def feasible_fraction(self, step: np.ndarray) -> np.ndarray:
         """The largest fraction (at most 1, with a margin) of the parameter ``step`` that
         leaves every real part at least :data:`MIN_POLISHED_PART_M` long."""
         parts = self.curvature.shape[-1]
-        moved = np.concatenate((np.zeros_like(step[..., :1]), step[..., 2 : parts + 1], np.zeros_like(step[..., :1])), axis=-1)
+        moved = np.concatenate(
+            (np.zeros_like(step[..., :1]), step[..., 2 : parts + 1], np.zeros_like(step[..., :1])), axis=-1
+        )
         shrink = -np.diff(moved, axis=-1)
         room = np.diff(self.bounds, axis=-1) - MIN_POLISHED_PART_M
         real = np.arange(parts) <= self.last[..., None]
@@ -150,7 +161,9 @@ def _road_points(road: _Road, t: np.ndarray) -> _RoadPoints:
     """The road's points and headings at the arc lengths ``t``."""
     length = np.diff(road.bounds, axis=-1)
     turned = np.cumsum(road.curvature * length, axis=-1)
-    part_heading = road.heading()[..., None] + np.concatenate((np.zeros_like(turned[..., :1]), turned[..., :-1]), axis=-1)
+    part_heading = road.heading()[..., None] + np.concatenate(
+        (np.zeros_like(turned[..., :1]), turned[..., :-1]), axis=-1
+    )
     moved = np.cumsum(_chord(length, part_heading, road.curvature), axis=-1)
     corner = road.start()[..., None] + np.concatenate((np.zeros_like(moved[..., :1]), moved[..., :-1]), axis=-1)
     part = np.minimum((t[..., None] >= road.bounds[..., None, 1:-1]).sum(axis=-1), road.last[..., None])
@@ -196,19 +209,28 @@ def _sideways_jacobian(road: _Road, at: _RoadPoints) -> np.ndarray:
     parts = np.arange(road.curvature.shape[-1])
     step = (road.curvature[..., :-1] - road.curvature[..., 1:])[..., None, :]
     knots = -step * (point_along[..., None] - along_tangent(at.corner[..., 1:])) * (at.part[..., None] >= parts[1:])
-    full_area = at.length * at.corner + at.length**2 * np.exp(1j * at.part_heading) * _area_factor(road.curvature * at.length)
+    full_area = at.length * at.corner + at.length**2 * np.exp(1j * at.part_heading) * _area_factor(
+        road.curvature * at.length
+    )
     own_curvature = np.take_along_axis(road.curvature, at.part, axis=-1)
     own_corner = np.take_along_axis(at.corner, at.part, axis=-1)
     own_heading = np.take_along_axis(at.part_heading, at.part, axis=-1)
-    own_area = at.progress * own_corner + at.progress**2 * np.exp(1j * own_heading) * _area_factor(own_curvature * at.progress)
+    own_area = at.progress * own_corner + at.progress**2 * np.exp(1j * own_heading) * _area_factor(
+        own_curvature * at.progress
+    )
     passed = at.part[..., None] > parts
     curvatures = np.where(passed, along_tangent(full_area) - at.length[..., None, :] * point_along[..., None], 0.0)
-    np.put_along_axis(curvatures, at.part[..., None], (np.real(back * own_area) - at.progress * point_along)[..., None], axis=-1)
+    np.put_along_axis(
+        curvatures, at.part[..., None], (np.real(back * own_area) - at.progress * point_along)[..., None], axis=-1
+    )
     return np.concatenate((offset[..., None], turn[..., None], knots, curvatures), axis=-1)
 
 
 def _polished(
-    road: _Road, nodes: _Nodes, iterations: int = POLISH_ITERATIONS, wanted: np.ndarray | None = None,
+    road: _Road,
+    nodes: _Nodes,
+    iterations: int = POLISH_ITERATIONS,
+    wanted: np.ndarray | None = None,
     scales: tuple[float, ...] = STEP_SCALES,
 ) -> tuple[_Road, np.ndarray]:
     """The trial roads moved by Levenberg-Marquardt steps to where the nodes' sideways
@@ -220,7 +242,9 @@ def _polished(
     has grown to :data:`MAX_DAMPING`, so that the iterations are spent on those still moving.
     """
     polylines, trials = road.offset.shape
-    road = _Road(*(np.array(getattr(road, f.name).reshape((-1, 1) + getattr(road, f.name).shape[2:])) for f in fields(_Road)))
+    road = _Road(
+        *(np.array(getattr(road, f.name).reshape((-1, 1) + getattr(road, f.name).shape[2:])) for f in fields(_Road))
+    )
     nodes = _Nodes(*(np.repeat(getattr(nodes, f.name), trials, axis=0) for f in fields(_Nodes)))
     t, distance, at = _projected(road, nodes, nodes.s[:, None, :].copy(), PROJECTION_STEPS)
     squares = np.einsum("ptn,ptn->pt", distance, distance)
@@ -230,14 +254,21 @@ def _polished(
         if active.size == 0:
             break
         here, here_nodes, here_at = _road_rows(road, active), _nodes_rows(nodes, active), _points_rows(at, active)
-        jacobian = _sideways_jacobian(here, here_at) * (here_nodes.real[:, None, :, None] * here.movable()[..., None, :])
+        jacobian = _sideways_jacobian(here, here_at) * (
+            here_nodes.real[:, None, :, None] * here.movable()[..., None, :]
+        )
         normal = np.swapaxes(jacobian, -1, -2) @ jacobian
         gradient = np.einsum("ptnm,ptn->ptm", jacobian, distance[active])
         # A trial gone non-finite (a degenerate road) takes no step and stops.
         sound = np.isfinite(normal).all(axis=(-2, -1)) & np.isfinite(gradient).all(axis=-1)
         normal, gradient = np.where(sound[..., None, None], normal, 0.0), np.where(sound[..., None], gradient, 0.0)
         diagonal = np.einsum("...mm->...m", normal)
-        normal += np.eye(normal.shape[-1]) * (damping[active][..., None] * diagonal + (diagonal <= 1e-12 * diagonal.max(axis=-1, keepdims=True)))[..., None, :]
+        normal += (
+            np.eye(normal.shape[-1])
+            * (damping[active][..., None] * diagonal + (diagonal <= 1e-12 * diagonal.max(axis=-1, keepdims=True)))[
+                ..., None, :
+            ]
+        )
         step = _solved(normal, -gradient)
         trial = _best_scaled_step(here, here_nodes, t[active], step, scales)
         better = (trial.road.is_ordered() & (trial.squares < squares[active]))[:, 0]
@@ -246,10 +277,17 @@ def _polished(
         _put_rows(road, moved, trial.road, better)
         _put_rows(at, moved, trial.at, better)
         t[moved], distance[moved], squares[moved] = trial.t[better], trial.distance[better], trial.squares[better]
-        damping[active] = np.where(better, np.fmax(damping[active, 0] / 10.0, MIN_DAMPING), damping[active, 0] * 10.0)[:, None]
-        done = np.where(better, gain <= POLISH_TOLERANCE * squares[active, 0], damping[active, 0] >= MAX_DAMPING) | ~sound[:, 0]
+        damping[active] = np.where(better, np.fmax(damping[active, 0] / 10.0, MIN_DAMPING), damping[active, 0] * 10.0)[
+            :, None
+        ]
+        done = (
+            np.where(better, gain <= POLISH_TOLERANCE * squares[active, 0], damping[active, 0] >= MAX_DAMPING)
+            | ~sound[:, 0]
+        )
         active = active[~done]
-    return _Road(*(getattr(road, f.name).reshape((polylines, trials) + getattr(road, f.name).shape[2:]) for f in fields(_Road))), squares.reshape(polylines, trials)
+    return _Road(
+        *(getattr(road, f.name).reshape((polylines, trials) + getattr(road, f.name).shape[2:]) for f in fields(_Road))
+    ), squares.reshape(polylines, trials)
 
 
 @dataclass(frozen=True)
@@ -311,14 +349,26 @@ def _points_rows(at: _RoadPoints, rows: np.ndarray) -> _RoadPoints:
     return _RoadPoints(*(getattr(at, f.name)[rows] for f in fields(_RoadPoints)))
 
 
-def _base_road(batch: _SparseBatch, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray) -> _Road:
+def _base_road(
+    batch: _SparseBatch, bounds: np.ndarray, curvature: np.ndarray, free: np.ndarray, knots: np.ndarray
+) -> _Road:
     """The road of the heading fit, one trial per polyline: its start heading is the
     weighted mean of the chords' headings less the turn the fit predicts over each."""
-    turn = np.einsum("pnk,pk->pn", _chord_means_of_ramps(batch, bounds[:, None, :-1], np.diff(bounds)[:, None, :])[:, 0], curvature)
+    turn = np.einsum(
+        "pnk,pk->pn", _chord_means_of_ramps(batch, bounds[:, None, :-1], np.diff(bounds)[:, None, :])[:, 0], curvature
+    )
     weight = batch.root_weight**2
     base_heading = np.sum(weight * (batch.heading - turn), axis=1) / np.sum(weight, axis=1)
     zero = np.zeros((len(bounds), 1))
-    return _Road(base_heading[:, None], zero, zero.copy(), bounds[:, None, :], curvature[:, None, :], free[:, None, :], knots[:, None])
+    return _Road(
+        base_heading[:, None],
+        zero,
+        zero.copy(),
+        bounds[:, None, :],
+        curvature[:, None, :],
+        free[:, None, :],
+        knots[:, None],
+    )
 
 
 def _repeated(road: _Road, count: int) -> _Road:
@@ -350,8 +400,10 @@ def _chosen(trials: Any, trial: np.ndarray) -> Any:
     """The dataclass of ``(polylines, trials, ...)`` arrays ``trials`` (and those in it) at
     the trials ``trial`` ``(polylines, k)`` of each polyline."""
     rows = np.arange(len(trial))[:, None]
+
     def chosen(values: Any) -> Any:
         return _chosen(values, trial) if is_dataclass(values) else values[rows, trial]
+
     return type(trials)(*(chosen(getattr(trials, f.name)) for f in fields(trials)))
 
 

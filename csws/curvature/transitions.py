@@ -162,8 +162,14 @@ def _solved(normal: np.ndarray, right: np.ndarray) -> np.ndarray:
         solution = np.einsum("...ij,...j->...i", adjugate, right) / determinant[..., None]
     line_determinant = a * d - b * b
     with np.errstate(divide="ignore", invalid="ignore"):
-        line = np.stack(((d * right[..., 0] - b * right[..., 1]) / line_determinant,
-                         (a * right[..., 1] - b * right[..., 0]) / line_determinant, np.zeros_like(a)), axis=-1)
+        line = np.stack(
+            (
+                (d * right[..., 0] - b * right[..., 1]) / line_determinant,
+                (a * right[..., 1] - b * right[..., 0]) / line_determinant,
+                np.zeros_like(a),
+            ),
+            axis=-1,
+        )
     return np.nan_to_num(np.where(regular[..., None], solution, line))
 
 
@@ -172,7 +178,9 @@ def _grid(low: float, high: float, step: float) -> np.ndarray:
     return np.linspace(low, high, max(2, int(np.ceil((high - low) / step)) + 1)) if high > low else np.array([low])
 
 
-def _best_spiral(moments: _Moments, s1_range: tuple[float, float], s2_range: tuple[float, float]) -> tuple[float, float, float, np.ndarray]:
+def _best_spiral(
+    moments: _Moments, s1_range: tuple[float, float], s2_range: tuple[float, float]
+) -> tuple[float, float, float, np.ndarray]:
     """The spiral ends with the least residual in the given ranges: ``(residual, s1, s2, solution)``."""
     centre1, centre2 = _least_on_grid(moments, _grid(*s1_range, COARSE_STEP_M), _grid(*s2_range, COARSE_STEP_M))[1:3]
     fine1 = _grid(max(s1_range[0], centre1 - COARSE_STEP_M), min(s1_range[1], centre1 + COARSE_STEP_M), FINE_STEP_M)
@@ -189,7 +197,9 @@ def _best_step(moments: _Moments, low: float, high: float) -> float:
     return float(moments.residual(fine, fine)[0].min())
 
 
-def _least_on_grid(moments: _Moments, s1_values: np.ndarray, s2_values: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+def _least_on_grid(
+    moments: _Moments, s1_values: np.ndarray, s2_values: np.ndarray
+) -> tuple[float, float, float, np.ndarray]:
     """The spiral with the least residual among all ``s1 <= s2`` of two grids: ``(residual, s1, s2, solution)``."""
     s1, s2 = (grid.ravel() for grid in np.meshgrid(s1_values, s2_values, indexing="ij"))
     keep = s2 >= s1
@@ -308,14 +318,24 @@ def _repolished(chords: _Chords, bounds: np.ndarray, is_spiral: np.ndarray) -> n
         rows = slice(*np.searchsorted(chords.mid_s, (bounds[part - 1], bounds[part + 2])))
         if high <= low or rows.stop - rows.start < SPIRAL_PARAMETERS + 1:
             continue
-        s1_values = _grid(max(low, bounds[part] - REPOLISH_REACH_M), min(bounds[part + 1], bounds[part] + REPOLISH_REACH_M), FINE_STEP_M)
-        s2_values = _grid(max(bounds[part], bounds[part + 1] - REPOLISH_REACH_M), min(high, bounds[part + 1] + REPOLISH_REACH_M), FINE_STEP_M)
+        s1_values = _grid(
+            max(low, bounds[part] - REPOLISH_REACH_M),
+            min(bounds[part + 1], bounds[part] + REPOLISH_REACH_M),
+            FINE_STEP_M,
+        )
+        s2_values = _grid(
+            max(bounds[part], bounds[part + 1] - REPOLISH_REACH_M),
+            min(high, bounds[part + 1] + REPOLISH_REACH_M),
+            FINE_STEP_M,
+        )
         _, s1, s2, _ = _least_on_grid(_Moments(chords, rows), s1_values, s2_values)
         bounds[part], bounds[part + 1] = s1, s2
     return bounds
 
 
-def _continuous_refit(chords: _Chords, bounds: np.ndarray, is_spiral: np.ndarray, curvature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _continuous_refit(
+    chords: _Chords, bounds: np.ndarray, is_spiral: np.ndarray, curvature: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Start and end curvature of every part refitted to all of the polyline's headings at once,
     with the heading continuous and each clothoid's curvature meeting its neighbours'.
 

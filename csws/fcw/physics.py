@@ -37,9 +37,18 @@ import numpy as np
 
 from csws.state import SystemState
 
-__all__ = ["STANDARD_GRAVITY_MPS2", "FCW_STATES", "FcwSettings", "FcwBatch", "time_to_collision_s",
-           "enhanced_time_to_collision_s", "required_deceleration_mps2", "warning_clearance_m", "evaluate_fcw",
-           "next_fcw_states"]
+__all__ = [
+    "STANDARD_GRAVITY_MPS2",
+    "FCW_STATES",
+    "FcwSettings",
+    "FcwBatch",
+    "time_to_collision_s",
+    "enhanced_time_to_collision_s",
+    "required_deceleration_mps2",
+    "warning_clearance_m",
+    "evaluate_fcw",
+    "next_fcw_states",
+]
 
 STANDARD_GRAVITY_MPS2 = 9.80665
 #: 4.5.3: the collision warning's a_req threshold may not exceed 0.68 g.
@@ -94,8 +103,11 @@ class FcwSettings:
             raise ValueError(f"the reaction time must be at least 0.8 s (4.5.4), got {self.reaction_time_s!r}")
         if not (self.brake_response_s >= 0.0 and self.max_ttc_s > 0.0):
             raise ValueError("the brake response time must be >= 0 and the TTC limit > 0")
-        if not (0.0 <= self.min_speed_mps <= HIGHEST_MIN_SPEED_MPS and self.max_speed_mps >= LOWEST_MAX_SPEED_MPS
-                and self.hysteresis_mps >= 0.0):  # fmt: skip
+        if not (
+            0.0 <= self.min_speed_mps <= HIGHEST_MIN_SPEED_MPS
+            and self.max_speed_mps >= LOWEST_MAX_SPEED_MPS
+            and self.hysteresis_mps >= 0.0
+        ):
             raise ValueError("4.3.3: V_min must be in [0, 11.2] m/s, V_max at least 27.8 m/s, the hysteresis >= 0")
 
 
@@ -126,15 +138,18 @@ def time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps: np.ndarr
         return np.where(v_r < 0.0, -clearance_m / v_r, np.inf)
 
 
-def enhanced_time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps: np.ndarray,
-                                 relative_accel_mps2: np.ndarray) -> np.ndarray:  # fmt: skip
+def enhanced_time_to_collision_s(
+    clearance_m: np.ndarray, relative_velocity_mps: np.ndarray, relative_accel_mps2: np.ndarray
+) -> np.ndarray:
     """ETTC, formula (3), with the relative acceleration a_TV - a_SV held: the first time the
     clearance reaches 0; ``inf`` where it never does (the root of (3) is negative or complex).
 
     Formula (3) is the smaller root of x_c + v_r t + a t^2 / 2 = 0 with a = a_TV - a_SV; it is
     written here in the form that stays exact as a tends to 0, where ETTC tends to TTC.
     """
-    x_c, v_r, a = (np.asarray(value, dtype=float) for value in (clearance_m, relative_velocity_mps, relative_accel_mps2))
+    x_c, v_r, a = (
+        np.asarray(value, dtype=float) for value in (clearance_m, relative_velocity_mps, relative_accel_mps2)
+    )
     discriminant = v_r**2 - 2.0 * a * x_c
     root = np.sqrt(np.fmax(discriminant, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -143,14 +158,16 @@ def enhanced_time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps:
     return np.where((discriminant >= 0.0) & (ettc >= 0.0), ettc, np.inf)
 
 
-def required_deceleration_mps2(clearance_m: np.ndarray, relative_velocity_mps: np.ndarray,
-                               target_accel_mps2: np.ndarray, lost_time_s: np.ndarray) -> np.ndarray:  # fmt: skip
+def required_deceleration_mps2(
+    clearance_m: np.ndarray, relative_velocity_mps: np.ndarray, target_accel_mps2: np.ndarray, lost_time_s: np.ndarray
+) -> np.ndarray:
     """a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with d_TV = -a_TV the target's
     deceleration and x_r = -v_r ``lost_time_s`` the clearance lost while closing during the
     driver's reaction and the brakes' response (0 while not closing). ``inf`` where that
     uses up the clearance."""
-    x_c, v_r, a_tv, lost_s = (np.asarray(value, dtype=float)
-                              for value in (clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s))  # fmt: skip
+    x_c, v_r, a_tv, lost_s = (
+        np.asarray(value, dtype=float) for value in (clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s)
+    )
     closing = np.fmin(v_r, 0.0)
     left_m = x_c + closing * lost_s
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -192,13 +209,17 @@ def evaluate_fcw(
     # 4.5.5: no warning while the subject already brakes at the collision threshold, while
     # it is not closing, or while TTC is above the limit.
     may_warn = (-a_sv < settings.collision_a_req_mps2) & (ttc <= settings.max_ttc_s)
-    level = np.where(may_warn & (a_req >= settings.collision_a_req_mps2), 2,
-                     np.where(may_warn & (a_req >= settings.preliminary_a_req_mps2), 1, 0)).astype(np.int8)  # fmt: skip
+    level = np.where(
+        may_warn & (a_req >= settings.collision_a_req_mps2),
+        2,
+        np.where(may_warn & (a_req >= settings.preliminary_a_req_mps2), 1, 0),
+    ).astype(np.int8)
     return FcwBatch(level, ttc, ettc, a_req)
 
 
-def warning_clearance_m(closing_mps: np.ndarray, target_accel_mps2: np.ndarray, settings: FcwSettings = FcwSettings(),
-                        level: int = 2) -> np.ndarray:  # fmt: skip
+def warning_clearance_m(
+    closing_mps: np.ndarray, target_accel_mps2: np.ndarray, settings: FcwSettings = FcwSettings(), level: int = 2
+) -> np.ndarray:
     """The clearance at which a level comes on at a closing speed ``closing_mps`` (= -v_r > 0)
     and a target acceleration a_TV: formula (4) solved for x_c at the level's threshold,
     x_c = x_r + v_r^2 / (2 (a_thr + a_TV)). The system's set warning distance (4.7.2, 5.4.2); with
@@ -209,8 +230,13 @@ def warning_clearance_m(closing_mps: np.ndarray, target_accel_mps2: np.ndarray, 
     return closing * lost_s + closing**2 / (2.0 * (threshold + a_tv))
 
 
-def next_fcw_states(previous: np.ndarray, speed_mps: np.ndarray, switched_on: np.ndarray, measured: np.ndarray,
-                    settings: FcwSettings = FcwSettings()) -> np.ndarray:  # fmt: skip
+def next_fcw_states(
+    previous: np.ndarray,
+    speed_mps: np.ndarray,
+    switched_on: np.ndarray,
+    measured: np.ndarray,
+    settings: FcwSettings = FcwSettings(),
+) -> np.ndarray:
     """The system state of many subject vehicles after one update (4.3, Figure 2), as codes into
     :data:`FCW_STATES` (arrays ``(n,)``).
 

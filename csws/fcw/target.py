@@ -77,8 +77,14 @@ class TargetSettings:
             raise ValueError("the lane width and the range must be positive")
 
 
-def select_targets(subject_index: np.ndarray, path_distance_m: np.ndarray, lateral_offset_m: np.ndarray,
-                   path_radius_m: np.ndarray, subjects: int, settings: TargetSettings = TargetSettings()) -> np.ndarray:  # fmt: skip
+def select_targets(
+    subject_index: np.ndarray,
+    path_distance_m: np.ndarray,
+    lateral_offset_m: np.ndarray,
+    path_radius_m: np.ndarray,
+    subjects: int,
+    settings: TargetSettings = TargetSettings(),
+) -> np.ndarray:
     """The target of each subject among the candidates: per subject the candidate's index, or -1.
 
     Parameters
@@ -99,9 +105,12 @@ def select_targets(subject_index: np.ndarray, path_distance_m: np.ndarray, later
     """
     owner = np.asarray(subject_index, dtype=np.intp)
     distance = np.asarray(path_distance_m, dtype=float)
-    seen = ((np.abs(np.asarray(lateral_offset_m, dtype=float)) <= settings.lane_width_m / 2.0)
-            & (distance >= 0.0) & (distance <= settings.range_m)
-            & (np.asarray(path_radius_m, dtype=float) >= settings.curve_class.min_radius_m * (1.0 - RADIUS_TOLERANCE)))
+    seen = (
+        (np.abs(np.asarray(lateral_offset_m, dtype=float)) <= settings.lane_width_m / 2.0)
+        & (distance >= 0.0)
+        & (distance <= settings.range_m)
+        & (np.asarray(path_radius_m, dtype=float) >= settings.curve_class.min_radius_m * (1.0 - RADIUS_TOLERANCE))
+    )
     targets = np.full(subjects, -1, dtype=np.intp)
     candidates = np.flatnonzero(seen)
     if candidates.size:

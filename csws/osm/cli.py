@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.cli.argtypes import network_file, positive_int
 from csws.cli import deferred
+from csws.cli.argtypes import network_file, positive_int
 
 
 def _vclasses(text: str) -> tuple[str, ...]:

@@ -11,8 +11,8 @@ type; the import prints them so that none goes unnoticed.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 __all__ = ["DroppedRoads", "LOSS_WARNING_SHARE", "dropped_roads", "way_id_of_edge"]
 

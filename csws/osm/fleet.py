@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 from xml.sax.saxutils import quoteattr
 
 import sumolib
@@ -79,20 +79,20 @@ def _allows_fleet(edge: sumolib.net.edge.Edge) -> bool:
 
 
 def _centre(edge: sumolib.net.edge.Edge) -> tuple[float, float]:
-    xs, ys = zip(*edge.getShape())
+    xs, ys = zip(*edge.getShape(), strict=True)
     return sum(xs) / len(xs), sum(ys) / len(ys)
 
 
-def twisty_routes(
-    net: sumolib.net.Net, road_map: RoadMap, count: int, road_types: Sequence[str]
-) -> list[FleetRoute]:
+def twisty_routes(net: sumolib.net.Net, road_map: RoadMap, count: int, road_types: Sequence[str]) -> list[FleetRoute]:
     """Up to ``count`` routes through the most turning of ``road_types``, most turning first.
 
     Each route starts on the highest-scoring edge not yet used and ends on the
     candidate edge (at :data:`ROUTE_SPAN_M`) whose shortest truck path turns most.
     """
     turning = _edge_turning_deg(road_map, road_types)
-    seeds = [edge_id for edge_id in sorted(turning, key=lambda e: (-turning[e], e)) if _allows_fleet(net.getEdge(edge_id))]
+    seeds = [
+        edge_id for edge_id in sorted(turning, key=lambda e: (-turning[e], e)) if _allows_fleet(net.getEdge(edge_id))
+    ]
     found: list[tuple[tuple[str, ...], float, float]] = []
     used: set[str] = set()
     for start_id in seeds:
@@ -120,7 +120,8 @@ def _best_route(
     candidates = [
         edge_id
         for edge_id in seeds
-        if edge_id not in used and ROUTE_SPAN_M[0] <= math.dist((x0, y0), _centre(net.getEdge(edge_id))) <= ROUTE_SPAN_M[1]
+        if edge_id not in used
+        and ROUTE_SPAN_M[0] <= math.dist((x0, y0), _centre(net.getEdge(edge_id))) <= ROUTE_SPAN_M[1]
     ][:CANDIDATES_PER_ROUTE]
     best = None
     for end_id in candidates:
@@ -211,4 +212,3 @@ def write_fleet_scenario(
     net_name = os.path.relpath(net_path.resolve(), config_path.parent.resolve())
     config_path.write_text(_config_file(net_name, route_path.name, last_departure_s + longest_trip_s), "utf-8")
     return route_path, config_path, routes
-

@@ -37,8 +37,9 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from csws.sumo.netbuild import NetconvertError, netconvert_osm
 from csws.road.roadmap import RoadMap, read_sumo_net
+from csws.sumo.netbuild import NetconvertError, netconvert_osm
+
 from .coverage import DroppedRoads, dropped_roads
 from .typemap import base_highway, derived_highways, known_highways, sumo_type_file, type_allows, write_derived_types
 
@@ -80,11 +81,25 @@ OSM_ATTRIBUTION = "Data (c) OpenStreetMap contributors, available under the Open
 #: has no roads to import (footways, tracks or buildings only).
 MOTOR_HIGHWAYS = frozenset(
     {
-        "motorway", "trunk", "primary", "secondary", "tertiary", "unclassified", "residential",
-        "motorway_link", "trunk_link", "primary_link", "secondary_link", "tertiary_link",
-        "living_street", "service", "road", "busway", "bus_guideway",
+        "motorway",
+        "trunk",
+        "primary",
+        "secondary",
+        "tertiary",
+        "unclassified",
+        "residential",
+        "motorway_link",
+        "trunk_link",
+        "primary_link",
+        "secondary_link",
+        "tertiary_link",
+        "living_street",
+        "service",
+        "road",
+        "busway",
+        "bus_guideway",
     }
-)  # fmt: skip
+)
 
 
 class OsmImportError(ValueError):
@@ -254,7 +269,9 @@ def _way_length_m(way) -> float:
     return float(EARTH_RADIUS_M * np.hypot(east, np.diff(lat)).sum())
 
 
-def netconvert_options(settings: ImportSettings = ImportSettings(), type_files: tuple[Path, ...] | None = None) -> list[str]:
+def netconvert_options(
+    settings: ImportSettings = ImportSettings(), type_files: tuple[Path, ...] | None = None
+) -> list[str]:
     """The netconvert options of an OSM import (see the module docstring for the why).
 
     ``type_files`` are all the type files in the order read; by default SUMO's OSM type
@@ -262,19 +279,31 @@ def netconvert_options(settings: ImportSettings = ImportSettings(), type_files: 
     """
     type_files = (sumo_type_file(), *settings.type_files) if type_files is None else type_files
     options = [
-        "--type-files", ",".join(str(path) for path in type_files),
-        "--keep-edges.by-vclass", ",".join(settings.keep_vclasses),
-        "--keep-edges.components", "1",
-        "--geometry.remove", "false",
-        "--precision", str(settings.precision_digits),
-        "--output.street-names", "true",
-        "--roundabouts.guess", "true",
-        "--junctions.join", "true",
-        "--tls.guess-signals", "true",
-        "--tls.discard-simple", "true",
-        "--tls.join", "true",
-        "--ramps.guess", "true",
-    ]  # fmt: skip
+        "--type-files",
+        ",".join(str(path) for path in type_files),
+        "--keep-edges.by-vclass",
+        ",".join(settings.keep_vclasses),
+        "--keep-edges.components",
+        "1",
+        "--geometry.remove",
+        "false",
+        "--precision",
+        str(settings.precision_digits),
+        "--output.street-names",
+        "true",
+        "--roundabouts.guess",
+        "true",
+        "--junctions.join",
+        "true",
+        "--tls.guess-signals",
+        "true",
+        "--tls.discard-simple",
+        "true",
+        "--tls.join",
+        "true",
+        "--ramps.guess",
+        "true",
+    ]
     if settings.lefthand:
         options += ["--lefthand", "true"]
     return options
@@ -347,7 +376,11 @@ def _convert(osm_path: Path, fmt: str, net_path: Path, settings: ImportSettings,
     """netconvert the OSM file (converting PBF first) into ``net_path``, its messages into the log."""
     with tempfile.TemporaryDirectory(prefix="csws-osm-") as work:
         source = _pbf_to_xml(osm_path, Path(work) / "extract.osm") if fmt == "pbf" else osm_path
-        options = [*netconvert_options(settings, _type_files(scan, settings, Path(work))), "--log", str(netconvert_log_path(net_path))]
+        options = [
+            *netconvert_options(settings, _type_files(scan, settings, Path(work))),
+            "--log",
+            str(netconvert_log_path(net_path)),
+        ]
         try:
             netconvert_osm([source], net_path, options)
         except NetconvertError as exc:

@@ -27,8 +27,12 @@ def main(args: argparse.Namespace) -> int:
 def fleet_main(args: argparse.Namespace) -> int:
     """Write the fleet scenario of ``args.net`` and print its routes."""
     road_types = tuple(name.strip() for name in args.road_types.split(",") if name.strip())
-    route_path, config_path, routes = write_fleet_scenario(args.net, args.output, args.routes, args.vehicles, road_types)
+    route_path, config_path, routes = write_fleet_scenario(
+        args.net, args.output, args.routes, args.vehicles, road_types
+    )
     for route in routes:
-        print(f"{route.route_id}: {len(route.edges)} edges, {route.length_m / 1000:.1f} km, {route.turning_deg:.0f} deg of curves")
+        print(
+            f"{route.route_id}: {len(route.edges)} edges, {route.length_m / 1000:.1f} km, {route.turning_deg:.0f} deg of curves"
+        )
     print(f"wrote {route_path} ({args.vehicles} vehicles on {len(routes)} routes) and {config_path}")
     return 0

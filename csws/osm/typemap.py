@@ -12,8 +12,8 @@ attributes, so the road is imported as the road it is, and its type name
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 from xml.etree import ElementTree
 
 from csws.sumo.binaries import sumo_home
@@ -30,7 +30,9 @@ def sumo_type_file() -> Path:
 
 def _types(path: Path) -> dict[str, ElementTree.Element]:
     """The ``<type>`` elements of a type file by id."""
-    return {element.get("id"): element for element in ElementTree.parse(path).getroot().iter("type") if element.get("id")}
+    return {
+        element.get("id"): element for element in ElementTree.parse(path).getroot().iter("type") if element.get("id")
+    }
 
 
 def known_highways(type_files: Iterable[Path]) -> dict[str, ElementTree.Element]:

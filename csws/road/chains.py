@@ -13,10 +13,10 @@ does not depend on the lane a path starts from or on how far back it was stitche
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -152,16 +152,23 @@ def clip_curve(curve: Curve, start_s: float, end_s: float, offset_m: float = 0.0
     that of the parts kept, length over radius.
     """
     kept = [
-        ConstantRadiusPart(max(part.start_s, start_s) + offset_m, min(part.end_s, end_s) + offset_m,
-                           part.radius_m, part.spiral)
+        ConstantRadiusPart(
+            max(part.start_s, start_s) + offset_m, min(part.end_s, end_s) + offset_m, part.radius_m, part.spiral
+        )
         for part in curve.parts
         if part.end_s > start_s and part.start_s < end_s
-    ]  # fmt: skip
+    ]
     if not kept:
         return None
     if curve.start_s >= start_s and curve.end_s <= end_s:
-        return Curve(curve.start_s + offset_m, curve.end_s + offset_m, curve.angle_deg, curve.direction,
-                     curve.min_radius_m, tuple(kept))  # fmt: skip
+        return Curve(
+            curve.start_s + offset_m,
+            curve.end_s + offset_m,
+            curve.angle_deg,
+            curve.direction,
+            curve.min_radius_m,
+            tuple(kept),
+        )
     return Curve(
         start_s=kept[0].start_s,
         end_s=kept[-1].end_s,
@@ -296,9 +303,10 @@ def fit_road_chains(
         lane_chain=lane_chain,
         lane_start_s=lane_start_s,
         lane_road_length_m=road_length_m,
-        lane_position_factor=np.divide(lane_length_m, road_length_m, out=np.ones(len(road_length_m)),
-                                       where=road_length_m > 0),
-    )  # fmt: skip
+        lane_position_factor=np.divide(
+            lane_length_m, road_length_m, out=np.ones(len(road_length_m)), where=road_length_m > 0
+        ),
+    )
 
 
 def index_curves(chains: RoadChains, lane_ids: Sequence[str], warning_radius_m: float) -> list[list[LaneCurve]]:
@@ -309,6 +317,8 @@ def index_curves(chains: RoadChains, lane_ids: Sequence[str], warning_radius_m: 
         for curve in chains.curves(chain, warning_radius_m):
             start_lane, start_pos_m = chains.lane_position(chain, curve.start_s)
             end_lane, end_pos_m = chains.lane_position(chain, curve.end_s, end=True)
-            lane_curves.append(LaneCurve(lane_ids[start_lane], start_pos_m, lane_ids[end_lane], end_pos_m, curve, chain))
+            lane_curves.append(
+                LaneCurve(lane_ids[start_lane], start_pos_m, lane_ids[end_lane], end_pos_m, curve, chain)
+            )
         index.append(lane_curves)
     return index

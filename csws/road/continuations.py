@@ -75,9 +75,7 @@ def _preference(me: sumolib.net.edge.Edge, partner: sumolib.net.edge.Edge, defle
     )
 
 
-def _best_partners(
-    net: sumolib.net.Net, pairs: dict[tuple[str, str], float], side: int
-) -> dict[str, tuple[str, bool]]:
+def _best_partners(net: sumolib.net.Net, pairs: dict[tuple[str, str], float], side: int) -> dict[str, tuple[str, bool]]:
     """For each edge on one side of the pairs (0: incoming, 1: outgoing), its best partner on the
     other side and whether it had a choice."""
     partners: dict[str, list[str]] = defaultdict(list)
@@ -121,4 +119,3 @@ def road_continuations(net: sumolib.net.Net) -> frozenset[tuple[str, str]]:
             continue
         continuing.add((incoming, outgoing))
     return frozenset(continuing)
-

@@ -28,16 +28,17 @@ Headings follow GNSS: degrees clockwise from north. Lane headings in
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from itertools import chain
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from csws.geometry import wrap_angle_rad
-from csws.road.search import LaneMatches, LaneSearch, LaneShapes, least_per_group
 from csws.road.roadmap import RoadMap
+from csws.road.search import LaneMatches, LaneSearch, LaneShapes, least_per_group
 
 __all__ = [
     "MatchSettings",
@@ -121,7 +122,7 @@ class Probes:
     map_index: np.ndarray
 
     @classmethod
-    def everywhere(cls, xy: np.ndarray) -> "Probes":
+    def everywhere(cls, xy: np.ndarray) -> Probes:
         """Fixes ``(k, 2)`` in network metres, each matched on every map; rows not finite are
         matched nowhere (their fix matches nothing)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
@@ -252,12 +253,15 @@ class MapMatcher:
         lane_counts = [len(road_map.lane_ids) for road_map in self.road_maps]
         first_lane = np.concatenate(([0], np.cumsum(lane_counts))).astype(np.intp)
         #: The lanes (from, up to) of each map by its index, and of all maps in the last row (for index -1).
-        self._lane_range = np.array([*zip(first_lane[:-1], first_lane[1:]), (0, first_lane[-1])], dtype=np.intp)
+        self._lane_range = np.array(
+            [*zip(first_lane[:-1], first_lane[1:], strict=True), (0, first_lane[-1])], dtype=np.intp
+        )
         self._lane_map = np.repeat(np.arange(len(self.road_maps), dtype=np.intp), lane_counts)
         self._lane_ids = np.concatenate([road_map.lane_shapes.lane_ids for road_map in self.road_maps])
         self._search = LaneSearch(LaneShapes.joined([road_map.lane_shapes for road_map in self.road_maps]))
-        self._edge_lanes = [self._lanes_by_edge(map_index, int(first_lane[map_index]))
-                            for map_index in range(len(self.road_maps))]  # fmt: skip
+        self._edge_lanes = [
+            self._lanes_by_edge(map_index, int(first_lane[map_index])) for map_index in range(len(self.road_maps))
+        ]
         self._continuations = lru_cache(maxsize=65536)(self._continuation_lanes)
         self._heading_tolerance_rad = math.radians(settings.heading_tolerance_deg)
 
@@ -295,8 +299,9 @@ class MapMatcher:
             chosen.choose(self._candidates(probes, rows, lane_range, heading), None, ~decided)
         return self._fix_matches(chosen, heading)
 
-    def _match_on_previous_maps(self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None],
-                                chosen: _Chosen) -> np.ndarray:  # fmt: skip
+    def _match_on_previous_maps(
+        self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None], chosen: _Chosen
+    ) -> np.ndarray:
         """The first pass: the fixes of vehicles with a previous match, on their previous map alone.
 
         A fix is decided here when a lane that continues its previous one agrees with it
@@ -320,8 +325,9 @@ class MapMatcher:
         chosen.choose(candidates, continued, decided)
         return decided
 
-    def _candidates(self, probes: Probes, rows: np.ndarray, lane_range: np.ndarray | None,
-                    heading_deg: np.ndarray) -> _Candidates:  # fmt: skip
+    def _candidates(
+        self, probes: Probes, rows: np.ndarray, lane_range: np.ndarray | None, heading_deg: np.ndarray
+    ) -> _Candidates:
         """Every lane within the tolerance of the probes ``rows`` (each confined to its lane range when
         given), with the direction check of its fix's heading."""
         found = self._search.nearest_per_lane(probes.xy[rows], self.settings.tolerance_m, lane_range)
@@ -332,10 +338,12 @@ class MapMatcher:
     def _continued(self, candidates: _Candidates, previous: Sequence[MapPosition | None]) -> np.ndarray:
         """Whether each candidate (on its fix's previous map) continues the fix's previous lane."""
         return np.array(
-            [lane in self._continuations(previous[fix].map_index, previous[fix].lane_id)
-             for fix, lane in zip(candidates.fix.tolist(), candidates.found.lane_index.tolist())],
+            [
+                lane in self._continuations(previous[fix].map_index, previous[fix].lane_id)
+                for fix, lane in zip(candidates.fix.tolist(), candidates.found.lane_index.tolist(), strict=True)
+            ],
             dtype=bool,
-        )  # fmt: skip
+        )
 
     def _fix_matches(self, chosen: _Chosen, heading_deg: np.ndarray) -> FixMatches:
         matched = chosen.lane_index >= 0
@@ -344,10 +352,16 @@ class MapMatcher:
         map_index = np.where(matched, self._lane_map[chosen.lane_index], -1)
         reasons = [
             None if is_matched else self._reason(is_near, h)
-            for is_matched, is_near, h in zip(matched.tolist(), chosen.near.tolist(), heading_deg.tolist())
+            for is_matched, is_near, h in zip(matched.tolist(), chosen.near.tolist(), heading_deg.tolist(), strict=True)
         ]
-        return FixMatches(map_index=map_index, lane_id=lane_ids.tolist(), lane_pos_m=chosen.lane_pos_m,
-                          distance_m=chosen.distance_m, continued=chosen.continued, reason=reasons)  # fmt: skip
+        return FixMatches(
+            map_index=map_index,
+            lane_id=lane_ids.tolist(),
+            lane_pos_m=chosen.lane_pos_m,
+            distance_m=chosen.distance_m,
+            continued=chosen.continued,
+            reason=reasons,
+        )
 
     def _reason(self, near: bool, heading_deg: float) -> str:
         """Why a fix matched nothing."""

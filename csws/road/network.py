@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import xml.sax
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import sumolib
@@ -165,10 +165,15 @@ def net_lanes(net: sumolib.net.Net) -> NetLanes:
     continuations = road_continuations(net)
     continuing = _continuing_internal_lanes(sumo_lanes, continuations)
     lanes = [
-        _lane_record(lane, float(length), lane.getEdge().getID() in roundabout_edges, lane.getID() in continuing,
-                     _continues_into(lane, continuations, continuing, roundabout_edges))
-        for lane, length in zip(sumo_lanes, shape_length_m)
-    ]  # fmt: skip
+        _lane_record(
+            lane,
+            float(length),
+            lane.getEdge().getID() in roundabout_edges,
+            lane.getID() in continuing,
+            _continues_into(lane, continuations, continuing, roundabout_edges),
+        )
+        for lane, length in zip(sumo_lanes, shape_length_m, strict=True)
+    ]
     successors = [_successor_ids(lane, index) for lane in sumo_lanes]
     return NetLanes(lanes, xy, vertex_start, successors, _geo_reference(net))
 
@@ -265,7 +270,9 @@ def _successor_ids(lane: sumolib.net.lane.Lane, index: dict[str, int]) -> list[i
     return reached
 
 
-def _continuing_internal_lanes(sumo_lanes: Sequence[sumolib.net.lane.Lane], continuations: frozenset[tuple[str, str]]) -> set[str]:
+def _continuing_internal_lanes(
+    sumo_lanes: Sequence[sumolib.net.lane.Lane], continuations: frozenset[tuple[str, str]]
+) -> set[str]:
     """Ids of the internal lanes of the connections that continue a road (edge pairs in ``continuations``)."""
     by_id = {lane.getID(): lane for lane in sumo_lanes}
     continuing: set[str] = set()
@@ -284,7 +291,10 @@ def _continuing_internal_lanes(sumo_lanes: Sequence[sumolib.net.lane.Lane], cont
 
 
 def _continues_into(
-    lane: sumolib.net.lane.Lane, continuations: frozenset[tuple[str, str]], continuing: set[str], roundabout: frozenset[str]
+    lane: sumolib.net.lane.Lane,
+    continuations: frozenset[tuple[str, str]],
+    continuing: set[str],
+    roundabout: frozenset[str],
 ) -> str:
     """The lane a sumolib lane's road continues on, "" where it ends or turns (:attr:`Lane.continues_into`).
 

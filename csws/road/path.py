@@ -8,8 +8,8 @@ request (:meth:`PathProfile.curves` against :meth:`PathProfile.road_curves`).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -151,9 +151,13 @@ def path_runs(chains: RoadChains, lanes: Sequence[int]) -> list[tuple[int, int]]
 
 
 def path_profile_parts(
-    chains: RoadChains, chain_of_run: np.ndarray, chain_start_s: np.ndarray, chain_end_s: np.ndarray,
-    path_start_s: np.ndarray, vertex_s: np.ndarray,
-) -> RadiusProfile:  # fmt: skip
+    chains: RoadChains,
+    chain_of_run: np.ndarray,
+    chain_start_s: np.ndarray,
+    chain_end_s: np.ndarray,
+    path_start_s: np.ndarray,
+    vertex_s: np.ndarray,
+) -> RadiusProfile:
     """The radius profile of a path: each run's stretch of its chain's profile, shifted onto
     the path; a gap between runs (lanes that do not meet) is straight."""
     bounds: list[float] = [0.0]
@@ -166,8 +170,13 @@ def path_profile_parts(
             start_k.append(k0)
             end_k.append(k1)
 
-    for chain, start_s, end_s, offset_s in zip(chain_of_run.tolist(), chain_start_s.tolist(), chain_end_s.tolist(),
-                                               (path_start_s - chain_start_s).tolist()):  # fmt: skip
+    for chain, start_s, end_s, offset_s in zip(
+        chain_of_run.tolist(),
+        chain_start_s.tolist(),
+        chain_end_s.tolist(),
+        (path_start_s - chain_start_s).tolist(),
+        strict=True,
+    ):
         add(start_s + offset_s, 0.0, 0.0)
         for part in chains.profiles[chain].parts:
             if part.end_s <= start_s or part.start_s >= end_s:
@@ -180,8 +189,14 @@ def path_profile_parts(
     return _profile(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
 
 
-def path_profile(chains: RoadChains, lanes: Sequence[int], lane_ids: Sequence[str], road_shapes: Sequence[np.ndarray],
-                 lane_length_m: np.ndarray, lane_is_junction: np.ndarray) -> PathProfile:  # fmt: skip
+def path_profile(
+    chains: RoadChains,
+    lanes: Sequence[int],
+    lane_ids: Sequence[str],
+    road_shapes: Sequence[np.ndarray],
+    lane_length_m: np.ndarray,
+    lane_is_junction: np.ndarray,
+) -> PathProfile:
     """The profile of a path of consecutive lanes (internal lanes included) read from the road chains.
 
     Parameters
@@ -213,7 +228,9 @@ def path_profile(chains: RoadChains, lanes: Sequence[int], lane_ids: Sequence[st
         profile=path_profile_parts(chains, run_chain, run_chain_start_s, run_chain_end_s, run_path_start_s, vertex_s),
         lane_start_s=lane_start_s,
         lane_shape_length_m=shape_length_m,
-        lane_position_factor=np.divide(lane_length_m, shape_length_m, out=np.ones(len(lanes)), where=shape_length_m > 0),
+        lane_position_factor=np.divide(
+            lane_length_m, shape_length_m, out=np.ones(len(lanes)), where=shape_length_m > 0
+        ),
         lane_is_junction=np.asarray(lane_is_junction, dtype=bool),
         run_chain=run_chain,
         run_chain_start_s=run_chain_start_s,

@@ -48,21 +48,22 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Sequence
 from functools import cached_property
 from itertools import chain
 from pathlib import Path
-from typing import Sequence, TextIO
+from typing import TextIO
 
 import numpy as np
 import sumolib
 
 from csws.curvature import profile_cache_dir
-from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
 from csws.road.chains import LaneCurve, fit_road_chains, index_curves
 from csws.road.export import CURVE_FIELDS, write_curve_table
-from csws.road.path import PathProfile, path_profile
-from csws.standard import DEFAULT_WARNING_RADIUS_M
 from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
+from csws.road.path import PathProfile, path_profile
+from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
+from csws.standard import DEFAULT_WARNING_RADIUS_M
 
 __all__ = [
     "CURVE_FIELDS",
@@ -172,7 +173,7 @@ class RoadMap:
 
     # ----------------------------------------------------------------- construction
     @classmethod
-    def load(cls, net_path: str | Path, warning_radius_m: float | None = None, *, cache: bool = True) -> "RoadMap":
+    def load(cls, net_path: str | Path, warning_radius_m: float | None = None, *, cache: bool = True) -> RoadMap:
         """Read a ``.net.xml`` / ``.net.xml.gz`` and build its road map.
 
         Parameters
@@ -198,7 +199,7 @@ class RoadMap:
             raise NetworkError(f"{Path(net_path).name}: {error}") from None
 
     @classmethod
-    def from_net(cls, net: sumolib.net.Net, warning_radius_m: float | None = None, *, cache: bool = True) -> "RoadMap":
+    def from_net(cls, net: sumolib.net.Net, warning_radius_m: float | None = None, *, cache: bool = True) -> RoadMap:
         """Build the road map of a sumolib net read with ``withInternal=True``.
 
         Only the location of ``net`` is kept: lanes are copied into arrays so the
@@ -268,7 +269,7 @@ class RoadMap:
         step of every path built)."""
         ids = [lane.lane_id for lane in self._lanes]
         starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
-        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:]))
+        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=True))
 
     def road_chain(self, lane_id: str) -> tuple[str, ...]:
         """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.road.chains`)."""
@@ -513,9 +514,7 @@ class RoadMap:
 
     def _require_projection(self) -> None:
         if not self.has_projection:
-            raise ValueError(
-                "the network has no geo-projection: it takes network x/y in metres, not lon/lat"
-            )
+            raise ValueError("the network has no geo-projection: it takes network x/y in metres, not lon/lat")
 
     @cached_property
     def _lane_id_array(self) -> np.ndarray:

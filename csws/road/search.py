@@ -14,8 +14,8 @@ the position, not on how many maps there are.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import shapely
@@ -88,13 +88,13 @@ class LaneShapes:
         return len(self.vertex_start) - 1
 
     @classmethod
-    def joined(cls, parts: Sequence["LaneShapes"]) -> "LaneShapes":
+    def joined(cls, parts: Sequence[LaneShapes]) -> LaneShapes:
         """The lanes of several maps back to back, in order: the lanes of ``parts[k]`` are numbered
         from the sum of the lane counts before it. Each part keeps its own arc lengths."""
         if len(parts) == 1:
             return parts[0]
         vertex_offset = np.cumsum([0] + [len(part.xy) for part in parts])
-        vertex_start = [part.vertex_start[:-1] + offset for part, offset in zip(parts, vertex_offset)]
+        vertex_start = [part.vertex_start[:-1] + offset for part, offset in zip(parts, vertex_offset, strict=True)]
         return cls(
             xy=np.concatenate([part.xy for part in parts]),
             vertex_start=np.concatenate(vertex_start + [vertex_offset[-1:]]).astype(np.int64),
@@ -234,8 +234,19 @@ class LaneSearch:
         position and, for each, by distance."""
         found = self.nearest_per_lane(xy, radius_m)
         order = np.lexsort((found.distance_m, found.point_index))
-        return LaneMatches(*(column[order] for column in (found.point_index, found.lane_index, found.lane_id,
-                                                          found.distance_m, found.lane_pos_m, found.heading_rad)))
+        return LaneMatches(
+            *(
+                column[order]
+                for column in (
+                    found.point_index,
+                    found.lane_index,
+                    found.lane_id,
+                    found.distance_m,
+                    found.lane_pos_m,
+                    found.heading_rad,
+                )
+            )
+        )
 
     def nearest_per_lane(self, xy: np.ndarray, radius_m: float, lane_range: np.ndarray | None = None) -> LaneMatches:
         """Each position ``xy`` ``(k, 2)`` projected onto each lane within ``radius_m`` (its nearest
@@ -265,7 +276,12 @@ class LaneSearch:
         distance_m = np.hypot(*(p - (start_xy + fraction[:, None] * direction)).T)
         near = np.flatnonzero(distance_m <= radius_m)
         point_index, segment, lane, fraction, distance_m = (
-            point_index[near], segment[near], lane[near], fraction[near], distance_m[near])
+            point_index[near],
+            segment[near],
+            lane[near],
+            fraction[near],
+            distance_m[near],
+        )
         # The nearest segment of each lane for each point; of two at the same distance (a point nearest to
         # the vertex they share), the earlier one along the lane.
         keep = least_per_group(point_index * len(self._lane_ids) + lane, distance_m, segment)

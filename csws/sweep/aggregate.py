@@ -26,8 +26,38 @@ from .study import FACTORS, TRAFFIC_FACTORS, Factors, Study
 __all__ = ["Estimate", "SettingFigures", "setting_figures", "write_summary_md", "aggregate", "t_quantile"]
 
 #: Student's t, 0.975 quantile, for 1-30 degrees of freedom.
-_T_975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
-          2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042)  # fmt: skip
+_T_975 = (
+    12.706,
+    4.303,
+    3.182,
+    2.776,
+    2.571,
+    2.447,
+    2.365,
+    2.306,
+    2.262,
+    2.228,
+    2.201,
+    2.179,
+    2.160,
+    2.145,
+    2.131,
+    2.120,
+    2.110,
+    2.101,
+    2.093,
+    2.086,
+    2.080,
+    2.074,
+    2.069,
+    2.064,
+    2.060,
+    2.056,
+    2.052,
+    2.048,
+    2.045,
+    2.042,
+)
 #: The figures per setting: (name in the run's row, heading).
 FIGURES = (
     ("share_vehicles_above_vw1", "vehicles entering a curve above V_w1, share"),
@@ -51,15 +81,18 @@ class Estimate:
     seeds: int
 
     @classmethod
-    def of(cls, values: list[float | None]) -> "Estimate":
+    def of(cls, values: list[float | None]) -> Estimate:
         """The estimate from one value per seed; None (a figure without a denominator) is left out."""
         values = [v for v in values if v is not None]
         if not values:
             return cls(math.nan, math.nan, 0)
         if len(values) == 1:
             return cls(values[0], math.nan, 1)
-        return cls(statistics.fmean(values), t_quantile(len(values) - 1) * statistics.stdev(values) / math.sqrt(len(values)),
-                   len(values))  # fmt: skip
+        return cls(
+            statistics.fmean(values),
+            t_quantile(len(values) - 1) * statistics.stdev(values) / math.sqrt(len(values)),
+            len(values),
+        )
 
     def text(self, digits: int = 3) -> str:
         if math.isnan(self.mean):
@@ -87,14 +120,21 @@ def setting_figures(study: Study, rows: list[dict]) -> list[SettingFigures]:
         runs = [row for row in rows if not row["reference"] and _factors(row) == factors]
         paired = [(row, references.get((*(getattr(factors, n) for n in TRAFFIC_FACTORS), row["seed"]))) for row in runs]
         paired_references = [reference for _, reference in paired if reference is not None]
-        figures.append(SettingFigures(
-            factors,
-            {name: Estimate.of([row[name] for row in runs]) for name, _ in FIGURES},
-            {name: Estimate.of([row[name] for row in paired_references]) for name, _ in FIGURES},
-            Estimate.of([row["mean_time_loss_s"] - ref["mean_time_loss_s"] for row, ref in paired
-                         if ref is not None and row["vehicles"] and ref["vehicles"]]),
-            [excess for row in runs for excess in row["entry_excess_kmh"]],
-        ))  # fmt: skip
+        figures.append(
+            SettingFigures(
+                factors,
+                {name: Estimate.of([row[name] for row in runs]) for name, _ in FIGURES},
+                {name: Estimate.of([row[name] for row in paired_references]) for name, _ in FIGURES},
+                Estimate.of(
+                    [
+                        row["mean_time_loss_s"] - ref["mean_time_loss_s"]
+                        for row, ref in paired
+                        if ref is not None and row["vehicles"] and ref["vehicles"]
+                    ]
+                ),
+                [excess for row in runs for excess in row["entry_excess_kmh"]],
+            )
+        )
     return figures
 
 
@@ -109,40 +149,64 @@ def _level(value) -> str:
 def _settings_table(study: Study, figures: list[SettingFigures]) -> list[str]:
     """The settings' table: the varying factors, then each figure with and without CSWS."""
     shown = study.varying() or ["equipped_share"]
-    header = [*shown, "V_w1 with", "V_w1 without", "V_w2 with", "V_w2 without", "warnings /100 veh-km",
-              "time loss change s/veh", "seeds"]  # fmt: skip
+    header = [
+        *shown,
+        "V_w1 with",
+        "V_w1 without",
+        "V_w2 with",
+        "V_w2 without",
+        "warnings /100 veh-km",
+        "time loss change s/veh",
+        "seeds",
+    ]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for setting in figures:
         w, wo = setting.with_csws, setting.without_csws
         cells = [_level(getattr(setting.factors, name)) for name in shown]
-        cells += [w["share_vehicles_above_vw1"].text(), wo["share_vehicles_above_vw1"].text(),
-                  w["share_vehicles_above_vw2"].text(), wo["share_vehicles_above_vw2"].text(),
-                  w["warnings_per_100_vehicle_km"].text(), setting.time_loss_change_s.text(),
-                  str(w["share_vehicles_above_vw1"].seeds)]  # fmt: skip
+        cells += [
+            w["share_vehicles_above_vw1"].text(),
+            wo["share_vehicles_above_vw1"].text(),
+            w["share_vehicles_above_vw2"].text(),
+            wo["share_vehicles_above_vw2"].text(),
+            w["warnings_per_100_vehicle_km"].text(),
+            setting.time_loss_change_s.text(),
+            str(w["share_vehicles_above_vw1"].seeds),
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
 #: The columns of the table of all runs: (row field, heading).
 _RUN_COLUMNS = (
-    ("key", "run"), ("seed", "seed"), *((name, name) for name in FACTORS), ("vehicles", "vehicles"),
-    ("vehicles_equipped", "equipped"), ("vehicle_km", "veh-km"), ("entries_above_vw1", "entries > V_w1"),
-    ("entries_above_vw2", "entries > V_w2"), ("warnings", "warnings"), ("mean_time_loss_s", "time loss s/veh"),
+    ("key", "run"),
+    ("seed", "seed"),
+    *((name, name) for name in FACTORS),
+    ("vehicles", "vehicles"),
+    ("vehicles_equipped", "equipped"),
+    ("vehicle_km", "veh-km"),
+    ("entries_above_vw1", "entries > V_w1"),
+    ("entries_above_vw2", "entries > V_w2"),
+    ("warnings", "warnings"),
+    ("mean_time_loss_s", "time loss s/veh"),
     ("status", "status"),
-)  # fmt: skip
+)
 
 
 def _runs_table(rows: list[dict]) -> list[str]:
     """Every run, one line each (a reference run's CSWS factors are empty: no vehicle equipped)."""
     lines = ["| " + " | ".join(heading for _, heading in _RUN_COLUMNS) + " |", "|" + "---|" * len(_RUN_COLUMNS)]
     for row in rows:
-        cells = ["" if row[name] is None else f"{row[name]:.4g}" if isinstance(row[name], float) else str(row[name])
-                 for name, _ in _RUN_COLUMNS]  # fmt: skip
+        cells = [
+            "" if row[name] is None else f"{row[name]:.4g}" if isinstance(row[name], float) else str(row[name])
+            for name, _ in _RUN_COLUMNS
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
-def write_summary_md(path: Path, study: Study, rows: list[dict], figures: list[SettingFigures], plots: list[str]) -> None:
+def write_summary_md(
+    path: Path, study: Study, rows: list[dict], figures: list[SettingFigures], plots: list[str]
+) -> None:
     """Write ``summary.md``."""
     scenario = study.scenario
     what = scenario.bundled or scenario.sumocfg
@@ -151,7 +215,8 @@ def write_summary_md(path: Path, study: Study, rows: list[dict], figures: list[S
     lines = [
         f"# Study {study.name}",
         "",
-        f"Scenario {what}" + (f", {scenario.vehicles} vehicles" if scenario.bundled == "fleet" else "")
+        f"Scenario {what}"
+        + (f", {scenario.vehicles} vehicles" if scenario.bundled == "fleet" else "")
         + f", {scenario.end_s:g} s simulated per run; seeds {study.seeds[0]}-{study.seeds[-1]}. "
         f"{len(rows)} of {len(runs)} runs done ({len(study.settings())} settings and "
         f"{len(study.references())} without CSWS, each per seed). Fixed: {fixed or 'none'}.",
@@ -169,7 +234,7 @@ def write_summary_md(path: Path, study: Study, rows: list[dict], figures: list[S
         "",
         *_runs_table(rows),
         "",
-    ]  # fmt: skip
+    ]
     path.write_text("\n".join(lines), encoding="utf-8")
 
 
@@ -184,4 +249,3 @@ def aggregate(study: Study, out: Path) -> Path:
     plots = write_plots(out / "plots", study, figures, [row for row in rows if row["reference"]])
     write_summary_md(out / "summary.md", study, rows, figures, [str(p.relative_to(out)) for p in plots])
     return out / "summary.md"
-

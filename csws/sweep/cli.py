@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from csws.cli.argtypes import output_folder, positive_int
 from csws.cli import deferred
+from csws.cli.argtypes import output_folder, positive_int
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -21,8 +21,16 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("study", type=Path, help="the study, a TOML file (see docs/sweep.md)")
     parser.add_argument("--out", type=output_folder, required=True, help="output folder (made if missing)")
     cluster = parser.add_mutually_exclusive_group()
-    cluster.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                         help="a running Dask scheduler (default: a local cluster)")  # fmt: skip
-    cluster.add_argument("--workers", type=positive_int, default=None,
-                         help="worker processes of the local cluster (default: one per core)")  # fmt: skip
+    cluster.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="tcp://HOST:PORT",
+        help="a running Dask scheduler (default: a local cluster)",
+    )
+    cluster.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="worker processes of the local cluster (default: one per core)",
+    )
     parser.set_defaults(handler=deferred("csws.sweep.run"))

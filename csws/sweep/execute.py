@@ -24,10 +24,11 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, TextIO
+from typing import TextIO
 
 from csws.cli.progress import Progress
 
@@ -82,8 +83,15 @@ def dask_client(scheduler: str | None, workers: int | None, stream: TextIO) -> I
             cluster.close()
 
 
-def run_sweep(runs: list[RunSpec], out: Path, *, scheduler: str | None = None, workers: int | None = None,
-              progress: bool = True, stream: TextIO | None = None) -> SweepReport:  # fmt: skip
+def run_sweep(
+    runs: list[RunSpec],
+    out: Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+    stream: TextIO | None = None,
+) -> SweepReport:
     """Run every run of ``runs`` whose result is not in ``out`` yet, on Dask; write each result at once.
 
     Parameters
@@ -109,10 +117,11 @@ def run_sweep(runs: list[RunSpec], out: Path, *, scheduler: str | None = None, w
     with dask_client(scheduler, workers, stream) as client, open(out / LOG_NAME, "a", encoding="utf-8") as log:
         from dask.distributed import as_completed
 
-        bar = Progress("sweep", len(runs), "runs", enabled=progress, stream=stream, done=len(report.done_before),
-                       time_left=True)  # fmt: skip
+        bar = Progress(
+            "sweep", len(runs), "runs", enabled=progress, stream=stream, done=len(report.done_before), time_left=True
+        )
         futures = client.map(run_task, pending, key=[f"csws-run-{spec.key}" for spec in pending])
-        key_of = {future.key: spec.key for future, spec in zip(futures, pending)}
+        key_of = {future.key: spec.key for future, spec in zip(futures, pending, strict=True)}
         try:
             for future in as_completed(futures):
                 key = key_of[future.key]

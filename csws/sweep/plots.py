@@ -55,16 +55,29 @@ def write_plots(folder: Path, study: Study, figures: list[SettingFigures], refer
     positions = list(levels) if numeric else list(range(len(levels)))
     lines = list(itertools.product(*(study.levels[name] for name in others)))
     figure, axes = pyplot.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for (name, label, with_reference), axis in zip(_PANELS, axes.flat):
+    for (name, label, with_reference), axis in zip(_PANELS, axes.flat, strict=True):
         for number, line in enumerate(lines):
-            settings = [next(s for s in figures if getattr(s.factors, x_factor) == level
-                             and all(getattr(s.factors, o) == v for o, v in zip(others, line))) for level in levels]  # fmt: skip
-            text = ", ".join(f"{o} {_label(v)}" for o, v in zip(others, line)) or "with CSWS"
+            settings = [
+                next(
+                    s
+                    for s in figures
+                    if getattr(s.factors, x_factor) == level
+                    and all(getattr(s.factors, o) == v for o, v in zip(others, line, strict=True))
+                )
+                for level in levels
+            ]
+            text = ", ".join(f"{o} {_label(v)}" for o, v in zip(others, line, strict=True)) or "with CSWS"
             color = f"C{number % 10}"
             _errorbars(axis, positions, [_estimate(s, name) for s in settings], color, "-o", text)
             if with_reference:
-                _errorbars(axis, positions, [_estimate(s, name, False) for s in settings], color, "--",
-                           "without CSWS" + (f" ({text})" if others else ""))  # fmt: skip
+                _errorbars(
+                    axis,
+                    positions,
+                    [_estimate(s, name, False) for s in settings],
+                    color,
+                    "--",
+                    "without CSWS" + (f" ({text})" if others else ""),
+                )
         axis.set_ylabel(label)
         axis.grid(alpha=0.3)
     for axis in axes[1]:
@@ -83,8 +96,16 @@ def write_plots(folder: Path, study: Study, figures: list[SettingFigures], refer
 def _errorbars(axis, positions: list, estimates: list[Estimate], color: str, style: str, label: str) -> None:
     means = np.array([e.mean for e in estimates])
     widths = np.nan_to_num(np.array([e.half_width for e in estimates]))
-    axis.errorbar(positions, means, yerr=widths, fmt=style, color=color, capsize=3, label=label,
-                  alpha=1.0 if style != "--" else 0.6)  # fmt: skip
+    axis.errorbar(
+        positions,
+        means,
+        yerr=widths,
+        fmt=style,
+        color=color,
+        capsize=3,
+        label=label,
+        alpha=1.0 if style != "--" else 0.6,
+    )
 
 
 def _excess_plot(path: Path, x_factor: str, figures: list[SettingFigures], references: list[dict], pyplot) -> Path:
@@ -96,8 +117,14 @@ def _excess_plot(path: Path, x_factor: str, figures: list[SettingFigures], refer
     bins = np.linspace(min(min(everything), -2.0), max(max(everything), 2.0), 40)
     figure, axis = pyplot.subplots(figsize=(8, 4))
     for number, (label, values) in enumerate(groups.items()):
-        axis.hist(values, bins=bins, histtype="step", linewidth=1.5, color="k" if number == 0 else f"C{number - 1}",
-                  label=f"{label} ({len(values)} entries)")  # fmt: skip
+        axis.hist(
+            values,
+            bins=bins,
+            histtype="step",
+            linewidth=1.5,
+            color="k" if number == 0 else f"C{number - 1}",
+            label=f"{label} ({len(values)} entries)",
+        )
     axis.axvline(0.0, color="grey", linewidth=0.8)
     axis.set_xlabel("speed above V_w1 at curve entry, km/h (entries where a warning triggered)")
     axis.set_ylabel("entries")

@@ -19,31 +19,33 @@ __all__ = ["RUN_SCHEMA", "RUNS_FOLDER", "result_path", "write_result", "read_res
 
 RUNS_FOLDER = "runs"
 #: The columns of a run's row.
-RUN_SCHEMA = pa.schema([
-    ("key", pa.string()),
-    ("reference", pa.bool_()),
-    ("seed", pa.int64()),
-    ("equipped_share", pa.float64()),
-    ("compliance_share", pa.float64()),
-    ("reaction_s", pa.float64()),
-    ("decel_mps2", pa.float64()),
-    ("step_length_s", pa.float64()),
-    ("category_mix", pa.string()),
-    ("status", pa.string()),
-    ("simulated_until_s", pa.float64()),
-    ("vehicles", pa.int64()),
-    ("vehicles_equipped", pa.int64()),
-    ("vehicle_km", pa.float64()),
-    ("vehicle_km_equipped", pa.float64()),
-    ("entries_above_vw1", pa.int64()),
-    ("entries_above_vw2", pa.int64()),
-    ("share_vehicles_above_vw1", pa.float64()),
-    ("share_vehicles_above_vw2", pa.float64()),
-    ("warnings", pa.int64()),
-    ("warnings_per_100_vehicle_km", pa.float64()),
-    ("mean_time_loss_s", pa.float64()),
-    ("entry_excess_kmh", pa.list_(pa.float64())),
-])  # fmt: skip
+RUN_SCHEMA = pa.schema(
+    [
+        ("key", pa.string()),
+        ("reference", pa.bool_()),
+        ("seed", pa.int64()),
+        ("equipped_share", pa.float64()),
+        ("compliance_share", pa.float64()),
+        ("reaction_s", pa.float64()),
+        ("decel_mps2", pa.float64()),
+        ("step_length_s", pa.float64()),
+        ("category_mix", pa.string()),
+        ("status", pa.string()),
+        ("simulated_until_s", pa.float64()),
+        ("vehicles", pa.int64()),
+        ("vehicles_equipped", pa.int64()),
+        ("vehicle_km", pa.float64()),
+        ("vehicle_km_equipped", pa.float64()),
+        ("entries_above_vw1", pa.int64()),
+        ("entries_above_vw2", pa.int64()),
+        ("share_vehicles_above_vw1", pa.float64()),
+        ("share_vehicles_above_vw2", pa.float64()),
+        ("warnings", pa.int64()),
+        ("warnings_per_100_vehicle_km", pa.float64()),
+        ("mean_time_loss_s", pa.float64()),
+        ("entry_excess_kmh", pa.list_(pa.float64())),
+    ]
+)
 
 
 def result_path(out: Path, key: str) -> Path:

@@ -20,6 +20,8 @@ def main(args: argparse.Namespace) -> int:
     summary = aggregate(study, args.out)
     for key, error in report.failed.items():
         print(f"csws: error: run {key} failed: {error}", file=sys.stderr)
-    print(f"{len(runs)} runs: {len(report.done_before)} done before, {len(report.ran)} now, "
-          f"{len(report.failed)} failed; summary in {summary}")
+    print(
+        f"{len(runs)} runs: {len(report.done_before)} done before, {len(report.ran)} now, "
+        f"{len(report.failed)} failed; summary in {summary}"
+    )
     return 1 if report.failed else 0

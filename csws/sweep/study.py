@@ -18,14 +18,25 @@ import itertools
 import json
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from csws.cli.argtypes import step_length
 from csws.standard import Category
 
-__all__ = ["StudyError", "ScenarioSpec", "Factors", "RunSpec", "Study", "read_study", "RESULT_FORMAT", "FACTORS", "OWN_MIX"]
+__all__ = [
+    "StudyError",
+    "ScenarioSpec",
+    "Factors",
+    "RunSpec",
+    "Study",
+    "read_study",
+    "RESULT_FORMAT",
+    "FACTORS",
+    "OWN_MIX",
+]
 
 #: Part of every run's key: a change of what a run's result holds gives new keys.
 RESULT_FORMAT = "csws-sweep-run/1"
@@ -126,7 +137,10 @@ class Study:
 
     def settings(self) -> list[Factors]:
         """Every combination of the factors' levels."""
-        return [Factors(**dict(zip(self.levels, values))) for values in itertools.product(*self.levels.values())]
+        return [
+            Factors(**dict(zip(self.levels, values, strict=True)))
+            for values in itertools.product(*self.levels.values())
+        ]
 
     def references(self) -> list[Factors]:
         """One setting without CSWS per combination of the traffic factors' levels."""
@@ -135,7 +149,11 @@ class Study:
 
     def runs(self) -> list[RunSpec]:
         """Every run of the study."""
-        return [RunSpec(self.scenario, factors, seed) for factors in self.settings() + self.references() for seed in self.seeds]
+        return [
+            RunSpec(self.scenario, factors, seed)
+            for factors in self.settings() + self.references()
+            for seed in self.seeds
+        ]
 
     def varying(self) -> list[str]:
         """The factors with more than one level."""
@@ -280,7 +298,9 @@ def _mixes(reader: _Reader, document: dict) -> tuple:
         field = f"category_mixes.{name}"
         if name == OWN_MIX:
             raise reader.fail(field, f"the name {OWN_MIX} is the scenario's own mix; choose another")
-        shares = reader.table(mixes, name, tuple(c.value for c in Category), field) if isinstance(shares, dict) else None
+        shares = (
+            reader.table(mixes, name, tuple(c.value for c in Category), field) if isinstance(shares, dict) else None
+        )
         if not shares:
             raise reader.fail(field, "give shares per category, e.g. M1 = 0.6, N = 0.4")
         checked = tuple((c, reader.value(shares, field, c, _not_negative)) for c in sorted(shares))
@@ -318,7 +338,9 @@ def read_study(path: Path) -> Study:
     mixes = dict(scenario.mixes)
     for mix in levels["category_mix"]:
         if mix != OWN_MIX and mix not in mixes:
-            raise reader.fail("factors.category_mix", f"{mix!r} is neither {OWN_MIX} nor a [category_mixes.{mix}] table")
+            raise reader.fail(
+                "factors.category_mix", f"{mix!r} is neither {OWN_MIX} nor a [category_mixes.{mix}] table"
+            )
         if mix != OWN_MIX and scenario.bundled != "fleet":
             raise reader.fail("factors.category_mix", "only the bundled fleet scenario can change its mix")
     name = study.get("name", path.stem)

@@ -45,12 +45,26 @@ def run_task(spec: RunSpec) -> dict:
     with _LIBSUMO, tempfile.TemporaryDirectory(prefix=f"csws-sweep-{spec.key}-") as folder:
         out = Path(folder)
         factors = spec.factors
-        driver = None if spec.reference else DriverSettings(
-            reaction_s=factors.reaction_s, decel_mps2=factors.decel_mps2, equipped_share=factors.equipped_share,
-            compliance_share=factors.compliance_share, draw_seed=spec.seed,
-        )  # fmt: skip
-        config = CosimConfig(scenario_files(spec, out), out / "cosim", step_length_s=factors.step_length_s,
-                             end_s=spec.scenario.end_s, driver=driver, seed=spec.seed, timeseries="none")  # fmt: skip
+        driver = (
+            None
+            if spec.reference
+            else DriverSettings(
+                reaction_s=factors.reaction_s,
+                decel_mps2=factors.decel_mps2,
+                equipped_share=factors.equipped_share,
+                compliance_share=factors.compliance_share,
+                draw_seed=spec.seed,
+            )
+        )
+        config = CosimConfig(
+            scenario_files(spec, out),
+            out / "cosim",
+            step_length_s=factors.step_length_s,
+            end_s=spec.scenario.end_s,
+            driver=driver,
+            seed=spec.seed,
+            timeseries="none",
+        )
         summary = cosimulate(config)
         return _figures(spec, summary, out)
 
@@ -65,8 +79,9 @@ def scenario_files(spec: RunSpec, folder: Path) -> Scenario:
         mix = scenario.mix(spec.factors.category_mix)
         kinds = {} if mix is None else {"types": types_for_mix(mix)}
         routes = folder / "fleet.rou.xml"
-        routes.write_text(fleet_routes_xml(scenario.vehicles, period_s=scenario.vehicles, seed=spec.seed, **kinds),
-                          encoding="utf-8")  # fmt: skip
+        routes.write_text(
+            fleet_routes_xml(scenario.vehicles, period_s=scenario.vehicles, seed=spec.seed, **kinds), encoding="utf-8"
+        )
         source = folder / "fleet.sumocfg"
         source.write_text(sumocfg_xml(str(fleet_dir() / f"{FLEET_NAME}.net.xml"), str(routes)), encoding="utf-8")
     elif scenario.bundled == "badhersfeld":

@@ -34,8 +34,8 @@ held level 2 never stands where level 1 was not due first.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -151,7 +151,13 @@ def next_memories(
         points, kept_at_s = [], []
         for level, rules in enumerate(level_rules):
             here = rules[start:stop]
-            points.append(frozenset((curve_ids[row], int(part_indices[row])) for row, rule in zip(range(start, stop), here) if rule))
+            points.append(
+                frozenset(
+                    (curve_ids[row], int(part_indices[row]))
+                    for row, rule in zip(range(start, stop), here, strict=True)
+                    if rule
+                )
+            )
             if Rule.REQUIRED in here or Rule.MARGIN in here:
                 kept_at_s.append(now_s[vehicle])
             else:

@@ -27,13 +27,12 @@ The core, :func:`evaluate_batch`, works on flat numpy arrays for many vehicles a
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Sequence
 
 import numpy as np
 
-from csws.warning.release import Rule
 from csws.standard import (
     DEFAULT_POLICY,
     G_MPS2,
@@ -44,6 +43,7 @@ from csws.standard import (
     kmh_to_mps,
     warning_distance_m,
 )
+from csws.warning.release import Rule
 
 __all__ = [
     "CurvaturePointOfInterest",
@@ -158,7 +158,7 @@ class HmiHint:
     audible: str | None
 
     @classmethod
-    def for_level(cls, level: Level) -> "HmiHint":
+    def for_level(cls, level: Level) -> HmiHint:
         """The hint of a warning level: level 1 visual, level 2 visual and audible."""
         return _HMI_HINTS[Level(level)]
 
@@ -282,29 +282,50 @@ class BatchWarnings:
     ) -> list[CurveWarning]:
         """The :class:`CurveWarning` of each of ``vehicles`` (see :meth:`vehicle_warning`), the arrays read once."""
         vehicle_levels, targets, levels, distances, radii, speeds, warning_distances = (
-            array.tolist() for array in (self.level, self.target, self.cpoi_level, self.cpoi_distance_m,
-                                         self.cpoi_radius_m, self.warning_speed_kmh, self.warning_distance_m)
-        )  # fmt: skip
+            array.tolist()
+            for array in (
+                self.level,
+                self.target,
+                self.cpoi_level,
+                self.cpoi_distance_m,
+                self.cpoi_radius_m,
+                self.warning_speed_kmh,
+                self.warning_distance_m,
+            )
+        )
         columns = np.arange(self.cpoi_level.size)
         held = (self.cpoi_rule[np.fmax(self.cpoi_level - 1, 0), columns] >= Rule.MARGIN).tolist()
         warnings = []
-        for vehicle, first, ids, parts, path_kind in zip(vehicles, first_cpoi, curve_ids, part_indices, path_kinds):
+        for vehicle, first, ids, parts, path_kind in zip(
+            vehicles, first_cpoi, curve_ids, part_indices, path_kinds, strict=True
+        ):
             level = _LEVELS[vehicle_levels[vehicle]]
             if level is Level.NONE:  # nothing triggered
                 warnings.append(_NO_WARNINGS[path_kind])
                 continue
             triggers = {
-                k: Trigger(ids[k - first], int(parts[k - first]), distances[k], radii[k], _LEVELS[levels[k]],
-                           speeds[k], warning_distances[k], held[k])
-                for k in range(first, first + len(ids)) if levels[k]
-            }  # fmt: skip
-            warnings.append(CurveWarning(
-                level=level,
-                target=triggers.get(targets[vehicle]),
-                triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
-                path_kind=path_kind,
-                hmi=_HMI_HINTS[level],
-            ))  # fmt: skip
+                k: Trigger(
+                    ids[k - first],
+                    int(parts[k - first]),
+                    distances[k],
+                    radii[k],
+                    _LEVELS[levels[k]],
+                    speeds[k],
+                    warning_distances[k],
+                    held[k],
+                )
+                for k in range(first, first + len(ids))
+                if levels[k]
+            }
+            warnings.append(
+                CurveWarning(
+                    level=level,
+                    target=triggers.get(targets[vehicle]),
+                    triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
+                    path_kind=path_kind,
+                    hmi=_HMI_HINTS[level],
+                )
+            )
         return warnings
 
 
@@ -313,13 +334,13 @@ _COLUMN_INDEX.update({category.value: index for category, index in _COLUMN_INDEX
 _LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
 
 
-def column_index(category: "str | Category") -> int:
+def column_index(category: str | Category) -> int:
     """Index into ``list(Column)`` of a category's column of Tables 1-2."""
     index = _COLUMN_INDEX.get(category)
     return index if index is not None else _COLUMN_INDEX[Category.parse(category)]
 
 
-def column_indices(categories: Sequence["str | Category"]) -> np.ndarray:
+def column_indices(categories: Sequence[str | Category]) -> np.ndarray:
     """Index into ``list(Column)`` of each category's column of Tables 1-2."""
     return np.array([column_index(c) for c in categories], dtype=np.intp)
 

@@ -11,10 +11,10 @@ against each other on every kind of CPOI and memory).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
-from csws.warning.release import NOT_HELD, HeldWarning, Rule, within_hold
 from csws.standard import Category, Level, formula_1_m, kmh_to_mps
+from csws.warning.release import NOT_HELD, HeldWarning, Rule, within_hold
 from csws.warning.rules import (
     CurvaturePointOfInterest,
     CurveWarning,
@@ -36,7 +36,7 @@ _LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
 
 def evaluate(
     speed_kmh: float,
-    category: "str | Category",
+    category: str | Category,
     cpois: Sequence[CurvaturePointOfInterest],
     path_kind: PathKind = PathKind.ROUTE,
     settings: WarningSettings = WarningSettings(),
@@ -85,8 +85,13 @@ def judge_one(
     speeds = [settings.policy.warning_speeds_one_kmh(radius_m, column_index) for _, _, _, radius_m, _ in points]
     distances = [[_warning_distance_m(speed_mps, kmh_to_mps(v), settings.g_mps2) for v in pair] for pair in speeds]
     # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency); nothing where passed.
-    rules = [[Rule.REQUIRED if speed_kmh >= v and point[2] <= s + allowance_m and not point[4] else Rule.OFF
-              for v, s in zip(pair, sws)] for point, pair, sws in zip(points, speeds, distances)]  # fmt: skip
+    rules = [
+        [
+            Rule.REQUIRED if speed_kmh >= v and point[2] <= s + allowance_m and not point[4] else Rule.OFF
+            for v, s in zip(pair, sws, strict=True)
+        ]
+        for point, pair, sws in zip(points, speeds, distances, strict=True)
+    ]
     if held.is_on:
         _apply_release(rules, speed_kmh, speed_mps, allowance_m, points, speeds, held, now_s, settings)
     warning = _warning(rules, points, speeds, distances, path_kind)
@@ -98,12 +103,20 @@ def _warning_distance_m(speed_mps: float, warning_speed_mps: float, g_mps2: floa
     return formula_1_m(speed_mps, warning_speed_mps, g_mps2) if speed_mps >= warning_speed_mps else 0.0
 
 
-def _apply_release(rules: list[list[int]], speed_kmh: float, speed_mps: float, allowance_m: float,
-                   points: Sequence[CpoiPoint], speeds: list[tuple[float, float]], held: HeldWarning,
-                   now_s: float | None, settings: WarningSettings) -> None:  # fmt: skip
+def _apply_release(
+    rules: list[list[int]],
+    speed_kmh: float,
+    speed_mps: float,
+    allowance_m: float,
+    points: Sequence[CpoiPoint],
+    speeds: list[tuple[float, float]],
+    held: HeldWarning,
+    now_s: float | None,
+    settings: WarningSettings,
+) -> None:
     """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place."""
     named = [[(point[0], point[1]) in level_points for level_points in held.points] for point in points]
-    for point, pair, point_rules, point_named in zip(points, speeds, rules, named):
+    for point, pair, point_rules, point_named in zip(points, speeds, rules, named, strict=True):
         for level in (0, 1):
             if point_rules[level] == Rule.OFF and point_named[level]:
                 lowered_kmh = max(pair[level] - settings.release_margin_kmh, 0.0)
@@ -113,39 +126,60 @@ def _apply_release(rules: list[list[int]], speed_kmh: float, speed_mps: float, a
     if any(rule for point_rules in rules for rule in point_rules):
         return
     holding = [within_hold(kept_at_s, now_s, settings.release_hold_s) for kept_at_s in held.kept_at_s]
-    for point_rules, point_named in zip(rules, named):
+    for point_rules, point_named in zip(rules, named, strict=True):
         for level in (0, 1):
             if holding[level] and point_named[level]:
                 point_rules[level] = Rule.HOLD
 
 
-def _warning(rules: list[list[int]], points: Sequence[CpoiPoint], speeds: list[tuple[float, float]],
-             distances: list[list[float]], path_kind: PathKind) -> CurveWarning:  # fmt: skip
+def _warning(
+    rules: list[list[int]],
+    points: Sequence[CpoiPoint],
+    speeds: list[tuple[float, float]],
+    distances: list[list[float]],
+    path_kind: PathKind,
+) -> CurveWarning:
     """The warning: each triggering CPOI at its highest level; the target the highest level,
     then the nearest (3.12, 6.2.1: level 2 has priority)."""
     triggers = []
-    for point, pair, sws, (level_1, level_2) in zip(points, speeds, distances, rules):
+    for point, pair, sws, (level_1, level_2) in zip(points, speeds, distances, rules, strict=True):
         level = 2 if level_2 else 1 if level_1 else 0
         if level:
             shown = 1 if level_2 else 0
-            triggers.append(Trigger(point[0], point[1], point[2], point[3], _LEVELS[level], pair[shown], sws[shown],
-                                    (level_2 if level_2 else level_1) >= Rule.MARGIN))  # fmt: skip
+            triggers.append(
+                Trigger(
+                    point[0],
+                    point[1],
+                    point[2],
+                    point[3],
+                    _LEVELS[level],
+                    pair[shown],
+                    sws[shown],
+                    (level_2 if level_2 else level_1) >= Rule.MARGIN,
+                )
+            )
     if not triggers:
         return no_warning(path_kind)
     target = min(triggers, key=lambda t: (-t.level, t.distance_m))
-    return CurveWarning(target.level, target, tuple(sorted(triggers, key=lambda t: t.distance_m)), path_kind,
-                        HmiHint.for_level(target.level))  # fmt: skip
+    return CurveWarning(
+        target.level,
+        target,
+        tuple(sorted(triggers, key=lambda t: t.distance_m)),
+        path_kind,
+        HmiHint.for_level(target.level),
+    )
 
 
-def _next_memory(rules: list[list[int]], points: Sequence[CpoiPoint], held: HeldWarning,
-                 now_s: float | None) -> HeldWarning:  # fmt: skip
+def _next_memory(
+    rules: list[list[int]], points: Sequence[CpoiPoint], held: HeldWarning, now_s: float | None
+) -> HeldWarning:
     """What the release rule keeps after this update (:func:`csws.warning.release.next_memories` of one vehicle)."""
     if not any(rule for point_rules in rules for rule in point_rules):
         return NOT_HELD
     points_on, kept_at_s = [], []
     for level in (0, 1):
         here = [point_rules[level] for point_rules in rules]
-        points_on.append(frozenset((point[0], point[1]) for point, rule in zip(points, here) if rule))
+        points_on.append(frozenset((point[0], point[1]) for point, rule in zip(points, here, strict=True) if rule))
         if Rule.REQUIRED in here or Rule.MARGIN in here:
             kept_at_s.append(now_s)
         else:

@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 from matplotlib import pyplot
 
-from csws.geometry import arc, pose_at, sample_pieces, straight
 from csws.ahead.lookahead import LookAhead
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.geometry import arc, pose_at, sample_pieces, straight
 from csws.road.roadmap import RoadMap
+from csws.sumo.netbuild import netconvert, shape_text
 
 CURVE = (straight(60.0), arc(71.0, 60.0, "left"), straight(60.0))
 
@@ -30,7 +30,9 @@ def _network(folder: Path, name: str, nodes: dict, edges: list[tuple]) -> RoadMa
         f'shape="{shape_text(shape)}"/>'
         for e, a, b, shape, p in edges
     )
-    return RoadMap.load(netconvert(f"<nodes>{node_xml}</nodes>", f"<edges>{edge_xml}</edges>", folder / f"{name}.net.xml"))
+    return RoadMap.load(
+        netconvert(f"<nodes>{node_xml}</nodes>", f"<edges>{edge_xml}</edges>", folder / f"{name}.net.xml")
+    )
 
 
 def _crossroads(folder: Path) -> RoadMap:
@@ -38,7 +40,10 @@ def _crossroads(folder: Path) -> RoadMap:
     edges = []
     for name, xy in arms.items():
         priority = 3 if name in "WE" else 1
-        edges += [(f"{name}in", name, "C", np.array([xy, (0, 0)]), priority), (f"{name}out", "C", name, np.array([(0, 0), xy]), priority)]
+        edges += [
+            (f"{name}in", name, "C", np.array([xy, (0, 0)]), priority),
+            (f"{name}out", "C", name, np.array([(0, 0), xy]), priority),
+        ]
     return _network(folder, "crossroads", {"C": (0.0, 0.0), **arms}, edges)
 
 
@@ -62,11 +67,13 @@ def _draw(axes, road_map: RoadMap, title: str, path: list[str] | None = None) ->
     """Lanes grey, internal lanes that continue the road green, turns red; the road's curve blue."""
     for lane_id in road_map.lane_ids:
         lane, shape = road_map.lane(lane_id), road_map.lane_shape(lane_id)
-        colour, width = ("0.6", 1.0) if not lane.is_internal else (("tab:green", 2.5) if lane.continues_road else ("tab:red", 1.5))
+        colour, width = (
+            ("0.6", 1.0) if not lane.is_internal else (("tab:green", 2.5) if lane.continues_road else ("tab:red", 1.5))
+        )
         axes.plot(shape[:, 0], shape[:, 1], color=colour, linewidth=width)
     if path:
         ahead = LookAhead(road_map).horizon(path[0], [lane.rsplit("_", 1)[0] for lane in path], 250.0)
-        for start_s, end_s in zip(ahead.part_start_s, ahead.part_end_s):
+        for start_s, end_s in zip(ahead.part_start_s, ahead.part_end_s, strict=False):
             inside = (ahead.path.profile.s >= start_s) & (ahead.path.profile.s <= end_s)
             axes.plot(*ahead.path.xy[inside].T, color="tab:blue", linewidth=5, alpha=0.4)
     axes.set_title(title, fontsize=9)
@@ -77,10 +84,17 @@ def _draw(axes, road_map: RoadMap, title: str, path: list[str] | None = None) ->
 def main() -> None:
     figure, (left, right) = pyplot.subplots(1, 2, figsize=(9, 4.5))
     with tempfile.TemporaryDirectory() as work:
-        _draw(left, _crossroads(Path(work)), "crossroads: straight ahead continues (green),\nturns leave the road (red)")
+        _draw(
+            left, _crossroads(Path(work)), "crossroads: straight ahead continues (green),\nturns leave the road (red)"
+        )
         left.set_xlim(-25.0, 25.0)
         left.set_ylim(-25.0, 25.0)
-        _draw(right, _curve_with_side_road(Path(work)), "a side road inside a bend: the bend is\none curve of the road (blue)", ["a_0", "b_0"])
+        _draw(
+            right,
+            _curve_with_side_road(Path(work)),
+            "a side road inside a bend: the bend is\none curve of the road (blue)",
+            ["a_0", "b_0"],
+        )
     figure.tight_layout()
     figure.savefig(Path(__file__).with_suffix(".png"), dpi=110)
 

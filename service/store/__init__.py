@@ -25,16 +25,25 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Collection, Mapping, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from csws.standard import Category
 
 if TYPE_CHECKING:
     from service.settings import ServiceSettings
 
-__all__ = ["STORE_TIMEOUT_S", "StoreUnavailable", "VehicleSetting", "StoredVehicle", "NOTHING_STORED",
-           "VehicleWrite", "StateStore", "open_store"]
+__all__ = [
+    "STORE_TIMEOUT_S",
+    "StoreUnavailable",
+    "VehicleSetting",
+    "StoredVehicle",
+    "NOTHING_STORED",
+    "VehicleWrite",
+    "StateStore",
+    "open_store",
+]
 
 #: How long one store operation may wait (for a lock, a connection, an answer), s: longer would
 #: hold up every other request of the worker; the client is told to retry instead.
@@ -172,7 +181,7 @@ class StateStore(ABC):
         """Let go of the store's connections."""
 
 
-def open_store(settings: "ServiceSettings", clock: Callable[[], float] = time.time) -> StateStore:
+def open_store(settings: ServiceSettings, clock: Callable[[], float] = time.time) -> StateStore:
     """The store the settings name: Redis at ``settings.state`` if given, else the SQLite file ``settings.state_db``.
 
     Parameters

@@ -22,7 +22,7 @@ are :class:`service.store.StoreUnavailable`.
 
 from __future__ import annotations
 
-from typing import Collection, Mapping
+from collections.abc import Collection, Mapping
 from urllib.parse import urlsplit, urlunsplit
 
 import redis
@@ -115,7 +115,9 @@ class RedisStore(StateStore):
             # One immediate retry on a broken connection (one the pool kept across a restart of
             # Redis), none on a timeout: a request waits at most about STORE_TIMEOUT_S for its answer.
             self._redis = redis.Redis.from_url(
-                url, socket_timeout=STORE_TIMEOUT_S, socket_connect_timeout=STORE_TIMEOUT_S,
+                url,
+                socket_timeout=STORE_TIMEOUT_S,
+                socket_connect_timeout=STORE_TIMEOUT_S,
                 retry=Retry(NoBackoff(), 1, supported_errors=(redis.ConnectionError,)),
             )
         except ValueError as exc:
@@ -143,13 +145,15 @@ class RedisStore(StateStore):
             raise self._unavailable(exc) from None
         count = len(vehicle_ids)
         stored = {}
-        for vehicle_id, session, setting in zip(vehicle_ids, values[:count], values[count:]):
+        for vehicle_id, session, setting in zip(vehicle_ids, values[:count], values[count:], strict=True):
             try:
-                stored[vehicle_id] = StoredVehicle(None if setting is None else _decode_setting(setting),
-                                                   *_decode_session(session))  # fmt: skip
+                stored[vehicle_id] = StoredVehicle(
+                    None if setting is None else _decode_setting(setting), *_decode_session(session)
+                )
             except ValueError as exc:
-                raise StoreUnavailable(f"the state store {self.name} holds an unreadable entry of vehicle "
-                                       f"{vehicle_id!r}: {exc}") from None  # fmt: skip
+                raise StoreUnavailable(
+                    f"the state store {self.name} holds an unreadable entry of vehicle {vehicle_id!r}: {exc}"
+                ) from None
         return stored
 
     def write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
@@ -177,10 +181,10 @@ class RedisStore(StateStore):
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         found = {}
-        for key, value in zip(keys, values):
+        for key, value in zip(keys, values, strict=True):
             session, _version = _decode_session(value)
             if session is not None:
-                found[key.decode()[len(SESSION_PREFIX):]] = session
+                found[key.decode()[len(SESSION_PREFIX) :]] = session
         return found
 
     def session_count(self) -> int:

@@ -23,8 +23,8 @@ import json
 import os
 import sqlite3
 import time
+from collections.abc import Callable, Collection, Iterable, Mapping
 from pathlib import Path
-from typing import Callable, Collection, Iterable, Mapping
 
 from csws.standard import Category
 
@@ -50,11 +50,15 @@ _READ = (
     "LEFT JOIN vehicle_settings AS settings ON settings.vehicle_id = wanted.value "
     "LEFT JOIN vehicle_sessions AS sessions ON sessions.vehicle_id = wanted.value AND sessions.written_s >= ?"
 )
-_LIVE_VERSIONS = ("SELECT vehicle_id, version FROM vehicle_sessions "
-                  "WHERE vehicle_id IN (SELECT value FROM json_each(?)) AND written_s >= ?")  # fmt: skip
+_LIVE_VERSIONS = (
+    "SELECT vehicle_id, version FROM vehicle_sessions "
+    "WHERE vehicle_id IN (SELECT value FROM json_each(?)) AND written_s >= ?"
+)
 #: A session over the live one of the version read: no row changes when the version moved or the session expired.
-_UPDATE_SESSION = ("UPDATE vehicle_sessions SET version = version + 1, written_s = ?, session = ? "
-                   "WHERE vehicle_id = ? AND version = ? AND written_s >= ?")  # fmt: skip
+_UPDATE_SESSION = (
+    "UPDATE vehicle_sessions SET version = version + 1, written_s = ?, session = ? "
+    "WHERE vehicle_id = ? AND version = ? AND written_s >= ?"
+)
 #: A first session (version 1): no row changes when another request wrote a live one meanwhile.
 _INSERT_SESSION = (
     "INSERT INTO vehicle_sessions (vehicle_id, version, written_s, session) VALUES (?, 1, ?, ?) "
@@ -111,8 +115,9 @@ class SQLiteStore(StateStore):
         """
         self._durable = True
         try:
-            connection = sqlite3.connect(self.name, check_same_thread=False, isolation_level=None,
-                                         timeout=STORE_TIMEOUT_S)  # fmt: skip
+            connection = sqlite3.connect(
+                self.name, check_same_thread=False, isolation_level=None, timeout=STORE_TIMEOUT_S
+            )
             if self.name != ":memory:":
                 # Readers never wait for the writer: the workers of one service share the file.
                 connection.execute("PRAGMA journal_mode=WAL")
@@ -152,8 +157,9 @@ class SQLiteStore(StateStore):
         try:
             rows = self._execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
             return {
-                vehicle_id: StoredVehicle(None if switched_on is None else _setting(switched_on, category),
-                                          session, version or 0)  # fmt: skip
+                vehicle_id: StoredVehicle(
+                    None if switched_on is None else _setting(switched_on, category), session, version or 0
+                )
                 for vehicle_id, switched_on, category, session, version in rows
             }
         except (sqlite3.Error, ValueError) as exc:
@@ -185,12 +191,16 @@ class SQLiteStore(StateStore):
         if self._write_sessions(writes.items(), now_s, oldest_live_s) != len(writes):
             self._db.execute("ROLLBACK TO sessions")
             live = dict(self._db.execute(_LIVE_VERSIONS, (json.dumps(list(writes)), oldest_live_s)).fetchall())
-            conflicts = {vehicle_id for vehicle_id, w in writes.items()
-                         if live.get(vehicle_id, 0) != w.expected_version}  # fmt: skip
+            conflicts = {
+                vehicle_id for vehicle_id, w in writes.items() if live.get(vehicle_id, 0) != w.expected_version
+            }
             self._write_sessions([(v, w) for v, w in writes.items() if v not in conflicts], now_s, oldest_live_s)
         self._db.execute("RELEASE sessions")
-        settings = [(vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
-                    for vehicle_id, w in writes.items() if w.setting is not None and vehicle_id not in conflicts]
+        settings = [
+            (vehicle_id, int(w.setting.switched_on), w.setting.category.value if w.setting.category else None)
+            for vehicle_id, w in writes.items()
+            if w.setting is not None and vehicle_id not in conflicts
+        ]
         if settings:
             self._db.executemany(_WRITE_SETTING, settings)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
@@ -208,7 +218,8 @@ class SQLiteStore(StateStore):
             else:
                 inserts.append((vehicle_id, now_s, w.session, oldest_live_s))
         return (self._db.executemany(_UPDATE_SESSION, updates).rowcount if updates else 0) + (
-            self._db.executemany(_INSERT_SESSION, inserts).rowcount if inserts else 0)
+            self._db.executemany(_INSERT_SESSION, inserts).rowcount if inserts else 0
+        )
 
     def _execute(self, statement: str, parameters: tuple = ()) -> sqlite3.Cursor:
         """Execute a statement that may need a lock another worker holds: tried again every
@@ -234,17 +245,22 @@ class SQLiteStore(StateStore):
 
     def sessions(self, prefix: str = "") -> dict[str, bytes]:
         try:
-            rows = self._execute("SELECT vehicle_id, session FROM vehicle_sessions "
-                                 "WHERE written_s >= ? AND substr(vehicle_id, 1, ?) = ?",
-                                 (self._oldest_live_s(), len(prefix), prefix)).fetchall()  # fmt: skip
+            rows = self._execute(
+                "SELECT vehicle_id, session FROM vehicle_sessions "
+                "WHERE written_s >= ? AND substr(vehicle_id, 1, ?) = ?",
+                (self._oldest_live_s(), len(prefix), prefix),
+            ).fetchall()
         except sqlite3.Error as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
         return dict(rows)
 
     def session_count(self) -> int:
         try:
-            return int(self._execute("SELECT COUNT(*) FROM vehicle_sessions WHERE written_s >= ?",
-                                     (self._oldest_live_s(),)).fetchone()[0])  # fmt: skip
+            return int(
+                self._execute(
+                    "SELECT COUNT(*) FROM vehicle_sessions WHERE written_s >= ?", (self._oldest_live_s(),)
+                ).fetchone()[0]
+            )
         except sqlite3.Error as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
 

@@ -31,13 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from csws.sumo.binaries import sumo_binary
 from csws.cosim.fcw import BRAKE_LIGHT, forward_targets
 from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states
 from csws.fcw.target import TargetSettings
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR
 from csws.standard import kmh_to_mps
+from csws.sumo.binaries import sumo_binary
 
 from .rows import CAR_LENGTH_M, FcwRow
 from .scripts import script_of
@@ -154,17 +154,33 @@ def _routes_xml(row: FcwRow, start_m: float, behind_m: float) -> str:
     vehicles = []
     for actor in row.actors:
         front_m = start_m - behind_m if actor.vehicle_id == "sv" else start_m + actor.ahead_m + lengths[actor.vtype]
-        vehicles.append(f'<vehicle id="{actor.vehicle_id}" type="{actor.vtype}" depart="0" departLane="{actor.lane}" '
-                        f'departPos="{front_m:.6f}" departSpeed="{actor.speed_mps:.9g}" insertionChecks="none">'
-                        '<route edges="road"/></vehicle>')  # fmt: skip
+        vehicles.append(
+            f'<vehicle id="{actor.vehicle_id}" type="{actor.vtype}" depart="0" departLane="{actor.lane}" '
+            f'departPos="{front_m:.6f}" departSpeed="{actor.speed_mps:.9g}" insertionChecks="none">'
+            '<route edges="road"/></vehicle>'
+        )
     return f"<routes>{_VTYPES}{''.join(vehicles)}</routes>"
 
 
 @dataclass
 class _Record:
-    columns: dict = field(default_factory=lambda: {name: [] for name in (
-        "time_s", "clearance_m", "closing_mps", "subject_mps", "target_mps", "adjacent_ahead_m", "lateral_m", "level",
-        "target", "phase_index")})  # fmt: skip
+    columns: dict = field(
+        default_factory=lambda: {
+            name: []
+            for name in (
+                "time_s",
+                "clearance_m",
+                "closing_mps",
+                "subject_mps",
+                "target_mps",
+                "adjacent_ahead_m",
+                "lateral_m",
+                "level",
+                "target",
+                "phase_index",
+            )
+        }
+    )
 
     def add(self, **values) -> None:
         for name, value in values.items():
@@ -172,9 +188,19 @@ class _Record:
 
     def trace(self, repetition: int, phase: float) -> Trace:
         c = self.columns
-        arrays = {name: np.array(values, dtype=float) for name, values in c.items() if name not in ("level", "target", "phase_index")}
-        return Trace(repetition, phase, level=np.array(c["level"], dtype=np.int8), target=tuple(c["target"]),
-                     phase_index=np.array(c["phase_index"], dtype=np.int8), **arrays)  # fmt: skip
+        arrays = {
+            name: np.array(values, dtype=float)
+            for name, values in c.items()
+            if name not in ("level", "target", "phase_index")
+        }
+        return Trace(
+            repetition,
+            phase,
+            level=np.array(c["level"], dtype=np.int8),
+            target=tuple(c["target"]),
+            phase_index=np.array(c["phase_index"], dtype=np.int8),
+            **arrays,
+        )
 
 
 class _Equipment:
@@ -204,8 +230,10 @@ def _rng(task: Task) -> np.random.Generator:
 def drive(task: Task) -> list[Trace]:
     """Run every repetition of a task in SUMO; their records, in order."""
     rng = _rng(task)
-    return [_run(task, repetition, (repetition + float(rng.uniform())) / task.repetitions, _Equipment(rng))
-            for repetition in range(task.repetitions)]  # fmt: skip
+    return [
+        _run(task, repetition, (repetition + float(rng.uniform())) / task.repetitions, _Equipment(rng))
+        for repetition in range(task.repetitions)
+    ]
 
 
 def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Trace:
@@ -223,11 +251,27 @@ def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Tr
     with tempfile.TemporaryDirectory(prefix="csws-fcw-conformance-") as work:
         routes = Path(work) / "run.rou.xml"
         routes.write_text(_routes_xml(row, _subject_start_m(task), behind_m), encoding="utf-8")
-        libsumo.start([
-            str(sumo_binary("sumo")), "-n", str(networks_dir() / FCW_DIR / f"{task.track}.net.xml"), "-r", str(routes),
-            "--step-length", f"{step_s:g}", "--no-step-log", "true", "--no-warnings", "true",
-            "--duration-log.disable", "true", "--seed", "0", "--collision.action", "none",
-        ])  # fmt: skip
+        libsumo.start(
+            [
+                str(sumo_binary("sumo")),
+                "-n",
+                str(networks_dir() / FCW_DIR / f"{task.track}.net.xml"),
+                "-r",
+                str(routes),
+                "--step-length",
+                f"{step_s:g}",
+                "--no-step-log",
+                "true",
+                "--no-warnings",
+                "true",
+                "--duration-log.disable",
+                "true",
+                "--seed",
+                "0",
+                "--collision.action",
+                "none",
+            ]
+        )
         try:
             libsumo.simulationStep()
             for actor in row.actors:
@@ -256,7 +300,9 @@ def _true_state(sumo, track: str, lane_of: dict[str, str]) -> dict[str, float]:
     target_rear_m = vehicle.getLanePosition("tv") - vehicle.getLength("tv")
     adjacent = math.nan
     if "adj" in lane_of:
-        adjacent = lane_metres(track, lane_of["sv"], subject_m, vehicle.getLanePosition("adj") - vehicle.getLength("adj"))
+        adjacent = lane_metres(
+            track, lane_of["sv"], subject_m, vehicle.getLanePosition("adj") - vehicle.getLength("adj")
+        )
     subject_mps, target_mps = vehicle.getSpeed("sv"), vehicle.getSpeed("tv")
     return {
         "clearance_m": lane_metres(track, lane_of["sv"], subject_m, target_rear_m),
@@ -268,8 +314,9 @@ def _true_state(sumo, track: str, lane_of: dict[str, str]) -> dict[str, float]:
     }
 
 
-def _evaluate(sumo, settings: FcwSettings, target_settings: TargetSettings, state: np.ndarray,
-              equipment: _Equipment) -> tuple[int, str | None, np.ndarray]:  # fmt: skip
+def _evaluate(
+    sumo, settings: FcwSettings, target_settings: TargetSettings, state: np.ndarray, equipment: _Equipment
+) -> tuple[int, str | None, np.ndarray]:
     """The system on the subject, through the equipment's noise: level, target id, state."""
     vehicle = sumo.vehicle
     speed_mps = vehicle.getSpeed("sv") + equipment.uniform(SPEED_ACCURACY_MPS)
@@ -280,9 +327,11 @@ def _evaluate(sumo, settings: FcwSettings, target_settings: TargetSettings, stat
         return 0, target_id, state
     speeds = 2.0 * SPEED_ACCURACY_MPS
     batch = evaluate_fcw(
-        [vehicle.getAcceleration("sv") + equipment.uniform(ACCEL_ACCURACY_MPS2)], found.clearance_m,
+        [vehicle.getAcceleration("sv") + equipment.uniform(ACCEL_ACCURACY_MPS2)],
+        found.clearance_m,
         found.relative_velocity_mps + equipment.uniform(speeds),
         found.target_accel_mps2 + equipment.uniform(ACCEL_ACCURACY_MPS2),
-        [bool(vehicle.getSignals("sv") & BRAKE_LIGHT)], settings,
-    )  # fmt: skip
+        [bool(vehicle.getSignals("sv") & BRAKE_LIGHT)],
+        settings,
+    )
     return int(batch.level[0]), target_id, state

@@ -23,8 +23,8 @@ tolerance while the vehicles hold their speeds. The standards ask one run per te
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -81,7 +81,10 @@ def criterion(row: FcwRow) -> str:
 
 def _speed_problem(row: FcwRow, trace: Trace, held: np.ndarray) -> str:
     """Whether the subject (and a moving target) kept its test speed where ``held``."""
-    for name, speeds, actor in (("subject", trace.subject_mps, row.actor("sv")), ("target", trace.target_mps, row.actor("tv"))):
+    for name, speeds, actor in (
+        ("subject", trace.subject_mps, row.actor("sv")),
+        ("target", trace.target_mps, row.actor("tv")),
+    ):
         if name == "target" and (actor.speed_mps == 0.0 or row.script != "approach"):
             continue
         off = np.abs(speeds[held] - actor.speed_mps)
@@ -133,7 +136,9 @@ def _approach(row: FcwRow, trace: Trace, warned: np.ndarray) -> tuple[float | No
     reference = _first(trace.clearance_m <= REFERENCE_CLEARANCE_M)
     if reference is None or reference > first:
         return None, reasons + ["warned before the reference clearance"]
-    distance_m = float(trace.clearance_m[reference] - row.actor("sv").speed_mps * (trace.time_s[first] - trace.time_s[reference]))
+    distance_m = float(
+        trace.clearance_m[reference] - row.actor("sv").speed_mps * (trace.time_s[first] - trace.time_s[reference])
+    )
     if abs(distance_m - row.set_distance_m) > max(ACCURACY_M, ACCURACY_FRACTION * row.set_distance_m):
         reasons.append(f"warning distance {distance_m:.2f} m, set {row.set_distance_m:.2f} m")
     return distance_m, reasons
@@ -147,7 +152,7 @@ def _two_leads(trace: Trace) -> list[str]:
         reasons.append("no collision warning while closing on the leads")
     if not (collision & (trace.phase_index == TARGET_BRAKES)).any():
         reasons.append("no collision warning when the nearer lead braked")
-    others = {target for target, level in zip(trace.target, trace.level) if level and target != "tv"}
+    others = {target for target, level in zip(trace.target, trace.level, strict=True) if level and target != "tv"}
     if others:
         reasons.append(f"warned for {', '.join(sorted(others))}")
     return reasons

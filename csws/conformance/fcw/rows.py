@@ -114,13 +114,28 @@ class FcwRow:
         return next((a for a in self.actors if a.vehicle_id == vehicle_id), None)
 
 
-def _approach(row_id: str, source: str, clause: str, title: str, subject_mps: float, lead_mps: float,
-              lead_type: str = "car", **criteria) -> FcwRow:  # fmt: skip
+def _approach(
+    row_id: str,
+    source: str,
+    clause: str,
+    title: str,
+    subject_mps: float,
+    lead_mps: float,
+    lead_type: str = "car",
+    **criteria,
+) -> FcwRow:
     """A subject closing at constant speed on a lead at constant speed, from START_CLEARANCE_M plus the stable time."""
     start_m = START_CLEARANCE_M + STABLE_S * (subject_mps - lead_mps)
-    return FcwRow(row_id, source, clause, title, "fcw_straight",
-                  (Actor("sv", "truck", 0, 0.0, subject_mps), Actor("tv", lead_type, 0, start_m, lead_mps)),
-                  "approach", **criteria)  # fmt: skip
+    return FcwRow(
+        row_id,
+        source,
+        clause,
+        title,
+        "fcw_straight",
+        (Actor("sv", "truck", 0, 0.0, subject_mps), Actor("tv", lead_type, 0, start_m, lead_mps)),
+        "approach",
+        **criteria,
+    )
 
 
 def _formula_5_m(closing_mps: float, lead_decel_mps2: float = 0.0) -> float:
@@ -131,11 +146,20 @@ def _formula_5_m(closing_mps: float, lead_decel_mps2: float = 0.0) -> float:
 def _curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings) -> FcwRow:
     """5.5.3.2 on the class's curve at V_circle_start of formula (6)."""
     speed_mps = curve_start_speed_mps(curve_class, radius_m, settings.max_speed_mps)
-    actors = (Actor("sv", "truck", 1, 0.0, speed_mps), Actor("adj", "car", 0, 15.0, speed_mps),
-              Actor("tv", "car", 1, 2.0 * speed_mps, speed_mps))  # fmt: skip
-    return FcwRow(f"GB-5.5.3.2-{curve_class.name}", "GB/T 33577-2017", "5.5.3.2",
-                  f"curve R {radius_m:g} m (class {curve_class.name}), adjacent vehicle in the outer lane, "
-                  f"{speed_mps:.1f} m/s", f"fcw_curve_r{radius_m:g}", actors, "adjacent")  # fmt: skip
+    actors = (
+        Actor("sv", "truck", 1, 0.0, speed_mps),
+        Actor("adj", "car", 0, 15.0, speed_mps),
+        Actor("tv", "car", 1, 2.0 * speed_mps, speed_mps),
+    )
+    return FcwRow(
+        f"GB-5.5.3.2-{curve_class.name}",
+        "GB/T 33577-2017",
+        "5.5.3.2",
+        f"curve R {radius_m:g} m (class {curve_class.name}), adjacent vehicle in the outer lane, {speed_mps:.1f} m/s",
+        f"fcw_curve_r{radius_m:g}",
+        actors,
+        "adjacent",
+    )
 
 
 def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
@@ -143,30 +167,90 @@ def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
     gb = "GB/T 33577-2017"
     stationary_set_m = float(warning_clearance_m(20.0, 0.0, settings))
     rows = [
-        _approach("GB-5.4.1", gb, "5.4.1", "warning distance range: 20 m/s behind 8 m/s", 20.0, 8.0,
-                  speed_tolerance_mps=1.0, least_clearance_m=_formula_5_m(12.0)),
-        _approach("GB-5.4.2", gb, "5.4.2", "warning distance accuracy: 20 m/s toward a stationary target",
-                  20.0, 0.0, set_distance_m=stationary_set_m),
+        _approach(
+            "GB-5.4.1",
+            gb,
+            "5.4.1",
+            "warning distance range: 20 m/s behind 8 m/s",
+            20.0,
+            8.0,
+            speed_tolerance_mps=1.0,
+            least_clearance_m=_formula_5_m(12.0),
+        ),
+        _approach(
+            "GB-5.4.2",
+            gb,
+            "5.4.2",
+            "warning distance accuracy: 20 m/s toward a stationary target",
+            20.0,
+            0.0,
+            set_distance_m=stationary_set_m,
+        ),
         _approach("GB-5.5.2.1.1", gb, "5.5.2.1.1", "stationary lead, 20 m/s", 20.0, 0.0, least_ttc_s=2.1),
-        FcwRow("GB-5.5.2.1.2", gb, "5.5.2.1.2", "lead braking at 0.3 g, both 20 m/s, 30 m apart", "fcw_straight",
-               (Actor("sv", "truck", 0, 0.0, 20.0), Actor("tv", "car", 0, 30.0, 20.0)), "lead_brakes",
-               least_ttc_s=2.4),
+        FcwRow(
+            "GB-5.5.2.1.2",
+            gb,
+            "5.5.2.1.2",
+            "lead braking at 0.3 g, both 20 m/s, 30 m apart",
+            "fcw_straight",
+            (Actor("sv", "truck", 0, 0.0, 20.0), Actor("tv", "car", 0, 30.0, 20.0)),
+            "lead_brakes",
+            least_ttc_s=2.4,
+        ),
         _approach("GB-5.5.2.1.3", gb, "5.5.2.1.3", "slower lead, 20 m/s behind 9 m/s", 20.0, 9.0, least_ttc_s=2.0),
-        FcwRow("GB-5.5.2.2", gb, "5.5.2.2", "two leads in line, 0.6 s apart: the warnings are for the nearer",
-               "fcw_straight", (Actor("sv", "truck", 0, 0.0, 20.0), Actor("tv", "car", 0, 40.0, 20.0),
-                                Actor("tv2", "car", 0, 40.0 + CAR_LENGTH_M + 0.6 * 20.0, 20.0)), "two_leads"),
-        FcwRow("GB-5.5.3.1", gb, "5.5.3.1", "straight road, adjacent vehicle 3.5 m to the side, 20 m/s",
-               "fcw_straight", (Actor("sv", "truck", 1, 0.0, 20.0), Actor("adj", "car", 0, 15.0, 20.0),
-                                Actor("tv", "car", 1, 40.0, 20.0)), "adjacent", level=1),
-        *(_curve_row(curve_class, radius_m, settings) for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M)),
+        FcwRow(
+            "GB-5.5.2.2",
+            gb,
+            "5.5.2.2",
+            "two leads in line, 0.6 s apart: the warnings are for the nearer",
+            "fcw_straight",
+            (
+                Actor("sv", "truck", 0, 0.0, 20.0),
+                Actor("tv", "car", 0, 40.0, 20.0),
+                Actor("tv2", "car", 0, 40.0 + CAR_LENGTH_M + 0.6 * 20.0, 20.0),
+            ),
+            "two_leads",
+        ),
+        FcwRow(
+            "GB-5.5.3.1",
+            gb,
+            "5.5.3.1",
+            "straight road, adjacent vehicle 3.5 m to the side, 20 m/s",
+            "fcw_straight",
+            (Actor("sv", "truck", 1, 0.0, 20.0), Actor("adj", "car", 0, 15.0, 20.0), Actor("tv", "car", 1, 40.0, 20.0)),
+            "adjacent",
+            level=1,
+        ),
+        *(
+            _curve_row(curve_class, radius_m, settings)
+            for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=True)
+        ),
     ]
     ivista, km = "IVISTA-SM-ISI.SA.AEB-TP-A0-2023", kmh_to_mps(1.0)
     rows += [
-        _approach(f"IVISTA-A.1.1-{kind}", ivista, "A.1.1", f"stationary {kind} target, 72 km/h", kmh_to_mps(72.0), 0.0,
-                  lead_type=vtype, least_ttc_s=2.1, speed_tolerance_mps=km)
+        _approach(
+            f"IVISTA-A.1.1-{kind}",
+            ivista,
+            "A.1.1",
+            f"stationary {kind} target, 72 km/h",
+            kmh_to_mps(72.0),
+            0.0,
+            lead_type=vtype,
+            least_ttc_s=2.1,
+            speed_tolerance_mps=km,
+        )
         for kind, vtype in (("car", "car"), ("truck", "truck_target"))
     ]
-    rows.append(_approach("IVISTA-A.1.2", ivista, "A.1.2", "target at 20 km/h, 80 km/h", kmh_to_mps(80.0),
-                          kmh_to_mps(20.0), least_ttc_s=2.0, speed_tolerance_mps=km))
+    rows.append(
+        _approach(
+            "IVISTA-A.1.2",
+            ivista,
+            "A.1.2",
+            "target at 20 km/h, 80 km/h",
+            kmh_to_mps(80.0),
+            kmh_to_mps(20.0),
+            least_ttc_s=2.0,
+            speed_tolerance_mps=km,
+        )
+    )
     return rows
-

@@ -12,9 +12,9 @@ import argparse
 import fnmatch
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -54,34 +54,62 @@ def _figure(outcome: RowOutcome) -> float | None:
 
 
 def _write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
-    rows = [{**asdict(o.row), "criterion": criterion(o.row), "worst_figure": _figure(o), "passed": o.passed,
-             "plot": o.plot, "groups": [{"step_length_s": g.step_length_s, "passed": g.passed,
-                                         "runs": [asdict(run) for run in g.runs]} for g in o.groups]}
-            for o in outcomes]  # fmt: skip
-    content = {"format": "csws-fcw-conformance-report/1", "standard": "GB/T 33577-2017; IVISTA-SM-ISI.SA.AEB-TP-A0-2023",
-               "settings": settings, "verdict": {"passed": all(o.passed for o in outcomes), "rows": len(outcomes),
-                                                 "rows_failed": [o.row.row_id for o in outcomes if not o.passed]},
-               "rows": rows}  # fmt: skip
+    rows = [
+        {
+            **asdict(o.row),
+            "criterion": criterion(o.row),
+            "worst_figure": _figure(o),
+            "passed": o.passed,
+            "plot": o.plot,
+            "groups": [
+                {"step_length_s": g.step_length_s, "passed": g.passed, "runs": [asdict(run) for run in g.runs]}
+                for g in o.groups
+            ],
+        }
+        for o in outcomes
+    ]
+    content = {
+        "format": "csws-fcw-conformance-report/1",
+        "standard": "GB/T 33577-2017; IVISTA-SM-ISI.SA.AEB-TP-A0-2023",
+        "settings": settings,
+        "verdict": {
+            "passed": all(o.passed for o in outcomes),
+            "rows": len(outcomes),
+            "rows_failed": [o.row.row_id for o in outcomes if not o.passed],
+        },
+        "rows": rows,
+    }
     path.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")
 
 
 def _write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
     failed = [o for o in outcomes if not o.passed]
     lines = [
-        "# FCW conformance report (GB/T 33577-2017 5.4-5.5, IVISTA A.1)", "",
+        "# FCW conformance report (GB/T 33577-2017 5.4-5.5, IVISTA A.1)",
+        "",
         f"- verdict: **{verdict_text(not failed)}**",
         f"- step lengths: {', '.join(f'{s:g} s' for s in settings['step_lengths_s'])}; "
         f"{settings['repetitions']} runs per row and step length; seed {settings['seed']}",
-        f"- rows: {len(outcomes)}, failed: {len(failed)}", "",
-        "\"worst\" is the smallest figure over every run and step length (5.4.2: the one farthest from the set distance).",
-        "", "| row | clause | test | criterion | worst | verdict |", "|---|---|---|---|---|---|",
-    ]  # fmt: skip
+        f"- rows: {len(outcomes)}, failed: {len(failed)}",
+        "",
+        '"worst" is the smallest figure over every run and step length (5.4.2: the one farthest from the set distance).',
+        "",
+        "| row | clause | test | criterion | worst | verdict |",
+        "|---|---|---|---|---|---|",
+    ]
     for o in outcomes:
         figure = _figure(o)
-        lines.append(f"| {o.row.row_id} | {o.row.source} {o.row.clause} | {o.row.title} | {criterion(o.row)} | "
-                     f"{'-' if figure is None else f'{figure:.2f}'} | {mark(o.passed)} |")  # fmt: skip
-    problems = [f"- {o.row.row_id} at {g.step_length_s:g} s, run {run.repetition + 1}: {run.reason}"
-                for o in outcomes for g in o.groups for run in g.runs if not run.passed]  # fmt: skip
+        lines.append(
+            f"| {o.row.row_id} | {o.row.source} {o.row.clause} | {o.row.title} | {criterion(o.row)} | "
+            f"{'-' if figure is None else f'{figure:.2f}'} | {mark(o.passed)} |"
+        )
+    problems = [
+        f"- {o.row.row_id} at {g.step_length_s:g} s, run {run.repetition + 1}: {run.reason}"
+        for o in outcomes
+        for g in o.groups
+        for run in g.runs
+        if not run.passed
+    ]
     if problems:
         lines += ["", "## Failed runs", "", *problems]
     if any(o.plot for o in outcomes):
@@ -98,7 +126,7 @@ def plot_fcw_row(path: Path, row: FcwRow, traces: Sequence[tuple[float, Trace]])
 
     figure, (ttc_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     steps = sorted({step for step, _ in traces})
-    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1)))))
+    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=True))
     labelled = set()
     for step, trace in traces:
         before_end_s = trace.time_s - trace.time_s[-1]
@@ -119,9 +147,16 @@ def plot_fcw_row(path: Path, row: FcwRow, traces: Sequence[tuple[float, Trace]])
     pyplot.close(figure)
 
 
-def fcw_conformance(rows: Sequence[FcwRow], out: Path, step_lengths_s: Sequence[float] = DEFAULT_STEP_LENGTHS_S,
-                    repetitions: int = 3, seed: int = 0, jobs: int = 1, plots: bool = True,
-                    progress: bool = False) -> list[RowOutcome]:  # fmt: skip
+def fcw_conformance(
+    rows: Sequence[FcwRow],
+    out: Path,
+    step_lengths_s: Sequence[float] = DEFAULT_STEP_LENGTHS_S,
+    repetitions: int = 3,
+    seed: int = 0,
+    jobs: int = 1,
+    plots: bool = True,
+    progress: bool = False,
+) -> list[RowOutcome]:
     """Run, judge and report the rows into ``out`` (report.json, report.md, plots/ROW.png); the outcomes."""
     tasks = [Task(row, step, repetitions, seed) for row in rows for step in step_lengths_s]
     out.mkdir(parents=True, exist_ok=True)
@@ -139,8 +174,14 @@ def fcw_conformance(rows: Sequence[FcwRow], out: Path, step_lengths_s: Sequence[
             plot = f"plots/{row.row_id}.png"
             plot_fcw_row(out / plot, row, records[row.row_id])
         outcomes.append(RowOutcome(row, tuple(sorted(groups[row.row_id], key=lambda g: g.step_length_s)), plot))
-    settings = {"step_lengths_s": list(step_lengths_s), "repetitions": repetitions, "seed": seed, "jobs": jobs,
-                "tasks": len(tasks), "simulation_wall_time_s": round(time.perf_counter() - started, 3)}  # fmt: skip
+    settings = {
+        "step_lengths_s": list(step_lengths_s),
+        "repetitions": repetitions,
+        "seed": seed,
+        "jobs": jobs,
+        "tasks": len(tasks),
+        "simulation_wall_time_s": round(time.perf_counter() - started, 3),
+    }
     _write_json(out / "report.json", outcomes, settings)
     _write_markdown(out / "report.md", outcomes, settings)
     return outcomes
@@ -153,11 +194,21 @@ def main(args: argparse.Namespace) -> int:
             raise ValueError(f"--{option} applies to --system csws only")
     rows = select_fcw_rows(args.rows)
     started = time.perf_counter()
-    outcomes = fcw_conformance(rows, args.out, args.step_lengths, args.repetitions, args.seed, args.jobs,
-                               plots=not args.no_plots, progress=True)  # fmt: skip
+    outcomes = fcw_conformance(
+        rows,
+        args.out,
+        args.step_lengths,
+        args.repetitions,
+        args.seed,
+        args.jobs,
+        plots=not args.no_plots,
+        progress=True,
+    )
     failed = [o.row.row_id for o in outcomes if not o.passed]
     for row_id in failed:
         print(f"FAIL {row_id}")
-    print(f"FCW: {verdict_text(not failed)}; {len(outcomes)} rows, {len(failed)} failed, "
-          f"in {time.perf_counter() - started:.1f} s; report: {args.out / 'report.md'}")  # fmt: skip
+    print(
+        f"FCW: {verdict_text(not failed)}; {len(outcomes)} rows, {len(failed)} failed, "
+        f"in {time.perf_counter() - started:.1f} s; report: {args.out / 'report.md'}"
+    )
     return 1 if failed else 0

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from .rows import START_CLEARANCE_M, STABLE_S, FcwRow
+from .rows import STABLE_S, START_CLEARANCE_M, FcwRow
 
 __all__ = ["Script", "script_of", "FIRST_WARNING", "TARGET_BRAKES"]
 
