@@ -20,6 +20,7 @@ from typing import Protocol
 from urllib.parse import urlsplit
 
 from csws.engine import Engine, TargetColumns
+from csws.errors import CswsError
 from csws.standard import mps_to_kmh
 from csws.state import SystemState
 
@@ -110,7 +111,7 @@ class LibraryEvaluator:
         return None
 
 
-class ServiceError(RuntimeError):
+class ServiceError(RuntimeError, CswsError):
     """The service refused a batch or could not be reached."""
 
 

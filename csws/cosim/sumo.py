@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csws.errors import CswsError
 from csws.standard import Category
 from csws.sumo.binaries import sumo_binary, sumo_home
 
@@ -45,7 +46,7 @@ _SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_
 _subscribed_values = itemgetter(*_SUBSCRIBED)
 
 
-class SumoStopped(RuntimeError):
+class SumoStopped(RuntimeError, CswsError):
     """SUMO ended before the co-simulation did (it was killed, crashed or closed)."""
 
 

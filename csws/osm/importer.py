@@ -37,6 +37,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+from csws.errors import CswsError
 from csws.road.roadmap import RoadMap, read_sumo_net
 from csws.sumo.netbuild import NetconvertError, netconvert_osm
 
@@ -102,7 +103,7 @@ MOTOR_HIGHWAYS = frozenset(
 )
 
 
-class OsmImportError(ValueError):
+class OsmImportError(ValueError, CswsError):
     """An OSM file that cannot be imported; the message is one line for the user."""
 
 

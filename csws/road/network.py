@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import sumolib
 
+from csws.errors import CswsError
 from csws.road.continuations import road_continuations
 
 __all__ = ["Lane", "NetLanes", "NetworkError", "net_lanes", "read_sumo_net"]
@@ -46,7 +47,7 @@ _READ_ERRORS = (
 )
 
 
-class NetworkError(ValueError):
+class NetworkError(ValueError, CswsError):
     """A file that cannot be used as a road map: missing, not a SUMO network, or empty."""
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csws.errors import CswsError
 from csws.sumo.binaries import sumo_binary, sumo_home
 
 __all__ = ["NetconvertError", "shape_text", "netconvert", "netconvert_osm"]
@@ -23,7 +24,7 @@ __all__ = ["NetconvertError", "shape_text", "netconvert", "netconvert_osm"]
 DEFAULT_OPTIONS = ("--no-turnarounds", "true", "--offset.disable-normalization", "true")
 
 
-class NetconvertError(RuntimeError):
+class NetconvertError(RuntimeError, CswsError):
     """netconvert failed, or (in strict mode) warned about its input."""
 
 
