@@ -229,9 +229,10 @@ class Simulation:
         if self.closed:
             return
         self.closed = True
+        gone: tuple[type[BaseException], ...] = (*self._errors, OSError)
         try:
             self.api.close()
-        except (*self._errors, OSError):
+        except gone:
             pass
 
     def _category(self, type_id: str) -> Category | None:
