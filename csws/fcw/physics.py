@@ -34,6 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from csws.state import SystemState
 
@@ -131,7 +132,7 @@ class FcwBatch:
     a_req_mps2: np.ndarray
 
 
-def time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps: np.ndarray) -> np.ndarray:
+def time_to_collision_s(clearance_m: ArrayLike, relative_velocity_mps: ArrayLike) -> np.ndarray:
     """TTC = -x_c / v_r, formula (2); ``inf`` where the vehicles are not closing (v_r >= 0)."""
     clearance_m, v_r = np.asarray(clearance_m, dtype=float), np.asarray(relative_velocity_mps, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -139,7 +140,7 @@ def time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps: np.ndarr
 
 
 def enhanced_time_to_collision_s(
-    clearance_m: np.ndarray, relative_velocity_mps: np.ndarray, relative_accel_mps2: np.ndarray
+    clearance_m: ArrayLike, relative_velocity_mps: ArrayLike, relative_accel_mps2: ArrayLike
 ) -> np.ndarray:
     """ETTC, formula (3), with the relative acceleration a_TV - a_SV held: the first time the
     clearance reaches 0; ``inf`` where it never does (the root of (3) is negative or complex).
@@ -159,7 +160,7 @@ def enhanced_time_to_collision_s(
 
 
 def required_deceleration_mps2(
-    clearance_m: np.ndarray, relative_velocity_mps: np.ndarray, target_accel_mps2: np.ndarray, lost_time_s: np.ndarray
+    clearance_m: ArrayLike, relative_velocity_mps: ArrayLike, target_accel_mps2: ArrayLike, lost_time_s: ArrayLike
 ) -> np.ndarray:
     """a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with d_TV = -a_TV the target's
     deceleration and x_r = -v_r ``lost_time_s`` the clearance lost while closing during the
@@ -175,11 +176,11 @@ def required_deceleration_mps2(
 
 
 def evaluate_fcw(
-    subject_accel_mps2: np.ndarray,
-    clearance_m: np.ndarray,
-    relative_velocity_mps: np.ndarray,
-    target_accel_mps2: np.ndarray,
-    driver_braking: np.ndarray,
+    subject_accel_mps2: ArrayLike,
+    clearance_m: ArrayLike,
+    relative_velocity_mps: ArrayLike,
+    target_accel_mps2: ArrayLike,
+    driver_braking: ArrayLike,
     settings: FcwSettings = FcwSettings(),
 ) -> FcwBatch:
     """The forward collision warning of many subject vehicles, each with its target vehicle
@@ -218,7 +219,7 @@ def evaluate_fcw(
 
 
 def warning_clearance_m(
-    closing_mps: np.ndarray, target_accel_mps2: np.ndarray, settings: FcwSettings = FcwSettings(), level: int = 2
+    closing_mps: ArrayLike, target_accel_mps2: ArrayLike, settings: FcwSettings = FcwSettings(), level: int = 2
 ) -> np.ndarray:
     """The clearance at which a level comes on at a closing speed ``closing_mps`` (= -v_r > 0)
     and a target acceleration a_TV: formula (4) solved for x_c at the level's threshold,
@@ -231,10 +232,10 @@ def warning_clearance_m(
 
 
 def next_fcw_states(
-    previous: np.ndarray,
-    speed_mps: np.ndarray,
-    switched_on: np.ndarray,
-    measured: np.ndarray,
+    previous: ArrayLike,
+    speed_mps: ArrayLike,
+    switched_on: ArrayLike,
+    measured: ArrayLike,
     settings: FcwSettings = FcwSettings(),
 ) -> np.ndarray:
     """The system state of many subject vehicles after one update (4.3, Figure 2), as codes into

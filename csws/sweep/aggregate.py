@@ -83,15 +83,15 @@ class Estimate:
     @classmethod
     def of(cls, values: list[float | None]) -> Estimate:
         """The estimate from one value per seed; None (a figure without a denominator) is left out."""
-        values = [v for v in values if v is not None]
-        if not values:
+        known = [v for v in values if v is not None]
+        if not known:
             return cls(math.nan, math.nan, 0)
-        if len(values) == 1:
-            return cls(values[0], math.nan, 1)
+        if len(known) == 1:
+            return cls(known[0], math.nan, 1)
         return cls(
-            statistics.fmean(values),
-            t_quantile(len(values) - 1) * statistics.stdev(values) / math.sqrt(len(values)),
-            len(values),
+            statistics.fmean(known),
+            t_quantile(len(known) - 1) * statistics.stdev(known) / math.sqrt(len(known)),
+            len(known),
         )
 
     def text(self, digits: int = 3) -> str:

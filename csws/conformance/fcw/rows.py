@@ -109,9 +109,12 @@ class FcwRow:
     least_clearance_m: float | None = None
     set_distance_m: float | None = None
 
-    def actor(self, vehicle_id: str) -> Actor | None:
-        """The actor of that id, or None."""
-        return next((a for a in self.actors if a.vehicle_id == vehicle_id), None)
+    def actor(self, vehicle_id: str) -> Actor:
+        """The actor of that id (KeyError for a vehicle the row does not have)."""
+        for actor in self.actors:
+            if actor.vehicle_id == vehicle_id:
+                return actor
+        raise KeyError(f"row {self.row_id} has no vehicle {vehicle_id!r}")
 
 
 def _approach(
