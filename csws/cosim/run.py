@@ -89,6 +89,7 @@ class _Run:
         self.costs = StepCosts()
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
+        self.step_s = config.step_length_s  # SUMO's own, read once when it starts
         self.bar = Progress("cosim", config.end_s, "sim s", decimals=1, enabled=config.progress)
 
     def start(self) -> Simulation:
@@ -104,6 +105,7 @@ class _Run:
         )
         simulation = self.simulation = Simulation(sumo_args, config.interface, odometer=self.driver is not None)
         self.forward = FleetFcw(simulation.api) if config.fcw else None
+        self.step_s = simulation.step_length_s
         return simulation
 
     def step(self, simulation: Simulation) -> bool:
@@ -117,7 +119,7 @@ class _Run:
         self._forget(fleet.arrived)
         self.summary.skipped.update(fleet.skipped)
         warnings, fcw = self._evaluate(fleet)
-        commands = self._commands(fleet, warnings, fcw, simulation.step_length_s)
+        commands = self._commands(fleet, warnings, fcw, self.step_s)
         for vehicle_id, speed_mps in commands.items():
             simulation.set_speed(vehicle_id, speed_mps)
         with costs.timed("recording"):
@@ -126,7 +128,7 @@ class _Run:
         self.summary.vehicles.update(fleet.vehicle_id)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s
-        self.bar.update(simulation.step_length_s)
+        self.bar.update(self.step_s)
         return config.end_s is None or fleet.time_s < config.end_s
 
     def _forget(self, arrived: tuple[str, ...]) -> None:

@@ -47,6 +47,7 @@ __all__ = [
     "enhanced_time_to_collision_s",
     "required_deceleration_mps2",
     "warning_clearance_m",
+    "formula_5_clearance_m",
     "evaluate_fcw",
     "next_fcw_states",
 ]
@@ -56,6 +57,8 @@ STANDARD_GRAVITY_MPS2 = 9.80665
 MAX_COLLISION_A_REQ_MPS2 = 0.68 * STANDARD_GRAVITY_MPS2
 #: 4.5.4: the driver's reaction time to a warning is at least 0.8 s.
 MIN_REACTION_TIME_S = 0.8
+#: Formula (5), the shortest warning distance (5.4.1): the reaction time and required deceleration it assumes.
+FORMULA_5_REACTION_S, FORMULA_5_A_REQ_MPS2 = 0.8, 6.67
 #: 4.3.3: the system works from at most 11.2 m/s up to at least 27.8 m/s.
 HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS = 11.2, 27.8
 #: The system states by code (4.3.2; fault as CSWS's, :class:`csws.state.SystemState`): ``FCW_STATES[code]``.
@@ -225,10 +228,24 @@ def warning_clearance_m(
     and a target acceleration a_TV: formula (4) solved for x_c at the level's threshold,
     x_c = x_r + v_r^2 / (2 (a_thr + a_TV)). The system's set warning distance (4.7.2, 5.4.2); with
     T_resp 0.8 s and 6.67 m/s^2 it is formula (5)."""
-    closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
     threshold = settings.collision_a_req_mps2 if level == 2 else settings.preliminary_a_req_mps2
     lost_s = settings.reaction_time_s + settings.brake_response_s
-    return closing * lost_s + closing**2 / (2.0 * (threshold + a_tv))
+    return _clearance_at_m(closing_mps, target_accel_mps2, threshold, lost_s)
+
+
+def formula_5_clearance_m(closing_mps: ArrayLike, target_accel_mps2: ArrayLike = 0.0) -> np.ndarray:
+    """Formula (5), the shortest warning distance a system may have (5.4.1): formula (4) solved for
+    x_c with T_resp 0.8 s and a_req 6.67 m/s^2, at a closing speed ``closing_mps`` (= -v_r > 0)."""
+    return _clearance_at_m(closing_mps, target_accel_mps2, FORMULA_5_A_REQ_MPS2, FORMULA_5_REACTION_S)
+
+
+def _clearance_at_m(
+    closing_mps: ArrayLike, target_accel_mps2: ArrayLike, a_req_mps2: float, lost_time_s: float
+) -> np.ndarray:
+    """Formula (4) solved for x_c: the clearance at which a_req reaches ``a_req_mps2``,
+    x_c = x_r + v_r^2 / (2 (a_req + a_TV)) with x_r = -v_r ``lost_time_s``."""
+    closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
+    return closing * lost_time_s + closing**2 / (2.0 * (a_req_mps2 + a_tv))
 
 
 def next_fcw_states(

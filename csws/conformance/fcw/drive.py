@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from csws.cosim.fcw import BRAKE_LIGHT, forward_targets
-from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states, time_to_collision_s
 from csws.fcw.target import TargetSettings
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR
@@ -126,9 +126,8 @@ class Trace:
 
     @property
     def ttc_s(self) -> np.ndarray:
-        """True TTC, s (``inf`` while not closing)."""
-        with np.errstate(divide="ignore"):
-            return np.where(self.closing_mps > 0.0, self.clearance_m / self.closing_mps, np.inf)
+        """True TTC, s (formula (2) on the true values; ``inf`` while not closing)."""
+        return time_to_collision_s(self.clearance_m, -self.closing_mps)
 
 
 @cache

@@ -8,7 +8,7 @@ so the judge knows what happened when; :attr:`Script.done` ends the run.
 
 from __future__ import annotations
 
-import math
+from csws.fcw.physics import time_to_collision_s
 
 from .rows import STABLE_S, START_CLEARANCE_M, FcwRow
 
@@ -80,8 +80,7 @@ class Approach(Script):
             commands["tv"] = 0.0
         elif self.phase == 0 and not self.brakes and truth["clearance_m"] <= START_CLEARANCE_M:
             self._next(1, time_s)
-        closing = truth["closing_mps"]
-        ttc_s = truth["clearance_m"] / closing if closing > 0 else math.inf
+        ttc_s = float(time_to_collision_s(truth["clearance_m"], -truth["closing_mps"]))
         late = self.row.least_ttc_s is not None and ttc_s < 0.9 * self.row.least_ttc_s
         self.done = level >= self.row.level or late
         return commands
