@@ -26,7 +26,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, shape_text
 
 from .generate import PRECISION_DIGITS, SAMPLE_SPACING_M, _json_difference, _lane_differences, _rounded, _write_json
 
@@ -116,7 +116,7 @@ def _plain_xml(name: str) -> tuple[str, str]:
         spreadType="center",
         shape=shape_text(xy),
     )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
+    return plain_xml_text(nodes, edges)
 
 
 def _build(name: str, directory: Path) -> Path:

@@ -36,7 +36,7 @@ import numpy as np
 
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, required_attribute, shape_text
 
 __all__ = [
     "APPROACH_M",
@@ -423,7 +423,7 @@ def _plain_xml(spec: TrackSpec) -> tuple[str, str]:
             spreadType="center",
             shape=shape_text(shape),
         )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
+    return plain_xml_text(nodes, edges)
 
 
 def _write_json(path: Path, content: dict) -> None:
@@ -453,10 +453,10 @@ def build_tracks(directory: Path) -> list[Path]:
 def read_lanes(net_file: Path) -> dict[str, tuple[float, float, np.ndarray]]:
     """``lane id -> (length m, speed m/s, (n, 2) shape)`` of every lane of a SUMO network, internal ones too."""
     return {
-        lane.get("id"): (
-            float(lane.get("length")),
-            float(lane.get("speed")),
-            np.array([[float(v) for v in point.split(",")[:2]] for point in lane.get("shape").split()]),
+        required_attribute(lane, "id"): (
+            float(required_attribute(lane, "length")),
+            float(required_attribute(lane, "speed")),
+            np.array([[float(v) for v in point.split(",")[:2]] for point in required_attribute(lane, "shape").split()]),
         )
         for lane in ElementTree.parse(net_file).getroot().iter("lane")
     }

@@ -40,7 +40,7 @@ import numpy as np
 
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, pose_at, straight
 from csws.standard import DEFAULT_WARNING_RADIUS_M
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, shape_text
 
 from .generate import (
     APPROACH_M,
@@ -254,7 +254,7 @@ def _plain_xml(spec: RealRoadSpec) -> tuple[str, str]:
             priority="1",
             spreadType="center",
         )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
+    return plain_xml_text(nodes, edges)
 
 
 def real_road_truth(spec: RealRoadSpec) -> dict:
@@ -273,7 +273,7 @@ def real_road_truth(spec: RealRoadSpec) -> dict:
             for p in pieces
         ],
         "route": {"edges": _edge_ids(spec), "length_m": _rounded(bounds[-1])},
-        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds, strict=True)},
+        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds[:-1], strict=True)},
         "nodes_in_curves_s": [_rounded(APPROACH_M + at_m) for at_m in spec.nodes_at_m],
         "side_road": None
         if spec.side_road_at is None

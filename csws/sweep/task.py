@@ -30,6 +30,7 @@ from xml.etree import ElementTree
 from csws.cosim.driver import DriverSettings, is_equipped
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.standard import Level, warning_speed
+from csws.sumo.netbuild import required_attribute
 
 from .study import RunSpec
 
@@ -129,8 +130,8 @@ def _figures(spec: RunSpec, summary: dict[str, Any], out: Path) -> dict[str, Any
     share = factors.equipped_share or 0.0  # None in a reference run: no vehicle equipped
     equipped = lambda vehicle_id: share > 0 and is_equipped(vehicle_id, share, spec.seed)  # noqa: E731
     trips = ElementTree.parse(out / TRIPINFO).getroot().findall("tripinfo")
-    distance_m = {_attribute(trip, "id"): float(_attribute(trip, "routeLength")) for trip in trips}
-    time_loss_s = [float(_attribute(trip, "timeLoss")) for trip in trips]
+    distance_m = {required_attribute(trip, "id"): float(required_attribute(trip, "routeLength")) for trip in trips}
+    time_loss_s = [float(required_attribute(trip, "timeLoss")) for trip in trips]
     with open(out / "cosim" / "entries.csv", newline="", encoding="utf-8") as stream:
         entries = list(csv.DictReader(stream))
     with open(out / "cosim" / "warnings.csv", newline="", encoding="utf-8") as stream:
@@ -160,14 +161,6 @@ def _figures(spec: RunSpec, summary: dict[str, Any], out: Path) -> dict[str, Any
         "mean_time_loss_s": sum(time_loss_s) / vehicles if vehicles else None,
         "entry_excess_kmh": [float(row["excess_kmh"]) for row in entries],
     }
-
-
-def _attribute(element: ElementTree.Element, name: str) -> str:
-    """An attribute SUMO always writes (ValueError for a file that lacks it)."""
-    value = element.get(name)
-    if value is None:
-        raise ValueError(f"SUMO's {element.tag} lacks {name!r}")
-    return value
 
 
 def _level2_kmh(entry: dict[str, str]) -> float:
