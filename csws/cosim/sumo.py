@@ -19,10 +19,11 @@ a type's category once per type.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -40,6 +41,8 @@ _VAR_SPEED = 0x40
 _VAR_POSITION = 0x42
 _VAR_ROUTE_ID = 0x53
 _VAR_DISTANCE = 0x84
+#: What a call to the SUMO API returns.
+T = TypeVar("T")
 #: What is read of each vehicle every step; its type (and so its category) is read once, when it departs.
 _SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_DISTANCE)
 #: One vehicle's subscription result as a tuple in the order of ``_SUBSCRIBED``.
@@ -254,7 +257,7 @@ class Simulation:
                 routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
         return [routes[route_id] for route_id in route_ids]
 
-    def _call(self, function, *args):
+    def _call(self, function: Callable[..., T], *args: Any) -> T:
         """Call the SUMO API; its failures become :class:`SumoStopped`."""
         try:
             return function(*args)

@@ -1,5 +1,7 @@
-"""Forward collision warning (GB/T 33577-2017, ISO 15623): time to collision, enhanced time
-to collision, required deceleration, and the warning they give, for many vehicles at once.
+"""Forward collision warning physics (GB/T 33577-2017, ISO 15623): TTC, ETTC, a_req and the warning.
+
+Time to collision, enhanced time to collision, required deceleration, and the warning they
+give, for many vehicles at once.
 
 The quantities, in the standard's symbols (3.10-3.12, 3.22; SI units, accelerations signed,
 positive forward):

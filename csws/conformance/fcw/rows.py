@@ -23,6 +23,7 @@ centre), and the curve test of 5.5.3.2 ends at the collision warning, not the pr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from csws.fcw.physics import STANDARD_GRAVITY_MPS2, FcwSettings, formula_5_clearance_m, warning_clearance_m
 from csws.fcw.target import CurveClass, curve_start_speed_mps
@@ -127,7 +128,7 @@ def _approach(
     subject_mps: float,
     lead_mps: float,
     lead_type: str = "car",
-    **criteria,
+    **criteria: Any,
 ) -> FcwRow:
     """A subject closing at constant speed on a lead at constant speed, from START_CLEARANCE_M plus the stable time."""
     start_m = START_CLEARANCE_M + STABLE_S * (subject_mps - lead_mps)
