@@ -59,8 +59,8 @@ STANDARD_GRAVITY_MPS2 = 9.80665
 MAX_COLLISION_A_REQ_MPS2 = 0.68 * STANDARD_GRAVITY_MPS2
 #: 4.5.4: the driver's reaction time to a warning is at least 0.8 s.
 MIN_REACTION_TIME_S = 0.8
-#: Formula (5), the shortest warning distance (5.4.1): the reaction time and required deceleration it assumes.
-FORMULA_5_REACTION_S, FORMULA_5_A_REQ_MPS2 = 0.8, 6.67
+#: Formula (5), the shortest warning distance (5.4.1): the least reaction time of 4.5.4 and this a_req, m/s^2.
+FORMULA_5_A_REQ_MPS2 = 6.67
 #: 4.3.3: the system works from at most 11.2 m/s up to at least 27.8 m/s.
 HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS = 11.2, 27.8
 #: The system states by code (4.3.2; fault as CSWS's, :class:`csws.state.SystemState`): ``FCW_STATES[code]``.
@@ -238,7 +238,7 @@ def warning_clearance_m(
 def formula_5_clearance_m(closing_mps: ArrayLike, target_accel_mps2: ArrayLike = 0.0) -> np.ndarray:
     """Formula (5), the shortest warning distance a system may have (5.4.1): formula (4) solved for
     x_c with T_resp 0.8 s and a_req 6.67 m/s^2, at a closing speed ``closing_mps`` (= -v_r > 0)."""
-    return _clearance_at_m(closing_mps, target_accel_mps2, FORMULA_5_A_REQ_MPS2, FORMULA_5_REACTION_S)
+    return _clearance_at_m(closing_mps, target_accel_mps2, FORMULA_5_A_REQ_MPS2, MIN_REACTION_TIME_S)
 
 
 def _clearance_at_m(
