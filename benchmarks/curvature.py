@@ -314,7 +314,7 @@ def three_point(xy: np.ndarray, warning_radius_m: float) -> list[FoundCurve]:
     label = np.where(radius <= warning_radius_m, turn, 0.0)
     curves = []
     change = np.flatnonzero(np.diff(np.concatenate(([0.0], label, [0.0]))) != 0)
-    for first, stop in zip(change[:-1], change[1:], strict=True):
+    for first, stop in zip(change[:-1], change[1:], strict=False):
         if label[first] != 0:
             curves.append((float(s[first]), float(s[stop - 1]), float(np.median(radius[first:stop]))))
     return curves

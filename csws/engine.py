@@ -143,7 +143,7 @@ class FleetAnswers:
         """Each vehicle's warning level, 0 to 2."""
         levels = [0] * len(self.state)
         if self.judged is not None:
-            for i, level in zip(self.active, self.judged.level.tolist(), strict=True):
+            for i, level in zip(self.active, self.judged.level.tolist(), strict=False):
                 levels[i] = level
         return levels
 
@@ -154,7 +154,7 @@ class FleetAnswers:
         if self.judged is None:
             return warnings
         ahead, first = self.ahead, self._first_cpoi
-        for i, horizon in zip(self.active, ahead.horizons, strict=True):
+        for i, horizon in zip(self.active, ahead.horizons, strict=False):
             warnings[i] = no_warning(horizon.kind)
         warned = np.flatnonzero(self.judged.level).tolist()
         if warned:  # most vehicles: nothing to look at
@@ -166,7 +166,7 @@ class FleetAnswers:
                 [part_indices[first[k] : first[k + 1]] for k in warned],
                 [ahead.horizons[k].kind for k in warned],
             )
-            for k, warning in zip(warned, found, strict=True):
+            for k, warning in zip(warned, found, strict=False):
                 warnings[self.active[k]] = warning
         return warnings
 
@@ -187,8 +187,8 @@ class FleetAnswers:
             self.judged.cpoi_radius_m[rows].tolist(),
             self.judged.warning_speed_kmh[rows].tolist(),
         )
-        for column, column_values in zip(columns, values, strict=True):
-            for i, value in zip(vehicles, column_values, strict=True):
+        for column, column_values in zip(columns, values, strict=False):
+            for i, value in zip(vehicles, column_values, strict=False):
                 column[i] = value
         return columns
 
@@ -206,7 +206,7 @@ class FleetAnswers:
                 self.ahead.cpoi_part_index[rows].tolist(),
                 self.judged.cpoi_radius_m[rows].tolist(),
                 self.judged.cpoi_level[rows].tolist(),
-                strict=True,
+                strict=False,
             )
         )
 
@@ -353,7 +353,7 @@ class Engine:
         )
         paths: list[PathAhead | None] = [None] * len(vehicles)
         if fleet.ahead is not None:
-            for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=True):
+            for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=False):
                 paths[i] = path
         return list(map(Answer, fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, paths))
 
@@ -392,10 +392,10 @@ class Engine:
             found_fault=self._found_faults(lane_ids, positions_m),
             settings=self.settings.activation,
         )
-        self.statuses.update(zip(vehicle_ids, statuses, strict=True))
+        self.statuses.update(zip(vehicle_ids, statuses, strict=False))
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
         if self.held:
-            for vehicle_id, status in zip(vehicle_ids, statuses, strict=True):
+            for vehicle_id, status in zip(vehicle_ids, statuses, strict=False):
                 if status.state is not SystemState.ACTIVE:
                     self.held.pop(vehicle_id, None)
         ahead = judged = None
@@ -428,7 +428,7 @@ class Engine:
         finite = np.isfinite(lane_pos_m).tolist()
         return [
             None if lane_id is not None and has_lane(lane_id) and ok else self._found_fault(lane_id, float(position))
-            for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist(), strict=True)
+            for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist(), strict=False)
         ]
 
     def _found_fault(self, lane_id: str | None, lane_pos_m: float) -> Fault | None:
@@ -475,7 +475,7 @@ class Engine:
 
     def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is."""
-        for vehicle_id, memory in zip(vehicle_ids, memories, strict=True):
+        for vehicle_id, memory in zip(vehicle_ids, memories, strict=False):
             if memory is not NOT_HELD and memory.is_on:
                 self.held[vehicle_id] = memory
             elif self.held:

@@ -278,7 +278,7 @@ def next_statuses(
         last_list = [None if value != value else value for value in last_list]
     made: dict[tuple, VehicleStatus] = {}
     updated = []
-    for status, key in zip(statuses, zip(fault_code.tolist(), activated.tolist(), last_list, strict=True), strict=True):
+    for status, key in zip(statuses, zip(fault_code.tolist(), activated.tolist(), last_list, strict=False), strict=False):
         if status.switched_on:
             status = made.get(key) or made.setdefault(key, _switched_on_status(*key))
         updated.append(status)

@@ -18,7 +18,7 @@ def _way(headings_deg: list[float], lengths_m: list[float]) -> np.ndarray:
     """A polyline from the origin along segments of the given headings and lengths."""
     steps = [
         length * np.array([math.cos(math.radians(h)), math.sin(math.radians(h))])
-        for h, length in zip(headings_deg, lengths_m, strict=True)
+        for h, length in zip(headings_deg, lengths_m, strict=False)
     ]
     return np.concatenate(([[0.0, 0.0]], np.cumsum(steps, axis=0)))
 

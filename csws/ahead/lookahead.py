@@ -246,7 +246,7 @@ class LookAhead:
             self._by_query.clear()
         by_query, slots = self._by_query, []
         reaches_m = _reach_m(lookahead_m, self.settings.context_m).tolist()
-        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist(), strict=True):
+        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist(), strict=False):
             key = (lane_id, route if route is None or isinstance(route, tuple) else tuple(route), reach_m)
             slot = by_query.get(key)
             if slot is None:

@@ -242,7 +242,7 @@ def _routes_xml(task: Task, depart_pos_m: list[float], depart_time_s: list[float
     vehicles = "".join(
         f'<vehicle id="run{i}" type="test" depart="{t:.6f}" departLane="0" departPos="{p:.6f}" '
         f'departSpeed="{speed_mps:.12g}"><route edges={quoteattr(edges)}/></vehicle>'
-        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=True))
+        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=False))
     )
     return f"<routes>{vtype}{vehicles}</routes>"
 
@@ -357,7 +357,7 @@ def drive(task: Task) -> list[Trace]:
                 route_s = np.array(
                     [
                         _route_s(track_truth, road_map, lane, pos, state[v][tc.VAR_POSITION])
-                        for v, lane, pos in zip(ids, lanes, lane_pos, strict=True)
+                        for v, lane, pos in zip(ids, lanes, lane_pos, strict=False)
                     ]
                 )
                 measured_pos = lane_pos + rng.uniform(-POSITION_ACCURACY_M, POSITION_ACCURACY_M, len(ids))
@@ -376,7 +376,7 @@ def drive(task: Task) -> list[Trace]:
                         for i, v in enumerate(ids)
                     ]
                 )
-                for i, (vehicle_id, answer) in enumerate(zip(ids, answers, strict=True)):
+                for i, (vehicle_id, answer) in enumerate(zip(ids, answers, strict=False)):
                     record = records[vehicle_id]
                     record.time_s.append(now_s)
                     record.route_s_m.append(route_s[i])

@@ -315,7 +315,7 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
 
     figure, (speed_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     steps = sorted({step for _, step, _ in traces})
-    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=True))
+    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=False))
     labelled = set()
     for track_truth, step, trace in traces:
         distance_m = track_truth.curve_start_s_m[0] - trace.route_s_m

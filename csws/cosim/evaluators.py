@@ -165,13 +165,13 @@ class ServiceEvaluator:
         for first in range(0, len(queries), MAX_BATCH):
             answered += self._post({"queries": queries[first : first + MAX_BATCH]})["answers"]
         answers = [_OFF_THE_MAP] * len(fleet.vehicle_id)
-        for i, answer in zip(on_lane, answered, strict=True):
+        for i, answer in zip(on_lane, answered, strict=False):
             answers[i] = answer
         target = TargetColumns(*([None] * len(answers) for _ in range(5)))
         entries = []
         for i, answer in enumerate(answers):
             if answer["target"] is not None:
-                for column, field in zip(target, TargetColumns._fields, strict=True):
+                for column, field in zip(target, TargetColumns._fields, strict=False):
                     column[i] = answer["target"][field]
             entries += [
                 (i, trigger["curve_id"], trigger["part_index"], trigger["radius_m"], trigger["level"])

@@ -153,7 +153,7 @@ def forward_targets(
         found = _candidates(sumo, subject, settings.range_m, sizes, sublanes)
         owner += [index] * len(found)
         seen += found
-    ids, distance, offset = zip(*seen, strict=True) if seen else ((), (), ())
+    ids, distance, offset = zip(*seen, strict=False) if seen else ((), (), ())
     owners = np.array(owner, dtype=np.intp)
     distance_m, offset_m = np.array(distance, dtype=float), np.array(offset, dtype=float)
     radius_m = np.empty(0)
@@ -161,7 +161,7 @@ def forward_targets(
         subject_deg = np.array([vehicle.getAngle(subject) for subject in subjects])[owners]
         half_lengths_m = (
             np.array(
-                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=True)]
+                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=False)]
             )
             / 2.0
         )
@@ -261,7 +261,7 @@ class FleetFcw:
         previous = np.array([self.states.get(vehicle_id, STANDBY) for vehicle_id in vehicle_ids], dtype=np.int8)
         on_lane = np.array([bool(lane_id) for lane_id in lane_ids], dtype=bool)
         states = next_fcw_states(previous, speed_mps, np.ones(count, dtype=bool), on_lane, self.settings)
-        self.states.update(zip(vehicle_ids, states.tolist(), strict=True))
+        self.states.update(zip(vehicle_ids, states.tolist(), strict=False))
         level: list[int] = [0] * count
         target_id: list[str | None] = [None] * count
         range_m, range_rate_mps, ttc_s = ([None] * count for _ in range(3))
@@ -288,7 +288,7 @@ class FleetFcw:
         x_c, v_r = found.clearance_m[seen], found.relative_velocity_mps[seen]
         batch = evaluate_fcw(accel_mps2, x_c, v_r, found.target_accel_mps2[seen], braking, self.settings)
         level, target_id, range_m, range_rate_mps, ttc_s = columns
-        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=True)):
+        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=False)):
             ttc = float(batch.ttc_s[j])
             level[row], target_id[row] = int(batch.level[j]), found.target_id[k]
             range_m[row], range_rate_mps[row] = float(x_c[j]), float(v_r[j])
@@ -312,7 +312,7 @@ def fcw_events(
     """
     speeds_kmh, lane_pos, place = places
     rows = []
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=False)):
         previous = levels.get(vehicle_id, 0)
         if level == previous:
             continue
@@ -350,7 +350,7 @@ def respond_to_fcw(driver: Any, fleet: Any, fcw: FcwColumns, step_s: float, comm
     """Add the driver-response model's answers to the FCW warnings to the step's ``commands`` (m/s,
     -1 hands back): where both warnings ask for a speed, the lower one."""
     responding = driver.fcw_drivers
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=False)):
         if level == 0 and vehicle_id not in responding:
             continue
         command = driver.fcw_command(

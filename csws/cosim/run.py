@@ -286,7 +286,7 @@ def _record_step(
     levels, pad = tracker.levels, (None,) * len(FCW_EVENT_COLUMNS) if fcw else ()
     changed = [
         i
-        for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=True))
+        for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=False))
         if level != levels.get(vehicle_id, 0)
     ]
     events = []
@@ -351,7 +351,7 @@ def _drive(driver: DriverResponse, fleet: FleetState, warnings: FleetWarnings, s
     """The driver-response model's speed commands of this step, per vehicle (m/s; -1 hands back)."""
     commands = {}
     target = warnings.target
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=False)):
         if level == 0 and vehicle_id not in driver.drivers:
             continue
         command = driver.commands(

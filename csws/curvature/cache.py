@@ -116,7 +116,7 @@ def _read(path: Path, points: Sequence[np.ndarray]) -> list[RadiusProfile] | Non
         return None
     chords = _chords(points)
     profiles = []
-    for polyline, (first, stop) in enumerate(zip(offset[:-1].tolist(), offset[1:].tolist(), strict=True)):
+    for polyline, (first, stop) in enumerate(zip(offset[:-1].tolist(), offset[1:].tolist(), strict=False)):
         vertex_s = chords.vertex_s[chords.polyline_first_vertex[polyline] : chords.polyline_first_vertex[polyline + 1]]
         if first == stop:
             profiles.append(_straight_profile(vertex_s))

@@ -84,7 +84,7 @@ def _spiral_pieces(part: ProfilePart, start_s: float, end_s: float) -> list[Cons
     ends = starts[1:] + [len(s) - 1]
     return [
         ConstantRadiusPart(float(s[a]), float(s[b]), float(radius[a]), spiral=True)
-        for a, b in zip(starts, ends, strict=True)
+        for a, b in zip(starts, ends, strict=False)
     ]
 
 

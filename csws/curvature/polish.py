@@ -285,7 +285,7 @@ def _with_added_straights(
     added = np.repeat([1, 1, 2, 3, 2], counts)
     kind_allowed = (at_start, at_end, at_both, in_middle, in_middle)
     allowed = np.column_stack(
-        [np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed, strict=True)]
+        [np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed, strict=False)]
     )
     allowed &= trials.is_ordered()
     # A few steps show which trial of each kind leads; only those are polished to the end.
@@ -295,7 +295,7 @@ def _with_added_straights(
     leading = np.column_stack(
         [
             first + np.argmin(trial_squares[:, first:stop], axis=1)
-            for first, stop in zip(kind_start[:-1], kind_start[1:], strict=True)
+            for first, stop in zip(kind_start[:-1], kind_start[1:], strict=False)
         ]
     )
     trials = _chosen(trials, leading)

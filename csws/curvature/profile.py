@@ -178,6 +178,6 @@ def _profile(
     starts, ends = curvature_of_part.tolist(), end_curvature.tolist()
     parts = tuple(
         ProfilePart(a, b, k0, None if k1 == k0 else k1)
-        for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends, strict=True)
+        for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends, strict=False)
     )
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)

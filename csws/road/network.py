@@ -172,7 +172,7 @@ def net_lanes(net: sumolib.net.Net) -> NetLanes:
             lane.getID() in continuing,
             _continues_into(lane, continuations, continuing, roundabout_edges),
         )
-        for lane, length in zip(sumo_lanes, shape_length_m, strict=True)
+        for lane, length in zip(sumo_lanes, shape_length_m, strict=False)
     ]
     successors = [_successor_ids(lane, index) for lane in sumo_lanes]
     return NetLanes(lanes, xy, vertex_start, successors, _geo_reference(net))

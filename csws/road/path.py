@@ -175,7 +175,7 @@ def path_profile_parts(
         chain_start_s.tolist(),
         chain_end_s.tolist(),
         (path_start_s - chain_start_s).tolist(),
-        strict=True,
+        strict=False,
     ):
         add(start_s + offset_s, 0.0, 0.0)
         for part in chains.profiles[chain].parts:

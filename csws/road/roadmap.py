@@ -269,7 +269,7 @@ class RoadMap:
         step of every path built)."""
         ids = [lane.lane_id for lane in self._lanes]
         starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
-        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=True))
+        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=False))
 
     def road_chain(self, lane_id: str) -> tuple[str, ...]:
         """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.road.chains`)."""

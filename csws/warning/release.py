@@ -154,7 +154,7 @@ def next_memories(
             points.append(
                 frozenset(
                     (curve_ids[row], int(part_indices[row]))
-                    for row, rule in zip(range(start, stop), here, strict=True)
+                    for row, rule in zip(range(start, stop), here, strict=False)
                     if rule
                 )
             )

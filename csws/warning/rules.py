@@ -297,7 +297,7 @@ class BatchWarnings:
         held = (self.cpoi_rule[np.fmax(self.cpoi_level - 1, 0), columns] >= Rule.MARGIN).tolist()
         warnings = []
         for vehicle, first, ids, parts, path_kind in zip(
-            vehicles, first_cpoi, curve_ids, part_indices, path_kinds, strict=True
+            vehicles, first_cpoi, curve_ids, part_indices, path_kinds, strict=False
         ):
             level = _LEVELS[vehicle_levels[vehicle]]
             if level is Level.NONE:  # nothing triggered

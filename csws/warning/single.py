@@ -88,9 +88,9 @@ def judge_one(
     rules = [
         [
             Rule.REQUIRED if speed_kmh >= v and point[2] <= s + allowance_m and not point[4] else Rule.OFF
-            for v, s in zip(pair, sws, strict=True)
+            for v, s in zip(pair, sws, strict=False)
         ]
-        for point, pair, sws in zip(points, speeds, distances, strict=True)
+        for point, pair, sws in zip(points, speeds, distances, strict=False)
     ]
     if held.is_on:
         _apply_release(rules, speed_kmh, speed_mps, allowance_m, points, speeds, held, now_s, settings)
@@ -116,7 +116,7 @@ def _apply_release(
 ) -> None:
     """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place."""
     named = [[(point[0], point[1]) in level_points for level_points in held.points] for point in points]
-    for point, pair, point_rules, point_named in zip(points, speeds, rules, named, strict=True):
+    for point, pair, point_rules, point_named in zip(points, speeds, rules, named, strict=False):
         for level in (0, 1):
             if point_rules[level] == Rule.OFF and point_named[level]:
                 lowered_kmh = max(pair[level] - settings.release_margin_kmh, 0.0)
@@ -126,7 +126,7 @@ def _apply_release(
     if any(rule for point_rules in rules for rule in point_rules):
         return
     holding = [within_hold(kept_at_s, now_s, settings.release_hold_s) for kept_at_s in held.kept_at_s]
-    for point_rules, point_named in zip(rules, named, strict=True):
+    for point_rules, point_named in zip(rules, named, strict=False):
         for level in (0, 1):
             if holding[level] and point_named[level]:
                 point_rules[level] = Rule.HOLD
@@ -142,7 +142,7 @@ def _warning(
     """The warning: each triggering CPOI at its highest level; the target the highest level,
     then the nearest (3.12, 6.2.1: level 2 has priority)."""
     triggers = []
-    for point, pair, sws, (level_1, level_2) in zip(points, speeds, distances, rules, strict=True):
+    for point, pair, sws, (level_1, level_2) in zip(points, speeds, distances, rules, strict=False):
         level = 2 if level_2 else 1 if level_1 else 0
         if level:
             shown = 1 if level_2 else 0
@@ -179,7 +179,7 @@ def _next_memory(
     points_on, kept_at_s = [], []
     for level in (0, 1):
         here = [point_rules[level] for point_rules in rules]
-        points_on.append(frozenset((point[0], point[1]) for point, rule in zip(points, here, strict=True) if rule))
+        points_on.append(frozenset((point[0], point[1]) for point, rule in zip(points, here, strict=False) if rule))
         if Rule.REQUIRED in here or Rule.MARGIN in here:
             kept_at_s.append(now_s)
         else:

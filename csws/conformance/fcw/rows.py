@@ -223,7 +223,7 @@ def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
         ),
         *(
             _curve_row(curve_class, radius_m, settings)
-            for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=True)
+            for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=False)
         ),
     ]
     ivista, km = "IVISTA-SM-ISI.SA.AEB-TP-A0-2023", kmh_to_mps(1.0)

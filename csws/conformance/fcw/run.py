@@ -126,7 +126,7 @@ def plot_fcw_row(path: Path, row: FcwRow, traces: Sequence[tuple[float, Trace]])
 
     figure, (ttc_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     steps = sorted({step for step, _ in traces})
-    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=True))
+    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=False))
     labelled = set()
     for step, trace in traces:
         before_end_s = trace.time_s - trace.time_s[-1]
