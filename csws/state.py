@@ -238,7 +238,7 @@ def next_status(
 
 def next_statuses(
     statuses: Sequence[VehicleStatus],
-    speed_kmh: Sequence[float],
+    speed_kmh: Sequence[float] | np.ndarray,
     *,
     timestamp_s: Sequence[float | None] | None = None,
     age_s: Sequence[float | None] | None = None,
