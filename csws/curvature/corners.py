@@ -23,7 +23,8 @@ can put an arc of centimetres somewhere. These rules are kept apart from the fit
    are a curve the fit missed. Several such vertices are an arc drawn node by
    node: it turns by their turning, at the radius of the segments between them taken as
    chords (the turns at the first and last vertex counted half, the other half being
-   onto the road beyond; on nodes evenly spaced on a circle, its radius). One such vertex is a corner mapped by one node. It gets the largest arc tangent
+   onto the road beyond; on nodes evenly spaced on a circle, its radius). One such
+   vertex is a corner mapped by one node. It gets the largest arc tangent
    to its two segments that fits within half of each (the other half belongs to the
    next corner), but no larger than an arc through the node that leaves the two segments
    by at most :data:`CORNER_DEVIATION_M` (a way is the road simplified within the mapping
@@ -123,7 +124,7 @@ def _turn_noise_rad(noise_m: float, before_m: float, after_m: float) -> float:
 
 
 def _window(inner_s: np.ndarray, start_s: float, end_s: float) -> tuple[int, int]:
-    """The inner vertices (as a slice's start and stop) on ``[start_s, end_s]`` and the nearest one beyond either end."""
+    """The inner vertices on ``[start_s, end_s]`` and the nearest one beyond either end, as a slice's start and stop."""
     first = max(int(np.searchsorted(inner_s, start_s, side="left")) - 1, 0)
     return first, int(np.searchsorted(inner_s, end_s, side="right")) + 1
 

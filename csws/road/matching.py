@@ -179,7 +179,7 @@ def points_along(xy: np.ndarray, s: np.ndarray, vertex_s: np.ndarray | None = No
 
 
 def lane_points(road_map: RoadMap, lane_id: str, lane_pos_m: np.ndarray) -> np.ndarray:
-    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (see :attr:`csws.road.roadmap.Lane.position_factor`)."""
+    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (:attr:`csws.road.network.Lane.position_factor`)."""
     shape_s = np.asarray(lane_pos_m, dtype=float) / road_map.lane(lane_id).position_factor
     return points_along(road_map.lane_shape(lane_id), shape_s)
 
