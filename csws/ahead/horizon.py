@@ -227,7 +227,7 @@ class _Column:
     appended, not what is already there)."""
 
     def __init__(self, dtype: type) -> None:
-        self._buffer = np.zeros(64, dtype=dtype)
+        self._buffer: np.ndarray = np.zeros(64, dtype=dtype)
         self._size = 0
 
     def extend(self, values: np.ndarray) -> None:

@@ -144,7 +144,7 @@ def _write(path: Path, profiles: Sequence[RadiusProfile], model: str) -> None:
         return
     try:
         with os.fdopen(handle, "wb") as file:
-            np.savez(file, **arrays)
+            np.savez(file, **arrays)  # type: ignore[arg-type]  # numpy's stub types the names as allow_pickle's
         os.replace(temporary, path)
     except OSError:
         Path(temporary).unlink(missing_ok=True)

@@ -80,7 +80,7 @@ def with_floor(start_k: np.ndarray, end_k: np.ndarray) -> tuple[np.ndarray, np.n
     return np.clip(start_k, -limit, limit), np.clip(end_k, -limit, limit)
 
 
-def _corner_radius_m(turn_rad: np.ndarray, before_m: np.ndarray, after_m: np.ndarray) -> np.ndarray:
+def _corner_radius_m(turn_rad: float | np.ndarray, before_m: np.ndarray, after_m: np.ndarray) -> np.ndarray:
     """The radius of the arc of a corner turning ``turn_rad`` between segments of the given lengths (rule 3)."""
     half = np.abs(turn_rad) / 2.0
     tangent_room_m = np.minimum(before_m, after_m) / 2.0

@@ -107,7 +107,8 @@ def _pieces(part: ProfilePart, span: tuple[float, float], policy: WarningSpeedPo
 def _curve(spans: Sequence[tuple[ProfilePart, tuple[float, float]]], sign: float, policy: WarningSpeedPolicy) -> Curve:
     """A curve made of the curved stretches of consecutive parts that turn the same way."""
     angle_rad = sum(
-        abs(part.curvature_at(start) + part.curvature_at(end)) / 2.0 * (end - start) for part, (start, end) in spans
+        abs(part.curvature_at_one(start) + part.curvature_at_one(end)) / 2.0 * (end - start)
+        for part, (start, end) in spans
     )
     parts = tuple(piece for part, span in spans for piece in _pieces(part, span, policy))
     return Curve(

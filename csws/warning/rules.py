@@ -335,8 +335,8 @@ class BatchWarnings:
         return warnings
 
 
-_COLUMN_INDEX = {category: list(Column).index(category.column) for category in Category}
-_COLUMN_INDEX.update({category.value: index for category, index in _COLUMN_INDEX.items()})
+#: A category's column; its name finds it too (a StrEnum member is equal to its name, and hashes as it).
+_COLUMN_INDEX: dict[str, int] = {category: list(Column).index(category.column) for category in Category}
 _LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
 
 
