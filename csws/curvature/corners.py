@@ -168,10 +168,24 @@ def with_corner_rules(
     bounds, start_k, end_k
         The parts after the rules.
     """
-    segment_m = chord_length_m
     noise_m = min(noise_m, MAX_NOISE_M)
     vertex_s = np.append(chord_start_s, chord_start_s[-1] + chord_length_m[-1])
     turn_rad = np.remainder(np.diff(chord_heading) + np.pi, 2.0 * np.pi) - np.pi
+    bounds, start_k, end_k = _within_turning(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
+    return _with_missed_corners(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
+
+
+def _within_turning(
+    vertex_s: np.ndarray,
+    turn_rad: np.ndarray,
+    segment_m: np.ndarray,
+    noise_m: float,
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rules 1 and 2: each fitted curve turned back to what the nodes turn (within node noise),
+    or dropped where it is not the nodes' or sharper than the floor radius allows."""
     angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
     start_k, end_k = start_k.copy(), end_k.copy()
     keep = np.ones(len(start_k), dtype=bool)
@@ -188,7 +202,20 @@ def with_corner_rules(
             start_k[parts] *= scale
             end_k[parts] *= scale
         keep[parts] = np.fmax(np.abs(start_k[parts]), np.abs(end_k[parts])).max() * FLOOR_RADIUS_M <= 1.0
-    bounds, start_k, end_k = _merged(bounds, np.where(keep, start_k, 0.0), np.where(keep, end_k, 0.0))
+    return _merged(bounds, np.where(keep, start_k, 0.0), np.where(keep, end_k, 0.0))
+
+
+def _with_missed_corners(
+    vertex_s: np.ndarray,
+    turn_rad: np.ndarray,
+    segment_m: np.ndarray,
+    noise_m: float,
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rule 3: the turning no part covers, by vertices that turn the same way, made an arc
+    (several vertices) or a corner's arc (one)."""
     covered = _covered(vertex_s[1:-1], bounds, start_k, end_k, turn_rad)
     for first, last in _turning_runs(turn_rad, covered):
         total = float(turn_rad[first : last + 1].sum())

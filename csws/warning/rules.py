@@ -406,8 +406,7 @@ def evaluate_batch(
         required &= ~np.asarray(cpoi_passed, dtype=bool)
     rule = np.where(required, Rule.REQUIRED, Rule.OFF).astype(np.int8)
     if cpoi_latched is not None and cpoi_latched.any():
-        margin = cpoi_latched & meets_margin(cpoi_speed_kmh, threshold_kmh, distance, settings)
-        rule[(rule == Rule.OFF) & margin] = Rule.MARGIN
+        _apply_margin(rule, cpoi_latched, cpoi_speed_kmh, threshold_kmh, distance, settings)
     if cpoi_hold is not None and cpoi_hold.any():
         _apply_hold(rule, cpoi_hold, cpoi_vehicle, len(speed_kmh))
     cpoi_level, shown = _levels_shown(rule)
@@ -432,6 +431,20 @@ def meets_margin(speed_kmh, warning_speed_kmh, distance_m, settings: WarningSett
     lowered_kmh = lowered_warning_speed_kmh(warning_speed_kmh, settings.release_margin_kmh)
     lowered_sw_m = warning_distance_m(speed_mps, kmh_to_mps(lowered_kmh), settings.g_mps2)
     return meets_clause_6_1(speed_kmh, lowered_kmh, distance_m, lowered_sw_m, settings.allowance_m(speed_mps))
+
+
+def _apply_margin(
+    rule: np.ndarray,
+    cpoi_latched: np.ndarray,
+    speed_kmh: np.ndarray,
+    warning_speed_kmh: np.ndarray,
+    distance_m: np.ndarray,
+    settings: WarningSettings,
+) -> None:
+    """Release rule 1 on ``rule``, in place: a CPOI that kept a level on keeps it while
+    :func:`meets_margin` holds."""
+    margin = cpoi_latched & meets_margin(speed_kmh, warning_speed_kmh, distance_m, settings)
+    rule[(rule == Rule.OFF) & margin] = Rule.MARGIN
 
 
 def _apply_hold(rule: np.ndarray, cpoi_hold: np.ndarray, cpoi_vehicle: np.ndarray, n_vehicles: int) -> None:
