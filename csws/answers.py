@@ -1,4 +1,4 @@
-"""What the system answers: one vehicle's :class:`Answer`, and a fleet's answers as columns.
+"""Holds what the system answers: one vehicle's :class:`Answer`, and a fleet's answers as columns.
 
 :class:`csws.engine.Engine` gives them; the co-simulation, the HTTP service and library users
 read them.

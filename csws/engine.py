@@ -1,4 +1,4 @@
-"""One object that turns a vehicle's state into its answer: the system of clauses 5 and 6.
+"""Turns each vehicle's state into its answer (the system of clauses 5 and 6), for one vehicle or a fleet.
 
 :class:`Engine` ties the parts together for the co-simulation, the HTTP service and
 library users alike, so that the same input gives the same answer everywhere:

@@ -1,4 +1,4 @@
-"""Exact road geometry made of straights, circular arcs and clothoids.
+"""Builds exact road geometry from straights, circular arcs and clothoids.
 
 A road is described as a sequence of :class:`Piece` objects, each with curvature
 linear in arc length: constant on a straight (0) or an arc, changing evenly along a

@@ -1,4 +1,4 @@
-"""The model of T/ITS 0091-2018: vehicle categories, warning speeds and formula (1).
+"""Holds what T/ITS 0091-2018 fixes in numbers: vehicle categories, the warning speeds and formula (1).
 
 Everything the standard fixes numerically lives here: the vehicle categories of
 GB/T 15089 and the column each falls in (Tables 1-2 merge M3, N and O), the warning

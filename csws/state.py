@@ -1,4 +1,4 @@
-"""The system state of one vehicle's CSWS: clauses 5.2 to 5.4 of T/ITS 0091-2018.
+"""Tracks the system state of each vehicle's CSWS after clauses 5.2 to 5.4 of T/ITS 0091-2018.
 
 A small pure state machine: every update takes the previous :class:`VehicleStatus`
 and what is known now, and returns the next one. The co-simulation and the HTTP

@@ -1,4 +1,4 @@
-"""The road ahead of a vehicle as the warning reads it: the horizon from a lane, and the CPOIs on it (3.11).
+"""Builds the road ahead of a vehicle as the warning reads it (its horizon from a lane) and its CPOIs (3.11).
 
 A :class:`Horizon` is the stitched, profiled path from the start of a lane with the parts
 of its curves; :class:`PathAhead` (one vehicle) and :class:`BatchAhead` (many, as flat

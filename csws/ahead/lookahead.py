@@ -1,4 +1,4 @@
-"""The path ahead of a vehicle and its curvature points of interest (3.9, 3.11).
+"""Finds the path ahead of vehicles and its curvature points of interest within S_LAD (3.9, 3.11).
 
 From a lane and a position along it, :class:`LookAhead` follows the road for the
 look-ahead distance S_LAD and returns the CPOIs on that stretch: the first point of

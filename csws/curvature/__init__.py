@@ -1,4 +1,4 @@
-"""Radius profiles and curves of road polylines (T/ITS 0091-2018, 3.2-3.8).
+"""Fits radius profiles to road polylines and finds their curves (T/ITS 0091-2018, 3.2-3.8).
 
 A road centreline arrives as a polyline: a dense SUMO lane shape (vertices 0.5-1 m
 apart, coordinates rounded to 1 cm) or a sparse map way (nodes 5-30 m apart with

@@ -1,4 +1,4 @@
-"""Fitted radius profiles kept on disk, so that a network is fitted once and not at every load.
+"""Keeps fitted radius profiles on disk, so that a network is fitted once and not at every load.
 
 Fitting every road chain of a city takes seconds; reading the fitted parts back takes
 milliseconds. :func:`cached_radius_profiles` gives exactly what

@@ -1,4 +1,4 @@
-"""Sparse ways: the rules that keep a fitted profile to what its nodes can say.
+"""Applies to sparse ways the rules that keep a fitted profile to what its nodes can say.
 
 A map way's nodes are few: a corner is often one node, and a fit to five noisy nodes
 can put an arc of centimetres somewhere. These rules are kept apart from the fit

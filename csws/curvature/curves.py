@@ -1,4 +1,4 @@
-"""Curves (3.3-3.8) of a radius profile whose curvature is piecewise linear in arc length.
+"""Finds the curves (3.3-3.8) of a radius profile whose curvature is piecewise linear in arc length.
 
 A curve is a maximal stretch turning one way with a radius no larger than the warning
 curvature radius R_c (3.2). Its start point (3.4) is where the radius falls to R_c, and

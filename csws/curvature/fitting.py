@@ -1,4 +1,4 @@
-"""Radius profiles of polylines: which fit each polyline gets, and the three-point baseline."""
+"""Fits the radius profile of each polyline with the fit its kind needs; also the three-point baseline."""
 
 from __future__ import annotations
 

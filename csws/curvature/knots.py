@@ -1,4 +1,4 @@
-"""Sparse polylines (map ways), first step: knots of the heading fit, for a batch of polylines at once."""
+"""Places the knots of the heading fit of sparse polylines (map ways), for a batch at once: the first step."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Sparse polylines, third step: trial roads (added straights, stretched curves) polished and chosen."""
+"""Polishes trial roads of sparse polylines and chooses among them: the third step."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The road model's types: the radius profile of a polyline and its parts (T/ITS 0091-2018, 3.2-3.8)."""
+"""Defines the road model's types: the radius profile of a polyline and its parts (T/ITS 0091-2018, 3.2-3.8)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Sparse polylines, second step: the road (straights and arcs) fitted to the nodes in the plane.
+"""Fits the road (straights and arcs) to the nodes of sparse polylines in the plane: the second step.
 
 The road is the maximum-likelihood one under isotropic node noise, found by Levenberg-Marquardt
 steps for a batch of polylines and trial roads at once."""

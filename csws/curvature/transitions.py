@@ -1,4 +1,4 @@
-"""Transition curves: where the curvature of a dense polyline changes along a clothoid.
+"""Finds where the curvature of a dense polyline changes along a clothoid (transition curves).
 
 The dense fit (:mod:`csws.curvature.dense`) cuts heading against arc length into parts
 of constant curvature. Where the road has a clothoid (a spiral, curvature linear in arc

@@ -1,4 +1,4 @@
-"""Trial roads of the sparse polish, built side by side: straights added, curves stretched, compound curves.
+"""Builds the trial roads of the sparse polish side by side: straights added, curves stretched, compound curves.
 
 The polish (:mod:`csws.curvature.polish`) starts from the road the heading fit found
 and from these variations of it, ``(polylines, trials)`` at once, and keeps the one that

@@ -1,4 +1,4 @@
-"""Road chains: every road of a network stitched into one polyline and fitted once, with its curves.
+"""Stitches every road of a network into one polyline (a road chain), fitted once, and finds its curves.
 
 A road is a chain of lanes through the nodes where it continues (a way split, a side
 road joining, the straight-ahead or priority continuation: :mod:`csws.road.continuations`), each

@@ -1,4 +1,4 @@
-"""Road chains: where a road continues through a junction, and where a path leaves it.
+"""Decides where a road continues through a junction, and where a path leaves it, for the road chains.
 
 A road is a chain of edges through the nodes where it continues: a way split, a side
 road joining, the straight-ahead or priority continuation at a crossing. A curve of the

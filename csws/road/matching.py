@@ -1,4 +1,4 @@
-"""Map matching: which lane of which road map a GNSS fix is on.
+"""Matches GNSS fixes to the lane of a road map they are on.
 
 A fix (x, y in network metres, an optional heading) is matched to the nearest lane
 within a tolerance whose driving direction agrees with the heading, so that the lane

@@ -1,4 +1,4 @@
-"""Path profiles: the road along consecutive lanes, read from the fitted road chains.
+"""Profiles the road along consecutive lanes (a path) from the fitted road chains.
 
 A path runs along stretches of chains (:mod:`csws.road.chains`). Where it leaves a chain
 (a turn into another road at a junction), the turn's internal lane is a chain of its own,

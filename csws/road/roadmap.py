@@ -1,4 +1,4 @@
-"""The road map: every lane of a SUMO network with its shape, links and curves.
+"""Holds every lane of a SUMO network with its shape, links and curves: the road map.
 
 A :class:`RoadMap` is read once from a ``.net.xml`` (or ``.net.xml.gz``) and then
 answers the questions the warning needs about the road ahead:

@@ -1,4 +1,4 @@
-"""Finding the lanes near positions: a spatial index over the lanes' shapes.
+"""Finds the lanes near positions through a spatial index over the lanes' shapes.
 
 The lane shapes are simplified within :data:`MATCH_TOLERANCE_M` (a dense SUMO shape, a
 vertex every 0.5 m, becomes one segment per straight and a few per curve) and their

@@ -1,4 +1,4 @@
-"""When a warning that is on goes off: the release rule, and what a vehicle's warning keeps for it.
+"""Decides when a warning that is on goes off (the release rule), and what a vehicle's warning keeps for it.
 
 Clause 6.1 says when a level is due; the standard says nothing of when it ends beyond
 6.2.1's "持续发出" (the warning continues while curves keep requiring it). Taken at

@@ -1,4 +1,4 @@
-"""The two-level curve speed warning of clauses 5 and 6 of T/ITS 0091-2018.
+"""Decides for many vehicles at once which warning level of clause 6 is due and for which target CPOI.
 
 Given a vehicle's speed and category and the curvature points of interest (CPOIs,
 3.11) ahead of it, decide which warning level is due and for which target CPOI (3.12):

@@ -1,4 +1,4 @@
-"""Clause 6 and the release rule for one vehicle, in plain floats.
+"""Applies clause 6 and the release rule to one vehicle in plain floats, giving the batch's answer to the bit.
 
 :func:`csws.warning.rules.evaluate_batch` and :mod:`csws.warning.release` judge the CPOIs of a fleet in
 numpy arrays. One vehicle has a few CPOIs (one or two on most roads), and on arrays that
