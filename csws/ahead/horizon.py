@@ -1,4 +1,4 @@
-"""The road ahead of a vehicle as the warning reads it: the horizon from a lane, and the CPOIs on it (3.11).
+"""Builds the road ahead of a vehicle as the warning reads it (its horizon from a lane) and its CPOIs (3.11).
 
 A :class:`Horizon` is the stitched, profiled path from the start of a lane with the parts
 of its curves; :class:`PathAhead` (one vehicle) and :class:`BatchAhead` (many, as flat
@@ -227,7 +227,7 @@ class _Column:
     appended, not what is already there)."""
 
     def __init__(self, dtype: type) -> None:
-        self._buffer = np.zeros(64, dtype=dtype)
+        self._buffer: np.ndarray = np.zeros(64, dtype=dtype)
         self._size = 0
 
     def extend(self, values: np.ndarray) -> None:

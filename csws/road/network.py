@@ -1,4 +1,4 @@
-"""Reading a SUMO network: its lanes as records, and their shapes and links as arrays.
+"""Reads a SUMO network: its lanes as records, and their shapes and links as arrays.
 
 :func:`read_sumo_net` reads a ``.net.xml`` (or ``.net.xml.gz``) with its internal lanes
 and turns every failure into :class:`NetworkError`; :func:`net_lanes` takes from it what
