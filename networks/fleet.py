@@ -246,7 +246,7 @@ def fleet_routes_xml(
     routes = (" ".join(forward_edges()), " ".join(backward_edges()))
     lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
     lines += [
-        f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes, strict=True)
+        f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes, strict=False)
     ]
     for index, fleet_type in enumerate(drawn):
         depart_s = round(index * period_s / count, 1)

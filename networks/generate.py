@@ -337,7 +337,7 @@ def _truth_lanes(pieces: Sequence[Piece], starts: np.ndarray) -> list[dict[str, 
             "end_s": _rounded(starts[stop]),
             "length_m": _rounded(starts[stop] - starts[first]),
         }
-        for edge_id, (first, stop) in zip(ROUTE_EDGES, _edge_piece_ranges(pieces), strict=True)
+        for edge_id, (first, stop) in zip(ROUTE_EDGES, _edge_piece_ranges(pieces), strict=False)
     ]
 
 
@@ -422,12 +422,12 @@ def _plain_xml(spec: TrackSpec) -> tuple[str, str]:
     ranges = _edge_piece_ranges(pieces)
     node_pieces = [first for first, _ in ranges] + [len(pieces)]
     nodes = ElementTree.Element("nodes")
-    for number, (node_id, index) in enumerate(zip(_NODES, node_pieces, strict=True)):
+    for number, (node_id, index) in enumerate(zip(_NODES, node_pieces, strict=False)):
         node = ElementTree.SubElement(nodes, "node", id=node_id, x=f"{x[index]:.6f}", y=f"{y[index]:.6f}")
         if 0 < number < len(_NODES) - 1:
             node.set("shape", shape_text(_junction_shape(x[index], y[index], heading[index])))
     edges = ElementTree.Element("edges")
-    for number, (edge_id, shape) in enumerate(zip(ROUTE_EDGES, _edge_shapes(pieces), strict=True)):
+    for number, (edge_id, shape) in enumerate(zip(ROUTE_EDGES, _edge_shapes(pieces), strict=False)):
         ElementTree.SubElement(
             edges,
             "edge",

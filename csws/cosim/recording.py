@@ -139,7 +139,7 @@ def _warning_events(
     ``pad`` empty FCW columns end each row."""
     fleet, target, levels = step.fleet, warnings.target, tracker.levels
     events = []
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=False)):
         previous = levels.get(vehicle_id, 0)
         event = event_of(previous, level)
         if event is None:

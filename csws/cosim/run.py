@@ -52,7 +52,7 @@ def _drive(driver: DriverResponse, fleet: FleetState, warnings: FleetWarnings, s
     """The driver-response model's speed commands of this step, per vehicle (m/s; -1 hands back)."""
     commands: dict[str, float] = {}
     target = warnings.target
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, warnings.level, strict=False)):
         if level == 0 and vehicle_id not in driver.drivers:
             continue
         command = driver.commands(

@@ -221,7 +221,7 @@ class Simulation:
         ids = list(results)
         if not ids:
             return ids, ((),) * len(_SUBSCRIBED)
-        return ids, tuple(zip(*map(_subscribed_values, results.values()), strict=True))
+        return ids, tuple(zip(*map(_subscribed_values, results.values()), strict=False))
 
     def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
         """Command a vehicle's speed (m/s); a negative speed hands it back to SUMO's driver."""
@@ -252,7 +252,7 @@ class Simulation:
     def _route_edges(self, vehicle_ids: Sequence[str], route_ids: Sequence[str]) -> list[tuple[str, ...]]:
         """Each vehicle's route edges; a route's edges are fetched once per route id."""
         routes = self._routes
-        for vehicle_id, route_id in zip(vehicle_ids, route_ids, strict=True):
+        for vehicle_id, route_id in zip(vehicle_ids, route_ids, strict=False):
             if route_id not in routes:
                 routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
         return [routes[route_id] for route_id in route_ids]

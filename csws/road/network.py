@@ -1,4 +1,4 @@
-"""Reading a SUMO network: its lanes as records, and their shapes and links as arrays.
+"""Reads a SUMO network: its lanes as records, and their shapes and links as arrays.
 
 :func:`read_sumo_net` reads a ``.net.xml`` (or ``.net.xml.gz``) with its internal lanes
 and turns every failure into :class:`NetworkError`; :func:`net_lanes` takes from it what
@@ -173,7 +173,7 @@ def net_lanes(net: sumolib.net.Net) -> NetLanes:
             lane.getID() in continuing,
             _continues_into(lane, continuations, continuing, roundabout_edges),
         )
-        for lane, length in zip(sumo_lanes, shape_length_m, strict=True)
+        for lane, length in zip(sumo_lanes, shape_length_m, strict=False)
     ]
     successors = [_successor_ids(lane, index) for lane in sumo_lanes]
     return NetLanes(lanes, xy, vertex_start, successors, _geo_reference(net))

@@ -52,18 +52,18 @@ def write_plots(folder: Path, study: Study, figures: list[SettingFigures], refer
     positions = list(levels) if numeric else list(range(len(levels)))
     lines = list(itertools.product(*(study.levels[name] for name in others)))
     figure, axes = pyplot.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for (name, label, with_reference), axis in zip(_PANELS, axes.flat, strict=True):
+    for (name, label, with_reference), axis in zip(_PANELS, axes.flat, strict=False):
         for number, line in enumerate(lines):
             settings = [
                 next(
                     s
                     for s in figures
                     if getattr(s.factors, x_factor) == level
-                    and all(getattr(s.factors, o) == v for o, v in zip(others, line, strict=True))
+                    and all(getattr(s.factors, o) == v for o, v in zip(others, line, strict=False))
                 )
                 for level in levels
             ]
-            text = ", ".join(f"{o} {level_text(v)}" for o, v in zip(others, line, strict=True)) or "with CSWS"
+            text = ", ".join(f"{o} {level_text(v)}" for o, v in zip(others, line, strict=False)) or "with CSWS"
             color = f"C{number % 10}"
             _errorbars(axis, positions, [_estimate(s, name) for s in settings], color, "-o", text)
             if with_reference:

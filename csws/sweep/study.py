@@ -139,7 +139,7 @@ class Study:
     def settings(self) -> list[Factors]:
         """Every combination of the factors' levels."""
         return [
-            Factors(**dict(zip(self.levels, values, strict=True)))
+            Factors(**dict(zip(self.levels, values, strict=False)))
             for values in itertools.product(*self.levels.values())
         ]
 

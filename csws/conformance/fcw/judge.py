@@ -156,7 +156,7 @@ def _two_leads(trace: Trace) -> list[str]:
         reasons.append("no collision warning while closing on the leads")
     if not (collision & (trace.phase_index == TARGET_BRAKES)).any():
         reasons.append("no collision warning when the nearer lead braked")
-    others = {target for target, level in zip(trace.target, trace.level, strict=True) if level and target != "tv"}
+    others = {target for target, level in zip(trace.target, trace.level, strict=False) if level and target != "tv"}
     if others:
         reasons.append(f"warned for {', '.join(sorted(others))}")
     return reasons

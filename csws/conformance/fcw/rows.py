@@ -238,7 +238,7 @@ def _adjacent_rows(settings: FcwSettings) -> list[FcwRow]:
     )
     curves = [
         _curve_row(curve_class, radius_m, settings)
-        for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=True)
+        for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=False)
     ]
     return [straight, *curves]
 
