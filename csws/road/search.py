@@ -94,7 +94,7 @@ class LaneShapes:
         if len(parts) == 1:
             return parts[0]
         vertex_offset = np.cumsum([0] + [len(part.xy) for part in parts])
-        vertex_start = [part.vertex_start[:-1] + offset for part, offset in zip(parts, vertex_offset, strict=True)]
+        vertex_start = [part.vertex_start[:-1] + offset for part, offset in zip(parts, vertex_offset[:-1], strict=True)]
         return cls(
             xy=np.concatenate([part.xy for part in parts]),
             vertex_start=np.concatenate(vertex_start + [vertex_offset[-1:]]).astype(np.int64),
