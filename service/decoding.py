@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from types import UnionType
-from typing import Annotated, Any, Optional, Union, get_args, get_origin
+from typing import Annotated, Any, Union, get_args, get_origin
 
 import annotated_types
 import msgspec
@@ -54,7 +54,7 @@ def _field_type(annotation: Any, metadata: Sequence[Any], structs: dict[type, ty
     }
     if meta:
         inner = Annotated[inner, msgspec.Meta(**meta)]
-    return Optional[inner] if optional else inner
+    return inner | None if optional else inner
 
 
 def struct_of(

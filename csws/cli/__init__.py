@@ -52,10 +52,10 @@ def _cmd_networks_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
+    from csws.road.export import write_curves
     from csws.road.roadmap import RoadMap
 
-    road_map = RoadMap.load(args.net, warning_radius_m=args.warning_radius_m)
-    road_map.write_curves(sys.stdout, fmt=args.format)
+    write_curves(RoadMap.load(args.net, warning_radius_m=args.warning_radius_m), sys.stdout, fmt=args.format)
     return 0
 
 
