@@ -48,7 +48,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--update-period-s",
         type=float,
         default=None,
-        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier (default 0.1)",
+        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier "
+        "(default: the warning settings' update period)",
     )
     parser.add_argument(
         "--api-keys",
