@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import msgspec
 
@@ -41,6 +41,18 @@ from .timing import UNTIMED, Stages
 from .vehicles import LatestAnswer, LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "Evaluated", "EncodedAnswers", "WarningService"]
+
+
+def _of_vehicle(query: DecodedQuery, vehicle_id: str) -> DecodedQuery:
+    """The query as asked for the vehicle ``vehicle_id`` (a decoded query is a msgspec struct)."""
+    return cast(DecodedQuery, msgspec.structs.replace(cast(msgspec.Struct, query), vehicle_id=vehicle_id))
+
+
+def _category(query: DecodedQuery, vehicles: LoadedVehicles) -> Category:
+    """The query's category, else the one its fleet set (the checks made sure one of them is there)."""
+    category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
+    assert category is not None  # a query without one was refused (service.checks)
+    return category
 
 
 def _rounds(queries: Sequence[DecodedQuery], indices: Sequence[int]) -> list[list[int]]:
@@ -102,9 +114,7 @@ class WarningService:
             When the state store cannot be read or written now.
         """
         if fleet:
-            queries = [
-                msgspec.structs.replace(query, vehicle_id=vehicle_key(fleet, query.vehicle_id)) for query in queries
-            ]
+            queries = [_of_vehicle(query, vehicle_key(fleet, query.vehicle_id)) for query in queries]
         answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
@@ -149,10 +159,7 @@ class WarningService:
         for row, (query, placement) in enumerate(zip(queries, placements, strict=True)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
-        # The query's category, else the one its fleet set (the checks made sure one of them is there).
-        categories = [
-            query.category if query.category is not None else vehicles.category(query.vehicle_id) for query in queries
-        ]
+        categories = [_category(query, vehicles) for query in queries]
         for network_index, rows in by_network.items():
             with stages("engine"):
                 evaluated = self.evaluate(
@@ -199,17 +206,19 @@ class WarningService:
         )
         kinds: list[PathKind | None] = [None] * len(queries)
         ahead_row = {}
-        if fleet.ahead is not None:
-            for k, (row, horizon) in enumerate(zip(fleet.active, fleet.ahead.horizons, strict=True)):
-                kinds[row] = horizon.kind
-                ahead_row[row] = k
+        ahead = fleet.ahead
+        if ahead is None:  # no vehicle looked ahead
+            return Evaluated(fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, kinds, lambda _row: None)
+        for k, (row, horizon) in enumerate(zip(fleet.active, ahead.horizons, strict=True)):
+            kinds[row] = horizon.kind
+            ahead_row[row] = k
         return Evaluated(
             fleet.vehicle_id,
             fleet.state,
             fleet.fault,
             fleet.warning,
             kinds,
-            lambda row: fleet.ahead.path_ahead(ahead_row[row]),
+            lambda row: ahead.path_ahead(ahead_row[row]),
         )
 
     def _record(
@@ -290,4 +299,4 @@ class Evaluated:
     fault: Sequence[Fault | None]
     warning: Sequence[CurveWarning]
     path_kind: Sequence[PathKind | None]
-    path: Callable[[int], PathAhead]
+    path: Callable[[int], PathAhead | None]

@@ -93,8 +93,8 @@ class QueryCheck:
                     "the served networks are not geo-referenced: give the position as x and y in network metres",
                 )
             )
-        if query.lane_id is not None:
-            problems += self._lane_problems(query, vehicles)
+        if query.lane_id is not None and query.lane_pos_m is not None:  # they go together (check_located)
+            problems += self._lane_problems(query, query.lane_id, query.lane_pos_m, vehicles)
         if query.route:
             known = (
                 self.edge_ids if query.network is None else self.networks[self.network_index[query.network]].edge_ids
@@ -111,31 +111,32 @@ class QueryCheck:
             return bool(self.geo_networks)
         return self.network_index[query.network] in self.geo_networks
 
-    def _lane_problems(self, query: DecodedQuery, vehicles: LoadedVehicles) -> list[tuple[str, str]]:
-        network_index = self.lane_network(query, vehicles)
+    def _lane_problems(
+        self, query: DecodedQuery, lane_id: str, lane_pos_m: float, vehicles: LoadedVehicles
+    ) -> list[tuple[str, str]]:
+        """What is wrong with the lane a query gives: a lane no network (or not its network) has, or a lane
+        position beyond the lane's end."""
+        network_index = self.lane_network(query, lane_id, vehicles)
         if network_index is None:
             where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
             return [("lane_id", f"unknown lane id {query.lane_id!r}: {where_not}")]
-        length_m = self.networks[network_index].road_map.lane(query.lane_id).length_m
-        if query.lane_pos_m > length_m:
+        length_m = self.networks[network_index].road_map.lane(lane_id).length_m
+        if lane_pos_m > length_m:
             return [
                 (
                     "lane_pos_m",
-                    f"lane position {query.lane_pos_m:g} m lies beyond the end of lane "
-                    f"{query.lane_id!r} ({length_m:g} m long)",
+                    f"lane position {lane_pos_m:g} m lies beyond the end of lane {lane_id!r} ({length_m:g} m long)",
                 )
             ]
         return []
 
-    def lane_network(self, query: DecodedQuery, vehicles: LoadedVehicles) -> int | None:
-        """The network a query's lane id is taken on: the one it names, else the vehicle's own if it has the
-        lane, else the first that has it; None if none has it."""
+    def lane_network(self, query: DecodedQuery, lane_id: str, vehicles: LoadedVehicles) -> int | None:
+        """The network the lane id ``lane_id`` of a query is taken on: the one it names, else the vehicle's own
+        if it has the lane, else the first that has it; None if none has it."""
         if query.network is not None:
             named = self.network_index[query.network]
-            return named if self.networks[named].road_map.has_lane(query.lane_id) else None
+            return named if self.networks[named].road_map.has_lane(lane_id) else None
         own = vehicles.network_of(query.vehicle_id)
-        if self.networks[own].road_map.has_lane(query.lane_id):
+        if self.networks[own].road_map.has_lane(lane_id):
             return own
-        return next((i for i, network in enumerate(self.networks) if network.road_map.has_lane(query.lane_id)), None)
-
-    # ------------------------------------------------------------------ evaluation
+        return next((i for i, network in enumerate(self.networks) if network.road_map.has_lane(lane_id)), None)

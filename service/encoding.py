@@ -51,7 +51,7 @@ class EncodedAnswers:
     with their system states and warning levels (for the metrics).
     """
 
-    documents: list[msgspec.Struct]
+    documents: list[Any]  # the answers (msgspec structs of the contract), None until answered
     state: list[SystemState]
     level: list[Level]
 
@@ -110,7 +110,7 @@ def encode_answer(
             fault_text = f"{fault_text}: {placement.reason}"
     target, triggers = None, []
     located = warning.triggers  # the target is one of them
-    if located:
+    if located and path is not None:  # a warning with CPOIs comes with its path
         places = cpoi_positions.of(path, [t.curve_id for t in located], [t.part_index for t in located])
         positions = {id(t): place for t, place in zip(located, places, strict=True)}
         if warning.target is not None:

@@ -52,7 +52,9 @@ class CpoiPositions:
         self.network = network
         self._known: dict[tuple[str, int], dict[str, float]] = {}
 
-    def of(self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> list[dict[str, float]]:
+    def of(
+        self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int] | np.ndarray
+    ) -> list[dict[str, float]]:
         """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
         keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=True)]
         missing = [key for key in dict.fromkeys(keys) if key not in self._known]

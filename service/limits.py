@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+from collections.abc import Sequence
 
 __all__ = ["BodyLimit", "too_many_queries"]
 
@@ -32,7 +33,7 @@ def too_many_queries(body: bytes, limit: int) -> int:
     return count if count > limit else 0
 
 
-async def _respond(send, status: int, detail: str, extra_headers: list[tuple[bytes, bytes]] = ()) -> None:
+async def _respond(send, status: int, detail: str, extra_headers: Sequence[tuple[bytes, bytes]] = ()) -> None:
     body = json.dumps({"detail": detail}).encode()
     headers = [
         (b"content-type", b"application/json"),

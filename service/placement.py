@@ -17,7 +17,7 @@ import numpy as np
 from csws.road.matching import MapMatcher, MatchSettings, Probes, lane_points
 
 from .checks import QueryCheck
-from .decoding import DecodedQuery
+from .decoding import DecodedPosition, DecodedQuery
 from .vehicles import LoadedVehicles
 
 __all__ = ["Placement", "Placer"]
@@ -62,55 +62,73 @@ class Placer:
     def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
         """Where each query is: its given lane, or the map match of its fix (queries of distinct
         vehicles, preferring each one's previous lane)."""
-        placements: list[Placement | None] = [None] * len(queries)
-        on_lanes, to_match = [], []
-        for i, query in enumerate(queries):
-            (to_match if query.lane_id is None else on_lanes).append(i)
+        placements: dict[int, Placement] = {}
+        on_lanes = [i for i, query in enumerate(queries) if query.lane_id is not None]
+        to_match = [i for i, query in enumerate(queries) if query.lane_id is None]
         if on_lanes:
-            networks = [self.lanes.lane_network(queries[i], vehicles) for i in on_lanes]
-            distances_m = self._fix_distances_m([queries[i] for i in on_lanes], networks)
-            for i, network_index, distance_m in zip(on_lanes, networks, distances_m, strict=True):
-                placements[i] = Placement(network_index, queries[i].lane_id, queries[i].lane_pos_m, distance_m, None)
+            placements.update(zip(on_lanes, self._on_lanes([queries[i] for i in on_lanes], vehicles), strict=True))
         if to_match:
-            fixes = [queries[i] for i in to_match]
-            matched = self.matcher.match(
-                self._probes(fixes),
-                np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
-                [vehicles.previous(query.vehicle_id) for query in fixes],
-            )
-            for i, query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
-                to_match,
-                fixes,
-                matched.map_index.tolist(),
-                matched.lane_id,
-                matched.lane_pos_m.tolist(),
-                matched.distance_m.tolist(),
-                matched.reason,
-                strict=True,
-            ):
-                if network_index < 0:
-                    network_index = vehicles.network_of(query.vehicle_id)
-                placements[i] = Placement(network_index, lane_id, lane_pos_m, distance_m, reason)
+            placements.update(zip(to_match, self._matched([queries[i] for i in to_match], vehicles), strict=True))
+        return [placements[i] for i in range(len(queries))]
+
+    def _on_lanes(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
+        """The placements of queries that give their lane (which the checks found on a network)."""
+        lanes = []
+        for query in queries:
+            lane_id, lane_pos_m = query.lane_id, query.lane_pos_m
+            assert lane_id is not None and lane_pos_m is not None  # given together (check_located)
+            network_index = self.lanes.lane_network(query, lane_id, vehicles)
+            assert network_index is not None  # the checks refused a lane no network has
+            lanes.append((network_index, lane_id, lane_pos_m))
+        distances_m = self._fix_distances_m(queries, lanes)
+        return [
+            Placement(network_index, lane_id, lane_pos_m, distance_m, None)
+            for (network_index, lane_id, lane_pos_m), distance_m in zip(lanes, distances_m, strict=True)
+        ]
+
+    def _matched(self, fixes: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
+        """The placements of queries by the map match of their fixes (of distinct vehicles)."""
+        matched = self.matcher.match(
+            self._probes(fixes),
+            np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
+            [vehicles.previous(query.vehicle_id) for query in fixes],
+        )
+        placements = []
+        for query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
+            fixes,
+            matched.map_index.tolist(),
+            matched.lane_id,
+            matched.lane_pos_m.tolist(),
+            matched.distance_m.tolist(),
+            matched.reason,
+            strict=True,
+        ):
+            if network_index < 0:
+                network_index = vehicles.network_of(query.vehicle_id)
+            placements.append(Placement(network_index, lane_id, lane_pos_m, distance_m, reason))
         return placements
 
     def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
         """Where to look for each query's fix: x, y on the network it names, else on every one;
         lon, lat in the projection of the network it names, else of each geo-referenced one."""
-        rows, xy, map_index = [], [], []
-        geographic: dict[int, list[int]] = defaultdict(list)
+        rows: list[int] = []
+        xy: list[tuple[float | None, float | None]] = []
+        map_index: list[int] = []
+        geographic: dict[int, list[tuple[int, DecodedPosition]]] = defaultdict(list)
         for row, query in enumerate(queries):
             named = -1 if query.network is None else self.lanes.network_index[query.network]
             position = query.position
+            assert position is not None  # a query without a lane has a fix (check_located)
             if position.lon is None:
                 rows.append(row)
                 xy.append((position.x, position.y))
                 map_index.append(named)
             else:
                 for network_index in self.lanes.geo_networks if named < 0 else (named,):
-                    geographic[network_index].append(row)
+                    geographic[network_index].append((row, position))
         for network_index, placed in geographic.items():
-            lonlat = np.array([(queries[row].position.lon, queries[row].position.lat) for row in placed])
-            rows += placed
+            lonlat = np.array([(position.lon, position.lat) for _row, position in placed])
+            rows += [row for row, _position in placed]
             xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
             map_index += [network_index] * len(placed)
         return Probes(
@@ -120,25 +138,27 @@ class Placer:
             np.array(map_index, dtype=np.intp),
         )
 
-    def _fix_distances_m(self, queries: Sequence[DecodedQuery], networks: Sequence[int]) -> list[float]:
-        """Distance from each query's fix to its given lane position on its network, m; 0 without a fix,
-        or with lon/lat on a network without a projection. The queries on one lane are placed on it
-        in one interpolation."""
+    def _fix_distances_m(self, queries: Sequence[DecodedQuery], lanes: Sequence[tuple[int, str, float]]) -> list[float]:
+        """Distance from each query's fix to its given lane position (network index, lane id, lane position), m;
+        0 without a fix, or with lon/lat on a network without a projection. The queries on one lane are
+        placed on it in one interpolation."""
         distances_m = [0.0] * len(queries)
         on_lane: dict[tuple[int, str], list[int]] = defaultdict(list)
-        for row, (query, network_index) in enumerate(zip(queries, networks, strict=True)):
+        fixes: dict[int, DecodedPosition] = {}
+        for row, (query, (network_index, lane_id, _lane_pos_m)) in enumerate(zip(queries, lanes, strict=True)):
             position = query.position
             if position is not None and (position.lon is None or self.networks[network_index].road_map.has_projection):
-                on_lane[(network_index, query.lane_id)].append(row)
+                on_lane[(network_index, lane_id)].append(row)
+                fixes[row] = position
         for (network_index, lane_id), rows in on_lane.items():
             road_map = self.networks[network_index].road_map
-            fixes = [queries[row].position for row in rows]
-            geographic = [k for k, fix in enumerate(fixes) if fix.lon is not None]
-            xy = np.array([(fix.x, fix.y) if fix.lon is None else (0.0, 0.0) for fix in fixes])
+            given = [fixes[row] for row in rows]
+            geographic = [k for k, fix in enumerate(given) if fix.lon is not None]
+            xy = np.array([(fix.x, fix.y) if fix.lon is None else (0.0, 0.0) for fix in given])
             if geographic:
-                lonlat = np.array([(fixes[k].lon, fixes[k].lat) for k in geographic])
+                lonlat = np.array([(given[k].lon, given[k].lat) for k in geographic])
                 xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
-            lane_xy = lane_points(road_map, lane_id, np.array([queries[row].lane_pos_m for row in rows]))
+            lane_xy = lane_points(road_map, lane_id, np.array([lanes[row][2] for row in rows]))
             for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist(), strict=True):
                 distances_m[row] = math.hypot(x - lane_x, y - lane_y)
         return distances_m

@@ -573,7 +573,9 @@ def test_health_metrics_and_docs(client) -> None:
         for path in ("/v1/warning", "/v1/warnings")
     }
     assert bodies["/v1/warnings"]["properties"]["queries"]["maxItems"] == 10_000
-    assert "examples" in bodies["/v1/warning"] and "examples" in bodies["/v1/warnings"]["properties"]["queries"]["items"]
+    assert (
+        "examples" in bodies["/v1/warning"] and "examples" in bodies["/v1/warnings"]["properties"]["queries"]["items"]
+    )
     assert client.get("/docs").status_code == 200
 
 

@@ -64,16 +64,18 @@ async def horizon_query(
     """The position of a horizon request as a query of no vehicle; a 422 naming the parameters it lacks."""
     given = {k: v for k, v in {"x": x, "y": y, "lon": lon, "lat": lat}.items() if v is not None}
     try:
-        return PositionQuery(
-            vehicle_id="horizon",
-            category=Category.M1,
-            speed_kmh=0.0,
-            position=given or None,
-            heading_deg=heading_deg,
-            lane_id=lane_id,
-            lane_pos_m=lane_pos_m,
-            route=route.split(",") if route else None,
-            network=network,
+        return PositionQuery.model_validate(
+            {
+                "vehicle_id": "horizon",
+                "category": Category.M1,
+                "speed_kmh": 0.0,
+                "position": given or None,
+                "heading_deg": heading_deg,
+                "lane_id": lane_id,
+                "lane_pos_m": lane_pos_m,
+                "route": route.split(",") if route else None,
+                "network": network,
+            }
         )
     except ValidationError as exc:
         errors = [{**e, "loc": ("query", *e["loc"])} for e in exc.errors(include_url=False)]
