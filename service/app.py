@@ -21,13 +21,14 @@ from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
+from starlette.requests import ClientDisconnect
 
 from csws import __version__
 
 from .answers import QueryErrors, WarningService
 from .keys import KeyRing
-from .limits import BodyLimit
+from .limits import BodyLimit, BodyRefused, refused
 from .map import CompressedGets, MapData
 from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
@@ -77,6 +78,11 @@ async def _store_unavailable(_request: Request, exc: Exception) -> JSONResponse:
     """A 503 to retry when the state store is in trouble."""
     logger.warning("%s", exc)
     return JSONResponse({"detail": f"{exc}; retry"}, status_code=503, headers={"Retry-After": "1"})
+
+
+async def _client_gone(_request: Request, _exc: Exception) -> Response:
+    """The client went away in the middle of its body: nobody reads this answer, nothing is wrong here."""
+    return Response(status_code=400)
 
 
 async def _unexpected(_request: Request, exc: Exception) -> JSONResponse:
@@ -164,6 +170,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     app.add_exception_handler(RequestValidationError, _invalid_request)
     app.add_exception_handler(QueryErrors, _unanswerable)
     app.add_exception_handler(StoreUnavailable, _store_unavailable)
+    app.add_exception_handler(BodyRefused, refused)
+    app.add_exception_handler(ClientDisconnect, _client_gone)
     app.add_exception_handler(Exception, _unexpected)
     return app
 
