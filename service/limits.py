@@ -38,7 +38,8 @@ def too_many_queries(body: bytes, limit: int) -> int:
     return count if count > limit else 0
 
 
-async def _respond(send, status: int, detail: str, extra_headers: Sequence[tuple[bytes, bytes]] = ()) -> None:
+async def _respond(send: Any, status: int, detail: str, extra_headers: Sequence[tuple[bytes, bytes]] = ()) -> None:
+    """Answer ``{"detail": detail}`` with ``status`` straight from the middleware, closing the connection."""
     body = json.dumps({"detail": detail}).encode()
     headers = [
         (b"content-type", b"application/json"),
@@ -50,7 +51,8 @@ async def _respond(send, status: int, detail: str, extra_headers: Sequence[tuple
     await send({"type": "http.response.body", "body": body})
 
 
-def _header(scope, name: bytes) -> str | None:
+def _header(scope: Any, name: bytes) -> str | None:
+    """The value of the request header ``name`` (lower case), None without one."""
     for key, value in scope["headers"]:
         if key == name:
             return value.decode("latin-1")
@@ -110,6 +112,7 @@ class BodyLimit:
         size, complete = 0, False
 
         async def bounded() -> Any:
+            """The next message of the request, refused when the body stalls or grows too large."""
             nonlocal size, complete
             if complete:  # the body is in: what comes now (a disconnect) may take its time
                 return await receive()

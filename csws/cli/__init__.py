@@ -53,6 +53,7 @@ def _cmd_networks_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
+    """``csws curves``: the curve index of a network in the format asked for (:mod:`csws.road.export`)."""
     from csws.road.export import write_curves
     from csws.road.roadmap import RoadMap
 

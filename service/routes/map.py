@@ -6,7 +6,7 @@ and answer only its fleet's vehicles.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, NamedTuple
 
 from fastapi import APIRouter, Depends, Query
 from fastapi.exceptions import RequestValidationError
@@ -15,19 +15,27 @@ from pydantic import ValidationError
 
 from csws.standard import Category
 
+from .. import horizon
 from ..curves import BBOX_QUERY, NETWORK_QUERY, choose_networks, parse_bbox
 from ..deps import CallerDep, MapDataDep, NetworksDep, RegistryDep, ServiceDep, StoreDep, WorkDep
 from ..fleet import fleet_features
-from ..horizon import DEFAULT_HORIZON_M, road_ahead
+from ..horizon import DEFAULT_HORIZON_M
 from ..keys import vehicle_key
 from ..networks import MAX_HORIZON_M
 from ..schemas import Query as PositionQuery
 from .common import KEYED, STORE, json_response
 
-__all__ = ["router", "horizon_query"]
+__all__ = ["router", "HorizonRequest", "horizon_query"]
 
 #: The data routes: a key on a service with keys; the state store's 503 where they read vehicles.
 router = APIRouter(tags=["map"])
+
+
+class HorizonRequest(NamedTuple):
+    """What ``GET /v1/horizon`` asks: a position (as a query of no vehicle) and how far ahead to look, m."""
+
+    query: PositionQuery
+    length_m: float
 
 
 @router.get("/map", include_in_schema=False)
@@ -45,7 +53,7 @@ async def curves(
     bbox: str | None = BBOX_QUERY,
     network: str | None = NETWORK_QUERY,
 ) -> Response:
-    """The curves of the chosen networks that meet ``bbox`` (:func:`csws.road.export.curve_feature`)."""
+    """The curves of the chosen networks that meet the bbox, with the properties of the OSM import's curve index."""
     box, chosen = parse_bbox(bbox), choose_networks(networks, network)
     return Response(await work.run(data.curves, chosen, box), media_type="application/json")
 
@@ -60,11 +68,15 @@ async def horizon_query(
     lane_pos_m: Annotated[float | None, Query(allow_inf_nan=False, description="lane position, m")] = None,
     route: Annotated[str | None, Query(description="route edge ids, comma-separated")] = None,
     network: Annotated[str | None, Query(description="the served network (default: best match)")] = None,
-) -> PositionQuery:
-    """The position of a horizon request as a query of no vehicle; a 422 naming the parameters it lacks."""
+    length_m: Annotated[
+        float, Query(gt=0, le=MAX_HORIZON_M, allow_inf_nan=False, description="how far ahead, m")
+    ] = DEFAULT_HORIZON_M,
+) -> HorizonRequest:
+    """The position of a horizon request as a query of no vehicle, and how far ahead to look; a 422 naming the
+    parameters it lacks."""
     given = {k: v for k, v in {"x": x, "y": y, "lon": lon, "lat": lat}.items() if v is not None}
     try:
-        return PositionQuery.model_validate(
+        query = PositionQuery.model_validate(
             {
                 "vehicle_id": "horizon",
                 "category": Category.M1,
@@ -80,23 +92,21 @@ async def horizon_query(
     except ValidationError as exc:
         errors = [{**e, "loc": ("query", *e["loc"])} for e in exc.errors(include_url=False)]
         raise RequestValidationError(errors) from None
+    return HorizonRequest(query, length_m)
 
 
 @router.get(
     "/v1/horizon", summary="The road ahead of a position: radius profile and CPOIs", responses={**KEYED, **STORE}
 )
-async def horizon(
+async def road_ahead(
     _principal: CallerDep,
-    query: Annotated[PositionQuery, Depends(horizon_query)],
+    asked: Annotated[HorizonRequest, Depends(horizon_query)],
     service: ServiceDep,
     registry: RegistryDep,
     work: WorkDep,
-    length_m: Annotated[
-        float, Query(gt=0, le=MAX_HORIZON_M, allow_inf_nan=False, description="how far ahead, m")
-    ] = DEFAULT_HORIZON_M,
 ) -> Response:
-    """Where the position matches and the road ahead of it (:func:`service.horizon.road_ahead`)."""
-    return json_response(await work.run(road_ahead, service, registry, query, length_m))
+    """Where the position matches a lane, and the road ahead of it up to length_m."""
+    return json_response(await work.run(horizon.road_ahead, service, registry, asked.query, asked.length_m))
 
 
 @router.get(
@@ -111,7 +121,7 @@ async def roads(
     work: WorkDep,
     network: Annotated[str, Query(description="the network")],
 ) -> Response:
-    """The roads of one network (:func:`service.map.road_features`)."""
+    """The roads of one network: the rightmost lane of each edge, simplified to within 1 m."""
     (index,) = choose_networks(networks, network)
     return Response(await work.run(data.roads, index), media_type="application/json")
 
@@ -130,7 +140,7 @@ async def fleet(
     bbox: str | None = BBOX_QUERY,
     network: str | None = NETWORK_QUERY,
 ) -> Response:
-    """The caller's fleet's live vehicles in ``bbox`` (:func:`service.fleet.fleet_features`)."""
+    """The live vehicles of the caller's fleet in the bbox, with their latest answers."""
     box, chosen = parse_bbox(bbox), choose_networks(networks, network)
     prefix = vehicle_key(principal.fleet, "")
     collection = await work.run(

@@ -18,13 +18,13 @@ router = APIRouter(tags=["operations"])
 
 @router.get("/healthz", summary="The process is alive")
 async def healthz() -> dict[str, str]:
-    """Always ok: for load balancers and orchestrators, without a key."""
+    """Always ok, without a key: for load balancers and orchestrators."""
     return {"status": "ok"}
 
 
 @router.get("/readyz", summary="The networks are loaded and the state store answers", responses=STORE)
 async def readyz(networks: NetworksDep, store: StoreDep, work: WorkDep) -> dict[str, Any]:
-    """The served networks and how many vehicle sessions the store keeps, without a key."""
+    """The served networks and how many vehicle sessions the state store keeps, without a key."""
     return {
         "status": "ready",
         "networks": [
@@ -43,5 +43,5 @@ async def readyz(networks: NetworksDep, store: StoreDep, work: WorkDep) -> dict[
     dependencies=[Depends(doc_reader)],
 )
 async def prometheus(metrics: MetricsDep) -> PlainTextResponse:
-    """The Prometheus exposition (a key unless the service has public docs)."""
+    """The counters in Prometheus text format; a key is needed unless the docs are public."""
     return PlainTextResponse(metrics.exposition(), media_type="text/plain; version=0.0.4")

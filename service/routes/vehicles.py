@@ -81,7 +81,7 @@ async def put_vehicle(
 async def get_vehicle(
     principal: CallerDep, vehicle_id: VehicleId, service: ServiceDep, registry: RegistryDep, work: WorkDep
 ) -> dict[str, Any]:
-    """The state of a vehicle of the caller's fleet; a 404 for one it never queried or set."""
+    """The state of a vehicle of the caller's fleet; 404 for one it never queried or set."""
     key = vehicle_key(principal.fleet, vehicle_id)
 
     def state() -> dict[str, Any]:

@@ -76,7 +76,7 @@ def _answer_batch(service: WarningService, body: bytes, fleet: str, stages: Stag
 async def warnings(
     principal: CallerDep, body: BodyDep, service: ServiceDep, metrics: MetricsDep, work: WorkDep
 ) -> Response:
-    """Answer a batch of the caller's fleet, in order, with the time of each stage in ``Server-Timing``."""
+    """Answer a batch of the caller's fleet, in order; the time of each stage is in the Server-Timing header."""
     started = time.perf_counter()
     _refuse_oversized(body)
     stages = Stages()
