@@ -26,6 +26,7 @@ from starlette.requests import ClientDisconnect
 
 from csws import __version__
 
+from .answering import Answering
 from .answers import QueryErrors, WarningService
 from .keys import KeyRing
 from .limits import BodyLimit, BodyRefused, refused
@@ -116,6 +117,7 @@ def _share(app: FastAPI, settings: ServiceSettings, clock: Callable[[], float]) 
     # The work (queries and batches with their round trips to the state store, the curve index,
     # horizons) runs on a thread of its own, in arrival order (service.work).
     state.work = WorkThread()
+    state.answering = Answering(state.service, state.work, state.metrics)
     state.keyring = KeyRing(settings.api_keys_file) if settings.api_keys_file is not None else None
 
 

@@ -12,6 +12,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
+from .answering import Answering
 from .answers import WarningService
 from .map import MapData
 from .metrics import Metrics
@@ -23,6 +24,7 @@ from .vehicles import VehicleRegistry
 from .work import WorkThread
 
 __all__ = [
+    "answering",
     "warning_service",
     "vehicle_registry",
     "service_settings",
@@ -32,6 +34,7 @@ __all__ = [
     "work_thread",
     "raw_body",
     "map_data",
+    "AnsweringDep",
     "ServiceDep",
     "RegistryDep",
     "SettingsDep",
@@ -44,6 +47,12 @@ __all__ = [
     "CallerDep",
     "AdminDep",
 ]
+
+
+async def answering(request: Request) -> Answering:
+    """What answers the warning routes' bodies: the service on the work thread, its answers counted."""
+    answers: Answering = request.app.state.answering
+    return answers
 
 
 async def warning_service(request: Request) -> WarningService:
@@ -99,6 +108,7 @@ async def raw_body(request: Request) -> bytes:
     return await request.body()
 
 
+AnsweringDep = Annotated[Answering, Depends(answering)]
 ServiceDep = Annotated[WarningService, Depends(warning_service)]
 RegistryDep = Annotated[VehicleRegistry, Depends(vehicle_registry)]
 SettingsDep = Annotated[ServiceSettings, Depends(service_settings)]

@@ -1,12 +1,16 @@
-"""Who asks: the fleet's API key as a FastAPI security dependency (OpenAPI scheme ``fleetKey``).
+"""Who asks: the fleet's API key as a FastAPI security dependency (OpenAPI scheme ``fleetKey``, HTTP bearer).
 
 Keys travel as ``Authorization: Bearer KEY`` (:mod:`service.keys`). On a service with an API key
-file every data route depends on :func:`caller`: a missing or unknown key is a 401 with
+file every data route depends on :data:`caller`: a missing or unknown key is a 401 with
 ``WWW-Authenticate``, and the key's :class:`~service.keys.Principal` (its fleet and role) goes to the
 route; switching vehicles needs the admin role (:func:`admin`, else a 403). The docs and the
-metrics depend on :func:`doc_reader`: a key as well, unless the service was started with
+metrics depend on :data:`doc_reader`: a key as well, unless the service was started with
 ``public_docs``. ``/healthz``, ``/readyz``, the map's page and the packaged files need none.
 Without an API key file everyone is :data:`~service.keys.OPEN`.
+
+:class:`FleetKey` is a security scheme of FastAPI's kind (documented with FastAPI's HTTP bearer
+model) that resolves the key to its principal itself, in one dependency: the single query, the
+hottest route, pays for one dependency where a bearer scheme and a lookup on top of it would be two.
 """
 
 from __future__ import annotations
@@ -14,48 +18,53 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request, Security
-from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from fastapi.openapi.models import HTTPBearer as HTTPBearerModel
+from fastapi.security.base import SecurityBase
 
 from .keys import OPEN, KeyRing, Principal
 
-__all__ = ["BEARER", "caller", "admin", "doc_reader", "CallerDep", "AdminDep"]
+__all__ = ["FleetKey", "caller", "doc_reader", "admin", "CallerDep", "AdminDep"]
 
-#: The scheme: the fleet's key as a bearer token. Our own 401 answers a missing key (``auto_error=False``).
-BEARER = HTTPBearer(
-    scheme_name="fleetKey",
-    description="A fleet's API key (`csws keys add`): `Authorization: Bearer KEY`. Needed on a service "
-    "with an API key file.",
-    auto_error=False,
-)
 _CHALLENGE = {"WWW-Authenticate": 'Bearer realm="csws"'}
 
 
-def _principal(keyring: KeyRing, credentials: HTTPAuthorizationCredentials | None) -> Principal:
-    """The principal of the request's key; a 401 with a challenge for a missing or unknown one."""
-    found = None if credentials is None else keyring.principal(credentials.credentials.strip())
-    if found is None:
-        raise HTTPException(401, "an API key is needed: Authorization: Bearer KEY", headers=_CHALLENGE)
-    return found
+class FleetKey(SecurityBase):
+    """The HTTP bearer scheme ``fleetKey``: the principal of the request's key, our own 401 without one.
+
+    Parameters
+    ----------
+    docs
+        For the docs and the metrics: open to all when the service has ``public_docs``.
+    """
+
+    def __init__(self, *, docs: bool = False) -> None:
+        self.model = HTTPBearerModel(
+            description="A fleet's API key (`csws keys add`): `Authorization: Bearer KEY`. Needed on a service "
+            "with an API key file."
+        )
+        self.scheme_name = "fleetKey"
+        self.docs = docs
+
+    async def __call__(self, request: Request) -> Principal:
+        """The fleet and role of the request's key; :data:`~service.keys.OPEN` on a service without keys
+        (and, for the docs, with public docs); a 401 with a challenge for a missing or unknown key."""
+        keyring: KeyRing | None = request.app.state.keyring
+        if keyring is None or (self.docs and request.app.state.settings.public_docs):
+            return OPEN
+        scheme, _, token = (request.headers.get("authorization") or "").partition(" ")
+        token = token.strip()
+        found = keyring.principal(token) if scheme.lower() == "bearer" and token else None
+        if found is None:
+            raise HTTPException(401, "an API key is needed: Authorization: Bearer KEY", headers=_CHALLENGE)
+        return found
 
 
-async def caller(
-    request: Request, credentials: Annotated[HTTPAuthorizationCredentials | None, Security(BEARER)]
-) -> Principal:
-    """Who asks: the fleet and role of the request's key, :data:`~service.keys.OPEN` on a service without keys."""
-    keyring: KeyRing | None = request.app.state.keyring
-    return OPEN if keyring is None else _principal(keyring, credentials)
+#: Who asks a data route (a 401 before anything else when the key is missing or unknown).
+caller = FleetKey()
+#: Who reads the docs or the metrics.
+doc_reader = FleetKey(docs=True)
 
-
-async def doc_reader(
-    request: Request, credentials: Annotated[HTTPAuthorizationCredentials | None, Security(BEARER)]
-) -> None:
-    """Let the docs and the metrics be read: by anyone without keys or with ``public_docs``, else with a key."""
-    keyring: KeyRing | None = request.app.state.keyring
-    if keyring is not None and not request.app.state.settings.public_docs:
-        _principal(keyring, credentials)
-
-
-#: The principal of the request (a 401 before anything else when its key is missing or unknown).
+#: The principal of the request.
 CallerDep = Annotated[Principal, Security(caller)]
 
 

@@ -6,14 +6,14 @@ FastAPI's own pages load both from a CDN and so stay blank on a host without Int
 FastAPI's recipe "Self-hosting JavaScript and CSS for docs"; nothing leaves the machine when
 the docs open (no fonts, favicon or validator from elsewhere). The app is built with
 ``openapi_url``, ``docs_url`` and ``redoc_url`` None and these routes instead, so that they need
-a key like the data (:func:`service.security.doc_reader`) unless the docs are public.
+a key like the data (:data:`service.security.doc_reader`) unless the docs are public.
 """
 
 from __future__ import annotations
 
 from importlib.resources import files
 
-from fastapi import APIRouter, Depends, FastAPI, Request
+from fastapi import APIRouter, FastAPI, Request, Security
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
@@ -28,7 +28,7 @@ STATIC_PATH = "/static"
 OPENAPI_PATH = "/openapi.json"
 _OAUTH2_REDIRECT_PATH = "/docs/oauth2-redirect"
 
-router = APIRouter(include_in_schema=False, dependencies=[Depends(doc_reader)])
+router = APIRouter(include_in_schema=False, dependencies=[Security(doc_reader)])
 
 
 def mount_static(app: FastAPI) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter, Depends
+from fastapi import APIRouter, Security
 from fastapi.responses import PlainTextResponse
 
 from ..deps import MetricsDep, NetworksDep, StoreDep, WorkDep
@@ -40,7 +40,7 @@ async def readyz(networks: NetworksDep, store: StoreDep, work: WorkDep) -> dict[
     summary="Prometheus metrics",
     response_class=PlainTextResponse,
     responses=KEYED,
-    dependencies=[Depends(doc_reader)],
+    dependencies=[Security(doc_reader)],
 )
 async def prometheus(metrics: MetricsDep) -> PlainTextResponse:
     """The counters in Prometheus text format; a key is needed unless the docs are public."""
