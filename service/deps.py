@@ -18,7 +18,6 @@ from .map import MapData
 from .metrics import Metrics
 from .networks import ServedNetwork
 from .security import AdminDep, CallerDep
-from .settings import ServiceSettings
 from .store import StateStore
 from .vehicles import VehicleRegistry
 from .work import WorkThread
@@ -27,7 +26,6 @@ __all__ = [
     "answering",
     "warning_service",
     "vehicle_registry",
-    "service_settings",
     "metrics",
     "served_networks",
     "state_store",
@@ -37,7 +35,6 @@ __all__ = [
     "AnsweringDep",
     "ServiceDep",
     "RegistryDep",
-    "SettingsDep",
     "MetricsDep",
     "NetworksDep",
     "StoreDep",
@@ -65,12 +62,6 @@ async def vehicle_registry(request: Request) -> VehicleRegistry:
     """The vehicles' sessions and settings."""
     registry: VehicleRegistry = request.app.state.registry
     return registry
-
-
-async def service_settings(request: Request) -> ServiceSettings:
-    """The settings the app was built with."""
-    settings: ServiceSettings = request.app.state.settings
-    return settings
 
 
 async def metrics(request: Request) -> Metrics:
@@ -111,7 +102,6 @@ async def raw_body(request: Request) -> bytes:
 AnsweringDep = Annotated[Answering, Depends(answering)]
 ServiceDep = Annotated[WarningService, Depends(warning_service)]
 RegistryDep = Annotated[VehicleRegistry, Depends(vehicle_registry)]
-SettingsDep = Annotated[ServiceSettings, Depends(service_settings)]
 MetricsDep = Annotated[Metrics, Depends(metrics)]
 NetworksDep = Annotated[list[ServedNetwork], Depends(served_networks)]
 StoreDep = Annotated[StateStore, Depends(state_store)]
