@@ -9,6 +9,12 @@ from csws.cli import deferred
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
+    """Add ``csws serve`` and ``csws keys`` (the entry point of the ``csws.commands`` group)."""
+    _add_serve(commands)
+    _add_keys(commands)
+
+
+def _add_serve(commands: argparse._SubParsersAction) -> None:
     """Add ``csws serve``."""
     parser = commands.add_parser(
         "serve",
@@ -48,7 +54,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--update-period-s",
         type=float,
         default=None,
-        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier (default 0.1)",
+        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier "
+        "(default: the warning settings' update period)",
     )
     parser.add_argument(
         "--api-keys",
@@ -68,6 +75,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     parser.set_defaults(handler=deferred("service.run"))
 
+
+def _add_keys(commands: argparse._SubParsersAction) -> None:
+    """Add ``csws keys add``."""
     keys = commands.add_parser("keys", help="manage the fleets' API keys of the service")
     keys_commands = keys.add_subparsers(dest="keys_command", metavar="ACTION", required=True)
     add = keys_commands.add_parser(

@@ -1,13 +1,9 @@
-"""The curves of a served network as a GeoJSON FeatureCollection.
+"""The curves of a served network as a GeoJSON FeatureCollection, and the map routes' query parameters.
 
-One feature per curve of a road (:meth:`csws.road.roadmap.RoadMap.curves`): its geometry
-(the road between the curve's start and end, through any node inside it), the lanes and
-lane positions of its ends, street name and road type,
-minimum radius, angle, direction, parts (its arcs and the pieces of its clothoids,
-marked ``spiral``) and the warning speeds V_w of every category at both levels
-(Tables 1-2). On a geo-referenced network coordinates are lon/lat (WGS84,
-as RFC 7946 requires); otherwise they are network metres, which the collection says
-in its ``coordinates`` member.
+One feature per curve of a road, built by the library's one curve export
+(:func:`csws.road.export.curve_feature`, V_w under the network engine's warning speed policy),
+so it carries the same properties as the OSM import's ``NAME.curves.geojson``; the service adds
+the ``network`` it belongs to, and its id is the curve's id within that network.
 """
 
 from __future__ import annotations
@@ -15,23 +11,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
 from fastapi import Query
 from fastapi.exceptions import RequestValidationError
 
-from csws.ahead.horizon import curve_id_of
-from csws.standard import Category, Level, WarningSpeedPolicy, warning_speed
+from csws.road.export import COORDINATES, curve_features
 
 from .networks import ServedNetwork
-
-#: How a feature's coordinates are given, by whether its network is geo-referenced.
-_COORDINATES = {True: "lon/lat (WGS84)", False: "network metres"}
 
 __all__ = [
     "BBOX_QUERY",
     "NETWORK_QUERY",
-    "warning_speeds_kmh",
-    "curve_features",
+    "network_curve_features",
     "in_bbox",
     "parse_bbox",
     "choose_networks",
@@ -39,66 +29,12 @@ __all__ = [
 ]
 
 
-def warning_speeds_kmh(radius_m: float, policy: WarningSpeedPolicy) -> dict[str, dict[str, float]]:
-    """V_w at ``radius_m`` for every category and both levels, km/h: ``{"M1": {"1": ..., "2": ...}, ...}``."""
-    return {
-        category.value: {
-            str(int(level)): warning_speed(radius_m, category, level, policy)
-            for level in (Level.LEVEL_1, Level.LEVEL_2)
-        }
-        for category in Category
-    }
-
-
-def _coordinates(network: ServedNetwork, xy: np.ndarray) -> list[list[float]]:
-    """Points as GeoJSON positions: lon/lat on a geo-referenced network, else network metres."""
-    if network.road_map.has_projection:
-        return [list(map(float, network.road_map.xy_to_lonlat(x, y))) for x, y in xy]
-    return xy.tolist()
-
-
-def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
-    """Every curve of the network as a GeoJSON Feature (with its ``bbox``)."""
-    policy = network.engine.settings.warning.policy
-    features = []
-    for lane_curve in network.road_map.curves():
-        coordinates = _coordinates(network, network.road_map.curve_shape(lane_curve))
-        xs, ys = zip(*coordinates, strict=False)
-        curve = lane_curve.curve
-        lane = network.road_map.lane(lane_curve.lane_id)
-        features.append(
-            {
-                "type": "Feature",
-                "id": f"{network.name}/{curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m)}",
-                "bbox": [min(xs), min(ys), max(xs), max(ys)],
-                "geometry": {"type": "LineString", "coordinates": coordinates},
-                "properties": {
-                    "network": network.name,
-                    "coordinates": _COORDINATES[network.road_map.has_projection],
-                    "curve_id": curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m),
-                    "lane_id": lane_curve.lane_id,
-                    "street_name": lane.street_name,
-                    "road_type": lane.road_type,
-                    "start_pos_m": lane_curve.start_pos_m,
-                    "end_lane_id": lane_curve.end_lane_id,
-                    "end_pos_m": lane_curve.end_pos_m,
-                    "radius_m": curve.min_radius_m,
-                    "angle_deg": curve.angle_deg,
-                    "direction": curve.direction,
-                    "warning_speed_kmh": warning_speeds_kmh(curve.min_radius_m, policy),
-                    "parts": [
-                        {
-                            "part_index": index,
-                            "length_m": part.end_s - part.start_s,
-                            "radius_m": part.radius_m,
-                            "spiral": part.spiral,
-                            "warning_speed_kmh": warning_speeds_kmh(part.radius_m, policy),
-                        }
-                        for index, part in enumerate(curve.parts)
-                    ],
-                },
-            }
-        )
+def network_curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
+    """Every curve of a served network as a GeoJSON Feature (with its ``bbox``), its id ``NETWORK/CURVE_ID``."""
+    features = curve_features(network.road_map, network.engine.settings.warning.policy)
+    for feature in features:
+        feature["id"] = f"{network.name}/{feature['id']}"
+        feature["properties"] = {"network": network.name, **feature["properties"]}
     return features
 
 
@@ -163,7 +99,7 @@ def choose_networks(networks: Sequence[ServedNetwork], name: str | None) -> list
 
 def feature_collection(features: list[dict[str, Any]], networks: list[ServedNetwork]) -> dict[str, Any]:
     """A FeatureCollection, saying which coordinates it uses (each feature says it too)."""
-    kinds = {_COORDINATES[n.road_map.has_projection] for n in networks}
+    kinds = {COORDINATES[n.road_map.has_projection] for n in networks}
     return {
         "type": "FeatureCollection",
         "coordinates": kinds.pop() if len(kinds) == 1 else "per feature",

@@ -17,8 +17,8 @@ pydantic accepts it, its values are taken as they are.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from types import UnionType
-from typing import Annotated, Any, Optional, Union, get_args, get_origin
+from types import GenericAlias, UnionType
+from typing import TYPE_CHECKING, Annotated, Any, Union, get_args, get_origin
 
 import annotated_types
 import msgspec
@@ -46,7 +46,7 @@ def _field_type(annotation: Any, metadata: Sequence[Any], structs: dict[type, ty
     inner = next(a for a in get_args(annotation) if a is not type(None)) if optional else annotation
     if get_origin(inner) is list:
         (item,) = get_args(inner)
-        inner = list[structs.get(item, item)]
+        inner = GenericAlias(list, (structs.get(item, item),))
     else:
         inner = structs.get(inner, inner)
     meta = {
@@ -54,7 +54,7 @@ def _field_type(annotation: Any, metadata: Sequence[Any], structs: dict[type, ty
     }
     if meta:
         inner = Annotated[inner, msgspec.Meta(**meta)]
-    return Optional[inner] if optional else inner
+    return inner | None if optional else inner
 
 
 def struct_of(
@@ -92,16 +92,24 @@ def struct_of(
     )
 
 
-DecodedPosition = struct_of(Position, checks=(check_position,))
-DecodedForwardTarget = struct_of(ForwardTarget)
-DecodedQuery = struct_of(
-    Query, {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget}, checks=(check_located,)
-)
-DecodedBatch = struct_of(Batch, {Query: DecodedQuery})
-DecodedSwitch = struct_of(VehicleSwitch)
+if TYPE_CHECKING:
+    # To the type checker a decoded struct is its model: it has the same fields, types and properties.
+    DecodedPosition = Position
+    DecodedForwardTarget = ForwardTarget
+    DecodedQuery = Query
+    DecodedBatch = Batch
+    DecodedSwitch = VehicleSwitch
+else:
+    DecodedPosition = struct_of(Position, checks=(check_position,))
+    DecodedForwardTarget = struct_of(ForwardTarget)
+    DecodedQuery = struct_of(
+        Query, {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget}, checks=(check_located,)
+    )
+    DecodedBatch = struct_of(Batch, {Query: DecodedQuery})
+    DecodedSwitch = struct_of(VehicleSwitch)
 
 
-def decode(body: bytes, struct: type[msgspec.Struct], adapter: TypeAdapter) -> Any:
+def decode(body: bytes, struct: type[Any], adapter: TypeAdapter[Any]) -> Any:
     """A request body decoded into ``struct``; an HTTP 422 naming each bad field otherwise.
 
     Parameters

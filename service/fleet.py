@@ -32,7 +32,8 @@ def _placed(records: dict[str, SessionRecord], network: ServedNetwork) -> dict[s
     network's GeoJSON coordinates; the vehicles of one lane in one interpolation."""
     by_lane: dict[str, list[str]] = defaultdict(list)
     for key, record in records.items():
-        by_lane[record.lane_id].append(key)
+        if record.lane_id is not None:  # always: only placed vehicles are shown (fleet_features)
+            by_lane[record.lane_id].append(key)
     keys, points = [], []
     for lane_id, on_lane in by_lane.items():
         keys += on_lane
@@ -82,6 +83,7 @@ def fleet_features(
         network = networks[network_index]
         for key, position in _placed(records, network).items():
             record, latest = records[key], records[key].latest
+            assert latest is not None  # only vehicles with an answer are shown (above)
             feature = {
                 "type": "Feature",
                 "id": shown_id(fleet, key),

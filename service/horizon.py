@@ -10,17 +10,24 @@ position along the path.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import msgspec
 import numpy as np
 
 from csws.ahead.horizon import PathAhead
+from csws.road.export import warning_speeds_kmh
 from csws.road.matching import points_along
 
-from .curves import warning_speeds_kmh
+from .decoding import DecodedQuery
 from .networks import MAX_HORIZON_M, ServedNetwork
+from .schemas import Query
 
-__all__ = ["DEFAULT_HORIZON_M", "CpoiPositions", "cpoi_points", "positions", "horizon"]
+if TYPE_CHECKING:
+    from .answers import WarningService
+    from .vehicles import VehicleRegistry
+
+__all__ = ["DEFAULT_HORIZON_M", "CpoiPositions", "cpoi_points", "positions", "horizon", "road_ahead"]
 
 #: Horizon length when none is asked for, m.
 DEFAULT_HORIZON_M = 1000.0
@@ -45,7 +52,9 @@ class CpoiPositions:
         self.network = network
         self._known: dict[tuple[str, int], dict[str, float]] = {}
 
-    def of(self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> list[dict[str, float]]:
+    def of(
+        self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int] | np.ndarray
+    ) -> list[dict[str, float]]:
         """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
         keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=False)]
         missing = [key for key in dict.fromkeys(keys) if key not in self._known]
@@ -78,7 +87,9 @@ def cpoi_points(ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence
         (curve, int(part)): start_s
         for curve, part, start_s in zip(ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_start_s, strict=False)
     }
-    s = np.array([start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index, strict=False)], dtype=float)
+    s = np.array(
+        [start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index, strict=False)], dtype=float
+    )
     return points_along(ahead.path.xy, s, ahead.path.profile.s)
 
 
@@ -147,3 +158,32 @@ def horizon(
         "profile": profile,
         "cpois": cpois,
     }
+
+
+def road_ahead(
+    service: WarningService, registry: VehicleRegistry, query: Query, length_m: float = DEFAULT_HORIZON_M
+) -> dict[str, Any]:
+    """``GET /v1/horizon``: where a position (``query``, of no vehicle) matches, and the :func:`horizon` ahead
+    of it; ``matched`` None with the reason as ``fault`` when nothing matches.
+
+    Raises
+    ------
+    service.answers.QueryErrors
+        When the networks cannot answer the query (an unknown lane, a lane position beyond its lane, ...).
+    """
+    decoded = msgspec.convert(query, DecodedQuery, from_attributes=True)
+    with registry.read(()) as nobody:  # a position, not a vehicle: no previous lane
+        service.check([decoded], nobody, loc=("query",))
+        (placement,) = service.place([decoded], nobody)
+    if placement.lane_id is None:
+        return {"matched": None, "fault": placement.reason, "profile": [], "cpois": []}
+    ahead = horizon(
+        service.networks[placement.network_index],
+        service.cpoi_positions[placement.network_index],
+        placement.lane_id,
+        placement.lane_pos_m,
+        query.route,
+        length_m,
+    )
+    matched = {"lane_id": placement.lane_id, "lane_pos_m": placement.lane_pos_m, "distance_m": placement.distance_m}
+    return {"matched": matched, "fault": None, **ahead}

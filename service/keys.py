@@ -7,7 +7,7 @@ Every key belongs to one fleet and has a role:
 
 A fleet sees only its own vehicles: the same vehicle id in two fleets is two vehicles,
 and a vehicle of another fleet does not exist for it (404). Keys travel as
-``Authorization: Bearer KEY``.
+``Authorization: Bearer KEY`` (:mod:`service.security` checks them).
 
 The key file keeps no key, only the SHA-256 of each: keys are 256 random bits, so a plain
 hash of one cannot be turned back into it, and a stolen file lets nobody in. Its format::
@@ -31,16 +31,13 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
 
 __all__ = [
     "KEYS_FORMAT",
     "Role",
     "Principal",
     "OPEN",
-    "principal",
     "KeyRing",
-    "KeyMiddleware",
     "add_key",
     "vehicle_key",
     "shown_id",
@@ -75,12 +72,6 @@ class Principal:
 
 #: Everyone, on a service without keys (loopback only, or ``--insecure``).
 OPEN = Principal("", Role.ADMIN)
-
-
-def principal(request: Any) -> Principal:
-    """Who asks: the fleet and role of the request's key (:class:`KeyMiddleware`), :data:`OPEN` on a
-    service without keys."""
-    return getattr(request.state, "principal", OPEN)
 
 
 def vehicle_key(fleet: str, vehicle_id: str) -> str:
@@ -178,54 +169,3 @@ def add_key(path: str | Path, fleet: str, role: Role | str) -> str:
         Path(temporary).unlink(missing_ok=True)
         raise
     return key
-
-
-#: Paths that answer without a key: liveness and readiness, for load balancers and orchestrators; the live
-#: map's page, which holds no data (it asks for it with the key given after ``#key=`` in its address).
-OPEN_PATHS = frozenset({"/healthz", "/readyz", "/map"})
-#: Paths under these answer without a key: the files of the map page and of the docs, as packaged.
-OPEN_PREFIXES = ("/static/",)
-#: Paths open without a key only with ``public_docs``.
-DOC_PATHS = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json", "/metrics"})
-_CHALLENGE = [(b"www-authenticate", b'Bearer realm="csws"')]
-
-
-class KeyMiddleware:
-    """ASGI middleware: every request but :data:`OPEN_PATHS`, :data:`OPEN_PREFIXES` (and, with ``public_docs``,
-    :data:`DOC_PATHS`) needs ``Authorization: Bearer KEY`` of a key in ``keyring``; the
-    key's :class:`Principal` goes into the request's state as ``principal``. A missing or
-    unknown key is a 401 with ``WWW-Authenticate``, before the body is read."""
-
-    def __init__(self, app, keyring: KeyRing, public_docs: bool) -> None:
-        self.app = app
-        self.keyring = keyring
-        self.open_paths = OPEN_PATHS | DOC_PATHS if public_docs else OPEN_PATHS
-
-    async def __call__(self, scope, receive, send) -> None:
-        if scope["type"] != "http" or scope["path"] in self.open_paths or scope["path"].startswith(OPEN_PREFIXES):
-            await self.app(scope, receive, send)
-            return
-        principal = None
-        for name, value in scope["headers"]:
-            if name == b"authorization":
-                scheme, _, token = value.decode("latin-1").partition(" ")
-                if scheme.lower() == "bearer":
-                    principal = self.keyring.principal(token.strip())
-                break
-        if principal is None:
-            body = json.dumps({"detail": "an API key is needed: Authorization: Bearer KEY"}).encode()
-            await send(
-                {
-                    "type": "http.response.start",
-                    "status": 401,
-                    "headers": [
-                        (b"content-type", b"application/json"),
-                        (b"content-length", str(len(body)).encode()),
-                        *_CHALLENGE,
-                    ],
-                }
-            )
-            await send({"type": "http.response.body", "body": body})
-            return
-        scope.setdefault("state", {})["principal"] = principal
-        await self.app(scope, receive, send)

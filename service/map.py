@@ -3,7 +3,7 @@
 The page (``service/static/map.html``, ``map.js``) is Leaflet, vendored from its npm package
 with its licence (``service/static/leaflet/``): no tile server, no CDN, so it works on a host
 without Internet access. It draws the served network's roads, its curves in the view
-(``GET /v1/curves?bbox=...``) coloured by minimum radius, and the live vehicles, asked for once
+(``GET /v1/curves?bbox=...``) coloured by radius, and the live vehicles, asked for once
 a second. On a service with API keys the page itself is open (it holds no data) and sends the
 key given after ``#key=`` in its address with every request for data.
 """
@@ -11,25 +11,18 @@ key given after ``#key=`` in its address with every request for data.
 from __future__ import annotations
 
 import json
-from collections.abc import Awaitable, Callable, Sequence
+from collections.abc import Sequence
 from importlib.resources import files
 from typing import Any
 
 import msgspec
 import shapely
-from fastapi import FastAPI, Request
-from fastapi import Query as QueryParam
-from fastapi.responses import HTMLResponse, Response
 from starlette.middleware.gzip import GZipMiddleware
 
-from .curves import BBOX_QUERY, NETWORK_QUERY, choose_networks, feature_collection, parse_bbox
-from .fleet import fleet_features
-from .keys import principal, vehicle_key
+from .curves import feature_collection, in_bbox, network_curve_features
 from .networks import ServedNetwork
-from .store import StateStore
-from .vehicles import VehicleRegistry
 
-__all__ = ["ROAD_TOLERANCE_M", "CompressedGets", "road_features", "add_map_routes"]
+__all__ = ["ROAD_TOLERANCE_M", "CompressedGets", "road_features", "MapData"]
 
 #: Roads are drawn simplified to within this distance of their lanes, m.
 ROAD_TOLERANCE_M = 1.0
@@ -79,70 +72,32 @@ class CompressedGets:
             await self.app(scope, receive, send)
 
 
-def _json(content: Any) -> Response:
-    return Response(msgspec.json.encode(content), media_type="application/json")
+class MapData:
+    """What the map routes draw, made once per network on first use: the page naming the served
+    networks, the curves' features (:func:`service.curves.network_curve_features`) and the roads' JSON.
 
-
-def add_map_routes(
-    app: FastAPI,
-    networks: Sequence[ServedNetwork],
-    registry: VehicleRegistry,
-    store: StateStore,
-    off_loop: Callable[..., Awaitable[Any]],
-    responses: dict[int, Any],
-) -> None:
-    """Add ``/map``, ``/v1/roads`` and ``/v1/fleet`` to ``app``, and gzip its answers to ``GET`` requests.
-
-    Parameters
-    ----------
-    off_loop
-        Runs a function on the service's work thread (:class:`service.work.WorkThread`).
-    responses
-        What the data routes may answer besides a 200 and a 422 (a 401 with keys, a 503 of the store).
+    The caches are filled on the service's work thread only (:mod:`service.work`).
     """
-    names = json.dumps([{"name": n.name, "geo_referenced": n.road_map.has_projection} for n in networks])
-    page = _PAGE.replace("{networks}", names.replace("</", "<\\/"))
-    roads_cache: dict[int, bytes] = {}
-    app.add_middleware(CompressedGets)
 
-    @app.get("/map", include_in_schema=False)
-    async def live_map() -> HTMLResponse:
-        return HTMLResponse(page)
+    def __init__(self, networks: Sequence[ServedNetwork]) -> None:
+        self.networks = list(networks)
+        names = json.dumps([{"name": n.name, "geo_referenced": n.road_map.has_projection} for n in networks])
+        self.page = _PAGE.replace("{networks}", names.replace("</", "<\\/"))
+        self._curves: dict[int, list[dict[str, Any]]] = {}
+        self._roads: dict[int, bytes] = {}
 
-    @app.get(
-        "/v1/roads",
-        summary="The roads of a served network as GeoJSON, simplified for drawing",
-        tags=["map"],
-        responses=responses,
-    )
-    async def roads(network: str = QueryParam(description="the network")) -> Response:
-        (index,) = choose_networks(networks, network)
+    def curves(self, chosen: Sequence[int], bbox: tuple[float, float, float, float] | None) -> bytes:
+        """The JSON FeatureCollection of the curves of the networks ``chosen`` that meet ``bbox``."""
+        features = []
+        for index in chosen:
+            if index not in self._curves:
+                self._curves[index] = network_curve_features(self.networks[index])
+            features += [feature for feature in self._curves[index] if in_bbox(feature, bbox)]
+        return msgspec.json.encode(feature_collection(features, [self.networks[i] for i in chosen]))
 
-        def collection() -> bytes:
-            if index not in roads_cache:
-                roads_cache[index] = msgspec.json.encode(
-                    feature_collection(road_features(networks[index]), [networks[index]])
-                )
-            return roads_cache[index]
-
-        return Response(await off_loop(collection), media_type="application/json")
-
-    @app.get(
-        "/v1/fleet",
-        summary="Where the fleet's live vehicles are and what their latest answers said",
-        tags=["map"],
-        responses=responses,
-    )
-    async def fleet(
-        request: Request,
-        bbox: str | None = BBOX_QUERY,
-        network: str | None = NETWORK_QUERY,
-    ) -> Response:
-        box, chosen = parse_bbox(bbox), choose_networks(networks, network)
-        asking = principal(request).fleet
-        prefix = vehicle_key(asking, "")
-
-        def collection() -> dict[str, Any]:
-            return fleet_features(store.sessions(prefix), registry, networks, asking, box, chosen)
-
-        return _json(await off_loop(collection))
+    def roads(self, index: int) -> bytes:
+        """The JSON FeatureCollection of the roads of network ``index`` (:func:`road_features`)."""
+        if index not in self._roads:
+            network = self.networks[index]
+            self._roads[index] = msgspec.json.encode(feature_collection(road_features(network), [network]))
+        return self._roads[index]

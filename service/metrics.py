@@ -62,7 +62,8 @@ class Metrics:
             "# TYPE csws_http_request_duration_seconds histogram",
         ]
         for route in sorted(self.latency_count):
-            for bound, count in zip(LATENCY_BUCKETS_S, accumulate(self.latency_buckets[route]), strict=False):
+            below = accumulate(self.latency_buckets[route][:-1])  # the last bucket is the +Inf one, below
+            for bound, count in zip(LATENCY_BUCKETS_S, below, strict=True):
                 lines.append(f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le=bound)}}} {count}")
             lines.append(
                 f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le='+Inf')}}} "

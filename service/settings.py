@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ipaddress
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 from urllib.parse import urlsplit
@@ -31,6 +32,11 @@ from csws.warning.rules import WarningSettings
 from .networks import bundled_network_paths
 
 __all__ = ["ServiceSettings", "default_state_db"]
+
+#: The library's defaults, which the service's settings start from (none is repeated here).
+_ENGINE = EngineSettings()
+_MATCH = MatchSettings()
+_WARNING: WarningSettings = _ENGINE.warning
 
 
 #: The schemes of a Redis URL (``--state``): plain TCP, TLS, a Unix socket.
@@ -65,10 +71,16 @@ class ServiceSettings(BaseSettings):
         "and across restarts, when state names no Redis; ':memory:' keeps them in memory only, for one worker",
     )
     session_idle_s: float = Field(default=600.0, gt=0, description="a vehicle session idle this long expires, s")
-    match_tolerance_m: float = Field(default=10.0, gt=0, description="a fix matches lanes within this distance, m")
-    heading_tolerance_deg: float = Field(default=45.0, gt=0, le=180, description="allowed heading difference, deg")
-    update_period_s: float = Field(default=0.1, ge=0, description="how often a vehicle's fixes arrive, s")
-    system_delay_s: float = Field(default=0.1, ge=0, description="processing and display delay, s")
+    match_tolerance_m: float = Field(
+        default=_MATCH.tolerance_m, gt=0, description="a fix matches lanes within this distance, m"
+    )
+    heading_tolerance_deg: float = Field(
+        default=_MATCH.heading_tolerance_deg, gt=0, le=180, description="allowed heading difference, deg"
+    )
+    update_period_s: float = Field(
+        default=_WARNING.update_period_s, ge=0, description="how often a vehicle's fixes arrive, s"
+    )
+    system_delay_s: float = Field(default=_WARNING.system_delay_s, ge=0, description="processing and display delay, s")
     api_keys_file: Path | None = Field(
         default=None, description="the fleets' API keys (service.keys); without it the service answers anyone"
     )
@@ -118,14 +130,13 @@ class ServiceSettings(BaseSettings):
         return value
 
     def engine_settings(self) -> EngineSettings:
-        """The engine's settings: the latency of the updates and of the system."""
-        return EngineSettings(
-            warning=WarningSettings(update_period_s=self.update_period_s, system_delay_s=self.system_delay_s)
-        )
+        """The library's engine settings with this service's latency of the updates and of the system."""
+        warning = replace(_WARNING, update_period_s=self.update_period_s, system_delay_s=self.system_delay_s)
+        return replace(_ENGINE, warning=warning)
 
     def match_settings(self) -> MatchSettings:
-        """Map matching tolerances."""
-        return MatchSettings(tolerance_m=self.match_tolerance_m, heading_tolerance_deg=self.heading_tolerance_deg)
+        """The library's map matching settings with this service's tolerances."""
+        return replace(_MATCH, tolerance_m=self.match_tolerance_m, heading_tolerance_deg=self.heading_tolerance_deg)
 
 
 def _is_loopback(host: str) -> bool:

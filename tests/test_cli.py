@@ -63,7 +63,7 @@ def test_curves_lists_the_curve_of_a_track_as_json():
     truth = json.loads((networks_dir() / "single_r120_left.truth.json").read_text())["curves"][0]
     assert len(curves) == 1
     assert curves[0]["start_pos_m"] == pytest.approx(truth["lanes"][0]["start_pos_m"], abs=1.0)
-    assert curves[0]["min_radius_m"] == pytest.approx(120.0, rel=0.01)
+    assert curves[0]["radius_m"] == pytest.approx(120.0, rel=0.01)
 
 
 @pytest.mark.parametrize(

@@ -23,7 +23,8 @@ from csws import cli
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
 from csws.networks import networks_dir
-from csws.osm.importer import ImportSettings, OsmImportError, import_osm
+from csws.osm.importer import ImportResult, ImportSettings, OsmImportError, import_osm
+from csws.road.export import curves_geojson
 from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home
 
@@ -103,10 +104,13 @@ def arc_osm(tmp_path_factory) -> tuple[Path, OsmWriter]:
 
 
 @pytest.fixture(scope="module")
-def arc_map(arc_osm, tmp_path_factory) -> RoadMap:
-    net = tmp_path_factory.mktemp("arcnet") / "arc.net.xml.gz"
-    import_osm(arc_osm[0], net)
-    return RoadMap.load(net)
+def arc_import(arc_osm, tmp_path_factory) -> ImportResult:
+    return import_osm(arc_osm[0], tmp_path_factory.mktemp("arcnet") / "arc.net.xml.gz")
+
+
+@pytest.fixture(scope="module")
+def arc_map(arc_import) -> RoadMap:
+    return RoadMap.load(arc_import.net_path)
 
 
 @pytest.fixture(scope="module")
@@ -168,14 +172,33 @@ def test_bad_lonlat_is_rejected(arc_map: RoadMap) -> None:
 
 
 def test_curve_index_is_geojson_in_wgs84(arc_map: RoadMap, arc_osm) -> None:
-    collection = arc_map.curves_geojson()
+    collection = curves_geojson(arc_map)
     biggest = max(collection["features"], key=lambda f: f["properties"]["angle_deg"])
-    assert biggest["properties"]["min_radius_m"] == pytest.approx(ARC_RADIUS_M, rel=0.02)
+    assert biggest["properties"]["radius_m"] == pytest.approx(ARC_RADIUS_M, rel=0.02)
     assert biggest["properties"]["street_name"] == "Pass Road"
     lon, lat = np.array(biggest["geometry"]["coordinates"]).T
     # the curve lies within the constructed arc's lon/lat extent (a few hundred metres east/north of the origin)
     assert np.all((lon > ORIGIN_LONLAT[0]) & (lon < ORIGIN_LONLAT[0] + 0.01))
     assert np.all((lat > ORIGIN_LONLAT[1]) & (lat < ORIGIN_LONLAT[1] + 0.01))
+
+
+def test_the_import_and_the_service_give_a_curve_the_same_properties(arc_import: ImportResult) -> None:
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.settings import ServiceSettings
+
+    written = json.loads(arc_import.curves_path.read_text())
+    with TestClient(create_app(ServiceSettings(nets=[arc_import.net_path], state_db=":memory:"))) as client:
+        served = client.get("/v1/curves").json()
+    assert written["coordinates"] == served["coordinates"] == "lon/lat (WGS84)"
+    by_id = {feature["properties"]["curve_id"]: feature for feature in served["features"]}
+    assert written["features"] and len(written["features"]) == len(by_id)
+    for feature in written["features"]:
+        twin = by_id[feature["properties"]["curve_id"]]
+        assert twin["properties"] == {"network": twin["properties"]["network"], **feature["properties"]}
+        assert (twin["geometry"], twin["bbox"]) == (feature["geometry"], feature["bbox"])
+        assert twin["id"] == f"{twin['properties']['network']}/{feature['id']}"
 
 
 # ------------------------------------------------------------------ junctions and roundabouts

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from csws.geometry import arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.road.roadmap import CURVE_FIELDS, NetworkError, RoadMap
+from csws.road.export import CURVE_FIELDS, write_curves
+from csws.road.roadmap import NetworkError, RoadMap
 from csws.sumo.netbuild import netconvert, shape_text
 
 #: A straight, a 60 degree left arc of 200 m cut in two halves, a straight: the node
@@ -167,7 +168,7 @@ def test_write_curves_in_every_format(arc_map: RoadMap) -> None:
     outputs = {}
     for fmt in ("table", "json", "csv"):
         stream = io.StringIO()
-        arc_map.write_curves(stream, fmt=fmt)
+        write_curves(arc_map, stream, fmt=fmt)
         outputs[fmt] = stream.getvalue()
     records = json.loads(outputs["json"])
     assert len(records) == count and tuple(records[0]) == CURVE_FIELDS
@@ -176,7 +177,7 @@ def test_write_curves_in_every_format(arc_map: RoadMap) -> None:
     table = outputs["table"].splitlines()
     assert table[0].split() == list(CURVE_FIELDS) and len(table) == count + 1
     with pytest.raises(ValueError, match="unknown curve format"):
-        arc_map.write_curves(io.StringIO(), fmt="xml")
+        write_curves(arc_map, io.StringIO(), fmt="xml")
 
 
 def test_warning_radius_selects_the_curves(arc_net: Path) -> None:

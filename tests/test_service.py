@@ -568,8 +568,14 @@ def test_health_metrics_and_docs(client) -> None:
     assert {"/v1/warning", "/v1/warnings", "/v1/curves", "/v1/horizon", "/v1/vehicles/{vehicle_id}"} <= set(
         schema["paths"]
     )
-    assert schema["components"]["schemas"]["Batch"]["properties"]["queries"]["maxItems"] == 10_000
-    assert "examples" in schema["components"]["schemas"]["Query"]
+    bodies = {
+        path: schema["paths"][path]["post"]["requestBody"]["content"]["application/json"]["schema"]
+        for path in ("/v1/warning", "/v1/warnings")
+    }
+    assert bodies["/v1/warnings"]["properties"]["queries"]["maxItems"] == 10_000
+    assert (
+        "examples" in bodies["/v1/warning"] and "examples" in bodies["/v1/warnings"]["properties"]["queries"]["items"]
+    )
     assert client.get("/docs").status_code == 200
 
 

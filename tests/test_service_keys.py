@@ -17,7 +17,8 @@ from fastapi.testclient import TestClient
 
 from csws.networks import networks_dir
 from service.app import create_app
-from service.keys import KEYS_FORMAT, KeyRing, Role, add_key
+from service.keys import KEYS_FORMAT, KeyRing, Principal, Role, add_key
+from service.security import caller
 from service.settings import ServiceSettings
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
@@ -69,6 +70,32 @@ def test_docs_and_metrics_open_to_all_only_when_set(keys) -> None:
     with _client(keys, public_docs=True) as client:
         assert client.get("/openapi.json").status_code == 200 and client.get("/metrics").status_code == 200
         assert client.post("/v1/warning", json=_query("truck")).status_code == 401
+
+
+def test_the_openapi_document_declares_the_key_scheme_on_the_keyed_routes(keys) -> None:
+    with _client(keys) as client:
+        schema = client.get("/openapi.json", headers=_auth(keys["acme_query"])).json()
+    scheme = schema["components"]["securitySchemes"]["fleetKey"]
+    assert (scheme["type"], scheme["scheme"]) == ("http", "bearer")
+    keyed = [("/v1/warning", "post"), ("/v1/warnings", "post"), ("/v1/vehicles/{vehicle_id}", "put")]
+    keyed += [("/v1/vehicles/{vehicle_id}", "get"), ("/v1/curves", "get"), ("/v1/horizon", "get")]
+    keyed += [("/v1/roads", "get"), ("/v1/fleet", "get"), ("/metrics", "get")]
+    for path, method in keyed:
+        operation = schema["paths"][path][method]
+        assert operation["security"] == [{"fleetKey": []}] and "401" in operation["responses"]
+    assert "security" not in schema["paths"]["/healthz"]["get"] and "security" not in schema["paths"]["/readyz"]["get"]
+
+
+def test_the_caller_dependency_can_be_overridden(keys) -> None:
+    app = create_app(ServiceSettings(nets=[TRACK_NET], api_keys_file=keys["path"], state_db=":memory:"))
+
+    async def acme_query_key() -> Principal:
+        return Principal("acme", Role.QUERY)
+
+    app.dependency_overrides[caller] = acme_query_key
+    with TestClient(app) as client:
+        assert client.post("/v1/warning", json=_query("truck")).json()["vehicle_id"] == "truck"  # no key needed
+        assert client.put("/v1/vehicles/truck", json={"switched_on": False}).status_code == 403  # not an admin
 
 
 def test_a_fleet_sees_and_switches_only_its_own_vehicles(keys, state) -> None:

@@ -106,6 +106,25 @@ def test_clients_that_stall_in_their_body_are_answered_and_closed_within_the_tim
     assert server.client.get("/healthz").status_code == 200
 
 
+def test_a_request_without_a_key_is_401_before_its_body_is_read(tmp_path) -> None:
+    from service.keys import Role, add_key
+
+    keys_file = tmp_path / "api-keys.json"
+    add_key(keys_file, "acme", Role.QUERY)
+    keyed = Server([TRACK_NET], tmp_path / "vehicles.sqlite3", api_keys_file=str(keys_file), body_timeout_s="30")
+    try:
+        head = (
+            b"POST /v1/warning HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 100000\r\n\r\n"
+        )
+        started = time.monotonic()
+        with socket.create_connection(("127.0.0.1", keyed.port), timeout=10.0) as sock:
+            sock.sendall(head + b'{"vehicle_id": ')  # and nothing more: the body is never complete
+            answer = sock.recv(65536)
+        assert answer.startswith(b"HTTP/1.1 401") and time.monotonic() - started < 5.0
+    finally:
+        keyed.stop()
+
+
 @pytest.mark.parametrize("field, value", [("speed_kmh", "80"), ("speed_kmh", True), ("lane_pos_m", "85")])
 def test_numbers_must_be_json_numbers(server, field, value) -> None:
     answer = server.client.post("/v1/warning", json={**QUERY, field: value})

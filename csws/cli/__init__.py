@@ -13,6 +13,7 @@ import importlib
 import os
 import sys
 from collections.abc import Callable, Sequence
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import NoReturn
 
@@ -52,10 +53,11 @@ def _cmd_networks_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
+    """``csws curves``: the curve index of a network in the format asked for (:mod:`csws.road.export`)."""
+    from csws.road.export import write_curves
     from csws.road.roadmap import RoadMap
 
-    road_map = RoadMap.load(args.net, warning_radius_m=args.warning_radius_m)
-    road_map.write_curves(sys.stdout, fmt=args.format)
+    write_curves(RoadMap.load(args.net, warning_radius_m=args.warning_radius_m), sys.stdout, fmt=args.format)
     return 0
 
 
@@ -65,9 +67,10 @@ def _default_networks_dir() -> Path:
     return networks_dir()
 
 
-#: Modules that add their own subcommands: each has ``add_commands(subparsers)`` and keeps its
-#: heavy imports inside its handlers, so that ``csws --help`` stays instant.
-COMMAND_MODULES = ("service.cli", "csws.cosim.cli", "csws.sweep.cli", "csws.conformance.cli", "csws.osm.cli")
+#: The entry-point group of the modules that add subcommands (``pyproject.toml``): each entry is an
+#: ``add_commands(subparsers)`` that keeps its heavy imports inside its handlers, so that ``csws --help``
+#: stays instant.
+COMMANDS_GROUP = "csws.commands"
 
 
 def deferred(module_name: str, function_name: str = "main") -> Callable[[argparse.Namespace], int]:
@@ -120,8 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     curves.add_argument("--format", choices=("table", "json", "csv"), default="table", help="output format")
     curves.set_defaults(handler=_cmd_curves)
-    for module_name in COMMAND_MODULES:
-        importlib.import_module(module_name).add_commands(commands)
+    for entry_point in entry_points(group=COMMANDS_GROUP):
+        entry_point.load()(commands)
     return parser
 
 

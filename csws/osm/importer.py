@@ -39,7 +39,9 @@ from xml.etree import ElementTree
 import numpy as np
 
 from csws.errors import CswsError
+from csws.road.export import curves_geojson
 from csws.road.roadmap import RoadMap, read_sumo_net
+from csws.standard import DEFAULT_POLICY
 from csws.sumo.netbuild import NetconvertError, netconvert_osm
 
 from .coverage import DroppedRoads, dropped_roads
@@ -452,13 +454,15 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
 
 
 def write_curve_index(road_map: RoadMap, path: Path, source: Path) -> Path:
-    """Write the curve index of a geo-referenced road map as GeoJSON (WGS84) with the OSM attribution."""
-    collection = road_map.curves_geojson()
+    """Write the curve index of a geo-referenced road map as GeoJSON (WGS84, :func:`csws.road.export.curves_geojson`,
+    V_w under the standard's policy) with the OSM attribution."""
+    collection = curves_geojson(road_map, DEFAULT_POLICY)
     document = {
         "type": collection["type"],
         "attribution": OSM_ATTRIBUTION,
         "source": source.name,
         "warning_radius_m": road_map.warning_radius_m,
+        "coordinates": collection["coordinates"],
         "features": collection["features"],
     }
     with open(path, "w", encoding="utf-8") as stream:

@@ -74,18 +74,6 @@ class LaneCurve:
     curve: Curve
     chain: int
 
-    def as_record(self) -> dict[str, str | float]:
-        """The :data:`csws.road.export.CURVE_FIELDS` of the curve, lengths to the centimetre, angles to 0.01 degree."""
-        return {
-            "lane_id": self.lane_id,
-            "start_pos_m": round(self.start_pos_m, 2),
-            "end_lane_id": self.end_lane_id,
-            "end_pos_m": round(self.end_pos_m, 2),
-            "min_radius_m": round(self.curve.min_radius_m, 2),
-            "angle_deg": round(self.curve.angle_deg, 2),
-            "direction": self.curve.direction,
-        }
-
 
 def stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Join lane shapes in driving order into one polyline.

@@ -27,8 +27,8 @@ across the junction) is fitted once, and the curve index and every path read tha
 
 Networks imported from OpenStreetMap are geo-referenced: :meth:`RoadMap.xy_to_lonlat`
 and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) convert with
-the network's own projection (UTM for an OSM import), and :meth:`RoadMap.curves_geojson`
-gives the curve index in WGS84.
+the network's own projection (UTM for an OSM import); :mod:`csws.road.export` gives the curve
+index as a table, JSON, CSV or GeoJSON.
 
 Storage is columnar: the vertices of all lanes sit in one ``(n, 2)`` array with an
 offset per lane (read by :mod:`csws.road.network`), all road chains are profiled in one
@@ -45,28 +45,23 @@ internal lanes, edges with a custom length); SUMO maps between them by the facto
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Sequence
 from functools import cached_property
 from itertools import chain
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 import sumolib
 
 from csws.curvature import checked_warning_radius_m, profile_cache_dir
 from csws.road.chains import LaneCurve, fit_road_chains, index_curves
-from csws.road.export import CURVE_FIELDS, write_curve_table
 from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 from csws.road.path import PathProfile, path_profile
 from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 __all__ = [
-    "CURVE_FIELDS",
     "Lane",
     "LaneCurve",
     "LaneMatch",
@@ -345,48 +340,6 @@ class RoadMap:
     def curve_shape(self, lane_curve: LaneCurve) -> np.ndarray:
         """The road's polyline from a curve's start (3.4) to its end (3.5), ``(m, 2)``, m."""
         return _shape_between(self._chains.xy[lane_curve.chain], lane_curve.curve.start_s, lane_curve.curve.end_s)
-
-    def curves_geojson(self) -> dict:
-        """The curve index (:meth:`curves`) as a GeoJSON FeatureCollection in WGS84 (RFC 7946).
-
-        Each curve is a LineString of the road between its start (3.4) and end (3.5)
-        in lon/lat degrees, with the :data:`CURVE_FIELDS` and the lane's street name and
-        road type as properties.
-
-        Raises
-        ------
-        ValueError
-            If the network has no geo-projection.
-        """
-        self._require_projection()
-        features = []
-        for lane_curve in self.curves():
-            lane = self.lane(lane_curve.lane_id)
-            lonlat = np.round(self.xy_to_lonlat_many(self.curve_shape(lane_curve)), 6)
-            properties = {**lane_curve.as_record(), "street_name": lane.street_name, "road_type": lane.road_type}
-            features.append(
-                {
-                    "type": "Feature",
-                    "geometry": {"type": "LineString", "coordinates": lonlat.tolist()},
-                    "properties": properties,
-                }
-            )
-        return {"type": "FeatureCollection", "features": features}
-
-    def write_curves(self, stream: TextIO, fmt: str = "table") -> None:
-        """Write :meth:`curves` as ``"table"`` (aligned text), ``"json"`` or ``"csv"`` with :data:`CURVE_FIELDS`."""
-        records = [curve.as_record() for curve in self.curves()]
-        if fmt == "json":
-            json.dump(records, stream, indent=2)
-            stream.write("\n")
-        elif fmt == "csv":
-            writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS, lineterminator="\n")
-            writer.writeheader()
-            writer.writerows(records)
-        elif fmt == "table":
-            write_curve_table(records, stream)
-        else:
-            raise ValueError(f"unknown curve format {fmt!r}: use 'table', 'json' or 'csv'")
 
     # ----------------------------------------------------------------- paths
     def expand_path(self, lane_ids: Sequence[str]) -> tuple[str, ...]:

@@ -22,7 +22,8 @@ are :class:`service.store.StoreUnavailable`.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
+from typing import cast
 from urllib.parse import urlsplit, urlunsplit
 
 import redis
@@ -134,13 +135,17 @@ class RedisStore(StateStore):
         except redis.RedisError as exc:
             raise OSError(f"cannot reach the state store {self.name}: {exc}") from None
 
+    def _values(self, keys: Sequence[str | bytes]) -> list[bytes | None]:
+        """The values of ``keys`` in one ``MGET`` (the client decodes no responses: they are bytes)."""
+        return cast(list[bytes | None], self._redis.mget(keys))
+
     def read(self, vehicle_ids: Collection[str]) -> dict[str, StoredVehicle]:
         if not vehicle_ids:
             return {}
         vehicle_ids = list(vehicle_ids)
         keys = [SESSION_PREFIX + v for v in vehicle_ids] + [SETTING_PREFIX + v for v in vehicle_ids]
         try:
-            values = self._redis.mget(keys)
+            values = self._values(keys)
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         count = len(vehicle_ids)
@@ -160,7 +165,8 @@ class RedisStore(StateStore):
         if not writes:
             return set()
         vehicle_ids = list(writes)
-        keys, args = [], [self.ttl_ms]
+        keys: list[str] = []
+        args: list[int | bytes] = [self.ttl_ms]
         for vehicle_id in vehicle_ids:
             w = writes[vehicle_id]
             keys += [SESSION_PREFIX + vehicle_id, SETTING_PREFIX + vehicle_id]
@@ -177,7 +183,7 @@ class RedisStore(StateStore):
         pattern = SESSION_PREFIX + prefix + "*"  # fleet names hold no glob characters (service.keys)
         try:
             keys = list(self._redis.scan_iter(match=pattern, count=1000))
-            values = self._redis.mget(keys) if keys else []
+            values = self._values(keys) if keys else []
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         found = {}

@@ -1,0 +1,124 @@
+"""The answers as the JSON of the HTTP contract, written by msgspec (floats unrounded).
+
+Each answer is a struct with the fields of the contract's :class:`service.schemas.WarningAnswer`,
+in its order (:func:`encode_answer`); :class:`EncodedAnswers` holds a request's answers in order and
+writes one of them, or all as the contract's ``Answers``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+import msgspec
+from pydantic import BaseModel
+
+from csws.ahead.horizon import PathAhead
+from csws.standard import Level
+from csws.state import Fault, SystemState
+from csws.warning.rules import CurveWarning, HmiHint, PathKind, Trigger
+
+from .horizon import CpoiPositions
+from .placement import Placement
+from .schemas import Hmi, Matched, WarningAnswer
+
+__all__ = ["EncodedAnswers", "encode_answer"]
+
+
+def _document(model: type[BaseModel]) -> type[msgspec.Struct]:
+    """A struct with the fields of a contract's model, in its order, to write its JSON with msgspec."""
+    return msgspec.defstruct(
+        f"{model.__name__}Document", [(name, Any) for name in model.model_fields], gc=False, module=__name__
+    )
+
+
+#: An answer's ``fcw`` is left out unless the query had a forward_target: the curve warning's answers stay as they were.
+_AnswerDocument = msgspec.defstruct(
+    "WarningAnswerDocument",
+    [*((name, Any) for name in WarningAnswer.model_fields if name != "fcw"), ("fcw", Any, None)],
+    omit_defaults=True,
+    gc=False,
+    module=__name__,
+)
+_MatchedDocument = _document(Matched)
+_ENCODER = msgspec.json.Encoder()
+
+
+@dataclass
+class EncodedAnswers:
+    """The answers of queries, in order (the contract's WarningAnswer each, see :meth:`WarningService.encode`),
+    with their system states and warning levels (for the metrics).
+    """
+
+    documents: list[Any]  # the answers (msgspec structs of the contract), None until answered
+    state: list[SystemState]
+    level: list[Level]
+
+    def json(self, index: int) -> bytes:
+        """One answer's JSON."""
+        return _ENCODER.encode(self.documents[index])
+
+    def batch_json(self) -> bytes:
+        """The contract's Answers: ``{"answers": [...]}``."""
+        return _ENCODER.encode({"answers": self.documents})
+
+
+@cache
+def _hmi_json(hmi: HmiHint) -> msgspec.Raw:
+    """The JSON of an HMI hint (there are three)."""
+    return msgspec.Raw(_ENCODER.encode(_document(Hmi)(hmi.visual, hmi.audible)))
+
+
+def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
+    """A CPOI that triggers, as the contract's Trigger, at ``point``."""
+    return {
+        "curve_id": trigger.curve_id,
+        "part_index": int(trigger.part_index),
+        "level": int(trigger.level),
+        "distance_m": float(trigger.distance_m),
+        "radius_m": float(trigger.radius_m),
+        "warning_speed_kmh": float(trigger.warning_speed_kmh),
+        "warning_distance_m": float(trigger.warning_distance_m),
+        "held": bool(trigger.held),
+        "position": point,
+    }
+
+
+def encode_answer(
+    cpoi_positions: CpoiPositions,
+    vehicle_id: str,
+    state: SystemState,
+    fault: Fault | None,
+    warning: CurveWarning,
+    path_kind: PathKind | None,
+    path: PathAhead | None,
+    placement: Placement,
+) -> msgspec.Struct:
+    """The contract's WarningAnswer of an engine's answer (system state, fault, warning, the path
+    ahead's kind, and the path itself where the warning has CPOIs to locate, placed by the network's
+    ``cpoi_positions``) for the vehicle its fleet calls ``vehicle_id``, ready for msgspec to write
+    (floats unrounded; the state, level and path kind as the enumerations' values).
+
+    Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
+    once for all, and only CPOIs that trigger are located.
+    """
+    fault_text = None
+    if fault is not None:
+        fault_text = fault.value
+        if fault is Fault.NO_MAP_MATCH and placement.reason:
+            fault_text = f"{fault_text}: {placement.reason}"
+    target, triggers = None, []
+    located = warning.triggers  # the target is one of them
+    if located and path is not None:  # a warning with CPOIs comes with its path
+        places = cpoi_positions.of(path, [t.curve_id for t in located], [t.part_index for t in located])
+        positions = {id(t): place for t, place in zip(located, places, strict=True)}
+        if warning.target is not None:
+            target = _trigger(warning.target, positions[id(warning.target)])
+        triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]
+    matched = None
+    if placement.lane_id is not None:
+        matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
+    return _AnswerDocument(
+        vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind, _hmi_json(warning.hmi)
+    )

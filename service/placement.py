@@ -1,0 +1,164 @@
+"""Where each query is on the served networks: its given lane, or the map match of its fix.
+
+Every fix without a lane id is matched by one :class:`csws.road.matching.MapMatcher` over all
+served networks: a query naming its network on that network alone, a vehicle with a session on
+its previous network first, preferring its previous lane.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from csws.road.matching import MapMatcher, MatchSettings, Probes, lane_points
+
+from .checks import QueryCheck
+from .decoding import DecodedPosition, DecodedQuery
+from .vehicles import LoadedVehicles
+
+__all__ = ["Placement", "Placer"]
+
+
+class Placement(NamedTuple):
+    """Where one query was placed on the served networks.
+
+    Attributes
+    ----------
+    network_index
+        The network whose engine answers it.
+    lane_id, lane_pos_m, distance_m
+        The lane (None when nothing matched), the lane position and the distance of the fix from it, m.
+    reason
+        Why nothing matched, else None.
+    """
+
+    network_index: int
+    lane_id: str | None
+    lane_pos_m: float
+    distance_m: float
+    reason: str | None
+
+
+class Placer:
+    """Places queries on the served networks.
+
+    Parameters
+    ----------
+    lanes
+        The networks' check of the queries, which knows on which network a lane id is taken.
+    match_settings
+        Map matching tolerances.
+    """
+
+    def __init__(self, lanes: QueryCheck, match_settings: MatchSettings) -> None:
+        self.lanes = lanes
+        self.networks = lanes.networks
+        self.matcher = MapMatcher([n.road_map for n in self.networks], match_settings)
+
+    def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
+        """Where each query is: its given lane, or the map match of its fix (queries of distinct
+        vehicles, preferring each one's previous lane)."""
+        placements: dict[int, Placement] = {}
+        on_lanes = [i for i, query in enumerate(queries) if query.lane_id is not None]
+        to_match = [i for i, query in enumerate(queries) if query.lane_id is None]
+        if on_lanes:
+            placements.update(zip(on_lanes, self._on_lanes([queries[i] for i in on_lanes], vehicles), strict=True))
+        if to_match:
+            placements.update(zip(to_match, self._matched([queries[i] for i in to_match], vehicles), strict=True))
+        return [placements[i] for i in range(len(queries))]
+
+    def _on_lanes(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
+        """The placements of queries that give their lane (which the checks found on a network)."""
+        lanes = []
+        for query in queries:
+            lane_id, lane_pos_m = query.lane_id, query.lane_pos_m
+            assert lane_id is not None and lane_pos_m is not None  # given together (check_located)
+            network_index = self.lanes.lane_network(query, lane_id, vehicles)
+            assert network_index is not None  # the checks refused a lane no network has
+            lanes.append((network_index, lane_id, lane_pos_m))
+        distances_m = self._fix_distances_m(queries, lanes)
+        return [
+            Placement(network_index, lane_id, lane_pos_m, distance_m, None)
+            for (network_index, lane_id, lane_pos_m), distance_m in zip(lanes, distances_m, strict=True)
+        ]
+
+    def _matched(self, fixes: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
+        """The placements of queries by the map match of their fixes (of distinct vehicles)."""
+        matched = self.matcher.match(
+            self._probes(fixes),
+            np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
+            [vehicles.previous(query.vehicle_id) for query in fixes],
+        )
+        placements = []
+        for query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
+            fixes,
+            matched.map_index.tolist(),
+            matched.lane_id,
+            matched.lane_pos_m.tolist(),
+            matched.distance_m.tolist(),
+            matched.reason,
+            strict=True,
+        ):
+            if network_index < 0:
+                network_index = vehicles.network_of(query.vehicle_id)
+            placements.append(Placement(network_index, lane_id, lane_pos_m, distance_m, reason))
+        return placements
+
+    def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
+        """Where to look for each query's fix: x, y on the network it names, else on every one;
+        lon, lat in the projection of the network it names, else of each geo-referenced one."""
+        rows: list[int] = []
+        xy: list[tuple[float | None, float | None]] = []
+        map_index: list[int] = []
+        geographic: dict[int, list[tuple[int, DecodedPosition]]] = defaultdict(list)
+        for row, query in enumerate(queries):
+            named = -1 if query.network is None else self.lanes.network_index[query.network]
+            position = query.position
+            assert position is not None  # a query without a lane has a fix (check_located)
+            if position.lon is None:
+                rows.append(row)
+                xy.append((position.x, position.y))
+                map_index.append(named)
+            else:
+                for network_index in self.lanes.geo_networks if named < 0 else (named,):
+                    geographic[network_index].append((row, position))
+        for network_index, placed in geographic.items():
+            lonlat = np.array([(position.lon, position.lat) for _row, position in placed])
+            rows += [row for row, _position in placed]
+            xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
+            map_index += [network_index] * len(placed)
+        return Probes(
+            len(queries),
+            np.array(rows, dtype=np.intp),
+            np.array(xy, dtype=float).reshape(-1, 2),
+            np.array(map_index, dtype=np.intp),
+        )
+
+    def _fix_distances_m(self, queries: Sequence[DecodedQuery], lanes: Sequence[tuple[int, str, float]]) -> list[float]:
+        """Distance from each query's fix to its given lane position (network index, lane id, lane position), m;
+        0 without a fix, or with lon/lat on a network without a projection. The queries on one lane are
+        placed on it in one interpolation."""
+        distances_m = [0.0] * len(queries)
+        on_lane: dict[tuple[int, str], list[int]] = defaultdict(list)
+        fixes: dict[int, DecodedPosition] = {}
+        for row, (query, (network_index, lane_id, _lane_pos_m)) in enumerate(zip(queries, lanes, strict=True)):
+            position = query.position
+            if position is not None and (position.lon is None or self.networks[network_index].road_map.has_projection):
+                on_lane[(network_index, lane_id)].append(row)
+                fixes[row] = position
+        for (network_index, lane_id), rows in on_lane.items():
+            road_map = self.networks[network_index].road_map
+            given = [fixes[row] for row in rows]
+            geographic = [k for k, fix in enumerate(given) if fix.lon is not None]
+            xy = np.array([(fix.x, fix.y) if fix.lon is None else (0.0, 0.0) for fix in given])
+            if geographic:
+                lonlat = np.array([(given[k].lon, given[k].lat) for k in geographic])
+                xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
+            lane_xy = lane_points(road_map, lane_id, np.array([lanes[row][2] for row in rows]))
+            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist(), strict=True):
+                distances_m[row] = math.hypot(x - lane_x, y - lane_y)
+        return distances_m
