@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
+from builders import dense_shape as curvature_dense_shape
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_curvature import dense_shape as curvature_dense_shape
 
 from csws.curvature import find_curves, radius_profile
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, straight
@@ -22,7 +22,7 @@ headings_rad = st.floats(-math.pi, math.pi)
 
 
 def dense_shape(pieces, heading_rad: float = 0.0) -> np.ndarray:
-    """A SUMO-like shape (:func:`test_curvature.dense_shape`): vertices 0.5 m apart, rounded to the centimetre."""
+    """A SUMO-like shape (:func:`builders.dense_shape`): vertices 0.5 m apart, rounded to the centimetre."""
     return curvature_dense_shape(pieces, 0.5, ORIGIN, heading_rad)
 
 

@@ -34,11 +34,13 @@ SPEED_MPS = 20.0
 
 ROUTES = f"""<routes>
 <vType id="truck" vClass="truck" length="12" width="2.5" minGap="2.5" accel="1.5" decel="9" emergencyDecel="9" sigma="0"
- speedFactor="1" speedDev="0" maxSpeed="{SPEED_MPS:g}" lcStrategic="-1" lcSpeedGain="0" lcKeepRight="0" lcCooperative="0"/>
+ speedFactor="1" speedDev="0" maxSpeed="{SPEED_MPS:g}" lcStrategic="-1" lcSpeedGain="0" lcKeepRight="0"
+ lcCooperative="0"/>
 <vType id="car" vClass="passenger" length="{LEAD_LENGTH_M:g}" minGap="2.5" sigma="0" speedFactor="1" speedDev="0"/>
 <vehicle id="lead" type="car" depart="0" departPos="{LEAD_AT_M:g}" departLane="0" departSpeed="0"><route edges="road"/>
  <stop lane="road_0" endPos="{LEAD_AT_M:g}" duration="1000"/></vehicle>
-<vehicle id="sv" type="truck" depart="0" departPos="50" departLane="0" departSpeed="{SPEED_MPS:g}"><route edges="road"/></vehicle>
+<vehicle id="sv" type="truck" depart="0" departPos="50" departLane="0"
+ departSpeed="{SPEED_MPS:g}"><route edges="road"/></vehicle>
 </routes>
 """
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from builders import dense_shape
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -26,12 +27,6 @@ headings_rad = st.floats(-math.pi, math.pi)
 origins_m = st.tuples(st.floats(-5000.0, 5000.0), st.floats(-5000.0, 5000.0))
 directions = st.sampled_from(["left", "right"])
 seeds = st.integers(0, 2**32 - 1)
-
-
-def dense_shape(pieces, spacing_m, origin, heading_rad):
-    """A SUMO-like shape: evenly spaced vertices rounded to the centimetre."""
-    xy, _ = sample_pieces(pieces, spacing_m, origin, heading_rad)
-    return np.round(xy, 2)
 
 
 def sparse_way(pieces, seed, origin, heading_rad, noise_rms_m):

@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import pytest
 import schemathesis
+from builders import write_geo_track
 from hypothesis import settings
 from schemathesis import checks
-from test_service import Server, write_geo_track
+from servers import Server
 
 from csws.networks import networks_dir
 from service.app import create_app

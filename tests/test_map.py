@@ -15,7 +15,7 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 from playwright.sync_api import Page, sync_playwright
-from test_service import Workers
+from servers import Workers
 
 from csws.networks import networks_dir
 

@@ -14,7 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_roadchain import APPROACH_M, CURVE_RADIUS_M, _edge, _node, _split_curve_map
+from builders import APPROACH_M, CURVE_RADIUS_M
+from builders import edge_xml as _edge
+from builders import node_xml as _node
+from builders import split_curve_map as _split_curve_map
 
 from csws.ahead.horizon import curve_id_of
 from csws.ahead.lookahead import LookAhead

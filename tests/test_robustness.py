@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_service import Server
+from servers import Server
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import sample_pieces, straight

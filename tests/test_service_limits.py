@@ -15,7 +15,7 @@ from pathlib import Path
 
 import httpx
 import pytest
-from test_service import Server, Workers
+from servers import Server, Workers
 
 from csws.networks import networks_dir
 
