@@ -225,7 +225,8 @@ def main() -> None:
     _print(figures)
     print(f"evaluation overhead {figures['overhead']:.0%} (target <= {TARGET_OVERHEAD:.0%})")
     print(
-        f"both systems' overhead {figures['both_systems_overhead']:.0%} (target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
+        f"both systems' overhead {figures['both_systems_overhead']:.0%} "
+        f"(target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
         f"FCW over the default run {figures['fcw_over_default']:.0%}"
     )
     print("city:")
