@@ -9,7 +9,8 @@
   test's own to stop, hang and kill), and the ``state`` fixture that runs a test on each store.
 * The side roads of tests/builders.py, netconverted once for each module that serves them.
 * The markers of ``pyproject.toml`` that follow from the fixtures a test uses (see
-  :func:`pytest_collection_modifyitems`); the others are set in the test modules themselves.
+  :func:`pytest_collection_modifyitems`); a test whose own body is slow, or runs SUMO or
+  netconvert, carries its marker itself.
 """
 
 from __future__ import annotations
@@ -20,32 +21,27 @@ from pathlib import Path
 import pytest
 from builders import SIDE_X_M, build_side_roads
 from hypothesis import settings
+from markers import fixture_markers, marks_its_tests
 from redis_server import RedisServer
 
 settings.register_profile("ci", derandomize=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
 
-#: Fixtures that start a real ``redis-server``: a test that uses one is marked ``redis``.
-REDIS_FIXTURES = frozenset({"redis_server", "own_redis"})
-#: Fixtures that run netconvert: a test that uses one is marked ``sumo``.
-NETCONVERT_FIXTURES = frozenset({"side_roads_net"})
-
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Mark ``redis`` and ``sumo`` the tests whose fixtures start a redis-server or run netconvert.
+    """Give each test the markers its fixtures hand on (:func:`markers.marks_its_tests`).
 
-    Read from the fixtures rather than written on the tests because the ``state`` fixture is
-    parametrized: only its ``redis`` instance needs a redis-server, which neither a decorator nor a
-    module's ``pytestmark`` can say; and a fixture of conftest.py is used from several modules.
+    Read from the fixtures rather than written on every test because a fixture that starts a
+    server or builds a network is shared by many tests, some in other modules, and a test needs
+    what its fixtures need however it came to use them; and because the ``state`` fixture is
+    parametrized: only its ``redis`` instance needs a redis-server, which no decorator can say.
     """
     for item in items:
-        used = set(getattr(item, "fixturenames", ()))
-        params = getattr(getattr(item, "callspec", None), "params", {})
-        if used & REDIS_FIXTURES or params.get("state") == "redis":
+        for name in sorted(fixture_markers(item)):
+            item.add_marker(name)
+        if getattr(getattr(item, "callspec", None), "params", {}).get("state") == "redis":
             item.add_marker(pytest.mark.redis)
-        if used & NETCONVERT_FIXTURES:
-            item.add_marker(pytest.mark.sumo)
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -61,6 +57,7 @@ def fresh_profile_cache(tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.fixture(scope="session")
+@marks_its_tests("redis")
 def redis_server(tmp_path_factory: pytest.TempPathFactory):
     """One real ``redis-server`` for the run (:class:`redis_server.RedisServer`)."""
     server = RedisServer(tmp_path_factory.mktemp("redis"))
@@ -77,6 +74,7 @@ def redis_url(redis_server: RedisServer) -> str:
 
 
 @pytest.fixture
+@marks_its_tests("redis")
 def own_redis(tmp_path: Path):
     """A ``redis-server`` of the test's own, to be stopped, hung and killed."""
     server = RedisServer(tmp_path)
@@ -93,6 +91,7 @@ def state(request: pytest.FixtureRequest, tmp_path: Path) -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def side_roads_net(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The side roads (:func:`builders.build_side_roads`) placed ``SIDE_X_M`` east of the Table 7 track."""
     return build_side_roads(tmp_path_factory.mktemp("side-roads"), origin_x_m=SIDE_X_M)

@@ -116,6 +116,7 @@ def test_mapped_noisy_arcs_meet_the_sparse_targets():
     assert max(start_errors) <= 5.0
 
 
+@pytest.mark.slow
 def test_exact_map_ways_give_their_arcs_exactly():
     """Without noise, the road fitted to a map way's nodes is the road: the model (straights
     and arcs joined without kinks) is exact, so start and radius come out exact but for
@@ -308,6 +309,7 @@ def test_profile_vertex_values_come_from_its_parts():
     assert curves_from_profile(profile)[0].direction == "right"
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(
     st.lists(st.tuples(st.floats(3.0, 60.0), st.floats(-1.6, 1.6)), min_size=4, max_size=14),

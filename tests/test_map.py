@@ -14,6 +14,7 @@ from urllib.parse import urlsplit
 
 import httpx
 import pytest
+from markers import marks_its_tests
 from playwright.sync_api import Page, sync_playwright
 from servers import Workers
 
@@ -41,6 +42,7 @@ WAIT_MS = 30_000
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(tmp_path_factory):
     running = Workers(
         [TRACK_NET, GEO_NET], "--state-db", str(tmp_path_factory.mktemp("state") / "v.sqlite3"), workers=1
@@ -56,6 +58,7 @@ def client(server) -> httpx.Client:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("browser")
 def browser():
     with sync_playwright() as playwright:
         chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from builders import CROSSING_X_M, FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
+from markers import marks_its_tests
 
 from csws.road.matching import (
     MapMatcher,
@@ -22,6 +23,7 @@ from csws.road.roadmap import RoadMap
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def side_map(tmp_path_factory) -> RoadMap:
     return RoadMap.load(build_side_roads(tmp_path_factory.mktemp("side")))
 

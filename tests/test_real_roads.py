@@ -28,6 +28,8 @@ from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance
 from csws.sumo.netbuild import netconvert
 from csws.warning.rules import WarningSettings
 
+pytestmark = pytest.mark.sumo  # every test here builds its network with netconvert
+
 #: A curve of R 150 m between two 60 m clothoids, on one edge.
 ARC_RADIUS_M = 150.0
 SPIRAL_PIECES = (

@@ -22,6 +22,8 @@ from csws.standard import kmh_to_mps, warning_distance, warning_speed
 from csws.sumo.netbuild import netconvert
 from csws.warning.rules import WarningSettings
 
+pytestmark = pytest.mark.sumo  # every test here builds its network with netconvert
+
 
 @pytest.mark.parametrize("node_after_start_m", [2.0, 9.5, 18.0, 24.0])
 def test_a_node_inside_a_curve_leaves_the_curve_whole(tmp_path: Path, node_after_start_m: float) -> None:

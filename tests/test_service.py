@@ -18,6 +18,7 @@ import httpx
 import numpy as np
 import pytest
 from builders import FRONTAGE_OFFSET_M, LANE_WIDTH_M, SIDE_X_M, TRACK, write_geo_track
+from markers import marks_its_tests
 from servers import Server
 
 from csws.engine import Engine, VehicleInput
@@ -35,6 +36,7 @@ def nets(tmp_path_factory, side_roads_net) -> list[Path]:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(nets, tmp_path_factory):
     running = Server(nets, tmp_path_factory.mktemp("state") / "vehicles.sqlite3")
     yield running
@@ -287,6 +289,7 @@ def test_switching_a_vehicle_off_and_on(client) -> None:
     assert client.get("/v1/vehicles/never-seen").status_code == 404
 
 
+@pytest.mark.slow
 def test_switches_survive_a_restart(nets, tmp_path) -> None:
     state_db = tmp_path / "vehicles.sqlite3"
     first = Server(nets[1:], state_db)
@@ -408,6 +411,7 @@ def test_health_metrics_and_docs(client) -> None:
     assert client.get("/docs").status_code == 200
 
 
+@pytest.mark.slow
 def test_a_network_that_cannot_be_read_stops_start_up_in_one_line(tmp_path) -> None:
     broken = tmp_path / "broken.net.xml"
     broken.write_text("<net>")

@@ -73,6 +73,7 @@ def test_a_redis_down_or_hung_is_503_with_retry_after_and_one_log_line(own_redis
             assert [r.status_code for r in _store_requests(client)] == [200] * 5
 
 
+@pytest.mark.slow
 def test_a_redis_killed_during_puts_loses_no_acknowledged_one(own_redis) -> None:
     # Redis as docs/service.md asks: the append-only file, fsynced at every write.
     running = Workers([TRACK_NET], "--state", own_redis.url())
@@ -89,6 +90,7 @@ def test_a_redis_killed_during_puts_loses_no_acknowledged_one(own_redis) -> None
     assert len(writer.acknowledged) + len(writer.refused) == 1000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_an_unreachable_redis_stops_start_up_in_one_line_naming_it(workers) -> None:
     url = f"redis://:secret@127.0.0.1:{_free_port()}/0"

@@ -12,6 +12,7 @@ import threading
 
 import pytest
 from builders import FRONTAGE_OFFSET_M, LANE_WIDTH_M, SIDE_X_M
+from markers import marks_its_tests
 from servers import SwitchWriter, Workers
 
 from csws.networks import networks_dir
@@ -33,6 +34,7 @@ def state_options(state: dict[str, str]) -> list[str]:
 
 
 @pytest.fixture
+@marks_its_tests("slow")
 def workers(state, side_roads_net):
     running = Workers([TRACK_NET, side_roads_net], *state_options(state))
     yield running
@@ -108,6 +110,7 @@ def test_concurrent_fixes_of_one_vehicle_through_both_workers_are_each_accepted_
     assert clients[0].get("/v1/vehicles/shared").json()["last_timestamp_s"] == 1000.0 + 0.2 * 49 + 0.1
 
 
+@pytest.mark.slow
 def test_a_server_killed_during_puts_loses_no_acknowledged_one(state) -> None:
     running = Workers([TRACK_NET], *state_options(state))
     writer = SwitchWriter(running.url)
