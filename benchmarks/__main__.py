@@ -452,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
     print(table(rows))
     judged = [r for r in rows if r.passed is not None]
     print(
-        f"{sum(r.passed for r in judged)} of {len(judged)} judged figures meet their targets"
+        f"{sum(r.passed is True for r in judged)} of {len(judged)} judged figures meet their targets"
         f"{' (quick sizes)' if args.quick else ''}"
     )
     if args.json is not None:

@@ -113,7 +113,7 @@ def edge_xml(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, priority: i
     )
 
 
-def node_xml(node_id: str, xy: Sequence[float]) -> str:
+def node_xml(node_id: str, xy: Sequence[float] | np.ndarray) -> str:
     """A node at ``xy``, to the micrometre."""
     return f'<node id="{node_id}" x="{xy[0]:.6f}" y="{xy[1]:.6f}"/>'
 

@@ -51,7 +51,7 @@ class RedisServer:
             "always",
         ]
         self.port = int(self.command[4])
-        self.process: subprocess.Popen | None = None
+        self.process: subprocess.Popen[bytes]
         self.start()
 
     def url(self, database: int = 0) -> str:

@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 from builders import TRACK_NET
@@ -66,7 +67,8 @@ class Server:
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
-                raise RuntimeError(f"the service exited: {self.process.stdout.read().decode()}")
+                output = self.process.stdout.read() if self.process.stdout else b""
+                raise RuntimeError(f"the service exited: {output.decode()}")
             try:
                 if self.client.get("/readyz").status_code == 200:
                     return
@@ -202,7 +204,7 @@ class SwitchWriter:
             assert time.monotonic() < deadline, "the writer did not get there"
             time.sleep(0.01)
 
-    def assert_stored(self, state: dict[str, str]) -> None:
+    def assert_stored(self, state: dict[str, Any]) -> None:
         """Every acknowledged switch is in the store, as it was set."""
         self.thread.join(timeout=120)
         store = open_store(ServiceSettings(nets=[TRACK_NET], **state))
