@@ -272,7 +272,7 @@ def service_rows(figures: dict) -> list[Row]:
         context(
             "service: memory per worker, 2 workers on the default serve, RSS / PSS MB",
             " + ".join(
-                f"{rss} / {pss}" for rss, pss in zip(figures["worker_rss_mb"], figures["worker_pss_mb"], strict=True)
+                f"{rss} / {pss}" for rss, pss in zip(figures["worker_rss_mb"], figures["worker_pss_mb"], strict=False)
             ),
             "PSS shares the pages the workers share among them",
         ),

@@ -50,7 +50,7 @@ import numpy as np
 from benchmarks.bounds import road_information, start_bounds_m
 from csws.curvature import find_curves, radius_profiles, three_point_radius
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M
 
 SEED = 20180091
 CASES_PER_CATEGORY = 300
@@ -298,7 +298,7 @@ def reference_figures(roads: list[Road], limit_m: float) -> dict:
 
 def ours(xy: np.ndarray, warning_radius_m: float) -> list[FoundCurve]:
     """Curves of :func:`csws.curvature.find_curves`."""
-    return [(c.start_s, c.end_s, c.min_radius_m) for c in find_curves(xy, warning_radius_m)]
+    return [(c.start_s, c.end_s, c.min_radius_m) for c in find_curves(xy, warning_radius_m, policy=DEFAULT_POLICY)]
 
 
 def three_point(xy: np.ndarray, warning_radius_m: float) -> list[FoundCurve]:
@@ -314,7 +314,7 @@ def three_point(xy: np.ndarray, warning_radius_m: float) -> list[FoundCurve]:
     label = np.where(radius <= warning_radius_m, turn, 0.0)
     curves = []
     change = np.flatnonzero(np.diff(np.concatenate(([0.0], label, [0.0]))) != 0)
-    for first, stop in zip(change[:-1], change[1:], strict=True):
+    for first, stop in zip(change[:-1], change[1:], strict=False):
         if label[first] != 0:
             curves.append((float(s[first]), float(s[stop - 1]), float(np.median(radius[first:stop]))))
     return curves
@@ -358,7 +358,7 @@ def multi_curve_step_errors(rng: np.random.Generator, count: int) -> dict:
             straight(float(rng.uniform(50, 150))),
         ]
         step_s = before_m + pieces[1].length_m
-        curves = find_curves(dense_shape(pieces, rng))
+        curves = find_curves(dense_shape(pieces, rng), policy=DEFAULT_POLICY)
         parts = [p for c in curves for p in c.parts]
         multi += len(curves) == 1 and len(parts) == 2
         starts = [p.start_s for p in parts if abs(p.radius_m - 40.0) < 4.0]

@@ -101,7 +101,7 @@ class Feeder(threading.Thread):
         lane_pos_m = (self.start_m + self.speeds_ms * self.ticks) % self.lane_lengths_m
         queries = [
             {**query, "lane_pos_m": float(pos_m), "timestamp_s": 1000.0 + self.ticks}
-            for query, pos_m in zip(self.queries, lane_pos_m, strict=True)
+            for query, pos_m in zip(self.queries, lane_pos_m, strict=False)
         ]
         client.post("/v1/warnings", json={"queries": queries}).raise_for_status()
         self.ticks += 1

@@ -65,6 +65,7 @@ from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
 from csws.networks.real_roads import true_curves as real_road_curves
+from csws.standard import DEFAULT_POLICY
 
 SEED = 20261124
 CASES_PER_FAMILY = 40
@@ -248,7 +249,7 @@ def _true_s(line: shapely.LineString, xy: np.ndarray, s: np.ndarray) -> np.ndarr
 def score(truth: list[TrueCurve], exact: np.ndarray, xy: np.ndarray) -> dict:
     """Per true curve the start and radius errors; the missed, false and below-floor counts."""
     line = shapely.LineString(exact[:, :2])
-    found = find_curves(xy, WARNING_RADIUS_M)
+    found = find_curves(xy, WARNING_RADIUS_M, policy=DEFAULT_POLICY)
     ends = (
         _true_s(line, xy, np.array([[c.start_s, c.end_s] for c in found]).reshape(-1)).reshape(-1, 2)
         if found

@@ -94,7 +94,7 @@ def track_fixes(count: int, seed: int = 5) -> list[dict]:
             "position": {"x": float(a), "y": float(b)},
             "heading_deg": 90.0,
         }
-        for i, (a, b, v, c) in enumerate(zip(x, y, speed, categories, strict=True))
+        for i, (a, b, v, c) in enumerate(zip(x, y, speed, categories, strict=False))
     ]
 
 

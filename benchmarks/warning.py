@@ -1,4 +1,4 @@
-"""How long the warning takes per vehicle: one at a time, and a fleet in one vectorised batch.
+"""Measures how long the warning takes per vehicle: one at a time, and a fleet in one vectorised batch.
 
 Two figures, each on a bundled test track (Table 9, M1, test 1) with vehicles spread
 over the 300 m before the curves at test speed:
@@ -118,7 +118,8 @@ def main() -> None:
         f"<= {TARGET_BATCH_US:g} us"
     )
     print(
-        f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  <= {TARGET_FCW_BATCH_US:g} us"
+        f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  "
+        f"<= {TARGET_FCW_BATCH_US:g} us"
     )
 
 

@@ -1,4 +1,4 @@
-"""One object that turns a vehicle's state into its answer: the system of clauses 5 and 6.
+"""Turns each vehicle's state into its answer (the system of clauses 5 and 6), for one vehicle or a fleet.
 
 :class:`Engine` ties the parts together for the co-simulation, the HTTP service and
 library users alike, so that the same input gives the same answer everywhere:
@@ -17,20 +17,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import cached_property
-from typing import NamedTuple
 
 import numpy as np
 
 from csws.ahead.horizon import BatchAhead, PathAhead
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
+from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
-from csws.standard import Level
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from csws.warning.rules import (
     BatchWarnings,
-    CurveWarning,
     WarningSettings,
     column_index,
     column_indices,
@@ -73,152 +70,6 @@ class VehicleInput:
     route_edges: Sequence[str] | None = None
     timestamp_s: float | None = None
     age_s: float | None = None
-
-
-@dataclass(frozen=True)
-class Answer:
-    """The system's answer for one vehicle at one instant.
-
-    Attributes
-    ----------
-    vehicle_id
-        The vehicle.
-    state
-        The system state (5.2-5.4); warnings come only in ``active``.
-    fault
-        Why the state is ``fault``, else None.
-    warning
-        The warning (level 0 when there is none; always level 0 unless active).
-    path
-        The path ahead, when one was found.
-    """
-
-    vehicle_id: str
-    state: SystemState
-    fault: Fault | None
-    warning: CurveWarning
-    path: PathAhead | None
-
-    @property
-    def level(self) -> Level:
-        """The warning level, 0 to 2."""
-        return self.warning.level
-
-
-@dataclass(frozen=True)
-class FleetAnswers:
-    """The system's answers for many vehicles at one instant, as parallel columns in their order.
-
-    Columns rather than one :class:`Answer` per vehicle, so that a large fleet is answered
-    without per-vehicle objects: the warnings as objects (:attr:`warning`) are built only when
-    asked for; :meth:`targets` and :meth:`entries` read the same answers from the arrays.
-
-    Attributes
-    ----------
-    vehicle_id, state, fault
-        Per vehicle, as in :class:`Answer`.
-    active
-        The vehicles whose path ahead was looked at (active ones), ascending.
-    ahead
-        Their roads ahead, in the order of ``active``; None when no vehicle is active.
-    judged
-        Clause 6 and the release rule on the CPOIs of ``ahead`` (vehicle ``k`` of it is
-        ``active[k]``); None when no vehicle is active.
-    """
-
-    vehicle_id: Sequence[str]
-    state: list[SystemState]
-    fault: list[Fault | None]
-    active: list[int]
-    ahead: BatchAhead | None
-    judged: BatchWarnings | None
-
-    @cached_property
-    def _first_cpoi(self) -> list[int]:
-        """Offset of each active vehicle's first CPOI in the flat CPOI arrays, and their count at the end."""
-        return np.searchsorted(self.ahead.cpoi_vehicle, np.arange(len(self.active) + 1)).tolist()
-
-    @cached_property
-    def level(self) -> list[int]:
-        """Each vehicle's warning level, 0 to 2."""
-        levels = [0] * len(self.state)
-        if self.judged is not None:
-            for i, level in zip(self.active, self.judged.level.tolist(), strict=True):
-                levels[i] = level
-        return levels
-
-    @cached_property
-    def warning(self) -> list[CurveWarning]:
-        """Each vehicle's :class:`CurveWarning` (vehicles with no warning share theirs)."""
-        warnings = [no_warning()] * len(self.state)
-        if self.judged is None:
-            return warnings
-        ahead, first = self.ahead, self._first_cpoi
-        for i, horizon in zip(self.active, ahead.horizons, strict=True):
-            warnings[i] = no_warning(horizon.kind)
-        warned = np.flatnonzero(self.judged.level).tolist()
-        if warned:  # most vehicles: nothing to look at
-            curve_ids, part_indices = ahead.cpoi_curve_id.tolist(), ahead.cpoi_part_index.tolist()
-            found = self.judged.vehicle_warnings(
-                warned,
-                [first[k] for k in warned],
-                [curve_ids[first[k] : first[k + 1]] for k in warned],
-                [part_indices[first[k] : first[k + 1]] for k in warned],
-                [ahead.horizons[k].kind for k in warned],
-            )
-            for k, warning in zip(warned, found, strict=True):
-                warnings[self.active[k]] = warning
-        return warnings
-
-    def targets(self) -> TargetColumns:
-        """Each vehicle's target CPOI (3.12) as columns, None where it has no warning: the values of
-        ``warning[i].target`` without the objects."""
-        count = len(self.state)
-        columns = TargetColumns(*([None] * count for _ in range(5)))
-        if self.judged is None:
-            return columns
-        warned = np.flatnonzero(self.judged.level)
-        rows = self.judged.target[warned]
-        vehicles = np.asarray(self.active, dtype=np.intp)[warned].tolist()
-        values = (
-            self.ahead.cpoi_curve_id[rows].tolist(),
-            self.ahead.cpoi_part_index[rows].tolist(),
-            self.judged.cpoi_distance_m[rows].tolist(),
-            self.judged.cpoi_radius_m[rows].tolist(),
-            self.judged.warning_speed_kmh[rows].tolist(),
-        )
-        for column, column_values in zip(columns, values, strict=True):
-            for i, value in zip(vehicles, column_values, strict=True):
-                column[i] = value
-        return columns
-
-    def entries(self) -> list[tuple[int, str, int, float, int]]:
-        """The triggering CPOIs each vehicle is inside (distance 0), in order: vehicle, curve id, part
-        index, radius (m) and level; the triggers of ``warning[i]`` at distance 0, without the objects."""
-        if self.judged is None:
-            return []
-        rows = np.flatnonzero((self.judged.cpoi_level > 0) & (self.judged.cpoi_distance_m <= 0.0))
-        vehicles = np.asarray(self.active, dtype=np.intp)[self.ahead.cpoi_vehicle[rows]].tolist()
-        return list(
-            zip(
-                vehicles,
-                self.ahead.cpoi_curve_id[rows].tolist(),
-                self.ahead.cpoi_part_index[rows].tolist(),
-                self.judged.cpoi_radius_m[rows].tolist(),
-                self.judged.cpoi_level[rows].tolist(),
-                strict=True,
-            )
-        )
-
-
-class TargetColumns(NamedTuple):
-    """The target CPOI of each vehicle of a fleet, one list per field, None without a warning."""
-
-    curve_id: list[str | None]
-    part_index: list[int | None]
-    distance_m: list[float | None]
-    radius_m: list[float | None]
-    warning_speed_kmh: list[float | None]
 
 
 @dataclass(frozen=True)
@@ -304,8 +155,12 @@ class Engine:
         if not status.warns:
             self.held.pop(vehicle.vehicle_id, None)
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
-        path = self.lookahead(
-            vehicle.lane_id, vehicle.lane_pos_m, vehicle.speed_kmh, vehicle.category, vehicle.route_edges
+        path = self._lookahead_on_map()(
+            _lanes_of_active([vehicle.lane_id])[0],
+            vehicle.lane_pos_m,
+            vehicle.speed_kmh,
+            vehicle.category,
+            vehicle.route_edges,
         )
         warning, memory = judge_one(
             float(vehicle.speed_kmh),
@@ -318,6 +173,12 @@ class Engine:
         )
         self._keep([vehicle.vehicle_id], [memory])
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
+
+    def _lookahead_on_map(self) -> LookAhead:
+        """The look-ahead of the map; a vehicle is active (5.2) only where there is one."""
+        if self.lookahead is None:
+            raise RuntimeError("no path ahead without a road map: no vehicle is active then (5.4)")
+        return self.lookahead
 
     def _next_status(self, vehicle: VehicleInput) -> VehicleStatus:
         """Update and return the vehicle's status (5.2-5.4).
@@ -353,7 +214,7 @@ class Engine:
         )
         paths: list[PathAhead | None] = [None] * len(vehicles)
         if fleet.ahead is not None:
-            for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=True):
+            for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=False):
                 paths[i] = path
         return list(map(Answer, fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, paths))
 
@@ -392,33 +253,30 @@ class Engine:
             found_fault=self._found_faults(lane_ids, positions_m),
             settings=self.settings.activation,
         )
-        self.statuses.update(zip(vehicle_ids, statuses, strict=True))
+        self.statuses.update(zip(vehicle_ids, statuses, strict=False))
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
-        if self.held:
-            for vehicle_id, status in zip(vehicle_ids, statuses, strict=True):
-                if status.state is not SystemState.ACTIVE:
-                    self.held.pop(vehicle_id, None)
+        self._forget_warnings_of_inactive(vehicle_ids, statuses)
         ahead = judged = None
         if active:
             rows = np.array(active, dtype=np.intp)
-            times_s = [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active]
             ahead, judged = self._warnings(
                 [vehicle_ids[i] for i in active],
-                times_s,
+                [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active],
                 speeds_kmh[rows],
                 columns[rows],
-                [lane_ids[i] for i in active],
+                _lanes_of_active([lane_ids[i] for i in active]),
                 positions_m[rows],
                 [route_edges[i] for i in active],
             )
-        return FleetAnswers(
-            vehicle_ids,
-            [status.state for status in statuses],
-            [status.fault for status in statuses],
-            active,
-            ahead,
-            judged,
-        )
+        states = [status.state for status in statuses]
+        return FleetAnswers(vehicle_ids, states, [status.fault for status in statuses], active, ahead, judged)
+
+    def _forget_warnings_of_inactive(self, vehicle_ids: Sequence[str], statuses: Sequence[VehicleStatus]) -> None:
+        """Drop the warning memory of every vehicle that is not active: its warning is off (5.2-5.4)."""
+        if self.held:
+            for vehicle_id, status in zip(vehicle_ids, statuses, strict=False):
+                if status.state is not SystemState.ACTIVE:
+                    self.held.pop(vehicle_id, None)
 
     def _found_faults(self, lane_ids: Sequence[str | None], lane_pos_m: np.ndarray) -> list[Fault | None]:
         """:meth:`_found_fault` of many vehicles: one look at the positions, one look-up per lane."""
@@ -428,7 +286,7 @@ class Engine:
         finite = np.isfinite(lane_pos_m).tolist()
         return [
             None if lane_id is not None and has_lane(lane_id) and ok else self._found_fault(lane_id, float(position))
-            for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist(), strict=True)
+            for lane_id, ok, position in zip(lane_ids, finite, lane_pos_m.tolist(), strict=False)
         ]
 
     def _found_fault(self, lane_id: str | None, lane_pos_m: float) -> Fault | None:
@@ -475,7 +333,7 @@ class Engine:
 
     def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is."""
-        for vehicle_id, memory in zip(vehicle_ids, memories, strict=True):
+        for vehicle_id, memory in zip(vehicle_ids, memories, strict=False):
             if memory is not NOT_HELD and memory.is_on:
                 self.held[vehicle_id] = memory
             elif self.held:
@@ -492,7 +350,7 @@ class Engine:
         route_edges: Sequence[Sequence[str] | None],
     ) -> tuple[BatchAhead, BatchWarnings]:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
-        ahead = self.lookahead.many(lane_ids, lane_pos_m, speed_kmh, route_edges)
+        ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
         # As lists: the release rule reads them one CPOI at a time.
         batch = self._judged(
@@ -509,3 +367,10 @@ class Engine:
             ahead.cpoi_passed,
         )
         return ahead, batch
+
+
+def _lanes_of_active(lane_ids: Sequence[str | None]) -> list[str]:
+    """The lanes of active vehicles: each is on one, or it would be in fault (5.4: no map match)."""
+    if any(lane_id is None for lane_id in lane_ids):
+        raise RuntimeError("an active vehicle has no lane: it should be in fault (5.4)")
+    return [lane_id for lane_id in lane_ids if lane_id is not None]

@@ -1,4 +1,4 @@
-"""Exact road geometry made of straights, circular arcs and clothoids.
+"""Builds exact road geometry from straights, circular arcs and clothoids.
 
 A road is described as a sequence of :class:`Piece` objects, each with curvature
 linear in arc length: constant on a straight (0) or an arc, changing evenly along a
@@ -32,7 +32,8 @@ __all__ = [
 #: Gauss-Legendre nodes and weights on [0, 1] for the positions along a clothoid: its
 #: heading is quadratic in arc length, and 24 nodes integrate its cosine and sine over
 #: any road-sized turn to rounding error.
-_QUADRATURE_NODES, _QUADRATURE_WEIGHTS = (lambda x, w: ((x + 1.0) / 2.0, w / 2.0))(*np.polynomial.legendre.leggauss(24))
+_LEGENDRE_NODES, _LEGENDRE_WEIGHTS = np.polynomial.legendre.leggauss(24)
+_QUADRATURE_NODES, _QUADRATURE_WEIGHTS = (_LEGENDRE_NODES + 1.0) / 2.0, _LEGENDRE_WEIGHTS / 2.0
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The model of T/ITS 0091-2018: vehicle categories, warning speeds and formula (1).
+"""Holds what T/ITS 0091-2018 fixes in numbers: vehicle categories, the warning speeds and formula (1).
 
 Everything the standard fixes numerically lives here: the vehicle categories of
 GB/T 15089 and the column each falls in (Tables 1-2 merge M3, N and O), the warning
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum, StrEnum
 from functools import cached_property
@@ -39,6 +39,7 @@ __all__ = [
     "warning_distance",
     "warning_distance_m",
     "formula_1_m",
+    "interp_one",
     "warning_speed",
     "kmh_to_mps",
     "mps_to_kmh",
@@ -218,20 +219,18 @@ class WarningSpeedPolicy:
         offsets, axis, accelerations = self._interpolation_axis
         clipped = np.minimum(np.maximum(radius, self.radii_m[0]), self.radii_m[-1])
         accel = np.interp(offsets[:, column_index] + clipped, axis, accelerations)
-        return np.round(mps_to_kmh(np.sqrt(accel * radius)), 9)
+        return _speed_from_acceleration_kmh(accel, radius)
 
     def warning_speeds_one_kmh(self, radius_m: float, column_index: int) -> tuple[float, float]:
         """V_w (km/h) of both levels at one radius, in plain floats: :meth:`warning_speeds_kmh`'s
-        operations in its order (``np.interp``'s included), so the result is the same to the bit
-        at a fraction of numpy's cost per call."""
+        table look-up and formula on one value, so the result is the same to the bit at a fraction
+        of numpy's cost per call."""
         if math.isinf(radius_m):
             return math.inf, math.inf
         offsets, axis, accelerations = self._interpolation_lists
         clipped = min(max(radius_m, self.radii_m[0]), self.radii_m[-1])
-        return tuple(
-            round(math.sqrt(_interp(offset[column_index] + clipped, axis, accelerations) * radius_m) * 3.6 * 1e9) / 1e9
-            for offset in offsets
-        )
+        level_1, level_2 = (interp_one(offset[column_index] + clipped, axis, accelerations) for offset in offsets)
+        return _speed_from_acceleration_kmh(level_1, radius_m), _speed_from_acceleration_kmh(level_2, radius_m)
 
     @cached_property
     def _interpolation_lists(self) -> tuple[list[list[float]], list[float], list[float]]:
@@ -251,8 +250,27 @@ _LEVELS = (Level.LEVEL_1, Level.LEVEL_2)
 _COLUMNS = tuple(Column)
 
 
-def _interp(x: float, xp: list[float], fp: list[float]) -> float:
-    """``np.interp`` of one value, with its arithmetic (ends held, a knot's own value at a knot)."""
+#: V_w is rounded to this many decimals of a km/h, to absorb floating-point error at the table radii.
+_SPEED_DECIMALS = 9
+
+
+def _speed_from_acceleration_kmh(acceleration_mps2, radius_m):
+    """V_w = sqrt(a R) in km/h, rounded to :data:`_SPEED_DECIMALS` (floats or arrays, the same to the bit).
+
+    ``np.round`` scales, rounds half to even and scales back; a float takes the same steps.
+    """
+    if isinstance(acceleration_mps2, float) and isinstance(radius_m, float):
+        scale = 10.0**_SPEED_DECIMALS
+        return round(mps_to_kmh(math.sqrt(acceleration_mps2 * radius_m)) * scale) / scale
+    return np.round(mps_to_kmh(np.sqrt(acceleration_mps2 * radius_m)), _SPEED_DECIMALS)
+
+
+def interp_one(x: float, xp: Sequence[float], fp: Sequence[float]) -> float:
+    """``np.interp`` of one float, with its arithmetic: ends held, a knot's own value at a knot.
+
+    The one plain-float interpolation, for the one-vehicle path: ``np.interp`` costs more per
+    call than the whole look-up, and this gives its result to the bit.
+    """
     j = bisect.bisect_right(xp, x) - 1
     if j < 0:
         return fp[0]
@@ -318,12 +336,15 @@ def formula_1_m(speed_mps, warning_speed_mps, g: float = G_MPS2):
     return REACTION_TIME_S * speed_mps + (speed_mps * speed_mps - warning_speed_mps * warning_speed_mps) / g
 
 
-def warning_distance_m(speed_mps: np.ndarray, warning_speed_mps: np.ndarray, g: float = G_MPS2) -> np.ndarray:
-    """Formula (1) on arrays, in SI: S_w = 0.8 v + (v^2 - v_w^2) / g, 0 where v < v_w.
+def warning_distance_m(speed_mps, warning_speed_mps, g: float = G_MPS2):
+    """Formula (1) in SI: S_w = 0.8 v + (v^2 - v_w^2) / g, 0 where v < v_w (floats or arrays).
 
     A vehicle below the warning speed is not to be warned (6.1 warns when V >= V_w), so
-    it has no warning area: its warning distance is 0 m.
+    it has no warning area: its warning distance is 0 m. Two floats give a float, the
+    array's value to the bit; anything else gives an array.
     """
+    if isinstance(speed_mps, float) and isinstance(warning_speed_mps, float):
+        return formula_1_m(speed_mps, warning_speed_mps, g) if speed_mps >= warning_speed_mps else 0.0
     speed = np.asarray(speed_mps, dtype=float)
     threshold = np.asarray(warning_speed_mps, dtype=float)
     return np.where(speed >= threshold, formula_1_m(speed, threshold, g), 0.0)

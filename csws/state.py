@@ -1,4 +1,4 @@
-"""The system state of one vehicle's CSWS: clauses 5.2 to 5.4 of T/ITS 0091-2018.
+"""Tracks the system state of each vehicle's CSWS after clauses 5.2 to 5.4 of T/ITS 0091-2018.
 
 A small pure state machine: every update takes the previous :class:`VehicleStatus`
 and what is known now, and returns the next one. The co-simulation and the HTTP
@@ -238,7 +238,7 @@ def next_status(
 
 def next_statuses(
     statuses: Sequence[VehicleStatus],
-    speed_kmh: Sequence[float],
+    speed_kmh: Sequence[float] | np.ndarray,
     *,
     timestamp_s: Sequence[float | None] | None = None,
     age_s: Sequence[float | None] | None = None,
@@ -278,7 +278,9 @@ def next_statuses(
         last_list = [None if value != value else value for value in last_list]
     made: dict[tuple, VehicleStatus] = {}
     updated = []
-    for status, key in zip(statuses, zip(fault_code.tolist(), activated.tolist(), last_list, strict=True), strict=True):
+    for status, key in zip(
+        statuses, zip(fault_code.tolist(), activated.tolist(), last_list, strict=False), strict=False
+    ):
         if status.switched_on:
             status = made.get(key) or made.setdefault(key, _switched_on_status(*key))
         updated.append(status)

@@ -1,8 +1,9 @@
-"""Every bundled network built, or checked against a fresh build: the standard's tracks
-(:mod:`csws.networks.generate`) in the folder itself and the real-road tracks
-(:mod:`csws.networks.real_roads`) in its ``real_roads`` folder, the forward collision warning's
-(:mod:`csws.networks.fcw_tracks`) in its ``fcw`` folder. This is
-``csws networks build [--check]``."""
+"""Every bundled network built, or checked against a fresh build (``csws networks build [--check]``).
+
+The standard's tracks (:mod:`csws.networks.generate`) go in the folder itself, the real-road
+tracks (:mod:`csws.networks.real_roads`) in its ``real_roads`` folder, the forward collision
+warning's (:mod:`csws.networks.fcw_tracks`) in its ``fcw`` folder.
+"""
 
 from __future__ import annotations
 

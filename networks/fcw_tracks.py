@@ -26,9 +26,10 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, shape_text
 
-from .generate import PRECISION_DIGITS, SAMPLE_SPACING_M, _json_difference, _lane_differences, _rounded, _write_json
+from .artifacts import json_difference, lane_differences, write_json
+from .generate import PRECISION_DIGITS, SAMPLE_SPACING_M, _rounded
 
 __all__ = [
     "FCW_DIR",
@@ -116,14 +117,14 @@ def _plain_xml(name: str) -> tuple[str, str]:
         spreadType="center",
         shape=shape_text(xy),
     )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
+    return plain_xml_text(nodes, edges)
 
 
 def _build(name: str, directory: Path) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     net_file = directory / f"{name}.net.xml"
     netconvert(*_plain_xml(name), net_file, ["--precision", str(PRECISION_DIGITS)], strict=True)
-    _write_json(directory / f"{name}.truth.json", fcw_track_truth(name))
+    write_json(directory / f"{name}.truth.json", fcw_track_truth(name))
     return net_file
 
 
@@ -142,6 +143,6 @@ def compare_fcw_tracks(directory: Path, tolerance_m: float = 0.01) -> list[str]:
                 differences.append(f"{FCW_DIR}/{committed.name}: missing")
                 continue
             built = _build(name, Path(work))
-            differences += _lane_differences(name, built, committed, tolerance_m)
-            differences += _json_difference(Path(work) / f"{name}.truth.json", Path(directory) / f"{name}.truth.json")
+            differences += lane_differences(name, built, committed, tolerance_m)
+            differences += json_difference(Path(work) / f"{name}.truth.json", Path(directory) / f"{name}.truth.json")
     return differences

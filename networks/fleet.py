@@ -33,7 +33,7 @@ from csws.cosim.categories import VCLASS_CATEGORY
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.networks.generate import ANGLE_MARGIN, PRECISION_DIGITS
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, shape_text
 
 __all__ = [
     "FLEET_NAME",
@@ -183,7 +183,7 @@ def _plain_xml(lanes: int = LANES) -> tuple[str, str]:
             attrib={"from": f"n{index + 1}", "to": f"n{index}", **common},
             shape=shape_text(shape[::-1]),
         )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
+    return plain_xml_text(nodes, edges)
 
 
 def vtype_xml(fleet_type: FleetType) -> str:
@@ -242,13 +242,13 @@ def fleet_routes_xml(
     """
     if count < 1:
         raise ValueError(f"a fleet needs at least one vehicle, got {count}")
-    types = draw_types(count, np.random.default_rng(seed), types)
+    drawn = draw_types(count, np.random.default_rng(seed), types)
     routes = (" ".join(forward_edges()), " ".join(backward_edges()))
     lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
     lines += [
-        f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes, strict=True)
+        f'<route id="{name}" edges="{edges}"/>' for name, edges in zip(("forward", "backward"), routes, strict=False)
     ]
-    for index, fleet_type in enumerate(types):
+    for index, fleet_type in enumerate(drawn):
         depart_s = round(index * period_s / count, 1)
         lines.append(
             f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" '

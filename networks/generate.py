@@ -24,19 +24,21 @@ every network with the table row it implements and its route.
 
 from __future__ import annotations
 
-import json
 import math
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 from xml.etree import ElementTree
 
 import numpy as np
 
 from csws.data import standard_tables
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, shape_text
+
+from .artifacts import json_difference, lane_differences, write_json
 
 __all__ = [
     "APPROACH_M",
@@ -61,7 +63,6 @@ __all__ = [
     "build_tracks",
     "compare_network",
     "compare_tracks",
-    "read_lanes",
 ]
 
 #: Straight before the first curve, m. With 1000 m a vehicle starting from rest at a
@@ -281,7 +282,7 @@ def _lane_id(edge_id: str) -> str:
     return f"{edge_id}_0"
 
 
-def track_truth(spec: TrackSpec) -> dict:
+def track_truth(spec: TrackSpec) -> dict[str, Any]:
     """The ground truth of a track, from its authored pieces (see ``networks/README.md``).
 
     Positions ``s`` are arc lengths along the route from its start; lane positions are
@@ -290,8 +291,45 @@ def track_truth(spec: TrackSpec) -> dict:
     """
     pieces = track_pieces(spec)
     starts = piece_starts_s(pieces)
-    x, y, heading = pose_at(pieces, starts)
-    lanes = [
+    return {
+        "format": TRUTH_FORMAT,
+        "name": spec.name,
+        "units": {"length": "m", "angle": "deg", "speed": "m/s"},
+        "standard": {
+            "document": _STANDARD,
+            "clause": spec.clause,
+            "table": spec.table,
+            "category": spec.category,
+            "test": spec.test,
+            "row": spec.row,
+        },
+        "generator": _generator_settings(),
+        "direction": spec.direction,
+        "route": {"edges": list(ROUTE_EDGES), "length_m": _rounded(starts[-1])},
+        "lanes": _truth_lanes(pieces, starts),
+        "curves": _truth_curves(spec, pieces, starts),
+    }
+
+
+def _generator_settings() -> dict[str, Any]:
+    """How the generator laid the tracks out, as the truth files record it."""
+    return {
+        "approach_m": APPROACH_M,
+        "entry_m": ENTRY_M,
+        "runout_m": RUNOUT_M,
+        "exit_m": EXIT_M,
+        "sample_spacing_m": SAMPLE_SPACING_M,
+        "precision_digits": PRECISION_DIGITS,
+        "lane_speed_mps": LANE_SPEED_MPS,
+        "angle_margin": ANGLE_MARGIN,
+        "start_xy": [0.0, 0.0],
+        "start_heading_deg": 0.0,
+    }
+
+
+def _truth_lanes(pieces: Sequence[Piece], starts: np.ndarray) -> list[dict[str, Any]]:
+    """Each route edge's lane with where it starts and ends along the route."""
+    return [
         {
             "lane": _lane_id(edge_id),
             "edge": edge_id,
@@ -299,8 +337,14 @@ def track_truth(spec: TrackSpec) -> dict:
             "end_s": _rounded(starts[stop]),
             "length_m": _rounded(starts[stop] - starts[first]),
         }
-        for edge_id, (first, stop) in zip(ROUTE_EDGES, _edge_piece_ranges(pieces), strict=True)
+        for edge_id, (first, stop) in zip(ROUTE_EDGES, _edge_piece_ranges(pieces), strict=False)
     ]
+
+
+def _truth_curves(spec: TrackSpec, pieces: Sequence[Piece], starts: np.ndarray) -> list[dict[str, Any]]:
+    """Each curve: radius, angle, direction, where it starts and ends along the route, in the plane
+    and on the curve edge's lane."""
+    x, y, heading = pose_at(pieces, starts)
     curve_edge_first, _ = _edge_piece_ranges(pieces)[ROUTE_EDGES.index("curve")]
     curves = []
     for number, curve in enumerate(spec.curves, start=1):
@@ -329,35 +373,7 @@ def track_truth(spec: TrackSpec) -> dict:
                 ],
             }
         )
-    return {
-        "format": TRUTH_FORMAT,
-        "name": spec.name,
-        "units": {"length": "m", "angle": "deg", "speed": "m/s"},
-        "standard": {
-            "document": _STANDARD,
-            "clause": spec.clause,
-            "table": spec.table,
-            "category": spec.category,
-            "test": spec.test,
-            "row": spec.row,
-        },
-        "generator": {
-            "approach_m": APPROACH_M,
-            "entry_m": ENTRY_M,
-            "runout_m": RUNOUT_M,
-            "exit_m": EXIT_M,
-            "sample_spacing_m": SAMPLE_SPACING_M,
-            "precision_digits": PRECISION_DIGITS,
-            "lane_speed_mps": LANE_SPEED_MPS,
-            "angle_margin": ANGLE_MARGIN,
-            "start_xy": [0.0, 0.0],
-            "start_heading_deg": 0.0,
-        },
-        "direction": spec.direction,
-        "route": {"edges": list(ROUTE_EDGES), "length_m": _rounded(starts[-1])},
-        "lanes": lanes,
-        "curves": curves,
-    }
+    return curves
 
 
 def networks_index(specs: Sequence[TrackSpec]) -> dict:
@@ -406,12 +422,12 @@ def _plain_xml(spec: TrackSpec) -> tuple[str, str]:
     ranges = _edge_piece_ranges(pieces)
     node_pieces = [first for first, _ in ranges] + [len(pieces)]
     nodes = ElementTree.Element("nodes")
-    for number, (node_id, index) in enumerate(zip(_NODES, node_pieces, strict=True)):
+    for number, (node_id, index) in enumerate(zip(_NODES, node_pieces, strict=False)):
         node = ElementTree.SubElement(nodes, "node", id=node_id, x=f"{x[index]:.6f}", y=f"{y[index]:.6f}")
         if 0 < number < len(_NODES) - 1:
             node.set("shape", shape_text(_junction_shape(x[index], y[index], heading[index])))
     edges = ElementTree.Element("edges")
-    for number, (edge_id, shape) in enumerate(zip(ROUTE_EDGES, _edge_shapes(pieces), strict=True)):
+    for number, (edge_id, shape) in enumerate(zip(ROUTE_EDGES, _edge_shapes(pieces), strict=False)):
         ElementTree.SubElement(
             edges,
             "edge",
@@ -423,12 +439,7 @@ def _plain_xml(spec: TrackSpec) -> tuple[str, str]:
             spreadType="center",
             shape=shape_text(shape),
         )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
-
-
-def _write_json(path: Path, content: dict) -> None:
-    """Write ``content`` as indented JSON with a final newline."""
-    path.write_text(json.dumps(content, indent=2) + "\n", encoding="utf-8")
+    return plain_xml_text(nodes, edges)
 
 
 def build_network(spec: TrackSpec, directory: Path) -> Path:
@@ -438,7 +449,7 @@ def build_network(spec: TrackSpec, directory: Path) -> Path:
     net_file = directory / f"{spec.name}.net.xml"
     node_text, edge_text = _plain_xml(spec)
     netconvert(node_text, edge_text, net_file, ["--precision", str(PRECISION_DIGITS)], strict=True)
-    _write_json(directory / f"{spec.name}.truth.json", track_truth(spec))
+    write_json(directory / f"{spec.name}.truth.json", track_truth(spec))
     return net_file
 
 
@@ -446,47 +457,8 @@ def build_tracks(directory: Path) -> list[Path]:
     """Build every track into ``directory`` with its truth and ``index.json``; the network paths."""
     specs = track_specs()
     written = [build_network(spec, directory) for spec in specs]
-    _write_json(Path(directory) / "index.json", networks_index(specs))
+    write_json(Path(directory) / "index.json", networks_index(specs))
     return written
-
-
-def read_lanes(net_file: Path) -> dict[str, tuple[float, float, np.ndarray]]:
-    """``lane id -> (length m, speed m/s, (n, 2) shape)`` of every lane of a SUMO network, internal ones too."""
-    return {
-        lane.get("id"): (
-            float(lane.get("length")),
-            float(lane.get("speed")),
-            np.array([[float(v) for v in point.split(",")[:2]] for point in lane.get("shape").split()]),
-        )
-        for lane in ElementTree.parse(net_file).getroot().iter("lane")
-    }
-
-
-def _lane_differences(name: str, built: Path, committed: Path, tolerance_m: float) -> list[str]:
-    """How the lanes of two builds of a network differ beyond ``tolerance_m``; empty when they match."""
-    new, old = read_lanes(built), read_lanes(committed)
-    if new.keys() != old.keys():
-        return [f"{name}: lanes differ: built {sorted(new)}, committed {sorted(old)}"]
-    differences = []
-    for lane_id, (length_m, speed_mps, shape) in new.items():
-        old_length_m, old_speed_mps, old_shape = old[lane_id]
-        if abs(length_m - old_length_m) > tolerance_m:
-            differences.append(f"{name}: lane {lane_id} length {old_length_m} m, rebuilt {length_m} m")
-        if speed_mps != old_speed_mps:
-            differences.append(f"{name}: lane {lane_id} speed {old_speed_mps} m/s, rebuilt {speed_mps} m/s")
-        if shape.shape != old_shape.shape:
-            differences.append(f"{name}: lane {lane_id} has {len(old_shape)} shape points, rebuilt {len(shape)}")
-        elif np.any(np.hypot(*(shape - old_shape).T) > tolerance_m):
-            differences.append(f"{name}: lane {lane_id} shape moved by more than {tolerance_m} m")
-    return differences
-
-
-def _json_difference(path_built: Path, path_committed: Path) -> list[str]:
-    """A one-line difference when two JSON files do not hold the same content."""
-    if not path_committed.is_file():
-        return [f"{path_committed.name}: missing"]
-    same = json.loads(path_built.read_text("utf-8")) == json.loads(path_committed.read_text("utf-8"))
-    return [] if same else [f"{path_committed.name}: differs from the generator's"]
 
 
 def compare_network(spec: TrackSpec, directory: Path, tolerance_m: float = 0.01) -> list[str]:
@@ -502,7 +474,7 @@ def compare_network(spec: TrackSpec, directory: Path, tolerance_m: float = 0.01)
     with tempfile.TemporaryDirectory(prefix="csws-check-") as work:
         built = build_network(spec, Path(work))
         truth = f"{spec.name}.truth.json"
-        return _lane_differences(spec.name, built, committed, tolerance_m) + _json_difference(
+        return lane_differences(spec.name, built, committed, tolerance_m) + json_difference(
             Path(work) / truth, Path(directory) / truth
         )
 
@@ -520,6 +492,6 @@ def compare_tracks(directory: Path) -> list[str]:
     differences += [f"{name}: not made by the generator" for name in stale]
     with tempfile.TemporaryDirectory(prefix="csws-check-") as work:
         index = Path(work) / "index.json"
-        _write_json(index, networks_index(specs))
-        differences += _json_difference(index, directory / "index.json")
+        write_json(index, networks_index(specs))
+        differences += json_difference(index, directory / "index.json")
     return differences

@@ -40,8 +40,9 @@ import numpy as np
 
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, pose_at, straight
 from csws.standard import DEFAULT_WARNING_RADIUS_M
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert, plain_xml_text, shape_text
 
+from .artifacts import json_difference, lane_differences, write_json
 from .generate import (
     APPROACH_M,
     ENTRY_M,
@@ -50,11 +51,8 @@ from .generate import (
     PRECISION_DIGITS,
     RUNOUT_M,
     SAMPLE_SPACING_M,
-    _json_difference,
     _junction_shape,
-    _lane_differences,
     _rounded,
-    _write_json,
 )
 
 __all__ = [
@@ -175,7 +173,7 @@ def true_curves(
     side = np.where(curvature >= 1.0 / warning_radius_m, 1, np.where(curvature <= -1.0 / warning_radius_m, -1, 0))
     edges = np.flatnonzero(np.diff(np.concatenate(([0], side, [0]))) != 0)
     curves = []
-    for first, stop in zip(edges[:-1], edges[1:], strict=True):
+    for first, stop in zip(edges[:-1], edges[1:], strict=False):
         if side[first] == 0:
             continue
         magnitude = np.abs(curvature[first:stop])
@@ -254,7 +252,7 @@ def _plain_xml(spec: RealRoadSpec) -> tuple[str, str]:
             priority="1",
             spreadType="center",
         )
-    return tuple(ElementTree.tostring(root, encoding="unicode") for root in (nodes, edges))
+    return plain_xml_text(nodes, edges)
 
 
 def real_road_truth(spec: RealRoadSpec) -> dict:
@@ -273,7 +271,7 @@ def real_road_truth(spec: RealRoadSpec) -> dict:
             for p in pieces
         ],
         "route": {"edges": _edge_ids(spec), "length_m": _rounded(bounds[-1])},
-        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds, strict=True)},
+        "edge_start_s": {edge: _rounded(s) for edge, s in zip(_edge_ids(spec), bounds, strict=False)},
         "nodes_in_curves_s": [_rounded(APPROACH_M + at_m) for at_m in spec.nodes_at_m],
         "side_road": None
         if spec.side_road_at is None
@@ -288,7 +286,7 @@ def _build(spec: RealRoadSpec, directory: Path) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     net_file = directory / f"{spec.name}.net.xml"
     netconvert(*_plain_xml(spec), net_file, ["--precision", str(PRECISION_DIGITS)])
-    _write_json(directory / f"{spec.name}.truth.json", real_road_truth(spec))
+    write_json(directory / f"{spec.name}.truth.json", real_road_truth(spec))
     return net_file
 
 
@@ -312,7 +310,7 @@ def build_real_roads(directory: Path) -> list[Path]:
     """Build every real-road track into ``directory`` with its truth and ``index.json``."""
     specs = real_road_specs()
     written = [_build(spec, Path(directory)) for spec in specs]
-    _write_json(Path(directory) / "index.json", _index(specs))
+    write_json(Path(directory) / "index.json", _index(specs))
     return written
 
 
@@ -327,10 +325,10 @@ def compare_real_roads(directory: Path, tolerance_m: float = 0.01) -> list[str]:
                 differences.append(f"real_roads/{committed.name}: missing")
                 continue
             built = _build(spec, Path(work))
-            differences += _lane_differences(spec.name, built, committed, tolerance_m)
-            differences += _json_difference(
+            differences += lane_differences(spec.name, built, committed, tolerance_m)
+            differences += json_difference(
                 Path(work) / f"{spec.name}.truth.json", directory / f"{spec.name}.truth.json"
             )
-        _write_json(Path(work) / "index.json", _index(real_road_specs()))
-        differences += _json_difference(Path(work) / "index.json", directory / "index.json")
+        write_json(Path(work) / "index.json", _index(real_road_specs()))
+        differences += json_difference(Path(work) / "index.json", directory / "index.json")
     return differences

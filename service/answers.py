@@ -260,7 +260,7 @@ class WarningService:
         if on_lanes:
             networks = [self._lane_network(queries[i], vehicles) for i in on_lanes]
             distances_m = self._fix_distances_m([queries[i] for i in on_lanes], networks)
-            for i, network_index, distance_m in zip(on_lanes, networks, distances_m, strict=True):
+            for i, network_index, distance_m in zip(on_lanes, networks, distances_m, strict=False):
                 placements[i] = Placement(network_index, queries[i].lane_id, queries[i].lane_pos_m, distance_m, None)
         if to_match:
             fixes = [queries[i] for i in to_match]
@@ -277,7 +277,7 @@ class WarningService:
                 matched.lane_pos_m.tolist(),
                 matched.distance_m.tolist(),
                 matched.reason,
-                strict=True,
+                strict=False,
             ):
                 if network_index < 0:
                     network_index = vehicles.network_of(query.vehicle_id)
@@ -317,7 +317,7 @@ class WarningService:
         in one interpolation."""
         distances_m = [0.0] * len(queries)
         on_lane: dict[tuple[int, str], list[int]] = defaultdict(list)
-        for row, (query, network_index) in enumerate(zip(queries, networks, strict=True)):
+        for row, (query, network_index) in enumerate(zip(queries, networks, strict=False)):
             position = query.position
             if position is not None and (position.lon is None or self.networks[network_index].road_map.has_projection):
                 on_lane[(network_index, query.lane_id)].append(row)
@@ -330,7 +330,7 @@ class WarningService:
                 lonlat = np.array([(fixes[k].lon, fixes[k].lat) for k in geographic])
                 xy[geographic] = road_map.lonlat_to_xy_many(lonlat)
             lane_xy = lane_points(road_map, lane_id, np.array([queries[row].lane_pos_m for row in rows]))
-            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist(), strict=True):
+            for row, (x, y), (lane_x, lane_y) in zip(rows, xy.tolist(), lane_xy.tolist(), strict=False):
                 distances_m[row] = math.hypot(x - lane_x, y - lane_y)
         return distances_m
 
@@ -347,7 +347,7 @@ class WarningService:
         with stages("match"):
             placements = self.place(queries, vehicles)
         by_network: dict[int, list[int]] = defaultdict(list)
-        for row, (query, placement) in enumerate(zip(queries, placements, strict=True)):
+        for row, (query, placement) in enumerate(zip(queries, placements, strict=False)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         # The query's category, else the one its fleet set (the checks made sure one of them is there).
@@ -365,7 +365,7 @@ class WarningService:
             with stages("encode"):
                 self._record(queries, categories, indices, placements, rows, evaluated, vehicles, answers, fleet)
         with stages("encode"):
-            for index, fcw in zip(indices, fcw_answers(queries), strict=True):
+            for index, fcw in zip(indices, fcw_answers(queries), strict=False):
                 answers.documents[index].fcw = fcw
 
     def evaluate(
@@ -401,7 +401,7 @@ class WarningService:
         kinds: list[PathKind | None] = [None] * len(queries)
         ahead_row = {}
         if fleet.ahead is not None:
-            for k, (row, horizon) in enumerate(zip(fleet.active, fleet.ahead.horizons, strict=True)):
+            for k, (row, horizon) in enumerate(zip(fleet.active, fleet.ahead.horizons, strict=False)):
                 kinds[row] = horizon.kind
                 ahead_row[row] = k
         return Evaluated(
@@ -434,7 +434,7 @@ class WarningService:
                 evaluated.fault,
                 evaluated.warning,
                 evaluated.path_kind,
-                strict=True,
+                strict=False,
             )
         ):
             placement, query = placements[row], queries[row]
@@ -492,7 +492,7 @@ class WarningService:
             places = self.cpoi_positions[placement.network_index].of(
                 path, [t.curve_id for t in located], [t.part_index for t in located]
             )
-            positions = {id(t): place for t, place in zip(located, places, strict=True)}
+            positions = {id(t): place for t, place in zip(located, places, strict=False)}
             if warning.target is not None:
                 target = _trigger(warning.target, positions[id(warning.target)])
             triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]

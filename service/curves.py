@@ -63,7 +63,7 @@ def curve_features(network: ServedNetwork) -> list[dict[str, Any]]:
     features = []
     for lane_curve in network.road_map.curves():
         coordinates = _coordinates(network, network.road_map.curve_shape(lane_curve))
-        xs, ys = zip(*coordinates, strict=True)
+        xs, ys = zip(*coordinates, strict=False)
         curve = lane_curve.curve
         lane = network.road_map.lane(lane_curve.lane_id)
         features.append(

@@ -40,7 +40,7 @@ def _placed(records: dict[str, SessionRecord], network: ServedNetwork) -> dict[s
     xy = np.concatenate(points) if points else np.empty((0, 2))
     if network.road_map.has_projection:
         xy = network.road_map.xy_to_lonlat_many(xy)
-    return dict(zip(keys, xy.tolist(), strict=True))
+    return dict(zip(keys, xy.tolist(), strict=False))
 
 
 def fleet_features(

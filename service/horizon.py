@@ -47,11 +47,11 @@ class CpoiPositions:
 
     def of(self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int]) -> list[dict[str, float]]:
         """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
-        keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=True)]
+        keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=False)]
         missing = [key for key in dict.fromkeys(keys) if key not in self._known]
         if missing:
             points = cpoi_points(ahead, [curve_id for curve_id, _ in missing], [part for _, part in missing])
-            self._known.update(zip(missing, positions(self.network, points), strict=True))
+            self._known.update(zip(missing, positions(self.network, points), strict=False))
         return [self._known[key] for key in keys]
 
 
@@ -64,7 +64,7 @@ def positions(network: ServedNetwork, points: np.ndarray) -> list[dict[str, floa
     lonlat = network.road_map.xy_to_lonlat_many(xy)
     return [
         {"x": x, "y": y, "lon": lon, "lat": lat}
-        for (x, y), (lon, lat) in zip(xy.tolist(), lonlat.tolist(), strict=True)
+        for (x, y), (lon, lat) in zip(xy.tolist(), lonlat.tolist(), strict=False)
     ]
 
 
@@ -76,9 +76,9 @@ def cpoi_points(ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence
     """
     start_of = {
         (curve, int(part)): start_s
-        for curve, part, start_s in zip(ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_start_s, strict=True)
+        for curve, part, start_s in zip(ahead.cpoi_curve_id, ahead.cpoi_part_index, ahead.cpoi_start_s, strict=False)
     }
-    s = np.array([start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index, strict=True)], dtype=float)
+    s = np.array([start_of[(curve, int(part))] for curve, part in zip(curve_ids, part_index, strict=False)], dtype=float)
     return points_along(ahead.path.xy, s, ahead.path.profile.s)
 
 
@@ -134,7 +134,7 @@ def horizon(
             "position": place,
             "warning_speed_kmh": warning_speeds_kmh(float(ahead.cpoi_radius_m[i]), policy),
         }
-        for i, place in zip(keep, places, strict=True)
+        for i, place in zip(keep, places, strict=False)
     ]
     lanes_ahead = path.lane_ids[path.lane_ids.index(lane_id) :]
     return {

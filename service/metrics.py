@@ -46,7 +46,7 @@ class Metrics:
 
     def observe_answers(self, states: Iterable[str], levels: Iterable[int]) -> None:
         """Count answers by system state and warning level (parallel sequences)."""
-        for key, count in Counter(zip(states, levels, strict=True)).items():
+        for key, count in Counter(zip(states, levels, strict=False)).items():
             self.answers[key] += count
 
     def exposition(self) -> str:
@@ -62,7 +62,7 @@ class Metrics:
             "# TYPE csws_http_request_duration_seconds histogram",
         ]
         for route in sorted(self.latency_count):
-            for bound, count in zip(LATENCY_BUCKETS_S, accumulate(self.latency_buckets[route]), strict=True):
+            for bound, count in zip(LATENCY_BUCKETS_S, accumulate(self.latency_buckets[route]), strict=False):
                 lines.append(f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le=bound)}}} {count}")
             lines.append(
                 f"csws_http_request_duration_seconds_bucket{{{_labels(route=route, le='+Inf')}}} "

@@ -96,7 +96,7 @@ def load_networks(paths: Sequence[Path], settings: EngineSettings = EngineSettin
     if duplicates:
         raise ValueError(f"two networks share the name {duplicates[0]!r}: network file names must differ")
     served = []
-    for name, path in zip(names, paths, strict=True):
+    for name, path in zip(names, paths, strict=False):
         road_map = RoadMap.load(path, warning_radius_m=settings.lookahead.warning_radius_m)
         cache_size = max(settings.lookahead.cache_size, HORIZONS_PER_LANE * len(road_map.lane_ids))
         engine_settings = replace(settings, lookahead=replace(settings.lookahead, cache_size=cache_size))

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from csws.curvature import find_curves, radius_profile
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, straight
-from csws.standard import Category, warning_speed
+from csws.standard import DEFAULT_POLICY, Category, warning_speed
 
 ORIGIN = (1234.0, -567.0)
 
@@ -56,7 +56,7 @@ def test_a_curve_between_spirals_starts_and_ends_inside_them(
         clothoid(exit_m, radius_m, math.inf, direction),
         straight(150.0),
     ]
-    (curve,) = find_curves(dense_shape(pieces, heading), warning_radius_m)
+    (curve,) = find_curves(dense_shape(pieces, heading), warning_radius_m, policy=DEFAULT_POLICY)
     start_s, end_s = truth_crossings(pieces, warning_radius_m)
     assert abs(curve.start_s - start_s) <= 1.0
     assert abs(curve.end_s - end_s) <= 1.0
@@ -75,7 +75,7 @@ def test_spiral_pieces_are_points_of_the_road_one_km_h_of_warning_speed_apart(ra
         arc(radius_m, 20.0, direction),
         straight(100.0),
     ]
-    (curve,) = find_curves(dense_shape(pieces), 300.0)
+    (curve,) = find_curves(dense_shape(pieces), 300.0, policy=DEFAULT_POLICY)
     spiral_parts = [part for part in curve.parts if part.spiral]
     assert len(spiral_parts) >= 2
     for part in spiral_parts:
@@ -100,12 +100,12 @@ def test_a_compound_curve_with_spirals_keeps_its_three_arcs() -> None:
         clothoid(40.0, 35.0, math.inf, "right"),
         straight(150.0),
     ]
-    (curve,) = find_curves(dense_shape(pieces), 300.0)
+    (curve,) = find_curves(dense_shape(pieces), 300.0, policy=DEFAULT_POLICY)
     arcs = [part for part in curve.parts if not part.spiral]
     assert curve.is_multi
     assert [part.radius_m for part in arcs] == pytest.approx([250.0, 90.0, 35.0], rel=0.01)
     starts = piece_starts_s(pieces)
-    for part, truth_start in zip(arcs, starts[[2, 4, 6]], strict=True):
+    for part, truth_start in zip(arcs, starts[[2, 4, 6]], strict=False):
         assert abs(part.start_s - truth_start) <= 1.0
 
 
@@ -119,7 +119,7 @@ def test_an_s_bend_through_one_spiral_is_two_curves_meeting_nowhere() -> None:
         clothoid(40.0, 80.0, math.inf, "right"),
         straight(100.0),
     ]
-    left, right = find_curves(dense_shape(pieces), 300.0)
+    left, right = find_curves(dense_shape(pieces), 300.0, policy=DEFAULT_POLICY)
     assert (left.direction, right.direction) == ("left", "right")
     s = np.linspace(0.0, piece_starts_s(pieces)[-1], 200_001)
     curvature = curvature_at(pieces, s)

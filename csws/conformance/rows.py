@@ -180,7 +180,8 @@ def _single_rows(tables: dict, table: int, level: Level) -> Iterable[Row]:
 
 
 def _multi_checks(distances: dict) -> tuple[Check, ...]:
-    """The checks of a multi-curve row from its ``S_w_m`` cells (``curve2_level1`` -> curve 2, level 1), in table order."""
+    """The checks of a multi-curve row from its ``S_w_m`` cells (``curve2_level1`` -> curve 2, level 1),
+    in table order."""
     checks = []
     for name, distance_m in distances.items():
         curve, level = name.split("_")

@@ -20,10 +20,10 @@ from typing import Any
 
 from csws.cli.progress import Progress
 
-from .drive import Task, Trace, drive, truth
+from .drive import Task, Trace, Truth, drive, truth
 from .judge import CONSECUTIVE_PASSES, RunResult, consecutive_passes, judge_run
 from .realroads import REAL_ROAD_TABLE, judge_real_road_run, real_road_rows
-from .report import GroupOutcome, RowOutcome, plot_row, verdicts, write_json, write_markdown
+from .report import CswsOutcome, GroupOutcome, RowOutcome, plot_row, verdicts, write_json, write_markdown
 from .rows import Row, procedure_rows
 
 __all__ = ["DEFAULT_STEP_LENGTHS_S", "select_rows", "make_tasks", "run_task", "run_tasks", "conformance", "main"]
@@ -105,10 +105,12 @@ def run_tasks(
         bar.close()
 
 
-def _outcomes(results: Iterable[TaskResult], rows: Sequence[Row]) -> tuple[list[RowOutcome], dict]:
+def _outcomes(
+    results: Iterable[TaskResult], rows: Sequence[Row]
+) -> tuple[list[CswsOutcome], dict[str, list[tuple[Truth, float, Trace]]]]:
     """Row outcomes (without plots) from task results, and each row's runs for its plot."""
-    groups: dict[str, list[GroupOutcome]] = defaultdict(list)
-    records: dict[str, list] = defaultdict(list)
+    groups: dict[str, list[GroupOutcome[RunResult]]] = defaultdict(list)
+    records: dict[str, list[tuple[Truth, float, Trace]]] = defaultdict(list)
     for task, runs, traces in results:
         passed = consecutive_passes(runs)
         groups[task.row.row_id].append(GroupOutcome(task.track, task.step_length_s, runs, passed))
@@ -131,7 +133,7 @@ def conformance(
     plots: bool = True,
     directions: Sequence[str] | None = None,
     progress: bool = False,
-) -> list[RowOutcome]:
+) -> list[CswsOutcome]:
     """Run, judge and report the rows; the outcomes, one per row.
 
     Writes ``report.json``, ``report.md`` and (with ``plots``) ``plots/ROW.png`` into ``out``.

@@ -138,22 +138,30 @@ class DriverResponse:
                 return None
             driver = self.drivers[vehicle_id] = _Driver(warned_since_s=time_s, onset_speed_mps=speed_mps)
         if level > 0:
-            if driver.warned_since_s is None:
-                driver.warned_since_s, driver.onset_speed_mps = time_s, speed_mps
-            if time_s - driver.warned_since_s >= self.settings.reaction_s - 1e-9:
-                goal_mps = kmh_to_mps(target_speed_kmh - self.settings.below_kmh)
-                driver.goal_mps = goal_mps if driver.goal_mps is None else min(driver.goal_mps, goal_mps)
-                driver.release_odometer_m = max(
-                    driver.release_odometer_m, odometer_m + target_distance_m + self.settings.hold_m
-                )
+            if target_speed_kmh is None or target_distance_m is None:
+                raise ValueError(f"vehicle {vehicle_id!r} is warned without a target CPOI")
+            warned_since_s = driver.warned_since_s
+            if warned_since_s is None:
+                warned_since_s = driver.warned_since_s = time_s
+                driver.onset_speed_mps = speed_mps
+            if time_s - warned_since_s >= self.settings.reaction_s - 1e-9:
+                self._aim(driver, target_speed_kmh, odometer_m + target_distance_m)
             elif driver.goal_mps is None:
                 return driver.onset_speed_mps
         else:
             driver.warned_since_s = None
-        if level == 0 and (driver.goal_mps is None or odometer_m >= driver.release_odometer_m):
+        goal_mps = driver.goal_mps
+        if goal_mps is None or (level == 0 and odometer_m >= driver.release_odometer_m):
             del self.drivers[vehicle_id]
             return -1.0
-        return max(driver.goal_mps, speed_mps - self.settings.decel_mps2 * step_s)
+        return max(goal_mps, speed_mps - self.settings.decel_mps2 * step_s)
+
+    def _aim(self, driver: _Driver, target_speed_kmh: float, target_odometer_m: float) -> None:
+        """After the reaction time: brake toward just below the lowest warning speed seen since the
+        warning came on, and hold it until ``hold_m`` past the target CPOI (at ``target_odometer_m``)."""
+        goal_mps = kmh_to_mps(target_speed_kmh - self.settings.below_kmh)
+        driver.goal_mps = goal_mps if driver.goal_mps is None else min(driver.goal_mps, goal_mps)
+        driver.release_odometer_m = max(driver.release_odometer_m, target_odometer_m + self.settings.hold_m)
 
     def fcw_command(
         self, time_s: float, step_s: float, vehicle_id: str, level: int, range_rate_mps: float | None, speed_mps: float

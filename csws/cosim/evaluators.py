@@ -16,10 +16,11 @@ import http.client
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, TypedDict
 from urllib.parse import urlsplit
 
 from csws.engine import Engine, TargetColumns
+from csws.errors import CswsError
 from csws.standard import mps_to_kmh
 from csws.state import SystemState
 
@@ -58,7 +59,7 @@ class FleetWarnings:
         vehicle row, curve id, part index, radius (m), level.
     """
 
-    state: list[str]
+    state: Sequence[str]
     level: list[int]
     target: TargetColumns
     entries: list[tuple[int, str, int, float, int]]
@@ -66,7 +67,12 @@ class FleetWarnings:
     @classmethod
     def none(cls, count: int) -> FleetWarnings:
         """The answers of ``count`` vehicles that were not evaluated (baseline runs)."""
-        return cls([SystemState.OFF] * count, [0] * count, TargetColumns(*([None] * count for _ in range(5))), [])
+        return cls([SystemState.OFF] * count, [0] * count, no_targets(count), [])
+
+
+def no_targets(count: int) -> TargetColumns:
+    """The target columns of ``count`` vehicles without a warning: None in every field."""
+    return TargetColumns([None] * count, [None] * count, [None] * count, [None] * count, [None] * count)
 
 
 class Evaluator(Protocol):
@@ -96,7 +102,7 @@ class LibraryEvaluator:
             fleet.category,
             _speeds_kmh(fleet),
             fleet.lane_id,
-            fleet.lane_pos_m,
+            fleet.lane_pos_m.tolist(),
             fleet.route_edges,
             timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
         )
@@ -110,7 +116,7 @@ class LibraryEvaluator:
         return None
 
 
-class ServiceError(RuntimeError):
+class ServiceError(RuntimeError, CswsError):
     """The service refused a batch or could not be reached."""
 
 
@@ -138,51 +144,16 @@ class ServiceEvaluator:
         """The service's answers; a vehicle on no lane (SUMO teleports it) is a map-match fault, as the
         engine answers it in-process, and is not sent: the contract needs a lane or a position."""
         on_lane = [i for i, lane_id in enumerate(fleet.lane_id) if lane_id]
-        speeds_kmh, lane_pos_m = _speeds_kmh(fleet), fleet.lane_pos_m.tolist()
-        queries = [
-            {
-                "vehicle_id": vehicle_id,
-                "category": category,
-                "speed_kmh": speed_kmh,
-                "lane_id": lane_id,
-                "lane_pos_m": lane_pos_m,
-                "route": route,
-                "timestamp_s": fleet.time_s,
-            }
-            for vehicle_id, category, speed_kmh, lane_id, lane_pos_m, route in (
-                (
-                    fleet.vehicle_id[i],
-                    fleet.category[i],
-                    speeds_kmh[i],
-                    fleet.lane_id[i],
-                    lane_pos_m[i],
-                    fleet.route_edges[i],
-                )
-                for i in on_lane
-            )
-        ]
-        answered = []
+        queries = _queries(fleet, on_lane)
+        answered: list[_Answer] = []
         for first in range(0, len(queries), MAX_BATCH):
             answered += self._post({"queries": queries[first : first + MAX_BATCH]})["answers"]
         answers = [_OFF_THE_MAP] * len(fleet.vehicle_id)
-        for i, answer in zip(on_lane, answered, strict=True):
+        for i, answer in zip(on_lane, answered, strict=False):
             answers[i] = answer
-        target = TargetColumns(*([None] * len(answers) for _ in range(5)))
-        entries = []
-        for i, answer in enumerate(answers):
-            if answer["target"] is not None:
-                for column, field in zip(target, TargetColumns._fields, strict=True):
-                    column[i] = answer["target"][field]
-            entries += [
-                (i, trigger["curve_id"], trigger["part_index"], trigger["radius_m"], trigger["level"])
-                for trigger in answer["triggers"]
-                if trigger["distance_m"] <= 0.0
-            ]
-        return FleetWarnings(
-            [answer["state"] for answer in answers], [answer["level"] for answer in answers], target, entries
-        )
+        return _fleet_warnings(answers)
 
-    def _post(self, body: dict) -> dict:
+    def _post(self, body: dict[str, list[_Query]]) -> _Batch:
         """One POST; ServiceError on a refusal, the answer's JSON otherwise."""
         payload = json.dumps(body).encode("utf-8")
         try:
@@ -204,5 +175,90 @@ class ServiceEvaluator:
         self.connection.close()
 
 
+class _Query(TypedDict):
+    """One vehicle's query in a ``POST /v1/warnings`` batch (the fields the co-simulation sends)."""
+
+    vehicle_id: str
+    category: str
+    speed_kmh: float
+    lane_id: str
+    lane_pos_m: float
+    route: tuple[str, ...]
+    timestamp_s: float
+
+
+class _Target(TypedDict):
+    """The target CPOI of an answer (3.12), the fields the co-simulation reads."""
+
+    curve_id: str
+    part_index: int
+    distance_m: float
+    radius_m: float
+    warning_speed_kmh: float
+
+
+class _Trigger(TypedDict):
+    """A triggering CPOI of an answer, the fields the co-simulation reads."""
+
+    curve_id: str
+    part_index: int
+    radius_m: float
+    distance_m: float
+    level: int
+
+
+class _Answer(TypedDict):
+    """One vehicle's answer, the fields the co-simulation reads."""
+
+    state: str
+    level: int
+    target: _Target | None
+    triggers: list[_Trigger]
+
+
+class _Batch(TypedDict):
+    """The service's answer to one batch: the vehicles' answers in the queries' order."""
+
+    answers: list[_Answer]
+
+
+def _queries(fleet: FleetState, rows: Sequence[int]) -> list[_Query]:
+    """The queries of the fleet's vehicles at ``rows``, as on-board units would send them."""
+    speeds_kmh, lane_pos_m = _speeds_kmh(fleet), fleet.lane_pos_m.tolist()
+    return [
+        {
+            "vehicle_id": fleet.vehicle_id[i],
+            "category": fleet.category[i],
+            "speed_kmh": speeds_kmh[i],
+            "lane_id": fleet.lane_id[i],
+            "lane_pos_m": lane_pos_m[i],
+            "route": fleet.route_edges[i],
+            "timestamp_s": fleet.time_s,
+        }
+        for i in rows
+    ]
+
+
+def _fleet_warnings(answers: Sequence[_Answer]) -> FleetWarnings:
+    """The service's answers as the columns the run records: targets field by field, and the
+    triggering CPOIs each vehicle is inside (distance 0)."""
+    target = no_targets(len(answers))
+    entries = []
+    for i, answer in enumerate(answers):
+        found = answer["target"]
+        if found is not None:
+            target.curve_id[i], target.part_index[i] = found["curve_id"], found["part_index"]
+            target.distance_m[i], target.radius_m[i] = found["distance_m"], found["radius_m"]
+            target.warning_speed_kmh[i] = found["warning_speed_kmh"]
+        entries += [
+            (i, trigger["curve_id"], trigger["part_index"], trigger["radius_m"], trigger["level"])
+            for trigger in answer["triggers"]
+            if trigger["distance_m"] <= 0.0
+        ]
+    return FleetWarnings(
+        [answer["state"] for answer in answers], [answer["level"] for answer in answers], target, entries
+    )
+
+
 #: The answer for a vehicle on no lane: what the engine answers for it (5.4: fault, no warning).
-_OFF_THE_MAP = {"state": SystemState.FAULT.value, "level": 0, "target": None, "triggers": []}
+_OFF_THE_MAP: _Answer = {"state": SystemState.FAULT.value, "level": 0, "target": None, "triggers": []}

@@ -30,6 +30,10 @@ import numpy as np
 from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
 from csws.fcw.target import TargetSettings, select_targets
 
+from .driver import DriverResponse
+from .records import StepValues, Summary
+from .sumo import FleetState
+
 __all__ = [
     "ForwardTargets",
     "VehicleSizes",
@@ -69,7 +73,7 @@ class ForwardTargets:
     target_accel_mps2: np.ndarray
 
 
-class VehicleSizes(dict):
+class VehicleSizes(dict[str, tuple[float, float]]):
     """Each vehicle's length and ``minGap`` (m), read from SUMO once per vehicle: they do not
     change while it drives (a fleet's evaluation keeps one across steps and forgets arrived vehicles)."""
 
@@ -153,7 +157,7 @@ def forward_targets(
         found = _candidates(sumo, subject, settings.range_m, sizes, sublanes)
         owner += [index] * len(found)
         seen += found
-    ids, distance, offset = zip(*seen, strict=True) if seen else ((), (), ())
+    ids, distance, offset = zip(*seen, strict=False) if seen else ((), (), ())
     owners = np.array(owner, dtype=np.intp)
     distance_m, offset_m = np.array(distance, dtype=float), np.array(offset, dtype=float)
     radius_m = np.empty(0)
@@ -161,7 +165,7 @@ def forward_targets(
         subject_deg = np.array([vehicle.getAngle(subject) for subject in subjects])[owners]
         half_lengths_m = (
             np.array(
-                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=True)]
+                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=False)]
             )
             / 2.0
         )
@@ -194,6 +198,8 @@ FCW_TIMESERIES_FIELDS = (
 )
 #: Columns ``warnings.csv`` gains with FCW: the FCW events' target (empty in the curve warning's events).
 FCW_EVENT_COLUMNS = ("fcw_target_id", "fcw_range_m", "fcw_range_rate_mps", "fcw_ttc_s")
+#: The curve's columns of an event (curve id, part index, radius, distance, warning speed), empty in FCW events.
+_CURVE_EVENT_COLUMNS = 5
 
 
 @dataclass(frozen=True)
@@ -223,7 +229,13 @@ class FcwColumns:
     range_rate_mps: list[float | None]
     ttc_s: list[float | None]
 
-    def columns(self) -> tuple[list, ...]:
+    @classmethod
+    def quiet(cls, state: list[str]) -> FcwColumns:
+        """The columns of vehicles in ``state`` without a warning or a target (filled in by the evaluation)."""
+        count = len(state)
+        return cls(state, [0] * count, [None] * count, [None] * count, [None] * count, [None] * count)
+
+    def columns(self) -> tuple[list[Any], ...]:
         """The time-series columns, in :data:`FCW_TIMESERIES_FIELDS` order."""
         return self.state, self.level, self.target_id, self.range_m, self.range_rate_mps, self.ttc_s
 
@@ -261,38 +273,33 @@ class FleetFcw:
         previous = np.array([self.states.get(vehicle_id, STANDBY) for vehicle_id in vehicle_ids], dtype=np.int8)
         on_lane = np.array([bool(lane_id) for lane_id in lane_ids], dtype=bool)
         states = next_fcw_states(previous, speed_mps, np.ones(count, dtype=bool), on_lane, self.settings)
-        self.states.update(zip(vehicle_ids, states.tolist(), strict=True))
-        level: list[int] = [0] * count
-        target_id: list[str | None] = [None] * count
-        range_m, range_rate_mps, ttc_s = ([None] * count for _ in range(3))
+        self.states.update(zip(vehicle_ids, states.tolist(), strict=False))
+        columns = FcwColumns.quiet([FCW_STATES[code].value for code in states.tolist()])
         active = np.flatnonzero(states == ACTIVE)
         if active.size:
-            subjects = [vehicle_ids[i] for i in active]
+            subjects = [vehicle_ids[i] for i in active.tolist()]
             found = forward_targets(self.sumo, subjects, self.targets, sublanes=self.sublanes, sizes=self.sizes)
             seen = np.flatnonzero(np.isfinite(found.clearance_m))
             if seen.size:
-                self._evaluate(subjects, found, seen, active, level, target_id, range_m, range_rate_mps, ttc_s)
-        return FcwColumns(
-            [FCW_STATES[code].value for code in states.tolist()], level, target_id, range_m, range_rate_mps, ttc_s
-        )
+                self._evaluate(subjects, found, seen, active, columns)
+        return columns
 
     def _evaluate(
-        self, subjects: list[str], found: ForwardTargets, seen: np.ndarray, active: np.ndarray, *columns: list
+        self, subjects: list[str], found: ForwardTargets, seen: np.ndarray, active: np.ndarray, columns: FcwColumns
     ) -> None:
-        """Evaluate the subjects with a target and write their values into ``columns`` (level, target,
-        range, range rate, TTC) at their rows of the fleet."""
+        """Evaluate the subjects with a target and write their level, target, range, range rate and
+        TTC into ``columns`` at their rows of the fleet."""
         vehicle = self.sumo.vehicle
-        with_target = [subjects[k] for k in seen]
+        with_target = [subjects[k] for k in seen.tolist()]
         accel_mps2 = np.array([vehicle.getAcceleration(subject) for subject in with_target])
         braking = np.array([bool(vehicle.getSignals(subject) & BRAKE_LIGHT) for subject in with_target])
         x_c, v_r = found.clearance_m[seen], found.relative_velocity_mps[seen]
         batch = evaluate_fcw(accel_mps2, x_c, v_r, found.target_accel_mps2[seen], braking, self.settings)
-        level, target_id, range_m, range_rate_mps, ttc_s = columns
-        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=True)):
+        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=False)):
             ttc = float(batch.ttc_s[j])
-            level[row], target_id[row] = int(batch.level[j]), found.target_id[k]
-            range_m[row], range_rate_mps[row] = float(x_c[j]), float(v_r[j])
-            ttc_s[row] = ttc if math.isfinite(ttc) else None
+            columns.level[row], columns.target_id[row] = int(batch.level[j]), found.target_id[k]
+            columns.range_m[row], columns.range_rate_mps[row] = float(x_c[j]), float(v_r[j])
+            columns.ttc_s[row] = ttc if math.isfinite(ttc) else None
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
         """Drop vehicles that left."""
@@ -301,18 +308,14 @@ class FleetFcw:
             self.sizes.pop(vehicle_id, None)
 
 
-def fcw_events(
-    fleet: Any, fcw: FcwColumns, levels: dict[str, int], summary: Any, places: tuple[list, ...]
-) -> list[tuple]:
+def fcw_events(fcw: FcwColumns, levels: dict[str, int], summary: Summary, step: StepValues) -> list[tuple[Any, ...]]:
     """The ``warnings.csv`` rows of the step's FCW level changes (``fcw_onset``, ``fcw_change``,
     ``fcw_end``), counted in ``summary``; ``levels`` holds each vehicle's last FCW level.
 
-    ``places`` are the step's speeds (km/h) and lane positions as lists, and a function giving
-    a row's x and y. The curve's columns stay empty; the target's are :data:`FCW_EVENT_COLUMNS`.
+    The curve's columns stay empty; the target's are :data:`FCW_EVENT_COLUMNS`.
     """
-    speeds_kmh, lane_pos, place = places
     rows = []
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(step.fleet.vehicle_id, fcw.level, strict=False)):
         previous = levels.get(vehicle_id, 0)
         if level == previous:
             continue
@@ -320,37 +323,18 @@ def fcw_events(
         if level > previous:
             summary.add_fcw_onset(vehicle_id, level)
         event = "fcw_onset" if previous == 0 else "fcw_end" if level == 0 else "fcw_change"
-        rows.append(
-            (
-                fleet.time_s,
-                vehicle_id,
-                fleet.category[i],
-                event,
-                level,
-                previous,
-                None,
-                None,
-                None,
-                None,
-                None,
-                speeds_kmh[i],
-                fleet.lane_id[i],
-                lane_pos[i],
-                *place(i),
-                fcw.target_id[i],
-                fcw.range_m[i],
-                fcw.range_rate_mps[i],
-                fcw.ttc_s[i],
-            )
-        )
+        target = (fcw.target_id[i], fcw.range_m[i], fcw.range_rate_mps[i], fcw.ttc_s[i])
+        rows.append(step.event_row(i, event, level, previous, (None,) * _CURVE_EVENT_COLUMNS, target))
     return rows
 
 
-def respond_to_fcw(driver: Any, fleet: Any, fcw: FcwColumns, step_s: float, commands: dict[str, float]) -> None:
+def respond_to_fcw(
+    driver: DriverResponse, fleet: FleetState, fcw: FcwColumns, step_s: float, commands: dict[str, float]
+) -> None:
     """Add the driver-response model's answers to the FCW warnings to the step's ``commands`` (m/s,
     -1 hands back): where both warnings ask for a speed, the lower one."""
     responding = driver.fcw_drivers
-    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=True)):
+    for i, (vehicle_id, level) in enumerate(zip(fleet.vehicle_id, fcw.level, strict=False)):
         if level == 0 and vehicle_id not in responding:
             continue
         command = driver.fcw_command(

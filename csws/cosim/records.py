@@ -20,12 +20,15 @@ import json
 import os
 import time
 from collections import Counter, defaultdict
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from csws.standard import Level, warning_speed
+from csws.standard import Level, mps_to_kmh, warning_speed
+
+from .sumo import FleetState
 
 __all__ = [
     "TIMESERIES_COLUMNS",
@@ -33,6 +36,7 @@ __all__ = [
     "EVENT_COLUMNS",
     "ENTRY_COLUMNS",
     "CsvStream",
+    "StepValues",
     "StepCosts",
     "Summary",
     "level1_excess_kmh",
@@ -91,6 +95,61 @@ ENTRY_COLUMNS = (
 )
 
 
+@dataclass(frozen=True)
+class StepValues:
+    """One step's per-vehicle values that the rows of its files repeat, as plain lists.
+
+    Attributes
+    ----------
+    fleet
+        The step as SUMO gave it.
+    speeds_kmh, lane_pos_m, x_m, y_m
+        Per vehicle, in the fleet's order (x and y are empty where the step was read without them).
+    position
+        A vehicle's x and y from SUMO, m, where the step was read without them; None otherwise.
+    """
+
+    fleet: FleetState
+    speeds_kmh: list[float]
+    lane_pos_m: list[float]
+    x_m: list[float]
+    y_m: list[float]
+    position: Callable[[str], tuple[float, float]] | None = None
+
+    @classmethod
+    def of(cls, fleet: FleetState, position: Callable[[str], tuple[float, float]] | None = None) -> StepValues:
+        """The values of ``fleet`` as lists (one conversion per column and step)."""
+        speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
+        return cls(fleet, speeds_kmh, fleet.lane_pos_m.tolist(), fleet.x_m.tolist(), fleet.y_m.tolist(), position)
+
+    def place(self, row: int) -> tuple[float, float]:
+        """The x and y of the vehicle at ``row``, m."""
+        if self.position is None:
+            return self.x_m[row], self.y_m[row]
+        return self.position(self.fleet.vehicle_id[row])
+
+    def event_row(
+        self, row: int, event: str, level: int, previous: int, curve: Sequence[Any], extra: Sequence[Any] = ()
+    ) -> tuple[Any, ...]:
+        """A ``warnings.csv`` row of the vehicle at ``row``: :data:`EVENT_COLUMNS` with the ``curve``
+        columns (curve id to warning speed) given, then ``extra`` columns."""
+        fleet = self.fleet
+        return (
+            fleet.time_s,
+            fleet.vehicle_id[row],
+            fleet.category[row],
+            event,
+            level,
+            previous,
+            *curve,
+            self.speeds_kmh[row],
+            fleet.lane_id[row],
+            self.lane_pos_m[row],
+            *self.place(row),
+            *extra,
+        )
+
+
 class CsvStream:
     """A CSV file appended one block of whole rows at a time (one ``os.write`` per block).
 
@@ -106,7 +165,7 @@ class CsvStream:
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self.append([self.columns])
 
-    def append(self, rows: Iterable[Sequence]) -> None:
+    def append(self, rows: Iterable[Sequence[Any]]) -> None:
         """Append rows (each a sequence in column order)."""
         self._writer.writerows(rows)
         data = self._buffer.getvalue().encode("utf-8")
@@ -127,7 +186,7 @@ class CsvStream:
 class StepCosts:
     """Where a run's wall time goes, summed per component over its steps, s."""
 
-    seconds: Counter = field(default_factory=Counter)
+    seconds: defaultdict[str, float] = field(default_factory=lambda: defaultdict(float))
 
     @contextmanager
     def timed(self, component: str) -> Iterator[None]:
@@ -160,21 +219,21 @@ class Summary:
 
     margin_kmh: float = 1.0
     flicker_window_s: float = 2.0
-    onsets: Counter = field(default_factory=Counter)
-    flickers: Counter = field(default_factory=Counter)
-    next_curve_soon: Counter = field(default_factory=Counter)
-    onsets_by_category: dict = field(default_factory=lambda: defaultdict(Counter))
-    onsets_by_curve: dict = field(default_factory=lambda: defaultdict(Counter))
-    entries_above_level1: Counter = field(default_factory=Counter)
-    entries_above_level1_margin: Counter = field(default_factory=Counter)
+    onsets: Counter[int] = field(default_factory=Counter)
+    flickers: Counter[str] = field(default_factory=Counter)
+    next_curve_soon: Counter[str] = field(default_factory=Counter)
+    onsets_by_category: defaultdict[str, Counter[int]] = field(default_factory=lambda: defaultdict(Counter))
+    onsets_by_curve: defaultdict[str, Counter[int]] = field(default_factory=lambda: defaultdict(Counter))
+    entries_above_level1: Counter[str] = field(default_factory=Counter)
+    entries_above_level1_margin: Counter[str] = field(default_factory=Counter)
     max_excess_kmh: float = 0.0
-    vehicles: set = field(default_factory=set)
-    warned_vehicles: set = field(default_factory=set)
-    skipped: Counter = field(default_factory=Counter)
+    vehicles: set[str] = field(default_factory=set)
+    warned_vehicles: set[str] = field(default_factory=set)
+    skipped: Counter[str] = field(default_factory=Counter)
     steps: int = 0
     last_time_s: float = 0.0
-    fcw_onsets: Counter | None = None
-    fcw_warned_vehicles: set = field(default_factory=set)
+    fcw_onsets: Counter[int] | None = None
+    fcw_warned_vehicles: set[str] = field(default_factory=set)
 
     def add_onset(self, category: str, level: int, curve_id: str | None) -> None:
         """A vehicle's level rose to ``level``."""
@@ -197,10 +256,12 @@ class Summary:
 
     def add_fcw_onset(self, vehicle_id: str, level: int) -> None:
         """A vehicle's forward collision warning rose to ``level`` (with ``fcw_onsets`` set: FCW is on)."""
+        if self.fcw_onsets is None:
+            raise ValueError("this summary counts no forward collision warnings (fcw_onsets is None)")
         self.fcw_onsets[level] += 1
         self.fcw_warned_vehicles.add(vehicle_id)
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The summary as JSON-ready data; ``fcw`` only when the forward collision warning was on."""
         by_level = lambda counter: {f"level{level}": counter.get(level, 0) for level in (1, 2)}  # noqa: E731
         fcw = (
@@ -239,7 +300,7 @@ def level1_excess_kmh(speed_kmh: float, category: str, radius_m: float) -> tuple
     return level1_kmh, speed_kmh - level1_kmh
 
 
-def write_summary(path: Path, content: dict) -> None:
+def write_summary(path: Path, content: dict[str, Any]) -> None:
     """Write ``summary.json`` (replaced whole, so it is never half written)."""
     partial = path.with_suffix(".json.partial")
     partial.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")

@@ -139,7 +139,7 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
     from matplotlib.collections import LineCollection
 
     figure, (speeds, excess, rates) = pyplot.subplots(1, 3, figsize=(16, 4.8))
-    for (label, run), colour in zip(runs.items(), _RUN_COLOURS, strict=True):
+    for (label, run), colour in zip(runs.items(), _RUN_COLOURS, strict=False):
         if run.warned_tracks:
             speeds.add_collection(
                 LineCollection(run.warned_tracks, colors=colour, linewidths=0.6, alpha=0.35, label=label)
@@ -155,7 +155,7 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
         speeds.text(0.5, 0.5, "no time series kept, or nobody warned", ha="center", transform=speeds.transAxes)
     all_excess = np.concatenate([run.entry_excess_kmh for run in runs.values()] + [np.zeros(1)])
     bins = np.linspace(min(0.0, float(all_excess.min())), max(1.0, float(all_excess.max())), 40)
-    for (label, run), colour in zip(runs.items(), _RUN_COLOURS, strict=True):
+    for (label, run), colour in zip(runs.items(), _RUN_COLOURS, strict=False):
         excess.hist(
             run.entry_excess_kmh,
             bins=bins,
@@ -170,7 +170,7 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
         title="excess speed at curve entry",
     )
     width = 0.8 / len(runs)
-    for offset, ((label, run), colour) in enumerate(zip(runs.items(), _RUN_COLOURS, strict=True)):
+    for offset, ((label, run), colour) in enumerate(zip(runs.items(), _RUN_COLOURS, strict=False)):
         values = [run.per_100_vehicle_km(level) or 0.0 for level in (1, 2)]
         rates.bar(np.arange(2) + offset * width, values, width, color=colour, label=label)
     rates.set_xticks(np.arange(2) + width * (len(runs) - 1) / 2, ["level 1", "level 2"])

@@ -19,13 +19,15 @@ a type's category once per type.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
+from csws.errors import CswsError
 from csws.standard import Category
 from csws.sumo.binaries import sumo_binary, sumo_home
 
@@ -39,13 +41,15 @@ _VAR_SPEED = 0x40
 _VAR_POSITION = 0x42
 _VAR_ROUTE_ID = 0x53
 _VAR_DISTANCE = 0x84
+#: What a call to the SUMO API returns.
+T = TypeVar("T")
 #: What is read of each vehicle every step; its type (and so its category) is read once, when it departs.
 _SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_DISTANCE)
 #: One vehicle's subscription result as a tuple in the order of ``_SUBSCRIBED``.
 _subscribed_values = itemgetter(*_SUBSCRIBED)
 
 
-class SumoStopped(RuntimeError):
+class SumoStopped(RuntimeError, CswsError):
     """SUMO ended before the co-simulation did (it was killed, crashed or closed)."""
 
 
@@ -217,7 +221,7 @@ class Simulation:
         ids = list(results)
         if not ids:
             return ids, ((),) * len(_SUBSCRIBED)
-        return ids, tuple(zip(*map(_subscribed_values, results.values()), strict=True))
+        return ids, tuple(zip(*map(_subscribed_values, results.values()), strict=False))
 
     def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
         """Command a vehicle's speed (m/s); a negative speed hands it back to SUMO's driver."""
@@ -228,9 +232,10 @@ class Simulation:
         if self.closed:
             return
         self.closed = True
+        gone: tuple[type[BaseException], ...] = (*self._errors, OSError)
         try:
             self.api.close()
-        except (*self._errors, OSError):
+        except gone:
             pass
 
     def _category(self, type_id: str) -> Category | None:
@@ -247,12 +252,12 @@ class Simulation:
     def _route_edges(self, vehicle_ids: Sequence[str], route_ids: Sequence[str]) -> list[tuple[str, ...]]:
         """Each vehicle's route edges; a route's edges are fetched once per route id."""
         routes = self._routes
-        for vehicle_id, route_id in zip(vehicle_ids, route_ids, strict=True):
+        for vehicle_id, route_id in zip(vehicle_ids, route_ids, strict=False):
             if route_id not in routes:
                 routes[route_id] = tuple(self._call(self.api.vehicle.getRoute, vehicle_id))
         return [routes[route_id] for route_id in route_ids]
 
-    def _call(self, function, *args):
+    def _call(self, function: Callable[..., T], *args: Any) -> T:
         """Call the SUMO API; its failures become :class:`SumoStopped`."""
         try:
             return function(*args)

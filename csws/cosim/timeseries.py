@@ -100,7 +100,7 @@ class _ParquetParts:
         self._parts = 0
 
     def append(self, columns: Sequence[Sequence]) -> None:
-        for gathered, values in zip(self._columns, columns, strict=True):
+        for gathered, values in zip(self._columns, columns, strict=False):
             gathered.extend(values)
         self._rows += len(columns[0])
         if self._rows >= PART_ROWS:
@@ -112,7 +112,7 @@ class _ParquetParts:
 
     def _write_part(self) -> None:
         table = pa.table(
-            [pa.array(values, type=field.type) for values, field in zip(self._columns, self.schema, strict=True)],
+            [pa.array(values, type=field.type) for values, field in zip(self._columns, self.schema, strict=False)],
             schema=self.schema,
         )
         path = self.folder / f"part-{self._parts:05d}.parquet"
@@ -131,7 +131,7 @@ class _CsvTimeseries:
         self._stream = CsvStream(path, columns)
 
     def append(self, columns: Sequence[Sequence]) -> None:
-        self._stream.append(zip(*columns, strict=True))
+        self._stream.append(zip(*columns, strict=False))
 
     def close(self) -> None:
         self._stream.close()

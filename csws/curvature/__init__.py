@@ -1,4 +1,4 @@
-"""Radius profiles and curves of road polylines (T/ITS 0091-2018, 3.2-3.8).
+"""Fits radius profiles to road polylines and finds their curves (T/ITS 0091-2018, 3.2-3.8).
 
 A road centreline arrives as a polyline: a dense SUMO lane shape (vertices 0.5-1 m
 apart, coordinates rounded to 1 cm) or a sparse map way (nodes 5-30 m apart with
@@ -42,19 +42,22 @@ exact nodes, with straights tried at its ends where the heading fit ran a curve 
 """
 
 from .cache import cached_radius_profiles, profile_cache_dir
-from .curves import curves_from_profile
+from .curves import checked_warning_radius_m, curves_from_profile
 from .fitting import find_curves, radius_profile, radius_profiles, three_point_radius
-from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile
+from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_from_parts, straight_profile
 
 __all__ = [
     "ProfilePart",
     "RadiusProfile",
+    "profile_from_parts",
+    "straight_profile",
     "ConstantRadiusPart",
     "Curve",
     "radius_profile",
     "radius_profiles",
     "cached_radius_profiles",
     "profile_cache_dir",
+    "checked_warning_radius_m",
     "curves_from_profile",
     "find_curves",
     "three_point_radius",

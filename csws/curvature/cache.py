@@ -1,4 +1,4 @@
-"""Fitted radius profiles kept on disk, so that a network is fitted once and not at every load.
+"""Keeps fitted radius profiles on disk, so that a network is fitted once and not at every load.
 
 Fitting every road chain of a city takes seconds; reading the fitted parts back takes
 milliseconds. :func:`cached_radius_profiles` gives exactly what
@@ -33,7 +33,7 @@ import numpy as np
 
 from .chords import _chords, _validated
 from .fitting import radius_profiles
-from .profile import RadiusProfile, _profile, _straight_profile
+from .profile import RadiusProfile, profile_from_parts, straight_profile
 
 __all__ = ["cached_radius_profiles", "profile_cache_dir"]
 
@@ -116,13 +116,13 @@ def _read(path: Path, points: Sequence[np.ndarray]) -> list[RadiusProfile] | Non
         return None
     chords = _chords(points)
     profiles = []
-    for polyline, (first, stop) in enumerate(zip(offset[:-1].tolist(), offset[1:].tolist(), strict=True)):
+    for polyline, (first, stop) in enumerate(zip(offset[:-1].tolist(), offset[1:].tolist(), strict=False)):
         vertex_s = chords.vertex_s[chords.polyline_first_vertex[polyline] : chords.polyline_first_vertex[polyline + 1]]
         if first == stop:
-            profiles.append(_straight_profile(vertex_s))
+            profiles.append(straight_profile(vertex_s))
             continue
         bounds = np.append(start_s[first:stop], end_s[stop - 1])
-        profiles.append(_profile(vertex_s, bounds, curvature[first:stop], end_curvature[first:stop]))
+        profiles.append(profile_from_parts(vertex_s, bounds, curvature[first:stop], end_curvature[first:stop]))
     return profiles
 
 
@@ -144,7 +144,7 @@ def _write(path: Path, profiles: Sequence[RadiusProfile], model: str) -> None:
         return
     try:
         with os.fdopen(handle, "wb") as file:
-            np.savez(file, **arrays)
+            np.savez(file, **arrays)  # type: ignore[arg-type]  # numpy's stub types the names as allow_pickle's
         os.replace(temporary, path)
     except OSError:
         Path(temporary).unlink(missing_ok=True)

@@ -1,4 +1,4 @@
-"""A polyline's chords (heading against arc length) and the coordinate noise estimated from them."""
+"""Computes a polyline's chords (heading against arc length) and the coordinate noise estimated from them."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Sparse ways: the rules that keep a fitted profile to what its nodes can say.
+"""Applies to sparse ways the rules that keep a fitted profile to what its nodes can say.
 
 A map way's nodes are few: a corner is often one node, and a fit to five noisy nodes
 can put an arc of centimetres somewhere. These rules are kept apart from the fit
@@ -23,7 +23,8 @@ can put an arc of centimetres somewhere. These rules are kept apart from the fit
    are a curve the fit missed. Several such vertices are an arc drawn node by
    node: it turns by their turning, at the radius of the segments between them taken as
    chords (the turns at the first and last vertex counted half, the other half being
-   onto the road beyond; on nodes evenly spaced on a circle, its radius). One such vertex is a corner mapped by one node. It gets the largest arc tangent
+   onto the road beyond; on nodes evenly spaced on a circle, its radius). One such
+   vertex is a corner mapped by one node. It gets the largest arc tangent
    to its two segments that fits within half of each (the other half belongs to the
    next corner), but no larger than an arc through the node that leaves the two segments
    by at most :data:`CORNER_DEVIATION_M` (a way is the road simplified within the mapping
@@ -79,7 +80,7 @@ def with_floor(start_k: np.ndarray, end_k: np.ndarray) -> tuple[np.ndarray, np.n
     return np.clip(start_k, -limit, limit), np.clip(end_k, -limit, limit)
 
 
-def _corner_radius_m(turn_rad: np.ndarray, before_m: np.ndarray, after_m: np.ndarray) -> np.ndarray:
+def _corner_radius_m(turn_rad: float | np.ndarray, before_m: np.ndarray, after_m: np.ndarray) -> np.ndarray:
     """The radius of the arc of a corner turning ``turn_rad`` between segments of the given lengths (rule 3)."""
     half = np.abs(turn_rad) / 2.0
     tangent_room_m = np.minimum(before_m, after_m) / 2.0
@@ -123,7 +124,7 @@ def _turn_noise_rad(noise_m: float, before_m: float, after_m: float) -> float:
 
 
 def _window(inner_s: np.ndarray, start_s: float, end_s: float) -> tuple[int, int]:
-    """The inner vertices (as a slice's start and stop) on ``[start_s, end_s]`` and the nearest one beyond either end."""
+    """The inner vertices on ``[start_s, end_s]`` and the nearest one beyond either end, as a slice's start and stop."""
     first = max(int(np.searchsorted(inner_s, start_s, side="left")) - 1, 0)
     return first, int(np.searchsorted(inner_s, end_s, side="right")) + 1
 
@@ -167,10 +168,24 @@ def with_corner_rules(
     bounds, start_k, end_k
         The parts after the rules.
     """
-    segment_m = chord_length_m
     noise_m = min(noise_m, MAX_NOISE_M)
     vertex_s = np.append(chord_start_s, chord_start_s[-1] + chord_length_m[-1])
     turn_rad = np.remainder(np.diff(chord_heading) + np.pi, 2.0 * np.pi) - np.pi
+    bounds, start_k, end_k = _within_turning(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
+    return _with_missed_corners(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
+
+
+def _within_turning(
+    vertex_s: np.ndarray,
+    turn_rad: np.ndarray,
+    segment_m: np.ndarray,
+    noise_m: float,
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rules 1 and 2: each fitted curve turned back to what the nodes turn (within node noise),
+    or dropped where it is not the nodes' or sharper than the floor radius allows."""
     angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
     start_k, end_k = start_k.copy(), end_k.copy()
     keep = np.ones(len(start_k), dtype=bool)
@@ -187,7 +202,20 @@ def with_corner_rules(
             start_k[parts] *= scale
             end_k[parts] *= scale
         keep[parts] = np.fmax(np.abs(start_k[parts]), np.abs(end_k[parts])).max() * FLOOR_RADIUS_M <= 1.0
-    bounds, start_k, end_k = _merged(bounds, np.where(keep, start_k, 0.0), np.where(keep, end_k, 0.0))
+    return _merged(bounds, np.where(keep, start_k, 0.0), np.where(keep, end_k, 0.0))
+
+
+def _with_missed_corners(
+    vertex_s: np.ndarray,
+    turn_rad: np.ndarray,
+    segment_m: np.ndarray,
+    noise_m: float,
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rule 3: the turning no part covers, by vertices that turn the same way, made an arc
+    (several vertices) or a corner's arc (one)."""
     covered = _covered(vertex_s[1:-1], bounds, start_k, end_k, turn_rad)
     for first, last in _turning_runs(turn_rad, covered):
         total = float(turn_rad[first : last + 1].sum())

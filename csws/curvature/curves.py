@@ -1,4 +1,4 @@
-"""Curves (3.3-3.8) of a radius profile whose curvature is piecewise linear in arc length.
+"""Finds the curves (3.3-3.8) of a radius profile whose curvature is piecewise linear in arc length.
 
 A curve is a maximal stretch turning one way with a radius no larger than the warning
 curvature radius R_c (3.2). Its start point (3.4) is where the radius falls to R_c, and
@@ -22,11 +22,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, Column
+from csws.standard import DEFAULT_WARNING_RADIUS_M, Column, WarningSpeedPolicy
 
 from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile
 
-__all__ = ["SPIRAL_PIECE_KMH", "curves_from_profile"]
+__all__ = ["SPIRAL_PIECE_KMH", "checked_warning_radius_m", "curves_from_profile"]
 
 #: Largest change of the warning speed V_w (any category, any level) along one piece of a clothoid, km/h.
 SPIRAL_PIECE_KMH = 1.0
@@ -47,19 +47,26 @@ def _curved_span(part: ProfilePart, limit: float, sign: float) -> tuple[float, f
     return (crossing, part.end_s) if k1 > k0 else (part.start_s, crossing)
 
 
-def _warning_speeds_kmh(radius_m: np.ndarray) -> np.ndarray:
-    """V_w of every column and level of the standard's tables at each radius, ``(6, n)``, km/h."""
+def checked_warning_radius_m(warning_radius_m: float) -> float:
+    """The warning curvature radius R_c (3.2) as a float, m; ValueError unless it is a positive finite number."""
+    if not (math.isfinite(warning_radius_m) and warning_radius_m > 0):
+        raise ValueError(f"warning radius must be a positive number of metres, got {warning_radius_m!r}")
+    return float(warning_radius_m)
+
+
+def _warning_speeds_kmh(radius_m: np.ndarray, policy: WarningSpeedPolicy) -> np.ndarray:
+    """V_w of every column and level of ``policy`` at each radius, ``(6, n)``, km/h."""
     return np.concatenate(
-        [DEFAULT_POLICY.warning_speeds_kmh(radius_m, np.full(len(radius_m), index)) for index in range(len(Column))]
+        [policy.warning_speeds_kmh(radius_m, np.full(len(radius_m), index)) for index in range(len(Column))]
     )
 
 
-def _spiral_samples(part: ProfilePart, start_s: float, end_s: float) -> np.ndarray:
+def _spiral_samples(part: ProfilePart, start_s: float, end_s: float, policy: WarningSpeedPolicy) -> np.ndarray:
     """Arc lengths on ``[start_s, end_s]`` of a clothoid at which V_w moves by about
     :data:`SPIRAL_SAMPLE_KMH` from one to the next: even in 1/sqrt(|curvature|), which V_w
     follows (V_w = sqrt(a R) for a lateral acceleration a)."""
     k_start, k_end = np.abs(part.curvature_at(np.array([start_s, end_s])))
-    speeds = _warning_speeds_kmh(1.0 / np.array([k_start, k_end]))
+    speeds = _warning_speeds_kmh(1.0 / np.array([k_start, k_end]), policy)
     count = int(
         min(MAX_SPIRAL_SAMPLES, max(2, math.ceil(np.max(np.abs(speeds[:, 1] - speeds[:, 0])) / SPIRAL_SAMPLE_KMH) + 1))
     )
@@ -68,13 +75,15 @@ def _spiral_samples(part: ProfilePart, start_s: float, end_s: float) -> np.ndarr
     return start_s + np.clip(fraction, 0.0, 1.0) * (end_s - start_s)
 
 
-def _spiral_pieces(part: ProfilePart, start_s: float, end_s: float) -> list[ConstantRadiusPart]:
+def _spiral_pieces(
+    part: ProfilePart, start_s: float, end_s: float, policy: WarningSpeedPolicy
+) -> list[ConstantRadiusPart]:
     """The stretch ``[start_s, end_s]`` of a clothoid cut into pieces whose start points' V_w
     differ from one to the next by less than :data:`SPIRAL_PIECE_KMH` in every column and
     level, each at the radius of its start."""
-    s = _spiral_samples(part, start_s, end_s)
+    s = _spiral_samples(part, start_s, end_s, policy)
     radius = 1.0 / np.abs(part.curvature_at(s))
-    speeds = _warning_speeds_kmh(radius)
+    speeds = _warning_speeds_kmh(radius, policy)
     starts = [0]
     while True:
         moved = np.max(np.abs(speeds[:, starts[-1] :] - speeds[:, starts[-1], None]), axis=0) >= SPIRAL_PIECE_KMH
@@ -84,23 +93,24 @@ def _spiral_pieces(part: ProfilePart, start_s: float, end_s: float) -> list[Cons
     ends = starts[1:] + [len(s) - 1]
     return [
         ConstantRadiusPart(float(s[a]), float(s[b]), float(radius[a]), spiral=True)
-        for a, b in zip(starts, ends, strict=True)
+        for a, b in zip(starts, ends, strict=False)
     ]
 
 
-def _pieces(part: ProfilePart, span: tuple[float, float]) -> list[ConstantRadiusPart]:
+def _pieces(part: ProfilePart, span: tuple[float, float], policy: WarningSpeedPolicy) -> list[ConstantRadiusPart]:
     """The curvature points of interest of one part's curved stretch."""
     if part.is_spiral:
-        return _spiral_pieces(part, *span)
+        return _spiral_pieces(part, *span, policy)
     return [ConstantRadiusPart(span[0], span[1], part.radius_m)]
 
 
-def _curve(spans: Sequence[tuple[ProfilePart, tuple[float, float]]], sign: float) -> Curve:
+def _curve(spans: Sequence[tuple[ProfilePart, tuple[float, float]]], sign: float, policy: WarningSpeedPolicy) -> Curve:
     """A curve made of the curved stretches of consecutive parts that turn the same way."""
     angle_rad = sum(
-        abs(part.curvature_at(start) + part.curvature_at(end)) / 2.0 * (end - start) for part, (start, end) in spans
+        abs(part.curvature_at_one(start) + part.curvature_at_one(end)) / 2.0 * (end - start)
+        for part, (start, end) in spans
     )
-    parts = tuple(piece for part, span in spans for piece in _pieces(part, span))
+    parts = tuple(piece for part, span in spans for piece in _pieces(part, span, policy))
     return Curve(
         start_s=spans[0][1][0],
         end_s=spans[-1][1][1],
@@ -111,7 +121,9 @@ def _curve(spans: Sequence[tuple[ProfilePart, tuple[float, float]]], sign: float
     )
 
 
-def curves_from_profile(profile: RadiusProfile, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
+def curves_from_profile(
+    profile: RadiusProfile, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M, *, policy: WarningSpeedPolicy
+) -> list[Curve]:
     """The curves of a radius profile: maximal stretches turning the same way with a radius no
     larger than the warning curvature radius R_c.
 
@@ -126,15 +138,16 @@ def curves_from_profile(profile: RadiusProfile, warning_radius_m: float = DEFAUL
         A profile from :func:`radius_profile` or :func:`radius_profiles`.
     warning_radius_m
         R_c (3.2), m, > 0.
+    policy
+        The warning speeds the clothoids are cut by (a piece's V_w changes by under
+        :data:`SPIRAL_PIECE_KMH`): those the warning uses.
 
     Returns
     -------
     list[Curve]
         In order along the polyline.
     """
-    if not (math.isfinite(warning_radius_m) and warning_radius_m > 0):
-        raise ValueError(f"warning radius must be a positive number of metres, got {warning_radius_m!r}")
-    limit = 1.0 / warning_radius_m
+    limit = 1.0 / checked_warning_radius_m(warning_radius_m)
     curves: list[Curve] = []
     run: list[tuple[ProfilePart, tuple[float, float]]] = []
     run_sign = 0.0
@@ -145,13 +158,13 @@ def curves_from_profile(profile: RadiusProfile, warning_radius_m: float = DEFAUL
         for span, sign in sorted(spans):
             joined = run and sign == run_sign and span[0] <= run[-1][1][1]
             if run and not joined:
-                curves.append(_curve(run, run_sign))
+                curves.append(_curve(run, run_sign, policy))
                 run = []
             run.append((part, span))
             run_sign = sign
         if run and run[-1][0] is not part:
-            curves.append(_curve(run, run_sign))
+            curves.append(_curve(run, run_sign, policy))
             run = []
     if run:
-        curves.append(_curve(run, run_sign))
+        curves.append(_curve(run, run_sign, policy))
     return curves

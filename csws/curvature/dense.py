@@ -1,4 +1,4 @@
-"""Dense polylines (SUMO lane shapes): heading against arc length cut into parts of constant curvature.
+"""Cuts the heading of dense polylines (SUMO lane shapes) against arc length into parts of constant curvature.
 
 Binary segmentation, knot refinement and merging for all polylines of a network at once;
 see :mod:`csws.curvature` for the method."""

@@ -1,4 +1,4 @@
-"""Radius profiles of polylines: which fit each polyline gets, and the three-point baseline."""
+"""Fits the radius profile of each polyline with the fit its kind needs; also the three-point baseline."""
 
 from __future__ import annotations
 
@@ -6,14 +6,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.standard import DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 from .chords import _chords, _coordinate_noise_m, _validated
 from .corners import with_corner_rules, with_floor
 from .curves import curves_from_profile
 from .dense import _dense_parts, _Fit, _is_mapped, _is_sparse, _polyline_vertex_s, _Segmentation
 from .polish import _sparse_parts
-from .profile import Curve, RadiusProfile, _profile, _straight_profile
+from .profile import Curve, RadiusProfile, profile_from_parts, straight_profile
 from .transitions import with_transitions
 
 
@@ -47,7 +47,7 @@ def radius_profiles(polylines: Sequence[np.ndarray]) -> list[RadiusProfile]:
     chords = _chords(points)
     if len(chords.length_m) == 0:
         return [
-            _straight_profile(chords.vertex_s[chords.polyline_first_vertex[p] : chords.polyline_first_vertex[p + 1]])
+            straight_profile(chords.vertex_s[chords.polyline_first_vertex[p] : chords.polyline_first_vertex[p + 1]])
             for p in range(len(points))
         ]
     noise_m = _coordinate_noise_m(chords, len(points))
@@ -77,7 +77,7 @@ def _polyline_profile(
         bounds, curvature = sparse_parts[polyline]
         parts = (bounds, curvature, curvature)
     elif (dense := _dense_parts(segmentation, fit, polyline)) is None:
-        return _straight_profile(vertex_s)
+        return straight_profile(vertex_s)
     elif mapped or len(dense[1]) == 1:
         parts = (dense[0], dense[1], dense[1])
     else:
@@ -93,7 +93,7 @@ def _polyline_profile(
         parts = with_corner_rules(chords.start_s[rows], chords.length_m[rows], chords.heading[rows], noise_m, *parts)
     else:
         parts = (parts[0], *with_floor(*parts[1:]))
-    return _profile(vertex_s, *parts)
+    return profile_from_parts(vertex_s, *parts)
 
 
 def radius_profile(xy: np.ndarray) -> RadiusProfile:
@@ -101,9 +101,11 @@ def radius_profile(xy: np.ndarray) -> RadiusProfile:
     return radius_profiles([_validated(xy)])[0]
 
 
-def find_curves(xy: np.ndarray, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M) -> list[Curve]:
-    """The curves (3.4-3.8) of one polyline; see :func:`curves_from_profile`."""
-    return curves_from_profile(radius_profile(xy), warning_radius_m)
+def find_curves(
+    xy: np.ndarray, warning_radius_m: float = DEFAULT_WARNING_RADIUS_M, *, policy: WarningSpeedPolicy
+) -> list[Curve]:
+    """The curves (3.4-3.8) of one polyline, clothoids cut by ``policy``; see :func:`curves_from_profile`."""
+    return curves_from_profile(radius_profile(xy), warning_radius_m, policy=policy)
 
 
 def three_point_radius(xy: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Sparse polylines (map ways), first step: knots of the heading fit, for a batch of polylines at once."""
+"""Places the knots of the heading fit of sparse polylines (map ways), for a batch at once: the first step."""
 
 from __future__ import annotations
 
@@ -402,7 +402,7 @@ def _with_straights(
     bounds = bounds.copy()
     free = np.arange(bounds.shape[1] - 1)[None, :] <= knots[:, None]
     residual = _fits(batch, bounds[:, None, :], free[:, None, :])[0][:, 0]
-    going = free.any(axis=1)
+    going = np.array(free.any(axis=1), dtype=bool)
     while (active := np.flatnonzero(going)).size:
         polyline, part = np.nonzero(free[active])
         polyline = active[polyline]

@@ -1,4 +1,4 @@
-"""Sparse polylines, third step: trial roads (added straights, stretched curves) polished and chosen."""
+"""Polishes trial roads of sparse polylines and chooses among them: the third step."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ from .chords import _Chords
 from .dense import SPARSE_MIN_NOISE_M, SPLIT_OFFSET, _split_threshold
 from .knots import _fits, _knot_fit, _SparseBatch, _trimmed, _with_straights
 from .road import (
-    MIN_POLISHED_PART_M,
     PROJECTION_STEPS,
     _base_road,
     _chosen,
@@ -20,11 +19,10 @@ from .road import (
     _polished,
     _projected,
     _put_rows,
-    _repeated,
     _Road,
     _road_rows,
-    _split_part,
 )
+from .trials import _joined_trials, _padded_road, _straight_trial_roads, _stretched_trials
 
 #: Sparse chords shorter than this many times the coordinate noise are joined with the next.
 SHORT_CHORD_NOISE_FACTOR = 5.0
@@ -41,17 +39,6 @@ STRAIGHT_TRIAL_THRESHOLD = 10.0
 FIRST_POLISH_ITERATIONS = 3
 #: How far the polish's other starting roads stretch the longest curved part (shrinking below 1).
 STRETCH_FACTORS = (0.5, 2.0)
-#: How much of a curved end part a straight tried there first takes, as fractions of the
-#: part counted in nodes from the polyline's end (the polish then moves its knot).
-END_STRAIGHT_FRACTIONS = (0.25, 0.5, 0.75)
-#: Where a straight is first put into the middle of a curved part, and where a curved part
-#: is first narrowed to between two straights, as fractions of the part (counted in nodes).
-MIDDLE_STRAIGHT_SPANS = ((0.25, 0.5), (0.25, 0.75), (0.5, 0.75))
-ARC_SPANS = MIDDLE_STRAIGHT_SPANS
-#: Where the longest curved part is first cut into the two arcs of a compound curve, as
-#: fractions of it (counted in nodes), and how much sharper the one arc is than the other.
-COMPOUND_FRACTIONS = (0.25, 0.5, 0.75)
-COMPOUND_RATIO = 1.5
 #: Straights are tried only on roads whose nodes' sum of squared sideways distances exceeds
 #: this many times what the noise (the polyline's own estimate) leaves on the right road.
 STRAIGHT_TRIAL_MISFIT = 1.0
@@ -61,125 +48,6 @@ MIN_TRIAL_FREEDOM = 1
 MIN_VARIANCE_FREEDOM = 2
 #: Chord counts sparse polylines are padded to, so that few batches are fitted (each in one set of array operations).
 SPARSE_BATCH_CHORDS = np.array([4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80])
-
-
-def _among_nodes(nodes: _Nodes, first: np.ndarray, stop: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-    """Positions ``(polylines, trials)`` between ``first`` and ``stop`` at ``fraction`` of the
-    way counted in nodes: the nodes between them and the two ends are spaced evenly in
-    rank, and linearly between. Mappers put nodes close on a curve, so a curve short
-    against a long part still gets trial knots on it."""
-    s = nodes.s[:, None, :]
-    inside = nodes.real[:, None, :] & (s > first[..., None]) & (s < stop[..., None])
-    ranked = np.sort(np.where(inside, s, np.inf), axis=-1)
-    count = inside.sum(axis=-1)
-    ends = np.concatenate((first[..., None], ranked, np.full(first.shape + (1,), np.inf)), axis=-1)
-    np.put_along_axis(ends, (count + 1)[..., None], stop[..., None], axis=-1)
-    rank = fraction * (count + 1)
-    below = np.minimum(np.floor(rank).astype(np.int64), count)
-    low, high = (np.take_along_axis(ends, (below + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
-    return low + (rank - below) * (high - low)
-
-
-def _part_trials(road: _Road, part: np.ndarray, trials: int) -> tuple[_Road, np.ndarray, np.ndarray, np.ndarray]:
-    """``road`` (one trial per polyline) repeated ``trials`` times, with its part ``part``
-    ``(polylines,)`` and that part's first and last bound, each ``(polylines, trials)``."""
-    road = _repeated(road, trials)
-    part = np.repeat(part[:, None], trials, axis=1)
-    first, stop = (np.take_along_axis(road.bounds, (part + k)[..., None], axis=-1)[..., 0] for k in (0, 1))
-    return road, part, first, stop
-
-
-def _straight_trials(road: _Road, nodes: _Nodes, part: np.ndarray, low: np.ndarray, high: np.ndarray) -> _Road:
-    """Trial roads ``(polylines, fractions)`` from ``road`` (one trial per polyline), each
-    with a straight over the fractions ``low[f]`` to ``high[f]`` of its part ``part``,
-    counted in nodes (:func:`_among_nodes`; from the part's start when ``low`` is 0,
-    which must then be the first part; to its end when ``high`` is 1).
-
-    The trial stays close to the road: the straight takes the road's mean heading over
-    it, and the arcs beside it turn from the road's heading at the part's ends to that
-    (or the start is turned to it), so that the polish starts near its goal.
-    """
-    road, part, first, stop = _part_trials(road, part, np.shape(low)[-1])
-    start, end = _among_nodes(nodes, first, stop, low), _among_nodes(nodes, first, stop, high)
-    start = np.where(low > 0.0, np.clip(start, first + MIN_POLISHED_PART_M, stop - 2.0 * MIN_POLISHED_PART_M), first)
-    end = np.where(high < 1.0, np.clip(end, start + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M), stop)
-    curvature = np.take_along_axis(road.curvature, part[..., None], axis=-1)[..., 0]
-    half_turn = 0.5 * curvature * (end - start)
-    before = curvature + half_turn / np.fmax(start - first, MIN_POLISHED_PART_M)
-    after = curvature + half_turn / np.fmax(stop - end, MIN_POLISHED_PART_M)
-    zero = np.zeros_like(curvature)
-    if np.all(low == 0.0):
-        road = _Road(
-            road.base_heading, road.offset, road.turn + half_turn, *(getattr(road, f.name) for f in fields(_Road)[3:])
-        )
-        return _split_part(road, part, end, zero, after)
-    if np.all(high == 1.0):
-        return _split_part(road, part, start, before, zero)
-    return _split_part(_split_part(road, part, start, before, after), part + 1, end, zero, after)
-
-
-def _stretched_trials(road: _Road, factors: np.ndarray) -> _Road:
-    """Trial roads ``(polylines, 1 + factors)``: ``road`` (one trial per polyline) and, for
-    each factor, its longest curved part stretched by that factor about its middle (as far
-    as its neighbours leave room), turning the same angle.
-
-    A few nodes on a curve often fit a short sharp arc about as well as a long gentle
-    one; the heading fit picks one, and the polish stays near what it is given. Polishing
-    both from the start lets the nodes decide (3.4, 3.5: where the curve starts and ends).
-    """
-    trials = len(factors)
-    stretched = _repeated(road, trials)
-    parts = road.curvature.shape[-1]
-    part = np.argmax(np.where(road.free, np.diff(road.bounds, axis=-1), -1.0), axis=-1)
-    bounds = stretched.bounds
-    first, stop = (
-        np.take_along_axis(bounds, np.repeat(part + k, trials, axis=1)[..., None], axis=-1)[..., 0] for k in (0, 1)
-    )
-    below = np.take_along_axis(bounds, np.repeat(np.maximum(part - 1, 0), trials, axis=1)[..., None], axis=-1)[..., 0]
-    above = np.take_along_axis(bounds, np.repeat(np.minimum(part + 2, parts), trials, axis=1)[..., None], axis=-1)[
-        ..., 0
-    ]
-    middle, half = 0.5 * (first + stop), 0.5 * (stop - first) * factors
-    is_first, is_last = part == 0, part == road.last
-    start = np.where(is_first, first, np.clip(middle - half, below + MIN_POLISHED_PART_M, stop))
-    end = np.where(is_last, stop, np.clip(middle + half, start + MIN_POLISHED_PART_M, above - MIN_POLISHED_PART_M))
-    index = np.repeat(part, trials, axis=1)[..., None]
-    np.put_along_axis(bounds, index, start[..., None], axis=-1)
-    np.put_along_axis(bounds, index + 1, end[..., None], axis=-1)
-    curvature = stretched.curvature
-    angle = np.take_along_axis(curvature, index, axis=-1)[..., 0] * (stop - first)
-    np.put_along_axis(curvature, index, (angle / np.fmax(end - start, MIN_POLISHED_PART_M))[..., None], axis=-1)
-    return _joined_trials([road, stretched])
-
-
-def _padded_road(road: _Road) -> _Road:
-    """``road`` with a part of no length more at its end (padding)."""
-    return _Road(
-        road.base_heading,
-        road.offset,
-        road.turn,
-        np.concatenate((road.bounds, road.bounds[..., -1:]), axis=-1),
-        np.concatenate((road.curvature, np.zeros_like(road.curvature[..., :1])), axis=-1),
-        np.concatenate((road.free, np.zeros_like(road.free[..., :1])), axis=-1),
-        road.last,
-    )
-
-
-def _one_trial_each(road: _Road) -> _Road:
-    """The trial roads ``(polylines, trials)`` as ``(polylines * trials, 1)``."""
-    return _Road(*(getattr(road, f.name).reshape((-1, 1) + getattr(road, f.name).shape[2:]) for f in fields(_Road)))
-
-
-def _trials_of(road: _Road, polylines: int) -> _Road:
-    """Trial roads ``(polylines * k, 1)`` back as ``(polylines, k)``."""
-    return _Road(
-        *(getattr(road, f.name).reshape((polylines, -1) + getattr(road, f.name).shape[2:]) for f in fields(_Road))
-    )
-
-
-def _joined_trials(roads: list[_Road]) -> _Road:
-    """The trial roads of ``roads`` (of equal part counts) side by side."""
-    return _Road(*(np.concatenate([getattr(r, f.name) for r in roads], axis=1) for f in fields(_Road)))
 
 
 def _residual_variance(squares: np.ndarray, roads: _Road, real: np.ndarray, estimate: np.ndarray) -> np.ndarray:
@@ -196,53 +64,6 @@ def _residual_variance(squares: np.ndarray, roads: _Road, real: np.ndarray, esti
     return np.fmax(np.fmin(fitted, estimate), SPARSE_MIN_NOISE_M**2)
 
 
-def _straight_trial_roads(road: _Road, nodes: _Nodes, last: np.ndarray, longest: np.ndarray) -> tuple[_Road, list[int]]:
-    """The trial roads of the four kinds :func:`_with_added_straights` tries, side by side
-    ``(polylines, trials)``: a straight at the start, at the end, at both (an arc between
-    them) and in the middle of the ``longest`` curved part; also returns how many of each."""
-    fraction = np.array(END_STRAIGHT_FRACTIONS)
-    first_part = np.zeros(len(last), dtype=np.int64)
-    start_trials = _straight_trials(road, nodes, first_part, np.zeros_like(fraction), fraction)
-    end_trials = _straight_trials(road, nodes, last, 1.0 - fraction, np.ones_like(fraction))
-    # An arc between two straights: the straight before it first, then the one after it.
-    arc_low, arc_high = (np.array(ARC_SPANS)[:, k] for k in (0, 1))
-    before_arcs = _one_trial_each(_straight_trials(road, nodes, first_part, np.zeros_like(arc_low), arc_low))
-    after_share = np.tile((1.0 - arc_high) / (1.0 - arc_low), len(last))[:, None]
-    each_nodes = _Nodes(*(np.repeat(getattr(nodes, f.name), len(arc_low), axis=0) for f in fields(_Nodes)))
-    both_trials = _trials_of(
-        _straight_trials(before_arcs, each_nodes, before_arcs.last[:, 0], 1.0 - after_share, np.ones_like(after_share)),
-        len(last),
-    )
-    low, high = (np.array(MIDDLE_STRAIGHT_SPANS)[:, k] for k in (0, 1))
-    middle_trials = _straight_trials(road, nodes, longest, low, high)
-    compound_trials = _compound_trials(road, nodes, longest)
-    trials = _joined_trials(
-        [
-            _padded_road(start_trials),
-            _padded_road(end_trials),
-            both_trials,
-            middle_trials,
-            _padded_road(compound_trials),
-        ]
-    )
-    return trials, [len(fraction), len(fraction), len(arc_low), len(low), compound_trials.last.shape[1]]
-
-
-def _compound_trials(road: _Road, nodes: _Nodes, part: np.ndarray) -> _Road:
-    """Trial roads ``(polylines, 2 * fractions)`` from ``road`` (one trial per polyline), each
-    with its part ``part`` cut into two arcs at :data:`COMPOUND_FRACTIONS` of it (counted
-    in nodes), the first sharper or gentler by :data:`COMPOUND_RATIO`: a compound curve
-    (3.8) that the heading fit took for one arc of a mean radius."""
-    fraction = np.array(COMPOUND_FRACTIONS)
-    road, part, first, stop = _part_trials(road, part, 2 * len(fraction))
-    knot = np.clip(
-        _among_nodes(nodes, first, stop, np.tile(fraction, 2)), first + MIN_POLISHED_PART_M, stop - MIN_POLISHED_PART_M
-    )
-    curvature = np.take_along_axis(road.curvature, part[..., None], axis=-1)[..., 0]
-    ratio = np.repeat([COMPOUND_RATIO, 1.0 / COMPOUND_RATIO], len(fraction))
-    return _split_part(road, part, knot, curvature * ratio, curvature / ratio)
-
-
 def _with_added_straights(
     road: _Road, squares: np.ndarray, nodes: _Nodes, noise_variance: np.ndarray
 ) -> tuple[_Road, np.ndarray]:
@@ -256,49 +77,29 @@ def _with_added_straights(
     in the middle of a way may need both straights before either pays off, and two
     curves with a straight between them may have been fitted as one. So a straight at
     the start, at the end, at both and in the middle of the longest curved part are tried
-    together, each from several places (:data:`END_STRAIGHT_FRACTIONS`,
-    :data:`MIDDLE_STRAIGHT_SPANS`), and the road that costs least is kept. The noise
-    variance is the smaller of the polyline's own estimate and what the closest road
-    leaves (:func:`_residual_variance`); the estimate alone decides which roads are tried.
+    together, each from several places (:data:`csws.curvature.trials.END_STRAIGHT_FRACTIONS`,
+    :data:`csws.curvature.trials.MIDDLE_STRAIGHT_SPANS`), and the road that costs least is
+    kept. The noise variance is the smaller of the polyline's own estimate and what the
+    closest road leaves (:func:`_residual_variance`); the estimate alone decides which roads
+    are tried.
 
     Returns the roads (two parts more, padding where no straight was added) and their sums of squares.
     """
     result, squares = _padded_road(_padded_road(road)), squares.copy()
-    polylines = np.arange(len(road.last))
     last = road.last[:, 0]
     longest = np.argmax(np.where(road.free[:, 0], np.diff(road.bounds[:, 0], axis=-1), -1.0), axis=-1)
-    # A trial must leave the nodes enough freedom to be judged by.
-    freedom = nodes.real.sum(axis=1) - road.movable()[:, 0].sum(axis=1)
-    at_start = road.free[polylines, 0, 0] & (freedom - 1 >= MIN_TRIAL_FREEDOM)
-    at_end = road.free[polylines, 0, last] & (freedom - 1 >= MIN_TRIAL_FREEDOM)
-    at_both = at_start & at_end & (freedom - 2 >= MIN_TRIAL_FREEDOM)
-    in_middle = road.free[polylines, 0, longest] & (freedom - 3 >= MIN_TRIAL_FREEDOM)
-    # A road as close to the nodes as their noise lets it be leaves nothing for a straight to explain.
-    rows = np.flatnonzero(
-        (at_start | at_end | in_middle) & (squares[:, 0] > STRAIGHT_TRIAL_MISFIT * freedom * noise_variance)
-    )
+    rows, kind_allowed = _straight_trial_kinds(road, squares, nodes, noise_variance, longest)
     if rows.size == 0:
         return result, squares
     tried = _road_rows(road, rows)
     trials, counts = _straight_trial_roads(tried, _nodes_rows(nodes, rows), last[rows], longest[rows])
     # Parameters each kind adds: one knot, two, two and a curvature, a knot and a curvature.
     added = np.repeat([1, 1, 2, 3, 2], counts)
-    kind_allowed = (at_start, at_end, at_both, in_middle, in_middle)
     allowed = np.column_stack(
-        [np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed, strict=True)]
+        [np.repeat(ok[rows, None], count, axis=1) for count, ok in zip(counts, kind_allowed, strict=False)]
     )
     allowed &= trials.is_ordered()
-    # A few steps show which trial of each kind leads; only those are polished to the end.
-    trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), FIRST_POLISH_ITERATIONS, allowed, scales=())
-    trial_squares = np.where(allowed, trial_squares, np.inf)
-    kind_start = np.cumsum([0, *counts])
-    leading = np.column_stack(
-        [
-            first + np.argmin(trial_squares[:, first:stop], axis=1)
-            for first, stop in zip(kind_start[:-1], kind_start[1:], strict=True)
-        ]
-    )
-    trials = _chosen(trials, leading)
+    trials, leading = _leading_trials(trials, _nodes_rows(nodes, rows), allowed, counts)
     added, allowed = added[leading], np.take_along_axis(allowed, leading, axis=1)
     trials, trial_squares = _polished(trials, _nodes_rows(nodes, rows), wanted=allowed)
     trial_squares = np.where(allowed, trial_squares, np.inf)
@@ -315,6 +116,41 @@ def _with_added_straights(
     _put_rows(result, (changed, 0), trials, (np.flatnonzero(accept), best))
     squares[changed, 0] = trial_squares[np.flatnonzero(accept), best]
     return result, squares
+
+
+def _straight_trial_kinds(
+    road: _Road, squares: np.ndarray, nodes: _Nodes, noise_variance: np.ndarray, longest: np.ndarray
+) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The polylines whose roads straights are tried on, and for every polyline which of the
+    five kinds of trial it allows (:func:`csws.curvature.trials._straight_trial_roads`): each
+    must leave the nodes enough freedom to be judged by."""
+    polylines = np.arange(len(road.last))
+    last = road.last[:, 0]
+    freedom = nodes.real.sum(axis=1) - road.movable()[:, 0].sum(axis=1)
+    at_start = road.free[polylines, 0, 0] & (freedom - 1 >= MIN_TRIAL_FREEDOM)
+    at_end = road.free[polylines, 0, last] & (freedom - 1 >= MIN_TRIAL_FREEDOM)
+    at_both = at_start & at_end & (freedom - 2 >= MIN_TRIAL_FREEDOM)
+    in_middle = road.free[polylines, 0, longest] & (freedom - 3 >= MIN_TRIAL_FREEDOM)
+    # A road as close to the nodes as their noise lets it be leaves nothing for a straight to explain.
+    rows = np.flatnonzero(
+        (at_start | at_end | in_middle) & (squares[:, 0] > STRAIGHT_TRIAL_MISFIT * freedom * noise_variance)
+    )
+    return rows, (at_start, at_end, at_both, in_middle, in_middle)
+
+
+def _leading_trials(trials: _Road, nodes: _Nodes, allowed: np.ndarray, counts: list[int]) -> tuple[_Road, np.ndarray]:
+    """The trial of each kind (``counts`` of them side by side) that leads after a few steps of
+    the polish, and where it stood: only those are polished to the end."""
+    trials, trial_squares = _polished(trials, nodes, FIRST_POLISH_ITERATIONS, allowed, scales=())
+    trial_squares = np.where(allowed, trial_squares, np.inf)
+    kind_start = np.cumsum([0, *counts])
+    leading = np.column_stack(
+        [
+            first + np.argmin(trial_squares[:, first:stop], axis=1)
+            for first, stop in zip(kind_start[:-1], kind_start[1:], strict=True)
+        ]
+    )
+    return _chosen(trials, leading), leading
 
 
 def _with_unseen_ends_straight(

@@ -1,4 +1,4 @@
-"""The road model's types: the radius profile of a polyline and its parts (T/ITS 0091-2018, 3.2-3.8)."""
+"""Defines the road model's types: the radius profile of a polyline and its parts (T/ITS 0091-2018, 3.2-3.8)."""
 
 from __future__ import annotations
 
@@ -157,12 +157,12 @@ class Curve:
         return sum(not part.spiral for part in self.parts) >= 2
 
 
-def _straight_profile(vertex_s: np.ndarray) -> RadiusProfile:
+def straight_profile(vertex_s: np.ndarray) -> RadiusProfile:
     """The profile of a polyline without length: straight at every vertex, no parts."""
     return RadiusProfile(vertex_s.copy(), np.zeros(len(vertex_s)), np.full(len(vertex_s), np.inf), ())
 
 
-def _profile(
+def profile_from_parts(
     vertex_s: np.ndarray, bounds: np.ndarray, curvature_of_part: np.ndarray, end_curvature: np.ndarray | None = None
 ) -> RadiusProfile:
     """The radius profile of one polyline from its part bounds (``[0, ..., end]``) and the
@@ -178,6 +178,6 @@ def _profile(
     starts, ends = curvature_of_part.tolist(), end_curvature.tolist()
     parts = tuple(
         ProfilePart(a, b, k0, None if k1 == k0 else k1)
-        for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends, strict=True)
+        for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends, strict=False)
     )
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)

@@ -1,4 +1,4 @@
-"""Sparse polylines, second step: the road (straights and arcs) fitted to the nodes in the plane.
+"""Fits the road (straights and arcs) to the nodes of sparse polylines in the plane: the second step.
 
 The road is the maximum-likelihood one under isotropic node noise, found by Levenberg-Marquardt
 steps for a batch of polylines and trial roads at once."""
@@ -253,23 +253,8 @@ def _polished(
     for _ in range(iterations):
         if active.size == 0:
             break
-        here, here_nodes, here_at = _road_rows(road, active), _nodes_rows(nodes, active), _points_rows(at, active)
-        jacobian = _sideways_jacobian(here, here_at) * (
-            here_nodes.real[:, None, :, None] * here.movable()[..., None, :]
-        )
-        normal = np.swapaxes(jacobian, -1, -2) @ jacobian
-        gradient = np.einsum("ptnm,ptn->ptm", jacobian, distance[active])
-        # A trial gone non-finite (a degenerate road) takes no step and stops.
-        sound = np.isfinite(normal).all(axis=(-2, -1)) & np.isfinite(gradient).all(axis=-1)
-        normal, gradient = np.where(sound[..., None, None], normal, 0.0), np.where(sound[..., None], gradient, 0.0)
-        diagonal = np.einsum("...mm->...m", normal)
-        normal += (
-            np.eye(normal.shape[-1])
-            * (damping[active][..., None] * diagonal + (diagonal <= 1e-12 * diagonal.max(axis=-1, keepdims=True)))[
-                ..., None, :
-            ]
-        )
-        step = _solved(normal, -gradient)
+        here, here_nodes = _road_rows(road, active), _nodes_rows(nodes, active)
+        step, sound = _damped_step(here, here_nodes, _points_rows(at, active), distance[active], damping[active])
         trial = _best_scaled_step(here, here_nodes, t[active], step, scales)
         better = (trial.road.is_ordered() & (trial.squares < squares[active]))[:, 0]
         gain = squares[active, 0] - trial.squares[:, 0]
@@ -288,6 +273,23 @@ def _polished(
     return _Road(
         *(getattr(road, f.name).reshape((polylines, trials) + getattr(road, f.name).shape[2:]) for f in fields(_Road))
     ), squares.reshape(polylines, trials)
+
+
+def _damped_step(
+    road: _Road, nodes: _Nodes, at: _RoadPoints, distance: np.ndarray, damping: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The Levenberg-Marquardt step of each trial road (one per row) towards the least sum of the
+    nodes' squared sideways ``distance``, with its ``damping``; and whether the trial is sound (a
+    trial gone non-finite, a degenerate road, takes no step and stops)."""
+    jacobian = _sideways_jacobian(road, at) * (nodes.real[:, None, :, None] * road.movable()[..., None, :])
+    normal = np.swapaxes(jacobian, -1, -2) @ jacobian
+    gradient = np.einsum("ptnm,ptn->ptm", jacobian, distance)
+    sound = np.isfinite(normal).all(axis=(-2, -1)) & np.isfinite(gradient).all(axis=-1)
+    normal, gradient = np.where(sound[..., None, None], normal, 0.0), np.where(sound[..., None], gradient, 0.0)
+    diagonal = np.einsum("...mm->...m", normal)
+    flat = diagonal <= 1e-12 * diagonal.max(axis=-1, keepdims=True)
+    normal += np.eye(normal.shape[-1]) * (damping[..., None] * diagonal + flat)[..., None, :]
+    return _solved(normal, -gradient), sound
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Transition curves: where the curvature of a dense polyline changes along a clothoid.
+"""Finds where the curvature of a dense polyline changes along a clothoid (transition curves).
 
 The dense fit (:mod:`csws.curvature.dense`) cuts heading against arc length into parts
 of constant curvature. Where the road has a clothoid (a spiral, curvature linear in arc
@@ -109,8 +109,9 @@ class _Moments:
         """The nine sums over chords ``first:stop``, ``(9, ...)``."""
         return self.sums[:, stop] - self.sums[:, first]
 
-    def residual(self, s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
-        """Weighted residual of the best clothoid road with its spiral from ``s1`` to ``s2`` (arrays)."""
+    def residual(self, s1: np.ndarray, s2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted residual of the best clothoid road with its spiral from ``s1`` to ``s2`` (arrays),
+        and that road's parameters."""
         first = np.searchsorted(self.mid_s, s1)
         stop = np.searchsorted(self.mid_s, s2)
         end = np.full_like(first, len(self.mid_s))
@@ -300,7 +301,7 @@ def _merged_steps(
             costs.append((gain, int(i)))
         if not costs or min(costs)[0] >= 2 * PARAMETER_PENALTY:
             return bounds, start_k, is_spiral
-        _, i = min(costs)
+        _, i = min(costs)  # type: ignore[assignment]  # the loop's numpy index, here a plain int
         lengths = np.diff(bounds)[i : i + 2]
         start_k[i] = float(np.average(start_k[i : i + 2], weights=lengths + 1e-9))
         bounds = np.delete(bounds, i + 1)

@@ -1,5 +1,7 @@
-"""Forward collision warning (GB/T 33577-2017, ISO 15623): time to collision, enhanced time
-to collision, required deceleration, and the warning they give, for many vehicles at once.
+"""Forward collision warning physics (GB/T 33577-2017, ISO 15623): TTC, ETTC, a_req and the warning.
+
+Time to collision, enhanced time to collision, required deceleration, and the warning they
+give, for many vehicles at once.
 
 The quantities, in the standard's symbols (3.10-3.12, 3.22; SI units, accelerations signed,
 positive forward):
@@ -34,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from csws.state import SystemState
 
@@ -46,6 +49,7 @@ __all__ = [
     "enhanced_time_to_collision_s",
     "required_deceleration_mps2",
     "warning_clearance_m",
+    "formula_5_clearance_m",
     "evaluate_fcw",
     "next_fcw_states",
 ]
@@ -55,6 +59,8 @@ STANDARD_GRAVITY_MPS2 = 9.80665
 MAX_COLLISION_A_REQ_MPS2 = 0.68 * STANDARD_GRAVITY_MPS2
 #: 4.5.4: the driver's reaction time to a warning is at least 0.8 s.
 MIN_REACTION_TIME_S = 0.8
+#: Formula (5), the shortest warning distance (5.4.1): the least reaction time of 4.5.4 and this a_req, m/s^2.
+FORMULA_5_A_REQ_MPS2 = 6.67
 #: 4.3.3: the system works from at most 11.2 m/s up to at least 27.8 m/s.
 HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS = 11.2, 27.8
 #: The system states by code (4.3.2; fault as CSWS's, :class:`csws.state.SystemState`): ``FCW_STATES[code]``.
@@ -131,7 +137,7 @@ class FcwBatch:
     a_req_mps2: np.ndarray
 
 
-def time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps: np.ndarray) -> np.ndarray:
+def time_to_collision_s(clearance_m: ArrayLike, relative_velocity_mps: ArrayLike) -> np.ndarray:
     """TTC = -x_c / v_r, formula (2); ``inf`` where the vehicles are not closing (v_r >= 0)."""
     clearance_m, v_r = np.asarray(clearance_m, dtype=float), np.asarray(relative_velocity_mps, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -139,7 +145,7 @@ def time_to_collision_s(clearance_m: np.ndarray, relative_velocity_mps: np.ndarr
 
 
 def enhanced_time_to_collision_s(
-    clearance_m: np.ndarray, relative_velocity_mps: np.ndarray, relative_accel_mps2: np.ndarray
+    clearance_m: ArrayLike, relative_velocity_mps: ArrayLike, relative_accel_mps2: ArrayLike
 ) -> np.ndarray:
     """ETTC, formula (3), with the relative acceleration a_TV - a_SV held: the first time the
     clearance reaches 0; ``inf`` where it never does (the root of (3) is negative or complex).
@@ -159,7 +165,7 @@ def enhanced_time_to_collision_s(
 
 
 def required_deceleration_mps2(
-    clearance_m: np.ndarray, relative_velocity_mps: np.ndarray, target_accel_mps2: np.ndarray, lost_time_s: np.ndarray
+    clearance_m: ArrayLike, relative_velocity_mps: ArrayLike, target_accel_mps2: ArrayLike, lost_time_s: ArrayLike
 ) -> np.ndarray:
     """a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with d_TV = -a_TV the target's
     deceleration and x_r = -v_r ``lost_time_s`` the clearance lost while closing during the
@@ -175,11 +181,11 @@ def required_deceleration_mps2(
 
 
 def evaluate_fcw(
-    subject_accel_mps2: np.ndarray,
-    clearance_m: np.ndarray,
-    relative_velocity_mps: np.ndarray,
-    target_accel_mps2: np.ndarray,
-    driver_braking: np.ndarray,
+    subject_accel_mps2: ArrayLike,
+    clearance_m: ArrayLike,
+    relative_velocity_mps: ArrayLike,
+    target_accel_mps2: ArrayLike,
+    driver_braking: ArrayLike,
     settings: FcwSettings = FcwSettings(),
 ) -> FcwBatch:
     """The forward collision warning of many subject vehicles, each with its target vehicle
@@ -218,23 +224,37 @@ def evaluate_fcw(
 
 
 def warning_clearance_m(
-    closing_mps: np.ndarray, target_accel_mps2: np.ndarray, settings: FcwSettings = FcwSettings(), level: int = 2
+    closing_mps: ArrayLike, target_accel_mps2: ArrayLike, settings: FcwSettings = FcwSettings(), level: int = 2
 ) -> np.ndarray:
     """The clearance at which a level comes on at a closing speed ``closing_mps`` (= -v_r > 0)
     and a target acceleration a_TV: formula (4) solved for x_c at the level's threshold,
     x_c = x_r + v_r^2 / (2 (a_thr + a_TV)). The system's set warning distance (4.7.2, 5.4.2); with
     T_resp 0.8 s and 6.67 m/s^2 it is formula (5)."""
-    closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
     threshold = settings.collision_a_req_mps2 if level == 2 else settings.preliminary_a_req_mps2
     lost_s = settings.reaction_time_s + settings.brake_response_s
-    return closing * lost_s + closing**2 / (2.0 * (threshold + a_tv))
+    return _clearance_at_m(closing_mps, target_accel_mps2, threshold, lost_s)
+
+
+def formula_5_clearance_m(closing_mps: ArrayLike, target_accel_mps2: ArrayLike = 0.0) -> np.ndarray:
+    """Formula (5), the shortest warning distance a system may have (5.4.1): formula (4) solved for
+    x_c with T_resp 0.8 s and a_req 6.67 m/s^2, at a closing speed ``closing_mps`` (= -v_r > 0)."""
+    return _clearance_at_m(closing_mps, target_accel_mps2, FORMULA_5_A_REQ_MPS2, MIN_REACTION_TIME_S)
+
+
+def _clearance_at_m(
+    closing_mps: ArrayLike, target_accel_mps2: ArrayLike, a_req_mps2: float, lost_time_s: float
+) -> np.ndarray:
+    """Formula (4) solved for x_c: the clearance at which a_req reaches ``a_req_mps2``,
+    x_c = x_r + v_r^2 / (2 (a_req + a_TV)) with x_r = -v_r ``lost_time_s``."""
+    closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
+    return closing * lost_time_s + closing**2 / (2.0 * (a_req_mps2 + a_tv))
 
 
 def next_fcw_states(
-    previous: np.ndarray,
-    speed_mps: np.ndarray,
-    switched_on: np.ndarray,
-    measured: np.ndarray,
+    previous: ArrayLike,
+    speed_mps: ArrayLike,
+    switched_on: ArrayLike,
+    measured: ArrayLike,
     settings: FcwSettings = FcwSettings(),
 ) -> np.ndarray:
     """The system state of many subject vehicles after one update (4.3, Figure 2), as codes into

@@ -59,7 +59,8 @@ class DroppedRoads:
         ]
         if self.share > LOSS_WARNING_SHARE:
             lines.append(
-                f"warning: {self.km:.1f} of {self.motor_km:.1f} km of drivable roads ({self.share:.1%}) are not in the network"
+                f"warning: {self.km:.1f} of {self.motor_km:.1f} km of drivable roads ({self.share:.1%}) "
+                "are not in the network"
             )
         return lines
 

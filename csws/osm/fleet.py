@@ -79,7 +79,7 @@ def _allows_fleet(edge: sumolib.net.edge.Edge) -> bool:
 
 
 def _centre(edge: sumolib.net.edge.Edge) -> tuple[float, float]:
-    xs, ys = zip(*edge.getShape(), strict=True)
+    xs, ys = zip(*edge.getShape(), strict=False)
     return sum(xs) / len(xs), sum(ys) / len(ys)
 
 

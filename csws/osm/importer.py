@@ -33,15 +33,20 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 from xml.etree import ElementTree
 
 import numpy as np
 
+from csws.errors import CswsError
 from csws.road.roadmap import RoadMap, read_sumo_net
 from csws.sumo.netbuild import NetconvertError, netconvert_osm
 
 from .coverage import DroppedRoads, dropped_roads
 from .typemap import base_highway, derived_highways, known_highways, sumo_type_file, type_allows, write_derived_types
+
+if TYPE_CHECKING:
+    import osmium
 
 __all__ = [
     "OSM_ATTRIBUTION",
@@ -102,7 +107,7 @@ MOTOR_HIGHWAYS = frozenset(
 )
 
 
-class OsmImportError(ValueError):
+class OsmImportError(ValueError, CswsError):
     """An OSM file that cannot be imported; the message is one line for the user."""
 
 
@@ -241,7 +246,7 @@ def scan_osm(path: str | Path) -> OsmScan:
     try:
         source = osmium.FileProcessor(osmium.io.File(str(path), fmt), osmium.osm.NODE | osmium.osm.WAY).with_locations()
         for item in source:
-            if item.is_node():
+            if not isinstance(item, osmium.osm.Way):
                 nodes += 1
                 continue
             ways += 1
@@ -259,7 +264,7 @@ def scan_osm(path: str | Path) -> OsmScan:
     return OsmScan(nodes, ways, len(motor), frozenset(values), motor)
 
 
-def _way_length_m(way) -> float:
+def _way_length_m(way: osmium.osm.Way) -> float:
     """Length of an osmium way from its nodes' locations, m (0 where a location is missing)."""
     points = [(node.lon, node.lat) for node in way.nodes if node.location.valid()]
     if len(points) < 2:

@@ -32,7 +32,8 @@ def fleet_main(args: argparse.Namespace) -> int:
     )
     for route in routes:
         print(
-            f"{route.route_id}: {len(route.edges)} edges, {route.length_m / 1000:.1f} km, {route.turning_deg:.0f} deg of curves"
+            f"{route.route_id}: {len(route.edges)} edges, {route.length_m / 1000:.1f} km, "
+            f"{route.turning_deg:.0f} deg of curves"
         )
     print(f"wrote {route_path} ({args.vehicles} vehicles on {len(routes)} routes) and {config_path}")
     return 0

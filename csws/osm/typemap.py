@@ -31,7 +31,7 @@ def sumo_type_file() -> Path:
 def _types(path: Path) -> dict[str, ElementTree.Element]:
     """The ``<type>`` elements of a type file by id."""
     return {
-        element.get("id"): element for element in ElementTree.parse(path).getroot().iter("type") if element.get("id")
+        type_id: element for element in ElementTree.parse(path).getroot().iter("type") if (type_id := element.get("id"))
     }
 
 

@@ -1,1 +1,1 @@
-"""The road map: SUMO networks read into lanes, road chains fitted once, paths along them, and map matching."""
+"""Reads SUMO networks into road maps: lanes, road chains fitted once, paths along them, and map matching."""

@@ -1,4 +1,4 @@
-"""Road chains: every road of a network stitched into one polyline and fitted once, with its curves.
+"""Stitches every road of a network into one polyline (a road chain), fitted once, and finds its curves.
 
 A road is a chain of lanes through the nodes where it continues (a way split, a side
 road joining, the straight-ahead or priority continuation: :mod:`csws.road.continuations`), each
@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import ConstantRadiusPart, Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
+from csws.standard import WarningSpeedPolicy
 
 __all__ = [
     "JOINT_TOLERANCE_M",
@@ -74,7 +75,7 @@ class LaneCurve:
     chain: int
 
     def as_record(self) -> dict[str, str | float]:
-        """The :data:`csws.road.export.CURVE_FIELDS` of the curve, lengths and angles to the centimetre / hundredth degree."""
+        """The :data:`csws.road.export.CURVE_FIELDS` of the curve, lengths to the centimetre, angles to 0.01 degree."""
         return {
             "lane_id": self.lane_id,
             "start_pos_m": round(self.start_pos_m, 2),
@@ -212,15 +213,20 @@ class RoadChains:
     lane_start_s: np.ndarray
     lane_road_length_m: np.ndarray
     lane_position_factor: np.ndarray
-    _curves: dict = field(default_factory=dict, repr=False, compare=False)
+    _curves: dict[tuple[int, float, int], tuple[WarningSpeedPolicy, list[Curve]]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
-    def curves(self, chain: int, warning_radius_m: float) -> list[Curve]:
-        """The curves of one chain for R_c ``warning_radius_m``, found once and kept."""
-        key = (chain, float(warning_radius_m))
-        found = self._curves.get(key)
-        if found is None:
-            found = self._curves[key] = curves_from_profile(self.profiles[chain], warning_radius_m)
-        return found
+    def curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
+        """The curves of one chain for R_c ``warning_radius_m``, clothoids cut by ``policy``, found once and kept."""
+        key = (chain, float(warning_radius_m), id(policy))
+        kept = self._curves.get(key)
+        if kept is None or kept[0] is not policy:  # kept with the policy, whose id is then not reused
+            kept = self._curves[key] = (
+                policy,
+                curves_from_profile(self.profiles[chain], warning_radius_m, policy=policy),
+            )
+        return kept[1]
 
     def lane_at(self, chain: int, s: float, end: bool = False) -> int:
         """The lane of ``chain`` at chain arc length ``s``; on a joint, the lane starting there, or
@@ -309,12 +315,14 @@ def fit_road_chains(
     )
 
 
-def index_curves(chains: RoadChains, lane_ids: Sequence[str], warning_radius_m: float) -> list[list[LaneCurve]]:
+def index_curves(
+    chains: RoadChains, lane_ids: Sequence[str], warning_radius_m: float, policy: WarningSpeedPolicy
+) -> list[list[LaneCurve]]:
     """The curves of every chain with their ends as lane positions: the curve index, chain by chain."""
     index = []
     for chain in range(len(chains.lanes)):
         lane_curves = []
-        for curve in chains.curves(chain, warning_radius_m):
+        for curve in chains.curves(chain, warning_radius_m, policy):
             start_lane, start_pos_m = chains.lane_position(chain, curve.start_s)
             end_lane, end_pos_m = chains.lane_position(chain, curve.end_s, end=True)
             lane_curves.append(

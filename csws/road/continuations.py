@@ -1,4 +1,4 @@
-"""Road chains: where a road continues through a junction, and where a path leaves it.
+"""Decides where a road continues through a junction, and where a path leaves it, for the road chains.
 
 A road is a chain of edges through the nodes where it continues: a way split, a side
 road joining, the straight-ahead or priority continuation at a crossing. A curve of the
@@ -84,13 +84,16 @@ def _best_partners(net: sumolib.net.Net, pairs: dict[tuple[str, str], float], si
     best = {}
     for edge_id, candidates in partners.items():
         me = net.getEdge(edge_id)
-
-        def key(other: str) -> tuple:
-            pair = (edge_id, other) if side == 0 else (other, edge_id)
-            return _preference(me, net.getEdge(other), pairs[pair])
-
-        best[edge_id] = (min(candidates, key=key), len(candidates) > 1)
+        ranked = [
+            (_preference(me, net.getEdge(other), pairs[_pair(edge_id, other, side)]), other) for other in candidates
+        ]
+        best[edge_id] = (min(ranked, key=lambda entry: entry[0])[1], len(candidates) > 1)
     return best
+
+
+def _pair(edge_id: str, other: str, side: int) -> tuple[str, str]:
+    """The pair ``(incoming, outgoing)`` of an edge on ``side`` (0: incoming, 1: outgoing) and its partner."""
+    return (edge_id, other) if side == 0 else (other, edge_id)
 
 
 def road_continuations(net: sumolib.net.Net) -> frozenset[tuple[str, str]]:

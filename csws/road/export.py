@@ -17,6 +17,6 @@ def write_curve_table(records: list[dict[str, str | float]], stream: TextIO) -> 
     for row in cells:
         padded = [
             cell.ljust(width) if name in ("lane_id", "end_lane_id", "direction") else cell.rjust(width)
-            for cell, width, name in zip(row, widths, CURVE_FIELDS, strict=True)
+            for cell, width, name in zip(row, widths, CURVE_FIELDS, strict=False)
         ]
         stream.write("  ".join(padded).rstrip() + "\n")

@@ -1,4 +1,4 @@
-"""Map matching: which lane of which road map a GNSS fix is on.
+"""Matches GNSS fixes to the lane of a road map they are on.
 
 A fix (x, y in network metres, an optional heading) is matched to the nearest lane
 within a tolerance whose driving direction agrees with the heading, so that the lane
@@ -179,7 +179,7 @@ def points_along(xy: np.ndarray, s: np.ndarray, vertex_s: np.ndarray | None = No
 
 
 def lane_points(road_map: RoadMap, lane_id: str, lane_pos_m: np.ndarray) -> np.ndarray:
-    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (see :attr:`csws.road.roadmap.Lane.position_factor`)."""
+    """The points of a lane at SUMO lane positions, ``(k, 2)``, m (:attr:`csws.road.network.Lane.position_factor`)."""
     shape_s = np.asarray(lane_pos_m, dtype=float) / road_map.lane(lane_id).position_factor
     return points_along(road_map.lane_shape(lane_id), shape_s)
 
@@ -254,7 +254,7 @@ class MapMatcher:
         first_lane = np.concatenate(([0], np.cumsum(lane_counts))).astype(np.intp)
         #: The lanes (from, up to) of each map by its index, and of all maps in the last row (for index -1).
         self._lane_range = np.array(
-            [*zip(first_lane[:-1], first_lane[1:], strict=True), (0, first_lane[-1])], dtype=np.intp
+            [*zip(first_lane[:-1], first_lane[1:], strict=False), (0, first_lane[-1])], dtype=np.intp
         )
         self._lane_map = np.repeat(np.arange(len(self.road_maps), dtype=np.intp), lane_counts)
         self._lane_ids = np.concatenate([road_map.lane_shapes.lane_ids for road_map in self.road_maps])
@@ -340,7 +340,7 @@ class MapMatcher:
         return np.array(
             [
                 lane in self._continuations(previous[fix].map_index, previous[fix].lane_id)
-                for fix, lane in zip(candidates.fix.tolist(), candidates.found.lane_index.tolist(), strict=True)
+                for fix, lane in zip(candidates.fix.tolist(), candidates.found.lane_index.tolist(), strict=False)
             ],
             dtype=bool,
         )
@@ -352,7 +352,9 @@ class MapMatcher:
         map_index = np.where(matched, self._lane_map[chosen.lane_index], -1)
         reasons = [
             None if is_matched else self._reason(is_near, h)
-            for is_matched, is_near, h in zip(matched.tolist(), chosen.near.tolist(), heading_deg.tolist(), strict=True)
+            for is_matched, is_near, h in zip(
+                matched.tolist(), chosen.near.tolist(), heading_deg.tolist(), strict=False
+            )
         ]
         return FixMatches(
             map_index=map_index,

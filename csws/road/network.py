@@ -1,4 +1,4 @@
-"""Reading a SUMO network: its lanes as records, and their shapes and links as arrays.
+"""Reads a SUMO network: its lanes as records, and their shapes and links as arrays.
 
 :func:`read_sumo_net` reads a ``.net.xml`` (or ``.net.xml.gz``) with its internal lanes
 and turns every failure into :class:`NetworkError`; :func:`net_lanes` takes from it what
@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import sumolib
 
+from csws.errors import CswsError
 from csws.road.continuations import road_continuations
 
 __all__ = ["Lane", "NetLanes", "NetworkError", "net_lanes", "read_sumo_net"]
@@ -46,7 +47,7 @@ _READ_ERRORS = (
 )
 
 
-class NetworkError(ValueError):
+class NetworkError(ValueError, CswsError):
     """A file that cannot be used as a road map: missing, not a SUMO network, or empty."""
 
 
@@ -172,7 +173,7 @@ def net_lanes(net: sumolib.net.Net) -> NetLanes:
             lane.getID() in continuing,
             _continues_into(lane, continuations, continuing, roundabout_edges),
         )
-        for lane, length in zip(sumo_lanes, shape_length_m, strict=True)
+        for lane, length in zip(sumo_lanes, shape_length_m, strict=False)
     ]
     successors = [_successor_ids(lane, index) for lane in sumo_lanes]
     return NetLanes(lanes, xy, vertex_start, successors, _geo_reference(net))

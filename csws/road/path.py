@@ -1,4 +1,4 @@
-"""Path profiles: the road along consecutive lanes, read from the fitted road chains.
+"""Profiles the road along consecutive lanes (a path) from the fitted road chains.
 
 A path runs along stretches of chains (:mod:`csws.road.chains`). Where it leaves a chain
 (a turn into another road at a junction), the turn's internal lane is a chain of its own,
@@ -10,13 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
-from csws.curvature import Curve, RadiusProfile
-from csws.curvature.profile import _profile, _straight_profile
+from csws.curvature import Curve, RadiusProfile, profile_from_parts, straight_profile
 from csws.road.chains import RoadChains, clip_curve, stitch
-from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.standard import DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 __all__ = ["PathProfile", "path_profile", "path_profile_parts", "path_runs"]
 
@@ -175,7 +175,7 @@ def path_profile_parts(
         chain_start_s.tolist(),
         chain_end_s.tolist(),
         (path_start_s - chain_start_s).tolist(),
-        strict=True,
+        strict=False,
     ):
         add(start_s + offset_s, 0.0, 0.0)
         for part in chains.profiles[chain].parts:
@@ -185,8 +185,8 @@ def path_profile_parts(
             add(b + offset_s, part.curvature_at_one(a), part.curvature_at_one(b))
     add(float(vertex_s[-1]), 0.0, 0.0)
     if len(bounds) < 2:
-        return _straight_profile(vertex_s)
-    return _profile(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
+        return straight_profile(vertex_s)
+    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
 
 
 def path_profile(
@@ -196,6 +196,7 @@ def path_profile(
     road_shapes: Sequence[np.ndarray],
     lane_length_m: np.ndarray,
     lane_is_junction: np.ndarray,
+    warning_policy: WarningSpeedPolicy,
 ) -> PathProfile:
     """The profile of a path of consecutive lanes (internal lanes included) read from the road chains.
 
@@ -211,6 +212,8 @@ def path_profile(
         The SUMO length of each lane of the path, m.
     lane_is_junction
         Whether each lane of the path is a junction manoeuvre.
+    warning_policy
+        The warning speeds its curves' clothoids are cut by (:func:`csws.curvature.curves_from_profile`).
     """
     xy, lane_start_s = stitch(road_shapes)
     shape_length_m = chains.lane_road_length_m[list(lanes)]
@@ -237,5 +240,5 @@ def path_profile(
         run_chain_end_s=run_chain_end_s,
         run_path_start_s=run_path_start_s,
         run_is_junction=chains.is_junction[run_chain],
-        chain_curves=chains.curves,
+        chain_curves=partial(chains.curves, policy=warning_policy),
     )

@@ -1,4 +1,4 @@
-"""The road map: every lane of a SUMO network with its shape, links and curves.
+"""Holds every lane of a SUMO network with its shape, links and curves: the road map.
 
 A :class:`RoadMap` is read once from a ``.net.xml`` (or ``.net.xml.gz``) and then
 answers the questions the warning needs about the road ahead:
@@ -57,13 +57,13 @@ from typing import TextIO
 import numpy as np
 import sumolib
 
-from csws.curvature import profile_cache_dir
+from csws.curvature import checked_warning_radius_m, profile_cache_dir
 from csws.road.chains import LaneCurve, fit_road_chains, index_curves
 from csws.road.export import CURVE_FIELDS, write_curve_table
 from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 from csws.road.path import PathProfile, path_profile
 from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
-from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 __all__ = [
     "CURVE_FIELDS",
@@ -129,6 +129,7 @@ class RoadMap:
         warning_radius_m: float = DEFAULT_WARNING_RADIUS_M,
         *,
         cache: bool = True,
+        warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
     ) -> None:
         """Profile the lanes and find their curves.
 
@@ -149,10 +150,12 @@ class RoadMap:
         cache
             Whether to read the road chains' fit from the profile cache, and write it there
             when it is not yet (:func:`csws.curvature.profile_cache_dir`).
+        warning_policy
+            The warning speeds the curves' clothoids are cut into CPOIs by (a piece's V_w changes
+            by under :data:`csws.curvature.curves.SPIRAL_PIECE_KMH`): those the warning uses.
         """
-        if not (math.isfinite(warning_radius_m) and warning_radius_m > 0):
-            raise ValueError(f"warning radius must be a positive number of metres, got {warning_radius_m!r}")
-        self.warning_radius_m = float(warning_radius_m)
+        self.warning_radius_m = checked_warning_radius_m(warning_radius_m)
+        self.warning_policy = warning_policy
         self.geo = geo
         self.has_projection = bool(geo.hasGeoProj())
         self._lanes = tuple(lanes)
@@ -169,11 +172,18 @@ class RoadMap:
             np.array([lane.is_junction for lane in self._lanes], dtype=bool),
             profile_cache_dir() if cache else None,
         )
-        self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m)
+        self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m, warning_policy)
 
     # ----------------------------------------------------------------- construction
     @classmethod
-    def load(cls, net_path: str | Path, warning_radius_m: float | None = None, *, cache: bool = True) -> RoadMap:
+    def load(
+        cls,
+        net_path: str | Path,
+        warning_radius_m: float | None = None,
+        *,
+        cache: bool = True,
+        warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+    ) -> RoadMap:
         """Read a ``.net.xml`` / ``.net.xml.gz`` and build its road map.
 
         Parameters
@@ -186,6 +196,8 @@ class RoadMap:
         cache
             Whether to use the profile cache (see :class:`RoadMap`): a network fitted once
             loads in a fraction of the time.
+        warning_policy
+            The warning speeds the curves' clothoids are cut by (see :class:`RoadMap`).
 
         Raises
         ------
@@ -194,12 +206,19 @@ class RoadMap:
         """
         net = read_sumo_net(net_path)
         try:
-            return cls.from_net(net, warning_radius_m, cache=cache)
+            return cls.from_net(net, warning_radius_m, cache=cache, warning_policy=warning_policy)
         except NetworkError as error:
             raise NetworkError(f"{Path(net_path).name}: {error}") from None
 
     @classmethod
-    def from_net(cls, net: sumolib.net.Net, warning_radius_m: float | None = None, *, cache: bool = True) -> RoadMap:
+    def from_net(
+        cls,
+        net: sumolib.net.Net,
+        warning_radius_m: float | None = None,
+        *,
+        cache: bool = True,
+        warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+    ) -> RoadMap:
         """Build the road map of a sumolib net read with ``withInternal=True``.
 
         Only the location of ``net`` is kept: lanes are copied into arrays so the
@@ -207,7 +226,16 @@ class RoadMap:
         """
         lanes = net_lanes(net)
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
-        return cls(lanes.lanes, lanes.xy, lanes.vertex_start, lanes.successors, lanes.geo, radius, cache=cache)
+        return cls(
+            lanes.lanes,
+            lanes.xy,
+            lanes.vertex_start,
+            lanes.successors,
+            lanes.geo,
+            radius,
+            cache=cache,
+            warning_policy=warning_policy,
+        )
 
     # ----------------------------------------------------------------- lanes
     @cached_property
@@ -269,7 +297,7 @@ class RoadMap:
         step of every path built)."""
         ids = [lane.lane_id for lane in self._lanes]
         starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
-        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=True))
+        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=False))
 
     def road_chain(self, lane_id: str) -> tuple[str, ...]:
         """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.road.chains`)."""
@@ -401,6 +429,7 @@ class RoadMap:
             [self._road_shape(i) for i in indices],
             np.array([self._lanes[i].length_m for i in indices]),
             np.array([self._lanes[i].is_junction for i in indices], dtype=bool),
+            self.warning_policy,
         )
 
     # ----------------------------------------------------------------- positions

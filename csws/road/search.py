@@ -1,4 +1,4 @@
-"""Finding the lanes near positions: a spatial index over the lanes' shapes.
+"""Finds the lanes near positions through a spatial index over the lanes' shapes.
 
 The lane shapes are simplified within :data:`MATCH_TOLERANCE_M` (a dense SUMO shape, a
 vertex every 0.5 m, becomes one segment per straight and a few per curve) and their
@@ -94,7 +94,7 @@ class LaneShapes:
         if len(parts) == 1:
             return parts[0]
         vertex_offset = np.cumsum([0] + [len(part.xy) for part in parts])
-        vertex_start = [part.vertex_start[:-1] + offset for part, offset in zip(parts, vertex_offset, strict=True)]
+        vertex_start = [part.vertex_start[:-1] + offset for part, offset in zip(parts, vertex_offset[:-1], strict=True)]
         return cls(
             xy=np.concatenate([part.xy for part in parts]),
             vertex_start=np.concatenate(vertex_start + [vertex_offset[-1:]]).astype(np.int64),

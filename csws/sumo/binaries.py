@@ -10,8 +10,10 @@ import os
 import sys
 from pathlib import Path
 
+from csws.errors import CswsError
 
-class SumoNotFoundError(RuntimeError):
+
+class SumoNotFoundError(RuntimeError, CswsError):
     """A SUMO program is not where the eclipse-sumo package puts it."""
 
 

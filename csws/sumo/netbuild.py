@@ -13,23 +13,38 @@ import subprocess
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
+from csws.errors import CswsError
 from csws.sumo.binaries import sumo_binary, sumo_home
 
-__all__ = ["NetconvertError", "shape_text", "netconvert", "netconvert_osm"]
+__all__ = ["NetconvertError", "shape_text", "plain_xml_text", "required_attribute", "netconvert", "netconvert_osm"]
 
 DEFAULT_OPTIONS = ("--no-turnarounds", "true", "--offset.disable-normalization", "true")
 
 
-class NetconvertError(RuntimeError):
+class NetconvertError(RuntimeError, CswsError):
     """netconvert failed, or (in strict mode) warned about its input."""
 
 
 def shape_text(xy: np.ndarray) -> str:
     """A polyline as SUMO's ``x,y x,y ...`` with micrometre digits (netconvert rounds on output)."""
     return " ".join(f"{x:.6f},{y:.6f}" for x, y in np.asarray(xy, dtype=float))
+
+
+def plain_xml_text(nodes: ElementTree.Element, edges: ElementTree.Element) -> tuple[str, str]:
+    """The text of a plain-XML node file and edge file (netconvert's input) from their root elements."""
+    return ElementTree.tostring(nodes, encoding="unicode"), ElementTree.tostring(edges, encoding="unicode")
+
+
+def required_attribute(element: ElementTree.Element, name: str) -> str:
+    """An attribute SUMO always writes on ``element`` (ValueError for a file that lacks it)."""
+    value = element.get(name)
+    if value is None:
+        raise ValueError(f"a SUMO <{element.tag}> without {name!r}")
+    return value
 
 
 def netconvert(

@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 from .results import read_results
 from .study import FACTORS, TRAFFIC_FACTORS, Factors, Study
 
-__all__ = ["Estimate", "SettingFigures", "setting_figures", "write_summary_md", "aggregate", "t_quantile"]
+__all__ = ["level_text", "Estimate", "SettingFigures", "setting_figures", "write_summary_md", "aggregate", "t_quantile"]
 
 #: Student's t, 0.975 quantile, for 1-30 degrees of freedom.
 _T_975 = (
@@ -83,15 +83,15 @@ class Estimate:
     @classmethod
     def of(cls, values: list[float | None]) -> Estimate:
         """The estimate from one value per seed; None (a figure without a denominator) is left out."""
-        values = [v for v in values if v is not None]
-        if not values:
+        known = [v for v in values if v is not None]
+        if not known:
             return cls(math.nan, math.nan, 0)
-        if len(values) == 1:
-            return cls(values[0], math.nan, 1)
+        if len(known) == 1:
+            return cls(known[0], math.nan, 1)
         return cls(
-            statistics.fmean(values),
-            t_quantile(len(values) - 1) * statistics.stdev(values) / math.sqrt(len(values)),
-            len(values),
+            statistics.fmean(known),
+            t_quantile(len(known) - 1) * statistics.stdev(known) / math.sqrt(len(known)),
+            len(known),
         )
 
     def text(self, digits: int = 3) -> str:
@@ -142,7 +142,8 @@ def _factors(row: dict) -> Factors:
     return Factors(**{name: row[name] for name in FACTORS})
 
 
-def _level(value) -> str:
+def level_text(value: object) -> str:
+    """A factor's level as the tables and plots show it: floats in their shortest form."""
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
@@ -162,7 +163,7 @@ def _settings_table(study: Study, figures: list[SettingFigures]) -> list[str]:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for setting in figures:
         w, wo = setting.with_csws, setting.without_csws
-        cells = [_level(getattr(setting.factors, name)) for name in shown]
+        cells = [level_text(getattr(setting.factors, name)) for name in shown]
         cells += [
             w["share_vehicles_above_vw1"].text(),
             wo["share_vehicles_above_vw1"].text(),
@@ -210,7 +211,7 @@ def write_summary_md(
     """Write ``summary.md``."""
     scenario = study.scenario
     what = scenario.bundled or scenario.sumocfg
-    fixed = ", ".join(f"{name} {_level(levels[0])}" for name, levels in study.levels.items() if len(levels) == 1)
+    fixed = ", ".join(f"{name} {level_text(levels[0])}" for name, levels in study.levels.items() if len(levels) == 1)
     runs = study.runs()
     lines = [
         f"# Study {study.name}",

@@ -121,7 +121,7 @@ def run_sweep(
             "sweep", len(runs), "runs", enabled=progress, stream=stream, done=len(report.done_before), time_left=True
         )
         futures = client.map(run_task, pending, key=[f"csws-run-{spec.key}" for spec in pending])
-        key_of = {future.key: spec.key for future, spec in zip(futures, pending, strict=True)}
+        key_of = {future.key: spec.key for future, spec in zip(futures, pending, strict=False)}
         try:
             for future in as_completed(futures):
                 key = key_of[future.key]

@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from .aggregate import Estimate, SettingFigures
+from .aggregate import Estimate, SettingFigures, level_text
 from .study import Study
 
 __all__ = ["write_plots"]
@@ -35,10 +36,6 @@ def _estimate(setting: SettingFigures, name: str, with_csws: bool = True) -> Est
     return (setting.with_csws if with_csws else setting.without_csws)[name]
 
 
-def _label(value) -> str:
-    return f"{value:g}" if isinstance(value, float) else str(value)
-
-
 def write_plots(folder: Path, study: Study, figures: list[SettingFigures], references: list[dict]) -> list[Path]:
     """Write ``summary.png`` and ``excess.png`` into ``folder``; their paths."""
     import matplotlib
@@ -55,18 +52,18 @@ def write_plots(folder: Path, study: Study, figures: list[SettingFigures], refer
     positions = list(levels) if numeric else list(range(len(levels)))
     lines = list(itertools.product(*(study.levels[name] for name in others)))
     figure, axes = pyplot.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for (name, label, with_reference), axis in zip(_PANELS, axes.flat, strict=True):
+    for (name, label, with_reference), axis in zip(_PANELS, axes.flat, strict=False):
         for number, line in enumerate(lines):
             settings = [
                 next(
                     s
                     for s in figures
                     if getattr(s.factors, x_factor) == level
-                    and all(getattr(s.factors, o) == v for o, v in zip(others, line, strict=True))
+                    and all(getattr(s.factors, o) == v for o, v in zip(others, line, strict=False))
                 )
                 for level in levels
             ]
-            text = ", ".join(f"{o} {_label(v)}" for o, v in zip(others, line, strict=True)) or "with CSWS"
+            text = ", ".join(f"{o} {level_text(v)}" for o, v in zip(others, line, strict=False)) or "with CSWS"
             color = f"C{number % 10}"
             _errorbars(axis, positions, [_estimate(s, name) for s in settings], color, "-o", text)
             if with_reference:
@@ -83,7 +80,7 @@ def write_plots(folder: Path, study: Study, figures: list[SettingFigures], refer
     for axis in axes[1]:
         axis.set_xlabel(x_factor)
         if not numeric:
-            axis.set_xticks(positions, [_label(level) for level in levels])
+            axis.set_xticks(positions, [level_text(level) for level in levels])
     axes[0][0].legend(fontsize=8)
     figure.suptitle(f"Study {study.name}: mean over {len(study.seeds)} seeds, 95 % intervals", fontsize=11)
     figure.tight_layout()
@@ -93,7 +90,9 @@ def write_plots(folder: Path, study: Study, figures: list[SettingFigures], refer
     return [summary, _excess_plot(folder / "excess.png", x_factor, figures, references, pyplot)]
 
 
-def _errorbars(axis, positions: list, estimates: list[Estimate], color: str, style: str, label: str) -> None:
+def _errorbars(
+    axis: Any, positions: list[float], estimates: list[Estimate], color: str, style: str, label: str
+) -> None:
     means = np.array([e.mean for e in estimates])
     widths = np.nan_to_num(np.array([e.half_width for e in estimates]))
     axis.errorbar(
@@ -108,11 +107,13 @@ def _errorbars(axis, positions: list, estimates: list[Estimate], color: str, sty
     )
 
 
-def _excess_plot(path: Path, x_factor: str, figures: list[SettingFigures], references: list[dict], pyplot) -> Path:
+def _excess_plot(
+    path: Path, x_factor: str, figures: list[SettingFigures], references: list[dict[str, Any]], pyplot: Any
+) -> Path:
     """Histogram of the excess over V_w1 at curve entry: without CSWS, and per level of ``x_factor``."""
     groups = {"without CSWS": [e for row in references for e in row["entry_excess_kmh"]]}
     for setting in figures:
-        groups.setdefault(f"{x_factor} {_label(getattr(setting.factors, x_factor))}", []).extend(setting.excess_kmh)
+        groups.setdefault(f"{x_factor} {level_text(getattr(setting.factors, x_factor))}", []).extend(setting.excess_kmh)
     everything = [e for values in groups.values() for e in values] or [0.0]
     bins = np.linspace(min(min(everything), -2.0), max(max(everything), 2.0), 40)
     figure, axis = pyplot.subplots(figsize=(8, 4))

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from csws.cli.argtypes import step_length
+from csws.errors import CswsError
 from csws.standard import Category
 
 __all__ = [
@@ -57,7 +58,7 @@ TRAFFIC_FACTORS = ("step_length_s", "category_mix")
 OWN_MIX = "scenario"
 
 
-class StudyError(ValueError):
+class StudyError(ValueError, CswsError):
     """A study file that cannot run: one line naming the file and the field."""
 
 
@@ -138,7 +139,7 @@ class Study:
     def settings(self) -> list[Factors]:
         """Every combination of the factors' levels."""
         return [
-            Factors(**dict(zip(self.levels, values, strict=True)))
+            Factors(**dict(zip(self.levels, values, strict=False)))
             for values in itertools.product(*self.levels.values())
         ]
 

@@ -24,11 +24,13 @@ import csv
 import tempfile
 import threading
 from pathlib import Path
+from typing import Any
 from xml.etree import ElementTree
 
 from csws.cosim.driver import DriverSettings, is_equipped
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.standard import Level, warning_speed
+from csws.sumo.netbuild import required_attribute
 
 from .study import RunSpec
 
@@ -40,33 +42,39 @@ _LIBSUMO = threading.Lock()
 TRIPINFO = "tripinfo.xml"
 
 
-def run_task(spec: RunSpec) -> dict:
+def run_task(spec: RunSpec) -> dict[str, Any]:
     """Run ``spec`` and return its row of figures (:data:`csws.sweep.results.RUN_SCHEMA`)."""
     with _LIBSUMO, tempfile.TemporaryDirectory(prefix=f"csws-sweep-{spec.key}-") as folder:
         out = Path(folder)
-        factors = spec.factors
-        driver = (
-            None
-            if spec.reference
-            else DriverSettings(
-                reaction_s=factors.reaction_s,
-                decel_mps2=factors.decel_mps2,
-                equipped_share=factors.equipped_share,
-                compliance_share=factors.compliance_share,
-                draw_seed=spec.seed,
-            )
-        )
         config = CosimConfig(
             scenario_files(spec, out),
             out / "cosim",
-            step_length_s=factors.step_length_s,
+            step_length_s=spec.factors.step_length_s,
             end_s=spec.scenario.end_s,
-            driver=driver,
+            driver=_driver(spec),
             seed=spec.seed,
             timeseries="none",
         )
         summary = cosimulate(config)
         return _figures(spec, summary, out)
+
+
+def _driver(spec: RunSpec) -> DriverSettings | None:
+    """The driver-response model of the run's factors; None in a reference run (no vehicle equipped)."""
+    factors = spec.factors
+    if spec.reference:
+        return None
+    equipped_share, compliance_share = factors.equipped_share, factors.compliance_share
+    reaction_s, decel_mps2 = factors.reaction_s, factors.decel_mps2
+    if equipped_share is None or compliance_share is None or reaction_s is None or decel_mps2 is None:
+        raise ValueError(f"run {spec.key}: a run with CSWS needs every CSWS factor, got {factors}")
+    return DriverSettings(
+        reaction_s=reaction_s,
+        decel_mps2=decel_mps2,
+        equipped_share=equipped_share,
+        compliance_share=compliance_share,
+        draw_seed=spec.seed,
+    )
 
 
 def scenario_files(spec: RunSpec, folder: Path) -> Scenario:
@@ -88,8 +96,10 @@ def scenario_files(spec: RunSpec, folder: Path) -> Scenario:
         from csws.networks import networks_dir
 
         source = networks_dir() / "badhersfeld.sumocfg"
-    else:
+    elif scenario.sumocfg is not None:
         source = Path(scenario.sumocfg)
+    else:
+        raise ValueError("a scenario names a bundled network or a sumocfg")
     return _with_tripinfo(source, folder / "run.sumocfg")
 
 
@@ -108,18 +118,20 @@ def _with_tripinfo(source: Path, config: Path) -> Scenario:
         output = ElementTree.SubElement(root, "output")
     ElementTree.SubElement(output, "tripinfo-output", value=str(config.parent / TRIPINFO))
     ElementTree.SubElement(output, "tripinfo-output.write-unfinished", value="true")
+    if net is None:
+        raise ValueError(f"{source} names no net-file")
     ElementTree.ElementTree(root).write(config, encoding="unicode")
     return Scenario(config, Path(net))
 
 
-def _figures(spec: RunSpec, summary: dict, out: Path) -> dict:
+def _figures(spec: RunSpec, summary: dict[str, Any], out: Path) -> dict[str, Any]:
     """The run's row of figures from its files."""
     factors = spec.factors
-    share = 0.0 if spec.reference else factors.equipped_share
+    share = factors.equipped_share or 0.0  # None in a reference run: no vehicle equipped
     equipped = lambda vehicle_id: share > 0 and is_equipped(vehicle_id, share, spec.seed)  # noqa: E731
     trips = ElementTree.parse(out / TRIPINFO).getroot().findall("tripinfo")
-    distance_m = {trip.get("id"): float(trip.get("routeLength")) for trip in trips}
-    time_loss_s = [float(trip.get("timeLoss")) for trip in trips]
+    distance_m = {required_attribute(trip, "id"): float(required_attribute(trip, "routeLength")) for trip in trips}
+    time_loss_s = [float(required_attribute(trip, "timeLoss")) for trip in trips]
     with open(out / "cosim" / "entries.csv", newline="", encoding="utf-8") as stream:
         entries = list(csv.DictReader(stream))
     with open(out / "cosim" / "warnings.csv", newline="", encoding="utf-8") as stream:
@@ -151,6 +163,6 @@ def _figures(spec: RunSpec, summary: dict, out: Path) -> dict:
     }
 
 
-def _level2_kmh(entry: dict) -> float:
+def _level2_kmh(entry: dict[str, str]) -> float:
     """The level-2 warning speed V_w2 of an entry's curve part for its category (Table 1), km/h."""
     return warning_speed(float(entry["radius_m"]), entry["category"], Level.LEVEL_2)

@@ -1,4 +1,4 @@
-"""When a warning that is on goes off: the release rule, and what a vehicle's warning keeps for it.
+"""Decides when a warning that is on goes off (the release rule), and what a vehicle's warning keeps for it.
 
 Clause 6.1 says when a level is due; the standard says nothing of when it ends beyond
 6.2.1's "持续发出" (the warning continues while curves keep requiring it). Taken at
@@ -39,7 +39,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["HeldWarning", "NOT_HELD", "Rule", "memory_masks", "next_memories", "within_hold"]
+__all__ = [
+    "HeldWarning",
+    "NOT_HELD",
+    "Rule",
+    "lowered_warning_speed_kmh",
+    "memory_masks",
+    "named_points",
+    "next_memories",
+    "vehicle_memory",
+    "within_hold",
+]
 
 #: A CPOI as the release rule remembers it: (curve id, part index).
 PointKey = tuple[str, int]
@@ -116,11 +126,10 @@ def memory_masks(
     for vehicle, memory in enumerate(held):
         if memory is NOT_HELD or not memory.is_on:  # most vehicles: no warning to keep
             continue
-        rows = range(first_cpoi[vehicle], first_cpoi[vehicle + 1])
-        for level, points in enumerate(memory.points):
-            if not points:
-                continue
-            rows_named = [row for row in rows if (curve_ids[row], int(part_indices[row])) in points]
+        start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
+        keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
+        for level, level_named in enumerate(named_points(memory, keys)):
+            rows_named = [row for row, is_named in enumerate(level_named, start) if is_named]
             named[level].extend(rows_named)
             if within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s):
                 held_on[level].extend(rows_named)
@@ -148,22 +157,44 @@ def next_memories(
     level_rules = cpoi_rule.tolist()
     for vehicle in on:
         start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
-        points, kept_at_s = [], []
-        for level, rules in enumerate(level_rules):
-            here = rules[start:stop]
-            points.append(
-                frozenset(
-                    (curve_ids[row], int(part_indices[row]))
-                    for row, rule in zip(range(start, stop), here, strict=True)
-                    if rule
-                )
-            )
-            if Rule.REQUIRED in here or Rule.MARGIN in here:
-                kept_at_s.append(now_s[vehicle])
-            else:
-                kept_at_s.append(held[vehicle].kept_at_s[level] if Rule.HOLD in here else None)
-        memories[vehicle] = HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
+        keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
+        here = (level_rules[0][start:stop], level_rules[1][start:stop])
+        memories[vehicle] = vehicle_memory(here, keys, held[vehicle], now_s[vehicle])
     return memories
+
+
+def vehicle_memory(
+    rules: tuple[Sequence[int], Sequence[int]], keys: Sequence[PointKey], held: HeldWarning, now_s: float | None
+) -> HeldWarning:
+    """One vehicle's memory after this update, from what kept level 1 and level 2 on at each of its
+    CPOIs (``rules``, :class:`Rule` codes in the order of ``keys``) and its memory ``held`` before.
+
+    A level keeps the CPOIs that kept it on; its time is now where 6.1 or the margin kept it on,
+    the time it had where only the hold did (rule 2 counts from the last time it was kept on
+    otherwise), and none where it is off.
+    """
+    if not any(rules[0]) and not any(rules[1]):
+        return NOT_HELD
+    points, kept_at_s = [], []
+    for level, here in enumerate(rules):
+        points.append(frozenset(key for key, rule in zip(keys, here, strict=True) if rule))
+        if Rule.REQUIRED in here or Rule.MARGIN in here:
+            kept_at_s.append(now_s)
+        else:
+            kept_at_s.append(held.kept_at_s[level] if Rule.HOLD in here else None)
+    return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
+
+
+def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:
+    """For level 1 and level 2, which of a vehicle's CPOIs (``keys``, in order) its memory names (rule 1)."""
+    return [key in held.points[0] for key in keys], [key in held.points[1] for key in keys]
+
+
+def lowered_warning_speed_kmh(warning_speed_kmh, margin_kmh: float):
+    """Rule 1: V_w lowered by the release margin, never below 0, km/h (floats or arrays, the same to the bit)."""
+    if isinstance(warning_speed_kmh, float):
+        return max(warning_speed_kmh - margin_kmh, 0.0)
+    return np.fmax(warning_speed_kmh - margin_kmh, 0.0)
 
 
 def within_hold(kept_at_s: float | None, now_s: float | None, hold_s: float) -> bool:

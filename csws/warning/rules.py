@@ -1,4 +1,4 @@
-"""The two-level curve speed warning of clauses 5 and 6 of T/ITS 0091-2018.
+"""Decides for many vehicles at once which warning level of clause 6 is due and for which target CPOI.
 
 Given a vehicle's speed and category and the curvature points of interest (CPOIs,
 3.11) ahead of it, decide which warning level is due and for which target CPOI (3.12):
@@ -43,7 +43,7 @@ from csws.standard import (
     kmh_to_mps,
     warning_distance_m,
 )
-from csws.warning.release import Rule
+from csws.warning.release import Rule, lowered_warning_speed_kmh
 
 __all__ = [
     "CurvaturePointOfInterest",
@@ -56,6 +56,8 @@ __all__ = [
     "BatchWarnings",
     "column_index",
     "column_indices",
+    "meets_clause_6_1",
+    "meets_margin",
     "no_warning",
 ]
 
@@ -140,6 +142,10 @@ class WarningSettings:
     def latency_s(self) -> float:
         """Total latency t_latency compensated for, s."""
         return self.update_period_s + self.system_delay_s
+
+    def allowance_m(self, speed_mps):
+        """The distance driven at ``speed_mps`` during the latency, by which S_w is extended, m (floats or arrays)."""
+        return speed_mps * self.latency_s
 
 
 @dataclass(frozen=True)
@@ -297,7 +303,7 @@ class BatchWarnings:
         held = (self.cpoi_rule[np.fmax(self.cpoi_level - 1, 0), columns] >= Rule.MARGIN).tolist()
         warnings = []
         for vehicle, first, ids, parts, path_kind in zip(
-            vehicles, first_cpoi, curve_ids, part_indices, path_kinds, strict=True
+            vehicles, first_cpoi, curve_ids, part_indices, path_kinds, strict=False
         ):
             level = _LEVELS[vehicle_levels[vehicle]]
             if level is Level.NONE:  # nothing triggered
@@ -329,8 +335,8 @@ class BatchWarnings:
         return warnings
 
 
-_COLUMN_INDEX = {category: list(Column).index(category.column) for category in Category}
-_COLUMN_INDEX.update({category.value: index for category, index in _COLUMN_INDEX.items()})
+#: A category's column; its name finds it too (a StrEnum member is equal to its name, and hashes as it).
+_COLUMN_INDEX: dict[str, int] = {category: list(Column).index(category.column) for category in Category}
 _LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
 
 
@@ -390,38 +396,70 @@ def evaluate_batch(
     cpoi_vehicle = np.asarray(cpoi_vehicle, dtype=np.intp)
     distance = np.asarray(cpoi_distance_m, dtype=float)
     radius = np.asarray(cpoi_radius_m, dtype=float)
-    cpoi_column = np.asarray(column_index)[cpoi_vehicle]
     cpoi_speed_kmh = speed_kmh[cpoi_vehicle]
     cpoi_speed_mps = kmh_to_mps(cpoi_speed_kmh)
-    allowance_m = cpoi_speed_mps * settings.latency_s
-
     # Row 0: level 1, row 1: level 2 (Tables 1 and 2).
-    threshold_kmh = settings.policy.warning_speeds_kmh(radius, cpoi_column)
+    threshold_kmh = settings.policy.warning_speeds_kmh(radius, np.asarray(column_index)[cpoi_vehicle])
     sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
-    # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency).
-    required = (cpoi_speed_kmh >= threshold_kmh) & (distance <= sw_m + allowance_m)
+    required = meets_clause_6_1(cpoi_speed_kmh, threshold_kmh, distance, sw_m, settings.allowance_m(cpoi_speed_mps))
     if cpoi_passed is not None:
         required &= ~np.asarray(cpoi_passed, dtype=bool)
     rule = np.where(required, Rule.REQUIRED, Rule.OFF).astype(np.int8)
     if cpoi_latched is not None and cpoi_latched.any():
-        # Release rule 1: a CPOI that kept a level on keeps it while 6.1 holds with V_w lowered by the margin.
-        lowered_kmh = np.fmax(threshold_kmh - settings.release_margin_kmh, 0.0)
-        lowered_sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(lowered_kmh), settings.g_mps2)
-        margin = cpoi_latched & (cpoi_speed_kmh >= lowered_kmh) & (distance <= lowered_sw_m + allowance_m)
-        rule[(rule == Rule.OFF) & margin] = Rule.MARGIN
+        _apply_margin(rule, cpoi_latched, cpoi_speed_kmh, threshold_kmh, distance, settings)
     if cpoi_hold is not None and cpoi_hold.any():
-        # Release rule 2: the hold keeps a level on only for a vehicle that nothing else keeps warned.
-        warned = np.bincount(cpoi_vehicle, np.any(rule != Rule.OFF, axis=0), len(speed_kmh)) > 0
-        rule[(rule == Rule.OFF) & cpoi_hold & ~warned[cpoi_vehicle]] = Rule.HOLD
+        _apply_hold(rule, cpoi_hold, cpoi_vehicle, len(speed_kmh))
+    cpoi_level, shown = _levels_shown(rule)
+    columns = np.arange(distance.size)
+    level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
+    return BatchWarnings(
+        level, target, cpoi_level, threshold_kmh[shown, columns], sw_m[shown, columns], distance, radius, rule
+    )
+
+
+def meets_clause_6_1(speed_kmh, warning_speed_kmh, distance_m, warning_distance_m, allowance_m):
+    """6.1: V >= V_w and S <= S_w, plus the distance driven during the latency (floats or arrays)."""
+    return (speed_kmh >= warning_speed_kmh) & (distance_m <= warning_distance_m + allowance_m)
+
+
+def meets_margin(speed_kmh, warning_speed_kmh, distance_m, settings: WarningSettings):
+    """Release rule 1: 6.1's condition with V_w lowered by the release margin (floats or arrays).
+
+    A CPOI that kept a level on keeps it while this holds (:mod:`csws.warning.release`).
+    """
+    speed_mps = kmh_to_mps(speed_kmh)
+    lowered_kmh = lowered_warning_speed_kmh(warning_speed_kmh, settings.release_margin_kmh)
+    lowered_sw_m = warning_distance_m(speed_mps, kmh_to_mps(lowered_kmh), settings.g_mps2)
+    return meets_clause_6_1(speed_kmh, lowered_kmh, distance_m, lowered_sw_m, settings.allowance_m(speed_mps))
+
+
+def _apply_margin(
+    rule: np.ndarray,
+    cpoi_latched: np.ndarray,
+    speed_kmh: np.ndarray,
+    warning_speed_kmh: np.ndarray,
+    distance_m: np.ndarray,
+    settings: WarningSettings,
+) -> None:
+    """Release rule 1 on ``rule``, in place: a CPOI that kept a level on keeps it while
+    :func:`meets_margin` holds."""
+    margin = cpoi_latched & meets_margin(speed_kmh, warning_speed_kmh, distance_m, settings)
+    rule[(rule == Rule.OFF) & margin] = Rule.MARGIN
+
+
+def _apply_hold(rule: np.ndarray, cpoi_hold: np.ndarray, cpoi_vehicle: np.ndarray, n_vehicles: int) -> None:
+    """Release rule 2 on ``rule``, in place: the hold keeps a level on only for a vehicle that
+    nothing else keeps warned."""
+    warned = np.bincount(cpoi_vehicle, np.any(rule != Rule.OFF, axis=0), n_vehicles) > 0
+    rule[(rule == Rule.OFF) & cpoi_hold & ~warned[cpoi_vehicle]] = Rule.HOLD
+
+
+def _levels_shown(rule: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each CPOI's highest level kept on (0 where none), and the row of ``rule`` whose V_w and
+    S_w it shows (level 2's where level 2 is on, else level 1's)."""
     kept = rule != Rule.OFF
     shown = kept[1].astype(np.intp)
-    cpoi_level = (kept[0] | kept[1]).astype(np.int8) + shown.astype(np.int8)
-    columns = np.arange(distance.size)
-    cpoi_warning_speed_kmh = threshold_kmh[shown, columns]
-    cpoi_sw_m = sw_m[shown, columns]
-
-    level, target = _targets(len(speed_kmh), cpoi_vehicle, cpoi_level, distance)
-    return BatchWarnings(level, target, cpoi_level, cpoi_warning_speed_kmh, cpoi_sw_m, distance, radius, rule)
+    return (kept[0] | kept[1]).astype(np.int8) + shown.astype(np.int8), shown
 
 
 #: The warning of a vehicle for which nothing triggers, per path kind.
@@ -433,7 +471,9 @@ def no_warning(path_kind: PathKind = PathKind.PREDICTED) -> CurveWarning:
     return _NO_WARNINGS[path_kind]
 
 
-def _targets(n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray):
+def _targets(
+    n_vehicles: int, cpoi_vehicle: np.ndarray, cpoi_level: np.ndarray, distance: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Per vehicle the highest triggered level and its nearest CPOI (3.12, 6.2.1).
 
     CPOIs sorted by vehicle, then level descending, then distance: the first of each

@@ -1,20 +1,32 @@
-"""Clause 6 and the release rule for one vehicle, in plain floats.
+"""Applies clause 6 and the release rule to one vehicle in plain floats, giving the batch's answer to the bit.
 
 :func:`csws.warning.rules.evaluate_batch` and :mod:`csws.warning.release` judge the CPOIs of a fleet in
 numpy arrays. One vehicle has a few CPOIs (one or two on most roads), and on arrays that
 small numpy's cost per call is most of the work: an on-board unit's query, or the service's
-answer to one vehicle, would wait on it. :func:`judge_one` applies the same rules with the
-same floating-point operations in the same order to Python floats, so its answer and the
-memory it leaves are the batch's to the bit (``tests/test_onewarning.py`` holds them
-against each other on every kind of CPOI and memory).
+answer to one vehicle, would wait on it. :func:`judge_one` applies the same rules to Python
+floats through the same functions, each of which takes floats or arrays: the table look-up
+(:meth:`csws.standard.WarningSpeedPolicy.warning_speeds_one_kmh`), formula (1)
+(:func:`csws.standard.warning_distance_m`), the latency allowance, 6.1's condition
+(:func:`csws.warning.rules.meets_clause_6_1`), the margin (:func:`csws.warning.rules.meets_margin`)
+and the memory (:func:`csws.warning.release.vehicle_memory`). Its answer and the memory it leaves
+are so the batch's to the bit (``tests/test_onewarning.py`` holds them against each other on
+random settings, CPOIs and memories).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-from csws.standard import Category, Level, formula_1_m, kmh_to_mps
-from csws.warning.release import NOT_HELD, HeldWarning, Rule, within_hold
+from csws.standard import Category, Level, kmh_to_mps, warning_distance_m
+from csws.warning.release import (
+    NOT_HELD,
+    HeldWarning,
+    PointKey,
+    Rule,
+    named_points,
+    vehicle_memory,
+    within_hold,
+)
 from csws.warning.rules import (
     CurvaturePointOfInterest,
     CurveWarning,
@@ -23,6 +35,8 @@ from csws.warning.rules import (
     Trigger,
     WarningSettings,
     column_index,
+    meets_clause_6_1,
+    meets_margin,
     no_warning,
 )
 
@@ -31,7 +45,6 @@ __all__ = ["CpoiPoint", "evaluate", "judge_one"]
 #: A CPOI as :meth:`csws.ahead.horizon.PathAhead.cpoi_points` gives it: curve id, part index,
 #: distance S (m), radius (m), passed.
 CpoiPoint = tuple[str, int, float, float, bool]
-_LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
 
 
 def evaluate(
@@ -81,55 +94,49 @@ def judge_one(
         it) and the vehicle's memory after this update (:func:`csws.warning.release.next_memories`).
     """
     speed_mps = kmh_to_mps(speed_kmh)
-    allowance_m = speed_mps * settings.latency_s
+    allowance_m = settings.allowance_m(speed_mps)
     speeds = [settings.policy.warning_speeds_one_kmh(radius_m, column_index) for _, _, _, radius_m, _ in points]
-    distances = [[_warning_distance_m(speed_mps, kmh_to_mps(v), settings.g_mps2) for v in pair] for pair in speeds]
-    # 6.1: V >= V_w and S <= S_w (+ the distance driven during the latency); nothing where passed.
+    distances = [[warning_distance_m(speed_mps, kmh_to_mps(v), settings.g_mps2) for v in pair] for pair in speeds]
+    # 6.1, nothing where passed.
     rules = [
         [
-            Rule.REQUIRED if speed_kmh >= v and point[2] <= s + allowance_m and not point[4] else Rule.OFF
+            Rule.REQUIRED if meets_clause_6_1(speed_kmh, v, point[2], s, allowance_m) and not point[4] else Rule.OFF
             for v, s in zip(pair, sws, strict=True)
         ]
-        for point, pair, sws in zip(points, speeds, distances, strict=True)
+        for point, pair, sws in zip(points, speeds, distances, strict=False)
     ]
+    keys = [(point[0], point[1]) for point in points]
     if held.is_on:
-        _apply_release(rules, speed_kmh, speed_mps, allowance_m, points, speeds, held, now_s, settings)
+        _apply_release(rules, speed_kmh, keys, [point[2] for point in points], speeds, held, now_s, settings)
     warning = _warning(rules, points, speeds, distances, path_kind)
-    return warning, _next_memory(rules, points, held, now_s)
-
-
-def _warning_distance_m(speed_mps: float, warning_speed_mps: float, g_mps2: float) -> float:
-    """:func:`csws.standard.warning_distance_m` of one speed: formula (1), 0 below V_w."""
-    return formula_1_m(speed_mps, warning_speed_mps, g_mps2) if speed_mps >= warning_speed_mps else 0.0
+    level_rules = ([point_rules[0] for point_rules in rules], [point_rules[1] for point_rules in rules])
+    return warning, vehicle_memory(level_rules, keys, held, now_s)
 
 
 def _apply_release(
     rules: list[list[int]],
     speed_kmh: float,
-    speed_mps: float,
-    allowance_m: float,
-    points: Sequence[CpoiPoint],
+    keys: list[PointKey],
+    distances_m: list[float],
     speeds: list[tuple[float, float]],
     held: HeldWarning,
     now_s: float | None,
     settings: WarningSettings,
 ) -> None:
     """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place."""
-    named = [[(point[0], point[1]) in level_points for level_points in held.points] for point in points]
-    for point, pair, point_rules, point_named in zip(points, speeds, rules, named, strict=True):
+    named = named_points(held, keys)
+    for point, (distance_m, pair, point_rules) in enumerate(zip(distances_m, speeds, rules, strict=True)):
         for level in (0, 1):
-            if point_rules[level] == Rule.OFF and point_named[level]:
-                lowered_kmh = max(pair[level] - settings.release_margin_kmh, 0.0)
-                lowered_sw_m = _warning_distance_m(speed_mps, kmh_to_mps(lowered_kmh), settings.g_mps2)
-                if speed_kmh >= lowered_kmh and point[2] <= lowered_sw_m + allowance_m:
+            if point_rules[level] == Rule.OFF and named[level][point]:
+                if meets_margin(speed_kmh, pair[level], distance_m, settings):
                     point_rules[level] = Rule.MARGIN
     if any(rule for point_rules in rules for rule in point_rules):
         return
-    holding = [within_hold(kept_at_s, now_s, settings.release_hold_s) for kept_at_s in held.kept_at_s]
-    for point_rules, point_named in zip(rules, named, strict=True):
-        for level in (0, 1):
-            if holding[level] and point_named[level]:
-                point_rules[level] = Rule.HOLD
+    for level in (0, 1):
+        if within_hold(held.kept_at_s[level], now_s, settings.release_hold_s):
+            for point, point_rules in enumerate(rules):
+                if named[level][point]:
+                    point_rules[level] = Rule.HOLD
 
 
 def _warning(
@@ -142,7 +149,7 @@ def _warning(
     """The warning: each triggering CPOI at its highest level; the target the highest level,
     then the nearest (3.12, 6.2.1: level 2 has priority)."""
     triggers = []
-    for point, pair, sws, (level_1, level_2) in zip(points, speeds, distances, rules, strict=True):
+    for point, pair, sws, (level_1, level_2) in zip(points, speeds, distances, rules, strict=False):
         level = 2 if level_2 else 1 if level_1 else 0
         if level:
             shown = 1 if level_2 else 0
@@ -152,7 +159,7 @@ def _warning(
                     point[1],
                     point[2],
                     point[3],
-                    _LEVELS[level],
+                    Level(level),
                     pair[shown],
                     sws[shown],
                     (level_2 if level_2 else level_1) >= Rule.MARGIN,
@@ -168,20 +175,3 @@ def _warning(
         path_kind,
         HmiHint.for_level(target.level),
     )
-
-
-def _next_memory(
-    rules: list[list[int]], points: Sequence[CpoiPoint], held: HeldWarning, now_s: float | None
-) -> HeldWarning:
-    """What the release rule keeps after this update (:func:`csws.warning.release.next_memories` of one vehicle)."""
-    if not any(rule for point_rules in rules for rule in point_rules):
-        return NOT_HELD
-    points_on, kept_at_s = [], []
-    for level in (0, 1):
-        here = [point_rules[level] for point_rules in rules]
-        points_on.append(frozenset((point[0], point[1]) for point, rule in zip(points, here, strict=True) if rule))
-        if Rule.REQUIRED in here or Rule.MARGIN in here:
-            kept_at_s.append(now_s)
-        else:
-            kept_at_s.append(held.kept_at_s[level] if Rule.HOLD in here else None)
-    return HeldWarning((points_on[0], points_on[1]), (kept_at_s[0], kept_at_s[1]))

@@ -145,7 +145,7 @@ class RedisStore(StateStore):
             raise self._unavailable(exc) from None
         count = len(vehicle_ids)
         stored = {}
-        for vehicle_id, session, setting in zip(vehicle_ids, values[:count], values[count:], strict=True):
+        for vehicle_id, session, setting in zip(vehicle_ids, values[:count], values[count:], strict=False):
             try:
                 stored[vehicle_id] = StoredVehicle(
                     None if setting is None else _decode_setting(setting), *_decode_session(session)
@@ -181,7 +181,7 @@ class RedisStore(StateStore):
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         found = {}
-        for key, value in zip(keys, values, strict=True):
+        for key, value in zip(keys, values, strict=False):
             session, _version = _decode_session(value)
             if session is not None:
                 found[key.decode()[len(SESSION_PREFIX) :]] = session

@@ -28,11 +28,12 @@ import zlib
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from csws.cosim.fcw import BRAKE_LIGHT, forward_targets
-from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states, time_to_collision_s
 from csws.fcw.target import TargetSettings
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR
@@ -126,9 +127,8 @@ class Trace:
 
     @property
     def ttc_s(self) -> np.ndarray:
-        """True TTC, s (``inf`` while not closing)."""
-        with np.errstate(divide="ignore"):
-            return np.where(self.closing_mps > 0.0, self.clearance_m / self.closing_mps, np.inf)
+        """True TTC, s (formula (2) on the true values; ``inf`` while not closing)."""
+        return time_to_collision_s(self.clearance_m, -self.closing_mps)
 
 
 @cache
@@ -182,7 +182,8 @@ class _Record:
         }
     )
 
-    def add(self, **values) -> None:
+    def add(self, **values: float | str | int) -> None:
+        """Append one step's values, by column."""
         for name, value in values.items():
             self.columns[name].append(value)
 
@@ -209,7 +210,8 @@ class _Equipment:
     def __init__(self, rng: np.random.Generator) -> None:
         self.rng = rng
 
-    def uniform(self, bound: float, count: int | None = None):
+    def uniform(self, bound: float, count: int | None = None) -> Any:
+        """Uniform noise in +-``bound``: one number, or ``count`` of them as an array."""
         return self.rng.uniform(-bound, bound, count)
 
     def sensor(self, clearance_m: np.ndarray, offset_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -293,7 +295,7 @@ def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Tr
     return record.trace(repetition, phase)
 
 
-def _true_state(sumo, track: str, lane_of: dict[str, str]) -> dict[str, float]:
+def _true_state(sumo: Any, track: str, lane_of: dict[str, str]) -> dict[str, float]:
     """The true clearance to ``tv`` along the subject's lane, speeds, the adjacent vehicle's place."""
     vehicle = sumo.vehicle
     subject_m = vehicle.getLanePosition("sv")
@@ -315,7 +317,7 @@ def _true_state(sumo, track: str, lane_of: dict[str, str]) -> dict[str, float]:
 
 
 def _evaluate(
-    sumo, settings: FcwSettings, target_settings: TargetSettings, state: np.ndarray, equipment: _Equipment
+    sumo: Any, settings: FcwSettings, target_settings: TargetSettings, state: np.ndarray, equipment: _Equipment
 ) -> tuple[int, str | None, np.ndarray]:
     """The system on the subject, through the equipment's noise: level, target id, state."""
     vehicle = sumo.vehicle

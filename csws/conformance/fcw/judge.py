@@ -101,7 +101,8 @@ def _first(mask: np.ndarray) -> int | None:
 def judge_fcw_run(row: FcwRow, trace: Trace) -> FcwRunResult:
     """Judge one run of a row."""
     warned = trace.level >= row.level
-    reasons, figure = [], None
+    reasons: list[str] = []
+    figure: float | None = None
     if row.script in ("approach", "lead_brakes"):
         figure, reasons = _approach(row, trace, warned)
     elif row.script == "two_leads":
@@ -133,14 +134,17 @@ def _approach(row: FcwRow, trace: Trace, warned: np.ndarray) -> tuple[float | No
         if clearance_m < row.least_clearance_m:
             reasons.append(f"warned at {clearance_m:.2f} m")
         return clearance_m, reasons
+    set_distance_m = row.set_distance_m
+    if set_distance_m is None:
+        raise ValueError(f"row {row.row_id} names no criterion for its warning")
     reference = _first(trace.clearance_m <= REFERENCE_CLEARANCE_M)
     if reference is None or reference > first:
         return None, reasons + ["warned before the reference clearance"]
     distance_m = float(
         trace.clearance_m[reference] - row.actor("sv").speed_mps * (trace.time_s[first] - trace.time_s[reference])
     )
-    if abs(distance_m - row.set_distance_m) > max(ACCURACY_M, ACCURACY_FRACTION * row.set_distance_m):
-        reasons.append(f"warning distance {distance_m:.2f} m, set {row.set_distance_m:.2f} m")
+    if abs(distance_m - set_distance_m) > max(ACCURACY_M, ACCURACY_FRACTION * set_distance_m):
+        reasons.append(f"warning distance {distance_m:.2f} m, set {set_distance_m:.2f} m")
     return distance_m, reasons
 
 
@@ -152,7 +156,7 @@ def _two_leads(trace: Trace) -> list[str]:
         reasons.append("no collision warning while closing on the leads")
     if not (collision & (trace.phase_index == TARGET_BRAKES)).any():
         reasons.append("no collision warning when the nearer lead braked")
-    others = {target for target, level in zip(trace.target, trace.level, strict=True) if level and target != "tv"}
+    others = {target for target, level in zip(trace.target, trace.level, strict=False) if level and target != "tv"}
     if others:
         reasons.append(f"warned for {', '.join(sorted(others))}")
     return reasons

@@ -23,8 +23,9 @@ centre), and the curve test of 5.5.3.2 ends at the collision warning, not the pr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from csws.fcw.physics import STANDARD_GRAVITY_MPS2, FcwSettings, warning_clearance_m
+from csws.fcw.physics import STANDARD_GRAVITY_MPS2, FcwSettings, formula_5_clearance_m, warning_clearance_m
 from csws.fcw.target import CurveClass, curve_start_speed_mps
 from csws.networks.fcw_tracks import CURVE_RADII_M
 from csws.standard import kmh_to_mps
@@ -39,6 +40,8 @@ LEAD_BRAKE_MPS2 = 0.3 * STANDARD_GRAVITY_MPS2
 START_CLEARANCE_M = 150.0
 #: 5.4.2: the reference clearance d at t0, m.
 REFERENCE_CLEARANCE_M = 100.0
+#: Where the rows come from.
+GB, IVISTA = "GB/T 33577-2017", "IVISTA-SM-ISI.SA.AEB-TP-A0-2023"
 #: Length of the passenger-car targets, m (the vType ``car``).
 CAR_LENGTH_M = 4.5
 
@@ -109,9 +112,12 @@ class FcwRow:
     least_clearance_m: float | None = None
     set_distance_m: float | None = None
 
-    def actor(self, vehicle_id: str) -> Actor | None:
-        """The actor of that id, or None."""
-        return next((a for a in self.actors if a.vehicle_id == vehicle_id), None)
+    def actor(self, vehicle_id: str) -> Actor:
+        """The actor of that id (KeyError for a vehicle the row does not have)."""
+        for actor in self.actors:
+            if actor.vehicle_id == vehicle_id:
+                return actor
+        raise KeyError(f"row {self.row_id} has no vehicle {vehicle_id!r}")
 
 
 def _approach(
@@ -122,7 +128,7 @@ def _approach(
     subject_mps: float,
     lead_mps: float,
     lead_type: str = "car",
-    **criteria,
+    **criteria: Any,
 ) -> FcwRow:
     """A subject closing at constant speed on a lead at constant speed, from START_CLEARANCE_M plus the stable time."""
     start_m = START_CLEARANCE_M + STABLE_S * (subject_mps - lead_mps)
@@ -138,11 +144,6 @@ def _approach(
     )
 
 
-def _formula_5_m(closing_mps: float, lead_decel_mps2: float = 0.0) -> float:
-    """Formula (5): the shortest warning distance, T_resp 0.8 s and a_req 6.67 m/s^2."""
-    return closing_mps**2 / (2.0 * (6.67 - lead_decel_mps2)) + 0.8 * closing_mps
-
-
 def _curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings) -> FcwRow:
     """5.5.3.2 on the class's curve at V_circle_start of formula (6)."""
     speed_mps = curve_start_speed_mps(curve_class, radius_m, settings.max_speed_mps)
@@ -153,7 +154,7 @@ def _curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings) 
     )
     return FcwRow(
         f"GB-5.5.3.2-{curve_class.name}",
-        "GB/T 33577-2017",
+        GB,
         "5.5.3.2",
         f"curve R {radius_m:g} m (class {curve_class.name}), adjacent vehicle in the outer lane, {speed_mps:.1f} m/s",
         f"fcw_curve_r{radius_m:g}",
@@ -164,32 +165,41 @@ def _curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings) 
 
 def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
     """Every row: GB/T 33577 5.4-5.5 that applies to a truck or bus, then IVISTA A.1."""
-    gb = "GB/T 33577-2017"
-    stationary_set_m = float(warning_clearance_m(20.0, 0.0, settings))
-    rows = [
+    return [*_warning_distance_rows(settings), *_lead_rows(), *_adjacent_rows(settings), *_ivista_rows()]
+
+
+def _warning_distance_rows(settings: FcwSettings) -> list[FcwRow]:
+    """GB/T 33577 5.4: the warning distance's range (formula (5)) and its accuracy (4.7.2)."""
+    return [
         _approach(
             "GB-5.4.1",
-            gb,
+            GB,
             "5.4.1",
             "warning distance range: 20 m/s behind 8 m/s",
             20.0,
             8.0,
             speed_tolerance_mps=1.0,
-            least_clearance_m=_formula_5_m(12.0),
+            least_clearance_m=float(formula_5_clearance_m(12.0)),
         ),
         _approach(
             "GB-5.4.2",
-            gb,
+            GB,
             "5.4.2",
             "warning distance accuracy: 20 m/s toward a stationary target",
             20.0,
             0.0,
-            set_distance_m=stationary_set_m,
+            set_distance_m=float(warning_clearance_m(20.0, 0.0, settings)),
         ),
-        _approach("GB-5.5.2.1.1", gb, "5.5.2.1.1", "stationary lead, 20 m/s", 20.0, 0.0, least_ttc_s=2.1),
+    ]
+
+
+def _lead_rows() -> list[FcwRow]:
+    """GB/T 33577 5.5.2: a stationary, a braking and a slower lead, and two leads in line."""
+    return [
+        _approach("GB-5.5.2.1.1", GB, "5.5.2.1.1", "stationary lead, 20 m/s", 20.0, 0.0, least_ttc_s=2.1),
         FcwRow(
             "GB-5.5.2.1.2",
-            gb,
+            GB,
             "5.5.2.1.2",
             "lead braking at 0.3 g, both 20 m/s, 30 m apart",
             "fcw_straight",
@@ -197,10 +207,10 @@ def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
             "lead_brakes",
             least_ttc_s=2.4,
         ),
-        _approach("GB-5.5.2.1.3", gb, "5.5.2.1.3", "slower lead, 20 m/s behind 9 m/s", 20.0, 9.0, least_ttc_s=2.0),
+        _approach("GB-5.5.2.1.3", GB, "5.5.2.1.3", "slower lead, 20 m/s behind 9 m/s", 20.0, 9.0, least_ttc_s=2.0),
         FcwRow(
             "GB-5.5.2.2",
-            gb,
+            GB,
             "5.5.2.2",
             "two leads in line, 0.6 s apart: the warnings are for the nearer",
             "fcw_straight",
@@ -211,26 +221,35 @@ def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
             ),
             "two_leads",
         ),
-        FcwRow(
-            "GB-5.5.3.1",
-            gb,
-            "5.5.3.1",
-            "straight road, adjacent vehicle 3.5 m to the side, 20 m/s",
-            "fcw_straight",
-            (Actor("sv", "truck", 1, 0.0, 20.0), Actor("adj", "car", 0, 15.0, 20.0), Actor("tv", "car", 1, 40.0, 20.0)),
-            "adjacent",
-            level=1,
-        ),
-        *(
-            _curve_row(curve_class, radius_m, settings)
-            for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=True)
-        ),
     ]
-    ivista, km = "IVISTA-SM-ISI.SA.AEB-TP-A0-2023", kmh_to_mps(1.0)
-    rows += [
+
+
+def _adjacent_rows(settings: FcwSettings) -> list[FcwRow]:
+    """GB/T 33577 5.5.3: an adjacent-lane vehicle on the straight and on each class's curve."""
+    straight = FcwRow(
+        "GB-5.5.3.1",
+        GB,
+        "5.5.3.1",
+        "straight road, adjacent vehicle 3.5 m to the side, 20 m/s",
+        "fcw_straight",
+        (Actor("sv", "truck", 1, 0.0, 20.0), Actor("adj", "car", 0, 15.0, 20.0), Actor("tv", "car", 1, 40.0, 20.0)),
+        "adjacent",
+        level=1,
+    )
+    curves = [
+        _curve_row(curve_class, radius_m, settings)
+        for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=False)
+    ]
+    return [straight, *curves]
+
+
+def _ivista_rows() -> list[FcwRow]:
+    """IVISTA A.1: stationary car and truck targets at 72 km/h, a target at 20 km/h at 80 km/h."""
+    km = kmh_to_mps(1.0)
+    rows = [
         _approach(
             f"IVISTA-A.1.1-{kind}",
-            ivista,
+            IVISTA,
             "A.1.1",
             f"stationary {kind} target, 72 km/h",
             kmh_to_mps(72.0),
@@ -244,7 +263,7 @@ def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
     rows.append(
         _approach(
             "IVISTA-A.1.2",
-            ivista,
+            IVISTA,
             "A.1.2",
             "target at 20 km/h, 80 km/h",
             kmh_to_mps(80.0),

@@ -15,10 +15,11 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from ..report import GroupOutcome, RowOutcome, mark, verdict_text
+from ..report import GroupOutcome, RowOutcome, mark, step_colours, verdict_text
 from ..run import DEFAULT_STEP_LENGTHS_S, run_tasks
 from .drive import Task, Trace, drive
 from .judge import FcwRunResult, criterion, group_passes, judge_fcw_run
@@ -27,6 +28,8 @@ from .rows import FcwRow, fcw_rows
 __all__ = ["select_fcw_rows", "run_fcw_task", "fcw_conformance", "main"]
 
 TaskResult = tuple[Task, tuple[FcwRunResult, ...], tuple[Trace, ...]]
+#: An FCW row with its runs.
+FcwOutcome = RowOutcome[FcwRow, FcwRunResult]
 
 
 def select_fcw_rows(patterns: Sequence[str] | None = None) -> list[FcwRow]:
@@ -43,17 +46,19 @@ def run_fcw_task(task: Task) -> TaskResult:
     return task, tuple(judge_fcw_run(task.row, trace) for trace in traces), traces
 
 
-def _figure(outcome: RowOutcome) -> float | None:
+def _figure(outcome: FcwOutcome) -> float | None:
     """The worst figure of a row over every run: the smallest, or for 5.4.2 the farthest from the set distance."""
-    figures = [run.figure for group in outcome.groups for run in group.runs if run.figure is not None]
+    figures = [figure for group in outcome.groups for run in group.runs if (figure := run.figure) is not None]
     if not figures:
         return None
-    if outcome.row.set_distance_m is not None:
-        return max(figures, key=lambda value: abs(value - outcome.row.set_distance_m))
+    set_distance_m = outcome.row.set_distance_m
+    if set_distance_m is not None:
+        return max(figures, key=lambda value: abs(value - set_distance_m))
     return min(figures)
 
 
-def _write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
+def _write_json(path: Path, outcomes: Sequence[FcwOutcome], settings: dict[str, Any]) -> None:
+    """Write ``report.json``: the settings, the verdict and every row with every run."""
     rows = [
         {
             **asdict(o.row),
@@ -82,7 +87,8 @@ def _write_json(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> N
     path.write_text(json.dumps(content, indent=1) + "\n", encoding="utf-8")
 
 
-def _write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) -> None:
+def _write_markdown(path: Path, outcomes: Sequence[FcwOutcome], settings: dict[str, Any]) -> None:
+    """Write ``report.md``: the verdict, one line per row with its worst figure, and the failed runs."""
     failed = [o for o in outcomes if not o.passed]
     lines = [
         "# FCW conformance report (GB/T 33577-2017 5.4-5.5, IVISTA A.1)",
@@ -92,7 +98,8 @@ def _write_markdown(path: Path, outcomes: Sequence[RowOutcome], settings: dict) 
         f"{settings['repetitions']} runs per row and step length; seed {settings['seed']}",
         f"- rows: {len(outcomes)}, failed: {len(failed)}",
         "",
-        '"worst" is the smallest figure over every run and step length (5.4.2: the one farthest from the set distance).',
+        '"worst" is the smallest figure over every run and step length '
+        "(5.4.2: the one farthest from the set distance).",
         "",
         "| row | clause | test | criterion | worst | verdict |",
         "|---|---|---|---|---|---|",
@@ -125,8 +132,7 @@ def plot_fcw_row(path: Path, row: FcwRow, traces: Sequence[tuple[float, Trace]])
     from matplotlib import pyplot
 
     figure, (ttc_axis, level_axis) = pyplot.subplots(2, 1, sharex=True, figsize=(8, 5.5))
-    steps = sorted({step for step, _ in traces})
-    colours = dict(zip(steps, pyplot.get_cmap("viridis")(np.linspace(0, 0.85, max(len(steps), 1))), strict=True))
+    colours = step_colours(sorted({step for step, _ in traces}))
     labelled = set()
     for step, trace in traces:
         before_end_s = trace.time_s - trace.time_s[-1]
@@ -156,12 +162,12 @@ def fcw_conformance(
     jobs: int = 1,
     plots: bool = True,
     progress: bool = False,
-) -> list[RowOutcome]:
+) -> list[FcwOutcome]:
     """Run, judge and report the rows into ``out`` (report.json, report.md, plots/ROW.png); the outcomes."""
     tasks = [Task(row, step, repetitions, seed) for row in rows for step in step_lengths_s]
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    groups: dict[str, list[GroupOutcome]] = {row.row_id: [] for row in rows}
+    groups: dict[str, list[GroupOutcome[FcwRunResult]]] = {row.row_id: [] for row in rows}
     records: dict[str, list[tuple[float, Trace]]] = {row.row_id: [] for row in rows}
     for task, runs, traces in run_tasks(tasks, jobs, progress, worker=run_fcw_task):
         groups[task.row.row_id].append(GroupOutcome(task.track, task.step_length_s, runs, group_passes(task.row, runs)))

@@ -8,7 +8,7 @@ so the judge knows what happened when; :attr:`Script.done` ends the run.
 
 from __future__ import annotations
 
-import math
+from csws.fcw.physics import time_to_collision_s
 
 from .rows import STABLE_S, START_CLEARANCE_M, FcwRow
 
@@ -44,7 +44,7 @@ class Script:
         self.done = False
         self.since_s: float | None = None
 
-    def step(self, time_s: float, truth: dict, level: int, target_id: str | None) -> dict[str, float]:
+    def step(self, time_s: float, truth: dict[str, float], level: int, target_id: str | None) -> dict[str, float]:
         """The speed commands of this step (m/s by vehicle id)."""
         if self.since_s is None:
             self.since_s = time_s
@@ -53,14 +53,15 @@ class Script:
             return {}
         return self.commands(time_s, truth, level, target_id)
 
-    def commands(self, time_s: float, truth: dict, level: int, target_id: str | None) -> dict[str, float]:
+    def commands(self, time_s: float, truth: dict[str, float], level: int, target_id: str | None) -> dict[str, float]:
         raise NotImplementedError
 
     def _next(self, phase: int, time_s: float) -> None:
         self.phase, self.since_s = phase, time_s
 
     def _held(self, time_s: float, seconds: float = STABLE_S) -> bool:
-        return time_s - self.since_s >= seconds - 1e-9
+        """Whether the current phase has lasted ``seconds`` (STABLE_S by default)."""
+        return self.since_s is not None and time_s - self.since_s >= seconds - 1e-9
 
 
 class Approach(Script):
@@ -72,15 +73,14 @@ class Approach(Script):
         super().__init__(row)
         self.brakes = brakes
 
-    def commands(self, time_s, truth, level, target_id):
-        commands = {}
+    def commands(self, time_s: float, truth: dict[str, float], level: int, target_id: str | None) -> dict[str, float]:
+        commands: dict[str, float] = {}
         if self.phase == 0 and self.brakes and self._held(time_s):
             self._next(TARGET_BRAKES, time_s)
             commands["tv"] = 0.0
         elif self.phase == 0 and not self.brakes and truth["clearance_m"] <= START_CLEARANCE_M:
             self._next(1, time_s)
-        closing = truth["closing_mps"]
-        ttc_s = truth["clearance_m"] / closing if closing > 0 else math.inf
+        ttc_s = float(time_to_collision_s(truth["clearance_m"], -truth["closing_mps"]))
         late = self.row.least_ttc_s is not None and ttc_s < 0.9 * self.row.least_ttc_s
         self.done = level >= self.row.level or late
         return commands
@@ -91,7 +91,7 @@ class TwoLeads(Script):
     (3), follow for STABLE_S once the warning is off, then the nearer lead brakes (TARGET_BRAKES)
     until the warning comes again."""
 
-    def commands(self, time_s, truth, level, target_id):
+    def commands(self, time_s: float, truth: dict[str, float], level: int, target_id: str | None) -> dict[str, float]:
         if self.phase == 0 and self._held(time_s):
             self._next(1, time_s)
             return {"sv": CLOSING_MPS}
@@ -115,7 +115,7 @@ class Adjacent(Script):
     """5.5.3: the adjacent vehicle brakes to ADJACENT_SLOW_MPS (phase 1) and is passed; two
     seconds later (phase 3) the target brakes at 0.3 g (TARGET_BRAKES) until the warning."""
 
-    def commands(self, time_s, truth, level, target_id):
+    def commands(self, time_s: float, truth: dict[str, float], level: int, target_id: str | None) -> dict[str, float]:
         if self.phase == 0 and self._held(time_s):
             self._next(1, time_s)
             return {"adj": ADJACENT_SLOW_MPS}
