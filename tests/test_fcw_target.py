@@ -105,6 +105,7 @@ def test_the_set_warning_distance_is_where_a_req_reaches_the_threshold():
         assert required_deceleration_mps2(clearance_m, -closing_mps, lead_accel_mps2, 0.8) == pytest.approx(6.6)
 
 
+@pytest.mark.sumo
 def test_the_bundled_fcw_tracks_are_what_the_generator_builds():
     assert compare_fcw_tracks(networks_dir() / FCW_DIR) == []
 
@@ -147,6 +148,7 @@ def _vehicle(vehicle_id: str, vtype: str, lane: int, pos_m: float) -> str:
     )
 
 
+@pytest.mark.sumo
 def test_sumo_leaders_give_the_clearance_with_min_gap_and_beyond_the_default_search():
     """sv's front at 100 m, tv's rear 150 m ahead (front at 254.5 m): SUMO's gap leaves out sv's
     minGap (2.5 m); the clearance is the lane positions' difference. The nearer vehicle in the
@@ -157,6 +159,7 @@ def test_sumo_leaders_give_the_clearance_with_min_gap_and_beyond_the_default_sea
     assert found.target_id == ["tv"] and found.clearance_m[0] == pytest.approx(150.0)
 
 
+@pytest.mark.sumo
 def test_on_the_r125_curve_the_target_is_in_the_lane_and_the_outer_lane_vehicle_is_not():
     curve_start_m = 60.0
     found = _sumo_targets(

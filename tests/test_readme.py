@@ -46,7 +46,6 @@ def _numbers_agree(shown: str, comment: str) -> bool:
     return True
 
 
-@pytest.mark.sumo
 def test_the_library_examples_run_and_give_the_stated_values() -> None:
     namespace: dict = {}
     checked = 0
