@@ -6,8 +6,6 @@ import ast
 import re
 from pathlib import Path
 
-import pytest
-
 README = Path(__file__).resolve().parents[1] / "README.md"
 #: A number in a comment, with the decimals it is written to.
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
