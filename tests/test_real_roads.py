@@ -19,10 +19,10 @@ from builders import edge_xml as _edge
 from builders import node_xml as _node
 from builders import split_curve_map as _split_curve_map
 
-from csws.ahead.horizon import curve_id_of
 from csws.ahead.lookahead import LookAhead
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
+from csws.road.chains import curve_id_of
 from csws.road.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance, warning_speed
 from csws.sumo.netbuild import netconvert
