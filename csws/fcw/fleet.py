@@ -227,7 +227,9 @@ def _padded_paths(paths: FleetPaths, vehicles: int) -> tuple[np.ndarray, np.ndar
     return s_rows, kappa_rows, row_of
 
 
-def _object_curvature(ego: FleetEgo, objects: FleetObjects, paths: FleetPaths | None, active: np.ndarray) -> np.ndarray:
+def _object_curvature(
+    ego: FleetEgo, objects: FleetObjects, centre_x_m: np.ndarray, paths: FleetPaths | None, active: np.ndarray
+) -> np.ndarray:
     """Each object's path curvature: its vehicle's map path (κ_eq, without a turn signal), else the
     curvature given, else yaw rate / speed, else 0 (:func:`csws.fcw.tracker.ego_curvature_1pm`)."""
     yaw = yaw_path_curvature_1pm(ego.speed_mps, np.nan_to_num(ego.yaw_rate_rps))
@@ -241,7 +243,7 @@ def _object_curvature(ego: FleetEgo, objects: FleetObjects, paths: FleetPaths | 
     if mapped.size:
         tables = curvature_tables(s_rows, kappa_rows)
         kappa[mapped] = fleet_equivalent_curvature_1pm(
-            s_rows, kappa_rows, tables, row[mapped], objects.x_m[mapped], objects.y_m[mapped]
+            s_rows, kappa_rows, tables, row[mapped], centre_x_m[mapped], objects.y_m[mapped]
         )
     return kappa
 
@@ -290,8 +292,9 @@ def update_fleet(
     )
     active = state == ACTIVE
     owner = objects.vehicle
-    kappa = _object_curvature(ego, objects, paths, active)
-    offset = offset_from_circle_m(objects.x_m, objects.y_m, kappa)
+    centre_x_m = objects.x_m + settings.object_half_length_m
+    kappa = _object_curvature(ego, objects, centre_x_m, paths, active)
+    offset = offset_from_circle_m(centre_x_m, objects.y_m, kappa)
     known = objects.lane != UNKNOWN_LANE
     inside = in_path(objects.x_m, offset, objects.lane, known, settings.path_half_width_m, settings.range_m)
     inside &= active[owner]
@@ -300,7 +303,8 @@ def update_fleet(
     a_sv = ego.accel_mps2[owner]
     a_tv = np.where(objects.accel_is_relative, objects.accel_mps2 + a_sv, objects.accel_mps2)
     lost = np.where(ego.braking[owner], 0.0, settings.reaction_time_s + settings.brake_response_s)
-    a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, lost)
+    with np.errstate(over="ignore"):  # a_req beyond the largest float is inf, as on floats
+        a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, lost)
     target = _targets(owner, inside & ~cutting, a_req, objects.x_m, n)
     return _frame(settings, memory, now, ego, objects, state, target, (a_tv, offset, a_req), inside, cutting)
 

@@ -101,7 +101,7 @@ def curvature_tables(s_m: np.ndarray, curvature_1pm: np.ndarray) -> tuple[np.nda
     The integrals of the piecewise linear curvature are exact: over a segment of length h,
     heading += (κ0 + κ1) h / 2 and lateral += heading0 h + (2 κ0 + κ1) h² / 6.
     """
-    h = np.diff(s_m, axis=1)
+    h = np.diff(np.where(np.isfinite(s_m), s_m, np.nan), axis=1)
     real = np.isfinite(h)
     h = np.where(real, h, 0.0)
     k0, k1 = curvature_1pm[:, :-1], np.where(real, curvature_1pm[:, 1:], curvature_1pm[:, :-1])

@@ -120,6 +120,10 @@ class FcwSettings:
     path_half_width_m
         An object is in the path while its centre is at most this far from the predicted path
         (half a 3.5 m lane: Table 3's detection width at d_max is the lane width).
+    object_half_length_m
+        The in-path test takes an object's centre this far beyond its rear (a car's half length):
+        the sensor gives the rear's range and the centre's lateral position, and on a curve the two
+        points lie on different headings (on R 125 m, 40 m ahead, 0.7 m apart across the path).
     range_m
         d_max, the farthest object assessed ahead, m.
     level_hold_s
@@ -136,6 +140,7 @@ class FcwSettings:
     max_speed_mps: float = LOWEST_MAX_SPEED_MPS
     hysteresis_mps: float = 1.0
     path_half_width_m: float = 1.75
+    object_half_length_m: float = 2.25
     range_m: float = 200.0
     level_hold_s: float = 0.4
 
@@ -161,8 +166,10 @@ class FcwSettings:
             and self.hysteresis_mps >= 0.0
         ):
             raise ValueError("4.3.3: V_min must be in [0, 11.2] m/s, V_max at least 27.8 m/s, the hysteresis >= 0")
-        if not (self.path_half_width_m > 0.0 and self.range_m > 0.0 and self.level_hold_s >= 0.0):
-            raise ValueError("the path half-width and the range must be positive, the level hold >= 0")
+        if not (self.path_half_width_m > 0.0 and self.range_m > 0.0):
+            raise ValueError("the path half-width and the range must be positive")
+        if not (self.level_hold_s >= 0.0 and self.object_half_length_m >= 0.0):
+            raise ValueError("the level hold and the object half length must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -312,7 +319,8 @@ def evaluate_fcw(
     lost_s = np.where(np.asarray(driver_braking, dtype=bool), 0.0, settings.reaction_time_s + settings.brake_response_s)
     ttc = time_to_collision_s(x_c, v_r)
     ettc = enhanced_time_to_collision_s(x_c, v_r, a_tv - a_sv)
-    a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s)
+    with np.errstate(over="ignore"):
+        a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s)
     level = warning_level(a_sv, ttc, ettc, a_req, settings, suppress_above_max_ttc)
     return FcwBatch(np.asarray(level, dtype=np.int8), ttc, ettc, a_req)
 

@@ -115,9 +115,10 @@ class ForwardCollisionWarning:
         best: tuple[SensorObject, float, float, float] | None = None
         inside_ids, cut_in_ids = [], []
         for obj in objects:
+            centre_x_m = obj.x_m + s.object_half_length_m
             if table is not None:
-                kappa = equivalent_curvature_1pm(table, obj.x_m, obj.y_m)
-            offset_m = offset_from_circle_m(obj.x_m, obj.y_m, kappa)
+                kappa = equivalent_curvature_1pm(table, centre_x_m, obj.y_m)
+            offset_m = offset_from_circle_m(centre_x_m, obj.y_m, kappa)
             lane_known = obj.lane is not None
             if not in_path(
                 obj.x_m, offset_m, obj.lane if lane_known else 0, lane_known, s.path_half_width_m, s.range_m
