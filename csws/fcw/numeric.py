@@ -19,19 +19,23 @@ __all__ = ["where", "sqrt", "fmax", "fmin", "isfinite", "is_scalar"]
 
 def is_scalar(value: Any) -> bool:
     """Whether ``value`` is a plain number or bool (not an array)."""
-    return isinstance(value, float | int | bool | np.bool_)
+    return type(value) is float or isinstance(value, float | int | bool | np.bool_)
 
 
 def where(condition: Any, if_true: Any, if_false: Any) -> Any:
     """``if_true`` where ``condition`` holds, else ``if_false`` (a bool picks one value; arrays as ``np.where``)."""
-    if isinstance(condition, bool | np.bool_):
+    if condition is True:
+        return if_true
+    if condition is False:
+        return if_false
+    if isinstance(condition, np.bool_):
         return if_true if condition else if_false
     return np.where(condition, if_true, if_false)
 
 
 def sqrt(value: Any) -> Any:
     """The square root, correctly rounded (``math.sqrt`` for a float, ``np.sqrt`` for an array)."""
-    return math.sqrt(value) if isinstance(value, float | int) else np.sqrt(value)
+    return math.sqrt(value) if type(value) is float or isinstance(value, float | int) else np.sqrt(value)
 
 
 def fmax(a: Any, b: Any) -> Any:

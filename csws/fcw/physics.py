@@ -239,7 +239,8 @@ def required_deceleration_mps2(
     deceleration and x_r = -v_r ``lost_time_s`` the clearance lost while closing during the
     driver's reaction and the brakes' response (0 while not closing). ``inf`` where that
     uses up the clearance. Floats give a float, anything else an array."""
-    return a_req_core(*_operands(clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s))
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        return a_req_core(*_operands(clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s))
 
 
 def a_req_core(x_c: Any, v_r: Any, a_tv: Any, lost_s: Any) -> Any:
@@ -319,8 +320,7 @@ def evaluate_fcw(
     lost_s = np.where(np.asarray(driver_braking, dtype=bool), 0.0, settings.reaction_time_s + settings.brake_response_s)
     ttc = time_to_collision_s(x_c, v_r)
     ettc = enhanced_time_to_collision_s(x_c, v_r, a_tv - a_sv)
-    with np.errstate(over="ignore"):
-        a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s)
+    a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s)
     level = warning_level(a_sv, ttc, ettc, a_req, settings, suppress_above_max_ttc)
     return FcwBatch(np.asarray(level, dtype=np.int8), ttc, ettc, a_req)
 

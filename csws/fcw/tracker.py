@@ -114,24 +114,25 @@ class ForwardCollisionWarning:
         lost_s = 0.0 if ego.braking else s.reaction_time_s + s.brake_response_s
         best: tuple[SensorObject, float, float, float] | None = None
         inside_ids, cut_in_ids = [], []
+        half_length_m, half_width_m, range_m = s.object_half_length_m, s.path_half_width_m, s.range_m
+        was_in_path, was_cut_in = self.in_path_ids, self.cut_in_ids
         for obj in objects:
-            centre_x_m = obj.x_m + s.object_half_length_m
+            x_m, y_m, v_r = obj.x_m, obj.y_m, obj.relative_speed_mps
+            centre_x_m = x_m + half_length_m
             if table is not None:
-                kappa = equivalent_curvature_1pm(table, centre_x_m, obj.y_m)
-            offset_m = offset_from_circle_m(centre_x_m, obj.y_m, kappa)
-            lane_known = obj.lane is not None
-            if not in_path(
-                obj.x_m, offset_m, obj.lane if lane_known else 0, lane_known, s.path_half_width_m, s.range_m
-            ):
+                kappa = equivalent_curvature_1pm(table, centre_x_m, y_m)
+            offset_m = offset_from_circle_m(centre_x_m, y_m, kappa)
+            lane = obj.lane
+            if not in_path(x_m, offset_m, 0 if lane is None else lane, lane is not None, half_width_m, range_m):
                 continue
             inside_ids.append(obj.id)
-            was_in = obj.id in self.in_path_ids
-            if cut_in(True, obj.relative_speed_mps, was_in, was_in and obj.id in self.cut_in_ids):
+            was_in = obj.id in was_in_path
+            if cut_in(True, v_r, was_in, was_in and obj.id in was_cut_in):
                 cut_in_ids.append(obj.id)
                 continue
             a_tv = obj.accel_mps2 + ego.accel_mps2 if obj.accel_is_relative else obj.accel_mps2
-            a_req = a_req_core(obj.x_m, obj.relative_speed_mps, a_tv, lost_s)
-            if best is None or a_req > best[3] or (a_req == best[3] and obj.x_m < best[0].x_m):
+            a_req = a_req_core(x_m, v_r, a_tv, lost_s)
+            if best is None or a_req > best[3] or (a_req == best[3] and x_m < best[0].x_m):
                 best = (obj, a_tv, offset_m, a_req)
         return best, frozenset(inside_ids), frozenset(cut_in_ids)
 
