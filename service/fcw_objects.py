@@ -1,0 +1,223 @@
+"""The forward collision warning of queries that carry the forward sensor's objects, kept between queries.
+
+The vehicles of a round (each at most once, :mod:`service.answers`) that sent ``objects`` are
+answered by the library's fleet FCW (:func:`csws.fcw.fleet.update_fleet`, the same answers as one
+:class:`csws.fcw.tracker.ForwardCollisionWarning` per vehicle), once per group of vehicles with the
+same settings (:mod:`service.fcw_settings`). What each vehicle's FCW keeps between frames (the
+state of Figure 2, the level's hold, the objects in the path and cutting in, the last target) comes
+from its session and goes back into it (:class:`service.vehicles.FcwMemory`), so the hysteresis
+holds across queries whichever worker answers them.
+
+The path is predicted from the curvature of the road ahead where the curve warning looked ahead
+for the vehicle (its horizon, :func:`csws.fcw.path.path_curvature_ahead`), else from the yaw rate.
+A frame's time is the query's ``timestamp_s``, else the time the round is answered; a query not
+after the vehicle's last frame is answered from the kept memory and changes nothing of it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from csws.ahead.horizon import PathAhead
+from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetFrame, FleetMemory, FleetObjects, FleetPaths, update_fleet
+from csws.fcw.path import path_curvature_ahead
+from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
+from csws.standard import kmh_to_mps
+
+from .decoding import DecodedQuery
+from .fcw import finite
+from .vehicles import FcwMemory
+
+__all__ = ["object_fcw"]
+
+#: A new vehicle's memory: standby, nothing held, no frame yet.
+NEW_MEMORY = FcwMemory(STANDBY, 0, -math.inf, -math.inf)
+_ID_BITS = 32
+
+
+def object_fcw(
+    queries: Sequence[DecodedQuery],
+    settings: Sequence[FcwSettings],
+    memories: Sequence[FcwMemory | None],
+    paths: Sequence[PathAhead | None],
+    now_s: float,
+) -> tuple[list[dict[str, Any]], list[FcwMemory]]:
+    """The contract's FcwAnswer of each query (of distinct vehicles, each with objects), and each vehicle's memory.
+
+    Parameters
+    ----------
+    queries
+        The queries, each with ``objects``.
+    settings
+        Each vehicle's FCW settings (its fleet's for its category).
+    memories
+        What each vehicle's FCW kept, None for one never queried with objects.
+    paths
+        The curve warning's path ahead of each vehicle, None where it did not look ahead.
+    now_s
+        The time of the frames of queries without a ``timestamp_s``, s.
+    """
+    answers: list[dict[str, Any]] = [{}] * len(queries)
+    kept: list[FcwMemory] = [NEW_MEMORY] * len(queries)
+    groups: dict[int, list[int]] = {}
+    for row, own in enumerate(settings):
+        groups.setdefault(id(own), []).append(row)
+    for rows in groups.values():
+        group_answers, group_kept = _group(
+            [queries[r] for r in rows],
+            settings[rows[0]],
+            [memories[r] or NEW_MEMORY for r in rows],
+            [paths[r] for r in rows],
+            now_s,
+        )
+        for row, answer, memory in zip(rows, group_answers, group_kept, strict=True):
+            answers[row], kept[row] = answer, memory
+    return answers, kept
+
+
+def _ego(queries: Sequence[DecodedQuery]) -> FleetEgo:
+    """The subjects as columns: speed, acceleration, yaw rate (rad/s, NaN where not given), brake, turn signal."""
+    yaw_dps = [math.nan if q.yaw_rate_dps is None else q.yaw_rate_dps for q in queries]
+    return FleetEgo.of(
+        kmh_to_mps(np.array([q.speed_kmh for q in queries])),
+        [q.accel_mps2 for q in queries],
+        np.radians(yaw_dps),
+        braking=[q.braking for q in queries],
+        turn_signal=[q.turn_signal for q in queries],
+    )
+
+
+def _objects(queries: Sequence[DecodedQuery]) -> FleetObjects:
+    """The objects of all queries as flat columns, each with its query's row."""
+    rows = [
+        (
+            row,
+            o.id,
+            o.x_m,
+            o.y_m,
+            o.relative_speed_mps,
+            o.relative_accel_mps2 if o.relative_accel_mps2 is not None else (o.accel_mps2 or 0.0),
+            o.relative_accel_mps2 is not None,
+            o.width_m,
+            UNKNOWN_LANE if o.lane is None else o.lane,
+        )
+        for row, query in enumerate(queries)
+        for o in query.objects or ()
+    ]
+    table = np.array(rows, dtype=float).reshape(-1, 9)
+    return FleetObjects.of(
+        table[:, 0].astype(np.int64),
+        table[:, 1].astype(np.int64),
+        table[:, 2],
+        table[:, 3],
+        table[:, 4],
+        table[:, 5],
+        table[:, 6].astype(bool),
+        table[:, 7],
+        table[:, 8].astype(np.int64),
+    )
+
+
+def _paths(paths: Sequence[PathAhead | None], range_m: float) -> FleetPaths | None:
+    """The map paths of the vehicles that have one, as flat knots grouped by row; None without any."""
+    owners, s_m, curvature = [], [], []
+    for row, ahead in enumerate(paths):
+        if ahead is None:
+            continue
+        profile = path_curvature_ahead(ahead.path, ahead.vehicle_s, range_m)
+        owners.append(np.full(len(profile.s_m), row, dtype=np.int64))
+        s_m.append(profile.s_m)
+        curvature.append(profile.curvature_1pm)
+    if not owners:
+        return None
+    return FleetPaths(np.concatenate(owners), np.concatenate(s_m), np.concatenate(curvature))
+
+
+def _keys(id_lists: Sequence[tuple[int, ...]]) -> np.ndarray:
+    """The sorted keys (row, id) of each row's ids, as :class:`csws.fcw.fleet.FleetMemory` holds them."""
+    keys = [(row << _ID_BITS) | i for row, ids in enumerate(id_lists) for i in ids]
+    return np.sort(np.array(keys, dtype=np.int64))
+
+
+def _ids_by_row(keys: np.ndarray, rows: int) -> list[tuple[int, ...]]:
+    """Each row's ids of sorted keys (row, id)."""
+    bounds = np.searchsorted(keys >> _ID_BITS, np.arange(rows + 1)).tolist()
+    ids = (keys & ((1 << _ID_BITS) - 1)).tolist()
+    return [tuple(ids[bounds[r] : bounds[r + 1]]) for r in range(rows)]
+
+
+def _memory(memories: Sequence[FcwMemory], time_s: np.ndarray) -> tuple[FleetMemory, np.ndarray]:
+    """The fleet memory of the vehicles, and which frames are not after the last one (stale: they
+    are evaluated from the memory as if it had no last time, and change nothing of it)."""
+    last = np.array([m.last_time_s for m in memories])
+    stale = time_s <= last
+    memory = FleetMemory(
+        np.array([m.state for m in memories], dtype=np.int8),
+        np.array([m.held_level for m in memories], dtype=np.int8),
+        np.array([m.hold_until_s for m in memories]),
+        np.where(stale, -math.inf, last),
+        _keys([m.in_path_ids for m in memories]),
+        _keys([m.cut_in_ids for m in memories]),
+    )
+    return memory, stale
+
+
+def _group(
+    queries: Sequence[DecodedQuery],
+    settings: FcwSettings,
+    memories: Sequence[FcwMemory],
+    paths: Sequence[PathAhead | None],
+    now_s: float,
+) -> tuple[list[dict[str, Any]], list[FcwMemory]]:
+    """:func:`object_fcw` of vehicles with the same settings."""
+    time_s = np.array([now_s if q.timestamp_s is None else q.timestamp_s for q in queries])
+    memory, stale = _memory(memories, time_s)
+    frame, kept = update_fleet(
+        settings, memory, time_s, _ego(queries), _objects(queries), _paths(paths, settings.range_m)
+    )
+    answers = _answers(frame)
+    in_path, cut_in = _ids_by_row(kept.in_path_keys, len(queries)), _ids_by_row(kept.cut_in_keys, len(queries))
+    columns = zip(
+        kept.state.tolist(),
+        kept.held_level.tolist(),
+        kept.hold_until_s.tolist(),
+        kept.last_time_s.tolist(),
+        in_path,
+        cut_in,
+        (answer["target_id"] for answer in answers),
+        stale.tolist(),
+        memories,
+        strict=True,
+    )
+    new = [old if was_stale else FcwMemory(*values) for *values, was_stale, old in columns]
+    return answers, new
+
+
+def _answers(frame: FleetFrame) -> list[dict[str, Any]]:
+    """The contract's FcwAnswer of each vehicle of a frame."""
+    columns = zip(
+        frame.state.tolist(),
+        frame.level.tolist(),
+        frame.ttc_s.tolist(),
+        frame.ettc_s.tolist(),
+        frame.a_req_mps2.tolist(),
+        frame.target_id.tolist(),
+        frame.clearance_m.tolist(),
+        strict=True,
+    )
+    return [
+        {
+            "state": FCW_STATES[state].value,
+            "level": level,
+            "ttc_s": finite(ttc),
+            "ettc_s": finite(ettc),
+            "a_req_mps2": finite(a_req),
+            "target_id": None if target < 0 else target,
+            "clearance_m": finite(clearance),
+        }
+        for state, level, ttc, ettc, a_req, target, clearance in columns
+    ]
