@@ -9,22 +9,24 @@ from its session and goes back into it (:class:`service.vehicles.FcwMemory`), so
 holds across queries whichever worker answers them.
 
 The path is predicted from the curvature of the road ahead where the curve warning looked ahead
-for the vehicle (its horizon, :func:`csws.fcw.path.path_curvature_ahead`), else from the yaw rate.
+for the vehicle (its horizon's curvature profile, sampled every :data:`MAP_PATH_STEP_M`), else from the
+yaw rate.
 A frame's time is the query's ``timestamp_s``, else the time the round is answered; a query not
 after the vehicle's last frame is answered from the kept memory and changes nothing of it.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+import operator
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from csws.ahead.horizon import PathAhead
 from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetFrame, FleetMemory, FleetObjects, FleetPaths, update_fleet
-from csws.fcw.path import path_curvature_ahead
 from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
 from csws.standard import kmh_to_mps
 
@@ -37,6 +39,11 @@ __all__ = ["object_fcw"]
 #: A new vehicle's memory: standby, nothing held, no frame yet.
 NEW_MEMORY = FcwMemory(STANDBY, 0, -math.inf, -math.inf)
 _ID_BITS = 32
+#: The fields of an object that may be left out (None).
+_OPTIONAL_FIELDS = frozenset({"accel_mps2", "relative_accel_mps2", "lane"})
+#: The map path's curvature is taken every this many metres ahead: a road's curvature changes over
+#: tens of metres (clothoids), and the in-path test needs the path to tenths of a metre across it.
+MAP_PATH_STEP_M = 5.0
 
 
 def object_fcw(
@@ -91,50 +98,59 @@ def _ego(queries: Sequence[DecodedQuery]) -> FleetEgo:
     )
 
 
+def _column(objects: Sequence[Any], name: str) -> np.ndarray:
+    """One field of all objects as floats (None, where not given, as NaN)."""
+    values = map(operator.attrgetter(name), objects)
+    if name in _OPTIONAL_FIELDS:
+        return np.array(list(values), dtype=float)
+    return np.fromiter(values, dtype=float, count=len(objects))
+
+
 def _objects(queries: Sequence[DecodedQuery]) -> FleetObjects:
-    """The objects of all queries as flat columns, each with its query's row."""
-    rows = [
-        (
-            row,
-            o.id,
-            o.x_m,
-            o.y_m,
-            o.relative_speed_mps,
-            o.relative_accel_mps2 if o.relative_accel_mps2 is not None else (o.accel_mps2 or 0.0),
-            o.relative_accel_mps2 is not None,
-            o.width_m,
-            UNKNOWN_LANE if o.lane is None else o.lane,
-        )
-        for row, query in enumerate(queries)
-        for o in query.objects or ()
-    ]
-    table = np.array(rows, dtype=float).reshape(-1, 9)
+    """The objects of all queries as flat columns, each with its query's row (an object's own acceleration
+    is 0 where neither it nor the relative one is given)."""
+    listed = [query.objects or () for query in queries]
+    flat = list(itertools.chain.from_iterable(listed))
+    own_accel, relative_accel = _column(flat, "accel_mps2"), _column(flat, "relative_accel_mps2")
+    relative = ~np.isnan(relative_accel)
+    lane = _column(flat, "lane")
     return FleetObjects.of(
-        table[:, 0].astype(np.int64),
-        table[:, 1].astype(np.int64),
-        table[:, 2],
-        table[:, 3],
-        table[:, 4],
-        table[:, 5],
-        table[:, 6].astype(bool),
-        table[:, 7],
-        table[:, 8].astype(np.int64),
+        np.repeat(np.arange(len(queries)), [len(objects) for objects in listed]),
+        _column(flat, "id").astype(np.int64),
+        _column(flat, "x_m"),
+        _column(flat, "y_m"),
+        _column(flat, "relative_speed_mps"),
+        np.where(relative, relative_accel, np.nan_to_num(own_accel)),
+        relative,
+        _column(flat, "width_m"),
+        np.where(np.isnan(lane), UNKNOWN_LANE, lane).astype(np.int64),
     )
 
 
 def _paths(paths: Sequence[PathAhead | None], range_m: float) -> FleetPaths | None:
-    """The map paths of the vehicles that have one, as flat knots grouped by row; None without any."""
-    owners, s_m, curvature = [], [], []
+    """The map paths of the vehicles that have one, as flat knots grouped by row; None without any.
+
+    Each is the curvature of the road ahead (:func:`csws.fcw.path.path_curvature_ahead`) sampled
+    every :data:`MAP_PATH_STEP_M` from the vehicle's front over ``range_m``, linear between the
+    samples and held beyond the profile's end, for the vehicles on one horizon in one interpolation.
+    """
+    by_horizon: dict[int, list[int]] = {}
     for row, ahead in enumerate(paths):
-        if ahead is None:
-            continue
-        profile = path_curvature_ahead(ahead.path, ahead.vehicle_s, range_m)
-        owners.append(np.full(len(profile.s_m), row, dtype=np.int64))
-        s_m.append(profile.s_m)
-        curvature.append(profile.curvature_1pm)
-    if not owners:
+        if ahead is not None:
+            by_horizon.setdefault(id(ahead.horizon), []).append(row)
+    if not by_horizon:
         return None
-    return FleetPaths(np.concatenate(owners), np.concatenate(s_m), np.concatenate(curvature))
+    steps = np.arange(0.0, range_m + MAP_PATH_STEP_M, MAP_PATH_STEP_M)
+    owners, curvature = [], []
+    for rows in by_horizon.values():
+        profile = cast(PathAhead, paths[rows[0]]).path.profile
+        front_s_m = np.array([cast(PathAhead, paths[row]).vehicle_s for row in rows])
+        samples_s_m = front_s_m[:, None] + steps[None, :]
+        curvature.append(np.interp(samples_s_m, profile.s, profile.curvature).ravel())
+        owners.append(np.repeat(np.array(rows, dtype=np.int64), steps.size))
+    owner = np.concatenate(owners)
+    order = np.argsort(owner, kind="stable")
+    return FleetPaths(owner[order], np.tile(steps, owner.size // steps.size), np.concatenate(curvature)[order])
 
 
 def _keys(id_lists: Sequence[tuple[int, ...]]) -> np.ndarray:
