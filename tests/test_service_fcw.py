@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
+from test_service import Workers
+from test_service_state import state_options
 
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.physics import FcwSettings, evaluate_fcw
@@ -237,6 +240,45 @@ def test_v_max_comes_from_the_category(client):
         for category in ("M1", "N")
     }
     assert states == {"M1": "active", "N": "standby"}
+
+
+@pytest.fixture
+def workers(state):
+    running = Workers([Path(TRACK_NET)], *state_options(state))
+    yield running
+    running.stop()
+
+
+def test_the_hold_is_kept_across_two_workers(workers):
+    """Frames alternate between two workers (SQLite and Redis): each takes up the hold the other left, as the
+    library's one tracker does; the cut-in memory (4.5.5 c) too."""
+    first, second = workers.clients()
+    speed_mps, hold_s = 20.0, N_SETTINGS.level_hold_s
+    tracker = ForwardCollisionWarning(N_SETTINGS)
+    frames = [
+        (10.0, [_stopped_car(30.0, speed_mps)]),
+        (10.1, []),
+        (10.0 + hold_s - 0.05, []),
+        (10.0 + hold_s, []),
+        # a lead already in the path that brakes hard while still faster is warned of: it is no cut-in
+        # (4.5.5 c), which the worker answering the second frame knows only from the session
+        (11.0, [{"id": 5, "x_m": 30.0, "y_m": 0.0, "relative_speed_mps": -1.0}]),
+        (11.1, [{"id": 5, "x_m": 6.0, "y_m": 0.0, "relative_speed_mps": 1.0, "accel_mps2": -6.0}]),
+        # a car coming into the path faster and braking is a cut-in, and stays one in the next frame
+        (12.0, [{"id": 6, "x_m": 8.0, "y_m": 4.0, "relative_speed_mps": 1.0, "accel_mps2": -6.0}]),
+        (12.1, [{"id": 6, "x_m": 8.0, "y_m": 0.0, "relative_speed_mps": 1.0, "accel_mps2": -6.0}]),
+        (12.2, [{"id": 6, "x_m": 8.1, "y_m": 0.0, "relative_speed_mps": 1.0, "accel_mps2": -6.0}]),
+    ]
+    levels, targets = [], []
+    for step, (time_s, objects) in enumerate(frames):
+        client = (first, second)[step % 2]
+        fcw = client.post("/v1/warning", json=_query("shared", timestamp_s=time_s, objects=objects)).json()["fcw"]
+        library = _library_frame(time_s, speed_mps, objects, tracker)
+        levels.append((fcw["level"], library.level))
+        targets.append((fcw["target_id"], library.target_id))
+    assert levels == [(2, 2), (2, 2), (2, 2), (0, 0), (0, 0), (2, 2), (0, 0), (0, 0), (0, 0)]
+    assert [served for served, _ in targets] == [library for _, library in targets]
+    assert [served for served, _ in targets] == [7, None, None, None, 5, 5, None, None, None]
 
 
 # ------------------------------------------------------------------ the answer's hmi
