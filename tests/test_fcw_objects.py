@@ -336,3 +336,15 @@ def test_bad_input_raises_naming_it():
     fcw.update(1.0, EgoMotion(20.0), [])
     with pytest.raises(ValueError, match="time_s"):
         fcw.update(1.0, EgoMotion(20.0), [])
+
+
+def test_the_map_path_is_taken_from_the_horizon_profile_from_the_vehicle_front():
+    """A profile's vertices (s, curvature) from the front at s = 25 m over 100 m: the curvature
+    at the front interpolated, the vertices within the range kept, shifted to start at 0."""
+    from types import SimpleNamespace
+
+    from csws.fcw.path import path_curvature_ahead
+
+    profile = SimpleNamespace(s=np.array([0.0, 50.0, 100.0, 150.0]), curvature=np.array([0.0, 0.01, 0.01, 0.0]))
+    path = path_curvature_ahead(SimpleNamespace(profile=profile), 25.0, 100.0)
+    assert path.s_m == (0.0, 25.0, 75.0) and path.curvature_1pm == pytest.approx((0.005, 0.01, 0.01))

@@ -332,8 +332,9 @@ def _frame(
     )
     x_c, v_r = pick(objects.x_m, math.nan), pick(objects.relative_speed_mps, math.nan)
     target_a_req, target_a_tv = pick(a_req, math.nan), pick(a_tv, 0.0)
-    ttc = np.where(has, ttc_core(np.nan_to_num(x_c), np.nan_to_num(v_r)), math.nan)
-    ettc = np.where(has, ettc_core(np.nan_to_num(x_c), np.nan_to_num(v_r), target_a_tv - ego.accel_mps2), math.nan)
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        ttc = np.where(has, ttc_core(np.nan_to_num(x_c), np.nan_to_num(v_r)), math.nan)
+        ettc = np.where(has, ettc_core(np.nan_to_num(x_c), np.nan_to_num(v_r), target_a_tv - ego.accel_mps2), math.nan)
     required = np.where(has, warning_level(ego.accel_mps2, ttc, ettc, target_a_req, settings), 0).astype(np.int8)
     active = state == ACTIVE
     holdable = active & (-ego.accel_mps2 < settings.collision_a_req_mps2)

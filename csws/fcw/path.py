@@ -37,10 +37,12 @@ __all__ = [
     "PathCurvature",
     "CurvatureTable",
     "curvature_tables",
+    "path_table",
     "path_curvature_ahead",
     "yaw_path_curvature_1pm",
     "offset_from_circle_m",
     "equivalent_curvature_1pm",
+    "fleet_equivalent_curvature_1pm",
 ]
 
 #: Below this speed the yaw rate says nothing of the path's curvature (yaw rate / speed blows up): straight ahead.
