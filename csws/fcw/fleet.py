@@ -324,12 +324,11 @@ def _frame(
     """The targets' figures and levels, the hold, and the memory for the next frame."""
     a_tv, offset, a_req = figures
     has = target >= 0
-    t = np.where(has, target, 0)
-    pick = (
-        (lambda column, fill: np.where(has, column[t], fill))
-        if objects.x_m.size
-        else (lambda column, fill: np.full(target.size, fill))
-    )
+
+    def pick(column: np.ndarray, fill: float) -> np.ndarray:
+        """The target's value of an object column per vehicle, ``fill`` without a target."""
+        return np.where(has, column[np.where(has, target, 0)], fill) if column.size else np.full(has.size, fill)
+
     x_c, v_r = pick(objects.x_m, math.nan), pick(objects.relative_speed_mps, math.nan)
     target_a_req, target_a_tv = pick(a_req, math.nan), pick(a_tv, 0.0)
     with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
@@ -346,7 +345,7 @@ def _frame(
         np.asarray(level, dtype=np.int8),
         required,
         target,
-        np.where(has, pick(objects.id, -1), -1),
+        pick(objects.id, -1).astype(np.int64),
         x_c,
         v_r,
         ttc,
