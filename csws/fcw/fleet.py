@@ -253,6 +253,13 @@ def _keys(objects: FleetObjects, chosen: np.ndarray) -> np.ndarray:
     return np.sort((objects.vehicle[chosen] << 32) | objects.id[chosen])
 
 
+def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
+    """Whether each key is among the sorted keys."""
+    if not sorted_keys.size:
+        return np.zeros(keys.size, dtype=bool)
+    return sorted_keys[np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)] == keys
+
+
 def _targets(owner: np.ndarray, candidate: np.ndarray, a_req: np.ndarray, x_m: np.ndarray, n: int) -> np.ndarray:
     """Per vehicle the candidate with the highest a_req, ties the nearest, then the first listed; -1 without one."""
     target = np.full(n, -1, dtype=np.int64)
@@ -284,7 +291,8 @@ def update_fleet(
     if objects.vehicle.size and (objects.vehicle.min() < 0 or objects.vehicle.max() >= n):
         raise ValueError("objects vehicle: indices must be in [0, number of vehicles)")
     keys = (objects.vehicle << 32) | objects.id
-    if np.unique(keys).size != keys.size:
+    ordered = np.sort(keys)
+    if np.any(ordered[1:] == ordered[:-1]):
         raise ValueError("objects: duplicate object ids within a vehicle")
     state = np.asarray(
         fcw_state_code(memory.state, ego.speed_mps, ego.switched_on, ego.sensor_ok, ego.forward_gear, settings),
@@ -298,8 +306,8 @@ def update_fleet(
     known = objects.lane != UNKNOWN_LANE
     inside = in_path(objects.x_m, offset, objects.lane, known, settings.path_half_width_m, settings.range_m)
     inside &= active[owner]
-    was_in = np.isin(keys, memory.in_path_keys)
-    cutting = cut_in(inside, objects.relative_speed_mps, was_in, np.isin(keys, memory.cut_in_keys))
+    was_in = _member(keys, memory.in_path_keys)
+    cutting = cut_in(inside, objects.relative_speed_mps, was_in, _member(keys, memory.cut_in_keys))
     a_sv = ego.accel_mps2[owner]
     a_tv = np.where(objects.accel_is_relative, objects.accel_mps2 + a_sv, objects.accel_mps2)
     lost = np.where(ego.braking[owner], 0.0, settings.reaction_time_s + settings.brake_response_s)

@@ -167,18 +167,21 @@ def fleet_equivalent_curvature_1pm(
     y_m: np.ndarray,
 ) -> np.ndarray:
     """κ_eq for points (x, y) on padded paths (row ``row`` of each), as :func:`equivalent_curvature_1pm`."""
+    knots = s_m[row]
     chord = np.sqrt(x_m * x_m + y_m * y_m)
-    kappa = _fleet_equivalent(s_m, curvature_1pm, tables, row, chord)
-    return _fleet_equivalent(s_m, curvature_1pm, tables, row, _arc_from_chord(chord, kappa))
+    kappa = _fleet_equivalent(knots, curvature_1pm, tables, row, chord)
+    return _fleet_equivalent(knots, curvature_1pm, tables, row, _arc_from_chord(chord, kappa))
 
 
 def _fleet_equivalent(
-    s_m: np.ndarray, curvature_1pm: np.ndarray, tables: tuple[np.ndarray, ...], row: np.ndarray, s: np.ndarray
+    knots: np.ndarray, curvature_1pm: np.ndarray, tables: tuple[np.ndarray, ...], row: np.ndarray, s: np.ndarray
 ) -> np.ndarray:
-    """κ_eq at arc lengths ``s`` on padded paths: the knot is the last one at or before s (as bisect)."""
+    """κ_eq at arc lengths ``s`` on the points' padded knots: the knot is the last one at or before s (as bisect)."""
     slope, heading, lateral = tables
-    k = np.maximum((s_m[row] <= s[:, None]).sum(axis=1) - 1, 0)
-    at = _lateral_at(s, s_m[row, k], curvature_1pm[row, k], slope[row, k], heading[row, k], lateral[row, k])
+    k = np.maximum((knots <= s[:, None]).sum(axis=1) - 1, 0)
+    at = _lateral_at(
+        s, knots[np.arange(s.size), k], curvature_1pm[row, k], slope[row, k], heading[row, k], lateral[row, k]
+    )
     return _equivalent_at(s, at, curvature_1pm[row, 0])
 
 
