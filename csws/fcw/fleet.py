@@ -91,13 +91,16 @@ class FleetEgo:
         for name, column in zip(("ego yaw_rate_rps", "ego curvature_1pm"), optional, strict=True):
             if np.any(np.isinf(column)):
                 raise ValueError(f"{name}: must be finite or NaN (not given)")
+        signal = full("ego turn_signal", turn_signal, np.int8, 0)
+        if np.any(np.abs(signal) > 1):
+            raise ValueError("ego turn_signal: must be -1, 0 or 1")
         return cls(
             speed,
             full("ego accel_mps2", accel_mps2, float, 0.0),
             np.array(optional[0], dtype=float),
             np.array(optional[1], dtype=float),
             full("ego braking", braking, bool, False),
-            full("ego turn_signal", turn_signal, np.int8, 0),
+            signal,
             full("ego switched_on", switched_on, bool, True),
             full("ego forward_gear", forward_gear, bool, True),
             full("ego sensor_ok", sensor_ok, bool, True),

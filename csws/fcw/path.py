@@ -25,6 +25,7 @@ roots are used, so floats and arrays give the same values to the bit.
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,6 +35,7 @@ from csws.fcw.numeric import sqrt, where
 
 __all__ = [
     "MIN_YAW_SPEED_MPS",
+    "straight_beam_range_m",
     "PathCurvature",
     "CurvatureTable",
     "curvature_tables",
@@ -183,6 +185,12 @@ def _fleet_equivalent(
         s, knots[np.arange(s.size), k], curvature_1pm[row, k], slope[row, k], heading[row, k], lateral[row, k]
     )
     return _equivalent_at(s, at, curvature_1pm[row, 0])
+
+
+def straight_beam_range_m(radius_m: float, lane_width_m: float) -> float:
+    """Annex B, formula (B.1): how far a straight beam a lane wide covers the own lane on a curve of
+    ``radius_m``, D = (R W_L - W_L^2 / 4)^0.5; beyond it only a predicted path keeps to the lane."""
+    return math.sqrt(radius_m * lane_width_m - lane_width_m * lane_width_m / 4.0)
 
 
 def yaw_path_curvature_1pm(speed_mps: Any, yaw_rate_rps: Any) -> Any:
