@@ -44,7 +44,7 @@ def _map_path() -> PathCurvature:
     return PathCurvature(tuple(s.tolist()), tuple(np.clip((s - 40.0) / 40.0, 0.0, 1.0) / 400.0))
 
 
-def single_us(frames: int = 2000, runs: int = 5, map_path: bool = False, seed: int = 3) -> float:
+def single_us(frames: int = 1000, runs: int = 12, map_path: bool = False, seed: int = 3) -> float:
     """µs per frame of one vehicle with :data:`OBJECTS` objects (the best run)."""
     rng = np.random.default_rng(seed)
     objects = [SensorObject(i, *values) for i, values in enumerate(_objects(rng, OBJECTS))]

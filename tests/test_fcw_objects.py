@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csws.fcw.objects import EgoMotion, SensorObject
-from csws.fcw.path import PathCurvature
+from csws.fcw.path import PathCurvature, straight_beam_range_m
 from csws.fcw.physics import LOWEST_MAX_SPEED_MPS, STANDARD_GRAVITY_MPS2, FcwSettings, warning_level
 from csws.fcw.tracker import ForwardCollisionWarning
 from csws.state import SystemState
@@ -127,11 +127,11 @@ def test_a_cut_out_revealing_a_stopped_car_warns_in_the_frame_of_the_reveal(seen
 RADIUS_M, LANE_M, CAR_HALF_LENGTH_M = 125.0, 3.5, 2.25
 
 
-def _on_curve(arc_m: float, offset_m: float) -> tuple[float, float]:
-    """What a sensor reports of a car whose rear is ``arc_m`` along the ego's lane of a left R 125 m
+def _on_curve(arc_m: float, offset_m: float, half_length_m: float = CAR_HALF_LENGTH_M) -> tuple[float, float]:
+    """What a sensor reports of a vehicle whose rear is ``arc_m`` along the ego's lane of a left R 125 m
     curve and ``offset_m`` left of it: x of its rear, y of its centre (half a length further on)."""
     radius = RADIUS_M - offset_m
-    rear, centre = arc_m / RADIUS_M, (arc_m + CAR_HALF_LENGTH_M) / RADIUS_M
+    rear, centre = arc_m / RADIUS_M, (arc_m + half_length_m) / RADIUS_M
     return radius * math.sin(rear), RADIUS_M - radius * math.cos(centre)
 
 
@@ -169,6 +169,25 @@ def test_on_r_125_every_in_lane_car_is_in_the_path_and_no_adjacent_one(ego_name,
     assert fcw.update(0.0, CURVE_EGO[ego_name], [adjacent]).target_id is None
     own = SensorObject(2, *_on_curve(arc_m, in_lane_m), -5.0)
     assert fcw.update(0.1, CURVE_EGO[ego_name], [adjacent, own]).target_id == 2
+
+
+def test_annex_b_a_straight_beam_keeps_to_the_lane_only_to_formula_b1():
+    """Table B.1 (W_L 3.75 m): D = 19.27 m at R 100 m ... 51.20 m at R 700 m."""
+    table_b1 = {100: 19.27, 200: 27.32, 300: 33.49, 400: 38.68, 500: 43.26, 600: 47.40, 700: 51.20}
+    for radius_m, distance_m in table_b1.items():
+        assert straight_beam_range_m(radius_m, 3.75) == pytest.approx(distance_m, abs=0.006)
+    # The lane's centre line leaves a straight beam's half lane at D (its offset there is W_L / 2).
+    d = straight_beam_range_m(RADIUS_M, LANE_M)
+    assert RADIUS_M - math.sqrt(RADIUS_M**2 - d**2) == pytest.approx(LANE_M / 2.0, rel=0.01)
+
+
+@pytest.mark.parametrize("arc_m", [5.0, 20.0, 40.0, 60.0, 80.0, 100.0])
+def test_on_r_125_a_truck_in_the_middle_of_the_lane_is_in_the_path(arc_m):
+    """A truck (half length 6 m) centred in the lane: its centre, half a truck beyond the rear the
+    sensor ranges, is off the car half length the in-path test assumes, but within the corridor."""
+    truck = SensorObject(9, *_on_curve(arc_m, 0.0, half_length_m=6.0), -5.0, width_m=2.5)
+    frame = ForwardCollisionWarning(FcwSettings()).update(0.0, CURVE_EGO["yaw rate"], [truck])
+    assert frame.target_id == 9 and abs(frame.path_offset_m) < FcwSettings().path_half_width_m
 
 
 def test_the_sensor_lane_assignment_decides_where_given():
@@ -221,8 +240,7 @@ def test_v_max_per_category_never_below_the_standards_and_overridable():
 def test_the_state_follows_figure_2_with_its_delta():
     """V_min 10, V_max 27.8, delta 1 m/s: standby below V_min, active from it, kept active down to
     V_min - delta and up to V_max + delta, standby beyond; off when switched off; standby in reverse."""
-    settings, fcw = FcwSettings(), None
-    fcw = ForwardCollisionWarning(settings)
+    fcw = ForwardCollisionWarning(FcwSettings())
     steps = [
         (9.5, {}, SystemState.STANDBY),
         (10.0, {}, SystemState.ACTIVE),
@@ -336,3 +354,15 @@ def test_bad_input_raises_naming_it():
     fcw.update(1.0, EgoMotion(20.0), [])
     with pytest.raises(ValueError, match="time_s"):
         fcw.update(1.0, EgoMotion(20.0), [])
+
+
+def test_the_map_path_is_taken_from_the_horizon_profile_from_the_vehicle_front():
+    """A profile's vertices (s, curvature) from the front at s = 25 m over 100 m: the curvature
+    at the front interpolated, the vertices within the range kept, shifted to start at 0."""
+    from types import SimpleNamespace
+
+    from csws.fcw.path import path_curvature_ahead
+
+    profile = SimpleNamespace(s=np.array([0.0, 50.0, 100.0, 150.0]), curvature=np.array([0.0, 0.01, 0.01, 0.0]))
+    path = path_curvature_ahead(SimpleNamespace(profile=profile), 25.0, 100.0)
+    assert path.s_m == (0.0, 25.0, 75.0) and path.curvature_1pm == pytest.approx((0.005, 0.01, 0.01))

@@ -91,13 +91,16 @@ class FleetEgo:
         for name, column in zip(("ego yaw_rate_rps", "ego curvature_1pm"), optional, strict=True):
             if np.any(np.isinf(column)):
                 raise ValueError(f"{name}: must be finite or NaN (not given)")
+        signal = full("ego turn_signal", turn_signal, np.int8, 0)
+        if np.any(np.abs(signal) > 1):
+            raise ValueError("ego turn_signal: must be -1, 0 or 1")
         return cls(
             speed,
             full("ego accel_mps2", accel_mps2, float, 0.0),
             np.array(optional[0], dtype=float),
             np.array(optional[1], dtype=float),
             full("ego braking", braking, bool, False),
-            full("ego turn_signal", turn_signal, np.int8, 0),
+            signal,
             full("ego switched_on", switched_on, bool, True),
             full("ego forward_gear", forward_gear, bool, True),
             full("ego sensor_ok", sensor_ok, bool, True),
@@ -253,6 +256,13 @@ def _keys(objects: FleetObjects, chosen: np.ndarray) -> np.ndarray:
     return np.sort((objects.vehicle[chosen] << 32) | objects.id[chosen])
 
 
+def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
+    """Whether each key is among the sorted keys."""
+    if not sorted_keys.size:
+        return np.zeros(keys.size, dtype=bool)
+    return sorted_keys[np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)] == keys
+
+
 def _targets(owner: np.ndarray, candidate: np.ndarray, a_req: np.ndarray, x_m: np.ndarray, n: int) -> np.ndarray:
     """Per vehicle the candidate with the highest a_req, ties the nearest, then the first listed; -1 without one."""
     target = np.full(n, -1, dtype=np.int64)
@@ -284,7 +294,8 @@ def update_fleet(
     if objects.vehicle.size and (objects.vehicle.min() < 0 or objects.vehicle.max() >= n):
         raise ValueError("objects vehicle: indices must be in [0, number of vehicles)")
     keys = (objects.vehicle << 32) | objects.id
-    if np.unique(keys).size != keys.size:
+    ordered = np.sort(keys)
+    if np.any(ordered[1:] == ordered[:-1]):
         raise ValueError("objects: duplicate object ids within a vehicle")
     state = np.asarray(
         fcw_state_code(memory.state, ego.speed_mps, ego.switched_on, ego.sensor_ok, ego.forward_gear, settings),
@@ -298,8 +309,8 @@ def update_fleet(
     known = objects.lane != UNKNOWN_LANE
     inside = in_path(objects.x_m, offset, objects.lane, known, settings.path_half_width_m, settings.range_m)
     inside &= active[owner]
-    was_in = np.isin(keys, memory.in_path_keys)
-    cutting = cut_in(inside, objects.relative_speed_mps, was_in, np.isin(keys, memory.cut_in_keys))
+    was_in = _member(keys, memory.in_path_keys)
+    cutting = cut_in(inside, objects.relative_speed_mps, was_in, _member(keys, memory.cut_in_keys))
     a_sv = ego.accel_mps2[owner]
     a_tv = np.where(objects.accel_is_relative, objects.accel_mps2 + a_sv, objects.accel_mps2)
     lost = np.where(ego.braking[owner], 0.0, settings.reaction_time_s + settings.brake_response_s)
@@ -324,16 +335,16 @@ def _frame(
     """The targets' figures and levels, the hold, and the memory for the next frame."""
     a_tv, offset, a_req = figures
     has = target >= 0
-    t = np.where(has, target, 0)
-    pick = (
-        (lambda column, fill: np.where(has, column[t], fill))
-        if objects.x_m.size
-        else (lambda column, fill: np.full(target.size, fill))
-    )
+
+    def pick(column: np.ndarray, fill: float) -> np.ndarray:
+        """The target's value of an object column per vehicle, ``fill`` without a target."""
+        return np.where(has, column[np.where(has, target, 0)], fill) if column.size else np.full(has.size, fill)
+
     x_c, v_r = pick(objects.x_m, math.nan), pick(objects.relative_speed_mps, math.nan)
     target_a_req, target_a_tv = pick(a_req, math.nan), pick(a_tv, 0.0)
-    ttc = np.where(has, ttc_core(np.nan_to_num(x_c), np.nan_to_num(v_r)), math.nan)
-    ettc = np.where(has, ettc_core(np.nan_to_num(x_c), np.nan_to_num(v_r), target_a_tv - ego.accel_mps2), math.nan)
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        ttc = np.where(has, ttc_core(np.nan_to_num(x_c), np.nan_to_num(v_r)), math.nan)
+        ettc = np.where(has, ettc_core(np.nan_to_num(x_c), np.nan_to_num(v_r), target_a_tv - ego.accel_mps2), math.nan)
     required = np.where(has, warning_level(ego.accel_mps2, ttc, ettc, target_a_req, settings), 0).astype(np.int8)
     active = state == ACTIVE
     holdable = active & (-ego.accel_mps2 < settings.collision_a_req_mps2)
@@ -345,7 +356,7 @@ def _frame(
         np.asarray(level, dtype=np.int8),
         required,
         target,
-        np.where(has, pick(objects.id, -1), -1),
+        pick(objects.id, -1).astype(np.int64),
         x_c,
         v_r,
         ttc,

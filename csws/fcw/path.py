@@ -25,6 +25,7 @@ roots are used, so floats and arrays give the same values to the bit.
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,13 +35,16 @@ from csws.fcw.numeric import sqrt, where
 
 __all__ = [
     "MIN_YAW_SPEED_MPS",
+    "straight_beam_range_m",
     "PathCurvature",
     "CurvatureTable",
     "curvature_tables",
+    "path_table",
     "path_curvature_ahead",
     "yaw_path_curvature_1pm",
     "offset_from_circle_m",
     "equivalent_curvature_1pm",
+    "fleet_equivalent_curvature_1pm",
 ]
 
 #: Below this speed the yaw rate says nothing of the path's curvature (yaw rate / speed blows up): straight ahead.
@@ -165,19 +169,28 @@ def fleet_equivalent_curvature_1pm(
     y_m: np.ndarray,
 ) -> np.ndarray:
     """κ_eq for points (x, y) on padded paths (row ``row`` of each), as :func:`equivalent_curvature_1pm`."""
+    knots = s_m[row]
     chord = np.sqrt(x_m * x_m + y_m * y_m)
-    kappa = _fleet_equivalent(s_m, curvature_1pm, tables, row, chord)
-    return _fleet_equivalent(s_m, curvature_1pm, tables, row, _arc_from_chord(chord, kappa))
+    kappa = _fleet_equivalent(knots, curvature_1pm, tables, row, chord)
+    return _fleet_equivalent(knots, curvature_1pm, tables, row, _arc_from_chord(chord, kappa))
 
 
 def _fleet_equivalent(
-    s_m: np.ndarray, curvature_1pm: np.ndarray, tables: tuple[np.ndarray, ...], row: np.ndarray, s: np.ndarray
+    knots: np.ndarray, curvature_1pm: np.ndarray, tables: tuple[np.ndarray, ...], row: np.ndarray, s: np.ndarray
 ) -> np.ndarray:
-    """κ_eq at arc lengths ``s`` on padded paths: the knot is the last one at or before s (as bisect)."""
+    """κ_eq at arc lengths ``s`` on the points' padded knots: the knot is the last one at or before s (as bisect)."""
     slope, heading, lateral = tables
-    k = np.maximum((s_m[row] <= s[:, None]).sum(axis=1) - 1, 0)
-    at = _lateral_at(s, s_m[row, k], curvature_1pm[row, k], slope[row, k], heading[row, k], lateral[row, k])
+    k = np.maximum((knots <= s[:, None]).sum(axis=1) - 1, 0)
+    at = _lateral_at(
+        s, knots[np.arange(s.size), k], curvature_1pm[row, k], slope[row, k], heading[row, k], lateral[row, k]
+    )
     return _equivalent_at(s, at, curvature_1pm[row, 0])
+
+
+def straight_beam_range_m(radius_m: float, lane_width_m: float) -> float:
+    """Annex B, formula (B.1): how far a straight beam a lane wide covers the own lane on a curve of
+    ``radius_m``, D = (R W_L - W_L^2 / 4)^0.5; beyond it only a predicted path keeps to the lane."""
+    return math.sqrt(radius_m * lane_width_m - lane_width_m * lane_width_m / 4.0)
 
 
 def yaw_path_curvature_1pm(speed_mps: Any, yaw_rate_rps: Any) -> Any:

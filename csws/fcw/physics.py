@@ -203,7 +203,8 @@ def time_to_collision_s(clearance_m: Any, relative_velocity_mps: Any) -> Any:
     """TTC = -x_c / v_r, formula (2); ``inf`` where the vehicles are not closing (v_r >= 0).
 
     Floats give a float, anything else an array (the same values to the bit)."""
-    return ttc_core(*_operands(clearance_m, relative_velocity_mps))
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        return ttc_core(*_operands(clearance_m, relative_velocity_mps))
 
 
 def ttc_core(x_c: Any, v_r: Any) -> Any:
@@ -220,7 +221,8 @@ def enhanced_time_to_collision_s(clearance_m: Any, relative_velocity_mps: Any, r
     written here in the form that stays exact as a tends to 0, where ETTC tends to TTC:
     (-v_r - root) / a == 2 x_c / (-v_r + root). Floats give a float, anything else an array.
     """
-    return ettc_core(*_operands(clearance_m, relative_velocity_mps, relative_accel_mps2))
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        return ettc_core(*_operands(clearance_m, relative_velocity_mps, relative_accel_mps2))
 
 
 def ettc_core(x_c: Any, v_r: Any, a: Any) -> Any:
