@@ -201,6 +201,8 @@ class WarningService:
     ) -> None:
         """The forward collision warning of the round's queries with objects or a forward_target, into their
         answers' ``fcw`` and ``hmi``; the FCW memory of those with objects into their sessions."""
+        if all(query.objects is None and query.forward_target is None for query in queries):
+            return
         settings = [self.fcw_settings.of(fleet, category) for category in categories]
         fcw = fcw_answers(queries, settings)
         rows = [row for row, query in enumerate(queries) if query.objects is not None]
