@@ -9,7 +9,7 @@ from its session and goes back into it (:class:`service.vehicles.FcwMemory`), so
 holds across queries whichever worker answers them.
 
 The path is predicted from the curvature of the road ahead where the curve warning looked ahead
-for the vehicle (its horizon's curvature profile, sampled every :data:`MAP_PATH_STEP_M`), else from the
+for the vehicle (its horizon's curvature profile, from the knots where its slope changes), else from the
 yaw rate.
 A frame's time is the query's ``timestamp_s``, else the time the round is answered; a query not
 after the vehicle's last frame is answered from the kept memory and changes nothing of it.
@@ -41,9 +41,9 @@ NEW_MEMORY = FcwMemory(STANDBY, 0, -math.inf, -math.inf)
 _ID_BITS = 32
 #: The fields of an object that may be left out (None).
 _OPTIONAL_FIELDS = frozenset({"accel_mps2", "relative_accel_mps2", "lane"})
-#: The map path's curvature is taken every this many metres ahead: a road's curvature changes over
-#: tens of metres (clothoids), and the in-path test needs the path to tenths of a metre across it.
-MAP_PATH_STEP_M = 5.0
+#: A knot of the map path's curvature profile is dropped where the slope changes by less than this, 1/m^2:
+#: over the 200 m of the range that moves the path across by at most 200^3 / 6 times it (about 1 mm).
+SLOPE_TOLERANCE_1PM2 = 1e-9
 
 
 def object_fcw(
@@ -127,12 +127,25 @@ def _objects(queries: Sequence[DecodedQuery]) -> FleetObjects:
     )
 
 
+def _knots(path: PathAhead) -> tuple[np.ndarray, np.ndarray]:
+    """The knots of a horizon's curvature profile where its slope changes (the first of repeated arc lengths
+    kept, as :func:`csws.fcw.path.path_curvature_ahead` does): the same piecewise linear curvature."""
+    profile = path.path.profile
+    s_m, kappa = np.asarray(profile.s, dtype=float), np.asarray(profile.curvature, dtype=float)
+    distinct = np.concatenate(([True], np.diff(s_m) > 0.0))
+    s_m, kappa = s_m[distinct], kappa[distinct]
+    slope = np.diff(kappa) / np.diff(s_m)
+    bend = np.abs(np.diff(slope)) > SLOPE_TOLERANCE_1PM2
+    keep = np.concatenate(([True], bend, [True])) if s_m.size > 1 else np.ones(1, dtype=bool)
+    return s_m[keep], kappa[keep]
+
+
 def _paths(paths: Sequence[PathAhead | None], range_m: float) -> FleetPaths | None:
     """The map paths of the vehicles that have one, as flat knots grouped by row; None without any.
 
-    Each is the curvature of the road ahead (:func:`csws.fcw.path.path_curvature_ahead`) sampled
-    every :data:`MAP_PATH_STEP_M` from the vehicle's front over ``range_m``, linear between the
-    samples and held beyond the profile's end, for the vehicles on one horizon in one interpolation.
+    Each is the curvature of the road ahead from the vehicle's front over ``range_m``, as
+    :func:`csws.fcw.path.path_curvature_ahead` gives it, from the knots where its slope changes
+    (:func:`_knots`) and a last knot at ``range_m``; the vehicles on one horizon in one pass.
     """
     by_horizon: dict[int, list[int]] = {}
     for row, ahead in enumerate(paths):
@@ -140,17 +153,25 @@ def _paths(paths: Sequence[PathAhead | None], range_m: float) -> FleetPaths | No
             by_horizon.setdefault(id(ahead.horizon), []).append(row)
     if not by_horizon:
         return None
-    steps = np.arange(0.0, range_m + MAP_PATH_STEP_M, MAP_PATH_STEP_M)
-    owners, curvature = [], []
+    owners, s_parts, kappa_parts = [], [], []
     for rows in by_horizon.values():
-        profile = cast(PathAhead, paths[rows[0]]).path.profile
-        front_s_m = np.array([cast(PathAhead, paths[row]).vehicle_s for row in rows])
-        samples_s_m = front_s_m[:, None] + steps[None, :]
-        curvature.append(np.interp(samples_s_m, profile.s, profile.curvature).ravel())
-        owners.append(np.repeat(np.array(rows, dtype=np.int64), steps.size))
-    owner = np.concatenate(owners)
-    order = np.argsort(owner, kind="stable")
-    return FleetPaths(owner[order], np.tile(steps, owner.size // steps.size), np.concatenate(curvature)[order])
+        knot_s, knot_kappa = _knots(cast(PathAhead, paths[rows[0]]))
+        front = np.array([cast(PathAhead, paths[row]).vehicle_s for row in rows])
+        first = np.searchsorted(knot_s, front, side="right")
+        counts = np.searchsorted(knot_s, front + range_m, side="left") - first
+        inner = np.repeat(first - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+        ends = np.stack([front, front + range_m], axis=1)
+        end_kappa = np.interp(ends, knot_s, knot_kappa)
+        owner = np.concatenate([np.arange(len(rows)), np.repeat(np.arange(len(rows)), counts), np.arange(len(rows))])
+        s_all = np.concatenate([ends[:, 0], knot_s[inner], ends[:, 1]]) - front[owner]
+        kappa_all = np.concatenate([end_kappa[:, 0], knot_kappa[inner], end_kappa[:, 1]])
+        order = np.lexsort((s_all, owner))
+        owners.append(np.asarray(rows, dtype=np.int64)[owner[order]])
+        s_parts.append(s_all[order])
+        kappa_parts.append(kappa_all[order])
+    owner_all = np.concatenate(owners)
+    order = np.argsort(owner_all, kind="stable")
+    return FleetPaths(owner_all[order], np.concatenate(s_parts)[order], np.concatenate(kappa_parts)[order])
 
 
 def _keys(id_lists: Sequence[tuple[int, ...]]) -> np.ndarray:

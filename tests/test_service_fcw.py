@@ -7,12 +7,21 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from test_service import Workers
 from test_service_state import state_options
 
+from csws.engine import VehicleInput
 from csws.fcw.objects import EgoMotion, SensorObject
+from csws.fcw.path import (
+    PathCurvature,
+    equivalent_curvature_1pm,
+    offset_from_circle_m,
+    path_curvature_ahead,
+    path_table,
+)
 from csws.fcw.physics import FcwSettings, evaluate_fcw
 from csws.fcw.tracker import ForwardCollisionWarning
 from csws.networks import networks_dir
@@ -20,7 +29,9 @@ from csws.standard import Level
 from csws.warning.rules import HmiHint
 from service.app import create_app
 from service.fcw import FCW_HMI_HINTS, combined_hmi
+from service.fcw_objects import _paths
 from service.fcw_settings import FleetFcwSettings
+from service.networks import load_networks
 from service.schemas import MAX_OBJECTS, FcwAnswer, ForwardTarget
 from service.settings import ServiceSettings
 
@@ -408,3 +419,27 @@ def test_a_bad_fleet_settings_file_stops_start_up_naming_it(tmp_path, content):
     path.write_text(json.dumps(content))
     with pytest.raises(ValueError, match=str(path)):
         FleetFcwSettings(path)
+
+
+# ------------------------------------------------------------------ the map path
+@pytest.mark.parametrize("lane_pos_m", [40.0, 90.0, 150.0, 190.0, 280.0])
+def test_the_map_path_puts_objects_where_the_librarys_full_profile_does(lane_pos_m):
+    """The service keeps of the horizon's curvature profile only the knots where its slope changes: across the
+    path, a point on or beside the road ahead is as far from it (to a millimetre) as by the library's full
+    profile (every vertex), on a straight running into R 120 m, on the arc, and running out of it; and the
+    service's path has far fewer knots."""
+    (network,) = load_networks([Path(TRACK_NET)], ServiceSettings(nets=[TRACK_NET]).engine_settings())
+    answer = network.engine.evaluate(VehicleInput("probe", "N", 72.0, "curve_0", lane_pos_m, None, 1.0, None))
+    ahead = answer.path
+    assert ahead is not None
+    full = path_curvature_ahead(ahead.path, ahead.vehicle_s, N_SETTINGS.range_m)
+    served = _paths([ahead], N_SETTINGS.range_m)
+    assert served is not None and served.s_m.size < len(full.s_m) / 10
+    served_path = PathCurvature(tuple(served.s_m.tolist()), tuple(served.curvature_1pm.tolist()))
+    for x_m in np.arange(5.0, 190.0, 7.0):
+        for y_m in (-3.5, 0.0, 1.0, 3.5):
+            offsets = [
+                offset_from_circle_m(x_m, y_m, equivalent_curvature_1pm(path_table(path), x_m, y_m))
+                for path in (full, served_path)
+            ]
+            assert offsets[1] == pytest.approx(offsets[0], abs=1e-3), (x_m, y_m)
