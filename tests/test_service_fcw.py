@@ -25,7 +25,7 @@ from csws.fcw.path import (
 from csws.fcw.physics import FcwSettings, evaluate_fcw
 from csws.fcw.tracker import ForwardCollisionWarning
 from csws.networks import networks_dir
-from csws.standard import Level
+from csws.standard import Category, Level
 from csws.warning.rules import HmiHint
 from service.app import create_app
 from service.fcw import FCW_HMI_HINTS, combined_hmi
@@ -443,3 +443,19 @@ def test_the_map_path_puts_objects_where_the_librarys_full_profile_does(lane_pos
                 for path in (full, served_path)
             ]
             assert offsets[1] == pytest.approx(offsets[0], abs=1e-3), (x_m, y_m)
+
+
+def test_a_fleets_block_applies_over_the_default_to_that_fleet_only(tmp_path):
+    path = tmp_path / "fcw.json"
+    default = {"reaction_time_s": 1.4, "max_speed_by_category_mps": {"N": 30.0}}
+    acme = {"collision_a_req_mps2": 4.0, "max_speed_by_category_mps": {"M1": 60.0}}
+    path.write_text(json.dumps({"format": "csws-fcw-settings/1", "default": default, "fleets": {"acme": acme}}))
+    fleets = FleetFcwSettings(path)
+    assert fleets.of("acme", Category.N) == FcwSettings.for_category(
+        "N", reaction_time_s=1.4, collision_a_req_mps2=4.0, max_speed_mps=30.0
+    )
+    assert fleets.of("acme", Category.M1) == FcwSettings.for_category(
+        "M1", reaction_time_s=1.4, collision_a_req_mps2=4.0, max_speed_mps=60.0
+    )
+    assert fleets.of("other", Category.M1) == FcwSettings.for_category("M1", reaction_time_s=1.4)
+    assert FleetFcwSettings().of("", Category.M3) == FcwSettings.for_category("M3")
