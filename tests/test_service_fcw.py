@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from test_service import Workers
+from servers import Workers
 from test_service_state import state_options
 
 from csws.engine import VehicleInput
