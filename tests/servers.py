@@ -211,3 +211,8 @@ class SwitchWriter:
         stored = store.read(self.acknowledged)
         store.close()
         assert all(stored[v].setting == VehicleSetting(int(v[1:]) % 2 == 0) for v in self.acknowledged)
+
+
+def state_options(state: dict[str, str]) -> list[str]:
+    """The command-line options of a ``state`` fixture's store."""
+    return ["--state", state["state"]] if "state" in state else ["--state-db", state["state_db"]]

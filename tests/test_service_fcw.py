@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from servers import Workers
-from test_service_state import state_options
+from servers import Workers, state_options
 
 from csws.engine import VehicleInput
 from csws.fcw.objects import EgoMotion, SensorObject

@@ -13,7 +13,7 @@ import threading
 import pytest
 from builders import FRONTAGE_OFFSET_M, LANE_WIDTH_M, SIDE_X_M
 from markers import marks_its_tests
-from servers import SwitchWriter, Workers
+from servers import SwitchWriter, Workers, state_options
 
 from csws.networks import networks_dir
 from csws.standard import Category
@@ -26,11 +26,6 @@ from service.vehicles import TRANSACTION_ATTEMPTS
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 #: On the Table 7 track, 15 m before curve 1 (R 120 m): level 2 of category N from 78.0 km/h.
 AT_CURVE = {"category": "N", "lane_id": "curve_0", "lane_pos_m": 85.0}
-
-
-def state_options(state: dict[str, str]) -> list[str]:
-    """The command-line options of a ``state`` fixture's store."""
-    return ["--state", state["state"]] if "state" in state else ["--state-db", state["state_db"]]
 
 
 @pytest.fixture
