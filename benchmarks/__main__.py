@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from benchmarks import cosim, curvature, load, osm, roadmap, roads, service, sweep, warning
+from benchmarks import cosim, curvature, fcw, load, osm, roadmap, roads, service, sweep, warning
 from benchmarks import map as live_map
 
 
@@ -173,6 +173,22 @@ def warning_rows(figures: dict) -> list[Row]:
         ),
         at_most(
             "FCW: batch of 1,000, us per vehicle", figures["fcw_batch_per_vehicle_us"], warning.TARGET_FCW_BATCH_US
+        ),
+    ]
+
+
+def fcw_rows(figures: dict) -> list[Row]:
+    return [
+        at_most("FCW objects: one vehicle, 10 objects, us per frame", figures["single_us"], fcw.TARGET_SINGLE_US),
+        context("FCW objects: one vehicle, 10 objects, map path, us per frame", round(figures["single_map_us"], 1)),
+        at_most(
+            "FCW objects: fleet of 1,000 x 10 objects, us per vehicle and frame",
+            figures["batch_per_vehicle_us"],
+            fcw.TARGET_BATCH_US,
+        ),
+        context(
+            "FCW objects: fleet of 1,000 x 10 objects, map path, us per vehicle and frame",
+            round(figures["batch_map_per_vehicle_us"], 2),
         ),
     ]
 
@@ -458,6 +474,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
             "roads", lambda: roads.run(cases=10 if quick else roads.CASES_PER_FAMILY), "about 10-40 s", roads_rows
         ),
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
+        Benchmark("fcw", fcw.run, "a few seconds", fcw_rows),
         Benchmark("service", service.run, "about 1-2 minutes", service_rows),
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark(

@@ -131,3 +131,21 @@ def test_closer_is_never_a_lower_warning(closing_mps, clearance_m, lead_accel_mp
     )
     assert np.all(np.diff(batch.level) >= 0)
     assert np.all(batch.a_req_mps2[1:] >= batch.a_req_mps2[:-1])  # inf where the reaction uses up the clearance
+
+
+@given(st.floats(0.0, 300.0), st.floats(-50.0, 20.0), st.floats(-10.0, 10.0), st.floats(0.0, 2.0))
+def test_floats_and_arrays_give_the_same_values_to_the_bit(clearance_m, v_r, accel_mps2, lost_s):
+    """One vehicle's warning runs the formulas on floats, a fleet's on arrays: the same values."""
+    pairs = (
+        (time_to_collision_s(clearance_m, v_r), time_to_collision_s([clearance_m], [v_r])),
+        (
+            enhanced_time_to_collision_s(clearance_m, v_r, accel_mps2),
+            enhanced_time_to_collision_s([clearance_m], [v_r], [accel_mps2]),
+        ),
+        (
+            required_deceleration_mps2(clearance_m, v_r, accel_mps2, lost_s),
+            required_deceleration_mps2([clearance_m], [v_r], [accel_mps2], [lost_s]),
+        ),
+    )
+    for one, many in pairs:
+        assert isinstance(one, float) and one == many[0]

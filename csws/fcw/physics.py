@@ -26,23 +26,33 @@ The warning (4.4.4, 4.5.3-4.5.5): a collision warning when a_req reaches
 lead braking at 0.3 g from 30 m at 20 m/s is warned at a TTC of 1.96 s, 2.4 s is required),
 so the defaults are a commercial vehicle's: T_resp 1.2 s and 0.5 g, the mean hard braking of
 commercial vehicles in Annex A (5.3 m/s^2) rounded down. No warning (4.5.5) while the subject
-vehicle already decelerates at the collision threshold or more, while it is not closing, or
-while TTC exceeds :attr:`FcwSettings.max_ttc_s`; while the driver brakes, T_resp and T_b
-are 0 (4.5.4).
+vehicle already decelerates at the collision threshold or more, or (4.5.5 e) only while no
+measure shows a threat: TTC and ETTC above :attr:`FcwSettings.max_ttc_s` and a_req below the
+preliminary threshold (:func:`warning_level`); while the driver brakes, T_resp and T_b are 0
+(4.5.4). :func:`evaluate_fcw` keeps, for its callers, the older rule that TTC above the limit
+alone suppresses.
+
+Every formula takes Python floats or numpy arrays and gives the same value to the bit either way
+(:mod:`csws.fcw.numeric`), so one vehicle's warning (:mod:`csws.fcw.tracker`) runs on floats.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from csws.fcw.numeric import fmin, isfinite, sqrt, where
+from csws.standard import Category
 from csws.state import SystemState
 
 __all__ = [
     "STANDARD_GRAVITY_MPS2",
     "FCW_STATES",
+    "MAX_SPEED_BY_CATEGORY_MPS",
     "FcwSettings",
     "FcwBatch",
     "time_to_collision_s",
@@ -50,7 +60,9 @@ __all__ = [
     "required_deceleration_mps2",
     "warning_clearance_m",
     "formula_5_clearance_m",
+    "warning_level",
     "evaluate_fcw",
+    "fcw_state_code",
     "next_fcw_states",
 ]
 
@@ -66,6 +78,19 @@ HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS = 11.2, 27.8
 #: The system states by code (4.3.2; fault as CSWS's, :class:`csws.state.SystemState`): ``FCW_STATES[code]``.
 FCW_STATES = (SystemState.OFF, SystemState.STANDBY, SystemState.ACTIVE, SystemState.FAULT)
 OFF, STANDBY, ACTIVE, FAULT = range(4)
+#: 4.3.3: V_max is at least 27.8 m/s *or the highest speed the vehicle can reach*; by category (GB/T 15089),
+#: the highest speed such vehicles reach, never below 27.8 m/s. M1: 250 km/h, where most fast cars are
+#: electronically limited; M2 and M3: the buses' speed limiter, 100 km/h (EU 92/6/EEC as amended by
+#: 2002/85/EC), which rounds to 27.8 m/s; N and O: the trucks' limiter, 90 km/h, held up to 27.8 m/s,
+#: whose 2.8 m/s over the limiter cover a truck rolling faster downhill. A van (N1) without a limiter
+#: or any vehicle faster than its category's value sets its own V_max.
+MAX_SPEED_BY_CATEGORY_MPS = {
+    Category.M1: 250.0 / 3.6,
+    Category.M2: LOWEST_MAX_SPEED_MPS,
+    Category.M3: LOWEST_MAX_SPEED_MPS,
+    Category.N: LOWEST_MAX_SPEED_MPS,
+    Category.O: LOWEST_MAX_SPEED_MPS,
+}
 
 
 @dataclass(frozen=True)
@@ -83,12 +108,27 @@ class FcwSettings:
     brake_response_s
         T_b, the brake system's response time (4.5.4: chosen by the designer).
     max_ttc_s
-        No warning while TTC exceeds this (4.5.5: 4.0 s).
+        4.5.5 e: the TTC (and ETTC) above which a warning may be suppressed (4.0 s); only while a_req
+        is also below the preliminary threshold (:func:`warning_level`).
     min_speed_mps, max_speed_mps
         V_min and V_max, the subject speeds the system is active between (4.3.3: V_min at most
-        11.2 m/s, V_max at least 27.8 m/s; a truck's or bus's speed limiter keeps it below 27.8 m/s).
+        11.2 m/s, V_max at least 27.8 m/s or the highest speed the vehicle reaches). The default is
+        a commercial vehicle's (a truck's or bus's speed limiter); :meth:`for_category` takes the
+        category's (:data:`MAX_SPEED_BY_CATEGORY_MPS`).
     hysteresis_mps
         delta of Figure 2: an active system goes to standby only this far outside [V_min, V_max].
+    path_half_width_m
+        An object is in the path while its centre is at most this far from the predicted path
+        (half a 3.5 m lane: Table 3's detection width at d_max is the lane width).
+    object_half_length_m
+        The in-path test takes an object's centre this far beyond its rear (a car's half length):
+        the sensor gives the rear's range and the centre's lateral position, and on a curve the two
+        points lie on different headings (on R 125 m, 40 m ahead, 0.7 m apart across the path).
+    range_m
+        d_max, the farthest object assessed ahead, m.
+    level_hold_s
+        A level, once on, stays on this long after the thresholds stop requiring it (one noisy
+        frame does not switch it off and on); never lower than what they require now.
     """
 
     collision_a_req_mps2: float = 0.5 * STANDARD_GRAVITY_MPS2
@@ -99,6 +139,17 @@ class FcwSettings:
     min_speed_mps: float = 10.0
     max_speed_mps: float = LOWEST_MAX_SPEED_MPS
     hysteresis_mps: float = 1.0
+    path_half_width_m: float = 1.75
+    object_half_length_m: float = 2.25
+    range_m: float = 200.0
+    level_hold_s: float = 0.4
+
+    @classmethod
+    def for_category(cls, category: str | Category, **changes: Any) -> FcwSettings:
+        """The settings of a vehicle of ``category`` (4.3.3: V_max from :data:`MAX_SPEED_BY_CATEGORY_MPS`),
+        with ``changes`` (any field, e.g. the vehicle's own ``max_speed_mps``) applied over them."""
+        defaults = cls(max_speed_mps=MAX_SPEED_BY_CATEGORY_MPS[Category.parse(category)])
+        return replace(defaults, **changes)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.collision_a_req_mps2 <= MAX_COLLISION_A_REQ_MPS2:
@@ -115,6 +166,10 @@ class FcwSettings:
             and self.hysteresis_mps >= 0.0
         ):
             raise ValueError("4.3.3: V_min must be in [0, 11.2] m/s, V_max at least 27.8 m/s, the hysteresis >= 0")
+        if not (self.path_half_width_m > 0.0 and self.range_m > 0.0):
+            raise ValueError("the path half-width and the range must be positive")
+        if not (self.level_hold_s >= 0.0 and self.object_half_length_m >= 0.0):
+            raise ValueError("the level hold and the object half length must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -137,47 +192,99 @@ class FcwBatch:
     a_req_mps2: np.ndarray
 
 
-def time_to_collision_s(clearance_m: ArrayLike, relative_velocity_mps: ArrayLike) -> np.ndarray:
-    """TTC = -x_c / v_r, formula (2); ``inf`` where the vehicles are not closing (v_r >= 0)."""
-    clearance_m, v_r = np.asarray(clearance_m, dtype=float), np.asarray(relative_velocity_mps, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(v_r < 0.0, -clearance_m / v_r, np.inf)
+def _operands(*values: Any) -> tuple[Any, ...]:
+    """Floats where every value is a number, else float arrays (the formulas take either)."""
+    if all(isinstance(value, float | int) for value in values):
+        return tuple(float(value) for value in values)
+    return tuple(np.asarray(value, dtype=float) for value in values)
 
 
-def enhanced_time_to_collision_s(
-    clearance_m: ArrayLike, relative_velocity_mps: ArrayLike, relative_accel_mps2: ArrayLike
-) -> np.ndarray:
+def time_to_collision_s(clearance_m: Any, relative_velocity_mps: Any) -> Any:
+    """TTC = -x_c / v_r, formula (2); ``inf`` where the vehicles are not closing (v_r >= 0).
+
+    Floats give a float, anything else an array (the same values to the bit)."""
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        return ttc_core(*_operands(clearance_m, relative_velocity_mps))
+
+
+def ttc_core(x_c: Any, v_r: Any) -> Any:
+    """:func:`time_to_collision_s` on floats or float arrays as they are."""
+    closing = v_r < 0.0
+    return where(closing, -x_c / where(closing, v_r, -1.0), math.inf)
+
+
+def enhanced_time_to_collision_s(clearance_m: Any, relative_velocity_mps: Any, relative_accel_mps2: Any) -> Any:
     """ETTC, formula (3), with the relative acceleration a_TV - a_SV held: the first time the
     clearance reaches 0; ``inf`` where it never does (the root of (3) is negative or complex).
 
     Formula (3) is the smaller root of x_c + v_r t + a t^2 / 2 = 0 with a = a_TV - a_SV; it is
-    written here in the form that stays exact as a tends to 0, where ETTC tends to TTC.
+    written here in the form that stays exact as a tends to 0, where ETTC tends to TTC:
+    (-v_r - root) / a == 2 x_c / (-v_r + root). Floats give a float, anything else an array.
     """
-    x_c, v_r, a = (
-        np.asarray(value, dtype=float) for value in (clearance_m, relative_velocity_mps, relative_accel_mps2)
-    )
-    discriminant = v_r**2 - 2.0 * a * x_c
-    root = np.sqrt(np.fmax(discriminant, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # (-v_r - root) / a == 2 x_c / (-v_r + root): the same root, without cancellation.
-        ettc = np.where(-v_r + root > 0.0, 2.0 * x_c / (-v_r + root), np.inf)
-    return np.where((discriminant >= 0.0) & (ettc >= 0.0), ettc, np.inf)
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        return ettc_core(*_operands(clearance_m, relative_velocity_mps, relative_accel_mps2))
+
+
+def ettc_core(x_c: Any, v_r: Any, a: Any) -> Any:
+    """:func:`enhanced_time_to_collision_s` on floats or float arrays as they are."""
+    discriminant = v_r * v_r - 2.0 * a * x_c
+    denominator = sqrt(where(discriminant >= 0.0, discriminant, 0.0)) - v_r
+    real = (discriminant >= 0.0) & (denominator > 0.0)
+    ettc = where(real, 2.0 * x_c / where(real, denominator, 1.0), math.inf)
+    return where(ettc >= 0.0, ettc, math.inf)
 
 
 def required_deceleration_mps2(
-    clearance_m: ArrayLike, relative_velocity_mps: ArrayLike, target_accel_mps2: ArrayLike, lost_time_s: ArrayLike
-) -> np.ndarray:
+    clearance_m: Any, relative_velocity_mps: Any, target_accel_mps2: Any, lost_time_s: Any
+) -> Any:
     """a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with d_TV = -a_TV the target's
     deceleration and x_r = -v_r ``lost_time_s`` the clearance lost while closing during the
     driver's reaction and the brakes' response (0 while not closing). ``inf`` where that
-    uses up the clearance."""
-    x_c, v_r, a_tv, lost_s = (
-        np.asarray(value, dtype=float) for value in (clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s)
-    )
-    closing = np.fmin(v_r, 0.0)
+    uses up the clearance. Floats give a float, anything else an array."""
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        return a_req_core(*_operands(clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s))
+
+
+def a_req_core(x_c: Any, v_r: Any, a_tv: Any, lost_s: Any) -> Any:
+    """:func:`required_deceleration_mps2` on floats or float arrays as they are."""
+    closing = fmin(v_r, 0.0)
     left_m = x_c + closing * lost_s
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(left_m > 0.0, -a_tv + closing**2 / (2.0 * left_m), np.inf)
+    room = left_m > 0.0
+    return where(room, -a_tv + closing * closing / (2.0 * where(room, left_m, 1.0)), math.inf)
+
+
+def warning_level(
+    subject_accel_mps2: Any,
+    ttc_s: Any,
+    ettc_s: Any,
+    a_req_mps2: Any,
+    settings: FcwSettings,
+    suppress_above_max_ttc: bool = False,
+) -> Any:
+    """The level a target requires (0 none, 1 preliminary, 2 collision; 4.5.3) after the suppressions of 4.5.5.
+
+    a_req at the collision threshold gives 2, at the preliminary one 1. 4.5.5 a: none while the
+    subject decelerates at the collision threshold or more. 4.5.5 e: suppressed only where no
+    measure shows a threat, TTC and ETTC above ``max_ttc_s`` and a_req below the preliminary
+    threshold; with ``suppress_above_max_ttc`` (the rule :func:`evaluate_fcw` keeps for its
+    callers), TTC above it alone suppresses. Floats give an int, arrays an int8 array.
+    """
+    may_warn = -subject_accel_mps2 < settings.collision_a_req_mps2
+    if suppress_above_max_ttc:
+        may_warn = may_warn & (ttc_s <= settings.max_ttc_s)
+    else:
+        no_threat = (
+            (ttc_s > settings.max_ttc_s)
+            & (ettc_s > settings.max_ttc_s)
+            & (a_req_mps2 < settings.preliminary_a_req_mps2)
+        )
+        may_warn = where(no_threat, False, may_warn)
+    level = where(
+        may_warn & (a_req_mps2 >= settings.collision_a_req_mps2),
+        2,
+        where(may_warn & (a_req_mps2 >= settings.preliminary_a_req_mps2), 1, 0),
+    )
+    return level if isinstance(level, int) else np.asarray(level, dtype=np.int8)
 
 
 def evaluate_fcw(
@@ -187,6 +294,7 @@ def evaluate_fcw(
     target_accel_mps2: ArrayLike,
     driver_braking: ArrayLike,
     settings: FcwSettings = FcwSettings(),
+    suppress_above_max_ttc: bool = True,
 ) -> FcwBatch:
     """The forward collision warning of many subject vehicles, each with its target vehicle
     (arrays ``(n,)``; the target selection is the caller's, 4.4.3).
@@ -205,6 +313,9 @@ def evaluate_fcw(
         Whether the subject's driver brakes (T_resp and T_b are then 0, 4.5.4).
     settings
         The thresholds.
+    suppress_above_max_ttc
+        4.5.5 e as these callers had it, TTC above the limit alone suppresses; False: only where no
+        measure shows a threat (:func:`warning_level`, the rule of :mod:`csws.fcw.tracker`).
     """
     a_sv, a_tv = np.asarray(subject_accel_mps2, dtype=float), np.asarray(target_accel_mps2, dtype=float)
     x_c, v_r = np.asarray(clearance_m, dtype=float), np.asarray(relative_velocity_mps, dtype=float)
@@ -212,15 +323,8 @@ def evaluate_fcw(
     ttc = time_to_collision_s(x_c, v_r)
     ettc = enhanced_time_to_collision_s(x_c, v_r, a_tv - a_sv)
     a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s)
-    # 4.5.5: no warning while the subject already brakes at the collision threshold, while
-    # it is not closing, or while TTC is above the limit.
-    may_warn = (-a_sv < settings.collision_a_req_mps2) & (ttc <= settings.max_ttc_s)
-    level = np.where(
-        may_warn & (a_req >= settings.collision_a_req_mps2),
-        2,
-        np.where(may_warn & (a_req >= settings.preliminary_a_req_mps2), 1, 0),
-    ).astype(np.int8)
-    return FcwBatch(level, ttc, ettc, a_req)
+    level = warning_level(a_sv, ttc, ettc, a_req, settings, suppress_above_max_ttc)
+    return FcwBatch(np.asarray(level, dtype=np.int8), ttc, ettc, a_req)
 
 
 def warning_clearance_m(
@@ -250,25 +354,41 @@ def _clearance_at_m(
     return closing * lost_time_s + closing**2 / (2.0 * (a_req_mps2 + a_tv))
 
 
+def fcw_state_code(
+    previous: Any, speed_mps: Any, switched_on: Any, measured: Any, forward_gear: Any, settings: FcwSettings
+) -> Any:
+    """The system state after one update (4.3, Figure 2) as a code into :data:`FCW_STATES`, for
+    floats and bools (an int) or arrays.
+
+    Off while switched off; fault while the forward sensor gives no valid measurement (4.4.5:
+    the driver is told; it clears with the next good one, as CSWS's faults do); else active
+    between V_min and V_max in a forward gear (4.3.2: reverse or park is standby), standby
+    otherwise, the band widened by the hysteresis delta for a system that was active or in fault
+    (so that a short fault does not drop an active system to standby).
+    """
+    margin = where(previous >= ACTIVE, settings.hysteresis_mps, 0.0)
+    inside = (speed_mps >= settings.min_speed_mps - margin) & (speed_mps <= settings.max_speed_mps + margin)
+    state = where(inside & forward_gear, ACTIVE, STANDBY)
+    state = where(measured & isfinite(speed_mps), state, FAULT)
+    return where(switched_on, state, OFF)
+
+
 def next_fcw_states(
     previous: ArrayLike,
     speed_mps: ArrayLike,
     switched_on: ArrayLike,
     measured: ArrayLike,
     settings: FcwSettings = FcwSettings(),
+    forward_gear: ArrayLike = True,
 ) -> np.ndarray:
     """The system state of many subject vehicles after one update (4.3, Figure 2), as codes into
-    :data:`FCW_STATES` (arrays ``(n,)``).
-
-    Off while switched off; fault while the forward sensor gives no valid measurement (4.4.5:
-    the driver is told; it clears with the next good one, as CSWS's faults do); else active
-    between V_min and V_max, standby outside, widened by the hysteresis delta for a system that
-    was active or in fault (so that a short fault does not drop an active system to standby).
-    """
-    previous = np.asarray(previous, dtype=np.int8)
-    speed = np.asarray(speed_mps, dtype=float)
-    margin = np.where(previous >= ACTIVE, settings.hysteresis_mps, 0.0)
-    inside = (speed >= settings.min_speed_mps - margin) & (speed <= settings.max_speed_mps + margin)
-    state = np.where(inside, ACTIVE, STANDBY)
-    state = np.where(np.asarray(measured, dtype=bool) & np.isfinite(speed), state, FAULT)
-    return np.where(np.asarray(switched_on, dtype=bool), state, OFF).astype(np.int8)
+    :data:`FCW_STATES` (arrays ``(n,)``): :func:`fcw_state_code` on arrays."""
+    codes = fcw_state_code(
+        np.asarray(previous, dtype=np.int8),
+        np.asarray(speed_mps, dtype=float),
+        np.asarray(switched_on, dtype=bool),
+        np.asarray(measured, dtype=bool),
+        np.asarray(forward_gear, dtype=bool),
+        settings,
+    )
+    return np.asarray(codes, dtype=np.int8)
