@@ -75,7 +75,8 @@ def _write_json(path: Path, outcomes: Sequence[FcwOutcome], settings: dict[str, 
     ]
     content = {
         "format": "csws-fcw-conformance-report/1",
-        "standard": "GB/T 33577-2017; IVISTA-SM-ISI.SA.AEB-TP-A0-2023",
+        "standard": "GB/T 33577-2017; IVISTA-SM-ISI.SA.AEB-TP-A0-2023; NHTSA FCW confirmation test (2008); "
+        "Euro NCAP AEB car-to-car (CCR)",
         "settings": settings,
         "verdict": {
             "passed": all(o.passed for o in outcomes),
@@ -91,15 +92,17 @@ def _write_markdown(path: Path, outcomes: Sequence[FcwOutcome], settings: dict[s
     """Write ``report.md``: the verdict, one line per row with its worst figure, and the failed runs."""
     failed = [o for o in outcomes if not o.passed]
     lines = [
-        "# FCW conformance report (GB/T 33577-2017 5.4-5.5, IVISTA A.1)",
+        "# FCW conformance report (GB/T 33577-2017 5.4-5.5, IVISTA A.1, NHTSA FCW, Euro NCAP CCR)",
         "",
         f"- verdict: **{verdict_text(not failed)}**",
         f"- step lengths: {', '.join(f'{s:g} s' for s in settings['step_lengths_s'])}; "
-        f"{settings['repetitions']} runs per row and step length; seed {settings['seed']}",
+        f"{settings['repetitions']} runs per row and step length (NHTSA: 7); seed {settings['seed']}",
         f"- rows: {len(outcomes)}, failed: {len(failed)}",
         "",
         '"worst" is the smallest figure over every run and step length '
-        "(5.4.2: the one farthest from the set distance).",
+        "(5.4.2: the one farthest from the set distance; CCR: the margin to the latest useful warning, s). "
+        "A CCR row whose subject is below V_min (4.3.3) finds the system in standby: no warning is required, "
+        "and it passes whatever the system said.",
         "",
         "| row | clause | test | criterion | worst | verdict |",
         "|---|---|---|---|---|---|",
@@ -117,8 +120,9 @@ def _write_markdown(path: Path, outcomes: Sequence[FcwOutcome], settings: dict[s
         for run in g.runs
         if not run.passed
     ]
+    known = [f"- {o.row.row_id}: known cause: {o.row.known_issue}" for o in failed if o.row.known_issue]
     if problems:
-        lines += ["", "## Failed runs", "", *problems]
+        lines += ["", "## Failed runs", "", *known, *problems]
     if any(o.plot for o in outcomes):
         lines += ["", "## Plots", "", *(f"- [{o.row.row_id}]({o.plot})" for o in outcomes if o.plot)]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -164,7 +168,7 @@ def fcw_conformance(
     progress: bool = False,
 ) -> list[FcwOutcome]:
     """Run, judge and report the rows into ``out`` (report.json, report.md, plots/ROW.png); the outcomes."""
-    tasks = [Task(row, step, repetitions, seed) for row in rows for step in step_lengths_s]
+    tasks = [Task(row, step, row.repetitions or repetitions, seed) for row in rows for step in step_lengths_s]
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     groups: dict[str, list[GroupOutcome[FcwRunResult]]] = {row.row_id: [] for row in rows}
