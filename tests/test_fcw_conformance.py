@@ -161,7 +161,7 @@ def _least_clearance_m(clearance_m, subject_mps, target_mps, target_accel_mps2, 
     target_share=st.floats(0.0, 1.0),
     target_decel_mps2=st.sampled_from([0.0, 2.0, 2.94, 6.0]),
 )
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=150, deadline=None)
 def test_the_latest_useful_warning_leaves_exactly_no_clearance(
     clearance_m, subject_mps, target_share, target_decel_mps2
 ):

@@ -22,7 +22,7 @@ import numpy as np
 from ..report import GroupOutcome, RowOutcome, mark, step_colours, verdict_text
 from ..run import DEFAULT_STEP_LENGTHS_S, run_tasks
 from .drive import Task, Trace, drive
-from .judge import FcwRunResult, criterion, group_passes, judge_fcw_run
+from .judge import FcwRunResult, criterion, group_passes, judge_fcw_run, warning_margin_s
 from .rows import FcwRow, fcw_rows
 
 __all__ = ["select_fcw_rows", "run_fcw_task", "fcw_conformance", "main"]
@@ -144,10 +144,16 @@ def plot_fcw_row(path: Path, row: FcwRow, traces: Sequence[tuple[float, Trace]])
         labelled.add(step)
         ttc_axis.plot(before_end_s, np.minimum(trace.ttc_s, 10.0), color=colours[step], lw=0.8, alpha=0.7, label=label)
         level_axis.step(before_end_s, trace.level, where="post", color=colours[step], lw=0.8, alpha=0.7)
+        warned = np.flatnonzero(trace.level >= row.level)
+        if row.avoidance and warned.size:
+            latest_s = before_end_s[warned[0]] + warning_margin_s(trace, int(warned[0]))
+            level_axis.plot([latest_s], [row.level], marker="|", ms=14, color="tab:red", ls="none")
     if row.least_ttc_s is not None:
         ttc_axis.axhline(row.least_ttc_s, color="tab:red", ls="--", lw=0.8, label=f"least TTC {row.least_ttc_s:g} s")
     ttc_axis.set_ylabel("true TTC (s, capped at 10)")
     ttc_axis.legend(fontsize=7)
+    if row.avoidance:
+        level_axis.set_title("red |: the latest useful warning (0.8 s reaction, 0.68 g)", fontsize=8)
     level_axis.set_ylabel("warning level")
     level_axis.set_yticks([0, 1, 2])
     level_axis.set_xlabel("time before the end of the run (s)")
