@@ -179,19 +179,20 @@ def approach_row(
 def curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings, lateral_share: float = 1.0) -> FcwRow:
     """5.5.3.2 on the class's curve at V_circle_start of formula (6), with ``lateral_share`` of the class's
     a_lateral_max (1 the standard's speed; a lower share a lower lateral acceleration the formula allows)."""
+    # sqrt((share a_lateral_max) R) = sqrt(a_lateral_max (share R)): formula (6) with the share on R
     speed_mps = curve_start_speed_mps(curve_class, radius_m * lateral_share, settings.max_speed_mps)
-    share = "" if lateral_share == 1.0 else f"-{lateral_share:g}a"
+    standard = lateral_share == 1.0
     actors = (
         Actor("sv", "truck", 1, 0.0, speed_mps),
         Actor("adj", "car", 0, 15.0, speed_mps),
         Actor("tv", "car", 1, 2.0 * speed_mps, speed_mps),
     )
     return FcwRow(
-        f"GB-5.5.3.2-{curve_class.name}{share}",
+        f"GB-5.5.3.2-{curve_class.name}" + ("" if standard else f"-{lateral_share:g}a"),
         GB,
         "5.5.3.2",
         f"curve R {radius_m:g} m (class {curve_class.name}), adjacent vehicle in the outer lane, {speed_mps:.1f} m/s"
-        + ("" if lateral_share == 1.0 else f" ({lateral_share:g} a_lateral_max)"),
+        + ("" if standard else f" ({lateral_share:g} a_lateral_max)"),
         f"fcw_curve_r{radius_m:g}",
         actors,
         "adjacent",
