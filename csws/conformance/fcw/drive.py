@@ -6,8 +6,9 @@ A :class:`Task` is one row at one step length with its repetitions. Each run
   off, so vehicles closer than SUMO's safe gap start where the test wants them), keeps them in
   their lanes (``laneChangeMode`` 0) and drives them by ``setSpeed`` with ``speedMode`` 6: their
   own acceleration and deceleration limits, not SUMO's safe speed, so the subject closes on
-  a stationary target as the test asks. The targets' ``decel`` is 0.3 g: a commanded stop is
-  a constant 0.3 g braking;
+  a stationary target as the test asks. The target's ``decel`` is the row's
+  :attr:`FcwRow.lead_brake_mps2` (0.3 g but in Euro NCAP's CCRb): a commanded stop is a
+  constant braking at it;
 * starts at its own phase of the simulation step: the subject starts a fraction of one step's
   travel further back, so the runs sample the approach at different points;
 * evaluates the subject every step: its target from SUMO's leaders
@@ -100,6 +101,8 @@ class Trace:
         True closing speed v_SV - v_TV, m/s.
     subject_mps, target_mps
         True speeds of the subject and the target, m/s.
+    target_accel_mps2
+        The target's true acceleration over the last step, m/s^2.
     adjacent_ahead_m
         How far the adjacent vehicle's rear is ahead of the subject's front, m (``nan`` without one).
     lateral_m
@@ -119,6 +122,7 @@ class Trace:
     closing_mps: np.ndarray
     subject_mps: np.ndarray
     target_mps: np.ndarray
+    target_accel_mps2: np.ndarray
     adjacent_ahead_m: np.ndarray
     lateral_m: np.ndarray
     level: np.ndarray
@@ -173,6 +177,7 @@ class _Record:
                 "closing_mps",
                 "subject_mps",
                 "target_mps",
+                "target_accel_mps2",
                 "adjacent_ahead_m",
                 "lateral_m",
                 "level",
@@ -280,6 +285,7 @@ def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Tr
                 libsumo.vehicle.setLaneChangeMode(actor.vehicle_id, 0)
                 libsumo.vehicle.setSpeedMode(actor.vehicle_id, 6)
                 libsumo.vehicle.setSpeed(actor.vehicle_id, actor.speed_mps)
+            libsumo.vehicle.setDecel("tv", row.lead_brake_mps2)
             while not script.done:
                 now_s = libsumo.simulation.getTime()
                 if now_s > MAX_SIMULATED_S:
@@ -311,6 +317,7 @@ def _true_state(sumo: Any, track: str, lane_of: dict[str, str]) -> dict[str, flo
         "closing_mps": subject_mps - target_mps,
         "subject_mps": subject_mps,
         "target_mps": target_mps,
+        "target_accel_mps2": vehicle.getAcceleration("tv"),
         "adjacent_ahead_m": adjacent,
         "lateral_m": vehicle.getLateralLanePosition("sv") - vehicle.getLateralLanePosition("tv"),
     }
