@@ -96,10 +96,12 @@ def test_the_state_follows_figure_2_with_the_hysteresis():
 
 
 def test_the_set_warning_distance_is_where_a_req_reaches_the_threshold():
-    """x_c = v_r T + v_r^2 / (2 (a_thr + a_TV)), by hand, and formula (4) gives a_thr there."""
+    """x_c = c T - a_TV T^2 / 2 + (c - a_TV T)^2 / (2 (a_thr + a_TV)), by hand (the clearance lost in the
+    reaction and the closing speed at its end), and formula (4) gives a_thr there."""
     settings = replace(FcwSettings(), reaction_time_s=0.8, collision_a_req_mps2=6.6)
     for closing_mps, lead_accel_mps2 in ((20.0, 0.0), (12.0, -2.0)):
-        by_hand_m = 0.8 * closing_mps + closing_mps**2 / (2.0 * (6.6 + lead_accel_mps2))
+        closing_after = closing_mps - lead_accel_mps2 * 0.8
+        by_hand_m = 0.8 * closing_mps - lead_accel_mps2 * 0.32 + closing_after**2 / (2.0 * (6.6 + lead_accel_mps2))
         clearance_m = warning_clearance_m(closing_mps, lead_accel_mps2, settings)
         assert clearance_m == pytest.approx(by_hand_m)
         assert required_deceleration_mps2(clearance_m, -closing_mps, lead_accel_mps2, 0.8) == pytest.approx(6.6)

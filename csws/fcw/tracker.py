@@ -131,7 +131,7 @@ class ForwardCollisionWarning:
                 cut_in_ids.append(obj.id)
                 continue
             a_tv = obj.accel_mps2 + ego.accel_mps2 if obj.accel_is_relative else obj.accel_mps2
-            a_req = a_req_core(x_m, v_r, a_tv, lost_s)
+            a_req = a_req_core(x_m, v_r, a_tv, ego.accel_mps2, lost_s)
             if best is None or a_req > best[3] or (a_req == best[3] and x_m < best[0].x_m):
                 best = (obj, a_tv, offset_m, a_req)
         return best, frozenset(inside_ids), frozenset(cut_in_ids)
