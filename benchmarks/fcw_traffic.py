@@ -28,12 +28,11 @@ import math
 import os
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from csws.cosim.categories import category_of
 from csws.cosim.fcw import FleetFcw
-from csws.fcw.physics import FcwSettings
 from csws.networks import networks_dir
 from csws.sumo.binaries import sumo_binary, sumo_home
 
@@ -118,7 +117,8 @@ def _run_scenario(config: Any) -> _Counts:
         [str(sumo_binary("sumo")), "-c", str(config), "--step-length", f"{STEP_S:g}", "--no-warnings", "true"]
         + ["--no-step-log", "true", "--duration-log.disable", "true", "--seed", "0"]
     )
-    counts, pending, levels = _Counts(), [], {}
+    counts, pending = _Counts(), []
+    levels: dict[str, int] = {}
     warned_until: dict[str, float] = {}
     warned_since: dict[str, float] = {}
     in_conflict: set[str] = set()
@@ -207,21 +207,7 @@ def run() -> dict:
     """Every scenario's figures, and the totals."""
     os.environ.setdefault("SUMO_HOME", str(sumo_home()))
     started = time.perf_counter()
-    scenarios = {}
-    for name, config in SCENARIOS.items():
-        counts = _run_scenario(config)
-        scenarios[name] = {
-            "vehicle_hours": counts.vehicle_hours,
-            "active_hours": counts.active_hours,
-            "onsets": counts.onsets,
-            "false_warnings": counts.false_warnings,
-            "false_situations": dict(counts.false_situations.most_common()),
-            "conflicts": counts.conflicts,
-            "missed": counts.missed,
-            "missed_situations": dict(counts.missed_situations.most_common()),
-            "standby_conflicts": counts.standby_conflicts,
-            "collisions": counts.collisions,
-        }
+    scenarios = {name: _figures(_run_scenario(config)) for name, config in SCENARIOS.items()}
     hours = sum(s["vehicle_hours"] for s in scenarios.values())
     false = sum(s["false_warnings"] for s in scenarios.values())
     return {
@@ -230,8 +216,15 @@ def run() -> dict:
         "false_per_vehicle_hour": false / hours if hours else math.nan,
         "missed": sum(s["missed"] for s in scenarios.values()),
         "seconds": time.perf_counter() - started,
-        "default_settings": str(FcwSettings()),
     }
+
+
+def _figures(counts: _Counts) -> dict:
+    """One scenario's counts as figures (the situations by how often they came)."""
+    figures = asdict(counts)
+    figures["false_situations"] = dict(counts.false_situations.most_common())
+    figures["missed_situations"] = dict(counts.missed_situations.most_common())
+    return figures
 
 
 def main() -> None:

@@ -315,8 +315,9 @@ def test_two_vehicles_at_one_speed_on_one_circle_neither_close_nor_open():
     assert straight.relative_speed_mps[0] == pytest.approx(-speed_mps)
 
 
-def _sumo_view(track: str, vehicles: str) -> tuple[SumoVehicles, SensorPairs]:
-    """What the subject ``sv`` sees on a FCW track one step after the vehicles depart."""
+def _sumo_view(track: str, vehicles: str, path_turn_rad: float = 0.0) -> tuple[SumoVehicles, SensorPairs]:
+    """What the subject ``sv`` sees on a FCW track one step after the vehicles depart, its frame turned
+    left by ``path_turn_rad``."""
     os.environ.setdefault("SUMO_HOME", str(sumo_home()))
     import libsumo
 
@@ -329,7 +330,8 @@ def _sumo_view(track: str, vehicles: str) -> tuple[SumoVehicles, SensorPairs]:
         try:
             libsumo.simulationStep()
             seen = read_vehicles(libsumo, {v: i for i, v in enumerate(libsumo.vehicle.getIDList())}, {})
-            return seen, sensor_view(seen, np.array([seen.vehicle_id.index("sv")]), 200.0)
+            subject = seen.vehicle_id.index("sv")
+            return seen, sensor_view(seen, np.array([subject]), 200.0, np.array([path_turn_rad]))
         finally:
             libsumo.close()
 
@@ -365,14 +367,11 @@ def test_on_the_r125_curve_the_lead_in_the_lane_lies_on_the_lane_and_the_outer_l
         _vehicle("sv", "t", 1, curve_start_m + 30.0)
         + _vehicle("adj", "c", 0, curve_start_m + 45.0)
         + _vehicle("tv", "c", 1, curve_start_m + 80.0),
+        path_turn_rad=6.0 / radius_m,
     )
-    turn = 6.0 / radius_m
     for name, expected_m in (("tv", 0.0), ("adj", -LANE_WIDTH_M)):
         k = seen.vehicle_id.index(name)
         at = int(np.flatnonzero(pairs.seen == k)[0])
-        x_m, y_m = pairs.x_m[at] + 2.25, pairs.y_m[at]
-        # into the lane's frame: rotate by the body's angle to the tangent
-        lane_x, lane_y = x_m * math.cos(turn) + y_m * math.sin(turn), -x_m * math.sin(turn) + y_m * math.cos(turn)
-        offset_m = offset_from_circle_m(lane_x, lane_y, 1.0 / radius_m)
+        offset_m = offset_from_circle_m(pairs.x_m[at] + 2.25, pairs.y_m[at], 1.0 / radius_m)
         assert offset_m == pytest.approx(expected_m, abs=0.3)
     assert pairs.lane[np.flatnonzero(pairs.seen == seen.vehicle_id.index("tv"))[0]] == 0

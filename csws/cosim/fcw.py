@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetFrame, FleetMemory, FleetObjects, update_fleet
+from csws.fcw.path import yaw_path_curvature_1pm
 from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
 
 from .driver import DriverResponse
@@ -167,61 +168,64 @@ def _nearby(cell_x: np.ndarray, cell_y: np.ndarray, subjects: np.ndarray) -> tup
     return np.concatenate(pairs_subject), np.concatenate(pairs_seen)
 
 
-def sensor_view(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) -> SensorPairs:
-    """The objects each subject (indices into ``vehicles``) sees ahead within ``range_m``, in its frame.
-
-    x is the distance ahead from the subject's front to the object's rear (its front less its length
-    along its own heading), y the object's centre to the left; the relative speed is the range rate,
-    the two velocities' difference along the line of sight to the object's rear (on a straight the
-    object's speed less the subject's), the acceleration the object's own along that line. An object
-    is seen while its rear is ahead of the front (x >= 0) and at most ``range_m`` from it, and not
-    while it comes toward the subject (:data:`ONCOMING_MPS`; 3.7: the target is a vehicle ahead, 前车).
-    The lane is the difference of the lane indices (+1 left) where both are on the same road, else
-    unknown (the predicted path decides). Pairs come from a grid of cells ``range_m`` plus
-    :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
-    """
+def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(subject, vehicle) pairs of the vehicles in the grid cells around each subject, itself left out."""
     cell_m = range_m + LONGEST_VEHICLE_M
     x0 = vehicles.front_x_m.min() if subjects.size else 0.0
     y0 = vehicles.front_y_m.min() if subjects.size else 0.0
     cell_x = ((vehicles.front_x_m - x0) // cell_m).astype(np.int64) + 1
     cell_y = ((vehicles.front_y_m - y0) // cell_m).astype(np.int64) + 1
     owner, seen = _nearby(cell_x, cell_y, subjects)
+    other = seen != subjects[owner]
+    return owner[other], seen[other]
+
+
+def sensor_view(
+    vehicles: SumoVehicles, subjects: np.ndarray, range_m: float, path_turn_rad: np.ndarray | None = None
+) -> SensorPairs:
+    """The objects each subject (indices into ``vehicles``) sees ahead within ``range_m``, in its frame.
+
+    The frame's x axis is the subject's heading turned left by ``path_turn_rad`` (per subject; none:
+    the body's heading), x the distance ahead from its front to the object's rear (the object's front
+    less its length along its own heading), y the object's centre to the left; the relative speed is
+    the range rate, the two velocities' difference along the line of sight to the object's rear (on
+    a straight the object's speed less the subject's; about 0 between two vehicles at one speed on
+    one circle), the acceleration the object's own along that line. An object is seen while its rear
+    is ahead of the front (x >= 0) and at most ``range_m`` from it, and not while it comes toward the
+    subject (:data:`ONCOMING_MPS`; 3.7: the target is a vehicle ahead, 前车). The lane is the
+    difference of the lane indices (+1 left) where both are on the same road, else unknown (the
+    predicted path decides). Pairs come from a grid of cells ``range_m`` plus
+    :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
+    """
+    owner, seen = _pairs_within(vehicles, subjects, range_m)
     me = subjects[owner]
-    other = seen != me
-    owner, me, seen = owner[other], me[other], seen[other]
-    heading, length = vehicles.heading_rad, vehicles.length_m
-    ahead_x, ahead_y = np.sin(heading[me]), np.cos(heading[me])
-    back = length[seen]
-    dx = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
-    dy = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
-    own_x, own_y = np.sin(heading[seen]), np.cos(heading[seen])
-    sight_x, sight_y = dx - back * own_x, dy - back * own_y
+    heading = vehicles.heading_rad[me] - (0.0 if path_turn_rad is None else path_turn_rad[owner])
+    ahead_x, ahead_y = np.sin(heading), np.cos(heading)
+    own_x, own_y = np.sin(vehicles.heading_rad[seen]), np.cos(vehicles.heading_rad[seen])
+    back = vehicles.length_m[seen]
+    sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
+    sight_y = vehicles.front_y_m[seen] - back * own_y - vehicles.front_y_m[me]
     sight_m = np.hypot(sight_x, sight_y)
     x_m = sight_x * ahead_x + sight_y * ahead_y
-    # 3.7: the target is a vehicle ahead driving the subject's way (or standing); an oncoming one is none.
     oncoming = vehicles.speed_mps[seen] * (own_x * ahead_x + own_y * ahead_y) < -ONCOMING_MPS
-    keep = (x_m >= 0.0) & (sight_m <= range_m) & ~oncoming
-    owner, me, seen, x_m, sight_m = owner[keep], me[keep], seen[keep], x_m[keep], sight_m[keep]
-    own_x, own_y, ahead_x, ahead_y = own_x[keep], own_y[keep], ahead_x[keep], ahead_y[keep]
-    sight_x, sight_y, back = sight_x[keep], sight_y[keep], back[keep]
-    y_m = -(sight_x + back / 2.0 * own_x) * ahead_y + (sight_y + back / 2.0 * own_y) * ahead_x
-    # Along the line of sight to the object's rear (what a radar's range rate measures): about 0 between
-    # two vehicles at one speed on one circle, where the speeds' components along the heading differ.
-    near = sight_m > 0.0
-    sight_x = np.where(near, sight_x / np.where(near, sight_m, 1.0), ahead_x)
-    sight_y = np.where(near, sight_y / np.where(near, sight_m, 1.0), ahead_y)
-    own_along = own_x * sight_x + own_y * sight_y
-    ego_along = ahead_x * sight_x + ahead_y * sight_y
+    keep = np.flatnonzero((x_m >= 0.0) & (sight_m <= range_m) & ~oncoming)
+    owner, me, seen, x_m, sight_m, back = owner[keep], me[keep], seen[keep], x_m[keep], sight_m[keep], back[keep]
+    ahead_x, ahead_y, own_x, own_y = ahead_x[keep], ahead_y[keep], own_x[keep], own_y[keep]
+    sight_x, sight_y = sight_x[keep], sight_y[keep]
+    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
+    apart = sight_m > 0.0
+    unit_x = np.where(apart, sight_x / np.where(apart, sight_m, 1.0), ahead_x)
+    unit_y = np.where(apart, sight_y / np.where(apart, sight_m, 1.0), ahead_y)
+    own_along = own_x * unit_x + own_y * unit_y
     same_road = vehicles.road[seen] == vehicles.road[me]
-    lane = np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE)
     return SensorPairs(
         owner,
         seen,
         x_m,
         y_m,
-        vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * ego_along,
+        vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y),
         vehicles.accel_mps2[seen] * own_along,
-        lane,
+        np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE),
     )
 
 
@@ -323,13 +327,17 @@ class FleetFcw:
         numbers = vehicles.number[rows]
         self._grow(int(vehicles.number.max()) + 1 if vehicles.number.size else 0)
         yaw_rate = self._yaw_rate_rps(numbers, vehicles.heading_rad[rows], now_s)
+        # SUMO's angle is the body's chord (rear and front on the lane): the front runs along the
+        # lane's tangent, turned from it by half the length times the path's curvature.
+        kappa = yaw_path_curvature_1pm(vehicles.speed_mps[rows], np.nan_to_num(yaw_rate))
+        path_turn_rad = kappa * vehicles.length_m[rows] / 2.0
         columns = FcwColumns.quiet([FCW_STATES[STANDBY].value] * len(rows))
         kinds = np.array([self._settings(category) for category in categories], dtype=object)
         keys = []
         for settings in dict.fromkeys(kinds.tolist()):
             group = np.flatnonzero(kinds == settings) if len(rows) else np.zeros(0, dtype=np.int64)
             subjects = rows[group]
-            pairs = sensor_view(vehicles, subjects, settings.range_m)
+            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group])
             ego = FleetEgo.of(
                 vehicles.speed_mps[subjects],
                 vehicles.accel_mps2[subjects],
