@@ -51,6 +51,8 @@ CONFLICT_TTC_S = 1.0
 REACTION_S = 0.8
 #: How far SUMO is asked for each vehicle's leader, m.
 LEADER_RANGE_M = 200.0
+#: A subject turning faster than this is "turning" in the situations, degrees per second.
+TURNING_DEG_PER_S = 3.0
 TARGET_FALSE_PER_HOUR = 0.1
 TARGET_MISSED = 0
 
@@ -109,6 +111,32 @@ def _situation(sumo: Any, vehicle_id: str, target_id: str | None, leader_id: str
     return ", ".join(parts)
 
 
+@dataclass
+class _Watch:
+    """What a scenario's run keeps per vehicle between steps."""
+
+    counts: _Counts = field(default_factory=_Counts)
+    pending: list[_Pending] = field(default_factory=list)
+    levels: dict[str, int] = field(default_factory=dict)
+    warned_since: dict[str, float] = field(default_factory=dict)
+    warned_until: dict[str, float] = field(default_factory=dict)
+    in_conflict: set[str] = field(default_factory=set)
+    categories: dict[str, str | None] = field(default_factory=dict)
+    last_angle: dict[str, float] = field(default_factory=dict)
+
+
+def _equipped(sumo: Any, watch: _Watch) -> list[str]:
+    """The vehicles of a covered class (every one is equipped)."""
+    ids = []
+    for vehicle_id in sumo.vehicle.getIDList():
+        if vehicle_id not in watch.categories:
+            found = category_of(sumo.vehicle.getVehicleClass(vehicle_id))
+            watch.categories[vehicle_id] = None if found is None else found.value
+        if watch.categories[vehicle_id] is not None:
+            ids.append(vehicle_id)
+    return ids
+
+
 def _run_scenario(config: Any) -> _Counts:
     """One scenario whole: the FCW of every equipped vehicle against SUMO's truth."""
     import libsumo
@@ -117,62 +145,63 @@ def _run_scenario(config: Any) -> _Counts:
         [str(sumo_binary("sumo")), "-c", str(config), "--step-length", f"{STEP_S:g}", "--no-warnings", "true"]
         + ["--no-step-log", "true", "--duration-log.disable", "true", "--seed", "0"]
     )
-    counts, pending = _Counts(), []
-    levels: dict[str, int] = {}
-    warned_until: dict[str, float] = {}
-    warned_since: dict[str, float] = {}
-    in_conflict: set[str] = set()
-    categories: dict[str, str | None] = {}
-    last_angle: dict[str, float] = {}
+    watch = _Watch()
     try:
         fcw = FleetFcw(libsumo)
         while libsumo.simulation.getMinExpectedNumber() > 0:
             libsumo.simulationStep()
             now_s = libsumo.simulation.getTime()
             fcw.forget(libsumo.simulation.getArrivedIDList())
-            ids = []
-            for vehicle_id in libsumo.vehicle.getIDList():
-                if vehicle_id not in categories:
-                    found = category_of(libsumo.vehicle.getVehicleClass(vehicle_id))
-                    categories[vehicle_id] = None if found is None else found.value
-                if categories[vehicle_id] is not None:
-                    ids.append(vehicle_id)
-            cats = [categories[v] or "" for v in ids]
-            columns = fcw(ids, cats, [True] * len(ids))
+            ids = _equipped(libsumo, watch)
+            columns = fcw(ids, [watch.categories[v] or "" for v in ids], [True] * len(ids))
             collided = set(libsumo.simulation.getCollidingVehiclesIDList())
-            counts.collisions += len(collided & set(ids))
-            counts.vehicle_hours += len(ids) * STEP_S / 3600.0
+            watch.counts.collisions += len(collided & set(ids))
+            watch.counts.vehicle_hours += len(ids) * STEP_S / 3600.0
             for i, vehicle_id in enumerate(ids):
-                speed_mps = libsumo.vehicle.getSpeed(vehicle_id)
                 active = columns.state[i] == "active"
-                counts.active_hours += STEP_S / 3600.0 if active else 0.0
-                ttc_s, leader_id = _true_ttc_s(libsumo, vehicle_id, speed_mps)
-                angle = libsumo.vehicle.getAngle(vehicle_id)
-                turn = abs((angle - last_angle.get(vehicle_id, angle) + 180.0) % 360.0 - 180.0) / STEP_S
-                last_angle[vehicle_id] = angle
-                level, previous = columns.level[i], levels.get(vehicle_id, 0)
-                levels[vehicle_id] = level
-                if level > 0:
-                    warned_until[vehicle_id] = now_s
-                if level > 0 and previous == 0:
-                    warned_since[vehicle_id] = now_s
-                    counts.onsets += 1
-                    situation = _situation(libsumo, vehicle_id, columns.target_id[i], leader_id, turn > 3.0)
-                    pending.append(_Pending(vehicle_id, now_s, situation))
-                conflict = ttc_s < CONFLICT_TTC_S or vehicle_id in collided
-                for waiting in pending:
-                    if waiting.vehicle_id == vehicle_id and (ttc_s < NEAR_TTC_S or vehicle_id in collided):
-                        waiting.near = True
-                if conflict and vehicle_id not in in_conflict:
-                    in_conflict.add(vehicle_id)
-                    _count_conflict(counts, vehicle_id, now_s, active, speed_mps, warned_since, warned_until)
-                elif not conflict:
-                    in_conflict.discard(vehicle_id)
-            pending = _settle(counts, pending, now_s)
-        _settle(counts, pending, math.inf)
+                watch.counts.active_hours += STEP_S / 3600.0 if active else 0.0
+                _watch_vehicle(
+                    libsumo,
+                    watch,
+                    now_s,
+                    vehicle_id,
+                    (columns.level[i], columns.target_id[i], active),
+                    vehicle_id in collided,
+                )
+            watch.pending = _settle(watch.counts, watch.pending, now_s)
+        _settle(watch.counts, watch.pending, math.inf)
     finally:
         libsumo.close()
-    return counts
+    return watch.counts
+
+
+def _watch_vehicle(
+    sumo: Any, watch: _Watch, now_s: float, vehicle_id: str, said: tuple[int, str | None, bool], collided: bool
+) -> None:
+    """One vehicle's step: its warning onset (judged later), and a conflict's onset (judged now)."""
+    level, target_id, active = said
+    speed_mps = sumo.vehicle.getSpeed(vehicle_id)
+    ttc_s, leader_id = _true_ttc_s(sumo, vehicle_id, speed_mps)
+    angle = sumo.vehicle.getAngle(vehicle_id)
+    turn = abs((angle - watch.last_angle.get(vehicle_id, angle) + 180.0) % 360.0 - 180.0) / STEP_S
+    watch.last_angle[vehicle_id] = angle
+    previous, watch.levels[vehicle_id] = watch.levels.get(vehicle_id, 0), level
+    if level > 0:
+        watch.warned_until[vehicle_id] = now_s
+    if level > 0 and previous == 0:
+        watch.warned_since[vehicle_id] = now_s
+        watch.counts.onsets += 1
+        situation = _situation(sumo, vehicle_id, target_id, leader_id, turn > TURNING_DEG_PER_S)
+        watch.pending.append(_Pending(vehicle_id, now_s, situation))
+    if ttc_s < NEAR_TTC_S or collided:
+        for waiting in watch.pending:
+            waiting.near = waiting.near or waiting.vehicle_id == vehicle_id
+    conflict = ttc_s < CONFLICT_TTC_S or collided
+    if conflict and vehicle_id not in watch.in_conflict:
+        watch.in_conflict.add(vehicle_id)
+        _count_conflict(watch.counts, vehicle_id, now_s, active, speed_mps, watch.warned_since, watch.warned_until)
+    elif not conflict:
+        watch.in_conflict.discard(vehicle_id)
 
 
 def _count_conflict(
