@@ -276,7 +276,8 @@ def test_the_grid_finds_every_pair_the_brute_force_finds(seed, count, range_m):
             x_m = float((fronts[j] - 4.5 * own - fronts[i]) @ ahead)
             y_m = float((fronts[j] - 2.25 * own - fronts[i]) @ left)
             rear_m = float(np.hypot(*(fronts[j] - 4.5 * own - fronts[i])))
-            oncoming = speeds[j] * float(own @ ahead) < -ONCOMING_MPS
+            sight = fronts[j] - 4.5 * own - fronts[i]
+            oncoming = speeds[j] * float(own @ sight) / float(np.hypot(*sight)) < -ONCOMING_MPS
             if j != i and x_m >= 0.0 and rear_m <= range_m and not oncoming:
                 expected[(k, j)] = (x_m, y_m)
     found = {

@@ -50,7 +50,7 @@ __all__ = [
 BLINKER_RIGHT, BLINKER_LEFT, BRAKE_LIGHT = 1, 2, 8
 #: Beyond the range the sensor reaches to an object's rear, its front may be this much farther, m (the grid's margin).
 LONGEST_VEHICLE_M = 30.0
-#: An object whose speed along the subject's heading is below minus this comes toward it (3.7: no target), m/s.
+#: An object whose own speed along the line of sight is below minus this comes toward the subject (3.7: no target), m/s.
 ONCOMING_MPS = 1.0
 #: A key's lower 32 bits hold the object id (:func:`csws.fcw.fleet.update_fleet` keys objects by vehicle and id).
 _ID_BITS = 32
@@ -192,7 +192,8 @@ def sensor_view(
     a straight the object's speed less the subject's; about 0 between two vehicles at one speed on
     one circle), the acceleration the object's own along that line. An object is seen while its rear
     is ahead of the front (x >= 0) and at most ``range_m`` from it, and not while it comes toward the
-    subject (:data:`ONCOMING_MPS`; 3.7: the target is a vehicle ahead, 前车). The lane is the
+    subject, its own speed along the line of sight below -:data:`ONCOMING_MPS` (3.7: the target is a
+    vehicle ahead, 前车; a lead on a curve, however far round, moves away along that line). The lane is the
     difference of the lane indices (+1 left) where both are on the same road, else unknown (the
     predicted path decides). Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
@@ -206,17 +207,17 @@ def sensor_view(
     sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
     sight_y = vehicles.front_y_m[seen] - back * own_y - vehicles.front_y_m[me]
     sight_m = np.hypot(sight_x, sight_y)
-    x_m = sight_x * ahead_x + sight_y * ahead_y
-    oncoming = vehicles.speed_mps[seen] * (own_x * ahead_x + own_y * ahead_y) < -ONCOMING_MPS
-    keep = np.flatnonzero((x_m >= 0.0) & (sight_m <= range_m) & ~oncoming)
-    owner, me, seen, x_m, sight_m, back = owner[keep], me[keep], seen[keep], x_m[keep], sight_m[keep], back[keep]
-    ahead_x, ahead_y, own_x, own_y = ahead_x[keep], ahead_y[keep], own_x[keep], own_y[keep]
-    sight_x, sight_y = sight_x[keep], sight_y[keep]
-    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     apart = sight_m > 0.0
     unit_x = np.where(apart, sight_x / np.where(apart, sight_m, 1.0), ahead_x)
     unit_y = np.where(apart, sight_y / np.where(apart, sight_m, 1.0), ahead_y)
     own_along = own_x * unit_x + own_y * unit_y
+    x_m = sight_x * ahead_x + sight_y * ahead_y
+    oncoming = vehicles.speed_mps[seen] * own_along < -ONCOMING_MPS
+    keep = np.flatnonzero((x_m >= 0.0) & (sight_m <= range_m) & ~oncoming)
+    owner, me, seen, x_m, back, own_along = owner[keep], me[keep], seen[keep], x_m[keep], back[keep], own_along[keep]
+    ahead_x, ahead_y, own_x, own_y = ahead_x[keep], ahead_y[keep], own_x[keep], own_y[keep]
+    sight_x, sight_y, unit_x, unit_y = sight_x[keep], sight_y[keep], unit_x[keep], unit_y[keep]
+    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     same_road = vehicles.road[seen] == vehicles.road[me]
     return SensorPairs(
         owner,
