@@ -31,47 +31,7 @@ from pathlib import Path
 
 from benchmarks import cosim, curvature, fcw, fcw_traffic, load, osm, roadmap, roads, service, sweep, warning
 from benchmarks import map as live_map
-
-
-@dataclass(frozen=True)
-class Row:
-    """One figure of the table.
-
-    Attributes
-    ----------
-    figure
-        What is measured, with its unit.
-    value
-        The measured value (text when the figure could not be measured).
-    target
-        The target, e.g. ``<= 50``; empty for figures shown for context.
-    passed
-        Whether the value meets the target; None without one.
-    baseline
-        What the value is compared with, measured in the same run.
-    """
-
-    figure: str
-    value: float | int | str
-    target: str = ""
-    passed: bool | None = None
-    baseline: str = ""
-
-    @property
-    def verdict(self) -> str:
-        return {True: "PASS", False: "FAIL", None: ""}[self.passed]
-
-
-def at_most(figure: str, value: float, limit: float, baseline: str = "") -> Row:
-    return Row(figure, value, f"<= {limit:g}", value <= limit, baseline)
-
-
-def at_least(figure: str, value: float, limit: float, baseline: str = "") -> Row:
-    return Row(figure, value, f">= {limit:g}", value >= limit, baseline)
-
-
-def context(figure: str, value: float | int | str, baseline: str = "") -> Row:
-    return Row(figure, value, baseline=baseline)
+from benchmarks.rows import Row, at_least, at_most, context, table
 
 
 # ------------------------------------------------------------------ each benchmark's rows
@@ -356,47 +316,6 @@ def service_rows(figures: dict) -> list[Row]:
     ]
 
 
-def map_rows(figures: dict) -> list[Row]:
-    """The live map of Bad Hersfeld with 1,000 vehicles fed at 1 Hz, in headless Chromium."""
-    if "not_run" in figures:
-        return [context("map: live map in a real browser", "skipped", figures["not_run"])]
-    vehicles = f"{figures['vehicles']:,} vehicles"
-    by_kind = ", ".join(f"{kind} {kb:g}" for kind, kb in figures["initial_kb_by_kind"].items())
-    return [
-        at_most(
-            "map: initial data of Bad Hersfeld until the first complete draw, MB",
-            figures["initial_mb"],
-            live_map.TARGET_INITIAL_MB,
-            f"{figures['initial_requests']} requests, kB: {by_kind}",
-        ),
-        context(
-            "map: page open to first complete draw, s",
-            figures["first_draw_s"],
-            f"roads, curves of the view and {vehicles}",
-        ),
-        Row(
-            f"map: refresh at 1 Hz, {vehicles}, page's own time p99 ms",
-            figures["refresh_ms_p99"],
-            f"< {live_map.TARGET_REFRESH_P99_MS:g}",
-            figures["refresh_ms_p99"] < live_map.TARGET_REFRESH_P99_MS,
-            f"p50 {figures['refresh_ms_p50']:g}, max {figures['refresh_ms_max']:g} ms over {figures['refreshes']} "
-            f"refreshes (fetch, decode, marker update)",
-        ),
-        at_most(
-            f"map: refreshes skipped or failed in {figures['window_s']:g} s",
-            figures["skipped_or_failed"],
-            live_map.TARGET_SKIPPED,
-            f"longest gap between refreshes {figures['refresh_gap_ms_max']:g} ms; "
-            f"{figures['vehicles_drawn']:,} vehicles drawn, {figures['feeder_ticks']} batches fed",
-        ),
-        context(
-            f"map: GET /v1/fleet of {vehicles} in the view, round trip p50 / p99 ms",
-            f"{figures['fleet_get_ms_p50']:g} / {figures['fleet_get_ms_p99']:g}",
-            f"{figures['fleet_get_kb']:g} kB gzipped; while fed at 1 Hz; no Server-Timing on this route",
-        ),
-    ]
-
-
 def real_network_rows(figures: dict) -> list[Row]:
     size = f"{figures['lanes']:,} lanes, {figures['curves']:,} curves"
     return [
@@ -509,7 +428,9 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         ),
         Benchmark("fcw traffic", fcw_traffic.run, "about 1-2 minutes: two scenarios, every vehicle", fcw_traffic_rows),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
-        Benchmark("map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", map_rows),
+        Benchmark(
+            "map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", live_map.map_rows
+        ),
         Benchmark("real network", roadmap.real_network_load, "a few seconds", real_network_rows),
         Benchmark(
             "grid",
@@ -538,25 +459,6 @@ def run_all(chosen: list[Benchmark], log=sys.stderr) -> tuple[list[Row], dict]:
             rows.append(Row(benchmark.name, "error", "runs", False, raw[benchmark.name]["error"]))
         raw[benchmark.name + "_wall_s"] = round(time.perf_counter() - started, 1)
     return rows, raw
-
-
-def _text(value: float | int | str) -> str:
-    if isinstance(value, float):
-        return f"{value:.3g}" if abs(value) < 1000 else f"{value:,.0f}"
-    return f"{value:,}" if isinstance(value, int) else str(value)
-
-
-def table(rows: list[Row]) -> str:
-    """The rows as a fixed-width table."""
-    header = ("figure", "value", "target", "", "baseline (same run)")
-    cells = [header] + [(r.figure, _text(r.value), r.target, r.verdict, r.baseline) for r in rows]
-    widths = [max(len(c[i]) for c in cells) for i in range(4)]
-    lines = [
-        f"{c[0]:<{widths[0]}}  {c[1]:>{widths[1]}}  {c[2]:<{widths[2]}}  {c[3]:<{widths[3]}}  {c[4]}".rstrip()
-        for c in cells
-    ]
-    lines.insert(1, "-" * max(map(len, lines)))
-    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -589,7 +491,7 @@ def main(argv: list[str] | None = None) -> int:
     print(table(rows))
     judged = [r for r in rows if r.passed is not None]
     print(
-        f"{sum(r.passed for r in judged)} of {len(judged)} judged figures meet their targets"
+        f"{sum(r.passed is True for r in judged)} of {len(judged)} judged figures meet their targets"
         f"{' (quick sizes)' if args.quick else ''}"
     )
     if args.json is not None:

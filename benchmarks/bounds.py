@@ -73,11 +73,14 @@ def _pieces(pieces: Sequence[Piece], curvature_of: list[int], values: np.ndarray
     ]
     built = []
     for index, piece in enumerate(pieces):
-        if constant[index] is not None:
-            built.append(Piece(lengths[index], constant[index]))
+        own = constant[index]
+        if own is not None:
+            built.append(Piece(lengths[index], own))
             continue
-        before = constant[index - 1] if index > 0 and constant[index - 1] is not None else piece.curvature
-        after = constant[index + 1] if index + 1 < count and constant[index + 1] is not None else piece.end_curvature
+        previous = constant[index - 1] if index > 0 else None
+        following = constant[index + 1] if index + 1 < count else None
+        before = previous if previous is not None else piece.curvature
+        after = following if following is not None else piece.end_curvature
         built.append(Piece(lengths[index], before, after))
     return built
 

@@ -36,6 +36,7 @@ import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -166,7 +167,7 @@ def _fleet_figures(work: Path) -> dict:
     routes = work / "bench.rou.xml"
     routes.write_text(_routes_xml(VEHICLES), encoding="utf-8")
     scenario = Scenario(None, net, (routes,))
-    common = dict(scenario=scenario, step_length_s=STEP_S, end_s=DURATION_S)
+    common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": DURATION_S}
     runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
     configs = {
         "read_only": CosimConfig(out=work / "read", evaluate=False, timeseries="none", **common),
@@ -190,7 +191,7 @@ def _city_figures(work: Path) -> dict:
     routes = work / "city.rou.xml"
     routes.write_text(_city_routes_xml(CITY_NET, CITY_VEHICLES), encoding="utf-8")
     scenario = Scenario(None, CITY_NET, (routes,))
-    common = dict(scenario=scenario, step_length_s=STEP_S, end_s=CITY_DURATION_S)
+    common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": CITY_DURATION_S}
     configs = {
         "default": CosimConfig(out=work / "city-default", **common),
         "events_only": CosimConfig(out=work / "city-events", timeseries="none", **common),
@@ -225,7 +226,8 @@ def main() -> None:
     _print(figures)
     print(f"evaluation overhead {figures['overhead']:.0%} (target <= {TARGET_OVERHEAD:.0%})")
     print(
-        f"both systems' overhead {figures['both_systems_overhead']:.0%} (target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
+        f"both systems' overhead {figures['both_systems_overhead']:.0%} "
+        f"(target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
         f"FCW over the default run {figures['fcw_over_default']:.0%}"
     )
     print("city:")

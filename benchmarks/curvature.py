@@ -439,7 +439,8 @@ def report(figures: dict) -> str:
     """The figures as a table, each beside its target."""
     lines = [
         "sparse: nodes 5-30 m apart everywhere (unrestricted); mapped: the same, but node gaps on an arc",
-        f"at most {MAPPED_ARC_FRACTION:.2g} of its length and {MAPPED_RADIUS_FRACTION:.2g} of its radius (mapping practice)",
+        f"at most {MAPPED_ARC_FRACTION:.2g} of its length and {MAPPED_RADIUS_FRACTION:.2g} of its radius "
+        "(mapping practice)",
         f"{'case':7} {'figure':27} {'ours':>10} {'3-point':>10} {'target':>8}  ours  3-point",
     ]
     for column, kind in ((0, "dense"), (1, "sparse"), (1, "mapped")):
@@ -466,12 +467,14 @@ def report(figures: dict) -> str:
         lines.append(
             f"{kind:7} start-error bound (Cramér-Rao, 0.5 m noise): median {bound['median_start_bound_m']:.2f} m, "
             f"p90 {bound['p90_start_bound_m']:.2f} m; arcs started > {SPARSE_START_LIMIT_M:g} m off: ours "
-            f"{figures[kind]['ours']['arcs_started_over_5_m']}, an efficient estimator {bound['expected_beyond_limit']:.1f} expected "
+            f"{figures[kind]['ours']['arcs_started_over_5_m']}, "
+            f"an efficient estimator {bound['expected_beyond_limit']:.1f} expected "
             f"(it misses none with probability {bound['chance_none_beyond_limit']:.3f})"
         )
         reference, ours_figures = figures[kind]["reference"], figures[kind]["ours"]
         lines.append(
-            f"{kind:7} start error of the maximum-likelihood road told its form (straight-arc-straight), ours beside it: "
+            f"{kind:7} start error of the maximum-likelihood road told its form (straight-arc-straight), "
+            "ours beside it: "
             + ", ".join(
                 f"{label} {reference[key]:.2f} m ({ours_figures[key]:.2f})"
                 for label, key in (

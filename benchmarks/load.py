@@ -158,7 +158,10 @@ async def _post_back_to_back(port: int, requests: list[bytes], deadline: float, 
             started = time.perf_counter()
             writer.write(request)
             head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), REQUEST_TIMEOUT_S)
-            body = await reader.readexactly(int(_CONTENT_LENGTH.search(head).group(1)))
+            length = _CONTENT_LENGTH.search(head)
+            if length is None:
+                raise ValueError(f"an answer without Content-Length: {head.splitlines()[0].decode()}")
+            body = await reader.readexactly(int(length.group(1)))
             if head[9:12] == b"200":
                 tally.latencies_s.append(time.perf_counter() - started)
             else:

@@ -23,6 +23,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import shapely
@@ -39,7 +40,10 @@ TARGETS = {"import_s": 10.0, "load_s": 5.0, "startup_s": 30.0, "latency_ms_p50":
 
 def _way_id(edge_id: str) -> int:
     """The OSM way an imported edge comes from: netconvert names edges ``[-]WAY[#PART]``."""
-    return int(re.match(r"-?(\d+)", edge_id).group(1))
+    way = re.match(r"-?(\d+)", edge_id)
+    if way is None:
+        raise ValueError(f"not an edge of an imported way: {edge_id}")
+    return int(way.group(1))
 
 
 def _circle_radius_m(xy: np.ndarray) -> float:
@@ -58,9 +62,8 @@ def _way_nodes_lonlat(osm_path: Path, way_ids: set[int]) -> dict[int, np.ndarray
 
     ways = {}
     for item in osmium.FileProcessor(str(osm_path), osmium.osm.NODE | osmium.osm.WAY).with_locations():
-        if item.is_way() and item.id in way_ids:
-            way = item
-            ways[way.id] = np.array([(node.lon, node.lat) for node in way.nodes])
+        if isinstance(item, osmium.osm.Way) and item.id in way_ids:
+            ways[item.id] = np.array([(node.lon, node.lat) for node in item.nodes])
     return ways
 
 
@@ -171,7 +174,7 @@ def run(osm_path: Path, query_count: int = 300) -> dict:
         imported = time.perf_counter()
         road_map = RoadMap.load(net_path)
         loaded = time.perf_counter()
-        figures = {
+        figures: dict[str, Any] = {
             "import_s": round(imported - started, 2),
             "netconvert_s": round(result.convert_s, 2),
             "load_s": round(loaded - imported, 2),

@@ -150,7 +150,8 @@ def run(junctions_per_side: int = 18, fix_count: int = 10_000) -> dict:
     profiled = time.perf_counter()
     fixes = _fixes_near_lanes(road_map, fix_count)
     before_index = time.perf_counter()
-    road_map.nearest_lanes(*fixes[0], radius_m=10.0)
+    first_x, first_y = fixes[0]
+    road_map.nearest_lanes(first_x, first_y, radius_m=10.0)
     indexed = time.perf_counter()
     matches = road_map.match_points(fixes, radius_m=10.0)
     matched = time.perf_counter()

@@ -13,6 +13,9 @@ one among them), and ``csws serve`` on Bad Hersfeld alone. Figures:
   with its stages: by lane id on the Table 7 track, and by x, y and heading on Bad Hersfeld's
   roads on the default serve. Each batch comes one second after the one before (the queries'
   timestamps), as a fleet reporting at 1 Hz: every session changes and is written;
+* the same 10,000-query batch by lane id with 5 sensor objects and a yaw rate in each query
+  (:func:`with_objects`), whose forward collision warning keeps its state in the sessions: its server
+  time, and the ratio to the batch without objects;
 * the first query on each of 1,000 never-queried lanes of Bad Hersfeld (a fix at the middle of
   the lane, as a batch of one, so that the server times it);
 * the start-up (to the first ready ``/readyz``) of the default serve, of Bad Hersfeld alone, and
@@ -47,6 +50,8 @@ SINGLE_ROUNDS = 10
 BATCH_SIZE = 10_000
 BATCH_REPEATS = 5
 FIRST_QUERIES = 1000
+#: Sensor objects in each query of the batch with objects.
+OBJECTS_PER_QUERY = 5
 #: GNSS noise of the fixes on Bad Hersfeld's roads: position (per axis) and heading, m and degrees.
 GNSS_SIGMA_M = 1.0
 HEADING_SIGMA_DEG = 3.0
@@ -57,6 +62,7 @@ TARGETS = {
     "single_ratio_default": ">= 0.70",
     "batch_lane_ms": "<= 100",
     "batch_xy_default_ms": "<= 150",
+    "batch_objects_ratio": "<= 2.0",
     "first_query_ms_p99": "<= 10",
 }
 
@@ -154,6 +160,33 @@ def lane_queries(road_map: RoadMap, count: int, seed: int = 9) -> list[dict]:
     return queries
 
 
+def with_objects(queries: list[dict], count: int = OBJECTS_PER_QUERY, seed: int = 11) -> list[dict]:
+    """The queries with ``count`` sensor objects each (ahead within 150 m, across three lanes, closing or
+    opening) and a yaw rate: a radar's track list, for the forward collision warning (vehicles of their own,
+    whose sessions the batch without objects did not start)."""
+    rng = np.random.default_rng(seed)
+    return [
+        {
+            **query,
+            "vehicle_id": f"{query['vehicle_id']}-fcw",
+            "yaw_rate_dps": float(rng.normal(0.0, 1.0)),
+            "accel_mps2": float(rng.normal(0.0, 0.5)),
+            "objects": [
+                {
+                    "id": int(object_id),
+                    "x_m": float(rng.uniform(5.0, 150.0)),
+                    "y_m": float(rng.normal(0.0, 2.5)),
+                    "relative_speed_mps": float(rng.uniform(-15.0, 5.0)),
+                    "accel_mps2": float(rng.normal(0.0, 1.0)),
+                    "width_m": 1.8,
+                }
+                for object_id in rng.choice(1000, size=count, replace=False)
+            ],
+        }
+        for query in queries
+    ]
+
+
 def single_rates(service: Running, trivial: Running, query: dict, count: int = SINGLE_REQUESTS) -> dict[str, float]:
     """Requests per second of sequential keep-alive POSTs of ``query``: ``service`` to ``/v1/warning``,
     ``trivial`` to ``/trivial``, in interleaved rounds so that both see the same machine load."""
@@ -248,8 +281,15 @@ def run() -> dict:
                     "service_rps_one_network": round(rates["service"], 1),
                     "single_ratio_one_network": round(rates["service"] / rates["trivial"], 3),
                 }
-                lane = batch_ms(one, lane_queries(RoadMap.load(TRACK_NET), BATCH_SIZE))
+                queries = lane_queries(RoadMap.load(TRACK_NET), BATCH_SIZE)
+                lane = batch_ms(one, queries)
                 figures |= {"batch_lane_ms": lane.pop("csws"), "batch_lane_stages_ms": lane}
+                objects = batch_ms(one, with_objects(queries))
+                figures |= {
+                    "batch_objects_ms": objects.pop("csws"),
+                    "batch_objects_stages_ms": objects,
+                    "batch_objects_ratio": round(figures["batch_objects_ms"] / figures["batch_lane_ms"], 2),
+                }
             finally:
                 one.stop()
             default = csws_serve(Path(folder) / "default.sqlite3")

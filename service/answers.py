@@ -6,7 +6,9 @@
 2. checks what the models cannot (:mod:`service.checks`: a 422 listing every problem);
 3. places every query on a lane (:mod:`service.placement`: its given lane, or the map match of its fix);
 4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_fleet`;
-5. writes the vehicles' sessions back to the store, and the answers as the JSON of the HTTP
+5. answers the forward collision warning of the queries with objects (:mod:`service.fcw_objects`, its
+   memory in the vehicles' sessions) or a forward_target (:mod:`service.fcw`), and the HMI of both;
+6. writes the vehicles' sessions back to the store, and the answers as the JSON of the HTTP
    contract (:mod:`service.encoding`).
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
@@ -15,6 +17,7 @@ rounds holding each vehicle at most once.
 
 from __future__ import annotations
 
+import time
 from collections import defaultdict
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
@@ -31,8 +34,10 @@ from csws.warning.rules import CurveWarning, PathKind
 
 from .checks import QueryCheck, QueryErrors
 from .decoding import DecodedQuery
-from .encoding import EncodedAnswers, encode_answer
-from .fcw import fcw_answers
+from .encoding import EncodedAnswers, encode_answer, hmi_json
+from .fcw import combined_hmi, fcw_answers
+from .fcw_objects import object_fcw
+from .fcw_settings import FleetFcwSettings
 from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
@@ -80,13 +85,20 @@ class WarningService:
         The vehicles' sessions and settings over the networks' engines.
     match_settings
         Map matching tolerances.
+    fcw_settings
+        The forward collision warning's settings per fleet and category (default: the library's by category).
     """
 
     def __init__(
-        self, networks: Sequence[ServedNetwork], registry: VehicleRegistry, match_settings: MatchSettings
+        self,
+        networks: Sequence[ServedNetwork],
+        registry: VehicleRegistry,
+        match_settings: MatchSettings,
+        fcw_settings: FleetFcwSettings | None = None,
     ) -> None:
         self.networks = list(networks)
         self.registry = registry
+        self.fcw_settings = fcw_settings if fcw_settings is not None else FleetFcwSettings()
         self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
         self.checks = QueryCheck(self.networks)
         self.placer = Placer(self.checks, match_settings)
@@ -160,6 +172,7 @@ class WarningService:
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
         categories = [_category(query, vehicles) for query in queries]
+        paths: list[PathAhead | None] = [None] * len(queries)
         for network_index, rows in by_network.items():
             with stages("engine"):
                 evaluated = self.evaluate(
@@ -170,9 +183,46 @@ class WarningService:
                 )
             with stages("encode"):
                 self._record(queries, categories, indices, placements, rows, evaluated, vehicles, answers, fleet)
-        with stages("encode"):
-            for index, fcw in zip(indices, fcw_answers(queries), strict=False):
-                answers.documents[index].fcw = fcw
+            for k, row in enumerate(rows):
+                if queries[row].objects is not None:
+                    paths[row] = evaluated.path(k)
+        with stages("fcw"):
+            self._answer_fcw(queries, indices, categories, paths, vehicles, answers, fleet)
+
+    def _answer_fcw(
+        self,
+        queries: Sequence[DecodedQuery],
+        indices: Sequence[int],
+        categories: Sequence[Category],
+        paths: Sequence[PathAhead | None],
+        vehicles: LoadedVehicles,
+        answers: EncodedAnswers,
+        fleet: str,
+    ) -> None:
+        """The forward collision warning of the round's queries with objects or a forward_target, into their
+        answers' ``fcw`` and ``hmi``; the FCW memory of those with objects into their sessions."""
+        if all(query.objects is None and query.forward_target is None for query in queries):
+            return
+        settings = [self.fcw_settings.of(fleet, category) for category in categories]
+        fcw = fcw_answers(queries, settings)
+        rows = [row for row, query in enumerate(queries) if query.objects is not None]
+        if rows:
+            sessions = [vehicles.sessions[queries[row].vehicle_id] for row in rows]
+            found, kept = object_fcw(
+                [queries[row] for row in rows],
+                [settings[row] for row in rows],
+                [session.fcw for session in sessions],
+                [paths[row] for row in rows],
+                time.time(),
+            )
+            for row, session, found_answer, memory in zip(rows, sessions, found, kept, strict=True):
+                fcw[row], session.fcw = found_answer, memory
+        for index, answer in zip(indices, fcw, strict=True):
+            if answer is not None:
+                document = answers.documents[index]
+                document.fcw = answer
+                if answer["level"] > 0:
+                    document.hmi = hmi_json(combined_hmi(document.level, answer["level"]))
 
     def evaluate(
         self,
@@ -218,7 +268,7 @@ class WarningService:
             fleet.fault,
             fleet.warning,
             kinds,
-            lambda row: ahead.path_ahead(ahead_row[row]),
+            lambda row: ahead.path_ahead(ahead_row[row]) if row in ahead_row else None,
         )
 
     def _record(
@@ -291,7 +341,7 @@ class Evaluated:
     path_kind
         The kind of each vehicle's path ahead, None where none was looked at.
     path
-        The path ahead of the vehicle in a row (only asked of vehicles whose warning has CPOIs).
+        The path ahead of the vehicle in a row, None where it did not look ahead.
     """
 
     vehicle_id: Sequence[str]

@@ -28,6 +28,7 @@ from csws import __version__
 
 from .answering import Answering
 from .answers import QueryErrors, WarningService
+from .fcw_settings import FleetFcwSettings
 from .keys import KeyRing
 from .limits import BodyLimit, BodyRefused, refused
 from .map import CompressedGets, MapData
@@ -112,7 +113,9 @@ def _share(app: FastAPI, settings: ServiceSettings, clock: Callable[[], float]) 
     registry = VehicleRegistry([n.name for n in networks], [n.engine for n in networks], store)
     state = app.state
     state.settings, state.store, state.registry = settings, store, registry
-    state.service = WarningService(networks, registry, settings.match_settings())
+    state.service = WarningService(
+        networks, registry, settings.match_settings(), FleetFcwSettings(settings.fcw_settings_file)
+    )
     state.metrics, state.map_data = Metrics(), MapData(networks)
     # The work (queries and batches with their round trips to the state store, the curve index,
     # horizons) runs on a thread of its own, in arrival order (service.work).
@@ -149,7 +152,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     OSError
         If the state store cannot be opened, reached or read (one line naming it).
     ValueError
-        If the API key file cannot be read.
+        If the API key file or the FCW settings file cannot be read.
     """
     settings = settings if settings is not None else ServiceSettings()
     app = FastAPI(

@@ -65,6 +65,13 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         help="the fleets' API keys (csws keys add); without them only a loopback address is served",
     )
     parser.add_argument(
+        "--fcw-settings",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the forward collision warning's settings per fleet (service.fcw_settings); default: by category",
+    )
+    parser.add_argument(
         "--insecure", action="store_true", default=None, help="serve without API keys on an address other than loopback"
     )
     parser.add_argument(

@@ -9,7 +9,8 @@ model's properties, and the model's own checks (:func:`service.schemas.check_pos
 :func:`service.schemas.check_located`), so there is one definition of what a valid query is.
 
 Like the models, msgspec takes numbers only as JSON numbers (no strings, no booleans), refuses
-numbers too large for a float, and ignores unknown fields. A body msgspec refuses is validated
+numbers too large for a float, and ignores unknown fields, except in models that forbid them
+(``extra="forbid"``: a sensor object), whose structs forbid them too. A body msgspec refuses is validated
 again by pydantic (:func:`decode`), whose 422 names every problem; in the rare case that
 pydantic accepts it, its values are taken as they are.
 """
@@ -25,9 +26,26 @@ import msgspec
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from .schemas import Batch, ForwardTarget, Position, Query, VehicleSwitch, check_located, check_position
+from .schemas import (
+    Batch,
+    ForwardTarget,
+    Position,
+    Query,
+    SensorObject,
+    VehicleSwitch,
+    check_position,
+    check_query,
+)
 
-__all__ = ["struct_of", "decode", "DecodedPosition", "DecodedQuery", "DecodedBatch", "DecodedSwitch"]
+__all__ = [
+    "struct_of",
+    "decode",
+    "DecodedPosition",
+    "DecodedSensorObject",
+    "DecodedQuery",
+    "DecodedBatch",
+    "DecodedSwitch",
+]
 
 #: The pydantic (annotated-types) constraints and the msgspec ``Meta`` argument each becomes.
 _CONSTRAINTS = {
@@ -87,6 +105,7 @@ def struct_of(
         fields,
         namespace={**namespace, "__post_init__": __post_init__},
         kw_only=True,
+        forbid_unknown_fields=model.model_config.get("extra") == "forbid",
         gc=False,
         module=__name__,
     )
@@ -96,14 +115,18 @@ if TYPE_CHECKING:
     # To the type checker a decoded struct is its model: it has the same fields, types and properties.
     DecodedPosition = Position
     DecodedForwardTarget = ForwardTarget
+    DecodedSensorObject = SensorObject
     DecodedQuery = Query
     DecodedBatch = Batch
     DecodedSwitch = VehicleSwitch
 else:
     DecodedPosition = struct_of(Position, checks=(check_position,))
     DecodedForwardTarget = struct_of(ForwardTarget)
+    DecodedSensorObject = struct_of(SensorObject)
     DecodedQuery = struct_of(
-        Query, {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget}, checks=(check_located,)
+        Query,
+        {Position: DecodedPosition, ForwardTarget: DecodedForwardTarget, SensorObject: DecodedSensorObject},
+        checks=(check_query,),
     )
     DecodedBatch = struct_of(Batch, {Query: DecodedQuery})
     DecodedSwitch = struct_of(VehicleSwitch)

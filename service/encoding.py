@@ -23,7 +23,7 @@ from .horizon import CpoiPositions
 from .placement import Placement
 from .schemas import Hmi, Matched, WarningAnswer
 
-__all__ = ["EncodedAnswers", "encode_answer"]
+__all__ = ["EncodedAnswers", "encode_answer", "hmi_json"]
 
 
 def _document(model: type[BaseModel]) -> type[msgspec.Struct]:
@@ -65,8 +65,8 @@ class EncodedAnswers:
 
 
 @cache
-def _hmi_json(hmi: HmiHint) -> msgspec.Raw:
-    """The JSON of an HMI hint (there are three)."""
+def hmi_json(hmi: HmiHint) -> msgspec.Raw:
+    """The JSON of an HMI hint (there are five: the curve warning's three, the FCW's two)."""
     return msgspec.Raw(_ENCODER.encode(_document(Hmi)(hmi.visual, hmi.audible)))
 
 
@@ -120,5 +120,5 @@ def encode_answer(
     if placement.lane_id is not None:
         matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
     return _AnswerDocument(
-        vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind, _hmi_json(warning.hmi)
+        vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind, hmi_json(warning.hmi)
     )

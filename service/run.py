@@ -22,6 +22,7 @@ _OPTIONS = {
     "session_idle_s": "session_idle_s",
     "update_period_s": "update_period_s",
     "api_keys": "api_keys_file",
+    "fcw_settings": "fcw_settings_file",
     "insecure": "insecure",
     "public_docs": "public_docs",
 }

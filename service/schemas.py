@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
 
 from csws.standard import Category
 
@@ -21,6 +21,10 @@ from csws.standard import Category
 MAX_BATCH = 10_000
 #: Highest speed a query may report, km/h.
 MAX_SPEED_KMH = 250.0
+#: Most objects of the forward sensor one query may carry (a radar's or camera's track list).
+MAX_OBJECTS = 32
+#: Highest sensor object id (:data:`csws.fcw.objects.MAX_OBJECT_ID`: ids are taken in [0, 2^31)).
+MAX_OBJECT_ID = 2**31 - 1
 
 
 def check_position(position: Any) -> None:
@@ -34,6 +38,30 @@ def check_position(position: Any) -> None:
         raise ValueError(
             f"a position is either x and y (network metres) or lon and lat (degrees), got {given or 'nothing'}"
         )
+
+
+def check_objects(objects: Any) -> Any:
+    """A query's objects have distinct ids, and each at most one of accel_mps2 and relative_accel_mps2;
+    ValueError naming the ids otherwise. Returns ``objects``.
+
+    Takes a list of anything with the fields of :class:`SensorObject` (the models, or their decoding structs).
+    """
+    if not objects:
+        return objects
+    ids = [obj.id for obj in objects]
+    if len(set(ids)) != len(ids):
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        raise ValueError(f"object ids must be distinct within a query, got duplicate id(s) {duplicates}")
+    both = [obj.id for obj in objects if obj.accel_mps2 is not None and obj.relative_accel_mps2 is not None]
+    if both:
+        raise ValueError(f"give accel_mps2 or relative_accel_mps2, not both (object id(s) {both})")
+    return objects
+
+
+def check_query(query: Any) -> None:
+    """:func:`check_located` and :func:`check_objects` of a query (its decoding struct's checks)."""
+    check_located(query)
+    check_objects(query.objects)
 
 
 def check_located(query: Any) -> None:
@@ -89,6 +117,52 @@ class ForwardTarget(BaseModel):
     driver_braking: bool = Field(default=False, strict=True, description="the driver brakes (4.5.4: T_resp = 0)")
     measured: bool = Field(
         default=True, strict=True, description="false when the sensor has no valid measurement: the FCW state is fault"
+    )
+
+
+class SensorObject(BaseModel):
+    """One object of the forward sensor's track list, in the vehicle's frame (x ahead, y to the left; GB/T 33577
+    3.7-3.12): the service then selects the target itself and keeps the warning's state between queries."""
+
+    model_config = ConfigDict(
+        allow_inf_nan=False,
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {"id": 7, "x_m": 35.0, "y_m": 0.2, "relative_speed_mps": -12.0, "accel_mps2": 0.0, "width_m": 1.8}
+            ]
+        },
+    )
+
+    id: int = Field(ge=0, le=MAX_OBJECT_ID, strict=True, description="the sensor's track id, distinct in a query")
+    x_m: float = Field(
+        ge=-50.0, le=500.0, strict=True, description="ahead, from the vehicle's front to the object's rear, m"
+    )
+    y_m: float = Field(ge=-100.0, le=100.0, strict=True, description="to the left, to the object's centre, m")
+    relative_speed_mps: float = Field(
+        ge=-100.0,
+        le=100.0,
+        strict=True,
+        description="the object's longitudinal speed minus the vehicle's, m/s (v_r, negative while closing)",
+    )
+    accel_mps2: float | None = Field(
+        default=None, ge=-15.0, le=15.0, strict=True, description="the object's own acceleration a_TV, m/s^2"
+    )
+    relative_accel_mps2: float | None = Field(
+        default=None,
+        ge=-30.0,
+        le=30.0,
+        strict=True,
+        description="instead of accel_mps2: the object's acceleration minus the vehicle's, m/s^2 (neither: a_TV 0)",
+    )
+    width_m: float = Field(default=1.8, gt=0.0, le=10.0, strict=True, description="the object's width, m")
+    lane: int | None = Field(
+        default=None,
+        ge=-8,
+        le=8,
+        strict=True,
+        description="the sensor's lane assignment, 0 the vehicle's own, +1 left, -1 right; it then decides "
+        "whether the object is in the path instead of the predicted path",
     )
 
 
@@ -149,11 +223,39 @@ class Query(BaseModel):
     forward_target: ForwardTarget | None = Field(
         default=None, description="the forward sensor's target: the answer then carries the forward collision warning"
     )
+    objects: list[SensorObject] | None = Field(
+        default=None,
+        max_length=MAX_OBJECTS,
+        description=f"the forward sensor's objects (at most {MAX_OBJECTS}): the service selects the target and "
+        "keeps the forward collision warning's state between queries; used instead of forward_target where both "
+        "are given",
+    )
+    accel_mps2: float = Field(
+        default=0.0, ge=-15.0, le=15.0, strict=True, description="the vehicle's longitudinal acceleration a_SV, m/s^2"
+    )
+    yaw_rate_dps: float | None = Field(
+        default=None,
+        ge=-180.0,
+        le=180.0,
+        strict=True,
+        description="the vehicle's yaw rate, degrees/s, positive turning left: the path predicted from it where "
+        "the query is not map-matched",
+    )
+    braking: bool = Field(default=False, strict=True, description="the driver brakes (4.5.4: T_resp = 0)")
+    turn_signal: Literal[-1, 0, 1] = Field(
+        default=0, description="-1 right, 0 none, +1 left: with a signal on, the map's path is not used"
+    )
 
     @model_validator(mode="after")
     def _located(self) -> Query:
         check_located(self)
         return self
+
+    @field_validator("objects")
+    @classmethod
+    def _distinct_objects(cls, objects: list[SensorObject] | None) -> list[SensorObject] | None:
+        result: list[SensorObject] | None = check_objects(objects)
+        return result
 
 
 class Batch(BaseModel):
@@ -228,11 +330,21 @@ class Hmi(BaseModel):
 
 
 class FcwAnswer(BaseModel):
-    """The forward collision warning of a query with a forward_target (GB/T 33577; docs/fcw.md)."""
+    """The forward collision warning of a query with objects or a forward_target (GB/T 33577; docs/fcw.md)."""
 
     model_config = ConfigDict(
         json_schema_extra={
-            "examples": [{"state": "active", "level": 1, "ttc_s": 2.5, "ettc_s": 2.5, "a_req_mps2": 4.62}]
+            "examples": [
+                {
+                    "state": "active",
+                    "level": 1,
+                    "ttc_s": 2.5,
+                    "ettc_s": 2.5,
+                    "a_req_mps2": 4.62,
+                    "target_id": None,
+                    "clearance_m": 30.0,
+                }
+            ]
         }
     )
 
@@ -243,6 +355,10 @@ class FcwAnswer(BaseModel):
     a_req_mps2: float | None = Field(
         description="a_req, formula (4), m/s^2; null where the reaction uses up the clearance"
     )
+    target_id: int | None = Field(
+        default=None, description="the target among the objects (the most demanding in the path); null otherwise"
+    )
+    clearance_m: float | None = Field(default=None, description="the target's clearance x_c, m; null without one")
 
 
 class WarningAnswer(BaseModel):
@@ -285,7 +401,7 @@ class WarningAnswer(BaseModel):
     matched: Matched | None
     path_kind: Literal["route", "predicted"] | None
     hmi: Hmi
-    fcw: FcwAnswer | None = Field(default=None, description="only when the query has a forward_target")
+    fcw: FcwAnswer | None = Field(default=None, description="only when the query has objects or a forward_target")
 
 
 class Answers(BaseModel):

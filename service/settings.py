@@ -6,7 +6,7 @@ the same way as ``csws serve``:
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
 ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
 ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
-``CSWS_API_KEYS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
+``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``.
 
 Without an API key file (:mod:`service.keys`) the service answers anyone, so it listens
@@ -84,6 +84,11 @@ class ServiceSettings(BaseSettings):
     api_keys_file: Path | None = Field(
         default=None, description="the fleets' API keys (service.keys); without it the service answers anyone"
     )
+    fcw_settings_file: Path | None = Field(
+        default=None,
+        description="the forward collision warning's settings per fleet (service.fcw_settings); without it each "
+        "vehicle's category's",
+    )
     insecure: bool = Field(default=False, description="serve without API keys on an address other than loopback")
     max_body_bytes: int = Field(default=16 * 2**20, gt=0, description="the largest request body accepted, bytes")
     body_timeout_s: float = Field(default=10.0, gt=0, description="a client pausing this long in its body gets 408, s")
@@ -99,7 +104,7 @@ class ServiceSettings(BaseSettings):
             raise ValueError("give a Redis URL, redis://HOST:PORT/DB (or rediss:// or unix://), or nothing for SQLite")
         return value
 
-    @field_validator("api_keys_file", mode="before")
+    @field_validator("api_keys_file", "fcw_settings_file", mode="before")
     @classmethod
     def _no_file(cls, value):
         return None if isinstance(value, str) and not value.strip() else value

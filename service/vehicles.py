@@ -3,8 +3,9 @@
 * Its **setting**: what its fleet set, the driver switch (5.2) and the category; kept until changed.
 * Its **session**: the network and lane of its last match (the continuity of map matching)
   and what the engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and
-  activation, last timestamp, the release rule's memory). A vehicle that moves to another
-  network takes its system state along. A session not written for the idle time expires;
+  activation, last timestamp, the release rule's memory), and what its forward collision
+  warning keeps (:class:`FcwMemory`: state, level hold, objects in the path, last target).
+  A vehicle that moves to another network takes its system state along. A session not written for the idle time expires;
   the stored setting remains.
 
 A request does not rely on anything its worker remembers: it reads the vehicles it names from
@@ -33,7 +34,15 @@ from csws.warning.release import HeldWarning
 from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 from .timing import UNTIMED, Stages
 
-__all__ = ["TRANSACTION_ATTEMPTS", "Session", "LatestAnswer", "SessionRecord", "LoadedVehicles", "VehicleRegistry"]
+__all__ = [
+    "TRANSACTION_ATTEMPTS",
+    "Session",
+    "LatestAnswer",
+    "FcwMemory",
+    "SessionRecord",
+    "LoadedVehicles",
+    "VehicleRegistry",
+]
 
 #: How often a request reads and answers again the vehicles other requests wrote meanwhile
 #: before it gives up with a 503.
@@ -51,6 +60,33 @@ class LatestAnswer(msgspec.Struct, array_like=True, frozen=True, gc=False):
     timestamp_s: float | None
 
 
+class FcwMemory(msgspec.Struct, array_like=True, frozen=True, gc=False):
+    """What a vehicle's forward collision warning keeps between queries (one vehicle's
+    :class:`csws.fcw.fleet.FleetMemory`), stored with its session.
+
+    Attributes
+    ----------
+    state
+        The system state's code (:data:`csws.fcw.physics.FCW_STATES`): Figure 2's hysteresis starts from it.
+    held_level, hold_until_s
+        The level held and until when (the level's hold, :func:`csws.fcw.objects.hold_level`).
+    last_time_s
+        The time of its last frame, s: a query not after it changes nothing of this memory.
+    in_path_ids, cut_in_ids
+        The objects that were in the path, and those of them cutting in (4.5.5 c).
+    target_id
+        The last frame's target, None without one.
+    """
+
+    state: int
+    held_level: int
+    hold_until_s: float
+    last_time_s: float
+    in_path_ids: tuple[int, ...] = ()
+    cut_in_ids: tuple[int, ...] = ()
+    target_id: int | None = None
+
+
 @dataclass(slots=True)
 class Session:
     """A vehicle seen recently, during a request.
@@ -65,12 +101,15 @@ class Session:
         Its position on that lane, m.
     latest
         What its latest answer said (the live map's view of it, ``GET /v1/fleet``).
+    fcw
+        What its forward collision warning keeps, None before its first query with objects.
     """
 
     network_index: int
     lane_id: str | None
     lane_pos_m: float = 0.0
     latest: LatestAnswer | None = None
+    fcw: FcwMemory | None = None
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -90,6 +129,8 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     #: before these were kept have neither).
     lane_pos_m: float = 0.0
     latest: LatestAnswer | None = None
+    #: The forward collision warning's memory (sessions of vehicles never queried with objects have none).
+    fcw: FcwMemory | None = None
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
@@ -113,6 +154,7 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
             held.kept_at_s,
             session.lane_pos_m,
             session.latest,
+            session.fcw,
         )
 
 
@@ -142,7 +184,9 @@ class LoadedVehicles:
             record = registry.decode(vehicle.session)
             if record is not None:
                 network_index = registry.network_index[record.network]
-                self.sessions[vehicle_id] = Session(network_index, record.lane_id, record.lane_pos_m, record.latest)
+                self.sessions[vehicle_id] = Session(
+                    network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw
+                )
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
     def __enter__(self) -> LoadedVehicles:

@@ -1,19 +1,47 @@
-"""Shared test set-up: a fresh profile cache for the whole run, so no test reads fits an
-earlier run (or the user's own loads) left behind; in CI (``CI`` set), hypothesis draws the
-same examples every run, so that a run's verdict is the code's and not the draw's (locally
-it keeps exploring new ones, and keeps the failures it finds); a real ``redis-server`` for
-the tests of the Redis state store, and the ``state`` fixture that runs a test on each store."""
+"""Shared test set-up.
+
+* A fresh profile cache for the whole run, so that no test reads fits an earlier run (or the
+  user's own loads) left behind.
+* In CI (``CI`` set), hypothesis draws the same examples every run, so that a run's verdict is
+  the code's and not the draw's (locally it keeps exploring new ones, and keeps the failures it
+  finds).
+* A real ``redis-server`` for the tests of the Redis state store (one for the run, and one of a
+  test's own to stop, hang and kill), and the ``state`` fixture that runs a test on each store.
+* The side roads of tests/builders.py, netconverted once for each module that serves them.
+* The markers of ``pyproject.toml`` that follow from the fixtures a test uses (see
+  :func:`pytest_collection_modifyitems`); a test whose own body is slow, or runs SUMO or
+  netconvert, carries its marker itself.
+"""
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
+from builders import SIDE_X_M, build_side_roads
 from hypothesis import settings
+from markers import fixture_markers, marks_its_tests
+from redis_server import RedisServer
 
 settings.register_profile("ci", derandomize=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Give each test the markers its fixtures hand on (:func:`markers.marks_its_tests`).
+
+    Read from the fixtures rather than written on every test because a fixture that starts a
+    server or builds a network is shared by many tests, some in other modules, and a test needs
+    what its fixtures need however it came to use them; and because the ``state`` fixture is
+    parametrized: only its ``redis`` instance needs a redis-server, which no decorator can say.
+    """
+    for item in items:
+        for name in sorted(fixture_markers(item)):
+            item.add_marker(name)
+        if getattr(getattr(item, "callspec", None), "params", {}).get("state") == "redis":
+            item.add_marker(pytest.mark.redis)
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -29,26 +57,41 @@ def fresh_profile_cache(tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.fixture(scope="session")
+@marks_its_tests("redis")
 def redis_server(tmp_path_factory: pytest.TempPathFactory):
     """One real ``redis-server`` for the run (:class:`redis_server.RedisServer`)."""
-    from redis_server import RedisServer
-
     server = RedisServer(tmp_path_factory.mktemp("redis"))
     yield server
     server.stop()
 
 
 @pytest.fixture
-def redis_url(redis_server) -> str:
+def redis_url(redis_server: RedisServer) -> str:
     """The URL of a Redis database emptied for the test."""
     with redis_server.client() as client:
         client.flushdb()
     return redis_server.url()
 
 
+@pytest.fixture
+@marks_its_tests("redis")
+def own_redis(tmp_path: Path):
+    """A ``redis-server`` of the test's own, to be stopped, hung and killed."""
+    server = RedisServer(tmp_path)
+    yield server
+    server.stop()
+
+
 @pytest.fixture(params=["sqlite", "redis"])
-def state(request: pytest.FixtureRequest, tmp_path) -> dict[str, str]:
+def state(request: pytest.FixtureRequest, tmp_path: Path) -> dict[str, str]:
     """The settings of each state store in turn: a SQLite file, and a Redis database."""
     if request.param == "sqlite":
         return {"state_db": str(tmp_path / "vehicles.sqlite3")}
     return {"state": request.getfixturevalue("redis_url")}
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("sumo")
+def side_roads_net(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The side roads (:func:`builders.build_side_roads`) placed ``SIDE_X_M`` east of the Table 7 track."""
+    return build_side_roads(tmp_path_factory.mktemp("side-roads"), origin_x_m=SIDE_X_M)

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import redis
-from test_service import _free_port
+from servers import free_port
 
 __all__ = ["RedisServer"]
 
@@ -40,7 +40,7 @@ class RedisServer:
             "--bind",
             "127.0.0.1",
             "--port",
-            str(_free_port()),
+            str(free_port()),
             "--dir",
             str(folder),
             "--save",
@@ -51,7 +51,7 @@ class RedisServer:
             "always",
         ]
         self.port = int(self.command[4])
-        self.process: subprocess.Popen | None = None
+        self.process: subprocess.Popen[bytes]
         self.start()
 
     def url(self, database: int = 0) -> str:

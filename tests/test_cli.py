@@ -33,6 +33,7 @@ def test_every_subcommand_has_help(words):
     assert result.returncode == 0 and "usage: csws" in result.stdout
 
 
+@pytest.mark.slow
 def test_verify_passes_on_the_bundled_networks():
     result = _csws("networks", "verify")
     assert result.returncode == 0, result.stdout + result.stderr
@@ -86,6 +87,7 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(args, message):
     assert message in result.stderr.strip().splitlines()[-1]  # the last line says what is wrong
 
 
+@pytest.mark.slow
 def test_output_read_only_in_part_ends_quietly():
     """``csws curves NET | head -1``: the reader goes away; csws stops without a word, with the
     status a program ended by SIGPIPE has."""
@@ -101,6 +103,7 @@ def test_output_read_only_in_part_ends_quietly():
     assert stderr == b""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_a_port_in_use_is_one_line_before_anything_is_served(tmp_path, workers):
     with socket.socket() as held:

@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
+from builders import dense_shape as curvature_dense_shape
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_curvature import dense_shape as curvature_dense_shape
 
 from csws.curvature import find_curves, radius_profile
 from csws.geometry import Piece, arc, clothoid, curvature_at, piece_starts_s, straight
@@ -22,7 +22,7 @@ headings_rad = st.floats(-math.pi, math.pi)
 
 
 def dense_shape(pieces, heading_rad: float = 0.0) -> np.ndarray:
-    """A SUMO-like shape (:func:`test_curvature.dense_shape`): vertices 0.5 m apart, rounded to the centimetre."""
+    """A SUMO-like shape (:func:`builders.dense_shape`): vertices 0.5 m apart, rounded to the centimetre."""
     return curvature_dense_shape(pieces, 0.5, ORIGIN, heading_rad)
 
 
@@ -33,6 +33,7 @@ def truth_crossings(pieces, warning_radius_m: float) -> tuple[float, float]:
     return float(s[inside[0]]), float(s[inside[-1]])
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(
     st.floats(30.0, 450.0),
@@ -64,6 +65,7 @@ def test_a_curve_between_spirals_starts_and_ends_inside_them(
     assert not curve.is_multi
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None)
 @given(st.floats(40.0, 250.0), st.floats(30.0, 80.0), directions)
 def test_spiral_pieces_are_points_of_the_road_one_km_h_of_warning_speed_apart(radius_m, spiral_m, direction) -> None:

@@ -13,6 +13,7 @@ import sys
 
 import numpy as np
 import pytest
+from markers import marks_its_tests
 
 from csws.conformance.drive import POSITION_ACCURACY_M, Task, Trace, drive, truth
 from csws.conformance.judge import CONSECUTIVE_PASSES, consecutive_passes, judge_run
@@ -29,6 +30,7 @@ STEPS_S = (0.01, 0.2)
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow", "sumo")
 def subset_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("conformance")
     outcomes = conformance(select_rows(patterns=SUBSET), out, STEPS_S, seed=3, jobs=1)
@@ -119,6 +121,7 @@ def test_report_files_are_written(subset_report):
         assert (out / outcome.plot).stat().st_size > 10_000
 
 
+@pytest.mark.sumo
 def test_table_7_brakes_at_4_9_mps2_within_curve_1s_level_2_distance():
     row = next(r for r in procedure_rows() if r.row_id == "T7-M3")
     trace = drive(Task(row, row.tracks[0], 0.05, 3, seed=0))[0]
@@ -187,6 +190,8 @@ def test_cli_rejects_too_few_repetitions_in_one_line(tmp_path):
     assert result.stderr.strip().startswith("csws: error:") and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
 def test_cli_runs_a_row_and_exits_0(tmp_path):
     result = subprocess.run(
         [

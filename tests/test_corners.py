@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -56,6 +57,7 @@ def test_a_junction_stub_of_a_few_metres_is_given_the_floor() -> None:
     assert all(curve.min_radius_m >= FLOOR_RADIUS_M for curve in curves)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(
     st.lists(st.floats(-120.0, 120.0), min_size=3, max_size=12),

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from markers import marks_its_tests
 
 from csws.cosim.categories import category_of
 from csws.cosim.driver import DriverSettings
@@ -46,6 +47,7 @@ def _config(routes: Path, out: Path, **changes) -> CosimConfig:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow", "sumo")
 def library_run(fleet_routes, tmp_path_factory):
     out = tmp_path_factory.mktemp("library")
     return out, cosimulate(_config(fleet_routes, out))
@@ -101,6 +103,7 @@ def test_warning_onsets_follow_tables_1_2_and_formula_1(library_run):
     assert levels["level1"] + levels["level2"] == len(onsets)
 
 
+@pytest.mark.sumo
 def test_without_the_driver_model_vehicles_enter_curves_too_fast_and_with_it_none_does(
     library_run, fleet_routes, tmp_path
 ):
@@ -150,6 +153,7 @@ def _free_port() -> int:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def service_url(tmp_path_factory):
     port = _free_port()
     environment = {
@@ -187,6 +191,7 @@ def service_url(tmp_path_factory):
     process.wait(timeout=30)
 
 
+@pytest.mark.sumo
 def test_service_mode_gives_identical_warnings(library_run, fleet_routes, service_url, tmp_path):
     out, _ = library_run
     summary = cosimulate(_config(fleet_routes, tmp_path, service_url=service_url))
@@ -238,6 +243,8 @@ def _children(pid: int) -> list[int]:
     return found
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="finds SUMO's process through /proc")
 def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
     process = _start(tmp_path, "--traci", "--timeseries", "csv")
@@ -257,6 +264,8 @@ def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
     assert summary["complete"] is False and summary["status"].startswith("SUMO stopped")
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
 def test_an_interrupted_run_keeps_valid_files(tmp_path):
     process = _start(tmp_path, "--timeseries", "csv")
     _wait_for_rows(tmp_path / "timeseries.csv", process)
@@ -267,6 +276,8 @@ def test_an_interrupted_run_keeps_valid_files(tmp_path):
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "interrupted"
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
 def test_a_killed_run_leaves_files_that_end_at_a_complete_row(tmp_path):
     process = _start(tmp_path, "--timeseries", "csv")
     _wait_for_rows(tmp_path / "timeseries.csv", process)
@@ -276,6 +287,8 @@ def test_a_killed_run_leaves_files_that_end_at_a_complete_row(tmp_path):
     _assert_complete_csv(tmp_path / "warnings.csv", EVENT_COLUMNS)
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
 def test_an_interrupted_parquet_run_writes_what_it_gathered_as_whole_parts(tmp_path):
     """Ctrl-C during a run with the Parquet time series: the rows gathered so far are written
     as a last part, every part in the folder reads, and the time series ends at the last
@@ -294,6 +307,7 @@ def test_an_interrupted_parquet_run_writes_what_it_gathered_as_whole_parts(tmp_p
     assert summary["simulated_until_s"] - 1e-9 <= last_s <= summary["simulated_until_s"] + 0.1 + 1e-9
 
 
+@pytest.mark.sumo
 def test_the_time_series_kept_every_nth_step_or_not_at_all(library_run, fleet_routes, tmp_path):
     """``--timeseries-every 5`` keeps every fifth step's rows as the full run wrote them, in
     CSV the same values as in Parquet; ``none`` keeps no time series and the same warnings."""

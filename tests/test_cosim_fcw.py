@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from markers import marks_its_tests
 
 from csws.cosim.driver import DriverSettings
 from csws.cosim.fcw import FCW_EVENT_COLUMNS, ONCOMING_MPS, SensorPairs, SumoVehicles, read_vehicles, sensor_view
@@ -70,6 +71,7 @@ def _sumocfg(folder: Path, routes: Path, ssm: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def approach(tmp_path_factory) -> dict:
     """The approach without and with the driver-response model (both systems), and SSM's log of the first."""
     folder = tmp_path_factory.mktemp("approach")
@@ -195,6 +197,7 @@ def test_the_driver_brakes_on_the_fcw_warning_and_stops_short_of_the_lead(approa
     assert min(map(_true_clearance_m, rows)) > 0.0
 
 
+@pytest.mark.sumo
 def test_the_curve_warnings_files_are_the_same_with_fcw_on(tmp_path):
     routes = tmp_path / "fleet.rou.xml"
     routes.write_text(fleet_routes_xml(20, period_s=40.0, seed=3))

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from markers import marks_its_tests
 
 from csws.cosim.run import CosimConfig, bundled_scenario, cosimulate
 from csws.cosim.summary import run_figures
@@ -22,6 +23,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow", "sumo")
 def compared(tmp_path_factory) -> Path:
     """``csws cosim --driver-response`` over the first minute of the bundled fleet."""
     out = tmp_path_factory.mktemp("cosim")
@@ -77,6 +79,7 @@ def test_the_summary_compares_both_runs_with_the_runs_own_figures(compared) -> N
     assert more_than_1[0] > 0 and more_than_1[1] == 0  # the driver response keeps every entry near V_w
 
 
+@pytest.mark.sumo
 def test_a_csv_time_series_gives_the_figures_of_parquet(tmp_path) -> None:
     config = CosimConfig(bundled_scenario(), tmp_path / "csv", end_s=30.0, timeseries="csv")
     cosimulate(config)
@@ -86,6 +89,7 @@ def test_a_csv_time_series_gives_the_figures_of_parquet(tmp_path) -> None:
     assert len(from_csv.warned_tracks) == len(from_parquet.warned_tracks) > 0
 
 
+@pytest.mark.sumo
 def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
     subprocess.run(
         [sys.executable, "-m", "csws", "cosim", "--end", "20", "--timeseries", "none", "--out", str(tmp_path)],
@@ -98,6 +102,7 @@ def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
     assert (tmp_path / "summary.png").read_bytes().startswith(PNG_SIGNATURE)
 
 
+@pytest.mark.sumo
 def test_the_drawn_warnings_are_those_of_the_first_vehicles_warned(tmp_path, monkeypatch) -> None:
     """With room for one vehicle, the plot draws the vehicle warned first, whatever its id."""
     cosimulate(CosimConfig(bundled_scenario(), tmp_path, end_s=60.0))

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from builders import dense_shape
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -27,12 +28,6 @@ headings_rad = st.floats(-math.pi, math.pi)
 origins_m = st.tuples(st.floats(-5000.0, 5000.0), st.floats(-5000.0, 5000.0))
 directions = st.sampled_from(["left", "right"])
 seeds = st.integers(0, 2**32 - 1)
-
-
-def dense_shape(pieces, spacing_m, origin, heading_rad):
-    """A SUMO-like shape: evenly spaced vertices rounded to the centimetre."""
-    xy, _ = sample_pieces(pieces, spacing_m, origin, heading_rad)
-    return np.round(xy, 2)
 
 
 def sparse_way(pieces, seed, origin, heading_rad, noise_rms_m):
@@ -122,6 +117,7 @@ def test_mapped_noisy_arcs_meet_the_sparse_targets():
     assert max(start_errors) <= 5.0
 
 
+@pytest.mark.slow
 def test_exact_map_ways_give_their_arcs_exactly():
     """Without noise, the road fitted to a map way's nodes is the road: the model (straights
     and arcs joined without kinks) is exact, so start and radius come out exact but for
@@ -316,6 +312,7 @@ def test_profile_vertex_values_come_from_its_parts():
     assert curves_from_profile(profile, policy=DEFAULT_POLICY)[0].direction == "right"
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(
     st.lists(st.tuples(st.floats(3.0, 60.0), st.floats(-1.6, 1.6)), min_size=4, max_size=14),

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from markers import marks_its_tests
 
 from csws.conformance.fcw.avoidance import latest_useful_warning_s
 from csws.conformance.fcw.drive import Trace
@@ -28,6 +29,7 @@ STEPS_S = (0.01, 0.2)
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow", "sumo")
 def subset(tmp_path_factory):
     out = tmp_path_factory.mktemp("fcw-conformance")
     outcomes = fcw_conformance(select_fcw_rows(SUBSET), out, STEPS_S, seed=5)
@@ -108,6 +110,7 @@ def test_the_two_lead_test_warns_twice_for_the_nearer_lead(subset):
         assert {target for target, level in zip(trace.target, trace.level, strict=False) if level} == {"tv"}
 
 
+@pytest.mark.sumo
 def test_cli_runs_one_fcw_row_and_refuses_csws_options(tmp_path):
     command = [
         sys.executable,

@@ -61,5 +61,6 @@ def test_the_set_warning_distance_is_where_a_req_reaches_the_threshold():
         assert required_deceleration_mps2(clearance_m, -closing_mps, lead_accel_mps2, 0.8) == pytest.approx(6.6)
 
 
+@pytest.mark.sumo
 def test_the_bundled_fcw_tracks_are_what_the_generator_builds():
     assert compare_fcw_tracks(networks_dir() / FCW_DIR) == []

@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import pytest
 import schemathesis
+from builders import write_geo_track
 from hypothesis import settings
+from markers import marks_its_tests
 from schemathesis import checks
-from test_service import Server, write_geo_track
+from servers import Server
 
 from csws.networks import networks_dir
 from service.app import create_app
@@ -54,6 +56,7 @@ EDGE_STATUS_CASES = {
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fuzzed")
     running = Server([write_geo_track(folder)], folder / "vehicles.sqlite3")

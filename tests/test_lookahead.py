@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from markers import marks_its_tests
 
 from csws.ahead.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
 from csws.geometry import arc, sample_pieces, straight
@@ -30,6 +31,7 @@ def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, name: str) -> 
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def junction_map(tmp_path_factory) -> RoadMap:
     main_xy, _ = sample_pieces(MAIN_PIECES, 1.0, JUNCTION_XY, 0.0)
     side_xy, _ = sample_pieces(SIDE_PIECES, 1.0, JUNCTION_XY, SIDE_HEADING_RAD)

@@ -14,8 +14,9 @@ from urllib.parse import urlsplit
 
 import httpx
 import pytest
+from markers import marks_its_tests
 from playwright.sync_api import Page, sync_playwright
-from test_service import Workers
+from servers import Workers
 
 from csws.networks import networks_dir
 
@@ -41,6 +42,7 @@ WAIT_MS = 30_000
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(tmp_path_factory):
     running = Workers(
         [TRACK_NET, GEO_NET], "--state-db", str(tmp_path_factory.mktemp("state") / "v.sqlite3"), workers=1
@@ -56,6 +58,7 @@ def client(server) -> httpx.Client:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("browser")
 def browser():
     with sync_playwright() as playwright:
         chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)

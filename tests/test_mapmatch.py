@@ -1,4 +1,4 @@
-"""Map matching against a network constructed here: a two-way main road, a one-way
+"""Map matching against the side roads of tests/builders.py: a two-way main road, a one-way
 frontage road beside it and a crossing road, each built exactly with csws.geometry."""
 
 from __future__ import annotations
@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from builders import CROSSING_X_M, FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
+from markers import marks_its_tests
 
-from csws.geometry import sample_pieces, straight
 from csws.road.matching import (
     MapMatcher,
     MapPosition,
@@ -19,60 +20,10 @@ from csws.road.matching import (
     points_along,
 )
 from csws.road.roadmap import RoadMap
-from csws.sumo.netbuild import netconvert, shape_text
-
-#: The frontage road runs eastbound this far north of the main road's axis, m.
-FRONTAGE_OFFSET_M = 9.0
-#: Lane width SUMO gives (the two directions of the main road lie half of it either side of the axis), m.
-LANE_WIDTH_M = 3.2
-#: The crossing road runs north at this x, m.
-CROSSING_X_M = 400.0
-
-
-def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, spread: str) -> str:
-    return (
-        f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="25.0" '
-        f'spreadType="{spread}" shape="{shape_text(xy)}"/>'
-    )
-
-
-def _node(node_id: str, x: float, y: float) -> str:
-    return f'<node id="{node_id}" x="{x:.3f}" y="{y:.3f}"/>'
-
-
-def build_side_roads(folder: Path, origin_x_m: float = 0.0) -> Path:
-    """Write and netconvert the network; ``origin_x_m`` shifts it east.
-
-    * ``main``: two-way road along y = 0 from x = 0 to 800 (``AB`` eastbound, ``BA`` westbound);
-    * ``frontage``: one-way eastbound road along y = FRONTAGE_OFFSET_M, not connected to the main road;
-    * ``crossing``: one-way northbound road along x = CROSSING_X_M from y = -300 to 300, passing
-      over the main road without a junction (a bridge).
-    """
-    main_xy, _ = sample_pieces((straight(800.0),), 2.0, (origin_x_m, 0.0), 0.0)
-    frontage_xy, _ = sample_pieces((straight(800.0),), 2.0, (origin_x_m, FRONTAGE_OFFSET_M), 0.0)
-    crossing_xy, _ = sample_pieces((straight(600.0),), 2.0, (origin_x_m + CROSSING_X_M, -300.0), np.pi / 2)
-    nodes = [
-        _node("A", origin_x_m, 0.0),
-        _node("B", origin_x_m + 800.0, 0.0),
-        _node("F0", origin_x_m, FRONTAGE_OFFSET_M),
-        _node("F1", origin_x_m + 800.0, FRONTAGE_OFFSET_M),
-        _node("C0", origin_x_m + CROSSING_X_M, -300.0),
-        _node("C1", origin_x_m + CROSSING_X_M, 300.0),
-    ]
-    edges = [
-        _edge("AB", "A", "B", main_xy, "right"),
-        _edge("BA", "B", "A", main_xy[::-1], "right"),
-        _edge("frontage", "F0", "F1", frontage_xy, "center"),
-        _edge("crossing", "C0", "C1", crossing_xy, "center"),
-    ]
-    return netconvert(
-        "<nodes>\n" + "\n".join(nodes) + "\n</nodes>\n",
-        "<edges>\n" + "\n".join(edges) + "\n</edges>\n",
-        folder / "side_roads.net.xml",
-    )
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def side_map(tmp_path_factory) -> RoadMap:
     return RoadMap.load(build_side_roads(tmp_path_factory.mktemp("side")))
 

@@ -94,6 +94,7 @@ def test_every_track_is_shipped_and_indexed() -> None:
         assert _truth(entry["name"])["route"]["edges"] == entry["route"]
 
 
+@pytest.mark.sumo
 def test_a_rebuilt_network_matches_the_shipped_one() -> None:
     spec = next(spec for spec in track_specs() if spec.name == "t9_m1_test1_s")
     assert compare_network(spec, networks_dir()) == []

@@ -6,6 +6,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -94,6 +95,7 @@ def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_setti
     return batch.vehicle_warning(0, 0, curve_ids, parts, kind), memory
 
 
+@pytest.mark.slow
 @settings(max_examples=800, deadline=None)
 @given(
     st.data(),

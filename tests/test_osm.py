@@ -18,6 +18,7 @@ import numpy as np
 import pyproj
 import pytest
 import sumolib
+from markers import marks_its_tests
 
 from csws import cli
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
@@ -104,6 +105,7 @@ def arc_osm(tmp_path_factory) -> tuple[Path, OsmWriter]:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def arc_import(arc_osm, tmp_path_factory) -> ImportResult:
     return import_osm(arc_osm[0], tmp_path_factory.mktemp("arcnet") / "arc.net.xml.gz")
 
@@ -114,6 +116,7 @@ def arc_map(arc_import) -> RoadMap:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def side_road_map(tmp_path_factory) -> RoadMap:
     folder = tmp_path_factory.mktemp("side")
     osm_path, _ = _arc_osm(folder, side_road=True)
@@ -213,6 +216,7 @@ def _with_nodes_every(corners: list, spacing_m: float) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def junction_net(tmp_path_factory) -> Path:
     """A straight road W-E with a T-junction side road going south at x = 0 and a roundabout
     of R = 25 m at x = 600 with an exit road going east; nodes every 10 m, as mapped roads
@@ -351,6 +355,7 @@ def test_bad_files_give_one_line_errors(tmp_path: Path, capsys, name: str, conte
     assert not (tmp_path / "out.net.xml").exists()
 
 
+@pytest.mark.sumo
 def test_residential_roads_without_trucks_are_no_drivable_roads(tmp_path: Path) -> None:
     osm = OsmWriter()
     osm.way(np.array([[0.0, 0.0], [100.0, 0.0]]), "service")  # service roads admit delivery vans only
@@ -364,6 +369,7 @@ BADHERSFELD_NET = networks_dir() / "badhersfeld.net.xml.gz"
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def badhersfeld() -> RoadMap:
     return RoadMap.load(BADHERSFELD_NET)
 
@@ -393,6 +399,7 @@ def test_real_network_roundabouts_and_curve_index(badhersfeld: RoadMap) -> None:
     assert indexed_lanes and not any(badhersfeld.lane(lane).is_junction for lane in indexed_lanes)
 
 
+@pytest.mark.sumo
 def test_real_fleet_scenario_runs_in_sumo(tmp_path: Path) -> None:
     config = networks_dir() / "badhersfeld.sumocfg"
     result = subprocess.run(
@@ -433,6 +440,7 @@ def _edge_types(net_path: Path) -> set[str]:
     return {road_map.lane(lane_id).road_type for lane_id in road_map.lane_ids if not road_map.lane(lane_id).is_internal}
 
 
+@pytest.mark.sumo
 @pytest.mark.parametrize("value", ["primary_tunnel", "secondary_bridge", "motorway_link_tunnel"])
 def test_a_way_tagged_with_a_tunnel_or_bridge_value_survives_import(tmp_path: Path, value: str) -> None:
     result = import_osm(_three_ways(tmp_path, value), tmp_path / "road.net.xml")
@@ -441,6 +449,7 @@ def test_a_way_tagged_with_a_tunnel_or_bridge_value_survives_import(tmp_path: Pa
     assert result.dropped.motor_km == pytest.approx(0.9, rel=0.02)
 
 
+@pytest.mark.sumo
 def test_what_an_import_drops_is_counted_by_highway_value_and_warned_of(tmp_path: Path) -> None:
     osm = OsmWriter()
     osm.way(np.array([[0.0, 0.0], [1000.0, 0.0]]), "primary", name="Main")
@@ -454,6 +463,7 @@ def test_what_an_import_drops_is_counted_by_highway_value_and_warned_of(tmp_path
     assert result.log_path.is_file() and "Parsing" in result.log_path.read_text()
 
 
+@pytest.mark.sumo
 def test_a_type_file_of_the_user_adds_a_highway_value(tmp_path: Path) -> None:
     type_file = tmp_path / "extra.typ.xml"
     type_file.write_text(

@@ -6,8 +6,6 @@ import ast
 import re
 from pathlib import Path
 
-import pytest
-
 README = Path(__file__).resolve().parents[1] / "README.md"
 #: A number in a comment, with the decimals it is written to.
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
@@ -46,7 +44,6 @@ def _numbers_agree(shown: str, comment: str) -> bool:
     return True
 
 
-@pytest.mark.sumo
 def test_the_library_examples_run_and_give_the_stated_values() -> None:
     namespace: dict = {}
     checked = 0

@@ -37,6 +37,7 @@ def _pieces(content: dict) -> list[Piece]:
     ]
 
 
+@pytest.mark.sumo
 def test_the_shipped_real_road_networks_are_the_generator_s() -> None:
     assert compare_real_roads(REAL_ROADS) == []
 
@@ -138,6 +139,8 @@ def test_every_category_runs_every_track_at_a_level_1_and_a_level_2_speed() -> N
             assert len(speeds) == 2 and level1 < speeds[0] < level2 < speeds[1]
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
 def test_a_curve_with_a_node_inside_and_a_compound_curve_pass_in_sumo(tmp_path) -> None:
     rows = select_rows(patterns=["RR-node_in_curve-M1-*", "RR-compound-N-*"])
     outcomes = conformance(rows, tmp_path, (0.01, 0.2), seed=5, jobs=1)

@@ -14,16 +14,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_roadchain import APPROACH_M, CURVE_RADIUS_M, _edge, _node, _split_curve_map
+from builders import APPROACH_M, CURVE_RADIUS_M
+from builders import edge_xml as _edge
+from builders import node_xml as _node
+from builders import split_curve_map as _split_curve_map
 
-from csws.ahead.horizon import curve_id_of
 from csws.ahead.lookahead import LookAhead
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
+from csws.road.chains import curve_id_of
 from csws.road.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance, warning_speed
 from csws.sumo.netbuild import netconvert
 from csws.warning.rules import WarningSettings
+
+pytestmark = pytest.mark.sumo  # every test here builds its network with netconvert
 
 #: A curve of R 150 m between two 60 m clothoids, on one edge.
 ARC_RADIUS_M = 150.0

@@ -9,64 +9,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sumolib
+from builders import APPROACH_M, CURVE_RADIUS_M
+from builders import edge_xml as _edge
+from builders import node_xml as _node
+from builders import split_curve_map as _split_curve_map
 
 from csws.ahead.lookahead import LookAhead
 from csws.engine import Engine, VehicleInput
-from csws.geometry import arc, pose_at, sample_pieces, straight
 from csws.road.continuations import road_continuations
 from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps, warning_distance, warning_speed
-from csws.sumo.netbuild import netconvert, shape_text
+from csws.sumo.netbuild import netconvert
 from csws.warning.rules import WarningSettings
 
-#: The short curve of the report: R 71 m, 25.7 m long, after a 300 m straight.
-APPROACH_M = 300.0
-CURVE_RADIUS_M = 71.0
-CURVE_LENGTH_M = 25.7
-PIECES = (
-    straight(APPROACH_M),
-    arc(CURVE_RADIUS_M, math.degrees(CURVE_LENGTH_M / CURVE_RADIUS_M), "left"),
-    straight(200.0),
-)
-
-
-def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, priority: int = 1) -> str:
-    return (
-        f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="1" speed="30" priority="{priority}" '
-        f'spreadType="center" shape="{shape_text(xy)}"/>'
-    )
-
-
-def _node(node_id: str, xy) -> str:
-    return f'<node id="{node_id}" x="{xy[0]:.6f}" y="{xy[1]:.6f}"/>'
-
-
-def _split_road(node_s_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The constructed road cut at arc length ``node_s_m``: the shapes before and after, and the cut point."""
-    xy, _ = sample_pieces(PIECES, 1.0, (0.0, 0.0), 0.0)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    x, y, _ = pose_at(PIECES, np.array([node_s_m]))
-    cut = np.array([x[0], y[0]])
-    return np.vstack([xy[s < node_s_m], cut]), np.vstack([cut, xy[s > node_s_m]]), cut
-
-
-def _split_curve_map(folder: Path, node_after_start_m: float, side_road: bool = False) -> RoadMap:
-    """The road with a node ``node_after_start_m`` into its curve (netconvert's own junction there);
-    with ``side_road``, a road leaving that node to the outside of the curve."""
-    before, after, cut = _split_road(APPROACH_M + node_after_start_m)
-    nodes = [_node("A", before[0]), _node("J", cut), _node("B", after[-1])]
-    edges = [_edge("a", "A", "J", before, priority=3), _edge("b", "J", "B", after, priority=3)]
-    if side_road:
-        _, _, heading = pose_at(PIECES, np.array([APPROACH_M + node_after_start_m]))
-        outward = heading[0] - math.pi / 2  # the curve turns left: its outside is to the right
-        end = cut + 150.0 * np.array([math.cos(outward), math.sin(outward)])
-        nodes.append(_node("S", end))
-        edges.append(_edge("side", "J", "S", np.array([cut, end]), priority=1))
-    return RoadMap.load(
-        netconvert(
-            "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "split.net.xml"
-        )
-    )
+pytestmark = pytest.mark.sumo  # every test here builds its network with netconvert
 
 
 @pytest.mark.parametrize("node_after_start_m", [2.0, 9.5, 18.0, 24.0])

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from markers import marks_its_tests
 
 from csws.geometry import arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.road.export import CURVE_FIELDS, write_curves
@@ -46,6 +47,7 @@ def _node(node_id: str, xy: np.ndarray) -> str:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def arc_net(tmp_path_factory) -> Path:
     """A -> B -> C along MID_ARC_PIECES, with B in the middle of the arc.
 
@@ -69,6 +71,7 @@ def arc_map(arc_net: Path) -> RoadMap:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def cross_map(tmp_path_factory) -> RoadMap:
     """Four straight 100 m arms meeting at junction J, one lane each way."""
     ends = {"N": (0.0, 100.0), "E": (100.0, 0.0), "S": (0.0, -100.0), "W": (-100.0, 0.0)}

@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_service import Server
+from markers import marks_its_tests
+from servers import Server
 
 from csws.engine import Engine, VehicleInput
 from csws.geometry import sample_pieces, straight
@@ -83,6 +84,7 @@ def build_tiny_edge(folder: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("sumo")
 def nets(tmp_path_factory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("robust")
     return {"straight": build_straight(folder), "tiny_edge": build_tiny_edge(folder)}
@@ -99,6 +101,7 @@ def tiny_map(nets) -> RoadMap:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(nets, tmp_path_factory):
     running = Server([nets["straight"], nets["tiny_edge"]], tmp_path_factory.mktemp("state") / "vehicles.sqlite3")
     yield running
@@ -413,6 +416,7 @@ def _truncated(folder: Path) -> Path:
     return net
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", ["missing", "truncated"])
 @pytest.mark.parametrize("command", COMMANDS.values(), ids=COMMANDS.keys())
 def test_a_missing_or_corrupt_network_is_one_line_for_every_command(tmp_path: Path, command, damage: str) -> None:
@@ -430,6 +434,7 @@ def test_a_network_with_a_nan_shape_is_one_line_naming_the_file(tmp_path: Path) 
     assert result.stderr.startswith("csws: error: ") and net.name in result.stderr
 
 
+@pytest.mark.slow
 def test_a_corrupt_settings_database_is_one_line(tmp_path: Path) -> None:
     state_db = tmp_path / "vehicles.sqlite3"
     state_db.write_bytes(b"not a database " * 100)

@@ -1,7 +1,7 @@
 """The HTTP service, served by a real uvicorn on loopback, against the library and the tracks' truth.
 
 The served networks: the Table 7 track made geo-referenced (a UTM projection added to
-its location), and the side roads of tests/test_mapmatch.py placed 10 km east of it.
+its location), and the side roads of tests/builders.py placed 10 km east of it.
 Every answer is compared with what the library (MapMatcher + Engine) gives for the
 same input, and positions and distances with the track's generator-written truth.
 """
@@ -9,197 +9,34 @@ same input, and positions and distances with the track's generator-written truth
 from __future__ import annotations
 
 import json
-import os
-import signal
-import socket
 import subprocess
 import sys
-import time
 from itertools import pairwise
 from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
-from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
+from builders import FRONTAGE_OFFSET_M, LANE_WIDTH_M, SIDE_X_M, TRACK, write_geo_track
+from markers import marks_its_tests
+from servers import Server
 
 from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.standard import Category, Level, warning_speed
 
-TRACK = "t7_left"
 TRUTH = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
 ROUTE = TRUTH["route"]["edges"]
-SIDE_X_M = 10_000.0
-UTM32 = "+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
-STARTUP_TIMEOUT_S = 60.0
-
-
-def write_geo_track(folder: Path) -> Path:
-    """The track with a projection: network (0, 0) lies at UTM 32N (550000, 5635000), near Bad Hersfeld."""
-    text = (networks_dir() / f"{TRACK}.net.xml").read_text()
-    text = text.replace('netOffset="0.000,0.000"', 'netOffset="-550000.00,-5635000.00"')
-    text = text.replace('projParameter="!"', f'projParameter="{UTM32}"')
-    path = folder / "t7_geo.net.xml"
-    path.write_text(text)
-    return path
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-class Server:
-    """``python -m uvicorn --factory service.app:create_app`` on loopback, stopped by :meth:`stop`."""
-
-    def __init__(self, nets: list[Path], state_db: Path, **settings: str) -> None:
-        self.port = _free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        env = {
-            **os.environ,
-            "CSWS_NETS": os.pathsep.join(map(str, nets)),
-            "CSWS_STATE_DB": str(state_db),
-            **{f"CSWS_{name.upper()}": value for name, value in settings.items()},
-        }
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "uvicorn",
-                "--factory",
-                "service.app:create_app",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                str(self.port),
-                "--log-level",
-                "warning",
-            ],
-            env=env,
-            cwd=Path(__file__).resolve().parents[1],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-        )
-        self.client = httpx.Client(base_url=self.url, timeout=30.0)
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while time.monotonic() < deadline:
-            if self.process.poll() is not None:
-                raise RuntimeError(f"the service exited: {self.process.stdout.read().decode()}")
-            try:
-                if self.client.get("/readyz").status_code == 200:
-                    return
-            except httpx.TransportError:
-                time.sleep(0.1)
-        self.stop()
-        raise RuntimeError(f"the service was not ready within {STARTUP_TIMEOUT_S} s")
-
-    def stop(self) -> None:
-        self.client.close()
-        self.process.terminate()
-        try:
-            self.process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(timeout=10)
-
-
-class Workers:
-    """``csws serve --workers 2`` on a free loopback port, ready (at least one worker answers), in a
-    process group of its own so that the whole server can be killed at once (:meth:`crash`).
-
-    Parameters
-    ----------
-    nets
-        The networks to serve.
-    state_options
-        Where the state is kept: ``--state-db FILE`` or ``--state URL``.
-    workers
-        How many workers.
-    """
-
-    def __init__(self, nets: list[Path], *state_options: str, workers: int = 2) -> None:
-        self.url = f"http://127.0.0.1:{_free_port()}"
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "csws",
-                "serve",
-                *(f"--net={net}" for net in nets),
-                *state_options,
-                "--port",
-                self.url.rsplit(":", 1)[1],
-                "--workers",
-                str(workers),
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while time.monotonic() < deadline:
-            try:
-                if httpx.get(f"{self.url}/readyz", timeout=2.0).status_code == 200:
-                    return
-            except httpx.TransportError:
-                time.sleep(0.2)
-        self.crash()
-        raise RuntimeError(f"csws serve --workers {workers} was not ready within {STARTUP_TIMEOUT_S} s")
-
-    def clients(self) -> tuple[httpx.Client, httpx.Client]:
-        """Two keep-alive connections served by different workers.
-
-        A worker's ``/metrics`` counts only its own requests: a connection whose worker counts
-        another number of ``/healthz`` requests than the first connection's is served by the other.
-        """
-        first = httpx.Client(base_url=self.url, timeout=30.0)
-        for _ in range(10):
-            first.get("/healthz")
-        counted = _healthz_count(first)
-        for _ in range(100):
-            other = httpx.Client(base_url=self.url, timeout=30.0)
-            if _healthz_count(other) != counted:
-                return first, other
-            other.close()
-        raise RuntimeError("100 connections in a row were served by the same worker")
-
-    def stop(self) -> None:
-        """SIGTERM, as an operator stops it."""
-        self.process.terminate()
-        try:
-            self.process.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            self.crash()
-
-    def crash(self) -> None:
-        """SIGKILL to the master and its workers at once: nothing gets the chance to finish."""
-        os.killpg(self.process.pid, signal.SIGKILL)
-        self.process.wait(timeout=10)
-
-
-def _healthz_count(client: httpx.Client) -> int:
-    """How many ``/healthz`` requests the worker serving ``client``'s connection has answered."""
-    counter = 'csws_http_requests_total{method="GET",route="/healthz",status="200"} '
-    return next(
-        (
-            int(line.removeprefix(counter))
-            for line in client.get("/metrics").text.splitlines()
-            if line.startswith(counter)
-        ),
-        0,
-    )
 
 
 @pytest.fixture(scope="module")
-def nets(tmp_path_factory) -> list[Path]:
-    folder = tmp_path_factory.mktemp("served")
-    return [write_geo_track(folder), build_side_roads(folder, origin_x_m=SIDE_X_M)]
+def nets(tmp_path_factory, side_roads_net) -> list[Path]:
+    return [write_geo_track(tmp_path_factory.mktemp("served")), side_roads_net]
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(nets, tmp_path_factory):
     running = Server(nets, tmp_path_factory.mktemp("state") / "vehicles.sqlite3")
     yield running
@@ -452,6 +289,7 @@ def test_switching_a_vehicle_off_and_on(client) -> None:
     assert client.get("/v1/vehicles/never-seen").status_code == 404
 
 
+@pytest.mark.slow
 def test_switches_survive_a_restart(nets, tmp_path) -> None:
     state_db = tmp_path / "vehicles.sqlite3"
     first = Server(nets[1:], state_db)
@@ -579,6 +417,7 @@ def test_health_metrics_and_docs(client) -> None:
     assert client.get("/docs").status_code == 200
 
 
+@pytest.mark.slow
 def test_a_network_that_cannot_be_read_stops_start_up_in_one_line(tmp_path) -> None:
     broken = tmp_path / "broken.net.xml"
     broken.write_text("<net>")

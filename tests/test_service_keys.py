@@ -169,6 +169,7 @@ def test_keys_add_prints_a_working_key_once(tmp_path) -> None:
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "fleet must be" in bad.stderr
 
 
+@pytest.mark.slow
 def test_an_open_service_is_refused_beyond_loopback_in_one_line() -> None:
     refused = _csws("serve", "--host", "0.0.0.0", "--port", "1", "--net", str(TRACK_NET))
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import httpx
 import pytest
-from test_service import Server, Workers
+from markers import marks_its_tests
+from servers import Server, Workers
 
 from csws.networks import networks_dir
 
@@ -26,6 +27,7 @@ QUERY = {"vehicle_id": "truck", "category": "N", "speed_kmh": 80.0, "lane_id": "
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def server(tmp_path_factory):
     running = Server(
         [TRACK_NET],
@@ -166,6 +168,7 @@ def test_a_locked_state_database_is_a_503_to_retry_and_the_service_stays_up(tmp_
         assert client.put("/v1/vehicles/bus", json={"switched_on": False}).status_code == 200
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", ["1", "2"])
 @pytest.mark.parametrize("content", ["corrupt", "foreign", "bad category"])
 def test_a_bad_state_database_stops_start_up_in_one_line_naming_it(tmp_path, content, workers) -> None:
@@ -222,6 +225,7 @@ def _children(pid: int) -> list[int]:
     return found
 
 
+@pytest.mark.slow
 def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
     running = Workers([TRACK_NET], "--state-db", str(tmp_path / "vehicles.sqlite3"))
     master = running.process
@@ -241,6 +245,7 @@ def test_killing_the_master_leaves_no_worker_behind(tmp_path) -> None:
 
 
 # ------------------------------------------------------------------ keep-alive through several workers
+@pytest.mark.slow
 def test_keep_alive_requests_through_several_workers_wait_for_no_acknowledgement(tmp_path) -> None:
     # Without TCP_NODELAY on the workers' connections, each answer after the first waits for the
     # client's delayed acknowledgement: about 40 ms on Linux.

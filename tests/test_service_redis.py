@@ -16,9 +16,8 @@ import time
 import httpx
 import pytest
 from fastapi.testclient import TestClient
-from redis_server import RedisServer
-from test_service import Workers, _free_port
-from test_service_state import SwitchWriter
+from servers import SwitchWriter, Workers
+from servers import free_port as _free_port
 
 from csws.networks import networks_dir
 from service.app import create_app
@@ -43,14 +42,6 @@ def test_sessions_expire_by_their_ttl_and_settings_stay(redis_server, redis_url)
         assert (parked["switched_on"], parked["category"], parked["lane_id"]) == (False, "M3", None)
         # A new session starts afresh: the old timestamp no longer makes an older fix stale.
         assert client.post("/v1/warning", json={**FIX, "timestamp_s": 50.0}).json()["state"] == "active"
-
-
-@pytest.fixture
-def own_redis(tmp_path):
-    """A redis-server of the test's own, to be stopped, hung and killed."""
-    server = RedisServer(tmp_path)
-    yield server
-    server.stop()
 
 
 def _store_requests(client: TestClient) -> list[httpx.Response]:
@@ -82,6 +73,7 @@ def test_a_redis_down_or_hung_is_503_with_retry_after_and_one_log_line(own_redis
             assert [r.status_code for r in _store_requests(client)] == [200] * 5
 
 
+@pytest.mark.slow
 def test_a_redis_killed_during_puts_loses_no_acknowledged_one(own_redis) -> None:
     # Redis as docs/service.md asks: the append-only file, fsynced at every write.
     running = Workers([TRACK_NET], "--state", own_redis.url())
@@ -98,6 +90,7 @@ def test_a_redis_killed_during_puts_loses_no_acknowledged_one(own_redis) -> None
     assert len(writer.acknowledged) + len(writer.refused) == 1000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_an_unreachable_redis_stops_start_up_in_one_line_naming_it(workers) -> None:
     url = f"redis://:secret@127.0.0.1:{_free_port()}/0"

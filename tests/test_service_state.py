@@ -2,37 +2,30 @@
 on SQLite and on a real Redis.
 
 Through a real ``csws serve --workers 2`` on loopback, with two keep-alive connections proven
-to be served by different workers (:meth:`test_service.Workers.clients`), so that every test
+to be served by different workers (:meth:`servers.Workers.clients`), so that every test
 whose fixes alternate between them would fail if the workers kept sessions of their own.
 """
 
 from __future__ import annotations
 
 import threading
-import time
-from pathlib import Path
 
-import httpx
 import pytest
-from test_mapmatch import FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
-from test_service import SIDE_X_M, Workers
+from builders import FRONTAGE_OFFSET_M, LANE_WIDTH_M, SIDE_X_M
+from markers import marks_its_tests
+from servers import SwitchWriter, Workers
 
 from csws.networks import networks_dir
 from csws.standard import Category
 from csws.state import SystemState
 from service.app import create_app
 from service.settings import ServiceSettings
-from service.store import StoreUnavailable, VehicleSetting, open_store
+from service.store import StoreUnavailable, VehicleSetting
 from service.vehicles import TRANSACTION_ATTEMPTS
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 #: On the Table 7 track, 15 m before curve 1 (R 120 m): level 2 of category N from 78.0 km/h.
 AT_CURVE = {"category": "N", "lane_id": "curve_0", "lane_pos_m": 85.0}
-
-
-@pytest.fixture(scope="module")
-def side_roads_net(tmp_path_factory) -> Path:
-    return build_side_roads(tmp_path_factory.mktemp("side-roads"), origin_x_m=SIDE_X_M)
 
 
 def state_options(state: dict[str, str]) -> list[str]:
@@ -41,6 +34,7 @@ def state_options(state: dict[str, str]) -> list[str]:
 
 
 @pytest.fixture
+@marks_its_tests("slow")
 def workers(state, side_roads_net):
     running = Workers([TRACK_NET, side_roads_net], *state_options(state))
     yield running
@@ -116,44 +110,7 @@ def test_concurrent_fixes_of_one_vehicle_through_both_workers_are_each_accepted_
     assert clients[0].get("/v1/vehicles/shared").json()["last_timestamp_s"] == 1000.0 + 0.2 * 49 + 0.1
 
 
-class SwitchWriter:
-    """PUTs switching vehicles v0 to v999 (even ones on, odd ones off) one after the other, on a
-    thread of its own, until done or the server is gone; what was acknowledged and what refused."""
-
-    def __init__(self, url: str) -> None:
-        self.acknowledged: list[str] = []
-        self.refused: list[httpx.Response] = []
-        self.thread = threading.Thread(target=self._put_all, args=(url,))
-        self.thread.start()
-
-    def _put_all(self, url: str) -> None:
-        with httpx.Client(base_url=url, timeout=10.0) as client:
-            for number in range(1000):
-                try:
-                    answer = client.put(f"/v1/vehicles/v{number}", json={"switched_on": number % 2 == 0})
-                except httpx.TransportError:
-                    return
-                if answer.status_code == 200:
-                    self.acknowledged.append(f"v{number}")
-                else:
-                    self.refused.append(answer)
-
-    def wait_for(self, condition, timeout_s: float = 60.0) -> None:
-        """Wait until ``condition(self)`` holds."""
-        deadline = time.monotonic() + timeout_s
-        while not condition(self):
-            assert time.monotonic() < deadline, "the writer did not get there"
-            time.sleep(0.01)
-
-    def assert_stored(self, state: dict[str, str]) -> None:
-        """Every acknowledged switch is in the store, as it was set."""
-        self.thread.join(timeout=120)
-        store = open_store(ServiceSettings(nets=[TRACK_NET], **state))
-        stored = store.read(self.acknowledged)
-        store.close()
-        assert all(stored[v].setting == VehicleSetting(int(v[1:]) % 2 == 0) for v in self.acknowledged)
-
-
+@pytest.mark.slow
 def test_a_server_killed_during_puts_loses_no_acknowledged_one(state) -> None:
     running = Workers([TRACK_NET], *state_options(state))
     writer = SwitchWriter(running.url)

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from markers import marks_its_tests
 
 from csws.cli import main as csws_main
 from csws.sweep.execute import run_sweep
@@ -45,12 +46,14 @@ def study_file(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow", "sumo")
 def serial_rows(study_file) -> dict[str, dict]:
     """Every run of the study, one after another in this process: the truth the cluster is held to."""
     return {spec.key: run_task(spec) for spec in read_study(study_file).runs()}
 
 
 @pytest.fixture(scope="module")
+@marks_its_tests("slow")
 def cluster():
     from dask.distributed import LocalCluster
 

@@ -30,7 +30,6 @@ __all__ = [
     "is_cpoi",
     "radius_at_end",
     "radius_under",
-    "curve_id_of",
 ]
 
 
@@ -356,8 +355,3 @@ def is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
     """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``, or one it passed by at
     most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
     return (part_end_s + END_MARGIN_M > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)
-
-
-def curve_id_of(lane_id: str, lane_pos_m: float) -> str:
-    """The id of a curve: the lane and the lane position (to the metre) where it starts (3.4)."""
-    return f"{lane_id}@{lane_pos_m:.0f}"

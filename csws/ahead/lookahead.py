@@ -44,12 +44,12 @@ from csws.ahead.horizon import (
     Horizon,
     PartPool,
     PathAhead,
-    curve_id_of,
     is_cpoi,
     radius_at_end,
     radius_under,
 )
 from csws.geometry import wrap_angle_rad
+from csws.road.chains import curve_id_of
 from csws.road.roadmap import Lane, RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
 from csws.warning.rules import PathKind, WarningSettings, column_index

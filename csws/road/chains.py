@@ -25,6 +25,7 @@ from csws.standard import WarningSpeedPolicy
 
 __all__ = [
     "JOINT_TOLERANCE_M",
+    "curve_id_of",
     "LaneCurve",
     "RoadChains",
     "clip_curve",
@@ -48,6 +49,11 @@ JOINT_TOLERANCE_M = 0.1
 STRAIGHT_WINDOW_M = 40.0
 #: See :data:`STRAIGHT_WINDOW_M`, m.
 STRAIGHT_DEVIATION_M = 0.15
+
+
+def curve_id_of(lane_id: str, lane_pos_m: float) -> str:
+    """The id of a curve: the lane and the lane position (to the metre) where it starts (3.4)."""
+    return f"{lane_id}@{lane_pos_m:.0f}"
 
 
 @dataclass(frozen=True)

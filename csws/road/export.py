@@ -26,8 +26,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
-from csws.ahead.horizon import curve_id_of
-from csws.road.chains import LaneCurve
+from csws.road.chains import LaneCurve, curve_id_of
 from csws.standard import DEFAULT_POLICY, Category, Level, WarningSpeedPolicy, warning_speed
 
 if TYPE_CHECKING:
