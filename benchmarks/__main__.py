@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from benchmarks import cosim, curvature, fcw, load, osm, roadmap, roads, service, sweep, warning
+from benchmarks import cosim, curvature, fcw, fcw_traffic, load, osm, roadmap, roads, service, sweep, warning
 from benchmarks import map as live_map
 from benchmarks.rows import Row, at_least, at_most, context, table
 
@@ -150,6 +150,27 @@ def fcw_rows(figures: dict) -> list[Row]:
             "FCW objects: fleet of 1,000 x 10 objects, map path, us per vehicle and frame",
             round(figures["batch_map_per_vehicle_us"], 2),
         ),
+    ]
+
+
+def fcw_traffic_rows(figures: dict) -> list[Row]:
+    size = f"{figures['vehicle_hours']:.1f} equipped vehicle-h, Bad Hersfeld and the fleet road"
+    situations = "; ".join(
+        f"{name}: " + ", ".join(f"{count} {what}" for what, count in list(s["false_situations"].items())[:3])
+        for name, s in figures["scenarios"].items()
+    )
+    return [
+        at_most(
+            f"FCW in traffic: false warnings per vehicle-hour ({size})",
+            round(figures["false_per_vehicle_hour"], 3),
+            fcw_traffic.TARGET_FALSE_PER_HOUR,
+        ),
+        at_most(
+            "FCW in traffic: conflicts (TTC < 1 s or collision, system active) without a warning in time",
+            figures["missed"],
+            fcw_traffic.TARGET_MISSED,
+        ),
+        context("FCW in traffic: where the false warnings came (most frequent)", situations),
     ]
 
 
@@ -405,6 +426,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
             f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles six times, {cosim.CITY_VEHICLES:,} three times",
             cosim_rows,
         ),
+        Benchmark("fcw traffic", fcw_traffic.run, "about 1-2 minutes: two scenarios, every vehicle", fcw_traffic_rows),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
         Benchmark(
             "map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", live_map.map_rows

@@ -15,6 +15,7 @@ from csws.fcw.physics import (
     FcwSettings,
     enhanced_time_to_collision_s,
     evaluate_fcw,
+    formula_5_clearance_m,
     required_deceleration_mps2,
     time_to_collision_s,
 )
@@ -42,11 +43,65 @@ def test_ettc_is_the_smaller_root_of_formula_3_and_ttc_without_relative_accelera
 
 def test_required_deceleration_meets_the_warning_distance_of_formula_5():
     """Formula (5): with T_resp 0.8 s and a_req 6.67 m/s^2, the shortest warning distance for a
-    closing speed v_r and a lead decelerating at d_TV is v_r^2 / (2 (6.67 - d_TV)) + 0.8 v_r;
-    formula (4) gives exactly 6.67 m/s^2 there."""
-    for closing_mps, lead_decel_mps2 in ((20.0, 0.0), (12.0, 0.0), (8.0, 2.0)):
-        distance_m = closing_mps**2 / (2.0 * (6.67 - lead_decel_mps2)) + 0.8 * closing_mps
-        assert required_deceleration_mps2(distance_m, -closing_mps, -lead_decel_mps2, 0.8) == pytest.approx(6.67)
+    closing speed v_r on a steady lead is v_r^2 / (2 * 6.67) + 0.8 v_r; formula (4) gives exactly
+    6.67 m/s^2 there. On a lead that brakes, formula (4) read at the end of the reaction asks for
+    more there: the lead's braking during the reaction adds closing speed that (5) leaves out."""
+    for closing_mps in (20.0, 12.0):
+        distance_m = closing_mps**2 / (2.0 * 6.67) + 0.8 * closing_mps
+        assert formula_5_clearance_m(closing_mps) == pytest.approx(distance_m)
+        assert required_deceleration_mps2(distance_m, -closing_mps, 0.0, 0.8) == pytest.approx(6.67)
+    braking_m = 8.0**2 / (2.0 * (6.67 - 2.0)) + 0.8 * 8.0
+    assert formula_5_clearance_m(8.0, -2.0) == pytest.approx(braking_m)
+    assert required_deceleration_mps2(braking_m, -8.0, -2.0, 0.8) > 6.67
+
+
+def _closest_clearance_m(
+    clearance_m: float,
+    subject_mps: float,
+    lead_mps: float,
+    lead_accel_mps2: float,
+    reaction_s: float,
+    brake_mps2: float,
+) -> float:
+    """The least clearance, stepped finely: the subject holds its speed for ``reaction_s``, then brakes at
+    ``brake_mps2``; the lead brakes at ``-lead_accel_mps2`` until it stops (independent of formula (4))."""
+    step_s, time_s, least_m = 1e-4, 0.0, clearance_m
+    while subject_mps > 0.0:
+        subject_accel = 0.0 if time_s < reaction_s else -brake_mps2
+        lead_accel = lead_accel_mps2 if lead_mps > 0.0 else 0.0
+        clearance_m += (lead_mps - subject_mps) * step_s + (lead_accel - subject_accel) * step_s**2 / 2.0
+        subject_mps = max(subject_mps + subject_accel * step_s, 0.0)
+        lead_mps = max(lead_mps + lead_accel * step_s, 0.0)
+        least_m, time_s = min(least_m, clearance_m), time_s + step_s
+    return least_m
+
+
+@pytest.mark.parametrize(
+    ("subject_mps", "lead_mps", "lead_accel_mps2"), [(13.9, 13.9, -2.0), (20.0, 15.0, -1.5), (25.0, 25.0, -2.5)]
+)
+def test_a_driver_reacting_to_a_braking_lead_just_avoids_it_at_the_threshold(subject_mps, lead_mps, lead_accel_mps2):
+    """3.22, formula (4) at the end of the reaction: warned where a_req reaches the threshold, a driver who
+    reacts 1.2 s later and then brakes at exactly the threshold comes to rest just behind a braking lead
+    (closest clearance 0, within the integration step); formula (4) with x_r = -v_r T alone would let him hit it."""
+    settings = FcwSettings()
+    threshold, reaction_s = settings.collision_a_req_mps2, settings.reaction_time_s
+    v_r = lead_mps - subject_mps
+    low, high = 0.1, 500.0  # the clearance where a_req falls to the threshold, by bisection
+    for _ in range(200):
+        middle = (low + high) / 2.0
+        low, high = (
+            (middle, high)
+            if required_deceleration_mps2(middle, v_r, lead_accel_mps2, reaction_s) > threshold
+            else (low, middle)
+        )
+    warned_at_m = high
+    # The lead must still be moving when the relative speed reaches 0 for formula (4)'s held d_TV to hold.
+    closing_after = subject_mps - lead_mps - lead_accel_mps2 * reaction_s
+    assert lead_mps + lead_accel_mps2 * (reaction_s + closing_after / (threshold + lead_accel_mps2)) > 0.0
+    least_m = _closest_clearance_m(warned_at_m, subject_mps, lead_mps, lead_accel_mps2, reaction_s, threshold)
+    assert least_m == pytest.approx(0.0, abs=0.01)
+    steady_reading = -lead_accel_mps2 + v_r**2 / (2.0 * (warned_at_m + v_r * reaction_s))
+    assert steady_reading < threshold
 
 
 def test_settings_keep_to_the_standards_limits():

@@ -266,11 +266,17 @@ def test_the_state_follows_figure_2_with_its_delta():
 # --- the suppression rule and the level hold -----------------------------------------------------
 
 
-def _required_by_thresholds(settings: FcwSettings, x_m: float, v_r: float, a_tv: float, braking: bool) -> int:
-    """The level formula (4) requires, computed here: a_req = d_TV + v_r^2 / (2 (x_c - x_r))."""
+def _required_by_thresholds(
+    settings: FcwSettings, x_m: float, v_r: float, a_tv: float, a_sv: float, braking: bool
+) -> int:
+    """The level formula (4) requires, computed here at the end of the reaction T with both accelerations
+    held through it (3.22): a_req = d_TV + v_r'^2 / (2 x_c'), x_c' and v_r' the clearance and the closing
+    speed then (T cut where the vehicles stop closing first)."""
     lost = 0.0 if braking else settings.reaction_time_s + settings.brake_response_s
-    closing = min(v_r, 0.0)
-    left = x_m + closing * lost
+    a_rel = a_tv - a_sv
+    reaction = -v_r / a_rel if v_r < 0.0 < a_rel and -v_r < a_rel * lost else lost
+    left = x_m + v_r * reaction + a_rel * reaction**2 / 2.0
+    closing = min(v_r + a_rel * reaction, 0.0)
     a_req = math.inf if left <= 0.0 else -a_tv + closing**2 / (2.0 * left)
     return 2 if a_req >= settings.collision_a_req_mps2 else 1 if a_req >= settings.preliminary_a_req_mps2 else 0
 
@@ -294,7 +300,7 @@ def test_no_frame_shows_a_lower_level_than_its_thresholds_require(frames, step_s
         frame = fcw.update(k * step_s, EgoMotion(20.0, a_sv, braking=braking), sensed)
         # Objects faster than the ego that entered the path are cut-ins (4.5.5 c), never warned.
         needed = max(
-            (_required_by_thresholds(settings_, x, v, a, braking) for x, v, a in objects if v <= 0.0), default=0
+            (_required_by_thresholds(settings_, x, v, a, a_sv, braking) for x, v, a in objects if v <= 0.0), default=0
         )
         assert frame.level >= needed >= 0
         assert frame.level >= frame.required_level

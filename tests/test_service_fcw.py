@@ -63,7 +63,9 @@ def test_a_forward_target_gets_the_fcw_of_the_seeds_formulas(client):
     fcw = answer["fcw"]
     assert fcw["ttc_s"] == pytest.approx(40.0 / 15.0)  # formula (2)
     assert fcw["ettc_s"] == pytest.approx((15.0 - math.sqrt(15.0**2 + 2.0 * 1.0 * 40.0)) / -1.0)  # formula (3)
-    assert fcw["a_req_mps2"] == pytest.approx(1.0 + 15.0**2 / (2.0 * (40.0 - 15.0 * 1.2)))  # formula (4), T_resp 1.2 s
+    # formula (4) at the end of T_resp 1.2 s, the lead braking at 1 m/s^2 through it: closing 15 + 1.2 m/s,
+    # clearance 40 - 15 * 1.2 - 1.2**2 / 2 m
+    assert fcw["a_req_mps2"] == pytest.approx(1.0 + (15.0 + 1.2) ** 2 / (2.0 * (40.0 - 15.0 * 1.2 - 1.2**2 / 2.0)))
     library = evaluate_fcw([0.0], [40.0], [-15.0], [-1.0], [False])
     assert (fcw["state"], fcw["level"]) == ("active", int(library.level[0])) == ("active", 2)
     assert "level" in answer and answer["vehicle_id"] == "truck-1"

@@ -1,43 +1,44 @@
-"""The forward collision warning in SUMO: each vehicle's target from SUMO's own leaders, and the warning.
+"""The forward collision warning in SUMO: each equipped vehicle's sensor view of the vehicles around it.
 
-A vehicle's candidates are what a forward sensor sees (GB/T 33577-2017 4.7.3), read from
-SUMO in the vehicle's path coordinates:
+Each step :class:`FleetFcw` reads every SUMO vehicle once (:func:`read_vehicles`: the front's
+position, the angle, speed, acceleration, road and lane, signals), turns the vehicles around each
+equipped vehicle into that vehicle's object list (:func:`sensor_view`, in the frame of
+:mod:`csws.fcw.objects`: x ahead from the front bumper to the object's rear, y left to the
+object's centre, the longitudinal relative speed, the object's own acceleration, its width, and
+the lane SUMO assigns where both drive on the same road), and calls the object FCW's fleet form
+(:func:`csws.fcw.fleet.update_fleet`) once per category (4.3.3: V_max by category,
+:meth:`csws.fcw.physics.FcwSettings.for_category`). The pairs within the sensor's range are found
+on a grid of cells a range wide, sorted once per step: each equipped vehicle looks only at the
+3 x 3 cells around it, not at every vehicle.
 
-* the vehicles ahead in its own lanes, from ``vehicle.getLeader(id, range)`` and the leader's
-  leader (4.7.3.1: the nearer one does not hide the farther). ``getLeader`` reports the gap
-  from the front *plus minGap* to the leader's rear, and by default searches only as far as
-  the vehicle could brake: the look-ahead is passed, and the vehicle's ``minGap`` added back
-  to make the clearance x_c. It follows the lanes the vehicle will take, so on a curve the
-  gap is measured along the curve;
-* the nearest leader in each adjacent lane (``getLeftLeaders``, ``getRightLeaders``), with its
-  lateral offset from the path's centre line: half of each lane's width plus the two
-  vehicles' lateral offsets in their lanes.
-
-:func:`csws.fcw.target.select_targets` keeps the in-path one reached first; the radius of the
-path up to a candidate is its length over the change of heading between the two vehicles
-(SUMO's angle of a vehicle is its body's, rear to front: the road's heading at its middle).
+The subject's yaw rate is its angle's change over the step (SUMO's angle is its body's heading,
+clockwise from north); the brake light is the driver braking (4.5.4), the blinkers the turn signal.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
-from csws.fcw.target import TargetSettings, select_targets
+from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetFrame, FleetMemory, FleetObjects, update_fleet
+from csws.fcw.path import yaw_path_curvature_1pm
+from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
 
 from .driver import DriverResponse
 from .records import StepValues, Summary
 from .sumo import FleetState
 
 __all__ = [
-    "ForwardTargets",
-    "VehicleSizes",
-    "forward_targets",
+    "BRAKE_LIGHT",
+    "SumoVehicles",
+    "read_vehicles",
+    "SensorPairs",
+    "sensor_view",
+    "Measure",
     "FcwColumns",
     "FleetFcw",
     "FCW_TIMESERIES_FIELDS",
@@ -45,147 +46,192 @@ __all__ = [
     "fcw_events",
 ]
 
-#: SUMO's brake-light bit of ``vehicle.getSignals`` (the driver brakes, 4.5.4).
-BRAKE_LIGHT = 8
-#: Leaders followed down each subject's own lanes (the leader and the leader's leader).
-CHAIN = 2
+#: SUMO's signal bits of ``vehicle.getSignals``: right and left blinker, brake light (the driver brakes, 4.5.4).
+BLINKER_RIGHT, BLINKER_LEFT, BRAKE_LIGHT = 1, 2, 8
+#: Beyond the range the sensor reaches to an object's rear, its front may be this much farther, m (the grid's margin).
+LONGEST_VEHICLE_M = 30.0
+#: An object whose own speed along the line of sight is below minus this comes toward the subject (3.7: no target), m/s.
+ONCOMING_MPS = 1.0
+#: A key's lower 32 bits hold the object id (:func:`csws.fcw.fleet.update_fleet` keys objects by vehicle and id).
+_ID_BITS = 32
+MAX_ID_MASK = (1 << _ID_BITS) - 1
 
 
 @dataclass(frozen=True)
-class ForwardTargets:
-    """Each subject's target, as arrays ``(n,)`` in the subjects' order.
+class SumoVehicles:
+    """Every SUMO vehicle of one step, read once, as parallel columns.
 
     Attributes
     ----------
-    target_id
-        The target vehicle, or None.
-    clearance_m
-        x_c along the path, m (``nan`` without a target).
-    relative_velocity_mps
-        v_r = v_TV - v_SV, m/s (``nan`` without a target).
-    target_accel_mps2
-        a_TV, m/s^2 (``nan`` without a target).
+    vehicle_id
+        SUMO's ids.
+    number
+        Each vehicle's number, kept while it drives (its object id in every sensor's list).
+    front_x_m, front_y_m
+        The front bumper's centre, m (SUMO's position).
+    heading_rad
+        SUMO's angle in radians: the body's heading, clockwise from north (+y).
+    speed_mps, accel_mps2
+        Speed and longitudinal acceleration.
+    length_m, width_m
+        Size.
+    road, lane_index
+        The road's code (equal codes: the same SUMO edge) and the lane's index on it (0 rightmost).
+    signals
+        SUMO's signal bits.
     """
 
-    target_id: list[str | None]
-    clearance_m: np.ndarray
-    relative_velocity_mps: np.ndarray
-    target_accel_mps2: np.ndarray
+    vehicle_id: list[str]
+    number: np.ndarray
+    front_x_m: np.ndarray
+    front_y_m: np.ndarray
+    heading_rad: np.ndarray
+    speed_mps: np.ndarray
+    accel_mps2: np.ndarray
+    length_m: np.ndarray
+    width_m: np.ndarray
+    road: np.ndarray
+    lane_index: np.ndarray
+    signals: np.ndarray
 
 
-class VehicleSizes(dict[str, tuple[float, float]]):
-    """Each vehicle's length and ``minGap`` (m), read from SUMO once per vehicle: they do not
-    change while it drives (a fleet's evaluation keeps one across steps and forgets arrived vehicles)."""
+class _Numbers(dict[str, int]):
+    """A number per SUMO vehicle id, given in order of first sight and never reused."""
 
-    def __init__(self, vehicle: Any) -> None:
-        super().__init__()
-        self.vehicle = vehicle
-
-    def __missing__(self, vehicle_id: str) -> tuple[float, float]:
-        sizes = self[vehicle_id] = (self.vehicle.getLength(vehicle_id), self.vehicle.getMinGap(vehicle_id))
-        return sizes
+    def __missing__(self, vehicle_id: str) -> int:
+        number = self[vehicle_id] = self.issued = getattr(self, "issued", -1) + 1
+        return number
 
 
-def _heading_radius_m(distance_m: np.ndarray, subject_deg: np.ndarray, candidate_deg: np.ndarray) -> np.ndarray:
-    """The mean radius of paths of ``distance_m`` along which the heading turns between the two angles."""
-    turn_rad = np.abs(np.radians((candidate_deg - subject_deg + 180.0) % 360.0 - 180.0))
-    with np.errstate(divide="ignore"):
-        return np.where(turn_rad > 1e-9, distance_m / turn_rad, np.inf)
-
-
-def _candidates(
-    sumo: Any, subject: str, range_m: float, sizes: VehicleSizes, sublanes: bool = True
-) -> list[tuple[str, float, float]]:
-    """(id, clearance along the path m, lateral offset m) of what the subject's sensor sees ahead.
-
-    Without SUMO's sublane model (``sublanes`` False) every vehicle drives on its lane's centre
-    line: a leader in the subject's lanes is 0 m off its path, and the nearest vehicle in an
-    adjacent lane is half of each lane's width off it, beyond half a lane width (the path,
-    :func:`csws.fcw.target.select_targets`) wherever the two lanes are 3.5 m wide together:
-    neither offset is read from SUMO, and the adjacent lanes are not searched.
-    """
+def read_vehicles(sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[float, float]]) -> SumoVehicles:
+    """Every SUMO vehicle's values of this step, one getter call per vehicle and value (lengths and
+    widths read once per vehicle into ``sizes``; ``numbers`` gives each id its number)."""
     vehicle = sumo.vehicle
-    seen = []
-    follower, ahead_m = subject, 0.0
-    for _ in range(CHAIN):
-        if ahead_m >= range_m:
-            break
-        leader = vehicle.getLeader(follower, range_m - ahead_m)
-        if not leader or not leader[0]:
-            break
-        leader_id, gap_m = leader
-        length_m, min_gap_m = sizes[follower]
-        ahead_m += gap_m + min_gap_m + (length_m if follower != subject else 0.0)
-        offset_m = (
-            vehicle.getLateralLanePosition(leader_id) - vehicle.getLateralLanePosition(subject) if sublanes else 0.0
-        )
-        seen.append((leader_id, ahead_m, offset_m))
-        follower = leader_id
-    if not sublanes:
-        return seen
-    own_half_m = sumo.lane.getWidth(vehicle.getLaneID(subject)) / 2.0
-    for side, neighbours in ((1.0, vehicle.getLeftLeaders(subject)), (-1.0, vehicle.getRightLeaders(subject))):
-        for neighbour_id, gap_m in neighbours[:1]:
-            beside_m = own_half_m + sumo.lane.getWidth(vehicle.getLaneID(neighbour_id)) / 2.0
-            offset_m = (
-                side * beside_m + vehicle.getLateralLanePosition(neighbour_id) - vehicle.getLateralLanePosition(subject)
-            )
-            seen.append((neighbour_id, gap_m + sizes[subject][1], offset_m))
-    return seen
-
-
-def forward_targets(
-    sumo: Any,
-    subjects: Sequence[str],
-    settings: TargetSettings = TargetSettings(),
-    noise: Any = None,
-    sublanes: bool = True,
-    sizes: VehicleSizes | None = None,
-) -> ForwardTargets:
-    """The target of each of ``subjects`` (libsumo or traci as ``sumo``), its clearance, relative
-    velocity and acceleration.
-
-    ``noise``, if given, is called as ``noise(clearance_m, lateral_offset_m)`` on the candidates'
-    arrays and returns them as the sensor measures them (the conformance suite's test equipment).
-    ``sublanes`` False reads fewer values for a simulation without SUMO's sublane model
-    (:func:`_candidates`); ``sizes`` keeps the vehicles' lengths between calls.
-    """
-    vehicle = sumo.vehicle
-    sizes = VehicleSizes(vehicle) if sizes is None else sizes
-    owner, seen = [], []
-    for index, subject in enumerate(subjects):
-        found = _candidates(sumo, subject, settings.range_m, sizes, sublanes)
-        owner += [index] * len(found)
-        seen += found
-    ids, distance, offset = zip(*seen, strict=False) if seen else ((), (), ())
-    owners = np.array(owner, dtype=np.intp)
-    distance_m, offset_m = np.array(distance, dtype=float), np.array(offset, dtype=float)
-    radius_m = np.empty(0)
-    if ids:
-        subject_deg = np.array([vehicle.getAngle(subject) for subject in subjects])[owners]
-        half_lengths_m = (
-            np.array(
-                [sizes[subjects[index]][0] + sizes[candidate][0] for index, candidate in zip(owner, ids, strict=False)]
-            )
-            / 2.0
-        )
-        candidate_deg = np.array([vehicle.getAngle(candidate) for candidate in ids])
-        radius_m = _heading_radius_m(half_lengths_m + distance_m, subject_deg, candidate_deg)
-    if noise is not None and ids:
-        distance_m, offset_m = noise(distance_m, offset_m)
-    chosen = select_targets(owners, distance_m, offset_m, radius_m, len(subjects), settings)
-    count = len(subjects)
-    target_id: list[str | None] = [ids[pick] if pick >= 0 else None for pick in chosen.tolist()]
-    clearance, relative, accel = (np.full(count, np.nan) for _ in range(3))
-    rows = np.flatnonzero(chosen >= 0)
-    targets = [target_id[row] for row in rows.tolist()]
-    clearance[rows] = distance_m[chosen[rows]]
-    relative[rows] = np.array([vehicle.getSpeed(target) for target in targets], dtype=float) - np.array(
-        [vehicle.getSpeed(subjects[row]) for row in rows.tolist()], dtype=float
+    ids = list(vehicle.getIDList())
+    for vehicle_id in ids:
+        if vehicle_id not in sizes:
+            sizes[vehicle_id] = (vehicle.getLength(vehicle_id), vehicle.getWidth(vehicle_id))
+    position = np.array([vehicle.getPosition(v) for v in ids], dtype=float).reshape(len(ids), 2)
+    roads: dict[str, int] = {}
+    size = np.array([sizes[v] for v in ids], dtype=float).reshape(len(ids), 2)
+    return SumoVehicles(
+        ids,
+        np.array([numbers[v] for v in ids], dtype=np.int64),
+        position[:, 0],
+        position[:, 1],
+        np.radians(np.array([vehicle.getAngle(v) for v in ids], dtype=float)),
+        np.array([vehicle.getSpeed(v) for v in ids], dtype=float),
+        np.array([vehicle.getAcceleration(v) for v in ids], dtype=float),
+        size[:, 0],
+        size[:, 1],
+        np.array([roads.setdefault(vehicle.getRoadID(v), len(roads)) for v in ids], dtype=np.int64),
+        np.array([vehicle.getLaneIndex(v) for v in ids], dtype=np.int64),
+        np.array([vehicle.getSignals(v) for v in ids], dtype=np.int64),
     )
-    accel[rows] = np.array([vehicle.getAcceleration(target) for target in targets], dtype=float)
-    return ForwardTargets(target_id, clearance, relative, accel)
 
+
+@dataclass(frozen=True)
+class SensorPairs:
+    """Which vehicle sees which, with the object's columns in the seeing vehicle's frame (:mod:`csws.fcw.objects`).
+
+    ``subject`` indexes the subjects given to :func:`sensor_view`, ``seen`` the vehicles of :class:`SumoVehicles`.
+    """
+
+    subject: np.ndarray
+    seen: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    relative_speed_mps: np.ndarray
+    accel_mps2: np.ndarray
+    lane: np.ndarray
+
+
+def _nearby(cell_x: np.ndarray, cell_y: np.ndarray, subjects: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(subject, vehicle) index pairs of every vehicle in the 3 x 3 cells around each subject's cell.
+
+    The vehicles are sorted by the key cell_x * rows + cell_y, so that one column's three cells
+    around a subject are one run of the sorted keys: three binary searches per subject.
+    """
+    rows = int(cell_y.max()) + 3 if cell_y.size else 1
+    keys = cell_x * rows + cell_y
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    pairs_subject, pairs_seen = [], []
+    for column in (-1, 0, 1):
+        centre = (cell_x[subjects] + column) * rows + cell_y[subjects]
+        low, high = np.searchsorted(ordered, centre - 1, "left"), np.searchsorted(ordered, centre + 1, "right")
+        counts = high - low
+        owner = np.repeat(np.arange(subjects.size), counts)
+        step = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        pairs_subject.append(owner)
+        pairs_seen.append(order[np.repeat(low, counts) + step])
+    return np.concatenate(pairs_subject), np.concatenate(pairs_seen)
+
+
+def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(subject, vehicle) pairs of the vehicles in the grid cells around each subject, itself left out."""
+    cell_m = range_m + LONGEST_VEHICLE_M
+    x0 = vehicles.front_x_m.min() if subjects.size else 0.0
+    y0 = vehicles.front_y_m.min() if subjects.size else 0.0
+    cell_x = ((vehicles.front_x_m - x0) // cell_m).astype(np.int64) + 1
+    cell_y = ((vehicles.front_y_m - y0) // cell_m).astype(np.int64) + 1
+    owner, seen = _nearby(cell_x, cell_y, subjects)
+    other = seen != subjects[owner]
+    return owner[other], seen[other]
+
+
+def sensor_view(
+    vehicles: SumoVehicles, subjects: np.ndarray, range_m: float, path_turn_rad: np.ndarray | None = None
+) -> SensorPairs:
+    """The objects each subject (indices into ``vehicles``) sees ahead within ``range_m``, in its frame.
+
+    The frame's x axis is the subject's heading turned left by ``path_turn_rad`` (per subject; none:
+    the body's heading), x the distance ahead from its front to the object's rear (the object's front
+    less its length along its own heading), y the object's centre to the left; the relative speed is
+    the range rate, the two velocities' difference along the line of sight to the object's rear (on
+    a straight the object's speed less the subject's; about 0 between two vehicles at one speed on
+    one circle), the acceleration the object's own along that line. An object is seen while its rear
+    is ahead of the front (x >= 0) and at most ``range_m`` from it, and not while it comes toward the
+    subject, its own speed along the line of sight below -:data:`ONCOMING_MPS` (3.7: the target is a
+    vehicle ahead, 前车; a lead on a curve, however far round, moves away along that line). The lane is the
+    difference of the lane indices (+1 left) where both are on the same road, else unknown (the
+    predicted path decides). Pairs come from a grid of cells ``range_m`` plus
+    :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
+    """
+    owner, seen = _pairs_within(vehicles, subjects, range_m)
+    me = subjects[owner]
+    heading = vehicles.heading_rad[me] - (0.0 if path_turn_rad is None else path_turn_rad[owner])
+    ahead_x, ahead_y = np.sin(heading), np.cos(heading)
+    own_x, own_y = np.sin(vehicles.heading_rad[seen]), np.cos(vehicles.heading_rad[seen])
+    back = vehicles.length_m[seen]
+    sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
+    sight_y = vehicles.front_y_m[seen] - back * own_y - vehicles.front_y_m[me]
+    sight_m = np.hypot(sight_x, sight_y)
+    apart = sight_m > 0.0
+    unit_x = np.where(apart, sight_x / np.where(apart, sight_m, 1.0), ahead_x)
+    unit_y = np.where(apart, sight_y / np.where(apart, sight_m, 1.0), ahead_y)
+    own_along = own_x * unit_x + own_y * unit_y
+    x_m = sight_x * ahead_x + sight_y * ahead_y
+    oncoming = vehicles.speed_mps[seen] * own_along < -ONCOMING_MPS
+    keep = np.flatnonzero((x_m >= 0.0) & (sight_m <= range_m) & ~oncoming)
+    owner, me, seen, x_m, back, own_along = owner[keep], me[keep], seen[keep], x_m[keep], back[keep], own_along[keep]
+    ahead_x, ahead_y, own_x, own_y = ahead_x[keep], ahead_y[keep], own_x[keep], own_y[keep]
+    sight_x, sight_y, unit_x, unit_y = sight_x[keep], sight_y[keep], unit_x[keep], unit_y[keep]
+    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
+    same_road = vehicles.road[seen] == vehicles.road[me]
+    return SensorPairs(
+        owner,
+        seen,
+        x_m,
+        y_m,
+        vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y),
+        vehicles.accel_mps2[seen] * own_along,
+        np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE),
+    )
+
+
+#: What a sensor makes of the true view (the conformance suite's test equipment): ego and objects in, measured out.
+Measure = Callable[[FleetEgo, FleetObjects], tuple[FleetEgo, FleetObjects]]
 
 #: The time series' FCW columns (``csws cosim --systems ...,fcw``), beside the curve warning's, with their Arrow types.
 FCW_TIMESERIES_FIELDS = (
@@ -241,71 +287,175 @@ class FcwColumns:
 
 
 class FleetFcw:
-    """The forward collision warning of a fleet in SUMO, one vectorised evaluation per step.
+    """The object FCW of every equipped vehicle in SUMO, one :func:`csws.fcw.fleet.update_fleet` per category a step.
 
-    Each step, the state of every vehicle follows its speed (:func:`csws.fcw.physics.next_fcw_states`,
-    with the hysteresis of Figure 2 kept per vehicle; fault while it is on no lane); only the
-    active ones are looked at further: their targets from SUMO's leaders (:func:`forward_targets`),
-    and only those with a target have their own acceleration and brake light read, for one
-    :func:`csws.fcw.physics.evaluate_fcw` call.
+    Each vehicle keeps its memory (state, held level, the objects in its path and cutting in, its
+    last angle for the yaw rate) by its number between steps, while it drives.
 
     Parameters
     ----------
     sumo
         libsumo or traci, with a simulation running.
-    settings, targets
-        The warning's thresholds and the target selection.
+    settings
+        The settings of a category (default :meth:`csws.fcw.physics.FcwSettings.for_category`).
+    measure
+        What the sensor makes of the true view, or None (the truth).
     """
 
     def __init__(
-        self, sumo: Any, settings: FcwSettings = FcwSettings(), targets: TargetSettings = TargetSettings()
+        self,
+        sumo: Any,
+        settings: Callable[[str], FcwSettings] = FcwSettings.for_category,
+        measure: Measure | None = None,
     ) -> None:
         self.sumo = sumo
-        self.settings = settings
-        self.targets = targets
-        self.sublanes = float(sumo.simulation.getOption("lateral-resolution")) > 0.0
-        self.states: dict[str, int] = {}
-        self.sizes = VehicleSizes(sumo.vehicle)
+        self.settings_of = settings
+        self.measure = measure
+        self.numbers = _Numbers()
+        self.sizes: dict[str, tuple[float, float]] = {}
+        self.categories: dict[str, FcwSettings] = {}
+        self.memory = FleetMemory.new(0)
+        self.last_heading_rad = np.zeros(0)
+        self.last_time_s = -math.inf
 
-    def __call__(self, vehicle_ids: Sequence[str], lane_ids: Sequence[str], speed_mps: np.ndarray) -> FcwColumns:
-        """The warning of every vehicle, in order."""
-        count = len(vehicle_ids)
-        previous = np.array([self.states.get(vehicle_id, STANDBY) for vehicle_id in vehicle_ids], dtype=np.int8)
-        on_lane = np.array([bool(lane_id) for lane_id in lane_ids], dtype=bool)
-        states = next_fcw_states(previous, speed_mps, np.ones(count, dtype=bool), on_lane, self.settings)
-        self.states.update(zip(vehicle_ids, states.tolist(), strict=False))
-        columns = FcwColumns.quiet([FCW_STATES[code].value for code in states.tolist()])
-        active = np.flatnonzero(states == ACTIVE)
-        if active.size:
-            subjects = [vehicle_ids[i] for i in active.tolist()]
-            found = forward_targets(self.sumo, subjects, self.targets, sublanes=self.sublanes, sizes=self.sizes)
-            seen = np.flatnonzero(np.isfinite(found.clearance_m))
-            if seen.size:
-                self._evaluate(subjects, found, seen, active, columns)
+    def __call__(self, vehicle_ids: Sequence[str], categories: Sequence[str], on_lane: Sequence[bool]) -> FcwColumns:
+        """The warning of every equipped vehicle (``vehicle_ids``, of ``categories``), in order; a vehicle on
+        no lane is in fault (4.4.5)."""
+        now_s = float(self.sumo.simulation.getTime())
+        vehicles = read_vehicles(self.sumo, self.numbers, self.sizes)
+        row_of = {vehicle_id: row for row, vehicle_id in enumerate(vehicles.vehicle_id)}
+        rows = np.array([row_of[vehicle_id] for vehicle_id in vehicle_ids], dtype=np.int64)
+        numbers = vehicles.number[rows]
+        self._grow(int(vehicles.number.max()) + 1 if vehicles.number.size else 0)
+        yaw_rate = self._yaw_rate_rps(numbers, vehicles.heading_rad[rows], now_s)
+        # SUMO's angle is the body's chord (rear and front on the lane): the front runs along the
+        # lane's tangent, turned from it by half the length times the path's curvature.
+        kappa = yaw_path_curvature_1pm(vehicles.speed_mps[rows], np.nan_to_num(yaw_rate))
+        path_turn_rad = kappa * vehicles.length_m[rows] / 2.0
+        columns = FcwColumns.quiet([FCW_STATES[STANDBY].value] * len(rows))
+        kinds = np.array([self._settings(category) for category in categories], dtype=object)
+        keys = []
+        for settings in dict.fromkeys(kinds.tolist()):
+            group = np.flatnonzero(kinds == settings) if len(rows) else np.zeros(0, dtype=np.int64)
+            subjects = rows[group]
+            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group])
+            ego = FleetEgo.of(
+                vehicles.speed_mps[subjects],
+                vehicles.accel_mps2[subjects],
+                yaw_rate[group],
+                braking=(vehicles.signals[subjects] & BRAKE_LIGHT) > 0,
+                turn_signal=_turn_signal(vehicles.signals[subjects]),
+                sensor_ok=np.asarray(on_lane, dtype=bool)[group],
+            )
+            objects = FleetObjects.of(
+                pairs.subject,
+                vehicles.number[pairs.seen],
+                pairs.x_m,
+                pairs.y_m,
+                pairs.relative_speed_mps,
+                pairs.accel_mps2,
+                width_m=vehicles.width_m[pairs.seen],
+                lane=pairs.lane,
+            )
+            if self.measure is not None:
+                ego, objects = self.measure(ego, objects)
+            frame, kept = update_fleet(settings, self._recall(numbers[group]), now_s, ego, objects)
+            keys.append(self._keep(numbers[group], kept))
+            _write(columns, group, frame, [vehicles.vehicle_id[i] for i in pairs.seen.tolist()])
+        self.memory.in_path_keys = np.sort(np.concatenate([k[0] for k in keys])) if keys else np.zeros(0, np.int64)
+        self.memory.cut_in_keys = np.sort(np.concatenate([k[1] for k in keys])) if keys else np.zeros(0, np.int64)
+        self.last_time_s = now_s
         return columns
 
-    def _evaluate(
-        self, subjects: list[str], found: ForwardTargets, seen: np.ndarray, active: np.ndarray, columns: FcwColumns
-    ) -> None:
-        """Evaluate the subjects with a target and write their level, target, range, range rate and
-        TTC into ``columns`` at their rows of the fleet."""
-        vehicle = self.sumo.vehicle
-        with_target = [subjects[k] for k in seen.tolist()]
-        accel_mps2 = np.array([vehicle.getAcceleration(subject) for subject in with_target])
-        braking = np.array([bool(vehicle.getSignals(subject) & BRAKE_LIGHT) for subject in with_target])
-        x_c, v_r = found.clearance_m[seen], found.relative_velocity_mps[seen]
-        batch = evaluate_fcw(accel_mps2, x_c, v_r, found.target_accel_mps2[seen], braking, self.settings)
-        for j, (k, row) in enumerate(zip(seen.tolist(), active[seen].tolist(), strict=False)):
-            ttc = float(batch.ttc_s[j])
-            columns.level[row], columns.target_id[row] = int(batch.level[j]), found.target_id[k]
-            columns.range_m[row], columns.range_rate_mps[row] = float(x_c[j]), float(v_r[j])
-            columns.ttc_s[row] = ttc if math.isfinite(ttc) else None
+    def _settings(self, category: str) -> FcwSettings:
+        """A category's settings, made once."""
+        if category not in self.categories:
+            self.categories[category] = self.settings_of(category)
+        return self.categories[category]
+
+    def _grow(self, count: int) -> None:
+        """Room in the memory for vehicle numbers below ``count`` (new ones standby, nothing held)."""
+        have = self.memory.state.size
+        if count <= have:
+            return
+        more = FleetMemory.new(max(count, 2 * have) - have)
+        memory = self.memory
+        memory.state = np.concatenate((memory.state, more.state))
+        memory.held_level = np.concatenate((memory.held_level, more.held_level))
+        memory.hold_until_s = np.concatenate((memory.hold_until_s, more.hold_until_s))
+        memory.last_time_s = np.concatenate((memory.last_time_s, more.last_time_s))
+        self.last_heading_rad = np.concatenate((self.last_heading_rad, np.full(more.state.size, np.nan)))
+
+    def _yaw_rate_rps(self, numbers: np.ndarray, heading_rad: np.ndarray, now_s: float) -> np.ndarray:
+        """The yaw rate over the last step (positive turning left; SUMO's angle turns clockwise),
+        NaN (not given) in a vehicle's first step."""
+        last_time = self.memory.last_time_s[numbers]
+        turn = (heading_rad - self.last_heading_rad[numbers] + math.pi) % (2.0 * math.pi) - math.pi
+        with np.errstate(invalid="ignore", divide="ignore"):
+            yaw = np.where(last_time == self.last_time_s, -turn / (now_s - last_time), np.nan)
+        self.last_heading_rad[numbers] = heading_rad
+        return yaw
+
+    def _recall(self, numbers: np.ndarray) -> FleetMemory:
+        """The memory of the vehicles ``numbers``, indexed as in this call."""
+        memory = self.memory
+        index = np.full(memory.state.size, -1, dtype=np.int64)
+        index[numbers] = np.arange(numbers.size)
+
+        def local(keys: np.ndarray) -> np.ndarray:
+            row = index[keys >> _ID_BITS]
+            mine = row >= 0
+            return np.sort((row[mine] << _ID_BITS) | (keys[mine] & MAX_ID_MASK))
+
+        return FleetMemory(
+            memory.state[numbers],
+            memory.held_level[numbers],
+            memory.hold_until_s[numbers],
+            memory.last_time_s[numbers],
+            local(memory.in_path_keys),
+            local(memory.cut_in_keys),
+        )
+
+    def _keep(self, numbers: np.ndarray, kept: FleetMemory) -> tuple[np.ndarray, np.ndarray]:
+        """Store a call's memory under the vehicles' numbers; its object keys by number."""
+        memory = self.memory
+        memory.state[numbers], memory.held_level[numbers] = kept.state, kept.held_level
+        memory.hold_until_s[numbers], memory.last_time_s[numbers] = kept.hold_until_s, kept.last_time_s
+
+        def by_number(keys: np.ndarray) -> np.ndarray:
+            return (numbers[keys >> _ID_BITS] << _ID_BITS) | (keys & MAX_ID_MASK)
+
+        return by_number(kept.in_path_keys), by_number(kept.cut_in_keys)
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
-        """Drop vehicles that left."""
+        """Drop vehicles that left (their numbers are not given again)."""
         for vehicle_id in vehicle_ids:
-            self.states.pop(vehicle_id, None)
             self.sizes.pop(vehicle_id, None)
+            number = self.numbers.pop(vehicle_id, None)
+            if number is not None and number < self.memory.state.size:
+                self.memory.last_time_s[number] = -math.inf
+
+
+def _turn_signal(signals: np.ndarray) -> np.ndarray:
+    """SUMO's blinkers as the turn signal: +1 left, -1 right, 0 none (or both)."""
+    return ((signals & BLINKER_LEFT) > 0).astype(np.int8) - ((signals & BLINKER_RIGHT) > 0).astype(np.int8)
+
+
+def _write(columns: FcwColumns, group: np.ndarray, frame: FleetFrame, seen_ids: list[str]) -> None:
+    """Write one call's answers into ``columns`` at the group's rows: state, level, target and its figures."""
+    for j, row in enumerate(group.tolist()):
+        columns.state[row] = FCW_STATES[int(frame.state[j])].value
+        columns.level[row] = int(frame.level[j])
+        target = int(frame.target[j])
+        if target < 0:
+            continue
+        ttc = float(frame.ttc_s[j])
+        columns.target_id[row] = seen_ids[target]
+        columns.range_m[row], columns.range_rate_mps[row] = (
+            float(frame.clearance_m[j]),
+            float(frame.relative_speed_mps[j]),
+        )
+        columns.ttc_s[row] = ttc if math.isfinite(ttc) else None
 
 
 def fcw_events(fcw: FcwColumns, levels: dict[str, int], summary: Summary, step: StepValues) -> list[tuple[Any, ...]]:

@@ -151,7 +151,7 @@ class _Run:
         fcw = None
         if self.forward is not None:
             with self.costs.timed("fcw"):
-                fcw = self.forward(fleet.vehicle_id, fleet.lane_id, fleet.speed_mps)
+                fcw = self.forward(fleet.vehicle_id, fleet.category, [bool(lane) for lane in fleet.lane_id])
         return warnings, fcw
 
     def _commands(

@@ -264,7 +264,8 @@ def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
 
 
 def _targets(owner: np.ndarray, candidate: np.ndarray, a_req: np.ndarray, x_m: np.ndarray, n: int) -> np.ndarray:
-    """Per vehicle the candidate with the highest a_req, ties the nearest, then the first listed; -1 without one."""
+    """Per vehicle the candidate with the highest rank (a_req, at least the preliminary threshold), ties the
+    nearest, then the first listed; -1 without one."""
     target = np.full(n, -1, dtype=np.int64)
     index = np.flatnonzero(candidate)
     if index.size:
@@ -315,8 +316,9 @@ def update_fleet(
     a_tv = np.where(objects.accel_is_relative, objects.accel_mps2 + a_sv, objects.accel_mps2)
     lost = np.where(ego.braking[owner], 0.0, settings.reaction_time_s + settings.brake_response_s)
     with np.errstate(over="ignore"):  # a_req beyond the largest float is inf, as on floats
-        a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, lost)
-    target = _targets(owner, inside & ~cutting, a_req, objects.x_m, n)
+        a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, a_sv, lost)
+    rank = np.maximum(a_req, settings.preliminary_a_req_mps2)  # below a threat every object ties: the nearest
+    target = _targets(owner, inside & ~cutting, rank, objects.x_m, n)
     return _frame(settings, memory, now, ego, objects, state, target, (a_tv, offset, a_req), inside, cutting)
 
 

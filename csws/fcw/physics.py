@@ -13,8 +13,14 @@ positive forward):
   positive root of x_c + v_r t + (a_TV - a_SV) t^2 / 2 = 0; TTC when the accelerations
   are equal;
 * the required deceleration a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with
-  d_TV the target's deceleration and x_r = -v_r (T_resp + T_b) the clearance lost while
-  the driver reacts and the brakes respond (formula (5) uses the same, 0.8 v_r).
+  d_TV the target's deceleration and x_r "the total reduction of the clearance caused by the
+  driver's reaction time to the warning" (3.22), read at the end of the reaction
+  T = T_resp + T_b with both vehicles' accelerations held through it: x_r = -v_r T -
+  (a_TV - a_SV) T^2 / 2, and the closing speed is then v_r + (a_TV - a_SV) T, not v_r
+  (:func:`required_deceleration_mps2`). For a steady lead (a_TV = a_SV) that is the standard's
+  x_r = -v_r T, which formula (5) writes as 0.8 v_r; for a lead that brakes during the reaction
+  it is what a driver who reacts T after the warning and then brakes at a_req needs to just
+  avoid it.
 
 Where GB/T 33577 and the Russian text of ISO 15623 differ, this module follows GB/T 33577:
 the factor 2 under the root of (3) and x_c - x_r in (4) (docs/fcw.md).
@@ -235,20 +241,34 @@ def ettc_core(x_c: Any, v_r: Any, a: Any) -> Any:
 
 
 def required_deceleration_mps2(
-    clearance_m: Any, relative_velocity_mps: Any, target_accel_mps2: Any, lost_time_s: Any
+    clearance_m: Any,
+    relative_velocity_mps: Any,
+    target_accel_mps2: Any,
+    lost_time_s: Any,
+    subject_accel_mps2: Any = 0.0,
 ) -> Any:
-    """a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with d_TV = -a_TV the target's
-    deceleration and x_r = -v_r ``lost_time_s`` the clearance lost while closing during the
-    driver's reaction and the brakes' response (0 while not closing). ``inf`` where that
-    uses up the clearance. Floats give a float, anything else an array."""
+    """a_req = d_TV + v_r'^2 / (2 (x_c - x_r)), formula (4) at the end of the driver's reaction and the
+    brakes' response (``lost_time_s``, T), with d_TV = -a_TV the target's deceleration.
+
+    3.22: x_r is the clearance lost during the reaction; with both accelerations held through it
+    (a = a_TV - a_SV), x_r = -v_r T - a T^2 / 2, and the closing speed at its end is
+    v_r' = v_r + a T (0 where the vehicles stop closing, and T is cut where that happens first).
+    On a steady lead this is the standard's x_r = -v_r T. ``inf`` where the reaction uses up the
+    clearance. Floats give a float, anything else an array.
+    """
     with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
-        return a_req_core(*_operands(clearance_m, relative_velocity_mps, target_accel_mps2, lost_time_s))
+        return a_req_core(
+            *_operands(clearance_m, relative_velocity_mps, target_accel_mps2, subject_accel_mps2, lost_time_s)
+        )
 
 
-def a_req_core(x_c: Any, v_r: Any, a_tv: Any, lost_s: Any) -> Any:
+def a_req_core(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any) -> Any:
     """:func:`required_deceleration_mps2` on floats or float arrays as they are."""
-    closing = fmin(v_r, 0.0)
-    left_m = x_c + closing * lost_s
+    a_rel = a_tv - a_sv
+    stops_closing = (v_r < 0.0) & (a_rel > 0.0) & (-v_r < a_rel * lost_s)
+    reaction_s = where(stops_closing, -v_r / where(stops_closing, a_rel, 1.0), lost_s)
+    closing = fmin(v_r + a_rel * reaction_s, 0.0)
+    left_m = x_c + v_r * reaction_s + a_rel * reaction_s * reaction_s / 2.0
     room = left_m > 0.0
     return where(room, -a_tv + closing * closing / (2.0 * where(room, left_m, 1.0)), math.inf)
 
@@ -322,7 +342,7 @@ def evaluate_fcw(
     lost_s = np.where(np.asarray(driver_braking, dtype=bool), 0.0, settings.reaction_time_s + settings.brake_response_s)
     ttc = time_to_collision_s(x_c, v_r)
     ettc = enhanced_time_to_collision_s(x_c, v_r, a_tv - a_sv)
-    a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s)
+    a_req = required_deceleration_mps2(x_c, v_r, a_tv, lost_s, a_sv)
     level = warning_level(a_sv, ttc, ettc, a_req, settings, suppress_above_max_ttc)
     return FcwBatch(np.asarray(level, dtype=np.int8), ttc, ettc, a_req)
 
@@ -330,28 +350,23 @@ def evaluate_fcw(
 def warning_clearance_m(
     closing_mps: ArrayLike, target_accel_mps2: ArrayLike, settings: FcwSettings = FcwSettings(), level: int = 2
 ) -> np.ndarray:
-    """The clearance at which a level comes on at a closing speed ``closing_mps`` (= -v_r > 0)
-    and a target acceleration a_TV: formula (4) solved for x_c at the level's threshold,
-    x_c = x_r + v_r^2 / (2 (a_thr + a_TV)). The system's set warning distance (4.7.2, 5.4.2); with
-    T_resp 0.8 s and 6.67 m/s^2 it is formula (5)."""
+    """The clearance at which a level comes on at a closing speed ``closing_mps`` (= -v_r > 0), a
+    target acceleration a_TV and a steady subject: formula (4) as :func:`required_deceleration_mps2`
+    reads it, solved for x_c at the level's threshold, x_c = c T - a_TV T^2 / 2 + c'^2 / (2 (a_thr + a_TV))
+    with c' = c - a_TV T the closing speed at the end of the reaction (where the vehicles still close
+    then). The system's set warning distance (4.7.2, 5.4.2)."""
     threshold = settings.collision_a_req_mps2 if level == 2 else settings.preliminary_a_req_mps2
     lost_s = settings.reaction_time_s + settings.brake_response_s
-    return _clearance_at_m(closing_mps, target_accel_mps2, threshold, lost_s)
+    closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
+    closing_after = closing - a_tv * lost_s
+    return closing * lost_s - a_tv * lost_s**2 / 2.0 + closing_after**2 / (2.0 * (threshold + a_tv))
 
 
 def formula_5_clearance_m(closing_mps: ArrayLike, target_accel_mps2: ArrayLike = 0.0) -> np.ndarray:
-    """Formula (5), the shortest warning distance a system may have (5.4.1): formula (4) solved for
-    x_c with T_resp 0.8 s and a_req 6.67 m/s^2, at a closing speed ``closing_mps`` (= -v_r > 0)."""
-    return _clearance_at_m(closing_mps, target_accel_mps2, FORMULA_5_A_REQ_MPS2, MIN_REACTION_TIME_S)
-
-
-def _clearance_at_m(
-    closing_mps: ArrayLike, target_accel_mps2: ArrayLike, a_req_mps2: float, lost_time_s: float
-) -> np.ndarray:
-    """Formula (4) solved for x_c: the clearance at which a_req reaches ``a_req_mps2``,
-    x_c = x_r + v_r^2 / (2 (a_req + a_TV)) with x_r = -v_r ``lost_time_s``."""
+    """Formula (5), the shortest warning distance a system may have (5.4.1), as the standard writes it:
+    x = v_r^2 / (2 (6.67 - d_TV)) + 0.8 v_r at a closing speed ``closing_mps`` (= -v_r > 0)."""
     closing, a_tv = np.asarray(closing_mps, dtype=float), np.asarray(target_accel_mps2, dtype=float)
-    return closing * lost_time_s + closing**2 / (2.0 * (a_req_mps2 + a_tv))
+    return closing * MIN_REACTION_TIME_S + closing**2 / (2.0 * (FORMULA_5_A_REQ_MPS2 + a_tv))
 
 
 def fcw_state_code(

@@ -11,8 +11,9 @@ to the bit; both go through the same formulas (:mod:`csws.fcw.physics`, :mod:`cs
    given, else yaw rate / speed;
 3. every object in the path (the sensor's lane, else within the corridor of the predicted path),
    except a faster cut-in (4.5.5 c), is assessed: a_req of formula (4) for each; the target is the
-   most demanding (the highest a_req, ties the nearest), so the vehicle a cut-out reveals is the
-   target in the frame the lead leaves the path (4.4.3, 4.7.3);
+   most demanding (the highest a_req, ties the nearest; every a_req below the preliminary threshold
+   ties, so without a threat the target is the nearest, 3.7), so the vehicle a cut-out reveals is
+   the target in the frame the lead leaves the path (4.4.3, 4.7.3);
 4. the level the target requires (:func:`csws.fcw.physics.warning_level`: 4.5.5 a and e);
 5. the level shown, with a short hold (:func:`csws.fcw.objects.hold_level`).
 """
@@ -113,6 +114,7 @@ class ForwardCollisionWarning:
         kappa = ego_curvature_1pm(ego.speed_mps, ego.yaw_rate_rps, ego.curvature_1pm)
         lost_s = 0.0 if ego.braking else s.reaction_time_s + s.brake_response_s
         best: tuple[SensorObject, float, float, float] | None = None
+        best_rank = -math.inf
         inside_ids, cut_in_ids = [], []
         half_length_m, half_width_m, range_m = s.object_half_length_m, s.path_half_width_m, s.range_m
         was_in_path, was_cut_in = self.in_path_ids, self.cut_in_ids
@@ -131,9 +133,10 @@ class ForwardCollisionWarning:
                 cut_in_ids.append(obj.id)
                 continue
             a_tv = obj.accel_mps2 + ego.accel_mps2 if obj.accel_is_relative else obj.accel_mps2
-            a_req = a_req_core(x_m, v_r, a_tv, lost_s)
-            if best is None or a_req > best[3] or (a_req == best[3] and x_m < best[0].x_m):
-                best = (obj, a_tv, offset_m, a_req)
+            a_req = a_req_core(x_m, v_r, a_tv, ego.accel_mps2, lost_s)
+            rank = max(a_req, s.preliminary_a_req_mps2)
+            if best is None or rank > best_rank or (rank == best_rank and x_m < best[0].x_m):
+                best, best_rank = (obj, a_tv, offset_m, a_req), rank
         return best, frozenset(inside_ids), frozenset(cut_in_ids)
 
     def _path_table(self, ego: EgoMotion) -> CurvatureTable | None:

@@ -6,15 +6,16 @@ A :class:`Task` is one row at one step length with its repetitions. Each run
   off, so vehicles closer than SUMO's safe gap start where the test wants them), keeps them in
   their lanes (``laneChangeMode`` 0) and drives them by ``setSpeed`` with ``speedMode`` 6: their
   own acceleration and deceleration limits, not SUMO's safe speed, so the subject closes on
-  a stationary target as the test asks. The targets' ``decel`` is 0.3 g: a commanded stop is
-  a constant 0.3 g braking;
+  a stationary target as the test asks. The target's ``decel`` is the row's
+  :attr:`FcwRow.lead_brake_mps2` (0.3 g but in Euro NCAP's CCRb): a commanded stop is a
+  constant braking at it;
 * starts at its own phase of the simulation step: the subject starts a fraction of one step's
   travel further back, so the runs sample the approach at different points;
-* evaluates the subject every step: its target from SUMO's leaders
-  (:func:`csws.cosim.fcw.forward_targets`), the state (:func:`csws.fcw.physics.next_fcw_states`) and
-  the warning (:func:`csws.fcw.physics.evaluate_fcw`), through the test equipment's accuracy as noise
-  (IVISTA 4.2.2, the FCW counterpart of T/ITS 0091's 7.2.2): positions +-0.03 m per vehicle,
-  speeds +-0.1 km/h, accelerations +-0.1 m/s^2, uniform;
+* evaluates the subject every step with the co-simulation's object FCW
+  (:class:`csws.cosim.fcw.FleetFcw`: the subject's sensor view of the other vehicles and
+  :func:`csws.fcw.fleet.update_fleet`, with the settings of its category), through the test
+  equipment's accuracy as noise (IVISTA 4.2.2, the FCW counterpart of T/ITS 0091's 7.2.2):
+  positions +-0.03 m per vehicle, speeds +-0.1 km/h, accelerations +-0.1 m/s^2, uniform;
 * records the true clearance along the subject's lane (from the track's truth), the true
   speeds, and what the system said, until the script's end (:attr:`Script.done`).
 """
@@ -25,16 +26,17 @@ import json
 import math
 import tempfile
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from csws.cosim.fcw import BRAKE_LIGHT, forward_targets
-from csws.fcw.physics import ACTIVE, FcwSettings, evaluate_fcw, next_fcw_states, time_to_collision_s
-from csws.fcw.target import TargetSettings
+from csws.cosim.categories import category_of
+from csws.cosim.fcw import FleetFcw
+from csws.fcw.fleet import FleetEgo, FleetObjects
+from csws.fcw.physics import time_to_collision_s
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR
 from csws.standard import kmh_to_mps
@@ -100,6 +102,8 @@ class Trace:
         True closing speed v_SV - v_TV, m/s.
     subject_mps, target_mps
         True speeds of the subject and the target, m/s.
+    target_accel_mps2
+        The target's true acceleration over the last step, m/s^2.
     adjacent_ahead_m
         How far the adjacent vehicle's rear is ahead of the subject's front, m (``nan`` without one).
     lateral_m
@@ -119,6 +123,7 @@ class Trace:
     closing_mps: np.ndarray
     subject_mps: np.ndarray
     target_mps: np.ndarray
+    target_accel_mps2: np.ndarray
     adjacent_ahead_m: np.ndarray
     lateral_m: np.ndarray
     level: np.ndarray
@@ -173,6 +178,7 @@ class _Record:
                 "closing_mps",
                 "subject_mps",
                 "target_mps",
+                "target_accel_mps2",
                 "adjacent_ahead_m",
                 "lateral_m",
                 "level",
@@ -214,10 +220,25 @@ class _Equipment:
         """Uniform noise in +-``bound``: one number, or ``count`` of them as an array."""
         return self.rng.uniform(-bound, bound, count)
 
-    def sensor(self, clearance_m: np.ndarray, offset_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Two vehicles' positions, each +-0.03 m: the clearance and the lateral offset."""
-        bound = 2.0 * POSITION_ACCURACY_M
-        return clearance_m + self.uniform(bound, clearance_m.size), offset_m + self.uniform(bound, offset_m.size)
+    def measure(self, ego: FleetEgo, objects: FleetObjects) -> tuple[FleetEgo, FleetObjects]:
+        """The subject and its objects as the equipment measures them: the subject's speed +-0.1 km/h and
+        acceleration +-0.1 m/s^2; each object's position (two vehicles', each +-0.03 m) in x and y, its
+        relative speed (two speeds) and its acceleration."""
+        n, m = ego.speed_mps.size, objects.x_m.size
+        position, speeds = 2.0 * POSITION_ACCURACY_M, 2.0 * SPEED_ACCURACY_MPS
+        measured_ego = replace(
+            ego,
+            speed_mps=np.maximum(ego.speed_mps + self.uniform(SPEED_ACCURACY_MPS, n), 0.0),
+            accel_mps2=ego.accel_mps2 + self.uniform(ACCEL_ACCURACY_MPS2, n),
+        )
+        measured_objects = replace(
+            objects,
+            x_m=objects.x_m + self.uniform(position, m),
+            y_m=objects.y_m + self.uniform(position, m),
+            relative_speed_mps=objects.relative_speed_mps + self.uniform(speeds, m),
+            accel_mps2=objects.accel_mps2 + self.uniform(ACCEL_ACCURACY_MPS2, m),
+        )
+        return measured_ego, measured_objects
 
 
 def _subject_start_m(task: Task) -> float:
@@ -245,10 +266,8 @@ def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Tr
     row, step_s = task.row, task.step_length_s
     subject = row.actor("sv")
     behind_m = phase * subject.speed_mps * step_s
-    settings, targets = FcwSettings(), TargetSettings()
     script = script_of(row)
     record = _Record()
-    state = np.array([1], dtype=np.int8)
     lane_of = {actor.vehicle_id: f"road_{actor.lane}" for actor in row.actors}
     with tempfile.TemporaryDirectory(prefix="csws-fcw-conformance-") as work:
         routes = Path(work) / "run.rou.xml"
@@ -276,16 +295,20 @@ def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Tr
         )
         try:
             libsumo.simulationStep()
+            system = FleetFcw(libsumo, measure=equipment.measure)
+            category = category_of(libsumo.vehicle.getVehicleClass("sv"))
             for actor in row.actors:
                 libsumo.vehicle.setLaneChangeMode(actor.vehicle_id, 0)
                 libsumo.vehicle.setSpeedMode(actor.vehicle_id, 6)
                 libsumo.vehicle.setSpeed(actor.vehicle_id, actor.speed_mps)
+            libsumo.vehicle.setDecel("tv", row.lead_brake_mps2)
             while not script.done:
                 now_s = libsumo.simulation.getTime()
                 if now_s > MAX_SIMULATED_S:
                     raise RuntimeError(f"{task.key}: run {repetition + 1} did not end within {MAX_SIMULATED_S:g} s")
                 truth = _true_state(libsumo, task.track, lane_of)
-                level, target_id, state = _evaluate(libsumo, settings, targets, state, equipment)
+                said = system(["sv"], [category.value if category else ""], [True])
+                level, target_id = said.level[0], said.target_id[0]
                 record.add(time_s=now_s, level=level, target=target_id or "", phase_index=script.phase, **truth)
                 for vehicle_id, speed_mps in script.step(now_s, truth, level, target_id).items():
                     libsumo.vehicle.setSpeed(vehicle_id, speed_mps)
@@ -311,29 +334,7 @@ def _true_state(sumo: Any, track: str, lane_of: dict[str, str]) -> dict[str, flo
         "closing_mps": subject_mps - target_mps,
         "subject_mps": subject_mps,
         "target_mps": target_mps,
+        "target_accel_mps2": vehicle.getAcceleration("tv"),
         "adjacent_ahead_m": adjacent,
         "lateral_m": vehicle.getLateralLanePosition("sv") - vehicle.getLateralLanePosition("tv"),
     }
-
-
-def _evaluate(
-    sumo: Any, settings: FcwSettings, target_settings: TargetSettings, state: np.ndarray, equipment: _Equipment
-) -> tuple[int, str | None, np.ndarray]:
-    """The system on the subject, through the equipment's noise: level, target id, state."""
-    vehicle = sumo.vehicle
-    speed_mps = vehicle.getSpeed("sv") + equipment.uniform(SPEED_ACCURACY_MPS)
-    state = next_fcw_states(state, [speed_mps], [True], [True], settings)
-    found = forward_targets(sumo, ["sv"], target_settings, noise=equipment.sensor)
-    target_id = found.target_id[0]
-    if target_id is None or state[0] != ACTIVE:
-        return 0, target_id, state
-    speeds = 2.0 * SPEED_ACCURACY_MPS
-    batch = evaluate_fcw(
-        [vehicle.getAcceleration("sv") + equipment.uniform(ACCEL_ACCURACY_MPS2)],
-        found.clearance_m,
-        found.relative_velocity_mps + equipment.uniform(speeds),
-        found.target_accel_mps2 + equipment.uniform(ACCEL_ACCURACY_MPS2),
-        [bool(vehicle.getSignals("sv") & BRAKE_LIGHT)],
-        settings,
-    )
-    return int(batch.level[0]), target_id, state

@@ -13,6 +13,11 @@ row                a run passes when
 5.5.3.1, 5.5.3.2   no warning before the target braked (while the adjacent vehicle was slowed
                    down and passed), then the warning for ``tv``; the subject less than 0.5 m
                    off the target's axis
+NHTSA              as 5.5.2.1 (2.1, 2.4, 2.0 s); a group passes when 5 of its 7 runs do
+Euro NCAP CCR      the warning (for ``tv``) came no later than the latest useful warning
+                   (:mod:`csws.conformance.fcw.avoidance`: a driver reacting 0.8 s after it
+                   and braking at 0.68 g avoids contact), from the true clearance, speeds and
+                   target acceleration at the warning; below V_min no warning is required
 =================  =======================================================================
 
 Every run also keeps the subject (and a target at constant speed) within the row's speed
@@ -28,11 +33,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csws.fcw.physics import STANDARD_GRAVITY_MPS2
+
+from .avoidance import AVOIDANCE_BRAKING_MPS2, AVOIDANCE_REACTION_S, latest_useful_warning_s
 from .drive import Trace
 from .rows import REFERENCE_CLEARANCE_M, FcwRow
 from .scripts import TARGET_BRAKES
 
-__all__ = ["ACCURACY_SHARE", "FcwRunResult", "judge_fcw_run", "group_passes", "criterion"]
+__all__ = ["ACCURACY_SHARE", "FcwRunResult", "judge_fcw_run", "warning_margin_s", "group_passes", "criterion"]
 
 #: 5.4.2: the share of runs whose warning distance must be within 4.7.2's accuracy.
 ACCURACY_SHARE = 0.7
@@ -52,7 +60,8 @@ class FcwRunResult:
         Which run.
     figure
         What the criterion measures: TTC at the warning (s), the clearance at it (5.4.1, m), the
-        warning distance D (5.4.2, m); None where the criterion is not a number.
+        warning distance D (5.4.2, m), the margin to the latest useful warning (CCR, s); None
+        where the criterion is not a number.
     passed
         Whether the run passed.
     reason
@@ -68,8 +77,16 @@ class FcwRunResult:
 
 def criterion(row: FcwRow) -> str:
     """The row's pass criterion, in a few words."""
+    if not row.warning_required:
+        return "subject below V_min: the system is in standby (4.3.3), no warning required"
+    if row.avoidance:
+        return (
+            f"warned early enough that a driver reacting {AVOIDANCE_REACTION_S:g} s after it and braking at "
+            f"{AVOIDANCE_BRAKING_MPS2 / STANDARD_GRAVITY_MPS2:g} g avoids contact (margin >= 0 s)"
+        )
     if row.least_ttc_s is not None:
-        return f"TTC at the warning >= {row.least_ttc_s:g} s"
+        runs = f" in >= {row.least_passing_runs} of {row.repetitions} runs" if row.least_passing_runs else ""
+        return f"TTC at the warning >= {row.least_ttc_s:g} s{runs}"
     if row.least_clearance_m is not None:
         return f"clearance at the warning >= {row.least_clearance_m:.1f} m (formula (5))"
     if row.set_distance_m is not None:
@@ -121,9 +138,16 @@ def judge_fcw_run(row: FcwRow, trace: Trace) -> FcwRunResult:
 def _approach(row: FcwRow, trace: Trace, warned: np.ndarray) -> tuple[float | None, list[str]]:
     """A warning at a constant-speed or braking lead: TTC, clearance or warning distance."""
     first = _first(warned)
+    if first is None and not row.warning_required:
+        return None, []
     if first is None:
         return None, [f"no level {row.level} before the true TTC was {trace.ttc_s[-1]:.2f} s"]
     reasons = [] if trace.target[first] == "tv" else [f"the warning was for {trace.target[first] or 'no target'}"]
+    if row.avoidance:
+        margin_s = warning_margin_s(trace, first)
+        if margin_s < 0.0 and row.warning_required:
+            reasons.append(f"warned {-margin_s:.2f} s after the latest useful warning")
+        return margin_s, reasons if row.warning_required else []
     if row.least_ttc_s is not None:
         ttc_s = float(trace.ttc_s[first])
         if ttc_s < row.least_ttc_s:
@@ -146,6 +170,17 @@ def _approach(row: FcwRow, trace: Trace, warned: np.ndarray) -> tuple[float | No
     if abs(distance_m - set_distance_m) > max(ACCURACY_M, ACCURACY_FRACTION * set_distance_m):
         reasons.append(f"warning distance {distance_m:.2f} m, set {set_distance_m:.2f} m")
     return distance_m, reasons
+
+
+def warning_margin_s(trace: Trace, index: int) -> float:
+    """How long before the latest useful warning the step ``index`` is, s (negative: after it), from the
+    true clearance, speeds and target acceleration of that step (:func:`latest_useful_warning_s`)."""
+    return latest_useful_warning_s(
+        float(trace.clearance_m[index]),
+        float(trace.subject_mps[index]),
+        float(trace.target_mps[index]),
+        float(trace.target_accel_mps2[index]),
+    )
 
 
 def _two_leads(trace: Trace) -> list[str]:
@@ -182,7 +217,9 @@ def _adjacent(row: FcwRow, trace: Trace, warned: np.ndarray) -> list[str]:
 
 
 def group_passes(row: FcwRow, runs: Sequence[FcwRunResult]) -> bool:
-    """Every run passed; for 5.4.2 at least 70 % of them."""
+    """Every run passed; for 5.4.2 at least 70 % of them; for NHTSA at least ``least_passing_runs`` (5 of 7)."""
+    if row.least_passing_runs is not None:
+        return sum(run.passed for run in runs) >= row.least_passing_runs
     if row.set_distance_m is not None:
         return bool(runs) and sum(run.passed for run in runs) >= math.ceil(ACCURACY_SHARE * len(runs) - 1e-9)
     return all(run.passed for run in runs)

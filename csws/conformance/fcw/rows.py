@@ -30,7 +30,18 @@ from csws.fcw.target import CurveClass, curve_start_speed_mps
 from csws.networks.fcw_tracks import CURVE_RADII_M
 from csws.standard import kmh_to_mps
 
-__all__ = ["STABLE_S", "LEAD_BRAKE_MPS2", "REFERENCE_CLEARANCE_M", "CAR_LENGTH_M", "Actor", "FcwRow", "fcw_rows"]
+__all__ = [
+    "STABLE_S",
+    "LEAD_BRAKE_MPS2",
+    "REFERENCE_CLEARANCE_M",
+    "CAR_LENGTH_M",
+    "Actor",
+    "FcwRow",
+    "fcw_rows",
+    "approach_row",
+    "curve_row",
+    "straight_adjacent_row",
+]
 
 #: Every vehicle holds its speed this long before anything happens, s (a stable start).
 STABLE_S = 3.0
@@ -97,6 +108,19 @@ class FcwRow:
         5.4.1: the clearance at the warning is at least this (formula (5)); else None.
     set_distance_m
         5.4.2: the system's set warning distance the measured one is compared with; else None.
+    avoidance
+        The physical criterion of the Euro NCAP rows (:mod:`csws.conformance.fcw.avoidance`): a driver
+        reacting 0.8 s after the warning and braking at 0.68 g avoids contact.
+    warning_required
+        False for a subject below V_min (4.3.3: the system is in standby): any outcome passes.
+    lead_brake_mps2
+        The target's deceleration when it brakes, m/s^2 (0.3 g in GB/T 33577 and NHTSA).
+    repetitions
+        Runs per step length the row's own protocol asks (NHTSA: 7); None for the suite's number.
+    least_passing_runs
+        A group passes when at least this many of its runs do (NHTSA: 5 of 7); None for all of them.
+    known_issue
+        Why the shipped system is known to fail the row, shown with its failed runs; empty for none.
     """
 
     row_id: str
@@ -111,6 +135,12 @@ class FcwRow:
     speed_tolerance_mps: float = 1.0
     least_clearance_m: float | None = None
     set_distance_m: float | None = None
+    avoidance: bool = False
+    warning_required: bool = True
+    lead_brake_mps2: float = LEAD_BRAKE_MPS2
+    repetitions: int | None = None
+    least_passing_runs: int | None = None
+    known_issue: str = ""
 
     def actor(self, vehicle_id: str) -> Actor:
         """The actor of that id (KeyError for a vehicle the row does not have)."""
@@ -120,7 +150,7 @@ class FcwRow:
         raise KeyError(f"row {self.row_id} has no vehicle {vehicle_id!r}")
 
 
-def _approach(
+def approach_row(
     row_id: str,
     source: str,
     clause: str,
@@ -128,10 +158,12 @@ def _approach(
     subject_mps: float,
     lead_mps: float,
     lead_type: str = "car",
+    start_clearance_m: float = START_CLEARANCE_M,
     **criteria: Any,
 ) -> FcwRow:
-    """A subject closing at constant speed on a lead at constant speed, from START_CLEARANCE_M plus the stable time."""
-    start_m = START_CLEARANCE_M + STABLE_S * (subject_mps - lead_mps)
+    """A subject closing at constant speed on a lead at constant speed, from ``start_clearance_m`` plus the
+    stable time."""
+    start_m = start_clearance_m + STABLE_S * (subject_mps - lead_mps)
     return FcwRow(
         row_id,
         source,
@@ -144,19 +176,23 @@ def _approach(
     )
 
 
-def _curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings) -> FcwRow:
-    """5.5.3.2 on the class's curve at V_circle_start of formula (6)."""
-    speed_mps = curve_start_speed_mps(curve_class, radius_m, settings.max_speed_mps)
+def curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings, lateral_share: float = 1.0) -> FcwRow:
+    """5.5.3.2 on the class's curve at V_circle_start of formula (6), with ``lateral_share`` of the class's
+    a_lateral_max (1 the standard's speed; a lower share a lower lateral acceleration the formula allows)."""
+    # sqrt((share a_lateral_max) R) = sqrt(a_lateral_max (share R)): formula (6) with the share on R
+    speed_mps = curve_start_speed_mps(curve_class, radius_m * lateral_share, settings.max_speed_mps)
+    standard = lateral_share == 1.0
     actors = (
         Actor("sv", "truck", 1, 0.0, speed_mps),
         Actor("adj", "car", 0, 15.0, speed_mps),
         Actor("tv", "car", 1, 2.0 * speed_mps, speed_mps),
     )
     return FcwRow(
-        f"GB-5.5.3.2-{curve_class.name}",
+        f"GB-5.5.3.2-{curve_class.name}" + ("" if standard else f"-{lateral_share:g}a"),
         GB,
         "5.5.3.2",
-        f"curve R {radius_m:g} m (class {curve_class.name}), adjacent vehicle in the outer lane, {speed_mps:.1f} m/s",
+        f"curve R {radius_m:g} m (class {curve_class.name}), adjacent vehicle in the outer lane, {speed_mps:.1f} m/s"
+        + ("" if standard else f" ({lateral_share:g} a_lateral_max)"),
         f"fcw_curve_r{radius_m:g}",
         actors,
         "adjacent",
@@ -164,14 +200,23 @@ def _curve_row(curve_class: CurveClass, radius_m: float, settings: FcwSettings) 
 
 
 def fcw_rows(settings: FcwSettings = FcwSettings()) -> list[FcwRow]:
-    """Every row: GB/T 33577 5.4-5.5 that applies to a truck or bus, then IVISTA A.1."""
-    return [*_warning_distance_rows(settings), *_lead_rows(), *_adjacent_rows(settings), *_ivista_rows()]
+    """Every row: GB/T 33577 5.4-5.5 that applies to a truck or bus, IVISTA A.1, then the added tracks
+    (:mod:`csws.conformance.fcw.more_rows`: NHTSA, Euro NCAP CCR, 5.5.3 at other speeds)."""
+    from .more_rows import more_fcw_rows  # it builds on this module's helpers
+
+    return [
+        *_warning_distance_rows(settings),
+        *_lead_rows(),
+        *_adjacent_rows(settings),
+        *_ivista_rows(),
+        *more_fcw_rows(settings),
+    ]
 
 
 def _warning_distance_rows(settings: FcwSettings) -> list[FcwRow]:
     """GB/T 33577 5.4: the warning distance's range (formula (5)) and its accuracy (4.7.2)."""
     return [
-        _approach(
+        approach_row(
             "GB-5.4.1",
             GB,
             "5.4.1",
@@ -181,7 +226,7 @@ def _warning_distance_rows(settings: FcwSettings) -> list[FcwRow]:
             speed_tolerance_mps=1.0,
             least_clearance_m=float(formula_5_clearance_m(12.0)),
         ),
-        _approach(
+        approach_row(
             "GB-5.4.2",
             GB,
             "5.4.2",
@@ -196,7 +241,7 @@ def _warning_distance_rows(settings: FcwSettings) -> list[FcwRow]:
 def _lead_rows() -> list[FcwRow]:
     """GB/T 33577 5.5.2: a stationary, a braking and a slower lead, and two leads in line."""
     return [
-        _approach("GB-5.5.2.1.1", GB, "5.5.2.1.1", "stationary lead, 20 m/s", 20.0, 0.0, least_ttc_s=2.1),
+        approach_row("GB-5.5.2.1.1", GB, "5.5.2.1.1", "stationary lead, 20 m/s", 20.0, 0.0, least_ttc_s=2.1),
         FcwRow(
             "GB-5.5.2.1.2",
             GB,
@@ -207,7 +252,7 @@ def _lead_rows() -> list[FcwRow]:
             "lead_brakes",
             least_ttc_s=2.4,
         ),
-        _approach("GB-5.5.2.1.3", GB, "5.5.2.1.3", "slower lead, 20 m/s behind 9 m/s", 20.0, 9.0, least_ttc_s=2.0),
+        approach_row("GB-5.5.2.1.3", GB, "5.5.2.1.3", "slower lead, 20 m/s behind 9 m/s", 20.0, 9.0, least_ttc_s=2.0),
         FcwRow(
             "GB-5.5.2.2",
             GB,
@@ -226,28 +271,38 @@ def _lead_rows() -> list[FcwRow]:
 
 def _adjacent_rows(settings: FcwSettings) -> list[FcwRow]:
     """GB/T 33577 5.5.3: an adjacent-lane vehicle on the straight and on each class's curve."""
-    straight = FcwRow(
-        "GB-5.5.3.1",
+    curves = [
+        curve_row(curve_class, radius_m, settings)
+        for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=False)
+    ]
+    return [straight_adjacent_row(20.0), *curves]
+
+
+def straight_adjacent_row(speed_mps: float) -> FcwRow:
+    """5.5.3.1 at ``speed_mps`` (the standard's 20 m/s, or another): the target 2 s ahead, the adjacent
+    vehicle 15 m ahead in the next lane."""
+    suffix = "" if speed_mps == 20.0 else f"-{speed_mps:g}mps"
+    return FcwRow(
+        f"GB-5.5.3.1{suffix}",
         GB,
         "5.5.3.1",
-        "straight road, adjacent vehicle 3.5 m to the side, 20 m/s",
+        f"straight road, adjacent vehicle 3.5 m to the side, {speed_mps:g} m/s",
         "fcw_straight",
-        (Actor("sv", "truck", 1, 0.0, 20.0), Actor("adj", "car", 0, 15.0, 20.0), Actor("tv", "car", 1, 40.0, 20.0)),
+        (
+            Actor("sv", "truck", 1, 0.0, speed_mps),
+            Actor("adj", "car", 0, 15.0, speed_mps),
+            Actor("tv", "car", 1, 2.0 * speed_mps, speed_mps),
+        ),
         "adjacent",
         level=1,
     )
-    curves = [
-        _curve_row(curve_class, radius_m, settings)
-        for curve_class, radius_m in zip(CurveClass, CURVE_RADII_M, strict=False)
-    ]
-    return [straight, *curves]
 
 
 def _ivista_rows() -> list[FcwRow]:
     """IVISTA A.1: stationary car and truck targets at 72 km/h, a target at 20 km/h at 80 km/h."""
     km = kmh_to_mps(1.0)
     rows = [
-        _approach(
+        approach_row(
             f"IVISTA-A.1.1-{kind}",
             IVISTA,
             "A.1.1",
@@ -261,7 +316,7 @@ def _ivista_rows() -> list[FcwRow]:
         for kind, vtype in (("car", "car"), ("truck", "truck_target"))
     ]
     rows.append(
-        _approach(
+        approach_row(
             "IVISTA-A.1.2",
             IVISTA,
             "A.1.2",
