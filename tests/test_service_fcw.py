@@ -169,7 +169,9 @@ def test_the_target_is_the_most_demanding_object_in_the_path(client):
     braking_lead = {"id": 3, "x_m": 45.0, "y_m": 0.3, "relative_speed_mps": -2.0, "accel_mps2": -6.0}
     objects = [beside, ahead_far, braking_lead]
     fcw = client.post("/v1/warning", json=_query("pick", objects=objects)).json()["fcw"]
-    a_req = {2: speed_mps**2 / (2.0 * (90.0 - 1.2 * speed_mps)), 3: 6.0 + 2.0**2 / (2.0 * (45.0 - 1.2 * 2.0))}
+    # Formula (4) at the end of the 1.2 s reaction: the braking lead closes 2 m/s + 6 m/s^2 x 1.2 s = 9.2 m/s
+    # by then, and the clearance is 45 m less 2 x 1.2 + 6 x 1.2^2 / 2 = 6.72 m.
+    a_req = {2: speed_mps**2 / (2.0 * (90.0 - 1.2 * speed_mps)), 3: 6.0 + 9.2**2 / (2.0 * (45.0 - 6.72))}
     assert fcw["target_id"] == max(a_req, key=a_req.__getitem__) == 3
     assert fcw["a_req_mps2"] == pytest.approx(a_req[3])
 
