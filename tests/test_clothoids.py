@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from builders import dense_shape as curvature_dense_shape
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from csws.curvature import find_curves, radius_profile
@@ -44,6 +44,9 @@ def truth_crossings(pieces, warning_radius_m: float) -> tuple[float, float]:
     directions,
     headings_rad,
 )
+# A known miss of the dense fit: a short entry spiral into a wide arc (R 347 m after 20 m, R_c 1.5 R)
+# starts the curve about 4 m early. Kept as an expected failure so that it stays in sight until fixed.
+@example(347.0, 20.0, 22.0, 10.0, 1.5, "left", 0.75).xfail(raises=AssertionError, reason="short spiral, wide arc")
 def test_a_curve_between_spirals_starts_and_ends_inside_them(
     radius_m, entry_m, exit_m, arc_deg, warning_factor, direction, heading
 ) -> None:
