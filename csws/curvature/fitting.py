@@ -86,6 +86,7 @@ def _polyline_profile(
             chords.heading[rows],
             segmentation.weight[rows],
             float(segmentation.noise_variance[rows.start]),
+            chords.length_m[rows],
             *dense,
         )
     if mapped:

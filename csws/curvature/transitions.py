@@ -18,9 +18,18 @@ on is
 
 linear in ``(c, k_i, k_j - k_i)`` for given ``(s1, s2)``. Running sums of the chords'
 weighted powers of arc length give the least-squares fit for every ``(s1, s2)`` of a
-grid in a few array operations; the best is refined on a finer grid. The clothoid
-replaces the staircase when its normalised residual, plus :data:`PARAMETER_PENALTY` for
-each parameter it has more than the staircase (or less, for two or more stairs), is
+grid in a few array operations; the best is refined on a finer grid.
+
+Whether the clothoid replaces the staircase is judged on the road's sideways offsets,
+not its headings: a chord's heading error is the difference of its two vertices'
+sideways errors, so neighbouring chords' errors cancel and a deviation that lasts tens
+of metres, as a clothoid's from a step does, is seen with the weight of every vertex it
+moves (a 20 m spiral into R 330 m moves the road about 2 cm, seven times the noise of
+centimetre rounding, over forty vertices). Summing heading times chord length along the
+chords turns both the data and each model into sideways offsets whose errors are the
+vertices' own, independent ones (see :func:`_sideways_residuals`). The clothoid replaces
+the staircase when its residual there, plus :data:`PARAMETER_PENALTY` for each
+parameter it has more than the staircase (or less, for two or more stairs), is
 smaller, and when it beats the best single step of the same stretch (a clothoid of no
 length) by more than :data:`PARAMETER_PENALTY` (by anything, when it is :data:`LONG_SPIRAL_M`
 long or more) and is at least :data:`MIN_SPIRAL_M` long: so an arc that meets a straight at a
@@ -30,7 +39,9 @@ parts, keeps its steps.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -69,13 +80,14 @@ PART_PARAMETERS = 2
 
 @dataclass(frozen=True)
 class _Chords:
-    """One polyline's chords: middle arc length, heading (unwrapped) and weight (inverse
-    heading variance in units of the noise variance ``noise_variance``)."""
+    """One polyline's chords: middle arc length, heading (unwrapped), weight (inverse
+    heading variance in units of the noise variance ``noise_variance``) and length."""
 
     mid_s: np.ndarray
     heading: np.ndarray
     weight: np.ndarray
     noise_variance: float
+    length_m: np.ndarray
 
 
 def _part_residual(chords: _Chords, rows: slice, spiral: bool) -> float:
@@ -189,13 +201,69 @@ def _best_spiral(
     return _least_on_grid(moments, fine1, fine2)
 
 
-def _best_step(moments: _Moments, low: float, high: float) -> float:
-    """The least residual of a road whose curvature steps at one point between ``low`` and
-    ``high`` (a clothoid of no length): what a clothoid must beat to be more than a step."""
+def _best_step_s(moments: _Moments, low: float, high: float) -> float:
+    """Where a road whose curvature steps at one point between ``low`` and ``high`` (a
+    clothoid of no length) fits the headings best: the step a clothoid must beat."""
     coarse = _grid(low, high, COARSE_STEP_M)
     centre = coarse[int(np.argmin(moments.residual(coarse, coarse)[0]))]
     fine = _grid(max(low, centre - COARSE_STEP_M), min(high, centre + COARSE_STEP_M), FINE_STEP_M)
-    return float(moments.residual(fine, fine)[0].min())
+    return float(fine[int(np.argmin(moments.residual(fine, fine)[0]))])
+
+
+def _spiral_integrals(s: np.ndarray, s1: float, s2: float) -> np.ndarray:
+    """The integrals from ``s1`` to each ``s`` of the heading columns ``(1, s - s1, g(s))`` of a
+    road with its spiral from ``s1`` to ``s2`` (a step at ``s1`` where they meet)."""
+    u = s - s1
+    after = np.clip(u, 0.0, None)
+    length = s2 - s1
+    if length > 0:
+        on_spiral = np.clip(u, 0.0, length)
+        beyond = after - on_spiral
+        g = on_spiral**3 / (6.0 * length) + beyond * (length / 2.0 + beyond / 2.0)
+    else:
+        g = after**2 / 2.0
+    return np.column_stack((u, u * u / 2.0, g))
+
+
+def _staircase_integrals(s: np.ndarray, bounds: np.ndarray, is_spiral: np.ndarray) -> np.ndarray:
+    """The integrals up to each ``s`` of the heading columns of parts fitted each on its own:
+    a line on a constant part, a parabola on a clothoid, zero outside the part."""
+    columns = []
+    for start_s, end_s, spiral in zip(bounds[:-1], bounds[1:], is_spiral, strict=True):
+        middle_s = 0.5 * (start_s + end_s)
+        inside = np.clip(s, start_s, end_s) - middle_s
+        columns += [
+            (inside ** (degree + 1) - (start_s - middle_s) ** (degree + 1)) / (degree + 1)
+            for degree in range(3 if spiral else 2)
+        ]
+    return np.column_stack(columns)
+
+
+def _sideways_residuals(chords: _Chords, rows: slice, models: list[Callable[[np.ndarray], np.ndarray]]) -> np.ndarray:
+    """The residual of each heading model over ``rows`` judged on sideways offsets, in units
+    of the vertices' noise variance.
+
+    A chord's heading times its length, summed along the chords, is each vertex's offset
+    from a line (to first order in the heading's change); a model's is the integral of
+    its heading, so each model is given as the integrals of its heading columns at the
+    vertices (which makes a chord straddling a change of curvature no error). The
+    offsets' errors are the vertices' own sideways errors, independent with variance
+    ``noise_variance / 2``, so a residual here weighs a lasting deviation by every vertex
+    it moves, where the chords' headings, whose errors are differences of neighbouring
+    vertices', hide it.
+    """
+    length = chords.length_m[rows]
+    heading = chords.heading[rows] - float(chords.heading[rows].mean())
+    offsets = np.concatenate(([0.0], np.cumsum(length * heading)))
+    vertex_s = np.concatenate(([chords.mid_s[rows.start] - 0.5 * length[0]], chords.mid_s[rows] + 0.5 * length))
+    vertex_variance = chords.noise_variance / 2.0
+    residuals = []
+    for model in models:
+        columns = model(vertex_s) - model(vertex_s[:1])
+        columns = np.column_stack((np.ones(len(offsets)), columns))
+        solution, *_ = np.linalg.lstsq(columns, offsets, rcond=None)
+        residuals.append(float(np.sum((columns @ solution - offsets) ** 2)) / vertex_variance)
+    return np.array(residuals)
 
 
 def _least_on_grid(
@@ -231,6 +299,7 @@ def with_transitions(
     heading: np.ndarray,
     weight: np.ndarray,
     noise_variance: float,
+    length_m: np.ndarray,
     bounds: np.ndarray,
     curvature: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -244,6 +313,8 @@ def with_transitions(
         (their headings' inverse variance, up to ``noise_variance``).
     noise_variance
         The heading variance of a chord of weight 1.
+    length_m
+        The chords' lengths.
     bounds, curvature
         Its parts: ``len(curvature) + 1`` bounds from 0 to its length, one curvature each.
 
@@ -253,7 +324,7 @@ def with_transitions(
         The parts after: constant ones with equal start and end curvature, clothoids
         (spirals) with the curvature changing linearly from start to end.
     """
-    chords = _Chords(mid_s, heading, weight, noise_variance)
+    chords = _Chords(mid_s, heading, weight, noise_variance, np.asarray(length_m, dtype=float))
     bounds = np.asarray(bounds, dtype=float)
     start_k = np.asarray(curvature, dtype=float).copy()
     end_k = start_k.copy()
@@ -365,9 +436,9 @@ def _continuous_refit(
 
 
 def _best_replacement(chords: _Chords, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray):
-    """The parts with the one staircase replaced whose clothoid gains most, or None where none gains."""
+    """The parts with the one staircase replaced whose clothoid gains most, or None where none is kept."""
     is_spiral = start_k != end_k
-    best_gain, best = 0.0, None
+    best_gain, best = -np.inf, None
     for i, j in _staircases(start_k, end_k):
         rows = slice(*np.searchsorted(chords.mid_s, (bounds[i], bounds[j + 1])))
         if rows.stop - rows.start < SPIRAL_PARAMETERS + 1:
@@ -377,17 +448,23 @@ def _best_replacement(chords: _Chords, bounds: np.ndarray, start_k: np.ndarray, 
         s2_range = (bounds[j], min(bounds[j + 1] - KEPT_PART_M, bounds[j] + SPIRAL_REACH_M))
         if s1_range[0] > s1_range[1] or s2_range[0] > s2_range[1]:
             continue
+        residual, s1, s2, solution = _best_spiral(moments, s1_range, s2_range)
+        if s2 - s1 < MIN_SPIRAL_M:
+            continue
         stairs = sum(
             _part_residual(chords, slice(*np.searchsorted(chords.mid_s, (bounds[k], bounds[k + 1]))), is_spiral[k])
             for k in range(i, j + 1)
         )
-        residual, s1, s2, solution = _best_spiral(moments, s1_range, s2_range)
         stair_parameters = PART_PARAMETERS * (j - i + 1) + int(is_spiral[i : j + 1].sum())
-        gain = (stairs - residual) / chords.noise_variance + PARAMETER_PENALTY * (stair_parameters - SPIRAL_PARAMETERS)
-        step = _best_step(moments, s1_range[0], s2_range[1])
-        beats_step = (step - residual) / chords.noise_variance > (PARAMETER_PENALTY if s2 - s1 < LONG_SPIRAL_M else 0.0)
-        beats_step = beats_step and s2 - s1 >= MIN_SPIRAL_M
-        if gain > best_gain and beats_step:
+        penalty = PARAMETER_PENALTY * (stair_parameters - SPIRAL_PARAMETERS)
+        gain = (stairs - residual) / chords.noise_variance + penalty
+        step_s = _best_step_s(moments, s1_range[0], s2_range[1])
+        step = float(moments.residual(np.array([step_s]), np.array([step_s]))[0][0])
+        long = s2 - s1 >= LONG_SPIRAL_M
+        kept = gain > 0 and (step - residual) / chords.noise_variance > (0.0 if long else PARAMETER_PENALTY)
+        if not kept and long:
+            kept = _kept_on_offsets(chords, rows, bounds[i : j + 2], is_spiral[i : j + 1], (s1, s2), step_s, penalty)
+        if kept and gain > best_gain:
             _, k_i, k_change = solution
             best_gain = gain
             best = (i, j, s1, s2, k_i, k_i + k_change)
@@ -398,3 +475,24 @@ def _best_replacement(chords: _Chords, bounds: np.ndarray, start_k: np.ndarray, 
     new_start = np.concatenate((start_k[:i], [k_i, k_i, k_j], start_k[j + 1 :]))
     new_end = np.concatenate((end_k[:i], [k_i, k_j, k_j], end_k[j + 1 :]))
     return new_bounds, new_start, new_end
+
+
+def _kept_on_offsets(
+    chords: _Chords,
+    rows: slice,
+    stair_bounds: np.ndarray,
+    stair_is_spiral: np.ndarray,
+    spiral: tuple[float, float],
+    step_s: float,
+    penalty: float,
+) -> bool:
+    """Whether a long clothoid from ``spiral[0]`` to ``spiral[1]`` beats, on the sideways
+    offsets, the staircase it would replace (with ``penalty`` for the parameters that has
+    more) and, by more than :data:`PARAMETER_PENALTY`, the best single step near ``step_s``."""
+    step_values = _grid(step_s - COARSE_STEP_M, step_s + COARSE_STEP_M, FINE_STEP_M)
+    models = [partial(_spiral_integrals, s1=spiral[0], s2=spiral[1])]
+    models.append(partial(_staircase_integrals, bounds=stair_bounds, is_spiral=stair_is_spiral))
+    models += [partial(_spiral_integrals, s1=float(x), s2=float(x)) for x in step_values]
+    residuals = _sideways_residuals(chords, rows, models)
+    spiral_residual, stairs_residual, step_residual = residuals[0], residuals[1], residuals[2:].min()
+    return bool(stairs_residual - spiral_residual + penalty > 0 and step_residual - spiral_residual > PARAMETER_PENALTY)
