@@ -490,7 +490,7 @@ def _kept_on_offsets(
     offsets, the staircase it would replace (with ``penalty`` for the parameters that has
     more) and, by more than :data:`PARAMETER_PENALTY`, the best single step near ``step_s``."""
     step_values = _grid(step_s - COARSE_STEP_M, step_s + COARSE_STEP_M, FINE_STEP_M)
-    models = [partial(_spiral_integrals, s1=spiral[0], s2=spiral[1])]
+    models: list[Callable[[np.ndarray], np.ndarray]] = [partial(_spiral_integrals, s1=spiral[0], s2=spiral[1])]
     models.append(partial(_staircase_integrals, bounds=stair_bounds, is_spiral=stair_is_spiral))
     models += [partial(_spiral_integrals, s1=float(x), s2=float(x)) for x in step_values]
     residuals = _sideways_residuals(chords, rows, models)
