@@ -76,6 +76,8 @@ def test_curves_lists_the_curve_of_a_track_as_json():
         (["curves", "x.net.xml", "--warning-radius-m", "nan"], "must be a positive finite number"),
         (["conformance", "--out", __file__], "is a file, not a folder: give a folder"),
         (["cosim", "--out", __file__], "is a file, not a folder: give a folder"),
+        (["cosim", "--service", "http://127.0.0.1:9", "--api-key-file", "/no/such/key"], "cannot read the key file"),
+        (["cosim", "--api-key-file", __file__], "give --service URL with it"),
         (["import-osm", "x.osm", "-o", "x.txt"], "give NAME.net.xml or NAME.net.xml.gz"),
     ],
 )

@@ -24,10 +24,12 @@ from markers import marks_its_tests
 from csws.cosim.categories import category_of
 from csws.cosim.driver import DriverSettings
 from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS
+from csws.cosim.evaluators import ServiceError
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.timeseries import TIMESERIES_SCHEMA
 from csws.networks.fleet import FLEET_TYPES, fleet_dir, fleet_routes_xml
 from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
+from service.keys import add_key
 
 FLEET_NET = fleet_dir() / "fleet.net.xml"
 VEHICLES = 200
@@ -155,9 +157,13 @@ def _free_port() -> int:
 @pytest.fixture(scope="module")
 @marks_its_tests("slow")
 def service_url(tmp_path_factory):
+    """A real service on loopback that needs a fleet's API key: its URL and the key."""
     port = _free_port()
+    keys_file = tmp_path_factory.mktemp("keys") / "keys.json"
+    key = add_key(keys_file, "study", "query")
     environment = {
         **os.environ,
+        "CSWS_API_KEYS_FILE": str(keys_file),
         "CSWS_NETS": str(FLEET_NET),
         "CSWS_STATE_DB": ":memory:",
         "CSWS_UPDATE_PERIOD_S": str(STEP_S),
@@ -186,7 +192,7 @@ def service_url(tmp_path_factory):
         except OSError:
             assert process.poll() is None, "the service did not start"
             time.sleep(0.2)
-    yield f"http://127.0.0.1:{port}"
+    yield f"http://127.0.0.1:{port}", key
     process.terminate()
     process.wait(timeout=30)
 
@@ -194,10 +200,20 @@ def service_url(tmp_path_factory):
 @pytest.mark.sumo
 def test_service_mode_gives_identical_warnings(library_run, fleet_routes, service_url, tmp_path):
     out, _ = library_run
-    summary = cosimulate(_config(fleet_routes, tmp_path, service_url=service_url))
+    url, key = service_url
+    summary = cosimulate(_config(fleet_routes, tmp_path, service_url=url, service_api_key=key))
     assert summary["mode"] == "service" and summary["vehicles_evaluated"] == VEHICLES
     for name in ("timeseries/part-00000.parquet", "warnings.csv", "entries.csv"):
         assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name
+
+
+@pytest.mark.sumo
+def test_service_mode_without_the_key_stops_on_the_services_refusal(fleet_routes, service_url, tmp_path):
+    url, _ = service_url
+    with pytest.raises(ServiceError, match="HTTP 401"):
+        cosimulate(_config(fleet_routes, tmp_path, service_url=url))
+    assert json.loads((tmp_path / "summary.json").read_text())["status"].startswith("service failed")
+
 
 
 def _assert_complete_csv(path: Path, columns) -> int:

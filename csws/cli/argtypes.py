@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-__all__ = ["positive_int", "positive_float", "step_length", "comma_list", "one_of"]
+__all__ = ["positive_int", "positive_float", "step_length", "comma_list", "one_of", "key_file"]
 
 T = TypeVar("T")
 
@@ -84,3 +84,19 @@ def network_file(text: str) -> Path:
     if not text.endswith((".net.xml", ".net.xml.gz")) or Path(text).name in (".net.xml", ".net.xml.gz"):
         raise argparse.ArgumentTypeError(f"{text!r} is no network name: give NAME.net.xml or NAME.net.xml.gz")
     return Path(text)
+
+
+def key_file(text: str) -> str:
+    """The API key kept in the file ``text``: its first line, without surrounding blanks."""
+    try:
+        lines = Path(text).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise argparse.ArgumentTypeError(
+            f"cannot read the key file {text!r}: {getattr(exc, 'strerror', None) or exc}"
+        ) from None
+    key = lines[0].strip() if lines else ""
+    if not key:
+        raise argparse.ArgumentTypeError(
+            f"the key file {text!r} is empty: put the key (csws keys add) on its first line"
+        )
+    return key

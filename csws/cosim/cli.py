@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from csws.cli import deferred
-from csws.cli.argtypes import comma_list, one_of, output_folder, positive_float, positive_int, step_length
+from csws.cli.argtypes import comma_list, key_file, one_of, output_folder, positive_float, positive_int, step_length
 
 from .records import TIMESERIES_FORMATS
 
@@ -53,6 +53,15 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         default=None,
         metavar="URL",
         help="ask a running csws service (POST /v1/warnings) instead of the library, e.g. http://127.0.0.1:8000",
+    )
+    parser.add_argument(
+        "--api-key-file",
+        type=key_file,
+        default=None,
+        metavar="FILE",
+        dest="api_key",
+        help="with --service: the fleet's API key (csws keys add), on the first line of FILE "
+        "(default: the CSWS_API_KEY environment variable, if set)",
     )
     interface = parser.add_mutually_exclusive_group()
     interface.add_argument(

@@ -9,7 +9,7 @@ and what is recorded.
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -56,6 +56,8 @@ class CosimConfig:
         ``libsumo``, ``traci`` or ``gui``.
     service_url
         Ask this csws service instead of the library.
+    service_api_key
+        The fleet's API key for that service (sent as ``Authorization: Bearer``), or None.
     driver
         The driver-response model, or None.
     seed
@@ -79,6 +81,7 @@ class CosimConfig:
     end_s: float | None = None
     interface: str = "libsumo"
     service_url: str | None = None
+    service_api_key: str | None = field(default=None, repr=False)
     driver: DriverSettings | None = None
     seed: int = 0
     evaluate: bool = True
@@ -90,6 +93,8 @@ class CosimConfig:
     def __post_init__(self) -> None:
         if not self.systems or not set(self.systems) <= set(SYSTEMS):
             raise ValueError(f"--systems takes one or both of {', '.join(SYSTEMS)}, got {','.join(self.systems)!r}")
+        if self.service_api_key is not None and self.service_url is None:
+            raise ValueError("an API key is for a service: give --service URL with it")
         if "fcw" in self.systems and self.service_url is not None:
             raise ValueError(
                 "the forward collision warning is evaluated in this process only: drop --service, "

@@ -129,9 +129,11 @@ class ServiceEvaluator:
         The service's base URL, e.g. ``http://127.0.0.1:8000``.
     timeout_s
         How long to wait for an answer, s.
+    api_key
+        The fleet's API key, sent as ``Authorization: Bearer``; None for a service without keys.
     """
 
-    def __init__(self, url: str, timeout_s: float = 30.0) -> None:
+    def __init__(self, url: str, timeout_s: float = 30.0, api_key: str | None = None) -> None:
         parts = urlsplit(url)
         if parts.scheme not in ("http", "https") or not parts.hostname:
             raise ValueError(f"--service must be an http(s) URL such as http://127.0.0.1:8000, got {url!r}")
@@ -139,6 +141,9 @@ class ServiceEvaluator:
         self.url = url
         self.path = parts.path.rstrip("/") + "/v1/warnings"
         self.connection = connection_type(parts.hostname, parts.port, timeout=timeout_s)
+        self.headers = {"Content-Type": "application/json"}
+        if api_key is not None:
+            self.headers["Authorization"] = f"Bearer {api_key}"
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
         """The service's answers; a vehicle on no lane (SUMO teleports it) is a map-match fault, as the
@@ -157,7 +162,7 @@ class ServiceEvaluator:
         """One POST; ServiceError on a refusal, the answer's JSON otherwise."""
         payload = json.dumps(body).encode("utf-8")
         try:
-            self.connection.request("POST", self.path, payload, {"Content-Type": "application/json"})
+            self.connection.request("POST", self.path, payload, self.headers)
             response = self.connection.getresponse()
             content = response.read()
         except (OSError, http.client.HTTPException) as exc:

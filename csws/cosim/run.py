@@ -10,6 +10,7 @@ end, also when the run is interrupted or SUMO dies (then marked incomplete, with
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections import Counter
@@ -37,7 +38,7 @@ def _evaluator(config: CosimConfig) -> Evaluator | None:
     if not config.evaluate or "csws" not in config.systems:
         return None
     if config.service_url is not None:
-        return ServiceEvaluator(config.service_url)
+        return ServiceEvaluator(config.service_url, api_key=config.service_api_key)
     from csws.engine import Engine, EngineSettings
     from csws.road.roadmap import RoadMap
     from csws.warning.rules import WarningSettings
@@ -286,6 +287,7 @@ def main(args: argparse.Namespace) -> int:
         end_s=args.end,
         interface=interface,
         service_url=args.service,
+        service_api_key=args.api_key if args.api_key is not None else os.environ.get("CSWS_API_KEY") or None,
         seed=args.seed,
         progress=True,
         timeseries=args.timeseries,
