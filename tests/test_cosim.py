@@ -23,8 +23,8 @@ from markers import marks_its_tests
 
 from csws.cosim.categories import category_of
 from csws.cosim.driver import DriverSettings
-from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.evaluators import ServiceError
+from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.timeseries import TIMESERIES_SCHEMA
 from csws.networks.fleet import FLEET_TYPES, fleet_dir, fleet_routes_xml
@@ -213,7 +213,6 @@ def test_service_mode_without_the_key_stops_on_the_services_refusal(fleet_routes
     with pytest.raises(ServiceError, match="HTTP 401"):
         cosimulate(_config(fleet_routes, tmp_path, service_url=url))
     assert json.loads((tmp_path / "summary.json").read_text())["status"].startswith("service failed")
-
 
 
 def _assert_complete_csv(path: Path, columns) -> int:
