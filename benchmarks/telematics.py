@@ -57,7 +57,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-
 from benchmarks.rows import Row, at_least, at_most, context, table
 from benchmarks.servers import csws_serve
 from benchmarks.telematics_analysis import Noise

@@ -137,7 +137,7 @@ def test_a_feed_is_judged_against_the_reference_onset_by_onset() -> None:
     # 1 Hz: on 1 s after the first reference onset, never for the second, and a false level 2 at the junction
     rows = list(range(0, 400, 10))
     levels = [1 if row in (60, 70) else 2 if row in (150, 160) else 0 for row in rows]
-    matched = [trajectories.lanes[row // 100] for row in rows]
+    matched: list[str | None] = [trajectories.lanes[row // 100] for row in rows]
     matched[rows.index(150)] = ":J_1_0"  # a connection the vehicle did not take
     matched[rows.index(380)] = None  # a fix that matched nothing
     matched[rows.index(300)] = "B_0"  # B was driven within 20 m before it: the true road
