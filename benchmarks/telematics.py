@@ -53,6 +53,7 @@ import json
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
@@ -165,21 +166,38 @@ def _summary_line(city: str, feed: Feed, figures: dict) -> str:
     return text + f"; {figures['us_per_fix']:.0f} us per fix"
 
 
-def _city_runs(city: City, quick: bool, out: Path, sink: IO[str]) -> dict:
-    """One city: drive its fleet, feed the service every way, judge each feed against the reference."""
+@dataclass(frozen=True)
+class _Prepared:
+    """A city ready to be fed: its network and its fleet's trajectories (or why it was skipped)."""
+
+    net: Path | None
+    trajectories: Trajectories | None
+    duration_s: float
+    skipped: str | None = None
+
+
+def _prepare(city: City, quick: bool, out: Path) -> _Prepared:
+    """A city's network (imported if need be) and its fleet driven in SUMO."""
+    vehicles, duration_s = (city.quick_vehicles, city.quick_duration_s) if quick else (city.vehicles, city.duration_s)
     net = _network(city, out)
     if net is None:
-        line = f"{city.name}: skipped, no OpenStreetMap extract at {city.osm}"
-        print(line, flush=True)
-        return {"skipped": line}
-    vehicles, duration_s = (city.quick_vehicles, city.quick_duration_s) if quick else (city.vehicles, city.duration_s)
+        return _Prepared(None, None, duration_s, f"{city.name}: skipped, no OpenStreetMap extract at {city.osm}")
     _log(f"{city.name}: driving {vehicles} vehicles for {duration_s:g} s in SUMO ...")
     started = time.perf_counter()
     trajectories = drive_fleet(net, vehicles, duration_s)
     _log(
         f"{city.name}: {len(trajectories.vehicle_ids)} vehicles, {len(trajectories.step):,} steps recorded "
-        f"in {time.perf_counter() - started:.0f} s; starting csws serve ..."
+        f"in {time.perf_counter() - started:.0f} s"
     )
+    return _Prepared(net, trajectories, duration_s)
+
+
+def _city_runs(city: City, prepared: _Prepared, sink: IO[str]) -> dict:
+    """One city: feed the service every way and judge each feed against the reference."""
+    net, trajectories = prepared.net, prepared.trajectories
+    if net is None or trajectories is None:
+        print(prepared.skipped, flush=True)
+        return {"skipped": prepared.skipped}
     service = csws_serve(Path(":memory:"), "--net", str(net))
     try:
         fields = query_fields(service.url)
@@ -196,7 +214,7 @@ def _city_runs(city: City, quick: bool, out: Path, sink: IO[str]) -> dict:
             runs[feed.name] = _judged(city.name, feed, trajectories, reference, answers, sink)
     finally:
         service.stop()
-    return {"vehicles": len(trajectories.vehicle_ids), "duration_s": duration_s, "feeds": runs}
+    return {"vehicles": len(trajectories.vehicle_ids), "duration_s": prepared.duration_s, "feeds": runs}
 
 
 def _judged(
@@ -214,8 +232,12 @@ def run(quick: bool = False, out: Path = DEFAULT_OUT) -> dict:
     """Every city's runs, their figures streamed to ``out/telematics.jsonl``."""
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    with open(out / "telematics.jsonl", "w", encoding="utf-8") as sink:
-        cities = {city.name: _city_runs(city, quick, out, sink) for city in CITIES}
+    # one city after another is prepared in the background while the one before is fed
+    with open(out / "telematics.jsonl", "w", encoding="utf-8") as sink, ThreadPoolExecutor(1) as preparing:
+        prepared = [preparing.submit(_prepare, city, quick, out) for city in CITIES]
+        cities = {
+            city.name: _city_runs(city, ready.result(), sink) for city, ready in zip(CITIES, prepared, strict=True)
+        }
     return {"cities": cities, "quick": quick, "seconds": time.perf_counter() - started}
 
 

@@ -69,8 +69,9 @@ class FeedAnswers:
 def query_fields(url: str) -> QueryFields:
     """The optional fix fields the running service's query schema accepts, from its OpenAPI document."""
     schemas = httpx.get(f"{url}/openapi.json", timeout=30.0).json()["components"]["schemas"]
-    for where, schema in (("query", "Query"), ("position", "Position")):
-        if "accuracy_m" in schemas.get(schema, {}).get("properties", {}):
+    for where, model in (("query", "Query"), ("position", "Position")):
+        # pydantic may name a model's request schema "Query-Input"
+        if any(name.split("-")[0] == model and "accuracy_m" in s.get("properties", {}) for name, s in schemas.items()):
             return QueryFields(where)
     return QueryFields(None)
 
