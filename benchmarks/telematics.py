@@ -5,7 +5,8 @@ on two cities: the bundled Bad Hersfeld network and the Helsinki centre imported
 OpenStreetMap with ``csws import-osm`` (read from ``../shared/data/osm/`` when present; without
 it that city is skipped with a line saying so). Helsinki is the city kept out of any tuning: its
 figures are the check of what was tuned on Bad Hersfeld. Every vehicle's trajectory is recorded
-at 0.1 s. A real ``csws serve`` on loopback, serving the city's network alone, is then fed:
+at 0.1 s. A real ``csws serve`` on loopback (one worker, its vehicles in memory), serving the
+city's network alone, is then fed:
 
 * the **reference**: every vehicle's exact lane id and lane position every 0.1 s (one batch per step);
 * **exact lane ids** at 1 Hz and 0.2 Hz: the same, sampled: what sampling alone costs;
@@ -122,8 +123,8 @@ class City:
 
 
 CITIES = (
-    City("Bad Hersfeld", CITY_NET, None, 150, 600.0, 60, 180.0),
-    City("Helsinki centre", None, HELSINKI_OSM, 60, 600.0, 30, 180.0),
+    City("Bad Hersfeld", CITY_NET, None, 120, 480.0, 60, 180.0),
+    City("Helsinki centre", None, HELSINKI_OSM, 50, 480.0, 30, 180.0),
 )
 
 
@@ -193,28 +194,34 @@ def _prepare(city: City, quick: bool, out: Path) -> _Prepared:
 
 
 def _city_runs(city: City, prepared: _Prepared, sink: IO[str]) -> dict:
-    """One city: feed the service every way and judge each feed against the reference."""
-    net, trajectories = prepared.net, prepared.trajectories
-    if net is None or trajectories is None:
+    """One city: start its service, feed it every way and judge each feed against the reference."""
+    if prepared.net is None or prepared.trajectories is None:
         print(prepared.skipped, flush=True)
         return {"skipped": prepared.skipped}
-    service = csws_serve(Path(":memory:"), "--net", str(net))
+    service = csws_serve(Path(":memory:"), "--net", str(prepared.net))
     try:
-        fields = query_fields(service.url)
-        _log(f"{city.name}: service ready in {service.startup_s:.0f} s; accuracy_m accepted: {fields.accuracy}")
-        started = time.perf_counter()
-        reference = feed_service(service.url, net, trajectories, REFERENCE, "f0", fields, _log)
-        _log(
-            f"{city.name}: reference fed in {time.perf_counter() - started:.0f} s, "
-            f"{1000.0 * reference.server_ms / len(reference.rows):.0f} us per query in the service"
-        )
-        runs = {}
-        for index, feed in enumerate(FEEDS, start=1):
-            answers = feed_service(service.url, net, trajectories, feed, f"f{index}", fields, _log)
-            runs[feed.name] = _judged(city.name, feed, trajectories, reference, answers, sink)
+        _log(f"{city.name}: csws serve ready in {service.startup_s:.0f} s")
+        runs = _fed(city.name, prepared.net, prepared.trajectories, service.url, sink)
     finally:
         service.stop()
-    return {"vehicles": len(trajectories.vehicle_ids), "duration_s": prepared.duration_s, "feeds": runs}
+    return {"vehicles": len(prepared.trajectories.vehicle_ids), "duration_s": prepared.duration_s, "feeds": runs}
+
+
+def _fed(city: str, net: Path, trajectories: Trajectories, url: str, sink: IO[str]) -> dict:
+    """The service fed the reference, then every feed, each judged against the reference."""
+    fields = query_fields(url)
+    _log(f"{city}: the query schema takes accuracy_m: {fields.accuracy or 'no (not sent)'}")
+    started = time.perf_counter()
+    reference = feed_service(url, net, trajectories, REFERENCE, "f0", fields, _log)
+    _log(
+        f"{city}: reference fed in {time.perf_counter() - started:.0f} s, "
+        f"{1000.0 * reference.server_ms / len(reference.rows):.0f} us per query in the service"
+    )
+    runs = {}
+    for index, feed in enumerate(FEEDS, start=1):
+        answers = feed_service(url, net, trajectories, feed, f"f{index}", fields, _log)
+        runs[feed.name] = _judged(city, feed, trajectories, reference, answers, sink)
+    return runs
 
 
 def _judged(

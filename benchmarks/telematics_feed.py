@@ -137,38 +137,43 @@ def _read(answers: list[dict], level: list, matched: list, target: list) -> None
         target.append(curve.rpartition("@")[0] if curve else None)
 
 
-def feed_service(
-    url: str, net: Path, trajectories: Trajectories, feed: Feed, prefix: str, fields: QueryFields, log: Callable
-) -> FeedAnswers:
-    """Send a feed whole to the service, one batch per instant, and keep its answers."""
+def _columns(
+    net: Path, trajectories: Trajectories, feed: Feed, fields: QueryFields
+) -> tuple[np.ndarray, dict[str, list], tuple[str, float] | None]:
+    """A feed's rows, in time order, with their columns, and where and what ``accuracy_m`` is sent."""
     interval_steps = round(feed.interval_s / STEP_S)
     batch_steps = min(interval_steps, round(BATCH_S / STEP_S))
     rows = np.flatnonzero(sample_mask(trajectories.step, trajectories.vehicle, interval_steps, batch_steps))
     if feed.noise is None:
-        columns, accuracy = _exact_columns(trajectories, rows), None
-    else:
-        rows, columns = _fix_columns(net, trajectories, rows, feed.noise, feed.seed)
-        accuracy = (fields.accuracy, feed.noise.position_sigma_m) if fields.accuracy else None
+        return rows, _exact_columns(trajectories, rows), None
+    rows, columns = _fix_columns(net, trajectories, rows, feed.noise, feed.seed)
+    return rows, columns, (fields.accuracy, feed.noise.position_sigma_m) if fields.accuracy else None
+
+
+def _send(
+    client: httpx.Client,
+    trajectories: Trajectories,
+    rows: np.ndarray,
+    columns: dict[str, list],
+    prefix: str,
+    accuracy: tuple[str, float] | None,
+    progress: Callable[[int, int, int], None],
+) -> FeedAnswers:
+    """Send some rows, one batch per step that has any, and keep their answers."""
     cuts = np.flatnonzero(np.diff(trajectories.step[rows])) + 1
     bounds = list(zip(np.concatenate(([0], cuts)).tolist(), np.concatenate((cuts, [len(rows)])).tolist(), strict=True))
     level: list[int] = []
     matched: list[str | None] = []
     target: list[str | None] = []
     server_ms = 0.0
-    started = time.perf_counter()
-    with httpx.Client(base_url=url, timeout=120.0) as client:
-        for number, (start, end) in enumerate(bounds, start=1):
-            batch = {name: values[start:end] for name, values in columns.items()}
-            body = msgspec.json.encode({"queries": _queries(trajectories, rows[start:end], batch, prefix, accuracy)})
-            response = client.post("/v1/warnings", content=body, headers={"content-type": "application/json"})
-            response.raise_for_status()
-            server_ms += server_timing(response.headers["server-timing"])["csws"]
-            _read(msgspec.json.decode(response.content)["answers"], level, matched, target)
-            if number % max(len(bounds) // PROGRESS_LINES, 1) == 0:
-                log(
-                    f"  {feed.name}: {number:,} of {len(bounds):,} batches, {end:,} queries, "
-                    f"{time.perf_counter() - started:.0f} s"
-                )
+    for number, (start, end) in enumerate(bounds, start=1):
+        batch = {name: values[start:end] for name, values in columns.items()}
+        body = msgspec.json.encode({"queries": _queries(trajectories, rows[start:end], batch, prefix, accuracy)})
+        response = client.post("/v1/warnings", content=body, headers={"content-type": "application/json"})
+        response.raise_for_status()
+        server_ms += server_timing(response.headers["server-timing"])["csws"]
+        _read(msgspec.json.decode(response.content)["answers"], level, matched, target)
+        progress(number, len(bounds), end)
     return FeedAnswers(
         rows=rows,
         level=np.asarray(level, dtype=np.int8),
@@ -176,3 +181,21 @@ def feed_service(
         target_lane=np.asarray(target, dtype=object),
         server_ms=server_ms,
     )
+
+
+def feed_service(
+    url: str, net: Path, trajectories: Trajectories, feed: Feed, prefix: str, fields: QueryFields, log: Callable
+) -> FeedAnswers:
+    """Send a feed whole to the service, one batch per instant, and keep its answers."""
+    rows, columns, accuracy = _columns(net, trajectories, feed, fields)
+    started = time.perf_counter()
+
+    def progress(number: int, batches: int, queries: int) -> None:
+        if number % max(batches // PROGRESS_LINES, 1) == 0:
+            log(
+                f"  {feed.name}: {number:,} of {batches:,} batches, {queries:,} queries, "
+                f"{time.perf_counter() - started:.0f} s"
+            )
+
+    with httpx.Client(base_url=url, timeout=120.0) as client:
+        return _send(client, trajectories, rows, columns, prefix, accuracy, progress)
