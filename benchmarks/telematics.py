@@ -43,8 +43,9 @@ level-2 false warning at a junction connection, p90 lateness at most one fix int
 onsets at most 1.2 times the reference's; at sigma 8 m: at least 97 % of fixes matched to the true
 road, at most 1 % no-match faults).
 
-Run with ``python -m benchmarks.telematics [--quick] [--out DIR]``: about 8 minutes on two cores,
-``--quick`` about 3.
+Run with ``python -m benchmarks.telematics [--quick] [--out DIR]``: about 4.5 CPU-minutes in all
+(SUMO, the client and the service), some 6 minutes on two idle cores and 20 on two cores busy
+with other work; ``--quick`` about a fifth of that.
 """
 
 from __future__ import annotations
@@ -123,8 +124,8 @@ class City:
 
 
 CITIES = (
-    City("Bad Hersfeld", CITY_NET, None, 120, 480.0, 60, 180.0),
-    City("Helsinki centre", None, HELSINKI_OSM, 50, 480.0, 30, 180.0),
+    City("Bad Hersfeld", CITY_NET, None, 150, 600.0, 60, 180.0),
+    City("Helsinki centre", None, HELSINKI_OSM, 60, 600.0, 30, 180.0),
 )
 
 
