@@ -443,7 +443,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark(
             "telematics",
             lambda: telematics.run(quick=quick),
-            "a few minutes" if quick else "long: 6 minutes on idle cores, two cities' fleets fed seven ways",
+            "a few minutes" if quick else "long: about 4.5 CPU-minutes, two cities' fleets fed seven ways",
             telematics.rows,
         ),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),

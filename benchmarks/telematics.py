@@ -44,8 +44,9 @@ onsets at most 1.2 times the reference's; at sigma 8 m: at least 97 % of fixes m
 road, at most 1 % no-match faults).
 
 Run with ``python -m benchmarks.telematics [--quick] [--out DIR]``: about 4.5 CPU-minutes in all
-(SUMO, the client and the service), some 6 minutes on two idle cores and 20 on two cores busy
-with other work; ``--quick`` about a fifth of that.
+(SUMO, the client and the service, which mostly take turns), so a few minutes more than that on
+two free cores; 20 minutes were measured on two cores that other work kept busy (load average
+8). ``--quick`` does about a fifth of the work.
 """
 
 from __future__ import annotations
