@@ -44,9 +44,9 @@ onsets at most 1.2 times the reference's; at sigma 8 m: at least 97 % of fixes m
 road, at most 1 % no-match faults).
 
 Run with ``python -m benchmarks.telematics [--quick] [--out DIR]``: about 4.5 CPU-minutes in all
-(SUMO, the client and the service, which mostly take turns), so a few minutes more than that on
-two free cores; 20 minutes were measured on two cores that other work kept busy (load average
-8). ``--quick`` does about a fifth of the work.
+(SUMO, the client and the service, which mostly take turns): 9.5 minutes measured on two cores
+shared with other work (load average 5 to 7), 20 minutes at load average 8 to 9. ``--quick``
+does about a fifth of the work (4 minutes at load average 9).
 """
 
 from __future__ import annotations
