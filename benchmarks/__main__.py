@@ -29,7 +29,20 @@ from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from benchmarks import cosim, curvature, fcw, fcw_traffic, load, osm, roadmap, roads, service, sweep, warning
+from benchmarks import (
+    cosim,
+    curvature,
+    fcw,
+    fcw_traffic,
+    load,
+    osm,
+    roadmap,
+    roads,
+    service,
+    sweep,
+    telematics,
+    warning,
+)
 from benchmarks import map as live_map
 from benchmarks.rows import Row, at_least, at_most, context, table
 
@@ -427,6 +440,12 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
             cosim_rows,
         ),
         Benchmark("fcw traffic", fcw_traffic.run, "about 1-2 minutes: two scenarios, every vehicle", fcw_traffic_rows),
+        Benchmark(
+            "telematics",
+            lambda: telematics.run(quick=quick),
+            "a few minutes" if quick else "long: about 4.5 CPU-minutes, two cities' fleets fed seven ways",
+            telematics.rows,
+        ),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
         Benchmark(
             "map", live_map.run, f"about a minute: the page watched for {live_map.WINDOW_S:g} s", live_map.map_rows

@@ -1,0 +1,201 @@
+"""Feeding a running ``csws serve`` with a fleet's trajectory, sampled and measured as a feed says.
+
+:func:`query_fields` reads the service's OpenAPI document for the optional fields a query may carry
+(a fix's ``accuracy_m``); :func:`feed_service` sends one feed whole, one ``POST /v1/warnings`` batch
+per batch instant, and keeps each answer's level, match and warned curve.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import httpx
+import msgspec
+import numpy as np
+
+from benchmarks.service import server_timing
+from benchmarks.telematics_analysis import Noise, noisy_fixes, sample_mask
+from benchmarks.telematics_fleet import STEP_S, Trajectories, lonlat
+
+if TYPE_CHECKING:
+    from benchmarks.telematics import Feed
+
+__all__ = ["QueryFields", "FeedAnswers", "query_fields", "feed_service", "EPOCH_S", "BATCH_S"]
+
+#: The fleet's clock at the simulation's start (timestamps are this plus the simulation time), s.
+EPOCH_S = 1_700_000_000.0
+#: A sampled feed's batches: one per second of simulated time.
+BATCH_S = 1.0
+#: How many progress lines a feed prints.
+PROGRESS_LINES = 5
+
+
+@dataclass(frozen=True)
+class QueryFields:
+    """Where the service's query schema takes a fix's ``accuracy_m``: ``"query"``, ``"position"`` or nowhere."""
+
+    accuracy: str | None
+
+
+@dataclass(frozen=True)
+class FeedAnswers:
+    """A feed's answers in the order sent (time order).
+
+    Attributes
+    ----------
+    rows
+        The trajectory row each answer is for.
+    level
+        Each answer's curve warning level.
+    matched_lane
+        Each answer's matched lane id (None: matched nothing).
+    target_lane
+        The lane the warned curve starts on (None without a warning).
+    server_ms
+        The service's own time for all the feed's batches, ms.
+    """
+
+    rows: np.ndarray
+    level: np.ndarray
+    matched_lane: np.ndarray
+    target_lane: np.ndarray
+    server_ms: float
+
+
+def query_fields(url: str) -> QueryFields:
+    """The optional fix fields the running service's query schema accepts, from its OpenAPI document."""
+    schemas = httpx.get(f"{url}/openapi.json", timeout=30.0).json()["components"]["schemas"]
+    for where, model in (("query", "Query"), ("position", "Position")):
+        # pydantic may name a model's request schema "Query-Input"
+        if any(name.split("-")[0] == model and "accuracy_m" in s.get("properties", {}) for name, s in schemas.items()):
+            return QueryFields(where)
+    return QueryFields(None)
+
+
+def _exact_columns(trajectories: Trajectories, rows: np.ndarray) -> dict[str, list]:
+    """Exact lane ids and positions, heading and speed of some rows, as plain lists."""
+    return {
+        "lane_id": [trajectories.lanes[i] for i in trajectories.lane[rows]],
+        "lane_pos_m": np.maximum(trajectories.lane_pos_m[rows], 0.0).tolist(),
+        "heading_deg": trajectories.heading_deg[rows].tolist(),
+        "speed_kmh": (3.6 * trajectories.speed_mps[rows]).tolist(),
+    }
+
+
+def _fix_columns(
+    net: Path, trajectories: Trajectories, rows: np.ndarray, noise: Noise, seed: int
+) -> tuple[np.ndarray, dict[str, list]]:
+    """The surviving rows and their measured fixes (lon/lat, or network x/y without a projection)."""
+    t = trajectories
+    fixes = noisy_fixes(
+        t.x_m[rows], t.y_m[rows], t.heading_deg[rows], 3.6 * t.speed_mps[rows], noise, np.random.default_rng(seed)
+    )
+    geo = lonlat(net, fixes.x_m, fixes.y_m)
+    names, values = (("lon", "lat"), geo) if geo is not None else (("x", "y"), (fixes.x_m, fixes.y_m))
+    positions = [
+        dict(zip(names, pair, strict=True)) for pair in zip(values[0].tolist(), values[1].tolist(), strict=True)
+    ]
+    columns = {"position": positions, "heading_deg": fixes.heading_deg.tolist(), "speed_kmh": fixes.speed_kmh.tolist()}
+    return rows[fixes.kept], columns
+
+
+def _queries(
+    trajectories: Trajectories,
+    rows: np.ndarray,
+    columns: dict[str, list],
+    prefix: str,
+    accuracy: tuple[str, float] | None,
+) -> list[dict[str, Any]]:
+    """The queries of some rows: the vehicle (the feed's own id), category, timestamp and the feed's columns."""
+    queries = []
+    for index, row in enumerate(rows.tolist()):
+        vehicle = trajectories.vehicle[row]
+        query = {
+            "vehicle_id": f"{prefix}-{trajectories.vehicle_ids[vehicle]}",
+            "category": trajectories.categories[vehicle],
+            "timestamp_s": EPOCH_S + round(float(trajectories.step[row]) * STEP_S, 1),
+        }
+        query |= {name: values[index] for name, values in columns.items()}
+        if accuracy is not None and accuracy[0] == "query":
+            query["accuracy_m"] = accuracy[1]
+        elif accuracy is not None:
+            query["position"] = {**query["position"], "accuracy_m": accuracy[1]}
+        queries.append(query)
+    return queries
+
+
+def _read(answers: list[dict], level: list, matched: list, target: list) -> None:
+    """Append each answer's level, matched lane and warned curve's lane."""
+    for answer in answers:
+        level.append(answer["level"])
+        matched.append(answer["matched"]["lane_id"] if answer["matched"] else None)
+        curve = answer["target"]["curve_id"] if answer["target"] else None
+        target.append(curve.rpartition("@")[0] if curve else None)
+
+
+def _columns(
+    net: Path, trajectories: Trajectories, feed: Feed, fields: QueryFields
+) -> tuple[np.ndarray, dict[str, list], tuple[str, float] | None]:
+    """A feed's rows, in time order, with their columns, and where and what ``accuracy_m`` is sent."""
+    interval_steps = round(feed.interval_s / STEP_S)
+    batch_steps = min(interval_steps, round(BATCH_S / STEP_S))
+    rows = np.flatnonzero(sample_mask(trajectories.step, trajectories.vehicle, interval_steps, batch_steps))
+    if feed.noise is None:
+        return rows, _exact_columns(trajectories, rows), None
+    rows, columns = _fix_columns(net, trajectories, rows, feed.noise, feed.seed)
+    return rows, columns, (fields.accuracy, feed.noise.position_sigma_m) if fields.accuracy else None
+
+
+def _send(
+    client: httpx.Client,
+    trajectories: Trajectories,
+    rows: np.ndarray,
+    columns: dict[str, list],
+    prefix: str,
+    accuracy: tuple[str, float] | None,
+    progress: Callable[[int, int, int], None],
+) -> FeedAnswers:
+    """Send some rows, one batch per step that has any, and keep their answers."""
+    cuts = np.flatnonzero(np.diff(trajectories.step[rows])) + 1
+    bounds = list(zip(np.concatenate(([0], cuts)).tolist(), np.concatenate((cuts, [len(rows)])).tolist(), strict=True))
+    level: list[int] = []
+    matched: list[str | None] = []
+    target: list[str | None] = []
+    server_ms = 0.0
+    for number, (start, end) in enumerate(bounds, start=1):
+        batch = {name: values[start:end] for name, values in columns.items()}
+        body = msgspec.json.encode({"queries": _queries(trajectories, rows[start:end], batch, prefix, accuracy)})
+        response = client.post("/v1/warnings", content=body, headers={"content-type": "application/json"})
+        response.raise_for_status()
+        server_ms += server_timing(response.headers["server-timing"])["csws"]
+        _read(msgspec.json.decode(response.content)["answers"], level, matched, target)
+        progress(number, len(bounds), end)
+    return FeedAnswers(
+        rows=rows,
+        level=np.asarray(level, dtype=np.int8),
+        matched_lane=np.asarray(matched, dtype=object),
+        target_lane=np.asarray(target, dtype=object),
+        server_ms=server_ms,
+    )
+
+
+def feed_service(
+    url: str, net: Path, trajectories: Trajectories, feed: Feed, prefix: str, fields: QueryFields, log: Callable
+) -> FeedAnswers:
+    """Send a feed whole to the service, one batch per instant, and keep its answers."""
+    rows, columns, accuracy = _columns(net, trajectories, feed, fields)
+    started = time.perf_counter()
+
+    def progress(number: int, batches: int, queries: int) -> None:
+        if number % max(batches // PROGRESS_LINES, 1) == 0:
+            log(
+                f"  {feed.name}: {number:,} of {batches:,} batches, {queries:,} queries, "
+                f"{time.perf_counter() - started:.0f} s"
+            )
+
+    with httpx.Client(base_url=url, timeout=120.0) as client:
+        return _send(client, trajectories, rows, columns, prefix, accuracy, progress)
