@@ -15,11 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from builders import node_xml
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
+from csws.curvature import ConstantRadiusPart, Curve
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, sample_pieces, straight
 from csws.road.roadmap import RoadMap
-from csws.road.sharing import lateral_offsets_m, reference_lanes
+from csws.road.sharing import Run, lateral_offsets_m, moved_curve, reference_lanes
 from csws.sumo.netbuild import netconvert, shape_text
 
 pytestmark = pytest.mark.sumo  # every network here is built with netconvert
@@ -122,3 +125,27 @@ def test_the_reference_lane_is_the_longest_chains_and_offsets_are_signed():
     assert lateral_offsets_m(shapes, reference) == pytest.approx([-3.2, 0.0, 3.2, 0.0])
     skewed = [np.array([[0.0, -3.2], [100.0, -6.0]]), line, line + [0.0, 3.2], line]
     assert math.isnan(lateral_offsets_m(skewed, reference)[0])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.floats(min_value=20.0, max_value=2000.0),
+    st.floats(min_value=-10.0, max_value=10.0),
+    st.sampled_from(["left", "right"]),
+    st.floats(min_value=0.9, max_value=1.1),
+)
+def test_a_moved_curve_keeps_its_place_and_angle_and_moves_its_radius_by_the_offset(
+    radius_m, offset_m, direction, stretch
+):
+    """A lane ``offset_m`` to the left of the reference: R - d inside a left turn, R + d outside a right
+    one; the curve's ends at the same share of the lane, its angle kept."""
+    assume(abs(offset_m) < radius_m / 2)
+    part = ConstantRadiusPart(100.0, 150.0, radius_m, False)
+    curve = Curve(100.0, 150.0, math.degrees(50.0 / radius_m), direction, radius_m, (part,))
+    run = Run(0, np.array([0.0, 400.0]), np.array([0.0, 400.0 * stretch]), np.array([offset_m]))
+    moved = moved_curve(curve, run)
+    assert moved is not None
+    expected_m = radius_m - offset_m if direction == "left" else radius_m + offset_m
+    assert moved.min_radius_m == pytest.approx(expected_m, rel=1e-9)
+    assert (moved.start_s, moved.end_s) == pytest.approx((100.0 * stretch, 150.0 * stretch))
+    assert moved.angle_deg == curve.angle_deg and moved.direction == direction
