@@ -232,7 +232,8 @@ class LoadedVehicles:
         """Make sure the vehicle has a session on ``network_index`` before its engine evaluates it.
 
         A new session starts from the stored switch; a vehicle that moved to another
-        network takes its system state along (not the warning memory of the other map's curves).
+        network takes its system state and its fix intervals along (not the warning memory of the
+        other map's curves).
         """
         session = self.sessions.get(vehicle_id)
         if session is None:
@@ -241,9 +242,11 @@ class LoadedVehicles:
             if setting is not None and not setting.switched_on:
                 self.engines[network_index].switch(vehicle_id, False)
         elif session.network_index != network_index:
-            status = self.engines[session.network_index].status(vehicle_id)
+            memory = self.engines[session.network_index].memory(vehicle_id)
             self.engines[session.network_index].forget(vehicle_id)
-            self.engines[network_index].restore(vehicle_id, VehicleMemory(status))
+            self.engines[network_index].restore(
+                vehicle_id, VehicleMemory(memory.status, intervals_s=memory.intervals_s)
+            )
             session.network_index = network_index
 
     def seen(

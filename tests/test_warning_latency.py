@@ -21,6 +21,7 @@ from csws.standard import warning_speed
 from csws.sumo.netbuild import netconvert
 from csws.warning.latency import KEPT_INTERVALS, MIN_INTERVALS, fix_age_s, next_intervals, update_period_s
 from csws.warning.rules import WarningSettings
+from service.vehicles import Session, SessionRecord
 
 #: The road: a straight, then an arc turning left, then a straight.
 APPROACH_M = 800.0
@@ -198,3 +199,11 @@ def test_the_hold_lasts_at_least_one_and_a_half_periods():
     assert settings.hold_s(2.0) == 3.0
     assert np.array_equal(settings.hold_s(np.array([0.1, 2.0])), [settings.release_hold_s, 3.0])
     assert math.isclose(settings.allowance_m(10.0, 1.0, 0.5), 10.0 * (1.0 + settings.system_delay_s + 0.5))
+
+
+def test_the_service_session_keeps_the_intervals():
+    """A session written to the store and read back gives the engine the same intervals."""
+    memory = VehicleMemory(intervals_s=(1.0, 1.0, 0.98, 1.02))
+    record = SessionRecord.of("net", Session(0, "r_0", 12.5), memory)
+    decoded = msgspec.msgpack.decode(msgspec.msgpack.encode(record), type=SessionRecord)
+    assert decoded.memory() == memory

@@ -192,7 +192,7 @@ class RoadChains:
         road's has the curves of the fits it reads, moved onto it run by run (:mod:`csws.road.sharing`).
         """
         runs = self.runs[chain]
-        if len(runs) == 1 and runs[0].source == chain and runs[0].is_own:
+        if len(runs) == 1 and runs[0].is_own:
             return self._fitted_curves(chain, warning_radius_m, policy)
         return self._kept(
             (chain, float(warning_radius_m), id(policy), False),
@@ -363,7 +363,7 @@ def _read_profile(
     chain: int, xy: np.ndarray, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
 ) -> RadiusProfile:
     """A chain's profile: its own fit where it reads only that, else the fits its runs read, moved onto it."""
-    if len(runs) == 1 and runs[0].source == chain and runs[0].is_own:
+    if len(runs) == 1 and runs[0].is_own:
         own = fitted[chain]
         assert own is not None  # a chain reading itself was fitted
         return own

@@ -109,17 +109,15 @@ class Run:
         length, m: a position maps linearly between them.
     offset_m
         Each lane's lateral offset from the source (0 for its own lanes), m.
+    is_own
+        Whether the run reads its own chain's own lanes (nothing to move).
     """
 
     source: int
     source_s: np.ndarray
     target_s: np.ndarray
     offset_m: np.ndarray
-
-    @property
-    def is_own(self) -> bool:
-        """Whether the run reads its own chain (nothing to move)."""
-        return not self.offset_m.any() and np.array_equal(self.source_s, self.target_s)
+    is_own: bool = False
 
     def to_target(self, s: float) -> float:
         """A source arc length in this chain's arc length, m."""
@@ -173,13 +171,13 @@ def _run(pending: list[tuple[int, int, float]], chain: int, lane_chain: np.ndarr
     """A run of ``(lane, source lane, offset)`` rows reading one source chain in order."""
     lanes, sources, offsets = zip(*pending, strict=True)
     source_chain = int(lane_chain[sources[0]])
-    if source_chain == chain and list(lanes) == list(sources):
-        offsets = (0.0,) * len(lanes)
+    own = source_chain == chain and list(lanes) == list(sources)
     return Run(
         source_chain,
         np.array([bounds_s[lane, 0] for lane in sources] + [bounds_s[sources[-1], 1]]),
         np.array([bounds_s[lane, 0] for lane in lanes] + [bounds_s[lanes[-1], 1]]),
-        np.array(offsets),
+        np.zeros(len(lanes)) if own else np.array(offsets),
+        own,
     )
 
 
