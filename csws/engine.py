@@ -351,9 +351,10 @@ class Engine:
         """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
         ``first[i]:first[i + 1]``); their warning memories are updated."""
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
-        periods_s = [self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids]
-        hold_s = [self.settings.warning.hold_s(period_s) for period_s in periods_s]
-        latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, hold_s)
+        periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
+        latched, hold = memory_masks(
+            held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s)
+        )
         batch = evaluate_batch(
             speed_kmh,
             columns,
@@ -364,7 +365,7 @@ class Engine:
             cpoi_latched=latched,
             cpoi_hold=hold,
             cpoi_passed=passed,
-            update_period_s=np.array(periods_s),
+            update_period_s=periods_s,
             age_s=np.array(age_s, dtype=float),
         )
         self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule))

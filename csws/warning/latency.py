@@ -27,7 +27,6 @@ does not switch a level off and on.
 from __future__ import annotations
 
 import math
-import statistics
 from collections.abc import Sequence
 
 from csws.warning.settings import WarningSettings
@@ -67,9 +66,13 @@ def update_period_s(intervals_s: Sequence[float], settings: WarningSettings) -> 
     """The vehicle's update period, s: the median of its last intervals, at most
     ``settings.max_update_period_s``, once :data:`MIN_INTERVALS` are known and the period
     is learnt; else the configured one."""
-    if not settings.learn_update_period or len(intervals_s) < MIN_INTERVALS:
+    count = len(intervals_s)
+    if count < MIN_INTERVALS or not settings.learn_update_period:
         return settings.update_period_s
-    return min(statistics.median(intervals_s), settings.max_update_period_s)
+    ordered = sorted(intervals_s)
+    middle = count // 2
+    median_s = ordered[middle] if count % 2 else (ordered[middle - 1] + ordered[middle]) / 2
+    return min(median_s, settings.max_update_period_s)
 
 
 def fix_age_s(age_s: float | None) -> float:

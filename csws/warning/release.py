@@ -103,7 +103,7 @@ def memory_masks(
     first_cpoi: Sequence[int],
     curve_ids: Sequence[str],
     part_indices: Sequence[int],
-    hold_s: float | Sequence[float],
+    hold_s: float | Sequence[float] | np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which CPOIs each level's memory names (rule 1), and which of those the hold may keep
     on (rule 2: less than ``hold_s`` since the level was last kept on otherwise; it does

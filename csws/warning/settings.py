@@ -100,6 +100,6 @@ class WarningSettings:
         where None), s: ``release_hold_s``, and at least ``release_hold_intervals`` update periods so that
         one noisy fix between two good ones cannot switch a level off and on (floats or arrays)."""
         period_s = self.update_period_s if update_period_s is None else update_period_s
-        if np.ndim(period_s) == 0:
-            return max(self.release_hold_s, self.release_hold_intervals * float(period_s))
-        return np.fmax(self.release_hold_s, self.release_hold_intervals * np.asarray(period_s, dtype=float))
+        if isinstance(period_s, np.ndarray):
+            return np.fmax(self.release_hold_s, self.release_hold_intervals * period_s)
+        return max(self.release_hold_s, self.release_hold_intervals * period_s)
