@@ -207,3 +207,16 @@ def test_the_service_session_keeps_the_intervals():
     record = SessionRecord.of("net", Session(0, "r_0", 12.5), memory)
     decoded = msgspec.msgpack.decode(msgspec.msgpack.encode(record), type=SessionRecord)
     assert decoded.memory() == memory
+
+
+@pytest.mark.sumo
+def test_the_engine_learns_the_median_through_a_gap_and_not_from_faults(road):
+    """Fixes every 1 s, a 10 s gap, and fixes that match no lane between: the period stays 1 s."""
+    road_map, lane = road
+    engine = Engine(road_map)
+    for timestamp_s in (0.0, 1.0, 2.0, 3.0, 13.0, 14.0):
+        engine.evaluate(VehicleInput("van", "N", 50.0, lane, 10.0 + 14.0 * timestamp_s, timestamp_s=timestamp_s))
+        if timestamp_s == 13.0:
+            engine.evaluate(VehicleInput("van", "N", 50.0, None, timestamp_s=13.5))  # a fault: no interval
+    assert engine.memory("van").intervals_s == (1.0, 1.0, 1.0, 10.0, 1.0)
+    assert engine.update_period_s("van") == 1.0
