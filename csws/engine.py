@@ -25,6 +25,7 @@ from csws.ahead.lookahead import LookAhead, LookAheadSettings
 from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
+from csws.warning import latency
 from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
 from csws.warning.rules import (
     BatchWarnings,
@@ -99,10 +100,14 @@ class VehicleMemory:
         The system state (5.2-5.4): switch, activation latch, last accepted timestamp, fault.
     held
         What the release rule keeps of the warning (:mod:`csws.warning.release`).
+    intervals_s
+        The last intervals between its accepted fixes, s, oldest first: its update period is
+        learnt from them (:mod:`csws.warning.latency`).
     """
 
     status: VehicleStatus = _NEW_STATUS
     held: HeldWarning = NOT_HELD
+    intervals_s: tuple[float, ...] = ()
 
 
 class Engine:
@@ -122,6 +127,7 @@ class Engine:
         self.lookahead = LookAhead(road_map, settings.lookahead, settings.warning) if road_map is not None else None
         self.statuses: dict[str, VehicleStatus] = {}
         self.held: dict[str, HeldWarning] = {}
+        self.intervals: dict[str, tuple[float, ...]] = {}
 
     def status(self, vehicle_id: str) -> VehicleStatus:
         """The vehicle's current status (a new vehicle starts switched on, in standby)."""
@@ -134,11 +140,17 @@ class Engine:
 
     def memory(self, vehicle_id: str) -> VehicleMemory:
         """What the engine keeps of the vehicle (that of a new vehicle when it has none)."""
-        return VehicleMemory(self.status(vehicle_id), self.held.get(vehicle_id, NOT_HELD))
+        return VehicleMemory(
+            self.status(vehicle_id), self.held.get(vehicle_id, NOT_HELD), self.intervals.get(vehicle_id, ())
+        )
 
     def restore(self, vehicle_id: str, memory: VehicleMemory) -> None:
         """Take up a vehicle where :meth:`memory` (of this engine or another one) left it."""
         self.statuses[vehicle_id] = memory.status
+        if memory.intervals_s:
+            self.intervals[vehicle_id] = memory.intervals_s
+        else:
+            self.intervals.pop(vehicle_id, None)
         if memory.held.is_on:
             self.held[vehicle_id] = memory.held
         else:
@@ -148,10 +160,25 @@ class Engine:
         """Drop a vehicle's status and warning memory (it left the simulation, or its session expired)."""
         self.statuses.pop(vehicle_id, None)
         self.held.pop(vehicle_id, None)
+        self.intervals.pop(vehicle_id, None)
+
+    def update_period_s(self, vehicle_id: str) -> float:
+        """The vehicle's update period as the warning takes it now: learnt from its timestamps, or the
+        configured one (:mod:`csws.warning.latency`), s."""
+        return latency.update_period_s(self.intervals.get(vehicle_id, ()), self.settings.warning)
+
+    def _learn_interval(self, vehicle_id: str, last_timestamp_s: float | None, status: VehicleStatus) -> None:
+        """Add the interval between the vehicle's last accepted fix and this one, if it was accepted."""
+        before = self.intervals.get(vehicle_id, ())
+        after = latency.next_intervals(before, last_timestamp_s, status.last_timestamp_s)
+        if after is not before:
+            self.intervals[vehicle_id] = after
 
     def evaluate(self, vehicle: VehicleInput) -> Answer:
         """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
+        last_timestamp_s = self.status(vehicle.vehicle_id).last_timestamp_s
         status = self._next_status(vehicle)
+        self._learn_interval(vehicle.vehicle_id, last_timestamp_s, status)
         if not status.warns:
             self.held.pop(vehicle.vehicle_id, None)
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
@@ -170,6 +197,8 @@ class Engine:
             self.held.get(vehicle.vehicle_id, NOT_HELD),
             vehicle.timestamp_s,
             self.settings.warning,
+            self.update_period_s(vehicle.vehicle_id),
+            latency.fix_age_s(vehicle.age_s),
         )
         self._keep([vehicle.vehicle_id], [memory])
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
@@ -245,8 +274,9 @@ class Engine:
         columns = column_indices(categories)
         speeds_kmh = np.asarray(speed_kmh, dtype=float)
         positions_m = np.asarray(lane_pos_m, dtype=float)
+        before = [self.statuses.get(vehicle_id, _NEW_STATUS) for vehicle_id in vehicle_ids]
         statuses = next_statuses(
-            [self.statuses.get(vehicle_id, _NEW_STATUS) for vehicle_id in vehicle_ids],
+            before,
             speeds_kmh,
             timestamp_s=timestamp_s,
             age_s=age_s,
@@ -254,6 +284,9 @@ class Engine:
             settings=self.settings.activation,
         )
         self.statuses.update(zip(vehicle_ids, statuses, strict=False))
+        for vehicle_id, was, status in zip(vehicle_ids, before, statuses, strict=False):
+            if status.last_timestamp_s is not None:
+                self._learn_interval(vehicle_id, was.last_timestamp_s, status)
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
         self._forget_warnings_of_inactive(vehicle_ids, statuses)
         ahead = judged = None
@@ -262,6 +295,7 @@ class Engine:
             ahead, judged = self._warnings(
                 [vehicle_ids[i] for i in active],
                 [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active],
+                [0.0] * len(active) if age_s is None else [latency.fix_age_s(age_s[i]) for i in active],
                 speeds_kmh[rows],
                 columns[rows],
                 _lanes_of_active([lane_ids[i] for i in active]),
@@ -303,6 +337,7 @@ class Engine:
         self,
         vehicle_ids: Sequence[str],
         now_s: Sequence[float | None],
+        age_s: Sequence[float],
         speed_kmh: np.ndarray,
         columns: np.ndarray,
         cpoi_vehicle: np.ndarray,
@@ -316,7 +351,10 @@ class Engine:
         """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
         ``first[i]:first[i + 1]``); their warning memories are updated."""
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
-        latched, hold = memory_masks(held, now_s, first, curve_ids, part_indices, self.settings.warning.release_hold_s)
+        periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
+        latched, hold = memory_masks(
+            held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s)
+        )
         batch = evaluate_batch(
             speed_kmh,
             columns,
@@ -327,6 +365,8 @@ class Engine:
             cpoi_latched=latched,
             cpoi_hold=hold,
             cpoi_passed=passed,
+            update_period_s=periods_s,
+            age_s=np.array(age_s, dtype=float),
         )
         self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule))
         return batch
@@ -343,6 +383,7 @@ class Engine:
         self,
         vehicle_ids: Sequence[str],
         now_s: Sequence[float | None],
+        age_s: Sequence[float],
         speed_kmh: np.ndarray,
         columns: np.ndarray,
         lane_ids: Sequence[str],
@@ -356,6 +397,7 @@ class Engine:
         batch = self._judged(
             vehicle_ids,
             now_s,
+            age_s,
             speed_kmh,
             columns,
             ahead.cpoi_vehicle,

@@ -5,7 +5,8 @@ the same way as ``csws serve``:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
 ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
-``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
+``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``,
+``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``.
 
@@ -78,7 +79,18 @@ class ServiceSettings(BaseSettings):
         default=_MATCH.heading_tolerance_deg, gt=0, le=180, description="allowed heading difference, deg"
     )
     update_period_s: float = Field(
-        default=_WARNING.update_period_s, ge=0, description="how often a vehicle's fixes arrive, s"
+        default=_WARNING.update_period_s,
+        ge=0,
+        description="how often a vehicle's fixes arrive, s: until its own period is learnt from its timestamps, "
+        "or always where learn_update_period is off",
+    )
+    learn_update_period: bool = Field(
+        default=_WARNING.learn_update_period,
+        description="learn each vehicle's update period from its timestamps (the median of its last intervals); "
+        "off pins every vehicle's to update_period_s",
+    )
+    max_update_period_s: float = Field(
+        default=_WARNING.max_update_period_s, ge=0, description="the longest update period learnt, s"
     )
     system_delay_s: float = Field(default=_WARNING.system_delay_s, ge=0, description="processing and display delay, s")
     api_keys_file: Path | None = Field(
@@ -136,7 +148,13 @@ class ServiceSettings(BaseSettings):
 
     def engine_settings(self) -> EngineSettings:
         """The library's engine settings with this service's latency of the updates and of the system."""
-        warning = replace(_WARNING, update_period_s=self.update_period_s, system_delay_s=self.system_delay_s)
+        warning = replace(
+            _WARNING,
+            update_period_s=self.update_period_s,
+            system_delay_s=self.system_delay_s,
+            learn_update_period=self.learn_update_period,
+            max_update_period_s=self.max_update_period_s,
+        )
         return replace(_ENGINE, warning=warning)
 
     def match_settings(self) -> MatchSettings:

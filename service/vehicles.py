@@ -131,13 +131,15 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     latest: LatestAnswer | None = None
     #: The forward collision warning's memory (sessions of vehicles never queried with objects have none).
     fcw: FcwMemory | None = None
+    #: The last intervals between its fixes, s, its update period is learnt from (:mod:`csws.warning.latency`).
+    intervals_s: tuple[float, ...] = ()
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
         status = VehicleStatus(self.state, self.switched_on, self.activated, self.last_timestamp_s, self.fault)
         if not (self.held_points[0] or self.held_points[1]):
-            return VehicleMemory(status)  # no level held: nothing of the release rule to take up
-        return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s))
+            return VehicleMemory(status, intervals_s=self.intervals_s)  # no level held: no release rule to take up
+        return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s), self.intervals_s)
 
     @classmethod
     def of(cls, network: str, session: Session, memory: VehicleMemory) -> SessionRecord:
@@ -155,6 +157,7 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
             session.lane_pos_m,
             session.latest,
             session.fcw,
+            memory.intervals_s,
         )
 
 
@@ -229,7 +232,8 @@ class LoadedVehicles:
         """Make sure the vehicle has a session on ``network_index`` before its engine evaluates it.
 
         A new session starts from the stored switch; a vehicle that moved to another
-        network takes its system state along (not the warning memory of the other map's curves).
+        network takes its system state and its fix intervals along (not the warning memory of the
+        other map's curves).
         """
         session = self.sessions.get(vehicle_id)
         if session is None:
@@ -238,9 +242,11 @@ class LoadedVehicles:
             if setting is not None and not setting.switched_on:
                 self.engines[network_index].switch(vehicle_id, False)
         elif session.network_index != network_index:
-            status = self.engines[session.network_index].status(vehicle_id)
+            memory = self.engines[session.network_index].memory(vehicle_id)
             self.engines[session.network_index].forget(vehicle_id)
-            self.engines[network_index].restore(vehicle_id, VehicleMemory(status))
+            self.engines[network_index].restore(
+                vehicle_id, VehicleMemory(memory.status, intervals_s=memory.intervals_s)
+            )
             session.network_index = network_index
 
     def seen(

@@ -62,7 +62,13 @@ def _warning_settings(draw):
         g_mps2=draw(st.floats(min_value=5.0, max_value=12.0)),
         release_margin_kmh=draw(st.floats(min_value=0.0, max_value=10.0)),
         release_hold_s=draw(st.floats(min_value=0.0, max_value=5.0)),
+        release_hold_intervals=draw(st.floats(min_value=0.0, max_value=3.0)),
     )
+
+
+#: A vehicle's learnt update period (None: the configured one) and its fix's age, s.
+_periods = st.one_of(st.none(), st.floats(min_value=0.01, max_value=5.0))
+_ages = st.one_of(st.just(0.0), st.floats(min_value=0.0, max_value=2.0))
 
 
 @st.composite
@@ -74,12 +80,13 @@ def _memories(draw, points):
     return draw(st.sampled_from([NOT_HELD, HeldWarning(levels, kept)]))
 
 
-def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings):
+def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings, period_s, age_s):
     """The same vehicle through :func:`evaluate_batch` and :mod:`csws.warning.release` on arrays."""
     curve_ids = [point[0] for point in points]
     parts = np.array([point[1] for point in points], dtype=np.intp)
     first = [0, len(points)]
-    latched, hold = memory_masks([held], [now_s], first, curve_ids, parts, warning_settings.release_hold_s)
+    hold_s = [warning_settings.hold_s(period_s)]
+    latched, hold = memory_masks([held], [now_s], first, curve_ids, parts, hold_s)
     batch = evaluate_batch(
         np.array([speed_kmh]),
         np.array([column]),
@@ -90,6 +97,8 @@ def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_setti
         cpoi_latched=latched,
         cpoi_hold=hold,
         cpoi_passed=np.array([point[4] for point in points], dtype=bool),
+        update_period_s=None if period_s is None else np.array([period_s]),
+        age_s=np.array([age_s]),
     )
     memory = next_memories([held], [now_s], first, curve_ids, parts, batch.cpoi_rule)[0]
     return batch.vehicle_warning(0, 0, curve_ids, parts, kind), memory
@@ -105,12 +114,19 @@ def _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_setti
     _times,
     st.sampled_from(list(PathKind)),
     _warning_settings(),
+    _periods,
+    _ages,
 )
-def test_one_vehicle_is_judged_as_in_a_batch(data, points, speed_kmh, category, now_s, kind, warning_settings):
+def test_one_vehicle_is_judged_as_in_a_batch(
+    data, points, speed_kmh, category, now_s, kind, warning_settings, period_s, age_s
+):
+    """Any CPOIs, memory, settings, learnt update period and fix age: the same warning and memory."""
     held = data.draw(_memories(points))
     column = column_index(category)
-    expected_warning, expected_memory = _batch_judgement(speed_kmh, column, points, kind, held, now_s, warning_settings)
-    warning, memory = judge_one(speed_kmh, column, points, kind, held, now_s, warning_settings)
+    expected_warning, expected_memory = _batch_judgement(
+        speed_kmh, column, points, kind, held, now_s, warning_settings, period_s, age_s
+    )
+    warning, memory = judge_one(speed_kmh, column, points, kind, held, now_s, warning_settings, period_s, age_s)
     assert warning == expected_warning
     assert (memory.points, memory.kept_at_s) == (expected_memory.points, expected_memory.kept_at_s)
 

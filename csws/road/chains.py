@@ -4,7 +4,9 @@ A road is a chain of lanes through the nodes where it continues (a way split, a 
 road joining, the straight-ahead or priority continuation: :mod:`csws.road.continuations`), each
 lane handing on to the lane its road continues on (:attr:`csws.road.network.Lane.continues_into`).
 Each chain is stitched into one polyline and fitted once, all chains of a network
-together (:func:`csws.curvature.radius_profiles`); its curves (3.3-3.8) are found once.
+together (:func:`csws.curvature.radius_profiles`); its curves (3.3-3.8) are found once. A lane
+beside another of its edge borrows that lane's fit instead of its own, so that the lanes of one
+road have one curve (:mod:`csws.road.sharing`).
 The curve index, the path ahead of a vehicle (the horizon, the CPOIs of the look-ahead,
 the warning) all read these fits (:mod:`csws.road.path`): the answer for a point of a road
 does not depend on the lane a path starts from or on how far back it was stitched.
@@ -12,15 +14,15 @@ does not depend on the lane a path starts from or on how far back it was stitche
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 
-from csws.curvature import ConstantRadiusPart, Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
+from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
+from csws.road.sharing import Run, chain_runs, clip_curve, lateral_offsets_m, moved_curve, moved_parts, reference_lanes
 from csws.standard import WarningSpeedPolicy
 
 __all__ = [
@@ -138,42 +140,6 @@ def road_chains(continues_into: np.ndarray) -> list[np.ndarray]:
     return chains
 
 
-def clip_curve(curve: Curve, start_s: float, end_s: float, offset_m: float = 0.0) -> Curve | None:
-    """The stretch of ``curve`` on ``[start_s, end_s]``, shifted by ``offset_m``; None if it lies outside.
-
-    A path that starts inside a curve or leaves the road in one sees that much of it.
-    Each part keeps its radius (a piece of a clothoid cut at the path's start keeps the
-    radius of its own start: the nearer the curve's apex, the smaller), and the angle is
-    that of the parts kept, length over radius.
-    """
-    kept = [
-        ConstantRadiusPart(
-            max(part.start_s, start_s) + offset_m, min(part.end_s, end_s) + offset_m, part.radius_m, part.spiral
-        )
-        for part in curve.parts
-        if part.end_s > start_s and part.start_s < end_s
-    ]
-    if not kept:
-        return None
-    if curve.start_s >= start_s and curve.end_s <= end_s:
-        return Curve(
-            curve.start_s + offset_m,
-            curve.end_s + offset_m,
-            curve.angle_deg,
-            curve.direction,
-            curve.min_radius_m,
-            tuple(kept),
-        )
-    return Curve(
-        start_s=kept[0].start_s,
-        end_s=kept[-1].end_s,
-        angle_deg=math.degrees(sum((part.end_s - part.start_s) / part.radius_m for part in kept)),
-        direction=curve.direction,
-        min_radius_m=min(part.radius_m for part in kept),
-        parts=tuple(kept),
-    )
-
-
 @dataclass(frozen=True)
 class RoadChains:
     """Every road chain of a network, its stitched polyline, its fitted profile and its curves.
@@ -185,7 +151,13 @@ class RoadChains:
     xy
         The stitched polyline of each chain, ``(n, 2)``, m.
     profiles
-        The radius profile of each chain.
+        The radius profile of each chain: its own fit, or where lanes of it borrow their road's
+        (:mod:`csws.road.sharing`), pieced together from the fits they borrow.
+    runs
+        Each chain's runs (:class:`csws.road.sharing.Run`): where it reads its own fit and where a
+        reference chain's.
+    fitted
+        The own fit of each chain that has one (a chain all of whose lanes borrow has none).
     is_junction
         Whether each chain is a junction manoeuvre (a turn's internal lane, a roundabout lane).
     lane_chain
@@ -202,24 +174,59 @@ class RoadChains:
     lanes: tuple[np.ndarray, ...]
     xy: tuple[np.ndarray, ...]
     profiles: tuple[RadiusProfile, ...]
+    runs: tuple[tuple[Run, ...], ...]
+    fitted: tuple[RadiusProfile | None, ...]
     is_junction: np.ndarray
     lane_chain: np.ndarray
     lane_start_s: np.ndarray
     lane_road_length_m: np.ndarray
     lane_position_factor: np.ndarray
-    _curves: dict[tuple[int, float, int], tuple[WarningSpeedPolicy, list[Curve]]] = field(
+    _curves: dict[tuple[int, float, int, bool], tuple[WarningSpeedPolicy, list[Curve]]] = field(
         default_factory=dict, repr=False, compare=False
     )
 
     def curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
-        """The curves of one chain for R_c ``warning_radius_m``, clothoids cut by ``policy``, found once and kept."""
-        key = (chain, float(warning_radius_m), id(policy))
+        """The curves of one chain for R_c ``warning_radius_m``, clothoids cut by ``policy``, found once and kept.
+
+        A chain that reads only its own fit has the curves of that fit; one whose lanes borrow their
+        road's has the curves of the fits it reads, moved onto it run by run (:mod:`csws.road.sharing`).
+        """
+        runs = self.runs[chain]
+        if len(runs) == 1 and runs[0].is_own:
+            return self._fitted_curves(chain, warning_radius_m, policy)
+        return self._kept(
+            (chain, float(warning_radius_m), id(policy), False),
+            policy,
+            lambda: self._moved_curves(runs, warning_radius_m, policy),
+        )
+
+    def _fitted_curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
+        """The curves of a chain's own fit (see :meth:`curves`)."""
+        fitted = self.fitted[chain]
+        if fitted is None:
+            raise RuntimeError(f"road chain {chain} has no fit of its own")
+        return self._kept(
+            (chain, float(warning_radius_m), id(policy), True),
+            policy,
+            lambda: curves_from_profile(fitted, warning_radius_m, policy=policy),
+        )
+
+    def _moved_curves(self, runs: Sequence[Run], warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
+        """The curves of the fits a chain's runs read, moved onto the chain, in driving order."""
+        moved = (
+            moved_curve(curve, run)
+            for run in runs
+            for curve in self._fitted_curves(run.source, warning_radius_m, policy)
+        )
+        return [curve for curve in moved if curve is not None]
+
+    def _kept(
+        self, key: tuple[int, float, int, bool], policy: WarningSpeedPolicy, find: Callable[[], list[Curve]]
+    ) -> list[Curve]:
+        """Curves found once per key and kept with the policy, whose id is then not reused."""
         kept = self._curves.get(key)
-        if kept is None or kept[0] is not policy:  # kept with the policy, whose id is then not reused
-            kept = self._curves[key] = (
-                policy,
-                curves_from_profile(self.profiles[chain], warning_radius_m, policy=policy),
-            )
+        if kept is None or kept[0] is not policy:
+            kept = self._curves[key] = (policy, find())
         return kept[1]
 
     def lane_at(self, chain: int, s: float, end: bool = False) -> int:
@@ -266,11 +273,15 @@ def fit_road_chains(
     lane_length_m: np.ndarray,
     is_junction: np.ndarray,
     cache_dir: Path | None = None,
+    *,
+    edge_ids: Sequence[str] | None = None,
+    lane_index: Sequence[int] | None = None,
 ) -> RoadChains:
     """Group lanes into road chains (:func:`road_chains`), stitch each chain's road shapes
-    and fit every chain at once (:func:`csws.curvature.radius_profiles`), or read the fit
-    from ``cache_dir`` where these chains were fitted before
-    (:func:`csws.curvature.cached_radius_profiles`).
+    and fit every chain that has a lane of its own at once (:func:`csws.curvature.radius_profiles`),
+    or read the fit from ``cache_dir`` where these chains were fitted before
+    (:func:`csws.curvature.cached_radius_profiles`); lanes of one edge share their road's fit
+    (:mod:`csws.road.sharing`).
 
     Parameters
     ----------
@@ -284,29 +295,90 @@ def fit_road_chains(
         Whether each lane is a junction manoeuvre; a chain is one when its lanes are.
     cache_dir
         The folder of fitted profiles; ``None`` fits without a cache.
+    edge_ids, lane_index
+        Each lane's edge and its index in it; None fits every lane on its own.
     """
     members = [stretch for chain in road_chains(continues_into) for stretch in _cut_where_straight(chain, road_shapes)]
     lane_chain = np.empty(len(road_shapes), dtype=np.int64)
-    lane_start_s = np.empty(len(road_shapes))
+    bounds_s = np.empty((len(road_shapes), 2))
     road_length_m = np.array([np.hypot(*np.diff(shape, axis=0).T).sum() for shape in road_shapes])
     chain_xy = []
     for chain, lanes in enumerate(members):
         xy, start_s = stitch([road_shapes[lane] for lane in lanes.tolist()])
         chain_xy.append(xy)
         lane_chain[lanes] = chain
-        lane_start_s[lanes] = start_s
+        bounds_s[lanes, 0] = start_s
+        bounds_s[lanes, 1] = np.append(start_s[1:], _arc_length(xy)[-1])
+    if edge_ids is None or lane_index is None:
+        reference, offset_m = np.arange(len(road_shapes)), np.zeros(len(road_shapes))
+    else:
+        reference = reference_lanes(edge_ids, lane_index, _chain_lengths(chain_xy)[lane_chain])
+        offset_m = lateral_offsets_m(road_shapes, reference)
+    runs = tuple(
+        tuple(chain_runs(lanes, chain, reference, offset_m, lane_chain, bounds_s))
+        for chain, lanes in enumerate(members)
+    )
+    fitted = _fit_sources(chain_xy, runs, cache_dir)
     return RoadChains(
         lanes=tuple(members),
         xy=tuple(chain_xy),
-        profiles=tuple(cached_radius_profiles(chain_xy, cache_dir)),
+        profiles=tuple(
+            _read_profile(chain, chain_xy[chain], chain_runs_, fitted) for chain, chain_runs_ in enumerate(runs)
+        ),
+        runs=runs,
+        fitted=fitted,
         is_junction=np.array([bool(np.all(is_junction[lanes])) for lanes in members], dtype=bool),
         lane_chain=lane_chain,
-        lane_start_s=lane_start_s,
+        lane_start_s=bounds_s[:, 0].copy(),
         lane_road_length_m=road_length_m,
         lane_position_factor=np.divide(
             lane_length_m, road_length_m, out=np.ones(len(road_length_m)), where=road_length_m > 0
         ),
     )
+
+
+def _arc_length(xy: np.ndarray) -> np.ndarray:
+    """Arc length at each vertex of a polyline, m."""
+    return np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+
+
+def _chain_lengths(chain_xy: Sequence[np.ndarray]) -> np.ndarray:
+    """Each chain's length, m."""
+    return np.array([_arc_length(xy)[-1] for xy in chain_xy])
+
+
+def _fit_sources(
+    chain_xy: Sequence[np.ndarray], runs: Sequence[Sequence[Run]], cache_dir: Path | None
+) -> tuple[RadiusProfile | None, ...]:
+    """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others."""
+    sources = sorted({run.source for chain_runs_ in runs for run in chain_runs_})
+    fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir)
+    fitted: list[RadiusProfile | None] = [None] * len(chain_xy)
+    for chain, fit in zip(sources, fits, strict=True):
+        fitted[chain] = fit
+    return tuple(fitted)
+
+
+def _read_profile(
+    chain: int, xy: np.ndarray, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
+) -> RadiusProfile:
+    """A chain's profile: its own fit where it reads only that, else the fits its runs read, moved onto it."""
+    if len(runs) == 1 and runs[0].is_own:
+        own = fitted[chain]
+        assert own is not None  # a chain reading itself was fitted
+        return own
+    bounds, start_k, end_k = [0.0], [], []
+    for run in runs:
+        source = fitted[run.source]
+        assert source is not None  # every source was fitted
+        for end_s, k0, k1 in moved_parts(source.parts, run):
+            if end_s > bounds[-1]:
+                bounds.append(end_s)
+                start_k.append(k0)
+                end_k.append(k1)
+    vertex_s = _arc_length(xy)
+    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
+    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
 
 
 def index_curves(

@@ -23,7 +23,9 @@ junction speed, not a bend taken at road speed. A curve of the road with a node 
 it (a way split, a side road joining) is a curve whole: each road chain (the lanes a
 road continues on, through the internal lanes that continue it, taken as one chord
 across the junction) is fitted once, and the curve index and every path read that fit
-(:mod:`csws.road.chains`).
+(:mod:`csws.road.chains`). The lanes of one road share its curves: a lane beside its edge's
+reference lane borrows that lane's fit, at the same lane positions, its radii moved by the
+lanes' lateral offset (:mod:`csws.road.sharing`).
 
 Networks imported from OpenStreetMap are geo-referenced: :meth:`RoadMap.xy_to_lonlat`
 and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) convert with
@@ -56,6 +58,7 @@ import sumolib
 
 from csws.curvature import checked_warning_radius_m, profile_cache_dir
 from csws.road.chains import LaneCurve, fit_road_chains, index_curves
+from csws.road.georef import GeoReferenced, finite_pairs
 from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 from csws.road.path import PathProfile, path_profile
 from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
@@ -73,16 +76,6 @@ __all__ = [
 ]
 
 
-def _finite_pairs(values: np.ndarray, what: str) -> np.ndarray:
-    """``values`` as a float ``(k, 2)`` array; ValueError when not finite pairs."""
-    pairs = np.asarray(values, dtype=float)
-    if pairs.ndim != 2 or pairs.shape[1] != 2:
-        raise ValueError(f"{what} must be pairs, got an array of shape {np.shape(values)}")
-    if not np.isfinite(pairs).all():
-        raise ValueError(f"{what} must be finite numbers")
-    return pairs
-
-
 def _compressed_rows(rows: Sequence[Sequence[int]]) -> tuple[np.ndarray, np.ndarray]:
     """Ragged integer rows as (row start offsets, concatenated values)."""
     start = np.concatenate(([0], np.cumsum([len(row) for row in rows]))).astype(np.int64)
@@ -97,7 +90,7 @@ def _shape_between(shape: np.ndarray, start_s: float, end_s: float) -> np.ndarra
     return np.column_stack((np.interp(cut_s, s, shape[:, 0]), np.interp(cut_s, s, shape[:, 1])))
 
 
-class RoadMap:
+class RoadMap(GeoReferenced):
     """Every lane of a SUMO network: attributes, shape, successors, radius profile and curves.
 
     Build one with :meth:`load` (from a file) or :meth:`from_net` (from a sumolib net).
@@ -166,6 +159,8 @@ class RoadMap:
             np.array([lane.length_m for lane in self._lanes]),
             np.array([lane.is_junction for lane in self._lanes], dtype=bool),
             profile_cache_dir() if cache else None,
+            edge_ids=[lane.edge_id for lane in self._lanes],
+            lane_index=[lane.index for lane in self._lanes],
         )
         self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m, warning_policy)
 
@@ -252,7 +247,8 @@ class RoadMap:
     def nbytes(self) -> int:
         """Bytes held by the map's arrays: vertices, arc lengths, links, road chains and their profiles."""
         arrays = [self._xy, self._vertex_s, self._vertex_start, self._successor_start, self._successor_index]
-        arrays += list(self._chains.xy) + [a for p in self._chains.profiles for a in (p.s, p.curvature, p.radius)]
+        profiles = {id(p): p for p in (*self._chains.profiles, *self._chains.fitted) if p is not None}.values()
+        arrays += list(self._chains.xy) + [a for p in profiles for a in (p.s, p.curvature, p.radius)]
         return int(sum(array.nbytes for array in arrays))
 
     @cached_property
@@ -398,58 +394,11 @@ class RoadMap:
         """
         if not (math.isfinite(radius_m) and radius_m > 0):
             raise ValueError(f"search radius must be a positive number of metres, got {radius_m!r}")
-        return self._lane_search.match(_finite_pairs(xy, "positions"), radius_m)
+        return self._lane_search.match(finite_pairs(xy, "positions"), radius_m)
 
     def nearest_lanes(self, x: float, y: float, radius_m: float) -> list[LaneMatch]:
         """The lanes within ``radius_m`` of (x, y), nearest first (see :meth:`match_points`)."""
         return self.match_points(np.array([[x, y]]), radius_m).for_point(0)
-
-    # ----------------------------------------------------------------- geo-reference
-    def xy_to_lonlat(self, x: float, y: float) -> tuple[float, float]:
-        """Longitude and latitude (degrees, WGS84) of network coordinates (see :meth:`xy_to_lonlat_many`)."""
-        lon, lat = self.xy_to_lonlat_many(np.array([[x, y]], dtype=float))[0]
-        return float(lon), float(lat)
-
-    def lonlat_to_xy(self, lon: float, lat: float) -> tuple[float, float]:
-        """Network coordinates (m) of a longitude and latitude in degrees (see :meth:`lonlat_to_xy_many`)."""
-        x, y = self.lonlat_to_xy_many(np.array([[lon, lat]], dtype=float))[0]
-        return float(x), float(y)
-
-    def xy_to_lonlat_many(self, xy: np.ndarray) -> np.ndarray:
-        """Longitudes and latitudes (degrees, WGS84) of many network positions, ``(k, 2)`` -> ``(k, 2)``.
-
-        As SUMO and sumolib's ``convertXY2LonLat`` do: the network offset is taken off
-        and the network's projection (``projParameter``, UTM for an OSM import) inverted.
-
-        Raises
-        ------
-        ValueError
-            If the network has no geo-projection, or a coordinate is not finite.
-        """
-        self._require_projection()
-        xy = _finite_pairs(xy, "network coordinates")
-        offset_x, offset_y = self.geo.getLocationOffset()
-        lon, lat = self.geo.getGeoProj()(xy[:, 0] - offset_x, xy[:, 1] - offset_y, inverse=True)
-        return np.column_stack((lon, lat))
-
-    def lonlat_to_xy_many(self, lonlat: np.ndarray) -> np.ndarray:
-        """Network coordinates (m) of many longitude/latitude pairs in degrees, ``(k, 2)`` -> ``(k, 2)``.
-
-        Raises
-        ------
-        ValueError
-            If the network has no geo-projection, or a longitude is outside [-180, 180]
-            or a latitude outside [-90, 90] degrees.
-        """
-        self._require_projection()
-        lonlat = _finite_pairs(lonlat, "lon/lat")
-        bad = (np.abs(lonlat[:, 0]) > 180.0) | (np.abs(lonlat[:, 1]) > 90.0)
-        if bad.any():
-            lon, lat = lonlat[np.flatnonzero(bad)[0]]
-            raise ValueError(f"lon/lat out of range: ({lon}, {lat}); longitude is -180..180, latitude -90..90 degrees")
-        offset_x, offset_y = self.geo.getLocationOffset()
-        x, y = self.geo.getGeoProj()(lonlat[:, 0], lonlat[:, 1])
-        return np.column_stack((np.asarray(x) + offset_x, np.asarray(y) + offset_y))
 
     # ----------------------------------------------------------------- internals
     def _lane_index(self, lane_id: str) -> int:
@@ -493,10 +442,6 @@ class RoadMap:
                     seen.add(nxt)
                     frontier.append((nxt, chain_so_far + [nxt]))
         return None
-
-    def _require_projection(self) -> None:
-        if not self.has_projection:
-            raise ValueError("the network has no geo-projection: it takes network x/y in metres, not lon/lat")
 
     @cached_property
     def _lane_id_array(self) -> np.ndarray:

@@ -13,7 +13,9 @@ towards the distance left. The rule here keeps a level on that is on:
    margin cannot switch it back and forth.
 2. **Hold.** When nothing keeps any level on any more but a CPOI that kept one on is
    still ahead or under the vehicle, that level stays on until
-   :attr:`WarningSettings.release_hold_s` (1 s) has passed since it was last kept on. The
+   :attr:`WarningSettings.release_hold_s` (1 s), and at least
+   :attr:`WarningSettings.release_hold_intervals` (1.5) of the vehicle's update periods
+   (:mod:`csws.warning.latency`), has passed since it was last kept on. The
    warning is so never switched off and on again by the same curve within that time. A
    level 2 that gives way to a level 1 still required is not held: the driver then sees
    at once the lower warning speed that is due. The hold needs the vehicle's timestamps;
@@ -101,7 +103,7 @@ def memory_masks(
     first_cpoi: Sequence[int],
     curve_ids: Sequence[str],
     part_indices: Sequence[int],
-    hold_s: float,
+    hold_s: float | Sequence[float] | np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which CPOIs each level's memory names (rule 1), and which of those the hold may keep
     on (rule 2: less than ``hold_s`` since the level was last kept on otherwise; it does
@@ -117,7 +119,8 @@ def memory_masks(
     curve_ids, part_indices
         The flat CPOIs.
     hold_s
-        :attr:`csws.warning.rules.WarningSettings.release_hold_s`.
+        The hold (:meth:`csws.warning.rules.WarningSettings.hold_s`): one for all vehicles, or
+        each vehicle's (it lasts at least some of its update periods).
     """
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
@@ -128,10 +131,11 @@ def memory_masks(
             continue
         start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
         keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
+        vehicle_hold_s = hold_s if isinstance(hold_s, float | int) else float(hold_s[vehicle])
         for level, level_named in enumerate(named_points(memory, keys)):
             rows_named = [row for row, is_named in enumerate(level_named, start) if is_named]
             named[level].extend(rows_named)
-            if within_hold(memory.kept_at_s[level], now_s[vehicle], hold_s):
+            if within_hold(memory.kept_at_s[level], now_s[vehicle], vehicle_hold_s):
                 held_on[level].extend(rows_named)
     for level in (0, 1):
         latched[level, named[level]] = True

@@ -28,22 +28,20 @@ The core, :func:`evaluate_batch`, works on flat numpy arrays for many vehicles a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
 
 from csws.standard import (
-    DEFAULT_POLICY,
-    G_MPS2,
     Category,
     Column,
     Level,
-    WarningSpeedPolicy,
     kmh_to_mps,
     warning_distance_m,
 )
 from csws.warning.release import Rule, lowered_warning_speed_kmh
+from csws.warning.settings import WarningSettings
 
 __all__ = [
     "CurvaturePointOfInterest",
@@ -90,62 +88,6 @@ class CurvaturePointOfInterest:
     part_index: int
     distance_m: float
     radius_m: float
-
-
-@dataclass(frozen=True)
-class WarningSettings:
-    """What the warning engine needs beyond the standard's tables.
-
-    Attributes
-    ----------
-    policy
-        Warning speeds (Tables 1 and 2 by default; a fleet may override them).
-    update_period_s
-        How often the vehicle's position reaches the system, s. Between two updates the
-        vehicle moves v * update_period_s unseen, so the warning is raised that much
-        earlier to be on when the distance falls below S_w.
-    system_delay_s
-        Processing and display delay of the system, s.
-    g_mps2
-        g of formula (1).
-    release_margin_kmh
-        How far below V_w a level that is on goes off, km/h (:mod:`csws.warning.release`, rule 1).
-    release_hold_s
-        How long a level stays on after nothing keeps it on any more while a CPOI that
-        did is still ahead or under the vehicle, s (:mod:`csws.warning.release`, rule 2).
-
-    Notes
-    -----
-    Latency compensation is what makes the system pass the standard's own test rows:
-    Tables 5-9 list several S_w up to 1.64 m larger than formula (1) gives (M3-N-O,
-    R=200 m, V=100 km/h), and a system that sees the vehicle only every
-    ``update_period_s`` would be late by up to ``v * update_period_s`` otherwise.
-    """
-
-    policy: WarningSpeedPolicy = field(default_factory=lambda: DEFAULT_POLICY)
-    update_period_s: float = 0.1
-    system_delay_s: float = 0.1
-    g_mps2: float = G_MPS2
-    release_margin_kmh: float = 1.0
-    release_hold_s: float = 1.0
-
-    def __post_init__(self) -> None:
-        for name in ("update_period_s", "system_delay_s", "release_margin_kmh", "release_hold_s"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                unit = "km/h" if name.endswith("_kmh") else "seconds"
-                raise ValueError(f"{name} must be a non-negative number of {unit}, got {value!r}")
-        if not (np.isfinite(self.g_mps2) and self.g_mps2 > 0):
-            raise ValueError(f"g_mps2 must be a positive number, got {self.g_mps2!r}")
-
-    @property
-    def latency_s(self) -> float:
-        """Total latency t_latency compensated for, s."""
-        return self.update_period_s + self.system_delay_s
-
-    def allowance_m(self, speed_mps):
-        """The distance driven at ``speed_mps`` during the latency, by which S_w is extended, m (floats or arrays)."""
-        return speed_mps * self.latency_s
 
 
 @dataclass(frozen=True)
@@ -362,6 +304,8 @@ def evaluate_batch(
     cpoi_latched: np.ndarray | None = None,
     cpoi_hold: np.ndarray | None = None,
     cpoi_passed: np.ndarray | None = None,
+    update_period_s: np.ndarray | None = None,
+    age_s: np.ndarray | None = None,
 ) -> BatchWarnings:
     """Evaluate clause 6 for many vehicles and their CPOIs at once.
 
@@ -386,6 +330,10 @@ def evaluate_batch(
     cpoi_passed
         ``(n_cpois,)``: CPOIs the vehicle has just passed (:data:`csws.ahead.horizon.END_MARGIN_M`):
         6.1 requires nothing there, only the release rule may keep a level on.
+    update_period_s, age_s
+        ``(n_vehicles,)``: each vehicle's update period (learnt, :func:`csws.warning.latency.update_period_s`)
+        and its fix's age when answered, s; None for the configured period and fresh fixes. Both
+        lengthen the latency allowance (:meth:`WarningSettings.allowance_m`).
 
     Returns
     -------
@@ -401,12 +349,17 @@ def evaluate_batch(
     # Row 0: level 1, row 1: level 2 (Tables 1 and 2).
     threshold_kmh = settings.policy.warning_speeds_kmh(radius, np.asarray(column_index)[cpoi_vehicle])
     sw_m = warning_distance_m(cpoi_speed_mps, kmh_to_mps(threshold_kmh), settings.g_mps2)
-    required = meets_clause_6_1(cpoi_speed_kmh, threshold_kmh, distance, sw_m, settings.allowance_m(cpoi_speed_mps))
+    allowance_m = settings.allowance_m(
+        cpoi_speed_mps,
+        None if update_period_s is None else np.asarray(update_period_s, dtype=float)[cpoi_vehicle],
+        0.0 if age_s is None else np.asarray(age_s, dtype=float)[cpoi_vehicle],
+    )
+    required = meets_clause_6_1(cpoi_speed_kmh, threshold_kmh, distance, sw_m, allowance_m)
     if cpoi_passed is not None:
         required &= ~np.asarray(cpoi_passed, dtype=bool)
     rule = np.where(required, Rule.REQUIRED, Rule.OFF).astype(np.int8)
     if cpoi_latched is not None and cpoi_latched.any():
-        _apply_margin(rule, cpoi_latched, cpoi_speed_kmh, threshold_kmh, distance, settings)
+        _apply_margin(rule, cpoi_latched, cpoi_speed_kmh, threshold_kmh, distance, allowance_m, settings)
     if cpoi_hold is not None and cpoi_hold.any():
         _apply_hold(rule, cpoi_hold, cpoi_vehicle, len(speed_kmh))
     cpoi_level, shown = _levels_shown(rule)
@@ -422,15 +375,17 @@ def meets_clause_6_1(speed_kmh, warning_speed_kmh, distance_m, warning_distance_
     return (speed_kmh >= warning_speed_kmh) & (distance_m <= warning_distance_m + allowance_m)
 
 
-def meets_margin(speed_kmh, warning_speed_kmh, distance_m, settings: WarningSettings):
+def meets_margin(speed_kmh, warning_speed_kmh, distance_m, allowance_m, settings: WarningSettings):
     """Release rule 1: 6.1's condition with V_w lowered by the release margin (floats or arrays).
 
     A CPOI that kept a level on keeps it while this holds (:mod:`csws.warning.release`).
+    ``allowance_m`` is the vehicle's latency allowance (:meth:`WarningSettings.allowance_m`):
+    the margin's distance grows with the vehicle's update period as 6.1's does.
     """
     speed_mps = kmh_to_mps(speed_kmh)
     lowered_kmh = lowered_warning_speed_kmh(warning_speed_kmh, settings.release_margin_kmh)
     lowered_sw_m = warning_distance_m(speed_mps, kmh_to_mps(lowered_kmh), settings.g_mps2)
-    return meets_clause_6_1(speed_kmh, lowered_kmh, distance_m, lowered_sw_m, settings.allowance_m(speed_mps))
+    return meets_clause_6_1(speed_kmh, lowered_kmh, distance_m, lowered_sw_m, allowance_m)
 
 
 def _apply_margin(
@@ -439,11 +394,12 @@ def _apply_margin(
     speed_kmh: np.ndarray,
     warning_speed_kmh: np.ndarray,
     distance_m: np.ndarray,
+    allowance_m: np.ndarray,
     settings: WarningSettings,
 ) -> None:
     """Release rule 1 on ``rule``, in place: a CPOI that kept a level on keeps it while
     :func:`meets_margin` holds."""
-    margin = cpoi_latched & meets_margin(speed_kmh, warning_speed_kmh, distance_m, settings)
+    margin = cpoi_latched & meets_margin(speed_kmh, warning_speed_kmh, distance_m, allowance_m, settings)
     rule[(rule == Rule.OFF) & margin] = Rule.MARGIN
 
 

@@ -71,6 +71,8 @@ def judge_one(
     held: HeldWarning,
     now_s: float | None,
     settings: WarningSettings,
+    update_period_s: float | None = None,
+    age_s: float = 0.0,
 ) -> tuple[CurveWarning, HeldWarning]:
     """The warning of one vehicle and what it keeps for the release rule.
 
@@ -86,6 +88,10 @@ def judge_one(
         Its memory from the last update, and this update's timestamp (None where unknown).
     settings
         Policy, latency and release rule.
+    update_period_s, age_s
+        The vehicle's update period (learnt, :func:`csws.warning.latency.update_period_s`; None for
+        the configured one) and its fix's age when answered, s: they lengthen the latency allowance
+        and the period the hold (:meth:`csws.warning.rules.WarningSettings.hold_s`).
 
     Returns
     -------
@@ -94,7 +100,7 @@ def judge_one(
         it) and the vehicle's memory after this update (:func:`csws.warning.release.next_memories`).
     """
     speed_mps = kmh_to_mps(speed_kmh)
-    allowance_m = settings.allowance_m(speed_mps)
+    allowance_m = settings.allowance_m(speed_mps, update_period_s, age_s)
     speeds = [settings.policy.warning_speeds_one_kmh(radius_m, column_index) for _, _, _, radius_m, _ in points]
     distances = [[warning_distance_m(speed_mps, kmh_to_mps(v), settings.g_mps2) for v in pair] for pair in speeds]
     # 6.1, nothing where passed.
@@ -107,7 +113,8 @@ def judge_one(
     ]
     keys = [(point[0], point[1]) for point in points]
     if held.is_on:
-        _apply_release(rules, speed_kmh, keys, [point[2] for point in points], speeds, held, now_s, settings)
+        release = (allowance_m, settings.hold_s(update_period_s))
+        _apply_release(rules, speed_kmh, keys, [point[2] for point in points], speeds, held, now_s, release, settings)
     warning = _warning(rules, points, speeds, distances, path_kind)
     level_rules = ([point_rules[0] for point_rules in rules], [point_rules[1] for point_rules in rules])
     return warning, vehicle_memory(level_rules, keys, held, now_s)
@@ -121,19 +128,22 @@ def _apply_release(
     speeds: list[tuple[float, float]],
     held: HeldWarning,
     now_s: float | None,
+    release: tuple[float, float],
     settings: WarningSettings,
 ) -> None:
-    """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place."""
+    """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place;
+    ``release`` is the vehicle's latency allowance, m, and its hold, s."""
+    allowance_m, hold_s = release
     named = named_points(held, keys)
     for point, (distance_m, pair, point_rules) in enumerate(zip(distances_m, speeds, rules, strict=True)):
         for level in (0, 1):
             if point_rules[level] == Rule.OFF and named[level][point]:
-                if meets_margin(speed_kmh, pair[level], distance_m, settings):
+                if meets_margin(speed_kmh, pair[level], distance_m, allowance_m, settings):
                     point_rules[level] = Rule.MARGIN
     if any(rule for point_rules in rules for rule in point_rules):
         return
     for level in (0, 1):
-        if within_hold(held.kept_at_s[level], now_s, settings.release_hold_s):
+        if within_hold(held.kept_at_s[level], now_s, hold_s):
             for point, point_rules in enumerate(rules):
                 if named[level][point]:
                     point_rules[level] = Rule.HOLD

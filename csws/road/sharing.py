@@ -1,0 +1,262 @@
+"""Gives the lanes of one road the road's curves: fitted once, each lane's radius offset by its distance.
+
+Each lane of an edge is its own road chain (:mod:`csws.road.chains`): it continues into
+its own lanes and is stitched on its own shape. Fitted each on its own, the lanes of one
+bend disagree where the curve starts by tens of metres (the fit places its knots on each
+polyline's own vertices), and with it on V_w: a vehicle matched to the neighbouring lane
+would be warned for another curve. A road has one curve, so here:
+
+* each edge (a normal edge, or an internal edge of parallel connections) has a
+  **reference lane**: the lane of its edge whose chain runs the longest, so that
+  consecutive edges share one reference chain where the road goes on;
+* every other lane of the edge lying parallel to it (its shape within
+  :data:`PARALLEL_TOLERANCE_M` of one lateral offset) **borrows** the reference's stretch:
+  its profile and curves are the reference's, their positions carried over at the same
+  SUMO lane position (the lanes of an edge share their lane positions, as SUMO's lane
+  changes do) and each radius moved by the lateral offset ``d`` (left positive): a
+  signed curvature k becomes ``k / (1 - k d)``, so R - d on the inside of a turn, R + d
+  on the outside;
+* a chain that has no lane of its own is not fitted at all.
+
+Lanes borrowing from one reference chain in order form a **run**: a curve that crosses
+their joints stays one curve. A run ends where a chain changes between its own lanes and
+borrowed ones, or between reference chains; a curve across such a joint is cut there.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from csws.curvature import ConstantRadiusPart, Curve, ProfilePart
+
+__all__ = [
+    "PARALLEL_TOLERANCE_M",
+    "Run",
+    "chain_runs",
+    "clip_curve",
+    "lateral_offsets_m",
+    "moved_curve",
+    "moved_parts",
+    "reference_lanes",
+]
+
+#: A lane shares its edge's reference lane's curves only if its lateral offset from that lane
+#: varies by at most this along it, m: lanes of an edge are parallel in SUMO unless given a shape
+#: of their own.
+PARALLEL_TOLERANCE_M = 0.5
+#: A moved curvature's denominator 1 - k d is never below this: a lane far inside a tight turn
+#: (a junction's double turn) keeps a tenth of the reference's radius at least.
+_MIN_SCALE = 0.1
+
+
+def reference_lanes(edge_ids: Sequence[str], lane_index: Sequence[int], chain_length_m: np.ndarray) -> np.ndarray:
+    """Each lane's edge's reference lane: the lane of the edge whose chain is the longest
+    (``chain_length_m`` per lane), the rightmost of equals."""
+    best: dict[str, int] = {}
+    for lane, edge in enumerate(edge_ids):
+        held = best.get(edge)
+        if held is None or (chain_length_m[lane], -lane_index[lane]) > (chain_length_m[held], -lane_index[held]):
+            best[edge] = lane
+    return np.array([best[edge] for edge in edge_ids], dtype=np.int64)
+
+
+def _signed_offsets_m(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Each point's signed distance across ``reference`` (left positive), measured square to the
+    reference's segment nearest it, m."""
+    start, direction = reference[:-1], np.diff(reference, axis=0)
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    keep = length > 0
+    start, direction, length = start[keep], direction[keep], length[keep]
+    if not len(length):
+        return np.full(len(points), np.nan)
+    relative = points[:, None, :] - start[None, :, :]
+    along = np.clip((relative * direction).sum(axis=2) / length**2, 0.0, 1.0)
+    nearest = start + along[:, :, None] * direction
+    gap = np.hypot(*(points[:, None, :] - nearest).transpose(2, 0, 1))
+    segment = np.argmin(gap, axis=1)
+    rows = np.arange(len(points))
+    cross = direction[segment, 0] * relative[rows, segment, 1] - direction[segment, 1] * relative[rows, segment, 0]
+    return cross / length[segment]
+
+
+def lateral_offsets_m(road_shapes: Sequence[np.ndarray], reference: np.ndarray) -> np.ndarray:
+    """Each lane's lateral offset from its reference lane, m (left positive; 0 for a reference);
+    NaN where the lane is not parallel to it (:data:`PARALLEL_TOLERANCE_M`)."""
+    offsets = np.zeros(len(road_shapes))
+    for lane, ref in enumerate(reference.tolist()):
+        if ref == lane:
+            continue
+        across = _signed_offsets_m(np.asarray(road_shapes[lane], dtype=float), np.asarray(road_shapes[ref]))
+        parallel = np.isfinite(across).all() and float(np.ptp(across)) <= PARALLEL_TOLERANCE_M
+        offsets[lane] = float(np.median(across)) if parallel else math.nan
+    return offsets
+
+
+@dataclass(frozen=True)
+class Run:
+    """Consecutive lanes of a chain read from one source chain: their own, or a reference's.
+
+    Attributes
+    ----------
+    source
+        The chain the profile and curves come from.
+    source_s, target_s
+        The lanes' joints (and the run's two ends) in the source's and in this chain's arc
+        length, m: a position maps linearly between them.
+    offset_m
+        Each lane's lateral offset from the source (0 for its own lanes), m.
+    is_own
+        Whether the run reads its own chain's own lanes (nothing to move).
+    """
+
+    source: int
+    source_s: np.ndarray
+    target_s: np.ndarray
+    offset_m: np.ndarray
+    is_own: bool = False
+
+    def to_target(self, s: float) -> float:
+        """A source arc length in this chain's arc length, m."""
+        return float(np.interp(s, self.source_s, self.target_s))
+
+    def offset_at(self, source_s: float) -> float:
+        """The lateral offset of the lane at source arc length ``source_s``, m."""
+        lane = int(np.searchsorted(self.source_s[1:-1], source_s, side="right"))
+        return float(self.offset_m[lane])
+
+
+def chain_runs(
+    members: np.ndarray,
+    chain: int,
+    reference: np.ndarray,
+    offset_m: np.ndarray,
+    lane_chain: np.ndarray,
+    lane_bounds_s: np.ndarray,
+) -> list[Run]:
+    """The runs of one chain's lanes (``members``, in driving order).
+
+    ``lane_bounds_s`` is ``(n_lanes, 2)``: each lane's stretch of its chain, from its first
+    point to the next lane's (or the chain's end). A lane reads its reference where that is
+    another lane it lies parallel to, else itself.
+    """
+    runs: list[Run] = []
+    pending: list[tuple[int, int, float]] = []  # (lane, source lane, offset)
+    for lane in members.tolist():
+        ref = int(reference[lane])
+        source_lane, offset = (
+            (ref, float(offset_m[lane])) if ref != lane and math.isfinite(offset_m[lane]) else (lane, 0.0)
+        )
+        if pending and not _continues(pending[-1][1], source_lane, lane_chain, lane_bounds_s):
+            runs.append(_run(pending, chain, lane_chain, lane_bounds_s))
+            pending = []
+        pending.append((lane, source_lane, offset))
+    if pending:
+        runs.append(_run(pending, chain, lane_chain, lane_bounds_s))
+    return runs
+
+
+def _continues(previous_source: int, source: int, lane_chain: np.ndarray, lane_bounds_s: np.ndarray) -> bool:
+    """Whether ``source`` is the lane after ``previous_source`` on one chain (their stretches meet)."""
+    return bool(
+        lane_chain[source] == lane_chain[previous_source]
+        and lane_bounds_s[source, 0] == lane_bounds_s[previous_source, 1]
+    )
+
+
+def _run(pending: list[tuple[int, int, float]], chain: int, lane_chain: np.ndarray, bounds_s: np.ndarray) -> Run:
+    """A run of ``(lane, source lane, offset)`` rows reading one source chain in order."""
+    lanes, sources, offsets = zip(*pending, strict=True)
+    source_chain = int(lane_chain[sources[0]])
+    own = source_chain == chain and list(lanes) == list(sources)
+    return Run(
+        source_chain,
+        np.array([bounds_s[lane, 0] for lane in sources] + [bounds_s[sources[-1], 1]]),
+        np.array([bounds_s[lane, 0] for lane in lanes] + [bounds_s[lanes[-1], 1]]),
+        np.zeros(len(lanes)) if own else np.array(offsets),
+        own,
+    )
+
+
+def clip_curve(curve: Curve, start_s: float, end_s: float, offset_m: float = 0.0) -> Curve | None:
+    """The stretch of ``curve`` on ``[start_s, end_s]``, shifted by ``offset_m``; None if it lies outside.
+
+    A path that starts inside a curve or leaves the road in one sees that much of it.
+    Each part keeps its radius (a piece of a clothoid cut at the path's start keeps the
+    radius of its own start: the nearer the curve's apex, the smaller), and the angle is
+    that of the parts kept, length over radius.
+    """
+    kept = [
+        ConstantRadiusPart(
+            max(part.start_s, start_s) + offset_m, min(part.end_s, end_s) + offset_m, part.radius_m, part.spiral
+        )
+        for part in curve.parts
+        if part.end_s > start_s and part.start_s < end_s
+    ]
+    if not kept:
+        return None
+    if curve.start_s >= start_s and curve.end_s <= end_s:
+        return Curve(
+            curve.start_s + offset_m,
+            curve.end_s + offset_m,
+            curve.angle_deg,
+            curve.direction,
+            curve.min_radius_m,
+            tuple(kept),
+        )
+    return Curve(
+        start_s=kept[0].start_s,
+        end_s=kept[-1].end_s,
+        angle_deg=math.degrees(sum((part.end_s - part.start_s) / part.radius_m for part in kept)),
+        direction=curve.direction,
+        min_radius_m=min(part.radius_m for part in kept),
+        parts=tuple(kept),
+    )
+
+
+def _moved_curvature(curvature: float, offset_m: float) -> float:
+    """A signed curvature moved ``offset_m`` to the left: k / (1 - k d)."""
+    return curvature / max(1.0 - curvature * offset_m, _MIN_SCALE)
+
+
+def moved_parts(parts: Sequence[ProfilePart], run: Run) -> list[tuple[float, float, float]]:
+    """The source profile's parts on the run, in this chain's arc length: ``(end_s, start k, end k)``."""
+    start_s, end_s = float(run.source_s[0]), float(run.source_s[-1])
+    moved = []
+    for part in parts:
+        if part.end_s <= start_s or part.start_s >= end_s:
+            continue
+        a, b = max(part.start_s, start_s), min(part.end_s, end_s)
+        offset = run.offset_at(a)
+        k0, k1 = part.curvature_at_one(a), part.curvature_at_one(b)
+        moved.append((run.to_target(b), _moved_curvature(k0, offset), _moved_curvature(k1, offset)))
+    return moved
+
+
+def moved_curve(curve: Curve, run: Run) -> Curve | None:
+    """The stretch of a source chain's curve on the run (:func:`csws.road.chains.clip_curve`), in this
+    chain's arc length with its radii moved by the lanes' offsets; None where it lies outside the run."""
+    clipped = clip_curve(curve, float(run.source_s[0]), float(run.source_s[-1]))
+    if clipped is None:
+        return None
+    sign = 1.0 if clipped.direction == "left" else -1.0
+    parts = tuple(
+        ConstantRadiusPart(
+            run.to_target(part.start_s),
+            run.to_target(part.end_s),
+            abs(1.0 / _moved_curvature(sign / part.radius_m, run.offset_at(part.start_s))),
+            part.spiral,
+        )
+        for part in clipped.parts
+    )
+    return Curve(
+        run.to_target(clipped.start_s),
+        run.to_target(clipped.end_s),
+        clipped.angle_deg,
+        clipped.direction,
+        min(part.radius_m for part in parts),
+        parts,
+    )
