@@ -188,6 +188,8 @@ class Engine:
             vehicle.speed_kmh,
             vehicle.category,
             vehicle.route_edges,
+            self.update_period_s(vehicle.vehicle_id),
+            latency.fix_age_s(vehicle.age_s),
         )
         warning, memory = judge_one(
             float(vehicle.speed_kmh),
@@ -337,7 +339,8 @@ class Engine:
         self,
         vehicle_ids: Sequence[str],
         now_s: Sequence[float | None],
-        age_s: Sequence[float],
+        periods_s: np.ndarray,
+        age_s: np.ndarray,
         speed_kmh: np.ndarray,
         columns: np.ndarray,
         cpoi_vehicle: np.ndarray,
@@ -349,9 +352,8 @@ class Engine:
         passed: np.ndarray,
     ) -> BatchWarnings:
         """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
-        ``first[i]:first[i + 1]``); their warning memories are updated."""
+        ``first[i]:first[i + 1]``), each vehicle's update period ``periods_s``; their warning memories are updated."""
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
-        periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
         latched, hold = memory_masks(
             held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s)
         )
@@ -366,7 +368,7 @@ class Engine:
             cpoi_hold=hold,
             cpoi_passed=passed,
             update_period_s=periods_s,
-            age_s=np.array(age_s, dtype=float),
+            age_s=age_s,
         )
         self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule))
         return batch
@@ -391,13 +393,16 @@ class Engine:
         route_edges: Sequence[Sequence[str] | None],
     ) -> tuple[BatchAhead, BatchWarnings]:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
-        ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges)
+        periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
+        ages_s = np.array(age_s, dtype=float)
+        ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
         # As lists: the release rule reads them one CPOI at a time.
         batch = self._judged(
             vehicle_ids,
             now_s,
-            age_s,
+            periods_s,
+            ages_s,
             speed_kmh,
             columns,
             ahead.cpoi_vehicle,

@@ -133,6 +133,22 @@ def test_lookahead_distance_covers_the_largest_warning_distance():
         LookAheadSettings(fixed_distance_m=0.0)
 
 
+@pytest.mark.parametrize("update_period_s, age_s", [(1.0, 0.0), (5.0, 0.0), (2.0, 1.5)])
+@pytest.mark.parametrize("speed_kmh", [60.0, 90.0, 130.0])
+def test_a_slowly_reporting_vehicle_looks_as_far_as_its_own_latency_needs(speed_kmh, update_period_s, age_s):
+    """A vehicle learnt to report every few seconds is warned that much earlier (formula (1) plus
+    its latency), so S_LAD must reach the curve that warning is for, with V_w near 0 (3.9)."""
+    v = speed_kmh / 3.6
+    needed_m = 0.8 * v + v**2 / 9.8 + v * (update_period_s + 0.1 + age_s)  # the system delay is 0.1 s
+    speeds = np.array([speed_kmh])
+    assert lookahead_distances_m(speeds, update_period_s=np.array([update_period_s]), age_s=age_s)[0] == pytest.approx(
+        max(250.0, needed_m)
+    )
+    assert lookahead_distances_m(speed_kmh, update_period_s=update_period_s, age_s=age_s) == pytest.approx(
+        max(250.0, needed_m)
+    )
+
+
 @pytest.mark.parametrize("speed_kmh", [60.0, 130.0, 180.0, 250.0])
 @pytest.mark.parametrize("radius_m", [5.0, 10.0, 25.0, 40.0, 200.0])
 def test_the_lookahead_distance_reaches_every_warning_distance(speed_kmh, radius_m):

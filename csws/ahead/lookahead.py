@@ -108,16 +108,20 @@ def lookahead_distances_m(
     speed_kmh,
     warning_settings: WarningSettings = WarningSettings(),
     floor_m: float = LookAheadSettings.floor_m,
+    update_period_s=None,
+    age_s=0.0,
 ):
     """The look-ahead distance S_LAD (3.9) each vehicle needs at its speed, m (a float or an array).
 
     Long enough for the largest warning distance its speed can need (formula (1) with
-    V_w = 0, plus the distance driven during the system latency); never below ``floor_m``.
+    V_w = 0, plus the distance driven during the latency: each vehicle's own update period
+    and fix age where given, as the warning allows for them); never below ``floor_m``.
     With V_w = 0 because below the table radii the warning speed falls with the radius, so
     no positive speed bounds it.
     """
     speed_mps = kmh_to_mps(speed_kmh if isinstance(speed_kmh, float) else np.asarray(speed_kmh, dtype=float))
-    required_m = formula_1_m(speed_mps, 0.0, warning_settings.g_mps2) + warning_settings.allowance_m(speed_mps)
+    allowance_m = warning_settings.allowance_m(speed_mps, update_period_s, age_s)
+    required_m = formula_1_m(speed_mps, 0.0, warning_settings.g_mps2) + allowance_m
     return max(floor_m, required_m) if isinstance(required_m, float) else np.maximum(floor_m, required_m)
 
 
@@ -167,8 +171,11 @@ class LookAhead:
         speed_kmh: float,
         category: str | Category,
         route_edges: Sequence[str] | None = None,
+        update_period_s: float | None = None,
+        age_s: float = 0.0,
     ) -> PathAhead:
-        """The path ahead of a vehicle at ``lane_pos_m`` on ``lane_id`` and its CPOIs.
+        """The path ahead of a vehicle at ``lane_pos_m`` on ``lane_id`` and its CPOIs, as far as
+        S_LAD at its speed, update period and fix age (the configured period where None).
 
         Raises
         ------
@@ -176,7 +183,7 @@ class LookAhead:
             If ``lane_id`` is not a lane of the map.
         """
         column_index(category)  # an unknown category is refused, whatever S_LAD it would need
-        lookahead_m = self.lookahead_m(float(speed_kmh))
+        lookahead_m = self.lookahead_m(float(speed_kmh), update_period_s, age_s)
         horizon = self.horizon(lane_id, route_edges, lookahead_m)
         return PathAhead(horizon, horizon.vehicle_s(float(lane_pos_m)), lookahead_m)
 
@@ -186,15 +193,18 @@ class LookAhead:
         lane_pos_m: np.ndarray,
         speed_kmh: np.ndarray,
         routes: Sequence[Sequence[str] | None],
+        update_period_s: np.ndarray | None = None,
+        age_s: np.ndarray | float = 0.0,
     ) -> BatchAhead:
-        """The roads ahead of many vehicles and all their CPOIs, selected in one vectorised step.
+        """The roads ahead of many vehicles and all their CPOIs, selected in one vectorised step
+        (S_LAD from each one's speed, update period and fix age; the configured period where None).
 
         Raises
         ------
         KeyError
             If a lane id is not a lane of the map.
         """
-        lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float))
+        lookahead_m = self.lookahead_m(np.asarray(speed_kmh, dtype=float), update_period_s, age_s)
         # A fleet larger than the cache would evict at every step what the next step needs again.
         self._capacity = max(self._capacity, HORIZONS_PER_VEHICLE * len(lane_ids))
         slots = self._horizon_slots(lane_ids, routes, lookahead_m)
@@ -248,13 +258,13 @@ class LookAhead:
             slots.append(slot)
         return np.array(slots, dtype=np.intp)
 
-    def lookahead_m(self, speed_kmh):
+    def lookahead_m(self, speed_kmh, update_period_s=None, age_s=0.0):
         """S_LAD of a vehicle (a float) or of each of many (an array): the fixed distance if one is set,
-        else the speed-dependent one, m."""
+        else the one its speed, update period and fix age need (:func:`lookahead_distances_m`), m."""
         fixed_m = self.settings.fixed_distance_m
         if fixed_m is not None:
             return fixed_m if isinstance(speed_kmh, float) else np.full(np.shape(speed_kmh), fixed_m)
-        return lookahead_distances_m(speed_kmh, self.warning_settings, self.settings.floor_m)
+        return lookahead_distances_m(speed_kmh, self.warning_settings, self.settings.floor_m, update_period_s, age_s)
 
     def horizon(self, lane_id: str, route_edges: Sequence[str] | None, lookahead_m: float) -> Horizon:
         """The road ahead from the start of ``lane_id`` long enough for ``lookahead_m`` anywhere on it (cached).
