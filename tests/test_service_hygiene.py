@@ -25,7 +25,9 @@ from servers import free_port
 
 from csws.networks import networks_dir
 from service.run import served_url
-from service.store import MAX_SESSION_IDLE_S, StoreUnavailable, VehicleSetting, VehicleWrite
+from service.settings import ServiceSettings
+from service.store import MAX_SESSION_IDLE_S, StoreUnavailable, VehicleSetting, VehicleWrite, checked_idle_s
+from service.store.redis import RedisStore
 from service.store.sqlite import SQLiteStore
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
@@ -177,17 +179,6 @@ def test_a_busy_port_is_an_error_before_serving(served, tmp_path, workers):
     assert httpx.get(f"{served.url}/readyz").status_code == 200
 
 
-@pytest.mark.slow
-def test_a_port_of_two_workers_is_busy_for_another_service(tmp_path):
-    two = Serve(tmp_path, "--workers", "2", "--state-db", str(tmp_path / "v.sqlite3"))
-    try:
-        second = _csws_serve_fails("--port", str(two.port), "--state-db", str(tmp_path / "w.sqlite3"))
-        assert second.returncode != 0 and "serving" not in second.stdout
-        assert "it is in use" in second.stderr
-    finally:
-        two.stop()
-
-
 def test_an_ipv6_address_is_printed_in_brackets():
     assert served_url("::1", 8000) == "http://[::1]:8000"
     assert served_url("127.0.0.1", 8000) == "http://127.0.0.1:8000"
@@ -198,9 +189,13 @@ def test_an_ipv6_address_is_printed_in_brackets():
 
 @pytest.mark.slow
 def test_a_deleted_database_is_noticed_by_every_worker(tmp_path):
+    """With two workers; whose port is busy for another csws serve, too."""
     database = tmp_path / "state" / "vehicles.sqlite3"
     two = Serve(tmp_path, "--workers", "2", "--state-db", str(database))
     try:
+        second = _csws_serve_fails("--port", str(two.port), "--state-db", str(tmp_path / "w.sqlite3"))
+        assert second.returncode != 0 and "serving" not in second.stdout
+        assert "it is in use" in second.stderr
         with httpx.Client(base_url=two.url) as client:
             assert client.put("/v1/vehicles/v0", json={"switched_on": False}).status_code == 200
             database.unlink()
@@ -263,11 +258,14 @@ def test_the_database_and_its_wal_are_private(tmp_path):
     store.close()
 
 
-@pytest.mark.parametrize("state_db", ["", ":memory:"])
-def test_a_database_of_each_worker_is_refused_with_workers(state_db):
-    refused = _csws_serve_fails("--state-db", state_db, "--workers", "2", "--port", str(free_port()))
+def test_a_database_of_each_worker_is_refused_with_workers():
+    refused = _csws_serve_fails("--state-db", "", "--workers", "2", "--port", str(free_port()))
     assert refused.returncode != 0 and "serving" not in refused.stdout
     assert "each worker's own" in refused.stderr and "Traceback" not in refused.stderr
+    for state_db in ("", " ", ":memory:"):
+        with pytest.raises(ValueError, match="each worker's own"):
+            ServiceSettings(nets=[TRACK_NET], state_db=state_db, workers=2)
+    assert ServiceSettings(nets=[TRACK_NET], state_db="", workers=1).state_db == ""
 
 
 # (d) Slow clients are timed out.
@@ -366,23 +364,31 @@ def test_at_the_descriptor_limit_connections_are_refused_quietly(tmp_path):
 # (e) Settings within what the store holds.
 
 
-@pytest.mark.parametrize(
-    "idle_s, state", [("1e308", ("--state", "redis://127.0.0.1:1/0")), ("1e17", ("--state-db", ":memory:"))]
-)
-def test_a_session_idle_time_no_store_holds_is_one_error_line(idle_s, state):
-    refused = _csws_serve_fails(*state, "--session-idle-s", idle_s, "--port", str(free_port()))
+def test_a_session_idle_time_no_store_holds_is_one_error_line():
+    refused = _csws_serve_fails(
+        "--state", "redis://127.0.0.1:1/0", "--session-idle-s", "1e308", "--port", str(free_port())
+    )
     assert refused.returncode == 2 and "serving" not in refused.stdout
     assert refused.stderr.strip().count("\n") == 0 and "Traceback" not in refused.stderr, refused.stderr
     assert "session idle time must be positive and at most" in refused.stderr
 
 
-def test_the_longest_session_idle_time_is_taken_and_no_longer():
-    from service.store import checked_idle_s
-
+def test_the_longest_session_idle_time_is_taken_and_no_longer(tmp_path):
+    """Both stores take the longest and refuse anything longer (1e17 s would start, then 503 on Redis)."""
     assert checked_idle_s(MAX_SESSION_IDLE_S) == MAX_SESSION_IDLE_S
     for idle_s in (0.0, -1.0, float("nan"), float("inf"), MAX_SESSION_IDLE_S * (1 + 1e-12), 1e17, 1e308):
         with pytest.raises(ValueError, match="at most"):
-            checked_idle_s(idle_s)
+            RedisStore("redis://127.0.0.1:1/0", idle_s)
+        with pytest.raises(ValueError, match="at most"):
+            SQLiteStore(":memory:", idle_s)
+
+
+def test_redis_holds_the_longest_session_idle_time(redis_url):
+    store = RedisStore(redis_url, MAX_SESSION_IDLE_S)
+    store.write({"hygiene/longest": VehicleWrite(0, b"session", VehicleSetting(switched_on=False))})
+    stored = store.read(["hygiene/longest"])["hygiene/longest"]
+    assert stored.session == b"session" and stored.setting == VehicleSetting(switched_on=False)
+    store.close()
 
 
 # (f) Security headers.
