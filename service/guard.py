@@ -14,7 +14,8 @@ therefore runs uvicorn's h11 protocol with a guard (:class:`GuardedH11Protocol`)
   (the limit is kept below the process's descriptor limit, raised to its hard limit at start);
 * log lines that a flood of bad clients can repeat (a refused connection, an invalid request,
   ``accept()`` out of resources) are written at most once per :data:`LOG_INTERVAL_S`
-  each, with the number of those left out (:class:`OncePerInterval`).
+  each, with the number of those left out (:class:`OncePerInterval`), an operating-system error
+  as one line (:class:`OneLine`).
 
 The body is bounded by :class:`service.limits.BodyLimit` (size, and a pause of at most
 ``body_timeout_s`` between its parts); the number of header lines by
@@ -43,6 +44,7 @@ __all__ = [
     "LOG_INTERVAL_S",
     "Limits",
     "OncePerInterval",
+    "OneLine",
     "GuardedH11Protocol",
     "connection_limits",
     "serve",
@@ -103,6 +105,18 @@ class OncePerInterval(logging.Filter):
         left_out = self._left_out.pop(key, 0)
         if left_out:
             record.msg = f"{record.msg} (and {left_out} more like it in the last {self.interval_s:g} s)"
+        return True
+
+
+class OneLine(logging.Filter):
+    """A logging filter that writes an operating-system error as one line, without its traceback
+    (asyncio's ``accept()`` out of descriptors would be seven)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        if isinstance(error, OSError):
+            record.msg = f"{record.getMessage().splitlines()[0]}: {error}"
+            record.args, record.exc_info, record.exc_text = None, None, None
         return True
 
 
@@ -169,9 +183,9 @@ def connection_limits(head_timeout_s: float = HEAD_TIMEOUT_S) -> Limits:
 
 def _quiet_floods() -> None:
     """Write the lines a flood of clients repeats at most once per :data:`LOG_INTERVAL_S` each."""
+    logging.getLogger("asyncio").addFilter(OneLine())
     for name in ("asyncio", "uvicorn.error", logger.name):
-        flood_filter = OncePerInterval()
-        logging.getLogger(name).addFilter(flood_filter)
+        logging.getLogger(name).addFilter(OncePerInterval())
 
 
 def serve(app: Any, listening: socket.socket, limits: Limits) -> None:
