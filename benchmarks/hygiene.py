@@ -28,6 +28,7 @@ import threading
 import time
 from contextlib import suppress
 from pathlib import Path
+from typing import cast
 
 import httpx
 import numpy as np
@@ -112,12 +113,12 @@ def _drip(port: int, count: int, seconds: float, open_s: list[float]) -> None:
     next_drip = time.monotonic() + 1.0
     while started and time.monotonic() < end:
         for key, _events in selector.select(timeout=0.1):
-            sock = key.fileobj  # readable: the 408 or the close that ends an incomplete head
+            ended = cast(socket.socket, key.fileobj)  # readable: the 408 or the close that ends the head
             with suppress(OSError):
-                sock.recv(4096)
-            open_s.append(time.monotonic() - started.pop(sock))
-            selector.unregister(sock)
-            sock.close()
+                ended.recv(4096)
+            open_s.append(time.monotonic() - started.pop(ended))
+            selector.unregister(ended)
+            ended.close()
         if time.monotonic() >= next_drip:
             for sock in list(started):
                 with suppress(OSError):

@@ -8,7 +8,9 @@ start-up, and the pages of the arrays stay shared because nothing writes to them
 a collection. Each worker listens on the address with a socket of its own (Linux's
 ``SO_REUSEPORT``), so that the kernel spreads new connections over the workers: on one
 shared socket, the worker that wakes first accepts every waiting connection, and a burst of
-clients can land on a single worker. Each worker has its own event loop and its own
+clients can land on a single worker. Only sockets of one service share the port: the master
+first makes sure that nothing else listens on it (:func:`_free_port`). Each worker serves
+through the connection guard of :mod:`service.guard`. Each worker has its own event loop and its own
 connection to the state store; a worker that dies is forked again from the master, ready
 at once. The master stops its workers when it is told to
 stop (SIGTERM, SIGINT), and a worker whose master is gone leaves (:func:`leave_with_master`).
