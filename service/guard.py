@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import resource
 import socket
 import time
 from dataclasses import dataclass
@@ -34,6 +33,11 @@ from typing import Any
 
 import h11
 from uvicorn.protocols.http.h11_impl import H11Protocol
+
+try:
+    import resource
+except ImportError:  # Windows: no descriptor limit to raise
+    resource = None  # type: ignore[assignment]
 
 __all__ = [
     "HEAD_TIMEOUT_S",
@@ -172,6 +176,8 @@ class GuardedH11Protocol(H11Protocol):
 def connection_limits(head_timeout_s: float = HEAD_TIMEOUT_S) -> Limits:
     """The limits for this process: the file descriptor limit raised to its hard limit, and the
     connections kept :data:`FD_RESERVE` below it (at most :data:`MAX_CONNECTIONS`)."""
+    if resource is None:
+        return Limits(head_timeout_s, MAX_CONNECTIONS)
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     wanted = MAX_CONNECTIONS + FD_RESERVE
     if soft != resource.RLIM_INFINITY and soft < wanted and (hard == resource.RLIM_INFINITY or hard > soft):

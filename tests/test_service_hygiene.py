@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import hashlib
+import logging
 import os
 import re
 import resource
@@ -422,3 +423,26 @@ def test_other_answers_are_not_sniffed_or_framed(served, path):
     assert answer.status_code == 200
     assert answer.headers["x-content-type-options"] == "nosniff"
     assert answer.headers["x-frame-options"] == "DENY"
+
+
+def test_a_flood_of_one_log_line_is_written_once_per_interval():
+    from service.guard import OncePerInterval, OneLine
+
+    interval_s = 0.2
+    flood_filter = OncePerInterval(interval_s)
+
+    def record(message: str, exc: BaseException | None = None) -> logging.LogRecord:
+        return logging.LogRecord(
+            "asyncio", logging.ERROR, __file__, 1, message, None, (type(exc), exc, None) if exc else None
+        )
+
+    written = [r for r in (record("accept() out of resources") for _ in range(1000)) if flood_filter.filter(r)]
+    assert len(written) == 1
+    time.sleep(interval_s * 1.5)
+    later = record("accept() out of resources")
+    assert flood_filter.filter(later) and "(and 999 more like it" in later.getMessage()
+    assert flood_filter.filter(record("another line"))  # each message has its own interval
+
+    emfile = record("socket.accept() out of system resource\nsocket: <fd=7>", OSError(24, "Too many open files"))
+    assert OneLine().filter(emfile) and emfile.exc_info is None
+    assert emfile.getMessage() == "socket.accept() out of system resource: [Errno 24] Too many open files"
