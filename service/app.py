@@ -29,6 +29,7 @@ from csws import __version__
 from .answering import Answering
 from .answers import QueryErrors, WarningService
 from .fcw_settings import FleetFcwSettings
+from .headers import ResponseHeaders
 from .keys import KeyRing
 from .limits import BodyLimit, BodyRefused, refused
 from .map import CompressedGets, MapData
@@ -41,12 +42,15 @@ from .vehicles import VehicleRegistry
 from .work import WorkThread
 from .workers import leave_with_master
 
-__all__ = ["create_app", "MAX_ERRORS_SHOWN"]
+__all__ = ["create_app", "MAX_ERRORS_SHOWN", "MAX_MESSAGE_CHARS"]
 
 logger = logging.getLogger("csws.service")
 
 #: A 422 lists at most this many problems (a bad batch can have 10,000).
 MAX_ERRORS_SHOWN = 100
+#: Each problem's message is cut to this many characters (values it echoes are cut shorter,
+#: :data:`service.checks.SHOWN_CHARS`).
+MAX_MESSAGE_CHARS = 300
 
 DESCRIPTION = """Map-based curve speed warning (T/ITS 0091-2018) for on-board units and fleet backends.
 
@@ -55,9 +59,21 @@ Headings are GNSS headings: degrees clockwise from north. Speeds are km/h, dista
 """
 
 
+def _cut(text: str) -> str:
+    """``text`` cut to :data:`MAX_MESSAGE_CHARS` characters, the cut marked with an ellipsis."""
+    return text if len(text) <= MAX_MESSAGE_CHARS else text[:MAX_MESSAGE_CHARS] + "..."
+
+
 def _clean(errors: list[dict[str, Any]]) -> dict[str, Any]:
     """A 422 body: where and what, without echoing the (possibly huge) input."""
-    shown = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors[:MAX_ERRORS_SHOWN]]
+    shown = [
+        {
+            "loc": [_cut(str(part)) if isinstance(part, str) else part for part in e["loc"]],
+            "msg": _cut(e["msg"]),
+            "type": e["type"],
+        }
+        for e in errors[:MAX_ERRORS_SHOWN]
+    ]
     body: dict[str, Any] = {"detail": shown}
     if len(errors) > MAX_ERRORS_SHOWN:
         body["errors_total"] = len(errors)
@@ -168,7 +184,9 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     docs.mount_static(app)
     for router in (warnings.router, vehicles.router, map.router, ops.router, docs.router):
         app.include_router(router)
-    # Innermost first: answers to GETs gzipped, bodies bounded, then metrics over all.
+    # Innermost first: security headers (on the page before it is gzipped), answers to GETs gzipped,
+    # bodies bounded, then metrics over all.
+    app.add_middleware(ResponseHeaders)
     app.add_middleware(CompressedGets)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes, timeout_s=settings.body_timeout_s)
     app.add_middleware(MetricsMiddleware, metrics=app.state.metrics)

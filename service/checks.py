@@ -15,7 +15,16 @@ from .keys import shown_id
 from .networks import ServedNetwork
 from .vehicles import LoadedVehicles
 
-__all__ = ["QueryErrors", "QueryCheck"]
+__all__ = ["SHOWN_CHARS", "QueryErrors", "QueryCheck", "shown"]
+
+#: A value a message echoes (an unknown edge, lane or network id) is cut to this many characters.
+SHOWN_CHARS = 64
+
+
+def shown(value: str) -> str:
+    """``value`` quoted as a message echoes it: cut to :data:`SHOWN_CHARS` characters (an 8 MB id must
+    not make an 8 MB answer), the cut marked with an ellipsis."""
+    return repr(value) if len(value) <= SHOWN_CHARS else repr(value[:SHOWN_CHARS]) + "..."
 
 
 class QueryErrors(ValueError):
@@ -84,7 +93,10 @@ class QueryCheck:
             )
         if query.network is not None and query.network not in self.network_index:
             return problems + [
-                ("network", f"unknown network {query.network!r}: served are " + ", ".join(sorted(self.network_index)))
+                (
+                    "network",
+                    f"unknown network {shown(query.network)}: served are " + ", ".join(sorted(self.network_index)),
+                )
             ]
         if query.position is not None and query.position.is_geographic and not self._geographic(query):
             problems.append(
@@ -102,7 +114,7 @@ class QueryCheck:
             unknown = [edge for edge in query.route if edge not in known]
             if unknown:
                 where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
-                problems.append(("route", f"unknown edge id {unknown[0]!r}: {where_not}"))
+                problems.append(("route", f"unknown edge id {shown(unknown[0])}: {where_not}"))
         return problems
 
     def _geographic(self, query: DecodedQuery) -> bool:
@@ -119,13 +131,14 @@ class QueryCheck:
         network_index = self.lane_network(query, lane_id, vehicles)
         if network_index is None:
             where_not = "in no served network" if query.network is None else f"not in network {query.network!r}"
-            return [("lane_id", f"unknown lane id {query.lane_id!r}: {where_not}")]
+            return [("lane_id", f"unknown lane id {shown(lane_id)}: {where_not}")]
         length_m = self.networks[network_index].road_map.lane(lane_id).length_m
         if lane_pos_m > length_m:
             return [
                 (
                     "lane_pos_m",
-                    f"lane position {lane_pos_m:g} m lies beyond the end of lane {lane_id!r} ({length_m:g} m long)",
+                    f"lane position {lane_pos_m:g} m lies beyond the end of lane {shown(lane_id)} "
+                    f"({length_m:g} m long)",
                 )
             ]
         return []

@@ -4,7 +4,7 @@ The pydantic models of :mod:`service.schemas` are the contract: the OpenAPI sche
 422 that names every problem of a body. Validating a batch of 10,000 queries with them
 builds a pydantic object per query; msgspec decodes and checks the same JSON into plain
 structs in a fraction of the time. :func:`struct_of` makes each struct from its model: the
-same fields, types, defaults and constraints (``ge``, ``gt``, ``le``, ``lt``, lengths), the
+same fields, types, defaults and constraints (``ge``, ``gt``, ``le``, ``lt``, lengths, patterns), the
 model's properties, and the model's own checks (:func:`service.schemas.check_position`,
 :func:`service.schemas.check_located`), so there is one definition of what a valid query is.
 
@@ -70,6 +70,9 @@ def _field_type(annotation: Any, metadata: Sequence[Any], structs: dict[type, ty
     meta = {
         name: getattr(item, name) for item in metadata for kind, name in _CONSTRAINTS.items() if isinstance(item, kind)
     }
+    for item in metadata:
+        if getattr(item, "pattern", None) is not None:  # pydantic's general metadata of Field(pattern=...)
+            meta["pattern"] = item.pattern
     if meta:
         inner = Annotated[inner, msgspec.Meta(**meta)]
     return inner | None if optional else inner
@@ -151,8 +154,8 @@ def decode(body: bytes, struct: type[Any], adapter: TypeAdapter[Any]) -> Any:
     """
     try:
         return msgspec.json.decode(body, type=struct)
-    except msgspec.MsgspecError:
-        pass
+    except (msgspec.MsgspecError, UnicodeDecodeError, RecursionError):
+        pass  # invalid UTF-8 inside a string, or nesting deeper than the interpreter's stack: pydantic names it
     try:
         model = adapter.validate_json(body)
     except ValidationError as exc:

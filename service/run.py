@@ -6,10 +6,11 @@ import argparse
 import os
 import sys
 
+from .guard import connection_limits, serve
 from .settings import ServiceSettings
 from .workers import bound_socket, listening_socket, serve_forked
 
-__all__ = ["settings_from_args", "main", "add_key_command"]
+__all__ = ["settings_from_args", "served_url", "main", "add_key_command"]
 
 #: Command-line options and the settings they override.
 _OPTIONS = {
@@ -46,6 +47,11 @@ def settings_from_args(args: argparse.Namespace) -> ServiceSettings:
         raise ValueError(f"bad service setting {where}: {message}" if where else message) from None
 
 
+def served_url(host: str, port: int) -> str:
+    """The URL of the service on ``host:port``, an IPv6 address in brackets (RFC 3986)."""
+    return f"http://[{host}]:{port}" if ":" in host else f"http://{host}:{port}"
+
+
 def main(args: argparse.Namespace) -> int:
     """Serve until interrupted; a network, state store or key file that cannot be read ends start-up
     with one line (via ``csws.cli``).
@@ -53,8 +59,6 @@ def main(args: argparse.Namespace) -> int:
     With ``--workers N`` everything is loaded here, once, and the workers are forked from this
     process (:func:`service.workers.serve_forked`).
     """
-    import uvicorn
-
     from .app import create_app
 
     settings = settings_from_args(args)
@@ -65,21 +69,20 @@ def main(args: argparse.Namespace) -> int:
         )
     app = create_app(settings)
     networks = len(app.state.service.networks)
-    if settings.workers == 1:
-        listening = listening_socket(settings.host, settings.port)  # a port in use is one line, before "serving"
-        print(
-            f"csws: serving {networks} network(s) on http://{settings.host}:{settings.port} (OpenAPI docs at /docs)",
-            flush=True,
-        )
-        uvicorn.Server(uvicorn.Config(app, log_level="warning")).run(sockets=[listening])
-        return 0
-    master = bound_socket(settings.host, settings.port)
-    print(
-        f"csws: serving {networks} network(s) with {settings.workers} workers on http://{settings.host}:"
-        f"{settings.port} (OpenAPI docs at /docs)",
-        flush=True,
+    limits = connection_limits(settings.head_timeout_s)
+    # A port in use is one line, before "serving" (service.workers.bound_socket).
+    bound = (
+        listening_socket(settings.host, settings.port)
+        if settings.workers == 1
+        else bound_socket(settings.host, settings.port)
     )
-    serve_forked(app, master, settings.workers)
+    url = served_url(settings.host, bound.getsockname()[1])
+    with_workers = f" with {settings.workers} workers" if settings.workers > 1 else ""
+    print(f"csws: serving {networks} network(s){with_workers} on {url} (OpenAPI docs at /docs)", flush=True)
+    if settings.workers == 1:
+        serve(app, bound, limits)
+    else:
+        serve_forked(app, bound, settings.workers, limits)
     return 0
 
 

@@ -25,6 +25,9 @@ MAX_SPEED_KMH = 250.0
 MAX_OBJECTS = 32
 #: Highest sensor object id (:data:`csws.fcw.objects.MAX_OBJECT_ID`: ids are taken in [0, 2^31)).
 MAX_OBJECT_ID = 2**31 - 1
+#: A vehicle id: 1 to 128 characters, none of them ``/`` (it would leave the path ``/v1/vehicles/{id}``)
+#: or U+0000 (no store keeps it); the one rule for ids in bodies and in paths.
+VEHICLE_ID_PATTERN = r"^[^/\x00]+$"
 
 
 def check_position(position: Any) -> None:
@@ -194,7 +197,9 @@ class Query(BaseModel):
         },
     )
 
-    vehicle_id: str = Field(min_length=1, max_length=128, description="the vehicle")
+    vehicle_id: str = Field(
+        min_length=1, max_length=128, pattern=VEHICLE_ID_PATTERN, description="the vehicle: no '/', no U+0000"
+    )
     category: Category | None = Field(
         default=None,
         description="vehicle category (GB/T 15089); may be left out once set with PUT /v1/vehicles/{id}",

@@ -8,7 +8,7 @@ the same way as ``csws serve``:
 ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``,
 ``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
-``CSWS_BODY_TIMEOUT_S``.
+``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``.
 
 Without an API key file (:mod:`service.keys`) the service answers anyone, so it listens
 only on a loopback address unless ``insecure`` is set.
@@ -104,6 +104,9 @@ class ServiceSettings(BaseSettings):
     insecure: bool = Field(default=False, description="serve without API keys on an address other than loopback")
     max_body_bytes: int = Field(default=16 * 2**20, gt=0, description="the largest request body accepted, bytes")
     body_timeout_s: float = Field(default=10.0, gt=0, description="a client pausing this long in its body gets 408, s")
+    head_timeout_s: float = Field(
+        default=10.0, gt=0, description="a request head not complete this long after it may start gets 408, s"
+    )
     public_docs: bool = Field(
         default=False, description="with API keys: /docs, /redoc, /openapi.json and /metrics open to all (else a key)"
     )
@@ -132,10 +135,10 @@ class ServiceSettings(BaseSettings):
 
     @model_validator(mode="after")
     def _shared_by_the_workers(self) -> ServiceSettings:
-        if self.workers > 1 and not self.state and self.state_db == ":memory:":
+        if self.workers > 1 and not self.state and self.state_db.strip() in ("", ":memory:"):
             raise ValueError(
-                "an in-memory state database is each worker's own: give --workers N a file "
-                "(--state-db FILE) or a Redis (--state URL)"
+                f"an in-memory or temporary state database ({self.state_db!r}) is each worker's own: give "
+                "--workers N a file (--state-db FILE) or a Redis (--state URL)"
             )
         return self
 

@@ -8,7 +8,9 @@ start-up, and the pages of the arrays stay shared because nothing writes to them
 a collection. Each worker listens on the address with a socket of its own (Linux's
 ``SO_REUSEPORT``), so that the kernel spreads new connections over the workers: on one
 shared socket, the worker that wakes first accepts every waiting connection, and a burst of
-clients can land on a single worker. Each worker has its own event loop and its own
+clients can land on a single worker. Only sockets of one service share the port: the master
+first makes sure that nothing else listens on it (:func:`_free_port`). Each worker serves
+through the connection guard of :mod:`service.guard`. Each worker has its own event loop and its own
 connection to the state store; a worker that dies is forked again from the master, ready
 at once. The master stops its workers when it is told to
 stop (SIGTERM, SIGINT), and a worker whose master is gone leaves (:func:`leave_with_master`).
@@ -26,6 +28,8 @@ import threading
 import time
 from contextlib import suppress
 from typing import Any
+
+from .guard import Limits, serve
 
 __all__ = [
     "MASTER_PID_VARIABLE",
@@ -86,29 +90,57 @@ def _tcp_socket(family: int) -> socket.socket:
     return made
 
 
+def _resolved(host: str, port: int) -> tuple[int, Any]:
+    """The address family and socket address of ``host:port``."""
+    family, _kind, _protocol, _name, address = socket.getaddrinfo(
+        host, port, type=socket.SOCK_STREAM, proto=socket.IPPROTO_TCP
+    )[0]
+    return family, address
+
+
+def _in_use(host: str, port: int, error: OSError) -> OSError:
+    """The one-line error of an address that cannot be bound."""
+    reason = (
+        "it is in use (another program, or another csws serve)" if error.errno == errno.EADDRINUSE else error.strerror
+    )
+    return OSError(f"cannot listen on {host}:{port}: {reason}; give another --port")
+
+
+def _free_port(family: int, address: Any) -> int:
+    """The port of ``address`` if nothing else listens on it; raises OSError otherwise.
+
+    Sockets with ``SO_REUSEPORT`` of one user share a port, so a second service would join the
+    first and the kernel would split the connections between them. A probe socket bound
+    without ``SO_REUSEPORT`` fails on any socket listening on the port, ``SO_REUSEPORT`` or
+    not, and then nothing is served; the service's own sockets are bound after it is closed.
+    (Only a second service starting in the same instant can slip in between.) Port 0 is
+    resolved here to the free port the probe got.
+    """
+    with socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # connections of an earlier run in TIME_WAIT
+        probe.bind(address)
+        return int(probe.getsockname()[1])
+
+
 def bound_socket(host: str, port: int) -> socket.socket:
     """The master's socket on ``host:port``: bound, so that an address in use is an error before any
-    worker starts; listening only where the workers share it (without :data:`OWN_SOCKETS`).
+    worker starts, also when the other is a service listening with ``SO_REUSEPORT``
+    (:func:`_free_port`); listening only where the workers share it (without :data:`OWN_SOCKETS`).
 
     Raises
     ------
     OSError
         If the address cannot be bound.
     """
-    family, _kind, _protocol, _name, address = socket.getaddrinfo(
-        host, port, type=socket.SOCK_STREAM, proto=socket.IPPROTO_TCP
-    )[0]
+    family, address = _resolved(host, port)
     bound = _tcp_socket(family)
     try:
+        if OWN_SOCKETS:
+            address = (address[0], _free_port(family, address), *address[2:])
         bound.bind(address)
     except OSError as error:
         bound.close()
-        reason = (
-            "it is in use (another program, or another csws serve)"
-            if error.errno == errno.EADDRINUSE
-            else error.strerror
-        )
-        raise OSError(f"cannot listen on {host}:{port}: {reason}; give another --port") from None
+        raise _in_use(host, port, error) from None
     if not OWN_SOCKETS:
         bound.listen(BACKLOG)
     return bound
@@ -134,19 +166,17 @@ def _worker_socket(master: socket.socket) -> socket.socket:
     return own
 
 
-def _run_worker(app: Any, master: socket.socket) -> None:
+def _run_worker(app: Any, master: socket.socket, limits: Limits) -> None:
     """In a forked worker: serve ``app`` on the master's address until told to stop, then exit."""
-    import uvicorn
-
     status = 1
     try:
-        uvicorn.Server(uvicorn.Config(app, log_level="warning")).run(sockets=[_worker_socket(master)])
+        serve(app, _worker_socket(master), limits)
         status = 0
     finally:
         os._exit(status)  # never return into the master's code
 
 
-def serve_forked(app: Any, master: socket.socket, workers: int) -> None:
+def serve_forked(app: Any, master: socket.socket, workers: int, limits: Limits) -> None:
     """Fork ``workers`` processes serving ``app`` on the address of ``master``, keep that many until stopped.
 
     Parameters
@@ -157,6 +187,8 @@ def serve_forked(app: Any, master: socket.socket, workers: int) -> None:
         The master's socket (:func:`bound_socket`).
     workers
         How many worker processes.
+    limits
+        The bounds of each worker's connections (:mod:`service.guard`).
     """
     os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
     gc.collect()
@@ -172,7 +204,7 @@ def serve_forked(app: Any, master: socket.socket, workers: int) -> None:
             for number in stop_signals:
                 signal.signal(number, signal.SIG_DFL)
             signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
-            _run_worker(app, master)
+            _run_worker(app, master, limits)
         forked_at_s[pid] = time.monotonic()
         signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
 

@@ -96,7 +96,7 @@ class Recorded:
 def _open_map(browser, server, network: str) -> Recorded:
     recorded = Recorded(browser)
     recorded.page.goto(f"{server.url}/map?network={network}")
-    recorded.page.wait_for_function("document.body.dataset.ready === 'true'", timeout=WAIT_MS)
+    recorded.page.wait_for_function("() => document.body.dataset.ready === 'true'", timeout=WAIT_MS)
     return recorded
 
 
@@ -123,7 +123,7 @@ def test_the_map_draws_the_curves_of_its_view_as_the_service_gives_them(browser,
     assert _assert_curves_as_served(page, client, "t7_left") == 1  # the track's one (multi) curve
     # Zoomed into the approach, far from the curve: the view holds none, and the page draws none.
     page.evaluate("cswsMap.map.setView([0, 300], 3)")
-    page.wait_for_function("document.body.dataset.curvesDrawn === '0'", timeout=WAIT_MS)
+    page.wait_for_function("() => document.body.dataset.curvesDrawn === '0'", timeout=WAIT_MS)
     assert _assert_curves_as_served(page, client, "t7_left") == 0
     recorded.assert_offline()
 
@@ -133,7 +133,7 @@ def test_vehicle_markers_appear_and_change_colour_when_a_warning_comes_on(browse
     page = recorded.page
     fix = {"vehicle_id": "truck-18", "category": "N", "speed_kmh": 80.0, "heading_deg": 90.0, "network": "t7_left"}
     far = client.post("/v1/warning", json={**fix, "position": {"x": 300.0, "y": 0.4}, "timestamp_s": 1.0}).json()
-    page.wait_for_function("cswsMap.vehicles.has('truck-18')", timeout=WAIT_MS)
+    page.wait_for_function("() => cswsMap.vehicles.has('truck-18')", timeout=WAIT_MS)
     page.wait_for_function(
         "c => cswsMap.vehicles.get('truck-18').options.fillColor === c", arg=_colour_of(page, far), timeout=WAIT_MS
     )
@@ -171,7 +171,7 @@ def test_a_fleet_of_a_thousand_on_a_real_network_is_drawn_from_little_data(brows
     page = recorded.page
     assert sum(recorded.body_sizes) <= INITIAL_DATA_LIMIT_BYTES
     assert _assert_curves_as_served(page, client, "badhersfeld") > 0
-    page.wait_for_function(f"cswsMap.vehicles.size >= {FLEET_SIZE}", timeout=WAIT_MS)
+    page.wait_for_function(f"() => cswsMap.vehicles.size >= {FLEET_SIZE}", timeout=WAIT_MS)
     shown = page.evaluate("Object.fromEntries([...cswsMap.vehicles].map(([id, m]) => [id, m.options.fillColor]))")
     expected = {answer["vehicle_id"]: _colour_of(page, answer) for answer in answers}
     assert shown == expected

@@ -10,7 +10,7 @@ from ..decoding import DecodedSwitch, decode
 from ..deps import AdminDep, BodyDep, CallerDep, RegistryDep, ServiceDep, WorkDep
 from ..keys import vehicle_key
 from ..networks import ServedNetwork
-from ..schemas import SWITCH_ADAPTER, Message, VehicleState, VehicleSwitch
+from ..schemas import SWITCH_ADAPTER, VEHICLE_ID_PATTERN, Message, VehicleState, VehicleSwitch
 from ..vehicles import LoadedVehicles
 from .common import BOUNDED, INVALID_BODY, KEYED, STORE, json_body
 
@@ -19,7 +19,9 @@ __all__ = ["router", "vehicle_state"]
 router = APIRouter(tags=["vehicles"])
 
 #: The path parameter naming a vehicle (within the caller's fleet).
-VehicleId = Annotated[str, Path(min_length=1, max_length=128, description="the vehicle")]
+VehicleId = Annotated[
+    str, Path(min_length=1, max_length=128, pattern=VEHICLE_ID_PATTERN, description="the vehicle: no '/', no U+0000")
+]
 
 
 def vehicle_state(vehicles: LoadedVehicles, networks: list[ServedNetwork], key: str, vehicle_id: str) -> dict[str, Any]:

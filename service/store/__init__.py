@@ -36,6 +36,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "STORE_TIMEOUT_S",
+    "MAX_SESSION_IDLE_S",
+    "checked_idle_s",
     "StoreUnavailable",
     "VehicleSetting",
     "StoredVehicle",
@@ -48,6 +50,20 @@ __all__ = [
 #: How long one store operation may wait (for a lock, a connection, an answer), s: longer would
 #: hold up every other request of the worker; the client is told to retry instead.
 STORE_TIMEOUT_S = 0.5
+#: The longest session idle time a store takes, s (366 days): Redis keeps a key's time to live as
+#: whole milliseconds in a signed 64-bit integer, counted from now, and a setting that a store
+#: cannot hold is refused at start rather than failing every write.
+MAX_SESSION_IDLE_S = 366 * 86400.0
+
+
+def checked_idle_s(idle_s: float) -> float:
+    """``idle_s`` as a float if a store can hold it as a session idle time; ValueError otherwise."""
+    if not 0.0 < idle_s <= MAX_SESSION_IDLE_S:
+        raise ValueError(
+            f"the session idle time must be positive and at most {MAX_SESSION_IDLE_S:.0f} s (366 days), "
+            f"got {idle_s!r} s"
+        )
+    return float(idle_s)
 
 
 class StoreUnavailable(OSError):

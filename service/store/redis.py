@@ -32,7 +32,7 @@ from redis.retry import Retry
 
 from csws.standard import Category
 
-from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite, checked_idle_s
 
 __all__ = ["SESSION_PREFIX", "SETTING_PREFIX", "RedisStore"]
 
@@ -108,8 +108,7 @@ class RedisStore(StateStore):
     """
 
     def __init__(self, url: str, idle_s: float) -> None:
-        if not idle_s > 0:
-            raise ValueError(f"the session idle time must be positive, got {idle_s!r} s")
+        idle_s = checked_idle_s(idle_s)
         self.name = shown_url(url)
         self.ttl_ms = max(1, round(idle_s * 1000.0))
         try:

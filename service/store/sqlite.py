@@ -15,22 +15,42 @@ than a write holds the lock). Settings are written with ``synchronous=FULL``
 (on disk when the 200 goes out); a transaction of sessions alone with ``NORMAL``, which
 in WAL mode survives a crash of the service and may lose the last sessions only when the
 machine itself fails, costing those vehicles a fresh session.
+
+The file is watched: after each write its inode and permissions are compared with those of the
+file opened (:meth:`SQLiteStore._check_file`, one ``stat``). A file that was deleted, replaced
+or made read-only makes that write and every later operation a
+:class:`~service.store.StoreUnavailable` (a 503 with ``Retry-After``, and ``/readyz`` 503),
+logged once: the write went to a file that nobody will read again, so it is not acknowledged,
+and the service does not start over on a new, empty file, since the acknowledged settings
+are in the old one. Restart the service once the file is back. A worker forked after the
+file was opened opens it again only if it is still the same file. The file (and with it
+SQLite's ``-wal`` and ``-shm`` files, which take its permissions) is created readable and
+writable by its owner only (0600): it holds every fleet's vehicle ids and positions.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
 import sqlite3
+import stat
 import time
 from collections.abc import Callable, Collection, Iterable, Mapping
 from pathlib import Path
 
 from csws.standard import Category
 
-from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite, checked_idle_s
 
-__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "SQLiteStore"]
+__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "SQLiteStore"]
+
+logger = logging.getLogger("csws.service")
+
+#: The permissions of a database file the store creates: its owner's only.
+FILE_MODE = 0o600
+#: Names SQLite takes for a private database of one connection, not a file.
+_NOT_FILES = ("", ":memory:")
 
 #: Expired sessions are deleted at most this often (by whichever write comes first), s.
 SWEEP_PERIOD_S = 60.0
@@ -94,16 +114,71 @@ class SQLiteStore(StateStore):
     """
 
     def __init__(self, path: str | Path, idle_s: float, clock: Callable[[], float] = time.time) -> None:
-        if not idle_s > 0:
-            raise ValueError(f"the session idle time must be positive, got {idle_s!r} s")
-        if str(path) != ":memory:":
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        idle_s = checked_idle_s(idle_s)
         self.name = str(path)
         self.idle_s = float(idle_s)
         self.clock = clock
         self._swept_s = -float("inf")
         self._pid = os.getpid()
+        self._file: tuple[int, int] | None = None  # device and inode of the file opened
+        self._lost: str | None = None  # why the file can no longer be used, once it cannot
+        if self.name not in _NOT_FILES:
+            self._create_private(Path(self.name))
         self._connection = self._connect()
+        self._file = self._identity()
+
+    @staticmethod
+    def _create_private(path: Path) -> None:
+        """Create the database file (and its folder) if missing, readable and writable by its owner only.
+
+        Raises
+        ------
+        OSError
+            One line naming the file, when it cannot be created.
+        """
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            os.close(os.open(path, os.O_CREAT | os.O_RDWR, FILE_MODE))
+        except OSError as exc:
+            raise OSError(f"cannot open the vehicle state database {path}: {exc.strerror}") from None
+
+    def _identity(self) -> tuple[int, int] | None:
+        """The device and inode of the database file now; None for a private database.
+
+        Raises
+        ------
+        OSError
+            If the file is gone.
+        """
+        if self.name in _NOT_FILES:
+            return None
+        status = os.stat(self.name)
+        return status.st_dev, status.st_ino
+
+    def _check_file(self) -> None:
+        """Raise :class:`StoreUnavailable` if the file opened was deleted, replaced or made read-only
+        (logged the first time)."""
+        if self._file is None:
+            return
+        if self._lost is None:
+            try:
+                status = os.stat(self.name)
+                if (status.st_dev, status.st_ino) != self._file:
+                    self._lost = "was replaced by another file"
+                elif not status.st_mode & stat.S_IWUSR:
+                    self._lost = "was made read-only"
+            except FileNotFoundError:
+                self._lost = "was deleted"
+            except OSError as exc:
+                self._lost = f"cannot be looked at ({exc.strerror})"
+            if self._lost is not None:
+                logger.error(
+                    "the vehicle state database %s %s: writes are refused (503) until the service is restarted "
+                    "with the file back",
+                    self.name,
+                    self._lost,
+                )
+        self._refuse_if_lost()
 
     def _connect(self) -> sqlite3.Connection:
         """A connection to the database, its tables made if missing.
@@ -134,6 +209,7 @@ class SQLiteStore(StateStore):
         """This process's connection: a worker forked after the store was opened makes its own, since a
         SQLite connection must not be used on both sides of a fork."""
         if self._pid != os.getpid():
+            self._check_file()  # never a new, empty file in place of the one the master opened
             try:
                 self._connection = self._connect()
             except OSError as exc:
@@ -154,6 +230,7 @@ class SQLiteStore(StateStore):
     def read(self, vehicle_ids: Collection[str]) -> dict[str, StoredVehicle]:
         if not vehicle_ids:
             return {}
+        self._refuse_if_lost()
         try:
             rows = self._execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
             return {
@@ -170,6 +247,7 @@ class SQLiteStore(StateStore):
             return set()
         try:
             self._set_durable(any(w.setting is not None for w in writes.values()))
+            self._refuse_if_lost()
             self._execute("BEGIN IMMEDIATE")
             try:
                 conflicts = self._write(writes)
@@ -179,7 +257,13 @@ class SQLiteStore(StateStore):
                     self._db.execute("ROLLBACK")
         except sqlite3.Error as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be written now: {exc}") from None
+        self._check_file()  # committed to the file everyone reads, or not acknowledged
         return conflicts
+
+    def _refuse_if_lost(self) -> None:
+        """Raise :class:`StoreUnavailable` once the file was found deleted, replaced or read-only."""
+        if self._lost is not None:
+            raise StoreUnavailable(f"the vehicle state database {self.name} {self._lost}")
 
     def _write(self, writes: Mapping[str, VehicleWrite]) -> set[str]:
         """Inside the write transaction: write the sessions still at the version read (and their
@@ -244,6 +328,7 @@ class SQLiteStore(StateStore):
         return self.clock() - self.idle_s
 
     def sessions(self, prefix: str = "") -> dict[str, bytes]:
+        self._refuse_if_lost()
         try:
             rows = self._execute(
                 "SELECT vehicle_id, session FROM vehicle_sessions "
@@ -255,6 +340,8 @@ class SQLiteStore(StateStore):
         return dict(rows)
 
     def session_count(self) -> int:
+        """Counted in the file, which is looked at first (``/readyz``: not ready once it is gone)."""
+        self._check_file()
         try:
             return int(
                 self._execute(
