@@ -34,6 +34,7 @@ from benchmarks import (
     curvature,
     fcw,
     fcw_traffic,
+    hygiene,
     load,
     osm,
     roadmap,
@@ -184,6 +185,28 @@ def fcw_traffic_rows(figures: dict) -> list[Row]:
             fcw_traffic.TARGET_MISSED,
         ),
         context("FCW in traffic: where the false warnings came (most frequent)", situations),
+    ]
+
+
+def hygiene_rows(figures: dict) -> list[Row]:
+    return [
+        at_most(
+            "hygiene: /healthz p99 with 1,000 connections dripping headers and 32 saturating clients, ms",
+            figures["healthz_dripping_saturating_p99_ms"],
+            50,
+            f"quiet {figures['healthz_quiet_p99_ms']:g} ms, "
+            f"saturated alone {figures['healthz_saturating_p99_ms']:g} ms, "
+            f"dripping alone {figures['healthz_dripping_p99_ms']:g} ms; longest dripping connection "
+            f"{figures['healthz_dripping_open_s_max']} s",
+        ),
+        at_most("hygiene: errors of the honest clients", figures["healthz_dripping_saturating_errors"], 0),
+        at_most(
+            "hygiene: log lines at descriptor exhaustion (128, 140 idle connections)",
+            figures["exhaustion_log_lines"],
+            10,
+            f"recovered {figures['exhaustion_recovery_ms']:g} ms after they left; /healthz answered "
+            f"{figures['exhaustion_healthz_status_held']} while held",
+        ),
     ]
 
 
@@ -429,6 +452,9 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("fcw", fcw.run, "a few seconds", fcw_rows),
         Benchmark("service", service.run, "about 1-2 minutes", service_rows),
+        Benchmark(
+            "hygiene", hygiene.run, "about a minute: slow heads, saturation, descriptor exhaustion", hygiene_rows
+        ),
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark(
             "workers", lambda: load.run_workers(seconds=load_seconds), f"{load_seconds:g} s at saturation", workers_rows
