@@ -26,6 +26,7 @@ from typing import TypeVar
 import msgspec
 
 from csws.engine import Engine, VehicleMemory
+from csws.road.hmm import MatchState, Track
 from csws.road.matching import MapPosition
 from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
@@ -103,6 +104,9 @@ class Session:
         What its latest answer said (the live map's view of it, ``GET /v1/fleet``).
     fcw
         What its forward collision warning keeps, None before its first query with objects.
+    matching
+        What map matching keeps of its fixes on the network ``network_index`` (:class:`csws.road.hmm.MatchState`),
+        None before its first matched fix.
     """
 
     network_index: int
@@ -110,6 +114,7 @@ class Session:
     lane_pos_m: float = 0.0
     latest: LatestAnswer | None = None
     fcw: FcwMemory | None = None
+    matching: MatchState | None = None
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -131,6 +136,8 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     latest: LatestAnswer | None = None
     #: The forward collision warning's memory (sessions of vehicles never queried with objects have none).
     fcw: FcwMemory | None = None
+    #: What map matching keeps of its fixes (sessions of vehicles never matched from a fix have none).
+    matching: MatchState | None = None
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
@@ -155,6 +162,7 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
             session.lane_pos_m,
             session.latest,
             session.fcw,
+            session.matching,
         )
 
 
@@ -180,12 +188,14 @@ class LoadedVehicles:
         self.sessions: dict[str, Session] = {}
         self.new_settings: dict[str, VehicleSetting] = {}
         self.written: set[str] = set()
+        #: What map matching kept of the vehicles' fixes of this request, until each is :meth:`seen`.
+        self.tracks: dict[str, Track | None] = {}
         for vehicle_id, vehicle in stored.items():
             record = registry.decode(vehicle.session)
             if record is not None:
                 network_index = registry.network_index[record.network]
                 self.sessions[vehicle_id] = Session(
-                    network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw
+                    network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw, record.matching
                 )
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
@@ -220,6 +230,20 @@ class LoadedVehicles:
             return None
         return MapPosition(session.network_index, session.lane_id)
 
+    def track(self, vehicle_id: str) -> Track | None:
+        """What map matching keeps of the vehicle's fixes, if anything: as this request's last fix of it left it,
+        else as its session has it."""
+        if vehicle_id in self.tracks:
+            return self.tracks[vehicle_id]
+        session = self.sessions.get(vehicle_id)
+        if session is None or session.matching is None:
+            return None
+        return Track(session.network_index, session.matching)
+
+    def keep_track(self, vehicle_id: str, track: Track | None) -> None:
+        """What map matching keeps of the vehicle's latest fix: its session takes it when it is :meth:`seen`."""
+        self.tracks[vehicle_id] = track
+
     def network_of(self, vehicle_id: str) -> int:
         """The network whose engine holds the vehicle's memory (the first for a new vehicle)."""
         session = self.sessions.get(vehicle_id)
@@ -253,6 +277,9 @@ class LoadedVehicles:
         break the continuity of the next. Its session is written back at the end of the request.
         """
         session = self.sessions[vehicle_id]
+        if vehicle_id in self.tracks:
+            track = self.tracks[vehicle_id]
+            session.matching = track.state if track is not None and track.map_index == session.network_index else None
         if lane_id is not None:
             session.lane_id, session.lane_pos_m = lane_id, lane_pos_m
         if latest is not None:

@@ -1,0 +1,633 @@
+"""Matches the GNSS fixes of vehicles over their sequence: an online hidden-Markov map matcher.
+
+Fleet telematics sends a fix a second or slower with metres of noise; matched one by one,
+a fix inside a junction lands as often on a connection into a side street as on the one the
+vehicle takes. Matched over the sequence (Newson & Krumm 2009, "Hidden Markov map matching
+through noise and sparseness", as Valhalla's Meili and OSRM's matcher do):
+
+* the **candidates** of a fix are the lanes within a radius of it (``search_sigmas`` times its
+  accuracy, never under the tolerance) whose direction agrees with its heading;
+* the **emission** of a candidate is a Gaussian of its distance from the fix with the fix's
+  accuracy (``accuracy_m``, per fix or the default) and of its direction against the heading;
+* the **transition** from a candidate of the previous fix is an exponential of
+  |route distance between them - straight distance between the fixes| (Newson & Krumm's beta),
+  the route distance taken on the lane graph (:class:`csws.road.lanegraph.LaneGraph`); changing
+  to another lane of the same edge costs a fixed log-probability, so one noisy fix does not
+  move the vehicle to the neighbouring lane.
+
+Online, each vehicle keeps its candidates and their log-probabilities between fixes
+(:class:`MatchState`, a few hundred bytes, stored with its session); each fix is one
+forward (Viterbi) step for all vehicles of a batch at once, in numpy. The matched lane is the
+most probable candidate, with one exception at junctions: a fix that could be on several
+connections from the vehicle's incoming edge commits to a turn off the road only once the
+connections into that turn's road hold :attr:`MatchSettings.commit_share` of their probability;
+until then the fix is reported on the road's own continuation (:attr:`Placed.DEFERRED`), so
+the path ahead follows the road, never a guessed turn. A later fix on the side street decides.
+
+A fix that matches no lane is placed by dead reckoning along the road from the last match
+(:attr:`Placed.DEAD_RECKONED`, up to :attr:`MatchSettings.dead_reckoning_s`); a jump beyond
+the graph's reach starts the sequence afresh. :meth:`SequenceMatcher.match_trace` matches a whole
+trace with the same steps and a Viterbi backtrace: each fix on the path the later fixes confirm.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import NamedTuple
+
+import msgspec
+import numpy as np
+
+from csws.geometry import wrap_angle_rad
+from csws.road.lanegraph import LaneGraph
+from csws.road.matching import MapMatcher, MatchSettings, Probes, compass_to_math_rad, lane_point
+from csws.road.roadmap import RoadMap
+
+__all__ = ["MatchState", "Track", "Fixes", "Placed", "SequenceMatches", "SequenceMatcher"]
+
+#: The library's matching settings (frozen: one instance serves every matcher left to them).
+_DEFAULTS = MatchSettings()
+
+
+class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
+    """What the matcher keeps of a vehicle between fixes (a MessagePack array of some 100 bytes).
+
+    Attributes
+    ----------
+    time_s
+        When its last matched fix was taken, s.
+    x_m, y_m
+        Where that fix was, in the coordinates of the map of its lanes, m.
+    speed_mps
+        Its speed then, given or estimated, m/s (dead reckoning goes on with it).
+    lane_id, lane_pos_m
+        Where that fix was reported (dead reckoning starts there).
+    candidates, candidate_pos_m, log_p
+        The candidate lanes of that fix, their lane positions (m) and log-probabilities (the best 0).
+    """
+
+    time_s: float
+    x_m: float
+    y_m: float
+    speed_mps: float
+    lane_id: str
+    lane_pos_m: float
+    candidates: tuple[str, ...]
+    candidate_pos_m: tuple[float, ...]
+    log_p: tuple[float, ...]
+
+
+class Track(NamedTuple):
+    """A vehicle's matching state on one of the matched maps (by index)."""
+
+    map_index: int
+    state: MatchState
+
+
+@dataclass(frozen=True)
+class Fixes:
+    """One fix of each of ``probes.count`` distinct vehicles, as columns.
+
+    Attributes
+    ----------
+    probes
+        Where to look for each fix (:class:`csws.road.matching.Probes`).
+    time_s
+        When each was taken, s.
+    heading_deg, speed_mps, accuracy_m
+        GNSS heading (degrees clockwise from north), speed (m/s) and position accuracy (one standard
+        deviation, m); NaN where not given.
+    """
+
+    probes: Probes
+    time_s: np.ndarray
+    heading_deg: np.ndarray
+    speed_mps: np.ndarray
+    accuracy_m: np.ndarray
+
+    @classmethod
+    def of(
+        cls,
+        probes: Probes,
+        time_s: Sequence[float] | np.ndarray,
+        heading_deg: Sequence[float] | np.ndarray | None = None,
+        speed_mps: Sequence[float] | np.ndarray | None = None,
+        accuracy_m: Sequence[float] | np.ndarray | None = None,
+    ) -> Fixes:
+        """The fixes with NaN (not given) for each column left out."""
+
+        def column(values: Sequence[float] | np.ndarray | None) -> np.ndarray:
+            return np.full(probes.count, np.nan) if values is None else np.asarray(values, dtype=float)
+
+        return cls(probes, column(time_s), column(heading_deg), column(speed_mps), column(accuracy_m))
+
+
+class Placed(StrEnum):
+    """How a fix was placed on its lane."""
+
+    #: On the most probable candidate.
+    MATCHED = "matched"
+    #: Inside a junction, on the road's continuation: the turn it may be taking is not yet shown.
+    DEFERRED = "deferred"
+    #: Matching no lane, moved on along the road from the last match.
+    DEAD_RECKONED = "dead_reckoned"
+
+
+@dataclass(frozen=True)
+class SequenceMatches:
+    """Where each of many fixes was placed, as columns (see :class:`csws.road.matching.FixMatches`).
+
+    Attributes
+    ----------
+    map_index
+        ``(k,)`` the map of the lane, -1 where the fix was placed nowhere.
+    lane_id, lane_pos_m, distance_m
+        The lane (None: nowhere), the lane position and the fix's distance from that point, m.
+    placed
+        How each was placed, None where nowhere.
+    reason
+        Why a fix was placed nowhere, else None.
+    tracks
+        What to keep of each vehicle for its next fix (its previous track where the fix matched
+        nothing; None for a vehicle with none).
+    """
+
+    map_index: np.ndarray
+    lane_id: list[str | None]
+    lane_pos_m: np.ndarray
+    distance_m: np.ndarray
+    placed: list[Placed | None]
+    reason: list[str | None]
+    tracks: list[Track | None]
+
+    def __len__(self) -> int:
+        return len(self.lane_id)
+
+
+@dataclass(frozen=True)
+class _Previous:
+    """The candidates of the vehicles' previous fixes, flattened (rows by fix) with per-fix columns."""
+
+    fix: np.ndarray
+    lane: np.ndarray
+    pos_m: np.ndarray
+    log_p: np.ndarray
+    start: np.ndarray
+    count: np.ndarray
+    xy: np.ndarray
+    time_s: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Candidates:
+    """The lanes near each fix that agree with its heading (rows by fix), with their emissions."""
+
+    fix: np.ndarray
+    xy: np.ndarray
+    lane: np.ndarray
+    pos_m: np.ndarray
+    distance_m: np.ndarray
+    emission: np.ndarray
+
+    def rows(self, selected: np.ndarray) -> _Candidates:
+        """The candidates of the rows ``selected`` (a mask or indices)."""
+        return _Candidates(*(column[selected] for column in vars(self).values()))
+
+
+@dataclass(frozen=True)
+class _Step:
+    """One forward step: each candidate's normalised log-probability, best previous candidate (row of
+    :class:`_Previous`, -1: none) and route distance from it; per fix its best candidate (-1: none) and
+    whether the step continued its sequence."""
+
+    candidates: _Candidates
+    log_p: np.ndarray
+    back: np.ndarray
+    route_m: np.ndarray
+    best: np.ndarray
+    linked: np.ndarray
+
+
+def _group_starts(group: np.ndarray) -> np.ndarray:
+    """The first row of each run of equal values of a sorted ``group``."""
+    if not group.size:
+        return np.zeros(0, dtype=np.intp)
+    return np.flatnonzero(np.concatenate(([True], group[1:] != group[:-1])))
+
+
+def _per_fix_max(values: np.ndarray, fix: np.ndarray, count: int) -> np.ndarray:
+    """The greatest of ``values`` of each fix (rows sorted by ``fix``), -inf for a fix without rows."""
+    result = np.full(count, -np.inf)
+    starts = _group_starts(fix)
+    if starts.size:
+        result[fix[starts]] = np.maximum.reduceat(values, starts)
+    return result
+
+
+def _first_where(mask: np.ndarray, group: np.ndarray, count: int) -> np.ndarray:
+    """Per group (rows sorted by ``group``), the first row where ``mask`` holds, -1 where none does."""
+    result = np.full(count, -1, dtype=np.intp)
+    rows = np.flatnonzero(mask)
+    firsts = rows[_group_starts(group[rows])]
+    result[group[firsts]] = firsts
+    return result
+
+
+class SequenceMatcher:
+    """Matches the fixes of vehicles over their sequence on one or more road maps.
+
+    Parameters
+    ----------
+    road_maps
+        The maps, in order of preference (their lanes numbered as :class:`MapMatcher` numbers them).
+    settings
+        Tolerances and the model's scales.
+    """
+
+    def __init__(self, road_maps: Sequence[RoadMap], settings: MatchSettings = _DEFAULTS) -> None:
+        self.index = MapMatcher(road_maps, settings)
+        self.road_maps = self.index.road_maps
+        self.settings = settings
+        self.graph = LaneGraph(self.road_maps, settings.reach_m)
+        #: Each map's lanes by id, numbered over all maps.
+        self._numbers = [
+            {lane_id: self.index.lane_number(map_index, lane_id) for lane_id in road_map.lane_ids}
+            for map_index, road_map in enumerate(self.road_maps)
+        ]
+        self._heading_tolerance_rad = math.radians(settings.heading_tolerance_deg)
+        self._heading_sigma_rad = math.radians(settings.heading_sigma_deg)
+
+    def match(self, fixes: Fixes, tracks: Sequence[Track | None]) -> SequenceMatches:
+        """Place one fix of each of many distinct vehicles, each continuing its ``tracks`` entry
+        (None for a vehicle seen first, or whose sequence is lost)."""
+        return self._advance(fixes, tracks)[0]
+
+    def match_trace(self, fixes: Fixes, track: Track | None = None) -> SequenceMatches:
+        """Place the fixes of one vehicle, in time order, each on the path the whole trace makes most
+        probable (the Viterbi path: a fix in a junction on the connection the later fixes show)."""
+        steps = []
+        for row in range(fixes.probes.count):
+            one = _one_fix(fixes, row)
+            matches, step, kept = self._advance(one, [track])
+            steps.append((matches, step, kept))
+            track = matches.tracks[0]
+        return _backtrace(steps, self)
+
+    # ------------------------------------------------------------------ one step
+    def _advance(
+        self, fixes: Fixes, tracks: Sequence[Track | None]
+    ) -> tuple[SequenceMatches, _Step, tuple[np.ndarray, np.ndarray]]:
+        """One forward step for every fix: the matches, the step and each fix's kept candidate rows."""
+        count = fixes.probes.count
+        sigma_m = np.where(np.isfinite(fixes.accuracy_m), fixes.accuracy_m, self.settings.accuracy_m)
+        radius_m = np.maximum(self.settings.tolerance_m, self.settings.search_sigmas * sigma_m)
+        candidates, near = self._candidates(fixes, sigma_m, radius_m)
+        previous = self._previous(tracks, count)
+        step = self._step(candidates, previous, count)
+        kept = self._kept(step, count)
+        lane, pos_m, distance_m, placed = self._reported(step, count)
+        self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
+        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane, pos_m))
+        placed_anywhere = lane >= 0
+        lane_ids: list[str | None] = self.index.lane_ids[np.maximum(lane, 0)].tolist()
+        reason: list[str | None] = [None] * count
+        for fix in np.flatnonzero(~placed_anywhere).tolist():
+            lane_ids[fix] = None
+            reason[fix] = self._reason(bool(near[fix]), float(radius_m[fix]), float(fixes.heading_deg[fix]))
+        matches = SequenceMatches(
+            np.where(placed_anywhere, self.index.lane_map[np.maximum(lane, 0)], -1),
+            lane_ids,
+            pos_m,
+            distance_m,
+            placed,
+            reason,
+            new_tracks,
+        )
+        return matches, step, kept
+
+    def _candidates(self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray) -> tuple[_Candidates, np.ndarray]:
+        """The lanes near each fix agreeing with its heading, with their emission log-probabilities,
+        and whether any lane at all was near each fix."""
+        probes = fixes.probes
+        found = self.index.nearby(probes, radius_m) if len(probes.fix) else None
+        if found is None or not len(found):
+            empty = np.zeros(0)
+            return _Candidates(
+                empty.astype(np.intp), np.zeros((0, 2)), empty.astype(np.intp), empty, empty, empty
+            ), np.zeros(probes.count, dtype=bool)
+        fix = probes.fix[found.point_index]
+        near = np.bincount(fix, minlength=probes.count) > 0
+        off_rad = wrap_angle_rad(found.heading_rad - compass_to_math_rad(fixes.heading_deg[fix]))
+        agrees = ~(np.abs(off_rad) > self._heading_tolerance_rad)  # a NaN heading agrees
+        heading_term = np.where(np.isnan(off_rad), 0.0, off_rad / self._heading_sigma_rad)
+        emission = -0.5 * ((found.distance_m / sigma_m[fix]) ** 2 + heading_term**2)
+        order = np.argsort(fix, kind="stable")
+        order = order[agrees[order]]
+        candidates = _Candidates(
+            fix[order],
+            probes.xy[found.point_index[order]],
+            found.lane_index[order].astype(np.intp),
+            found.lane_pos_m[order],
+            found.distance_m[order],
+            emission[order],
+        )
+        return candidates, near
+
+    def _previous(self, tracks: Sequence[Track | None], count: int) -> _Previous:
+        """The candidates of the vehicles' previous fixes, their lanes numbered over all maps."""
+        fix: list[int] = []
+        lane: list[int] = []
+        pos_m: list[float] = []
+        log_p: list[float] = []
+        xy = np.full((count, 2), np.nan)
+        time_s = np.full(count, np.nan)
+        for row, track in enumerate(tracks):
+            if track is None:
+                continue
+            state, numbers = track.state, self._numbers[track.map_index]
+            fix += [row] * len(state.candidates)
+            lane += [numbers.get(lane_id, -1) for lane_id in state.candidates]
+            pos_m += state.candidate_pos_m
+            log_p += state.log_p
+            xy[row] = state.x_m, state.y_m
+            time_s[row] = state.time_s
+        known = np.array(lane, dtype=np.intp) >= 0  # a lane the maps no longer have is dropped
+        fix_array = np.array(fix, dtype=np.intp)[known]
+        counts = np.bincount(fix_array, minlength=count)
+        return _Previous(
+            fix_array,
+            np.array(lane, dtype=np.intp)[known],
+            np.array(pos_m, dtype=float)[known],
+            np.array(log_p, dtype=float)[known],
+            np.cumsum(counts) - counts,
+            counts,
+            xy,
+            time_s,
+        )
+
+    def _step(self, candidates: _Candidates, previous: _Previous, count: int) -> _Step:
+        """The forward (Viterbi) step: each candidate's best transition from the previous candidates of its
+        fix plus its emission, normalised per fix; a fix none of whose candidates is reached from its
+        previous ones starts afresh from the emissions."""
+        reps = previous.count[candidates.fix]
+        first_pair = np.cumsum(reps) - reps
+        pair_candidate = np.repeat(np.arange(len(reps)), reps)
+        pair_previous = previous.start[candidates.fix][pair_candidate] + np.arange(int(reps.sum()))
+        pair_previous -= first_pair[pair_candidate]
+        from_lane, to_lane = previous.lane[pair_previous], candidates.lane[pair_candidate]
+        route_m = self.graph.route_m(
+            from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate]
+        )
+        straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[candidates.fix[pair_candidate]]).T)
+        lane_change = (from_lane != to_lane) & (self.graph.lane_edge[from_lane] == self.graph.lane_edge[to_lane])
+        transition = -np.abs(route_m - straight_m) / self.settings.transition_beta_m
+        transition += np.where(lane_change, self.settings.lane_change_log_p, 0.0)
+        score = np.where(np.isnan(transition), -np.inf, previous.log_p[pair_previous] + transition)
+        best_score = np.full(len(reps), -np.inf)
+        back = np.full(len(reps), -1, dtype=np.intp)
+        best_route_m = np.full(len(reps), np.nan)
+        paired = np.flatnonzero(reps > 0)
+        if paired.size:
+            best_score[paired] = np.maximum.reduceat(score, first_pair[paired])
+            at_best = (score == best_score[pair_candidate]) & np.isfinite(score)
+            first = _first_where(at_best, pair_candidate, len(reps))
+            found = first >= 0
+            back[found] = pair_previous[first[found]]
+            best_route_m[found] = route_m[first[found]]
+        linked = np.zeros(count, dtype=bool)
+        linked[candidates.fix[np.isfinite(best_score)]] = True
+        total = candidates.emission + np.where(linked[candidates.fix], best_score, 0.0)
+        log_p = total - _per_fix_max(total, candidates.fix, count)[candidates.fix]
+        best = _first_where(log_p == 0.0, candidates.fix, count)
+        back[~linked[candidates.fix]] = -1
+        return _Step(candidates, log_p, back, best_route_m, best, linked)
+
+    def _kept(self, step: _Step, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """The candidate rows each fix keeps for its next fix: those on its best candidate's map that are
+        still possible, most probable first, at most :attr:`MatchSettings.max_candidates`; as rows
+        grouped by fix and the bounds of each fix's group (``rows[bounds[i]:bounds[i + 1]]``)."""
+        candidates = step.candidates
+        lane_map = self.index.lane_map
+        best_map = np.full(count, -1, dtype=np.intp)
+        has = step.best >= 0
+        best_map[has] = lane_map[candidates.lane[step.best[has]]]
+        possible = np.isfinite(step.log_p) & (lane_map[candidates.lane] == best_map[candidates.fix])
+        rows = np.flatnonzero(possible)
+        rows = rows[np.lexsort((-step.log_p[rows], candidates.fix[rows]))]
+        fix = candidates.fix[rows]
+        rank = np.arange(rows.size) - np.searchsorted(fix, fix)
+        rows = rows[rank < self.settings.max_candidates]
+        return rows, np.searchsorted(candidates.fix[rows], np.arange(count + 1))
+
+    # ------------------------------------------------------------------ what is reported
+    def _reported(self, step: _Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
+        """Each fix's reported lane (-1: none), lane position and distance, and how it was placed: its best
+        candidate, or, inside a junction whose turn is not yet decided, the road's continuation."""
+        candidates, best = step.candidates, step.best
+        has = best >= 0
+        lane = np.full(count, -1, dtype=np.intp)
+        pos_m, distance_m = np.full(count, np.nan), np.full(count, np.nan)
+        lane[has], pos_m[has], distance_m[has] = (
+            column[best[has]] for column in (candidates.lane, candidates.pos_m, candidates.distance_m)
+        )
+        placed: list[Placed | None] = [Placed.MATCHED if h else None for h in has.tolist()]
+        for fix in np.flatnonzero(self._undecided(step, count)).tolist():
+            lane[fix], pos_m[fix], distance_m[fix] = self._continuation(step, fix)
+            placed[fix] = Placed.DEFERRED
+        return lane, pos_m, distance_m, placed
+
+    def _undecided(self, step: _Step, count: int) -> np.ndarray:
+        """Which fixes' best candidate turns off the road inside a junction while the connections into its
+        road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge."""
+        candidates, graph = step.candidates, self.graph
+        turning = np.zeros(count, dtype=bool)
+        best_lane = np.zeros(count, dtype=np.intp)
+        has = step.best >= 0
+        best_lane[has] = candidates.lane[step.best[has]]
+        turning[has] = graph.turns[best_lane[has]]
+        if not turning.any():
+            return turning
+        lane, fix = candidates.lane, candidates.fix
+        probability = np.exp(step.log_p)
+        group = graph.internal[lane] & (graph.entry_edge[lane] == graph.entry_edge[best_lane][fix]) & turning[fix]
+        same = group & (graph.exit_edge[lane] == graph.exit_edge[best_lane][fix])
+        group_p = np.bincount(fix, weights=probability * group, minlength=count)
+        same_p = np.bincount(fix, weights=probability * same, minlength=count)
+        return turning & (same_p < self.settings.commit_share * group_p)
+
+    def _continuation(self, step: _Step, fix: int) -> tuple[int, float, float]:
+        """Where a fix whose turn is undecided is reported: on the lane the road continues on from the
+        incoming lane if it is a candidate, else at the end of the incoming lane (lane, position, distance)."""
+        candidates, graph = step.candidates, self.graph
+        entry = int(graph.entry_lane[candidates.lane[step.best[fix]]])
+        following = int(graph.continuation[entry])
+        rows = np.flatnonzero((candidates.fix == fix) & (candidates.lane == following))
+        if following >= 0 and rows.size:
+            row = int(rows[0])
+            return following, float(candidates.pos_m[row]), float(candidates.distance_m[row])
+        end_m = float(graph.lane_length_m[entry])
+        return entry, end_m, self._distance_to(entry, end_m, candidates.xy[step.best[fix]])
+
+    def _distance_to(self, lane: int, lane_pos_m: float, xy: np.ndarray) -> float:
+        """Distance from ``xy`` to a lane position, m."""
+        map_index, lane_id = self.index.lane_name(lane)
+        x, y = lane_point(self.road_maps[map_index], lane_id, lane_pos_m)
+        return math.hypot(float(xy[0]) - x, float(xy[1]) - y)
+
+    def _dead_reckon(
+        self,
+        fixes: Fixes,
+        tracks: Sequence[Track | None],
+        lane: np.ndarray,
+        pos_m: np.ndarray,
+        distance_m: np.ndarray,
+        placed: list[Placed | None],
+    ) -> None:
+        """Place the fixes that matched no lane by dead reckoning from their vehicle's last match, within
+        :attr:`MatchSettings.dead_reckoning_s` of it: on along the road at the fix's speed (else the
+        last one), filled into the columns."""
+        probes = fixes.probes
+        for fix in np.flatnonzero(lane < 0).tolist():
+            track = tracks[fix]
+            if track is None:
+                continue
+            state = track.state
+            elapsed_s = float(fixes.time_s[fix]) - state.time_s
+            start = self.index.lane_number(track.map_index, state.lane_id)
+            if start < 0 or not (0.0 <= elapsed_s <= self.settings.dead_reckoning_s):
+                continue
+            speed_mps = float(fixes.speed_mps[fix]) if math.isfinite(fixes.speed_mps[fix]) else state.speed_mps
+            lane[fix], pos_m[fix] = self.graph.advance(start, state.lane_pos_m, speed_mps * elapsed_s)
+            own = np.flatnonzero((probes.fix == fix) & ((probes.map_index < 0) | (probes.map_index == track.map_index)))
+            distance_m[fix] = (
+                self._distance_to(int(lane[fix]), float(pos_m[fix]), probes.xy[own[0]]) if own.size else np.nan
+            )
+            placed[fix] = Placed.DEAD_RECKONED
+
+    def _tracks(
+        self,
+        fixes: Fixes,
+        step: _Step,
+        kept: tuple[np.ndarray, np.ndarray],
+        previous: _Previous,
+        tracks: Sequence[Track | None],
+        reported: tuple[np.ndarray, np.ndarray],
+    ) -> list[Track | None]:
+        """What each vehicle keeps for its next fix: the fix's kept candidates where it matched, else its
+        previous track."""
+        candidates, best = step.candidates, step.best
+        rows, bounds = kept
+        best_rows = np.where(best >= 0, best, 0) if len(candidates.lane) else np.zeros(len(best), dtype=np.intp)
+        xy = candidates.xy[best_rows].tolist() if len(candidates.lane) else [(0.0, 0.0)] * len(best)
+        map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
+        names = self.index.lane_ids[candidates.lane[rows]].tolist()
+        log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
+        lane, pos_m = reported
+        columns = zip(
+            (best >= 0).tolist(),
+            bounds[:-1].tolist(),
+            bounds[1:].tolist(),
+            fixes.time_s.tolist(),
+            xy,
+            self._speeds_mps(fixes, step, previous, tracks).tolist(),
+            self.index.lane_ids[np.maximum(lane, 0)].tolist(),
+            pos_m.tolist(),
+            strict=True,
+        )
+        result = list(tracks)
+        for fix, (is_matched, a, b, time_s, (x_m, y_m), speed_mps, lane_id, lane_pos_m) in enumerate(columns):
+            if is_matched:
+                state = MatchState(
+                    time_s,
+                    x_m,
+                    y_m,
+                    speed_mps,
+                    lane_id,
+                    lane_pos_m,
+                    tuple(names[a:b]),
+                    tuple(cand_pos_m[a:b]),
+                    tuple(log_p[a:b]),
+                )
+                result[fix] = Track(map_index[fix], state)
+        return result
+
+    @staticmethod
+    def _speeds_mps(fixes: Fixes, step: _Step, previous: _Previous, tracks: Sequence[Track | None]) -> np.ndarray:
+        """Each vehicle's speed at its fix: given, else the route distance from its previous fix over the
+        time between them, else its previous speed (0 for a new vehicle), m/s."""
+        before = np.array([0.0 if track is None else track.state.speed_mps for track in tracks])
+        route_m = np.full(len(before), np.nan)
+        has = step.best >= 0
+        route_m[has] = step.route_m[step.best[has]]
+        elapsed_s = fixes.time_s - previous.time_s
+        with np.errstate(invalid="ignore", divide="ignore"):
+            estimated = np.where(elapsed_s > 0, np.maximum(route_m, 0.0) / elapsed_s, np.nan)
+        estimated = np.where(np.isfinite(estimated), estimated, before)
+        return np.where(np.isfinite(fixes.speed_mps), fixes.speed_mps, estimated)
+
+    def _reason(self, near: bool, radius_m: float, heading_deg: float) -> str:
+        """Why a fix was placed nowhere."""
+        tolerance = f"{radius_m:g} m"
+        if not near:
+            return f"no lane within {tolerance}"
+        return (
+            f"no lane within {tolerance} runs within {self.settings.heading_tolerance_deg:g} deg"
+            f" of the heading {heading_deg:g} deg"
+        )
+
+
+def _one_fix(fixes: Fixes, row: int) -> Fixes:
+    """The fix ``row`` of ``fixes`` alone."""
+    probes = fixes.probes
+    mine = probes.fix == row
+    one = Probes(1, np.zeros(int(mine.sum()), dtype=np.intp), probes.xy[mine], probes.map_index[mine])
+    columns = (fixes.time_s, fixes.heading_deg, fixes.speed_mps, fixes.accuracy_m)
+    return Fixes(one, *(column[row : row + 1] for column in columns))
+
+
+def _backtrace(
+    steps: list[tuple[SequenceMatches, _Step, tuple[np.ndarray, np.ndarray]]], matcher: SequenceMatcher
+) -> SequenceMatches:
+    """The matches of a trace's steps with each matched fix moved to its candidate on the Viterbi path:
+    from the last matched fix back along the best transitions, afresh where a sequence started afresh."""
+    lane_id = [matches.lane_id[0] for matches, _step, _kept in steps]
+    map_index = np.array([matches.map_index[0] for matches, _step, _kept in steps], dtype=np.intp)
+    pos_m = np.array([matches.lane_pos_m[0] for matches, _step, _kept in steps])
+    distance_m = np.array([matches.distance_m[0] for matches, _step, _kept in steps])
+    placed = [matches.placed[0] for matches, _step, _kept in steps]
+    chosen = -1  # the candidate row of the next matched fix's step its predecessor leads to; -1: its best
+    for k in range(len(steps) - 1, -1, -1):
+        _matches, step, _kept = steps[k]
+        if step.best[0] < 0:
+            continue
+        row = int(step.best[0]) if chosen < 0 else chosen
+        candidates = step.candidates
+        map_index[k], lane_id[k] = matcher.index.lane_name(int(candidates.lane[row]))
+        pos_m[k], distance_m[k] = candidates.pos_m[row], candidates.distance_m[row]
+        placed[k] = Placed.MATCHED
+        chosen = _previous_row(steps, k, int(step.back[row]))
+    last = steps[-1][0] if steps else None
+    return SequenceMatches(
+        map_index,
+        lane_id,
+        pos_m,
+        distance_m,
+        placed,
+        [matches.reason[0] for matches, _step, _kept in steps],
+        last.tracks if last is not None else [],
+    )
+
+
+def _previous_row(steps: list[tuple[SequenceMatches, _Step, tuple[np.ndarray, np.ndarray]]], k: int, back: int) -> int:
+    """The candidate row, in the step of the fix matched before step ``k``, that step ``k``'s candidate came
+    from (``back`` indexes that fix's kept candidates); -1 where step ``k`` started afresh."""
+    if back < 0:
+        return -1
+    for j in range(k - 1, -1, -1):
+        _matches, step, kept = steps[j]
+        if step.best[0] >= 0:
+            return int(kept[0][back])  # the one fix's kept rows, most probable first
+    return -1
