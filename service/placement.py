@@ -135,18 +135,18 @@ class Placer:
         time_s, heading_deg, speed_mps, accuracy_m = (
             np.array(column, dtype=float) for column in zip(*columns, strict=True)
         )
-        return Fixes(self._probes(queries), time_s, heading_deg, speed_mps, accuracy_m)
+        probes = self.probes([query.position for query in queries], [query.network for query in queries])
+        return Fixes(probes, time_s, heading_deg, speed_mps, accuracy_m)
 
-    def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
-        """Where to look for each query's fix: x, y on the network it names, else on every one;
-        lon, lat in the projection of the network it names, else of each geo-referenced one."""
+    def probes(self, positions: Sequence[DecodedPosition | None], networks: Sequence[str | None]) -> Probes:
+        """Where to look for each fix (of a known network, if named): x, y on the network it names, else on
+        every one; lon, lat in the projection of the network it names, else of each geo-referenced one."""
         rows: list[int] = []
         xy: list[tuple[float | None, float | None]] = []
         map_index: list[int] = []
         geographic: dict[int, list[tuple[int, DecodedPosition]]] = defaultdict(list)
-        for row, query in enumerate(queries):
-            named = -1 if query.network is None else self.lanes.network_index[query.network]
-            position = query.position
+        for row, (position, network) in enumerate(zip(positions, networks, strict=True)):
+            named = -1 if network is None else self.lanes.network_index[network]
             assert position is not None  # a query without a lane has a fix (check_located)
             if position.lon is None:
                 rows.append(row)
@@ -161,7 +161,7 @@ class Placer:
             xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
             map_index += [network_index] * len(placed)
         return Probes(
-            len(queries),
+            len(positions),
             np.array(rows, dtype=np.intp),
             np.array(xy, dtype=float).reshape(-1, 2),
             np.array(map_index, dtype=np.intp),

@@ -31,8 +31,13 @@ def _side_street(heading_rad: float, turn: str) -> np.ndarray:
 
 
 def build_junction_town(folder: Path) -> RoadMap:
-    """The main road W -> J -> E (priority 3, 13.9 m/s is driven) and two side streets from J: S turning
-    south then west, N turning north then east (priority 1)."""
+    """The road map of :func:`write_junction_town`."""
+    return RoadMap.load(write_junction_town(folder))
+
+
+def write_junction_town(folder: Path) -> Path:
+    """Write and netconvert the main road W -> J -> E (priority 3) and two side streets from J (priority 1):
+    S south then curving west, N north then curving east."""
     south, north = _side_street(-math.pi / 2, "right"), _side_street(math.pi / 2, "right")
     nodes = [
         node_xml("W", (0.0, 0.0)),
@@ -47,10 +52,9 @@ def build_junction_town(folder: Path) -> RoadMap:
         edge_xml("JS", "J", "S", south, priority=1),
         edge_xml("JN", "J", "N", north, priority=1),
     ]
-    net = netconvert(
+    return netconvert(
         "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "town.net.xml"
     )
-    return RoadMap.load(net)
 
 
 @dataclass(frozen=True)
