@@ -45,6 +45,7 @@ from csws.geometry import wrap_angle_rad
 from csws.road.lanegraph import LaneGraph
 from csws.road.matching import MapMatcher, MatchSettings, Probes, compass_to_math_rad, lane_point
 from csws.road.roadmap import RoadMap
+from csws.road.viterbi import Candidates, Previous, Step, forward_step, kept_rows, viterbi_path
 
 __all__ = ["MatchState", "Track", "Fixes", "Placed", "SequenceMatches", "SequenceMatcher"]
 
@@ -167,75 +168,6 @@ class SequenceMatches:
         return len(self.lane_id)
 
 
-@dataclass(frozen=True)
-class _Previous:
-    """The candidates of the vehicles' previous fixes, flattened (rows by fix) with per-fix columns."""
-
-    fix: np.ndarray
-    lane: np.ndarray
-    pos_m: np.ndarray
-    log_p: np.ndarray
-    start: np.ndarray
-    count: np.ndarray
-    xy: np.ndarray
-    time_s: np.ndarray
-
-
-@dataclass(frozen=True)
-class _Candidates:
-    """The lanes near each fix that agree with its heading (rows by fix), with their emissions."""
-
-    fix: np.ndarray
-    xy: np.ndarray
-    lane: np.ndarray
-    pos_m: np.ndarray
-    distance_m: np.ndarray
-    emission: np.ndarray
-
-    def rows(self, selected: np.ndarray) -> _Candidates:
-        """The candidates of the rows ``selected`` (a mask or indices)."""
-        return _Candidates(*(column[selected] for column in vars(self).values()))
-
-
-@dataclass(frozen=True)
-class _Step:
-    """One forward step: each candidate's normalised log-probability, best previous candidate (row of
-    :class:`_Previous`, -1: none) and route distance from it; per fix its best candidate (-1: none) and
-    whether the step continued its sequence."""
-
-    candidates: _Candidates
-    log_p: np.ndarray
-    back: np.ndarray
-    route_m: np.ndarray
-    best: np.ndarray
-    linked: np.ndarray
-
-
-def _group_starts(group: np.ndarray) -> np.ndarray:
-    """The first row of each run of equal values of a sorted ``group``."""
-    if not group.size:
-        return np.zeros(0, dtype=np.intp)
-    return np.flatnonzero(np.concatenate(([True], group[1:] != group[:-1])))
-
-
-def _per_fix_max(values: np.ndarray, fix: np.ndarray, count: int) -> np.ndarray:
-    """The greatest of ``values`` of each fix (rows sorted by ``fix``), -inf for a fix without rows."""
-    result = np.full(count, -np.inf)
-    starts = _group_starts(fix)
-    if starts.size:
-        result[fix[starts]] = np.maximum.reduceat(values, starts)
-    return result
-
-
-def _first_where(mask: np.ndarray, group: np.ndarray, count: int) -> np.ndarray:
-    """Per group (rows sorted by ``group``), the first row where ``mask`` holds, -1 where none does."""
-    result = np.full(count, -1, dtype=np.intp)
-    rows = np.flatnonzero(mask)
-    firsts = rows[_group_starts(group[rows])]
-    result[group[firsts]] = firsts
-    return result
-
-
 class SequenceMatcher:
     """Matches the fixes of vehicles over their sequence on one or more road maps.
 
@@ -268,26 +200,38 @@ class SequenceMatcher:
     def match_trace(self, fixes: Fixes, track: Track | None = None) -> SequenceMatches:
         """Place the fixes of one vehicle, in time order, each on the path the whole trace makes most
         probable (the Viterbi path: a fix in a junction on the connection the later fixes show)."""
-        steps = []
+        answers, steps = [], []
         for row in range(fixes.probes.count):
-            one = _one_fix(fixes, row)
-            matches, step, kept = self._advance(one, [track])
-            steps.append((matches, step, kept))
+            matches, step, kept = self._advance(_one_fix(fixes, row), [track])
+            answers.append(matches)
+            steps.append((step, kept[0]))
             track = matches.tracks[0]
-        return _backtrace(steps, self)
+        lane_id = [matches.lane_id[0] for matches in answers]
+        map_index = np.array([matches.map_index[0] for matches in answers], dtype=np.intp)
+        pos_m = np.array([matches.lane_pos_m[0] for matches in answers])
+        distance_m = np.array([matches.distance_m[0] for matches in answers])
+        placed = [matches.placed[0] for matches in answers]
+        for k, row in enumerate(viterbi_path(steps)):
+            if row >= 0:
+                candidates = steps[k][0].candidates
+                map_index[k], lane_id[k] = self.index.lane_name(int(candidates.lane[row]))
+                pos_m[k], distance_m[k] = candidates.pos_m[row], candidates.distance_m[row]
+                placed[k] = Placed.MATCHED
+        reason = [matches.reason[0] for matches in answers]
+        return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, [track])
 
     # ------------------------------------------------------------------ one step
     def _advance(
         self, fixes: Fixes, tracks: Sequence[Track | None]
-    ) -> tuple[SequenceMatches, _Step, tuple[np.ndarray, np.ndarray]]:
+    ) -> tuple[SequenceMatches, Step, tuple[np.ndarray, np.ndarray]]:
         """One forward step for every fix: the matches, the step and each fix's kept candidate rows."""
         count = fixes.probes.count
         sigma_m = np.where(np.isfinite(fixes.accuracy_m), fixes.accuracy_m, self.settings.accuracy_m)
         radius_m = np.maximum(self.settings.tolerance_m, self.settings.search_sigmas * sigma_m)
         candidates, near = self._candidates(fixes, sigma_m, radius_m)
         previous = self._previous(tracks, count)
-        step = self._step(candidates, previous, count)
-        kept = self._kept(step, count)
+        step = forward_step(candidates, previous, count, self.graph, self.settings)
+        kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
         new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane, pos_m))
@@ -308,14 +252,14 @@ class SequenceMatcher:
         )
         return matches, step, kept
 
-    def _candidates(self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray) -> tuple[_Candidates, np.ndarray]:
+    def _candidates(self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray) -> tuple[Candidates, np.ndarray]:
         """The lanes near each fix agreeing with its heading, with their emission log-probabilities,
         and whether any lane at all was near each fix."""
         probes = fixes.probes
         found = self.index.nearby(probes, radius_m) if len(probes.fix) else None
         if found is None or not len(found):
             empty = np.zeros(0)
-            return _Candidates(
+            return Candidates(
                 empty.astype(np.intp), np.zeros((0, 2)), empty.astype(np.intp), empty, empty, empty
             ), np.zeros(probes.count, dtype=bool)
         fix = probes.fix[found.point_index]
@@ -326,7 +270,7 @@ class SequenceMatcher:
         emission = -0.5 * ((found.distance_m / sigma_m[fix]) ** 2 + heading_term**2)
         order = np.argsort(fix, kind="stable")
         order = order[agrees[order]]
-        candidates = _Candidates(
+        candidates = Candidates(
             fix[order],
             probes.xy[found.point_index[order]],
             found.lane_index[order].astype(np.intp),
@@ -336,7 +280,7 @@ class SequenceMatcher:
         )
         return candidates, near
 
-    def _previous(self, tracks: Sequence[Track | None], count: int) -> _Previous:
+    def _previous(self, tracks: Sequence[Track | None], count: int) -> Previous:
         """The candidates of the vehicles' previous fixes, their lanes numbered over all maps."""
         fix: list[int] = []
         lane: list[int] = []
@@ -357,7 +301,7 @@ class SequenceMatcher:
         known = np.array(lane, dtype=np.intp) >= 0  # a lane the maps no longer have is dropped
         fix_array = np.array(fix, dtype=np.intp)[known]
         counts = np.bincount(fix_array, minlength=count)
-        return _Previous(
+        return Previous(
             fix_array,
             np.array(lane, dtype=np.intp)[known],
             np.array(pos_m, dtype=float)[known],
@@ -368,62 +312,8 @@ class SequenceMatcher:
             time_s,
         )
 
-    def _step(self, candidates: _Candidates, previous: _Previous, count: int) -> _Step:
-        """The forward (Viterbi) step: each candidate's best transition from the previous candidates of its
-        fix plus its emission, normalised per fix; a fix none of whose candidates is reached from its
-        previous ones starts afresh from the emissions."""
-        reps = previous.count[candidates.fix]
-        first_pair = np.cumsum(reps) - reps
-        pair_candidate = np.repeat(np.arange(len(reps)), reps)
-        pair_previous = previous.start[candidates.fix][pair_candidate] + np.arange(int(reps.sum()))
-        pair_previous -= first_pair[pair_candidate]
-        from_lane, to_lane = previous.lane[pair_previous], candidates.lane[pair_candidate]
-        route_m = self.graph.route_m(
-            from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate]
-        )
-        straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[candidates.fix[pair_candidate]]).T)
-        lane_change = (from_lane != to_lane) & (self.graph.lane_edge[from_lane] == self.graph.lane_edge[to_lane])
-        transition = -np.abs(route_m - straight_m) / self.settings.transition_beta_m
-        transition += np.where(lane_change, self.settings.lane_change_log_p, 0.0)
-        score = np.where(np.isnan(transition), -np.inf, previous.log_p[pair_previous] + transition)
-        best_score = np.full(len(reps), -np.inf)
-        back = np.full(len(reps), -1, dtype=np.intp)
-        best_route_m = np.full(len(reps), np.nan)
-        paired = np.flatnonzero(reps > 0)
-        if paired.size:
-            best_score[paired] = np.maximum.reduceat(score, first_pair[paired])
-            at_best = (score == best_score[pair_candidate]) & np.isfinite(score)
-            first = _first_where(at_best, pair_candidate, len(reps))
-            found = first >= 0
-            back[found] = pair_previous[first[found]]
-            best_route_m[found] = route_m[first[found]]
-        linked = np.zeros(count, dtype=bool)
-        linked[candidates.fix[np.isfinite(best_score)]] = True
-        total = candidates.emission + np.where(linked[candidates.fix], best_score, 0.0)
-        log_p = total - _per_fix_max(total, candidates.fix, count)[candidates.fix]
-        best = _first_where(log_p == 0.0, candidates.fix, count)
-        back[~linked[candidates.fix]] = -1
-        return _Step(candidates, log_p, back, best_route_m, best, linked)
-
-    def _kept(self, step: _Step, count: int) -> tuple[np.ndarray, np.ndarray]:
-        """The candidate rows each fix keeps for its next fix: those on its best candidate's map that are
-        still possible, most probable first, at most :attr:`MatchSettings.max_candidates`; as rows
-        grouped by fix and the bounds of each fix's group (``rows[bounds[i]:bounds[i + 1]]``)."""
-        candidates = step.candidates
-        lane_map = self.index.lane_map
-        best_map = np.full(count, -1, dtype=np.intp)
-        has = step.best >= 0
-        best_map[has] = lane_map[candidates.lane[step.best[has]]]
-        possible = np.isfinite(step.log_p) & (lane_map[candidates.lane] == best_map[candidates.fix])
-        rows = np.flatnonzero(possible)
-        rows = rows[np.lexsort((-step.log_p[rows], candidates.fix[rows]))]
-        fix = candidates.fix[rows]
-        rank = np.arange(rows.size) - np.searchsorted(fix, fix)
-        rows = rows[rank < self.settings.max_candidates]
-        return rows, np.searchsorted(candidates.fix[rows], np.arange(count + 1))
-
     # ------------------------------------------------------------------ what is reported
-    def _reported(self, step: _Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
+    def _reported(self, step: Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
         """Each fix's reported lane (-1: none), lane position and distance, and how it was placed: its best
         candidate, or, inside a junction whose turn is not yet decided, the road's continuation."""
         candidates, best = step.candidates, step.best
@@ -439,7 +329,7 @@ class SequenceMatcher:
             placed[fix] = Placed.DEFERRED
         return lane, pos_m, distance_m, placed
 
-    def _undecided(self, step: _Step, count: int) -> np.ndarray:
+    def _undecided(self, step: Step, count: int) -> np.ndarray:
         """Which fixes' best candidate turns off the road inside a junction while the connections into its
         road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge."""
         candidates, graph = step.candidates, self.graph
@@ -458,7 +348,7 @@ class SequenceMatcher:
         same_p = np.bincount(fix, weights=probability * same, minlength=count)
         return turning & (same_p < self.settings.commit_share * group_p)
 
-    def _continuation(self, step: _Step, fix: int) -> tuple[int, float, float]:
+    def _continuation(self, step: Step, fix: int) -> tuple[int, float, float]:
         """Where a fix whose turn is undecided is reported: on the lane the road continues on from the
         incoming lane if it is a candidate, else at the end of the incoming lane (lane, position, distance)."""
         candidates, graph = step.candidates, self.graph
@@ -510,9 +400,9 @@ class SequenceMatcher:
     def _tracks(
         self,
         fixes: Fixes,
-        step: _Step,
+        step: Step,
         kept: tuple[np.ndarray, np.ndarray],
-        previous: _Previous,
+        previous: Previous,
         tracks: Sequence[Track | None],
         reported: tuple[np.ndarray, np.ndarray],
     ) -> list[Track | None]:
@@ -555,7 +445,7 @@ class SequenceMatcher:
         return result
 
     @staticmethod
-    def _speeds_mps(fixes: Fixes, step: _Step, previous: _Previous, tracks: Sequence[Track | None]) -> np.ndarray:
+    def _speeds_mps(fixes: Fixes, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> np.ndarray:
         """Each vehicle's speed at its fix: given, else the route distance from its previous fix over the
         time between them, else its previous speed (0 for a new vehicle), m/s."""
         before = np.array([0.0 if track is None else track.state.speed_mps for track in tracks])
@@ -586,48 +476,3 @@ def _one_fix(fixes: Fixes, row: int) -> Fixes:
     one = Probes(1, np.zeros(int(mine.sum()), dtype=np.intp), probes.xy[mine], probes.map_index[mine])
     columns = (fixes.time_s, fixes.heading_deg, fixes.speed_mps, fixes.accuracy_m)
     return Fixes(one, *(column[row : row + 1] for column in columns))
-
-
-def _backtrace(
-    steps: list[tuple[SequenceMatches, _Step, tuple[np.ndarray, np.ndarray]]], matcher: SequenceMatcher
-) -> SequenceMatches:
-    """The matches of a trace's steps with each matched fix moved to its candidate on the Viterbi path:
-    from the last matched fix back along the best transitions, afresh where a sequence started afresh."""
-    lane_id = [matches.lane_id[0] for matches, _step, _kept in steps]
-    map_index = np.array([matches.map_index[0] for matches, _step, _kept in steps], dtype=np.intp)
-    pos_m = np.array([matches.lane_pos_m[0] for matches, _step, _kept in steps])
-    distance_m = np.array([matches.distance_m[0] for matches, _step, _kept in steps])
-    placed = [matches.placed[0] for matches, _step, _kept in steps]
-    chosen = -1  # the candidate row of the next matched fix's step its predecessor leads to; -1: its best
-    for k in range(len(steps) - 1, -1, -1):
-        _matches, step, _kept = steps[k]
-        if step.best[0] < 0:
-            continue
-        row = int(step.best[0]) if chosen < 0 else chosen
-        candidates = step.candidates
-        map_index[k], lane_id[k] = matcher.index.lane_name(int(candidates.lane[row]))
-        pos_m[k], distance_m[k] = candidates.pos_m[row], candidates.distance_m[row]
-        placed[k] = Placed.MATCHED
-        chosen = _previous_row(steps, k, int(step.back[row]))
-    last = steps[-1][0] if steps else None
-    return SequenceMatches(
-        map_index,
-        lane_id,
-        pos_m,
-        distance_m,
-        placed,
-        [matches.reason[0] for matches, _step, _kept in steps],
-        last.tracks if last is not None else [],
-    )
-
-
-def _previous_row(steps: list[tuple[SequenceMatches, _Step, tuple[np.ndarray, np.ndarray]]], k: int, back: int) -> int:
-    """The candidate row, in the step of the fix matched before step ``k``, that step ``k``'s candidate came
-    from (``back`` indexes that fix's kept candidates); -1 where step ``k`` started afresh."""
-    if back < 0:
-        return -1
-    for j in range(k - 1, -1, -1):
-        _matches, step, kept = steps[j]
-        if step.best[0] >= 0:
-            return int(kept[0][back])  # the one fix's kept rows, most probable first
-    return -1
