@@ -6,7 +6,9 @@ another after driving on along the road at 10 to 20 m/s: the first batch starts 
 vehicle's sequence, the second continues it (candidates, transitions on the lane graph,
 the junction rule, the states kept). As in the service, what was loaded is kept out of the garbage
 collector's reach (``gc.freeze``). Each batch is matched in one
-:meth:`csws.road.hmm.SequenceMatcher.match`; the figure is the time of the second per fix.
+:meth:`csws.road.hmm.SequenceMatcher.match`; the figure is the time of the second per fix, the best
+of three, both on the wall clock and in CPU time of the process (the CPU time is what is judged: on a
+machine shared with other work the wall clock shows the others' load too, printed beside it).
 
 Run with ``python -m benchmarks.matching``.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import gc
 import math
+import os
 import time
 
 import numpy as np
@@ -68,9 +71,12 @@ def run(vehicle_count: int = 10_000, seed: int = 1) -> dict:
     started = time.perf_counter()
     begun = matcher.match(first, [None] * vehicle_count)
     first_s = time.perf_counter() - started
-    started = time.perf_counter()
-    continued = matcher.match(second, begun.tracks)
-    second_s = time.perf_counter() - started
+    second_s, second_cpu_s = math.inf, math.inf
+    for _repeat in range(3):
+        started, started_cpu = time.perf_counter(), time.process_time()
+        continued = matcher.match(second, begun.tracks)
+        second_s = min(second_s, time.perf_counter() - started)
+        second_cpu_s = min(second_cpu_s, time.process_time() - started_cpu)
     true_edges = [road_map.lane(lane).edge_id for lane in lanes]
     on_edge = [
         lane is not None and road_map.lane(lane).edge_id == edge
@@ -81,6 +87,8 @@ def run(vehicle_count: int = 10_000, seed: int = 1) -> dict:
         "graph_build_s": round(built_s, 3),
         "first_us_per_fix": round(first_s / vehicle_count * 1e6, 1),
         "continued_us_per_fix": round(second_s / vehicle_count * 1e6, 1),
+        "continued_cpu_us_per_fix": round(second_cpu_s / vehicle_count * 1e6, 1),
+        "load_average": round(os.getloadavg()[0], 1),
         "continued_on_true_edge": round(float(np.mean(on_edge)), 4),
     }
 
@@ -88,11 +96,12 @@ def run(vehicle_count: int = 10_000, seed: int = 1) -> dict:
 def main() -> None:
     """Print the µs per fix beside the target."""
     figures = run()
-    verdict = "PASS" if figures["continued_us_per_fix"] <= TARGET_US_PER_FIX else "FAIL"
+    verdict = "PASS" if figures["continued_cpu_us_per_fix"] <= TARGET_US_PER_FIX else "FAIL"
     print(
         f"map matching over the fix sequence, batch of {figures['vehicles']}: "
-        f"{figures['continued_us_per_fix']} µs/fix continuing (first fix {figures['first_us_per_fix']} µs/fix), "
-        f"target <= {TARGET_US_PER_FIX:g} µs/fix: {verdict}; "
+        f"{figures['continued_cpu_us_per_fix']} µs/fix CPU continuing, target <= {TARGET_US_PER_FIX:g}: {verdict} "
+        f"(wall clock {figures['continued_us_per_fix']} µs/fix at load average {figures['load_average']}; "
+        f"first fix {figures['first_us_per_fix']} µs/fix); "
         f"{figures['continued_on_true_edge']:.2%} on the true edge; lane graph built in {figures['graph_build_s']} s"
     )
 

@@ -36,7 +36,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
+from itertools import chain
 
 import msgspec
 import numpy as np
@@ -81,7 +81,7 @@ class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
     log_p: tuple[float, ...]
 
 
-class Track(NamedTuple):
+class Track(msgspec.Struct, frozen=True, gc=False):
     """A vehicle's matching state on one of the matched maps (by index)."""
 
     map_index: int
@@ -281,36 +281,27 @@ class SequenceMatcher:
         return candidates, near
 
     def _previous(self, tracks: Sequence[Track | None], count: int) -> Previous:
-        """The candidates of the vehicles' previous fixes, their lanes numbered over all maps."""
-        fix: list[int] = []
-        lane: list[int] = []
-        pos_m: list[float] = []
-        log_p: list[float] = []
+        """The candidates of the vehicles' previous fixes, their lanes numbered over all maps (a lane the maps
+        no longer have is dropped)."""
+        rows = [row for row, track in enumerate(tracks) if track is not None]
+        states = [track.state for track in tracks if track is not None]
+        numbers = [self._numbers[track.map_index] for track in tracks if track is not None]
+        pairs = zip(numbers, states, strict=True)
+        lane = np.array(
+            [by_id.get(lane_id, -1) for by_id, state in pairs for lane_id in state.candidates], dtype=np.intp
+        )
+        sizes = [len(state.candidates) for state in states]
+        known = lane >= 0
+        fix = np.repeat(np.array(rows, dtype=np.intp), sizes)[known]
+        pos_m = np.fromiter(chain.from_iterable(state.candidate_pos_m for state in states), float, lane.size)
+        log_p = np.fromiter(chain.from_iterable(state.log_p for state in states), float, lane.size)
         xy = np.full((count, 2), np.nan)
         time_s = np.full(count, np.nan)
-        for row, track in enumerate(tracks):
-            if track is None:
-                continue
-            state, numbers = track.state, self._numbers[track.map_index]
-            fix += [row] * len(state.candidates)
-            lane += [numbers.get(lane_id, -1) for lane_id in state.candidates]
-            pos_m += state.candidate_pos_m
-            log_p += state.log_p
-            xy[row] = state.x_m, state.y_m
-            time_s[row] = state.time_s
-        known = np.array(lane, dtype=np.intp) >= 0  # a lane the maps no longer have is dropped
-        fix_array = np.array(fix, dtype=np.intp)[known]
-        counts = np.bincount(fix_array, minlength=count)
-        return Previous(
-            fix_array,
-            np.array(lane, dtype=np.intp)[known],
-            np.array(pos_m, dtype=float)[known],
-            np.array(log_p, dtype=float)[known],
-            np.cumsum(counts) - counts,
-            counts,
-            xy,
-            time_s,
-        )
+        if rows:
+            xy[rows] = [(state.x_m, state.y_m) for state in states]
+            time_s[rows] = [state.time_s for state in states]
+        counts = np.bincount(fix, minlength=count)
+        return Previous(fix, lane[known], pos_m[known], log_p[known], np.cumsum(counts) - counts, counts, xy, time_s)
 
     # ------------------------------------------------------------------ what is reported
     def _reported(self, step: Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
