@@ -1,10 +1,11 @@
 """What the service keeps of each vehicle between requests, kept in the state store (:mod:`service.store`).
 
 * Its **setting**: what its fleet set, the driver switch (5.2) and the category; kept until changed.
-* Its **session**: the network and lane of its last match (the continuity of map matching)
-  and what the engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and
-  activation, last timestamp, the release rule's memory), and what its forward collision
-  warning keeps (:class:`FcwMemory`: state, level hold, objects in the path, last target).
+* Its **session**: the network and lane of its last match, what map matching keeps of its
+  fixes (:class:`csws.road.hmm.MatchState`: the sequence its next fix continues), what the
+  engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and activation, last
+  timestamp, the release rule's memory), and what its forward collision warning keeps
+  (:class:`FcwMemory`: state, level hold, objects in the path, last target).
   A vehicle that moves to another network takes its system state along. A session not written for the idle time expires;
   the stored setting remains.
 
@@ -27,7 +28,6 @@ import msgspec
 
 from csws.engine import Engine, VehicleMemory
 from csws.road.hmm import MatchState, Track
-from csws.road.matching import MapPosition
 from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 from csws.warning.release import HeldWarning
@@ -222,13 +222,6 @@ class LoadedVehicles:
     def session(self, vehicle_id: str) -> Session | None:
         """The vehicle's session, if it has one."""
         return self.sessions.get(vehicle_id)
-
-    def previous(self, vehicle_id: str) -> MapPosition | None:
-        """Where the vehicle was last matched, if it has a session and matched."""
-        session = self.sessions.get(vehicle_id)
-        if session is None or session.lane_id is None:
-            return None
-        return MapPosition(session.network_index, session.lane_id)
 
     def track(self, vehicle_id: str) -> Track | None:
         """What map matching keeps of the vehicle's fixes, if anything: as this request's last fix of it left it,
