@@ -112,20 +112,23 @@ def test_turning_into_the_side_street_is_matched_from_its_first_fix_there(
 def test_an_undecided_fix_in_the_junction_is_placed_on_the_roads_continuation(
     town: RoadMap, matcher: SequenceMatcher
 ) -> None:
-    # A vehicle 14 m before the junction, then a fix on the connection into a side street heading half way
-    # into the turn: the connections from the incoming lane are all likely, so the fix is placed on the
-    # road's own continuation; the next fix, 10 m into the side street, is placed there.
+    # A vehicle 14 m before the junction, then a fix where the connections from its lane start together,
+    # heading up to 30 degrees into a turn: the turn is likely but not shown, so the fix is placed on the
+    # road's own continuation (on the turn's best candidate: deferred); the next fix, 10 m into the side
+    # street, is placed there.
     straight_on = _connection(town, "WJ_0", "JE_0")
     entry_end = town.lane_shape("WJ_0")[-1]
     before = Fixes.of(Probes.everywhere(np.array([entry_end - (14.0, 0.0)])), [0.0], [90.0])
     track = matcher.match(before, [None]).tracks[0]
-    for to_side, side_heading_deg in (("JS_0", 180.0), ("JN_0", 0.0)):
-        into_side = town.lane_shape(_connection(town, "WJ_0", to_side))
-        midway_deg = (90.0 + side_heading_deg) / 2 if side_heading_deg else 45.0
-        for vertex in range(1, len(into_side) - 1):
-            inside = Fixes.of(Probes.everywhere(into_side[[vertex]]), [1.0], [midway_deg])
+    for to_side, turn_sign, side_heading_deg in (("JS_0", 1.0, 180.0), ("JN_0", -1.0, 0.0)):
+        shared_start = town.lane_shape(_connection(town, "WJ_0", to_side))[[1]]
+        placed = []
+        for into_turn_deg in (10.0, 20.0, 30.0):
+            inside = Fixes.of(Probes.everywhere(shared_start), [1.0], [90.0 + turn_sign * into_turn_deg])
             answer = matcher.match(inside, [track])
-            assert (answer.lane_id[0], answer.placed[0]) == (straight_on, Placed.DEFERRED), (to_side, vertex)
+            assert answer.lane_id[0] == straight_on, (to_side, into_turn_deg)
+            placed.append(answer.placed[0])
+        assert Placed.DEFERRED in placed
         on_side = Fixes.of(Probes.everywhere(town.lane_shape(to_side)[[10]]), [2.0], [side_heading_deg])
         assert matcher.match(on_side, answer.tracks).lane_id == [to_side]
 
@@ -205,6 +208,29 @@ def test_a_batch_of_vehicles_is_matched_as_each_alone(town: RoadMap, matcher: Se
         assert together == alone
 
 
+def test_a_fix_sent_again_is_placed_where_it_was(town: RoadMap, matcher: SequenceMatcher) -> None:
+    # A resent fix (the same time and place) brings nothing new: the same placement, the track unchanged;
+    # beside a new vehicle's fix in the same batch, matched as ever.
+    route = drive(town, ["WJ_0", "JS_0"], 13.9, seed=2)
+    track = None
+    for k in range(len(route.time_s)):
+        fix = _fixes(route.xy[k : k + 1], route.time_s[k : k + 1], route.heading_deg[k : k + 1])
+        first = matcher.match(fix, [track])
+        both = Fixes.of(
+            Probes.everywhere(np.vstack([route.xy[k], route.xy[k]])),
+            np.repeat(route.time_s[k], 2),
+            np.repeat(route.heading_deg[k], 2),
+        )
+        again = matcher.match(both, [first.tracks[0], None])
+        assert again.tracks[0] is first.tracks[0]
+        assert (again.lane_id[0], again.placed[0], again.reason[0]) == (first.lane_id[0], first.placed[0], None)
+        assert (again.lane_pos_m[0], again.distance_m[0]) == (first.lane_pos_m[0], first.distance_m[0])
+        assert again.lane_id[1] is not None and again.tracks[1] is not None
+        alone = matcher.match(fix, first.tracks)
+        assert (alone.lane_id, alone.placed, alone.tracks) == (first.lane_id, first.placed, first.tracks)
+        track = first.tracks[0]
+
+
 def test_the_state_is_small_and_survives_messagepack(town: RoadMap, matcher: SequenceMatcher) -> None:
     route = drive(town, ["WJ_0", "JS_0"], 13.9, seed=1)
     track = None
@@ -237,7 +263,7 @@ def test_settings_of_the_sequence_matcher_are_checked() -> None:
 
 
 def test_lanes_the_map_no_longer_has_are_dropped_from_a_state(town: RoadMap, matcher: SequenceMatcher) -> None:
-    stale = MatchState(0.0, 100.0, 0.0, 10.0, "gone_0", 5.0, ("gone_0",), (5.0,), (0.0,))
+    stale = MatchState(0.0, 100.0, 0.0, 10.0, "gone_0", 5.0, 0.0, Placed.MATCHED, ("gone_0",), (5.0,), (0.0,))
     answer = matcher.match(Fixes.of(Probes.everywhere(np.array([[110.0, 0.0]])), [1.0], [90.0]), [Track(0, stale)])
     assert answer.lane_id == ["WJ_0"] and answer.placed == [Placed.MATCHED]
 

@@ -53,6 +53,17 @@ __all__ = ["MatchState", "Track", "Fixes", "Placed", "SequenceMatches", "Sequenc
 _DEFAULTS = MatchSettings()
 
 
+class Placed(StrEnum):
+    """How a fix was placed on its lane."""
+
+    #: On the most probable candidate.
+    MATCHED = "matched"
+    #: Inside a junction, on the road's continuation: the turn it may be taking is not yet shown.
+    DEFERRED = "deferred"
+    #: Matching no lane, moved on along the road from the last match.
+    DEAD_RECKONED = "dead_reckoned"
+
+
 class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
     """What the matcher keeps of a vehicle between fixes (a MessagePack array of some 100 bytes).
 
@@ -64,8 +75,9 @@ class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
         Where that fix was, in the coordinates of the map of its lanes, m.
     speed_mps
         Its speed then, given or estimated, m/s (dead reckoning goes on with it).
-    lane_id, lane_pos_m
-        Where that fix was reported (dead reckoning starts there).
+    lane_id, lane_pos_m, distance_m, placed
+        Where and how that fix was placed (dead reckoning starts there; the same fix sent again is
+        placed there again), and its distance from there, m.
     candidates, candidate_pos_m, log_p
         The candidate lanes of that fix, their lane positions (m) and log-probabilities (the best 0).
     """
@@ -76,6 +88,8 @@ class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
     speed_mps: float
     lane_id: str
     lane_pos_m: float
+    distance_m: float
+    placed: Placed
     candidates: tuple[str, ...]
     candidate_pos_m: tuple[float, ...]
     log_p: tuple[float, ...]
@@ -124,17 +138,6 @@ class Fixes:
             return np.full(probes.count, np.nan) if values is None else np.asarray(values, dtype=float)
 
         return cls(probes, column(time_s), column(heading_deg), column(speed_mps), column(accuracy_m))
-
-
-class Placed(StrEnum):
-    """How a fix was placed on its lane."""
-
-    #: On the most probable candidate.
-    MATCHED = "matched"
-    #: Inside a junction, on the road's continuation: the turn it may be taking is not yet shown.
-    DEFERRED = "deferred"
-    #: Matching no lane, moved on along the road from the last match.
-    DEAD_RECKONED = "dead_reckoned"
 
 
 @dataclass(frozen=True)
@@ -194,15 +197,26 @@ class SequenceMatcher:
 
     def match(self, fixes: Fixes, tracks: Sequence[Track | None]) -> SequenceMatches:
         """Place one fix of each of many distinct vehicles, each continuing its ``tracks`` entry
-        (None for a vehicle seen first, or whose sequence is lost)."""
-        return self._advance(fixes, tracks)[0]
+        (None for a vehicle seen first, or whose sequence is lost).
+
+        A fix that repeats its vehicle's last matched fix (the same time and place: a resent
+        message) brings nothing new: it is placed where that one was, and the track is kept.
+        """
+        repeated = _repeats(fixes, tracks)
+        if not repeated.any():
+            return self._advance(fixes, tracks)[0]
+        fresh = np.flatnonzero(~repeated)
+        if not fresh.size:
+            return _with_repeats(None, fresh, tracks)
+        matches = self._advance(_subset(fixes, fresh), [tracks[row] for row in fresh.tolist()])[0]
+        return _with_repeats(matches, fresh, tracks)
 
     def match_trace(self, fixes: Fixes, track: Track | None = None) -> SequenceMatches:
         """Place the fixes of one vehicle, in time order, each on the path the whole trace makes most
         probable (the Viterbi path: a fix in a junction on the connection the later fixes show)."""
         answers, steps = [], []
         for row in range(fixes.probes.count):
-            matches, step, kept = self._advance(_one_fix(fixes, row), [track])
+            matches, step, kept = self._advance(_subset(fixes, np.array([row])), [track])
             answers.append(matches)
             steps.append((step, kept[0]))
             track = matches.tracks[0]
@@ -234,7 +248,7 @@ class SequenceMatcher:
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
-        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane, pos_m))
+        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane, pos_m, distance_m, placed))
         placed_anywhere = lane >= 0
         lane_ids: list[str | None] = self.index.lane_ids[np.maximum(lane, 0)].tolist()
         reason: list[str | None] = [None] * count
@@ -328,7 +342,7 @@ class SequenceMatcher:
         best_lane = np.zeros(count, dtype=np.intp)
         has = step.best >= 0
         best_lane[has] = candidates.lane[step.best[has]]
-        turning[has] = graph.turns[best_lane[has]]
+        turning[has] = graph.turns[best_lane[has]] & (graph.entry_lane[best_lane[has]] >= 0)
         if not turning.any():
             return turning
         lane, fix = candidates.lane, candidates.fix
@@ -395,7 +409,7 @@ class SequenceMatcher:
         kept: tuple[np.ndarray, np.ndarray],
         previous: Previous,
         tracks: Sequence[Track | None],
-        reported: tuple[np.ndarray, np.ndarray],
+        reported: tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]],
     ) -> list[Track | None]:
         """What each vehicle keeps for its next fix: the fix's kept candidates where it matched, else its
         previous track."""
@@ -406,7 +420,7 @@ class SequenceMatcher:
         map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
         names = self.index.lane_ids[candidates.lane[rows]].tolist()
         log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
-        lane, pos_m = reported
+        lane, pos_m, distance_m, placed = reported
         columns = zip(
             (best >= 0).tolist(),
             bounds[:-1].tolist(),
@@ -416,10 +430,14 @@ class SequenceMatcher:
             self._speeds_mps(fixes, step, previous, tracks).tolist(),
             self.index.lane_ids[np.maximum(lane, 0)].tolist(),
             pos_m.tolist(),
+            distance_m.tolist(),
+            placed,
             strict=True,
         )
         result = list(tracks)
-        for fix, (is_matched, a, b, time_s, (x_m, y_m), speed_mps, lane_id, lane_pos_m) in enumerate(columns):
+        for fix, (is_matched, a, b, time_s, (x_m, y_m), speed_mps, lane_id, lane_pos_m, fix_m, how) in enumerate(
+            columns
+        ):
             if is_matched:
                 state = MatchState(
                     time_s,
@@ -428,6 +446,8 @@ class SequenceMatcher:
                     speed_mps,
                     lane_id,
                     lane_pos_m,
+                    fix_m,
+                    how,
                     tuple(names[a:b]),
                     tuple(cand_pos_m[a:b]),
                     tuple(log_p[a:b]),
@@ -460,10 +480,53 @@ class SequenceMatcher:
         )
 
 
-def _one_fix(fixes: Fixes, row: int) -> Fixes:
-    """The fix ``row`` of ``fixes`` alone."""
+def _subset(fixes: Fixes, rows: np.ndarray) -> Fixes:
+    """The fixes ``rows`` (increasing) of ``fixes`` alone, renumbered from 0."""
     probes = fixes.probes
-    mine = probes.fix == row
-    one = Probes(1, np.zeros(int(mine.sum()), dtype=np.intp), probes.xy[mine], probes.map_index[mine])
+    number = np.full(probes.count, -1, dtype=np.intp)
+    number[rows] = np.arange(rows.size)
+    mine = number[probes.fix] >= 0
+    subset = Probes(rows.size, number[probes.fix[mine]], probes.xy[mine], probes.map_index[mine])
     columns = (fixes.time_s, fixes.heading_deg, fixes.speed_mps, fixes.accuracy_m)
-    return Fixes(one, *(column[row : row + 1] for column in columns))
+    return Fixes(subset, *(column[rows] for column in columns))
+
+
+def _repeats(fixes: Fixes, tracks: Sequence[Track | None]) -> np.ndarray:
+    """Which fixes repeat their vehicle's last matched fix: the same time, a probe at the same place on its map."""
+    if all(track is None for track in tracks):
+        return np.zeros(fixes.probes.count, dtype=bool)
+    states = [
+        (math.nan, math.nan, math.nan, -2) if t is None else (t.state.time_s, t.state.x_m, t.state.y_m, t.map_index)
+        for t in tracks
+    ]
+    time_s, x_m, y_m, map_index = (np.array(column) for column in zip(*states, strict=True))
+    probes = fixes.probes
+    on_map = (probes.map_index < 0) | (probes.map_index == map_index[probes.fix])
+    same = on_map & (probes.xy[:, 0] == x_m[probes.fix]) & (probes.xy[:, 1] == y_m[probes.fix])
+    return (np.bincount(probes.fix[same], minlength=probes.count) > 0) & (fixes.time_s == time_s)
+
+
+def _with_repeats(
+    matches: SequenceMatches | None, fresh: np.ndarray, tracks: Sequence[Track | None]
+) -> SequenceMatches:
+    """The matches of all fixes: those of the ``fresh`` ones (None: there are none), the repeated ones where
+    their track placed them."""
+    count = len(tracks)
+    map_index = np.array([-1 if t is None else t.map_index for t in tracks], dtype=np.intp)
+    lane_id: list[str | None] = [None if t is None else t.state.lane_id for t in tracks]
+    pos_m = np.array([math.nan if t is None else t.state.lane_pos_m for t in tracks])
+    distance_m = np.array([math.nan if t is None else t.state.distance_m for t in tracks])
+    placed: list[Placed | None] = [None if t is None else t.state.placed for t in tracks]
+    reason: list[str | None] = [None] * count
+    kept = list(tracks)
+    if matches is None:
+        return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept)
+    map_index[fresh], pos_m[fresh], distance_m[fresh] = matches.map_index, matches.lane_pos_m, matches.distance_m
+    for k, row in enumerate(fresh.tolist()):
+        lane_id[row], placed[row], reason[row], kept[row] = (
+            matches.lane_id[k],
+            matches.placed[k],
+            matches.reason[k],
+            matches.tracks[k],
+        )
+    return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept)

@@ -101,8 +101,8 @@ class MatchSettings:
     continuation_links: int = 4
     accuracy_m: float = 4.0
     search_sigmas: float = 2.5
-    heading_sigma_deg: float = 20.0
-    transition_beta_m: float = 3.0
+    heading_sigma_deg: float = 10.0
+    transition_beta_m: float = 6.0
     lane_change_log_p: float = -1.5
     commit_share: float = 0.95
     dead_reckoning_s: float = 10.0

@@ -21,7 +21,7 @@ from ..checks import QueryErrors
 from ..deps import CallerDep, ServiceDep, WorkDep
 from ..match_schemas import MatchAnswer, Trace
 from ..placement import Placer
-from .common import KEYED, json_response
+from .common import BOUNDED, KEYED, json_response
 
 __all__ = ["router", "match_trace"]
 
@@ -110,7 +110,7 @@ def _matched_fix(placer: Placer, matched: SequenceMatches, row: int) -> dict[str
     "/v1/match",
     summary="The lanes a trace of fixes was driven on, each fix matched over the whole trace",
     response_model=MatchAnswer,
-    responses=KEYED,
+    responses={**KEYED, **BOUNDED},
 )
 async def match(trace: Trace, _principal: CallerDep, service: ServiceDep, work: WorkDep) -> Any:
     """Match the trace as one sequence (OSRM's ``match``, Valhalla's ``trace_attributes``)."""
