@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from csws.road.hmm import Fixes, Placed, SequenceMatcher
+from csws.road.hmm import Fixes, SequenceMatcher
 from csws.road.matching import MatchSettings, Probes, lane_points
 from csws.standard import kmh_to_mps
 
@@ -42,8 +42,6 @@ class Placement(NamedTuple):
         The lane (None when nothing matched), the lane position and the distance of the fix from it, m.
     reason
         Why nothing matched, else None.
-    placed
-        How a fix was placed (:class:`csws.road.hmm.Placed`); None for a given lane, and where nothing matched.
     """
 
     network_index: int
@@ -51,7 +49,6 @@ class Placement(NamedTuple):
     lane_pos_m: float
     distance_m: float
     reason: str | None
-    placed: Placed | None = None
 
 
 class Placer:
@@ -102,20 +99,19 @@ class Placer:
         vehicle's sequence; what the matcher keeps of each is handed to the vehicle's session."""
         matched = self.matcher.match(self.fixes(fixes), [vehicles.track(query.vehicle_id) for query in fixes])
         placements = []
-        for query, network_index, lane_id, lane_pos_m, distance_m, reason, placed, track in zip(
+        for query, network_index, lane_id, lane_pos_m, distance_m, reason, track in zip(
             fixes,
             matched.map_index.tolist(),
             matched.lane_id,
             matched.lane_pos_m.tolist(),
             matched.distance_m.tolist(),
             matched.reason,
-            matched.placed,
             matched.tracks,
             strict=True,
         ):
             if network_index < 0:
                 network_index = vehicles.network_of(query.vehicle_id)
-            placements.append(Placement(network_index, lane_id, lane_pos_m, distance_m, reason, placed))
+            placements.append(Placement(network_index, lane_id, lane_pos_m, distance_m, reason))
             vehicles.keep_track(query.vehicle_id, track)
         return placements
 
