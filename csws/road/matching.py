@@ -21,6 +21,10 @@ a previous match on its previous map alone, where a lane that continues the prev
 decides; then every other fix on all the maps it may be on. A fix that matches nothing
 is an answer too: it gets no lane and the reason why.
 
+The matcher is also the spatial index of the sequence matcher (:mod:`csws.road.hmm`), which
+weighs each vehicle's fixes over their sequence with a hidden-Markov model: what the service
+places fixes with (:meth:`MapMatcher.nearby`, :meth:`MapMatcher.lane_number`).
+
 Headings follow GNSS: degrees clockwise from north. Lane headings in
 :mod:`csws.road.roadmap` are radians counter-clockwise from +x (east).
 """
