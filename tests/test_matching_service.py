@@ -128,6 +128,11 @@ def test_bad_fixes_get_a_422_naming_them(client, fixes, network, loc) -> None:
     assert any(error["loc"][: len(loc)] == loc for error in response.json()["detail"]), response.json()
 
 
+def test_a_body_that_is_not_json_gets_a_422(client) -> None:
+    response = client.post("/v1/match", content=b"\x03fixes", headers={"Content-Type": "application/json"})
+    assert response.status_code == 422 and response.json()["detail"][0]["loc"][0] == "body"
+
+
 # ------------------------------------------------------------------ POST /v1/warnings with sessions
 def _batches(town: RoadMap) -> tuple[list[list[dict]], dict[str, list[str]]]:
     """One batch a second of vehicles driving straight on and turning into each side street, and the true lane of

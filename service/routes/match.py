@@ -11,7 +11,10 @@ import math
 from typing import Any
 
 import numpy as np
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import Response
+from pydantic import TypeAdapter, ValidationError
 
 from csws.road.hmm import Fixes, SequenceMatches
 from csws.road.matching import lane_point
@@ -21,11 +24,23 @@ from ..checks import QueryErrors
 from ..deps import CallerDep, ServiceDep, WorkDep
 from ..match_schemas import MatchAnswer, Trace
 from ..placement import Placer
-from .common import BOUNDED, KEYED, json_response
+from .common import BOUNDED, INVALID_BODY, KEYED, json_body, json_response
 
 __all__ = ["router", "match_trace"]
 
 router = APIRouter(tags=["matching"])
+
+#: Validates a trace's JSON body (a 422 naming each bad fix and field).
+TRACE_ADAPTER = TypeAdapter(Trace)
+
+
+def _decoded(body: bytes) -> Trace:
+    """The trace of a JSON body; an HTTP 422 naming each problem otherwise (a body that is not JSON too)."""
+    try:
+        return TRACE_ADAPTER.validate_json(body)
+    except ValidationError as exc:
+        errors = [{**error, "loc": ("body", *error["loc"])} for error in exc.errors(include_url=False)]
+        raise RequestValidationError(errors) from None
 
 
 def _check(trace: Trace, placer: Placer) -> None:
@@ -106,12 +121,19 @@ def _matched_fix(placer: Placer, matched: SequenceMatches, row: int) -> dict[str
     }
 
 
+def _answer(placer: Placer, body: bytes) -> Response:
+    """Decode and match a trace's body (on the work thread)."""
+    return json_response(match_trace(placer, _decoded(body)))
+
+
 @router.post(
     "/v1/match",
     summary="The lanes a trace of fixes was driven on, each fix matched over the whole trace",
-    response_model=MatchAnswer,
-    responses={**KEYED, **BOUNDED},
+    response_model=None,
+    responses={200: {"model": MatchAnswer}, **INVALID_BODY, **KEYED, **BOUNDED},
+    openapi_extra=json_body(Trace),
 )
-async def match(trace: Trace, _principal: CallerDep, service: ServiceDep, work: WorkDep) -> Any:
+async def match(request: Request, _principal: CallerDep, service: ServiceDep, work: WorkDep) -> Response:
     """Match the trace as one sequence (OSRM's ``match``, Valhalla's ``trace_attributes``)."""
-    return json_response(await work.run(match_trace, service.placer, trace))
+    response: Response = await work.run(_answer, service.placer, await request.body())
+    return response
