@@ -14,6 +14,8 @@ from pathlib import Path
 import msgspec
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from junction_town import SIDE_RADIUS_M, build_junction_town, drive
 from markers import marks_its_tests
 
@@ -92,6 +94,28 @@ def test_driving_straight_through_the_junction_never_matches_a_side_street(
             vehicle = VehicleInput(f"v{seed}", "M1", speed_mps * 3.6, lane, pos_m, timestamp_s=float(k))
             warning = engine.evaluate(vehicle).warning
             assert not any(t.curve_id.startswith(("JS_0@", "JN_0@")) for t in warning.triggers), (seed, k)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    speed_mps=st.floats(5.0, 25.0),
+    seed=st.integers(0, 2**32 - 1),
+    sigma_m=st.floats(0.5, 4.0),
+    to_side=st.sampled_from(["JS_0", "JN_0", "JE_0"]),
+)
+def test_no_fix_is_placed_off_the_path_toward_another_road(
+    town: RoadMap, matcher: SequenceMatcher, speed_mps: float, seed: int, sigma_m: float, to_side: str
+) -> None:
+    # Whatever the speed, noise and phase: a vehicle is never placed on a road it does not take (the other side
+    # street, or straight on when it turns, is allowed only as the road's own continuation before the turn shows).
+    path = set(town.expand_path(["WJ_0", to_side]))
+    continuation = {_connection(town, "WJ_0", "JE_0"), "JE_0"}
+    route = drive(town, ["WJ_0", to_side], speed_mps, seed, sigma_m=sigma_m)
+    answers = _online(matcher, route.xy, route.time_s, route.heading_deg, speed_mps)
+    first_off_main = next((k for k, lane in enumerate(route.lane_id) if lane == to_side), len(answers))
+    for k, (lane, _pos, _placed, _reason) in enumerate(answers):
+        allowed = path if k >= first_off_main or to_side == "JE_0" else path | continuation
+        assert lane in allowed, (k, lane, route.lane_id[k])
 
 
 @pytest.mark.parametrize("speed_mps", SPEEDS_MPS)
