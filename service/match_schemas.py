@@ -66,6 +66,7 @@ class Trace(BaseModel):
     @field_validator("fixes")
     @classmethod
     def _in_time_order(cls, fixes: list[TraceFix]) -> list[TraceFix]:
+        """A trace's fixes never go back in time: a sequence is matched in the order it was driven."""
         for index in range(1, len(fixes)):
             if fixes[index].timestamp_s < fixes[index - 1].timestamp_s:
                 raise ValueError(f"fixes must be in time order: fix {index} is before fix {index - 1}")

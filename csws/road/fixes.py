@@ -104,6 +104,7 @@ class Fixes:
         """The fixes with NaN (not given) for each column left out."""
 
         def column(values: Sequence[float] | np.ndarray | None) -> np.ndarray:
+            """The values as floats, NaN for each fix where none are given."""
             return np.full(probes.count, np.nan) if values is None else np.asarray(values, dtype=float)
 
         return cls(probes, column(time_s), column(heading_deg), column(speed_mps), column(accuracy_m))
