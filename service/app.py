@@ -35,7 +35,7 @@ from .limits import BodyLimit, BodyRefused, refused
 from .map import CompressedGets, MapData
 from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
-from .routes import docs, map, ops, vehicles, warnings
+from .routes import docs, map, match, ops, vehicles, warnings
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import VehicleRegistry
@@ -182,7 +182,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     )
     _share(app, settings, clock)
     docs.mount_static(app)
-    for router in (warnings.router, vehicles.router, map.router, ops.router, docs.router):
+    for router in (warnings.router, vehicles.router, match.router, map.router, ops.router, docs.router):
         app.include_router(router)
     # Innermost first: security headers (on the page before it is gzipped), answers to GETs gzipped,
     # bodies bounded, then metrics over all.

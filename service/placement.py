@@ -1,20 +1,28 @@
 """Where each query is on the served networks: its given lane, or the map match of its fix.
 
-Every fix without a lane id is matched by one :class:`csws.road.matching.MapMatcher` over all
-served networks: a query naming its network on that network alone, a vehicle with a session on
-its previous network first, preferring its previous lane.
+Every fix without a lane id is matched by one :class:`csws.road.hmm.SequenceMatcher` over all
+served networks (a query naming its network on that network alone), continuing the sequence of
+the vehicle's fixes that its session keeps (:attr:`service.vehicles.Session.matching`): the fixes
+of a batch's vehicles are one step of the hidden-Markov matcher, in numpy. A fix inside a
+junction whose turn the fixes do not show yet is placed on the road's continuation; a fix that
+matches no lane is dead-reckoned along the road for a while after the last match (see
+docs/service.md, "Map matching"). A fix is taken at its ``timestamp_s``, else at the time it is
+answered less its ``age_s``.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections import defaultdict
 from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 
-from csws.road.matching import MapMatcher, MatchSettings, Probes, lane_points
+from csws.road.hmm import Fixes, SequenceMatcher
+from csws.road.matching import MatchSettings, Probes, lane_points
+from csws.standard import kmh_to_mps
 
 from .checks import QueryCheck
 from .decoding import DecodedPosition, DecodedQuery
@@ -57,7 +65,7 @@ class Placer:
     def __init__(self, lanes: QueryCheck, match_settings: MatchSettings) -> None:
         self.lanes = lanes
         self.networks = lanes.networks
-        self.matcher = MapMatcher([n.road_map for n in self.networks], match_settings)
+        self.matcher = SequenceMatcher([n.road_map for n in self.networks], match_settings)
 
     def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
         """Where each query is: its given lane, or the map match of its fix (queries of distinct
@@ -87,37 +95,54 @@ class Placer:
         ]
 
     def _matched(self, fixes: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
-        """The placements of queries by the map match of their fixes (of distinct vehicles)."""
-        matched = self.matcher.match(
-            self._probes(fixes),
-            np.array([math.nan if query.heading_deg is None else query.heading_deg for query in fixes]),
-            [vehicles.previous(query.vehicle_id) for query in fixes],
-        )
+        """The placements of queries by the map match of their fixes (of distinct vehicles), each continuing its
+        vehicle's sequence; what the matcher keeps of each is handed to the vehicle's session."""
+        matched = self.matcher.match(self.fixes(fixes), [vehicles.track(query.vehicle_id) for query in fixes])
         placements = []
-        for query, network_index, lane_id, lane_pos_m, distance_m, reason in zip(
+        for query, network_index, lane_id, lane_pos_m, distance_m, reason, track in zip(
             fixes,
             matched.map_index.tolist(),
             matched.lane_id,
             matched.lane_pos_m.tolist(),
             matched.distance_m.tolist(),
             matched.reason,
+            matched.tracks,
             strict=True,
         ):
             if network_index < 0:
                 network_index = vehicles.network_of(query.vehicle_id)
             placements.append(Placement(network_index, lane_id, lane_pos_m, distance_m, reason))
+            vehicles.keep_track(query.vehicle_id, track)
         return placements
 
-    def _probes(self, queries: Sequence[DecodedQuery]) -> Probes:
-        """Where to look for each query's fix: x, y on the network it names, else on every one;
-        lon, lat in the projection of the network it names, else of each geo-referenced one."""
+    def fixes(self, queries: Sequence[DecodedQuery], now_s: float | None = None) -> Fixes:
+        """The fixes of queries as the sequence matcher takes them: each taken at its ``timestamp_s``, else at
+        ``now_s`` (the time now by default) less its ``age_s``."""
+        now_s = time.time() if now_s is None else now_s
+        columns = [
+            (
+                now_s - (query.age_s or 0.0) if query.timestamp_s is None else query.timestamp_s,
+                math.nan if query.heading_deg is None else query.heading_deg,
+                kmh_to_mps(query.speed_kmh),
+                math.nan if query.accuracy_m is None else query.accuracy_m,
+            )
+            for query in queries
+        ]
+        time_s, heading_deg, speed_mps, accuracy_m = (
+            np.array(column, dtype=float) for column in zip(*columns, strict=True)
+        )
+        probes = self.probes([query.position for query in queries], [query.network for query in queries])
+        return Fixes(probes, time_s, heading_deg, speed_mps, accuracy_m)
+
+    def probes(self, positions: Sequence[DecodedPosition | None], networks: Sequence[str | None]) -> Probes:
+        """Where to look for each fix (of a known network, if named): x, y on the network it names, else on
+        every one; lon, lat in the projection of the network it names, else of each geo-referenced one."""
         rows: list[int] = []
         xy: list[tuple[float | None, float | None]] = []
         map_index: list[int] = []
         geographic: dict[int, list[tuple[int, DecodedPosition]]] = defaultdict(list)
-        for row, query in enumerate(queries):
-            named = -1 if query.network is None else self.lanes.network_index[query.network]
-            position = query.position
+        for row, (position, network) in enumerate(zip(positions, networks, strict=True)):
+            named = -1 if network is None else self.lanes.network_index[network]
             assert position is not None  # a query without a lane has a fix (check_located)
             if position.lon is None:
                 rows.append(row)
@@ -132,7 +157,7 @@ class Placer:
             xy += self.networks[network_index].road_map.lonlat_to_xy_many(lonlat).tolist()
             map_index += [network_index] * len(placed)
         return Probes(
-            len(queries),
+            len(positions),
             np.array(rows, dtype=np.intp),
             np.array(xy, dtype=float).reshape(-1, 2),
             np.array(map_index, dtype=np.intp),

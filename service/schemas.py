@@ -209,6 +209,14 @@ class Query(BaseModel):
     heading_deg: float | None = Field(
         default=None, ge=0.0, lt=360.0, strict=True, description="GNSS heading, degrees clockwise from north"
     )
+    accuracy_m: float | None = Field(
+        default=None,
+        gt=0.0,
+        le=1000.0,
+        strict=True,
+        description="the fix's accuracy: one standard deviation of its position, m (HDOP times the receiver's "
+        "error); map matching weighs the fix by it and looks for lanes within 2.5 of it (at least the tolerance)",
+    )
     lane_id: str | None = Field(
         default=None, min_length=1, max_length=256, description="SUMO lane id: no map matching when given"
     )

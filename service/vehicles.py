@@ -1,10 +1,11 @@
 """What the service keeps of each vehicle between requests, kept in the state store (:mod:`service.store`).
 
 * Its **setting**: what its fleet set, the driver switch (5.2) and the category; kept until changed.
-* Its **session**: the network and lane of its last match (the continuity of map matching)
-  and what the engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and
-  activation, last timestamp, the release rule's memory), and what its forward collision
-  warning keeps (:class:`FcwMemory`: state, level hold, objects in the path, last target).
+* Its **session**: the network and lane of its last match, what map matching keeps of its
+  fixes (:class:`csws.road.hmm.MatchState`: the sequence its next fix continues), what the
+  engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and activation, last
+  timestamp, the release rule's memory), and what its forward collision warning keeps
+  (:class:`FcwMemory`: state, level hold, objects in the path, last target).
   A vehicle that moves to another network takes its system state along. A session not written for the idle time expires;
   the stored setting remains.
 
@@ -26,7 +27,7 @@ from typing import TypeVar
 import msgspec
 
 from csws.engine import Engine, VehicleMemory
-from csws.road.matching import MapPosition
+from csws.road.hmm import MatchState, Track
 from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 from csws.warning.release import HeldWarning
@@ -103,6 +104,9 @@ class Session:
         What its latest answer said (the live map's view of it, ``GET /v1/fleet``).
     fcw
         What its forward collision warning keeps, None before its first query with objects.
+    matching
+        What map matching keeps of its fixes on the network ``network_index`` (:class:`csws.road.hmm.MatchState`),
+        None before its first matched fix.
     """
 
     network_index: int
@@ -110,6 +114,7 @@ class Session:
     lane_pos_m: float = 0.0
     latest: LatestAnswer | None = None
     fcw: FcwMemory | None = None
+    matching: MatchState | None = None
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -133,6 +138,8 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     fcw: FcwMemory | None = None
     #: The last intervals between its fixes, s, its update period is learnt from (:mod:`csws.warning.latency`).
     intervals_s: tuple[float, ...] = ()
+    #: What map matching keeps of its fixes (sessions of vehicles never matched from a fix have none).
+    matching: MatchState | None = None
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
@@ -158,6 +165,7 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
             session.latest,
             session.fcw,
             memory.intervals_s,
+            session.matching,
         )
 
 
@@ -183,12 +191,14 @@ class LoadedVehicles:
         self.sessions: dict[str, Session] = {}
         self.new_settings: dict[str, VehicleSetting] = {}
         self.written: set[str] = set()
+        #: What map matching kept of the vehicles' fixes of this request, until each is :meth:`seen`.
+        self.tracks: dict[str, Track | None] = {}
         for vehicle_id, vehicle in stored.items():
             record = registry.decode(vehicle.session)
             if record is not None:
                 network_index = registry.network_index[record.network]
                 self.sessions[vehicle_id] = Session(
-                    network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw
+                    network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw, record.matching
                 )
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
@@ -216,12 +226,19 @@ class LoadedVehicles:
         """The vehicle's session, if it has one."""
         return self.sessions.get(vehicle_id)
 
-    def previous(self, vehicle_id: str) -> MapPosition | None:
-        """Where the vehicle was last matched, if it has a session and matched."""
+    def track(self, vehicle_id: str) -> Track | None:
+        """What map matching keeps of the vehicle's fixes, if anything: as this request's last fix of it left it,
+        else as its session has it."""
+        if vehicle_id in self.tracks:
+            return self.tracks[vehicle_id]
         session = self.sessions.get(vehicle_id)
-        if session is None or session.lane_id is None:
+        if session is None or session.matching is None:
             return None
-        return MapPosition(session.network_index, session.lane_id)
+        return Track(session.network_index, session.matching)
+
+    def keep_track(self, vehicle_id: str, track: Track | None) -> None:
+        """What map matching keeps of the vehicle's latest fix: its session takes it when it is :meth:`seen`."""
+        self.tracks[vehicle_id] = track
 
     def network_of(self, vehicle_id: str) -> int:
         """The network whose engine holds the vehicle's memory (the first for a new vehicle)."""
@@ -259,6 +276,9 @@ class LoadedVehicles:
         break the continuity of the next. Its session is written back at the end of the request.
         """
         session = self.sessions[vehicle_id]
+        if vehicle_id in self.tracks:
+            track = self.tracks[vehicle_id]
+            session.matching = track.state if track is not None and track.map_index == session.network_index else None
         if lane_id is not None:
             session.lane_id, session.lane_pos_m = lane_id, lane_pos_m
         if latest is not None:

@@ -21,6 +21,10 @@ a previous match on its previous map alone, where a lane that continues the prev
 decides; then every other fix on all the maps it may be on. A fix that matches nothing
 is an answer too: it gets no lane and the reason why.
 
+The matcher is also the spatial index of the sequence matcher (:mod:`csws.road.hmm`), which
+weighs each vehicle's fixes over their sequence with a hidden-Markov model: what the service
+places fixes with (:meth:`MapMatcher.nearby`, :meth:`MapMatcher.lane_number`).
+
 Headings follow GNSS: degrees clockwise from north. Lane headings in
 :mod:`csws.road.roadmap` are radians counter-clockwise from +x (east).
 """
@@ -66,11 +70,48 @@ class MatchSettings:
         most this, degrees: the opposite direction (180) and crossing roads (90) are out.
     continuation_links
         How many links ahead of the previous lane a lane still counts as its continuation.
+    accuracy_m
+        The standard deviation of a fix's position when the fix does not give its own
+        (``accuracy_m``), m: the emission of the sequence matcher (:mod:`csws.road.hmm`) is a
+        Gaussian of the distance from the lane with it (4.07 m in Newson & Krumm 2009).
+    search_sigmas
+        The sequence matcher looks for lanes within this many standard deviations of a fix's
+        position, never nearer than ``tolerance_m``.
+    heading_sigma_deg
+        The standard deviation of a fix's heading against the lane's direction, degrees (GNSS heading
+        noise and the angle of a lane change).
+    transition_beta_m
+        The scale of the exponential of |route distance - straight distance| between consecutive
+        fixes, m (Newson & Krumm's beta).
+    lane_change_log_p
+        The log-probability of changing to another lane of the same edge between two fixes: one
+        noisy fix nearer the neighbouring lane does not move the vehicle there.
+    commit_share
+        Inside a junction, the matcher reports a turn off the road only once the connections into
+        that turn's road hold this share of the probability of all connections from the vehicle's
+        incoming edge; until then it reports the road's own continuation.
+    dead_reckoning_s
+        A fix that matches no lane is placed by dead reckoning along the road from the last
+        match for up to this long after it, s; later it matches nothing.
+    reach_m
+        Route distances between candidates are known within this distance beyond an edge's end, m: a
+        jump between fixes longer than this starts the sequence afresh.
+    max_candidates
+        The sequence matcher keeps at most this many candidate lanes of a vehicle between fixes.
     """
 
     tolerance_m: float = 10.0
     heading_tolerance_deg: float = 45.0
     continuation_links: int = 4
+    accuracy_m: float = 4.0
+    search_sigmas: float = 2.5
+    heading_sigma_deg: float = 10.0
+    transition_beta_m: float = 6.0
+    lane_change_log_p: float = -1.5
+    commit_share: float = 0.95
+    dead_reckoning_s: float = 10.0
+    reach_m: float = 250.0
+    max_candidates: int = 8
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.tolerance_m) and self.tolerance_m > 0):
@@ -79,6 +120,20 @@ class MatchSettings:
             raise ValueError(f"heading_tolerance_deg must lie in (0, 180], got {self.heading_tolerance_deg!r}")
         if self.continuation_links < 0:
             raise ValueError(f"continuation_links must not be negative, got {self.continuation_links!r}")
+        for name in ("accuracy_m", "search_sigmas", "heading_sigma_deg", "transition_beta_m", "reach_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (math.isfinite(self.lane_change_log_p) and self.lane_change_log_p <= 0):
+            raise ValueError(f"lane_change_log_p must be a log-probability (<= 0), got {self.lane_change_log_p!r}")
+        if not (0.5 <= self.commit_share <= 1):
+            raise ValueError(f"commit_share must lie in [0.5, 1], got {self.commit_share!r}")
+        if not (math.isfinite(self.dead_reckoning_s) and self.dead_reckoning_s >= 0):
+            raise ValueError(
+                f"dead_reckoning_s must be a non-negative number of seconds, got {self.dead_reckoning_s!r}"
+            )
+        if self.max_candidates < 1:
+            raise ValueError(f"max_candidates must be at least 1, got {self.max_candidates!r}")
 
 
 class MapPosition(NamedTuple):
@@ -231,6 +286,11 @@ class _Chosen:
             self.continued[chosen] = continued[first]
 
 
+def _columns(found: LaneMatches) -> tuple[np.ndarray, ...]:
+    """The columns of lane matches in the order :class:`LaneMatches` takes them."""
+    return (found.point_index, found.lane_index, found.lane_id, found.distance_m, found.lane_pos_m, found.heading_rad)
+
+
 class MapMatcher:
     """Matches fixes to the lanes of one or more road maps.
 
@@ -298,6 +358,35 @@ class MapMatcher:
             lane_range = None if (confined < 0).all() else self._lane_range[confined]
             chosen.choose(self._candidates(probes, rows, lane_range, heading), None, ~decided)
         return self._fix_matches(chosen, heading)
+
+    @property
+    def lane_ids(self) -> np.ndarray:
+        """The id of each lane numbered over all maps (:meth:`lane_number`), an object array."""
+        return self._lane_ids
+
+    @property
+    def lane_map(self) -> np.ndarray:
+        """The map index of each lane numbered over all maps (:meth:`lane_number`)."""
+        return self._lane_map
+
+    def lane_number(self, map_index: int, lane_id: str) -> int:
+        """The number of a lane of map ``map_index`` over all maps (-1 when the map has no such lane)."""
+        road_map = self.road_maps[map_index]
+        return road_map.lane_index(lane_id) + int(self._lane_range[map_index, 0]) if road_map.has_lane(lane_id) else -1
+
+    def lane_name(self, number: int) -> tuple[int, str]:
+        """The map index and lane id of a lane numbered over all maps (:meth:`lane_number`)."""
+        return int(self._lane_map[number]), str(self._lane_ids[number])
+
+    def nearby(self, probes: Probes, radius_m: np.ndarray) -> LaneMatches:
+        """Every lane within each fix's ``radius_m`` (``(probes.count,)``, m) of its probes, each probe
+        on its map or on every map: ``point_index`` is the probe's row, ``lane_index`` the lane's number
+        over all maps; rows by probe, then lane."""
+        confined = probes.map_index
+        lane_range = None if (confined < 0).all() else self._lane_range[confined]
+        found = self._search.nearest_per_lane(probes.xy, float(radius_m.max(initial=0.0)), lane_range)
+        inside = found.distance_m <= radius_m[probes.fix[found.point_index]]
+        return LaneMatches(*(column[inside] for column in _columns(found)))
 
     def _match_on_previous_maps(
         self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None], chosen: _Chosen

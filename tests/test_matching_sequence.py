@@ -1,0 +1,298 @@
+"""Map matching over the fix sequence (csws.road.hmm) against constructed truth: the junction town of
+tests/junction_town.py, driven at 1 Hz with σ 3 m position noise and 5 degree heading noise (fixed seeds).
+
+The truth is the path each drive takes; the side streets' curves (R 20 m, 40 m after the junction) are
+tight enough for a level-2 warning at 50 km/h, which the tests check the engine gives on the side street's
+connection, so that a match onto it would show as a warning.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import msgspec
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from junction_town import SIDE_RADIUS_M, build_junction_town, drive
+from markers import marks_its_tests
+
+from csws.engine import Engine, VehicleInput
+from csws.road.hmm import Fixes, MatchState, Placed, SequenceMatcher, Track
+from csws.road.matching import MatchSettings, Probes
+from csws.road.roadmap import RoadMap
+from csws.standard import Level
+
+#: Fixed seeds of the noisy drives (each a new phase of the fixes and new noise).
+SEEDS = range(40)
+#: Speeds driven, m/s: 30 and 70 km/h.
+SPEEDS_MPS = (8.3, 19.4)
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("sumo")
+def town(tmp_path_factory) -> RoadMap:
+    return build_junction_town(tmp_path_factory.mktemp("town"))
+
+
+@pytest.fixture(scope="module")
+def matcher(town: RoadMap) -> SequenceMatcher:
+    return SequenceMatcher([town])
+
+
+def _connection(town: RoadMap, from_lane: str, to_lane: str) -> str:
+    """The internal lane of the connection from one lane to another."""
+    (via,) = town.expand_path([from_lane, to_lane])[1:-1]
+    return via
+
+
+def _side_lanes(town: RoadMap) -> set[str]:
+    """The side streets' lanes and the connections into them."""
+    return {"JS_0", "JN_0", _connection(town, "WJ_0", "JS_0"), _connection(town, "WJ_0", "JN_0")}
+
+
+def _fixes(xy: np.ndarray, time_s: np.ndarray, heading_deg: np.ndarray, speed_mps: float | None = None) -> Fixes:
+    speed = None if speed_mps is None else np.full(len(time_s), speed_mps)
+    return Fixes.of(Probes.everywhere(xy), time_s, heading_deg, speed)
+
+
+def _online(matcher: SequenceMatcher, xy: np.ndarray, time_s: np.ndarray, heading_deg: np.ndarray, speed_mps: float):
+    """Match a drive fix by fix as the service does, each fix continuing the last one's track."""
+    track: Track | None = None
+    answers = []
+    for k in range(len(time_s)):
+        one = matcher.match(_fixes(xy[k : k + 1], time_s[k : k + 1], heading_deg[k : k + 1], speed_mps), [track])
+        track = one.tracks[0]
+        answers.append((one.lane_id[0], float(one.lane_pos_m[0]), one.placed[0], one.reason[0]))
+    return answers
+
+
+def test_the_side_streets_curve_warns_from_its_connection(town: RoadMap) -> None:
+    # What a wrong match would cost: on the connection into the side street at 70 km/h the path ahead turns
+    # into it and its R 20 m curve (V_w far below 70 km/h, Tables 1-2) is warned of at level 2.
+    into_side = _connection(town, "WJ_0", "JS_0")
+    answer = Engine(town).evaluate(VehicleInput("v", "M1", 70.0, into_side, 1.0))
+    assert answer.warning.level == Level.LEVEL_2
+    assert answer.warning.target is not None and answer.warning.target.curve_id.startswith("JS_0@")
+    assert answer.warning.target.radius_m == pytest.approx(SIDE_RADIUS_M, rel=0.05)
+
+
+@pytest.mark.parametrize("speed_mps", SPEEDS_MPS)
+def test_driving_straight_through_the_junction_never_matches_a_side_street(
+    town: RoadMap, matcher: SequenceMatcher, speed_mps: float
+) -> None:
+    side = _side_lanes(town)
+    engine = Engine(town)
+    for seed in SEEDS:
+        route = drive(town, ["WJ_0", "JE_0"], speed_mps, seed)
+        answers = _online(matcher, route.xy, route.time_s, route.heading_deg, speed_mps)
+        assert all(lane is not None for lane, *_ in answers), seed
+        assert not side & {lane for lane, *_ in answers}, seed
+        for k, (lane, pos_m, _placed, _reason) in enumerate(answers):
+            vehicle = VehicleInput(f"v{seed}", "M1", speed_mps * 3.6, lane, pos_m, timestamp_s=float(k))
+            warning = engine.evaluate(vehicle).warning
+            assert not any(t.curve_id.startswith(("JS_0@", "JN_0@")) for t in warning.triggers), (seed, k)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    speed_mps=st.floats(5.0, 25.0),
+    seed=st.integers(0, 2**32 - 1),
+    sigma_m=st.floats(0.5, 4.0),
+    to_side=st.sampled_from(["JS_0", "JN_0", "JE_0"]),
+)
+def test_no_fix_is_placed_off_the_path_toward_another_road(
+    town: RoadMap, matcher: SequenceMatcher, speed_mps: float, seed: int, sigma_m: float, to_side: str
+) -> None:
+    # Whatever the speed, noise and phase: a vehicle is never placed on a road it does not take (the other side
+    # street, or straight on when it turns, is allowed only as the road's own continuation before the turn shows).
+    path = set(town.expand_path(["WJ_0", to_side]))
+    continuation = {_connection(town, "WJ_0", "JE_0"), "JE_0"}
+    route = drive(town, ["WJ_0", to_side], speed_mps, seed, sigma_m=sigma_m)
+    answers = _online(matcher, route.xy, route.time_s, route.heading_deg, speed_mps)
+    first_off_main = next((k for k, lane in enumerate(route.lane_id) if lane == to_side), len(answers))
+    for k, (lane, _pos, _placed, _reason) in enumerate(answers):
+        allowed = path if k >= first_off_main or to_side == "JE_0" else path | continuation
+        assert lane in allowed, (k, lane, route.lane_id[k])
+
+
+@pytest.mark.parametrize("speed_mps", SPEEDS_MPS)
+def test_turning_into_the_side_street_is_matched_from_its_first_fix_there(
+    town: RoadMap, matcher: SequenceMatcher, speed_mps: float
+) -> None:
+    onto_side = {"JS_0", _connection(town, "WJ_0", "JS_0")}
+    for seed in SEEDS:
+        route = drive(town, ["WJ_0", "JS_0"], speed_mps, seed)
+        answers = _online(matcher, route.xy, route.time_s, route.heading_deg, speed_mps)
+        first_on_side = route.lane_id.index("JS_0")
+        assert all(lane in onto_side for lane, *_ in answers[first_on_side:]), seed
+        # Before the side street, a fix in the junction is on the turn or still on the road's continuation.
+        road_on = {_connection(town, "WJ_0", "JE_0"), "JE_0"}
+        assert {lane for lane, *_ in answers[:first_on_side]} <= {"WJ_0", *onto_side, *road_on}, seed
+
+
+def test_an_undecided_fix_in_the_junction_is_placed_on_the_roads_continuation(
+    town: RoadMap, matcher: SequenceMatcher
+) -> None:
+    # A vehicle 14 m before the junction, then a fix where the connections from its lane start together,
+    # heading up to 30 degrees into a turn: the turn is likely but not shown, so the fix is placed on the
+    # road's own continuation (on the turn's best candidate: deferred); the next fix, 10 m into the side
+    # street, is placed there.
+    straight_on = _connection(town, "WJ_0", "JE_0")
+    entry_end = town.lane_shape("WJ_0")[-1]
+    before = Fixes.of(Probes.everywhere(np.array([entry_end - (14.0, 0.0)])), [0.0], [90.0])
+    track = matcher.match(before, [None]).tracks[0]
+    for to_side, turn_sign, side_heading_deg in (("JS_0", 1.0, 180.0), ("JN_0", -1.0, 0.0)):
+        shared_start = town.lane_shape(_connection(town, "WJ_0", to_side))[[1]]
+        placed = []
+        for into_turn_deg in (10.0, 20.0, 30.0):
+            inside = Fixes.of(Probes.everywhere(shared_start), [1.0], [90.0 + turn_sign * into_turn_deg])
+            answer = matcher.match(inside, [track])
+            assert answer.lane_id[0] == straight_on, (to_side, into_turn_deg)
+            placed.append(answer.placed[0])
+        assert Placed.DEFERRED in placed
+        on_side = Fixes.of(Probes.everywhere(town.lane_shape(to_side)[[10]]), [2.0], [side_heading_deg])
+        assert matcher.match(on_side, answer.tracks).lane_id == [to_side]
+
+
+def test_a_ten_second_gap_of_fixes_is_bridged_by_dead_reckoning(town: RoadMap, matcher: SequenceMatcher) -> None:
+    # 14 m/s along the main road; from the 6th fix on, for 10 s, the fixes are 40 m off any road (multipath),
+    # straight through the junction: each is placed along the road as far as the time since the last match
+    # and the speed say, within the noise of that last match; after them the fixes match again.
+    speed_mps = 14.0
+    route = drive(town, ["WJ_0", "JE_0"], speed_mps, seed=7, start_m=100.0)
+    xy = route.xy.copy()
+    lost = slice(6, 16)
+    xy[lost] += (0.0, 100.0)
+    answers = _online(matcher, xy, route.time_s, route.heading_deg, speed_mps)
+    assert all(lane is not None and reason is None for lane, _pos, _placed, reason in answers)
+    assert [placed for _lane, _pos, placed, _reason in answers[lost]] == [Placed.DEAD_RECKONED] * 10
+    path = town.expand_path(["WJ_0", "JE_0"])
+    starts = dict(zip(path, np.cumsum([0.0] + [town.lane(lane).length_m for lane in path[:-1]]), strict=True))
+    truth_m = [starts[lane] + pos for lane, pos in zip(route.lane_id, route.lane_pos_m, strict=True)]
+    placed_m = [starts[lane] + pos for lane, pos, _placed, _reason in answers]
+    assert np.abs(np.subtract(placed_m, truth_m))[lost].max() < 3 * 3.0  # three σ of the last matched fix
+    assert all(placed == Placed.MATCHED for _lane, _pos, placed, _reason in answers[16:])
+
+
+def test_dead_reckoning_ends_after_its_time(town: RoadMap, matcher: SequenceMatcher) -> None:
+    limit_s = matcher.settings.dead_reckoning_s
+    on_road = Fixes.of(Probes.everywhere(np.array([[100.0, 0.0]])), [0.0], [90.0], [10.0])
+    track = matcher.match(on_road, [None]).tracks[0]
+    off = np.array([[150.0, 80.0]])
+    within = matcher.match(Fixes.of(Probes.everywhere(off), [limit_s], [90.0], [10.0]), [track])
+    beyond = matcher.match(Fixes.of(Probes.everywhere(off), [limit_s + 0.5], [90.0], [10.0]), [track])
+    assert within.placed == [Placed.DEAD_RECKONED] and within.lane_pos_m[0] == pytest.approx(
+        track.state.lane_pos_m + 10.0 * limit_s
+    )
+    assert beyond.lane_id == [None] and beyond.reason[0].startswith("no lane within 10 m")
+    assert beyond.tracks[0] == track  # the sequence is kept: a fix on the road later continues it
+
+
+def test_a_gap_without_fixes_continues_the_sequence(town: RoadMap, matcher: SequenceMatcher) -> None:
+    route = drive(town, ["WJ_0", "JE_0"], 14.0, seed=3, start_m=150.0)
+    keep = np.r_[0:4, 14 : len(route.time_s)]  # no fix for 10 s, across the junction
+    answers = _online(matcher, route.xy[keep], route.time_s[keep], route.heading_deg[keep], 14.0)
+    assert [placed for _lane, _pos, placed, _reason in answers] == [Placed.MATCHED] * len(keep)
+    assert answers[4][0] == "JE_0" and route.lane_id[keep[4]] == "JE_0"
+    assert {lane for lane, *_ in answers} <= set(town.expand_path(["WJ_0", "JE_0"]))
+
+
+@pytest.mark.parametrize("to_lane", ["JE_0", "JS_0", "JN_0"])
+def test_a_whole_trace_is_matched_on_the_path_driven(town: RoadMap, matcher: SequenceMatcher, to_lane: str) -> None:
+    path = set(town.expand_path(["WJ_0", to_lane]))
+    for seed in SEEDS:
+        route = drive(town, ["WJ_0", to_lane], 13.9, seed)
+        trace = matcher.match_trace(_fixes(route.xy, route.time_s, route.heading_deg))
+        assert set(trace.lane_id) <= path, seed
+        assert trace.placed == [Placed.MATCHED] * len(route.time_s)
+        assert (
+            np.abs(trace.lane_pos_m - route.lane_pos_m)[np.array(trace.lane_id) == np.array(route.lane_id)].max() < 12
+        )
+
+
+def test_a_batch_of_vehicles_is_matched_as_each_alone(town: RoadMap, matcher: SequenceMatcher) -> None:
+    drives = [drive(town, ["WJ_0", to], 11.0, seed) for seed, to in enumerate(["JE_0", "JS_0", "JN_0", "JE_0"])]
+    steps = min(len(d.time_s) for d in drives)
+    together: list[Track | None] = [None] * len(drives)
+    alone: list[Track | None] = [None] * len(drives)
+    for k in range(steps):
+        xy = np.array([d.xy[k] for d in drives])
+        batch = matcher.match(
+            _fixes(xy, np.full(len(drives), float(k)), np.array([d.heading_deg[k] for d in drives])), together
+        )
+        together = batch.tracks
+        for v, d in enumerate(drives):
+            one = matcher.match(_fixes(d.xy[k : k + 1], np.array([float(k)]), d.heading_deg[k : k + 1]), [alone[v]])
+            alone[v] = one.tracks[0]
+            assert (batch.lane_id[v], batch.placed[v]) == (one.lane_id[0], one.placed[0])
+            assert batch.lane_pos_m[v] == pytest.approx(one.lane_pos_m[0])
+        assert together == alone
+
+
+def test_a_fix_sent_again_is_placed_where_it_was(town: RoadMap, matcher: SequenceMatcher) -> None:
+    # A resent fix (the same time and place) brings nothing new: the same placement, the track unchanged;
+    # beside a new vehicle's fix in the same batch, matched as ever.
+    route = drive(town, ["WJ_0", "JS_0"], 13.9, seed=2)
+    track = None
+    for k in range(len(route.time_s)):
+        fix = _fixes(route.xy[k : k + 1], route.time_s[k : k + 1], route.heading_deg[k : k + 1])
+        first = matcher.match(fix, [track])
+        both = Fixes.of(
+            Probes.everywhere(np.vstack([route.xy[k], route.xy[k]])),
+            np.repeat(route.time_s[k], 2),
+            np.repeat(route.heading_deg[k], 2),
+        )
+        again = matcher.match(both, [first.tracks[0], None])
+        assert again.tracks[0] is first.tracks[0]
+        assert (again.lane_id[0], again.placed[0], again.reason[0]) == (first.lane_id[0], first.placed[0], None)
+        assert (again.lane_pos_m[0], again.distance_m[0]) == (first.lane_pos_m[0], first.distance_m[0])
+        assert again.lane_id[1] is not None and again.tracks[1] is not None
+        alone = matcher.match(fix, first.tracks)
+        assert (alone.lane_id, alone.placed, alone.tracks) == (first.lane_id, first.placed, first.tracks)
+        track = first.tracks[0]
+
+
+def test_the_state_is_small_and_survives_messagepack(town: RoadMap, matcher: SequenceMatcher) -> None:
+    route = drive(town, ["WJ_0", "JS_0"], 13.9, seed=1)
+    track = None
+    for k in range(len(route.time_s)):
+        track = matcher.match(
+            _fixes(route.xy[k : k + 1], route.time_s[k : k + 1], route.heading_deg[k : k + 1]), [track]
+        ).tracks[0]
+        assert track is not None
+        encoded = msgspec.msgpack.encode(track.state)
+        assert msgspec.msgpack.decode(encoded, type=MatchState) == track.state
+        assert len(encoded) < 60 + 40 * len(track.state.candidates)
+        assert len(track.state.candidates) <= matcher.settings.max_candidates
+
+
+def test_the_fixs_accuracy_widens_the_search(town: RoadMap) -> None:
+    matcher = SequenceMatcher([town], MatchSettings(tolerance_m=10.0, search_sigmas=2.5))
+    far = Probes.everywhere(np.array([[100.0, 15.0]]))  # 15 m from the main road's lane
+    assert matcher.match(Fixes.of(far, [0.0], [90.0]), [None]).lane_id == [None]
+    wide = matcher.match(Fixes.of(far, [0.0], [90.0], accuracy_m=[8.0]), [None])
+    assert wide.lane_id == ["WJ_0"] and wide.distance_m[0] == pytest.approx(15.0, abs=0.01)
+    assert wide.reason == [None]
+    assert matcher.match(Fixes.of(far, [0.0], [90.0]), [None]).reason[0] == "no lane within 10 m"
+    assert math.isclose(MatchSettings().accuracy_m * MatchSettings().search_sigmas, MatchSettings().tolerance_m)
+
+
+def test_settings_of_the_sequence_matcher_are_checked() -> None:
+    for bad in ({"accuracy_m": 0.0}, {"commit_share": 0.2}, {"lane_change_log_p": 0.5}, {"max_candidates": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            MatchSettings(**bad)
+
+
+def test_lanes_the_map_no_longer_has_are_dropped_from_a_state(town: RoadMap, matcher: SequenceMatcher) -> None:
+    stale = MatchState(0.0, 100.0, 0.0, 10.0, "gone_0", 5.0, 0.0, Placed.MATCHED, ("gone_0",), (5.0,), (0.0,))
+    answer = matcher.match(Fixes.of(Probes.everywhere(np.array([[110.0, 0.0]])), [1.0], [90.0]), [Track(0, stale)])
+    assert answer.lane_id == ["WJ_0"] and answer.placed == [Placed.MATCHED]
+
+
+def test_a_path_of_the_town_is_what_the_builder_says(tmp_path: Path, town: RoadMap) -> None:
+    assert {lane for lane in town.lane_ids if not town.lane(lane).is_internal} == {"WJ_0", "JE_0", "JS_0", "JN_0"}
+    assert town.lane(_connection(town, "WJ_0", "JE_0")).continues_road
+    assert not town.lane(_connection(town, "WJ_0", "JS_0")).continues_road
