@@ -36,6 +36,7 @@ from benchmarks import (
     fcw_traffic,
     hygiene,
     load,
+    matching,
     osm,
     roadmap,
     roads,
@@ -185,6 +186,19 @@ def fcw_traffic_rows(figures: dict) -> list[Row]:
             fcw_traffic.TARGET_MISSED,
         ),
         context("FCW in traffic: where the false warnings came (most frequent)", situations),
+    ]
+
+
+def matching_rows(figures: dict) -> list[Row]:
+    return [
+        at_most(
+            f"matching: a fix continued in a batch of {figures['vehicles']:,} on Bad Hersfeld, CPU µs",
+            figures["continued_cpu_us_per_fix"],
+            matching.TARGET_US_PER_FIX,
+            f"wall {figures['continued_us_per_fix']:g} µs at load average {figures['load_average']:g}; "
+            f"first fix {figures['first_us_per_fix']:g} µs; lane graph built in {figures['graph_build_s']:g} s",
+        ),
+        context("matching: continued fixes on the true edge (σ 3 m)", figures["continued_on_true_edge"]),
     ]
 
 
