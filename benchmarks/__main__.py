@@ -466,6 +466,7 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("fcw", fcw.run, "a few seconds", fcw_rows),
         Benchmark("service", service.run, "about 1-2 minutes", service_rows),
+        Benchmark("matching", matching.run, "about half a minute: 10,000 vehicles on Bad Hersfeld", matching_rows),
         Benchmark(
             "hygiene", hygiene.run, "about a minute: slow heads, saturation, descriptor exhaustion", hygiene_rows
         ),
