@@ -33,9 +33,11 @@ from .headers import ResponseHeaders
 from .keys import KeyRing
 from .limits import BodyLimit, BodyRefused, refused
 from .map import CompressedGets, MapData
+from .match_schemas import Trace, TraceFix
 from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
 from .routes import docs, map, match, ops, vehicles, warnings
+from .schemas import REQUEST_FIELDS, unknown_field_message
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import VehicleRegistry
@@ -64,12 +66,23 @@ def _cut(text: str) -> str:
     return text if len(text) <= MAX_MESSAGE_CHARS else text[:MAX_MESSAGE_CHARS] + "..."
 
 
+#: Every field name of every request body (an unknown one is named with the closest of these).
+KNOWN_FIELDS = REQUEST_FIELDS | frozenset(Trace.model_fields) | frozenset(TraceFix.model_fields)
+
+
+def _message(error: dict[str, Any]) -> str:
+    """What a 422 says of one problem: an unknown field named with the known field it resembles."""
+    if error["type"] == "extra_forbidden" and error["loc"]:
+        return unknown_field_message(str(error["loc"][-1]), KNOWN_FIELDS)
+    return _cut(error["msg"])
+
+
 def _clean(errors: list[dict[str, Any]]) -> dict[str, Any]:
     """A 422 body: where and what, without echoing the (possibly huge) input."""
     shown = [
         {
             "loc": [_cut(str(part)) if isinstance(part, str) else part for part in e["loc"]],
-            "msg": _cut(e["msg"]),
+            "msg": _message(e),
             "type": e["type"],
         }
         for e in errors[:MAX_ERRORS_SHOWN]

@@ -11,6 +11,7 @@ re-validating them (see :mod:`service.answers`).
 
 from __future__ import annotations
 
+import difflib
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
@@ -82,6 +83,7 @@ class Position(BaseModel):
     """A fix: ``x``, ``y`` in network metres, or ``lon``, ``lat`` in degrees on geo-referenced networks."""
 
     model_config = ConfigDict(
+        extra="forbid",
         allow_inf_nan=False,
         json_schema_extra={"examples": [{"x": 600.0, "y": 0.4}, {"lon": 9.7071, "lat": 50.8682}]},
     )
@@ -107,6 +109,7 @@ class ForwardTarget(BaseModel):
     service then answers the forward collision warning beside the curve warning."""
 
     model_config = ConfigDict(
+        extra="forbid",
         allow_inf_nan=False,
         json_schema_extra={"examples": [{"range_m": 30.0, "range_rate_mps": -12.0, "target_accel_mps2": 0.0}]},
     )
@@ -173,6 +176,7 @@ class Query(BaseModel):
     """One vehicle at one instant: what it asks the service."""
 
     model_config = ConfigDict(
+        extra="forbid",
         allow_inf_nan=False,
         json_schema_extra={
             "examples": [
@@ -275,6 +279,7 @@ class Batch(BaseModel):
     """One fleet tick: up to 10,000 queries, answered in order."""
 
     model_config = ConfigDict(
+        extra="forbid",
         json_schema_extra={
             "examples": [
                 {
@@ -294,7 +299,7 @@ class Batch(BaseModel):
                     ]
                 }
             ]
-        }
+        },
     )
 
     queries: list[Query] = Field(max_length=MAX_BATCH, description=f"at most {MAX_BATCH} queries")
@@ -426,7 +431,7 @@ class Answers(BaseModel):
 class VehicleSwitch(BaseModel):
     """The driver's switch (5.2) and the vehicle's category."""
 
-    model_config = ConfigDict(json_schema_extra={"examples": [{"switched_on": False, "category": "N"}]})
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{"switched_on": False, "category": "N"}]})
 
     switched_on: bool = Field(strict=True, description="CSWS on (true) or off (false)")
     category: Category | None = Field(default=None, description="the vehicle's category, used when a query has none")
@@ -455,3 +460,20 @@ class Message(BaseModel):
 BATCH_ADAPTER = TypeAdapter(Batch)
 QUERY_ADAPTER = TypeAdapter(Query)
 SWITCH_ADAPTER = TypeAdapter(VehicleSwitch)
+
+
+#: The field names of every request body, for naming the one an unknown field was probably meant as.
+REQUEST_FIELDS = frozenset(
+    name
+    for model in (Position, ForwardTarget, SensorObject, Query, Batch, VehicleSwitch)
+    for name in model.model_fields
+)
+
+
+def unknown_field_message(name: str, known: frozenset[str] = REQUEST_FIELDS) -> str:
+    """What a 422 says of a field the contract does not have: its name and the known field it
+    most resembles, if one does (a typo such as ``heading`` for ``heading_deg`` would otherwise
+    pass as if no heading were given)."""
+    shown = name if len(name) <= 64 else name[:64] + "..."
+    closest = difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
+    return f"unknown field {shown!r}" + (f": did you mean {closest[0]!r}?" if closest else "")

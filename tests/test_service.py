@@ -25,6 +25,7 @@ from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.standard import Category, Level, warning_speed
+from service.schemas import unknown_field_message
 
 TRUTH = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
 ROUTE = TRUTH["route"]["edges"]
@@ -342,6 +343,10 @@ BAD_QUERIES = {
         "category is required",
     ),
     "malformed-json": ('{"vehicle_id": "x", ', "JSON"),
+    # A typo would otherwise pass as if the field were not given: named, with the field meant.
+    "typo-heading": (_with(heading=90.0), "unknown field 'heading': did you mean 'heading_deg'?"),
+    "typo-timestamp": (_with(timestamp=10.0), "unknown field 'timestamp': did you mean 'timestamp_s'?"),
+    "unknown-in-position": (_with(position={"x": 1.0, "y": 0.0, "z": 3.0}), "unknown field 'z'"),
     "unknown-network": (_with(network="atlantis"), "unknown network 'atlantis': served are side_roads, t7_geo"),
     "lane-not-in-network": (
         _with(network="side_roads", lane_id="approach_0", lane_pos_m=1.0),
@@ -390,6 +395,16 @@ def test_a_bad_switch_gets_a_clear_422(client) -> None:
     response = client.put("/v1/vehicles/v", json={"switched_on": "maybe"})
     assert response.status_code == 422
     assert "valid boolean" in response.text
+    response = client.put("/v1/vehicles/v", json={"switched_on": False, "categroy": "N"})
+    assert response.status_code == 422
+    assert "unknown field 'categroy': did you mean 'category'?" in response.text
+
+
+def test_an_unknown_batch_field_is_named() -> None:
+    """Outside the body's models too: a batch with a misspelt list is refused, not answered empty."""
+    assert unknown_field_message("query") == "unknown field 'query': did you mean 'queries'?"
+    assert unknown_field_message("zzz") == "unknown field 'zzz'"
+    assert len(unknown_field_message("x" * 10_000)) < 100
 
 
 # ------------------------------------------------------------------ operations
