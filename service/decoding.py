@@ -10,9 +10,9 @@ model's properties, and the model's own checks (:func:`service.schemas.check_pos
 
 Like the models, msgspec takes numbers only as JSON numbers (no strings, no booleans), refuses
 numbers too large for a float, and refuses unknown fields: every request model forbids them
-(``extra="forbid"``), so a misspelt field is a 422 naming it, not a field silently left out. A body msgspec refuses is validated
-again by pydantic (:func:`decode`), whose 422 names every problem; in the rare case that
-pydantic accepts it, its values are taken as they are.
+(``extra="forbid"``), so a misspelt field is a 422 naming it, not a field silently left out.
+A body msgspec refuses is validated again by pydantic (:func:`decode`), whose 422 names every
+problem; in the rare case that pydantic accepts it, its values are taken as they are.
 """
 
 from __future__ import annotations
