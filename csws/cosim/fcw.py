@@ -36,6 +36,9 @@ __all__ = [
     "BRAKE_LIGHT",
     "SumoVehicles",
     "read_vehicles",
+    "OFF_PATH_LANE",
+    "MapLanes",
+    "map_lanes",
     "SensorPairs",
     "sensor_view",
     "Measure",
@@ -52,6 +55,8 @@ BLINKER_RIGHT, BLINKER_LEFT, BRAKE_LIGHT = 1, 2, 8
 LONGEST_VEHICLE_M = 30.0
 #: An object whose own speed along the line of sight is below minus this comes toward the subject (3.7: no target), m/s.
 ONCOMING_MPS = 1.0
+#: The lane column's value of an object on a road the subject's map path does not take (never in the path).
+OFF_PATH_LANE = 127
 #: A key's lower 32 bits hold the object id (:func:`csws.fcw.fleet.update_fleet` keys objects by vehicle and id).
 _ID_BITS = 32
 MAX_ID_MASK = (1 << _ID_BITS) - 1
@@ -103,16 +108,19 @@ class _Numbers(dict[str, int]):
         return number
 
 
-def read_vehicles(sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[float, float]]) -> SumoVehicles:
+def read_vehicles(
+    sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[float, float]], roads: dict[str, int] | None = None
+) -> SumoVehicles:
     """Every SUMO vehicle's values of this step, one getter call per vehicle and value (lengths and
-    widths read once per vehicle into ``sizes``; ``numbers`` gives each id its number)."""
+    widths read once per vehicle into ``sizes``; ``numbers`` gives each id its number, ``roads`` each
+    road id its code, kept from step to step where given)."""
     vehicle = sumo.vehicle
     ids = list(vehicle.getIDList())
     for vehicle_id in ids:
         if vehicle_id not in sizes:
             sizes[vehicle_id] = (vehicle.getLength(vehicle_id), vehicle.getWidth(vehicle_id))
     position = np.array([vehicle.getPosition(v) for v in ids], dtype=float).reshape(len(ids), 2)
-    roads: dict[str, int] = {}
+    roads = {} if roads is None else roads
     size = np.array([sizes[v] for v in ids], dtype=float).reshape(len(ids), 2)
     return SumoVehicles(
         ids,
@@ -128,6 +136,97 @@ def read_vehicles(sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[flo
         np.array([vehicle.getLaneIndex(v) for v in ids], dtype=np.int64),
         np.array([vehicle.getSignals(v) for v in ids], dtype=np.int64),
     )
+
+
+@dataclass(frozen=True)
+class MapLanes:
+    """The lanes of the subjects' map paths ahead (the curve warning's horizon, :mod:`csws.ahead`), flat.
+
+    Attributes
+    ----------
+    subject
+        The subject of each lane (an index into the subjects given to :func:`sensor_view`), in path order.
+    road, lane_index
+        The lane's road code (as :func:`read_vehicles` codes roads) and its index on that road.
+    reach_m
+        ``(subjects,)`` how far ahead of each subject's front its path is known, m (0: no path, not map-matched).
+    """
+
+    subject: np.ndarray
+    road: np.ndarray
+    lane_index: np.ndarray
+    reach_m: np.ndarray
+
+
+@dataclass(frozen=True)
+class _HorizonLanes:
+    """One horizon's lanes as codes with the stretch of the path each covers (kept while the horizon is)."""
+
+    horizon: Any
+    road: np.ndarray
+    lane_index: np.ndarray
+    start_s: np.ndarray
+    end_s: np.ndarray
+
+
+def _horizon_lanes(horizon: Any, roads: dict[str, int]) -> _HorizonLanes:
+    """A horizon's lanes (``edge_index``, internal via lanes ``:junction_k_index`` too) as road codes and indices."""
+    path = horizon.path
+    edges, indices = zip(*(lane_id.rsplit("_", 1) for lane_id in path.lane_ids), strict=True)
+    start = np.asarray(path.lane_start_s, dtype=float)
+    return _HorizonLanes(
+        horizon,
+        np.array([roads.setdefault(edge, len(roads)) for edge in edges], dtype=np.int64),
+        np.array([int(index) for index in indices], dtype=np.int64),
+        start,
+        start + np.asarray(path.lane_shape_length_m, dtype=float),
+    )
+
+
+def map_lanes(paths: Sequence[Any | None], roads: dict[str, int], range_m: float, cache: dict[int, Any]) -> MapLanes:
+    """The lanes each subject's path ahead (a :class:`csws.ahead.horizon.PathAhead`, or None where the
+    vehicle is not map-matched) takes within ``range_m`` of its front, as :class:`MapLanes`.
+
+    ``cache`` keeps each horizon's lanes by the horizon (horizons are shared and kept by the look-ahead).
+    """
+    if len(cache) > 4096:
+        cache.clear()
+    subject, road, index = [], [], []
+    reach = np.zeros(len(paths))
+    for k, path in enumerate(paths):
+        if path is None:
+            continue
+        lanes = cache.get(id(path.horizon))
+        if lanes is None or lanes.horizon is not path.horizon:
+            lanes = cache[id(path.horizon)] = _horizon_lanes(path.horizon, roads)
+        ahead = np.flatnonzero((lanes.end_s > path.vehicle_s) & (lanes.start_s < path.vehicle_s + range_m))
+        reach[k] = lanes.end_s[-1] - path.vehicle_s
+        subject.append(np.full(ahead.size, k, dtype=np.int64))
+        road.append(lanes.road[ahead])
+        index.append(lanes.lane_index[ahead])
+    subjects, roads_ahead, indices = (
+        np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64) for parts in (subject, road, index)
+    )
+    return MapLanes(subjects, roads_ahead, indices, reach)
+
+
+def _lane_on_map(
+    vehicles: SumoVehicles, owner: np.ndarray, seen: np.ndarray, x_m: np.ndarray, lanes: MapLanes, fallback: np.ndarray
+) -> np.ndarray:
+    """4.3.2 d, 4.5.5 b, 3.7: each object's lane from the subject's map path: on a road the path takes, its
+    lane index less the path's there (0: on the path's lane); on another road within the path's known
+    reach, :data:`OFF_PATH_LANE` (a vehicle turning off across a junction, or on a crossing, diverging
+    or parallel road, is not on the subject's path); beyond it, or for a subject without a path, ``fallback``."""
+    path_keys = (lanes.subject << _ID_BITS) | lanes.road
+    order = np.argsort(path_keys, kind="stable")
+    ordered = path_keys[order]
+    keys = (owner << _ID_BITS) | vehicles.road[seen]
+    at = np.minimum(np.searchsorted(ordered, keys), max(ordered.size - 1, 0))
+    found = ordered[at] == keys if ordered.size else np.zeros(keys.size, dtype=bool)
+    on_road = vehicles.lane_index[seen] - (lanes.lane_index[order[at]] if ordered.size else 0)
+    reach_m = lanes.reach_m[owner]
+    lane = np.where(found, on_road, np.where(x_m <= reach_m, OFF_PATH_LANE, UNKNOWN_LANE))
+    return np.where(reach_m > 0.0, lane, fallback)
 
 
 @dataclass(frozen=True)
@@ -181,7 +280,11 @@ def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) 
 
 
 def sensor_view(
-    vehicles: SumoVehicles, subjects: np.ndarray, range_m: float, path_turn_rad: np.ndarray | None = None
+    vehicles: SumoVehicles,
+    subjects: np.ndarray,
+    range_m: float,
+    path_turn_rad: np.ndarray | None = None,
+    lanes: MapLanes | None = None,
 ) -> SensorPairs:
     """The objects each subject (indices into ``vehicles``) sees ahead within ``range_m``, in its frame.
 
@@ -195,7 +298,8 @@ def sensor_view(
     subject, its own speed along the line of sight below -:data:`ONCOMING_MPS` (3.7: the target is a
     vehicle ahead, 前车; a lead on a curve, however far round, moves away along that line). The lane is the
     difference of the lane indices (+1 left) where both are on the same road, else unknown (the
-    predicted path decides). Pairs come from a grid of cells ``range_m`` plus
+    predicted path decides); with the subjects' map paths (``lanes``), the lane on the map path
+    (:func:`_lane_on_map`). Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
     """
     owner, seen = _pairs_within(vehicles, subjects, range_m)
@@ -219,6 +323,9 @@ def sensor_view(
     sight_x, sight_y, unit_x, unit_y = sight_x[keep], sight_y[keep], unit_x[keep], unit_y[keep]
     y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     same_road = vehicles.road[seen] == vehicles.road[me]
+    lane = np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE)
+    if lanes is not None:
+        lane = _lane_on_map(vehicles, owner, seen, x_m, lanes, lane)
     return SensorPairs(
         owner,
         seen,
@@ -226,7 +333,7 @@ def sensor_view(
         y_m,
         vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y),
         vehicles.accel_mps2[seen] * own_along,
-        np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE),
+        lane,
     )
 
 
@@ -313,16 +420,26 @@ class FleetFcw:
         self.measure = measure
         self.numbers = _Numbers()
         self.sizes: dict[str, tuple[float, float]] = {}
+        self.roads: dict[str, int] = {}
+        self.horizons: dict[int, Any] = {}
         self.categories: dict[str, FcwSettings] = {}
         self.memory = FleetMemory.new(0)
         self.last_heading_rad = np.zeros(0)
         self.last_time_s = -math.inf
 
-    def __call__(self, vehicle_ids: Sequence[str], categories: Sequence[str], on_lane: Sequence[bool]) -> FcwColumns:
+    def __call__(
+        self,
+        vehicle_ids: Sequence[str],
+        categories: Sequence[str],
+        on_lane: Sequence[bool],
+        paths: Sequence[Any | None] | None = None,
+    ) -> FcwColumns:
         """The warning of every equipped vehicle (``vehicle_ids``, of ``categories``), in order; a vehicle on
-        no lane is in fault (4.4.5)."""
+        no lane is in fault (4.4.5). ``paths``: each vehicle's map path ahead where it is map-matched (a
+        :class:`csws.ahead.horizon.PathAhead`, else None; the curve warning's horizon), which assigns the
+        objects' lanes (:func:`sensor_view`)."""
         now_s = float(self.sumo.simulation.getTime())
-        vehicles = read_vehicles(self.sumo, self.numbers, self.sizes)
+        vehicles = read_vehicles(self.sumo, self.numbers, self.sizes, self.roads)
         row_of = {vehicle_id: row for row, vehicle_id in enumerate(vehicles.vehicle_id)}
         rows = np.array([row_of[vehicle_id] for vehicle_id in vehicle_ids], dtype=np.int64)
         numbers = vehicles.number[rows]
@@ -338,7 +455,10 @@ class FleetFcw:
         for settings in dict.fromkeys(kinds.tolist()):
             group = np.flatnonzero(kinds == settings) if len(rows) else np.zeros(0, dtype=np.int64)
             subjects = rows[group]
-            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group])
+            lanes = None
+            if paths is not None:
+                lanes = map_lanes([paths[i] for i in group.tolist()], self.roads, settings.range_m, self.horizons)
+            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group], lanes)
             ego = FleetEgo.of(
                 vehicles.speed_mps[subjects],
                 vehicles.accel_mps2[subjects],
