@@ -14,13 +14,14 @@ avoids contact, 3.22's a_req, found by bisection on the exact smallest clearance
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from csws.cosim.fcw import OFF_PATH_LANE, MapLanes, SumoVehicles, sensor_view
+from csws.cosim.fcw import OFF_PATH_LANE, MapLanes, SumoVehicles, map_lanes, sensor_view
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.physics import MAX_COLLISION_A_REQ_MPS2, MIN_REACTION_TIME_S, FcwSettings, required_deceleration_mps2
@@ -259,3 +260,31 @@ def test_a_leader_turning_off_across_a_junction_is_not_the_target():
     # Without the map path the leader straight ahead is in the predicted path, and warned.
     level, lanes = _level(_vehicles([0, 3], [1, 0], [subject_front_m, leader_rear_m + 4.5], [15.0, 0.0]), None)
     assert level == 2
+
+
+def _path_ahead(lane_ids: list[str], lengths_m: list[float], vehicle_s: float) -> SimpleNamespace:
+    """A path ahead as the look-ahead gives it (``horizon.path`` with its lanes, ``vehicle_s``)."""
+    starts = np.concatenate(([0.0], np.cumsum(lengths_m)[:-1]))
+    path = SimpleNamespace(lane_ids=tuple(lane_ids), lane_start_s=starts, lane_shape_length_m=np.array(lengths_m))
+    return SimpleNamespace(horizon=SimpleNamespace(path=path), vehicle_s=vehicle_s)
+
+
+def test_map_lanes_are_the_path_lanes_within_the_range_of_each_subject():
+    """Each subject gets the lanes of its path that overlap [its position, its position + range], in path
+    order, as (road code, index): internal lanes ``:junction_k_index`` split at the last underscore; the
+    reach is the path's end less the position; a subject without a path gets none and reach 0."""
+    roads: dict[str, int] = {}
+    shared = _path_ahead(["a_1", ":j_3_0", "b_0", "c_2"], [120.0, 15.0, 150.0, 300.0], 100.0)
+    other = _path_ahead(["d_0", "e_1"], [50.0, 400.0], 10.0)
+    same_horizon = SimpleNamespace(horizon=shared.horizon, vehicle_s=5.0)
+    lanes = map_lanes([shared, None, other, same_horizon], roads, 200.0, {})
+    rows = list(zip(lanes.subject.tolist(), lanes.road.tolist(), lanes.lane_index.tolist(), strict=True))
+    by_subject = {k: [(road, index) for s, road, index in rows if s == k] for k in range(4)}
+    code = roads.__getitem__
+    # subject 0 at 100 m: a (0-120), :j_3 (120-135), b (135-285) reach into [100, 300]; c starts at 285 < 300.
+    assert by_subject[0] == [(code("a"), 1), (code(":j_3"), 0), (code("b"), 0), (code("c"), 2)]
+    assert by_subject[1] == []
+    assert by_subject[2] == [(code("d"), 0), (code("e"), 1)]
+    # subject 3 at 5 m on the same horizon: [5, 205] reaches a, :j_3 and b only.
+    assert by_subject[3] == [(code("a"), 1), (code(":j_3"), 0), (code("b"), 0)]
+    assert lanes.reach_m.tolist() == [585.0 - 100.0, 0.0, 450.0 - 10.0, 585.0 - 5.0]

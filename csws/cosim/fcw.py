@@ -187,27 +187,44 @@ def map_lanes(paths: Sequence[Any | None], roads: dict[str, int], range_m: float
     """The lanes each subject's path ahead (a :class:`csws.ahead.horizon.PathAhead`, or None where the
     vehicle is not map-matched) takes within ``range_m`` of its front, as :class:`MapLanes`.
 
-    ``cache`` keeps each horizon's lanes by the horizon (horizons are shared and kept by the look-ahead).
+    ``cache`` keeps each horizon's lanes by the horizon (horizons are shared and kept by the look-ahead);
+    the step's horizons are joined once and each subject's lanes cut from them in numpy.
     """
     if len(cache) > 4096:
         cache.clear()
-    subject, road, index = [], [], []
-    reach = np.zeros(len(paths))
+    slot_of: dict[int, int] = {}
+    pieces: list[_HorizonLanes] = []
+    slots = np.full(len(paths), -1, dtype=np.int64)
+    vehicle_s = np.zeros(len(paths))
     for k, path in enumerate(paths):
         if path is None:
             continue
-        lanes = cache.get(id(path.horizon))
-        if lanes is None or lanes.horizon is not path.horizon:
-            lanes = cache[id(path.horizon)] = _horizon_lanes(path.horizon, roads)
-        ahead = np.flatnonzero((lanes.end_s > path.vehicle_s) & (lanes.start_s < path.vehicle_s + range_m))
-        reach[k] = lanes.end_s[-1] - path.vehicle_s
-        subject.append(np.full(ahead.size, k, dtype=np.int64))
-        road.append(lanes.road[ahead])
-        index.append(lanes.lane_index[ahead])
-    subjects, roads_ahead, indices = (
-        np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64) for parts in (subject, road, index)
+        key = id(path.horizon)
+        slot = slot_of.get(key)
+        if slot is None:
+            lanes = cache.get(key)
+            if lanes is None or lanes.horizon is not path.horizon:
+                lanes = cache[key] = _horizon_lanes(path.horizon, roads)
+            slot = slot_of[key] = len(pieces)
+            pieces.append(lanes)
+        slots[k], vehicle_s[k] = slot, path.vehicle_s
+    reach = np.zeros(len(paths))
+    mapped = np.flatnonzero(slots >= 0)
+    if not mapped.size:
+        empty = np.zeros(0, dtype=np.int64)
+        return MapLanes(empty, empty, empty, reach)
+    road, index, start_s, end_s = (
+        np.concatenate([getattr(piece, name) for piece in pieces])
+        for name in ("road", "lane_index", "start_s", "end_s")
     )
-    return MapLanes(subjects, roads_ahead, indices, reach)
+    counts = np.array([piece.road.size for piece in pieces], dtype=np.int64)
+    first = np.cumsum(counts) - counts
+    per = counts[slots[mapped]]
+    owner = np.repeat(mapped, per)
+    row = np.repeat(first[slots[mapped]], per) + np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
+    ahead = (end_s[row] > vehicle_s[owner]) & (start_s[row] < vehicle_s[owner] + range_m)
+    reach[mapped] = end_s[first[slots[mapped]] + per - 1] - vehicle_s[mapped]
+    return MapLanes(owner[ahead], road[row[ahead]], index[row[ahead]], reach)
 
 
 def _lane_on_map(
