@@ -439,7 +439,8 @@ class FleetFcw:
         self.sizes: dict[str, tuple[float, float]] = {}
         self.roads: dict[str, int] = {}
         self.horizons: dict[int, Any] = {}
-        self.categories: dict[str, FcwSettings] = {}
+        self.categories: dict[str, int] = {}
+        self.distinct_settings: list[FcwSettings] = []
         self.memory = FleetMemory.new(0)
         self.last_heading_rad = np.zeros(0)
         self.last_time_s = -math.inf
@@ -467,10 +468,11 @@ class FleetFcw:
         kappa = yaw_path_curvature_1pm(vehicles.speed_mps[rows], np.nan_to_num(yaw_rate))
         path_turn_rad = kappa * vehicles.length_m[rows] / 2.0
         columns = FcwColumns.quiet([FCW_STATES[STANDBY].value] * len(rows))
-        kinds = np.array([self._settings(category) for category in categories], dtype=object)
+        kinds = np.array([self._settings_code(category) for category in categories], dtype=np.int64)
         keys = []
-        for settings in dict.fromkeys(kinds.tolist()):
-            group = np.flatnonzero(kinds == settings) if len(rows) else np.zeros(0, dtype=np.int64)
+        for kind in dict.fromkeys(kinds.tolist()):
+            settings = self.distinct_settings[kind]
+            group = np.flatnonzero(kinds == kind)
             subjects = rows[group]
             lanes = None
             if paths is not None:
@@ -498,17 +500,23 @@ class FleetFcw:
                 ego, objects = self.measure(ego, objects)
             frame, kept = update_fleet(settings, self._recall(numbers[group]), now_s, ego, objects)
             keys.append(self._keep(numbers[group], kept))
-            _write(columns, group, frame, [vehicles.vehicle_id[i] for i in pairs.seen.tolist()])
+            _write(columns, group, frame, vehicles.vehicle_id, pairs.seen)
         self.memory.in_path_keys = np.sort(np.concatenate([k[0] for k in keys])) if keys else np.zeros(0, np.int64)
         self.memory.cut_in_keys = np.sort(np.concatenate([k[1] for k in keys])) if keys else np.zeros(0, np.int64)
         self.last_time_s = now_s
         return columns
 
-    def _settings(self, category: str) -> FcwSettings:
-        """A category's settings, made once."""
-        if category not in self.categories:
-            self.categories[category] = self.settings_of(category)
-        return self.categories[category]
+    def _settings_code(self, category: str) -> int:
+        """A category's settings as an index into :attr:`distinct_settings`, made once (categories with
+        equal settings share one index, so one :func:`update_fleet` call)."""
+        code = self.categories.get(category)
+        if code is None:
+            settings = self.settings_of(category)
+            known = self.distinct_settings
+            code = self.categories[category] = known.index(settings) if settings in known else len(known)
+            if code == len(known):
+                known.append(settings)
+        return code
 
     def _grow(self, count: int) -> None:
         """Room in the memory for vehicle numbers below ``count`` (new ones standby, nothing held)."""
@@ -578,21 +586,28 @@ def _turn_signal(signals: np.ndarray) -> np.ndarray:
     return ((signals & BLINKER_LEFT) > 0).astype(np.int8) - ((signals & BLINKER_RIGHT) > 0).astype(np.int8)
 
 
-def _write(columns: FcwColumns, group: np.ndarray, frame: FleetFrame, seen_ids: list[str]) -> None:
-    """Write one call's answers into ``columns`` at the group's rows: state, level, target and its figures."""
-    for j, row in enumerate(group.tolist()):
-        columns.state[row] = FCW_STATES[int(frame.state[j])].value
-        columns.level[row] = int(frame.level[j])
-        target = int(frame.target[j])
-        if target < 0:
-            continue
-        ttc = float(frame.ttc_s[j])
-        columns.target_id[row] = seen_ids[target]
-        columns.range_m[row], columns.range_rate_mps[row] = (
-            float(frame.clearance_m[j]),
-            float(frame.relative_speed_mps[j]),
-        )
-        columns.ttc_s[row] = ttc if math.isfinite(ttc) else None
+def _write(columns: FcwColumns, group: np.ndarray, frame: FleetFrame, vehicle_ids: list[str], seen: np.ndarray) -> None:
+    """Write one call's answers into ``columns`` at the group's rows: state, level, target and its figures
+    (``seen``: each object's row in ``vehicle_ids``)."""
+    rows = group.tolist()
+    state_names = [state.value for state in FCW_STATES]
+    for row, state, level in zip(rows, frame.state.tolist(), frame.level.tolist(), strict=True):
+        columns.state[row], columns.level[row] = state_names[state], level
+    has = np.flatnonzero(frame.target >= 0)
+    targets = seen[frame.target[has]].tolist()
+    figures = zip(
+        has.tolist(),
+        targets,
+        frame.clearance_m[has].tolist(),
+        frame.relative_speed_mps[has].tolist(),
+        frame.ttc_s[has].tolist(),
+        strict=True,
+    )
+    for j, target, range_m, range_rate_mps, ttc_s in figures:
+        row = rows[j]
+        columns.target_id[row] = vehicle_ids[target]
+        columns.range_m[row], columns.range_rate_mps[row] = range_m, range_rate_mps
+        columns.ttc_s[row] = ttc_s if math.isfinite(ttc_s) else None
 
 
 def fcw_events(fcw: FcwColumns, levels: dict[str, int], summary: Summary, step: StepValues) -> list[tuple[Any, ...]]:
