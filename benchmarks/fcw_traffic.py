@@ -6,6 +6,9 @@ covered class: Bad Hersfeld (``networks/badhersfeld.sumocfg``: a town's streets,
 queues at stop lines, curves) and the fleet road (``networks/fleet_scenario/``: several lanes,
 lane changes, mixed cars, buses and trucks).
 
+Each vehicle's map path ahead (the curve warning's horizon on its lane and route, as ``csws cosim``
+passes it) assigns the objects' lanes where the vehicle is map-matched.
+
 The truth each step is SUMO's own: each vehicle's leader along its lanes (``getLeader``: the gap
 plus ``minGap`` is the clearance) and the true TTC to it, and SUMO's collisions. Counted:
 
@@ -19,7 +22,7 @@ plus ``minGap`` is the clearance) and the true TTC to it, and SUMO's collisions.
   :data:`REACTION_S` (4.5.4's least reaction time) before it, within :data:`FOLLOW_S` (target 0).
   Conflicts below V_min, where the system is in standby, are counted apart.
 
-Run with ``python -m benchmarks.fcw_traffic``; about 1-2 minutes.
+Run with ``python -m benchmarks.fcw_traffic``; about 1-5 minutes.
 """
 
 from __future__ import annotations

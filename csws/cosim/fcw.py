@@ -13,6 +13,9 @@ on a grid of cells a range wide, sorted once per step: each equipped vehicle loo
 
 The subject's yaw rate is its angle's change over the step (SUMO's angle is its body's heading,
 clockwise from north); the brake light is the driver braking (4.5.4), the blinkers the turn signal.
+Where a vehicle is map-matched, its path ahead (the curve warning's horizon, :mod:`csws.ahead`)
+assigns the objects' lanes (4.3.2 d: :func:`map_lanes`): a vehicle on a road the path does not take
+is not in the path.
 """
 
 from __future__ import annotations

@@ -20,7 +20,8 @@ positive forward):
   (:func:`required_deceleration_mps2`). For a steady lead (a_TV = a_SV) that is the standard's
   x_r = -v_r T, which formula (5) writes as 0.8 v_r; for a lead that brakes during the reaction
   it is what a driver who reacts T after the warning and then brakes at a_req needs to just
-  avoid it.
+  avoid it. Given the subject's speed, where the target stops before the speeds meet, a_req is
+  3.22's value for the stopped target (stopping at its stopping point), never above formula (4).
 
 Where GB/T 33577 and the Russian text of ISO 15623 differ, this module follows GB/T 33577:
 the factor 2 under the root of (3) and x_c - x_r in (4) (docs/fcw.md).
@@ -34,9 +35,9 @@ so the defaults are a commercial vehicle's: T_resp 1.2 s and 0.5 g, the mean har
 commercial vehicles in Annex A (5.3 m/s^2) rounded down. No warning (4.5.5) while the subject
 vehicle already decelerates at the collision threshold or more, or (4.5.5 e) only while no
 measure shows a threat: TTC and ETTC above :attr:`FcwSettings.max_ttc_s` and a_req below the
-preliminary threshold (:func:`warning_level`); while the driver brakes, T_resp and T_b are 0
-(4.5.4). :func:`evaluate_fcw` keeps, for its callers, the older rule that TTC above the limit
-alone suppresses.
+preliminary threshold (:func:`warning_level`), and the preliminary warning above a TTC of
+4 s; while the driver brakes, T_resp and T_b are 0 (4.5.4). :func:`evaluate_fcw` keeps, for
+its callers, the older rule that TTC above the limit alone suppresses.
 
 Every formula takes Python floats or numpy arrays and gives the same value to the bit either way
 (:mod:`csws.fcw.numeric`), so one vehicle's warning (:mod:`csws.fcw.tracker`) runs on floats.
