@@ -324,9 +324,18 @@ def sensor_view(
     """
     owner, seen = _pairs_within(vehicles, subjects, range_m)
     me = subjects[owner]
-    heading = vehicles.heading_rad[me] - (0.0 if path_turn_rad is None else path_turn_rad[owner])
-    ahead_x, ahead_y = np.sin(heading), np.cos(heading)
-    own_x, own_y = np.sin(vehicles.heading_rad[seen]), np.cos(vehicles.heading_rad[seen])
+    heading = vehicles.heading_rad[subjects] - (0.0 if path_turn_rad is None else path_turn_rad)
+    ahead_x, ahead_y = np.sin(heading)[owner], np.cos(heading)[owner]
+    # The fronts first: a rear ahead (x >= 0) within the range has its front at most a vehicle's length
+    # farther and at most a length behind the subject's front, so the rest is computed for those only.
+    front_x = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
+    front_y = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
+    near = np.flatnonzero(
+        (front_x * front_x + front_y * front_y <= (range_m + LONGEST_VEHICLE_M) ** 2)
+        & (front_x * ahead_x + front_y * ahead_y >= -LONGEST_VEHICLE_M)
+    )
+    owner, me, seen, ahead_x, ahead_y = owner[near], me[near], seen[near], ahead_x[near], ahead_y[near]
+    own_x, own_y = np.sin(vehicles.heading_rad)[seen], np.cos(vehicles.heading_rad)[seen]
     back = vehicles.length_m[seen]
     sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
     sight_y = vehicles.front_y_m[seen] - back * own_y - vehicles.front_y_m[me]
