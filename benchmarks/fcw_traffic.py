@@ -6,6 +6,9 @@ covered class: Bad Hersfeld (``networks/badhersfeld.sumocfg``: a town's streets,
 queues at stop lines, curves) and the fleet road (``networks/fleet_scenario/``: several lanes,
 lane changes, mixed cars, buses and trucks).
 
+Each vehicle's map path ahead (the curve warning's horizon on its lane and route, as ``csws cosim``
+passes it) assigns the objects' lanes where the vehicle is map-matched.
+
 The truth each step is SUMO's own: each vehicle's leader along its lanes (``getLeader``: the gap
 plus ``minGap`` is the clearance) and the true TTC to it, and SUMO's collisions. Counted:
 
@@ -19,7 +22,7 @@ plus ``minGap`` is the clearance) and the true TTC to it, and SUMO's collisions.
   :data:`REACTION_S` (4.5.4's least reaction time) before it, within :data:`FOLLOW_S` (target 0).
   Conflicts below V_min, where the system is in standby, are counted apart.
 
-Run with ``python -m benchmarks.fcw_traffic``; about 1-2 minutes.
+Run with ``python -m benchmarks.fcw_traffic``; about 1-5 minutes.
 """
 
 from __future__ import annotations
@@ -31,9 +34,15 @@ from collections import Counter
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import numpy as np
+
+from csws.ahead.horizon import PathAhead
+from csws.ahead.lookahead import LookAhead
 from csws.cosim.categories import category_of
+from csws.cosim.config import _config_scenario
 from csws.cosim.fcw import FleetFcw
 from csws.networks import networks_dir
+from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home
 
 STEP_S = 0.1
@@ -137,10 +146,36 @@ def _equipped(sumo: Any, watch: _Watch) -> list[str]:
     return ids
 
 
-def _run_scenario(config: Any) -> _Counts:
-    """One scenario whole: the FCW of every equipped vehicle against SUMO's truth."""
+def _paths_ahead(sumo: Any, lookahead: LookAhead, ids: list[str], routes: dict[str, tuple[str, ...]]) -> list:
+    """Each vehicle's map path ahead (the curve warning's horizon on its lane and route), None off the map."""
+    vehicle = sumo.vehicle
+    lanes = [vehicle.getLaneID(v) for v in ids]
+    on_map = [i for i, lane in enumerate(lanes) if lane and lookahead.road_map.has_lane(lane)]
+    paths: list[PathAhead | None] = [None] * len(ids)
+    if not on_map:
+        return paths
+    for i in on_map:
+        road = vehicle.getRoadID(ids[i])
+        if ids[i] not in routes or not (road.startswith(":") or road in routes[ids[i]]):
+            routes[ids[i]] = tuple(vehicle.getRoute(ids[i]))
+    ahead = lookahead.many(
+        [lanes[i] for i in on_map],
+        np.array([vehicle.getLanePosition(ids[i]) for i in on_map]),
+        np.array([vehicle.getSpeed(ids[i]) * 3.6 for i in on_map]),
+        [routes[ids[i]] for i in on_map],
+    )
+    for i, path in zip(on_map, ahead.paths_ahead(), strict=True):
+        paths[i] = path
+    return paths
+
+
+def _run_scenario(config: Any, use_map: bool = True) -> _Counts:
+    """One scenario whole: the FCW of every equipped vehicle against SUMO's truth (with each vehicle's
+    map path ahead where it is map-matched, as the co-simulation gives it, unless ``use_map`` is False)."""
     import libsumo
 
+    lookahead = LookAhead(RoadMap.load(_config_scenario(config).net)) if use_map else None
+    routes: dict[str, tuple[str, ...]] = {}
     libsumo.start(
         [str(sumo_binary("sumo")), "-c", str(config), "--step-length", f"{STEP_S:g}", "--no-warnings", "true"]
         + ["--no-step-log", "true", "--duration-log.disable", "true", "--seed", "0"]
@@ -153,7 +188,8 @@ def _run_scenario(config: Any) -> _Counts:
             now_s = libsumo.simulation.getTime()
             fcw.forget(libsumo.simulation.getArrivedIDList())
             ids = _equipped(libsumo, watch)
-            columns = fcw(ids, [watch.categories[v] or "" for v in ids], [True] * len(ids))
+            paths = _paths_ahead(libsumo, lookahead, ids, routes) if lookahead is not None else None
+            columns = fcw(ids, [watch.categories[v] or "" for v in ids], [True] * len(ids), paths)
             collided = set(libsumo.simulation.getCollidingVehiclesIDList())
             watch.counts.collisions += len(collided & set(ids))
             watch.counts.vehicle_hours += len(ids) * STEP_S / 3600.0

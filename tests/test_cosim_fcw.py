@@ -162,18 +162,21 @@ def test_fcw_warnings_are_recorded_beside_the_curve_warning(approach):
         assert range_m == pytest.approx(_true_clearance_m(event), abs=1e-6)
         assert float(event["fcw_ttc_s"]) == pytest.approx(range_m / -float(event["fcw_range_rate_mps"]), rel=1e-9)
     # At constant speed toward a stopped lead, a_req = v^2 / (2 (x_c - v T_resp)) (formula (4)) and
-    # TTC = x_c / v (formula (2)): each level comes on in the first step in which a_req reaches its
-    # threshold (4.5.5 e suppresses only where no measure shows a threat, and a_req at the
-    # preliminary threshold does, at a TTC above 4 s too).
+    # TTC = x_c / v (formula (2)): the collision warning comes on in the first step in which a_req
+    # reaches its threshold, the preliminary one in the first in which a_req reaches its threshold
+    # at a TTC of at most 4 s (4.5.5 e suppresses the preliminary warning above it).
     rows = _subject(timeseries)
-    for event, threshold in zip(
-        events[:2], (settings.preliminary_a_req_mps2, settings.collision_a_req_mps2), strict=False
+    for event, threshold, ttc_limit_s in zip(
+        events[:2],
+        (settings.preliminary_a_req_mps2, settings.collision_a_req_mps2),
+        (settings.max_ttc_s, math.inf),
+        strict=False,
     ):
         step = next(i for i, row in enumerate(rows) if row["time_s"] == event["time_s"])
         for row, reached in ((rows[step], True), (rows[step - 1], False)):
             clearance_m = _true_clearance_m(row)
             a_req = SPEED_MPS**2 / (2.0 * (clearance_m - SPEED_MPS * settings.reaction_time_s))
-            assert (a_req >= threshold) is reached
+            assert (a_req >= threshold and clearance_m / SPEED_MPS <= ttc_limit_s) is reached
 
 
 def test_the_driver_brakes_on_the_fcw_warning_and_stops_short_of_the_lead(approach):

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_fcw_traffic import least_deceleration_mps2
 
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.path import PathCurvature, straight_beam_range_m
@@ -267,18 +268,27 @@ def test_the_state_follows_figure_2_with_its_delta():
 
 
 def _required_by_thresholds(
-    settings: FcwSettings, x_m: float, v_r: float, a_tv: float, a_sv: float, braking: bool
+    settings: FcwSettings, x_m: float, v_r: float, a_tv: float, a_sv: float, braking: bool, v_sv: float
 ) -> int:
-    """The level formula (4) requires, computed here at the end of the reaction T with both accelerations
-    held through it (3.22): a_req = d_TV + v_r'^2 / (2 x_c'), x_c' and v_r' the clearance and the closing
-    speed then (T cut where the vehicles stop closing first)."""
+    """The level the thresholds require, a_req computed here: for a lead moving forward, 3.22's least
+    avoiding deceleration by exact kinematics (:func:`test_fcw_traffic.least_deceleration_mps2`);
+    for an object coming toward the subject, formula (4) at the end of the reaction T with both
+    accelerations held through it: a_req = d_TV + v_r'^2 / (2 x_c'), x_c' and v_r' the clearance and the
+    closing speed then (T cut where the vehicles stop closing first). The preliminary level only at a
+    TTC of at most ``max_ttc_s`` (4.5.5 e); a_req just at a threshold (within 1e-6) is left out."""
     lost = 0.0 if braking else settings.reaction_time_s + settings.brake_response_s
-    a_rel = a_tv - a_sv
-    reaction = -v_r / a_rel if v_r < 0.0 < a_rel and -v_r < a_rel * lost else lost
-    left = x_m + v_r * reaction + a_rel * reaction**2 / 2.0
-    closing = min(v_r + a_rel * reaction, 0.0)
-    a_req = math.inf if left <= 0.0 else -a_tv + closing**2 / (2.0 * left)
-    return 2 if a_req >= settings.collision_a_req_mps2 else 1 if a_req >= settings.preliminary_a_req_mps2 else 0
+    if v_sv + v_r >= 0.0:
+        a_req = least_deceleration_mps2(x_m, v_sv, v_sv + v_r, a_sv, a_tv, lost) - 1e-6
+    else:
+        a_rel = a_tv - a_sv
+        reaction = -v_r / a_rel if v_r < 0.0 < a_rel and -v_r < a_rel * lost else lost
+        left = x_m + v_r * reaction + a_rel * reaction**2 / 2.0
+        closing = min(v_r + a_rel * reaction, 0.0)
+        a_req = math.inf if left <= 0.0 else -a_tv + closing**2 / (2.0 * left)
+    ttc_s = x_m / -v_r if v_r < 0.0 else math.inf
+    if a_req >= settings.collision_a_req_mps2:
+        return 2
+    return 1 if a_req >= settings.preliminary_a_req_mps2 and ttc_s <= settings.max_ttc_s else 0
 
 
 OBJECT = st.tuples(st.floats(0.5, 150.0), st.floats(-40.0, 10.0), st.floats(-8.0, 3.0))
@@ -292,7 +302,8 @@ OBJECT = st.tuples(st.floats(0.5, 150.0), st.floats(-40.0, 10.0), st.floats(-8.0
 def test_no_frame_shows_a_lower_level_than_its_thresholds_require(frames, step_s):
     """Over random frames (any TTC, ETTC, a_req; the ego decelerating below the collision
     threshold), the level shown is at least what the most demanding object requires, by a_req
-    computed here; TTC above 4 s never lowers it (4.5.5 e only where no measure shows a threat)."""
+    computed here; TTC above 4 s never lowers the collision warning (4.5.5 e only where no measure shows
+    a threat)."""
     settings_ = FcwSettings()
     fcw = ForwardCollisionWarning(settings_)
     for k, (objects, a_sv, braking) in enumerate(frames):
@@ -300,7 +311,8 @@ def test_no_frame_shows_a_lower_level_than_its_thresholds_require(frames, step_s
         frame = fcw.update(k * step_s, EgoMotion(20.0, a_sv, braking=braking), sensed)
         # Objects faster than the ego that entered the path are cut-ins (4.5.5 c), never warned.
         needed = max(
-            (_required_by_thresholds(settings_, x, v, a, a_sv, braking) for x, v, a in objects if v <= 0.0), default=0
+            (_required_by_thresholds(settings_, x, v, a, a_sv, braking, 20.0) for x, v, a in objects if v <= 0.0),
+            default=0,
         )
         assert frame.level >= needed >= 0
         assert frame.level >= frame.required_level

@@ -169,9 +169,11 @@ def test_the_target_is_the_most_demanding_object_in_the_path(client):
     braking_lead = {"id": 3, "x_m": 45.0, "y_m": 0.3, "relative_speed_mps": -2.0, "accel_mps2": -6.0}
     objects = [beside, ahead_far, braking_lead]
     fcw = client.post("/v1/warning", json=_query("pick", objects=objects)).json()["fcw"]
-    # Formula (4) at the end of the 1.2 s reaction: the braking lead closes 2 m/s + 6 m/s^2 x 1.2 s = 9.2 m/s
-    # by then, and the clearance is 45 m less 2 x 1.2 + 6 x 1.2^2 / 2 = 6.72 m.
-    a_req = {2: speed_mps**2 / (2.0 * (90.0 - 1.2 * speed_mps)), 3: 6.0 + 9.2**2 / (2.0 * (45.0 - 6.72))}
+    # 3.22: the braking lead (18 m/s at 6 m/s^2) stops 27 m on, 72 m ahead, before the speeds could meet; the
+    # subject, 24 m on after the 1.2 s reaction, must stop in the 48 m left (formula (4), d_TV held for ever,
+    # would ask 6 + 9.2^2 / (2 (45 - 6.72)) = 7.1 m/s^2).
+    lead_stop_m = 45.0 + 18.0**2 / (2.0 * 6.0)
+    a_req = {2: speed_mps**2 / (2.0 * (90.0 - 1.2 * speed_mps)), 3: speed_mps**2 / (2.0 * (lead_stop_m - 24.0))}
     assert fcw["target_id"] == max(a_req, key=a_req.__getitem__) == 3
     assert fcw["a_req_mps2"] == pytest.approx(a_req[3])
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Protocol, TypedDict
 from urllib.parse import urlsplit
 
+from csws.ahead.horizon import PathAhead
 from csws.engine import Engine, TargetColumns
 from csws.errors import CswsError
 from csws.standard import mps_to_kmh
@@ -95,6 +96,8 @@ class LibraryEvaluator:
 
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
+        #: Each vehicle's path ahead of the last step (None where not active on the map), for the FCW.
+        self.paths_ahead: list[PathAhead | None] = []
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
         answers = self.engine.evaluate_fleet(
@@ -106,6 +109,10 @@ class LibraryEvaluator:
             fleet.route_edges,
             timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
         )
+        self.paths_ahead = [None] * len(fleet.vehicle_id)
+        if answers.ahead is not None:
+            for i, path in zip(answers.active, answers.ahead.paths_ahead(), strict=False):
+                self.paths_ahead[i] = path
         return FleetWarnings(answers.state, answers.level, answers.targets(), answers.entries())
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:

@@ -13,6 +13,9 @@ on a grid of cells a range wide, sorted once per step: each equipped vehicle loo
 
 The subject's yaw rate is its angle's change over the step (SUMO's angle is its body's heading,
 clockwise from north); the brake light is the driver braking (4.5.4), the blinkers the turn signal.
+Where a vehicle is map-matched, its path ahead (the curve warning's horizon, :mod:`csws.ahead`)
+assigns the objects' lanes (4.3.2 d: :func:`map_lanes`): a vehicle on a road the path does not take
+is not in the path.
 """
 
 from __future__ import annotations
@@ -36,6 +39,9 @@ __all__ = [
     "BRAKE_LIGHT",
     "SumoVehicles",
     "read_vehicles",
+    "OFF_PATH_LANE",
+    "MapLanes",
+    "map_lanes",
     "SensorPairs",
     "sensor_view",
     "Measure",
@@ -52,6 +58,8 @@ BLINKER_RIGHT, BLINKER_LEFT, BRAKE_LIGHT = 1, 2, 8
 LONGEST_VEHICLE_M = 30.0
 #: An object whose own speed along the line of sight is below minus this comes toward the subject (3.7: no target), m/s.
 ONCOMING_MPS = 1.0
+#: The lane column's value of an object on a road the subject's map path does not take (never in the path).
+OFF_PATH_LANE = 127
 #: A key's lower 32 bits hold the object id (:func:`csws.fcw.fleet.update_fleet` keys objects by vehicle and id).
 _ID_BITS = 32
 MAX_ID_MASK = (1 << _ID_BITS) - 1
@@ -103,16 +111,19 @@ class _Numbers(dict[str, int]):
         return number
 
 
-def read_vehicles(sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[float, float]]) -> SumoVehicles:
+def read_vehicles(
+    sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[float, float]], roads: dict[str, int] | None = None
+) -> SumoVehicles:
     """Every SUMO vehicle's values of this step, one getter call per vehicle and value (lengths and
-    widths read once per vehicle into ``sizes``; ``numbers`` gives each id its number)."""
+    widths read once per vehicle into ``sizes``; ``numbers`` gives each id its number, ``roads`` each
+    road id its code, kept from step to step where given)."""
     vehicle = sumo.vehicle
     ids = list(vehicle.getIDList())
     for vehicle_id in ids:
         if vehicle_id not in sizes:
             sizes[vehicle_id] = (vehicle.getLength(vehicle_id), vehicle.getWidth(vehicle_id))
     position = np.array([vehicle.getPosition(v) for v in ids], dtype=float).reshape(len(ids), 2)
-    roads: dict[str, int] = {}
+    roads = {} if roads is None else roads
     size = np.array([sizes[v] for v in ids], dtype=float).reshape(len(ids), 2)
     return SumoVehicles(
         ids,
@@ -128,6 +139,114 @@ def read_vehicles(sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[flo
         np.array([vehicle.getLaneIndex(v) for v in ids], dtype=np.int64),
         np.array([vehicle.getSignals(v) for v in ids], dtype=np.int64),
     )
+
+
+@dataclass(frozen=True)
+class MapLanes:
+    """The lanes of the subjects' map paths ahead (the curve warning's horizon, :mod:`csws.ahead`), flat.
+
+    Attributes
+    ----------
+    subject
+        The subject of each lane (an index into the subjects given to :func:`sensor_view`), in path order.
+    road, lane_index
+        The lane's road code (as :func:`read_vehicles` codes roads) and its index on that road.
+    reach_m
+        ``(subjects,)`` how far ahead of each subject's front its path is known, m (0: no path, not map-matched).
+    """
+
+    subject: np.ndarray
+    road: np.ndarray
+    lane_index: np.ndarray
+    reach_m: np.ndarray
+
+
+@dataclass(frozen=True)
+class _HorizonLanes:
+    """One horizon's lanes as codes with the stretch of the path each covers (kept while the horizon is)."""
+
+    horizon: Any
+    road: np.ndarray
+    lane_index: np.ndarray
+    start_s: np.ndarray
+    end_s: np.ndarray
+
+
+def _horizon_lanes(horizon: Any, roads: dict[str, int]) -> _HorizonLanes:
+    """A horizon's lanes (``edge_index``, internal via lanes ``:junction_k_index`` too) as road codes and indices."""
+    path = horizon.path
+    edges, indices = zip(*(lane_id.rsplit("_", 1) for lane_id in path.lane_ids), strict=True)
+    start = np.asarray(path.lane_start_s, dtype=float)
+    return _HorizonLanes(
+        horizon,
+        np.array([roads.setdefault(edge, len(roads)) for edge in edges], dtype=np.int64),
+        np.array([int(index) for index in indices], dtype=np.int64),
+        start,
+        start + np.asarray(path.lane_shape_length_m, dtype=float),
+    )
+
+
+def map_lanes(paths: Sequence[Any | None], roads: dict[str, int], range_m: float, cache: dict[int, Any]) -> MapLanes:
+    """The lanes each subject's path ahead (a :class:`csws.ahead.horizon.PathAhead`, or None where the
+    vehicle is not map-matched) takes within ``range_m`` of its front, as :class:`MapLanes`.
+
+    ``cache`` keeps each horizon's lanes by the horizon (horizons are shared and kept by the look-ahead);
+    the step's horizons are joined once and each subject's lanes cut from them in numpy.
+    """
+    if len(cache) > 4096:
+        cache.clear()
+    slot_of: dict[int, int] = {}
+    pieces: list[_HorizonLanes] = []
+    slots = np.full(len(paths), -1, dtype=np.int64)
+    vehicle_s = np.zeros(len(paths))
+    for k, path in enumerate(paths):
+        if path is None:
+            continue
+        key = id(path.horizon)
+        slot = slot_of.get(key)
+        if slot is None:
+            lanes = cache.get(key)
+            if lanes is None or lanes.horizon is not path.horizon:
+                lanes = cache[key] = _horizon_lanes(path.horizon, roads)
+            slot = slot_of[key] = len(pieces)
+            pieces.append(lanes)
+        slots[k], vehicle_s[k] = slot, path.vehicle_s
+    reach = np.zeros(len(paths))
+    mapped = np.flatnonzero(slots >= 0)
+    if not mapped.size:
+        empty = np.zeros(0, dtype=np.int64)
+        return MapLanes(empty, empty, empty, reach)
+    road, index, start_s, end_s = (
+        np.concatenate([getattr(piece, name) for piece in pieces])
+        for name in ("road", "lane_index", "start_s", "end_s")
+    )
+    counts = np.array([piece.road.size for piece in pieces], dtype=np.int64)
+    first = np.cumsum(counts) - counts
+    per = counts[slots[mapped]]
+    owner = np.repeat(mapped, per)
+    row = np.repeat(first[slots[mapped]], per) + np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
+    ahead = (end_s[row] > vehicle_s[owner]) & (start_s[row] < vehicle_s[owner] + range_m)
+    reach[mapped] = end_s[first[slots[mapped]] + per - 1] - vehicle_s[mapped]
+    return MapLanes(owner[ahead], road[row[ahead]], index[row[ahead]], reach)
+
+
+def _lane_on_map(
+    vehicles: SumoVehicles, owner: np.ndarray, seen: np.ndarray, x_m: np.ndarray, lanes: MapLanes, fallback: np.ndarray
+) -> np.ndarray:
+    """4.3.2 d, 4.5.5 b, 3.7: each object's lane from the subject's map path: on a road the path takes, its
+    lane index less the path's there (0: on the path's lane); on another road within the path's known
+    reach, :data:`OFF_PATH_LANE` (a vehicle turning off across a junction, or on a crossing, diverging
+    or parallel road, is not on the subject's path); beyond it, or for a subject without a path, ``fallback``."""
+    path_keys = (lanes.subject << _ID_BITS) | lanes.road
+    order = np.argsort(path_keys, kind="stable")
+    ordered = path_keys[order]
+    keys = (owner << _ID_BITS) | vehicles.road[seen]
+    at = np.minimum(np.searchsorted(ordered, keys), max(ordered.size - 1, 0))
+    found = ordered[at] == keys if ordered.size else np.zeros(keys.size, dtype=bool)
+    on_road = vehicles.lane_index[seen] - (lanes.lane_index[order[at]] if ordered.size else 0)
+    reach_m = lanes.reach_m[owner]
+    lane = np.where(found, on_road, np.where(x_m <= reach_m, OFF_PATH_LANE, UNKNOWN_LANE))
+    return np.where(reach_m > 0.0, lane, fallback)
 
 
 @dataclass(frozen=True)
@@ -181,7 +300,11 @@ def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) 
 
 
 def sensor_view(
-    vehicles: SumoVehicles, subjects: np.ndarray, range_m: float, path_turn_rad: np.ndarray | None = None
+    vehicles: SumoVehicles,
+    subjects: np.ndarray,
+    range_m: float,
+    path_turn_rad: np.ndarray | None = None,
+    lanes: MapLanes | None = None,
 ) -> SensorPairs:
     """The objects each subject (indices into ``vehicles``) sees ahead within ``range_m``, in its frame.
 
@@ -195,14 +318,24 @@ def sensor_view(
     subject, its own speed along the line of sight below -:data:`ONCOMING_MPS` (3.7: the target is a
     vehicle ahead, 前车; a lead on a curve, however far round, moves away along that line). The lane is the
     difference of the lane indices (+1 left) where both are on the same road, else unknown (the
-    predicted path decides). Pairs come from a grid of cells ``range_m`` plus
+    predicted path decides); with the subjects' map paths (``lanes``), the lane on the map path
+    (:func:`_lane_on_map`). Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
     """
     owner, seen = _pairs_within(vehicles, subjects, range_m)
     me = subjects[owner]
-    heading = vehicles.heading_rad[me] - (0.0 if path_turn_rad is None else path_turn_rad[owner])
-    ahead_x, ahead_y = np.sin(heading), np.cos(heading)
-    own_x, own_y = np.sin(vehicles.heading_rad[seen]), np.cos(vehicles.heading_rad[seen])
+    heading = vehicles.heading_rad[subjects] - (0.0 if path_turn_rad is None else path_turn_rad)
+    ahead_x, ahead_y = np.sin(heading)[owner], np.cos(heading)[owner]
+    # The fronts first: a rear ahead (x >= 0) within the range has its front at most a vehicle's length
+    # farther and at most a length behind the subject's front, so the rest is computed for those only.
+    front_x = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
+    front_y = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
+    near = np.flatnonzero(
+        (front_x * front_x + front_y * front_y <= (range_m + LONGEST_VEHICLE_M) ** 2)
+        & (front_x * ahead_x + front_y * ahead_y >= -LONGEST_VEHICLE_M)
+    )
+    owner, me, seen, ahead_x, ahead_y = owner[near], me[near], seen[near], ahead_x[near], ahead_y[near]
+    own_x, own_y = np.sin(vehicles.heading_rad)[seen], np.cos(vehicles.heading_rad)[seen]
     back = vehicles.length_m[seen]
     sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
     sight_y = vehicles.front_y_m[seen] - back * own_y - vehicles.front_y_m[me]
@@ -219,6 +352,9 @@ def sensor_view(
     sight_x, sight_y, unit_x, unit_y = sight_x[keep], sight_y[keep], unit_x[keep], unit_y[keep]
     y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     same_road = vehicles.road[seen] == vehicles.road[me]
+    lane = np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE)
+    if lanes is not None:
+        lane = _lane_on_map(vehicles, owner, seen, x_m, lanes, lane)
     return SensorPairs(
         owner,
         seen,
@@ -226,7 +362,7 @@ def sensor_view(
         y_m,
         vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y),
         vehicles.accel_mps2[seen] * own_along,
-        np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE),
+        lane,
     )
 
 
@@ -313,16 +449,27 @@ class FleetFcw:
         self.measure = measure
         self.numbers = _Numbers()
         self.sizes: dict[str, tuple[float, float]] = {}
-        self.categories: dict[str, FcwSettings] = {}
+        self.roads: dict[str, int] = {}
+        self.horizons: dict[int, Any] = {}
+        self.categories: dict[str, int] = {}
+        self.distinct_settings: list[FcwSettings] = []
         self.memory = FleetMemory.new(0)
         self.last_heading_rad = np.zeros(0)
         self.last_time_s = -math.inf
 
-    def __call__(self, vehicle_ids: Sequence[str], categories: Sequence[str], on_lane: Sequence[bool]) -> FcwColumns:
+    def __call__(
+        self,
+        vehicle_ids: Sequence[str],
+        categories: Sequence[str],
+        on_lane: Sequence[bool],
+        paths: Sequence[Any | None] | None = None,
+    ) -> FcwColumns:
         """The warning of every equipped vehicle (``vehicle_ids``, of ``categories``), in order; a vehicle on
-        no lane is in fault (4.4.5)."""
+        no lane is in fault (4.4.5). ``paths``: each vehicle's map path ahead where it is map-matched (a
+        :class:`csws.ahead.horizon.PathAhead`, else None; the curve warning's horizon), which assigns the
+        objects' lanes (:func:`sensor_view`)."""
         now_s = float(self.sumo.simulation.getTime())
-        vehicles = read_vehicles(self.sumo, self.numbers, self.sizes)
+        vehicles = read_vehicles(self.sumo, self.numbers, self.sizes, self.roads)
         row_of = {vehicle_id: row for row, vehicle_id in enumerate(vehicles.vehicle_id)}
         rows = np.array([row_of[vehicle_id] for vehicle_id in vehicle_ids], dtype=np.int64)
         numbers = vehicles.number[rows]
@@ -333,12 +480,16 @@ class FleetFcw:
         kappa = yaw_path_curvature_1pm(vehicles.speed_mps[rows], np.nan_to_num(yaw_rate))
         path_turn_rad = kappa * vehicles.length_m[rows] / 2.0
         columns = FcwColumns.quiet([FCW_STATES[STANDBY].value] * len(rows))
-        kinds = np.array([self._settings(category) for category in categories], dtype=object)
+        kinds = np.array([self._settings_code(category) for category in categories], dtype=np.int64)
         keys = []
-        for settings in dict.fromkeys(kinds.tolist()):
-            group = np.flatnonzero(kinds == settings) if len(rows) else np.zeros(0, dtype=np.int64)
+        for kind in dict.fromkeys(kinds.tolist()):
+            settings = self.distinct_settings[kind]
+            group = np.flatnonzero(kinds == kind)
             subjects = rows[group]
-            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group])
+            lanes = None
+            if paths is not None:
+                lanes = map_lanes([paths[i] for i in group.tolist()], self.roads, settings.range_m, self.horizons)
+            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group], lanes)
             ego = FleetEgo.of(
                 vehicles.speed_mps[subjects],
                 vehicles.accel_mps2[subjects],
@@ -361,17 +512,23 @@ class FleetFcw:
                 ego, objects = self.measure(ego, objects)
             frame, kept = update_fleet(settings, self._recall(numbers[group]), now_s, ego, objects)
             keys.append(self._keep(numbers[group], kept))
-            _write(columns, group, frame, [vehicles.vehicle_id[i] for i in pairs.seen.tolist()])
+            _write(columns, group, frame, vehicles.vehicle_id, pairs.seen)
         self.memory.in_path_keys = np.sort(np.concatenate([k[0] for k in keys])) if keys else np.zeros(0, np.int64)
         self.memory.cut_in_keys = np.sort(np.concatenate([k[1] for k in keys])) if keys else np.zeros(0, np.int64)
         self.last_time_s = now_s
         return columns
 
-    def _settings(self, category: str) -> FcwSettings:
-        """A category's settings, made once."""
-        if category not in self.categories:
-            self.categories[category] = self.settings_of(category)
-        return self.categories[category]
+    def _settings_code(self, category: str) -> int:
+        """A category's settings as an index into :attr:`distinct_settings`, made once (categories with
+        equal settings share one index, so one :func:`update_fleet` call)."""
+        code = self.categories.get(category)
+        if code is None:
+            settings = self.settings_of(category)
+            known = self.distinct_settings
+            code = self.categories[category] = known.index(settings) if settings in known else len(known)
+            if code == len(known):
+                known.append(settings)
+        return code
 
     def _grow(self, count: int) -> None:
         """Room in the memory for vehicle numbers below ``count`` (new ones standby, nothing held)."""
@@ -441,21 +598,28 @@ def _turn_signal(signals: np.ndarray) -> np.ndarray:
     return ((signals & BLINKER_LEFT) > 0).astype(np.int8) - ((signals & BLINKER_RIGHT) > 0).astype(np.int8)
 
 
-def _write(columns: FcwColumns, group: np.ndarray, frame: FleetFrame, seen_ids: list[str]) -> None:
-    """Write one call's answers into ``columns`` at the group's rows: state, level, target and its figures."""
-    for j, row in enumerate(group.tolist()):
-        columns.state[row] = FCW_STATES[int(frame.state[j])].value
-        columns.level[row] = int(frame.level[j])
-        target = int(frame.target[j])
-        if target < 0:
-            continue
-        ttc = float(frame.ttc_s[j])
-        columns.target_id[row] = seen_ids[target]
-        columns.range_m[row], columns.range_rate_mps[row] = (
-            float(frame.clearance_m[j]),
-            float(frame.relative_speed_mps[j]),
-        )
-        columns.ttc_s[row] = ttc if math.isfinite(ttc) else None
+def _write(columns: FcwColumns, group: np.ndarray, frame: FleetFrame, vehicle_ids: list[str], seen: np.ndarray) -> None:
+    """Write one call's answers into ``columns`` at the group's rows: state, level, target and its figures
+    (``seen``: each object's row in ``vehicle_ids``)."""
+    rows = group.tolist()
+    state_names = [state.value for state in FCW_STATES]
+    for row, state, level in zip(rows, frame.state.tolist(), frame.level.tolist(), strict=True):
+        columns.state[row], columns.level[row] = state_names[state], level
+    has = np.flatnonzero(frame.target >= 0)
+    targets = seen[frame.target[has]].tolist()
+    figures = zip(
+        has.tolist(),
+        targets,
+        frame.clearance_m[has].tolist(),
+        frame.relative_speed_mps[has].tolist(),
+        frame.ttc_s[has].tolist(),
+        strict=True,
+    )
+    for j, target, range_m, range_rate_mps, ttc_s in figures:
+        row = rows[j]
+        columns.target_id[row] = vehicle_ids[target]
+        columns.range_m[row], columns.range_rate_mps[row] = range_m, range_rate_mps
+        columns.ttc_s[row] = ttc_s if math.isfinite(ttc_s) else None
 
 
 def fcw_events(fcw: FcwColumns, levels: dict[str, int], summary: Summary, step: StepValues) -> list[tuple[Any, ...]]:

@@ -152,7 +152,9 @@ class _Run:
         fcw = None
         if self.forward is not None:
             with self.costs.timed("fcw"):
-                fcw = self.forward(fleet.vehicle_id, fleet.category, [bool(lane) for lane in fleet.lane_id])
+                # The curve warning's path ahead of each vehicle, where it computed one, assigns the objects' lanes.
+                paths = getattr(self.evaluator, "paths_ahead", None) if fleet.vehicle_id else None
+                fcw = self.forward(fleet.vehicle_id, fleet.category, [bool(lane) for lane in fleet.lane_id], paths)
         return warnings, fcw
 
     def _commands(

@@ -316,7 +316,7 @@ def update_fleet(
     a_tv = np.where(objects.accel_is_relative, objects.accel_mps2 + a_sv, objects.accel_mps2)
     lost = np.where(ego.braking[owner], 0.0, settings.reaction_time_s + settings.brake_response_s)
     with np.errstate(over="ignore"):  # a_req beyond the largest float is inf, as on floats
-        a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, a_sv, lost)
+        a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, a_sv, lost, ego.speed_mps[owner])
     rank = np.maximum(a_req, settings.preliminary_a_req_mps2)  # below a threat every object ties: the nearest
     target = _targets(owner, inside & ~cutting, rank, objects.x_m, n)
     return _frame(settings, memory, now, ego, objects, state, target, (a_tv, offset, a_req), inside, cutting)

@@ -20,7 +20,8 @@ positive forward):
   (:func:`required_deceleration_mps2`). For a steady lead (a_TV = a_SV) that is the standard's
   x_r = -v_r T, which formula (5) writes as 0.8 v_r; for a lead that brakes during the reaction
   it is what a driver who reacts T after the warning and then brakes at a_req needs to just
-  avoid it.
+  avoid it. Given the subject's speed, where the target stops before the speeds meet, a_req is
+  3.22's value for the stopped target (stopping at its stopping point), never above formula (4).
 
 Where GB/T 33577 and the Russian text of ISO 15623 differ, this module follows GB/T 33577:
 the factor 2 under the root of (3) and x_c - x_r in (4) (docs/fcw.md).
@@ -34,9 +35,9 @@ so the defaults are a commercial vehicle's: T_resp 1.2 s and 0.5 g, the mean har
 commercial vehicles in Annex A (5.3 m/s^2) rounded down. No warning (4.5.5) while the subject
 vehicle already decelerates at the collision threshold or more, or (4.5.5 e) only while no
 measure shows a threat: TTC and ETTC above :attr:`FcwSettings.max_ttc_s` and a_req below the
-preliminary threshold (:func:`warning_level`); while the driver brakes, T_resp and T_b are 0
-(4.5.4). :func:`evaluate_fcw` keeps, for its callers, the older rule that TTC above the limit
-alone suppresses.
+preliminary threshold (:func:`warning_level`), and the preliminary warning above a TTC of
+4 s; while the driver brakes, T_resp and T_b are 0 (4.5.4). :func:`evaluate_fcw` keeps, for
+its callers, the older rule that TTC above the limit alone suppresses.
 
 Every formula takes Python floats or numpy arrays and gives the same value to the bit either way
 (:mod:`csws.fcw.numeric`), so one vehicle's warning (:mod:`csws.fcw.tracker`) runs on floats.
@@ -51,7 +52,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from csws.fcw.numeric import fmin, isfinite, sqrt, where
+from csws.fcw.numeric import fmax, fmin, isfinite, sqrt, where
 from csws.standard import Category
 from csws.state import SystemState
 
@@ -79,6 +80,8 @@ MAX_COLLISION_A_REQ_MPS2 = 0.68 * STANDARD_GRAVITY_MPS2
 MIN_REACTION_TIME_S = 0.8
 #: Formula (5), the shortest warning distance (5.4.1): the least reaction time of 4.5.4 and this a_req, m/s^2.
 FORMULA_5_A_REQ_MPS2 = 6.67
+#: A target braking harder than this stops within a float's time (3.22's stopped-target a_req applies), m/s^2.
+STOPPING_MPS2 = 1e-9
 #: 4.3.3: the system works from at most 11.2 m/s up to at least 27.8 m/s.
 HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS = 11.2, 27.8
 #: The system states by code (4.3.2; fault as CSWS's, :class:`csws.state.SystemState`): ``FCW_STATES[code]``.
@@ -246,24 +249,50 @@ def required_deceleration_mps2(
     target_accel_mps2: Any,
     lost_time_s: Any,
     subject_accel_mps2: Any = 0.0,
+    subject_speed_mps: Any = math.inf,
 ) -> Any:
     """a_req = d_TV + v_r'^2 / (2 (x_c - x_r)), formula (4) at the end of the driver's reaction and the
-    brakes' response (``lost_time_s``, T), with d_TV = -a_TV the target's deceleration.
+    brakes' response (``lost_time_s``, T), with d_TV = -a_TV the target's deceleration; with the subject's
+    speed, 3.22's a_req also where the target stops first.
 
     3.22: x_r is the clearance lost during the reaction; with both accelerations held through it
     (a = a_TV - a_SV), x_r = -v_r T - a T^2 / 2, and the closing speed at its end is
     v_r' = v_r + a T (0 where the vehicles stop closing, and T is cut where that happens first).
     On a steady lead this is the standard's x_r = -v_r T. ``inf`` where the reaction uses up the
-    clearance. Floats give a float, anything else an array.
+    clearance.
+
+    3.22 defines a_req as the least deceleration that brings the subject to the target's speed
+    without a collision. Formula (4) is that value while the target still moves when the speeds
+    meet; it holds d_TV for ever, so for a target that brakes to a stop before then (a lead braking
+    gently far ahead) it asks for at least d_TV however far ahead the target stops. Given
+    ``subject_speed_mps`` (finite), where the target stops first the value is 3.22's for a stopped
+    target: the subject, after T with its own acceleration held, stops at the target's stopping
+    point, a_req = v_SV'^2 / (2 (x_c + v_TV^2 / (2 d_TV) - s_SV)) (:func:`a_req_core`). Without it
+    (``inf``), formula (4) alone. Floats give a float, anything else an array.
     """
     with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
         return a_req_core(
-            *_operands(clearance_m, relative_velocity_mps, target_accel_mps2, subject_accel_mps2, lost_time_s)
+            *_operands(
+                clearance_m,
+                relative_velocity_mps,
+                target_accel_mps2,
+                subject_accel_mps2,
+                lost_time_s,
+                subject_speed_mps,
+            )
         )
 
 
-def a_req_core(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any) -> Any:
-    """:func:`required_deceleration_mps2` on floats or float arrays as they are."""
+def a_req_core(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any, v_sv: Any = math.inf) -> Any:
+    """:func:`required_deceleration_mps2` on floats or float arrays as they are (``v_sv`` inf: formula (4) alone)."""
+    a_f = _formula_4(x_c, v_r, a_tv, a_sv, lost_s)
+    stops = isfinite(v_sv) & (a_tv < -STOPPING_MPS2) & isfinite(a_f) & (v_sv + v_r >= 0.0)
+    a_s, binds = _stopped_target_a_req(x_c, v_r, where(stops, a_tv, -1.0), a_sv, lost_s, where(stops, v_sv, 0.0))
+    return where(stops & binds, where(isfinite(a_s), fmin(a_s, a_f), a_s), a_f)
+
+
+def _formula_4(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any) -> Any:
+    """Formula (4) with both accelerations held through the reaction (:func:`required_deceleration_mps2`)."""
     a_rel = a_tv - a_sv
     stops_closing = (v_r < 0.0) & (a_rel > 0.0) & (-v_r < a_rel * lost_s)
     reaction_s = where(stops_closing, -v_r / where(stops_closing, a_rel, 1.0), lost_s)
@@ -271,6 +300,29 @@ def a_req_core(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any) -> Any:
     left_m = x_c + v_r * reaction_s + a_rel * reaction_s * reaction_s / 2.0
     room = left_m > 0.0
     return where(room, -a_tv + closing * closing / (2.0 * where(room, left_m, 1.0)), math.inf)
+
+
+def _stopped_target_a_req(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any, v_sv: Any) -> tuple[Any, Any]:
+    """3.22 for a braking target (a_TV < 0) that stops before the speeds meet: the deceleration that stops
+    the subject, after ``lost_s`` with a_SV held (cut where it stops), at the target's stopping point
+    (``inf`` where the subject is past that point by then: contact is certain); and whether that value
+    binds: the target stops first (at or before the subject braking so), or there is no room.
+
+    While the target moves the closing speed changes linearly; once it stops the closing speed is the
+    subject's own speed, so if the subject still moves then, the clearance falls until the subject stops
+    and the stopping point binds (the reaction's part is formula (4)'s, finite: no contact in it).
+    """
+    v_tv = fmax(v_sv + v_r, 0.0)
+    target_stop_m = v_tv * v_tv / (-2.0 * a_tv)
+    target_stop_s = v_tv / -a_tv
+    subject_stops = (a_sv < 0.0) & (v_sv + a_sv * lost_s < 0.0)
+    held_s = where(subject_stops, v_sv / where(subject_stops, -a_sv, 1.0), lost_s)
+    subject_m = v_sv * held_s + a_sv * held_s * held_s / 2.0
+    speed_after = fmax(v_sv + a_sv * held_s, 0.0)
+    room_m = x_c + target_stop_m - subject_m
+    room = room_m > 0.0
+    a_s = where(room, speed_after * speed_after / (2.0 * where(room, room_m, 1.0)), math.inf)
+    return a_s, (room_m <= 0.0) | (where(room, a_s, 0.0) * (target_stop_s - held_s) <= speed_after)
 
 
 def warning_level(
@@ -287,7 +339,11 @@ def warning_level(
     subject decelerates at the collision threshold or more. 4.5.5 e: suppressed only where no
     measure shows a threat, TTC and ETTC above ``max_ttc_s`` and a_req below the preliminary
     threshold; with ``suppress_above_max_ttc`` (the rule :func:`evaluate_fcw` keeps for its
-    callers), TTC above it alone suppresses. Floats give an int, arrays an int8 array.
+    callers), TTC above it alone suppresses. The preliminary warning (optional, 4.5.1; its threshold
+    the designer's, 4.5.3) is suppressed while TTC is above ``max_ttc_s`` (4.5.5 e): it comes only
+    while the subject closes on the target within that time; a target that brakes ahead of a
+    subject at its own speed (TTC infinite) gets the collision warning once a_req reaches its
+    threshold. Floats give an int, arrays an int8 array.
     """
     may_warn = -subject_accel_mps2 < settings.collision_a_req_mps2
     if suppress_above_max_ttc:
@@ -299,11 +355,8 @@ def warning_level(
             & (a_req_mps2 < settings.preliminary_a_req_mps2)
         )
         may_warn = where(no_threat, False, may_warn)
-    level = where(
-        may_warn & (a_req_mps2 >= settings.collision_a_req_mps2),
-        2,
-        where(may_warn & (a_req_mps2 >= settings.preliminary_a_req_mps2), 1, 0),
-    )
+    preliminary = may_warn & (ttc_s <= settings.max_ttc_s) & (a_req_mps2 >= settings.preliminary_a_req_mps2)
+    level = where(may_warn & (a_req_mps2 >= settings.collision_a_req_mps2), 2, where(preliminary, 1, 0))
     return level if isinstance(level, int) else np.asarray(level, dtype=np.int8)
 
 

@@ -133,7 +133,7 @@ class ForwardCollisionWarning:
                 cut_in_ids.append(obj.id)
                 continue
             a_tv = obj.accel_mps2 + ego.accel_mps2 if obj.accel_is_relative else obj.accel_mps2
-            a_req = a_req_core(x_m, v_r, a_tv, ego.accel_mps2, lost_s)
+            a_req = a_req_core(x_m, v_r, a_tv, ego.accel_mps2, lost_s, ego.speed_mps)
             rank = max(a_req, s.preliminary_a_req_mps2)
             if best is None or rank > best_rank or (rank == best_rank and x_m < best[0].x_m):
                 best, best_rank = (obj, a_tv, offset_m, a_req), rank
