@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
+from csws.curvature.artefacts import kept_to_polyline
 from csws.road.sharing import Run, chain_runs, clip_curve, lateral_offsets_m, moved_curve, moved_parts, reference_lanes
 from csws.standard import WarningSpeedPolicy
 
@@ -350,12 +351,14 @@ def _chain_lengths(chain_xy: Sequence[np.ndarray]) -> np.ndarray:
 def _fit_sources(
     chain_xy: Sequence[np.ndarray], runs: Sequence[Sequence[Run]], cache_dir: Path | None
 ) -> tuple[RadiusProfile | None, ...]:
-    """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others."""
+    """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others,
+    kept to its polyline's net turn and corners (:func:`csws.curvature.artefacts.kept_to_polyline`: map artefacts
+    are no curves, corners are)."""
     sources = sorted({run.source for chain_runs_ in runs for run in chain_runs_})
     fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir)
     fitted: list[RadiusProfile | None] = [None] * len(chain_xy)
     for chain, fit in zip(sources, fits, strict=True):
-        fitted[chain] = fit
+        fitted[chain] = kept_to_polyline(chain_xy[chain], fit)
     return tuple(fitted)
 
 
