@@ -157,6 +157,20 @@ class PolylineTurns:
         after = long_enough[1:] | np.concatenate((straight_on[1:], [False]))
         return (np.abs(self.effective_rad) >= math.radians(least_deg)) & before & after
 
+    def arms(self, corner: Corner) -> tuple[tuple[float, float], float, int]:
+        """How far the polyline runs before and after a corner to the nearest vertex turning by
+        :data:`CORNER_VERTEX_DEG` or more (or its end), m; the length from its first to its last vertex, m;
+        and its number of vertices."""
+        inner_s = self.vertex_s[1:-1]
+        turning_s = inner_s[np.abs(self.effective_rad) >= math.radians(CORNER_VERTEX_DEG)]
+        before_s = turning_s[turning_s < corner.start_s]
+        after_s = turning_s[turning_s > corner.end_s]
+        previous_s = float(before_s[-1]) if len(before_s) else float(self.vertex_s[0])
+        next_s = float(after_s[0]) if len(after_s) else float(self.vertex_s[-1])
+        first, last = np.searchsorted(inner_s, (corner.start_s, corner.end_s))
+        arms_m = (corner.start_s - previous_s, next_s - corner.end_s)
+        return arms_m, corner.end_s - corner.start_s, int(last - first) + 1
+
     def corners(self) -> list[Corner]:
         """The corners of the polyline (see the module)."""
         inner_s = self.vertex_s[1:-1]
@@ -255,8 +269,9 @@ def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
     for corner in turns.corners():
         if not _is_covered(corner, bounds, start_k, end_k):
             start_k, end_k = _without_curves_at(corner, bounds, start_k, end_k)
+            arms_m, inner_m, vertices = turns.arms(corner)
             bounds, start_k, end_k = corner_arc(
-                turns.vertex_s, turns.segment_m, (corner.start_s, corner.end_s, corner.turn_rad), bounds, start_k, end_k
+                (corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices, bounds, start_k, end_k
             )
     return profile_from_parts(profile.s, bounds, start_k, end_k)
 

@@ -294,39 +294,40 @@ def _with_arc(
 
 
 def corner_arc(
-    vertex_s: np.ndarray,
-    segment_m: np.ndarray,
     corner: tuple[float, float, float],
+    arms_m: tuple[float, float],
+    inner_chords_m: float,
+    vertices: int,
     bounds: np.ndarray,
     start_k: np.ndarray,
     end_k: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The parts with an arc turning a polyline corner's net turn laid over whatever was fitted there.
 
-    ``corner`` is the arc length of its first and last vertex (m) and its net turn (rad, left positive).
-
-    Its radius is rule 3's: for a corner of one vertex the largest arc tangent to its segments
-    within half of each and the mapping tolerance; for several vertices the radius of the
-    segments between them taken as chords. It is centred between the corner's first and last
-    vertex, and moved inside the polyline (shortened where the polyline is shorter).
+    ``corner`` is the arc length of its first and last vertex (m) and its net turn (rad, left
+    positive); ``arms_m`` how far the polyline runs without turning before and after it (m),
+    ``inner_chords_m`` the length between its first and last vertex and ``vertices`` their number.
+    Its radius is rule 3's: for a corner of one vertex the largest arc tangent to its arms within
+    half of each and the mapping tolerance; for several vertices the radius of the segments
+    between them taken as chords. It is centred between the corner's first and last vertex and
+    kept within half of its arms: where that is shorter, it turns the corner on a smaller
+    radius, but none below the floor.
     """
     start_s, end_s, turn_rad = corner
-    first, last = (int(index) for index in np.searchsorted(vertex_s, (start_s, end_s)))
     turn = abs(turn_rad)
-    if first == last:
-        radius = float(_corner_radius_m(turn, segment_m[first - 1], segment_m[first]))
+    if vertices == 1:
+        radius = float(_corner_radius_m(turn, np.array(arms_m[0]), np.array(arms_m[1])))
     else:
-        inner_chords_m = float(segment_m[first:last].sum())
-        inner_turn = max(turn * (last - first) / (last - first + 1), 1e-9)
+        inner_turn = max(turn * (vertices - 1) / vertices, 1e-9)
         radius = max(inner_chords_m / inner_turn, FLOOR_RADIUS_M)
-    centre_s = (start_s + end_s) / 2.0
     half_m = radius * turn / 2.0
-    # Near an end of the polyline the arc is moved inside it, and shortened where it is shorter.
-    high = min(float(bounds[-1]), max(float(bounds[0]), centre_s - half_m) + 2.0 * half_m)
-    low = max(float(bounds[0]), high - 2.0 * half_m)
+    room_low, room_high = start_s - arms_m[0] / 2.0, end_s + arms_m[1] / 2.0
+    high = min(room_high, max(room_low, (start_s + end_s) / 2.0 - half_m) + 2.0 * half_m)
+    low = max(room_low, high - 2.0 * half_m)
     if high <= low:
         return bounds, start_k, end_k
-    return _laid_over(bounds, start_k, end_k, low, high, math.copysign(1.0 / radius, turn_rad))
+    curvature = math.copysign(min(turn / (high - low), 1.0 / FLOOR_RADIUS_M), turn_rad)
+    return _laid_over(bounds, start_k, end_k, float(low), float(high), curvature)
 
 
 def _laid_over(
