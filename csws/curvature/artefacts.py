@@ -243,28 +243,36 @@ def _artefact_vertices(turn: np.ndarray, segment_m: np.ndarray) -> list[tuple[st
 def _zigzags(turn: np.ndarray) -> list[tuple[str, int, int, float]]:
     """The zig-zags among the vertices (see the module): kind, first and last vertex, absolute turning in degrees."""
     strong = np.abs(turn) >= math.radians(ZIGZAG_VERTEX_DEG)
+    alternating = strong[:-1] & strong[1:] & (turn[:-1] * turn[1:] < 0)  # vertex i and i + 1 zig and zag
+    edges = np.diff(np.concatenate(([0], alternating.astype(np.int8), [0])))
     found = []
-    first = 0
-    while first < len(turn):
-        last = first
-        while last + 1 < len(turn) and strong[last + 1] and strong[last] and turn[last] * turn[last + 1] < 0:
-            last += 1
+    for first, stop in zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True):
+        last = stop  # the run of pairs first..stop-1 spans vertices first..stop
         absolute_deg = math.degrees(float(np.abs(turn[first : last + 1]).sum()))
         net_deg = abs(math.degrees(float(turn[first : last + 1].sum())))
         if last - first >= 2 and absolute_deg >= ZIGZAG_SUM_DEG and net_deg < ARTEFACT_NET_DEG:
             found.append(("zigzag", first, last, absolute_deg))
-        first = last + 1
     return found
 
 
 def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
-    """A fitted profile of polyline ``xy`` with no curve beyond the polyline's net turn and every corner a curve."""
-    turns = polyline_turns(xy)
-    if len(turns.turn_rad) == 0 or not profile.parts:
+    """A fitted profile of polyline ``xy`` with no curve beyond the polyline's net turn and every corner a curve.
+
+    A straight fit of a polyline none of whose vertices turns by :data:`CORNER_VERTEX_DEG` (no corner, no
+    artefact that turns it) is returned as it is without reading the polyline further, as is any profile the
+    rules leave unchanged: most chains of a city are such, and loading it stays fast.
+    """
+    if not profile.parts:
         return profile
-    bounds = np.array([part.start_s for part in profile.parts] + [profile.parts[-1].end_s])
     start_k = np.array([part.curvature for part in profile.parts])
     end_k = np.array([part.final_curvature for part in profile.parts])
+    if not (start_k.any() or end_k.any()) and _turns_less_than(xy, math.radians(CORNER_VERTEX_DEG)):
+        return profile
+    turns = polyline_turns(xy)
+    if len(turns.turn_rad) == 0:
+        return profile
+    bounds = np.array([part.start_s for part in profile.parts] + [profile.parts[-1].end_s])
+    fitted = bounds, start_k, end_k
     start_k, end_k = _within_net_turn(turns, bounds, start_k, end_k)
     for corner in turns.corners():
         if not _is_covered(corner, bounds, start_k, end_k):
@@ -273,7 +281,19 @@ def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
             bounds, start_k, end_k = corner_arc(
                 (corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices, bounds, start_k, end_k
             )
+    if all(np.array_equal(before, after) for before, after in zip(fitted, (bounds, start_k, end_k), strict=True)):
+        return profile
     return profile_from_parts(profile.s, bounds, start_k, end_k)
+
+
+def _turns_less_than(xy: np.ndarray, limit_rad: float) -> bool:
+    """Whether every vertex of the polyline turns by less than ``limit_rad`` (repeated vertices skipped)."""
+    step = np.diff(np.asarray(xy, dtype=float), axis=0)
+    step = step[(step[:, 0] != 0) | (step[:, 1] != 0)]
+    if len(step) < 2:
+        return True
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    return bool(np.all(np.abs(_wrapped(np.diff(heading))) < limit_rad))
 
 
 def _within_net_turn(

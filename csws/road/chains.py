@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
-from csws.curvature.artefacts import kept_to_polyline
 from csws.road.sharing import Run, chain_runs, clip_curve, lateral_offsets_m, moved_curve, moved_parts, reference_lanes
 from csws.standard import WarningSpeedPolicy
 
@@ -379,12 +378,12 @@ def _fit_sources(
 ) -> tuple[RadiusProfile | None, ...]:
     """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others,
     kept to its polyline's net turn and corners (:func:`csws.curvature.artefacts.kept_to_polyline`: map artefacts
-    are no curves, corners are)."""
+    are no curves, corners are), and kept so on disk."""
     sources = sorted({run.source for chain_runs_ in runs for run in chain_runs_})
-    fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir)
+    fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir, kept_to_polylines=True)
     fitted: list[RadiusProfile | None] = [None] * len(chain_xy)
     for chain, fit in zip(sources, fits, strict=True):
-        fitted[chain] = kept_to_polyline(chain_xy[chain], fit)
+        fitted[chain] = fit
     return tuple(fitted)
 
 
