@@ -121,3 +121,34 @@ def test_a_corner_of_thirty_degrees_or_more_is_never_a_straight(turn_deg, side, 
     covering = [c for c in _curves(xy) if c.direction == direction and c.start_s - 1.0 <= corner_s <= c.end_s + 1.0]
     assert len(covering) == 1
     assert abs(covering[0].angle_deg - turn_deg) <= ANGLE_TOLERANCE_DEG
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.floats(-100.0, 100.0), min_size=3, max_size=10),
+    st.lists(st.floats(8.0, 40.0), min_size=11, max_size=11),
+    st.lists(st.floats(0.1, 1.0), min_size=3, max_size=3),
+    st.integers(0, 2**32 - 1),
+)
+def test_spikes_on_a_way_add_no_turn_to_its_curves(turns_deg, lengths_m, spikes_m, seed) -> None:
+    # A way of known vertex turns with back-and-forth spikes of 0.1-1 m put on some of its nodes:
+    # no curve turns its way by more than the way's own vertices turn that way about its
+    # stretch (two vertices beyond either end), plus the tolerance; none claims 360 degrees.
+    headings = np.concatenate(([0.0], np.cumsum(turns_deg)))
+    way = _way(list(headings), lengths_m[: len(headings)])
+    rng = np.random.default_rng(seed)
+    spiked = list(way)
+    for node, spike_m in zip(rng.choice(np.arange(1, len(way) - 1), 3), spikes_m, strict=True):
+        at = way[node]
+        back = at + spike_m * (way[node - 1] - at) / np.hypot(*(way[node - 1] - at))
+        spiked[node] = np.vstack((at, back, at))
+    xy = np.vstack([np.atleast_2d(point) for point in spiked])
+    node_s = np.concatenate(([0.0], np.cumsum(lengths_m[: len(headings)])))[1:-1]
+    for curve in _curves(xy):
+        assert curve.angle_deg <= 360.0
+        side = 1.0 if curve.direction == "left" else -1.0
+        # The spikes lengthen the polyline by at most 2 m each before a node: compare on the way's own nodes.
+        first = max(int(np.searchsorted(node_s, curve.start_s - 6.0)) - 2, 0)
+        stop = int(np.searchsorted(node_s, curve.end_s, side="right")) + 2
+        same_way_deg = np.clip(side * np.array(turns_deg[first:stop]), 0.0, None).sum()
+        assert curve.angle_deg <= same_way_deg + ANGLE_TOLERANCE_DEG, (turns_deg, lengths_m, spikes_m, seed)

@@ -171,6 +171,13 @@ class PolylineTurns:
         arms_m = (corner.start_s - previous_s, next_s - corner.end_s)
         return arms_m, corner.end_s - corner.start_s, int(last - first) + 1
 
+    def reach(self, corner: Corner) -> tuple[float, float]:
+        """The arc length of the vertices before and after a corner (the polyline's ends where it has none), m: a
+        curve running into the segments between them counts the corner's turn (:meth:`net_turn_rad`)."""
+        before = int(np.searchsorted(self.vertex_s, corner.start_s, side="left")) - 1
+        after = int(np.searchsorted(self.vertex_s, corner.end_s, side="right"))
+        return float(self.vertex_s[max(before, 0)]), float(self.vertex_s[min(after, len(self.vertex_s) - 1)])
+
     def corners(self) -> list[Corner]:
         """The corners of the polyline (see the module)."""
         inner_s = self.vertex_s[1:-1]
@@ -275,8 +282,9 @@ def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
     fitted = bounds, start_k, end_k
     start_k, end_k = _within_net_turn(turns, bounds, start_k, end_k)
     for corner in turns.corners():
-        if not _is_covered(corner, bounds, start_k, end_k):
-            start_k, end_k = _without_curves_at(corner, bounds, start_k, end_k)
+        reach = turns.reach(corner)
+        if not _is_covered(corner, reach, bounds, start_k, end_k):
+            start_k, end_k = _without_curves_at(corner, reach, bounds, start_k, end_k)
             arms_m, inner_m, vertices = turns.arms(corner)
             bounds, start_k, end_k = corner_arc(
                 (corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices, bounds, start_k, end_k
@@ -316,33 +324,38 @@ def _within_net_turn(
     return start_k, end_k
 
 
-def _overlapping(corner: Corner, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray) -> list[np.ndarray]:
-    """The curves (runs of parts turning one way) turning the corner's way and reaching its stretch."""
+def _overlapping(
+    corner: Corner, reach: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
+) -> list[np.ndarray]:
+    """The curves (runs of parts turning one way) turning the corner's way whose net turn counts its vertices: those
+    running into the segments between its ``reach`` (the vertices before and after it)."""
     side = math.copysign(1.0, corner.turn_rad)
     return [
         parts
         for parts in curve_runs(start_k, end_k)
-        if bounds[parts[-1] + 1] >= corner.start_s
-        and bounds[parts[0]] <= corner.end_s
+        if bounds[parts[-1] + 1] > reach[0]
+        and bounds[parts[0]] < reach[1]
         and side * (start_k[parts[0]] + end_k[parts[0]]) > 0
     ]
 
 
 def _without_curves_at(
-    corner: Corner, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
+    corner: Corner, reach: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Curvatures with the curves that turn a corner's way at it but fall short of its turn made straight: the
     corner's arc replaces them, rather than adding to them."""
     start_k, end_k = start_k.copy(), end_k.copy()
-    for parts in _overlapping(corner, bounds, start_k, end_k):
+    for parts in _overlapping(corner, reach, bounds, start_k, end_k):
         start_k[parts] = 0.0
         end_k[parts] = 0.0
     return start_k, end_k
 
 
-def _is_covered(corner: Corner, bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray) -> bool:
+def _is_covered(
+    corner: Corner, reach: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
+) -> bool:
     """Whether the curves reaching the corner's stretch turn its way by its net turn, less the tolerance, or more
     (no more than their own stretch's net turn: :func:`_within_net_turn`)."""
     angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
-    turned = sum(float(angle_rad[parts].sum()) for parts in _overlapping(corner, bounds, start_k, end_k))
+    turned = sum(float(angle_rad[parts].sum()) for parts in _overlapping(corner, reach, bounds, start_k, end_k))
     return turned * math.copysign(1.0, corner.turn_rad) >= abs(corner.turn_rad) - math.radians(ANGLE_TOLERANCE_DEG)
