@@ -24,7 +24,15 @@ from csws import cli
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
 from csws.geometry import arc, piece_starts_s, sample_pieces, straight
 from csws.networks import networks_dir
-from csws.osm.importer import ImportResult, ImportSettings, OsmImportError, import_osm
+from csws.osm.coverage import CLOSED_TYPE, CUT_BY_BORDER, NOT_IN_NETWORK
+from csws.osm.importer import (
+    COMMERCIAL_VCLASSES,
+    FLEET_VCLASSES,
+    ImportResult,
+    ImportSettings,
+    OsmImportError,
+    import_osm,
+)
 from csws.road.export import curves_geojson
 from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home
@@ -356,12 +364,40 @@ def test_bad_files_give_one_line_errors(tmp_path: Path, capsys, name: str, conte
 
 
 @pytest.mark.sumo
-def test_residential_roads_without_trucks_are_no_drivable_roads(tmp_path: Path) -> None:
+def test_a_service_road_survives_import_with_the_default_fleet_classes(tmp_path: Path) -> None:
     osm = OsmWriter()
-    osm.way(np.array([[0.0, 0.0], [100.0, 0.0]]), "service")  # service roads admit delivery vans only
+    osm.way(np.array([[0.0, 0.0], [100.0, 0.0]]), "service")  # service roads admit delivery vans (N1) only
     (tmp_path / "service.osm").write_text(osm.text())
+    assert "delivery" in FLEET_VCLASSES and ImportSettings().keep_vclasses == FLEET_VCLASSES
+    result = import_osm(tmp_path / "service.osm", tmp_path / "service.net.xml")
+    assert _edge_types(result.net_path) == {"highway.service"}
+    assert result.dropped.ways_listed == ()
+    # Without the vans, the service road is closed to every class kept.
     with pytest.raises(OsmImportError, match="no drivable roads for truck, bus, coach"):
-        import_osm(tmp_path / "service.osm", tmp_path / "service.net.xml")
+        import_osm(
+            tmp_path / "service.osm", tmp_path / "heavy.net.xml", ImportSettings(keep_vclasses=COMMERCIAL_VCLASSES)
+        )
+
+
+@pytest.mark.sumo
+def test_every_dropped_way_and_every_way_cut_by_the_border_is_listed_with_its_reason(tmp_path: Path) -> None:
+    osm = OsmWriter()
+    osm.way(np.array([[0.0, 0.0], [1000.0, 0.0]]), "primary", name="Main")
+    osm.way(np.array([[1000.0, 0.0], [1000.0, 150.0]]), "service")  # closed to heavy vehicles by its type
+    osm.way(np.array([[0.0, 5000.0], [200.0, 5000.0]]), "secondary")  # not connected to Main
+    # A way leaving the extract: its last node is not in the file.
+    refs = osm.way(np.array([[500.0, 0.0], [500.0, -300.0]]), "tertiary")
+    text = osm.text().replace(f'<nd ref="{refs[-1]}"/>', '<nd ref="999999"/>')
+    (tmp_path / "four.osm").write_text(text)
+    settings = ImportSettings(keep_vclasses=COMMERCIAL_VCLASSES)
+    result = import_osm(tmp_path / "four.osm", tmp_path / "four.net.xml", settings)
+    reasons = {(way.way_id, way.reason) for way in result.dropped.ways_listed}
+    assert reasons == {(2, CLOSED_TYPE), (3, NOT_IN_NETWORK), (4, CUT_BY_BORDER)}
+    listed = result.dropped_path.read_text().splitlines()
+    assert listed[0] == "way_id,highway,length_m,reason" and len(listed) == 4
+    assert any(line.startswith(f"{CUT_BY_BORDER}: 1 way(s)") for line in result.dropped.lines())
+    # The loss warning counts the roads open to the kept classes only: Main, the tertiary way's part, Elsewhere.
+    assert result.dropped.by_highway["secondary"][0] == 1 and "service" not in result.dropped.by_highway
 
 
 # ------------------------------------------------------------------ the bundled real network

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .artefacts import kept_to_polyline
 from .chords import _chords, _validated
 from .fitting import radius_profiles
 from .profile import RadiusProfile, profile_from_parts, straight_profile
@@ -69,7 +70,9 @@ def _data_digest(points: Sequence[np.ndarray]) -> str:
     return digest.hexdigest()[:32]
 
 
-def cached_radius_profiles(polylines: Sequence[np.ndarray], cache_dir: Path | None) -> list[RadiusProfile]:
+def cached_radius_profiles(
+    polylines: Sequence[np.ndarray], cache_dir: Path | None, *, kept_to_polylines: bool = False
+) -> list[RadiusProfile]:
     """The radius profiles of ``polylines`` (:func:`csws.curvature.radius_profiles`), read from
     ``cache_dir`` when they were fitted before, else fitted and written there.
 
@@ -79,6 +82,9 @@ def cached_radius_profiles(polylines: Sequence[np.ndarray], cache_dir: Path | No
         ``(n, 2)`` arrays of vertex coordinates, m.
     cache_dir
         The cache folder (see :func:`profile_cache_dir`); ``None`` fits without a cache.
+    kept_to_polylines
+        Each profile kept to its polyline's net turn and corners
+        (:func:`csws.curvature.artefacts.kept_to_polyline`) before it is kept on disk, in files of their own.
 
     Raises
     ------
@@ -87,13 +93,21 @@ def cached_radius_profiles(polylines: Sequence[np.ndarray], cache_dir: Path | No
         or has non-finite coordinates.
     """
     points = [_validated(xy, i) for i, xy in enumerate(polylines)]
+
+    def fitted() -> list[RadiusProfile]:
+        profiles = radius_profiles(points)
+        return (
+            [kept_to_polyline(xy, p) for xy, p in zip(points, profiles, strict=True)] if kept_to_polylines else profiles
+        )
+
     if cache_dir is None or not points:
-        return radius_profiles(points)
+        return fitted()
     model = _model_digest()
-    path = Path(cache_dir) / f"profiles-{model}-{_data_digest(points)}.npz"
+    kind = "-kept" if kept_to_polylines else ""
+    path = Path(cache_dir) / f"profiles-{model}-{_data_digest(points)}{kind}.npz"
     profiles = _read(path, points)
     if profiles is None:
-        profiles = radius_profiles(points)
+        profiles = fitted()
         _write(path, profiles, model)
     return profiles
 

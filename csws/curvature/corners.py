@@ -54,6 +54,8 @@ __all__ = [
     "CORNER_DEVIATION_M",
     "with_corner_rules",
     "with_floor",
+    "curve_runs",
+    "corner_arc",
 ]
 
 #: The smallest radius a road curve is given, m: the tightest turning circle of a car is
@@ -129,7 +131,7 @@ def _window(inner_s: np.ndarray, start_s: float, end_s: float) -> tuple[int, int
     return first, int(np.searchsorted(inner_s, end_s, side="right")) + 1
 
 
-def _curves(start_k: np.ndarray, end_k: np.ndarray) -> list[np.ndarray]:
+def curve_runs(start_k: np.ndarray, end_k: np.ndarray) -> list[np.ndarray]:
     """The parts of each run of curved parts turning one way (a curve of the fit)."""
     side = np.sign(start_k + end_k)
     runs: list[list[int]] = []
@@ -189,7 +191,7 @@ def _within_turning(
     angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
     start_k, end_k = start_k.copy(), end_k.copy()
     keep = np.ones(len(start_k), dtype=bool)
-    for parts in _curves(start_k, end_k):
+    for parts in curve_runs(start_k, end_k):
         angle = float(angle_rad[parts].sum())
         turn, turn_noise = _turning_within(
             vertex_s, turn_rad, segment_m, noise_m, bounds[parts[0]], bounds[parts[-1] + 1], math.copysign(1.0, angle)
@@ -254,7 +256,7 @@ def _covered(
     the curve's way and lies within the stretch whose turning rule 2 gave the curve (on
     it, or the nearest vertex beyond either end)."""
     covered = np.zeros(len(inner_s), dtype=bool)
-    for parts in _curves(start_k, end_k):
+    for parts in curve_runs(start_k, end_k):
         first, stop = _window(inner_s, bounds[parts[0]], bounds[parts[-1] + 1])
         covered[first:stop] |= np.sign(start_k[parts[0]] + end_k[parts[0]]) * turn_rad[first:stop] > 0
     return covered
@@ -289,3 +291,61 @@ def _with_arc(
     length = np.diff(new_bounds)
     kept = length > 0
     return np.append(new_bounds[:-1][kept], new_bounds[-1]), new_start[kept], new_end[kept]
+
+
+def corner_arc(
+    corner: tuple[float, float, float],
+    arms_m: tuple[float, float],
+    inner_chords_m: float,
+    vertices: int,
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The parts with an arc turning a polyline corner's net turn laid over whatever was fitted there.
+
+    ``corner`` is the arc length of its first and last vertex (m) and its net turn (rad, left
+    positive); ``arms_m`` how far the polyline runs without turning before and after it (m),
+    ``inner_chords_m`` the length between its first and last vertex and ``vertices`` their number.
+    Its radius is rule 3's: for a corner of one vertex the largest arc tangent to its arms within
+    half of each and the mapping tolerance; for several vertices the radius of the segments
+    between them taken as chords. It is centred between the corner's first and last vertex and
+    kept within half of its arms: where that is shorter, it turns the corner on a smaller
+    radius, but none below the floor.
+    """
+    start_s, end_s, turn_rad = corner
+    turn = abs(turn_rad)
+    if vertices == 1:
+        radius = float(_corner_radius_m(turn, np.array(arms_m[0]), np.array(arms_m[1])))
+    else:
+        inner_turn = max(turn * (vertices - 1) / vertices, 1e-9)
+        radius = max(inner_chords_m / inner_turn, FLOOR_RADIUS_M)
+    half_m = radius * turn / 2.0
+    room_low, room_high = start_s - arms_m[0] / 2.0, end_s + arms_m[1] / 2.0
+    high = min(room_high, max(room_low, (start_s + end_s) / 2.0 - half_m) + 2.0 * half_m)
+    low = max(room_low, high - 2.0 * half_m)
+    if high <= low:
+        return bounds, start_k, end_k
+    curvature = math.copysign(min(turn / (high - low), 1.0 / FLOOR_RADIUS_M), turn_rad)
+    return _laid_over(bounds, start_k, end_k, float(low), float(high), curvature)
+
+
+def _laid_over(
+    bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, low: float, high: float, curvature: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The parts with ``[low, high]`` replaced by one arc of ``curvature``; parts it cuts keep their curvature there."""
+    at_low, at_high = (_curvature_at(bounds, start_k, end_k, s) for s in (low, high))
+    before = bounds[:-1] < low
+    after = bounds[1:] > high
+    new_bounds = np.concatenate((bounds[:-1][before], [low, high], bounds[1:][after]))
+    new_start = np.concatenate((start_k[before], [curvature], [at_high] * bool(after.any()), start_k[after][1:]))
+    new_end = np.concatenate((end_k[before][:-1], [at_low] * bool(before.any()), [curvature], end_k[after]))
+    kept = np.diff(new_bounds) > 0
+    return np.append(new_bounds[:-1][kept], new_bounds[-1]), new_start[kept], new_end[kept]
+
+
+def _curvature_at(bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, s: float) -> float:
+    """The parts' curvature at arc length ``s`` (linear within a part), 1/m."""
+    part = int(np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, len(start_k) - 1))
+    fraction = (s - bounds[part]) / max(float(bounds[part + 1] - bounds[part]), 1e-12)
+    return float(start_k[part] + (end_k[part] - start_k[part]) * fraction)

@@ -40,7 +40,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--vclasses",
         type=_vclasses,
         default=None,
-        help="keep the roads that allow one of these SUMO vehicle classes (default: truck,bus,coach)",
+        help=(
+            "keep the roads that allow one of these SUMO vehicle classes "
+            "(default: truck,bus,coach,delivery: delivery is N1 vans, which service roads are open to)"
+        ),
     )
     parser.set_defaults(handler=deferred("csws.osm.run"))
 

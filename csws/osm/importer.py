@@ -11,11 +11,14 @@ them, so the curvature extractor sees the road as mapped:
   over that chord (0.017 rad);
 * SUMO's OSM typemap, a type for every ``highway`` value built from a known one
   (``primary_tunnel``: :mod:`csws.osm.typemap`) and the user's own type files; only the
-  edges a truck, bus or coach may use (``--keep-edges.by-vclass``), in the largest
+  edges the fleet's vehicle classes may use (``--keep-edges.by-vclass``; by default
+  :data:`FLEET_VCLASSES`: trucks, buses, coaches and N1 delivery vans, so a
+  ``highway=service`` road, open to delivery in SUMO's type map, is kept), in the largest
   connected part of the road graph, so a fleet can route anywhere on the result. The
-  motor roads that did not make it are counted by ``highway`` value
-  (:mod:`csws.osm.coverage`), and netconvert's warnings are kept in a log beside the
-  network;
+  motor roads that did not make it are counted by ``highway`` value and listed way by way
+  with the reason, ways cut by the extract's border among them (:mod:`csws.osm.coverage`,
+  ``NAME.dropped.csv`` beside the network), and netconvert's warnings are kept in a log
+  beside the network;
 * roundabouts (from ``junction=roundabout`` and guessed), joined junction clusters,
   signals and ramps guessed as SUMO recommends for OSM, street names kept;
 * right-hand traffic, or left-hand with ``lefthand=True``.
@@ -44,7 +47,7 @@ from csws.road.roadmap import RoadMap, read_sumo_net
 from csws.standard import DEFAULT_POLICY
 from csws.sumo.netbuild import NetconvertError, netconvert_osm
 
-from .coverage import DroppedRoads, dropped_roads
+from .coverage import DroppedRoads, dropped_roads, write_dropped_ways
 from .typemap import base_highway, derived_highways, known_highways, sumo_type_file, type_allows, write_derived_types
 
 if TYPE_CHECKING:
@@ -54,6 +57,8 @@ __all__ = [
     "OSM_ATTRIBUTION",
     "OSM_SUFFIXES",
     "COMMERCIAL_VCLASSES",
+    "FLEET_VCLASSES",
+    "dropped_ways_path",
     "ImportSettings",
     "ImportResult",
     "OsmImportError",
@@ -78,8 +83,12 @@ OSM_SUFFIXES = {
 #: Mean Earth radius for the lengths of ways, m.
 EARTH_RADIUS_M = 6_371_008.8
 
-#: The vehicle classes of commercial vehicles: an edge is kept when it allows one of them.
+#: The vehicle classes of heavy commercial vehicles (categories N2, N3, M2, M3).
 COMMERCIAL_VCLASSES = ("truck", "bus", "coach")
+#: The vehicle classes an import keeps by default: an edge is kept when it allows one of them. The heavy
+#: commercial vehicles and SUMO's ``delivery`` class, the N1 vans of category N the standard covers, which
+#: drive the service roads of depots, yards and back streets (``highway=service`` is open to them only).
+FLEET_VCLASSES = (*COMMERCIAL_VCLASSES, "delivery")
 
 #: Attribution every file built from OpenStreetMap data carries (ODbL 1.0, section 4.3).
 OSM_ATTRIBUTION = "Data (c) OpenStreetMap contributors, available under the Open Database License (ODbL 1.0)"
@@ -122,7 +131,7 @@ class ImportSettings:
     lefthand
         Left-hand traffic (UK, Japan, ...); right-hand otherwise.
     keep_vclasses
-        Keep the edges that allow at least one of these SUMO vehicle classes.
+        Keep the edges that allow at least one of these SUMO vehicle classes (default :data:`FLEET_VCLASSES`).
     precision_digits
         Digits after the point of output coordinates (2: centimetres).
     warning_radius_m
@@ -132,7 +141,7 @@ class ImportSettings:
     """
 
     lefthand: bool = False
-    keep_vclasses: tuple[str, ...] = COMMERCIAL_VCLASSES
+    keep_vclasses: tuple[str, ...] = FLEET_VCLASSES
     precision_digits: int = 2
     warning_radius_m: float | None = None
     type_files: tuple[Path, ...] = ()
@@ -153,6 +162,8 @@ class OsmScan:
         Every ``highway`` value of the file.
     motor_way_lengths
         ``way id -> (highway value, length in m)`` of the motor ways.
+    cut_ways
+        The motor ways with nodes missing from the extract: cut by its border.
     """
 
     nodes: int
@@ -160,6 +171,7 @@ class OsmScan:
     motor_ways: int
     highway_values: frozenset[str] = frozenset()
     motor_way_lengths: dict[int, tuple[str, float]] = field(default_factory=dict)
+    cut_ways: frozenset[int] = frozenset()
 
 
 @dataclass(frozen=True)
@@ -179,9 +191,11 @@ class ImportResult:
         network and extracting its curves.
     dropped
         The motor roads of the extract whose type lets a kept vehicle class drive, but
-        that are not in the network.
+        that are not in the network, and every way dropped or cut by the border with its reason.
     log_path
         netconvert's messages, warnings included.
+    dropped_path
+        The ways listed in ``dropped``, as CSV (:func:`csws.osm.coverage.write_dropped_ways`).
     """
 
     net_path: Path
@@ -194,6 +208,7 @@ class ImportResult:
     curves_s: float
     dropped: DroppedRoads
     log_path: Path
+    dropped_path: Path
 
 
 def osm_format(path: Path) -> str:
@@ -245,6 +260,7 @@ def scan_osm(path: str | Path) -> OsmScan:
     nodes = ways = 0
     values: set[str] = set()
     motor: dict[int, tuple[str, float]] = {}
+    cut: set[int] = set()
     try:
         source = osmium.FileProcessor(osmium.io.File(str(path), fmt), osmium.osm.NODE | osmium.osm.WAY).with_locations()
         for item in source:
@@ -258,12 +274,14 @@ def scan_osm(path: str | Path) -> OsmScan:
             values.add(value)
             if value in MOTOR_HIGHWAYS or base_highway(value, MOTOR_HIGHWAYS) is not None:
                 motor[item.id] = (value, _way_length_m(item))
+                if not all(node.location.valid() for node in item.nodes):
+                    cut.add(item.id)
     except RuntimeError as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise OsmImportError(f"{path} is not a readable OSM file ({reason})") from None
     if nodes == 0:
         raise OsmImportError(f"{path} holds no OSM nodes: it is not an OpenStreetMap extract or it is empty")
-    return OsmScan(nodes, ways, len(motor), frozenset(values), motor)
+    return OsmScan(nodes, ways, len(motor), frozenset(values), motor, frozenset(cut))
 
 
 def _way_length_m(way: osmium.osm.Way) -> float:
@@ -340,6 +358,11 @@ def curve_index_path(net_path: Path) -> Path:
     return _beside(net_path, ".curves.geojson")
 
 
+def dropped_ways_path(net_path: Path) -> Path:
+    """Where the ways an import dropped go: ``NAME.dropped.csv`` beside the network."""
+    return _beside(net_path, ".dropped.csv")
+
+
 def netconvert_log_path(net_path: Path) -> Path:
     """Where netconvert's messages of an import go: ``NAME.netconvert.log`` beside the network."""
     return _beside(net_path, ".netconvert.log")
@@ -370,7 +393,8 @@ def _type_files(scan: OsmScan, settings: ImportSettings, work: Path) -> tuple[Pa
 
 def _drivable_ways(scan: OsmScan, settings: ImportSettings) -> dict[int, tuple[str, float]]:
     """The motor ways whose road type lets a kept vehicle class drive (a ``service`` way, for
-    one, is for delivery vans only in SUMO's type map): those the network should hold."""
+    one, is for delivery vans only in SUMO's type map): those the network should hold; the
+    others are closed to the fleet by their type."""
     known = known_highways((sumo_type_file(), *settings.type_files))
     allowed = {}
     for value in {value for value, _ in scan.motor_way_lengths.values()}:
@@ -435,7 +459,9 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
         net_path.unlink(missing_ok=True)
         raise _no_roads_error(osm_path, settings) from None
     drivable = _drivable_ways(scan, settings)
-    dropped = dropped_roads(drivable, (edge.getID() for edge in net.getEdges()))
+    closed = {way: entry for way, entry in scan.motor_way_lengths.items() if way not in drivable}
+    dropped = dropped_roads(drivable, (edge.getID() for edge in net.getEdges()), closed, scan.cut_ways)
+    dropped_path = write_dropped_ways(dropped, dropped_ways_path(net_path))
     curves_path = curve_index_path(net_path)
     write_curve_index(road_map, curves_path, osm_path)
     indexed = time.perf_counter()
@@ -450,6 +476,7 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
         curves_s=indexed - converted,
         dropped=dropped,
         log_path=netconvert_log_path(net_path),
+        dropped_path=dropped_path,
     )
 
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 
 from .fleet import write_fleet_scenario
-from .importer import COMMERCIAL_VCLASSES, ImportSettings, import_osm
+from .importer import FLEET_VCLASSES, ImportSettings, import_osm
 
 
 def main(args: argparse.Namespace) -> int:
     """Import ``args.osm`` into ``args.output`` and print what was built."""
     settings = ImportSettings(
-        lefthand=args.lefthand, keep_vclasses=args.vclasses or COMMERCIAL_VCLASSES, type_files=tuple(args.typemap)
+        lefthand=args.lefthand, keep_vclasses=args.vclasses or FLEET_VCLASSES, type_files=tuple(args.typemap)
     )
     result = import_osm(args.osm, args.output, settings)
     print(f"read {args.osm}: {result.scan.nodes} nodes, {result.scan.ways} ways, {result.scan.motor_ways} motor roads")
@@ -19,6 +19,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"wrote {result.curves_path}: {result.curves} curves ({result.curves_s:.1f} s)")
     for line in result.dropped.lines():
         print(line)
+    print(f"ways dropped or cut by the extract border, with the reason: {result.dropped_path}")
     print(f"netconvert's messages: {result.log_path}")
     print("Data (c) OpenStreetMap contributors, ODbL 1.0: keep this attribution with the network.")
     return 0

@@ -218,7 +218,7 @@ class RoadChains:
             for run in runs
             for curve in self._fitted_curves(run.source, warning_radius_m, policy)
         )
-        return [curve for curve in moved if curve is not None]
+        return _joined_at_run_joints([curve for curve in moved if curve is not None])
 
     def _kept(
         self, key: tuple[int, float, int, bool], policy: WarningSpeedPolicy, find: Callable[[], list[Curve]]
@@ -240,6 +240,32 @@ class RoadChains:
         """The lane and SUMO lane position of chain arc length ``s`` (``end``: see :meth:`lane_at`)."""
         lane = self.lane_at(chain, s, end)
         return lane, float((s - self.lane_start_s[lane]) * self.lane_position_factor[lane])
+
+
+def _joined_at_run_joints(curves: list[Curve]) -> list[Curve]:
+    """Curves in driving order with each pair that meets at a run joint turning the same way made one: the curve
+    of a road does not end where a chain switches from its own lanes' fit to a borrowed one (or back), so the
+    joint leaves no short fragment of it. Two curves of one fit never meet turning the same way (a curve is a
+    maximal stretch), so any that meet, within :data:`JOINT_TOLERANCE_M`, were cut by a joint."""
+    joined: list[Curve] = []
+    for curve in curves:
+        previous = joined[-1] if joined else None
+        if (
+            previous is not None
+            and previous.direction == curve.direction
+            and abs(curve.start_s - previous.end_s) <= JOINT_TOLERANCE_M
+        ):
+            joined[-1] = Curve(
+                previous.start_s,
+                curve.end_s,
+                previous.angle_deg + curve.angle_deg,
+                curve.direction,
+                min(previous.min_radius_m, curve.min_radius_m),
+                previous.parts + curve.parts,
+            )
+        else:
+            joined.append(curve)
+    return joined
 
 
 def _straight_joints(xy: np.ndarray, joint_s: np.ndarray) -> np.ndarray:
@@ -350,9 +376,11 @@ def _chain_lengths(chain_xy: Sequence[np.ndarray]) -> np.ndarray:
 def _fit_sources(
     chain_xy: Sequence[np.ndarray], runs: Sequence[Sequence[Run]], cache_dir: Path | None
 ) -> tuple[RadiusProfile | None, ...]:
-    """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others."""
+    """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others,
+    kept to its polyline's net turn and corners (:func:`csws.curvature.artefacts.kept_to_polyline`: map artefacts
+    are no curves, corners are), and kept so on disk."""
     sources = sorted({run.source for chain_runs_ in runs for run in chain_runs_})
-    fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir)
+    fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir, kept_to_polylines=True)
     fitted: list[RadiusProfile | None] = [None] * len(chain_xy)
     for chain, fit in zip(sources, fits, strict=True):
         fitted[chain] = fit
