@@ -30,6 +30,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from benchmarks import (
+    citymaps,
     cosim,
     curvature,
     fcw,
@@ -187,6 +188,29 @@ def fcw_traffic_rows(figures: dict) -> list[Row]:
         ),
         context("FCW in traffic: where the false warnings came (most frequent)", situations),
     ]
+
+
+def citymaps_rows(figures: dict) -> list[Row]:
+    rows = []
+    for city, found in figures.items():
+        rows += [
+            at_most(
+                f"city maps, {city}: vertex corners >= 45 deg without a curve", found.get("missed >= 45 deg", 0), 0
+            ),
+            at_most(f"city maps, {city}: corners 30-45 deg without a curve", found.get("missed 30-45 deg", 0), 0),
+            at_most(
+                f"city maps, {city}: curves >= 20 deg where the road turns < 5 deg net",
+                found.get("curves >= 20 deg on < 5 deg net", 0),
+                0,
+            ),
+            at_most(f"city maps, {city}: curves above 360 deg", found.get("curves > 360 deg", 0), 0),
+            context(
+                f"city maps, {city}: curves, at the 5 m floor, artefacts found",
+                f"{found.get('curves', 0):,}, {found.get('curves at the 5 m floor', 0)}, "
+                + ", ".join(f"{k.split(': ')[1]} {v}" for k, v in found.items() if k.startswith("artefacts")),
+            ),
+        ]
+    return rows
 
 
 def matching_rows(figures: dict) -> list[Row]:
@@ -466,6 +490,12 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("fcw", fcw.run, "a few seconds", fcw_rows),
         Benchmark("service", service.run, "about 1-2 minutes", service_rows),
+        Benchmark(
+            "city maps",
+            lambda: citymaps.run(osm=osm_file),
+            "about a minute (plus an import with --osm)",
+            citymaps_rows,
+        ),
         Benchmark("matching", matching.run, "about half a minute: 10,000 vehicles on Bad Hersfeld", matching_rows),
         Benchmark(
             "hygiene", hygiene.run, "about a minute: slow heads, saturation, descriptor exhaustion", hygiene_rows
