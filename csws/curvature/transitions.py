@@ -20,21 +20,23 @@ linear in ``(c, k_i, k_j - k_i)`` for given ``(s1, s2)``. Running sums of the ch
 weighted powers of arc length give the least-squares fit for every ``(s1, s2)`` of a
 grid in a few array operations; the best is refined on a finer grid.
 
-Whether the clothoid replaces the staircase is judged on the road's sideways offsets,
-not its headings: a chord's heading error is the difference of its two vertices'
-sideways errors, so neighbouring chords' errors cancel and a deviation that lasts tens
-of metres, as a clothoid's from a step does, is seen with the weight of every vertex it
-moves (a 20 m spiral into R 330 m moves the road about 2 cm, seven times the noise of
-centimetre rounding, over forty vertices). Summing heading times chord length along the
-chords turns both the data and each model into sideways offsets whose errors are the
-vertices' own, independent ones (see :func:`_sideways_residuals`). The clothoid replaces
-the staircase when its residual there, plus :data:`PARAMETER_PENALTY` for each
-parameter it has more than the staircase (or less, for two or more stairs), is
+The clothoid replaces the staircase when its residual, plus :data:`PARAMETER_PENALTY` for
+each parameter it has more than the staircase (or less, for two or more stairs), is
 smaller, and when it beats the best single step of the same stretch (a clothoid of no
 length) by more than :data:`PARAMETER_PENALTY` (by anything, when it is :data:`LONG_SPIRAL_M`
 long or more) and is at least :data:`MIN_SPIRAL_M` long: so an arc that meets a straight at a
 point, a compound curve of directly joined arcs (3.8), or one of true constant-radius
 parts, keeps its steps.
+
+Residuals are those of the chords' headings. A long clothoid that fails there is judged
+once more on the road's sideways offsets (:func:`_kept_on_offsets`; the step must then be
+beaten by more than :data:`PARAMETER_PENALTY`): a
+chord's heading error is the difference of its two vertices' sideways errors, so a
+deviation that lasts tens of metres, as a gentle clothoid's from a step does, hardly
+shows in headings, while it moves every vertex it spans (a 20 m spiral into R 330 m moves
+the road about 2 cm, seven times the noise of centimetre rounding, over forty vertices).
+Short candidates are judged on headings alone: rounding regularly spaced vertices leaves
+sideways errors that run together over metres, which false clothoids of a few metres fit.
 """
 
 from __future__ import annotations
