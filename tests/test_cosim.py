@@ -11,7 +11,6 @@ import csv
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -20,6 +19,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 from markers import marks_its_tests
+from servers import Server
 
 from csws.cosim.categories import category_of
 from csws.cosim.driver import DriverSettings
@@ -148,53 +148,15 @@ def test_flickers_are_counted_as_the_warning_events_show(library_run):
     assert summary["warnings"]["on_again_for_another_curve"] == other
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 @marks_its_tests("slow")
 def service_url(tmp_path_factory):
     """A real service on loopback that needs a fleet's API key: its URL and the key."""
-    port = _free_port()
     keys_file = tmp_path_factory.mktemp("keys") / "keys.json"
     key = add_key(keys_file, "study", "query")
-    environment = {
-        **os.environ,
-        "CSWS_API_KEYS_FILE": str(keys_file),
-        "CSWS_NETS": str(FLEET_NET),
-        "CSWS_STATE_DB": ":memory:",
-        "CSWS_UPDATE_PERIOD_S": str(STEP_S),
-    }
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "uvicorn",
-            "--factory",
-            "service.app:create_app",
-            "--host",
-            "127.0.0.1",
-            "--port",
-            str(port),
-        ],
-        env=environment,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-            break
-        except OSError:
-            assert process.poll() is None, "the service did not start"
-            time.sleep(0.2)
-    yield f"http://127.0.0.1:{port}", key
-    process.terminate()
-    process.wait(timeout=30)
+    server = Server([FLEET_NET], Path(":memory:"), api_keys_file=str(keys_file), update_period_s=str(STEP_S))
+    yield server.url, key
+    server.stop()
 
 
 @pytest.mark.sumo

@@ -41,7 +41,7 @@ from csws.networks import networks_dir
 from csws.networks.real_roads import REAL_ROADS_DIR
 from csws.road.roadmap import RoadMap
 from csws.standard import formula_1_m, kmh_to_mps, mps_to_kmh
-from csws.sumo.binaries import sumo_binary
+from csws.sumo.binaries import QUIET_OPTIONS, sumo_binary
 from csws.warning.rules import WarningSettings
 
 from .rows import Row
@@ -332,12 +332,7 @@ def _sumo_command(task: Task, routes: Path) -> list[str]:
         str(routes),
         "--step-length",
         f"{task.step_length_s:g}",
-        "--no-step-log",
-        "true",
-        "--no-warnings",
-        "true",
-        "--duration-log.disable",
-        "true",
+        *QUIET_OPTIONS,
         "--seed",
         "0",
     ]

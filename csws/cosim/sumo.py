@@ -29,7 +29,7 @@ import numpy as np
 
 from csws.errors import CswsError
 from csws.standard import Category
-from csws.sumo.binaries import sumo_binary, sumo_home
+from csws.sumo.binaries import QUIET_OPTIONS, sumo_binary, sumo_home
 
 from .categories import CATEGORY_PARAMETER, category_of
 
@@ -285,12 +285,7 @@ def sumo_arguments(
         f"{step_length_s:g}",
         "--seed",
         str(seed),
-        "--no-step-log",
-        "true",
-        "--no-warnings",
-        "true",
-        "--duration-log.disable",
-        "true",
+        *QUIET_OPTIONS,
     ]
     if end_s is not None and math.isfinite(end_s):
         arguments += ["--end", f"{end_s:g}"]

@@ -17,6 +17,10 @@ class SumoNotFoundError(RuntimeError, CswsError):
     """A SUMO program is not where the eclipse-sumo package puts it."""
 
 
+#: SUMO's options for a run that prints nothing but errors: no step log, no warnings, no duration log.
+QUIET_OPTIONS = ("--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true")
+
+
 def sumo_home() -> Path:
     """SUMO_HOME of the installed eclipse-sumo package."""
     try:

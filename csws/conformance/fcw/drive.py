@@ -40,7 +40,7 @@ from csws.fcw.physics import time_to_collision_s
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR
 from csws.standard import kmh_to_mps
-from csws.sumo.binaries import sumo_binary
+from csws.sumo.binaries import QUIET_OPTIONS, sumo_binary
 
 from .rows import CAR_LENGTH_M, FcwRow
 from .scripts import script_of
@@ -281,12 +281,7 @@ def _run(task: Task, repetition: int, phase: float, equipment: _Equipment) -> Tr
                 str(routes),
                 "--step-length",
                 f"{step_s:g}",
-                "--no-step-log",
-                "true",
-                "--no-warnings",
-                "true",
-                "--duration-log.disable",
-                "true",
+                *QUIET_OPTIONS,
                 "--seed",
                 "0",
                 "--collision.action",
