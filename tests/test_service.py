@@ -25,7 +25,6 @@ from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.standard import Category, Level, warning_speed
-from service.schemas import unknown_field_message
 
 TRUTH = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
 ROUTE = TRUTH["route"]["edges"]
@@ -400,11 +399,17 @@ def test_a_bad_switch_gets_a_clear_422(client) -> None:
     assert "unknown field 'categroy': did you mean 'category'?" in response.text
 
 
-def test_an_unknown_batch_field_is_named() -> None:
-    """Outside the body's models too: a batch with a misspelt list is refused, not answered empty."""
-    assert unknown_field_message("query") == "unknown field 'query': did you mean 'queries'?"
-    assert unknown_field_message("zzz") == "unknown field 'zzz'"
-    assert len(unknown_field_message("x" * 10_000)) < 100
+def test_an_unknown_batch_field_is_named(client) -> None:
+    """A batch whose list is misspelt is refused with the field meant, not answered empty; a long
+    unknown name is cut, and one resembling nothing is named alone."""
+    response = client.post("/v1/warnings", json={"query": [GOOD]})
+    assert response.status_code == 422
+    messages = [problem["msg"] for problem in response.json()["detail"]]
+    assert "unknown field 'query': did you mean 'queries'?" in messages
+    response = client.post("/v1/warning", json={**GOOD, "zzz" + "x" * 10_000: 1})
+    assert response.status_code == 422
+    assert len(response.text) < 1_000
+    assert any(problem["msg"].startswith("unknown field 'zzzx") for problem in response.json()["detail"])
 
 
 # ------------------------------------------------------------------ operations

@@ -203,13 +203,16 @@ def _best_spiral(
     return _least_on_grid(moments, fine1, fine2)
 
 
-def _best_step_s(moments: _Moments, low: float, high: float) -> float:
+def _best_step(moments: _Moments, low: float, high: float) -> tuple[float, float]:
     """Where a road whose curvature steps at one point between ``low`` and ``high`` (a
-    clothoid of no length) fits the headings best: the step a clothoid must beat."""
+    clothoid of no length) fits the headings best, and its residual: the step a clothoid
+    must beat."""
     coarse = _grid(low, high, COARSE_STEP_M)
     centre = coarse[int(np.argmin(moments.residual(coarse, coarse)[0]))]
     fine = _grid(max(low, centre - COARSE_STEP_M), min(high, centre + COARSE_STEP_M), FINE_STEP_M)
-    return float(fine[int(np.argmin(moments.residual(fine, fine)[0]))])
+    residual = moments.residual(fine, fine)[0]
+    best = int(np.argmin(residual))
+    return float(fine[best]), float(residual[best])
 
 
 def _spiral_integrals(s: np.ndarray, s1: float, s2: float) -> np.ndarray:
@@ -460,8 +463,7 @@ def _best_replacement(chords: _Chords, bounds: np.ndarray, start_k: np.ndarray, 
         stair_parameters = PART_PARAMETERS * (j - i + 1) + int(is_spiral[i : j + 1].sum())
         penalty = PARAMETER_PENALTY * (stair_parameters - SPIRAL_PARAMETERS)
         gain = (stairs - residual) / chords.noise_variance + penalty
-        step_s = _best_step_s(moments, s1_range[0], s2_range[1])
-        step = float(moments.residual(np.array([step_s]), np.array([step_s]))[0][0])
+        step_s, step = _best_step(moments, s1_range[0], s2_range[1])
         long = s2 - s1 >= LONG_SPIRAL_M
         kept = gain > 0 and (step - residual) / chords.noise_variance > (0.0 if long else PARAMETER_PENALTY)
         if not kept and long:
