@@ -1,4 +1,4 @@
-"""The ``csws import-osm`` and ``csws fleet-scenario`` subcommands: their arguments; the work is in
+"""The ``csws import-osm``, ``csws map-report`` and ``csws fleet-scenario`` subcommands: their arguments; the work is in
 ``csws.osm.run``."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def _vclasses(text: str) -> tuple[str, ...]:
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
-    """Add ``csws import-osm`` and ``csws fleet-scenario``."""
+    """Add ``csws import-osm``, ``csws map-report`` and ``csws fleet-scenario``."""
     parser = commands.add_parser(
         "import-osm", help="import an OpenStreetMap extract into a SUMO network with its curve index"
     )
@@ -46,6 +46,16 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         ),
     )
     parser.set_defaults(handler=deferred("csws.osm.run"))
+
+    report = commands.add_parser(
+        "map-report",
+        help="list what a network's map shows wrong or doubtful (artefacts, corners, curves at the radius floor)",
+    )
+    report.add_argument("net", type=Path, help="a SUMO .net.xml or .net.xml.gz")
+    report.add_argument(
+        "-o", "--output", type=Path, default=None, help="GeoJSON to write (default: NAME.report.geojson beside NET)"
+    )
+    report.set_defaults(handler=deferred("csws.osm.run", "report_main"))
 
     fleet = commands.add_parser(
         "fleet-scenario", help="write a SUMO scenario of trucks and buses on the twistiest roads of a network"

@@ -48,6 +48,7 @@ from csws.standard import DEFAULT_POLICY
 from csws.sumo.netbuild import NetconvertError, netconvert_osm
 
 from .coverage import DroppedRoads, dropped_roads, write_dropped_ways
+from .report import ReportItem, dropped_items, network_items, write_report
 from .typemap import base_highway, derived_highways, known_highways, sumo_type_file, type_allows, write_derived_types
 
 if TYPE_CHECKING:
@@ -59,6 +60,7 @@ __all__ = [
     "COMMERCIAL_VCLASSES",
     "FLEET_VCLASSES",
     "dropped_ways_path",
+    "map_report_path",
     "ImportSettings",
     "ImportResult",
     "OsmImportError",
@@ -164,6 +166,9 @@ class OsmScan:
         ``way id -> (highway value, length in m)`` of the motor ways.
     cut_ways
         The motor ways with nodes missing from the extract: cut by its border.
+    way_lonlat
+        ``way id -> lon/lat (k, 2)`` of the motor ways' nodes in the extract, degrees: where the map report
+        places a way the network lacks.
     """
 
     nodes: int
@@ -172,6 +177,7 @@ class OsmScan:
     highway_values: frozenset[str] = frozenset()
     motor_way_lengths: dict[int, tuple[str, float]] = field(default_factory=dict)
     cut_ways: frozenset[int] = frozenset()
+    way_lonlat: dict[int, np.ndarray] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -188,7 +194,7 @@ class ImportResult:
         Lanes (internal lanes included), their total length in km, and curves in the index.
     convert_s, curves_s
         Seconds spent in netconvert (PBF conversion included) and in loading the
-        network and extracting its curves.
+        network and extracting its curves and map report.
     dropped
         The motor roads of the extract whose type lets a kept vehicle class drive, but
         that are not in the network, and every way dropped or cut by the border with its reason.
@@ -196,6 +202,9 @@ class ImportResult:
         netconvert's messages, warnings included.
     dropped_path
         The ways listed in ``dropped``, as CSV (:func:`csws.osm.coverage.write_dropped_ways`).
+    report, report_path
+        The map report (:mod:`csws.osm.report`): what the network shows wrong or doubtful, and the ways
+        dropped or cut by the border, place by place; and its GeoJSON file.
     """
 
     net_path: Path
@@ -209,6 +218,8 @@ class ImportResult:
     dropped: DroppedRoads
     log_path: Path
     dropped_path: Path
+    report: tuple[ReportItem, ...]
+    report_path: Path
 
 
 def osm_format(path: Path) -> str:
@@ -260,6 +271,7 @@ def scan_osm(path: str | Path) -> OsmScan:
     nodes = ways = 0
     values: set[str] = set()
     motor: dict[int, tuple[str, float]] = {}
+    lonlat: dict[int, np.ndarray] = {}
     cut: set[int] = set()
     try:
         source = osmium.FileProcessor(osmium.io.File(str(path), fmt), osmium.osm.NODE | osmium.osm.WAY).with_locations()
@@ -273,7 +285,8 @@ def scan_osm(path: str | Path) -> OsmScan:
                 continue
             values.add(value)
             if value in MOTOR_HIGHWAYS or base_highway(value, MOTOR_HIGHWAYS) is not None:
-                motor[item.id] = (value, _way_length_m(item))
+                lonlat[item.id] = _way_lonlat(item)
+                motor[item.id] = (value, _way_length_m(lonlat[item.id]))
                 if not all(node.location.valid() for node in item.nodes):
                     cut.add(item.id)
     except RuntimeError as exc:
@@ -281,15 +294,19 @@ def scan_osm(path: str | Path) -> OsmScan:
         raise OsmImportError(f"{path} is not a readable OSM file ({reason})") from None
     if nodes == 0:
         raise OsmImportError(f"{path} holds no OSM nodes: it is not an OpenStreetMap extract or it is empty")
-    return OsmScan(nodes, ways, len(motor), frozenset(values), motor, frozenset(cut))
+    return OsmScan(nodes, ways, len(motor), frozenset(values), motor, frozenset(cut), lonlat)
 
 
-def _way_length_m(way: osmium.osm.Way) -> float:
-    """Length of an osmium way from its nodes' locations, m (0 where a location is missing)."""
-    points = [(node.lon, node.lat) for node in way.nodes if node.location.valid()]
+def _way_lonlat(way: osmium.osm.Way) -> np.ndarray:
+    """Lon/lat of the nodes of an osmium way that the extract holds, ``(k, 2)``, degrees."""
+    return np.array([(node.lon, node.lat) for node in way.nodes if node.location.valid()], dtype=float).reshape(-1, 2)
+
+
+def _way_length_m(points: np.ndarray) -> float:
+    """Length of a way from its nodes' lon/lat ``(k, 2)`` in degrees, m (0 for fewer than two)."""
     if len(points) < 2:
         return 0.0
-    lon, lat = np.radians(np.array(points)).T
+    lon, lat = np.radians(points).T
     east = np.diff(lon) * np.cos((lat[1:] + lat[:-1]) / 2.0)
     return float(EARTH_RADIUS_M * np.hypot(east, np.diff(lat)).sum())
 
@@ -361,6 +378,11 @@ def curve_index_path(net_path: Path) -> Path:
 def dropped_ways_path(net_path: Path) -> Path:
     """Where the ways an import dropped go: ``NAME.dropped.csv`` beside the network."""
     return _beside(net_path, ".dropped.csv")
+
+
+def map_report_path(net_path: Path) -> Path:
+    """Where the map report of a network goes: ``NAME.report.geojson`` beside the network."""
+    return _beside(net_path, ".report.geojson")
 
 
 def netconvert_log_path(net_path: Path) -> Path:
@@ -464,6 +486,10 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
     dropped_path = write_dropped_ways(dropped, dropped_ways_path(net_path))
     curves_path = curve_index_path(net_path)
     write_curve_index(road_map, curves_path, osm_path)
+    report = network_items(road_map) + dropped_items(dropped, scan.way_lonlat)
+    report_path = write_report(
+        report, road_map.has_projection, map_report_path(net_path), source=osm_path.name, attribution=OSM_ATTRIBUTION
+    )
     indexed = time.perf_counter()
     return ImportResult(
         net_path=net_path,
@@ -477,6 +503,8 @@ def import_osm(osm_path: str | Path, net_path: str | Path, settings: ImportSetti
         dropped=dropped,
         log_path=netconvert_log_path(net_path),
         dropped_path=dropped_path,
+        report=tuple(report),
+        report_path=report_path,
     )
 
 

@@ -1,11 +1,16 @@
-"""``csws import-osm`` and ``csws fleet-scenario``: run the import or the scenario writer and print a summary."""
+"""``csws import-osm``, ``csws map-report`` and ``csws fleet-scenario``: run the import, the map report or the
+scenario writer and print a summary."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from csws.road.roadmap import RoadMap
 
 from .fleet import write_fleet_scenario
-from .importer import FLEET_VCLASSES, ImportSettings, import_osm
+from .importer import FLEET_VCLASSES, ImportSettings, import_osm, map_report_path
+from .report import network_items, summary_lines, write_report
 
 
 def main(args: argparse.Namespace) -> int:
@@ -20,8 +25,24 @@ def main(args: argparse.Namespace) -> int:
     for line in result.dropped.lines():
         print(line)
     print(f"ways dropped or cut by the extract border, with the reason: {result.dropped_path}")
+    for line in summary_lines(result.report):
+        print(line)
+    print(f"what the map shows wrong or doubtful, place by place (GeoJSON): {result.report_path}")
     print(f"netconvert's messages: {result.log_path}")
     print("Data (c) OpenStreetMap contributors, ODbL 1.0: keep this attribution with the network.")
+    return 0
+
+
+def report_main(args: argparse.Namespace) -> int:
+    """Write the map report of network ``args.net`` (to ``args.output``, else beside it) and print its summary."""
+    road_map = RoadMap.load(args.net)
+    items = network_items(road_map)
+    path = write_report(
+        items, road_map.has_projection, args.output or map_report_path(args.net), source=Path(args.net).name
+    )
+    for line in summary_lines(items):
+        print(line)
+    print(f"wrote {path}: {len(items)} item(s)")
     return 0
 
 

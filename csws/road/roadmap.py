@@ -57,7 +57,7 @@ import numpy as np
 import sumolib
 
 from csws.curvature import checked_warning_radius_m, profile_cache_dir
-from csws.road.chains import LaneCurve, fit_road_chains, index_curves
+from csws.road.chains import LaneCurve, RoadChains, fit_road_chains, index_curves
 from csws.road.georef import GeoReferenced, finite_pairs
 from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 from csws.road.path import PathProfile, path_profile
@@ -289,6 +289,11 @@ class RoadMap(GeoReferenced):
         ids = [lane.lane_id for lane in self._lanes]
         starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
         return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=False))
+
+    @property
+    def chains(self) -> RoadChains:
+        """The road chains: each road's lanes stitched into one polyline, with its fit (:mod:`csws.road.chains`)."""
+        return self._chains
 
     def road_chain(self, lane_id: str) -> tuple[str, ...]:
         """The lanes of the road chain ``lane_id`` belongs to, in driving order (:mod:`csws.road.chains`)."""
