@@ -19,6 +19,8 @@ import msgspec
 import shapely
 from starlette.middleware.gzip import GZipMiddleware
 
+from csws.osm.importer import map_report_path
+
 from .curves import feature_collection, in_bbox, network_curve_features
 from .networks import ServedNetwork
 
@@ -74,14 +76,24 @@ class CompressedGets:
 
 class MapData:
     """What the map routes draw, made once per network on first use: the page naming the served
-    networks, the curves' features (:func:`service.curves.network_curve_features`) and the roads' JSON.
+    networks (and whether each has a map report, ``GET /v1/report``), the curves' features
+    (:func:`service.curves.network_curve_features`) and the roads' JSON.
 
     The caches are filled on the service's work thread only (:mod:`service.work`).
     """
 
     def __init__(self, networks: Sequence[ServedNetwork]) -> None:
         self.networks = list(networks)
-        names = json.dumps([{"name": n.name, "geo_referenced": n.road_map.has_projection} for n in networks])
+        names = json.dumps(
+            [
+                {
+                    "name": n.name,
+                    "geo_referenced": n.road_map.has_projection,
+                    "report": map_report_path(n.path).is_file(),
+                }
+                for n in networks
+            ]
+        )
         self.page = _PAGE.replace("{networks}", names.replace("</", "<\\/"))
         self._curves: dict[int, list[dict[str, Any]]] = {}
         self._roads: dict[int, bytes] = {}

@@ -17,7 +17,11 @@ from pathlib import Path
 import numpy as np
 import pyproj
 import pytest
+from fastapi.testclient import TestClient
 from markers import marks_its_tests
+from playwright.sync_api import sync_playwright
+from servers import Workers
+from test_map import CHROMIUM, CHROMIUM_ARGS, TRACK_NET, WAIT_MS, Recorded
 from test_osm import ORIGIN_XY, UTM32, OsmWriter
 
 from csws import cli
@@ -35,6 +39,8 @@ from csws.osm.report import (
     summary_lines,
 )
 from csws.road.roadmap import RoadMap
+from service.app import create_app
+from service.settings import ServiceSettings
 
 #: The OSM way of the hand-written network's edges, as netconvert names edges after ways.
 WAY_ID = 25805442
@@ -254,3 +260,52 @@ def test_map_report_of_a_network_without_projection_is_in_network_metres(tmp_pat
     (spike,) = network_items(road_map)
     x, y = spike.points[0]
     assert x == pytest.approx(SPIKE_X_M - SPIKE_M / 2, abs=0.01) and abs(y) == pytest.approx(1.6, abs=0.01)
+
+
+# ------------------------------------------------------------------ the report on the live map
+@pytest.mark.sumo
+def test_the_service_serves_the_report_of_a_network_that_has_one(faulty_import: ImportResult) -> None:
+    settings = ServiceSettings(nets=[faulty_import.net_path, TRACK_NET], state_db=":memory:")
+    with TestClient(create_app(settings)) as client:
+        answer = client.get("/v1/report", params={"network": "faulty"})
+        assert answer.status_code == 200 and answer.headers["content-type"] == "application/geo+json"
+        assert answer.json() == json.loads(faulty_import.report_path.read_text())
+        missing = client.get("/v1/report", params={"network": TRACK_NET.name.removesuffix(".net.xml")})
+        assert missing.status_code == 404 and "csws map-report" in missing.json()["detail"]
+        assert client.get("/v1/report", params={"network": "elsewhere"}).status_code == 422
+        page = client.get("/map").text
+        names = json.loads(page.split('type="application/json">', 1)[1].split("</script>", 1)[0])
+        assert {n["name"]: n["report"] for n in names} == {"faulty": True, "t7_left": False}
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("slow")
+def report_server(faulty_import: ImportResult, tmp_path_factory):
+    running = Workers([faulty_import.net_path], "--state-db", str(tmp_path_factory.mktemp("state") / "s.db"), workers=1)
+    yield running
+    running.stop()
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("browser")
+def browser():
+    with sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield chromium
+        chromium.close()
+
+
+def test_the_map_shows_the_report_as_a_layer_when_ticked(browser, report_server, faulty_import) -> None:
+    recorded = Recorded(browser)
+    page = recorded.page
+    page.goto(f"{report_server.url}/map?network=faulty")
+    page.wait_for_function("() => document.body.dataset.ready === 'true'", timeout=WAIT_MS)
+    page.wait_for_function("() => document.body.dataset.reportFeatures !== undefined", timeout=WAIT_MS)
+    features = json.loads(faulty_import.report_path.read_text())["features"]
+    assert page.evaluate("document.body.dataset.reportFeatures") == str(len(features))
+    assert not page.evaluate("cswsMap.map.hasLayer(cswsMap.report)")  # off until ticked
+    page.get_by_text(f"map report: {len(features)} item(s)").click()
+    assert page.evaluate("cswsMap.map.hasLayer(cswsMap.report)")
+    drawn = page.evaluate("cswsMap.report.getLayers().map(layer => layer.feature.properties.kind).sort()")
+    assert drawn == sorted(feature["properties"]["kind"] for feature in features)
+    recorded.assert_offline()

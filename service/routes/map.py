@@ -1,18 +1,21 @@
-"""The map: ``GET /map`` (the live map's page), ``/v1/curves``, ``/v1/horizon``, ``/v1/roads`` and ``/v1/fleet``.
+"""The map: ``GET /map`` (the live map's page), ``/v1/curves``, ``/v1/horizon``, ``/v1/roads``, ``/v1/report`` and
+``/v1/fleet``.
 
 The page (:mod:`service.map`) holds no data and needs no key; the data routes need the caller's key
-and answer only its fleet's vehicles.
+and answer only its fleet's vehicles. ``/v1/report`` gives a network's map report (:mod:`csws.osm.report`), the
+``NAME.report.geojson`` that ``csws import-osm`` or ``csws map-report`` wrote beside it.
 """
 
 from __future__ import annotations
 
 from typing import Annotated, NamedTuple
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends, HTTPException, Query
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 
+from csws.osm.importer import map_report_path
 from csws.standard import Category
 
 from .. import horizon
@@ -22,6 +25,7 @@ from ..fleet import fleet_features
 from ..horizon import DEFAULT_HORIZON_M
 from ..keys import vehicle_key
 from ..networks import MAX_HORIZON_M
+from ..schemas import Message
 from ..schemas import Query as PositionQuery
 from .common import KEYED, STORE, json_response
 
@@ -124,6 +128,30 @@ async def roads(
     """The roads of one network: the rightmost lane of each edge, simplified to within 1 m."""
     (index,) = choose_networks(networks, network)
     return Response(await work.run(data.roads, index), media_type="application/json")
+
+
+@router.get(
+    "/v1/report",
+    summary="The map report of a served network as GeoJSON: what its map shows wrong or doubtful, place by place",
+    responses={**KEYED, 404: {"model": Message, "description": "the network has no map report beside it"}},
+)
+async def map_report(
+    _principal: CallerDep,
+    networks: NetworksDep,
+    work: WorkDep,
+    network: Annotated[str, Query(description="the network")],
+) -> Response:
+    """The network's ``NAME.report.geojson``: map artefacts, curves at the radius floor, corners mapped by a single
+    node, ways dropped or cut by the extract's border, each with its OSM way id, size and reason."""
+    (index,) = choose_networks(networks, network)
+    path = map_report_path(networks[index].path)
+    try:
+        body = await work.run(path.read_bytes)
+    except FileNotFoundError:
+        raise HTTPException(
+            404, f"network {network!r} has no map report: write one with csws map-report {networks[index].path.name}"
+        ) from None
+    return Response(body, media_type="application/geo+json")
 
 
 @router.get(

@@ -1,5 +1,6 @@
 // The live map of csws (GET /map): the roads of one served network, its curves in the view coloured
-// by minimum radius, and the live vehicles, asked for once a second. No tiles: it works offline.
+// by minimum radius, and the live vehicles, asked for once a second; where the network has a map report
+// (GET /v1/report), a layer of what its map shows wrong or doubtful, off until ticked. No tiles: it works offline.
 // Address: /map?network=NAME#key=API_KEY (both optional).
 "use strict";
 
@@ -16,6 +17,11 @@ const RADIUS_CLASSES = [[40, "#800026"], [80, "#bd0026"], [120, "#e31a1c"], [200
 const VEHICLE_COLOURS = {
   off: "#9e9e9e", standby: "#1f78b4", fault: "#222222",
   "active-0": "#33a02c", "active-1": "#ff9900", "active-2": "#e31a1c",
+};
+// The map report: colour of each kind of item (csws.osm.report.KINDS).
+const REPORT_COLOURS = {
+  "artefact-spike": "#6a3d9a", "artefact-fold": "#6a3d9a", "artefact-jog": "#6a3d9a", "artefact-zigzag": "#6a3d9a",
+  "floor-curve": "#b15928", "single-node-corner": "#1f78b4", "border-cut": "#000000", dropped: "#737373",
 };
 const VEHICLE_LABELS = {
   off: "off", standby: "standby", fault: "fault",
@@ -36,6 +42,7 @@ if (network.geo_referenced) map.attributionControl.addAttribution("map data © O
 
 const roads = L.layerGroup().addTo(map);
 const curves = L.layerGroup().addTo(map);
+const report = L.layerGroup();  // the map report, shown when ticked in the layers control
 const vehicles = new Map();  // vehicle id -> circleMarker, updated in place
 const status = panel("bottomleft", "");
 const dataset = document.body.dataset;
@@ -78,6 +85,32 @@ function curvePopup(p) {
     + `minimum radius ${p.radius_m.toFixed(1)} m, angle ${p.angle_deg.toFixed(1)}°, ${p.direction}<br>`
     + `${p.parts.length} part(s); ${escaped(p.curve_id)}`
     + `<table class="vw"><tr><th>V_w km/h</th><th>level 1</th><th>level 2</th></tr>${rows}</table>`;
+}
+
+function reportPopup(p) {
+  const corner = p.real_corner === undefined ? "" : (p.real_corner ? " (real corner)" : " (artefact)");
+  const way = p.way_id === null ? "no OSM way" : `OSM way ${p.way_id}`;
+  return `<b>${escaped(p.kind)}</b>${corner}, ${p.size.toFixed(2)} ${escaped(p.unit)}<br>${way}`
+    + `${p.edge_id ? ", edge " + escaped(p.edge_id) : ""}<br>${escaped(p.reason)}`;
+}
+
+async function loadReport() {
+  if (!network.report) return;
+  const data = await get(`/v1/report?network=${encodeURIComponent(network.name)}`);
+  L.geoJSON(data, {
+    renderer: renderer,
+    pointToLayer: (f, latlng) => L.circleMarker(latlng, {
+      renderer: renderer, radius: 6, weight: 2, color: REPORT_COLOURS[f.properties.kind], fillOpacity: 0.3,
+    }),
+    style: (f) => ({
+      color: REPORT_COLOURS[f.properties.kind], weight: 4, opacity: 0.8,
+      dashArray: f.geometry.type === "LineString" && f.properties.kind !== "floor-curve" ? "6 6" : null,
+    }),
+    onEachFeature: (f, layer) => { layer.bindPopup(() => reportPopup(f.properties)); report.addLayer(layer); },
+  });
+  const label = `map report: ${data.features.length} item(s)`;
+  L.control.layers(null, { [label]: report }, { position: "topleft", collapsed: false }).addTo(map);
+  dataset.reportFeatures = String(data.features.length);
 }
 
 function vehicleKind(p) {
@@ -183,6 +216,7 @@ async function start() {
     const drawn = L.geoJSON(data, { renderer: renderer, interactive: false, style: { color: "#8c8c8c", weight: 2 } });
     roads.addLayer(drawn);
     map.fitBounds(drawn.getBounds(), { padding: [10, 10] });
+    await loadReport();
     map.on("moveend", () => loadCurves().catch((error) => showStatus(error.message)));
     await loadCurves();
     dataset.ready = "true";
@@ -193,5 +227,7 @@ async function start() {
   setInterval(loadFleet, FLEET_PERIOD_MS);
 }
 
-window.cswsMap = { map: map, vehicles: vehicles, curves: curves, colours: VEHICLE_COLOURS, fleetTimes: fleetTimes };
+window.cswsMap = {
+  map: map, vehicles: vehicles, curves: curves, report: report, colours: VEHICLE_COLOURS, fleetTimes: fleetTimes,
+};
 start();
