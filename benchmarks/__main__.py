@@ -209,6 +209,11 @@ def citymaps_rows(figures: dict) -> list[Row]:
                 f"{found.get('curves', 0):,}, {found.get('curves at the 5 m floor', 0)}, "
                 + ", ".join(f"{k.split(': ')[1]} {v}" for k, v in found.items() if k.startswith("artefacts")),
             ),
+            context(
+                f"city maps, {city}: map report: floor curves (real corners / artefacts), artefacts, 1-node corners",
+                " / ".join(str(found.get(f"report: floor curves, {k}", 0)) for k in ("real corners", "artefacts"))
+                + f", {found.get('report: artefacts', 0)}, {found.get('report: single-node corners', 0)}",
+            ),
         ]
     return rows
 

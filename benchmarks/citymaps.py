@@ -10,7 +10,11 @@ Measured on every road chain of a network (its lanes stitched into one polyline)
 * curves of 20 degrees or more where the polyline turns less than 5 degrees net over the
   curve's stretch (phantom curves), and curves claiming more than 360 degrees;
 * curves at the radius floor of 5 m;
-* the artefacts found, by kind.
+* the artefacts found, by kind;
+* the map report's figures (:mod:`csws.osm.report`, one item per place: the lanes and the two
+  directions of a way count once): the curves at the radius floor of the roads' own fits, split
+  into real corners (a polyline corner reaches into the curve) and artefacts, the artefacts and the
+  corners mapped by a single node, and how long the report took.
 
 Junction chains (a turn's internal lanes) carry no curve of the index and are left out.
 
@@ -29,6 +33,7 @@ from pathlib import Path
 
 from csws.curvature.artefacts import polyline_turns
 from csws.curvature.corners import FLOOR_RADIUS_M
+from csws.osm.report import ARTEFACT_KINDS, FLOOR_CURVE, SINGLE_NODE_CORNER, network_items
 from csws.road.roadmap import RoadMap
 
 #: The bundled network measured by default.
@@ -39,7 +44,7 @@ COVER_M = 2.0
 
 def measure(roadmap: RoadMap) -> dict:
     """The figures of the module for one loaded network."""
-    chains = roadmap._chains
+    chains = roadmap.chains
     by_chain: dict[int, list] = {}
     for lane_curve in roadmap.curves():
         by_chain.setdefault(lane_curve.chain, []).append(lane_curve.curve)
@@ -70,7 +75,24 @@ def measure(roadmap: RoadMap) -> dict:
             figures["curves > 360 deg"] += curve.angle_deg > 360.0
             figures["curves at the 5 m floor"] += curve.min_radius_m <= FLOOR_RADIUS_M + 1e-6
     figures.update({f"artefacts: {kind}": count for kind, count in artefacts.items()})
+    figures.update(report_figures(roadmap))
     return dict(sorted(figures.items()))
+
+
+def report_figures(roadmap: RoadMap) -> dict[str, float]:
+    """The map report's figures of one loaded network (see the module)."""
+    started = time.perf_counter()
+    items = network_items(roadmap)
+    took_s = time.perf_counter() - started
+    floor = [item for item in items if item.kind == FLOOR_CURVE]
+    real = sum(bool(item.real_corner) for item in floor)
+    return {
+        "report: floor curves, real corners": real,
+        "report: floor curves, artefacts": len(floor) - real,
+        "report: artefacts": sum(item.kind in ARTEFACT_KINDS.values() for item in items),
+        "report: single-node corners": sum(item.kind == SINGLE_NODE_CORNER for item in items),
+        "report s": round(took_s, 1),
+    }
 
 
 def run(network: Path = NETWORK, osm: Path | None = None) -> dict[str, dict]:

@@ -9,12 +9,13 @@ junction manoeuvres left out) is read for what the curve index cannot trust or h
 * **curves at the radius floor** (``floor-curve``): curves of a road's own fit whose smallest radius
   is :data:`csws.curvature.corners.FLOOR_RADIUS_M`, the least a road curve is given (a lane beside
   its road's reference lane has the same curve, its radii moved by the lanes' offset). Such a curve
-  is a **real corner** when a corner of the polyline (vertices turning one way by
-  :data:`csws.curvature.artefacts.CORNER_MIN_DEG` or more together within
-  :data:`csws.curvature.artefacts.CORNER_SPAN_M`, each with a heading of its own on either side)
-  turning its way reaches into it: the road turns there, drawn by too few nodes for its radius.
-  Otherwise it is an **artefact**: the fit bent the road at the floor where the map draws no corner.
-  Size: the curve's angle (deg);
+  is a **real corner** when the polyline turns its way by :data:`csws.curvature.artefacts.CORNER_MIN_DEG`
+  or more net over the curve's stretch (its vertices and the nearest beyond either end turning that
+  way, an artefact's vertices counting their net turn only:
+  :meth:`~csws.curvature.artefacts.PolylineTurns.net_turn_rad`), the curve no longer than
+  :data:`csws.curvature.artefacts.CORNER_SPAN_M`: the road turns there, drawn by too few nodes, or
+  nodes too close together, for its radius. Otherwise it is an **artefact**: the fit bent the road
+  at the floor where the map draws no corner. Size: the curve's angle (deg);
 * **corners mapped by a single node** (``single-node-corner``): a polyline corner of one vertex
   turning :data:`SINGLE_NODE_CORNER_DEG` or more; its radius is not in the map (the index lays an
   arc over it, :func:`csws.curvature.corners.corner_arc`). Size: its turn (deg).
@@ -46,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from csws.curvature import Curve, curves_from_profile
-from csws.curvature.artefacts import Corner, PolylineTurns, polyline_turns
+from csws.curvature.artefacts import CORNER_MIN_DEG, CORNER_SPAN_M, PolylineTurns, polyline_turns
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.road.export import COORDINATES
 from csws.road.roadmap import RoadMap
@@ -178,26 +179,22 @@ def _single_node_corners(turns: PolylineTurns) -> list[_Found]:
     ]
 
 
-def _is_real_corner(turns: PolylineTurns, corners: Sequence[Corner], curve: Curve) -> bool:
-    """Whether a polyline corner turning the curve's way reaches into the curve (from the vertex before it to the
-    vertex after it, :meth:`~csws.curvature.artefacts.PolylineTurns.reach`)."""
+def _is_real_corner(turns: PolylineTurns, curve: Curve) -> bool:
+    """Whether the polyline turns the curve's way by :data:`~csws.curvature.artefacts.CORNER_MIN_DEG` or more net
+    over the curve's stretch, the curve no longer than :data:`~csws.curvature.artefacts.CORNER_SPAN_M`."""
     side = 1.0 if curve.direction == "left" else -1.0
-    for corner in corners:
-        before_s, after_s = turns.reach(corner)
-        if corner.turn_rad * side > 0 and before_s < curve.end_s and after_s > curve.start_s:
-            return True
-    return False
+    net_deg = math.degrees(turns.net_turn_rad(curve.start_s, curve.end_s, side))
+    return net_deg >= CORNER_MIN_DEG and curve.end_s - curve.start_s <= CORNER_SPAN_M
 
 
 def _floor_curves(turns: PolylineTurns, curves: Iterable[Curve]) -> list[_Found]:
     """The curves at the radius floor, each judged a real corner or an artefact."""
-    corners = turns.corners()
     found = []
     for curve in curves:
         if curve.min_radius_m > FLOOR_RADIUS_M + FLOOR_TOLERANCE_M:
             continue
-        real = _is_real_corner(turns, corners, curve)
-        judged = "a real corner drawn by too few nodes for its radius" if real else "an artefact: no corner mapped"
+        real = _is_real_corner(turns, curve)
+        judged = "a real corner drawn by too few nodes for its radius" if real else "an artefact: no such turn mapped"
         found.append(
             _Found(
                 FLOOR_CURVE,
