@@ -1,9 +1,11 @@
 """The map report against networks and OSM extracts with faults put in by the test, at places it knows.
 
-* a hand-written SUMO network, geo-referenced in UTM 32N: a straight way (both directions) with a
-  0.1 m spike at a known place, which netconvert would clean away;
+* hand-written SUMO networks, geo-referenced in UTM 32N: a straight way (both directions) with a
+  0.1 m spike at a known place, which netconvert would clean away; spikes of any length at any place
+  on straights of any heading; a right angle drawn by two nodes a metre apart;
 * an OSM extract written by the test and imported: a spike, a corner drawn by a single node, a way
-  cut by the extract's border and one left out of the network.
+  cut by the extract's border and one left out of the network; its report served by ``GET /v1/report``
+  and drawn on the live map in a real browser.
 
 Positions are checked in lon/lat against pyproj's own projection of the places the faults were put.
 """
@@ -18,6 +20,8 @@ import numpy as np
 import pyproj
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from markers import marks_its_tests
 from playwright.sync_api import sync_playwright
 from servers import Workers
@@ -26,6 +30,7 @@ from test_osm import ORIGIN_XY, UTM32, OsmWriter
 
 from csws import cli
 from csws.curvature.artefacts import CORNER_MIN_DEG
+from csws.curvature.corners import ANGLE_TOLERANCE_DEG
 from csws.osm.coverage import CUT_BY_BORDER, NOT_IN_NETWORK
 from csws.osm.importer import COMMERCIAL_VCLASSES, ImportResult, ImportSettings, import_osm
 from csws.osm.report import (
@@ -63,30 +68,39 @@ def _shape(xy: np.ndarray) -> str:
     return " ".join(f"{x:.2f},{y:.2f}" for x, y in xy)
 
 
-def _spiked_net(folder: Path, projection: bool = True) -> Path:
-    """A two-way straight of 200 m, lanes 3.2 m apart, each with the 0.1 m back-and-forth at SPIKE_X_M; with
-    ``projection``, network (0, 0) lies at the test's origin in UTM 32N."""
-    east = np.array([[0.0, -1.6], [50.0, -1.6], [SPIKE_X_M, -1.6], [SPIKE_X_M - SPIKE_M, -1.6], [200.0, -1.6]])
-    west = np.array([[200.0, 1.6], [SPIKE_X_M - SPIKE_M, 1.6], [SPIKE_X_M, 1.6], [50.0, 1.6], [0.0, 1.6]])
-    length_m = 200.0 + 2 * SPIKE_M
-    lanes = [(str(WAY_ID), "A", "B", east), (f"-{WAY_ID}", "B", "A", west)]
+def _hand_written_net(path: Path, lanes: list[tuple[str, str, str, np.ndarray]], projection: bool = True) -> Path:
+    """A SUMO network of one-lane edges ``(edge id, from node, to node, lane shape)`` between dead ends, written
+    without netconvert (which would clean a back-and-forth of 0.1 m away); with ``projection``, network (0, 0)
+    lies at the test's origin in UTM 32N."""
     edges = "".join(
         f'<edge id="{edge}" from="{start}" to="{end}" priority="1"><lane id="{edge}_0" index="0" speed="13.89" '
-        f'length="{length_m:.2f}" shape="{_shape(xy)}"/></edge>'
+        f'length="{np.hypot(*np.diff(xy, axis=0).T).sum():.2f}" shape="{_shape(xy)}"/></edge>'
         for edge, start, end, xy in lanes
     )
-    offset = f"{-ORIGIN_XY[0]:.2f},{-ORIGIN_XY[1]:.2f}" if projection else "0.00,0.00"
-    text = (
-        '<?xml version="1.0" encoding="UTF-8"?>\n<net version="1.20">\n'
-        f'<location netOffset="{offset}" convBoundary="0.00,-1.60,200.00,1.60" origBoundary="0,0,1,1" '
-        f'projParameter="{UTM32.srs if projection else "!"}"/>\n{edges}\n'
-        f'<junction id="A" type="dead_end" x="0.00" y="0.00" incLanes="-{WAY_ID}_0" intLanes="" shape=""/>\n'
-        f'<junction id="B" type="dead_end" x="200.00" y="0.00" incLanes="{WAY_ID}_0" intLanes="" shape=""/>\n'
-        "</net>\n"
+    ends = {start: xy[0] for _, start, _, xy in lanes} | {end: xy[-1] for _, _, end, xy in lanes}
+    incoming = {node: " ".join(f"{edge}_0" for edge, _, end, _ in lanes if end == node) for node in ends}
+    junctions = "".join(
+        f'<junction id="{node}" type="dead_end" x="{x:.2f}" y="{y:.2f}" incLanes="{incoming[node]}" intLanes="" '
+        'shape=""/>'
+        for node, (x, y) in ends.items()
     )
-    path = folder / "spiked.net.xml"
-    path.write_text(text)
+    offset = f"{-ORIGIN_XY[0]:.2f},{-ORIGIN_XY[1]:.2f}" if projection else "0.00,0.00"
+    everything = np.concatenate([xy for _, _, _, xy in lanes])
+    low, high = everything.min(axis=0), everything.max(axis=0)
+    path.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n<net version="1.20">\n'
+        f'<location netOffset="{offset}" convBoundary="{low[0]:.2f},{low[1]:.2f},{high[0]:.2f},{high[1]:.2f}" '
+        f'origBoundary="0,0,1,1" projParameter="{UTM32.srs if projection else "!"}"/>\n{edges}\n{junctions}\n</net>\n'
+    )
     return path
+
+
+def _spiked_net(folder: Path, projection: bool = True) -> Path:
+    """A two-way straight of 200 m, lanes 3.2 m apart, each with the 0.1 m back-and-forth at SPIKE_X_M."""
+    east = np.array([[0.0, -1.6], [50.0, -1.6], [SPIKE_X_M, -1.6], [SPIKE_X_M - SPIKE_M, -1.6], [200.0, -1.6]])
+    west = np.array([[200.0, 1.6], [SPIKE_X_M - SPIKE_M, 1.6], [SPIKE_X_M, 1.6], [50.0, 1.6], [0.0, 1.6]])
+    lanes = [(str(WAY_ID), "A", "B", east), (f"-{WAY_ID}", "B", "A", west)]
+    return _hand_written_net(folder / "spiked.net.xml", lanes, projection)
 
 
 def test_a_tenth_of_a_metre_spike_on_a_straight_gives_no_curve_and_one_artefact_where_it_is(tmp_path: Path) -> None:
@@ -100,6 +114,29 @@ def test_a_tenth_of_a_metre_spike_on_a_straight_gives_no_curve_and_one_artefact_
     # Between the two reversals, on the lane of its direction (1.6 m off the axis).
     assert len(spike.points) == 1
     assert _distance_m(spike.points[0], (SPIKE_X_M - SPIKE_M / 2, 0.0)) <= 1.6 + PLACE_TOLERANCE_M
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    spike_m=st.floats(0.02, 1.0),
+    spike_at_m=st.floats(20.0, 180.0),
+    heading_deg=st.floats(-180.0, 180.0),
+)
+def test_any_spike_on_any_straight_is_one_artefact_of_its_length_where_it_is(
+    tmp_path_factory, spike_m: float, spike_at_m: float, heading_deg: float
+) -> None:
+    # A one-way straight of 200 m from the origin at heading_deg, running back spike_m at spike_at_m.
+    along = np.array([0.0, spike_at_m, spike_at_m - spike_m, 200.0])
+    direction = np.array([math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))])
+    shape = along[:, None] * direction
+    net = _hand_written_net(tmp_path_factory.mktemp("spike") / "s.net.xml", [(f"{WAY_ID}#2", "A", "B", shape)])
+    road_map = RoadMap.load(net, cache=False)
+    assert road_map.curves() == []
+    (spike,) = network_items(road_map)
+    assert spike.kind == "artefact-spike" and spike.way_id == WAY_ID and spike.edge_id == f"{WAY_ID}#2"
+    assert spike.size == pytest.approx(spike_m, abs=0.02)  # the shape is written to the centimetre
+    middle = (spike_at_m - spike_m / 2) * direction
+    assert _distance_m(spike.points[0], (float(middle[0]), float(middle[1]))) <= 0.05
 
 
 # ------------------------------------------------------------------ an imported extract
@@ -227,6 +264,18 @@ def test_import_osm_prints_the_report_summary_a_line_per_kind(tmp_path: Path, ca
     assert (tmp_path / "printed.report.geojson").is_file()
 
 
+def test_a_right_angle_drawn_by_two_nodes_a_metre_apart_is_a_real_corner_at_the_floor(tmp_path: Path) -> None:
+    # East 100 m, two nodes 1 m apart turning 45 degrees each, north 100 m: the road turns 90 degrees net there.
+    step = 1.0 / math.sqrt(2.0)
+    shape = np.array([[0.0, 0.0], [50.0, 0.0], [100.0, 0.0], [100.0 + step, step], [100.0 + step, 100.0]])
+    road_map = RoadMap.load(_hand_written_net(tmp_path / "bend.net.xml", [("7", "A", "B", shape)]), cache=False)
+    items = network_items(road_map)
+    # Each node turns 45 degrees next to a 1 m segment, no heading of its own: no single-node corner, no artefact.
+    (floor,) = items
+    assert floor.kind == FLOOR_CURVE and floor.real_corner and floor.way_id == 7
+    assert floor.size == pytest.approx(90.0, abs=ANGLE_TOLERANCE_DEG)
+
+
 def test_summary_lines_count_the_items_of_each_kind(tmp_path: Path) -> None:
     items = network_items(RoadMap.load(_spiked_net(tmp_path), cache=False))
     lines = summary_lines(items)
@@ -265,8 +314,8 @@ def test_map_report_of_a_network_without_projection_is_in_network_metres(tmp_pat
 # ------------------------------------------------------------------ the report on the live map
 @pytest.mark.sumo
 def test_the_service_serves_the_report_of_a_network_that_has_one(faulty_import: ImportResult) -> None:
-    settings = ServiceSettings(nets=[faulty_import.net_path, TRACK_NET], state_db=":memory:")
-    with TestClient(create_app(settings)) as client:
+    served = ServiceSettings(nets=[faulty_import.net_path, TRACK_NET], state_db=":memory:")
+    with TestClient(create_app(served)) as client:
         answer = client.get("/v1/report", params={"network": "faulty"})
         assert answer.status_code == 200 and answer.headers["content-type"] == "application/geo+json"
         assert answer.json() == json.loads(faulty_import.report_path.read_text())
