@@ -216,7 +216,7 @@ async function start() {
     const drawn = L.geoJSON(data, { renderer: renderer, interactive: false, style: { color: "#8c8c8c", weight: 2 } });
     roads.addLayer(drawn);
     map.fitBounds(drawn.getBounds(), { padding: [10, 10] });
-    await loadReport();
+    loadReport().catch((error) => showStatus(error.message));  // beside the curves, not before them
     map.on("moveend", () => loadCurves().catch((error) => showStatus(error.message)));
     await loadCurves();
     dataset.ready = "true";
