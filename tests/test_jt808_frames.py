@@ -148,7 +148,9 @@ def test_the_splitter_drops_a_run_without_flags_and_recovers():
 
 
 def location_body(lat_e6, lon_e6, speed_01kmh, heading, bcd_time, status=0b10, extra=b""):
-    return struct.pack(">IIIIHHH", 0, status, lat_e6, lon_e6, 123, speed_01kmh, heading) + bytes.fromhex(bcd_time) + extra
+    return (
+        struct.pack(">IIIIHHH", 0, status, lat_e6, lon_e6, 123, speed_01kmh, heading) + bytes.fromhex(bcd_time) + extra
+    )
 
 
 def test_a_location_report_reads_position_speed_heading_and_beijing_time():

@@ -225,7 +225,8 @@ def decode_location_batch(body: bytes) -> tuple[int, list[LocationReport]]:
     if len(body) < 3:
         raise BodyError(f"a batch upload has at least 3 bytes, got {len(body)}")
     count, kind = struct.unpack_from(">HB", body)
-    reports, offset = [], 3
+    reports: list[LocationReport] = []
+    offset = 3
     for _ in range(count):
         if offset + 2 > len(body):
             raise BodyError(f"the batch announces {count} reports and holds {len(reports)}")
