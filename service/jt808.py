@@ -78,6 +78,10 @@ class GatewaySettings:
         the excess is dropped (and logged, rate-limited).
     max_connections
         Connections beyond this many are closed at once.
+    batch_window_s
+        Reports that arrive within this long of each other are answered together: a group of
+        reports costs far less per report than one at a time (map matching, the state store's
+        round trip), for a few milliseconds more latency.
     """
 
     host: str = "127.0.0.1"
@@ -86,6 +90,7 @@ class GatewaySettings:
     frames_per_s: float = 20.0
     frames_burst: float = 60.0
     max_connections: int = 20_000
+    batch_window_s: float = 0.005
     fleet_texts: dict[str, DriverTexts] = field(default_factory=dict)
 
     def texts(self, fleet: str) -> DriverTexts:
@@ -96,8 +101,8 @@ class GatewaySettings:
 class Batcher:
     """Answers the queries of all connections in groups, one group on the work thread at a time."""
 
-    def __init__(self, service: WarningService, work: WorkThread) -> None:
-        self.service, self.work = service, work
+    def __init__(self, service: WarningService, work: WorkThread, window_s: float = 0.0) -> None:
+        self.service, self.work, self.window_s = service, work, window_s
         self._waiting: list[tuple[DecodedQuery, str, asyncio.Future[Any]]] = []
         self._running = False
 
@@ -113,6 +118,7 @@ class Batcher:
     async def _drain(self) -> None:
         try:
             while self._waiting:
+                await asyncio.sleep(self.window_s)
                 group, self._waiting = self._waiting, []
                 try:
                     answers = await self.work.run(self._answer_group, [(q, f) for q, f, _ in group])
@@ -350,7 +356,7 @@ class Gateway:
         settings: GatewaySettings,
         clock: Callable[[], float] = time.time,
     ) -> None:
-        self.batcher = Batcher(service, work)
+        self.batcher = Batcher(service, work, settings.batch_window_s)
         self.terminals, self.settings, self.clock = terminals, settings, clock
         self.handlers = _HANDLERS
         self.connections = 0

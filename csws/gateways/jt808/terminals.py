@@ -26,7 +26,7 @@ import os
 import re
 import secrets
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -35,7 +35,16 @@ from typing import Any
 from csws.errors import CswsError
 from csws.standard import Category
 
-__all__ = ["TERMINALS_FORMAT", "Terminal", "TerminalError", "TerminalList", "add_terminal", "revoke_terminal"]
+__all__ = [
+    "TERMINALS_FORMAT",
+    "NewTerminal",
+    "Terminal",
+    "TerminalError",
+    "TerminalList",
+    "add_terminal",
+    "add_terminals",
+    "revoke_terminal",
+]
 
 TERMINALS_FORMAT = "csws-jt808-terminals/1"
 #: Fleet names as the API keys have them (no ``/``, which joins a fleet to its vehicle ids).
@@ -182,10 +191,18 @@ def _write(path: Path, content: dict[str, Any]) -> None:
         raise
 
 
-def add_terminal(
-    path: str | Path, fleet: str, phone: str, *, vehicle_id: str | None = None, category: str, plate: str = ""
-) -> Terminal:
-    """Admit the terminal ``phone`` for ``fleet``'s vehicle (default: the plate, else the phone number).
+@dataclass(frozen=True)
+class NewTerminal:
+    """A terminal to admit: its phone number, vehicle (default: the plate, else the phone number), category, plate."""
+
+    phone: str
+    category: str
+    vehicle_id: str | None = None
+    plate: str = ""
+
+
+def add_terminals(path: str | Path, fleet: str, terminals: Sequence[NewTerminal]) -> list[Terminal]:
+    """Admit ``terminals`` for vehicles of ``fleet``, in one write of the file (created if missing).
 
     A number already listed (revoked or not) is replaced by a new generation: codes handed out
     before stop working.
@@ -199,23 +216,35 @@ def add_terminal(
     content: dict[str, Any] = (
         _read(path) if path.exists() else {"format": TERMINALS_FORMAT, "secret": secrets.token_hex(32)}
     )
-    entries = [e for e in content.get("terminals", []) if phone_key(e["phone"]) != phone_key(phone)]
-    before = next((e for e in content.get("terminals", []) if phone_key(e["phone"]) == phone_key(phone)), None)
-    entry = {
-        "phone": phone,
-        "fleet": fleet,
-        "vehicle_id": vehicle_id or plate or phone_key(phone),
-        "category": category,
-        "plate": plate,
-        "generation": (before["generation"] + 1) if before else 1,
-        "added": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
-        "revoked": False,
-    }
-    try:
-        terminal = _terminal(entry)
-    except ValueError as exc:
-        raise TerminalError(str(exc)) from None
-    _write(path, {**content, "terminals": [*entries, entry]})
+    listed = {phone_key(entry["phone"]): entry for entry in content.get("terminals", [])}
+    added = datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
+    admitted = []
+    for new in terminals:
+        before = listed.get(phone_key(new.phone))
+        entry = {
+            "phone": new.phone,
+            "fleet": fleet,
+            "vehicle_id": new.vehicle_id or new.plate or phone_key(new.phone),
+            "category": new.category,
+            "plate": new.plate,
+            "generation": before["generation"] + 1 if before else 1,
+            "added": added,
+            "revoked": False,
+        }
+        try:
+            admitted.append(_terminal(entry))
+        except ValueError as exc:
+            raise TerminalError(f"terminal {new.phone!r}: {exc}") from None
+        listed[phone_key(new.phone)] = entry
+    _write(path, {**content, "terminals": list(listed.values())})
+    return admitted
+
+
+def add_terminal(
+    path: str | Path, fleet: str, phone: str, *, vehicle_id: str | None = None, category: str, plate: str = ""
+) -> Terminal:
+    """Admit the terminal ``phone`` for ``fleet``'s vehicle (:func:`add_terminals` for one)."""
+    [terminal] = add_terminals(path, fleet, [NewTerminal(phone, category, vehicle_id, plate)])
     return terminal
 
 
