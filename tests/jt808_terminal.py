@@ -86,6 +86,7 @@ class Terminal:
 
     def __init__(self, phone: str) -> None:
         self.phone, self.serial = phone, 0
+        self.auth_code = b""
         self.inbox: list[Received] = []
         self._buffer = b""
 
@@ -125,7 +126,8 @@ class Terminal:
         assert answer.message_id == 0x8100
         serial, result = struct.unpack_from(">HB", answer.body)
         assert (serial, result) == (self.serial, 0), f"registration refused with result {result}"
-        await self.send(0x0102, answer.body[3:])
+        self.auth_code = answer.body[3:]
+        await self.send(0x0102, self.auth_code)
         [response] = await self.receive(1)
         return response
 

@@ -7,7 +7,9 @@ fields, BCD, XOR check code, escaping by the byte), not by the code under test.
 from __future__ import annotations
 
 import calendar
+import re
 import struct
+from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -238,3 +240,21 @@ def test_a_location_report_round_trips_through_a_frame():
     frame = Frame(message_id=0x0200, phone="13912345678", serial=1, body=encode_location(report))
     back = decode_location(decode_frame(encode_frame(frame)[1:-1]).body)
     assert back == report
+
+
+def test_the_documented_conversation_is_well_formed():
+    """docs/jt808.md's frames, read by the byte: check codes, lengths, and the message ids it names."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "jt808.md").read_text("utf-8")
+    frames = re.findall(r"^(T>P|P>T) (0x[0-9a-f]{4}) .*\n    ((?:[0-9a-f]{2} ?)+)$", text, re.M)
+    assert [message_id for _, message_id, _ in frames] == [
+        "0x0100", "0x8100", "0x0102", "0x8001", "0x0200", "0x8001", "0x8300", "0x0002", "0x8001"
+    ]  # fmt: skip
+    for _, message_id, hex_bytes in frames:
+        raw = bytes.fromhex(hex_bytes)
+        assert raw[0] == raw[-1] == 0x7E
+        content = raw[1:-1].replace(b"\x7d\x02", b"\x7e").replace(b"\x7d\x01", b"\x7d")
+        assert xor(content[:-1]) == content[-1]
+        body_length = struct.unpack_from(">H", content, 2)[0] & 0x3FF
+        assert struct.unpack_from(">H", content)[0] == int(message_id, 16) and len(content) == 12 + body_length + 1
+    report = decode_location(bytes.fromhex(frames[4][2])[13:-2])
+    assert (report.lat_deg, report.lon_deg, report.speed_kmh, report.heading_deg) == (50.868, 9.707, 80.0, 90)

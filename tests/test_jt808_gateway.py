@@ -13,6 +13,8 @@ import asyncio
 import math
 import re
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import pyproj
@@ -261,3 +263,81 @@ def test_an_idle_connection_is_closed(net, tmp_path):
             return closed
 
     assert asyncio.run(run()) == b""  # closed by the gateway, well before the test's 5 s
+
+
+class GatewayProcess:
+    """``csws jt808`` in a process of its own on a free port."""
+
+    def __init__(self, net: Path, terminals_file: Path, state_url: str) -> None:
+        command = [sys.executable, "-m", "csws", "jt808", "--net", str(net), "--port", "0"]
+        self.process = subprocess.Popen(
+            [*command, "--terminals", str(terminals_file), "--state", state_url],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        assert self.process.stdout is not None
+        line = self.process.stdout.readline()
+        assert "JT/T 808 gateway" in line, line
+        self.port = int(line.rsplit(":", 1)[1])
+
+    def stop(self) -> None:
+        self.process.terminate()
+        self.process.wait(timeout=30)
+
+
+@pytest.mark.redis
+def test_a_terminal_that_reconnects_to_another_gateway_keeps_its_session(net, tmp_path, redis_url):
+    """Warned on gateway A, then on gateway B just under V_w: the release rule holds the warning only
+    if B has A's session (a vehicle new at that point, at that speed, is not warned)."""
+    v_w1 = warning_speed(RADIUS_M, CATEGORY, 1)
+    just_under_kmh = math.floor((v_w1 - 0.5) * 10) / 10  # within the release rule's 1 km/h, below V_w
+    terminals_file = tmp_path / "terminals.json"
+    add_terminal(terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY)
+    add_terminal(terminals_file, FLEET, "13900000001", vehicle_id="fresh", category=CATEGORY)
+    gateways = [GatewayProcess(net, terminals_file, redis_url) for _ in range(2)]
+    clock = {"k": 0}
+
+    async def report(terminal: Terminal, x_m: float, speed_kmh: float) -> list[str]:
+        clock["k"] += 1
+        lon, lat = lonlat(x_m)
+        serial = await terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, T0_S + clock["k"]))
+        [response] = await terminal.receive(1)
+        assert general_response(response) == (serial, 0x0200, 0)
+        try:
+            return [m.body[1:].decode("gbk") for m in await terminal.receive(1, timeout_s=1.0)]
+        except (AssertionError, TimeoutError):
+            return []
+
+    async def run() -> tuple[list[str], list[str]]:
+        on_a = Terminal(PHONE)
+        await on_a.connect(gateways[0].port)
+        registered = await on_a.register_and_authenticate()
+        assert general_response(registered)[2] == 0
+        x_m, texts = APPROACH_M - 480.0, []
+        while not texts:
+            x_m += 80.0 / 3.6
+            assert x_m < APPROACH_M
+            texts = await report(on_a, x_m, 80.0)
+        await on_a.close()
+        on_b = Terminal(PHONE)  # the same terminal, on the other gateway: authenticates with its code
+        await on_b.connect(gateways[1].port)
+        on_b.serial = on_a.serial
+        await on_b.send(0x0102, on_a.auth_code)
+        assert general_response((await on_b.receive(1))[0])[2] == 0
+        held = await report(on_b, x_m + just_under_kmh / 3.6, just_under_kmh)
+        await on_b.close()
+        fresh = Terminal("13900000001")
+        await fresh.connect(gateways[1].port)
+        assert general_response(await fresh.register_and_authenticate())[2] == 0
+        new = await report(fresh, x_m + just_under_kmh / 3.6, just_under_kmh)
+        await fresh.close()
+        return held, new
+
+    try:
+        held, new = asyncio.run(run())
+    finally:
+        for gateway in gateways:
+            gateway.stop()
+    assert len(held) == 1 and "前方弯道" in held[0]  # B goes on with A's session: the warning is held
+    assert new == []

@@ -80,6 +80,14 @@ def text_of(
     return None
 
 
+def _fits(text: object) -> bool:
+    """Whether ``text`` is a string GBK can write in at most 1,000 bytes (a 0x8300 body holds 1,023)."""
+    try:
+        return isinstance(text, str) and len(text.encode("gbk")) <= 1000
+    except UnicodeEncodeError:
+        return False
+
+
 def load_fleet_texts(path: str | Path) -> dict[str, DriverTexts]:
     """Each fleet's texts from a JSON file ``{"FLEET": {"level1": "...", ...}}``; missing ones keep the defaults.
 
@@ -98,7 +106,7 @@ def load_fleet_texts(path: str | Path) -> dict[str, DriverTexts]:
     result = {}
     for fleet, texts in content.items():
         unknown = set(texts) - names
-        if unknown or not all(isinstance(v, str) and len(v.encode("gbk", "replace")) <= 1000 for v in texts.values()):
+        if unknown or not all(_fits(v) for v in texts.values()):
             raise TextsError(f"{path}: fleet {fleet!r}: texts are {sorted(names)}, strings of at most 1,000 GBK bytes")
         result[fleet] = DriverTexts(**texts)
     return result
