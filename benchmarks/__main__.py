@@ -36,6 +36,7 @@ from benchmarks import (
     fcw,
     fcw_traffic,
     hygiene,
+    jt808,
     load,
     matching,
     osm,
@@ -521,6 +522,12 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
             lambda: telematics.run(quick=quick),
             "a few minutes" if quick else "long: about 4.5 CPU-minutes, two cities' fleets fed seven ways",
             telematics.rows,
+        ),
+        Benchmark(
+            "jt808",
+            lambda: jt808.run(terminals=500 if quick else jt808.BENCH_TERMINALS),
+            "about 2 minutes: terminals reporting at 1 Hz to one gateway for 60 s",
+            jt808.rows,
         ),
         Benchmark("sweep", sweep.run, f"about 1 minute: {sweep.RUNS} co-simulations three times", sweep_rows),
         Benchmark(

@@ -1,0 +1,194 @@
+"""The JT/T 808 gateway under a fleet of terminals reporting at 1 Hz on the bundled city.
+
+SUMO drives a fleet on Bad Hersfeld (:func:`benchmarks.telematics_fleet.drive_fleet`); each
+vehicle's trajectory, sampled once a second and turned into lon/lat, is a recorded track. The
+simulated terminals (:mod:`csws.gateways.jt808.simulator`) each replay one of those tracks (more
+terminals than vehicles share tracks, each on its own connection and vehicle id), connect
+spread over a ramp, register, authenticate and report at 1 Hz to a real ``csws jt808`` process
+with a SQLite state store; the terminals run in this process on the same machine.
+
+Measured: reports answered, the p50/p99 from a report's last byte to its general response
+(``0x8001``) and to a text message (``0x8300``) where one was due, the gateway's resident memory
+per connected terminal, and its CPU seconds per report.
+
+Run with ``python -m benchmarks.jt808 [TERMINALS]``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.rows import Row, at_most, context
+from benchmarks.servers import cpu_s, memory_mb
+from benchmarks.telematics_fleet import drive_fleet, lonlat
+from csws.gateways.jt808.simulator import SimulatedTerminal, Track, simulate
+from csws.gateways.jt808.terminals import NewTerminal, add_terminals
+from csws.networks import networks_dir
+
+__all__ = ["BENCH_TERMINALS", "TARGET_P99_MS", "rows", "run"]
+
+NET = networks_dir() / "badhersfeld.net.xml.gz"
+#: The issue's targets: p99 from a report to its 0x8300 within 100 ms; 10,000 terminals on one 2-core node.
+TARGET_P99_MS, TARGET_TERMINALS = 100.0, 10_000
+#: Terminals in the full run: what one 2-core machine carries with the terminals' own simulation on it.
+BENCH_TERMINALS = 2000
+#: How long each terminal reports, s, and how many SUMO vehicles give the tracks.
+REPORT_S, VEHICLES = 60.0, 200
+#: Seconds the gateway may take to load the network.
+STARTUP_TIMEOUT_S = 180.0
+
+
+def _tracks(vehicles: int, duration_s: float) -> list[Track]:
+    """1 Hz tracks of a SUMO fleet on the bundled city, each at least half the run long."""
+    trajectories = drive_fleet(NET, vehicles, duration_s + 30.0, seed=808)
+    ten = trajectories.step % 10 == 0
+    converted = lonlat(NET, trajectories.x_m, trajectories.y_m)
+    assert converted is not None, "the bundled city is geo-referenced"
+    lon, lat = converted
+    tracks = []
+    for vehicle in range(len(trajectories.vehicle_ids)):
+        rows = np.flatnonzero(ten & (trajectories.vehicle == vehicle))
+        if len(rows) >= duration_s / 2:
+            steps = trajectories.step[rows]
+            tracks.append(
+                Track(
+                    time_s=(steps - steps[0]) * 0.1,
+                    lon_deg=lon[rows],
+                    lat_deg=lat[rows],
+                    speed_kmh=trajectories.speed_mps[rows] * 3.6,
+                    heading_deg=trajectories.heading_deg[rows],
+                )
+            )
+    return tracks
+
+
+def _gateway(folder: Path, terminals_file: Path) -> tuple[subprocess.Popen, int]:
+    """A ``csws jt808`` process on a free port, ready: it and its port."""
+    command = [
+        sys.executable,
+        "-m",
+        "csws",
+        "jt808",
+        "--net",
+        str(NET),
+        "--port",
+        "0",
+        "--terminals",
+        str(terminals_file),
+    ]
+    process = subprocess.Popen(
+        [*command, "--state-db", str(folder / "state.db")],
+        stdout=subprocess.PIPE,
+        text=True,
+        cwd=Path(__file__).resolve().parents[1],
+    )
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    assert process.stdout is not None
+    while time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        if "JT/T 808 gateway" in line:
+            return process, int(line.rsplit(":", 1)[1])
+    process.kill()
+    raise RuntimeError("csws jt808 did not start")
+
+
+def _percentile_ms(values: list[float], q: float) -> float:
+    return float(np.percentile(np.array(values) * 1000.0, q)) if values else float("nan")
+
+
+def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[str, Any]:
+    """Drive ``terminals`` simulated terminals for ``report_s`` against one gateway; the figures."""
+    tracks = _tracks(VEHICLES, report_s)
+    with tempfile.TemporaryDirectory() as temporary:
+        folder = Path(temporary)
+        phones = [f"1380{i:07d}" for i in range(terminals)]
+        add_terminals(folder / "terminals.json", "bench", [NewTerminal(p, "N", f"t{p}") for p in phones])
+        process, port = _gateway(folder, folder / "terminals.json")
+        try:
+            idle_mb, _ = memory_mb(process.pid)
+            cpu_before = cpu_s([process.pid])
+            simulated = [
+                SimulatedTerminal(phone, _cut(tracks[i % len(tracks)], report_s)) for i, phone in enumerate(phones)
+            ]
+            peak = {"mb": idle_mb}
+
+            async def watched() -> Any:
+                async def watch() -> None:
+                    while True:
+                        peak["mb"] = max(peak["mb"], memory_mb(process.pid)[0])
+                        await asyncio.sleep(1.0)
+
+                watcher = asyncio.create_task(watch())
+                try:
+                    return await simulate(simulated, "127.0.0.1", port, ramp_s=min(30.0, terminals / 200.0))
+                finally:
+                    watcher.cancel()
+
+            started = time.perf_counter()
+            stats = asyncio.run(watched())
+            elapsed_s = time.perf_counter() - started
+            cpu_used_s = cpu_s([process.pid]) - cpu_before
+        finally:
+            process.terminate()
+            process.wait(timeout=30)
+    reports = len(stats.response_s)
+    return {
+        "terminals": terminals,
+        "refused": stats.refused,
+        "reports": reports,
+        "reports_per_s": reports / elapsed_s,
+        "response_p50_ms": _percentile_ms(stats.response_s, 50),
+        "response_p99_ms": _percentile_ms(stats.response_s, 99),
+        "texts": len(stats.texts),
+        "texts_by_kind": dict(Counter(text.split("，")[0].split("！")[0] for text in stats.texts)),
+        "text_p50_ms": _percentile_ms(stats.text_s, 50),
+        "text_p99_ms": _percentile_ms(stats.text_s, 99),
+        "memory_per_terminal_kb": (peak["mb"] - idle_mb) * 1024.0 / terminals,
+        "gateway_cpu_us_per_report": cpu_used_s / max(reports, 1) * 1e6,
+        "cpus": os.cpu_count(),
+    }
+
+
+def _cut(track: Track, report_s: float) -> Track:
+    """The first ``report_s`` seconds of ``track``."""
+    keep = track.time_s < report_s
+    return Track(
+        *(column[keep] for column in (track.time_s, track.lon_deg, track.lat_deg, track.speed_kmh, track.heading_deg))
+    )
+
+
+def rows(figures: dict[str, Any]) -> list[Row]:
+    """The benchmark table's rows of :func:`run`'s figures."""
+    size = f"{figures['terminals']:,} terminals at 1 Hz, {figures['reports_per_s']:.0f} reports/s"
+    return [
+        at_most(
+            "jt808: report to 0x8300 p99, ms",
+            figures["text_p99_ms"],
+            TARGET_P99_MS,
+            f"{figures['texts']} texts; {size}",
+        ),
+        context(
+            "jt808: report to 0x8001 p50 / p99, ms",
+            f"{figures['response_p50_ms']:.1f} / {figures['response_p99_ms']:.1f}",
+        ),
+        at_most("jt808: terminals refused", figures["refused"], 0),
+        context("jt808: gateway CPU per report, µs", figures["gateway_cpu_us_per_report"], size),
+        context("jt808: gateway memory per terminal, KB", figures["memory_per_terminal_kb"]),
+    ]
+
+
+if __name__ == "__main__":
+    for name, value in run(int(sys.argv[1]) if len(sys.argv) > 1 else 2000).items():
+        print(f"{name}: {value:.4g}" if isinstance(value, float) else f"{name}: {value}")

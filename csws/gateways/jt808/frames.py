@@ -1,0 +1,250 @@
+"""JT/T 808 frames: delimiting, escaping, the check code and the message header (2013 and 2019).
+
+A frame on the wire is ``0x7e | header | body | check code | 0x7e``. Between the flags,
+``0x7e`` is sent as ``0x7d 0x02`` and ``0x7d`` as ``0x7d 0x01``; the check code is the XOR of
+every header and body byte before escaping. Words and double words are big-endian.
+
+The header (JT/T 808-2013 4.4.3 / 2019 4.5.3):
+
+* message id (WORD) and body properties (WORD): bits 0-9 the body length, 10-12 the
+  encryption, 13 sub-packaged, and in the 2019 edition bit 14 the version flag;
+* 2019 only: the protocol version (BYTE);
+* the terminal's phone number in BCD: 6 bytes (12 digits) in 2013, 10 bytes (20 digits) in 2019;
+* the message serial (WORD);
+* when sub-packaged: the total number of packages and this package's number (WORD each, from 1).
+
+Everything here is pure: bytes in, frames out, and :class:`FrameError` naming what is wrong.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+from csws.errors import CswsError
+
+__all__ = [
+    "FLAG",
+    "MAX_BODY_BYTES",
+    "MAX_FRAME_BYTES",
+    "Frame",
+    "FrameError",
+    "FrameSplitter",
+    "bcd_decode",
+    "bcd_encode",
+    "check_code",
+    "decode_frame",
+    "encode_frame",
+    "escape",
+    "unescape",
+]
+
+#: The flag byte that opens and closes every frame.
+FLAG = 0x7E
+#: The escape byte: 0x7d 0x02 stands for 0x7e, 0x7d 0x01 for 0x7d.
+ESCAPE = 0x7D
+#: Bits 0-9 of the body properties give the body's length, so a body has at most 1,023 bytes.
+MAX_BODY_BYTES = 0x3FF
+#: The longest frame between the flags once unescaped: a 2019 header with sub-packages (21 bytes),
+#: the longest body and the check code.
+MAX_FRAME_BYTES = 21 + MAX_BODY_BYTES + 1
+
+_SUBPACKAGED = 1 << 13
+_VERSION_FLAG = 1 << 14
+_ENCRYPTION_MASK = 0b111 << 10
+_PHONE_BYTES = {2013: 6, 2019: 10}
+
+
+class FrameError(CswsError, ValueError):
+    """A frame that cannot be read: a bad escape, check code, length or header."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One JT/T 808 message: its header's fields and its body.
+
+    Attributes
+    ----------
+    message_id
+        The message id, e.g. ``0x0200`` for a location report.
+    phone
+        The terminal's phone number as the decimal digits of its BCD field (leading zeros kept:
+        12 digits in 2013, 20 in 2019).
+    serial
+        The message serial, 0-65535, counted by the sender.
+    body
+        The message body, unescaped.
+    edition
+        2013 or 2019 (the 2019 edition sets the version flag, bit 14 of the body properties).
+    protocol_version
+        The 2019 header's protocol version byte (1 for the 2019 edition); 0 in 2013.
+    encryption
+        Bits 10-12 of the body properties: 0 plain, bit 10 RSA.
+    package_count, package_number
+        Sub-packaging: the total number of packages and this one's number from 1; 0 and 0 for a
+        message in one frame.
+    """
+
+    message_id: int
+    phone: str
+    serial: int
+    body: bytes = b""
+    edition: int = 2013
+    protocol_version: int = 0
+    encryption: int = 0
+    package_count: int = 0
+    package_number: int = 0
+
+    @property
+    def subpackaged(self) -> bool:
+        """Whether this frame is one package of a longer message."""
+        return self.package_count > 0
+
+
+def escape(data: bytes) -> bytes:
+    """Escape ``0x7d`` and ``0x7e`` for the wire (0x7d -> 0x7d 0x01, 0x7e -> 0x7d 0x02)."""
+    return data.replace(b"\x7d", b"\x7d\x01").replace(b"\x7e", b"\x7d\x02")
+
+
+def unescape(data: bytes) -> bytes:
+    """Undo :func:`escape`; :class:`FrameError` for a ``0x7d`` not followed by 0x01 or 0x02."""
+    if b"\x7d" not in data:
+        return data
+    parts = data.split(b"\x7d")
+    out = bytearray(parts[0])
+    for part in parts[1:]:
+        if not part or part[0] not in (0x01, 0x02):
+            raise FrameError("bad escape: 0x7d must be followed by 0x01 or 0x02")
+        out.append(ESCAPE if part[0] == 0x01 else FLAG)
+        out += part[1:]
+    return bytes(out)
+
+
+def check_code(data: bytes) -> int:
+    """The XOR of every byte of ``data`` (the header and body, before escaping)."""
+    code = 0
+    for byte in data:
+        code ^= byte
+    return code
+
+
+def bcd_encode(digits: str, size: int) -> bytes:
+    """``digits`` as ``size`` bytes of packed BCD, zero-padded on the left."""
+    if not digits.isdigit() or len(digits) > 2 * size:
+        raise FrameError(f"a BCD[{size}] field holds up to {2 * size} decimal digits, got {digits[:40]!r}")
+    return bytes.fromhex(digits.rjust(2 * size, "0"))
+
+
+def bcd_decode(data: bytes) -> str:
+    """The decimal digits of packed BCD ``data``; :class:`FrameError` for a nibble above 9."""
+    digits = data.hex()
+    if not digits.isdigit():
+        raise FrameError(f"not BCD: {digits}")
+    return digits
+
+
+def _header(frame: Frame) -> bytes:
+    """The header of ``frame`` with the body length filled in."""
+    if len(frame.body) > MAX_BODY_BYTES:
+        raise FrameError(f"a body holds at most {MAX_BODY_BYTES} bytes, got {len(frame.body)}")
+    if frame.edition not in _PHONE_BYTES:
+        raise FrameError(f"the edition is 2013 or 2019, got {frame.edition}")
+    properties = len(frame.body) | ((frame.encryption << 10) & _ENCRYPTION_MASK)
+    if frame.subpackaged:
+        properties |= _SUBPACKAGED
+    head = struct.pack(">HH", frame.message_id, properties | (_VERSION_FLAG if frame.edition == 2019 else 0))
+    if frame.edition == 2019:
+        head += bytes([frame.protocol_version])
+    head += bcd_encode(frame.phone, _PHONE_BYTES[frame.edition]) + struct.pack(">H", frame.serial)
+    if frame.subpackaged:
+        head += struct.pack(">HH", frame.package_count, frame.package_number)
+    return head
+
+
+def encode_frame(frame: Frame) -> bytes:
+    """``frame`` as it goes on the wire: flag, escaped header, body and check code, flag."""
+    content = _header(frame) + frame.body
+    return bytes([FLAG]) + escape(content + bytes([check_code(content)])) + bytes([FLAG])
+
+
+def decode_frame(escaped: bytes) -> Frame:
+    """The frame whose bytes between the two flags are ``escaped``.
+
+    Raises
+    ------
+    FrameError
+        For a bad escape, a check code that does not match, a header cut short, a body whose
+        length differs from the header's, or a phone number that is not BCD.
+    """
+    content = unescape(escaped)
+    if len(content) < 13:
+        raise FrameError(f"a frame has at least 13 bytes (a 2013 header and the check code), got {len(content)}")
+    if check_code(content[:-1]) != content[-1]:
+        raise FrameError(f"check code {content[-1]:#04x} does not match {check_code(content[:-1]):#04x}")
+    message_id, properties = struct.unpack_from(">HH", content)
+    edition = 2019 if properties & _VERSION_FLAG else 2013
+    offset, protocol_version = 4, 0
+    if edition == 2019:
+        protocol_version, offset = content[4], 5
+    phone_bytes = _PHONE_BYTES[edition]
+    head_bytes = offset + phone_bytes + 2 + (4 if properties & _SUBPACKAGED else 0)
+    if len(content) < head_bytes + 1:
+        raise FrameError(f"the header is cut short: {len(content) - 1} bytes for a {head_bytes}-byte header")
+    phone = bcd_decode(content[offset : offset + phone_bytes])
+    (serial,) = struct.unpack_from(">H", content, offset + phone_bytes)
+    package_count = package_number = 0
+    if properties & _SUBPACKAGED:
+        package_count, package_number = struct.unpack_from(">HH", content, offset + phone_bytes + 2)
+        if not 1 <= package_number <= package_count:
+            raise FrameError(f"package {package_number} of {package_count} does not exist")
+    body = content[head_bytes:-1]
+    if len(body) != properties & MAX_BODY_BYTES:
+        raise FrameError(f"the header gives a {properties & MAX_BODY_BYTES}-byte body, the frame has {len(body)}")
+    return Frame(
+        message_id=message_id,
+        phone=phone,
+        serial=serial,
+        body=body,
+        edition=edition,
+        protocol_version=protocol_version,
+        encryption=(properties & _ENCRYPTION_MASK) >> 10,
+        package_count=package_count,
+        package_number=package_number,
+    )
+
+
+class FrameSplitter:
+    """Cuts a TCP byte stream into the escaped contents of frames.
+
+    Bytes before the first flag are dropped; two flags in a row (one frame's end and the next
+    one's start, or an empty frame) give nothing. A run between flags longer than an escaped
+    :data:`MAX_FRAME_BYTES` frame can be is dropped whole, so a peer that never sends a flag
+    cannot make the buffer grow: :attr:`dropped_bytes` counts what was thrown away.
+    """
+
+    #: The longest escaped run a frame can have: every byte escaped into two.
+    MAX_ESCAPED_BYTES = 2 * MAX_FRAME_BYTES
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+        self._in_frame = False
+        self.dropped_bytes = 0
+
+    def feed(self, data: bytes) -> list[bytes]:
+        """The complete frames (their escaped bytes between the flags) that ``data`` ends."""
+        frames: list[bytes] = []
+        for piece_index, piece in enumerate(bytes(data).split(bytes([FLAG]))):
+            if piece_index > 0:  # a flag came before this piece
+                if self._in_frame and self._buffer:
+                    frames.append(bytes(self._buffer))
+                self._buffer.clear()
+                self._in_frame = True
+            if not self._in_frame:
+                self.dropped_bytes += len(piece)
+                continue
+            self._buffer += piece
+            if len(self._buffer) > self.MAX_ESCAPED_BYTES:
+                self.dropped_bytes += len(self._buffer)
+                self._buffer.clear()
+                self._in_frame = False
+        return frames

@@ -1,0 +1,391 @@
+"""``csws jt808``: the JT/T 808 gateway, a TCP front of the same warning service as the HTTP API.
+
+Terminals connect over TCP (optionally TLS), register (``0x0100`` -> ``0x8100`` with the
+authentication code), authenticate (``0x0102``) and send location reports (``0x0200``, batches
+``0x0704``) and heartbeats. Every message is answered by the general response ``0x8001`` as the
+standard asks. Each report becomes a query of the terminal's vehicle (its fleet, vehicle id and
+category from the terminal list, :mod:`csws.gateways.jt808.terminals`) and is answered by the
+same :class:`service.answers.WarningService` as ``POST /v1/warning``: the same state store, so a
+vehicle switched off over HTTP is off here too, and a terminal that reconnects to another
+gateway process keeps its session. When what the driver should be told changes, the gateway
+sends a text message ``0x8300`` to display and speak (:mod:`csws.gateways.jt808.texts`).
+
+Reports of all connections are answered together: while the work thread answers one group, the
+reports that arrive meanwhile wait for the next, so a busy gateway answers in batches without a
+timer. Frames that cannot be read are dropped with a rate-limited log line; the connection
+lives on. A connection idle for :attr:`GatewaySettings.idle_s` is closed, and a terminal that
+sends more than its share of frames per second has the excess dropped.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import ssl
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgspec
+
+from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
+from csws.gateways.jt808.messages import (
+    BodyError,
+    LocationReport,
+    MessageId,
+    RegistrationResult,
+    ResponseResult,
+    decode_authentication,
+    decode_location,
+    decode_location_batch,
+    encode_general_response,
+    encode_registration_response,
+    encode_text_message,
+)
+from csws.gateways.jt808.reassembly import Reassembler
+from csws.gateways.jt808.terminals import Terminal, TerminalList
+from csws.gateways.jt808.texts import DriverTexts, Indication, indication, text_of
+
+from .answers import WarningService
+from .checks import QueryErrors
+from .decoding import DecodedPosition, DecodedQuery
+from .guard import OncePerInterval
+from .store import StoreUnavailable
+from .work import WorkThread
+
+__all__ = ["GatewaySettings", "Gateway"]
+
+log = logging.getLogger("csws.jt808")
+log.addFilter(OncePerInterval())
+
+#: A report older than this when it arrives is not given to the latency allowance (a terminal clock
+#: that is off would otherwise push every warning forward), s.
+MAX_REPORT_AGE_S = 30.0
+
+
+@dataclass(frozen=True)
+class GatewaySettings:
+    """How the gateway listens and what it allows a connection.
+
+    Attributes
+    ----------
+    idle_s
+        A connection that sends nothing this long is closed (three missed 60 s heartbeats, the
+        standard's default heartbeat interval).
+    frames_per_s, frames_burst
+        Each connection may send this many frames per second on average, this many at once;
+        the excess is dropped (and logged, rate-limited).
+    max_connections
+        Connections beyond this many are closed at once.
+    batch_window_s
+        Reports that arrive within this long of each other are answered together: a group of
+        reports costs far less per report than one at a time (map matching, the state store's
+        round trip), for a few milliseconds more latency.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = 6808
+    idle_s: float = 180.0
+    frames_per_s: float = 20.0
+    frames_burst: float = 60.0
+    max_connections: int = 20_000
+    batch_window_s: float = 0.005
+    fleet_texts: dict[str, DriverTexts] = field(default_factory=dict)
+
+    def texts(self, fleet: str) -> DriverTexts:
+        """The texts of ``fleet`` (the defaults where it has none)."""
+        return self.fleet_texts.get(fleet, DriverTexts())
+
+
+class Batcher:
+    """Answers the queries of all connections in groups, one group on the work thread at a time."""
+
+    def __init__(self, service: WarningService, work: WorkThread, window_s: float = 0.0) -> None:
+        self.service, self.work, self.window_s = service, work, window_s
+        self._waiting: list[tuple[DecodedQuery, str, asyncio.Future[Any]]] = []
+        self._running = False
+
+    async def answer(self, query: DecodedQuery, fleet: str) -> dict[str, Any] | None:
+        """The answer document of ``query`` of ``fleet`` (None when it could not be answered)."""
+        done: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
+        self._waiting.append((query, fleet, done))
+        if not self._running:
+            self._running = True
+            asyncio.get_running_loop().create_task(self._drain())
+        return await done
+
+    async def _drain(self) -> None:
+        try:
+            while self._waiting:
+                await asyncio.sleep(self.window_s)
+                group, self._waiting = self._waiting, []
+                try:
+                    answers = await self.work.run(self._answer_group, [(q, f) for q, f, _ in group])
+                except Exception:  # noqa: BLE001 - a fault of one group must not stop the gateway
+                    log.exception("jt808: a group of %d reports was not answered", len(group))
+                    answers = [None] * len(group)
+                for (_, _, done), answer in zip(group, answers, strict=True):
+                    if not done.done():
+                        done.set_result(answer)
+        finally:
+            self._running = False
+
+    def _answer_group(self, group: Sequence[tuple[DecodedQuery, str]]) -> list[dict[str, Any] | None]:
+        """Each query's answer, fleet by fleet (on the work thread); one that fails alone is None."""
+        answers: list[dict[str, Any] | None] = [None] * len(group)
+        for fleet in {f for _, f in group}:
+            indices = [i for i, (_, f) in enumerate(group) if f == fleet]
+            for index, answer in zip(indices, self._answer_fleet([group[i][0] for i in indices], fleet), strict=True):
+                answers[index] = answer
+        return answers
+
+    def _answer_fleet(self, queries: list[DecodedQuery], fleet: str) -> list[dict[str, Any] | None]:
+        try:
+            encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet)
+        except QueryErrors as errors:
+            if len(queries) > 1:
+                return [answer for query in queries for answer in self._answer_fleet([query], fleet)]
+            log.warning("jt808: report of %s not answered: %s", queries[0].vehicle_id, _first_error(errors))
+            return [None]
+        except StoreUnavailable as error:
+            log.warning("jt808: state store unavailable: %s", error)
+            return [None] * len(queries)
+        return [msgspec.json.decode(encoded.json(i)) for i in range(len(queries))]
+
+
+def _first_error(errors: QueryErrors) -> str:
+    """The first problem QueryErrors names."""
+    return str(errors.errors[0]["msg"]) if errors.errors else str(errors)
+
+
+def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> DecodedQuery:
+    """The query of ``terminal``'s vehicle for ``report`` (its fix, speed, heading and time)."""
+    age_s = now_s - report.time_s
+    return DecodedQuery(
+        vehicle_id=terminal.vehicle_id,
+        category=terminal.category,
+        speed_kmh=min(report.speed_kmh, 250.0),
+        position=DecodedPosition(lon=report.lon_deg, lat=report.lat_deg),
+        heading_deg=float(report.heading_deg % 360),
+        timestamp_s=report.time_s,
+        age_s=age_s if 0.0 <= age_s <= MAX_REPORT_AGE_S else None,
+    )
+
+
+class Conversation:
+    """One terminal's connection: its frames in, the platform's answers and texts out."""
+
+    def __init__(self, gateway: Gateway, writer: asyncio.StreamWriter) -> None:
+        self.gateway, self.writer = gateway, writer
+        self.splitter, self.reassembler = FrameSplitter(), Reassembler()
+        self.terminal: Terminal | None = None
+        self.edition, self.phone, self.serial = 2013, "0", 0
+        self.told: Indication | None = None
+        self.allowance, self.allowance_at = gateway.settings.frames_burst, time.monotonic()
+
+    def send(self, message_id: int, body: bytes) -> None:
+        """Send the platform's message ``message_id`` with ``body`` to the terminal."""
+        self.serial = (self.serial + 1) & 0xFFFF
+        frame = Frame(message_id, self.phone, self.serial, body, self.edition, 1 if self.edition == 2019 else 0)
+        self.writer.write(encode_frame(frame))
+
+    def respond(self, frame: Frame, result: ResponseResult) -> None:
+        """The general response ``0x8001`` to ``frame``."""
+        self.send(MessageId.PLATFORM_RESPONSE, encode_general_response(frame.serial, frame.message_id, result))
+
+    def _allowed(self) -> bool:
+        """Whether one more frame fits the connection's rate (a token bucket)."""
+        settings, now = self.gateway.settings, time.monotonic()
+        self.allowance = min(settings.frames_burst, self.allowance + (now - self.allowance_at) * settings.frames_per_s)
+        self.allowance_at = now
+        if self.allowance < 1.0:
+            return False
+        self.allowance -= 1.0
+        return True
+
+    async def received(self, data: bytes) -> bool:
+        """Handle the bytes ``data``; False once the terminal has deregistered."""
+        for escaped in self.splitter.feed(data):
+            if not self._allowed():
+                log.warning(
+                    "jt808: %s sends frames faster than %s/s; dropped", self.phone, self.gateway.settings.frames_per_s
+                )
+                continue
+            try:
+                frame = self.reassembler.add(decode_frame(escaped))
+            except FrameError as error:
+                log.warning("jt808: frame dropped from %s: %s", self.phone, error)
+                continue
+            if frame is not None and not await self.handle(frame):
+                return False
+        return True
+
+    async def handle(self, frame: Frame) -> bool:
+        """Answer one message; False when the terminal deregistered."""
+        self.edition, self.phone = frame.edition, frame.phone
+        handler = self.gateway.handlers.get(frame.message_id)
+        if handler is None:
+            if frame.message_id != MessageId.TERMINAL_RESPONSE:
+                self.respond(frame, ResponseResult.NOT_SUPPORTED)
+            return True
+        return await handler(self, frame)
+
+
+async def _register(conversation: Conversation, frame: Frame) -> bool:
+    """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for any other."""
+    terminals = conversation.gateway.terminals
+    terminals.refresh()
+    terminal = terminals.terminal(frame.phone)
+    if terminal is None or terminal.revoked:
+        body = encode_registration_response(frame.serial, RegistrationResult.NO_SUCH_TERMINAL)
+    else:
+        body = encode_registration_response(frame.serial, RegistrationResult.SUCCESS, terminals.auth_code(terminal))
+    conversation.send(MessageId.REGISTRATION_RESPONSE, body)
+    return True
+
+
+async def _authenticate(conversation: Conversation, frame: Frame) -> bool:
+    """``0x0102`` -> ``0x8001``: success for a listed terminal with its current code, failure otherwise."""
+    terminals = conversation.gateway.terminals
+    terminals.refresh()
+    try:
+        code = decode_authentication(frame.body, frame.edition)
+    except BodyError as error:
+        log.warning("jt808: authentication of %s unreadable: %s", frame.phone, error)
+        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
+        return True
+    conversation.terminal = terminals.admitted(frame.phone, code)
+    conversation.respond(frame, ResponseResult.SUCCESS if conversation.terminal else ResponseResult.FAILURE)
+    return True
+
+
+async def _heartbeat(conversation: Conversation, frame: Frame) -> bool:
+    """``0x0002`` -> ``0x8001``: success while the terminal is admitted."""
+    if _admitted(conversation, frame) is not None:
+        conversation.respond(frame, ResponseResult.SUCCESS)
+    return True
+
+
+async def _deregister(conversation: Conversation, frame: Frame) -> bool:
+    """``0x0003`` -> ``0x8001``, then the connection ends."""
+    conversation.respond(frame, ResponseResult.SUCCESS)
+    return False
+
+
+def _admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
+    """The conversation's terminal if it is still admitted; a failure response otherwise."""
+    terminal = conversation.terminal
+    if terminal is not None:
+        conversation.gateway.terminals.refresh()
+        listed = conversation.gateway.terminals.terminal(terminal.phone)
+        if listed is None or listed.revoked or listed.generation != terminal.generation:
+            conversation.terminal = terminal = None
+    if terminal is None:
+        conversation.respond(frame, ResponseResult.FAILURE)
+    return terminal
+
+
+async def _locations(conversation: Conversation, frame: Frame) -> bool:
+    """``0x0200`` and ``0x0704`` -> ``0x8001``, then the warning of the newest live report."""
+    terminal = _admitted(conversation, frame)
+    if terminal is None:
+        return True
+    try:
+        if frame.message_id == MessageId.LOCATION:
+            reports = [decode_location(frame.body)]
+        else:
+            kind, reports = decode_location_batch(frame.body)
+            reports = reports if kind == 0 else []  # 1: back-filled from a blind area, too old to warn
+    except BodyError as error:
+        log.warning("jt808: location report of %s unreadable: %s", frame.phone, error)
+        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
+        return True
+    conversation.respond(frame, ResponseResult.SUCCESS)
+    await conversation.writer.drain()
+    for report in sorted((r for r in reports if r.positioned), key=lambda r: r.time_s):
+        await _warn(conversation, terminal, report)
+    return True
+
+
+async def _warn(conversation: Conversation, terminal: Terminal, report: LocationReport) -> None:
+    """Answer ``report`` and tell the driver when the indication changes (``0x8300``)."""
+    gateway = conversation.gateway
+    answer = await gateway.batcher.answer(report_query(terminal, report, gateway.clock()), terminal.fleet)
+    if answer is None:
+        return
+    now = indication(answer["state"], answer["level"])
+    target = answer.get("target") or {}
+    text = text_of(gateway.settings.texts(terminal.fleet), conversation.told, now, target.get("warning_speed_kmh"))
+    conversation.told = now
+    if text is not None:
+        urgent = now.kind in ("level2", "fault")
+        conversation.send(MessageId.TEXT_MESSAGE, encode_text_message(text, conversation.edition, emergency=urgent))
+
+
+_HANDLERS: dict[int, Callable[[Conversation, Frame], Any]] = {
+    MessageId.REGISTRATION: _register,
+    MessageId.AUTHENTICATION: _authenticate,
+    MessageId.HEARTBEAT: _heartbeat,
+    MessageId.DEREGISTRATION: _deregister,
+    MessageId.LOCATION: _locations,
+    MessageId.LOCATION_BATCH: _locations,
+}
+
+
+class Gateway:
+    """The JT/T 808 gateway over a warning service.
+
+    Parameters
+    ----------
+    service, work
+        The warning service and the work thread it runs on (as the HTTP app has them).
+    terminals
+        The admitted terminals.
+    settings
+        Limits and texts.
+    clock
+        POSIX seconds now, for the age of reports.
+    """
+
+    def __init__(
+        self,
+        service: WarningService,
+        work: WorkThread,
+        terminals: TerminalList,
+        settings: GatewaySettings,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.batcher = Batcher(service, work, settings.batch_window_s)
+        self.terminals, self.settings, self.clock = terminals, settings, clock
+        self.handlers = _HANDLERS
+        self.connections = 0
+
+    async def converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        """Serve one connection until the terminal leaves, deregisters or idles."""
+        self.connections += 1
+        try:
+            if self.connections > self.settings.max_connections:
+                log.warning("jt808: more than %d connections; one refused", self.settings.max_connections)
+                return
+            conversation = Conversation(self, writer)
+            while True:
+                data = await asyncio.wait_for(reader.read(65536), timeout=self.settings.idle_s)
+                if not data or not await conversation.received(data):
+                    break
+                await writer.drain()
+        except (TimeoutError, ConnectionError, asyncio.CancelledError):
+            pass  # idle, gone, or the gateway stops
+        finally:
+            self.connections -= 1
+            writer.close()
+
+    async def serve(self, tls: ssl.SSLContext | None = None, ready: Callable[[int], None] | None = None) -> None:
+        """Listen on the settings' address until cancelled; ``ready(port)`` once listening."""
+        server = await asyncio.start_server(
+            self.converse, self.settings.host, self.settings.port, ssl=tls, limit=65536, backlog=4096
+        )
+        async with server:
+            if ready is not None:
+                ready(server.sockets[0].getsockname()[1])
+            await server.serve_forever()

@@ -1,0 +1,171 @@
+"""``csws jt808`` (the JT/T 808 gateway) and ``csws terminals`` (the terminals it admits)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import ssl
+import sys
+from pathlib import Path
+
+from csws.cli import deferred
+
+__all__ = ["add_commands", "main", "simulate_command", "terminals_command"]
+
+#: The environment variable naming the terminal file when --terminals is not given.
+TERMINALS_ENV = "CSWS_JT808_TERMINALS_FILE"
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    """Add ``csws jt808`` and ``csws terminals`` (an entry point of the ``csws.commands`` group)."""
+    gateway = commands.add_parser(
+        "jt808",
+        help="serve JT/T 808 terminals over TCP: location reports in, warnings back as text and speech",
+        description="The JT/T 808 (2013, 2019) gateway: admitted terminals (csws terminals add) report their "
+        "positions; each report is answered like POST /v1/warning, on the same networks and state store, and "
+        "the driver is told by text message (0x8300) when the warning changes. Network and state options and "
+        "their CSWS_* environment variables are those of csws serve.",
+    )
+    gateway.add_argument("--net", type=Path, action="append", default=None, metavar="FILE", help="a SUMO network")
+    gateway.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    gateway.add_argument("--port", type=int, default=6808, help="TCP port (default 6808)")
+    gateway.add_argument("--state", default=None, metavar="URL", help="redis://HOST:PORT/DB, shared by gateways")
+    gateway.add_argument("--state-db", default=None, metavar="FILE", help="SQLite file of the sessions")
+    gateway.add_argument(
+        "--terminals", type=Path, default=None, metavar="FILE", help=f"terminal file (${TERMINALS_ENV})"
+    )
+    gateway.add_argument("--texts", type=Path, default=None, metavar="FILE", help="the drivers' texts per fleet (JSON)")
+    gateway.add_argument("--idle-s", type=float, default=180.0, help="close a connection silent this long, s")
+    gateway.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="serve TLS with this certificate")
+    gateway.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="the certificate's private key")
+    gateway.set_defaults(handler=deferred("service.jt808_cli"))
+    simulator = commands.add_parser(
+        "jt808-sim",
+        help="drive simulated JT/T 808 terminals along recorded tracks against a gateway (a smoke test)",
+        description="Each phone of the tracks file connects, registers, authenticates and reports at its "
+        "track's times; prints what came back. Exit 1 if a terminal was refused.",
+    )
+    simulator.add_argument("tracks", type=Path, help="CSV: phone,time_s,lon_deg,lat_deg,speed_kmh,heading_deg")
+    simulator.add_argument("--gateway", default="127.0.0.1:6808", metavar="HOST:PORT", help="the gateway")
+    simulator.add_argument("--ramp-s", type=float, default=5.0, help="connect the terminals over this long, s")
+    simulator.set_defaults(handler=deferred("service.jt808_cli", "simulate_command"))
+    _add_terminals(commands)
+
+
+def _add_terminals(commands: argparse._SubParsersAction) -> None:
+    """Add ``csws terminals add | list | revoke``."""
+    terminals = commands.add_parser("terminals", help="manage the JT/T 808 terminals the gateway admits")
+    actions = terminals.add_subparsers(dest="terminals_command", metavar="ACTION", required=True)
+    add = actions.add_parser("add", help="admit a terminal for a vehicle of a fleet")
+    add.add_argument("fleet", help="the fleet (as its API keys name it)")
+    add.add_argument("phone", help="the terminal's phone number (up to 20 digits)")
+    add.add_argument("--category", required=True, help="vehicle category: M1, M2, M3, N or O")
+    add.add_argument("--plate", default="", help="the plate (GBK text, e.g. 京A12345)")
+    add.add_argument("--vehicle-id", default=None, help="the vehicle id in the HTTP API (default: plate, else phone)")
+    listing = actions.add_parser("list", help="list the terminals")
+    revoke = actions.add_parser("revoke", help="refuse a terminal from its next message on (no restart)")
+    revoke.add_argument("phone", help="the terminal's phone number")
+    for parser in (add, listing, revoke):
+        parser.add_argument("--file", type=Path, default=None, help=f"the terminal file (default ${TERMINALS_ENV})")
+        parser.set_defaults(handler=deferred("service.jt808_cli", "terminals_command"))
+
+
+def _terminal_file(given: Path | None) -> Path:
+    path = given or (Path(os.environ[TERMINALS_ENV]) if os.environ.get(TERMINALS_ENV) else None)
+    if path is None:
+        raise ValueError(f"give the terminal file: --file FILE (--terminals for csws jt808), or set {TERMINALS_ENV}")
+    return path
+
+
+def terminals_command(args: argparse.Namespace) -> int:
+    """``csws terminals add | list | revoke``."""
+    from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
+
+    path = _terminal_file(args.file)
+    if args.terminals_command == "add":
+        terminal = add_terminal(
+            path, args.fleet, args.phone, vehicle_id=args.vehicle_id, category=args.category, plate=args.plate
+        )
+        print(
+            f"csws: terminal {terminal.phone} speaks for {terminal.fleet}/{terminal.vehicle_id} ({terminal.category})"
+        )
+    elif args.terminals_command == "revoke":
+        terminal = revoke_terminal(path, args.phone)
+        print(f"csws: terminal {terminal.phone} of {terminal.fleet} revoked")
+    else:
+        for terminal in TerminalList(path):
+            status = "revoked" if terminal.revoked else "admitted"
+            print(
+                f"{terminal.phone}\t{terminal.fleet}\t{terminal.vehicle_id}\t{terminal.category}\t{terminal.plate}\t{status}"
+            )
+    return 0
+
+
+def _tls(args: argparse.Namespace) -> ssl.SSLContext | None:
+    if args.tls_cert is None and args.tls_key is None:
+        return None
+    if args.tls_cert is None or args.tls_key is None:
+        raise ValueError("TLS needs both --tls-cert and --tls-key")
+    context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+    try:
+        context.load_cert_chain(args.tls_cert, args.tls_key)
+    except (OSError, ssl.SSLError) as error:
+        raise ValueError(f"cannot load the TLS certificate: {error}") from None
+    return context
+
+
+def main(args: argparse.Namespace) -> int:
+    """``csws jt808``: build the warning service as ``csws serve`` does, then serve terminals until interrupted."""
+    from csws.gateways.jt808.terminals import TerminalList
+    from csws.gateways.jt808.texts import load_fleet_texts
+
+    from .app import create_app
+    from .jt808 import Gateway, GatewaySettings
+    from .run import settings_from_args
+
+    terminals = TerminalList(_terminal_file(args.terminals))
+    texts = load_fleet_texts(args.texts) if args.texts is not None else {}
+    tls = _tls(args)
+    service_args = argparse.Namespace(net=args.net, state=args.state, state_db=args.state_db)
+    state = create_app(settings_from_args(service_args)).state
+    settings = GatewaySettings(host=args.host, port=args.port, idle_s=args.idle_s, fleet_texts=texts)
+    gateway = Gateway(state.service, state.work, terminals, settings)
+
+    def ready(port: int) -> None:
+        networks = len(state.service.networks)
+        print(f"csws: JT/T 808 gateway for {networks} network(s) on {args.host}:{port}", flush=True)
+
+    try:
+        asyncio.run(gateway.serve(tls, ready))
+    except KeyboardInterrupt:
+        pass
+    except OSError as error:
+        print(f"csws: cannot listen on {args.host}:{args.port}: {error.strerror or error}", file=sys.stderr)
+        return 1
+    finally:
+        state.work.close()
+        state.store.close()
+    return 0
+
+
+def simulate_command(args: argparse.Namespace) -> int:
+    """``csws jt808-sim``: run the tracks' terminals against the gateway and print what they saw."""
+    from collections import Counter
+
+    import numpy as np
+
+    from csws.gateways.jt808.simulator import read_tracks, simulate
+
+    host, _, port = args.gateway.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--gateway is HOST:PORT, got {args.gateway!r}")
+    terminals = read_tracks(args.tracks)
+    stats = asyncio.run(simulate(terminals, host, int(port), args.ramp_s))
+    answered = np.array(stats.response_s) * 1000.0
+    print(f"csws: {len(terminals)} terminal(s), {stats.refused} refused, {len(answered)} report(s) answered")
+    if len(answered):
+        print(f"csws: 0x8001 after p50 {np.percentile(answered, 50):.1f} ms, p99 {np.percentile(answered, 99):.1f} ms")
+    for text, count in Counter(stats.texts).most_common():
+        print(f"csws: {count} x 0x8300 {text}")
+    return 1 if stats.refused else 0

@@ -1,0 +1,83 @@
+"""``csws terminals``, ``csws jt808`` and ``csws jt808-sim`` from the command line: what they print and their exits."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from csws.gateways.jt808.terminals import TerminalList
+from csws.gateways.jt808.texts import DriverTexts, Indication, TextsError, load_fleet_texts, text_of
+
+
+def csws(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "csws", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_terminals_are_added_listed_and_revoked(tmp_path: Path):
+    file = tmp_path / "terminals.json"
+    added = csws(
+        "terminals", "add", "acme", "13800138000", "--category", "N", "--plate", "京A12345", "--file", str(file)
+    )
+    assert added.returncode == 0 and "acme/京A12345" in added.stdout
+    assert file.stat().st_mode & 0o077 == 0  # readable by its owner only: it holds the secret
+    listed = csws("terminals", "list", "--file", str(file))
+    assert listed.stdout.split("\t")[:3] == ["13800138000", "acme", "京A12345"] and "admitted" in listed.stdout
+    terminals = TerminalList(file)
+    code = terminals.auth_code(terminals.terminal("013800138000"))  # leading zeros of the BCD field ignored
+    assert code not in listed.stdout and json.loads(file.read_text())["secret"] not in listed.stdout
+    assert terminals.admitted("13800138000", code) is not None
+    assert csws("terminals", "revoke", "13800138000", "--file", str(file)).returncode == 0
+    terminals.refresh()
+    assert terminals.admitted("13800138000", code) is None
+    readded = csws("terminals", "add", "acme", "13800138000", "--category", "N", "--file", str(file))
+    assert readded.returncode == 0
+    terminals.refresh()
+    assert terminals.admitted("13800138000", code) is None  # a new generation: the old code stays dead
+
+
+def test_bad_input_is_one_line_and_a_non_zero_exit(tmp_path: Path):
+    cases = [
+        ("jt808", "--terminals", str(tmp_path / "missing.json")),
+        ("terminals", "add", "acme", "12ab", "--category", "N", "--file", str(tmp_path / "t.json")),
+        ("terminals", "add", "acme", "1380", "--category", "X9", "--file", str(tmp_path / "t.json")),
+        ("terminals", "revoke", "1380", "--file", str(tmp_path / "missing.json")),
+        ("jt808-sim", str(tmp_path / "missing.csv")),
+        ("jt808-sim", str(tmp_path / "missing.csv"), "--gateway", "no-port"),
+    ]
+    for args in cases:
+        result = csws(*args)
+        assert result.returncode == 2, (args, result.stderr)
+        assert result.stderr.startswith("csws: error: ") and result.stderr.count("\n") == 1, result.stderr
+        assert "Traceback" not in result.stderr
+
+
+def test_texts_change_only_when_the_indication_does():
+    texts = DriverTexts()
+    quiet, one, two = Indication(0, "active"), Indication(1, "active"), Indication(2, "active")
+    off, fault = Indication(0, "off"), Indication(0, "fault")
+    assert text_of(texts, None, quiet, None) is None
+    assert text_of(texts, quiet, one, 75.8) == texts.level1.replace("{speed_kmh}", "75")
+    assert text_of(texts, one, one, 75.8) is None
+    assert text_of(texts, one, two, 87.3) == texts.level2.replace("{speed_kmh}", "87")  # 6.2.1: level 2 first
+    assert text_of(texts, two, one, 75.8) is None and text_of(texts, one, quiet, None) is None
+    assert text_of(texts, quiet, off, None) == texts.switched_off and text_of(texts, off, off, None) is None
+    assert text_of(texts, off, quiet, None) == texts.restored and text_of(texts, one, fault, None) == texts.fault
+    assert texts.level1 != texts.level2  # 5.5.1: the two levels clearly differ
+
+
+def test_fleet_texts_are_read_and_bad_files_named(tmp_path: Path):
+    good = tmp_path / "texts.json"
+    good.write_text(json.dumps({"acme": {"level1": "Curve ahead, slow to {speed_kmh} km/h"}}))
+    assert load_fleet_texts(good)["acme"].level1.startswith("Curve ahead")
+    assert load_fleet_texts(good)["acme"].level2 == DriverTexts().level2
+    for content in ({"acme": {"level3": "x"}}, {"acme": {"level1": "☃"}}, ["x"]):
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(content))
+        try:
+            load_fleet_texts(bad)
+        except TextsError as error:
+            assert str(bad) in str(error)
+        else:
+            raise AssertionError(f"{content} was accepted")

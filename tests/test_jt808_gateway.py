@@ -1,0 +1,343 @@
+"""The JT/T 808 gateway on loopback: a terminal written from the standard's layout drives a constructed road.
+
+Truth is constructed here: a straight of 800 m, an arc of R 150 m and a straight, geo-referenced in
+UTM 32N; the terminal's fixes from its constant speed (lon/lat by pyproj, not by csws); V_w from the
+standard's tables and S_w from formula (1) computed by the test. The gateway is the real one
+(:class:`service.jt808.Gateway` over the app's warning service and a SQLite state store) on a real
+TCP socket; the HTTP API of the same app switches the vehicle off.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import re
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import pyproj
+import pytest
+from builders import edge_xml, node_xml
+from fastapi.testclient import TestClient
+from jt808_terminal import Terminal, general_response, location_body, wire
+
+from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
+from csws.geometry import arc, sample_pieces, straight
+from csws.standard import warning_speed
+from csws.sumo.netbuild import netconvert
+from csws.warning.rules import WarningSettings
+from service.app import create_app
+from service.jt808 import Gateway, GatewaySettings
+from service.keys import add_key
+from service.settings import ServiceSettings
+
+APPROACH_M, RADIUS_M = 800.0, 150.0
+PIECES = (straight(APPROACH_M), arc(RADIUS_M, 60.0, "left"), straight(300.0))
+UTM32 = "+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
+#: Network (0, 0) at UTM 32N (550000, 5635000).
+ORIGIN_E, ORIGIN_N = 550_000.0, 5_635_000.0
+REACTION_S, G_MPS2 = 0.8, 9.8  # formula (1), 6.1
+CATEGORY, PHONE, FLEET = "N", "13800138000", "acme"
+#: How far the fitted curve start may lie from the constructed one, m.
+START_TOLERANCE_M = 1.5
+T0_S = 1_790_000_000.0
+
+pytestmark = [pytest.mark.sumo, pytest.mark.slow]
+
+
+@pytest.fixture(scope="module")
+def net(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    xy, _ = sample_pieces(PIECES, 2.0, (0.0, 0.0), 0.0)
+    folder = tmp_path_factory.mktemp("jt808")
+    path = netconvert(
+        f"<nodes>{node_xml('A', xy[0]) + node_xml('B', xy[-1])}</nodes>",
+        f"<edges>{edge_xml('r', 'A', 'B', xy)}</edges>",
+        folder / "r.net.xml",
+    )
+    text = re.sub(r'netOffset="[^"]*"', f'netOffset="{-ORIGIN_E:.2f},{-ORIGIN_N:.2f}"', path.read_text())
+    path.write_text(text.replace('projParameter="!"', f'projParameter="{UTM32}"'))
+    return path
+
+
+def lonlat(x_m: float) -> tuple[float, float]:
+    """The lon/lat of the road's point ``x_m`` along the straight (y = 0)."""
+    to_wgs84 = pyproj.Transformer.from_crs(pyproj.CRS.from_proj4(UTM32), "EPSG:4326", always_xy=True)
+    return to_wgs84.transform(ORIGIN_E + x_m, ORIGIN_N)
+
+
+def formula_1_m(speed_kmh: float, warning_speed_kmh: float) -> float:
+    v, v_w = speed_kmh / 3.6, warning_speed_kmh / 3.6
+    return REACTION_S * v + (v * v - v_w * v_w) / G_MPS2
+
+
+class Rig:
+    """The app (HTTP and warning service), its gateway on a free port, and a clock the test sets."""
+
+    def __init__(self, net: Path, folder: Path) -> None:
+        self.terminals_file = folder / "terminals.json"
+        add_terminal(self.terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY, plate="京A12345")
+        self.api_key = add_key(folder / "keys.json", FLEET, "admin")
+        settings = ServiceSettings(nets=[net], state_db=str(folder / "state.db"), api_keys_file=folder / "keys.json")
+        self.app = create_app(settings)
+        self.now_s = T0_S
+        self.gateway = Gateway(
+            self.app.state.service,
+            self.app.state.work,
+            TerminalList(self.terminals_file),
+            GatewaySettings(port=0),
+            clock=lambda: self.now_s,
+        )
+
+    async def __aenter__(self) -> Rig:
+        ready: asyncio.Future[int] = asyncio.get_running_loop().create_future()
+        self.task = asyncio.create_task(self.gateway.serve(ready=ready.set_result))
+        self.port = await ready
+        return self
+
+    async def __aexit__(self, *_: object) -> None:
+        self.task.cancel()
+        await asyncio.gather(self.task, return_exceptions=True)
+
+
+class Drive:
+    """A terminal reporting once a second along the straight, the test's clock following its reports."""
+
+    def __init__(self, rig: Rig, terminal: Terminal, x_m: float) -> None:
+        self.rig, self.terminal, self.x_m, self.reports = rig, terminal, x_m, 0
+
+    async def report(self, speed_kmh: float) -> list[tuple[float, str]]:
+        """One report (after a second at ``speed_kmh``); the texts (0x8300) it brought, each with the
+        distance to the curve at the report."""
+        if self.reports:
+            self.x_m += speed_kmh / 3.6
+        self.rig.now_s = T0_S + self.reports
+        self.reports += 1
+        lon, lat = lonlat(self.x_m)
+        serial = await self.terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, self.rig.now_s))
+        [response] = await self.terminal.receive(1)
+        assert general_response(response) == (serial, 0x0200, 0)
+        texts = []
+        while True:
+            try:
+                [message] = await self.terminal.receive(1, timeout_s=0.3)
+            except (AssertionError, TimeoutError):
+                return texts
+            assert message.message_id == 0x8300
+            assert message.body[0] & 0b1100 == 0b1100  # shown and spoken
+            texts.append((APPROACH_M - self.x_m, message.body[1:].decode("gbk")))
+
+
+def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, tmp_path):
+    v_w1, v_w2 = (warning_speed(RADIUS_M, CATEGORY, level) for level in (1, 2))
+    slow_kmh, fast_kmh = 80.0, 95.0
+    assert v_w1 < slow_kmh < v_w2 < fast_kmh  # 80 km/h: level 1 only; 95 km/h: level 2
+    delay_s = WarningSettings().system_delay_s
+
+    async def run() -> list[tuple[float, str]]:
+        async with Rig(net, tmp_path) as rig:
+            terminal = Terminal(PHONE)
+            await terminal.connect(rig.port)
+            assert general_response(await terminal.register_and_authenticate())[2] == 0
+            drive = Drive(rig, terminal, APPROACH_M - 480.0)
+            texts: list[tuple[float, str]] = []
+            while not texts:
+                assert drive.x_m < APPROACH_M, "no warning before the curve"
+                texts += await drive.report(slow_kmh)
+            texts += await drive.report(fast_kmh)
+            await terminal.close()
+            return texts
+
+    texts = asyncio.run(run())
+    assert [("弯道超速" in t, "前方弯道" in t) for _, t in texts] == [(False, True), (True, False)]
+    assert str(math.floor(v_w1)) in texts[0][1] and str(math.floor(v_w2)) in texts[1][1]
+    sw_m, speed_mps = formula_1_m(slow_kmh, v_w1), slow_kmh / 3.6
+    onset_m = texts[0][0]
+    # Shown before S_w is reached, and at the last 1 s report that could be (learnt period).
+    assert onset_m - speed_mps * delay_s >= sw_m - START_TOLERANCE_M
+    assert onset_m <= sw_m + speed_mps * (1.0 + delay_s) + START_TOLERANCE_M
+    # Level 2 at the first report above V_w2, inside formula (1)'s distance at that speed.
+    assert texts[1][0] <= formula_1_m(fast_kmh, v_w2) + fast_kmh / 3.6 * (1.0 + delay_s)
+
+
+async def _connected(rig: Rig) -> Terminal:
+    terminal = Terminal(PHONE)
+    await terminal.connect(rig.port)
+    assert general_response(await terminal.register_and_authenticate())[2] == 0
+    return terminal
+
+
+def test_a_vehicle_switched_off_over_http_is_told_so_once_and_never_warned(net, tmp_path):
+    async def run() -> list[tuple[float, str]]:
+        async with Rig(net, tmp_path) as rig:
+            client = TestClient(rig.app, headers={"Authorization": f"Bearer {rig.api_key}"})
+            assert client.put("/v1/vehicles/truck-18", json={"switched_on": False}).status_code == 200
+            terminal = await _connected(rig)
+            drive = Drive(rig, terminal, APPROACH_M - 200.0)
+            texts = []
+            while drive.x_m < APPROACH_M + 20.0:
+                texts += await drive.report(95.0)
+            await terminal.close()
+            return texts
+
+    texts = asyncio.run(run())
+    assert [text for _, text in texts] == ["弯道预警已关闭"]
+
+
+def test_a_revoked_terminal_is_refused_from_its_next_message(net, tmp_path):
+    async def run() -> None:
+        async with Rig(net, tmp_path) as rig:
+            terminal = await _connected(rig)
+            assert general_response(await _heartbeat(terminal))[2] == 0
+            revoke_terminal(rig.terminals_file, PHONE)
+            assert general_response(await _heartbeat(terminal))[2] == 1  # failure: no longer admitted
+            serial = await terminal.send(0x0200, location_body(50.0, 9.0, 50.0, 90.0, T0_S))
+            [response] = await terminal.receive(1)
+            assert general_response(response) == (serial, 0x0200, 1)  # failure: no longer admitted
+            registration = struct.pack(">HH", 0, 0) + bytes(5 + 20 + 7) + b"\x01"
+            await terminal.send(0x0100, registration)
+            [answer] = await terminal.receive(1)
+            assert answer.message_id == 0x8100 and answer.body[2] == 4  # no such terminal
+            await terminal.close()
+
+    asyncio.run(run())
+
+
+async def _heartbeat(terminal: Terminal):
+    serial = await terminal.send(0x0002)
+    [response] = await terminal.receive(1)
+    assert general_response(response)[:2] == (serial, 0x0002)
+    return response
+
+
+def test_malformed_frames_are_dropped_and_the_connection_lives(net, tmp_path):
+    async def run() -> None:
+        async with Rig(net, tmp_path) as rig:
+            terminal = await _connected(rig)
+            good = wire(struct.pack(">HH", 0x0002, 0) + bytes.fromhex(PHONE.rjust(12, "0")) + b"\x00\x63")
+            bad_check = good[:-2] + bytes([good[-2] ^ 0x55]) + good[-1:]
+            bad_escape = b"\x7e\x00\x02\x7d\x05" + bytes(12) + b"\x7e"
+            wrong_length = wire(struct.pack(">HH", 0x0200, 40) + bytes.fromhex(PHONE.rjust(12, "0")) + b"\x00\x64")
+            no_flag = b"\x7e" + bytes(5000)
+            for junk in (bad_check, bad_escape, wrong_length, b"\x7e\x7e", no_flag):
+                terminal.writer.write(junk)
+            await terminal.writer.drain()
+            await _heartbeat(terminal)  # after the junk, a well-formed frame is answered
+            unknown = await terminal.send(0x0900, b"\x01")
+            [response] = await terminal.receive(1)
+            assert general_response(response) == (unknown, 0x0900, 3)  # not supported
+            await terminal.close()
+
+    asyncio.run(run())
+
+
+def test_reports_before_authentication_fail_and_a_batch_upload_is_answered(net, tmp_path):
+    async def run() -> None:
+        async with Rig(net, tmp_path) as rig:
+            stranger = Terminal("13900000000")
+            await stranger.connect(rig.port)
+            serial = await stranger.send(0x0200, location_body(50.0, 9.0, 50.0, 90.0, T0_S))
+            [response] = await stranger.receive(1)
+            assert general_response(response) == (serial, 0x0200, 1)
+            await stranger.close()
+            terminal = await _connected(rig)
+            items = [location_body(*reversed(lonlat(100.0 + 14.0 * k)), 50.0, 90.0, T0_S + k) for k in range(3)]
+            batch = struct.pack(">HB", 3, 0) + b"".join(struct.pack(">H", len(i)) + i for i in items)
+            serial = await terminal.send(0x0704, batch)
+            [response] = await terminal.receive(1)
+            assert general_response(response) == (serial, 0x0704, 0)
+            await terminal.close()
+
+    asyncio.run(run())
+
+
+def test_an_idle_connection_is_closed(net, tmp_path):
+    async def run() -> bytes:
+        async with Rig(net, tmp_path) as rig:
+            rig.gateway.settings = GatewaySettings(port=0, idle_s=0.3)
+            terminal = Terminal(PHONE)
+            await terminal.connect(rig.port)
+            closed = await asyncio.wait_for(terminal.reader.read(10), 5.0)
+            await terminal.close()
+            return closed
+
+    assert asyncio.run(run()) == b""  # closed by the gateway, well before the test's 5 s
+
+
+class GatewayProcess:
+    """``csws jt808`` in a process of its own on a free port."""
+
+    def __init__(self, net: Path, terminals_file: Path, state_url: str) -> None:
+        command = [sys.executable, "-m", "csws", "jt808", "--net", str(net), "--port", "0"]
+        self.process = subprocess.Popen(
+            [*command, "--terminals", str(terminals_file), "--state", state_url],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        assert self.process.stdout is not None
+        line = self.process.stdout.readline()
+        assert "JT/T 808 gateway" in line, line
+        self.port = int(line.rsplit(":", 1)[1])
+
+    def stop(self) -> None:
+        self.process.terminate()
+        self.process.wait(timeout=30)
+
+
+@pytest.mark.redis
+def test_a_terminal_that_reconnects_to_another_gateway_keeps_its_session(net, tmp_path, redis_url):
+    """Warned on gateway A, then on gateway B just under V_w: the release rule holds the warning only
+    if B has A's session (a vehicle new at that point, at that speed, is not warned)."""
+    v_w1 = warning_speed(RADIUS_M, CATEGORY, 1)
+    just_under_kmh = math.floor((v_w1 - 0.5) * 10) / 10  # within the release rule's 1 km/h, below V_w
+    terminals_file = tmp_path / "terminals.json"
+    add_terminal(terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY)
+    add_terminal(terminals_file, FLEET, "13900000001", vehicle_id="fresh", category=CATEGORY)
+    gateways = [GatewayProcess(net, terminals_file, redis_url) for _ in range(2)]
+    clock = {"k": 0}
+
+    async def report(terminal: Terminal, x_m: float, speed_kmh: float) -> list[str]:
+        clock["k"] += 1
+        lon, lat = lonlat(x_m)
+        serial = await terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, T0_S + clock["k"]))
+        [response] = await terminal.receive(1)
+        assert general_response(response) == (serial, 0x0200, 0)
+        try:
+            return [m.body[1:].decode("gbk") for m in await terminal.receive(1, timeout_s=1.0)]
+        except (AssertionError, TimeoutError):
+            return []
+
+    async def run() -> tuple[list[str], list[str]]:
+        on_a = Terminal(PHONE)
+        await on_a.connect(gateways[0].port)
+        registered = await on_a.register_and_authenticate()
+        assert general_response(registered)[2] == 0
+        x_m, texts = APPROACH_M - 480.0, []
+        while not texts:
+            x_m += 80.0 / 3.6
+            assert x_m < APPROACH_M
+            texts = await report(on_a, x_m, 80.0)
+        await on_a.close()
+        on_b = Terminal(PHONE)  # the same terminal, on the other gateway: authenticates with its code
+        await on_b.connect(gateways[1].port)
+        on_b.serial = on_a.serial
+        await on_b.send(0x0102, on_a.auth_code)
+        assert general_response((await on_b.receive(1))[0])[2] == 0
+        held = await report(on_b, x_m + just_under_kmh / 3.6, just_under_kmh)
+        await on_b.close()
+        fresh = Terminal("13900000001")
+        await fresh.connect(gateways[1].port)
+        assert general_response(await fresh.register_and_authenticate())[2] == 0
+        new = await report(fresh, x_m + just_under_kmh / 3.6, just_under_kmh)
+        await fresh.close()
+        return held, new
+
+    try:
+        held, new = asyncio.run(run())
+    finally:
+        for gateway in gateways:
+            gateway.stop()
+    assert len(held) == 1 and "前方弯道" in held[0]  # B goes on with A's session: the warning is held
+    assert new == []
