@@ -36,7 +36,7 @@ from .map import CompressedGets, MapData
 from .match_schemas import Trace, TraceFix
 from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
-from .routes import docs, map, match, ops, vehicles, warnings
+from .routes import docs, map, match, ops, traccar, vehicles, warnings
 from .schemas import REQUEST_FIELDS, unknown_field_message
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
@@ -195,7 +195,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
     )
     _share(app, settings, clock)
     docs.mount_static(app)
-    for router in (warnings.router, vehicles.router, match.router, map.router, ops.router, docs.router):
+    for router in (warnings.router, traccar.router, vehicles.router, match.router, map.router, ops.router, docs.router):
         app.include_router(router)
     # Innermost first: security headers (on the page before it is gzipped), answers to GETs gzipped,
     # bodies bounded, then metrics over all.
