@@ -14,7 +14,6 @@ does not depend on the lane a path starts from or on how far back it was stitche
 
 from __future__ import annotations
 
-from bisect import bisect_right
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
@@ -23,7 +22,16 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
-from csws.road.sharing import Run, chain_runs, clip_curve, lateral_offsets_m, moved_curve, moved_parts, reference_lanes
+from csws.road.sharing import (
+    Run,
+    chain_runs,
+    clip_curve,
+    lateral_offsets_m,
+    moved_curve,
+    moved_parts,
+    reference_lanes,
+    run_at,
+)
 from csws.standard import WarningSpeedPolicy
 
 __all__ = [
@@ -257,7 +265,7 @@ class RoadChains:
         (:mod:`csws.road.sharing`) is the reference's curve: it starts where that one starts, also where
         the borrowing lanes begin inside it, so that every lane of a road names the curve alike.
         """
-        run = _run_at(self.runs[chain], start_s)
+        run = run_at(self.runs[chain], start_s)
         if run.is_own:
             return (*self.lane_position(chain, start_s), 0)
         source_s = run.to_source(start_s)
@@ -278,11 +286,6 @@ class RoadChains:
         """The lane and SUMO lane position of chain arc length ``s`` (``end``: see :meth:`lane_at`)."""
         lane = self.lane_at(chain, s, end)
         return lane, float((s - self.lane_start_s[lane]) * self.lane_position_factor[lane])
-
-
-def _run_at(runs: Sequence[Run], s: float) -> Run:
-    """The run of a chain that arc length ``s`` lies on; on a joint, the run starting there."""
-    return runs[max(bisect_right([float(run.target_s[0]) for run in runs], s) - 1, 0)]
 
 
 def road_curve_id(
@@ -486,18 +489,8 @@ def index_curves(
         for curve in chains.curves(chain, warning_radius_m, policy):
             start_lane, start_pos_m = chains.lane_position(chain, curve.start_s)
             end_lane, end_pos_m = chains.lane_position(chain, curve.end_s, end=True)
-            curve_id, first_part_index = road_curve_id(chains, edge_ids, chain, curve.start_s, warning_radius_m, policy)
-            lane_curves.append(
-                LaneCurve(
-                    lane_ids[start_lane],
-                    start_pos_m,
-                    lane_ids[end_lane],
-                    end_pos_m,
-                    curve,
-                    chain,
-                    curve_id,
-                    first_part_index,
-                )
-            )
+            name = road_curve_id(chains, edge_ids, chain, curve.start_s, warning_radius_m, policy)
+            ends = (lane_ids[start_lane], start_pos_m, lane_ids[end_lane], end_pos_m)
+            lane_curves.append(LaneCurve(*ends, curve, chain, *name))
         index.append(lane_curves)
     return index

@@ -31,6 +31,7 @@ road is warned of the same curve, part for part.
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -47,6 +48,7 @@ __all__ = [
     "moved_curve",
     "moved_parts",
     "reference_lanes",
+    "run_at",
 ]
 
 #: A lane shares its edge's reference lane's curves only if its lateral offset from that lane
@@ -136,6 +138,11 @@ class Run:
         """The lateral offset of the lane at source arc length ``source_s``, m."""
         lane = int(np.searchsorted(self.source_s[1:-1], source_s, side="right"))
         return float(self.offset_m[lane])
+
+
+def run_at(runs: Sequence[Run], s: float) -> Run:
+    """The run of a chain (its ``runs``, in order) that arc length ``s`` lies on; on a joint, the run starting there."""
+    return runs[max(bisect_right([float(run.target_s[0]) for run in runs], s) - 1, 0)]
 
 
 def chain_runs(
