@@ -98,6 +98,7 @@ def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
     )
     table = _table((tmp_path / "summary.md").read_text())
     assert table["vehicle-km"] == ["n/a (no time series)"]
+    assert table["status"] == ["complete"] and float(table["simulated until, s"][0]) == pytest.approx(20.0)
     assert re.fullmatch(r"\d+", table["level-1 warnings"][0])
     assert (tmp_path / "summary.png").read_bytes().startswith(PNG_SIGNATURE)
 

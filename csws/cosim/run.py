@@ -189,6 +189,7 @@ def cosimulate(config: CosimConfig) -> dict[str, Any]:
         When interrupted; likewise.
     """
     config.out.mkdir(parents=True, exist_ok=True)
+    (config.out / "summary.json").unlink(missing_ok=True)  # a run that stops early must not leave an older one's
     run = _Run(config)
     status, started = "running", time.perf_counter()
     try:
@@ -277,6 +278,13 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
     )
 
 
+def _api_key(args: argparse.Namespace) -> str | None:
+    """The fleet's API key for ``--service``: ``--api-key-file``'s, else ``CSWS_API_KEY``'s; None without a service."""
+    if args.service is None:
+        return None
+    return args.api_key if args.api_key is not None else os.environ.get("CSWS_API_KEY") or None
+
+
 def main(args: argparse.Namespace) -> int:
     """The ``csws cosim`` command: 0 when the run completes, 1 (with one line on stderr) when SUMO
     or the service fails."""
@@ -289,11 +297,11 @@ def main(args: argparse.Namespace) -> int:
         end_s=args.end,
         interface=interface,
         service_url=args.service,
-        service_api_key=args.api_key if args.api_key is not None else os.environ.get("CSWS_API_KEY") or None,
+        service_api_key=_api_key(args),
         seed=args.seed,
         progress=True,
         timeseries=args.timeseries,
-        timeseries_every=args.timeseries_every,
+        timeseries_every=args.timeseries_every or 1,
         systems=tuple(args.systems),
     )
     runs = (
@@ -304,17 +312,24 @@ def main(args: argparse.Namespace) -> int:
             replace(base, out=args.out / "with_response", driver=DriverSettings()),
         ]
     )
-    summaries = []
+    summaries: list[dict[str, Any]] = []
+    started: list[CosimConfig] = []
     try:
         for config in runs:
+            started.append(config)
             summaries.append(cosimulate(config))
             _print_summary(summaries[-1], config.out)
     except SumoStopped as exc:
+        _write_plots(started, args.out)
         print(f"csws: error: SUMO stopped ({exc}); the files in {args.out} hold every step before", file=sys.stderr)
         return 1
     except ServiceError as exc:
+        _write_plots(started, args.out)
         print(f"csws: error: {exc}; the files in {args.out} hold every step before", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        _write_plots(started, args.out)
+        raise
     if args.driver_response:
         comparison = _comparison(*summaries)
         write_summary(
@@ -322,8 +337,18 @@ def main(args: argparse.Namespace) -> int:
             {"format": "csws-cosim-comparison/1", "comparison": comparison, "runs": summaries},
         )
         print(f"comparison in {args.out / 'summary.json'}")
-    write_run_summary(
-        {"with driver response" if c.driver else "without driver response": c.out for c in runs}, args.out
-    )
-    print(f"summary plot in {args.out / 'summary.png'}, figures in {args.out / 'summary.md'}")
+    _write_plots(started, args.out)
     return 0
+
+
+def _write_plots(started: list[CosimConfig], out: Path) -> None:
+    """Write ``summary.png`` and ``summary.md`` of the runs started that left their files, also when one
+    of them was interrupted or failed (its status is in the table), and say where they are."""
+    folders = {
+        "with driver response" if c.driver else "without driver response": c.out
+        for c in started
+        if (c.out / "summary.json").is_file() and (c.out / "entries.csv").is_file()
+    }
+    if folders:
+        write_run_summary(folders, out)
+        print(f"summary plot in {out / 'summary.png'}, figures in {out / 'summary.md'}")
