@@ -8,16 +8,22 @@ process, no SUMO), so the time and speed of every entry are known before the run
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 
 import numpy as np
+import pyproj
 import pytest
+from builders import UTM32, write_geo_track
+from markers import marks_its_tests
 
 from csws.cli import main as csws_main
 from csws.cosim.evaluators import LibraryEvaluator
+from csws.cosim.geo import network_location
 from csws.cosim.recording import Streams, Tracker, record_step
-from csws.cosim.records import Summary
+from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS, Summary
+from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sumo import FleetState
 from csws.engine import Engine, EngineSettings
 from csws.networks import networks_dir
@@ -135,6 +141,76 @@ def test_the_fast_vehicles_entry_is_where_and_how_fast_it_entered(driven) -> Non
     assert float(entry["level1_warning_speed_kmh"]) == pytest.approx(V_W1_M1_R120_KMH, abs=0.5)
     assert float(entry["excess_kmh"]) == pytest.approx(90.0 - float(entry["level1_warning_speed_kmh"]), abs=1e-9)
     assert float(entry["radius_m"]) == pytest.approx(RADIUS_M, rel=0.02)
+    # Where: on the curve's lane, just past its start at (1000, 0).
+    assert entry["lane_id"] == "curve_0" and 100.0 <= float(entry["lane_pos_m"]) < 100.0 + 90.0 / 3.6 * STEP_S
+    assert float(entry["x_m"]) == pytest.approx(CURVE_START_M, abs=90.0 / 3.6 * STEP_S)
+    assert float(entry["y_m"]) == pytest.approx(0.0, abs=0.1)
+
+
+# ------------------------------------------------------------------ lon/lat on a geo-referenced network
+#: A car faster than the Table 7 track's curves allow, so that it is warned and enters them too fast.
+GEO_ROUTES = """<routes>
+  <vType id="car" vClass="passenger" maxSpeed="30" accel="3" decel="6" sigma="0"/>
+  <route id="track" edges="approach curve runout"/>
+  <vehicle id="car0" type="car" route="track" depart="0" departSpeed="max"/>
+  <vehicle id="car1" type="car" route="track" depart="5" departSpeed="max"/>
+</routes>
+"""
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("sumo")
+def geo_run(tmp_path_factory) -> Path:
+    """Two cars over the geo-referenced Table 7 track (network (0, 0) at UTM 32N (550000, 5635000))."""
+    folder = tmp_path_factory.mktemp("geo")
+    (folder / "track.rou.xml").write_text(GEO_ROUTES)
+    scenario = Scenario(None, write_geo_track(folder), (folder / "track.rou.xml",))
+    cosimulate(CosimConfig(scenario, folder / "out", step_length_s=0.2, timeseries="csv"))
+    return folder / "out"
+
+
+def _utm32_to_lonlat(x_m: float, y_m: float) -> tuple[float, float]:
+    """Longitude and latitude of a network position of the geo track: UTM 32N inverted by pyproj itself."""
+    return pyproj.Proj(UTM32)(x_m + 550_000.0, y_m + 5_635_000.0, inverse=True)
+
+
+def test_every_csv_output_of_a_geo_referenced_network_has_lon_lat_after_x_y(geo_run) -> None:
+    for name in ("timeseries.csv", "warnings.csv", "entries.csv"):
+        with open(geo_run / name, newline="") as file:
+            header = next(csv.reader(file))
+        after = header.index("y_m")
+        assert header[after - 1 : after + 3] == ["x_m", "y_m", "lon", "lat"], name
+    assert json.loads((geo_run / "summary.json").read_text())["scenario"]["geo_referenced"] is True
+
+
+def test_lon_lat_are_the_networks_projection_of_x_y(geo_run) -> None:
+    rows = [row for name in ("timeseries.csv", "warnings.csv", "entries.csv") for row in _csv_rows(geo_run / name)]
+    assert len(_csv_rows(geo_run / "entries.csv")) >= 2 and len(_csv_rows(geo_run / "warnings.csv")) >= 2
+    for row in rows:
+        lon, lat = _utm32_to_lonlat(float(row["x_m"]), float(row["y_m"]))
+        assert float(row["lon"]) == pytest.approx(lon, abs=1e-9) and float(row["lat"]) == pytest.approx(lat, abs=1e-9)
+    # Near Bad Hersfeld: UTM 32N (550 km, 5,635 km) is about 9.7 E, 50.9 N.
+    assert all(9.5 < float(row["lon"]) < 9.9 and 50.8 < float(row["lat"]) < 51.0 for row in rows)
+
+
+def test_only_a_network_with_a_projection_gets_lon_lat(tmp_path) -> None:
+    """The test tracks have none (``projParameter="!"``); Bad Hersfeld, gzipped, has UTM's."""
+    assert network_location(TRACK_NET) is None
+    city = network_location(networks_dir() / "badhersfeld.net.xml.gz")
+    assert city is not None
+    lon, lat = city.lonlat(np.array([0.0, np.nan]), np.array([0.0, np.nan]))
+    assert lon[1] is None and lat[1] is None and 9.6 < lon[0] < 9.9 and 50.8 < lat[0] < 50.95
+    streams = Streams.open(tmp_path, "csv", False, geo=False)
+    streams.close()
+    for name, columns in (("timeseries.csv", TIMESERIES_COLUMNS), ("warnings.csv", EVENT_COLUMNS)):
+        assert (tmp_path / name).read_text() == ",".join(columns) + "\n"
+    assert (tmp_path / "entries.csv").read_text() == ",".join(ENTRY_COLUMNS) + "\n"
+    assert "lon" not in ENTRY_COLUMNS + EVENT_COLUMNS + TIMESERIES_COLUMNS
+
+
+def _csv_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
 
 
 # ------------------------------------------------------------------ command lines that would ignore an option

@@ -17,7 +17,17 @@ from csws.standard import mps_to_kmh
 
 from .evaluators import FleetWarnings
 from .fcw import FCW_EVENT_COLUMNS, FcwColumns, fcw_events
-from .records import ENTRY_COLUMNS, EVENT_COLUMNS, CsvStream, StepValues, Summary, event_of, level1_excess_kmh
+from .geo import NetworkLocation
+from .records import (
+    ENTRY_COLUMNS,
+    EVENT_COLUMNS,
+    CsvStream,
+    StepValues,
+    Summary,
+    event_of,
+    level1_excess_kmh,
+    with_geo,
+)
 from .sumo import FleetState
 from .timeseries import TimeseriesWriter, open_timeseries
 
@@ -33,12 +43,12 @@ class Streams:
     entries: CsvStream
 
     @classmethod
-    def open(cls, out: Path, timeseries_format: str, fcw: bool) -> Streams:
-        """Create the files in ``out``, with the FCW columns when ``fcw``."""
+    def open(cls, out: Path, timeseries_format: str, fcw: bool, geo: bool = False) -> Streams:
+        """Create the files in ``out``, with the FCW columns when ``fcw`` and lon/lat when ``geo``."""
         return cls(
-            open_timeseries(out, timeseries_format, fcw),
-            CsvStream(out / "warnings.csv", EVENT_COLUMNS + (FCW_EVENT_COLUMNS if fcw else ())),
-            CsvStream(out / "entries.csv", ENTRY_COLUMNS),
+            open_timeseries(out, timeseries_format, fcw, geo),
+            CsvStream(out / "warnings.csv", with_geo(EVENT_COLUMNS, geo) + (FCW_EVENT_COLUMNS if fcw else ())),
+            CsvStream(out / "entries.csv", with_geo(ENTRY_COLUMNS, geo)),
         )
 
     def close(self) -> None:
@@ -77,15 +87,17 @@ def record_step(
     streams: Streams,
     sampled: bool,
     position: Callable[[str], tuple[float, float]] | None = None,
-) -> None:
-    """Append one step to the files and the summary.
+    geo: NetworkLocation | None = None,
+) -> StepValues:
+    """Append one step to the files and the summary; the step's values as the rows wrote them.
 
     The time series gets the step when it is ``sampled``; ``warnings.csv`` its level changes
     (with the forward collision warning's, given ``fcw``); ``entries.csv`` its first entries into
     curve parts. ``position`` gives a vehicle's x, y where the step was read without them (an
-    event's row needs them).
+    event's row needs them); ``geo`` adds lon and lat to every row (the files must have been
+    opened with them).
     """
-    step = StepValues.of(fleet, position)
+    step = StepValues.of(fleet, position, geo)
     if sampled:
         streams.timeseries.append(_timeseries_columns(step, warnings, fcw, commands))
     events = _warning_events(step, warnings, tracker, summary, pad=len(FCW_EVENT_COLUMNS) if fcw else 0)
@@ -94,6 +106,7 @@ def record_step(
         events += fcw_events(fcw, tracker.fcw_levels, summary, step)
     streams.warnings.append(events)
     streams.entries.append(entries)
+    return step
 
 
 def _timeseries_columns(
@@ -110,6 +123,7 @@ def _timeseries_columns(
         step.lane_pos_m,
         step.x_m,
         step.y_m,
+        *((step.lon, step.lat) if step.geo is not None else ()),
         step.speeds_kmh,
         warnings.state,
         warnings.level,
@@ -217,6 +231,9 @@ def _curve_entries(
                 level1_kmh,
                 excess_kmh,
                 level,
+                fleet.lane_id[i],
+                step.lane_pos_m[i],
+                *step.place(i),
             )
         )
     return entries

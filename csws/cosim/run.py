@@ -25,6 +25,7 @@ from .config import CosimConfig, Scenario, bundled_scenario, scenario_from_args
 from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .fcw import FcwColumns, FleetFcw, respond_to_fcw
+from .geo import network_location
 from .recording import Streams, Tracker, record_step
 from .records import StepCosts, Summary, write_summary
 from .summary import write_run_summary
@@ -86,7 +87,8 @@ class _Run:
         self.summary = Summary(fcw_onsets=Counter() if config.fcw else None)
         self.tracker = Tracker()
         self.driver = DriverResponse(config.driver) if config.driver is not None else None
-        self.streams = Streams.open(config.out, config.timeseries, config.fcw)
+        self.geo = network_location(config.scenario.net)
+        self.streams = Streams.open(config.out, config.timeseries, config.fcw, geo=self.geo is not None)
         self.costs = StepCosts()
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
@@ -125,7 +127,9 @@ class _Run:
             simulation.set_speed(vehicle_id, speed_mps)
         with costs.timed("recording"):
             position = None if positions or simulation.reads_positions else simulation.position
-            record_step(fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position)
+            record_step(
+                fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position, self.geo
+            )
         self.summary.vehicles.update(fleet.vehicle_id)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s
@@ -208,16 +212,14 @@ def cosimulate(config: CosimConfig) -> dict[str, Any]:
         raise
     finally:
         run.close()
-        content = _summary_content(config, run.summary, status, time.perf_counter() - started, run.costs)
+        content = _summary_content(config, run, status, time.perf_counter() - started)
         write_summary(config.out / "summary.json", content)
     return content
 
 
-def _summary_content(
-    config: CosimConfig, summary: Summary, status: str, wall_s: float, costs: StepCosts
-) -> dict[str, Any]:
+def _summary_content(config: CosimConfig, run: _Run, status: str, wall_s: float) -> dict[str, Any]:
     """The summary of one run with how it was run and where its time went."""
-    scenario = config.scenario
+    scenario, summary = config.scenario, run.summary
     return {
         "format": "csws-cosim-summary/1",
         "status": status,
@@ -226,6 +228,7 @@ def _summary_content(
             "config": None if scenario.config is None else str(scenario.config),
             "net": str(scenario.net),
             "routes": [str(r) for r in scenario.routes],
+            "geo_referenced": run.geo is not None,
         },
         "mode": "service" if config.service_url else "library" if config.evaluate else "baseline (no evaluation)",
         "service_url": config.service_url,
@@ -235,7 +238,7 @@ def _summary_content(
         "driver_response": None if config.driver is None else vars(config.driver),
         "timeseries": {"format": config.timeseries, "every_steps": config.timeseries_every},
         "wall_time_s": round(wall_s, 3),
-        "ms_per_step": costs.ms_per_step(summary.steps),
+        "ms_per_step": run.costs.ms_per_step(summary.steps),
         **summary.as_dict(),
     }
 
