@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pyarrow.parquet as pq
 import pytest
@@ -244,7 +245,7 @@ def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
 @pytest.mark.slow
 @pytest.mark.sumo
 def test_an_interrupted_run_keeps_valid_files(tmp_path):
-    process = _start(tmp_path, "--timeseries", "csv")
+    process = _start(tmp_path, "--timeseries", "csv", "--fcd", str(tmp_path / "fcd.xml"))
     _wait_for_rows(tmp_path / "timeseries.csv", process)
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=60)
@@ -253,6 +254,9 @@ def test_an_interrupted_run_keeps_valid_files(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "interrupted"
     _assert_summary_of_the_interrupted_run(tmp_path, summary, stdout)
+    # The FCD export is closed and parses; its last timestep is the last step's (SUMO's time: one step earlier).
+    timesteps = ElementTree.parse(tmp_path / "fcd.xml").getroot().findall("timestep")
+    assert float(timesteps[-1].get("time")) == pytest.approx(summary["simulated_until_s"] - 0.1, abs=1e-6)
 
 
 def _assert_summary_of_the_interrupted_run(out: Path, summary: dict, stdout: str) -> None:

@@ -10,7 +10,10 @@ from __future__ import annotations
 import csv
 import json
 import math
+import subprocess
+from dataclasses import replace
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pyproj
@@ -24,10 +27,11 @@ from csws.cosim.geo import network_location
 from csws.cosim.recording import Streams, Tracker, record_step
 from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS, Summary
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
-from csws.cosim.sumo import FleetState
+from csws.cosim.sumo import FleetState, sumo_arguments
 from csws.engine import Engine, EngineSettings
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
+from csws.sumo.binaries import sumo_binary
 from csws.warning.rules import WarningSettings
 
 # ------------------------------------------------------------------ the R 120 m track (single_r120_left.truth.json)
@@ -158,6 +162,9 @@ GEO_ROUTES = """<routes>
 """
 
 
+GEO_STEP_S = 0.2
+
+
 @pytest.fixture(scope="module")
 @marks_its_tests("sumo")
 def geo_run(tmp_path_factory) -> Path:
@@ -165,7 +172,9 @@ def geo_run(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("geo")
     (folder / "track.rou.xml").write_text(GEO_ROUTES)
     scenario = Scenario(None, write_geo_track(folder), (folder / "track.rou.xml",))
-    cosimulate(CosimConfig(scenario, folder / "out", step_length_s=0.2, timeseries="csv"))
+    cosimulate(
+        CosimConfig(scenario, folder / "out", step_length_s=GEO_STEP_S, timeseries="csv", fcd=folder / "fcd.xml")
+    )
     return folder / "out"
 
 
@@ -206,6 +215,56 @@ def test_only_a_network_with_a_projection_gets_lon_lat(tmp_path) -> None:
         assert (tmp_path / name).read_text() == ",".join(columns) + "\n"
     assert (tmp_path / "entries.csv").read_text() == ",".join(ENTRY_COLUMNS) + "\n"
     assert "lon" not in ENTRY_COLUMNS + EVENT_COLUMNS + TIMESERIES_COLUMNS
+
+
+# ------------------------------------------------------------------ the FCD export
+def _fcd(path: Path) -> dict[tuple[str, str], dict[str, str]]:
+    """Every vehicle of an FCD file by (time, id), its attributes as written."""
+    root = ElementTree.parse(path).getroot()
+    assert root.tag == "fcd-export"
+    return {
+        (timestep.get("time"), vehicle.get("id")): dict(vehicle.attrib)
+        for timestep in root.iter("timestep")
+        for vehicle in timestep.iter("vehicle")
+    }
+
+
+@pytest.mark.sumo
+def test_the_fcd_export_is_sumos_own_with_the_warnings_added(geo_run, tmp_path) -> None:
+    """SUMO's own --fcd-output of the same scenario gives the same vehicles at the same times with the same
+    x, y, angle, type, speed, lane position and lane; the warning level is the time series'."""
+    folder = geo_run.parent
+    sumo = tmp_path / "sumo-fcd.xml"
+    arguments = sumo_arguments(None, folder / "t7_geo.net.xml", [folder / "track.rou.xml"], GEO_STEP_S, 0, None)
+    subprocess.run([str(sumo_binary("sumo")), *arguments, "--fcd-output", str(sumo)], check=True, timeout=120)
+    ours, theirs = _fcd(folder / "fcd.xml"), _fcd(sumo)
+    assert len(ours) > 100 and set(ours) <= set(theirs)
+    for key, vehicle in ours.items():
+        for name in ("x", "y", "angle", "speed", "pos"):
+            assert float(vehicle[name]) == pytest.approx(float(theirs[key][name]), abs=0.011), (key, name)
+        assert (vehicle["type"], vehicle["lane"]) == (theirs[key]["type"], theirs[key]["lane"])
+    # SUMO labels a step's state with the time the step began; the time series with the time after it.
+    rows = {
+        (f"{float(row['time_s']) - GEO_STEP_S:.2f}", row["vehicle_id"]): row
+        for row in _csv_rows(geo_run / "timeseries.csv")
+    }
+    assert set(rows) == set(ours)
+    for key, vehicle in ours.items():
+        row = rows[key]
+        assert (vehicle["csws_level"], vehicle["csws_state"]) == (row["level"], row["state"])
+        assert float(vehicle["lon"]) == pytest.approx(float(row["lon"]), abs=1e-7)
+        assert float(vehicle["lat"]) == pytest.approx(float(row["lat"]), abs=1e-7)
+    assert {vehicle["csws_level"] for vehicle in ours.values()} == {"0", "1", "2"}
+
+
+@pytest.mark.sumo
+def test_over_traci_the_fcd_export_is_the_same(geo_run, tmp_path) -> None:
+    """TraCI's subscriptions read the angle and type as libsumo's getters do: the same file, byte for byte."""
+    folder = geo_run.parent
+    scenario = Scenario(None, folder / "t7_geo.net.xml", (folder / "track.rou.xml",))
+    config = CosimConfig(scenario, tmp_path / "out", step_length_s=GEO_STEP_S, timeseries="none", interface="traci")
+    cosimulate(replace(config, fcd=tmp_path / "fcd.xml"))
+    assert (tmp_path / "fcd.xml").read_bytes() == (folder / "fcd.xml").read_bytes()
 
 
 def _csv_rows(path: Path) -> list[dict[str, str]]:

@@ -88,4 +88,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         metavar="N",
         help="keep every N-th step in the time series (default 1: every step)",
     )
+    parser.add_argument(
+        "--fcd",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also write the run as SUMO's FCD export (<fcd-export><timestep><vehicle id x y angle type speed "
+        "pos lane .../>) with each vehicle's warning level, at the steps the time series keeps",
+    )
     parser.set_defaults(handler=deferred("csws.cosim.run"))

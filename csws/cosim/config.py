@@ -73,6 +73,9 @@ class CosimConfig:
     systems
         The warning systems evaluated: ``csws`` (curve speed warning) and ``fcw`` (forward
         collision warning, :mod:`csws.cosim.fcw`), either or both.
+    fcd
+        Also write the run as SUMO's FCD export with each vehicle's warning to this file
+        (:mod:`csws.cosim.fcd`), at the steps the time series keeps; None writes none.
     """
 
     scenario: Scenario
@@ -89,6 +92,7 @@ class CosimConfig:
     timeseries: str = "parquet"
     timeseries_every: int = 1
     systems: tuple[str, ...] = ("csws",)
+    fcd: Path | None = None
 
     def __post_init__(self) -> None:
         if not self.systems or not set(self.systems) <= set(SYSTEMS):
@@ -138,8 +142,8 @@ def ignored_options(args: argparse.Namespace) -> str | None:
         return "--vehicles generates a fleet on the bundled fleet network: drop it, or drop --net/--sumocfg"
     if args.api_key is not None and args.service is None:
         return "--api-key-file is for a service: give --service URL with it"
-    if args.timeseries_every is not None and args.timeseries == "none":
-        return "--timeseries-every thins the time series, which --timeseries none does not keep"
+    if args.timeseries_every is not None and args.timeseries == "none" and args.fcd is None:
+        return "--timeseries-every thins the time series and --fcd, and --timeseries none keeps neither"
     return None
 
 

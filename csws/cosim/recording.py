@@ -16,6 +16,7 @@ from typing import Any
 from csws.standard import mps_to_kmh
 
 from .evaluators import FleetWarnings
+from .fcd import FcdWriter
 from .fcw import FCW_EVENT_COLUMNS, FcwColumns, fcw_events
 from .geo import NetworkLocation
 from .records import (
@@ -41,20 +42,31 @@ class Streams:
     timeseries: TimeseriesWriter
     warnings: CsvStream
     entries: CsvStream
+    fcd: FcdWriter | None = None
 
     @classmethod
-    def open(cls, out: Path, timeseries_format: str, fcw: bool, geo: bool = False) -> Streams:
-        """Create the files in ``out``, with the FCW columns when ``fcw`` and lon/lat when ``geo``."""
+    def open(
+        cls,
+        out: Path,
+        timeseries_format: str,
+        fcw: bool,
+        geo: bool = False,
+        fcd: tuple[Path, float] | None = None,
+    ) -> Streams:
+        """Create the files in ``out``, with the FCW columns when ``fcw`` and lon/lat when ``geo``; and
+        the FCD export when ``fcd`` gives its file and SUMO's step length, s."""
         return cls(
             open_timeseries(out, timeseries_format, fcw, geo),
             CsvStream(out / "warnings.csv", with_geo(EVENT_COLUMNS, geo) + (FCW_EVENT_COLUMNS if fcw else ())),
             CsvStream(out / "entries.csv", with_geo(ENTRY_COLUMNS, geo)),
+            None if fcd is None else FcdWriter(*fcd),
         )
 
     def close(self) -> None:
         """Close every file."""
-        for stream in (self.timeseries, self.warnings, self.entries):
-            stream.close()
+        for stream in (self.timeseries, self.warnings, self.entries, self.fcd):
+            if stream is not None:
+                stream.close()
 
 
 @dataclass
@@ -91,7 +103,7 @@ def record_step(
 ) -> StepValues:
     """Append one step to the files and the summary; the step's values as the rows wrote them.
 
-    The time series gets the step when it is ``sampled``; ``warnings.csv`` its level changes
+    The time series (and the FCD export) gets the step when it is ``sampled``; ``warnings.csv`` its level changes
     (with the forward collision warning's, given ``fcw``); ``entries.csv`` its first entries into
     curve parts. ``position`` gives a vehicle's x, y where the step was read without them (an
     event's row needs them); ``geo`` adds lon and lat to every row (the files must have been
@@ -100,6 +112,8 @@ def record_step(
     step = StepValues.of(fleet, position, geo)
     if sampled:
         streams.timeseries.append(_timeseries_columns(step, warnings, fcw, commands))
+        if streams.fcd is not None:
+            streams.fcd.append(step, warnings, None if fcw is None else fcw.level)
     events = _warning_events(step, warnings, tracker, summary, pad=len(FCW_EVENT_COLUMNS) if fcw else 0)
     entries = _curve_entries(step, warnings, tracker, summary)
     if fcw:

@@ -50,6 +50,7 @@ __all__ = [
     "write_summary",
     "event_of",
     "with_geo",
+    "write_whole",
 ]
 
 #: How a run's time series can be kept (:mod:`csws.cosim.timeseries`).
@@ -194,6 +195,14 @@ class StepValues:
         )
 
 
+def write_whole(fd: int, text: str) -> None:
+    """Append ``text`` to the open file ``fd`` in UTF-8, all of it (``os.write`` may write part)."""
+    data = text.encode("utf-8")
+    while data:
+        written = os.write(fd, data)
+        data = data[written:]
+
+
 class CsvStream:
     """A CSV file appended one block of whole rows at a time (one ``os.write`` per block).
 
@@ -212,12 +221,9 @@ class CsvStream:
     def append(self, rows: Iterable[Sequence[Any]]) -> None:
         """Append rows (each a sequence in column order)."""
         self._writer.writerows(rows)
-        data = self._buffer.getvalue().encode("utf-8")
+        write_whole(self._fd, self._buffer.getvalue())
         self._buffer.seek(0)
         self._buffer.truncate()
-        while data:
-            written = os.write(self._fd, data)
-            data = data[written:]
 
     def close(self) -> None:
         """Close the file."""

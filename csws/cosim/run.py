@@ -88,7 +88,8 @@ class _Run:
         self.tracker = Tracker()
         self.driver = DriverResponse(config.driver) if config.driver is not None else None
         self.geo = network_location(config.scenario.net)
-        self.streams = Streams.open(config.out, config.timeseries, config.fcw, geo=self.geo is not None)
+        fcd = None if config.fcd is None else (config.fcd, config.step_length_s)
+        self.streams = Streams.open(config.out, config.timeseries, config.fcw, geo=self.geo is not None, fcd=fcd)
         self.costs = StepCosts()
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
@@ -106,7 +107,9 @@ class _Run:
             config.seed,
             config.end_s,
         )
-        simulation = self.simulation = Simulation(sumo_args, config.interface, odometer=self.driver is not None)
+        simulation = self.simulation = Simulation(
+            sumo_args, config.interface, odometer=self.driver is not None, headings=config.fcd is not None
+        )
         self.forward = FleetFcw(simulation.api) if config.fcw else None
         self.step_s = simulation.step_length_s
         return simulation
@@ -115,8 +118,8 @@ class _Run:
         """Advance SUMO one step, evaluate, command and record it; False once ``end_s`` is reached."""
         config, costs = self.config, self.costs
         sampled = self.summary.steps % config.timeseries_every == 0
-        # Without a time-series row this step, x and y are read only for the vehicles with an event.
-        positions = sampled and config.timeseries != "none"
+        # Without a time-series row (or FCD timestep) this step, x and y are read only for the vehicles with an event.
+        positions = sampled and (config.timeseries != "none" or config.fcd is not None)
         with costs.timed("sumo_step_and_read"):
             fleet = simulation.step(positions)
         self._forget(fleet.arrived)
@@ -237,6 +240,7 @@ def _summary_content(config: CosimConfig, run: _Run, status: str, wall_s: float)
         "step_length_s": config.step_length_s,
         "driver_response": None if config.driver is None else vars(config.driver),
         "timeseries": {"format": config.timeseries, "every_steps": config.timeseries_every},
+        "fcd": None if config.fcd is None else str(config.fcd),
         "wall_time_s": round(wall_s, 3),
         "ms_per_step": run.costs.ms_per_step(summary.steps),
         **summary.as_dict(),
@@ -281,6 +285,11 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
     )
 
 
+def _per_run(path: Path | None, run: str) -> Path | None:
+    """The file of one run of ``--driver-response`` for a file given once: ``fcd.xml`` -> ``fcd.with_response.xml``."""
+    return None if path is None else path.with_name(f"{path.stem}.{run}{path.suffix}")
+
+
 def _api_key(args: argparse.Namespace) -> str | None:
     """The fleet's API key for ``--service``: ``--api-key-file``'s, else ``CSWS_API_KEY``'s; None without a service."""
     if args.service is None:
@@ -306,13 +315,16 @@ def main(args: argparse.Namespace) -> int:
         timeseries=args.timeseries,
         timeseries_every=args.timeseries_every or 1,
         systems=tuple(args.systems),
+        fcd=args.fcd,
     )
     runs = (
         [base]
         if not args.driver_response
         else [
-            replace(base, out=args.out / "without_response"),
-            replace(base, out=args.out / "with_response", driver=DriverSettings()),
+            replace(base, out=args.out / "without_response", fcd=_per_run(args.fcd, "without_response")),
+            replace(
+                base, out=args.out / "with_response", driver=DriverSettings(), fcd=_per_run(args.fcd, "with_response")
+            ),
         ]
     )
     summaries: list[dict[str, Any]] = []
