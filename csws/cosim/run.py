@@ -273,7 +273,7 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings "
         f"({summary['warnings']['flickered']} flickered: off and on again for the same curve within "
         f"{summary['warnings']['flicker_window_s']:g} s), "
-        f"{entries['total']} curve entries above the level-1 warning speed "
+        f"{entries['total']} curve entries at or above the level-1 warning speed "
         f"({entries['more_than_1_kmh_above']} by more than 1 km/h)"
         + (
             ""

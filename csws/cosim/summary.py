@@ -191,7 +191,7 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
     rates.set(ylabel="warnings per 100 vehicle-km", title="warnings per 100 vehicle-km")
     for axes in (speeds, excess, rates):
         axes.grid(alpha=0.3)
-        if len(runs) > 1 or axes is excess:
+        if (len(runs) > 1 or axes is excess) and axes.get_legend_handles_labels()[0]:
             axes.legend(fontsize=8)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
