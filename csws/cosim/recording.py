@@ -100,8 +100,8 @@ def record_step(
     sampled: bool,
     position: Callable[[str], tuple[float, float]] | None = None,
     geo: NetworkLocation | None = None,
-) -> StepValues:
-    """Append one step to the files and the summary; the step's values as the rows wrote them.
+) -> None:
+    """Append one step to the files and the summary.
 
     The time series (and the FCD export) gets the step when it is ``sampled``; ``warnings.csv`` its level changes
     (with the forward collision warning's, given ``fcw``); ``entries.csv`` its first entries into
@@ -120,7 +120,6 @@ def record_step(
         events += fcw_events(fcw, tracker.fcw_levels, summary, step)
     streams.warnings.append(events)
     streams.entries.append(entries)
-    return step
 
 
 def _timeseries_columns(
