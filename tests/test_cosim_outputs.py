@@ -22,10 +22,11 @@ from builders import UTM32, write_geo_track
 from markers import marks_its_tests
 
 from csws.cli import main as csws_main
-from csws.cosim.evaluators import LibraryEvaluator
+from csws.cosim.evaluators import FleetWarnings, LibraryEvaluator, no_targets
+from csws.cosim.fcd import FcdWriter
 from csws.cosim.geo import network_location
 from csws.cosim.recording import Streams, Tracker, record_step
-from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS, Summary
+from csws.cosim.records import ENTRY_COLUMNS, EVENT_COLUMNS, TIMESERIES_COLUMNS, StepValues, Summary
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sumo import FleetState, sumo_arguments
 from csws.engine import Engine, EngineSettings
@@ -265,6 +266,50 @@ def test_over_traci_the_fcd_export_is_the_same(geo_run, tmp_path) -> None:
     config = CosimConfig(scenario, tmp_path / "out", step_length_s=GEO_STEP_S, timeseries="none", interface="traci")
     cosimulate(replace(config, fcd=tmp_path / "fcd.xml"))
     assert (tmp_path / "fcd.xml").read_bytes() == (folder / "fcd.xml").read_bytes()
+
+
+def test_an_fcd_timestep_carries_the_fcw_level_and_any_vehicle_id(tmp_path) -> None:
+    """Ids, types and lanes are XML-quoted; with the forward collision warning each vehicle has its level;
+    the time is SUMO's, one step before ``time_s``; the closing tag comes with ``close``."""
+    fleet = FleetState(
+        time_s=12.3,
+        vehicle_id=['a&"b', "<c>"],
+        category=["M1", "N"],
+        lane_id=["e_0", "f&g_1"],
+        route_edges=[("e",), ("f&g",)],
+        lane_pos_m=np.array([1.234, 5.0]),
+        speed_mps=np.array([20.004, 0.0]),
+        x_m=np.array([10.0, -3.456]),
+        y_m=np.array([2.0, 7.891]),
+        odometer_m=np.zeros(2),
+        departed=(),
+        arrived=(),
+        skipped=(),
+        type_id=["car", "truck'1"],
+        angle_deg=np.array([90.0, 359.996]),
+    )
+    warnings = FleetWarnings(["active", "active"], [0, 2], no_targets(2), [])
+    writer = FcdWriter(tmp_path / "sub" / "fcd.xml", 0.1)
+    writer.append(StepValues.of(fleet), warnings, [1, 0])
+    writer.close()
+    (timestep,) = ElementTree.parse(tmp_path / "sub" / "fcd.xml").getroot()
+    assert timestep.get("time") == "12.20"
+    first, second = (dict(vehicle.attrib) for vehicle in timestep)
+    assert first == {
+        "id": 'a&"b',
+        "x": "10.00",
+        "y": "2.00",
+        "angle": "90.00",
+        "type": "car",
+        "speed": "20.00",
+        "pos": "1.23",
+        "lane": "e_0",
+        "csws_state": "active",
+        "csws_level": "0",
+        "fcw_level": "1",
+    }
+    assert (second["id"], second["lane"], second["type"]) == ("<c>", "f&g_1", "truck'1")
+    assert (second["csws_level"], second["fcw_level"], second["angle"], second["x"]) == ("2", "0", "360.00", "-3.46")
 
 
 def _csv_rows(path: Path) -> list[dict[str, str]]:

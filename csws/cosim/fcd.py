@@ -61,6 +61,7 @@ class FcdWriter:
         self.step_length_s = step_length_s
         # SUMO writes times with 2 decimals, more for a step length that needs them (a multiple of 1 ms).
         self._time_decimals = 2 if abs(step_length_s * 100 - round(step_length_s * 100)) < 1e-9 else 3
+        self._names: dict[str, str] = {}
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         write_whole(self._fd, _HEADER)
 
@@ -69,20 +70,44 @@ class FcdWriter:
         fleet = step.fleet
         if fleet.type_id is None or fleet.angle_deg is None:
             raise ValueError("an FCD timestep needs the vehicles' types and angles: read the step with headings")
+        extra = [""] * len(fleet.vehicle_id)
+        if fcw_level is not None:
+            extra = [f' fcw_level="{level}"' for level in fcw_level]
+        if step.geo is not None:
+            extra = [
+                f'{more} lon="{lon:.7f}" lat="{lat:.7f}"'
+                for more, lon, lat in zip(extra, step.lon, step.lat, strict=True)
+            ]
+        quoted = self._quoted
         lines = [f'    <timestep time="{fleet.time_s - self.step_length_s:.{self._time_decimals}f}">\n']
-        geo = step.geo is not None
-        for i, vehicle_id in enumerate(fleet.vehicle_id):
-            extra = f' fcw_level="{fcw_level[i]}"' if fcw_level is not None else ""
-            if geo:
-                extra += f' lon="{step.lon[i]:.7f}" lat="{step.lat[i]:.7f}"'
-            lines.append(
-                f'        <vehicle id={quoteattr(vehicle_id)} x="{step.x_m[i]:.2f}" y="{step.y_m[i]:.2f}"'
-                f' angle="{fleet.angle_deg[i]:.2f}" type={quoteattr(fleet.type_id[i])}'
-                f' speed="{fleet.speed_mps[i]:.2f}" pos="{step.lane_pos_m[i]:.2f}" lane={quoteattr(fleet.lane_id[i])}'
-                f' csws_state="{warnings.state[i]}" csws_level="{warnings.level[i]}"{extra}/>\n'
+        lines += [
+            f'        <vehicle id={quoted(vehicle_id)} x="{x_m:.2f}" y="{y_m:.2f}" angle="{angle_deg:.2f}"'
+            f' type={quoted(type_id)} speed="{speed_mps:.2f}" pos="{pos_m:.2f}" lane={quoted(lane_id)}'
+            f' csws_state="{state}" csws_level="{level}"{more}/>\n'
+            for vehicle_id, x_m, y_m, angle_deg, type_id, speed_mps, pos_m, lane_id, state, level, more in zip(
+                fleet.vehicle_id,
+                step.x_m,
+                step.y_m,
+                fleet.angle_deg.tolist(),
+                fleet.type_id,
+                fleet.speed_mps.tolist(),
+                step.lane_pos_m,
+                fleet.lane_id,
+                warnings.state,
+                warnings.level,
+                extra,
+                strict=True,
             )
+        ]
         lines.append("    </timestep>\n")
         write_whole(self._fd, "".join(lines))
+
+    def _quoted(self, name: str) -> str:
+        """``name`` as a quoted XML attribute value, quoted once per name (ids, types and lanes recur)."""
+        found = self._names.get(name)
+        if found is None:
+            found = self._names[name] = quoteattr(name)
+        return found
 
     def close(self) -> None:
         """Write the closing tag and close the file."""
