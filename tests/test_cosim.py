@@ -240,6 +240,8 @@ def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
     _assert_complete_csv(tmp_path / "entries.csv", ENTRY_COLUMNS)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["complete"] is False and summary["status"].startswith("SUMO stopped")
+    assert (tmp_path / "summary.png").is_file()
+    assert "| status | SUMO stopped: " in (tmp_path / "summary.md").read_text()
 
 
 @pytest.mark.slow

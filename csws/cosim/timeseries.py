@@ -6,8 +6,9 @@
   ``part-00000.parquet``, ``part-00001.parquet``, ... in the column types of
   :data:`TIMESERIES_SCHEMA`. Rows are gathered in columns and written
   :data:`PART_ROWS` at a time, each part under a temporary name and then renamed, so every
-  file in the folder is whole. pandas (``read_parquet("timeseries")``), polars, DuckDB
-  (``read_parquet('timeseries/*.parquet')``) and pyarrow read the folder as one table. An
+  file in the folder is whole. pyarrow (``pyarrow.parquet.read_table("timeseries")``, installed
+  with csws), pandas, polars and DuckDB (``read_parquet('timeseries/*.parquet')``) read the
+  folder as one table. On a geo-referenced network ``lon`` and ``lat`` follow ``y_m``. An
   interrupted run, or one whose SUMO died, writes what it has gathered before it ends; a
   run killed outright loses the rows not yet written (at most one part).
 * ``csv``: ``timeseries.csv``, appended at every step in whole rows (the same columns,
