@@ -285,6 +285,17 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
     )
 
 
+def _runs(base: CosimConfig, driver_response: bool) -> list[CosimConfig]:
+    """The run, or for ``--driver-response`` the two runs without and with the driver-response model,
+    each in a folder (and with an FCD file) of its own."""
+    if not driver_response:
+        return [base]
+    return [
+        replace(base, out=base.out / "without_response", fcd=_per_run(base.fcd, "without_response")),
+        replace(base, out=base.out / "with_response", driver=DriverSettings(), fcd=_per_run(base.fcd, "with_response")),
+    ]
+
+
 def _per_run(path: Path | None, run: str) -> Path | None:
     """The file of one run of ``--driver-response`` for a file given once: ``fcd.xml`` -> ``fcd.with_response.xml``."""
     return None if path is None else path.with_name(f"{path.stem}.{run}{path.suffix}")
@@ -317,16 +328,7 @@ def main(args: argparse.Namespace) -> int:
         systems=tuple(args.systems),
         fcd=args.fcd,
     )
-    runs = (
-        [base]
-        if not args.driver_response
-        else [
-            replace(base, out=args.out / "without_response", fcd=_per_run(args.fcd, "without_response")),
-            replace(
-                base, out=args.out / "with_response", driver=DriverSettings(), fcd=_per_run(args.fcd, "with_response")
-            ),
-        ]
-    )
+    runs = _runs(base, args.driver_response)
     summaries: list[dict[str, Any]] = []
     started: list[CosimConfig] = []
     try:
