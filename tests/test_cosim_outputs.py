@@ -203,6 +203,17 @@ def test_lon_lat_are_the_networks_projection_of_x_y(geo_run) -> None:
     assert all(9.5 < float(row["lon"]) < 9.9 and 50.8 < float(row["lat"]) < 51.0 for row in rows)
 
 
+@pytest.mark.sumo
+def test_without_a_time_series_the_events_still_have_lon_lat(geo_run, tmp_path) -> None:
+    """A step that keeps no time-series row reads x, y only for the vehicles with an event: their rows,
+    lon/lat included, are those of the run that read every position."""
+    folder = geo_run.parent
+    scenario = Scenario(None, folder / "t7_geo.net.xml", (folder / "track.rou.xml",))
+    cosimulate(CosimConfig(scenario, tmp_path, step_length_s=GEO_STEP_S, timeseries="none"))
+    for name in ("warnings.csv", "entries.csv"):
+        assert (tmp_path / name).read_bytes() == (geo_run / name).read_bytes(), name
+
+
 def test_only_a_network_with_a_projection_gets_lon_lat(tmp_path) -> None:
     """The test tracks have none (``projParameter="!"``); Bad Hersfeld, gzipped, has UTM's."""
     assert network_location(TRACK_NET) is None
