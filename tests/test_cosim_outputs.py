@@ -19,6 +19,8 @@ import numpy as np
 import pyproj
 import pytest
 from builders import UTM32, write_geo_track
+from hypothesis import given
+from hypothesis import strategies as st
 from markers import marks_its_tests
 
 from csws.cli import main as csws_main
@@ -321,6 +323,24 @@ def test_an_fcd_timestep_carries_the_fcw_level_and_any_vehicle_id(tmp_path) -> N
     }
     assert (second["id"], second["lane"], second["type"]) == ("<c>", "f&g_1", "truck'1")
     assert (second["csws_level"], second["fcw_level"], second["angle"], second["x"]) == ("2", "0", "360.00", "-3.46")
+
+
+CITY = network_location(networks_dir() / "badhersfeld.net.xml.gz")
+_POSITION_M = st.one_of(st.floats(-5_000.0, 15_000.0), st.just(math.nan))
+
+
+@given(st.lists(st.tuples(_POSITION_M, _POSITION_M), min_size=1, max_size=20))
+def test_lon_lat_go_back_to_x_y_and_exist_only_where_x_y_do(positions) -> None:
+    """Whatever the mix of read and unread positions, each read one's lon/lat projects back onto it (1 mm)
+    and each unread one (NaN) has none."""
+    assert CITY is not None
+    x_m, y_m = (np.array(column) for column in zip(*positions, strict=True))
+    lon, lat = CITY.lonlat(x_m, y_m)
+    for row, (x, y) in enumerate(positions):
+        if math.isnan(x) or math.isnan(y):
+            assert lon[row] is None and lat[row] is None
+        else:
+            assert CITY.lonlat_to_xy(lon[row], lat[row]) == pytest.approx((x, y), abs=1e-3)
 
 
 def _csv_rows(path: Path) -> list[dict[str, str]]:
