@@ -32,7 +32,8 @@ from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 from csws.warning.release import HeldWarning
 
-from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from .places import shown_places
+from .store import NOTHING_STORED, Place, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 from .timing import UNTIMED, Stages
 
 __all__ = [
@@ -309,14 +310,31 @@ class LoadedVehicles:
         """What to store of the vehicles this request answered or set."""
         writes = {}
         stored, new_settings, encode = self.stored, self.new_settings, _ENCODER.encode
+        places = self._places()
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
             record = SessionRecord.of(self.network_names[session.network_index], session, memory)
             writes[vehicle_id] = VehicleWrite(
-                stored.get(vehicle_id, NOTHING_STORED).version, encode(record), new_settings.get(vehicle_id)
+                stored.get(vehicle_id, NOTHING_STORED).version,
+                encode(record),
+                new_settings.get(vehicle_id),
+                places.get(vehicle_id),
             )
         return writes
+
+    def _places(self) -> dict[str, Place]:
+        """Where the live map shows the vehicles to write that it shows (``GET /v1/fleet``): those matched
+        to a lane of their network and answered at least once."""
+        road_maps = [engine.road_map for engine in self.engines]
+        lanes = {}
+        for vehicle_id in self.written:
+            session = self.sessions[vehicle_id]
+            road_map = road_maps[session.network_index]
+            if session.lane_id is not None and session.latest is not None and road_map is not None:
+                if road_map.has_lane(session.lane_id):
+                    lanes[vehicle_id] = (session.network_index, session.lane_id, session.lane_pos_m)
+        return shown_places(road_maps, self.network_names, lanes)
 
 
 class VehicleRegistry:
