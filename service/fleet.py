@@ -39,6 +39,7 @@ __all__ = [
     "LIMIT_QUERY",
     "CURSOR_QUERY",
     "FleetPage",
+    "FLEET_LINKS",
     "encode_cursor",
     "decode_cursor",
     "fleet_page",
@@ -77,6 +78,22 @@ class FleetPage(BaseModel):
         "speed and timestamp of its latest answer, and its lane"
     )
     next_cursor: str | None = Field(description="pass as cursor to read the next page; null on the last page")
+
+
+#: The OpenAPI links of a page: the next one, asked with its ``next_cursor`` (and the same bbox, network and
+#: limit), which clients and stateful API testers follow.
+FLEET_LINKS = {
+    "NextPage": {
+        "operationId": "getFleet",
+        "parameters": {
+            "cursor": "$response.body#/next_cursor",
+            "bbox": "$request.query.bbox",
+            "network": "$request.query.network",
+            "limit": "$request.query.limit",
+        },
+        "description": "the next page of the same walk (none after the last page, whose next_cursor is null)",
+    }
+}
 
 
 def encode_cursor(vehicle_id: str) -> str:

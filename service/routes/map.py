@@ -18,7 +18,7 @@ from csws.standard import Category
 from .. import horizon
 from ..curves import BBOX_QUERY, NETWORK_QUERY, choose_networks, parse_bbox
 from ..deps import CallerDep, MapDataDep, NetworksDep, RegistryDep, ServiceDep, StoreDep, WorkDep
-from ..fleet import CURSOR_QUERY, LIMIT_QUERY, FleetPage, decode_cursor, fleet_page
+from ..fleet import CURSOR_QUERY, FLEET_LINKS, LIMIT_QUERY, FleetPage, decode_cursor, fleet_page
 from ..horizon import DEFAULT_HORIZON_M
 from ..networks import MAX_HORIZON_M
 from ..schemas import Query as PositionQuery
@@ -128,7 +128,8 @@ async def roads(
 @router.get(
     "/v1/fleet",
     summary="Where the fleet's live vehicles are and what their latest answers said, a page at a time",
-    responses={200: {"model": FleetPage}, **KEYED, **STORE},
+    operation_id="getFleet",
+    responses={200: {"model": FleetPage, "links": FLEET_LINKS}, **KEYED, **STORE},
 )
 async def fleet(
     principal: CallerDep,

@@ -264,7 +264,8 @@ class RedisStore(StateStore):
     ) -> list[PlacedSession]:
         end = prefix_end(prefix)
         first = "(" + after if after >= prefix and after else "[" + prefix if prefix else "-"
-        args = [first, "+" if end is None else "(" + end, limit, SESSION_PREFIX, "0" if box is None else "1"]
+        args: list[str | int] = [first, "+" if end is None else "(" + end, limit, SESSION_PREFIX]
+        args.append("0" if box is None else "1")
         args += [repr(v) for v in box or (0.0, 0.0, 0.0, 0.0)]
         try:
             found = self._placed_script(keys=[PLACES_KEY, PLACED_KEY], args=[*args, *networks])
