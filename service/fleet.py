@@ -1,13 +1,19 @@
 """The live fleet, a page at a time: where the vehicles with a live session are and what their latest answers said.
 
 ``GET /v1/fleet`` reads one page of the asking fleet's vehicles from the state store's index of
-places (:meth:`service.store.StateStore.placed`, one round trip): at most ``limit`` vehicles
+places (:meth:`service.store.StateStore.placed`): at most ``limit`` vehicles
 (:data:`DEFAULT_PAGE_SIZE` unless asked, at most :data:`MAX_PAGE_SIZE`), in the order of their
 ids, those in the bbox only when one is given, so a page costs what it holds and not what the
 fleet holds. The answer's ``next_cursor`` asks for the next page (None on the last one); each
 vehicle is on exactly one page of a walk from the first to the last, if it neither moves
 into or out of the bbox nor appears or expires meanwhile. It shows the vehicles that any
 worker or replica answered.
+
+A page stays off the path of the fixes its worker answers: the store is read on the work thread
+(which owns the store's connection) in pieces of :data:`READ_PIECE` vehicles, one round trip
+each, so that fixes queued meanwhile are answered between two pieces (a page in a box is read in
+one piece: the box's index query costs what the box holds, whatever the piece); the sessions are
+decoded and the answer written out on another thread.
 
 A vehicle is placed on the road: at the lane position of its last match (the lane point, not
 the raw fix), in the coordinates of its network's curves (lon/lat on geo-referenced networks,
@@ -23,19 +29,23 @@ import binascii
 from collections.abc import Sequence
 from typing import Any
 
+import msgspec
 from fastapi import Query
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
 
 from .curves import feature_collection
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .store import Box, PlacedSession, StateStore
 from .vehicles import VehicleRegistry
+from .work import WorkThread
 
 __all__ = [
     "DEFAULT_PAGE_SIZE",
     "MAX_PAGE_SIZE",
+    "READ_PIECE",
     "LIMIT_QUERY",
     "CURSOR_QUERY",
     "FleetPage",
@@ -50,6 +60,8 @@ DEFAULT_PAGE_SIZE = 1_000
 #: The most vehicles a page holds: a page is decoded and written out in one go, on the worker that
 #: also answers fixes, so its size bounds the time it holds them up.
 MAX_PAGE_SIZE = 10_000
+#: Vehicles read from the store per piece of work on the work thread (a few ms each).
+READ_PIECE = 500
 #: What a cursor starts with: its format, should it ever change.
 _CURSOR_TAG = b"1:"
 
@@ -136,10 +148,10 @@ def _feature(found: PlacedSession, registry: VehicleRegistry, fleet: str) -> dic
         "properties": {
             "vehicle_id": vehicle_id,
             "network": found.place.network,
-            "state": record.state.value,
-            "fault": record.fault.value if record.fault is not None else None,
+            "state": record.state,  # string enums: written out as their values
+            "fault": record.fault,
             "level": latest.level,
-            "category": latest.category.value if latest.category is not None else None,
+            "category": latest.category,
             "speed_kmh": latest.speed_kmh,
             "timestamp_s": latest.timestamp_s,
             "lane_id": record.lane_id,
@@ -147,7 +159,41 @@ def _feature(found: PlacedSession, registry: VehicleRegistry, fleet: str) -> dic
     }
 
 
-def fleet_page(
+async def _read(
+    work: WorkThread, store: StateStore, prefix: str, after: str, count: int, names: list[str], bbox: Box | None
+) -> list[PlacedSession]:
+    """Up to ``count`` placed sessions after ``after`` from the store, on the work thread, in pieces of
+    :data:`READ_PIECE` (one piece in a box)."""
+    found: list[PlacedSession] = []
+    while len(found) < count:
+        wanted = count - len(found) if bbox is not None else min(READ_PIECE, count - len(found))
+        piece = await work.run(store.placed, prefix, after, wanted, names, bbox)
+        found += piece
+        if len(piece) < wanted:
+            break
+        after = piece[-1].key
+    return found
+
+
+def _written_page(
+    found: list[PlacedSession],
+    limit: int,
+    registry: VehicleRegistry,
+    networks: Sequence[ServedNetwork],
+    fleet: str,
+    chosen: Sequence[int],
+) -> bytes:
+    """The page of the first ``limit`` of ``found`` as JSON (:class:`FleetPage`), its ``next_cursor`` set when
+    ``found`` holds more."""
+    page = found[:limit]
+    features = [f for f in (_feature(each, registry, fleet) for each in page) if f is not None]
+    collection = feature_collection(features, [networks[i] for i in chosen])
+    collection["next_cursor"] = encode_cursor(shown_id(fleet, page[-1].key)) if len(found) > limit else None
+    return msgspec.json.encode(collection)
+
+
+async def fleet_page(
+    work: WorkThread,
     store: StateStore,
     registry: VehicleRegistry,
     networks: Sequence[ServedNetwork],
@@ -156,12 +202,14 @@ def fleet_page(
     chosen: Sequence[int],
     after_id: str | None = None,
     limit: int = DEFAULT_PAGE_SIZE,
-) -> dict[str, Any]:
-    """One page of the vehicles of ``fleet`` on the networks at ``chosen`` within ``bbox``, as a GeoJSON
-    FeatureCollection with the ``next_cursor`` of the page after it (:class:`FleetPage`).
+) -> bytes:
+    """One page of the vehicles of ``fleet`` on the networks at ``chosen`` within ``bbox``, as the JSON of a
+    GeoJSON FeatureCollection with the ``next_cursor`` of the page after it (:class:`FleetPage`).
 
     Parameters
     ----------
+    work
+        The work thread, which reads the store.
     store
         The state store, whose index of places is read.
     registry
@@ -186,9 +234,5 @@ def fleet_page(
     """
     after = "" if after_id is None else vehicle_key(fleet, after_id)
     names = [networks[i].name for i in chosen]
-    found = store.placed(vehicle_key(fleet, ""), after, limit + 1, names, bbox)
-    page = found[:limit]
-    features = [f for f in (_feature(each, registry, fleet) for each in page) if f is not None]
-    collection = feature_collection(features, [networks[i] for i in chosen])
-    collection["next_cursor"] = encode_cursor(shown_id(fleet, page[-1].key)) if len(found) > limit else None
-    return collection
+    found = await _read(work, store, vehicle_key(fleet, ""), after, limit + 1, names, bbox)
+    return await run_in_threadpool(_written_page, found, limit, registry, networks, fleet, chosen)

@@ -146,5 +146,5 @@ async def fleet(
     at most limit of them, and the cursor of the next page (null on the last)."""
     box, chosen = parse_bbox(bbox), choose_networks(networks, network)
     after_id = None if cursor is None else decode_cursor(cursor)
-    page = await work.run(fleet_page, store, registry, networks, principal.fleet, box, chosen, after_id, limit)
-    return json_response(page)
+    page = await fleet_page(work, store, registry, networks, principal.fleet, box, chosen, after_id, limit)
+    return Response(page, media_type="application/json")
