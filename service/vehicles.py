@@ -194,6 +194,9 @@ class LoadedVehicles:
         self.written: set[str] = set()
         #: What map matching kept of the vehicles' fixes of this request, until each is :meth:`seen`.
         self.tracks: dict[str, Track | None] = {}
+        #: Where each vehicle with a session was as read (network, lane, lane position): its place is
+        #: written again only when that changed.
+        self.read_lanes: dict[str, tuple[int, str | None, float]] = {}
         for vehicle_id, vehicle in stored.items():
             record = registry.decode(vehicle.session)
             if record is not None:
@@ -201,6 +204,7 @@ class LoadedVehicles:
                 self.sessions[vehicle_id] = Session(
                     network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw, record.matching
                 )
+                self.read_lanes[vehicle_id] = (network_index, record.lane_id, record.lane_pos_m)
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
     def __enter__(self) -> LoadedVehicles:
@@ -325,15 +329,19 @@ class LoadedVehicles:
 
     def _places(self) -> dict[str, Place]:
         """Where the live map shows the vehicles to write that it shows (``GET /v1/fleet``): those matched
-        to a lane of their network and answered at least once."""
+        to a lane of their network and answered at least once, whose lane position changed since they were
+        read (a vehicle standing still keeps the place stored; one whose session was written before places
+        were kept gets its place when it next moves)."""
         road_maps = [engine.road_map for engine in self.engines]
         lanes = {}
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             road_map = road_maps[session.network_index]
-            if session.lane_id is not None and session.latest is not None and road_map is not None:
-                if road_map.has_lane(session.lane_id):
-                    lanes[vehicle_id] = (session.network_index, session.lane_id, session.lane_pos_m)
+            if session.lane_id is None or session.latest is None or road_map is None:
+                continue
+            lane = (session.network_index, session.lane_id, session.lane_pos_m)
+            if self.read_lanes.get(vehicle_id) != lane and road_map.has_lane(session.lane_id):
+                lanes[vehicle_id] = lane
         return shown_places(road_maps, self.network_names, lanes)
 
 

@@ -129,8 +129,11 @@ def test_pages_hold_every_vehicle_once_and_a_box_exactly_those_inside(state, tmp
         boxed = [f["id"] for page in _walk(server, 7, bbox=bbox) for f in page]
         assert boxed == sorted(inside)
 
-        # A vehicle inside moves out of the box: it leaves the box's pages and shows where it went.
+        # A vehicle inside stands still (its place is kept), then moves out of the box: it leaves the box's
+        # pages and shows where it went.
         mover = sorted(inside)[0]
+        assert server.client.post("/v1/warning", json=_query(mover, lanes[mover][1], 0.0, lanes[mover][0])).is_success
+        assert [f["id"] for page in _walk(server, 7, bbox=bbox) for f in page] == sorted(inside)
         outside = next(
             (lane, pos)
             for lane, pos in ((lane, float(p)) for lane in LANES for p in np.linspace(0.0, LANES[lane], 40))
