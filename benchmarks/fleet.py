@@ -47,7 +47,7 @@ def _fill(client: httpx.Client, vehicles: int) -> float:
     for first in range(0, vehicles, BATCH):
         numbers = np.arange(first, min(first + BATCH, vehicles))
         lane = numbers % len(LANES)
-        lane_pos_m = (numbers // len(LANES)) * 3 % lengths[lane] + (numbers % 7) * 0.01
+        lane_pos_m = (numbers // len(LANES)) * 0.37 % (lengths[lane] - 1.0)
         queries = [
             {"vehicle_id": f"truck-{n:06d}", "category": "N", "speed_kmh": 60.0, "lane_id": LANES[k], "lane_pos_m": p}
             for n, k, p in zip(numbers.tolist(), lane.tolist(), lane_pos_m.tolist(), strict=True)
