@@ -11,9 +11,8 @@ worker or replica answered.
 
 A page stays off the path of the fixes its worker answers: the store is read on the work thread
 (which owns the store's connection) in pieces of :data:`READ_PIECE` vehicles, one round trip
-each, so that fixes queued meanwhile are answered between two pieces (a page in a box is read in
-one piece: the box's index query costs what the box holds, whatever the piece); the sessions are
-decoded and the answer written out on another thread.
+each, so that fixes queued meanwhile are answered between two pieces; the sessions are decoded
+and the answer written out on another thread.
 
 A vehicle is placed on the road: at the lane position of its last match (the lane point, not
 the raw fix), in the coordinates of its network's curves (lon/lat on geo-referenced networks,
@@ -163,10 +162,10 @@ async def _read(
     work: WorkThread, store: StateStore, prefix: str, after: str, count: int, names: list[str], bbox: Box | None
 ) -> list[PlacedSession]:
     """Up to ``count`` placed sessions after ``after`` from the store, on the work thread, in pieces of
-    :data:`READ_PIECE` (one piece in a box)."""
+    :data:`READ_PIECE`."""
     found: list[PlacedSession] = []
     while len(found) < count:
-        wanted = count - len(found) if bbox is not None else min(READ_PIECE, count - len(found))
+        wanted = min(READ_PIECE, count - len(found))
         piece = await work.run(store.placed, prefix, after, wanted, names, bbox)
         found += piece
         if len(piece) < wanted:

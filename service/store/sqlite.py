@@ -5,9 +5,11 @@ version and when they were last written). A session not written for the idle tim
 absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`. The places of the
 vehicles (:class:`~service.store.Place`) are in ``vehicle_places``, written in the transaction of
 their sessions, and indexed twice: by key (its primary key: a fleet's page in key order) and by
-point in the R*Tree ``vehicle_place_boxes`` (kept by triggers: a box reads only the places in it;
-the R*Tree holds single-precision bounds rounded outwards, so its hits are checked again against
-the exact point).
+point in the R*Tree ``vehicle_place_boxes`` (kept by triggers: a small box reads only the places
+in it; the R*Tree holds single-precision bounds rounded outwards, so its hits are checked again
+against the exact point). A box holding many places compared with the page asked for is read in
+key order instead, checking each place against it: sorting every hit of a large box for each
+page would cost what the box holds, not what the page does.
 
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
@@ -60,7 +62,7 @@ from . import (
     prefix_end,
 )
 
-__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "SQLiteStore"]
+__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "BOX_PROBE_FACTOR", "SQLiteStore"]
 
 logger = logging.getLogger("csws.service")
 
@@ -123,10 +125,18 @@ _SWEEP = (
     "DELETE FROM vehicle_sessions WHERE written_s < ?",
 )
 _PLACED_COLUMNS = "SELECT places.vehicle_id, sessions.session, places.network, places.x, places.y "
+#: A box holding at least this many places per vehicle asked for is read in key order (below).
+BOX_PROBE_FACTOR = 4
+#: How many places of any fleet the R*Tree holds in a box, counted up to :limit.
+_BOX_PROBE = (
+    "SELECT count(*) FROM (SELECT 1 FROM vehicle_place_boxes "
+    "WHERE max_x >= :min_x AND min_x <= :max_x AND max_y >= :min_y AND min_y <= :max_y LIMIT :probe)"
+)
+_INSIDE = "AND places.x BETWEEN :min_x AND :max_x AND places.y BETWEEN :min_y AND :max_y "
 #: The places of a key range in key order (the primary key's), each joined to its live session.
 _PLACED_IN_ORDER = (
     "FROM vehicle_places AS places CROSS JOIN vehicle_sessions AS sessions "
-    "WHERE places.vehicle_id > :after AND places.vehicle_id >= :prefix {below} "
+    "WHERE places.vehicle_id > :after AND places.vehicle_id >= :prefix {below} {inside}"
     "AND places.network IN (SELECT value FROM json_each(:networks)) "
     "AND sessions.vehicle_id = places.vehicle_id AND sessions.written_s >= :oldest "
     "ORDER BY places.vehicle_id LIMIT :limit"
@@ -391,13 +401,12 @@ class SQLiteStore(StateStore):
     def placed(
         self, prefix: str, after: str, limit: int, networks: Collection[str], box: Box | None
     ) -> list[PlacedSession]:
-        """Read with one statement: in key order along the primary key without a box, else from the
-        R*Tree's hits in the box, sorted."""
+        """Read with one statement, whose cost the page bounds: in key order along the primary key (the
+        exact points checked against the box if any), except for a box holding fewer than
+        :data:`BOX_PROBE_FACTOR` places per vehicle asked for (a bounded count in the R*Tree tells), read
+        from the R*Tree's hits, sorted."""
         self._refuse_if_lost()
         end = prefix_end(prefix)
-        statement = _PLACED_COLUMNS + (_PLACED_IN_ORDER if box is None else _PLACED_IN_BOX).format(
-            below="" if end is None else "AND places.vehicle_id < :end"
-        )
         parameters = {
             "after": after,
             "prefix": prefix,
@@ -408,11 +417,20 @@ class SQLiteStore(StateStore):
         }
         if box is not None:
             parameters |= dict(zip(("min_x", "min_y", "max_x", "max_y"), box, strict=True))
+        below = "" if end is None else "AND places.vehicle_id < :end"
         try:
-            rows = self._execute(statement, parameters).fetchall()
+            if box is not None and self._few_in(parameters, BOX_PROBE_FACTOR * limit):
+                statement = _PLACED_IN_BOX.format(below=below)
+            else:
+                statement = _PLACED_IN_ORDER.format(below=below, inside="" if box is None else _INSIDE)
+            rows = self._execute(_PLACED_COLUMNS + statement, parameters).fetchall()
         except sqlite3.Error as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
         return [PlacedSession(key, session, Place(network, x, y)) for key, session, network, x, y in rows]
+
+    def _few_in(self, box: dict, count: int) -> bool:
+        """Whether the R*Tree holds fewer than ``count`` places in the box (``min_x`` ... ``max_y`` of ``box``)."""
+        return int(self._execute(_BOX_PROBE, {**box, "probe": count}).fetchone()[0]) < count
 
     def session_count(self) -> int:
         """Counted in the file, which is looked at first (``/readyz``: not ready once it is gone)."""
