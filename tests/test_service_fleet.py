@@ -5,6 +5,7 @@ The map page that draws them is tested in a real browser (tests/test_map.py)."""
 from __future__ import annotations
 
 import base64
+import time
 from pathlib import Path
 
 import numpy as np
@@ -221,3 +222,17 @@ def test_lane_points_of_many_lanes_at_once_are_those_of_each_lane(lanes) -> None
     lane_ids, positions = [lane for lane, _ in lanes], [pos for _, pos in lanes]
     expected = [lane_points(TRACK, lane, np.array([pos]))[0] for lane, pos in lanes]
     assert lane_points_many(TRACK, lane_ids, positions) == pytest.approx(np.array(expected), abs=1e-9)
+
+
+def test_a_vehicle_whose_session_expired_leaves_the_fleet(state, tmp_path) -> None:
+    idle_s = 2.0
+    server = _server(tmp_path, [TRACK_NET], state, session_idle_s=str(idle_s))
+    try:
+        assert server.client.post("/v1/warning", json=_query("parked", 100.0, 50.0)).status_code == 200
+        assert [f["id"] for page in _walk(server, 10) for f in page] == ["parked"]
+        time.sleep(idle_s + 0.5)
+        assert server.client.post("/v1/warning", json=_query("driving", 200.0, 50.0)).status_code == 200
+        for _ in range(2):  # the walk that finds it gone takes it out of the index (Redis); it stays out
+            assert [f["id"] for page in _walk(server, 10) for f in page] == ["driving"]
+    finally:
+        server.stop()
