@@ -17,13 +17,15 @@ What must hold for every case: no 5xx; every response body, content type and hea
 matches what the schema documents for it; and every status code is documented.
 Bad input answered with a documented 4xx (422) is a pass. The answers the fuzzing once
 found undocumented (a body that is not UTF-8, an unknown vehicle) are also checked
-directly, so that they stay documented.
+directly, so that they stay documented. ``python -m benchmarks.fuzz`` is the longer run.
 
 The schema is loaded at import rather than from a pytest fixture because schemathesis'
 lazy fixture loader does not run under pytest 9.
 """
 
 from __future__ import annotations
+
+import os
 
 import pytest
 import schemathesis
@@ -39,9 +41,10 @@ from service.keys import Role, add_key
 from service.settings import ServiceSettings
 
 SEED = 20180091
-MAX_EXAMPLES = 40
-STATEFUL_SEQUENCES = 25
-STATEFUL_STEPS = 6
+#: The run's bounds, kept within the CI budget; ``python -m benchmarks.fuzz`` raises them (``CSWS_FUZZ_*``).
+MAX_EXAMPLES = int(os.environ.get("CSWS_FUZZ_MAX_EXAMPLES", "40"))
+STATEFUL_SEQUENCES = int(os.environ.get("CSWS_FUZZ_SEQUENCES", "25"))
+STATEFUL_STEPS = int(os.environ.get("CSWS_FUZZ_STEPS", "6"))
 #: How long a case may wait for its answer, s: the coverage phase sends the largest batch the schema allows.
 TIMEOUT_S = 60.0
 
