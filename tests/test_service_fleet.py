@@ -21,6 +21,7 @@ from csws.road.roadmap import RoadMap
 from service.fleet import DEFAULT_PAGE_SIZE, MAX_PAGE_SIZE
 from service.keys import Role, add_key
 from service.places import lane_points_many
+from service.store.sqlite import BOX_PROBE_FACTOR
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 TRACK = RoadMap.load(TRACK_NET)
@@ -107,7 +108,7 @@ def test_pages_hold_every_vehicle_once_and_a_box_exactly_those_inside(state, tmp
     geo_net = write_geo_track(tmp_path)
     geo_track = RoadMap.load(geo_net)
     rng = np.random.default_rng(91)
-    lane_ids = rng.choice(list(LANES), 157)
+    lane_ids = rng.choice(list(LANES), 403)
     lanes = {
         f"v{n:03d}-{rng.integers(1000)}": (str(lane), float(rng.uniform(0.0, LANES[lane])))
         for n, lane in enumerate(lane_ids)
@@ -119,7 +120,7 @@ def test_pages_hold_every_vehicle_once_and_a_box_exactly_those_inside(state, tmp
         truth = _shown_lonlat(geo_track, lanes)
 
         pages = _walk(server, 10)
-        assert [len(page) for page in pages] == [10] * 15 + [7]
+        assert [len(page) for page in pages] == [10] * 40 + [3]
         ids = [f["id"] for page in pages for f in page]
         assert ids == sorted(lanes)  # every vehicle once, in the order of the ids
         for feature in (f for page in pages for f in page):
@@ -128,9 +129,10 @@ def test_pages_hold_every_vehicle_once_and_a_box_exactly_those_inside(state, tmp
         lon, lat = np.array(list(truth.values())).T
         box = tuple(float(v) for v in (np.quantile(lon, 0.3), np.quantile(lat, 0.2), np.quantile(lon, 0.8), lat.max()))
         inside = {v for v, (x, y) in truth.items() if box[0] <= x <= box[2] and box[1] <= y <= box[3]}
-        assert 10 < len(inside) < len(lanes)
+        assert BOX_PROBE_FACTOR * 2 < len(inside) < len(lanes)
         bbox = ",".join(map(repr, box))
-        # Small pages read a box holding many places per page in key order; large ones read the R*Tree's hits.
+        # Pages of one (read in pieces of two) read this box in key order, pages of 100 the R*Tree's hits.
+        assert BOX_PROBE_FACTOR * 101 > len(lanes)
         for limit in (1, 100):
             boxed = [f["id"] for page in _walk(server, limit, bbox=bbox) for f in page]
             assert boxed == sorted(inside)

@@ -126,7 +126,7 @@ _SWEEP = (
 )
 _PLACED_COLUMNS = "SELECT places.vehicle_id, sessions.session, places.network, places.x, places.y "
 #: A box holding at least this many places per vehicle asked for is read in key order (below).
-BOX_PROBE_FACTOR = 4
+BOX_PROBE_FACTOR = 32
 #: How many places of any fleet the R*Tree holds in a box, counted up to :limit.
 _BOX_PROBE = (
     "SELECT count(*) FROM (SELECT 1 FROM vehicle_place_boxes "
