@@ -125,8 +125,11 @@ _SWEEP = (
     "DELETE FROM vehicle_sessions WHERE written_s < ?",
 )
 _PLACED_COLUMNS = "SELECT places.vehicle_id, sessions.session, places.network, places.x, places.y "
-#: A box holding at least this many places per vehicle asked for is read in key order (below).
-BOX_PROBE_FACTOR = 32
+#: A box holding at least this many places per vehicle asked for is read in key order (below). Measured
+#: on 100,000 places, pieces of 501: the R*Tree plan costs about 6 µs per place in the box (21 ms for
+#: 3,300, 0.4 ms for 19), the key-order plan about 0.5 µs per place it passes (4 ms for a box of 3 %
+#: of the places, 50 ms for a box of 19): they meet near 2,000 places in the box.
+BOX_PROBE_FACTOR = 4
 #: How many places of any fleet the R*Tree holds in a box, counted up to :limit.
 _BOX_PROBE = (
     "SELECT count(*) FROM (SELECT 1 FROM vehicle_place_boxes "
