@@ -6,7 +6,7 @@ of its own along the track's lanes). Figures:
 
 * the server-side time of a page (the client's time to the last byte, loopback): the first page
   at the default size and at the largest, a whole walk at the default size (pages and time), a
-  1 x 1 m box, and a box holding a tenth of the fleet (first page);
+  1 x 1 m box, and a box holding 3 % of the fleet (the first page);
 * single fixes (``POST /v1/warning``, one keep-alive client, one after the other) on the same
   worker: p50 and p99 alone, and then while a second client reads pages of the fleet without
   pause (the whole fleet at the default page size, cursor after cursor): the fixes' p99 must stay
@@ -75,8 +75,8 @@ def pages(client: httpx.Client) -> dict:
     x, y = first["features"][0]["geometry"]["coordinates"]
     figures["box_1m_ms"], small = _page_ms(client, bbox=f"{x - 0.5},{y - 0.5},{x + 0.5},{y + 0.5}")
     figures["box_1m_vehicles"] = len(small["features"])
-    figures["box_tenth_ms"], tenth = _page_ms(client, bbox="0,-1,90,1")
-    figures["box_tenth_vehicles_first_page"] = len(tenth["features"])
+    figures["box_3pc_ms"], three_pc = _page_ms(client, bbox="0,-1,90,1")
+    figures["box_3pc_vehicles_first_page"] = len(three_pc["features"])
     walked, count, cursor = time.perf_counter(), 0, None
     while True:
         _ms, page = _page_ms(client, **({"cursor": cursor} if cursor else {}))
