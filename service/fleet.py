@@ -54,7 +54,8 @@ def fleet_features(
 ) -> dict[str, Any]:
     """The vehicles of ``fleet`` (its live ``sessions`` by key) on the networks at ``chosen`` within
     ``bbox`` as a GeoJSON FeatureCollection of points: id, network, system state and fault, the
-    level, category, speed and timestamp of its latest answer, its lane.
+    level, category, speed, timestamp, heading, target curve with its V_w and the service's time of its
+    latest answer, its lane with the lane's street name and road type.
 
     Parameters
     ----------
@@ -99,6 +100,12 @@ def fleet_features(
                     "speed_kmh": latest.speed_kmh,
                     "timestamp_s": latest.timestamp_s,
                     "lane_id": record.lane_id,
+                    "street_name": network.road_map.lane(record.lane_id).street_name,
+                    "road_type": network.road_map.lane(record.lane_id).road_type,
+                    "heading_deg": latest.heading_deg,
+                    "curve_id": latest.curve_id,
+                    "warning_speed_kmh": latest.warning_speed_kmh,
+                    "answered_at_s": latest.answered_at_s,
                 },
             }
             if in_bbox(feature, bbox):

@@ -8,6 +8,7 @@ and answer only its fleet's vehicles. ``/v1/report`` gives a network's map repor
 
 from __future__ import annotations
 
+import time
 from typing import Annotated, NamedTuple
 
 from fastapi import APIRouter, Depends, HTTPException, Query
@@ -168,10 +169,11 @@ async def fleet(
     bbox: str | None = BBOX_QUERY,
     network: str | None = NETWORK_QUERY,
 ) -> Response:
-    """The live vehicles of the caller's fleet in the bbox, with their latest answers."""
+    """The live vehicles of the caller's fleet in the bbox, with their latest answers, and the service's time
+    (``generated_s``, Unix time, s) against which the map ages each vehicle's ``answered_at_s``."""
     box, chosen = parse_bbox(bbox), choose_networks(networks, network)
     prefix = vehicle_key(principal.fleet, "")
     collection = await work.run(
         lambda: fleet_features(store.sessions(prefix), registry, networks, principal.fleet, box, chosen)
     )
-    return json_response(collection)
+    return json_response({**collection, "generated_s": time.time()})
