@@ -84,7 +84,8 @@ def fleet_features(
         network = networks[network_index]
         for key, position in _placed(records, network).items():
             record, latest = records[key], records[key].latest
-            assert latest is not None  # only vehicles with an answer are shown (above)
+            assert latest is not None and record.lane_id is not None  # only placed vehicles with an answer (above)
+            lane = network.road_map.lane(record.lane_id)
             feature = {
                 "type": "Feature",
                 "id": shown_id(fleet, key),
@@ -100,8 +101,8 @@ def fleet_features(
                     "speed_kmh": latest.speed_kmh,
                     "timestamp_s": latest.timestamp_s,
                     "lane_id": record.lane_id,
-                    "street_name": network.road_map.lane(record.lane_id).street_name,
-                    "road_type": network.road_map.lane(record.lane_id).road_type,
+                    "street_name": lane.street_name,
+                    "road_type": lane.road_type,
                     "heading_deg": latest.heading_deg,
                     "curve_id": latest.curve_id,
                     "warning_speed_kmh": latest.warning_speed_kmh,
