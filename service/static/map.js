@@ -15,21 +15,21 @@ const REFRESHES_KEPT = 120;
 
 // Curves: upper bound of minimum radius (m) and colour, sharpest first; R_c = 300 m (3.2).
 const RADIUS_CLASSES = [[40, "#800026"], [80, "#bd0026"], [120, "#e31a1c"], [200, "#fc4e2a"], [300, "#fd8d3c"]];
-// Curves at city scale (coarser than this, m per pixel: zoom below about 15.7 at 50° N) are drawn thin and
+// Curves at city scale (coarser than this, m per pixel: zoom below about 15.6 at 50° N) are drawn thin and
 // light, so the vehicles stay visible among them; closer in, full.
 const CITY_METRES_PER_PIXEL = 2;
 const CURVE_STYLES = { city: { weight: 2, opacity: 0.45 }, street: { weight: 5, opacity: 0.9 } };
 // Vehicles: system state (5.2-5.4), and the warning level when active (6.1). The fills are from Okabe and
 // Ito's palette for colour-blind readers and share none with the curves' reds and oranges; the level is
-// told by size and outline too (no warning a small dot, level 1 a larger ringed disc, level 2 the largest
-// with a thick ring), a fault by its dashed outline.
+// told by size and outline too (no warning a small dot, level 1 a larger pink disc ringed in black, level 2
+// the largest, indigo with a thick pink ring), a fault by its dashed outline.
 const VEHICLE_STYLES = {
   off: { fillColor: "#bbbbbb", color: "#666666", radius: 4, weight: 1, dashArray: null },
   standby: { fillColor: "#ffffff", color: "#0072b2", radius: 4, weight: 2, dashArray: null },
   fault: { fillColor: "#f0e442", color: "#000000", radius: 6, weight: 2, dashArray: "2 2" },
   "active-0": { fillColor: "#0072b2", color: "#ffffff", radius: 4, weight: 1, dashArray: null },
   "active-1": { fillColor: "#cc79a7", color: "#000000", radius: 7, weight: 2, dashArray: null },
-  "active-2": { fillColor: "#332288", color: "#ffffff", radius: 10, weight: 4, dashArray: null },
+  "active-2": { fillColor: "#332288", color: "#cc79a7", radius: 10, weight: 4, dashArray: null },
 };
 // Silence since a vehicle's last fix (the service's time of its latest answer), s: faded after FADE_AFTER_S,
 // no longer drawn after GONE_AFTER_S (its session lives on in the store until it expires).
@@ -212,7 +212,7 @@ function vehicleStyle(p) {
 }
 
 function heading(deg) {
-  return deg == null ? "not sent" : `${Math.round(deg)}° (${COMPASS[Math.round(deg / 45) % 8]})`;
+  return deg == null ? "not sent" : `${Math.round(deg)}° (${COMPASS[((Math.round(deg / 45) % 8) + 8) % 8]})`;
 }
 
 function vehiclePopup(p) {
@@ -332,7 +332,7 @@ function showStatus(error) {
 
 function shapeSvg(s) {
   const size = 2 * (s.radius + s.weight);
-  return `<svg class="shape" width="${size}" height="${size}"><circle cx="${size / 2}" cy="${size / 2}" r="${s.radius}" `
+  return `<svg class="shape" width="${size}" height="${size}" viewBox="0 0 ${size} ${size}"><circle cx="${size / 2}" cy="${size / 2}" r="${s.radius}" `
     + `fill="${s.fillColor}" stroke="${s.color}" stroke-width="${s.weight}"`
     + `${s.dashArray ? ` stroke-dasharray="${s.dashArray}"` : ""}/></svg>`;
 }
