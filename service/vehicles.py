@@ -125,7 +125,7 @@ class Session:
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
-    """A session as the store keeps it: a MessagePack array of about 30 to 100 bytes."""
+    """A session as the store keeps it: a MessagePack array of about 45 to 140 bytes."""
 
     network: str
     lane_id: str | None
