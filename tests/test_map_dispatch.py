@@ -68,10 +68,8 @@ def _lab(hex_colour: str, vision: np.ndarray) -> np.ndarray:
     srgb = np.array([int(hex_colour[i : i + 2], 16) / 255 for i in (1, 3, 5)])
     linear = np.clip(vision @ np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4), 0, 1)
     xyz = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]) @ linear
-    f = np.cbrt(xyz / [0.95047, 1.0, 1.08883])
-    f = np.where(
-        xyz / [0.95047, 1.0, 1.08883] > 216 / 24389, f, (24389 / 27 * xyz / [0.95047, 1.0, 1.08883] + 16) / 116
-    )
+    relative = xyz / [0.95047, 1.0, 1.08883]  # to the D65 white
+    f = np.where(relative > 216 / 24389, np.cbrt(relative), (24389 / 27 * relative + 16) / 116)
     return np.array([116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])])
 
 
@@ -98,7 +96,7 @@ def _post(client: httpx.Client, vehicle_id: str, **fields) -> dict:
 def _fleet_of_every_kind(client: httpx.Client, prefix: str) -> dict[str, dict]:
     """Trucks on the track with no warning, level 1, level 2 and a fault, by id, with their latest answers. The
     level-1 truck drives towards the curve at 100 km/h until the service first answers level 1 (6.1: inside the
-    level-1 warning distance, not yet inside level 2's); the level-2 truck is 15 m before it at that speed."""
+    level-1 warning distance, not yet inside level 2's); the level-2 truck is 15 m before the curve at that speed."""
     answers = {
         f"{prefix}-0": _post(client, f"{prefix}-0", speed_kmh=80.0, position={"x": 300.0, "y": 0.4}),
         f"{prefix}-2": _post(client, f"{prefix}-2", speed_kmh=100.0, position={"x": 985.0, "y": 0.4}),
@@ -133,7 +131,8 @@ def test_vehicles_differ_from_every_curve_colour_and_each_level_by_shape(browser
         list(answers),
     )
     fills = {style["fillColor"] for style in page.evaluate("Object.values(cswsMap.styles)")}
-    assert len(fills) == 6 and not fills & curve_colours
+    assert len(fills) == 6 and {style["fillColor"] for style in drawn.values()} <= fills
+    assert not fills & curve_colours
     for fill, curve, vision in itertools.product(fills, curve_colours, VISION.values()):
         assert np.linalg.norm(_lab(fill, vision) - _lab(curve, vision)) >= MIN_DELTA_E, (fill, curve)
     # Without colour: each level larger and more thickly ringed than the one below, the fault alone dashed.
