@@ -20,6 +20,8 @@ from playwright.sync_api import Page, Route, sync_playwright
 from servers import Workers
 from test_map import CHROMIUM, CHROMIUM_ARGS, TRACK_NET, WAIT_MS, Recorded
 
+from service.keys import Role, add_key
+
 #: Viénot, Brettel and Mollon (1999): linear sRGB as protanopes and deuteranopes see it (and as all others do).
 VISION = {
     "normal": np.eye(3),
@@ -280,3 +282,34 @@ def test_the_warned_list_holds_exactly_the_vehicles_warned_now(browser, server, 
     levels = [next(f["properties"]["level"] for f in served if f["id"] == v) for v in listed]
     assert levels == sorted(levels, reverse=True)
     recorded.assert_offline()
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("slow")
+def keyed(tmp_path_factory):
+    """A service of the track with API keys for two fleets, and those keys."""
+    path = tmp_path_factory.mktemp("keys") / "api-keys.json"
+    made = {fleet: add_key(path, fleet, Role.ADMIN) for fleet in ("acme", "other")}
+    running = Workers([TRACK_NET], "--state-db", ":memory:", "--api-keys", str(path), workers=1)
+    yield running, made
+    running.stop()
+
+
+def test_the_key_in_the_address_survives_every_view_written_there(browser, keyed) -> None:
+    server, made = keyed
+    for fleet in made:
+        with httpx.Client(base_url=server.url, headers={"Authorization": f"Bearer {made[fleet]}"}) as fleet_client:
+            _post(fleet_client, f"{fleet}-truck", speed_kmh=80.0, position={"x": 500.0, "y": 0.4})
+    recorded = _open(browser, server, f"/map?network={TRACK}#key={made['acme']}")
+    page = recorded.page
+    _wait_for(page, ["acme-truck"])
+    page.evaluate("cswsMap.map.setView([0, 500], 0, {animate: false})")
+    page.wait_for_function("() => location.hash.includes('map=0/')", timeout=WAIT_MS)
+    fragment = dict(part.split("=", 1) for part in page.evaluate("location.hash.slice(1)").split("&"))
+    assert fragment["key"] == made["acme"] and fragment["map"] == "0/0.0/500.0"
+    again = _open(browser, server, page.evaluate("location.pathname + location.search + location.hash"))
+    _wait_for(again.page, ["acme-truck"])
+    assert again.page.evaluate("[...cswsMap.vehicles.keys()]") == ["acme-truck"]  # not the other fleet's
+    assert again.page.evaluate("[cswsMap.map.getZoom(), cswsMap.map.getCenter().lng]") == [0, 500]
+    recorded.assert_offline()
+    again.assert_offline()
