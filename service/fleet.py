@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import base64
 import binascii
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -86,9 +87,11 @@ class FleetPage(BaseModel):
     coordinates: str = Field(description="lon/lat or network metres (or 'per feature' across networks)")
     features: list[dict[str, Any]] = Field(
         description="per vehicle a Point with its id, network, system state and fault, the level, category, "
-        "speed and timestamp of its latest answer, and its lane"
+        "speed, timestamp and heading of its latest answer, its target curve and that curve's V_w, the "
+        "service's Unix time of the answer (answered_at_s), and its lane with the lane's street name and road type"
     )
     next_cursor: str | None = Field(description="pass as cursor to read the next page; null on the last page")
+    generated_s: float = Field(description="the service's Unix time when it wrote the page, s")
 
 
 #: The OpenAPI links of a page: the next one, asked with its ``next_cursor`` (and the same bbox, network and
@@ -132,12 +135,19 @@ def decode_cursor(cursor: str) -> str:
     )
 
 
-def _feature(found: PlacedSession, registry: VehicleRegistry, fleet: str) -> dict[str, Any] | None:
-    """A vehicle as a GeoJSON point at its place, with its latest answer; None for a session this service
-    cannot take up."""
+def _feature(
+    found: PlacedSession, registry: VehicleRegistry, networks: Sequence[ServedNetwork], fleet: str
+) -> dict[str, Any] | None:
+    """A vehicle as a GeoJSON point at its place, with its latest answer (heading, target curve with its V_w,
+    the service's time of the answer) and its lane's street name and road type; None for a session this
+    service cannot take up."""
     record = registry.decode(found.session)
     if record is None or record.lane_id is None or record.latest is None:
         return None
+    road_map = networks[registry.network_index[record.network]].road_map
+    if not road_map.has_lane(record.lane_id):
+        return None
+    lane = road_map.lane(record.lane_id)
     position, latest, vehicle_id = [found.place.x, found.place.y], record.latest, shown_id(fleet, found.key)
     return {
         "type": "Feature",
@@ -154,6 +164,12 @@ def _feature(found: PlacedSession, registry: VehicleRegistry, fleet: str) -> dic
             "speed_kmh": latest.speed_kmh,
             "timestamp_s": latest.timestamp_s,
             "lane_id": record.lane_id,
+            "street_name": lane.street_name,
+            "road_type": lane.road_type,
+            "heading_deg": latest.heading_deg,
+            "curve_id": latest.curve_id,
+            "warning_speed_kmh": latest.warning_speed_kmh,
+            "answered_at_s": latest.answered_at_s,
         },
     }
 
@@ -185,8 +201,9 @@ def _written_page(
     """The page of the first ``limit`` of ``found`` as JSON (:class:`FleetPage`), its ``next_cursor`` set when
     ``found`` holds more."""
     page = found[:limit]
-    features = [f for f in (_feature(each, registry, fleet) for each in page) if f is not None]
+    features = [f for f in (_feature(each, registry, networks, fleet) for each in page) if f is not None]
     collection = feature_collection(features, [networks[i] for i in chosen])
+    collection["generated_s"] = time.time()
     collection["next_cursor"] = encode_cursor(shown_id(fleet, page[-1].key)) if len(found) > limit else None
     return msgspec.json.encode(collection)
 

@@ -60,6 +60,13 @@ class LatestAnswer(msgspec.Struct, array_like=True, frozen=True, gc=False):
     speed_kmh: float
     level: int
     timestamp_s: float | None
+    #: The heading the vehicle sent, degrees from north (None when it sent none).
+    heading_deg: float | None = None
+    #: The target curve (3.12) and its V_w at the target's level, km/h; None without a warning.
+    curve_id: str | None = None
+    warning_speed_kmh: float | None = None
+    #: When the service answered it, Unix time, s: the live map's age of the vehicle's last fix.
+    answered_at_s: float | None = None
 
 
 class FcwMemory(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -119,7 +126,7 @@ class Session:
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
-    """A session as the store keeps it: a MessagePack array of about 30 to 100 bytes."""
+    """A session as the store keeps it: a MessagePack array of about 45 to 140 bytes."""
 
     network: str
     lane_id: str | None

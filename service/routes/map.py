@@ -171,7 +171,8 @@ async def fleet(
     cursor: str | None = CURSOR_QUERY,
 ) -> Response:
     """The live vehicles of the caller's fleet in the bbox, with their latest answers, in the order of their ids:
-    at most limit of them, and the cursor of the next page (null on the last)."""
+    at most limit of them, the cursor of the next page (null on the last), and the service's time
+    (``generated_s``, Unix time, s) against which the map ages each vehicle's ``answered_at_s``."""
     box, chosen = parse_bbox(bbox), choose_networks(networks, network)
     after_id = None if cursor is None else decode_cursor(cursor)
     page = await fleet_page(work, store, registry, networks, principal.fleet, box, chosen, after_id, limit)
