@@ -14,11 +14,13 @@ again query by query, so that a batch of valid queries costs nothing more.
 
 from __future__ import annotations
 
+import json
 from collections import defaultdict
 from collections.abc import Sequence
 from typing import Annotated, Any
 
 import msgspec
+import pydantic_core
 from fastapi.exceptions import RequestValidationError
 
 from .decoding import DecodedBatch, DecodedQuery, decode
@@ -43,12 +45,6 @@ class _RawBatch(msgspec.Struct, forbid_unknown_fields=True):
     queries: Annotated[list[msgspec.Raw], msgspec.Meta(max_length=MAX_BATCH)]
 
 
-class _VehicleOnly(msgspec.Struct):
-    """A query's vehicle id alone, whatever else it holds."""
-
-    vehicle_id: Any = None
-
-
 #: The error entries of a batch by the index of their query: ``{"index", "vehicle_id", "error"}`` each.
 ItemErrors = dict[int, dict[str, Any]]
 
@@ -61,19 +57,35 @@ def item_error(index: int, vehicle_id: str | None, code: str, problems: list[dic
     return {"index": index, "vehicle_id": vehicle_id, "error": {"code": code, "message": message, "detail": detail}}
 
 
-def _vehicle_id(raw: msgspec.Raw) -> str | None:
+def _vehicle_id(raw: bytes) -> str | None:
     """The vehicle id of a query's JSON where it is a string of at most 128 characters, else None."""
     try:
-        vehicle_id = msgspec.json.decode(raw, type=_VehicleOnly).vehicle_id
-    except DECODE_ERRORS:
+        query = pydantic_core.from_json(raw, allow_inf_nan=True)
+    except ValueError:
         return None
+    vehicle_id = query.get("vehicle_id") if isinstance(query, dict) else None
     return vehicle_id if isinstance(vehicle_id, str) and 0 < len(vehicle_id) <= 128 else None
 
 
-def _decode_item(index: int, raw: msgspec.Raw) -> DecodedQuery | dict[str, Any]:
+def _loose_items(body: bytes) -> list[bytes] | None:
+    """The queries of a batch that msgspec refuses as a whole, each as JSON of its own, where the body is a batch
+    with NaN or Infinity among its numbers (pydantic reads them, and names them in the query's error entry);
+    None where the body is no batch at all."""
+    try:
+        parsed = pydantic_core.from_json(body, allow_inf_nan=True)
+    except ValueError:
+        return None
+    if not (isinstance(parsed, dict) and list(parsed) == ["queries"] and isinstance(parsed["queries"], list)):
+        return None
+    if len(parsed["queries"]) > MAX_BATCH:
+        return None
+    return [json.dumps(query).encode() for query in parsed["queries"]]
+
+
+def _decode_item(index: int, raw: bytes) -> DecodedQuery | dict[str, Any]:
     """Query ``index`` of a batch decoded, or its error entry."""
     try:
-        decoded: DecodedQuery = decode(bytes(raw), DecodedQuery, QUERY_ADAPTER)
+        decoded: DecodedQuery = decode(raw, DecodedQuery, QUERY_ADAPTER)
     except RequestValidationError as exc:
         problems = [{**problem, "loc": (*QUERIES_LOC, index, *problem["loc"][1:])} for problem in exc.errors()]
         return item_error(index, _vehicle_id(raw), INVALID_QUERY, problems)
@@ -93,12 +105,15 @@ def decode_items(body: bytes) -> tuple[Sequence[DecodedQuery | None], ItemErrors
     except DECODE_ERRORS:
         pass
     try:
-        raw = msgspec.json.decode(body, type=_RawBatch)
+        items = [bytes(item) for item in msgspec.json.decode(body, type=_RawBatch).queries]
     except DECODE_ERRORS:
-        return decode(body, DecodedBatch, BATCH_ADAPTER).queries, {}  # the 422 naming what is wrong
+        loose = _loose_items(body)
+        if loose is None:
+            return decode(body, DecodedBatch, BATCH_ADAPTER).queries, {}  # the 422 naming what is wrong
+        items = loose
     queries: list[DecodedQuery | None] = []
     errors: ItemErrors = {}
-    for index, item in enumerate(raw.queries):
+    for index, item in enumerate(items):
         decoded = _decode_item(index, item)
         if isinstance(decoded, dict):
             errors[index] = decoded

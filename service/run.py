@@ -69,8 +69,9 @@ def configure_logging(level: str) -> None:
 
 
 def _loading(number: int, count: int, path: Path) -> None:
-    """A start-up line before each network is read: which, and how far start-up is."""
-    print(f"csws: loading network {number} of {count}: {path}", file=sys.stderr, flush=True)
+    """A start-up line before each network is read: which, and how far start-up is (on standard output, with
+    the line saying where the service serves; standard error keeps an error to its one line)."""
+    print(f"csws: loading network {number} of {count}: {path}", flush=True)
 
 
 def _built(settings: ServiceSettings, access_log: AccessFormat | None) -> Any:
@@ -84,7 +85,6 @@ def _built(settings: ServiceSettings, access_log: AccessFormat | None) -> Any:
     print(
         f"csws: loaded {len(app.state.service.networks)} network(s), {lanes} lanes, in "
         f"{time.perf_counter() - started:.1f} s; vehicle state in {store}",
-        file=sys.stderr,
         flush=True,
     )
     if access_log is not None:
