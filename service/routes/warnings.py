@@ -1,4 +1,5 @@
-"""``POST /v1/warning`` and ``POST /v1/warnings``: the warnings for one vehicle, and for a batch.
+"""``POST /v1/warning`` and ``POST /v1/warnings``: the warnings for one vehicle, and for a batch answered per
+query (:mod:`service.batch_items`; ``?atomic=true``: all or nothing).
 
 Both read their bodies themselves, after the caller's key was checked, and decode them with
 msgspec on the work thread (:mod:`service.answering`, :mod:`service.decoding`): a batch of 10,000
