@@ -18,6 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator,
 
 from csws.standard import Category
 
+from .batch_schemas import BatchItemError
+
 #: Most queries one batch may hold: one fleet tick of a telematics backend.
 MAX_BATCH = 10_000
 #: Highest speed a query may report, km/h.
@@ -43,8 +45,6 @@ HmiVisual = Literal[
 ]
 #: The audible cues of the HMI hints.
 HmiAudible = Literal["warning-tone", "collision-tone"]
-#: Why a query of a batch was not answered (:class:`ItemError`).
-BatchErrorCode = Literal["invalid_query", "unanswerable_query"]
 
 
 def check_position(position: Any) -> None:
@@ -457,56 +457,6 @@ class WarningAnswer(BaseModel):
     )
     hmi: Hmi = Field(description="how to present the most urgent warning of the answer (5.5.1)")
     fcw: FcwAnswer | None = Field(default=None, description="only when the query has objects or a forward_target")
-
-
-class Problem(BaseModel):
-    """One problem of a query, as a 422 names it: where, what, and its kind."""
-
-    loc: list[str | int] = Field(description="where: body, queries, the query's index, then the field")
-    msg: str = Field(description="what is wrong, for people")
-    type: str = Field(description="the kind of problem (pydantic's error type, or value_error)")
-
-
-class ItemError(BaseModel):
-    """Why one query of a batch was not answered."""
-
-    code: BatchErrorCode = Field(
-        description="invalid_query: the query breaks the contract (what /v1/warning answers with a 422); "
-        "unanswerable_query: valid, but the served networks cannot answer it (unknown lane, edge or network, a "
-        "lane position beyond its lane, lon/lat on networks without a projection, no category)"
-    )
-    message: str = Field(description="the problems in one line, for people")
-    detail: list[Problem] = Field(description="each problem, as a 422 would list it")
-
-
-class BatchItemError(BaseModel):
-    """The entry of a batch's answers for a query that was not answered: its vehicle's session is left as it was."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "index": 1,
-                    "vehicle_id": "car-2",
-                    "error": {
-                        "code": "invalid_query",
-                        "message": "body.queries.1.speed_kmh: Input should be greater than or equal to 0",
-                        "detail": [
-                            {
-                                "loc": ["body", "queries", 1, "speed_kmh"],
-                                "msg": "Input should be greater than or equal to 0",
-                                "type": "greater_than_equal",
-                            }
-                        ],
-                    },
-                }
-            ]
-        }
-    )
-
-    index: int = Field(description="the query's index in the batch (the entry's own index)")
-    vehicle_id: str | None = Field(description="the query's vehicle_id where it is a string, else null")
-    error: ItemError = Field(description="why the query was not answered")
 
 
 class Answers(BaseModel):
