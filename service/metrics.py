@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import bisect
 import json
+import logging
 import os
 import time
 from collections import Counter, defaultdict
@@ -33,6 +34,8 @@ __all__ = ["LATENCY_BUCKETS_S", "METRICS_DIR_VARIABLE", "SHARE_PERIOD_S", "Metri
 
 #: Upper bounds of the latency histogram's buckets, s.
 LATENCY_BUCKETS_S = (0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
+logger = logging.getLogger("csws.service")
+
 #: Set by ``csws serve --workers N`` for its workers: the folder where each keeps its counters.
 METRICS_DIR_VARIABLE = "CSWS_METRICS_DIR"
 #: How often a worker writes its counters to that folder when they changed, s.
@@ -121,7 +124,10 @@ class Metrics:
         while True:
             await asyncio.sleep(SHARE_PERIOD_S)
             if self.changed:
-                self.share(folder)
+                try:
+                    self.share(folder)
+                except OSError as error:  # a full disk, the folder gone while stopping: try again next period
+                    logger.warning("the metrics cannot be shared with the other workers: %s", error)
 
     def summed(self) -> tuple[Metrics, int]:
         """These counters plus those the other workers shared (all of them with ``csws serve --workers N``),
@@ -134,7 +140,11 @@ class Metrics:
         own = f"{os.getpid()}.json"
         for path in folder.glob("*.json"):
             if path.name != own:
-                total.add(json.loads(path.read_text()))
+                try:
+                    shared = json.loads(path.read_text())
+                except (OSError, ValueError):  # the folder removed while the service stops
+                    continue
+                total.add(shared)
                 processes += 1
         return total, processes
 
