@@ -11,7 +11,9 @@ off
 standby
     Switched on but not activated: below the activation speed (5.3.2 b).
 active
-    Activated: warnings are given (5.3.1).
+    Activated: warnings are given (5.3.1). By default the system activates on start (5.3.2 a),
+    so a vehicle at speed 0 is active; it gets no warning, since 6.1 warns only at speeds of at
+    least the warning speed V_w.
 fault
     The system cannot warn: no map, no map match, stale or invalid input. 5.4 asks that
     a failing system indicate the fault and switch itself off: in this state warnings
@@ -31,7 +33,17 @@ from enum import StrEnum
 
 import numpy as np
 
-__all__ = ["SystemState", "Fault", "ActivationSettings", "VehicleStatus", "switch", "next_status", "next_statuses"]
+__all__ = [
+    "SystemState",
+    "Fault",
+    "ACTIVATION_ON_START_KMH",
+    "STALE_AFTER_S",
+    "ActivationSettings",
+    "VehicleStatus",
+    "switch",
+    "next_status",
+    "next_statuses",
+]
 
 
 class SystemState(StrEnum):
@@ -44,12 +56,27 @@ class SystemState(StrEnum):
 
 
 class Fault(StrEnum):
-    """Why the system is in fault (5.4)."""
+    """Why the system is in fault (5.4): its value a text for people, its :attr:`code` stable for programs."""
 
     NO_MAP = "no map is loaded"
     NO_MAP_MATCH = "the position matches no lane of the map"
     STALE_INPUT = "the input is stale"
     INVALID_INPUT = "the input is invalid"
+
+    @property
+    def code(self) -> str:
+        """The fault's stable code (5.5.3: the fault indicated), its name in lower case: ``no_map``,
+        ``no_map_match``, ``stale_input``, ``invalid_input``; the text may be reworded, the code is not."""
+        return self.name.lower()
+
+
+#: 5.3.2 a): activation on start. The system activates with the first update after the vehicle starts,
+#: whatever its speed: a vehicle standing at speed 0 is active (no warning comes of it, 6.1 asks V >= V_w).
+ACTIVATION_ON_START_KMH = 0.0
+#: How old a position may be when it is evaluated before it is stale (5.4: the system then indicates a
+#: fault instead of warning on where the vehicle was), s. The standard gives no figure: two update
+#: periods of a 1 Hz GNSS receiver.
+STALE_AFTER_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -59,8 +86,10 @@ class ActivationSettings:
     Attributes
     ----------
     activation_speed_kmh
-        0 activates on start (5.3.2 a); a positive speed activates when the vehicle
-        reaches it (5.3.2 b).
+        0 (:data:`ACTIVATION_ON_START_KMH`, the default) activates on start (5.3.2 a), at any
+        speed, 0 included; a positive speed activates when the vehicle reaches it (5.3.2 b),
+        and a vehicle standing at speed 0 is then in standby (where the activation speed
+        exceeds the hysteresis).
     hysteresis_kmh
         Once active, the system returns to standby only below
         ``activation_speed_kmh - hysteresis_kmh``, so it does not flicker.
@@ -74,9 +103,9 @@ class ActivationSettings:
         (late by less than this) is still stale.
     """
 
-    activation_speed_kmh: float = 0.0
+    activation_speed_kmh: float = ACTIVATION_ON_START_KMH
     hysteresis_kmh: float = 5.0
-    stale_after_s: float = 2.0
+    stale_after_s: float = STALE_AFTER_S
     clock_jump_s: float = 60.0
 
     def __post_init__(self) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .answers import EncodedAnswers, WarningService
+from .batch_items import ItemErrors, decode_items
 from .decoding import DecodedBatch, DecodedQuery, decode
 from .metrics import Metrics
 from .schemas import BATCH_ADAPTER, QUERY_ADAPTER
@@ -43,20 +44,31 @@ class Answering:
         self.metrics.observe_answers(answers.state, answers.level)
         return answers.json(0)
 
-    async def batch(self, body: bytes, fleet: str, stages: Stages) -> bytes:
-        """The JSON answers to the body of a batch of ``fleet``, each stage timed in ``stages``."""
-        answers, content = await self.work.run(self._batch, body, fleet, stages)
-        self.metrics.observe_answers(answers.state, answers.level)
+    async def batch(self, body: bytes, fleet: str, stages: Stages, atomic: bool = False) -> bytes:
+        """The JSON answers to the body of a batch of ``fleet``, each stage timed in ``stages``: per query
+        (:mod:`service.batch_items`), or with ``atomic`` all or nothing (a 422 for any bad query)."""
+        answers, errors, content = await self.work.run(self._batch, body, fleet, stages, atomic)
+        if errors:
+            answered = [i for i in range(len(answers.state)) if i not in errors]
+            self.metrics.observe_answers([answers.state[i] for i in answered], [answers.level[i] for i in answered])
+            self.metrics.observe_item_errors(error["error"]["code"] for error in errors.values())
+        else:
+            self.metrics.observe_answers(answers.state, answers.level)
         return content
 
     def _one(self, body: bytes, fleet: str) -> EncodedAnswers:
         """Decode and answer one query (on the work thread)."""
         return self.service.answer([decode(body, DecodedQuery, QUERY_ADAPTER)], loc=("body",), fleet=fleet)
 
-    def _batch(self, body: bytes, fleet: str, stages: Stages) -> tuple[EncodedAnswers, bytes]:
-        """Decode, answer and encode a batch (on the work thread)."""
+    def _batch(self, body: bytes, fleet: str, stages: Stages, atomic: bool) -> tuple[EncodedAnswers, ItemErrors, bytes]:
+        """Decode, answer and encode a batch (on the work thread); the error entries of the queries not answered."""
         with stages("decode"):
-            queries = decode(body, DecodedBatch, BATCH_ADAPTER).queries
-        answers = self.service.answer(queries, fleet=fleet, stages=stages)
+            if atomic:
+                queries, errors = decode(body, DecodedBatch, BATCH_ADAPTER).queries, None
+            else:
+                queries, errors = decode_items(body)
+        answers = self.service.answer(queries, fleet=fleet, stages=stages, errors=errors)
         with stages("encode"):
-            return answers, answers.batch_json()
+            for index, error in (errors or {}).items():
+                answers.documents[index] = error
+            return answers, errors or {}, answers.batch_json()

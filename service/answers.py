@@ -32,6 +32,7 @@ from csws.standard import Category, Level
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, PathKind
 
+from .batch_items import UNANSWERABLE_QUERY, ItemErrors, item_error, problems_by_query
 from .checks import QueryCheck, QueryErrors
 from .decoding import DecodedQuery
 from .encoding import EncodedAnswers, encode_answer, hmi_json
@@ -105,39 +106,70 @@ class WarningService:
 
     def answer(
         self,
-        queries: Sequence[DecodedQuery],
+        queries: Sequence[DecodedQuery | None],
         loc: Sequence[Any] = ("body", "queries"),
         fleet: str = "",
         stages: Stages = UNTIMED,
+        errors: ItemErrors | None = None,
     ) -> EncodedAnswers:
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
         The vehicles are read from the state store, answered, and their sessions written back
         (:meth:`service.vehicles.VehicleRegistry.transact`); the time of each stage is counted in
-        ``stages``.
+        ``stages``. With ``errors`` (a batch answered per query, :mod:`service.batch_items`), the queries
+        that are None are those already in it, and each query the networks cannot answer goes into it
+        instead of raising: neither is evaluated, nor is its vehicle's session touched.
 
         Raises
         ------
         QueryErrors
-            If any query names an unknown lane or edge, lies beyond its lane, sends
-            lon/lat to networks without a projection, or has no category; nothing is
+            Without ``errors``: if any query names an unknown lane or edge, lies beyond its lane,
+            sends lon/lat to networks without a projection, or has no category; nothing is
             evaluated then.
         StoreUnavailable
             When the state store cannot be read or written now.
         """
+        named = cast(list[DecodedQuery], queries)  # None only at the indices of ``errors``, never read
         if fleet:
-            queries = [_of_vehicle(query, vehicle_key(fleet, query.vehicle_id)) for query in queries]
+            named = [
+                cast(DecodedQuery, query) if query is None else _of_vehicle(query, vehicle_key(fleet, query.vehicle_id))
+                for query in queries
+            ]
         answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
             with stages("check"):
-                indices = [i for i, query in enumerate(queries) if query.vehicle_id in vehicle_ids]
-                self.check(queries, vehicles, loc, fleet, indices)
-            for round_indices in _rounds(queries, indices):
-                self._answer_round([queries[i] for i in round_indices], round_indices, vehicles, answers, fleet, stages)
+                indices = [i for i, query in enumerate(named) if query is not None and query.vehicle_id in vehicle_ids]
+                indices = self._checked(named, vehicles, loc, fleet, indices, errors)
+            for round_indices in _rounds(named, indices):
+                self._answer_round([named[i] for i in round_indices], round_indices, vehicles, answers, fleet, stages)
 
-        self.registry.transact({query.vehicle_id for query in queries}, answer_vehicles, stages)
+        self.registry.transact({query.vehicle_id for query in named if query is not None}, answer_vehicles, stages)
         return answers
+
+    def _checked(
+        self,
+        queries: Sequence[DecodedQuery],
+        vehicles: LoadedVehicles,
+        loc: Sequence[Any],
+        fleet: str,
+        indices: list[int],
+        errors: ItemErrors | None,
+    ) -> list[int]:
+        """The ``indices`` of the queries the networks can answer; the others raise :class:`QueryErrors`, or with
+        ``errors`` go into it as ``unanswerable_query`` entries."""
+        try:
+            self.check(queries, vehicles, loc, fleet, indices)
+        except QueryErrors as exc:
+            if errors is None:
+                raise
+            unanswerable = problems_by_query(exc.errors)
+            for index, problems in unanswerable.items():
+                errors[index] = item_error(
+                    index, shown_id(fleet, queries[index].vehicle_id), UNANSWERABLE_QUERY, problems
+                )
+            return [index for index in indices if index not in unanswerable]
+        return indices
 
     def check(
         self,

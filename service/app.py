@@ -17,6 +17,7 @@ import sys
 import time
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
+from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -33,11 +34,10 @@ from .headers import ResponseHeaders
 from .keys import KeyRing
 from .limits import BodyLimit, BodyRefused, refused
 from .map import CompressedGets, MapData
-from .match_schemas import Trace, TraceFix
 from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
+from .problems import MAX_ERRORS_SHOWN, MAX_MESSAGE_CHARS, problem_body
 from .routes import docs, map, match, ops, traccar, vehicles, warnings
-from .schemas import REQUEST_FIELDS, unknown_field_message
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import VehicleRegistry
@@ -48,11 +48,6 @@ __all__ = ["create_app", "MAX_ERRORS_SHOWN", "MAX_MESSAGE_CHARS"]
 
 logger = logging.getLogger("csws.service")
 
-#: A 422 lists at most this many problems (a bad batch can have 10,000).
-MAX_ERRORS_SHOWN = 100
-#: Each problem's message is cut to this many characters (values it echoes are cut shorter,
-#: :data:`service.checks.SHOWN_CHARS`).
-MAX_MESSAGE_CHARS = 300
 
 DESCRIPTION = """Map-based curve speed warning (T/ITS 0091-2018) for on-board units and fleet backends.
 
@@ -61,48 +56,16 @@ Headings are GNSS headings: degrees clockwise from north. Speeds are km/h, dista
 """
 
 
-def _cut(text: str) -> str:
-    """``text`` cut to :data:`MAX_MESSAGE_CHARS` characters, the cut marked with an ellipsis."""
-    return text if len(text) <= MAX_MESSAGE_CHARS else text[:MAX_MESSAGE_CHARS] + "..."
-
-
-#: Every field name of every request body (an unknown one is named with the closest of these).
-KNOWN_FIELDS = REQUEST_FIELDS | frozenset(Trace.model_fields) | frozenset(TraceFix.model_fields)
-
-
-def _message(error: dict[str, Any]) -> str:
-    """What a 422 says of one problem: an unknown field named with the known field it resembles."""
-    if error["type"] == "extra_forbidden" and error["loc"]:
-        return unknown_field_message(str(error["loc"][-1]), KNOWN_FIELDS)
-    return _cut(error["msg"])
-
-
-def _clean(errors: list[dict[str, Any]]) -> dict[str, Any]:
-    """A 422 body: where and what, without echoing the (possibly huge) input."""
-    shown = [
-        {
-            "loc": [_cut(str(part)) if isinstance(part, str) else part for part in e["loc"]],
-            "msg": _message(e),
-            "type": e["type"],
-        }
-        for e in errors[:MAX_ERRORS_SHOWN]
-    ]
-    body: dict[str, Any] = {"detail": shown}
-    if len(errors) > MAX_ERRORS_SHOWN:
-        body["errors_total"] = len(errors)
-    return body
-
-
 async def _invalid_request(_request: Request, exc: Exception) -> JSONResponse:
     """A 422 for a request FastAPI or a route found invalid."""
     assert isinstance(exc, RequestValidationError)
-    return JSONResponse(_clean(list(exc.errors())), status_code=422)
+    return JSONResponse(problem_body(list(exc.errors())), status_code=422)
 
 
 async def _unanswerable(_request: Request, exc: Exception) -> JSONResponse:
     """A 422 for queries the networks cannot answer (:class:`service.answers.QueryErrors`)."""
     assert isinstance(exc, QueryErrors)
-    return JSONResponse(_clean(exc.errors), status_code=422)
+    return JSONResponse(problem_body(exc.errors), status_code=422)
 
 
 async def _store_unavailable(_request: Request, exc: Exception) -> JSONResponse:
@@ -122,7 +85,12 @@ async def _unexpected(_request: Request, exc: Exception) -> JSONResponse:
     return JSONResponse({"detail": f"internal error: {type(exc).__name__}"}, status_code=500)
 
 
-def _share(app: FastAPI, settings: ServiceSettings, clock: Callable[[], float]) -> None:
+def _share(
+    app: FastAPI,
+    settings: ServiceSettings,
+    clock: Callable[[], float],
+    progress: Callable[[int, int, Path], None] | None = None,
+) -> None:
     """Build what the routes share (:mod:`service.deps`) into ``app.state``.
 
     Raises
@@ -132,7 +100,7 @@ def _share(app: FastAPI, settings: ServiceSettings, clock: Callable[[], float]) 
     OSError
         If the state store cannot be opened, reached or read.
     """
-    networks = load_networks(settings.nets, settings.engine_settings())
+    networks = load_networks(settings.nets, settings.engine_settings(), progress)
     store = open_store(settings, clock)
     try:
         store.check()
@@ -164,7 +132,11 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.store.close()
 
 
-def create_app(settings: ServiceSettings | None = None, clock: Callable[[], float] = time.time) -> FastAPI:
+def create_app(
+    settings: ServiceSettings | None = None,
+    clock: Callable[[], float] = time.time,
+    progress: Callable[[int, int, Path], None] | None = None,
+) -> FastAPI:
     """Build the service.
 
     Parameters
@@ -173,6 +145,8 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         What to serve and how; by default from the ``CSWS_*`` environment.
     clock
         Seconds of the clock that dates sessions in a SQLite state store (Redis keeps its own).
+    progress
+        Called with the number of each network, their count and its file before it is read.
 
     Raises
     ------
@@ -193,7 +167,7 @@ def create_app(settings: ServiceSettings | None = None, clock: Callable[[], floa
         docs_url=None,
         redoc_url=None,
     )
-    _share(app, settings, clock)
+    _share(app, settings, clock, progress)
     docs.mount_static(app)
     for router in (warnings.router, traccar.router, vehicles.router, match.router, map.router, ops.router, docs.router):
         app.include_router(router)

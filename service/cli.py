@@ -80,6 +80,21 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         default=None,
         help="with API keys: /docs, /redoc, /openapi.json and /metrics need no key",
     )
+    parser.add_argument(
+        "--log-level",
+        choices=("critical", "error", "warning", "info", "debug"),
+        default="warning",
+        help="the service's and uvicorn's log on standard error, from this level up (default warning)",
+    )
+    parser.add_argument(
+        "--access-log",
+        nargs="?",
+        const="text",
+        choices=("text", "json"),
+        default=None,
+        help="a line per request on standard error: time, method, path, status, duration and fleet (never the "
+        "key); json writes JSON lines (default: none; the option alone: text)",
+    )
     parser.set_defaults(handler=deferred("service.run"))
 
 

@@ -103,9 +103,9 @@ def encode_answer(
     Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
     once for all, and only CPOIs that trigger are located.
     """
-    fault_text = None
+    fault_text = fault_code = None
     if fault is not None:
-        fault_text = fault.value
+        fault_text, fault_code = fault.value, fault.code
         if fault is Fault.NO_MAP_MATCH and placement.reason:
             fault_text = f"{fault_text}: {placement.reason}"
     target, triggers = None, []
@@ -120,5 +120,14 @@ def encode_answer(
     if placement.lane_id is not None:
         matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
     return _AnswerDocument(
-        vehicle_id, state, fault_text, warning.level, target, triggers, matched, path_kind, hmi_json(warning.hmi)
+        vehicle_id=vehicle_id,
+        state=state,
+        fault=fault_text,
+        fault_code=fault_code,
+        level=warning.level,
+        target=target,
+        triggers=triggers,
+        matched=matched,
+        path_kind=path_kind,
+        hmi=hmi_json(warning.hmi),
     )

@@ -194,15 +194,17 @@ def _quiet_floods() -> None:
         logging.getLogger(name).addFilter(OncePerInterval())
 
 
-def serve(app: Any, listening: socket.socket, limits: Limits) -> None:
-    """Serve ``app`` with uvicorn on the listening socket, guarded by ``limits``, until told to stop."""
+def serve(app: Any, listening: socket.socket, limits: Limits, log_level: str = "warning") -> None:
+    """Serve ``app`` with uvicorn on the listening socket, guarded by ``limits``, until told to stop; uvicorn's
+    log at ``log_level``."""
     import uvicorn
 
     _quiet_floods()
     protocol = type("Guarded", (GuardedH11Protocol,), {"limits": limits})
     config = uvicorn.Config(
         app,
-        log_level="warning",
+        log_level=log_level,
+        access_log=False,  # csws serve --access-log writes its own (service.access_log)
         http=protocol,
         timeout_keep_alive=int(KEEP_ALIVE_S),
         h11_max_incomplete_event_size=MAX_HEAD_BYTES,

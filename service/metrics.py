@@ -1,24 +1,45 @@
-"""Prometheus metrics of the service: requests, latencies and warnings by level.
+"""Prometheus metrics of the service: requests, latencies and warnings by level, summed over the workers.
 
 A small text-format exposition (version 0.0.4) with no dependency: counters of
 requests by route and status, a latency histogram by route, and counters of the
-answers by system state and warning level. :class:`MetricsMiddleware` is a plain ASGI
-middleware, so measuring costs next to nothing per request.
+answers by system state and warning level, and of the queries of batches not answered.
+:class:`MetricsMiddleware` is a plain ASGI middleware, so measuring costs next to nothing per
+request; it also writes the access log (:mod:`service.access_log`).
+
+The workers of ``csws serve --workers N`` each count their own requests. Each writes its
+counters, when they changed, at most once per :data:`SHARE_PERIOD_S` to a file of its own in a
+folder the master made (:data:`METRICS_DIR_VARIABLE`), and ``/metrics`` answers the sum of its
+own live counters and the other workers' files (those of workers that died included, so that the
+counters never go down): Prometheus' multiprocess mode, without its files per metric. A request
+pays nothing for it; the sum lags up to a period behind the other workers.
 """
 
 from __future__ import annotations
 
+import asyncio
 import bisect
+import json
+import logging
+import os
 import time
 from collections import Counter, defaultdict
 from collections.abc import Iterable
 from itertools import accumulate
+from pathlib import Path
 from typing import Any
 
-__all__ = ["LATENCY_BUCKETS_S", "Metrics", "MetricsMiddleware"]
+from .access_log import AccessLog
+
+__all__ = ["LATENCY_BUCKETS_S", "METRICS_DIR_VARIABLE", "SHARE_PERIOD_S", "Metrics", "MetricsMiddleware"]
 
 #: Upper bounds of the latency histogram's buckets, s.
 LATENCY_BUCKETS_S = (0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
+logger = logging.getLogger("csws.service")
+
+#: Set by ``csws serve --workers N`` for its workers: the folder where each keeps its counters.
+METRICS_DIR_VARIABLE = "CSWS_METRICS_DIR"
+#: How often a worker writes its counters to that folder when they changed, s.
+SHARE_PERIOD_S = 1.0
 
 
 def _labels(**labels: Any) -> str:
@@ -26,9 +47,19 @@ def _labels(**labels: Any) -> str:
 
 
 class Metrics:
-    """The counters and histograms, and their exposition."""
+    """The counters and histograms, and their exposition.
+
+    Attributes
+    ----------
+    access_log
+        Where each request is logged, if anywhere (``csws serve --access-log``).
+    changed
+        Whether anything was counted since the counters were last shared with the other workers.
+    """
 
     def __init__(self) -> None:
+        self.access_log: AccessLog | None = None
+        self.changed = False
         self.requests: dict[tuple[str, str, int], int] = defaultdict(int)
         #: Per route, the requests of each latency bucket alone (the last: above every bound);
         #: the exposition adds them up into Prometheus' cumulative buckets.
@@ -36,9 +67,11 @@ class Metrics:
         self.latency_sum_s: dict[str, float] = defaultdict(float)
         self.latency_count: dict[str, int] = defaultdict(int)
         self.answers: dict[tuple[str, int], int] = defaultdict(int)
+        self.item_errors: dict[str, int] = defaultdict(int)
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Count a request and its latency."""
+        self.changed = True
         self.requests[(method, route, status)] += 1
         self.latency_buckets[route][bisect.bisect_left(LATENCY_BUCKETS_S, seconds)] += 1
         self.latency_sum_s[route] += seconds
@@ -49,9 +82,83 @@ class Metrics:
         for key, count in Counter(zip(states, levels, strict=False)).items():
             self.answers[key] += count
 
+    def observe_item_errors(self, codes: Iterable[str]) -> None:
+        """Count the queries of batches not answered, by the code of their error entry."""
+        for code, count in Counter(codes).items():
+            self.item_errors[code] += count
+
+    def snapshot(self) -> dict[str, Any]:
+        """The counters as JSON values, for the other workers (:meth:`add`)."""
+        return {
+            "requests": [[*key, count] for key, count in self.requests.items()],
+            "latency": {
+                route: [self.latency_buckets[route], self.latency_sum_s[route], count]
+                for route, count in self.latency_count.items()
+            },
+            "answers": [[*key, count] for key, count in self.answers.items()],
+            "item_errors": dict(self.item_errors),
+        }
+
+    def add(self, snapshot: dict[str, Any]) -> None:
+        """Add the counters of a :meth:`snapshot` (another worker's) to these."""
+        for method, route, status, count in snapshot["requests"]:
+            self.requests[(method, route, status)] += count
+        for route, (buckets, sum_s, count) in snapshot["latency"].items():
+            self.latency_buckets[route] = [a + b for a, b in zip(self.latency_buckets[route], buckets, strict=True)]
+            self.latency_sum_s[route] += sum_s
+            self.latency_count[route] += count
+        for state, level, count in snapshot["answers"]:
+            self.answers[(state, level)] += count
+        for code, count in snapshot["item_errors"].items():
+            self.item_errors[code] += count
+
+    def share(self, folder: Path) -> None:
+        """Write the counters to this process' file in ``folder``, whole or not at all."""
+        self.changed = False
+        written = folder / f"{os.getpid()}.json.part"
+        written.write_text(json.dumps(self.snapshot()))
+        os.replace(written, folder / f"{os.getpid()}.json")
+
+    async def keep_sharing(self, folder: Path) -> None:
+        """Share the counters in ``folder`` every :data:`SHARE_PERIOD_S` in which they changed, until cancelled."""
+        while True:
+            await asyncio.sleep(SHARE_PERIOD_S)
+            if self.changed:
+                try:
+                    self.share(folder)
+                except OSError as error:  # a full disk, the folder gone while stopping: try again next period
+                    logger.warning("the metrics cannot be shared with the other workers: %s", error)
+
+    def summed(self) -> tuple[Metrics, int]:
+        """These counters plus those the other workers shared (all of them with ``csws serve --workers N``),
+        and how many processes that sums."""
+        folder = _shared_folder()
+        if folder is None:
+            return self, 1
+        total, processes = Metrics(), 1
+        total.add(self.snapshot())
+        own = f"{os.getpid()}.json"
+        for path in folder.glob("*.json"):
+            if path.name != own:
+                try:
+                    shared = json.loads(path.read_text())
+                except (OSError, ValueError):  # the folder removed while the service stops
+                    continue
+                total.add(shared)
+                processes += 1
+        return total, processes
+
     def exposition(self) -> str:
-        """The metrics in Prometheus' text format."""
+        """The metrics in Prometheus' text format, summed over the workers."""
+        total, processes = self.summed()
+        return total.lines(processes)
+
+    def lines(self, processes: int = 1) -> str:
+        """These counters in Prometheus' text format, as the sum over ``processes`` processes."""
         lines = [
+            "# HELP csws_worker_processes The processes whose counters are summed (the workers, live or not).",
+            "# TYPE csws_worker_processes gauge",
+            f"csws_worker_processes {processes}",
             "# HELP csws_http_requests_total HTTP requests by method, route and status.",
             "# TYPE csws_http_requests_total counter",
         ]
@@ -81,7 +188,19 @@ class Metrics:
         ]
         for (state, level), count in sorted(self.answers.items()):
             lines.append(f"csws_answers_total{{{_labels(state=state, level=level)}}} {count}")
+        lines += [
+            "# HELP csws_batch_item_errors_total Queries of batches not answered, by error code.",
+            "# TYPE csws_batch_item_errors_total counter",
+        ]
+        for code, count in sorted(self.item_errors.items()):
+            lines.append(f"csws_batch_item_errors_total{{{_labels(code=code)}}} {count}")
         return "\n".join(lines) + "\n"
+
+
+def _shared_folder() -> Path | None:
+    """The folder the workers share their counters in, None outside ``csws serve --workers N``."""
+    folder = os.environ.get(METRICS_DIR_VARIABLE)
+    return Path(folder) if folder else None
 
 
 #: The HTTP methods counted under their own name.
@@ -99,11 +218,14 @@ class MetricsMiddleware:
     def __init__(self, app, metrics: Metrics) -> None:
         self.app = app
         self.metrics = metrics
+        self.sharing: asyncio.Task | None = None
 
     async def __call__(self, scope, receive, send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        if self.sharing is None:
+            self.sharing = self._start_sharing()
         started = time.perf_counter()
         status = 500
 
@@ -119,4 +241,15 @@ class MetricsMiddleware:
             route = scope.get("route")
             template = getattr(route, "path", None) or "unmatched"
             method = scope["method"] if scope["method"] in METHODS else "other"
-            self.metrics.observe_request(method, template, status, time.perf_counter() - started)
+            seconds = time.perf_counter() - started
+            self.metrics.observe_request(method, template, status, seconds)
+            if self.metrics.access_log is not None:
+                self.metrics.access_log.record(scope, status, seconds)
+
+    def _start_sharing(self) -> asyncio.Task:
+        """In a worker of ``csws serve --workers N``, on its first request: the task that shares its counters
+        (:meth:`Metrics.keep_sharing`); elsewhere a task that is done at once."""
+        folder = _shared_folder()
+        if folder is None:
+            return asyncio.get_running_loop().create_task(asyncio.sleep(0))
+        return asyncio.get_running_loop().create_task(self.metrics.keep_sharing(folder))

@@ -7,7 +7,7 @@ installation. A network that cannot be read stops start-up with one clear line.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -79,8 +79,12 @@ class ServedNetwork:
     edge_ids: frozenset[str] = field(repr=False)
 
 
-def load_networks(paths: Sequence[Path], settings: EngineSettings = EngineSettings()) -> list[ServedNetwork]:
-    """Load every network and build its engine.
+def load_networks(
+    paths: Sequence[Path],
+    settings: EngineSettings = EngineSettings(),
+    progress: Callable[[int, int, Path], None] | None = None,
+) -> list[ServedNetwork]:
+    """Load every network and build its engine; ``progress(number, count, path)`` before each, if given.
 
     Raises
     ------
@@ -96,7 +100,9 @@ def load_networks(paths: Sequence[Path], settings: EngineSettings = EngineSettin
     if duplicates:
         raise ValueError(f"two networks share the name {duplicates[0]!r}: network file names must differ")
     served = []
-    for name, path in zip(names, paths, strict=False):
+    for number, (name, path) in enumerate(zip(names, paths, strict=False), start=1):
+        if progress is not None:
+            progress(number, len(paths), Path(path))
         road_map = RoadMap.load(path, warning_radius_m=settings.lookahead.warning_radius_m)
         cache_size = max(settings.lookahead.cache_size, HORIZONS_PER_LANE * len(road_map.lane_ids))
         engine_settings = replace(settings, lookahead=replace(settings.lookahead, cache_size=cache_size))

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
+import time
+from pathlib import Path
+from typing import Any, cast
 
+from .access_log import AccessFormat, AccessLog
 from .guard import connection_limits, serve
 from .settings import ServiceSettings
-from .workers import bound_socket, listening_socket, serve_forked
+from .workers import bound_socket, serve_forked, start_listening
 
-__all__ = ["settings_from_args", "served_url", "main", "add_key_command"]
+__all__ = ["settings_from_args", "served_url", "configure_logging", "main", "add_key_command"]
 
 #: Command-line options and the settings they override.
 _OPTIONS = {
@@ -52,37 +57,73 @@ def served_url(host: str, port: int) -> str:
     return f"http://[{host}]:{port}" if ":" in host else f"http://{host}:{port}"
 
 
+def configure_logging(level: str) -> None:
+    """The service's log (``csws.*``, uvicorn's apart) on standard error at ``level``: one line per record,
+    with its time, level and logger."""
+    logging.basicConfig(
+        stream=sys.stderr,
+        level=level.upper(),
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
+    logging.getLogger("csws").setLevel(level.upper())
+
+
+def _loading(number: int, count: int, path: Path) -> None:
+    """A start-up line before each network is read: which, and how far start-up is (on standard output, with
+    the line saying where the service serves; standard error keeps an error to its one line)."""
+    print(f"csws: loading network {number} of {count}: {path}", flush=True)
+
+
+def _built(settings: ServiceSettings, access_log: AccessFormat | None) -> Any:
+    """The app of ``settings`` (networks read, state store checked), with the start-up lines, and its access log."""
+    from .app import create_app
+
+    started = time.perf_counter()
+    app = create_app(settings, progress=_loading)
+    lanes = sum(len(network.road_map.lane_ids) for network in app.state.service.networks)
+    store = f"Redis {settings.state}" if settings.state else f"SQLite {settings.state_db}"
+    print(
+        f"csws: loaded {len(app.state.service.networks)} network(s), {lanes} lanes, in "
+        f"{time.perf_counter() - started:.1f} s; vehicle state in {store}",
+        flush=True,
+    )
+    if access_log is not None:
+        app.state.metrics.access_log = AccessLog(access_log)
+    return app
+
+
 def main(args: argparse.Namespace) -> int:
     """Serve until interrupted; a network, state store or key file that cannot be read ends start-up
     with one line (via ``csws.cli``).
 
-    With ``--workers N`` everything is loaded here, once, and the workers are forked from this
-    process (:func:`service.workers.serve_forked`).
+    The address is bound first, so that one in use is the only line; then the networks are read, a line
+    before each, and the line saying where the service is ready. With ``--workers N`` everything is
+    loaded here, once, and the workers are forked from this process (:func:`service.workers.serve_forked`).
     """
-    from .app import create_app
-
     settings = settings_from_args(args)
     if settings.workers > 1 and not hasattr(os, "fork"):
         raise ValueError(
             f"--workers {settings.workers} needs a platform with fork(): serve with one worker per "
             "process instead, e.g. several csws serve on other ports behind a load balancer"
         )
-    app = create_app(settings)
+    log_level = getattr(args, "log_level", None) or "warning"
+    configure_logging(log_level)
+    # A port in use is one line, before anything is read (service.workers.bound_socket).
+    bound = bound_socket(settings.host, settings.port)
+    try:
+        app = _built(settings, cast("AccessFormat | None", getattr(args, "access_log", None)))
+    except BaseException:
+        bound.close()
+        raise
     networks = len(app.state.service.networks)
     limits = connection_limits(settings.head_timeout_s)
-    # A port in use is one line, before "serving" (service.workers.bound_socket).
-    bound = (
-        listening_socket(settings.host, settings.port)
-        if settings.workers == 1
-        else bound_socket(settings.host, settings.port)
-    )
     url = served_url(settings.host, bound.getsockname()[1])
     with_workers = f" with {settings.workers} workers" if settings.workers > 1 else ""
     print(f"csws: serving {networks} network(s){with_workers} on {url} (OpenAPI docs at /docs)", flush=True)
     if settings.workers == 1:
-        serve(app, bound, limits)
+        serve(app, start_listening(bound), limits, log_level)
     else:
-        serve_forked(app, bound, settings.workers, limits)
+        serve_forked(app, bound, settings.workers, limits, log_level)
     return 0
 
 

@@ -21,6 +21,7 @@ from fastapi import Depends, HTTPException, Request, Security
 from fastapi.openapi.models import HTTPBearer as HTTPBearerModel
 from fastapi.security.base import SecurityBase
 
+from .access_log import FLEET_SCOPE_KEY
 from .keys import OPEN, KeyRing, Principal
 
 __all__ = ["FleetKey", "caller", "doc_reader", "admin", "CallerDep", "AdminDep"]
@@ -56,6 +57,7 @@ class FleetKey(SecurityBase):
         found = keyring.principal(token) if scheme.lower() == "bearer" and token else None
         if found is None:
             raise HTTPException(401, "an API key is needed: Authorization: Bearer KEY", headers=_CHALLENGE)
+        request.scope[FLEET_SCOPE_KEY] = found.fleet  # for the access log: the fleet, never the key
         return found
 
 

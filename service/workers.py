@@ -21,15 +21,18 @@ from __future__ import annotations
 import errno
 import gc
 import os
+import shutil
 import signal
 import socket
 import sys
+import tempfile
 import threading
 import time
 from contextlib import suppress
 from typing import Any
 
 from .guard import Limits, serve
+from .metrics import METRICS_DIR_VARIABLE
 
 __all__ = [
     "MASTER_PID_VARIABLE",
@@ -39,6 +42,7 @@ __all__ = [
     "leave_with_master",
     "bound_socket",
     "listening_socket",
+    "start_listening",
     "serve_forked",
 ]
 
@@ -149,10 +153,15 @@ def bound_socket(host: str, port: int) -> socket.socket:
 def listening_socket(host: str, port: int) -> socket.socket:
     """A socket listening on ``host:port`` for a single server process, bound before anything is
     said to be served (:func:`bound_socket`)."""
-    listening = bound_socket(host, port)
+    return start_listening(bound_socket(host, port))
+
+
+def start_listening(bound: socket.socket) -> socket.socket:
+    """The socket of :func:`bound_socket`, listening for a single server process (once it is ready to answer:
+    until then a client is refused rather than left waiting)."""
     if OWN_SOCKETS:
-        listening.listen(BACKLOG)
-    return listening
+        bound.listen(BACKLOG)
+    return bound
 
 
 def _worker_socket(master: socket.socket) -> socket.socket:
@@ -166,18 +175,21 @@ def _worker_socket(master: socket.socket) -> socket.socket:
     return own
 
 
-def _run_worker(app: Any, master: socket.socket, limits: Limits) -> None:
+def _run_worker(app: Any, master: socket.socket, limits: Limits, log_level: str) -> None:
     """In a forked worker: serve ``app`` on the master's address until told to stop, then exit."""
     status = 1
     try:
-        serve(app, _worker_socket(master), limits)
+        serve(app, _worker_socket(master), limits, log_level)
         status = 0
     finally:
         os._exit(status)  # never return into the master's code
 
 
-def serve_forked(app: Any, master: socket.socket, workers: int, limits: Limits) -> None:
+def serve_forked(app: Any, master: socket.socket, workers: int, limits: Limits, log_level: str = "warning") -> None:
     """Fork ``workers`` processes serving ``app`` on the address of ``master``, keep that many until stopped.
+
+    The workers share their metrics through a temporary folder of the master's (:mod:`service.metrics`),
+    removed when it stops.
 
     Parameters
     ----------
@@ -189,8 +201,12 @@ def serve_forked(app: Any, master: socket.socket, workers: int, limits: Limits) 
         How many worker processes.
     limits
         The bounds of each worker's connections (:mod:`service.guard`).
+    log_level
+        The level of uvicorn's log in the workers.
     """
     os.environ[MASTER_PID_VARIABLE] = str(os.getpid())  # the workers leave when this process is gone
+    metrics_folder = tempfile.mkdtemp(prefix="csws-metrics-")
+    os.environ[METRICS_DIR_VARIABLE] = metrics_folder  # each worker's counters, summed by /metrics
     gc.collect()
     gc.freeze()  # what the master made is shared with the workers: no collection may write to it
     forked_at_s: dict[int, float] = {}
@@ -204,7 +220,7 @@ def serve_forked(app: Any, master: socket.socket, workers: int, limits: Limits) 
             for number in stop_signals:
                 signal.signal(number, signal.SIG_DFL)
             signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
-            _run_worker(app, master, limits)
+            _run_worker(app, master, limits, log_level)
         forked_at_s[pid] = time.monotonic()
         signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
 
@@ -229,3 +245,5 @@ def serve_forked(app: Any, master: socket.socket, workers: int, limits: Limits) 
         for number, handler in previous.items():
             signal.signal(number, handler)
         master.close()
+        shutil.rmtree(metrics_folder, ignore_errors=True)
+        del os.environ[METRICS_DIR_VARIABLE]

@@ -313,11 +313,16 @@ def test_non_finite_numbers_get_a_422_naming_the_field(client, changes: dict, lo
     query = _raw_json({k: v for k, v in {**GOOD, **changes}.items() if v is not None})
     headers = {"content-type": "application/json"}
     single = client.post("/v1/warning", content=query, headers=headers)
-    batch = client.post("/v1/warnings", content=f'{{"queries": [{json.dumps(GOOD)}, {query}]}}', headers=headers)
-    for response, prefix in ((single, ["body"]), (batch, ["body", "queries", 1])):
+    body = f'{{"queries": [{json.dumps(GOOD)}, {query}]}}'
+    atomic = client.post("/v1/warnings?atomic=true", content=body, headers=headers)
+    for response, prefix in ((single, ["body"]), (atomic, ["body", "queries", 1])):
         assert response.status_code == 422, response.text
         (error,) = response.json()["detail"]
         assert error["loc"] == prefix + loc and "finite number" in error["msg"]
+    per_query = client.post("/v1/warnings", content=body, headers=headers)  # the other query is answered
+    assert per_query.status_code == 200, per_query.text
+    good, bad = per_query.json()["answers"]
+    assert "error" not in good and bad["error"]["detail"] == atomic.json()["detail"]
     assert client.get("/healthz").json() == {"status": "ok"}
 
 

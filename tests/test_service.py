@@ -394,12 +394,24 @@ BAD_QUERIES = {
 
 @pytest.mark.parametrize("body, message", BAD_QUERIES.values(), ids=BAD_QUERIES.keys())
 def test_bad_queries_get_a_clear_422(client, body: str, message: str) -> None:
-    for path, payload in (("/v1/warning", body), ("/v1/warnings", f'{{"queries": [{json.dumps(GOOD)}, {body}]}}')):
+    """Alone, and in an all-or-nothing batch, a 422; in a batch, an error entry at its index saying the same
+    (a body that is not JSON stays a 422)."""
+    batch = f'{{"queries": [{json.dumps(GOOD)}, {body}]}}'
+    for path, payload in (("/v1/warning", body), ("/v1/warnings?atomic=true", batch)):
         response = client.post(path, content=payload, headers={"content-type": "application/json"})
         assert response.status_code == 422, response.text
         assert message in json.dumps(response.json()), response.text
-        if path == "/v1/warnings" and message != "JSON":
+        if path != "/v1/warning" and message != "JSON":
             assert response.json()["detail"][0]["loc"][:3] == ["body", "queries", 1]
+    response = client.post("/v1/warnings", content=batch, headers={"content-type": "application/json"})
+    if message == "JSON":
+        assert response.status_code == 422, response.text
+        return
+    assert response.status_code == 200, response.text
+    good, bad = response.json()["answers"]
+    assert good["vehicle_id"] == GOOD["vehicle_id"] and "error" not in good
+    assert bad["index"] == 1 and message in json.dumps(bad["error"]), bad
+    assert all(problem["loc"][:3] == ["body", "queries", 1] for problem in bad["error"]["detail"])
 
 
 def test_an_oversized_batch_is_refused(client) -> None:

@@ -103,10 +103,22 @@ def test_without_a_forward_target_the_answer_is_as_before(client):
     ],
 )
 def test_a_bad_forward_target_is_a_422_naming_the_field(client, target, field):
-    response = client.post("/v1/warnings", json={"queries": [_query("f", forward_target=target)]})
-    assert response.status_code == 422
-    locs = [error["loc"] for error in response.json()["detail"]]
+    body = json.dumps({"queries": [_query("f", forward_target=target)]}).encode()
+    locs = [error["loc"] for error in _refused(client, body)]
     assert ["body", "queries", 0, "forward_target", field] in locs
+
+
+def _refused(client, body: bytes) -> list[dict]:
+    """The problems of a batch of one bad query: the 422 of an all-or-nothing batch (``?atomic=true``), which the
+    error entry of the batch answered per query lists alike."""
+    headers = {"content-type": "application/json"}
+    atomic = client.post("/v1/warnings?atomic=true", content=body, headers=headers)
+    assert atomic.status_code == 422
+    per_query = client.post("/v1/warnings", content=body, headers=headers)
+    assert per_query.status_code == 200
+    [entry] = per_query.json()["answers"]
+    assert entry["index"] == 0 and entry["error"]["detail"] == atomic.json()["detail"]
+    return atomic.json()["detail"]
 
 
 def test_the_schema_examples_of_a_target_and_its_answer_agree(client):
@@ -343,10 +355,7 @@ def test_an_fcw_level_without_a_curve_warning_shows_in_the_hmi(client):
 
 # ------------------------------------------------------------------ 422
 def _post_objects(client, objects) -> list[dict]:
-    body = json.dumps({"queries": [_query("bad", objects=objects)]}).encode()
-    response = client.post("/v1/warnings", content=body, headers={"content-type": "application/json"})
-    assert response.status_code == 422
-    return response.json()["detail"]
+    return _refused(client, json.dumps({"queries": [_query("bad", objects=objects)]}).encode())
 
 
 def test_an_object_with_nan_is_a_422_naming_the_field(client):

@@ -8,7 +8,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, switch
+from csws.state import (
+    ACTIVATION_ON_START_KMH,
+    STALE_AFTER_S,
+    ActivationSettings,
+    Fault,
+    SystemState,
+    VehicleStatus,
+    next_status,
+    switch,
+)
 
 SPEED_ACTIVATION = ActivationSettings(activation_speed_kmh=30.0, hysteresis_kmh=5.0, stale_after_s=2.0)
 
@@ -94,3 +103,28 @@ def test_never_active_below_the_release_speed_and_always_above_the_activation_sp
             assert status.state is SystemState.STANDBY
         if speed_kmh >= SPEED_ACTIVATION.activation_speed_kmh:
             assert status.state is SystemState.ACTIVE
+
+
+def test_speed_0_is_active_on_start_and_standby_with_speed_activation():
+    """5.3.2 a) (the default): activated with the vehicle's start, at any speed; 5.3.2 b): a vehicle standing still
+    has not reached the activation speed, and one that stops falls back to standby below it less the hysteresis."""
+    assert ActivationSettings().activation_speed_kmh == ACTIVATION_ON_START_KMH == 0.0
+    assert next_status(VehicleStatus(), 0.0).state is SystemState.ACTIVE
+    assert next_status(VehicleStatus(), 0.0, settings=SPEED_ACTIVATION).state is SystemState.STANDBY
+    moving = next_status(VehicleStatus(), 50.0, settings=SPEED_ACTIVATION)
+    assert next_status(moving, 0.0, settings=SPEED_ACTIVATION).state is SystemState.STANDBY
+
+
+def test_fault_codes_are_stable():
+    assert {fault: fault.code for fault in Fault} == {
+        Fault.NO_MAP: "no_map",
+        Fault.NO_MAP_MATCH: "no_map_match",
+        Fault.STALE_INPUT: "stale_input",
+        Fault.INVALID_INPUT: "invalid_input",
+    }
+
+
+@pytest.mark.parametrize("age_s, stale", [(STALE_AFTER_S, False), (STALE_AFTER_S + 0.01, True)])
+def test_a_fix_older_than_the_staleness_limit_is_stale(age_s, stale):
+    status = next_status(VehicleStatus(), 50.0, age_s=age_s)
+    assert (status.fault is Fault.STALE_INPUT) is stale and STALE_AFTER_S == ActivationSettings().stale_after_s

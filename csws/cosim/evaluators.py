@@ -146,7 +146,7 @@ class ServiceEvaluator:
             raise ValueError(f"--service must be an http(s) URL such as http://127.0.0.1:8000, got {url!r}")
         connection_type = http.client.HTTPSConnection if parts.scheme == "https" else http.client.HTTPConnection
         self.url = url
-        self.path = parts.path.rstrip("/") + "/v1/warnings"
+        self.path = parts.path.rstrip("/") + "/v1/warnings?atomic=true"  # any refused query is an error here
         self.connection = connection_type(parts.hostname, parts.port, timeout=timeout_s)
         self.headers = {"Content-Type": "application/json"}
         if api_key is not None:

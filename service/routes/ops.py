@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 from fastapi import APIRouter, Security
@@ -51,5 +52,8 @@ async def readyz(networks: NetworksDep, store: StoreDep, work: WorkDep) -> dict[
     dependencies=[Security(doc_reader)],
 )
 async def prometheus(metrics: MetricsDep) -> PlainTextResponse:
-    """The counters in Prometheus text format; a key is needed unless the docs are public."""
-    return PlainTextResponse(metrics.exposition(), media_type="text/plain; version=0.0.4")
+    """The counters in Prometheus text format, summed over the workers; a key is needed unless the docs are
+    public. The ``X-Csws-Worker`` header names the worker process that answered."""
+    return PlainTextResponse(
+        metrics.exposition(), media_type="text/plain; version=0.0.4", headers={"X-Csws-Worker": str(os.getpid())}
+    )

@@ -34,6 +34,7 @@ def vehicle_state(vehicles: LoadedVehicles, networks: list[ServedNetwork], key: 
         "category": vehicles.category(key),
         "state": status.state.value,
         "fault": status.fault.value if status.fault is not None else None,
+        "fault_code": status.fault.code if status.fault is not None else None,
         "activated": status.activated,
         "last_timestamp_s": status.last_timestamp_s,
         "network": networks[session.network_index].name if session and session.lane_id else None,
