@@ -34,14 +34,14 @@ from csws.warning.rules import CurveWarning, PathKind
 
 from .checks import QueryCheck, QueryErrors
 from .decoding import DecodedQuery
-from .encoding import EncodedAnswers, encode_answer, hmi_json
+from .encoding import EncodedAnswers, encode_answer, hmi_json, matched_documents
 from .fcw import combined_hmi, fcw_answers
 from .fcw_objects import object_fcw
 from .fcw_settings import FleetFcwSettings
 from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
-from .placement import Placement, Placer
+from .placement import LanePoints, Placement, Placer
 from .timing import UNTIMED, Stages
 from .vehicles import LatestAnswer, LoadedVehicles, VehicleRegistry
 
@@ -100,6 +100,7 @@ class WarningService:
         self.registry = registry
         self.fcw_settings = fcw_settings if fcw_settings is not None else FleetFcwSettings()
         self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
+        self.lane_points = [LanePoints(network.road_map) for network in self.networks]
         self.checks = QueryCheck(self.networks)
         self.placer = Placer(self.checks, match_settings)
 
@@ -283,7 +284,12 @@ class WarningService:
         answers: EncodedAnswers,
         fleet: str,
     ) -> None:
-        """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
+        """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``
+        (the rows of one network)."""
+        network_index = placements[rows[0]].network_index
+        matched = matched_documents(
+            self.networks[network_index], self.lane_points[network_index], [placements[row] for row in rows]
+        )
         for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(
             zip(
                 rows,
@@ -301,7 +307,7 @@ class WarningService:
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
             answers.documents[index] = encode_answer(
-                self.cpoi_positions[placement.network_index],
+                self.cpoi_positions[network_index],
                 shown_id(fleet, vehicle_id),
                 state,
                 fault,
@@ -309,6 +315,7 @@ class WarningService:
                 kind,
                 path,
                 placement,
+                matched[k],
             )
             answers.state[index] = state
             answers.level[index] = warning.level
