@@ -98,9 +98,8 @@ def matched_documents(
     if not rows:
         return documents
     lane_ids = [cast(str, placements[row].lane_id) for row in rows]
-    points = lane_points.points(lane_ids, [placements[row].lane_pos_m for row in rows])
     road_map = network.road_map
-    for row, lane_id, point in zip(rows, lane_ids, positions(network, points), strict=True):
+    for row, lane_id, point in zip(rows, lane_ids, _placed_points(network, lane_points, placements, rows), strict=True):
         placement, lane = placements[row], road_map.lane(lane_id)
         documents[row] = _MatchedDocument(
             lane_id,
@@ -112,6 +111,22 @@ def matched_documents(
             point,
         )
     return documents
+
+
+def _placed_points(
+    network: ServedNetwork, lane_points: LanePoints, placements: Sequence[Placement], rows: Sequence[int]
+) -> list[dict[str, float]]:
+    """The points of the placements ``rows`` (on lanes) as the contract's positions: one in plain floats, the
+    one-vehicle answer's fast path, more in one interpolation and one projection."""
+    if len(rows) == 1:
+        placement = placements[rows[0]]
+        x, y = lane_points.point(cast(str, placement.lane_id), placement.lane_pos_m)
+        if not network.road_map.has_projection:
+            return [{"x": x, "y": y}]
+        lon, lat = network.road_map.xy_to_lonlat(x, y)
+        return [{"x": x, "y": y, "lon": lon, "lat": lat}]
+    lane_ids = [cast(str, placements[row].lane_id) for row in rows]
+    return positions(network, lane_points.points(lane_ids, [placements[row].lane_pos_m for row in rows]))
 
 
 def encode_answer(

@@ -12,6 +12,7 @@ answered less its ``age_s``.
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections import defaultdict
@@ -76,6 +77,20 @@ class LanePoints:
         self.lane_length_m = lane_length_m
         lane_of_vertex = np.repeat(np.arange(shapes.lane_count), np.diff(shapes.vertex_start))
         self.vertex_m = shapes.vertex_s + self.lane_start_m[lane_of_vertex]
+
+    def point(self, lane_id: str, lane_pos_m: float) -> tuple[float, float]:
+        """The point of a lane at a SUMO lane position (clamped to the lane), m: :meth:`points` for one, in
+        plain floats (a one-vehicle answer takes it in a few microseconds, where arrays take tens)."""
+        lane = self.road_map.lane_index(lane_id)
+        first, last = int(self.vertex_start[lane]), int(self.vertex_start[lane + 1]) - 1
+        shape_s = min(max(lane_pos_m / float(self.position_factor[lane]), 0.0), float(self.lane_length_m[lane]))
+        along_m = float(self.lane_start_m[lane]) + shape_s
+        start = min(max(bisect.bisect_right(self.vertex_m, along_m, first, last + 1) - 1, first), max(first, last - 1))
+        end = min(start + 1, last)
+        (x0, y0), (x1, y1) = self.xy[start].tolist(), self.xy[end].tolist()
+        span_m = float(self.vertex_m[end] - self.vertex_m[start])
+        fraction = (along_m - float(self.vertex_m[start])) / span_m if span_m > 0 else 0.0
+        return x0 + fraction * (x1 - x0), y0 + fraction * (y1 - y0)
 
     def points(self, lane_ids: Sequence[str], lane_pos_m: Sequence[float]) -> np.ndarray:
         """The points ``(k, 2)`` of lanes at SUMO lane positions (clamped to each lane), m."""

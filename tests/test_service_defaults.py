@@ -58,10 +58,13 @@ def test_lane_points_are_the_lanes_points_at_their_positions(data) -> None:
     lane_ids = data.draw(st.lists(st.sampled_from(road_map.lane_ids), min_size=1, max_size=8))
     fractions = data.draw(st.lists(st.floats(-0.1, 1.1), min_size=len(lane_ids), max_size=len(lane_ids)))
     lane_pos_m = [f * road_map.lane(lane_id).length_m for lane_id, f in zip(lane_ids, fractions, strict=True)]
-    points = LanePoints(road_map).points(lane_ids, lane_pos_m)
+    lane_points = LanePoints(road_map)
+    points = lane_points.points(lane_ids, lane_pos_m)
     for (x, y), lane_id, position_m in zip(points.tolist(), lane_ids, lane_pos_m, strict=True):
         clamped_m = min(max(position_m, 0.0), road_map.lane(lane_id).length_m)
-        assert math.dist((x, y), lane_point(road_map, lane_id, clamped_m)) < 1e-6
+        truth = lane_point(road_map, lane_id, clamped_m)
+        assert math.dist((x, y), truth) < 1e-6
+        assert math.dist(lane_points.point(lane_id, position_m), truth) < 1e-6
 
 
 _MAPS: dict[str, RoadMap] = {}
