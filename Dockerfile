@@ -1,4 +1,4 @@
-# csws serve in a container: the bundled networks, API keys from a mounted key file.
+# csws serve in a container: the bundled city (or CSWS_NETS), API keys from a mounted key file.
 #   docker build -t csws .
 #   csws keys add acme --role admin --file keys/api-keys.json     # on the host; prints the key once
 #   docker run -p 8000:8000 -v "$PWD/keys:/etc/csws:ro" -v csws-state:/var/lib/csws csws

@@ -3,8 +3,8 @@
 Servers are uvicorn processes on loopback, started and stopped here (:mod:`benchmarks.servers`),
 keeping their vehicles in a SQLite file as ``csws serve`` does: a trivial FastAPI app
 (:data:`trivial_app`, whose endpoint takes a JSON body and answers a constant), ``csws serve``
-on the Table 7 track, the default ``csws serve`` (every bundled network, the real Bad Hersfeld
-one among them), and ``csws serve`` on Bad Hersfeld alone. Figures:
+on the Table 7 track, the default ``csws serve`` (the bundled city, Bad Hersfeld), and ``csws serve --net`` on Bad
+Hersfeld. Figures:
 
 * single-query throughput: sequential keep-alive ``POST /v1/warning`` of a fix by x, y and
   heading against the same number of ``POST /trivial`` with the same body, in interleaved

@@ -35,14 +35,14 @@ from csws.warning.rules import CurveWarning, PathKind
 from .batch_items import UNANSWERABLE_QUERY, ItemErrors, item_error, problems_by_query
 from .checks import QueryCheck, QueryErrors
 from .decoding import DecodedQuery
-from .encoding import EncodedAnswers, encode_answer, hmi_json
+from .encoding import EncodedAnswers, encode_answer, hmi_json, matched_documents
 from .fcw import combined_hmi, fcw_answers
 from .fcw_objects import object_fcw
 from .fcw_settings import FleetFcwSettings
 from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
-from .placement import Placement, Placer
+from .placement import LanePoints, Placement, Placer
 from .timing import UNTIMED, Stages
 from .vehicles import LatestAnswer, LoadedVehicles, VehicleRegistry
 
@@ -101,6 +101,7 @@ class WarningService:
         self.registry = registry
         self.fcw_settings = fcw_settings if fcw_settings is not None else FleetFcwSettings()
         self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
+        self.lane_points = [LanePoints(network.road_map) for network in self.networks]
         self.checks = QueryCheck(self.networks)
         self.placer = Placer(self.checks, match_settings)
 
@@ -315,8 +316,13 @@ class WarningService:
         answers: EncodedAnswers,
         fleet: str,
     ) -> None:
-        """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
+        """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``
+        (the rows of one network)."""
         answered_at_s = time.time()
+        network_index = placements[rows[0]].network_index
+        matched = matched_documents(
+            self.networks[network_index], self.lane_points[network_index], [placements[row] for row in rows]
+        )
         for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(
             zip(
                 rows,
@@ -344,7 +350,7 @@ class WarningService:
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
             answers.documents[index] = encode_answer(
-                self.cpoi_positions[placement.network_index],
+                self.cpoi_positions[network_index],
                 shown_id(fleet, vehicle_id),
                 state,
                 fault,
@@ -352,6 +358,7 @@ class WarningService:
                 kind,
                 path,
                 placement,
+                matched[k],
             )
             answers.state[index] = state
             answers.level[index] = warning.level

@@ -20,7 +20,7 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         "serve",
         help="serve curve speed warnings over HTTP (FastAPI + uvicorn)",
         description="Serve curve speed warnings over HTTP. Options override the CSWS_* environment variables; "
-        "without --net the bundled networks are served. OpenAPI docs at /docs.",
+        "without --net the bundled city (Bad Hersfeld) is served. OpenAPI docs at /docs.",
     )
     parser.add_argument(
         "--net",
@@ -28,7 +28,14 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         action="append",
         default=None,
         metavar="FILE",
-        help="a SUMO network to serve (.net.xml or .net.xml.gz); repeat for several",
+        help="a SUMO network to serve (.net.xml or .net.xml.gz); repeat for several (default: the bundled city)",
+    )
+    parser.add_argument(
+        "--test-tracks",
+        action="store_true",
+        default=None,
+        help="also serve the bundled test tracks of T/ITS 0091-2018 (alone without --net); they share their "
+        "coordinates, so name the network in a query",
     )
     parser.add_argument("--host", default=None, help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=None, help="TCP port (default 8000)")
@@ -99,8 +106,13 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
 
 
 def _add_keys(commands: argparse._SubParsersAction) -> None:
-    """Add ``csws keys add``."""
-    keys = commands.add_parser("keys", help="manage the fleets' API keys of the service")
+    """Add ``csws keys add | list | revoke | rotate`` (:mod:`service.keys_commands`)."""
+    keys = commands.add_parser(
+        "keys",
+        help="manage the fleets' API keys of the service",
+        description="Manage the fleets' API keys. The key file keeps hashes only; a running service reads it "
+        "again when it changes (within a second, in every worker): no restart.",
+    )
     keys_commands = keys.add_subparsers(dest="keys_command", metavar="ACTION", required=True)
     add = keys_commands.add_parser(
         "add", help="make a key for a fleet, add its hash to the key file, print the key once"
@@ -112,7 +124,24 @@ def _add_keys(commands: argparse._SubParsersAction) -> None:
         default="query",
         help="query: warnings, horizons, curves, reading vehicles; admin: also switching them (default query)",
     )
-    add.add_argument(
-        "--file", type=Path, default=None, help="the key file (default: $CSWS_API_KEYS_FILE); created if missing"
+    add.add_argument("--label", default=None, help="a name for the key, unique in the file (e.g. the unit or the team)")
+    _file_option(add, "; created if missing")
+    add.set_defaults(handler=deferred("service.keys_commands", "add_command"))
+    listing = keys_commands.add_parser(
+        "list", help="the keys of the key file: fingerprint, fleet, role, label, date (never a key)"
     )
-    add.set_defaults(handler=deferred("service.run", "add_key_command"))
+    _file_option(listing)
+    listing.set_defaults(handler=deferred("service.keys_commands", "list_command"))
+    for action, text, handler in (
+        ("revoke", "take a key out of the key file", "revoke_command"),
+        ("rotate", "replace a key by a new one of the same fleet, role and label, printed once", "rotate_command"),
+    ):
+        parser = keys_commands.add_parser(action, help=text)
+        parser.add_argument("key", metavar="FINGERPRINT|LABEL", help="the key's label, or its fingerprint (6+ digits)")
+        _file_option(parser)
+        parser.set_defaults(handler=deferred("service.keys_commands", handler))
+
+
+def _file_option(parser: argparse.ArgumentParser, more: str = "") -> None:
+    """The ``--file`` option of the ``csws keys`` commands."""
+    parser.add_argument("--file", type=Path, default=None, help=f"the key file (default: $CSWS_API_KEYS_FILE){more}")

@@ -7,9 +7,10 @@ writes one of them, or all as the contract's ``Answers``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, cast
 
 import msgspec
 from pydantic import BaseModel
@@ -19,11 +20,12 @@ from csws.standard import Level
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, HmiHint, PathKind, Trigger
 
-from .horizon import CpoiPositions
-from .placement import Placement
+from .horizon import CpoiPositions, positions
+from .networks import ServedNetwork
+from .placement import LanePoints, Placement
 from .schemas import Hmi, Matched, WarningAnswer
 
-__all__ = ["EncodedAnswers", "encode_answer", "hmi_json"]
+__all__ = ["EncodedAnswers", "encode_answer", "hmi_json", "matched_documents"]
 
 
 def _document(model: type[BaseModel]) -> type[msgspec.Struct]:
@@ -85,6 +87,48 @@ def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
     }
 
 
+def matched_documents(
+    network: ServedNetwork, lane_points: LanePoints, placements: Sequence[Placement]
+) -> list[msgspec.Struct | None]:
+    """The contract's Matched of placements on one network (None where nothing matched): the lane, the
+    network, the street's name and road type of the lane's edge, and the point the fix was placed at
+    (x, y, and lon, lat on a geo-referenced network), all points interpolated and projected at once."""
+    rows = [row for row, placement in enumerate(placements) if placement.lane_id is not None]
+    documents: list[msgspec.Struct | None] = [None] * len(placements)
+    if not rows:
+        return documents
+    lane_ids = [cast(str, placements[row].lane_id) for row in rows]
+    road_map = network.road_map
+    for row, lane_id, point in zip(rows, lane_ids, _placed_points(network, lane_points, placements, rows), strict=True):
+        placement, lane = placements[row], road_map.lane(lane_id)
+        documents[row] = _MatchedDocument(
+            lane_id,
+            placement.lane_pos_m,
+            placement.distance_m,
+            network.name,
+            lane.street_name or None,
+            lane.road_type or None,
+            point,
+        )
+    return documents
+
+
+def _placed_points(
+    network: ServedNetwork, lane_points: LanePoints, placements: Sequence[Placement], rows: Sequence[int]
+) -> list[dict[str, float]]:
+    """The points of the placements ``rows`` (on lanes) as the contract's positions: one in plain floats, the
+    one-vehicle answer's fast path, more in one interpolation and one projection."""
+    if len(rows) == 1:
+        placement = placements[rows[0]]
+        x, y = lane_points.point(cast(str, placement.lane_id), placement.lane_pos_m)
+        if not network.road_map.has_projection:
+            return [{"x": x, "y": y}]
+        lon, lat = network.road_map.xy_to_lonlat(x, y)
+        return [{"x": x, "y": y, "lon": lon, "lat": lat}]
+    lane_ids = [cast(str, placements[row].lane_id) for row in rows]
+    return positions(network, lane_points.points(lane_ids, [placements[row].lane_pos_m for row in rows]))
+
+
 def encode_answer(
     cpoi_positions: CpoiPositions,
     vehicle_id: str,
@@ -94,10 +138,12 @@ def encode_answer(
     path_kind: PathKind | None,
     path: PathAhead | None,
     placement: Placement,
+    matched: msgspec.Struct | None,
 ) -> msgspec.Struct:
     """The contract's WarningAnswer of an engine's answer (system state, fault, warning, the path
     ahead's kind, and the path itself where the warning has CPOIs to locate, placed by the network's
-    ``cpoi_positions``) for the vehicle its fleet calls ``vehicle_id``, ready for msgspec to write
+    ``cpoi_positions``) for the vehicle its fleet calls ``vehicle_id``, placed at ``placement`` (its
+    :func:`matched_documents`: ``matched``), ready for msgspec to write
     (floats unrounded; the state, level and path kind as the enumerations' values).
 
     Most answers of a fleet are level 0, with no CPOI to locate: the HMI hint is written
@@ -116,9 +162,6 @@ def encode_answer(
         if warning.target is not None:
             target = _trigger(warning.target, positions[id(warning.target)])
         triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]
-    matched = None
-    if placement.lane_id is not None:
-        matched = _MatchedDocument(placement.lane_id, placement.lane_pos_m, placement.distance_m)
     return _AnswerDocument(
         vehicle_id=vehicle_id,
         state=state,

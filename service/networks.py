@@ -1,8 +1,11 @@
 """The networks a service serves: one road map and one :class:`~csws.engine.Engine` each.
 
-By default the service serves the networks bundled with csws (every ``.net.xml`` and
-``.net.xml.gz`` of :func:`csws.networks.networks_dir`), so it answers right after
-installation. A network that cannot be read stops start-up with one clear line.
+By default the service serves the city bundled with csws (:data:`CITY_NETWORK`, Bad Hersfeld, a
+geo-referenced OpenStreetMap network), so it answers real streets right after installation. The
+bundled test tracks of T/ITS 0091-2018 (:func:`track_network_paths`) are served only when asked
+(``csws serve --test-tracks``): they are laid out at the same coordinates as each other and as the
+city, so a fix served with them should name its network. A network that cannot be read stops
+start-up with one clear line.
 """
 
 from __future__ import annotations
@@ -20,7 +23,9 @@ __all__ = [
     "NET_SUFFIXES",
     "HORIZONS_PER_LANE",
     "ServedNetwork",
-    "bundled_network_paths",
+    "CITY_NETWORK",
+    "city_network_paths",
+    "track_network_paths",
     "network_name",
     "load_networks",
 ]
@@ -34,6 +39,8 @@ MAX_HORIZON_M = 3000.0
 #: than what one fleet tick uses is swept through every tick (10,000 trucks on Bad Hersfeld need
 #: about 4,800 horizons, some 8 KB each; the engine's default keeps 4,096).
 HORIZONS_PER_LANE = 2
+#: The network served by default: the bundled city (OpenStreetMap, geo-referenced).
+CITY_NETWORK = "badhersfeld.net.xml.gz"
 
 
 def network_name(path: Path) -> str:
@@ -45,10 +52,20 @@ def network_name(path: Path) -> str:
     return path.stem
 
 
-def bundled_network_paths() -> list[Path]:
-    """The networks bundled with csws, sorted by name."""
+def city_network_paths() -> list[Path]:
+    """The networks served by default: the bundled city alone (:data:`CITY_NETWORK`)."""
+    return [networks_dir() / CITY_NETWORK]
+
+
+def track_network_paths() -> list[Path]:
+    """The bundled test tracks of T/ITS 0091-2018 (Tables 3, 7, 8 and 9), sorted by name.
+
+    They share their coordinates (each starts at the origin), so a fix served with them should name
+    its network (``"network"`` in a query) or give its lane.
+    """
     folder = networks_dir()
-    return sorted((p for p in folder.iterdir() if p.name.endswith(NET_SUFFIXES)), key=lambda p: p.name)
+    tracks = (p for p in folder.iterdir() if p.name.endswith(NET_SUFFIXES) and p.name != CITY_NETWORK)
+    return sorted(tracks, key=lambda p: p.name)
 
 
 @dataclass

@@ -12,6 +12,7 @@ answered less its ``age_s``.
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections import defaultdict
@@ -22,13 +23,14 @@ import numpy as np
 
 from csws.road.hmm import Fixes, SequenceMatcher
 from csws.road.matching import MatchSettings, Probes, lane_points
+from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps
 
 from .checks import QueryCheck
 from .decoding import DecodedPosition, DecodedQuery
 from .vehicles import LoadedVehicles
 
-__all__ = ["Placement", "Placer"]
+__all__ = ["Placement", "Placer", "LanePoints"]
 
 
 class Placement(NamedTuple):
@@ -49,6 +51,60 @@ class Placement(NamedTuple):
     lane_pos_m: float
     distance_m: float
     reason: str | None
+
+
+class LanePoints:
+    """The points of one network's lanes at lane positions, many in one interpolation: where answers were snapped.
+
+    The lanes' vertices are laid end to end on one arc-length axis (each lane after the one before it,
+    a metre apart), so that a lane position anywhere on the network is one ``searchsorted`` away from
+    its segment, whatever the number of lanes asked about.
+
+    Parameters
+    ----------
+    road_map
+        The network's map.
+    """
+
+    def __init__(self, road_map: RoadMap) -> None:
+        shapes = road_map.lane_shapes
+        self.road_map = road_map
+        self.xy = shapes.xy
+        self.vertex_start = shapes.vertex_start
+        self.position_factor = shapes.position_factor
+        lane_length_m = shapes.vertex_s[shapes.vertex_start[1:] - 1]
+        self.lane_start_m = np.concatenate(([0.0], np.cumsum(lane_length_m + 1.0)[:-1]))
+        self.lane_length_m = lane_length_m
+        lane_of_vertex = np.repeat(np.arange(shapes.lane_count), np.diff(shapes.vertex_start))
+        self.vertex_m = shapes.vertex_s + self.lane_start_m[lane_of_vertex]
+
+    def point(self, lane_id: str, lane_pos_m: float) -> tuple[float, float]:
+        """The point of a lane at a SUMO lane position (clamped to the lane), m: :meth:`points` for one, in
+        plain floats (a one-vehicle answer takes it in a few microseconds, where arrays take tens)."""
+        lane = self.road_map.lane_index(lane_id)
+        first, last = int(self.vertex_start[lane]), int(self.vertex_start[lane + 1]) - 1
+        shape_s = min(max(lane_pos_m / float(self.position_factor[lane]), 0.0), float(self.lane_length_m[lane]))
+        along_m = float(self.lane_start_m[lane]) + shape_s
+        start = min(max(bisect.bisect_right(self.vertex_m, along_m, first, last + 1) - 1, first), max(first, last - 1))
+        end = min(start + 1, last)
+        (x0, y0), (x1, y1) = self.xy[start].tolist(), self.xy[end].tolist()
+        span_m = float(self.vertex_m[end] - self.vertex_m[start])
+        fraction = (along_m - float(self.vertex_m[start])) / span_m if span_m > 0 else 0.0
+        return x0 + fraction * (x1 - x0), y0 + fraction * (y1 - y0)
+
+    def points(self, lane_ids: Sequence[str], lane_pos_m: Sequence[float]) -> np.ndarray:
+        """The points ``(k, 2)`` of lanes at SUMO lane positions (clamped to each lane), m."""
+        lane = np.fromiter((self.road_map.lane_index(lane_id) for lane_id in lane_ids), dtype=np.intp)
+        shape_s = np.clip(
+            np.asarray(lane_pos_m, dtype=float) / self.position_factor[lane], 0.0, self.lane_length_m[lane]
+        )
+        along_m = self.lane_start_m[lane] + shape_s
+        first, last = self.vertex_start[lane], self.vertex_start[lane + 1] - 1
+        start = np.clip(np.searchsorted(self.vertex_m, along_m, side="right") - 1, first, np.maximum(first, last - 1))
+        end = np.minimum(start + 1, last)
+        span_m = self.vertex_m[end] - self.vertex_m[start]
+        fraction = np.divide(along_m - self.vertex_m[start], span_m, out=np.zeros_like(span_m), where=span_m > 0)
+        return self.xy[start] + fraction[:, None] * (self.xy[end] - self.xy[start])
 
 
 class Placer:

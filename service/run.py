@@ -15,11 +15,12 @@ from .guard import connection_limits, serve
 from .settings import ServiceSettings
 from .workers import bound_socket, serve_forked, start_listening
 
-__all__ = ["settings_from_args", "served_url", "configure_logging", "main", "add_key_command"]
+__all__ = ["settings_from_args", "served_url", "configure_logging", "main"]
 
 #: Command-line options and the settings they override.
 _OPTIONS = {
     "net": "nets",
+    "test_tracks": "test_tracks",
     "host": "host",
     "port": "port",
     "workers": "workers",
@@ -115,30 +116,14 @@ def main(args: argparse.Namespace) -> int:
     except BaseException:
         bound.close()
         raise
-    networks = len(app.state.service.networks)
+    names = [network.name for network in app.state.service.networks]
+    networks = ", ".join(names) if len(names) <= 3 else f"{len(names)} networks"
     limits = connection_limits(settings.head_timeout_s)
     url = served_url(settings.host, bound.getsockname()[1])
     with_workers = f" with {settings.workers} workers" if settings.workers > 1 else ""
-    print(f"csws: serving {networks} network(s){with_workers} on {url} (OpenAPI docs at /docs)", flush=True)
+    print(f"csws: serving {networks}{with_workers} on {url} (OpenAPI docs at /docs)", flush=True)
     if settings.workers == 1:
         serve(app, start_listening(bound), limits, log_level)
     else:
         serve_forked(app, bound, settings.workers, limits, log_level)
-    return 0
-
-
-def add_key_command(args: argparse.Namespace) -> int:
-    """``csws keys add``: a new key for a fleet, printed once; its hash goes into the key file."""
-    from .keys import KeyRing, add_key
-
-    path = args.file or os.environ.get("CSWS_API_KEYS_FILE")
-    if not path:
-        raise ValueError("give the key file: --file FILE, or set CSWS_API_KEYS_FILE")
-    key = add_key(path, args.fleet, args.role)
-    print(key)
-    print(
-        f"csws: added a key of fleet {args.fleet!r} with role {args.role} to {path} ({len(KeyRing(path))} keys "
-        "in all); the key is shown only this once",
-        file=sys.stderr,
-    )
     return 0

@@ -356,6 +356,14 @@ class Matched(BaseModel):
     lane_id: str = Field(description="SUMO lane id")
     lane_pos_m: float = Field(description="position along the lane, m")
     distance_m: float = Field(description="distance from the position to the lane, m (0 without a position)")
+    network: str = Field(description="the served network of the lane (its file name without .net.xml)")
+    street_name: str | None = Field(
+        description="the street's name (the SUMO edge's name, from OpenStreetMap); null where the network has none"
+    )
+    road_type: str | None = Field(
+        description="the road type (the SUMO edge's type, e.g. highway.primary); null where the network has none"
+    )
+    position: XY = Field(description="the point of the lane at lane_pos_m, where the fix was placed")
 
 
 class Hmi(BaseModel):
@@ -426,7 +434,15 @@ class WarningAnswer(BaseModel):
                         "position": {"x": 1000.0, "y": 0.0},
                     },
                     "triggers": [],
-                    "matched": {"lane_id": "curve_0", "lane_pos_m": 5.0, "distance_m": 0.3},
+                    "matched": {
+                        "lane_id": "curve_0",
+                        "lane_pos_m": 5.0,
+                        "distance_m": 0.3,
+                        "network": "t7_left",
+                        "street_name": None,
+                        "road_type": None,
+                        "position": {"x": 1005.0, "y": 0.1},
+                    },
                     "path_kind": "predicted",
                     "hmi": {"visual": "curve-warning-red-flashing", "audible": "warning-tone"},
                 }

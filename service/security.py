@@ -2,7 +2,8 @@
 
 Keys travel as ``Authorization: Bearer KEY`` (:mod:`service.keys`). On a service with an API key
 file every data route depends on :data:`caller`: a missing or unknown key is a 401 with
-``WWW-Authenticate``, and the key's :class:`~service.keys.Principal` (its fleet and role) goes to the
+``WWW-Authenticate``, each with its own message (:data:`MISSING_KEY`, :data:`UNKNOWN_KEY`; neither
+names a fleet), and the key's :class:`~service.keys.Principal` (its fleet and role) goes to the
 route; switching vehicles needs the admin role (:func:`admin`, else a 403). The docs and the
 metrics depend on :data:`doc_reader`: a key as well, unless the service was started with
 ``public_docs``. ``/healthz``, ``/readyz``, the map's page and the packaged files need none.
@@ -24,9 +25,15 @@ from fastapi.security.base import SecurityBase
 from .access_log import FLEET_SCOPE_KEY
 from .keys import OPEN, KeyRing, Principal
 
-__all__ = ["FleetKey", "caller", "doc_reader", "admin", "CallerDep", "AdminDep"]
+__all__ = ["MISSING_KEY", "UNKNOWN_KEY", "FleetKey", "caller", "doc_reader", "admin", "CallerDep", "AdminDep"]
 
+#: The 401 of a request without a bearer key.
+MISSING_KEY = "missing API key: send Authorization: Bearer KEY"
+#: The 401 of a request whose bearer key is in no fleet's key file (never made, or revoked).
+UNKNOWN_KEY = "unknown or revoked API key"
 _CHALLENGE = {"WWW-Authenticate": 'Bearer realm="csws"'}
+#: RFC 6750, 3.1: a key that was sent but does not count is an ``invalid_token``.
+_INVALID = {"WWW-Authenticate": 'Bearer realm="csws", error="invalid_token"'}
 
 
 class FleetKey(SecurityBase):
@@ -48,15 +55,18 @@ class FleetKey(SecurityBase):
 
     async def __call__(self, request: Request) -> Principal:
         """The fleet and role of the request's key; :data:`~service.keys.OPEN` on a service without keys
-        (and, for the docs, with public docs); a 401 with a challenge for a missing or unknown key."""
+        (and, for the docs, with public docs); a 401 with a challenge for a missing key, another for an unknown
+        one."""
         keyring: KeyRing | None = request.app.state.keyring
         if keyring is None or (self.docs and request.app.state.settings.public_docs):
             return OPEN
         scheme, _, token = (request.headers.get("authorization") or "").partition(" ")
         token = token.strip()
-        found = keyring.principal(token) if scheme.lower() == "bearer" and token else None
+        if scheme.lower() != "bearer" or not token:
+            raise HTTPException(401, MISSING_KEY, headers=_CHALLENGE)
+        found = keyring.principal(token)
         if found is None:
-            raise HTTPException(401, "an API key is needed: Authorization: Bearer KEY", headers=_CHALLENGE)
+            raise HTTPException(401, UNKNOWN_KEY, headers=_INVALID)
         request.scope[FLEET_SCOPE_KEY] = found.fleet  # for the access log: the fleet, never the key
         return found
 

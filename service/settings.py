@@ -3,9 +3,9 @@
 Every setting can come from the environment, so that ``uvicorn service.app:app`` is configured
 the same way as ``csws serve``:
 
-``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
-``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
-``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
+``CSWS_NETS`` (network files separated by ``os.pathsep``; default the bundled city), ``CSWS_TEST_TRACKS``,
+``CSWS_HOST``, ``CSWS_PORT``, ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``,
+``CSWS_MATCH_TOLERANCE_M``, ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
 ``CSWS_MATCH_HEADING_SIGMA_DEG``, ``CSWS_MATCH_LANE_CHANGE_LOG_P``, ``CSWS_MATCH_DEAD_RECKONING_S``,
 ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``,
 ``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
@@ -32,7 +32,7 @@ from csws.engine import EngineSettings
 from csws.road.matching import MatchSettings
 from csws.warning.rules import WarningSettings
 
-from .networks import bundled_network_paths
+from .networks import city_network_paths, track_network_paths
 
 __all__ = ["ServiceSettings", "default_state_db"]
 
@@ -58,7 +58,13 @@ class ServiceSettings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="CSWS_", allow_inf_nan=False)
 
     nets: Annotated[list[Path], NoDecode] = Field(
-        default_factory=bundled_network_paths, description="SUMO networks to serve (default: the bundled ones)"
+        default_factory=list,
+        description="SUMO networks to serve (default: the bundled city, Bad Hersfeld; with test_tracks, none)",
+    )
+    test_tracks: bool = Field(
+        default=False,
+        description="also serve the bundled test tracks of T/ITS 0091-2018 (instead of the city when no nets are "
+        "given); they share their coordinates, so a fix should name its network",
     )
     host: str = Field(default="127.0.0.1", description="address to listen on")
     port: int = Field(default=8000, ge=0, le=65535, description="TCP port")
@@ -177,6 +183,17 @@ class ServiceSettings(BaseSettings):
         if isinstance(value, str):
             return [part for part in value.split(os.pathsep) if part]
         return value
+
+    @model_validator(mode="after")
+    def _networks_to_serve(self) -> ServiceSettings:
+        """The networks given, else the bundled city; with ``test_tracks``, the bundled test tracks as well
+        (alone when none are given)."""
+        if self.test_tracks:
+            given = {path.name for path in self.nets}
+            self.nets = [*self.nets, *(path for path in track_network_paths() if path.name not in given)]
+        elif not self.nets:
+            self.nets = city_network_paths()
+        return self
 
     def engine_settings(self) -> EngineSettings:
         """The library's engine settings with this service's latency of the updates and of the system."""

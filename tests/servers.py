@@ -100,9 +100,13 @@ class Workers:
         Where the state is kept: ``--state-db FILE`` or ``--state URL``.
     workers
         How many workers.
+    startup_timeout_s
+        How long it may take to be ready, s (a large network takes longer).
     """
 
-    def __init__(self, nets: list[Path], *state_options: str, workers: int = 2) -> None:
+    def __init__(
+        self, nets: list[Path], *state_options: str, workers: int = 2, startup_timeout_s: float = STARTUP_TIMEOUT_S
+    ) -> None:
         self.url = f"http://127.0.0.1:{free_port()}"
         self.process = subprocess.Popen(
             [
@@ -121,7 +125,7 @@ class Workers:
             stderr=subprocess.DEVNULL,
             start_new_session=True,
         )
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        deadline = time.monotonic() + startup_timeout_s
         while time.monotonic() < deadline:
             try:
                 if httpx.get(f"{self.url}/readyz", timeout=2.0).status_code == 200:
@@ -129,7 +133,7 @@ class Workers:
             except httpx.TransportError:
                 time.sleep(0.2)
         self.crash()
-        raise RuntimeError(f"csws serve --workers {workers} was not ready within {STARTUP_TIMEOUT_S} s")
+        raise RuntimeError(f"csws serve --workers {workers} was not ready within {startup_timeout_s} s")
 
     def clients(self) -> tuple[httpx.Client, httpx.Client]:
         """Two keep-alive connections served by different workers (``/metrics`` names the worker that answers)."""

@@ -131,7 +131,8 @@ def test_the_target_lies_where_the_truth_puts_the_curve(client, track_map) -> No
     assert (position["x"], position["y"]) == pytest.approx(tuple(curve_1["start_xy"]), abs=0.5)
     assert (position["lon"], position["lat"]) == pytest.approx(track_map.xy_to_lonlat(position["x"], position["y"]))
     lane_id, lane_pos_m = _route_lane(route_s)
-    assert answer["matched"] == {"lane_id": lane_id, "lane_pos_m": lane_pos_m, "distance_m": 0.0}
+    matched = answer["matched"]
+    assert (matched["lane_id"], matched["lane_pos_m"], matched["distance_m"]) == (lane_id, lane_pos_m, 0.0)
 
 
 def test_a_batch_is_answered_in_order_as_the_library_answers(client, track_map) -> None:

@@ -18,7 +18,7 @@ from fastapi.testclient import TestClient
 from csws.networks import networks_dir
 from service.app import create_app
 from service.keys import KEYS_FORMAT, KeyRing, Principal, Role, add_key
-from service.security import caller
+from service.security import MISSING_KEY, UNKNOWN_KEY, caller
 from service.settings import ServiceSettings
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
@@ -59,6 +59,10 @@ def test_no_key_or_a_wrong_key_gets_401_with_a_challenge(keys) -> None:
         for headers in ({}, _auth("csws_not-a-key"), {"Authorization": f"Basic {keys['acme_admin']}"}):
             answer = client.post("/v1/warning", json=_query("truck"), headers=headers)
             assert answer.status_code == 401 and answer.headers["www-authenticate"].startswith("Bearer")
+            wrong = headers.get("Authorization", "").startswith("Bearer")
+            assert answer.json()["detail"] == (UNKNOWN_KEY if wrong else MISSING_KEY)
+            assert ('error="invalid_token"' in answer.headers["www-authenticate"]) is wrong
+            assert "acme" not in answer.text and "other" not in answer.text
             assert client.get("/v1/vehicles/truck", headers=headers).status_code == 401
             assert client.get("/v1/curves", headers=headers).status_code == 401
         assert client.get("/healthz").status_code == 200 and client.get("/readyz").status_code == 200

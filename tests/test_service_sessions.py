@@ -132,10 +132,10 @@ def test_settings_come_from_the_environment(monkeypatch) -> None:
     assert (settings.session_idle_s, settings.port, settings.state_db) == (5.0, 9001, ":memory:")
 
 
-def test_by_default_the_bundled_networks_are_served(monkeypatch) -> None:
+def test_the_bundled_test_tracks_are_served_when_asked(monkeypatch) -> None:
     monkeypatch.delenv("CSWS_NETS", raising=False)
     index = json.loads((networks_dir() / "index.json").read_text())
-    served = {p.name for p in ServiceSettings(state_db=":memory:").nets}
+    served = {p.name for p in ServiceSettings(state_db=":memory:", test_tracks=True).nets}
     assert {n["net_file"] for n in index["networks"]} <= served
 
 

@@ -8,6 +8,8 @@ sumolib's ``convertXY2LonLat`` do.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import sumolib
 
@@ -32,8 +34,13 @@ class GeoReferenced:
     has_projection: bool
 
     def xy_to_lonlat(self, x: float, y: float) -> tuple[float, float]:
-        """Longitude and latitude (degrees, WGS84) of network coordinates (see :meth:`xy_to_lonlat_many`)."""
-        lon, lat = self.xy_to_lonlat_many(np.array([[x, y]], dtype=float))[0]
+        """Longitude and latitude (degrees, WGS84) of network coordinates (see :meth:`xy_to_lonlat_many`), projected
+        as plain floats: a tenth of the time of a one-row array."""
+        self._require_projection()
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError("network coordinates must be finite numbers")
+        offset_x, offset_y = self.geo.getLocationOffset()
+        lon, lat = self.geo.getGeoProj()(x - offset_x, y - offset_y, inverse=True)
         return float(lon), float(lat)
 
     def lonlat_to_xy(self, lon: float, lat: float) -> tuple[float, float]:
