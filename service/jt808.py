@@ -21,8 +21,10 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import signal
 import ssl
 import time
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -220,6 +222,7 @@ class Conversation:
             try:
                 frame = self.reassembler.add(decode_frame(escaped))
             except FrameError as error:
+                self.gateway.counts["dropped"] += 1
                 log.warning("jt808: frame dropped from %s: %s", self.phone, error)
                 continue
             if frame is not None and not await self.handle(frame):
@@ -321,6 +324,7 @@ def _queue(conversation: Conversation, terminal: Terminal, reports: list[Locatio
         conversation.pending.sort(key=lambda r: r.time_s)
         shed = len(conversation.pending) - MAX_PENDING_REPORTS
         del conversation.pending[:shed]
+        conversation.gateway.counts["shed"] += shed
         log.warning("jt808: the gateway falls behind; %d old report(s) of %s shed", shed, terminal.phone)
     if conversation.warning is None or conversation.warning.done():
         conversation.warning = asyncio.get_running_loop().create_task(_warn(conversation, terminal))
@@ -337,6 +341,7 @@ async def _warn(conversation: Conversation, terminal: Terminal) -> None:
         now_s = gateway.clock()
         queries = [report_query(terminal, report, now_s) for report in reports]
         answers = await asyncio.gather(*(gateway.batcher.answer(query, terminal.fleet) for query in queries))
+        gateway.counts["evaluated"] += len(queries)
         for report, answer in zip(reports, answers, strict=True):
             if answer is None:
                 continue
@@ -348,6 +353,7 @@ async def _warn(conversation: Conversation, terminal: Terminal) -> None:
                 text, urgent = told
                 body = encode_text_message(text, conversation.edition, emergency=urgent)
                 conversation.send(MessageId.TEXT_MESSAGE, body)
+                gateway.counts["told"] += 1
         await conversation.writer.drain()
 
 
@@ -388,10 +394,13 @@ class Gateway:
         self.terminals, self.settings, self.clock = terminals, settings, clock
         self.handlers = _HANDLERS
         self.connections = 0
+        #: What the gateway did so far: connections, reports evaluated and shed, texts told, frames dropped.
+        self.counts: Counter[str] = Counter()
 
     async def converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         """Serve one connection until the terminal leaves, deregisters or idles."""
         self.connections += 1
+        self.counts["connections"] += 1
         conversation: Conversation | None = None
         try:
             if self.connections > self.settings.max_connections:
@@ -416,7 +425,21 @@ class Gateway:
         server = await asyncio.start_server(
             self.converse, self.settings.host, self.settings.port, ssl=tls, limit=65536, backlog=4096
         )
+        serving = asyncio.current_task()
+        if serving is not None:  # SIGTERM stops it as Ctrl-C does, so that what it did is told
+            asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, serving.cancel)
         async with server:
             if ready is not None:
                 ready(server.sockets[0].getsockname()[1])
-            await server.serve_forever()
+            try:
+                await server.serve_forever()
+            except asyncio.CancelledError:
+                pass
+
+    def summary(self) -> str:
+        """One line of what the gateway did."""
+        counts = self.counts
+        return (
+            f"{counts['connections']} connection(s), {counts['evaluated']} report(s) evaluated, "
+            f"{counts['shed']} shed, {counts['told']} text(s) told, {counts['dropped']} frame(s) dropped"
+        )
