@@ -21,8 +21,10 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import signal
 import ssl
 import time
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,7 +47,7 @@ from csws.gateways.jt808.messages import (
 )
 from csws.gateways.jt808.reassembly import Reassembler
 from csws.gateways.jt808.terminals import Terminal, TerminalList
-from csws.gateways.jt808.texts import DriverTexts, Indication, indication, text_of
+from csws.gateways.jt808.texts import Announcer, DriverTexts
 
 from .answers import WarningService
 from .checks import QueryErrors
@@ -59,6 +61,9 @@ __all__ = ["GatewaySettings", "Gateway"]
 log = logging.getLogger("csws.jt808")
 log.addFilter(OncePerInterval())
 
+#: Reports of one connection waiting for their warnings beyond this many are shed, oldest first: a
+#: gateway that falls behind answers the newest position, not a queue of old ones.
+MAX_PENDING_REPORTS = 8
 #: A report older than this when it arrives is not given to the latency allowance (a terminal clock
 #: that is off would otherwise push every warning forward), s.
 MAX_REPORT_AGE_S = 30.0
@@ -181,7 +186,9 @@ class Conversation:
         self.splitter, self.reassembler = FrameSplitter(), Reassembler()
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
-        self.told: Indication | None = None
+        self.announcer: Announcer | None = None
+        self.pending: list[LocationReport] = []
+        self.warning: asyncio.Task[None] | None = None
         self.allowance, self.allowance_at = gateway.settings.frames_burst, time.monotonic()
 
     def send(self, message_id: int, body: bytes) -> None:
@@ -215,6 +222,7 @@ class Conversation:
             try:
                 frame = self.reassembler.add(decode_frame(escaped))
             except FrameError as error:
+                self.gateway.counts["dropped"] += 1
                 log.warning("jt808: frame dropped from %s: %s", self.phone, error)
                 continue
             if frame is not None and not await self.handle(frame):
@@ -302,25 +310,51 @@ async def _locations(conversation: Conversation, frame: Frame) -> bool:
         conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
         return True
     conversation.respond(frame, ResponseResult.SUCCESS)
-    await conversation.writer.drain()
-    for report in sorted((r for r in reports if r.positioned), key=lambda r: r.time_s):
-        await _warn(conversation, terminal, report)
+    positioned = [report for report in reports if report.positioned]
+    if positioned:
+        _queue(conversation, terminal, positioned)
     return True
 
 
-async def _warn(conversation: Conversation, terminal: Terminal, report: LocationReport) -> None:
-    """Answer ``report`` and tell the driver when the indication changes (``0x8300``)."""
+def _queue(conversation: Conversation, terminal: Terminal, reports: list[LocationReport]) -> None:
+    """Hand ``reports`` to the connection's warning task (started if idle), shedding the oldest beyond
+    :data:`MAX_PENDING_REPORTS`, so that reading and answering ``0x8001`` never wait for a warning."""
+    conversation.pending += reports
+    if len(conversation.pending) > MAX_PENDING_REPORTS:
+        conversation.pending.sort(key=lambda r: r.time_s)
+        shed = len(conversation.pending) - MAX_PENDING_REPORTS
+        del conversation.pending[:shed]
+        conversation.gateway.counts["shed"] += shed
+        log.warning("jt808: the gateway falls behind; %d old report(s) of %s shed", shed, terminal.phone)
+    if conversation.warning is None or conversation.warning.done():
+        conversation.warning = asyncio.get_running_loop().create_task(_warn(conversation, terminal))
+
+
+async def _warn(conversation: Conversation, terminal: Terminal) -> None:
+    """Answer the pending reports in time order and tell the driver when the indication changes (``0x8300``)."""
     gateway = conversation.gateway
-    answer = await gateway.batcher.answer(report_query(terminal, report, gateway.clock()), terminal.fleet)
-    if answer is None:
-        return
-    now = indication(answer["state"], answer["level"])
-    target = answer.get("target") or {}
-    text = text_of(gateway.settings.texts(terminal.fleet), conversation.told, now, target.get("warning_speed_kmh"))
-    conversation.told = now
-    if text is not None:
-        urgent = now.kind in ("level2", "fault")
-        conversation.send(MessageId.TEXT_MESSAGE, encode_text_message(text, conversation.edition, emergency=urgent))
+    if conversation.announcer is None:
+        conversation.announcer = Announcer(gateway.settings.texts(terminal.fleet))
+    while conversation.pending:
+        reports = sorted(conversation.pending, key=lambda r: r.time_s)
+        conversation.pending = []
+        now_s = gateway.clock()
+        queries = [report_query(terminal, report, now_s) for report in reports]
+        answers = await asyncio.gather(*(gateway.batcher.answer(query, terminal.fleet) for query in queries))
+        gateway.counts["evaluated"] += len(queries)
+        for report, answer in zip(reports, answers, strict=True):
+            if answer is None:
+                continue
+            target = answer.get("target") or {}
+            told = conversation.announcer.update(
+                answer["state"], answer["level"], target.get("warning_speed_kmh"), report.time_s
+            )
+            if told is not None:
+                text, urgent = told
+                body = encode_text_message(text, conversation.edition, emergency=urgent)
+                conversation.send(MessageId.TEXT_MESSAGE, body)
+                gateway.counts["told"] += 1
+        await conversation.writer.drain()
 
 
 _HANDLERS: dict[int, Callable[[Conversation, Frame], Any]] = {
@@ -360,10 +394,14 @@ class Gateway:
         self.terminals, self.settings, self.clock = terminals, settings, clock
         self.handlers = _HANDLERS
         self.connections = 0
+        #: What the gateway did so far: connections, reports evaluated and shed, texts told, frames dropped.
+        self.counts: Counter[str] = Counter()
 
     async def converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         """Serve one connection until the terminal leaves, deregisters or idles."""
         self.connections += 1
+        self.counts["connections"] += 1
+        conversation: Conversation | None = None
         try:
             if self.connections > self.settings.max_connections:
                 log.warning("jt808: more than %d connections; one refused", self.settings.max_connections)
@@ -378,6 +416,8 @@ class Gateway:
             pass  # idle, gone, or the gateway stops
         finally:
             self.connections -= 1
+            if conversation is not None and conversation.warning is not None:
+                conversation.warning.cancel()
             writer.close()
 
     async def serve(self, tls: ssl.SSLContext | None = None, ready: Callable[[int], None] | None = None) -> None:
@@ -385,7 +425,21 @@ class Gateway:
         server = await asyncio.start_server(
             self.converse, self.settings.host, self.settings.port, ssl=tls, limit=65536, backlog=4096
         )
+        serving = asyncio.current_task()
+        if serving is not None:  # SIGTERM stops it as Ctrl-C does, so that what it did is told
+            asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, serving.cancel)
         async with server:
             if ready is not None:
                 ready(server.sockets[0].getsockname()[1])
-            await server.serve_forever()
+            try:
+                await server.serve_forever()
+            except asyncio.CancelledError:
+                pass
+
+    def summary(self) -> str:
+        """One line of what the gateway did."""
+        counts = self.counts
+        return (
+            f"{counts['connections']} connection(s), {counts['evaluated']} report(s) evaluated, "
+            f"{counts['shed']} shed, {counts['told']} text(s) told, {counts['dropped']} frame(s) dropped"
+        )

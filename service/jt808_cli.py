@@ -146,6 +146,7 @@ def main(args: argparse.Namespace) -> int:
     finally:
         state.work.close()
         state.store.close()
+        print(f"csws: JT/T 808 gateway stopped: {gateway.summary()}", flush=True)
     return 0
 
 

@@ -81,3 +81,22 @@ def test_fleet_texts_are_read_and_bad_files_named(tmp_path: Path):
             assert str(bad) in str(error)
         else:
             raise AssertionError(f"{content} was accepted")
+
+
+def test_a_fault_is_told_only_once_it_lasts():
+    """5.5.3 asks for a clear fault indication; one report that matches no road is not one to speak of."""
+    from csws.gateways.jt808.texts import FAULT_CONFIRM_S, Announcer
+
+    texts = DriverTexts()
+    announcer = Announcer(texts)
+    assert announcer.update("active", 1, 75.8, 0.0) == (texts.level1.replace("{speed_kmh}", "75"), False)
+    assert announcer.update("fault", 0, None, 1.0) is None  # a second of fault: nothing said
+    assert announcer.update("active", 1, 75.8, 2.0) is None  # level 1 again: already told
+    assert announcer.update("fault", 0, None, 3.0) is None
+    assert announcer.update("fault", 0, None, 3.0 + FAULT_CONFIRM_S) == (texts.fault, True)
+    assert announcer.update("fault", 0, None, 4.0 + FAULT_CONFIRM_S) is None
+    assert announcer.update("active", 0, None, 5.0 + FAULT_CONFIRM_S) == (texts.restored, False)
+    assert announcer.update("active", 2, 87.3, 6.0 + FAULT_CONFIRM_S) == (
+        texts.level2.replace("{speed_kmh}", "87"),
+        True,
+    )

@@ -17,7 +17,21 @@ from pathlib import Path
 
 from csws.errors import CswsError
 
-__all__ = ["DriverTexts", "Indication", "TextsError", "indication", "load_fleet_texts", "text_of"]
+__all__ = [
+    "FAULT_CONFIRM_S",
+    "Announcer",
+    "DriverTexts",
+    "Indication",
+    "TextsError",
+    "indication",
+    "load_fleet_texts",
+    "text_of",
+]
+
+
+#: A fault is told once it has lasted this long, s (5.5.3): a report that matches no road, or one that
+#: came too late, is not a fault of the system the driver must hear about; one that lasts is.
+FAULT_CONFIRM_S = 10.0
 
 
 class TextsError(CswsError, ValueError):
@@ -86,6 +100,37 @@ def _fits(text: object) -> bool:
         return isinstance(text, str) and len(text.encode("gbk")) <= 1000
     except UnicodeEncodeError:
         return False
+
+
+class Announcer:
+    """What one driver has been told, and what to tell next (:func:`text_of`), a fault only once confirmed.
+
+    Parameters
+    ----------
+    texts
+        The driver's fleet's texts.
+    """
+
+    def __init__(self, texts: DriverTexts) -> None:
+        self.texts = texts
+        self.told: Indication | None = None
+        self.fault_since_s: float | None = None
+
+    def update(self, state: str, level: int, warning_speed_kmh: float | None, time_s: float) -> tuple[str, bool] | None:
+        """The text to tell (and whether it is urgent: level 2 or a fault) for an answer at ``time_s``; None for none.
+
+        A fault shorter than :data:`FAULT_CONFIRM_S` leaves the driver's indication as it was.
+        """
+        now = indication(state, level)
+        if now.kind == "fault":
+            self.fault_since_s = time_s if self.fault_since_s is None else self.fault_since_s
+            if time_s - self.fault_since_s < FAULT_CONFIRM_S:
+                return None
+        else:
+            self.fault_since_s = None
+        text = text_of(self.texts, self.told, now, warning_speed_kmh)
+        self.told = now
+        return None if text is None else (text, now.kind in ("level2", "fault"))
 
 
 def load_fleet_texts(path: str | Path) -> dict[str, DriverTexts]:
