@@ -209,8 +209,10 @@ def test_a_lead_braking_hard_at_a_short_gap_gets_the_collision_warning_in_time(
     assert warned_s is not None and warned_s <= latest_useful_s, (warned_s, latest_useful_s)
 
 
-def _vehicles(road: list[int], lane_index: list[int], front_y_m: list[float], speed_mps: list[float]) -> SumoVehicles:
-    """Vehicles heading north (+y) on the x = 0 line, 4.5 m long, 1.8 m wide."""
+def _vehicles(
+    road: list[int], lane_index: list[int], front_y_m: list[float], speed_mps: list[float], lane_position_m: list[float]
+) -> SumoVehicles:
+    """Vehicles heading north (+y) on the x = 0 line, 4.5 m long, 1.8 m wide, at the given lane positions."""
     n = len(road)
     return SumoVehicles(
         [f"v{i}" for i in range(n)],
@@ -225,6 +227,7 @@ def _vehicles(road: list[int], lane_index: list[int], front_y_m: list[float], sp
         np.asarray(road, dtype=np.int64),
         np.asarray(lane_index, dtype=np.int64),
         np.zeros(n, dtype=np.int64),
+        np.asarray(lane_position_m, dtype=float),
     )
 
 
@@ -249,23 +252,38 @@ def test_a_leader_turning_off_across_a_junction_is_not_the_target():
     road 1 (index 0) then road 2. Its leader, stopped 20 m ahead straight in front of it (TTC 1.3 s, a_req
     far above the collision threshold), is on road 3, the junction's right-turn lane the path does not
     take: off the path (3.7: the target is on the subject's path), no warning. The same vehicle on the
-    path's via lane is the target and warned."""
+    path's via lane is the target and warned. (Road 0's lane runs from 50 m behind the subject's front
+    to 10 m ahead, the via lanes 15 m on from there.)"""
     subject_front_m, leader_rear_m = 0.0, 20.0
-    path = MapLanes(np.zeros(3, np.int64), np.array([0, 1, 2]), np.array([1, 0, 1]), np.array([250.0]))
+    path = MapLanes(
+        np.zeros(3, np.int64),
+        np.array([0, 1, 2]),
+        np.array([1, 0, 1]),
+        np.array([250.0]),
+        np.array([-50.0, 10.0, 25.0]),
+        np.array([10.0, 25.0, 250.0]),
+        np.ones(3),
+    )
+    fronts, on_lane = [subject_front_m, leader_rear_m + 4.5], [50.0, leader_rear_m + 4.5 - 10.0]
     for road, lane, expected_lane, warned in ((3, 0, OFF_PATH_LANE, 0), (1, 0, 0, 2)):
-        vehicles = _vehicles([0, road], [1, lane], [subject_front_m, leader_rear_m + 4.5], [15.0, 0.0])
+        vehicles = _vehicles([0, road], [1, lane], fronts, [15.0, 0.0], on_lane)
         level, lanes = _level(vehicles, path)
         assert lanes.tolist() == [expected_lane]
         assert level == warned
     # Without the map path the leader straight ahead is in the predicted path, and warned.
-    level, lanes = _level(_vehicles([0, 3], [1, 0], [subject_front_m, leader_rear_m + 4.5], [15.0, 0.0]), None)
+    level, lanes = _level(_vehicles([0, 3], [1, 0], fronts, [15.0, 0.0], on_lane), None)
     assert level == 2
 
 
 def _path_ahead(lane_ids: list[str], lengths_m: list[float], vehicle_s: float) -> SimpleNamespace:
     """A path ahead as the look-ahead gives it (``horizon.path`` with its lanes, ``vehicle_s``)."""
     starts = np.concatenate(([0.0], np.cumsum(lengths_m)[:-1]))
-    path = SimpleNamespace(lane_ids=tuple(lane_ids), lane_start_s=starts, lane_shape_length_m=np.array(lengths_m))
+    path = SimpleNamespace(
+        lane_ids=tuple(lane_ids),
+        lane_start_s=starts,
+        lane_shape_length_m=np.array(lengths_m),
+        lane_position_factor=np.ones(len(lengths_m)),
+    )
     return SimpleNamespace(horizon=SimpleNamespace(path=path), vehicle_s=vehicle_s)
 
 
@@ -288,3 +306,6 @@ def test_map_lanes_are_the_path_lanes_within_the_range_of_each_subject():
     # subject 3 at 5 m on the same horizon: [5, 205] reaches a, :j_3 and b only.
     assert by_subject[3] == [(code("a"), 1), (code(":j_3"), 0), (code("b"), 0)]
     assert lanes.reach_m.tolist() == [585.0 - 100.0, 0.0, 450.0 - 10.0, 585.0 - 5.0]
+    # Each lane's stretch of the path from the subject's front: subject 0 is 100 m into a (0-120).
+    stretches = [(s, a, b) for s, a, b in zip(lanes.subject, lanes.start_m, lanes.end_m, strict=True) if s == 0]
+    assert [(a, b) for _, a, b in stretches] == [(-100.0, 20.0), (20.0, 35.0), (35.0, 185.0), (185.0, 485.0)]
