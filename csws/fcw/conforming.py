@@ -23,7 +23,7 @@ from csws.fcw.physics import (
     required_deceleration_mps2,
 )
 
-__all__ = ["STANDARD_A_REQ_MPS2", "SUPPRESS_ABOVE_TTC_S", "Lead", "standard_requires_warning"]
+__all__ = ["STANDARD_A_REQ_MPS2", "SUPPRESS_ABOVE_TTC_S", "Lead", "warning_due", "standard_requires_warning"]
 
 #: 4.5.3, formula (5): the highest collision threshold a conforming system may have (0.68 g), m/s^2.
 STANDARD_A_REQ_MPS2 = FORMULA_5_A_REQ_MPS2
@@ -66,21 +66,25 @@ class Lead:
         return max(self.clearance_m, 0.0) / closing_mps
 
 
-def standard_requires_warning(lead: Lead, silent_while_braking: bool = False) -> bool:
-    """4.5.3-4.5.5: whether the least-demanding conforming system must give the collision warning now.
+def warning_due(
+    lead: Lead,
+    reaction_time_s: float = MIN_REACTION_TIME_S,
+    threshold_mps2: float = STANDARD_A_REQ_MPS2,
+    min_speed_mps: float = HIGHEST_MIN_SPEED_MPS,
+    silent_while_braking: bool = False,
+) -> bool:
+    """4.5.3-4.5.5: whether a warning on a_req alone, at ``threshold_mps2`` after ``reaction_time_s``, is due now.
 
-    a_req (3.22, :func:`csws.fcw.physics.required_deceleration_mps2`) with the standard's least figures,
-    T_resp 0.8 s (4.5.4; 0 while the driver brakes) and the threshold 0.68 g of formula (5), holding only a
-    deceleration of the subject through the reaction (an acceleration is not held: the least-demanding
-    reading of x_r), at or above the threshold; for a steady subject and lead that is x_c at or below
-    formula (5)'s distance. Not required where 4.5.5 lets a system be silent: below V_min 11.2 m/s or
-    above V_max 27.8 m/s (4.3.3 allows no higher V_min nor lower V_max; 4.5.5 g), TTC above 4 s
-    (4.5.5 e), the subject decelerating at the threshold (4.5.5 a), and with ``silent_while_braking``
-    while the driver brakes (4.5.5 d).
+    a_req (3.22, :func:`csws.fcw.physics.required_deceleration_mps2`) after the reaction (0 while the driver
+    brakes, 4.5.4), holding only a deceleration of the subject through it (an acceleration is not held: the
+    least-demanding reading of x_r), at or above the threshold; for a steady subject and lead at the standard's
+    least figures that is x_c at or below formula (5)'s distance. Not due where 4.5.5 lets a system be silent:
+    below ``min_speed_mps`` or above V_max 27.8 m/s (4.3.3, 4.5.5 g), TTC above 4 s (4.5.5 e), the subject
+    decelerating at the threshold (4.5.5 a), and with ``silent_while_braking`` while the driver brakes (4.5.5 d).
     """
-    if lead.leader_id is None or not HIGHEST_MIN_SPEED_MPS <= lead.subject_mps <= LOWEST_MAX_SPEED_MPS:
+    if lead.leader_id is None or not min_speed_mps <= lead.subject_mps <= LOWEST_MAX_SPEED_MPS:
         return False
-    if lead.ttc_s > SUPPRESS_ABOVE_TTC_S or -lead.subject_accel_mps2 >= STANDARD_A_REQ_MPS2:
+    if lead.ttc_s > SUPPRESS_ABOVE_TTC_S or -lead.subject_accel_mps2 >= threshold_mps2:
         return False
     if silent_while_braking and lead.braking:
         return False
@@ -88,8 +92,16 @@ def standard_requires_warning(lead: Lead, silent_while_braking: bool = False) ->
         max(lead.clearance_m, 0.0),
         lead.lead_mps - lead.subject_mps,
         lead.lead_accel_mps2,
-        0.0 if lead.braking else MIN_REACTION_TIME_S,
+        0.0 if lead.braking else reaction_time_s,
         min(lead.subject_accel_mps2, 0.0),
         lead.subject_mps,
     )
-    return bool(a_req_mps2 >= STANDARD_A_REQ_MPS2)
+    return bool(a_req_mps2 >= threshold_mps2)
+
+
+def standard_requires_warning(lead: Lead, silent_while_braking: bool = False) -> bool:
+    """4.5.3-4.5.6: whether the least-demanding conforming system must give the collision warning now:
+    :func:`warning_due` with the standard's least figures, T_resp 0.8 s (4.5.4), the threshold 0.68 g of
+    formula (5) (4.5.3) and V_min 11.2 m/s, the highest 4.3.3 allows (with ``silent_while_braking``, also
+    silent while the driver brakes, 4.5.5 d)."""
+    return warning_due(lead, silent_while_braking=silent_while_braking)
