@@ -59,7 +59,7 @@ from csws.cosim.categories import category_of
 from csws.cosim.config import _config_scenario
 from csws.cosim.fcw import BRAKE_LIGHT, FleetFcw
 from csws.fcw.conforming import STANDARD_A_REQ_MPS2, Lead, standard_requires_warning, warning_due
-from csws.fcw.physics import HIGHEST_MIN_SPEED_MPS, MIN_REACTION_TIME_S, FcwSettings
+from csws.fcw.physics import HIGHEST_MIN_SPEED_MPS, MIN_REACTION_TIME_S, STANDARD_GRAVITY_MPS2, FcwSettings
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home
@@ -91,7 +91,7 @@ REQUIRED_WITHIN_S = STEP_S
 #: reaction time (s), at a threshold (m/s^2), from a least speed (m/s), silent or not while the driver brakes.
 #: The first two are the least-demanding conforming warning (the floor); the others say which of the
 #: design's choices its false warnings come from (its collision warning, its preliminary one, and that
-#: preliminary one with shorter reaction times).
+#: preliminary one with shorter reaction times or higher thresholds).
 REFERENCES: dict[str, tuple[float, float, float, bool]] = {
     "standard's latest warning (0.8 s, 0.68 g)": (
         MIN_REACTION_TIME_S,
@@ -124,6 +124,15 @@ REFERENCES: dict[str, tuple[float, float, float, bool]] = {
         DESIGN.min_speed_mps,
         False,
     ),
+    **{
+        f"preliminary warning at 1.2 s, {g:g} g": (
+            DESIGN.reaction_time_s,
+            g * STANDARD_GRAVITY_MPS2,
+            DESIGN.min_speed_mps,
+            False,
+        )
+        for g in (0.35, 0.4, 0.45)
+    },
 }
 
 
