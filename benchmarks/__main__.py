@@ -189,6 +189,15 @@ def fcw_traffic_rows(figures: dict) -> list[Row]:
             fcw_traffic.TARGET_MISSED,
         ),
         context("FCW in traffic: where the false warnings came (most frequent)", situations),
+        context(
+            "FCW in traffic: false warnings per vehicle-hour the standard requires (its least-demanding "
+            "warning on the same run: the floor of any conforming system)",
+            round(figures["references_false_per_vehicle_hour"][next(iter(fcw_traffic.REFERENCES))], 3),
+        ),
+        context(
+            "FCW in traffic: false warnings per vehicle-hour by design choice (T_resp 1.2 s, preliminary warning)",
+            round(figures["false_by_design_per_vehicle_hour"], 3),
+        ),
     ]
 
 

@@ -25,9 +25,18 @@ from hypothesis import strategies as st
 from markers import marks_its_tests
 
 from csws.cosim.driver import DriverSettings
-from csws.cosim.fcw import FCW_EVENT_COLUMNS, ONCOMING_MPS, SensorPairs, SumoVehicles, read_vehicles, sensor_view
+from csws.cosim.fcw import (
+    FCW_EVENT_COLUMNS,
+    ONCOMING_MPS,
+    MapLanes,
+    SensorPairs,
+    SumoVehicles,
+    read_vehicles,
+    sensor_view,
+)
 from csws.cosim.records import EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.path import offset_from_circle_m
 from csws.fcw.physics import FcwSettings
 from csws.networks import networks_dir
@@ -257,6 +266,7 @@ def _vehicles(front_xy: np.ndarray, heading_rad: np.ndarray, speed_mps: np.ndarr
         np.zeros(n, dtype=np.int64),
         np.zeros(n, dtype=np.int64),
         np.zeros(n, dtype=np.int64),
+        np.zeros(n),
     )
 
 
@@ -382,3 +392,131 @@ def test_on_the_r125_curve_the_lead_in_the_lane_lies_on_the_lane_and_the_outer_l
         offset_m = offset_from_circle_m(pairs.x_m[at] + 2.25, pairs.y_m[at], 1.0 / radius_m)
         assert offset_m == pytest.approx(expected_m, abs=0.3)
     assert pairs.lane[np.flatnonzero(pairs.seen == seen.vehicle_id.index("tv"))[0]] == 0
+
+
+def _on_roads(
+    fronts: list[tuple[float, float]],
+    headings_rad: list[float],
+    speeds_mps: list[float],
+    roads: list[int],
+    lane_positions_m: list[float],
+    accels_mps2: list[float],
+) -> SumoVehicles:
+    """Vehicles 4.5 m long and 1.8 m wide on the given roads (lane 0 each) at the given lane positions."""
+    n = len(fronts)
+    front = np.asarray(fronts, dtype=float)
+    return SumoVehicles(
+        [f"v{i}" for i in range(n)],
+        np.arange(n, dtype=np.int64),
+        front[:, 0],
+        front[:, 1],
+        np.asarray(headings_rad, dtype=float),
+        np.asarray(speeds_mps, dtype=float),
+        np.asarray(accels_mps2, dtype=float),
+        np.full(n, 4.5),
+        np.full(n, 1.8),
+        np.asarray(roads, dtype=np.int64),
+        np.zeros(n, dtype=np.int64),
+        np.zeros(n, dtype=np.int64),
+        np.asarray(lane_positions_m, dtype=float),
+    )
+
+
+def _one_path(lengths_m: list[float], subject_on_first_m: float) -> MapLanes:
+    """The map path of subject 0: roads 0, 1, 2 (lane 0 each) of these lengths, its front this far into road 0."""
+    ends = np.cumsum(lengths_m) - subject_on_first_m
+    return MapLanes(
+        np.zeros(3, np.int64),
+        np.arange(3, dtype=np.int64),
+        np.zeros(3, np.int64),
+        np.array([ends[-1]]),
+        ends - np.asarray(lengths_m),
+        ends,
+        np.ones(3),
+    )
+
+
+def _warning_level(vehicles: SumoVehicles, lanes: MapLanes) -> int:
+    """The subject's (vehicle 0's) level after two frames 0.1 s apart of the object FCW on this view."""
+    settings_ = FcwSettings()
+    memory, level = FleetMemory.new(1), 0
+    for t in (0.0, 0.1):
+        pairs = sensor_view(vehicles, np.array([0]), settings_.range_m, None, lanes)
+        objects = FleetObjects.of(
+            pairs.subject, pairs.seen, pairs.x_m, pairs.y_m, pairs.relative_speed_mps, pairs.accel_mps2, lane=pairs.lane
+        )
+        frame, memory = update_fleet(settings_, memory, t, FleetEgo.of(vehicles.speed_mps[:1]), objects)
+        level = int(frame.level[0])
+    return level
+
+
+def _closed_form_level(clearance_m: float, closing_mps: float, settings_: FcwSettings) -> int:
+    """The level a steady subject closing at a constant speed on a steady target needs: a_req after the reaction
+    T_resp, v^2 / (2 (x - v T)), against the thresholds, the preliminary one only at a TTC of at most 4 s."""
+    left_m = clearance_m - closing_mps * settings_.reaction_time_s
+    a_req = closing_mps * closing_mps / (2.0 * left_m) if left_m > 0.0 else math.inf
+    if a_req >= settings_.collision_a_req_mps2:
+        return 2
+    return int(a_req >= settings_.preliminary_a_req_mps2 and clearance_m / closing_mps <= settings_.max_ttc_s)
+
+
+def test_a_leader_round_a_hairpin_is_as_far_as_the_road_between_them():
+    """The subject drives north at 15 m/s on road 0 (its front 40 m into it, 60 m before the bend); road 1 is a
+    right hairpin of R 10 m (a half circle, 10 pi m), road 2 runs back south 20 m east of road 0. A stopped car
+    on road 2, its front 60 m along it, is 20.5 m from the subject's front in the line of sight (its rear
+    4.5 m ahead) but 60 + 10 pi + 60 - 4.5 = 146.9 m along the road: the clearance is the road's, the closing
+    speed the subject's own, and the level what that clearance and speed need (none: TTC 9.8 s)."""
+    radius_m, speed_mps = 10.0, 15.0
+    lanes = _one_path([100.0, math.pi * radius_m, 200.0], 40.0)
+    vehicles = _on_roads(
+        [(0.0, 0.0), (2.0 * radius_m, 0.0)], [0.0, math.pi], [speed_mps, 0.0], [0, 2], [40.0, 60.0], [0.0, 0.0]
+    )
+    along_m = 60.0 + math.pi * radius_m + 60.0 - 4.5
+    pairs = sensor_view(vehicles, np.array([0]), 200.0, None, lanes)
+    assert pairs.seen.tolist() == [1] and pairs.lane.tolist() == [0]
+    assert pairs.x_m[0] == pytest.approx(along_m, abs=1e-9)
+    assert pairs.relative_speed_mps[0] == pytest.approx(-speed_mps, abs=1e-12)
+    # The line of sight alone (no map path) puts the car 4.5 m ahead.
+    assert sensor_view(vehicles, np.array([0]), 200.0).x_m[0] == pytest.approx(4.5, abs=1e-9)
+    expected = _closed_form_level(along_m, speed_mps, FcwSettings())
+    assert expected == 0 and _warning_level(vehicles, lanes) == expected
+    # Round the bend beyond the range along the road (its front 150 m along road 2): not seen.
+    far = _on_roads(
+        [(0.0, 0.0), (2.0 * radius_m, -90.0)], [0.0, math.pi], [speed_mps, 0.0], [0, 2], [40.0, 150.0], [0.0, 0.0]
+    )
+    assert 60.0 + math.pi * radius_m + 150.0 - 4.5 > 200.0
+    assert sensor_view(far, np.array([0]), 200.0, None, lanes).seen.size == 0
+
+
+@pytest.mark.parametrize("turned_rad", [0.5, 1.0, 1.4])
+def test_a_leader_turning_on_the_path_closes_at_the_speeds_difference(turned_rad):
+    """The subject at 11 m/s on road 0 (its front 40 m into it, 10 m before the junction); the path turns left
+    on road 1, a quarter circle of R 20 m, then road 2. The leader on road 1 at 8 m/s, braking at 0.5 m/s^2,
+    has turned by ``turned_rad``: along the road its rear is 10 + 20 turned - 4.5 m ahead and both drive along
+    the path, so it closes at 8 - 11 = -3 m/s and brakes at its own 0.5 m/s^2 (its velocity along the line of
+    sight, turned away from it, would close faster). The level is what that clearance and closing speed need."""
+    radius_m, subject_mps, leader_mps = 20.0, 11.0, 8.0
+    lanes = _one_path([50.0, math.pi / 2.0 * radius_m, 200.0], 40.0)
+    front = (-radius_m + radius_m * math.cos(turned_rad), 10.0 + radius_m * math.sin(turned_rad))
+    vehicles = _on_roads(
+        [(0.0, 0.0), front],
+        [0.0, -turned_rad],
+        [subject_mps, leader_mps],
+        [0, 1],
+        [40.0, radius_m * turned_rad],
+        [0.0, -0.5],
+    )
+    along_m = 10.0 + radius_m * turned_rad - 4.5
+    pairs = sensor_view(vehicles, np.array([0]), 200.0, None, lanes)
+    assert pairs.seen.tolist() == [1] and pairs.lane.tolist() == [0]
+    assert pairs.x_m[0] == pytest.approx(along_m, abs=1e-9)
+    assert pairs.relative_speed_mps[0] == pytest.approx(leader_mps - subject_mps, abs=1e-12)
+    assert pairs.accel_mps2[0] == pytest.approx(-0.5, abs=1e-12)
+    # Along the line of sight to its rear the leader's velocity is turned away: the range rate closes faster.
+    rear = np.array(front) - 4.5 * np.array([math.sin(-turned_rad), math.cos(-turned_rad)])
+    unit = rear / np.hypot(*rear)
+    sight_rate = (
+        leader_mps * float(np.array([math.sin(-turned_rad), math.cos(-turned_rad)]) @ unit) - subject_mps * unit[1]
+    )
+    assert sight_rate < leader_mps - subject_mps - 0.5
+    assert sensor_view(vehicles, np.array([0]), 200.0).relative_speed_mps[0] == pytest.approx(sight_rate, abs=1e-9)

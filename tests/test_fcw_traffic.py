@@ -22,6 +22,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from csws.cosim.fcw import OFF_PATH_LANE, MapLanes, SumoVehicles, map_lanes, sensor_view
+from csws.fcw.conforming import Lead, standard_requires_warning
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.physics import MAX_COLLISION_A_REQ_MPS2, MIN_REACTION_TIME_S, FcwSettings, required_deceleration_mps2
@@ -209,8 +210,10 @@ def test_a_lead_braking_hard_at_a_short_gap_gets_the_collision_warning_in_time(
     assert warned_s is not None and warned_s <= latest_useful_s, (warned_s, latest_useful_s)
 
 
-def _vehicles(road: list[int], lane_index: list[int], front_y_m: list[float], speed_mps: list[float]) -> SumoVehicles:
-    """Vehicles heading north (+y) on the x = 0 line, 4.5 m long, 1.8 m wide."""
+def _vehicles(
+    road: list[int], lane_index: list[int], front_y_m: list[float], speed_mps: list[float], lane_position_m: list[float]
+) -> SumoVehicles:
+    """Vehicles heading north (+y) on the x = 0 line, 4.5 m long, 1.8 m wide, at the given lane positions."""
     n = len(road)
     return SumoVehicles(
         [f"v{i}" for i in range(n)],
@@ -225,6 +228,7 @@ def _vehicles(road: list[int], lane_index: list[int], front_y_m: list[float], sp
         np.asarray(road, dtype=np.int64),
         np.asarray(lane_index, dtype=np.int64),
         np.zeros(n, dtype=np.int64),
+        np.asarray(lane_position_m, dtype=float),
     )
 
 
@@ -249,23 +253,38 @@ def test_a_leader_turning_off_across_a_junction_is_not_the_target():
     road 1 (index 0) then road 2. Its leader, stopped 20 m ahead straight in front of it (TTC 1.3 s, a_req
     far above the collision threshold), is on road 3, the junction's right-turn lane the path does not
     take: off the path (3.7: the target is on the subject's path), no warning. The same vehicle on the
-    path's via lane is the target and warned."""
+    path's via lane is the target and warned. (Road 0's lane runs from 50 m behind the subject's front
+    to 10 m ahead, the via lanes 15 m on from there.)"""
     subject_front_m, leader_rear_m = 0.0, 20.0
-    path = MapLanes(np.zeros(3, np.int64), np.array([0, 1, 2]), np.array([1, 0, 1]), np.array([250.0]))
+    path = MapLanes(
+        np.zeros(3, np.int64),
+        np.array([0, 1, 2]),
+        np.array([1, 0, 1]),
+        np.array([250.0]),
+        np.array([-50.0, 10.0, 25.0]),
+        np.array([10.0, 25.0, 250.0]),
+        np.ones(3),
+    )
+    fronts, on_lane = [subject_front_m, leader_rear_m + 4.5], [50.0, leader_rear_m + 4.5 - 10.0]
     for road, lane, expected_lane, warned in ((3, 0, OFF_PATH_LANE, 0), (1, 0, 0, 2)):
-        vehicles = _vehicles([0, road], [1, lane], [subject_front_m, leader_rear_m + 4.5], [15.0, 0.0])
+        vehicles = _vehicles([0, road], [1, lane], fronts, [15.0, 0.0], on_lane)
         level, lanes = _level(vehicles, path)
         assert lanes.tolist() == [expected_lane]
         assert level == warned
     # Without the map path the leader straight ahead is in the predicted path, and warned.
-    level, lanes = _level(_vehicles([0, 3], [1, 0], [subject_front_m, leader_rear_m + 4.5], [15.0, 0.0]), None)
+    level, lanes = _level(_vehicles([0, 3], [1, 0], fronts, [15.0, 0.0], on_lane), None)
     assert level == 2
 
 
 def _path_ahead(lane_ids: list[str], lengths_m: list[float], vehicle_s: float) -> SimpleNamespace:
     """A path ahead as the look-ahead gives it (``horizon.path`` with its lanes, ``vehicle_s``)."""
     starts = np.concatenate(([0.0], np.cumsum(lengths_m)[:-1]))
-    path = SimpleNamespace(lane_ids=tuple(lane_ids), lane_start_s=starts, lane_shape_length_m=np.array(lengths_m))
+    path = SimpleNamespace(
+        lane_ids=tuple(lane_ids),
+        lane_start_s=starts,
+        lane_shape_length_m=np.array(lengths_m),
+        lane_position_factor=np.ones(len(lengths_m)),
+    )
     return SimpleNamespace(horizon=SimpleNamespace(path=path), vehicle_s=vehicle_s)
 
 
@@ -288,3 +307,50 @@ def test_map_lanes_are_the_path_lanes_within_the_range_of_each_subject():
     # subject 3 at 5 m on the same horizon: [5, 205] reaches a, :j_3 and b only.
     assert by_subject[3] == [(code("a"), 1), (code(":j_3"), 0), (code("b"), 0)]
     assert lanes.reach_m.tolist() == [585.0 - 100.0, 0.0, 450.0 - 10.0, 585.0 - 5.0]
+    # Each lane's stretch of the path from the subject's front: subject 0 is 100 m into a (0-120).
+    stretches = [(s, a, b) for s, a, b in zip(lanes.subject, lanes.start_m, lanes.end_m, strict=True) if s == 0]
+    assert [(a, b) for _, a, b in stretches] == [(-100.0, 20.0), (20.0, 35.0), (35.0, 185.0), (185.0, 485.0)]
+
+
+#: Formula (5)'s a_req and reaction time (GB/T 33577-2017 4.5.6), the highest V_min of 4.3.3, the TTC of 4.5.5 e.
+FORMULA_5_MPS2, FORMULA_5_REACTION_S, V_MIN_MPS, MAY_SUPPRESS_ABOVE_TTC_S = 6.67, 0.8, 11.2, 4.0
+
+
+@settings(deadline=None, max_examples=300)
+@given(st.floats(0.5, 150.0), st.floats(11.2, 27.8), st.floats(0.0, 0.98), st.booleans())
+def test_the_least_demanding_conforming_warning_is_due_within_formula_5s_distance(
+    clearance_m, subject_mps, lead_fraction, braking
+):
+    """A steady lead and subject: the least-demanding conforming warning (the traffic benchmark's reference) is
+    due exactly where the clearance is at most formula (5)'s distance, v^2 / (2 x 6.67) + 0.8 v, computed here
+    (0.8 s drops to 0 while the driver brakes, 4.5.4) and the TTC at most 4 s (4.5.5 e); never while the
+    driver brakes where 4.5.5 d is taken, never below V_min 11.2 m/s (4.3.3)."""
+    lead_mps = subject_mps * lead_fraction
+    closing_mps = subject_mps - lead_mps
+    reaction_s = 0.0 if braking else FORMULA_5_REACTION_S
+    formula_5_m = closing_mps**2 / (2.0 * FORMULA_5_MPS2) + reaction_s * closing_mps
+    assume(abs(clearance_m - formula_5_m) > 1e-6 and abs(clearance_m / closing_mps - MAY_SUPPRESS_ABOVE_TTC_S) > 1e-6)
+    lead = Lead("tv", clearance_m, subject_mps, lead_mps, braking=braking)
+    expected = clearance_m <= formula_5_m and clearance_m / closing_mps <= MAY_SUPPRESS_ABOVE_TTC_S
+    assert standard_requires_warning(lead) is expected
+    assert standard_requires_warning(lead, silent_while_braking=True) is (expected and not braking)
+    slow = Lead("tv", clearance_m, V_MIN_MPS - 0.1, lead_fraction * (V_MIN_MPS - 0.1), braking=braking)
+    assert standard_requires_warning(slow) is False
+
+
+@settings(deadline=None, max_examples=200)
+@given(st.floats(2.0, 120.0), st.floats(11.2, 27.8), st.floats(0.3, 1.0), st.floats(-9.0, -0.5))
+def test_the_least_demanding_conforming_warning_for_a_braking_lead_is_3_22s(
+    clearance_m, subject_mps, lead_fraction, lead_accel
+):
+    """A lead braking (to a stop, or not before the speeds meet), the subject steady: the warning is due where
+    the least deceleration avoiding contact after 0.8 s (3.22 by exact kinematics, computed here) is at least
+    formula (5)'s 6.67 m/s^2 and the TTC at most 4 s (4.5.5 e: a lead braking ahead of a subject no faster
+    than it, TTC infinite, may go unwarned)."""
+    lead_mps = subject_mps * lead_fraction
+    truth = least_deceleration_mps2(clearance_m, subject_mps, lead_mps, 0.0, lead_accel, FORMULA_5_REACTION_S)
+    assume(abs(truth - FORMULA_5_MPS2) > 1e-4)
+    ttc_s = clearance_m / (subject_mps - lead_mps) if subject_mps > lead_mps else math.inf
+    assume(abs(ttc_s - MAY_SUPPRESS_ABOVE_TTC_S) > 1e-6)
+    lead = Lead("tv", clearance_m, subject_mps, lead_mps, lead_accel_mps2=lead_accel)
+    assert standard_requires_warning(lead) is (truth >= FORMULA_5_MPS2 and ttc_s <= MAY_SUPPRESS_ABOVE_TTC_S)

@@ -15,7 +15,9 @@ The subject's yaw rate is its angle's change over the step (SUMO's angle is its 
 clockwise from north); the brake light is the driver braking (4.5.4), the blinkers the turn signal.
 Where a vehicle is map-matched, its path ahead (the curve warning's horizon, :mod:`csws.ahead`)
 assigns the objects' lanes (4.3.2 d: :func:`map_lanes`): a vehicle on a road the path does not take
-is not in the path.
+is not in the path; one on a road it takes is measured along the path, its distance the road's and its
+range rate the speeds' difference (round a hairpin the line of sight is far shorter than the road, and a
+leader turning on the path moves away from the line of sight to it).
 """
 
 from __future__ import annotations
@@ -87,6 +89,8 @@ class SumoVehicles:
         The road's code (equal codes: the same SUMO edge) and the lane's index on it (0 rightmost).
     signals
         SUMO's signal bits.
+    lane_position_m
+        The front's position along its lane, m (SUMO's lane position).
     """
 
     vehicle_id: list[str]
@@ -101,6 +105,7 @@ class SumoVehicles:
     road: np.ndarray
     lane_index: np.ndarray
     signals: np.ndarray
+    lane_position_m: np.ndarray
 
 
 class _Numbers(dict[str, int]):
@@ -138,6 +143,7 @@ def read_vehicles(
         np.array([roads.setdefault(vehicle.getRoadID(v), len(roads)) for v in ids], dtype=np.int64),
         np.array([vehicle.getLaneIndex(v) for v in ids], dtype=np.int64),
         np.array([vehicle.getSignals(v) for v in ids], dtype=np.int64),
+        np.array([vehicle.getLanePosition(v) for v in ids], dtype=float),
     )
 
 
@@ -153,12 +159,20 @@ class MapLanes:
         The lane's road code (as :func:`read_vehicles` codes roads) and its index on that road.
     reach_m
         ``(subjects,)`` how far ahead of each subject's front its path is known, m (0: no path, not map-matched).
+    start_m, end_m
+        Where the lane starts and ends along the path, from the subject's front, m (the subject's own lane
+        starts behind it, at or below 0).
+    position_factor
+        The lane's SUMO length over its shape's length (a lane position over it is the arc length along it).
     """
 
     subject: np.ndarray
     road: np.ndarray
     lane_index: np.ndarray
     reach_m: np.ndarray
+    start_m: np.ndarray
+    end_m: np.ndarray
+    position_factor: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -170,6 +184,7 @@ class _HorizonLanes:
     lane_index: np.ndarray
     start_s: np.ndarray
     end_s: np.ndarray
+    position_factor: np.ndarray
 
 
 def _horizon_lanes(horizon: Any, roads: dict[str, int]) -> _HorizonLanes:
@@ -183,6 +198,7 @@ def _horizon_lanes(horizon: Any, roads: dict[str, int]) -> _HorizonLanes:
         np.array([int(index) for index in indices], dtype=np.int64),
         start,
         start + np.asarray(path.lane_shape_length_m, dtype=float),
+        np.asarray(path.lane_position_factor, dtype=float),
     )
 
 
@@ -214,11 +230,11 @@ def map_lanes(paths: Sequence[Any | None], roads: dict[str, int], range_m: float
     reach = np.zeros(len(paths))
     mapped = np.flatnonzero(slots >= 0)
     if not mapped.size:
-        empty = np.zeros(0, dtype=np.int64)
-        return MapLanes(empty, empty, empty, reach)
-    road, index, start_s, end_s = (
+        empty, none = np.zeros(0, dtype=np.int64), np.zeros(0)
+        return MapLanes(empty, empty, empty, reach, none, none, none)
+    road, index, start_s, end_s, factor = (
         np.concatenate([getattr(piece, name) for piece in pieces])
-        for name in ("road", "lane_index", "start_s", "end_s")
+        for name in ("road", "lane_index", "start_s", "end_s", "position_factor")
     )
     counts = np.array([piece.road.size for piece in pieces], dtype=np.int64)
     first = np.cumsum(counts) - counts
@@ -227,26 +243,42 @@ def map_lanes(paths: Sequence[Any | None], roads: dict[str, int], range_m: float
     row = np.repeat(first[slots[mapped]], per) + np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
     ahead = (end_s[row] > vehicle_s[owner]) & (start_s[row] < vehicle_s[owner] + range_m)
     reach[mapped] = end_s[first[slots[mapped]] + per - 1] - vehicle_s[mapped]
-    return MapLanes(owner[ahead], road[row[ahead]], index[row[ahead]], reach)
+    owner, row = owner[ahead], row[ahead]
+    from_front = vehicle_s[owner]
+    return MapLanes(
+        owner, road[row], index[row], reach, start_s[row] - from_front, end_s[row] - from_front, factor[row]
+    )
 
 
 def _lane_on_map(
     vehicles: SumoVehicles, owner: np.ndarray, seen: np.ndarray, x_m: np.ndarray, lanes: MapLanes, fallback: np.ndarray
-) -> np.ndarray:
-    """4.3.2 d, 4.5.5 b, 3.7: each object's lane from the subject's map path: on a road the path takes, its
-    lane index less the path's there (0: on the path's lane); on another road within the path's known
-    reach, :data:`OFF_PATH_LANE` (a vehicle turning off across a junction, or on a crossing, diverging
-    or parallel road, is not on the subject's path); beyond it, or for a subject without a path, ``fallback``."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """4.3.2 d, 4.5.5 b, 3.7: each object's lane from the subject's map path, and its rear's distance along it.
+
+    The lane: on a road the path takes, its lane index less the path's there (0: on the path's lane); on
+    another road within the path's known reach, :data:`OFF_PATH_LANE` (a vehicle turning off across a
+    junction, or on a crossing, diverging or parallel road, is not on the subject's path); beyond it, or for
+    a subject without a path, ``fallback``. The distance (NaN off the path's roads): the path's arc length
+    from the subject's front to the object's front (its lane position on the path's lane of its road) less
+    its length, the clearance along the road the two vehicles close (3.10).
+    """
     path_keys = (lanes.subject << _ID_BITS) | lanes.road
     order = np.argsort(path_keys, kind="stable")
     ordered = path_keys[order]
     keys = (owner << _ID_BITS) | vehicles.road[seen]
-    at = np.minimum(np.searchsorted(ordered, keys), max(ordered.size - 1, 0))
-    found = ordered[at] == keys if ordered.size else np.zeros(keys.size, dtype=bool)
-    on_road = vehicles.lane_index[seen] - (lanes.lane_index[order[at]] if ordered.size else 0)
     reach_m = lanes.reach_m[owner]
-    lane = np.where(found, on_road, np.where(x_m <= reach_m, OFF_PATH_LANE, UNKNOWN_LANE))
-    return np.where(reach_m > 0.0, lane, fallback)
+    lane = np.where(x_m <= reach_m, OFF_PATH_LANE, UNKNOWN_LANE)
+    along_m = np.full(keys.size, np.nan)
+    if ordered.size:
+        at = np.minimum(np.searchsorted(ordered, keys), ordered.size - 1)
+        found, row = ordered[at] == keys, order[at]
+        lane = np.where(found, vehicles.lane_index[seen] - lanes.lane_index[row], lane)
+        front_m = np.clip(
+            vehicles.lane_position_m[seen] / lanes.position_factor[row], 0.0, lanes.end_m[row] - lanes.start_m[row]
+        )
+        along_m = np.where(found, lanes.start_m[row] + front_m - vehicles.length_m[seen], np.nan)
+    mapped = reach_m > 0.0
+    return np.where(mapped, lane, fallback), np.where(mapped, along_m, np.nan)
 
 
 @dataclass(frozen=True)
@@ -319,7 +351,12 @@ def sensor_view(
     vehicle ahead, 前车; a lead on a curve, however far round, moves away along that line). The lane is the
     difference of the lane indices (+1 left) where both are on the same road, else unknown (the
     predicted path decides); with the subjects' map paths (``lanes``), the lane on the map path
-    (:func:`_lane_on_map`). Pairs come from a grid of cells ``range_m`` plus
+    (:func:`_lane_on_map`), and for an object on a road the path takes, the road's measures instead of
+    the line of sight's: x the distance along the path (a leader round a hairpin, near in the line of
+    sight, is as far as the road between them), the relative speed the two speeds' difference and the
+    acceleration the object's own (both drive along the path: a leader turning on it closes at the
+    speeds' difference, not at its velocity's change of direction along the line of sight), seen while
+    that x is within [0, ``range_m``]. Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
     """
     owner, seen = _pairs_within(vehicles, subjects, range_m)
@@ -346,24 +383,21 @@ def sensor_view(
     own_along = own_x * unit_x + own_y * unit_y
     x_m = sight_x * ahead_x + sight_y * ahead_y
     oncoming = vehicles.speed_mps[seen] * own_along < -ONCOMING_MPS
-    keep = np.flatnonzero((x_m >= 0.0) & (sight_m <= range_m) & ~oncoming)
-    owner, me, seen, x_m, back, own_along = owner[keep], me[keep], seen[keep], x_m[keep], back[keep], own_along[keep]
-    ahead_x, ahead_y, own_x, own_y = ahead_x[keep], ahead_y[keep], own_x[keep], own_y[keep]
-    sight_x, sight_y, unit_x, unit_y = sight_x[keep], sight_y[keep], unit_x[keep], unit_y[keep]
+    keep = (x_m >= 0.0) & (sight_m <= range_m) & ~oncoming
     y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     same_road = vehicles.road[seen] == vehicles.road[me]
     lane = np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE)
+    range_rate = vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y)
+    accel = vehicles.accel_mps2[seen] * own_along
     if lanes is not None:
-        lane = _lane_on_map(vehicles, owner, seen, x_m, lanes, lane)
-    return SensorPairs(
-        owner,
-        seen,
-        x_m,
-        y_m,
-        vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y),
-        vehicles.accel_mps2[seen] * own_along,
-        lane,
-    )
+        lane, along_m = _lane_on_map(vehicles, owner, seen, x_m, lanes, lane)
+        on_path = ~np.isnan(along_m)
+        keep = np.where(on_path, (along_m >= 0.0) & (along_m <= range_m), keep)
+        x_m = np.where(on_path, along_m, x_m)
+        range_rate = np.where(on_path, vehicles.speed_mps[seen] - vehicles.speed_mps[me], range_rate)
+        accel = np.where(on_path, vehicles.accel_mps2[seen], accel)
+    k = np.flatnonzero(keep)
+    return SensorPairs(owner[k], seen[k], x_m[k], y_m[k], range_rate[k], accel[k], lane[k])
 
 
 #: What a sensor makes of the true view (the conformance suite's test equipment): ego and objects in, measured out.

@@ -263,13 +263,15 @@ def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
     return sorted_keys[np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)] == keys
 
 
-def _targets(owner: np.ndarray, candidate: np.ndarray, a_req: np.ndarray, x_m: np.ndarray, n: int) -> np.ndarray:
-    """Per vehicle the candidate with the highest rank (a_req, at least the preliminary threshold), ties the
-    nearest, then the first listed; -1 without one."""
+def _targets(
+    owner: np.ndarray, candidate: np.ndarray, level: np.ndarray, a_req: np.ndarray, x_m: np.ndarray, n: int
+) -> np.ndarray:
+    """Per vehicle the candidate requiring the highest level, then with the highest rank (a_req, at least the
+    preliminary threshold), ties the nearest, then the first listed; -1 without one."""
     target = np.full(n, -1, dtype=np.int64)
     index = np.flatnonzero(candidate)
     if index.size:
-        ordered = index[np.lexsort((index, x_m[index], -a_req[index], owner[index]))]
+        ordered = index[np.lexsort((index, x_m[index], -a_req[index], -level[index], owner[index]))]
         first = np.concatenate(([True], owner[ordered][1:] != owner[ordered][:-1]))
         target[owner[ordered][first]] = ordered[first]
     return target
@@ -318,7 +320,11 @@ def update_fleet(
     with np.errstate(over="ignore"):  # a_req beyond the largest float is inf, as on floats
         a_req = a_req_core(objects.x_m, objects.relative_speed_mps, a_tv, a_sv, lost, ego.speed_mps[owner])
     rank = np.maximum(a_req, settings.preliminary_a_req_mps2)  # below a threat every object ties: the nearest
-    target = _targets(owner, inside & ~cutting, rank, objects.x_m, n)
+    with np.errstate(over="ignore"):  # beyond the largest float: inf, as on floats
+        ttc = ttc_core(objects.x_m, objects.relative_speed_mps)
+        ettc = ettc_core(objects.x_m, objects.relative_speed_mps, a_tv - a_sv)
+    level = warning_level(a_sv, ttc, ettc, a_req, settings)
+    target = _targets(owner, inside & ~cutting, level, rank, objects.x_m, n)
     return _frame(settings, memory, now, ego, objects, state, target, (a_tv, offset, a_req), inside, cutting)
 
 

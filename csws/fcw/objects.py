@@ -134,7 +134,8 @@ class FcwFrame:
         The level shown (0 none, 1 preliminary, 2 collision warning) and the level the thresholds
         require now (the shown one is never lower; it is higher while a level is held).
     target_id
-        The most demanding object in the path (the highest a_req, then the nearest), or None.
+        The most demanding object in the path (the highest level required, then the highest a_req, then
+        the nearest), or None.
     clearance_m, relative_speed_mps, ttc_s, ettc_s, a_req_mps2, path_offset_m
         The target's x_c, v_r, TTC, ETTC, a_req and lateral offset from the predicted path
         (NaN without a target; TTC, ETTC and a_req ``inf`` where they are).

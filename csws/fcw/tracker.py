@@ -11,7 +11,9 @@ to the bit; both go through the same formulas (:mod:`csws.fcw.physics`, :mod:`cs
    given, else yaw rate / speed;
 3. every object in the path (the sensor's lane, else within the corridor of the predicted path),
    except a faster cut-in (4.5.5 c), is assessed: a_req of formula (4) for each; the target is the
-   most demanding (the highest a_req, ties the nearest; every a_req below the preliminary threshold
+   most demanding (the highest level its thresholds require after 4.5.5, so an object whose warning
+   4.5.5 e suppresses does not hide one that needs it, then the highest a_req, ties the nearest;
+   every a_req below the preliminary threshold
    ties, so without a threat the target is the nearest, 3.7), so the vehicle a cut-out reveals is
    the target in the frame the lead leaves the path (4.4.3, 4.7.3);
 4. the level the target requires (:func:`csws.fcw.physics.warning_level`: 4.5.5 a and e);
@@ -108,13 +110,14 @@ class ForwardCollisionWarning:
     def _assess(
         self, ego: EgoMotion, objects: Sequence[SensorObject]
     ) -> tuple[tuple[SensorObject, float, float, float] | None, frozenset[int], frozenset[int]]:
-        """The most demanding object in the path (with a_TV, offset, a_req); the ids in the path, and cutting in."""
+        """The most demanding object in the path (with a_TV, offset, a_req): the highest level its thresholds
+        require, then the highest a_req, then the nearest; the ids in the path, and cutting in."""
         s = self.settings
         table = self._path_table(ego)
         kappa = ego_curvature_1pm(ego.speed_mps, ego.yaw_rate_rps, ego.curvature_1pm)
         lost_s = 0.0 if ego.braking else s.reaction_time_s + s.brake_response_s
         best: tuple[SensorObject, float, float, float] | None = None
-        best_rank = -math.inf
+        best_rank: tuple[int, float] = (-1, -math.inf)
         inside_ids, cut_in_ids = [], []
         half_length_m, half_width_m, range_m = s.object_half_length_m, s.path_half_width_m, s.range_m
         was_in_path, was_cut_in = self.in_path_ids, self.cut_in_ids
@@ -134,7 +137,8 @@ class ForwardCollisionWarning:
                 continue
             a_tv = obj.accel_mps2 + ego.accel_mps2 if obj.accel_is_relative else obj.accel_mps2
             a_req = a_req_core(x_m, v_r, a_tv, ego.accel_mps2, lost_s, ego.speed_mps)
-            rank = max(a_req, s.preliminary_a_req_mps2)
+            ttc, ettc = ttc_core(x_m, v_r), ettc_core(x_m, v_r, a_tv - ego.accel_mps2)
+            rank = (warning_level(ego.accel_mps2, ttc, ettc, a_req, s), max(a_req, s.preliminary_a_req_mps2))
             if best is None or rank > best_rank or (rank == best_rank and x_m < best[0].x_m):
                 best, best_rank = (obj, a_tv, offset_m, a_req), rank
         return best, frozenset(inside_ids), frozenset(cut_in_ids)
