@@ -70,7 +70,10 @@ def parse_opendrive(text: str | bytes, source: str = "<text>") -> OpenDriveFile:
     if root.tag != "OpenDRIVE":
         raise OpenDriveError(f"{source} is not OpenDRIVE: its root element is <{root.tag}>")
     notes: list[str] = []
-    roads = tuple(_road(element, notes) for element in root.iter("road"))
+    try:
+        roads = tuple(_road(element, notes) for element in root.iter("road"))
+    except OpenDriveError as error:
+        raise OpenDriveError(f"{source}: {error}") from None
     if not roads:
         raise OpenDriveError(f"{source} has no <road>")
     return OpenDriveFile(roads, tuple(notes))
