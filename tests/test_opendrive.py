@@ -13,6 +13,10 @@ from hypothesis import strategies as st
 from markers import marks_its_tests
 
 from csws import cli
+from csws.conformance import realroads
+from csws.conformance.drive import Trace, Truth
+from csws.conformance.rows import Check, Row
+from csws.engine import Engine, VehicleInput
 from csws.opendrive.exact import ExactLane
 from csws.opendrive.geometry import geometry_poses
 from csws.opendrive.importer import ImportResult, import_opendrive
@@ -20,10 +24,11 @@ from csws.opendrive.lanes import KAPPA_TOLERANCE_PER_M, lane_track
 from csws.opendrive.model import Geometry, OpenDriveError
 from csws.opendrive.reader import parse_opendrive, read_opendrive
 from csws.opendrive.writer import RoadSpec, SectionSpec, arc, line, opendrive_text, spiral, write_opendrive
-from csws.standard import DEFAULT_WARNING_RADIUS_M
+from csws.road.roadmap import RoadMap
+from csws.standard import DEFAULT_WARNING_RADIUS_M, Category, Level, kmh_to_mps, warning_speed
 
 #: The design of the truth road: line - clothoid - arc - clothoid - line, turning left.
-LEAD_M, SPIRAL_M, ARC_M, RADIUS_M, LANE_WIDTH_M = 100.0, 60.0, 80.0, 150.0, 3.5
+LEAD_M, SPIRAL_M, ARC_M, RADIUS_M, LANE_WIDTH_M = 400.0, 60.0, 80.0, 150.0, 3.5
 RATE = 1.0 / RADIUS_M / SPIRAL_M  # curvature change along the clothoids, 1/m^2
 
 
@@ -133,6 +138,58 @@ def test_lanes_map_to_the_sumo_lanes_netconvert_made(truth_import: ImportResult)
         ("1", -1, True),
         ("1", 1, False),
     }
+
+
+def test_the_road_map_reads_the_exact_profile(truth_import: ImportResult) -> None:
+    """The curve index of the imported network has the design's curve ends (to 1 cm) and radius (to 1 mm)."""
+    road_map = RoadMap.load(truth_import.net_path, cache=False)
+    offset = -LANE_WIDTH_M / 2
+    (curve,) = [lane_curve.curve for lane_curve in road_map.lane_curves("-1_0")]
+    start_s, end_s = crossings(offset, DEFAULT_WARNING_RADIUS_M)
+    assert curve.start_s == pytest.approx(lane_sigma(start_s, offset), abs=0.01)
+    assert curve.end_s == pytest.approx(lane_sigma(end_s, offset), abs=0.01)
+    assert curve.min_radius_m == pytest.approx(RADIUS_M - offset, abs=0.001)
+
+
+def _drive(road_map: RoadMap, category: Category, speed_kmh: float) -> Trace:
+    """A vehicle at constant speed along the right lane, one answer every 0.1 s."""
+    engine = Engine(road_map)
+    lane = road_map.lane("-1_0")
+    shape = road_map.lane_shape("-1_0")
+    factor = lane.length_m / float(np.hypot(*np.diff(shape, axis=0).T).sum())
+    step_s = 0.1
+    time_s = np.arange(0.0, lane.length_m / factor / kmh_to_mps(speed_kmh), step_s)
+    route_s = kmh_to_mps(speed_kmh) * time_s
+    levels = [
+        int(engine.evaluate(VehicleInput("v", str(category), speed_kmh, "-1_0", s * factor, ("-1",), t)).level)
+        for s, t in zip(route_s.tolist(), time_s.tolist(), strict=True)
+    ]
+    return Trace(0, 0.0, time_s, route_s, np.full(len(time_s), speed_kmh), np.array(levels))
+
+
+@pytest.mark.parametrize("category", [Category.M1, Category.N])
+@pytest.mark.parametrize("excess", [False, True])
+def test_the_warning_on_the_exact_network_passes_the_real_road_judge(
+    truth_import: ImportResult, monkeypatch, category: Category, excess: bool
+) -> None:
+    """The real-road judge, formula (1) at every design point of the curve, holds for the warning on the
+    imported network: between the level-1 and level-2 V_w of its radius, and 8 km/h above the level-2 one."""
+    offset = -LANE_WIDTH_M / 2
+    start_s, end_s = crossings(offset, DEFAULT_WARNING_RADIUS_M)
+    s = np.append(np.arange(start_s, end_s, realroads.POINT_SPACING_M), end_s)
+    kappa = np.array([reference_curvature(value) for value in s.tolist()])
+    points = (np.array([lane_sigma(value, offset) for value in s.tolist()]), (1 - kappa * offset) / kappa)
+    monkeypatch.setattr(realroads, "_curve_points", lambda track: points)
+    radius_m = RADIUS_M - offset
+    level1, level2 = (warning_speed(radius_m, category, level) for level in (1, 2))
+    speed_kmh = round(level2 + realroads.LEVEL2_EXCESS_KMH, 1) if excess else round((level1 + level2) / 2, 1)
+    checks = tuple(Check(1, level, None, f"level {int(level)}") for level in (Level.LEVEL_1, Level.LEVEL_2))
+    row = Row("xodr", realroads.REAL_ROAD_TABLE, "6.1", category, None, (radius_m,), speed_kmh, None, None, checks, ())
+    truth = Truth("xodr", (lane_sigma(start_s, offset),), (lane_sigma(end_s, offset),), {"-1_0": 0.0}, ("-1",))
+    trace = _drive(RoadMap.load(truth_import.net_path), category, speed_kmh)
+    result = realroads.judge_real_road_run(row, trace, truth)
+    assert result.passed, result
+    assert trace.level.max() == (2 if excess else 1)
 
 
 @settings(max_examples=40, deadline=None)

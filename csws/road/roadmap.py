@@ -48,10 +48,11 @@ internal lanes, edges with a custom length); SUMO maps between them by the facto
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from itertools import chain
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sumolib
@@ -63,6 +64,9 @@ from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vert
 from csws.road.path import PathProfile, path_profile
 from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
+
+if TYPE_CHECKING:
+    from csws.opendrive.exact import ExactLane
 
 __all__ = [
     "Lane",
@@ -118,6 +122,7 @@ class RoadMap(GeoReferenced):
         *,
         cache: bool = True,
         warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+        exact_lanes: Mapping[str, ExactLane] | None = None,
     ) -> None:
         """Profile the lanes and find their curves.
 
@@ -141,6 +146,9 @@ class RoadMap(GeoReferenced):
         warning_policy
             The warning speeds the curves' clothoids are cut into CPOIs by (a piece's V_w changes
             by under :data:`csws.curvature.curves.SPIRAL_PIECE_KMH`): those the warning uses.
+        exact_lanes
+            The exact curvature of lanes of a network imported from OpenDRIVE, by lane id: the
+            road chains of those lanes read it instead of their fit (:mod:`csws.opendrive.profiles`).
         """
         self.warning_radius_m = checked_warning_radius_m(warning_radius_m)
         self.warning_policy = warning_policy
@@ -162,6 +170,10 @@ class RoadMap(GeoReferenced):
             edge_ids=[lane.edge_id for lane in self._lanes],
             lane_index=[lane.index for lane in self._lanes],
         )
+        if exact_lanes:
+            from csws.opendrive.profiles import with_exact_profiles
+
+            self._chains = with_exact_profiles(self._chains, self.lane_ids, exact_lanes)
         self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m, warning_policy)
 
     # ----------------------------------------------------------------- construction
@@ -189,14 +201,20 @@ class RoadMap(GeoReferenced):
         warning_policy
             The warning speeds the curves' clothoids are cut by (see :class:`RoadMap`).
 
+        A network imported from OpenDRIVE (``csws import-opendrive``) has its lanes' exact
+        curvature beside it (``NAME.kappa.json``): the road map reads that instead of the fit.
+
         Raises
         ------
         NetworkError
             If the file is missing, not a SUMO network, or has no lanes.
         """
+        from csws.opendrive.profiles import exact_lanes_beside
+
         net = read_sumo_net(net_path)
+        exact = exact_lanes_beside(net_path)
         try:
-            return cls.from_net(net, warning_radius_m, cache=cache, warning_policy=warning_policy)
+            return cls.from_net(net, warning_radius_m, cache=cache, warning_policy=warning_policy, exact_lanes=exact)
         except NetworkError as error:
             raise NetworkError(f"{Path(net_path).name}: {error}") from None
 
@@ -208,6 +226,7 @@ class RoadMap(GeoReferenced):
         *,
         cache: bool = True,
         warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+        exact_lanes: Mapping[str, ExactLane] | None = None,
     ) -> RoadMap:
         """Build the road map of a sumolib net read with ``withInternal=True``.
 
@@ -225,6 +244,7 @@ class RoadMap(GeoReferenced):
             radius,
             cache=cache,
             warning_policy=warning_policy,
+            exact_lanes=exact_lanes,
         )
 
     # ----------------------------------------------------------------- lanes
