@@ -3,6 +3,7 @@ robust reading and the command's errors."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -190,6 +191,21 @@ def test_the_warning_on_the_exact_network_passes_the_real_road_judge(
     result = realroads.judge_real_road_run(row, trace, truth)
     assert result.passed, result
     assert trace.level.max() == (2 if excess else 1)
+
+
+@pytest.mark.sumo
+def test_grade_and_superelevation_reach_the_curve_index(tmp_path: Path) -> None:
+    """A road rising 4 % whose cross section falls 0.05 rad to its left: along s the left curve climbs 4 % banked
+    tan(0.05) toward its inside; against s it falls 4 %, and turning right it is banked toward its inside too."""
+    from csws.road.export import curve_features
+
+    spec = dataclasses.replace(truth_road("g"), grade=0.04, superelevation_rad=-0.05)
+    result = import_opendrive(write_opendrive(tmp_path / "g.xodr", [spec]), tmp_path / "g.net.xml")
+    features = {f["properties"]["lane_id"]: f["properties"] for f in curve_features(RoadMap.load(result.net_path))}
+    assert features["-g_0"]["grade_pct"] == pytest.approx(4.0, abs=1e-9)
+    assert features["g_0"]["grade_pct"] == pytest.approx(-4.0, abs=1e-9)
+    for lane_id in ("-g_0", "g_0"):
+        assert features[lane_id]["superelevation_pct"] == pytest.approx(100 * math.tan(0.05), abs=1e-9)
 
 
 @settings(max_examples=40, deadline=None)

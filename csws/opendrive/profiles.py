@@ -12,18 +12,19 @@ curve index, paths, the look-ahead and the warning all follow from it unchanged.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from csws.curvature import RadiusProfile, profile_from_parts
-from csws.road.chains import RoadChains
+from csws.road.chains import LaneCurve, RoadChains
 from csws.road.sharing import Run
 
 from .exact import ExactLane, exact_path, read_exact
 
-__all__ = ["exact_lanes_beside", "with_exact_profiles"]
+__all__ = ["exact_lanes_beside", "with_exact_profiles", "curve_slopes"]
 
 
 def exact_lanes_beside(net_path: str | Path) -> dict[str, ExactLane] | None:
@@ -77,3 +78,43 @@ def with_exact_profiles(chains: RoadChains, lane_ids: Sequence[str], exact: Mapp
         ends = np.array([0.0, float(profile.s[-1])])
         runs[chain] = (Run(chain, ends, ends, np.zeros(1), is_own=True),)
     return dataclasses.replace(chains, profiles=tuple(profiles), fitted=tuple(fitted), runs=tuple(runs), _curves={})
+
+
+def _lane_samples(lane: ExactLane, sumo_length_m: float, from_pos_m: float, to_pos_m: float) -> np.ndarray:
+    """Indices of a lane's grade and superelevation samples between two SUMO lane positions."""
+    scale = lane.length_m / sumo_length_m if sumo_length_m > 0 else 1.0
+    inside = (lane.profile_s >= from_pos_m * scale - 1e-9) & (lane.profile_s <= to_pos_m * scale + 1e-9)
+    if not inside.any():  # a curve shorter than the sample spacing: the nearest sample
+        middle = 0.5 * (from_pos_m + to_pos_m) * scale
+        inside[int(np.argmin(np.abs(lane.profile_s - middle)))] = True
+    return np.flatnonzero(inside)
+
+
+def curve_slopes(
+    exact: Mapping[str, ExactLane], lane_lengths_m: Mapping[str, float], lane_curve: LaneCurve
+) -> dict[str, float] | None:
+    """The mean grade along a curve and its mean superelevation toward the inside of the curve, per cent.
+
+    Information next to the standard's figures (docs/road-model.md): grade positive uphill in the
+    driving direction; superelevation positive where the road falls toward the inside of the turn
+    (the banking that helps). None where the curve's lanes have no exact data.
+    """
+    if lane_curve.end_lane_id == lane_curve.lane_id:
+        ends = [(lane_curve.lane_id, lane_curve.start_pos_m, lane_curve.end_pos_m)]
+    else:
+        ends = [
+            (lane_curve.lane_id, lane_curve.start_pos_m, math.inf),
+            (lane_curve.end_lane_id, 0.0, lane_curve.end_pos_m),
+        ]
+    grades, rolls = [], []
+    for lane_id, from_pos_m, to_pos_m in ends:
+        lane = exact.get(lane_id)
+        if lane is None:
+            continue
+        rows = _lane_samples(lane, lane_lengths_m[lane_id], from_pos_m, to_pos_m)
+        grades.extend(lane.grade_pct[rows].tolist())
+        rolls.extend(lane.superelevation_pct[rows].tolist())
+    if not grades:
+        return None
+    toward_inside = 1.0 if lane_curve.curve.direction == "right" else -1.0
+    return {"grade_pct": float(np.mean(grades)), "superelevation_pct": toward_inside * float(np.mean(rolls))}

@@ -170,6 +170,7 @@ class RoadMap(GeoReferenced):
             edge_ids=[lane.edge_id for lane in self._lanes],
             lane_index=[lane.index for lane in self._lanes],
         )
+        self.exact_lanes = dict(exact_lanes or {})
         if exact_lanes:
             from csws.opendrive.profiles import with_exact_profiles
 
@@ -351,6 +352,16 @@ class RoadMap(GeoReferenced):
             if include_junctions or not self._chains.is_junction[chain_index]
             for lane_curve in lane_curves
         ]
+
+    def curve_slopes(self, lane_curve: LaneCurve) -> dict[str, float] | None:
+        """Mean grade and superelevation along a curve, per cent, on a network imported from OpenDRIVE
+        (:func:`csws.opendrive.profiles.curve_slopes`); None elsewhere."""
+        if not self.exact_lanes:
+            return None
+        from csws.opendrive.profiles import curve_slopes
+
+        lengths = {lane_id: self.lane(lane_id).length_m for lane_id in (lane_curve.lane_id, lane_curve.end_lane_id)}
+        return curve_slopes(self.exact_lanes, lengths, lane_curve)
 
     def road_position(self, chain: int, s: float) -> tuple[str, float]:
         """The lane id and lane position of arc length ``s`` along road chain ``chain``
