@@ -98,7 +98,7 @@ class RoadSpec:
 def _add(parent: ElementTree.Element, tag: str, **attributes: object) -> ElementTree.Element:
     """A child element with attributes written as text (floats with full precision)."""
     return ElementTree.SubElement(
-        parent, tag, {key: repr(v) if isinstance(v, float) else str(v) for key, v in attributes.items()}
+        parent, tag, {key: repr(float(v)) if isinstance(v, float) else str(v) for key, v in attributes.items()}
     )
 
 
