@@ -208,6 +208,22 @@ def test_grade_and_superelevation_reach_the_curve_index(tmp_path: Path) -> None:
         assert features[lane_id]["superelevation_pct"] == pytest.approx(100 * math.tan(0.05), abs=1e-9)
 
 
+@pytest.mark.sumo
+def test_the_service_serves_the_exact_curves_without_a_flag(truth_import: ImportResult) -> None:
+    """``csws serve --net NET`` reads the file beside NET: /v1/curves gives the lanes' design radii R -/+ t."""
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.settings import ServiceSettings
+
+    served = ServiceSettings(nets=[truth_import.net_path], state_db=":memory:")
+    with TestClient(create_app(served)) as client:
+        features = client.get("/v1/curves").json()["features"]
+    radii = {feature["properties"]["lane_id"]: feature["properties"]["radius_m"] for feature in features}
+    assert radii == pytest.approx({"-1_0": RADIUS_M + LANE_WIDTH_M / 2, "1_0": RADIUS_M - LANE_WIDTH_M / 2}, abs=1e-3)
+    assert all(feature["properties"]["grade_pct"] == 0.0 for feature in features)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     radius_m=st.floats(30.0, 450.0),
