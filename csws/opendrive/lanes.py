@@ -26,7 +26,7 @@ from functools import lru_cache
 import numpy as np
 
 from .geometry import Poses, geometry_poses
-from .model import Cubic, Geometry, LaneSection, OpenDriveError, Road
+from .model import Cubic, Geometry, LaneSection, OpenDriveError, Road, record_in_force
 
 __all__ = ["KAPPA_TOLERANCE_PER_M", "SAMPLE_STEP_M", "LaneTrack", "lane_track", "lateral_offset"]
 
@@ -116,8 +116,7 @@ def _breakpoints(road: Road, section: LaneSection, lane_id: int) -> np.ndarray:
 def _offset_is_constant(road: Road, section: LaneSection, lane_id: int, s: float) -> bool:
     """Whether every record that places the lane is constant around road position ``s``."""
     records = [road.lane_offset(s)] + [
-        next((r for r in reversed(widths) if r.s0 <= s + 1e-9), None)
-        for _, widths in _side_records(road, section, lane_id)
+        record_in_force(widths, s) for _, widths in _side_records(road, section, lane_id)
     ]
     return all(record is None or record.is_constant for record in records)
 
@@ -137,8 +136,8 @@ def _geometry_at(road: Road, s: float) -> Geometry:
     return current
 
 
-def _piece(road: Road, section: LaneSection, lane_id: int, a: float, b: float) -> tuple[np.ndarray, ...]:
-    """Samples of one piece [a, b] of a lane: s, dσ/ds, κ_lane, x, y, and whether κ_lane is exactly constant."""
+def _piece(road: Road, section: LaneSection, lane_id: int, a: float, b: float) -> tuple[tuple[np.ndarray, ...], bool]:
+    """Samples of one piece [a, b] of a lane (s, dσ/ds, κ_lane, x, y) and whether κ_lane is exactly constant."""
     geometry = _geometry_at(road, 0.5 * (a + b))
     poses = _poses(geometry)
     s = np.linspace(a, b, max(int(math.ceil((b - a) / SAMPLE_STEP_M)), 2) + 1)
@@ -154,7 +153,7 @@ def _piece(road: Road, section: LaneSection, lane_id: int, a: float, b: float) -
     speed = np.hypot(squeeze, t1)
     lane_kappa = (kappa * squeeze**2 + squeeze * t2 + t1 * (kappa_rate * t + 2 * kappa * t1)) / speed**3
     x, y = x_ref - t * np.sin(hdg), y_ref + t * np.cos(hdg)
-    return s, speed, lane_kappa, x, y, np.array([exact])
+    return (s, speed, lane_kappa, x, y), exact
 
 
 def _linear_knots(sigma: np.ndarray, kappa: np.ndarray, tolerance: float) -> list[int]:
@@ -193,9 +192,9 @@ def lane_track(road: Road, section: LaneSection, lane_id: int) -> LaneTrack:
     for a, b in zip(cuts[:-1], cuts[1:], strict=True):
         if b - a <= 0:
             continue
-        s, speed, kappa, x, y, exact = _piece(road, section, lane_id, float(a), float(b))
+        (s, speed, kappa, x, y), exact = _piece(road, section, lane_id, float(a), float(b))
         sigma = sigma_start + np.concatenate(([0.0], np.cumsum(0.5 * np.diff(s) * (speed[1:] + speed[:-1]))))
-        knots = [0, len(s) - 1] if exact[0] else _linear_knots(sigma, kappa, KAPPA_TOLERANCE_PER_M)
+        knots = [0, len(s) - 1] if exact else _linear_knots(sigma, kappa, KAPPA_TOLERANCE_PER_M)
         for first, second in zip(knots[:-1], knots[1:], strict=True):
             bounds.append(float(sigma[second]))
             k0.append(float(kappa[first]))

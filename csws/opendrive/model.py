@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from csws.errors import CswsError
 
-__all__ = ["OpenDriveError", "Cubic", "Geometry", "Lane", "LaneSection", "Road"]
+__all__ = ["OpenDriveError", "Cubic", "Geometry", "Lane", "LaneSection", "Road", "record_in_force"]
 
 
 class OpenDriveError(ValueError, CswsError):
@@ -96,7 +96,7 @@ class Lane:
 
     def width(self, s: float) -> Cubic | None:
         """The width record in force at road position ``s`` (None before the first)."""
-        return _in_force(self.widths, s)
+        return record_in_force(self.widths, s)
 
 
 @dataclass(frozen=True)
@@ -142,22 +142,22 @@ class Road:
 
     def lane_offset(self, s: float) -> Cubic | None:
         """The lane-offset record in force at ``s``."""
-        return _in_force(self.lane_offsets, s)
+        return record_in_force(self.lane_offsets, s)
 
     def elevation(self, s: float) -> Cubic | None:
         """The elevation record in force at ``s``."""
-        return _in_force(self.elevations, s)
+        return record_in_force(self.elevations, s)
 
     def superelevation(self, s: float) -> Cubic | None:
         """The superelevation record in force at ``s``."""
-        return _in_force(self.superelevations, s)
+        return record_in_force(self.superelevations, s)
 
     def drives_along_s(self, lane_id: int) -> bool:
         """Whether traffic on lane ``lane_id`` drives in the direction of increasing s."""
         return (lane_id > 0) if self.lefthand else (lane_id < 0)
 
 
-def _in_force(records: tuple[Cubic, ...], s: float) -> Cubic | None:
+def record_in_force(records: tuple[Cubic, ...], s: float) -> Cubic | None:
     """The last record starting at or before ``s`` (records sorted by start)."""
     current = None
     for record in records:
