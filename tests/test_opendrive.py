@@ -224,6 +224,20 @@ def test_the_service_serves_the_exact_curves_without_a_flag(truth_import: Import
     assert all(feature["properties"]["grade_pct"] == 0.0 for feature in features)
 
 
+@pytest.mark.sumo
+def test_a_left_hand_road_is_mapped_as_sumo_drives_it_with_a_note(tmp_path: Path) -> None:
+    """netconvert drives OpenDRIVE lanes as right-hand traffic whatever the road's rule: csws follows the SUMO
+    lane (the outer lane keeps R + t along s) and notes each lane driven against the rule."""
+    from csws.opendrive.exact import read_exact
+
+    spec = dataclasses.replace(truth_road("h"), lefthand=True)
+    result = import_opendrive(write_opendrive(tmp_path / "h.xodr", [spec]), tmp_path / "h.net.xml")
+    lanes = read_exact(result.exact_path)
+    assert lanes["-h_0"].along_s and not lanes["h_0"].along_s
+    assert 1 / np.abs(lanes["-h_0"].start_curvature).max() == pytest.approx(RADIUS_M + LANE_WIDTH_M / 2, abs=1e-3)
+    assert sum("against its traffic rule" in note for note in result.notes) == 2
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     radius_m=st.floats(30.0, 450.0),

@@ -3,10 +3,11 @@
 netconvert (``--output.original-names``) tags each lane it builds from an OpenDRIVE lane with
 ``origId = "<road id>_<lane id>"``; internal junction lanes carry none. A SUMO lane is mapped to the
 lane section of that OpenDRIVE lane whose centre line its shape's ends lie on (netconvert may cut a
-lane back at a section joint), in the direction traffic drives on it (right lanes along s, left
-lanes against it; the other way round on a left-hand-traffic road). Its κ(σ) is the lane's between
-the two ends, measured from the SUMO lane's first point in the driving direction, with the sign of
-its turn as driven; grade and cross slope come with it, in the driving direction.
+lane back at a section joint), in the direction SUMO drives it: its shape's first point to its last.
+netconvert drives right lanes along s and left lanes against it, also on a road whose ``rule`` is
+``LHT`` (which it does not read): such lanes are noted. Its κ(σ) is the lane's between the two ends,
+measured from the SUMO lane's first point, with the sign of its turn as driven; grade and cross slope
+come with it, in the driving direction.
 
 The file is ``NAME.kappa.json`` beside ``NAME.net.xml[.gz]``.
 """
@@ -119,10 +120,11 @@ def _cut(track: LaneTrack, first: float, last: float) -> tuple[np.ndarray, np.nd
 
 
 def _mapped(road: Road, track: LaneTrack, shape: np.ndarray, lane_id: int) -> ExactLane:
-    """One SUMO lane's exact curvature from the track its ends lie on."""
-    along = road.drives_along_s(lane_id)
+    """One SUMO lane's exact curvature from the track its ends lie on, in the direction SUMO drives it (its shape's:
+    as the road's traffic rule says for a network netconvert built from the file)."""
     first, _ = _snap(track, shape[0])
     last, _ = _snap(track, shape[-1])
+    along = first <= last
     if not along:
         first, last = last, first
     bounds, k0, k1 = _cut(track, first, last)
@@ -162,6 +164,8 @@ def exact_lanes(net_path: str | Path, opendrive: OpenDriveFile) -> tuple[dict[st
             notes.append(f"lane {sumo_id}: its ends are off road {road_id} lane {lane_id} by over {SNAP_M} m; fitted")
             continue
         exact[sumo_id] = _mapped(road, tracks[road_id, lane_id][min(candidates)[1]], shape, lane_id)
+        if exact[sumo_id].along_s != road.drives_along_s(lane_id):
+            notes.append(f"lane {sumo_id}: SUMO drives road {road_id} lane {lane_id} against its traffic rule")
     return exact, notes
 
 
