@@ -289,6 +289,19 @@ def test_poly3_curvature_is_that_of_its_parabola() -> None:
     assert poses.y[-1] == pytest.approx(c * u[-1] ** 2, abs=1e-9)
 
 
+def test_param_poly3_of_the_same_parabola_has_the_same_curvature() -> None:
+    """paramPoly3 u = X p, v = c X² p² (p normalised to [0, 1]) is the parabola v = c u² for u in [0, X]."""
+    c, reach = 0.004, 45.0
+    parabola = Geometry(0.0, 0.0, 0.0, 0.0, 50.0, "poly3", (("a", 0.0), ("b", 0.0), ("c", c), ("d", 0.0)))
+    params = {"aU": 0.0, "bU": reach, "cU": 0.0, "dU": 0.0, "aV": 0.0, "bV": 0.0, "cV": c * reach**2, "dV": 0.0}
+    parametric = Geometry(0.0, 0.0, 0.0, 0.3, 60.0, "paramPoly3", (*params.items(), ("pRange", 0.0)))
+    poses = geometry_poses(parametric)
+    local_x = np.cos(0.3) * poses.x + np.sin(0.3) * poses.y  # the heading of 0.3 rad turned back
+    assert np.allclose(poses.curvature, 2 * c / (1 + (2 * c * local_x) ** 2) ** 1.5, atol=1e-12)
+    arc_to_reach = float(np.interp(reach, geometry_poses(parabola).x, geometry_poses(parabola).s))
+    assert poses.s[-1] == pytest.approx(arc_to_reach, abs=1e-3)
+
+
 def _xodr(plan_view: str, extra: str = "") -> str:
     lanes = (
         '<lanes><laneSection s="0"><center><lane id="0" type="none"/></center>'

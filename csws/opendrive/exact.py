@@ -156,7 +156,12 @@ def exact_lanes(net_path: str | Path, opendrive: OpenDriveFile) -> tuple[dict[st
             continue
         lane_id = int(lane_text)
         if (road_id, lane_id) not in tracks:
-            tracks[road_id, lane_id] = [lane_track(road, s, lane_id) for s in road.sections if s.lane(lane_id)]
+            try:
+                tracks[road_id, lane_id] = [lane_track(road, s, lane_id) for s in road.sections if s.lane(lane_id)]
+            except OpenDriveError as error:
+                tracks[road_id, lane_id] = []
+                notes.append(f"lane {sumo_id}: {error}; fitted")
+                continue
         candidates = [
             (max(_snap(t, shape[0])[1], _snap(t, shape[-1])[1]), i) for i, t in enumerate(tracks[road_id, lane_id])
         ]
