@@ -35,6 +35,7 @@ from benchmarks import (
     curvature,
     fcw,
     fcw_traffic,
+    fleet,
     hygiene,
     jt808,
     load,
@@ -233,6 +234,29 @@ def matching_rows(figures: dict) -> list[Row]:
     ]
 
 
+def fleet_rows(figures: dict) -> list[Row]:
+    return [
+        at_most(
+            f"fleet: single-fix p99 while pages of {figures['vehicles']:,} vehicles are read, same worker, ms",
+            figures["fix_p99_reading_pages_ms"],
+            fleet.FIX_P99_TARGET_MS,
+            f"alone {figures['fix_p99_alone_ms']:g} ms; {figures['pages_read_per_s']:g} pages/s read meanwhile",
+        ),
+        context(
+            "fleet: a page of 1,000 / 10,000 vehicles, ms",
+            f"{figures['first_page_default_ms']:g} / {figures['first_page_max_ms']:g}",
+        ),
+        context(
+            "fleet: a 1 x 1 m box / the first page of a box of 3 % of the fleet, ms",
+            f"{figures['box_1m_ms']:g} / {figures['box_3pc_ms']:g}",
+        ),
+        context(
+            "fleet: the whole fleet page by page (1,000 each)",
+            f"{figures['walk_default_pages']} pages in {figures['walk_default_s']:g} s",
+        ),
+    ]
+
+
 def hygiene_rows(figures: dict) -> list[Row]:
     return [
         at_most(
@@ -243,6 +267,10 @@ def hygiene_rows(figures: dict) -> list[Row]:
             f"saturated alone {figures['healthz_saturating_p99_ms']:g} ms, "
             f"dripping alone {figures['healthz_dripping_p99_ms']:g} ms; longest dripping connection "
             f"{figures['healthz_dripping_open_s_max']} s",
+        ),
+        context(
+            "hygiene: the same /healthz p99 of a bare ASGI app on plain uvicorn (the reference), ms",
+            figures["reference_healthz_dripping_saturating_p99_ms"],
         ),
         at_most("hygiene: errors of the honest clients", figures["healthz_dripping_saturating_errors"], 0),
         at_most(
@@ -512,6 +540,12 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         Benchmark("matching", matching.run, "about half a minute: 10,000 vehicles on Bad Hersfeld", matching_rows),
         Benchmark(
             "hygiene", hygiene.run, "about a minute: slow heads, saturation, descriptor exhaustion", hygiene_rows
+        ),
+        Benchmark(
+            "fleet",
+            lambda: fleet.run(vehicles=10_000 if quick else fleet.VEHICLES),
+            "about 1-2 minutes: 100,000 vehicles given, their pages read",
+            fleet_rows,
         ),
         Benchmark("load", lambda: load.run(seconds=load_seconds), f"{load_seconds:g} s at saturation", load_rows),
         Benchmark(

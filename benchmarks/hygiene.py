@@ -8,6 +8,11 @@ file), started and stopped here:
   each per second and :data:`SATURATING` clients posting single queries as fast as they are
   answered; the errors of the honest client and of the saturating ones; and how long the
   dripping connections stayed open (the head deadline, ``service.guard``);
+* the same ``/healthz`` figures, quiet and under both loads, of a reference: a bare ASGI app
+  (:func:`bare_app`, no framework, a constant answer to every request, the saturating clients'
+  posts too) served by plain uvicorn, one worker, in the same harness. What the reference cannot
+  reach on this machine, the service cannot either: its p99 under load is the floor that the
+  machine and the harness (the clients run on the same two cores) set;
 * descriptor exhaustion: a service whose descriptor limit is 128 (soft and hard) holding
   :data:`IDLE` idle connections: what ``/healthz`` answers meanwhile, how soon it answers 200
   after they leave, and how many log lines the service wrote.
@@ -26,6 +31,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from contextlib import suppress
 from pathlib import Path
 from typing import cast
@@ -50,13 +56,34 @@ def _free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def _serve(folder: Path, nofile: int | None = None) -> tuple[subprocess.Popen, int, Path]:
-    """``csws serve`` on the track, ready; its process, port and log file."""
+async def bare_app(scope: dict, receive: Callable, send: Callable) -> None:
+    """A bare ASGI app, the reference: reads each request's body and answers 200 with a constant JSON body."""
+    if scope["type"] == "lifespan":
+        while (await receive())["type"] != "lifespan.shutdown":
+            await send({"type": "lifespan.startup.complete"})
+        await send({"type": "lifespan.shutdown.complete"})
+        return
+    if scope["type"] != "http":
+        return
+    while (await receive()).get("more_body", False):
+        pass
+    await send({"type": "http.response.start", "status": 200, "headers": [(b"content-type", b"application/json")]})
+    await send({"type": "http.response.body", "body": b'{"status":"ok"}'})
+
+
+def _serve(folder: Path, nofile: int | None = None, bare: bool = False) -> tuple[subprocess.Popen, int, Path]:
+    """``csws serve`` on the track (or plain uvicorn serving :func:`bare_app`), ready; its process, port and
+    log file."""
     port, log = _free_port(), folder / f"serve-{time.monotonic_ns()}.log"
+    if bare:
+        command = ["uvicorn", "benchmarks.hygiene:bare_app", "--log-level", "warning", "--port", str(port)]
+    else:
+        command = ["csws", "serve", f"--net={TRACK_NET}", "--port", str(port)]
+        command += ["--state-db", str(folder / f"v{port}.sqlite3")]
     with log.open("wb") as out:
         process = subprocess.Popen(
-            [sys.executable, "-m", "csws", "serve", f"--net={TRACK_NET}", "--port", str(port)]
-            + ["--state-db", str(folder / f"v{port}.sqlite3")],
+            [sys.executable, "-m", *command],
+            cwd=Path(__file__).resolve().parents[1],
             stdout=out,
             stderr=subprocess.STDOUT,
             preexec_fn=(lambda: resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, nofile))) if nofile else None,
@@ -162,21 +189,25 @@ def _under(port: int, dripping: int, saturating: int) -> dict:
     }
 
 
-def dripping(folder: Path) -> dict:
-    """``/healthz`` alone, under dripping heads, under saturating clients, under both."""
-    process, port, _log = _serve(folder)
+#: The loads ``/healthz`` is measured under: (dripping connections, saturating clients) by phase.
+PHASES = {
+    "quiet": (0, 0),
+    "dripping": (DRIPPING, 0),
+    "saturating": (0, SATURATING),
+    "dripping_saturating": (DRIPPING, SATURATING),
+}
+
+
+def dripping(folder: Path, bare: bool = False, phases: tuple[str, ...] = tuple(PHASES)) -> dict:
+    """``/healthz`` of the service (or of the reference, ``bare``) in each of ``phases``."""
+    process, port, _log = _serve(folder, bare=bare)
+    figures = {}
     try:
-        phases = {
-            "quiet": (0, 0),
-            "dripping": (DRIPPING, 0),
-            "saturating": (0, SATURATING),
-            "dripping_saturating": (DRIPPING, SATURATING),
-        }
-        figures = {}
-        for phase, (drips, clients) in phases.items():
+        for phase in phases:
+            drips, clients = PHASES[phase]
             for name, value in _under(port, drips, clients).items():
                 if drips or name not in ("closed", "open_s_max"):
-                    figures[f"healthz_{phase}_{name}"] = value
+                    figures[f"{'reference_' if bare else ''}healthz_{phase}_{name}"] = value
     finally:
         process.terminate()
         process.wait(timeout=15)
@@ -214,9 +245,10 @@ def exhaustion(folder: Path) -> dict:
 
 
 def run() -> dict:
-    """Measure both; the figures."""
+    """Measure the service, the reference (quiet and under both loads) and exhaustion; the figures."""
     with tempfile.TemporaryDirectory(prefix="csws-bench-hygiene-") as folder:
-        return dripping(Path(folder)) | exhaustion(Path(folder))
+        reference = dripping(Path(folder), bare=True, phases=("quiet", "dripping_saturating"))
+        return dripping(Path(folder)) | reference | exhaustion(Path(folder))
 
 
 def main() -> None:

@@ -53,8 +53,8 @@ class FeedAnswers:
         Each answer's curve warning level.
     matched_lane
         Each answer's matched lane id (None: matched nothing).
-    target_lane
-        The lane the warned curve starts on (None without a warning).
+    target_edge
+        The edge the warned curve starts on (its id's EDGE of EDGE@POS; None without a warning).
     server_ms
         The service's own time for all the feed's batches, ms.
     """
@@ -62,7 +62,7 @@ class FeedAnswers:
     rows: np.ndarray
     level: np.ndarray
     matched_lane: np.ndarray
-    target_lane: np.ndarray
+    target_edge: np.ndarray
     server_ms: float
 
 
@@ -129,7 +129,7 @@ def _queries(
 
 
 def _read(answers: list[dict], level: list, matched: list, target: list) -> None:
-    """Append each answer's level, matched lane and warned curve's lane."""
+    """Append each answer's level, matched lane and warned curve's edge."""
     for answer in answers:
         level.append(answer["level"])
         matched.append(answer["matched"]["lane_id"] if answer["matched"] else None)
@@ -178,7 +178,7 @@ def _send(
         rows=rows,
         level=np.asarray(level, dtype=np.int8),
         matched_lane=np.asarray(matched, dtype=object),
-        target_lane=np.asarray(target, dtype=object),
+        target_edge=np.asarray(target, dtype=object),
         server_ms=server_ms,
     )
 

@@ -67,9 +67,9 @@ def _by_vehicle(trajectories: Trajectories, answers: FeedAnswers) -> dict[int, _
     return split
 
 
-def _is_junction(lane_id: str | None) -> bool:
-    """Whether a lane is a junction connection (SUMO's internal lanes start with ':')."""
-    return lane_id is not None and lane_id.startswith(":")
+def _is_junction(place_id: str | None) -> bool:
+    """Whether a lane or edge is a junction connection (SUMO's internal lanes and edges start with ':')."""
+    return place_id is not None and place_id.startswith(":")
 
 
 def _count_false(tally: _Tally, feed: _Vehicle, onset: int, answers: FeedAnswers) -> None:
@@ -78,7 +78,7 @@ def _count_false(tally: _Tally, feed: _Vehicle, onset: int, answers: FeedAnswers
     off = np.flatnonzero(after == 0)
     level_2 = int(after[: off[0] if len(off) else len(after)].max()) == 2
     answer = feed.indices[onset]
-    junction = _is_junction(answers.matched_lane[answer]) or _is_junction(answers.target_lane[answer])
+    junction = _is_junction(answers.matched_lane[answer]) or _is_junction(answers.target_edge[answer])
     tally.false += 1
     tally.false_level_2 += level_2
     tally.false_junction += junction

@@ -284,6 +284,7 @@ class WarningService:
         fleet: str,
     ) -> None:
         """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``."""
+        answered_at_s = time.time()
         for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(
             zip(
                 rows,
@@ -296,7 +297,17 @@ class WarningService:
             )
         ):
             placement, query = placements[row], queries[row]
-            latest = LatestAnswer(categories[row], query.speed_kmh, int(warning.level), query.timestamp_s)
+            target = warning.target
+            latest = LatestAnswer(
+                categories[row],
+                query.speed_kmh,
+                int(warning.level),
+                query.timestamp_s,
+                query.heading_deg,
+                target.curve_id if target is not None else None,
+                target.warning_speed_kmh if target is not None else None,
+                answered_at_s,
+            )
             vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None

@@ -36,11 +36,13 @@ DEFAULT_HORIZON_M = 1000.0
 class CpoiPositions:
     """Where the CPOIs of one network are, as the contract gives positions: each worked out once.
 
-    A CPOI is the first point of its constant-radius part (3.11), whichever path reaches it; a
-    fleet meets the same CPOIs again and again, and working one out costs an interpolation
+    A CPOI is the first point of its constant-radius part (3.11) on the lane a path reaches it
+    by; a fleet meets the same CPOIs again and again, and working one out costs an interpolation
     along the path and, on a geo-referenced network, a projection (some 50 µs in all). The
-    first path that reaches a CPOI places it; the place is kept for as long as the network is
-    served (a network has as many CPOIs as its curves have parts).
+    first path from a lane that reaches a CPOI places it for paths from that lane (the lanes of a
+    road share their curves' ids, not their places: each lies on its own lane, and a path that
+    starts inside a curve sees its part from the path's start); the place is kept for as long as
+    the network is served (a network has as many CPOIs as its lanes' curves have parts).
 
     Parameters
     ----------
@@ -50,16 +52,17 @@ class CpoiPositions:
 
     def __init__(self, network: ServedNetwork) -> None:
         self.network = network
-        self._known: dict[tuple[str, int], dict[str, float]] = {}
+        self._known: dict[tuple[str, str, int], dict[str, float]] = {}
 
     def of(
         self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int] | np.ndarray
     ) -> list[dict[str, float]]:
         """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
-        keys = [(curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=False)]
+        lane_id = ahead.path.lane_ids[0]
+        keys = [(lane_id, curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=False)]
         missing = [key for key in dict.fromkeys(keys) if key not in self._known]
         if missing:
-            points = cpoi_points(ahead, [curve_id for curve_id, _ in missing], [part for _, part in missing])
+            points = cpoi_points(ahead, [curve_id for _, curve_id, _ in missing], [part for _, _, part in missing])
             self._known.update(zip(missing, positions(self.network, points), strict=False))
         return [self._known[key] for key in keys]
 

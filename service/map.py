@@ -1,10 +1,12 @@
 """The live map: ``GET /map``, the roads it draws (``GET /v1/roads``) and the fleet on it (``GET /v1/fleet``).
 
-The page (``service/static/map.html``, ``map.js``) is Leaflet, vendored from its npm package
+The page (``service/static/map.html``, ``map.css``, ``map.js``) is Leaflet, vendored from its npm package
 with its licence (``service/static/leaflet/``): no tile server, no CDN, so it works on a host
 without Internet access. It draws the served network's roads, its curves in the view
 (``GET /v1/curves?bbox=...``) coloured by radius, and the live vehicles, asked for once
-a second. On a service with API keys the page itself is open (it holds no data) and sends the
+a second, told apart by colour and shape, faded after a silence, with a list of those warned now;
+the view and the selected vehicle are kept in the address (docs/service.md, "The live map").
+On a service with API keys the page itself is open (it holds no data) and sends the
 key given after ``#key=`` in its address with every request for data.
 """
 

@@ -317,7 +317,9 @@ class XY(BaseModel):
 class Trigger(BaseModel):
     """A CPOI (3.11) whose warning condition (6.1) holds."""
 
-    curve_id: str = Field(description="the curve: lane@position of its start")
+    curve_id: str = Field(
+        description="the curve: edge@position of its start (to the metre), the same on every lane of the road"
+    )
     part_index: int = Field(description="constant-radius part within the curve (0 for a single curve)")
     level: Literal[1, 2]
     distance_m: float = Field(description="distance S along the path to the CPOI, m (0 inside the part)")
@@ -391,7 +393,7 @@ class WarningAnswer(BaseModel):
                     "fault": None,
                     "level": 2,
                     "target": {
-                        "curve_id": "curve_0@100",
+                        "curve_id": "curve@100",
                         "part_index": 0,
                         "level": 2,
                         "distance_m": 95.0,

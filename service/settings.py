@@ -5,7 +5,9 @@ the same way as ``csws serve``:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``), ``CSWS_HOST``, ``CSWS_PORT``,
 ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``, ``CSWS_MATCH_TOLERANCE_M``,
-``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``,
+``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
+``CSWS_MATCH_HEADING_SIGMA_DEG``, ``CSWS_MATCH_LANE_CHANGE_LOG_P``, ``CSWS_MATCH_DEAD_RECKONING_S``,
+``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``,
 ``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``.
@@ -77,6 +79,33 @@ class ServiceSettings(BaseSettings):
     )
     heading_tolerance_deg: float = Field(
         default=_MATCH.heading_tolerance_deg, gt=0, le=180, description="allowed heading difference, deg"
+    )
+    match_accuracy_m: float = Field(
+        default=_MATCH.accuracy_m,
+        gt=0,
+        description="the standard deviation of a fix's position where the query gives no accuracy_m, m: the "
+        "sequence matcher weighs a fix's distance from a lane and searches lanes by it (csws.road.hmm)",
+    )
+    match_search_sigmas: float = Field(
+        default=_MATCH.search_sigmas,
+        gt=0,
+        description="the sequence matcher's candidates lie within this many standard deviations of the fix "
+        "(never nearer than match_tolerance_m)",
+    )
+    match_heading_sigma_deg: float = Field(
+        default=_MATCH.heading_sigma_deg,
+        gt=0,
+        description="the standard deviation of a fix's heading against its lane's direction, deg",
+    )
+    match_lane_change_log_p: float = Field(
+        default=_MATCH.lane_change_log_p,
+        le=0,
+        description="the log-probability of a change to another lane of the same edge between two fixes",
+    )
+    match_dead_reckoning_s: float = Field(
+        default=_MATCH.dead_reckoning_s,
+        ge=0,
+        description="a fix matching no lane is dead-reckoned along the road this long after the last match, s",
     )
     update_period_s: float = Field(
         default=_WARNING.update_period_s,
@@ -161,8 +190,17 @@ class ServiceSettings(BaseSettings):
         return replace(_ENGINE, warning=warning)
 
     def match_settings(self) -> MatchSettings:
-        """The library's map matching settings with this service's tolerances."""
-        return replace(_MATCH, tolerance_m=self.match_tolerance_m, heading_tolerance_deg=self.heading_tolerance_deg)
+        """The library's map matching settings with this service's tolerances and the sequence matcher's scales."""
+        return replace(
+            _MATCH,
+            tolerance_m=self.match_tolerance_m,
+            heading_tolerance_deg=self.heading_tolerance_deg,
+            accuracy_m=self.match_accuracy_m,
+            search_sigmas=self.match_search_sigmas,
+            heading_sigma_deg=self.match_heading_sigma_deg,
+            lane_change_log_p=self.match_lane_change_log_p,
+            dead_reckoning_s=self.match_dead_reckoning_s,
+        )
 
 
 def _is_loopback(host: str) -> bool:

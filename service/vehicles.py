@@ -32,7 +32,8 @@ from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 from csws.warning.release import HeldWarning
 
-from .store import NOTHING_STORED, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from .places import shown_places
+from .store import NOTHING_STORED, Place, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
 from .timing import UNTIMED, Stages
 
 __all__ = [
@@ -59,6 +60,13 @@ class LatestAnswer(msgspec.Struct, array_like=True, frozen=True, gc=False):
     speed_kmh: float
     level: int
     timestamp_s: float | None
+    #: The heading the vehicle sent, degrees from north (None when it sent none).
+    heading_deg: float | None = None
+    #: The target curve (3.12) and its V_w at the target's level, km/h; None without a warning.
+    curve_id: str | None = None
+    warning_speed_kmh: float | None = None
+    #: When the service answered it, Unix time, s: the live map's age of the vehicle's last fix.
+    answered_at_s: float | None = None
 
 
 class FcwMemory(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -118,7 +126,7 @@ class Session:
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
-    """A session as the store keeps it: a MessagePack array of about 30 to 100 bytes."""
+    """A session as the store keeps it: a MessagePack array of about 45 to 140 bytes."""
 
     network: str
     lane_id: str | None
@@ -193,6 +201,9 @@ class LoadedVehicles:
         self.written: set[str] = set()
         #: What map matching kept of the vehicles' fixes of this request, until each is :meth:`seen`.
         self.tracks: dict[str, Track | None] = {}
+        #: Where each vehicle with a session was as read (network, lane, lane position): its place is
+        #: written again only when that changed.
+        self.read_lanes: dict[str, tuple[int, str | None, float]] = {}
         for vehicle_id, vehicle in stored.items():
             record = registry.decode(vehicle.session)
             if record is not None:
@@ -200,6 +211,7 @@ class LoadedVehicles:
                 self.sessions[vehicle_id] = Session(
                     network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw, record.matching
                 )
+                self.read_lanes[vehicle_id] = (network_index, record.lane_id, record.lane_pos_m)
                 self.engines[network_index].restore(vehicle_id, record.memory())
 
     def __enter__(self) -> LoadedVehicles:
@@ -309,14 +321,35 @@ class LoadedVehicles:
         """What to store of the vehicles this request answered or set."""
         writes = {}
         stored, new_settings, encode = self.stored, self.new_settings, _ENCODER.encode
+        places = self._places()
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
             record = SessionRecord.of(self.network_names[session.network_index], session, memory)
             writes[vehicle_id] = VehicleWrite(
-                stored.get(vehicle_id, NOTHING_STORED).version, encode(record), new_settings.get(vehicle_id)
+                stored.get(vehicle_id, NOTHING_STORED).version,
+                encode(record),
+                new_settings.get(vehicle_id),
+                places.get(vehicle_id),
             )
         return writes
+
+    def _places(self) -> dict[str, Place]:
+        """Where the live map shows the vehicles to write that it shows (``GET /v1/fleet``): those matched
+        to a lane of their network and answered at least once, whose lane position changed since they were
+        read (a vehicle standing still keeps the place stored; one whose session was written before places
+        were kept gets its place when it next moves)."""
+        road_maps = [engine.road_map for engine in self.engines]
+        lanes = {}
+        for vehicle_id in self.written:
+            session = self.sessions[vehicle_id]
+            road_map = road_maps[session.network_index]
+            if session.lane_id is None or session.latest is None or road_map is None:
+                continue
+            lane = (session.network_index, session.lane_id, session.lane_pos_m)
+            if self.read_lanes.get(vehicle_id) != lane and road_map.has_lane(session.lane_id):
+                lanes[vehicle_id] = lane
+        return shown_places(road_maps, self.network_names, lanes)
 
 
 class VehicleRegistry:

@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pyarrow.parquet as pq
 import pytest
@@ -239,18 +240,41 @@ def test_killed_sumo_leaves_valid_files_and_one_error_line(tmp_path):
     _assert_complete_csv(tmp_path / "entries.csv", ENTRY_COLUMNS)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["complete"] is False and summary["status"].startswith("SUMO stopped")
+    assert (tmp_path / "summary.png").is_file()
+    assert "| status | SUMO stopped: " in (tmp_path / "summary.md").read_text()
 
 
 @pytest.mark.slow
 @pytest.mark.sumo
 def test_an_interrupted_run_keeps_valid_files(tmp_path):
-    process = _start(tmp_path, "--timeseries", "csv")
+    process = _start(tmp_path, "--timeseries", "csv", "--fcd", str(tmp_path / "fcd.xml"))
     _wait_for_rows(tmp_path / "timeseries.csv", process)
     process.send_signal(signal.SIGINT)
-    _, stderr = process.communicate(timeout=60)
+    stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130 and _without_progress(stderr) == ["csws: interrupted"]
     assert _assert_complete_csv(tmp_path / "timeseries.csv", TIMESERIES_COLUMNS) > 0
-    assert json.loads((tmp_path / "summary.json").read_text())["status"] == "interrupted"
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "interrupted"
+    _assert_summary_of_the_interrupted_run(tmp_path, summary, stdout)
+    # The FCD export is closed and parses; its last timestep is the last step's (SUMO's time: one step earlier).
+    timesteps = ElementTree.parse(tmp_path / "fcd.xml").getroot().findall("timestep")
+    assert float(timesteps[-1].get("time")) == pytest.approx(summary["simulated_until_s"] - 0.1, abs=1e-6)
+
+
+def _assert_summary_of_the_interrupted_run(out: Path, summary: dict, stdout: str) -> None:
+    """summary.png and summary.md are written for the steps the interrupted run made, and say it was interrupted."""
+    assert (out / "summary.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    table = {
+        cells[0]: cells[1:]
+        for line in (out / "summary.md").read_text().splitlines()
+        if line.startswith("| ")
+        for cells in [[cell.strip() for cell in line.strip("|").split("|")]]
+    }
+    assert table["status"] == ["interrupted"]
+    assert float(table["simulated until, s"][0]) == pytest.approx(summary["simulated_until_s"], abs=0.05)
+    assert int(table["level-1 warnings"][0]) == summary["warnings"]["by_level"]["level1"]
+    assert int(table["curve-part entries at or above the level-1 warning speed"][0]) == len(_rows(out / "entries.csv"))
+    assert f"summary plot in {out / 'summary.png'}" in stdout
 
 
 @pytest.mark.slow
@@ -273,7 +297,7 @@ def test_an_interrupted_parquet_run_writes_what_it_gathered_as_whole_parts(tmp_p
     process = _start(tmp_path)
     _wait_for_rows(tmp_path / "warnings.csv", process, size=2_000)
     process.send_signal(signal.SIGINT)
-    _, stderr = process.communicate(timeout=60)
+    stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130 and _without_progress(stderr) == ["csws: interrupted"]
     assert not list((tmp_path / "timeseries").glob("*.partial"))
     table = pq.read_table(tmp_path / "timeseries")
@@ -282,6 +306,7 @@ def test_an_interrupted_parquet_run_writes_what_it_gathered_as_whole_parts(tmp_p
     assert summary["status"] == "interrupted"
     last_s = max(table.column("time_s").to_pylist())
     assert summary["simulated_until_s"] - 1e-9 <= last_s <= summary["simulated_until_s"] + 0.1 + 1e-9
+    _assert_summary_of_the_interrupted_run(tmp_path, summary, stdout)
 
 
 @pytest.mark.sumo

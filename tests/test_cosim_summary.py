@@ -5,10 +5,12 @@ counts of the CSV rows)."""
 from __future__ import annotations
 
 import csv
+import json
 import re
 import subprocess
 import sys
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -28,7 +30,10 @@ def compared(tmp_path_factory) -> Path:
     """``csws cosim --driver-response`` over the first minute of the bundled fleet."""
     out = tmp_path_factory.mktemp("cosim")
     subprocess.run(
-        [sys.executable, "-m", "csws", "cosim", "--driver-response", "--end", END_S, "--out", str(out)],
+        [
+            *(sys.executable, "-m", "csws", "cosim", "--driver-response", "--end", END_S, "--out", str(out)),
+            *("--fcd", str(out / "fcd.xml")),
+        ],
         check=True,
         capture_output=True,
     )
@@ -79,6 +84,15 @@ def test_the_summary_compares_both_runs_with_the_runs_own_figures(compared) -> N
     assert more_than_1[0] > 0 and more_than_1[1] == 0  # the driver response keeps every entry near V_w
 
 
+def test_each_run_of_the_comparison_has_its_own_fcd_export(compared) -> None:
+    """``--fcd out/fcd.xml`` with ``--driver-response``: one file per run, each ending at that run's last step."""
+    assert not (compared / "fcd.xml").exists()
+    for run in ("without_response", "with_response"):
+        timesteps = ElementTree.parse(compared / f"fcd.{run}.xml").getroot().findall("timestep")
+        simulated_s = json.loads((compared / run / "summary.json").read_text())["simulated_until_s"]
+        assert float(timesteps[-1].get("time")) == pytest.approx(simulated_s - 0.1, abs=1e-6)
+
+
 @pytest.mark.sumo
 def test_a_csv_time_series_gives_the_figures_of_parquet(tmp_path) -> None:
     config = CosimConfig(bundled_scenario(), tmp_path / "csv", end_s=30.0, timeseries="csv")
@@ -98,6 +112,7 @@ def test_without_a_time_series_the_summary_says_what_it_lacks(tmp_path) -> None:
     )
     table = _table((tmp_path / "summary.md").read_text())
     assert table["vehicle-km"] == ["n/a (no time series)"]
+    assert table["status"] == ["complete"] and float(table["simulated until, s"][0]) == pytest.approx(20.0)
     assert re.fullmatch(r"\d+", table["level-1 warnings"][0])
     assert (tmp_path / "summary.png").read_bytes().startswith(PNG_SIGNATURE)
 

@@ -5,6 +5,12 @@ clothoid and a straight, cut by a node inside the bend, built with netconvert. S
 the lanes to the right of the edge's shape, lane 0 outermost on the right, each
 :data:`LANE_WIDTH_M` wide: lane i runs (n - i - 1/2) lane widths right of the shape, so its
 radius is R + that on a left turn and R - that on a right turn.
+
+The lanes of a road name its curve alike (its edge and lane position), so that a vehicle that
+changes lane inside a curve keeps its warning: at a speed between the inner lane's V_w and the
+outer lane's (Tables 1-2 at the radii the map gives each lane), 6.1 warns on the inner lane and
+not on the outer one, and only the release rule, which remembers the curve and part that warned,
+keeps the warning on after the change.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, sample_pieces, straight
 from csws.road.roadmap import RoadMap
 from csws.road.sharing import Run, lateral_offsets_m, moved_curve, reference_lanes
+from csws.standard import warning_speed
 from csws.sumo.netbuild import netconvert, shape_text
 
 pytestmark = pytest.mark.sumo  # every network here is built with netconvert
@@ -39,8 +46,17 @@ SAME_POSITION_M = 0.01
 RADIUS_TOLERANCE = 0.03
 
 
-def _road(folder: Path, direction: str) -> RoadMap:
-    """The three-lane road turning ``direction``, two edges meeting at a node inside the arc."""
+def _moved_left(xy: np.ndarray, distance_m: float) -> np.ndarray:
+    """A polyline moved ``distance_m`` to its left, each vertex square to its neighbours' chord."""
+    tangent = np.gradient(xy, axis=0)
+    tangent /= np.hypot(tangent[:, 0], tangent[:, 1])[:, None]
+    return xy + distance_m * np.column_stack((-tangent[:, 1], tangent[:, 0]))
+
+
+def _road(folder: Path, direction: str, lanes_after_node: int = LANES, node_into_arc_m: float = 20.0) -> RoadMap:
+    """The three-lane road turning ``direction``, two edges meeting at a node ``node_into_arc_m`` beyond the
+    arc's start; the second edge has ``lanes_after_node`` lanes, those it has more added on the left (its
+    shape moved left by them, so that its first lanes go on where the first edge's do)."""
     pieces = (
         straight(APPROACH_M),
         clothoid(SPIRAL_M, math.inf, RADIUS_M, direction),
@@ -50,13 +66,18 @@ def _road(folder: Path, direction: str) -> RoadMap:
     )
     xy = np.round(sample_pieces(pieces, 2.0, (0.0, 0.0), 0.0)[0], 2)
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    middle = int(np.searchsorted(s, APPROACH_M + SPIRAL_M + 20.0))
+    middle = int(np.searchsorted(s, APPROACH_M + SPIRAL_M + node_into_arc_m))
     nodes = node_xml("A", xy[0]) + node_xml("M", xy[middle]) + node_xml("B", xy[-1])
     edges = "".join(
-        f'<edge id="{edge}" from="{a}" to="{b}" numLanes="{LANES}" speed="30" shape="{shape_text(part)}"/>'
-        for edge, a, b, part in (("a", "A", "M", xy[: middle + 1]), ("b", "M", "B", xy[middle:]))
+        f'<edge id="{edge}" from="{a}" to="{b}" numLanes="{lanes}" speed="30" shape="{shape_text(part)}"/>'
+        for edge, a, b, lanes, part in (
+            ("a", "A", "M", LANES, xy[: middle + 1]),
+            ("b", "M", "B", lanes_after_node, _moved_left(xy[middle:], (lanes_after_node - LANES) * LANE_WIDTH_M)),
+        )
     )
-    net = netconvert(f"<nodes>{nodes}</nodes>", f"<edges>{edges}</edges>", folder / f"{direction}.net.xml")
+    net = netconvert(
+        f"<nodes>{nodes}</nodes>", f"<edges>{edges}</edges>", folder / f"{direction}{lanes_after_node}.net.xml"
+    )
     return RoadMap.load(net, cache=False)
 
 
@@ -149,3 +170,88 @@ def test_a_moved_curve_keeps_its_place_and_angle_and_moves_its_radius_by_the_off
     assert moved.min_radius_m == pytest.approx(expected_m, rel=1e-9)
     assert (moved.start_s, moved.end_s) == pytest.approx((100.0 * stretch, 150.0 * stretch))
     assert moved.angle_deg == curve.angle_deg and moved.direction == direction
+
+
+def test_the_lanes_of_a_road_name_its_curve_by_the_edge_and_lane_position_where_it_starts(road):
+    road_map, _ = road
+    (first,) = road_map.lane_curves("a_0")
+    expected_id = f"a@{first.start_pos_m:.0f}"
+    for i in range(LANES):
+        for lane_id in (f"a_{i}", f"b_{i}"):
+            (curve,) = road_map.lane_curves(lane_id)
+            assert (curve.curve_id, curve.first_part_index) == (expected_id, 0), lane_id
+
+
+def _inner_and_outer(direction: str) -> tuple[int, int]:
+    """The innermost lane of the turn and its neighbour outside it."""
+    return (LANES - 1, LANES - 2) if direction == "left" else (0, 1)
+
+
+def _between_speeds_kmh(road_map: RoadMap, inner_lane: str, outer_lane: str) -> float:
+    """A speed at which 6.1 warns (level 1, M1) inside the arc of ``inner_lane`` but not of ``outer_lane``, and
+    which the release margin of 1 km/h keeps warned there: between the two lanes' V_w at their radii."""
+    (inner,), (outer,) = road_map.lane_curves(inner_lane), road_map.lane_curves(outer_lane)
+    inner_kmh = warning_speed(inner.curve.min_radius_m, "M1", 1)
+    outer_kmh = warning_speed(outer.curve.min_radius_m, "M1", 1)
+    assert outer.curve.min_radius_m > inner.curve.min_radius_m and 0.0 < outer_kmh - inner_kmh < 1.0
+    return (inner_kmh + outer_kmh) / 2.0
+
+
+def _drive(engine: Engine, steps: list[tuple[str, float]], speed_kmh: float, step_s: float) -> list:
+    """One vehicle's answers at ``steps`` (lane, lane position), one every ``step_s``."""
+    return [
+        engine.evaluate(VehicleInput("truck", "M1", speed_kmh, lane_id, pos_m, timestamp_s=k * step_s))
+        for k, (lane_id, pos_m) in enumerate(steps)
+    ]
+
+
+def test_a_lane_change_inside_the_curve_keeps_one_warning_of_one_curve(road):
+    """Warned on the inner lane inside the arc, the vehicle moves to the outer lane, where 6.1 alone would not
+    warn, and on across the node into the next edge: one warning, the same curve and part, no second onset."""
+    road_map, direction = road
+    inner, outer = _inner_and_outer(direction)
+    speed_kmh = _between_speeds_kmh(road_map, f"a_{inner}", f"a_{outer}")
+    step_s = 0.25
+    step_m = speed_kmh / 3.6 * step_s
+    end_of_a_m = road_map.lane(f"a_{inner}").length_m
+    steps = [
+        (f"a_{inner}", end_of_a_m - 10.0),
+        (f"a_{outer}", end_of_a_m - 10.0 + step_m),
+        (f"b_{outer}", 2.0 * step_m - 10.0),
+        (f"b_{outer}", 3.0 * step_m - 10.0),
+    ]
+    assert steps[2][1] > 0.0  # the vehicle has crossed the node into edge b
+    answers = _drive(Engine(road_map), steps, speed_kmh, step_s)
+    targets = [answer.warning.target for answer in answers]
+    assert [answer.warning.level for answer in answers] == [1] * len(steps)
+    assert all(target is not None for target in targets)
+    assert len({(target.curve_id, target.part_index) for target in targets}) == 1, targets
+    assert not targets[0].held and all(target.held for target in targets[1:])
+    # Without the memory of the curve that warned, 6.1 does not warn on the outer lane at that speed.
+    for lane_id, pos_m in steps[1:]:
+        (fresh,) = _drive(Engine(road_map), [(lane_id, pos_m)], speed_kmh, step_s)
+        assert fresh.warning.level == 0, (lane_id, pos_m)
+
+
+def test_a_lane_that_begins_inside_the_curve_names_it_and_its_parts_as_the_road_does(tmp_path: Path) -> None:
+    """The second edge has one lane more, beginning at a node in the exit clothoid: its copy of the curve starts
+    there (where the radius is still below R_c), yet is the road's curve, its parts counted from its first part."""
+    arc_m = RADIUS_M * math.radians(35.0)
+    road_map = _road(tmp_path, "left", lanes_after_node=LANES + 1, node_into_arc_m=arc_m + SPIRAL_M / 5)
+    (road_curve,) = road_map.lane_curves("a_0")
+    for i in range(LANES + 1):
+        (curve,) = road_map.lane_curves(f"b_{i}")
+        assert curve.curve_id == road_curve.curve_id, i
+        # Both end where the road's curve ends: the copy's parts are the road's last ones.
+        assert curve.first_part_index + len(curve.curve.parts) == len(road_curve.curve.parts), i
+    added = f"b_{LANES}"
+    (added_curve,) = road_map.lane_curves(added)
+    assert added_curve.lane_id == added and added_curve.first_part_index > 0
+    # A vehicle matched from the added lane onto the one beside it at one lane position is warned of one part.
+    speed_kmh = warning_speed(added_curve.curve.min_radius_m, "M1", 1) + 10.0
+    steps = [(added, 2.0), (f"b_{LANES - 1}", 2.0)]
+    answers = _drive(Engine(road_map), steps, speed_kmh, 0.25)
+    targets = [answer.warning.target for answer in answers]
+    assert [answer.warning.level for answer in answers] == [1, 1] and None not in targets
+    assert targets[0].curve_id == targets[1].curve_id == road_curve.curve_id
+    assert targets[0].part_index == targets[1].part_index >= added_curve.first_part_index

@@ -114,7 +114,7 @@ def _assert_curves_as_served(page: Page, client: httpx.Client, network: str) -> 
 def _colour_of(page: Page, answer: dict) -> str:
     """The colour the page's legend gives the state and level of an answer."""
     kind = f"active-{answer['level']}" if answer["state"] == "active" else answer["state"]
-    return page.evaluate(f"cswsMap.colours[{kind!r}]")
+    return page.evaluate(f"cswsMap.styles[{kind!r}].fillColor")
 
 
 def test_the_map_draws_the_curves_of_its_view_as_the_service_gives_them(browser, server, client) -> None:

@@ -20,7 +20,7 @@ from junction_town import SIDE_RADIUS_M, build_junction_town, drive
 from markers import marks_its_tests
 
 from csws.engine import Engine, VehicleInput
-from csws.road.hmm import Fixes, MatchState, Placed, SequenceMatcher, Track
+from csws.road.hmm import Fixes, MatchState, Placed, SequenceMatcher, Track, transition_scale_m
 from csws.road.matching import MatchSettings, Probes
 from csws.road.roadmap import RoadMap
 from csws.standard import Level
@@ -75,7 +75,7 @@ def test_the_side_streets_curve_warns_from_its_connection(town: RoadMap) -> None
     into_side = _connection(town, "WJ_0", "JS_0")
     answer = Engine(town).evaluate(VehicleInput("v", "M1", 70.0, into_side, 1.0))
     assert answer.warning.level == Level.LEVEL_2
-    assert answer.warning.target is not None and answer.warning.target.curve_id.startswith("JS_0@")
+    assert answer.warning.target is not None and answer.warning.target.curve_id.startswith("JS@")
     assert answer.warning.target.radius_m == pytest.approx(SIDE_RADIUS_M, rel=0.05)
 
 
@@ -93,7 +93,7 @@ def test_driving_straight_through_the_junction_never_matches_a_side_street(
         for k, (lane, pos_m, _placed, _reason) in enumerate(answers):
             vehicle = VehicleInput(f"v{seed}", "M1", speed_mps * 3.6, lane, pos_m, timestamp_s=float(k))
             warning = engine.evaluate(vehicle).warning
-            assert not any(t.curve_id.startswith(("JS_0@", "JN_0@")) for t in warning.triggers), (seed, k)
+            assert not any(t.curve_id.startswith(("JS@", "JN@")) for t in warning.triggers), (seed, k)
 
 
 @settings(max_examples=30, deadline=None)
@@ -296,3 +296,16 @@ def test_a_path_of_the_town_is_what_the_builder_says(tmp_path: Path, town: RoadM
     assert {lane for lane in town.lane_ids if not town.lane(lane).is_internal} == {"WJ_0", "JE_0", "JS_0", "JN_0"}
     assert town.lane(_connection(town, "WJ_0", "JE_0")).continues_road
     assert not town.lane(_connection(town, "WJ_0", "JS_0")).continues_road
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.floats(min_value=1.0, max_value=20.0), st.floats(min_value=0.0, max_value=15.0))
+def test_the_transition_scale_has_the_spread_of_the_route_and_the_two_fixes_noise(beta_m, sigma_m) -> None:
+    """|route - straight| between two noisy fixes: the map's exponential (Laplace, scale beta) plus the difference
+    of the two fixes' Gaussian errors along the way; the scale given has that sum's standard deviation."""
+    rng = np.random.default_rng(7)
+    count = 200_000
+    departure_m = rng.laplace(0.0, beta_m, count) + rng.normal(0.0, sigma_m, count) - rng.normal(0.0, sigma_m, count)
+    scale_m = float(transition_scale_m(beta_m, np.array([sigma_m]))[0])
+    assert math.sqrt(2.0) * scale_m == pytest.approx(float(np.std(departure_m)), rel=0.02)
+    assert scale_m >= max(beta_m, sigma_m)

@@ -151,6 +151,7 @@ def _check_answers(town: RoadMap, answers_by_step: list[list[dict]], truth: dict
     """Straight-on vehicles never matched onto a side street or its connection nor warned of its curve; turning
     ones on their side street (or the connection into it) from their first fix there."""
     side_lanes = {lane for side in SIDE_STREETS for lane in town.expand_path(["WJ_0", side])[1:]}
+    side_roads = {town.lane(side).edge_id for side in SIDE_STREETS}
     for k, answers in enumerate(answers_by_step):
         for answer in answers:
             vehicle_id = answer["vehicle_id"]
@@ -158,7 +159,7 @@ def _check_answers(town: RoadMap, answers_by_step: list[list[dict]], truth: dict
             lane_id = answer["matched"]["lane_id"]
             triggered = {trigger["curve_id"].split("@")[0] for trigger in answer["triggers"]}
             if vehicle_id.startswith("straight"):
-                assert lane_id not in side_lanes and not triggered & set(SIDE_STREETS), answer
+                assert lane_id not in side_lanes and not triggered & side_roads, answer
             true_lane = truth[vehicle_id][k]
             if true_lane in SIDE_STREETS:
                 assert lane_id in town.expand_path(["WJ_0", true_lane])[1:], (vehicle_id, k, answer)

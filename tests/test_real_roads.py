@@ -22,7 +22,6 @@ from builders import split_curve_map as _split_curve_map
 from csws.ahead.lookahead import LookAhead
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, curvature_at, piece_starts_s, sample_pieces, straight
-from csws.road.chains import curve_id_of
 from csws.road.roadmap import RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, kmh_to_mps, warning_distance, warning_speed
 from csws.sumo.netbuild import netconvert
@@ -101,7 +100,7 @@ def test_the_index_the_horizon_and_the_warning_name_one_curve(tmp_path: Path) ->
     assert (indexed.lane_id, indexed.end_lane_id) == ("a_0", "b_0")
     assert indexed.start_pos_m == pytest.approx(APPROACH_M, abs=1.0)
     assert indexed.curve.min_radius_m == pytest.approx(CURVE_RADIUS_M, rel=0.03)
-    indexed_id = curve_id_of(indexed.lane_id, indexed.start_pos_m)
+    indexed_id = indexed.curve_id
     indexed_radii = [part.radius_m for part in indexed.curve.parts]
     look_ahead = LookAhead(road_map)
     (through,) = [lane for lane in road_map.successors("a_0") if road_map.lane(lane).continues_road]

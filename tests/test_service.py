@@ -234,6 +234,40 @@ def test_a_fix_matching_nothing_is_a_fault_answer(client) -> None:
     assert answer["fault"] == "the position matches no lane of the map: no lane within 10 m"
 
 
+def test_the_matchers_scales_are_settings(monkeypatch) -> None:
+    from service.settings import ServiceSettings
+
+    given = {"accuracy_m": 8.0, "search_sigmas": 3.0, "heading_sigma_deg": 15.0, "lane_change_log_p": -2.5}
+    for name, value in given.items():
+        monkeypatch.setenv(f"CSWS_MATCH_{name.upper()}", str(value))
+    monkeypatch.setenv("CSWS_MATCH_DEAD_RECKONING_S", "4")
+    settings = ServiceSettings().match_settings()
+    assert {name: getattr(settings, name) for name in given} == given and settings.dead_reckoning_s == 4.0
+
+
+@pytest.mark.slow
+def test_a_fleet_with_noisier_fixes_sets_the_default_accuracy(nets, tmp_path, client) -> None:
+    """A fix without ``accuracy_m`` 15 m beside the road: beyond the default search radius (the tolerance,
+    and 2.5 standard deviations of 4 m), within 2.5 of CSWS_MATCH_ACCURACY_M = 8 m."""
+    off_road_m, sigmas = 15.0, 2.5
+    assert max(10.0, sigmas * 4.0) < off_road_m < sigmas * 8.0
+    fix = {
+        "vehicle_id": "noisy-1",
+        "category": "N",
+        "speed_kmh": 50.0,
+        "position": {"x": 500.0, "y": off_road_m},
+        "heading_deg": 90.0,
+        "network": "t7_geo",
+    }
+    assert client.post("/v1/warning", json=fix).json()["state"] == "fault"
+    noisier = Server(nets[:1], tmp_path / "vehicles.sqlite3", match_accuracy_m="8")
+    try:
+        answer = noisier.client.post("/v1/warning", json=fix).json()
+    finally:
+        noisier.stop()
+    assert answer["state"] == "active" and answer["matched"]["lane_id"] == "approach_0", answer
+
+
 # ------------------------------------------------------------------ map
 def test_curves_are_geojson_with_the_truth_radii(client) -> None:
     collection = client.get("/v1/curves").json()

@@ -123,7 +123,7 @@ def _answers(rows: list[int], levels: list[int], matched: list[str | None], targ
         rows=np.array(rows),
         level=np.array(levels, dtype=np.int8),
         matched_lane=np.array(matched, dtype=object),
-        target_lane=np.array(target, dtype=object),
+        target_edge=np.array(target, dtype=object),
         server_ms=2.0,
     )
 

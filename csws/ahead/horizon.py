@@ -54,7 +54,7 @@ class Horizon:
         The road's radius where each part ends, m: a spiral piece's radius changes along it
         (:func:`radius_under`); an arc's is its radius.
     part_curve_id
-        The curve id of each part (``lane@position`` of the curve's start).
+        The curve id of each part (``edge@position`` of the curve's start, the same on every lane of the road).
     """
 
     path: PathProfile

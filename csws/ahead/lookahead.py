@@ -48,8 +48,9 @@ from csws.ahead.horizon import (
     radius_at_end,
     radius_under,
 )
+from csws.curvature import Curve
 from csws.geometry import wrap_angle_rad
-from csws.road.chains import curve_id_of
+from csws.road.path import PathProfile
 from csws.road.roadmap import Lane, RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
 from csws.warning.rules import PathKind, WarningSettings, column_index
@@ -133,6 +134,9 @@ HORIZONS_PER_VEHICLE = 2
 #: The part pool is emptied when it holds this many horizons per cached one (those evicted from
 #: the caches stay in the pool until then, so this bounds what evicted horizons keep alive).
 POOLED_PER_CACHED = 1.25
+#: A path's stretch of a curve that starts on a part's end (the path starts there) starts within this of it
+#: once carried back into its road chain's arc length, m.
+_CUT_TOLERANCE_M = 1e-6
 
 
 class LookAhead:
@@ -377,9 +381,11 @@ class LookAhead:
         """The stitched, profiled path of ``lanes`` and the parts of its curves (junction manoeuvres aside)."""
         path = self.road_map.path_profile(lanes)
         starts, ends, radii, end_radii, indices, ids = [], [], [], [], [], []
-        for curve, chain, whole in path.curve_sources(self.settings.warning_radius_m, self.settings.warn_at_junctions):
-            curve_id = curve_id_of(*self.road_map.road_position(chain, whole.start_s))
-            for index, part in enumerate(curve.parts):
+        warning_radius_m = self.settings.warning_radius_m
+        for curve, chain, whole in path.curve_sources(warning_radius_m, self.settings.warn_at_junctions):
+            curve_id, first_index = self.road_map.curve_id(chain, whole.start_s, warning_radius_m)
+            first_index += _parts_cut_off(path, curve, chain, whole)
+            for index, part in enumerate(curve.parts, start=first_index):
                 starts.append(part.start_s)
                 ends.append(part.end_s)
                 radii.append(part.radius_m)
@@ -396,6 +402,17 @@ class LookAhead:
             part_curve_id=np.array(ids, dtype=object),
             part_end_radius_m=np.array(end_radii, dtype=float),
         )
+
+
+def _parts_cut_off(path: PathProfile, curve: Curve, chain: int, whole: Curve) -> int:
+    """How many parts of a chain's curve ``whole`` lie before the stretch ``curve`` of it a path sees (a path that
+    starts inside the curve sees the rest of it), so that a part keeps its index wherever a path starts."""
+    runs = np.flatnonzero((path.run_chain == chain) & (path.run_path_start_s <= curve.start_s + _CUT_TOLERANCE_M))
+    if not len(runs):
+        return 0
+    run = int(runs[-1])
+    chain_start_s = curve.start_s - float(path.run_path_start_s[run] - path.run_chain_start_s[run])
+    return sum(part.end_s <= chain_start_s + _CUT_TOLERANCE_M for part in whole.parts)
 
 
 def _remember(cache: OrderedDict, key: tuple, horizon: Horizon, capacity: int) -> Horizon:

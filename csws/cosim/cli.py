@@ -21,8 +21,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         help="co-simulate a fleet in SUMO and record who was warned where",
         description="Drive a SUMO scenario (default: the bundled mixed fleet on the fleet network) and evaluate "
         "every vehicle at every step, in this process or over HTTP against a csws service. Writes the time "
-        "series (timeseries/*.parquet or timeseries.csv), warnings.csv, entries.csv and summary.json into --out, "
-        "as the run goes.",
+        "series (timeseries/*.parquet or timeseries.csv), warnings.csv, entries.csv (curve parts entered at or "
+        "above the level-1 warning speed) and summary.json into --out as the run goes (with lon/lat on a "
+        "geo-referenced network), and summary.png and summary.md when it ends, also when interrupted.",
     )
     scenario = parser.add_argument_group("scenario (default: the bundled fleet, networks/fleet_scenario/fleet.sumocfg)")
     scenario.add_argument("--sumocfg", type=Path, default=None, help="a SUMO configuration")
@@ -84,8 +85,16 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--timeseries-every",
         type=positive_int,
-        default=1,
+        default=None,
         metavar="N",
         help="keep every N-th step in the time series (default 1: every step)",
+    )
+    parser.add_argument(
+        "--fcd",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also write the run as SUMO's FCD export (<fcd-export><timestep><vehicle id x y angle type speed "
+        "pos lane .../>) with each vehicle's warning level, at the steps the time series keeps",
     )
     parser.set_defaults(handler=deferred("csws.cosim.run"))

@@ -16,7 +16,7 @@ from xml.etree import ElementTree
 from .cli import SYSTEMS
 from .driver import DriverSettings
 
-__all__ = ["CosimConfig", "Scenario", "bundled_scenario", "scenario_from_args"]
+__all__ = ["CosimConfig", "Scenario", "bundled_scenario", "ignored_options", "scenario_from_args"]
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,9 @@ class CosimConfig:
     systems
         The warning systems evaluated: ``csws`` (curve speed warning) and ``fcw`` (forward
         collision warning, :mod:`csws.cosim.fcw`), either or both.
+    fcd
+        Also write the run as SUMO's FCD export with each vehicle's warning to this file
+        (:mod:`csws.cosim.fcd`), at the steps the time series keeps; None writes none.
     """
 
     scenario: Scenario
@@ -89,6 +92,7 @@ class CosimConfig:
     timeseries: str = "parquet"
     timeseries_every: int = 1
     systems: tuple[str, ...] = ("csws",)
+    fcd: Path | None = None
 
     def __post_init__(self) -> None:
         if not self.systems or not set(self.systems) <= set(SYSTEMS):
@@ -129,8 +133,31 @@ def _config_scenario(config: Path) -> Scenario:
     return Scenario(config, (config.parent / net_file).resolve())
 
 
+def ignored_options(args: argparse.Namespace) -> str | None:
+    """Why the command line asks for something no run would do (an option another one makes
+    pointless), or None: such a command is refused rather than run without it."""
+    if args.routes and args.net is None and args.sumocfg is None:
+        return "--routes needs --net (or --sumocfg, whose routes it adds to)"
+    if args.vehicles is not None and (args.net is not None or args.sumocfg is not None):
+        return "--vehicles generates a fleet on the bundled fleet network: drop it, or drop --net/--sumocfg"
+    if args.api_key is not None and args.service is None:
+        return "--api-key-file is for a service: give --service URL with it"
+    if args.timeseries_every is not None and args.timeseries == "none" and args.fcd is None:
+        return "--timeseries-every thins the time series and --fcd, and --timeseries none keeps neither"
+    return None
+
+
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
-    """The scenario the command line asks for; the bundled fleet by default."""
+    """The scenario the command line asks for; the bundled fleet by default.
+
+    Raises
+    ------
+    ValueError
+        When a file is missing, or an option would be ignored (:func:`ignored_options`).
+    """
+    ignored = ignored_options(args)
+    if ignored is not None:
+        raise ValueError(ignored)
     routes = tuple(args.routes or ())
     for path in routes:
         if not path.is_file():

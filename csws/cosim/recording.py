@@ -16,8 +16,19 @@ from typing import Any
 from csws.standard import mps_to_kmh
 
 from .evaluators import FleetWarnings
+from .fcd import FcdWriter
 from .fcw import FCW_EVENT_COLUMNS, FcwColumns, fcw_events
-from .records import ENTRY_COLUMNS, EVENT_COLUMNS, CsvStream, StepValues, Summary, event_of, level1_excess_kmh
+from .geo import NetworkLocation
+from .records import (
+    ENTRY_COLUMNS,
+    EVENT_COLUMNS,
+    CsvStream,
+    StepValues,
+    Summary,
+    event_of,
+    level1_excess_kmh,
+    with_geo,
+)
 from .sumo import FleetState
 from .timeseries import TimeseriesWriter, open_timeseries
 
@@ -31,20 +42,31 @@ class Streams:
     timeseries: TimeseriesWriter
     warnings: CsvStream
     entries: CsvStream
+    fcd: FcdWriter | None = None
 
     @classmethod
-    def open(cls, out: Path, timeseries_format: str, fcw: bool) -> Streams:
-        """Create the files in ``out``, with the FCW columns when ``fcw``."""
+    def open(
+        cls,
+        out: Path,
+        timeseries_format: str,
+        fcw: bool,
+        geo: bool = False,
+        fcd: tuple[Path, float] | None = None,
+    ) -> Streams:
+        """Create the files in ``out``, with the FCW columns when ``fcw`` and lon/lat when ``geo``; and
+        the FCD export when ``fcd`` gives its file and SUMO's step length, s."""
         return cls(
-            open_timeseries(out, timeseries_format, fcw),
-            CsvStream(out / "warnings.csv", EVENT_COLUMNS + (FCW_EVENT_COLUMNS if fcw else ())),
-            CsvStream(out / "entries.csv", ENTRY_COLUMNS),
+            open_timeseries(out, timeseries_format, fcw, geo),
+            CsvStream(out / "warnings.csv", with_geo(EVENT_COLUMNS, geo) + (FCW_EVENT_COLUMNS if fcw else ())),
+            CsvStream(out / "entries.csv", with_geo(ENTRY_COLUMNS, geo)),
+            None if fcd is None else FcdWriter(*fcd),
         )
 
     def close(self) -> None:
         """Close every file."""
-        for stream in (self.timeseries, self.warnings, self.entries):
-            stream.close()
+        for stream in (self.timeseries, self.warnings, self.entries, self.fcd):
+            if stream is not None:
+                stream.close()
 
 
 @dataclass
@@ -77,17 +99,21 @@ def record_step(
     streams: Streams,
     sampled: bool,
     position: Callable[[str], tuple[float, float]] | None = None,
+    geo: NetworkLocation | None = None,
 ) -> None:
     """Append one step to the files and the summary.
 
-    The time series gets the step when it is ``sampled``; ``warnings.csv`` its level changes
+    The time series (and the FCD export) gets the step when it is ``sampled``; ``warnings.csv`` its level changes
     (with the forward collision warning's, given ``fcw``); ``entries.csv`` its first entries into
     curve parts. ``position`` gives a vehicle's x, y where the step was read without them (an
-    event's row needs them).
+    event's row needs them); ``geo`` adds lon and lat to every row (the files must have been
+    opened with them).
     """
-    step = StepValues.of(fleet, position)
+    step = StepValues.of(fleet, position, geo)
     if sampled:
         streams.timeseries.append(_timeseries_columns(step, warnings, fcw, commands))
+        if streams.fcd is not None:
+            streams.fcd.append(step, warnings, None if fcw is None else fcw.level)
     events = _warning_events(step, warnings, tracker, summary, pad=len(FCW_EVENT_COLUMNS) if fcw else 0)
     entries = _curve_entries(step, warnings, tracker, summary)
     if fcw:
@@ -110,6 +136,7 @@ def _timeseries_columns(
         step.lane_pos_m,
         step.x_m,
         step.y_m,
+        *((step.lon, step.lat) if step.geo is not None else ()),
         step.speeds_kmh,
         warnings.state,
         warnings.level,
@@ -184,7 +211,14 @@ def _count_change(
 def _curve_entries(
     step: StepValues, warnings: FleetWarnings, tracker: Tracker, summary: Summary
 ) -> list[tuple[Any, ...]]:
-    """The ``entries.csv`` rows of the curve parts vehicles are inside for the first time, counted in ``summary``."""
+    """The ``entries.csv`` rows of the curve parts vehicles are inside for the first time at or above the
+    part's level-1 warning speed (Table 1), counted in ``summary``.
+
+    A vehicle inside a part at or above V_w always triggers it (6.1: S = 0 <= S_w), so every such
+    entry is among ``warnings.entries``; the triggers there below V_w are levels the release rule
+    keeps on (:mod:`csws.warning.release`: the margin lets a level stay on down to 1 km/h below V_w,
+    the hold for 1 s), and are no entries: that vehicle went in at a speed the standard accepts.
+    """
     fleet = step.fleet
     entries = []
     for i, curve_id, part_index, radius_m, level in warnings.entries:
@@ -192,9 +226,11 @@ def _curve_entries(
         entered = tracker.entered.setdefault(vehicle_id, set())
         if (curve_id, part_index) in entered:
             continue
-        entered.add((curve_id, part_index))
         speed_kmh = step.speeds_kmh[i]
         level1_kmh, excess_kmh = level1_excess_kmh(speed_kmh, category, radius_m)
+        if excess_kmh < 0.0:
+            continue
+        entered.add((curve_id, part_index))
         summary.add_entry(category, excess_kmh)
         entries.append(
             (
@@ -208,6 +244,9 @@ def _curve_entries(
                 level1_kmh,
                 excess_kmh,
                 level,
+                fleet.lane_id[i],
+                step.lane_pos_m[i],
+                *step.place(i),
             )
         )
     return entries

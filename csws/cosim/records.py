@@ -10,6 +10,10 @@ can be compared exactly.
 * ``warnings.csv``: every change of a vehicle's warning level (onset, change, end);
 * ``entries.csv``: every entry into a curve part at or above the level-1 warning speed;
 * ``summary.json`` (see :class:`Summary`).
+
+On a geo-referenced network every file with ``x_m`` and ``y_m`` has ``lon`` and ``lat``
+(degrees, WGS84) right after them (:func:`with_geo`, :mod:`csws.cosim.geo`); on others it has
+no such columns.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import time
 from collections import Counter, defaultdict
@@ -28,6 +33,7 @@ from typing import Any
 
 from csws.standard import Level, mps_to_kmh, warning_speed
 
+from .geo import NetworkLocation
 from .sumo import FleetState
 
 __all__ = [
@@ -36,12 +42,15 @@ __all__ = [
     "EVENT_COLUMNS",
     "ENTRY_COLUMNS",
     "CsvStream",
+    "GEO_COLUMNS",
     "StepValues",
     "StepCosts",
     "Summary",
     "level1_excess_kmh",
     "write_summary",
     "event_of",
+    "with_geo",
+    "write_whole",
 ]
 
 #: How a run's time series can be kept (:mod:`csws.cosim.timeseries`).
@@ -92,7 +101,22 @@ ENTRY_COLUMNS = (
     "level1_warning_speed_kmh",
     "excess_kmh",
     "level",
+    "lane_id",
+    "lane_pos_m",
+    "x_m",
+    "y_m",
 )
+#: The columns a geo-referenced network adds right after ``y_m``: longitude and latitude, degrees (WGS84).
+GEO_COLUMNS = ("lon", "lat")
+
+
+def with_geo(columns: Sequence[str], geo: bool) -> tuple[str, ...]:
+    """``columns`` with :data:`GEO_COLUMNS` right after ``y_m`` when ``geo`` (a geo-referenced network)."""
+    columns = tuple(columns)
+    if not geo:
+        return columns
+    after = columns.index("y_m") + 1
+    return columns[:after] + GEO_COLUMNS + columns[after:]
 
 
 @dataclass(frozen=True)
@@ -104,9 +128,13 @@ class StepValues:
     fleet
         The step as SUMO gave it.
     speeds_kmh, lane_pos_m, x_m, y_m
-        Per vehicle, in the fleet's order (x and y are empty where the step was read without them).
+        Per vehicle, in the fleet's order (x and y are NaN where the step was read without them).
     position
         A vehicle's x and y from SUMO, m, where the step was read without them; None otherwise.
+    geo
+        The network's geo-reference, None when it has none.
+    lon, lat
+        Per vehicle, degrees, with ``geo`` (None where x and y were not read); empty without.
     """
 
     fleet: FleetState
@@ -115,24 +143,41 @@ class StepValues:
     x_m: list[float]
     y_m: list[float]
     position: Callable[[str], tuple[float, float]] | None = None
+    geo: NetworkLocation | None = None
+    lon: list[float | None] = field(default_factory=list)
+    lat: list[float | None] = field(default_factory=list)
 
     @classmethod
-    def of(cls, fleet: FleetState, position: Callable[[str], tuple[float, float]] | None = None) -> StepValues:
-        """The values of ``fleet`` as lists (one conversion per column and step)."""
+    def of(
+        cls,
+        fleet: FleetState,
+        position: Callable[[str], tuple[float, float]] | None = None,
+        geo: NetworkLocation | None = None,
+    ) -> StepValues:
+        """The values of ``fleet`` as lists (one conversion per column and step), lon/lat too with ``geo``."""
         speeds_kmh = mps_to_kmh(fleet.speed_mps).tolist()
-        return cls(fleet, speeds_kmh, fleet.lane_pos_m.tolist(), fleet.x_m.tolist(), fleet.y_m.tolist(), position)
+        lon, lat = geo.lonlat(fleet.x_m, fleet.y_m) if geo is not None else ([], [])
+        x_m, y_m = fleet.x_m.tolist(), fleet.y_m.tolist()
+        return cls(fleet, speeds_kmh, fleet.lane_pos_m.tolist(), x_m, y_m, position, geo, lon, lat)
 
-    def place(self, row: int) -> tuple[float, float]:
-        """The x and y of the vehicle at ``row``, m."""
-        if self.position is None:
-            return self.x_m[row], self.y_m[row]
-        return self.position(self.fleet.vehicle_id[row])
+    def place(self, row: int) -> tuple[float | None, ...]:
+        """Where the vehicle at ``row`` is: x and y, m, and with a geo-reference lon and lat, degrees."""
+        x_m, y_m = self.x_m[row], self.y_m[row]
+        if self.position is not None and not math.isfinite(x_m):
+            x_m, y_m = self.position(self.fleet.vehicle_id[row])
+        if self.geo is None:
+            return x_m, y_m
+        if self.lon[row] is not None:
+            return x_m, y_m, self.lon[row], self.lat[row]
+        if not (math.isfinite(x_m) and math.isfinite(y_m)):
+            return x_m, y_m, None, None
+        return (x_m, y_m, *self.geo.xy_to_lonlat(x_m, y_m))
 
     def event_row(
         self, row: int, event: str, level: int, previous: int, curve: Sequence[Any], extra: Sequence[Any] = ()
     ) -> tuple[Any, ...]:
-        """A ``warnings.csv`` row of the vehicle at ``row``: :data:`EVENT_COLUMNS` with the ``curve``
-        columns (curve id to warning speed) given, then ``extra`` columns."""
+        """A ``warnings.csv`` row of the vehicle at ``row``: :data:`EVENT_COLUMNS` (with lon and lat given a
+        geo-reference) with the ``curve`` columns (curve id to warning speed) given, then ``extra`` columns."""
         fleet = self.fleet
         return (
             fleet.time_s,
@@ -148,6 +193,14 @@ class StepValues:
             *self.place(row),
             *extra,
         )
+
+
+def write_whole(fd: int, text: str) -> None:
+    """Append ``text`` to the open file ``fd`` in UTF-8, all of it (``os.write`` may write part)."""
+    data = text.encode("utf-8")
+    while data:
+        written = os.write(fd, data)
+        data = data[written:]
 
 
 class CsvStream:
@@ -168,12 +221,9 @@ class CsvStream:
     def append(self, rows: Iterable[Sequence[Any]]) -> None:
         """Append rows (each a sequence in column order)."""
         self._writer.writerows(rows)
-        data = self._buffer.getvalue().encode("utf-8")
+        write_whole(self._fd, self._buffer.getvalue())
         self._buffer.seek(0)
         self._buffer.truncate()
-        while data:
-            written = os.write(self._fd, data)
-            data = data[written:]
 
     def close(self) -> None:
         """Close the file."""
@@ -211,8 +261,9 @@ class Summary:
     when it comes on again within ``flicker_window_s`` of going off for the same curve (the
     curve of its last onset or change); one that comes on that soon for another curve is
     counted apart: a new curve that needs a lower speed, not a flicker. A curve entry is the
-    first step at which a vehicle is inside a curve part (a triggering CPOI at distance 0):
-    it is above the warning speed, since the CPOI triggers. ``entries_above_level1`` counts
+    first step at which a vehicle is inside a curve part at or above the part's level-1 warning
+    speed (Table 1 at the part's radius): a triggering CPOI at distance 0 whose level 6.1
+    requires, not one the release rule keeps on below V_w. ``entries_above_level1`` counts
     every such entry; ``entries_above_level1_margin`` those more than ``margin_kmh`` above
     the level-1 warning speed.
     """

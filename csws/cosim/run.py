@@ -25,6 +25,7 @@ from .config import CosimConfig, Scenario, bundled_scenario, scenario_from_args
 from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .fcw import FcwColumns, FleetFcw, respond_to_fcw
+from .geo import network_location
 from .recording import Streams, Tracker, record_step
 from .records import StepCosts, Summary, write_summary
 from .summary import write_run_summary
@@ -86,7 +87,9 @@ class _Run:
         self.summary = Summary(fcw_onsets=Counter() if config.fcw else None)
         self.tracker = Tracker()
         self.driver = DriverResponse(config.driver) if config.driver is not None else None
-        self.streams = Streams.open(config.out, config.timeseries, config.fcw)
+        self.geo = network_location(config.scenario.net)
+        fcd = None if config.fcd is None else (config.fcd, config.step_length_s)
+        self.streams = Streams.open(config.out, config.timeseries, config.fcw, geo=self.geo is not None, fcd=fcd)
         self.costs = StepCosts()
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
@@ -104,7 +107,9 @@ class _Run:
             config.seed,
             config.end_s,
         )
-        simulation = self.simulation = Simulation(sumo_args, config.interface, odometer=self.driver is not None)
+        simulation = self.simulation = Simulation(
+            sumo_args, config.interface, odometer=self.driver is not None, headings=config.fcd is not None
+        )
         self.forward = FleetFcw(simulation.api) if config.fcw else None
         self.step_s = simulation.step_length_s
         return simulation
@@ -113,8 +118,8 @@ class _Run:
         """Advance SUMO one step, evaluate, command and record it; False once ``end_s`` is reached."""
         config, costs = self.config, self.costs
         sampled = self.summary.steps % config.timeseries_every == 0
-        # Without a time-series row this step, x and y are read only for the vehicles with an event.
-        positions = sampled and config.timeseries != "none"
+        # Without a time-series row (or FCD timestep) this step, x and y are read only for the vehicles with an event.
+        positions = sampled and (config.timeseries != "none" or config.fcd is not None)
         with costs.timed("sumo_step_and_read"):
             fleet = simulation.step(positions)
         self._forget(fleet.arrived)
@@ -125,7 +130,9 @@ class _Run:
             simulation.set_speed(vehicle_id, speed_mps)
         with costs.timed("recording"):
             position = None if positions or simulation.reads_positions else simulation.position
-            record_step(fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position)
+            record_step(
+                fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position, self.geo
+            )
         self.summary.vehicles.update(fleet.vehicle_id)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s
@@ -189,6 +196,7 @@ def cosimulate(config: CosimConfig) -> dict[str, Any]:
         When interrupted; likewise.
     """
     config.out.mkdir(parents=True, exist_ok=True)
+    (config.out / "summary.json").unlink(missing_ok=True)  # a run that stops early must not leave an older one's
     run = _Run(config)
     status, started = "running", time.perf_counter()
     try:
@@ -207,16 +215,14 @@ def cosimulate(config: CosimConfig) -> dict[str, Any]:
         raise
     finally:
         run.close()
-        content = _summary_content(config, run.summary, status, time.perf_counter() - started, run.costs)
+        content = _summary_content(config, run, status, time.perf_counter() - started)
         write_summary(config.out / "summary.json", content)
     return content
 
 
-def _summary_content(
-    config: CosimConfig, summary: Summary, status: str, wall_s: float, costs: StepCosts
-) -> dict[str, Any]:
+def _summary_content(config: CosimConfig, run: _Run, status: str, wall_s: float) -> dict[str, Any]:
     """The summary of one run with how it was run and where its time went."""
-    scenario = config.scenario
+    scenario, summary = config.scenario, run.summary
     return {
         "format": "csws-cosim-summary/1",
         "status": status,
@@ -225,6 +231,7 @@ def _summary_content(
             "config": None if scenario.config is None else str(scenario.config),
             "net": str(scenario.net),
             "routes": [str(r) for r in scenario.routes],
+            "geo_referenced": run.geo is not None,
         },
         "mode": "service" if config.service_url else "library" if config.evaluate else "baseline (no evaluation)",
         "service_url": config.service_url,
@@ -233,8 +240,9 @@ def _summary_content(
         "step_length_s": config.step_length_s,
         "driver_response": None if config.driver is None else vars(config.driver),
         "timeseries": {"format": config.timeseries, "every_steps": config.timeseries_every},
+        "fcd": None if config.fcd is None else str(config.fcd),
         "wall_time_s": round(wall_s, 3),
-        "ms_per_step": costs.ms_per_step(summary.steps),
+        "ms_per_step": run.costs.ms_per_step(summary.steps),
         **summary.as_dict(),
     }
 
@@ -265,7 +273,7 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         f"({summary['mode']}): {warnings['level1']} level-1 and {warnings['level2']} level-2 warnings "
         f"({summary['warnings']['flickered']} flickered: off and on again for the same curve within "
         f"{summary['warnings']['flicker_window_s']:g} s), "
-        f"{entries['total']} curve entries above the level-1 warning speed "
+        f"{entries['total']} curve entries at or above the level-1 warning speed "
         f"({entries['more_than_1_kmh_above']} by more than 1 km/h)"
         + (
             ""
@@ -275,6 +283,29 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         )
         + f"; output in {out}"
     )
+
+
+def _runs(base: CosimConfig, driver_response: bool) -> list[CosimConfig]:
+    """The run, or for ``--driver-response`` the two runs without and with the driver-response model,
+    each in a folder (and with an FCD file) of its own."""
+    if not driver_response:
+        return [base]
+    return [
+        replace(base, out=base.out / "without_response", fcd=_per_run(base.fcd, "without_response")),
+        replace(base, out=base.out / "with_response", driver=DriverSettings(), fcd=_per_run(base.fcd, "with_response")),
+    ]
+
+
+def _per_run(path: Path | None, run: str) -> Path | None:
+    """The file of one run of ``--driver-response`` for a file given once: ``fcd.xml`` -> ``fcd.with_response.xml``."""
+    return None if path is None else path.with_name(f"{path.stem}.{run}{path.suffix}")
+
+
+def _api_key(args: argparse.Namespace) -> str | None:
+    """The fleet's API key for ``--service``: ``--api-key-file``'s, else ``CSWS_API_KEY``'s; None without a service."""
+    if args.service is None:
+        return None
+    return args.api_key if args.api_key is not None else os.environ.get("CSWS_API_KEY") or None
 
 
 def main(args: argparse.Namespace) -> int:
@@ -289,32 +320,33 @@ def main(args: argparse.Namespace) -> int:
         end_s=args.end,
         interface=interface,
         service_url=args.service,
-        service_api_key=args.api_key if args.api_key is not None else os.environ.get("CSWS_API_KEY") or None,
+        service_api_key=_api_key(args),
         seed=args.seed,
         progress=True,
         timeseries=args.timeseries,
-        timeseries_every=args.timeseries_every,
+        timeseries_every=args.timeseries_every or 1,
         systems=tuple(args.systems),
+        fcd=args.fcd,
     )
-    runs = (
-        [base]
-        if not args.driver_response
-        else [
-            replace(base, out=args.out / "without_response"),
-            replace(base, out=args.out / "with_response", driver=DriverSettings()),
-        ]
-    )
-    summaries = []
+    runs = _runs(base, args.driver_response)
+    summaries: list[dict[str, Any]] = []
+    started: list[CosimConfig] = []
     try:
         for config in runs:
+            started.append(config)
             summaries.append(cosimulate(config))
             _print_summary(summaries[-1], config.out)
     except SumoStopped as exc:
+        _write_plots(started, args.out)
         print(f"csws: error: SUMO stopped ({exc}); the files in {args.out} hold every step before", file=sys.stderr)
         return 1
     except ServiceError as exc:
+        _write_plots(started, args.out)
         print(f"csws: error: {exc}; the files in {args.out} hold every step before", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        _write_plots(started, args.out)
+        raise
     if args.driver_response:
         comparison = _comparison(*summaries)
         write_summary(
@@ -322,8 +354,18 @@ def main(args: argparse.Namespace) -> int:
             {"format": "csws-cosim-comparison/1", "comparison": comparison, "runs": summaries},
         )
         print(f"comparison in {args.out / 'summary.json'}")
-    write_run_summary(
-        {"with driver response" if c.driver else "without driver response": c.out for c in runs}, args.out
-    )
-    print(f"summary plot in {args.out / 'summary.png'}, figures in {args.out / 'summary.md'}")
+    _write_plots(started, args.out)
     return 0
+
+
+def _write_plots(started: list[CosimConfig], out: Path) -> None:
+    """Write ``summary.png`` and ``summary.md`` of the runs started that left their files, also when one
+    of them was interrupted or failed (its status is in the table), and say where they are."""
+    folders = {
+        "with driver response" if c.driver else "without driver response": c.out
+        for c in started
+        if (c.out / "summary.json").is_file() and (c.out / "entries.csv").is_file()
+    }
+    if folders:
+        write_run_summary(folders, out)
+        print(f"summary plot in {out / 'summary.png'}, figures in {out / 'summary.md'}")

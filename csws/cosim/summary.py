@@ -55,12 +55,18 @@ class RunFigures:
     warned_tracks
         Per warning of the first :data:`MAX_DRAWN_VEHICLES` vehicles warned: distance to its
         target, m, and speed, km/h, at each recorded step of it, ``(k, 2)``.
+    status
+        How the run ended (``summary.json``: ``complete``, ``interrupted``, ``SUMO stopped: ...``).
+    simulated_until_s
+        The simulation time of its last step, s.
     """
 
     warnings_by_level: dict[int, int]
     entry_excess_kmh: np.ndarray
     vehicle_km: float | None
     warned_tracks: list[np.ndarray]
+    status: str = "complete"
+    simulated_until_s: float = 0.0
 
     def per_100_vehicle_km(self, level: int) -> float | None:
         """Warning onsets of ``level`` per 100 vehicle-km; None without a distance."""
@@ -114,7 +120,8 @@ def run_figures(folder: Path) -> RunFigures:
     OSError
         When its ``summary.json`` or ``entries.csv`` cannot be read.
     """
-    by_level = json.loads((folder / "summary.json").read_text("utf-8"))["warnings"]["by_level"]
+    summary = json.loads((folder / "summary.json").read_text("utf-8"))
+    by_level = summary["warnings"]["by_level"]
     with open(folder / "entries.csv", newline="", encoding="utf-8") as file:
         excess_kmh = np.array([float(row["excess_kmh"]) for row in csv.DictReader(file)])
     table = _timeseries(folder)
@@ -127,7 +134,14 @@ def run_figures(folder: Path) -> RunFigures:
         distance_m = table["target_distance_m"].fill_null(np.nan).to_numpy()
         vehicle_km = _vehicle_km(vehicle, time_s, speed_kmh)
         tracks = _warned_tracks(vehicle, time_s, distance_m, speed_kmh)
-    return RunFigures({1: by_level["level1"], 2: by_level["level2"]}, excess_kmh, vehicle_km, tracks)
+    return RunFigures(
+        {1: by_level["level1"], 2: by_level["level2"]},
+        excess_kmh,
+        vehicle_km,
+        tracks,
+        summary["status"],
+        summary["simulated_until_s"],
+    )
 
 
 def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
@@ -177,7 +191,7 @@ def _plot(runs: Mapping[str, RunFigures], path: Path) -> None:
     rates.set(ylabel="warnings per 100 vehicle-km", title="warnings per 100 vehicle-km")
     for axes in (speeds, excess, rates):
         axes.grid(alpha=0.3)
-        if len(runs) > 1 or axes is excess:
+        if (len(runs) > 1 or axes is excess) and axes.get_legend_handles_labels()[0]:
             axes.legend(fontsize=8)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
@@ -199,6 +213,8 @@ def _markdown(runs: Mapping[str, RunFigures]) -> str:
         "|---|" + "---|" * len(runs),
     ]
     rows = {
+        "status": [run.status for run in runs.values()],
+        "simulated until, s": [number(run.simulated_until_s) for run in runs.values()],
         "vehicle-km": [number(run.vehicle_km) for run in runs.values()],
         "level-1 warnings": [str(run.warnings_by_level[1]) for run in runs.values()],
         "level-2 warnings": [str(run.warnings_by_level[2]) for run in runs.values()],

@@ -39,6 +39,7 @@ _VAR_LANE_ID = 0x51
 _VAR_LANEPOSITION = 0x56
 _VAR_SPEED = 0x40
 _VAR_POSITION = 0x42
+_VAR_ANGLE = 0x43
 _VAR_ROUTE_ID = 0x53
 _VAR_DISTANCE = 0x84
 #: What a call to the SUMO API returns.
@@ -47,6 +48,9 @@ T = TypeVar("T")
 _SUBSCRIBED = (_VAR_LANE_ID, _VAR_LANEPOSITION, _VAR_SPEED, _VAR_POSITION, _VAR_ROUTE_ID, _VAR_DISTANCE)
 #: One vehicle's subscription result as a tuple in the order of ``_SUBSCRIBED``.
 _subscribed_values = itemgetter(*_SUBSCRIBED)
+#: With headings (the FCD export) the angle is read too, after the rest.
+_SUBSCRIBED_WITH_ANGLE = (*_SUBSCRIBED, _VAR_ANGLE)
+_subscribed_values_with_angle = itemgetter(*_SUBSCRIBED_WITH_ANGLE)
 
 
 class SumoStopped(RuntimeError, CswsError):
@@ -69,6 +73,9 @@ class FleetState:
         Vehicles that entered and left the simulation in this step.
     skipped
         Departed vehicles of classes outside the standard (not evaluated).
+    type_id, angle_deg
+        Per vehicle, its vType and heading (degrees, 0 north, clockwise), on a step read with
+        positions by a simulation that reads headings; None otherwise.
     """
 
     time_s: float
@@ -84,6 +91,8 @@ class FleetState:
     departed: tuple[str, ...]
     arrived: tuple[str, ...]
     skipped: tuple[str, ...]
+    type_id: list[str] | None = None
+    angle_deg: np.ndarray | None = None
 
 
 class Simulation:
@@ -97,9 +106,13 @@ class Simulation:
         ``"libsumo"``, ``"traci"`` or ``"gui"`` (TraCI with sumo-gui).
     odometer
         Whether to read each vehicle's odometer (otherwise it reads as 0).
+    headings
+        Whether a step read with positions also gives each vehicle's type and angle (the FCD export).
     """
 
-    def __init__(self, sumo_args: Sequence[str], interface: str = "libsumo", odometer: bool = True) -> None:
+    def __init__(
+        self, sumo_args: Sequence[str], interface: str = "libsumo", odometer: bool = True, headings: bool = False
+    ) -> None:
         import os
 
         os.environ.setdefault("SUMO_HOME", str(sumo_home()))
@@ -121,7 +134,9 @@ class Simulation:
         self._categories: dict[str, Category | None] = {}
         self._skipped: set[str] = set()
         self._evaluated: dict[str, str] = {}
+        self._types: dict[str, str] = {}
         self._odometer = odometer
+        self._headings = headings
         self._subscribed = interface != "libsumo"
         #: Whether every step reads x and y whatever :meth:`step` is asked (TraCI's subscriptions hold them).
         self.reads_positions = self._subscribed
@@ -161,23 +176,26 @@ class Simulation:
         arrived = tuple(self._call(api.simulation.getArrivedIDList))
         skipped = []
         for vehicle_id in departed:
-            category = self._category(self._call(api.vehicle.getTypeID, vehicle_id))
+            type_id = self._call(api.vehicle.getTypeID, vehicle_id)
+            category = self._category(type_id)
             if category is None:
                 skipped.append(vehicle_id)
                 self._skipped.add(vehicle_id)
                 continue
             self._evaluated[vehicle_id] = category.value
+            self._types[vehicle_id] = type_id
             if self._subscribed:
-                self._call(api.vehicle.subscribe, vehicle_id, _SUBSCRIBED)
+                self._call(api.vehicle.subscribe, vehicle_id, self._variables())
         self._skipped.difference_update(arrived)
         for vehicle_id in arrived:
             self._evaluated.pop(vehicle_id, None)
-        ids, (lane_id, lane_pos_m, speed_mps, position, route_id, odometer_m) = (
+            self._types.pop(vehicle_id, None)
+        ids, (lane_id, lane_pos_m, speed_mps, position, route_id, odometer_m, angle_deg) = (
             self._subscribed_fleet() if self._subscribed else self._fleet_by_getters(positions)
         )
         if not position:
             position = [(math.nan, math.nan)] * len(ids)
-        evaluated = self._evaluated
+        evaluated, headings = self._evaluated, self._headings and len(angle_deg) == len(ids)
         return FleetState(
             time_s=float(self._call(api.simulation.getTime)),
             vehicle_id=ids,
@@ -192,11 +210,17 @@ class Simulation:
             departed=departed,
             arrived=arrived,
             skipped=tuple(skipped),
+            type_id=[self._types[vehicle_id] for vehicle_id in ids] if headings else None,
+            angle_deg=np.array(angle_deg, dtype=float) if headings else None,
         )
+
+    def _variables(self) -> tuple[int, ...]:
+        """The variables a vehicle is subscribed to (TraCI): with headings, its angle too."""
+        return _SUBSCRIBED_WITH_ANGLE if self._headings else _SUBSCRIBED
 
     def _fleet_by_getters(self, positions: bool) -> tuple[list[str], tuple[Sequence, ...]]:
         """The evaluated vehicles and their values, read by one getter call per vehicle and variable
-        (libsumo); x, y only with ``positions`` (empty otherwise)."""
+        (libsumo); x, y (and with headings the angle) only with ``positions`` (empty otherwise)."""
         vehicle = self.api.vehicle
         evaluated = self._evaluated
         ids = [vehicle_id for vehicle_id in self._call(vehicle.getIDList) if vehicle_id in evaluated]
@@ -206,10 +230,12 @@ class Simulation:
             vehicle.getSpeed,
             vehicle.getPosition if positions else None,
             vehicle.getRouteID,
+            vehicle.getDistance if self._odometer else None,
+            vehicle.getAngle if positions and self._headings else None,
         ]
-        values = [self._call(lambda getter=getter: list(map(getter, ids))) if getter else () for getter in getters]
-        odometer = self._call(lambda: list(map(vehicle.getDistance, ids))) if self._odometer else ()
-        return ids, (*values, odometer)
+        return ids, tuple(
+            self._call(lambda getter=getter: list(map(getter, ids))) if getter else () for getter in getters
+        )
 
     def position(self, vehicle_id: str) -> tuple[float, float]:
         """One vehicle's x, y, m (for a step read without positions)."""
@@ -220,8 +246,10 @@ class Simulation:
         results = self._call(self.api.vehicle.getAllSubscriptionResults)
         ids = list(results)
         if not ids:
-            return ids, ((),) * len(_SUBSCRIBED)
-        return ids, tuple(zip(*map(_subscribed_values, results.values()), strict=False))
+            return ids, ((),) * (len(_SUBSCRIBED) + 1)
+        values = _subscribed_values_with_angle if self._headings else _subscribed_values
+        columns = tuple(zip(*map(values, results.values()), strict=False))
+        return ids, columns if self._headings else (*columns, ())
 
     def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
         """Command a vehicle's speed (m/s); a negative speed hands it back to SUMO's driver."""

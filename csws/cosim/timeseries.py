@@ -6,8 +6,9 @@
   ``part-00000.parquet``, ``part-00001.parquet``, ... in the column types of
   :data:`TIMESERIES_SCHEMA`. Rows are gathered in columns and written
   :data:`PART_ROWS` at a time, each part under a temporary name and then renamed, so every
-  file in the folder is whole. pandas (``read_parquet("timeseries")``), polars, DuckDB
-  (``read_parquet('timeseries/*.parquet')``) and pyarrow read the folder as one table. An
+  file in the folder is whole. pyarrow (``pyarrow.parquet.read_table("timeseries")``, installed
+  with csws), pandas, polars and DuckDB (``read_parquet('timeseries/*.parquet')``) read the
+  folder as one table. On a geo-referenced network ``lon`` and ``lat`` follow ``y_m``. An
   interrupted run, or one whose SUMO died, writes what it has gathered before it ends; a
   run killed outright loses the rows not yet written (at most one part).
 * ``csv``: ``timeseries.csv``, appended at every step in whole rows (the same columns,
@@ -31,7 +32,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .fcw import FCW_TIMESERIES_FIELDS
-from .records import TIMESERIES_COLUMNS, TIMESERIES_FORMATS, CsvStream
+from .records import GEO_COLUMNS, TIMESERIES_COLUMNS, TIMESERIES_FORMATS, CsvStream
 
 __all__ = [
     "TIMESERIES_FORMATS",
@@ -78,12 +79,17 @@ class TimeseriesWriter(Protocol):
     def close(self) -> None: ...
 
 
-def timeseries_schema(fcw: bool = False) -> pa.Schema:
-    """The time series' columns: :data:`TIMESERIES_SCHEMA`, and with the forward collision warning
-    its columns after them (:data:`csws.cosim.fcw.FCW_TIMESERIES_FIELDS`)."""
-    if not fcw:
-        return TIMESERIES_SCHEMA
-    return pa.schema([*TIMESERIES_SCHEMA, *((name, pa.type_for_alias(kind)) for name, kind in FCW_TIMESERIES_FIELDS)])
+def timeseries_schema(fcw: bool = False, geo: bool = False) -> pa.Schema:
+    """The time series' columns: :data:`TIMESERIES_SCHEMA`, on a geo-referenced network with ``lon`` and
+    ``lat`` (degrees, null where x and y were not read) after ``y_m``, and with the forward collision
+    warning its columns at the end (:data:`csws.cosim.fcw.FCW_TIMESERIES_FIELDS`)."""
+    fields = list(TIMESERIES_SCHEMA)
+    if geo:
+        after = TIMESERIES_SCHEMA.get_field_index("y_m") + 1
+        fields[after:after] = [pa.field(name, pa.float64()) for name in GEO_COLUMNS]
+    if fcw:
+        fields += [pa.field(name, pa.type_for_alias(kind)) for name, kind in FCW_TIMESERIES_FIELDS]
+    return pa.schema(fields)
 
 
 class _ParquetParts:
@@ -147,10 +153,10 @@ class _NoTimeseries:
         pass
 
 
-def open_timeseries(out: Path, timeseries_format: str, fcw: bool = False) -> TimeseriesWriter:
+def open_timeseries(out: Path, timeseries_format: str, fcw: bool = False, geo: bool = False) -> TimeseriesWriter:
     """The writer of a run's time series in ``out`` in one of :data:`TIMESERIES_FORMATS`, with the
-    forward collision warning's columns when ``fcw`` (:func:`timeseries_schema`)."""
-    schema = timeseries_schema(fcw)
+    forward collision warning's columns when ``fcw`` and lon/lat when ``geo`` (:func:`timeseries_schema`)."""
+    schema = timeseries_schema(fcw, geo)
     if timeseries_format == "parquet":
         return _ParquetParts(out / "timeseries", schema)
     if timeseries_format == "csv":

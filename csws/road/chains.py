@@ -22,7 +22,16 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
-from csws.road.sharing import Run, chain_runs, clip_curve, lateral_offsets_m, moved_curve, moved_parts, reference_lanes
+from csws.road.sharing import (
+    Run,
+    chain_runs,
+    clip_curve,
+    lateral_offsets_m,
+    moved_curve,
+    moved_parts,
+    reference_lanes,
+    run_at,
+)
 from csws.standard import WarningSpeedPolicy
 
 __all__ = [
@@ -34,6 +43,7 @@ __all__ = [
     "fit_road_chains",
     "index_curves",
     "road_chains",
+    "road_curve_id",
     "stitch",
 ]
 
@@ -51,11 +61,20 @@ JOINT_TOLERANCE_M = 0.1
 STRAIGHT_WINDOW_M = 40.0
 #: See :data:`STRAIGHT_WINDOW_M`, m.
 STRAIGHT_DEVIATION_M = 0.15
+#: A borrowed curve's start, mapped back onto the fit it comes from, lies this close to the end of a
+#: part of that fit's curve where the borrowing lanes begin at that part's end, m: the run's linear
+#: map rounds.
+_MAPPED_TOLERANCE_M = 1e-6
 
 
-def curve_id_of(lane_id: str, lane_pos_m: float) -> str:
-    """The id of a curve: the lane and the lane position (to the metre) where it starts (3.4)."""
-    return f"{lane_id}@{lane_pos_m:.0f}"
+def curve_id_of(place_id: str, lane_pos_m: float) -> str:
+    """A curve's id, ``PLACE@POS``: where it starts (3.4), an edge (or lane) and the lane position to the metre.
+
+    The warning, the horizon and the curve index name a road's curve by its edge
+    (:func:`road_curve_id`): the lanes of an edge share their lane positions, so the id is the
+    same on every lane of the road.
+    """
+    return f"{place_id}@{lane_pos_m:.0f}"
 
 
 @dataclass(frozen=True)
@@ -73,6 +92,11 @@ class LaneCurve:
         The curve itself, in arc length along its road chain.
     chain
         The index of the road chain it belongs to.
+    curve_id
+        The road's curve this is: the same on every lane of the road (:func:`road_curve_id`).
+    first_part_index
+        The index of its first part among the parts of the road's curve: more than 0 where this
+        lane begins inside a curve it borrows from its road (:mod:`csws.road.sharing`).
     """
 
     lane_id: str
@@ -81,6 +105,8 @@ class LaneCurve:
     end_pos_m: float
     curve: Curve
     chain: int
+    curve_id: str
+    first_part_index: int = 0
 
 
 def stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -229,6 +255,26 @@ class RoadChains:
             kept = self._curves[key] = (policy, find())
         return kept[1]
 
+    def curve_origin(
+        self, chain: int, start_s: float, warning_radius_m: float, policy: WarningSpeedPolicy
+    ) -> tuple[int, float, int]:
+        """Where the curve that starts at ``start_s`` of ``chain`` starts on the fit it is read from: the lane,
+        its lane position, and how many parts of that fit's curve lie before ``start_s``.
+
+        A chain's own curve starts where it starts. A curve a chain borrows from its road's reference
+        (:mod:`csws.road.sharing`) is the reference's curve: it starts where that one starts, also where
+        the borrowing lanes begin inside it, so that every lane of a road names the curve alike.
+        """
+        run = run_at(self.runs[chain], start_s)
+        if run.is_own:
+            return (*self.lane_position(chain, start_s), 0)
+        source_s = run.to_source(start_s)
+        for curve in self._fitted_curves(run.source, warning_radius_m, policy):
+            if curve.start_s - _MAPPED_TOLERANCE_M <= source_s < curve.end_s:
+                before = sum(part.end_s <= source_s + _MAPPED_TOLERANCE_M for part in curve.parts)
+                return (*self.lane_position(run.source, curve.start_s), before)
+        return (*self.lane_position(run.source, source_s), 0)
+
     def lane_at(self, chain: int, s: float, end: bool = False) -> int:
         """The lane of ``chain`` at chain arc length ``s``; on a joint, the lane starting there, or
         with ``end`` the lane ending there (where a curve that ends on the joint lies)."""
@@ -240,6 +286,25 @@ class RoadChains:
         """The lane and SUMO lane position of chain arc length ``s`` (``end``: see :meth:`lane_at`)."""
         lane = self.lane_at(chain, s, end)
         return lane, float((s - self.lane_start_s[lane]) * self.lane_position_factor[lane])
+
+
+def road_curve_id(
+    chains: RoadChains,
+    edge_ids: Sequence[str],
+    chain: int,
+    start_s: float,
+    warning_radius_m: float,
+    policy: WarningSpeedPolicy,
+) -> tuple[str, int]:
+    """The id of the road's curve that starts at ``start_s`` of ``chain``, and the index of its first part there.
+
+    The id is :func:`curve_id_of` the edge and lane position where the curve starts on the fit it is
+    read from (:meth:`RoadChains.curve_origin`): one id for the lanes of a road, so that the release
+    rule (:mod:`csws.warning.release`), which holds a warning per curve and part, holds it through a
+    lane change. ``edge_ids`` gives each lane's edge.
+    """
+    lane, lane_pos_m, first_part_index = chains.curve_origin(chain, start_s, warning_radius_m, policy)
+    return curve_id_of(edge_ids[lane], lane_pos_m), first_part_index
 
 
 def _joined_at_run_joints(curves: list[Curve]) -> list[Curve]:
@@ -410,17 +475,22 @@ def _read_profile(
 
 
 def index_curves(
-    chains: RoadChains, lane_ids: Sequence[str], warning_radius_m: float, policy: WarningSpeedPolicy
+    chains: RoadChains,
+    lane_ids: Sequence[str],
+    edge_ids: Sequence[str],
+    warning_radius_m: float,
+    policy: WarningSpeedPolicy,
 ) -> list[list[LaneCurve]]:
-    """The curves of every chain with their ends as lane positions: the curve index, chain by chain."""
+    """The curves of every chain with their ends as lane positions and the road's curve id
+    (:func:`road_curve_id`): the curve index, chain by chain."""
     index = []
     for chain in range(len(chains.lanes)):
         lane_curves = []
         for curve in chains.curves(chain, warning_radius_m, policy):
             start_lane, start_pos_m = chains.lane_position(chain, curve.start_s)
             end_lane, end_pos_m = chains.lane_position(chain, curve.end_s, end=True)
-            lane_curves.append(
-                LaneCurve(lane_ids[start_lane], start_pos_m, lane_ids[end_lane], end_pos_m, curve, chain)
-            )
+            name = road_curve_id(chains, edge_ids, chain, curve.start_s, warning_radius_m, policy)
+            ends = (lane_ids[start_lane], start_pos_m, lane_ids[end_lane], end_pos_m)
+            lane_curves.append(LaneCurve(*ends, curve, chain, *name))
         index.append(lane_curves)
     return index

@@ -6,7 +6,9 @@ A curve of the index (:meth:`csws.road.roadmap.RoadMap.curves`) is exported two 
   hundredth of a degree), for ``csws curves`` as an aligned table, JSON or CSV
   (:func:`write_curves`);
 * as a GeoJSON Feature (:func:`curve_feature`): the road between the curve's start (3.4) and
-  end (3.5) as a LineString, and as properties the same fields, the curve's id, the lane's
+  end (3.5) as a LineString, and as properties the same fields, the curve's id (``curve_id``:
+  the road's curve, ``EDGE@POS``, the same on every lane of the road and the one the horizon and
+  the warnings give; the feature's own id, ``LANE@POS``, names this lane's copy of it), the lane's
   street name and road type, its parts (the arcs and the pieces of its clothoids, marked
   ``spiral``) and the warning speeds V_w of every category at both levels (Tables 1-2) under
   the warning speed policy given. The OSM import's ``NAME.curves.geojson`` and the service's
@@ -127,15 +129,14 @@ def curve_feature(road_map: RoadMap, lane_curve: LaneCurve, policy: WarningSpeed
     """One curve of ``road_map`` as a GeoJSON Feature with its ``bbox``, its id the curve's id, V_w under ``policy``."""
     coordinates = _coordinates(road_map, lane_curve)
     curve, lane = lane_curve.curve, road_map.lane(lane_curve.lane_id)
-    curve_id = curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m)
     return {
         "type": "Feature",
-        "id": curve_id,
+        "id": curve_id_of(lane_curve.lane_id, lane_curve.start_pos_m),
         "bbox": [*coordinates.min(axis=0).tolist(), *coordinates.max(axis=0).tolist()],
         "geometry": {"type": "LineString", "coordinates": coordinates.tolist()},
         "properties": {
             "coordinates": COORDINATES[road_map.has_projection],
-            "curve_id": curve_id,
+            "curve_id": lane_curve.curve_id,
             "lane_id": lane_curve.lane_id,
             "street_name": lane.street_name,
             "road_type": lane.road_type,
@@ -155,7 +156,7 @@ def curve_feature(road_map: RoadMap, lane_curve: LaneCurve, policy: WarningSpeed
                     "spiral": part.spiral,
                     "warning_speed_kmh": warning_speeds_kmh(part.radius_m, policy),
                 }
-                for index, part in enumerate(curve.parts)
+                for index, part in enumerate(curve.parts, start=lane_curve.first_part_index)
             ],
         },
     }

@@ -10,10 +10,10 @@ through noise and sparseness", as Valhalla's Meili and OSRM's matcher do):
 * the **emission** of a candidate is a Gaussian of its distance from the fix with the fix's
   accuracy (``accuracy_m``, per fix or the default) and of its direction against the heading;
 * the **transition** from a candidate of the previous fix is an exponential of
-  |route distance between them - straight distance between the fixes| (Newson & Krumm's beta),
-  the route distance taken on the lane graph (:class:`csws.road.lanegraph.LaneGraph`); changing
-  to another lane of the same edge costs a fixed log-probability, so one noisy fix does not
-  move the vehicle to the neighbouring lane.
+  |route distance between them - straight distance between the fixes| (Newson & Krumm's beta,
+  widened by the fix's noise: :func:`transition_scale_m`), the route distance taken on the lane
+  graph (:class:`csws.road.lanegraph.LaneGraph`); changing to another lane of the same edge costs
+  a fixed log-probability, so one noisy fix does not move the vehicle to the neighbouring lane.
 
 Online, each vehicle keeps its candidates and their log-probabilities between fixes
 (:class:`MatchState`, a few hundred bytes, stored with its session); each fix is one
@@ -52,10 +52,24 @@ __all__ = [
     "Placed",
     "SequenceMatches",
     "SequenceMatcher",
+    "transition_scale_m",
 ]  # the first five from csws.road.fixes
 
 #: The library's matching settings (frozen: one instance serves every matcher left to them).
 _DEFAULTS = MatchSettings()
+
+
+def transition_scale_m(beta_m: float, sigma_m: np.ndarray) -> np.ndarray:
+    """Each fix's transition scale: Newson & Krumm's beta (how far the route between exact positions departs
+    from the straight line) widened by the fixes' noise, sqrt(beta^2 + sigma^2), m.
+
+    The straight distance between two fixes is off by the difference of their errors along the way, of
+    standard deviation sqrt(2) sigma (both fixes taken at this one's ``sigma_m``); the exponential of
+    |difference| with scale b has standard deviation sqrt(2) b, so the two together have the standard
+    deviation of one with scale sqrt(beta^2 + sigma^2). With a fixed beta a noisy fix's honest route counts
+    as improbable as a wrong road's: at 1 Hz and sigma 8 m, one fix in eleven left the road the vehicle drove.
+    """
+    return np.hypot(beta_m, sigma_m)
 
 
 class SequenceMatcher:
@@ -131,7 +145,8 @@ class SequenceMatcher:
         radius_m = np.maximum(self.settings.tolerance_m, self.settings.search_sigmas * sigma_m)
         candidates, near = self._candidates(fixes, sigma_m, radius_m)
         previous = self._previous(tracks, count)
-        step = forward_step(candidates, previous, count, self.graph, self.settings)
+        beta_m = transition_scale_m(self.settings.transition_beta_m, sigma_m)
+        step = forward_step(candidates, previous, count, self.graph, self.settings, beta_m)
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)

@@ -58,7 +58,7 @@ import numpy as np
 import sumolib
 
 from csws.curvature import checked_warning_radius_m, profile_cache_dir
-from csws.road.chains import LaneCurve, RoadChains, fit_road_chains, index_curves
+from csws.road.chains import LaneCurve, RoadChains, fit_road_chains, index_curves, road_curve_id
 from csws.road.georef import GeoReferenced, finite_pairs
 from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
 from csws.road.path import PathProfile, path_profile
@@ -175,7 +175,10 @@ class RoadMap(GeoReferenced):
             from csws.opendrive.profiles import with_exact_profiles
 
             self._chains = with_exact_profiles(self._chains, self.lane_ids, exact_lanes)
-        self._curve_index = index_curves(self._chains, self.lane_ids, self.warning_radius_m, warning_policy)
+        self._edge_ids = tuple(lane.edge_id for lane in self._lanes)
+        self._curve_index = index_curves(
+            self._chains, self.lane_ids, self._edge_ids, self.warning_radius_m, warning_policy
+        )
 
     # ----------------------------------------------------------------- construction
     @classmethod
@@ -368,6 +371,12 @@ class RoadMap(GeoReferenced):
         (a :attr:`LaneCurve.chain`, or a chain from :meth:`PathProfile.curve_sources`)."""
         lane, lane_pos_m = self._chains.lane_position(chain, s)
         return self._lanes[lane].lane_id, lane_pos_m
+
+    def curve_id(self, chain: int, start_s: float, warning_radius_m: float) -> tuple[str, int]:
+        """The id of the road's curve starting at arc length ``start_s`` of road chain ``chain`` (found with R_c
+        ``warning_radius_m``), the same on every lane of the road, and the index of its first part there
+        (:func:`csws.road.chains.road_curve_id`)."""
+        return road_curve_id(self._chains, self._edge_ids, chain, start_s, warning_radius_m, self.warning_policy)
 
     def curve_shape(self, lane_curve: LaneCurve) -> np.ndarray:
         """The road's polyline from a curve's start (3.4) to its end (3.5), ``(m, 2)``, m."""

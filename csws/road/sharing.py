@@ -21,11 +21,17 @@ would be warned for another curve. A road has one curve, so here:
 Lanes borrowing from one reference chain in order form a **run**: a curve that crosses
 their joints stays one curve. A run ends where a chain changes between its own lanes and
 borrowed ones, or between reference chains; a curve across such a joint is cut there.
+
+A borrowed curve keeps the name of the curve it was borrowed from: its id is where that curve
+starts on its reference lane, as an edge and lane position (:func:`csws.road.chains.road_curve_id`),
+and its parts are counted from that curve's first part, so a vehicle that changes lane on one
+road is warned of the same curve, part for part.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -42,6 +48,7 @@ __all__ = [
     "moved_curve",
     "moved_parts",
     "reference_lanes",
+    "run_at",
 ]
 
 #: A lane shares its edge's reference lane's curves only if its lateral offset from that lane
@@ -123,10 +130,19 @@ class Run:
         """A source arc length in this chain's arc length, m."""
         return float(np.interp(s, self.source_s, self.target_s))
 
+    def to_source(self, s: float) -> float:
+        """An arc length of this chain in the source's arc length, m (the inverse of :meth:`to_target`)."""
+        return float(np.interp(s, self.target_s, self.source_s))
+
     def offset_at(self, source_s: float) -> float:
         """The lateral offset of the lane at source arc length ``source_s``, m."""
         lane = int(np.searchsorted(self.source_s[1:-1], source_s, side="right"))
         return float(self.offset_m[lane])
+
+
+def run_at(runs: Sequence[Run], s: float) -> Run:
+    """The run of a chain (its ``runs``, in order) that arc length ``s`` lies on; on a joint, the run starting there."""
+    return runs[max(bisect_right([float(run.target_s[0]) for run in runs], s) - 1, 0)]
 
 
 def chain_runs(

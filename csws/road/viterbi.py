@@ -87,11 +87,16 @@ def _first_where(mask: np.ndarray, group: np.ndarray, count: int) -> np.ndarray:
 
 
 def forward_step(
-    candidates: Candidates, previous: Previous, count: int, graph: LaneGraph, settings: MatchSettings
+    candidates: Candidates,
+    previous: Previous,
+    count: int,
+    graph: LaneGraph,
+    settings: MatchSettings,
+    beta_m: np.ndarray,
 ) -> Step:
     """The forward (Viterbi) step: each candidate's best transition from the previous candidates of its
     fix plus its emission, normalised per fix; a fix none of whose candidates is reached from its
-    previous ones starts afresh from the emissions."""
+    previous ones starts afresh from the emissions. ``beta_m`` is each fix's transition scale, m."""
     reps = previous.count[candidates.fix]
     first_pair = np.cumsum(reps) - reps
     pair_candidate = np.repeat(np.arange(len(reps)), reps)
@@ -101,7 +106,7 @@ def forward_step(
     route_m = graph.route_m(from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate])
     straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[candidates.fix[pair_candidate]]).T)
     lane_change = (from_lane != to_lane) & (graph.lane_edge[from_lane] == graph.lane_edge[to_lane])
-    transition = -np.abs(route_m - straight_m) / settings.transition_beta_m
+    transition = -np.abs(route_m - straight_m) / beta_m[candidates.fix[pair_candidate]]
     transition += np.where(lane_change, settings.lane_change_log_p, 0.0)
     score = np.where(np.isnan(transition), -np.inf, previous.log_p[pair_previous] + transition)
     best_score = np.full(len(reps), -np.inf)

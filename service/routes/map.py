@@ -21,9 +21,8 @@ from csws.standard import Category
 from .. import horizon
 from ..curves import BBOX_QUERY, NETWORK_QUERY, choose_networks, parse_bbox
 from ..deps import CallerDep, MapDataDep, NetworksDep, RegistryDep, ServiceDep, StoreDep, WorkDep
-from ..fleet import fleet_features
+from ..fleet import CURSOR_QUERY, FLEET_LINKS, LIMIT_QUERY, FleetPage, decode_cursor, fleet_page
 from ..horizon import DEFAULT_HORIZON_M
-from ..keys import vehicle_key
 from ..networks import MAX_HORIZON_M
 from ..schemas import Message
 from ..schemas import Query as PositionQuery
@@ -156,8 +155,9 @@ async def map_report(
 
 @router.get(
     "/v1/fleet",
-    summary="Where the fleet's live vehicles are and what their latest answers said",
-    responses={**KEYED, **STORE},
+    summary="Where the fleet's live vehicles are and what their latest answers said, a page at a time",
+    operation_id="getFleet",
+    responses={200: {"model": FleetPage, "links": FLEET_LINKS}, **KEYED, **STORE},
 )
 async def fleet(
     principal: CallerDep,
@@ -167,11 +167,13 @@ async def fleet(
     work: WorkDep,
     bbox: str | None = BBOX_QUERY,
     network: str | None = NETWORK_QUERY,
+    limit: int = LIMIT_QUERY,
+    cursor: str | None = CURSOR_QUERY,
 ) -> Response:
-    """The live vehicles of the caller's fleet in the bbox, with their latest answers."""
+    """The live vehicles of the caller's fleet in the bbox, with their latest answers, in the order of their ids:
+    at most limit of them, the cursor of the next page (null on the last), and the service's time
+    (``generated_s``, Unix time, s) against which the map ages each vehicle's ``answered_at_s``."""
     box, chosen = parse_bbox(bbox), choose_networks(networks, network)
-    prefix = vehicle_key(principal.fleet, "")
-    collection = await work.run(
-        lambda: fleet_features(store.sessions(prefix), registry, networks, principal.fleet, box, chosen)
-    )
-    return json_response(collection)
+    after_id = None if cursor is None else decode_cursor(cursor)
+    page = await fleet_page(work, store, registry, networks, principal.fleet, box, chosen, after_id, limit)
+    return Response(page, media_type="application/json")

@@ -15,6 +15,14 @@ __all__ = ["router"]
 
 router = APIRouter(tags=["operations"])
 
+#: The 401 of ``/metrics``: JSON like every other 401 (:data:`KEYED`), which the metrics' text/plain would hide.
+_METRICS_KEYED: dict[int | str, dict[str, Any]] = {
+    401: {
+        "description": KEYED[401]["description"],
+        "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Message"}}},
+    }
+}
+
 
 @router.get("/healthz", summary="The process is alive")
 async def healthz() -> dict[str, str]:
@@ -39,7 +47,7 @@ async def readyz(networks: NetworksDep, store: StoreDep, work: WorkDep) -> dict[
     "/metrics",
     summary="Prometheus metrics",
     response_class=PlainTextResponse,
-    responses=KEYED,
+    responses=_METRICS_KEYED,
     dependencies=[Security(doc_reader)],
 )
 async def prometheus(metrics: MetricsDep) -> PlainTextResponse:

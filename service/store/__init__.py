@@ -7,14 +7,17 @@ It holds, per vehicle (by its key, :func:`service.keys.vehicle_key`):
 * its **session**, what answering its next fix needs (:mod:`service.vehicles` encodes it):
   the last matched lane, the system state, the release rule's memory. A session carries a
   **version**, raised by each write of it, and expires when it has not been written for the
-  idle time.
+  idle time;
+* its **place**, where the live map shows it (:class:`Place`), written with its session and
+  indexed, so that ``GET /v1/fleet`` reads a page of a fleet, or the vehicles in a box, without
+  reading the others (:meth:`StateStore.placed`).
 
 Two backends implement :class:`StateStore`: SQLite in WAL mode (:mod:`service.store.sqlite`),
 the embedded default for the workers of one machine, and Redis (:mod:`service.store.redis`),
 for replicas on several machines. Each reads the vehicles of a request in one round trip
 and writes them back in one (one transaction on SQLite, one server-side script on Redis).
 
-A write is conditional per vehicle: a vehicle's session and setting are written together,
+A write is conditional per vehicle: a vehicle's session, setting and place are written together,
 and only if its session still has the version read before; else nothing of that vehicle is
 written and it is reported, so that the caller reads it again and redoes its work
 (:meth:`service.vehicles.VehicleRegistry.transact`). Requests for one vehicle therefore
@@ -43,6 +46,10 @@ __all__ = [
     "StoredVehicle",
     "NOTHING_STORED",
     "VehicleWrite",
+    "Place",
+    "PlacedSession",
+    "Box",
+    "prefix_end",
     "StateStore",
     "open_store",
 ]
@@ -108,9 +115,48 @@ class StoredVehicle(NamedTuple):
 NOTHING_STORED = StoredVehicle()
 
 
+class Place(NamedTuple):
+    """Where the live map shows a vehicle: its network and its point there, in the coordinates of the
+    network's curves (lon/lat on geo-referenced networks, else network metres).
+
+    Attributes
+    ----------
+    network
+        The served network's name.
+    x, y
+        The point (longitude and latitude, degrees, or network metres).
+    """
+
+    network: str
+    x: float
+    y: float
+
+
+#: min x, min y, max x, max y of a box, in the coordinates of :class:`Place`.
+Box = tuple[float, float, float, float]
+
+
+class PlacedSession(NamedTuple):
+    """A live session found by its place (:meth:`StateStore.placed`).
+
+    Attributes
+    ----------
+    key
+        The vehicle's key.
+    session
+        Its session as :mod:`service.vehicles` encoded it.
+    place
+        Its place, as written with the session.
+    """
+
+    key: str
+    session: bytes
+    place: Place
+
+
 class VehicleWrite(NamedTuple):
-    """What to write of one vehicle: its session, and with it a new setting if one was made (a named
-    tuple: a request writes thousands).
+    """What to write of one vehicle: its session, and with it a new setting if one was made, and its new
+    place if it has one (a named tuple: a request writes thousands).
 
     Attributes
     ----------
@@ -120,11 +166,22 @@ class VehicleWrite(NamedTuple):
         The new session, encoded; it is stored with the next version.
     setting
         A new setting to store together with the session, or None to keep the stored one.
+    place
+        Where the live map shows the vehicle now, or None to keep the stored place (a vehicle that
+        never matched has none): the store indexes it for :meth:`StateStore.placed`.
     """
 
     expected_version: int
     session: bytes
     setting: VehicleSetting | None = None
+    place: Place | None = None
+
+
+def prefix_end(prefix: str) -> str | None:
+    """The first string after every string that starts with ``prefix`` (in code point order, which is
+    also the order of their UTF-8 bytes): keys of a prefix are those from ``prefix`` to it; None for
+    the empty prefix, which every string starts with."""
+    return prefix[:-1] + chr(ord(prefix[-1]) + 1) if prefix else None
 
 
 class StateStore(ABC):
@@ -172,9 +229,13 @@ class StateStore(ABC):
         """
 
     @abstractmethod
-    def sessions(self, prefix: str = "") -> dict[str, bytes]:
-        """Every live session of the vehicles whose key starts with ``prefix`` (a fleet's, see
-        :func:`service.keys.vehicle_key`), by key, as of one instant.
+    def placed(
+        self, prefix: str, after: str, limit: int, networks: Collection[str], box: Box | None
+    ) -> list[PlacedSession]:
+        """The live sessions with a place, in the order of their keys: those whose key starts with
+        ``prefix`` (a fleet's, see :func:`service.keys.vehicle_key`) and comes after ``after``, placed
+        on one of ``networks`` within ``box`` (edges included; None for everywhere), at most ``limit``,
+        as of one instant. The places are indexed, so that a box reads only what is in it.
 
         Raises
         ------

@@ -2,7 +2,14 @@
 
 Two tables: ``vehicle_settings`` (kept until changed) and ``vehicle_sessions`` (with their
 version and when they were last written). A session not written for the idle time counts as
-absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`.
+absent at once; the rows are swept out at most every :data:`SWEEP_PERIOD_S`. The places of the
+vehicles (:class:`~service.store.Place`) are in ``vehicle_places``, written in the transaction of
+their sessions, and indexed twice: by key (its primary key: a fleet's page in key order) and by
+point in the R*Tree ``vehicle_place_boxes`` (kept by triggers: a small box reads only the places
+in it; the R*Tree holds single-precision bounds rounded outwards, so its hits are checked again
+against the exact point). A box holding many places compared with the page asked for is read in
+key order instead, checking each place against it: sorting every hit of a large box for each
+page would cost what the box holds, not what the page does.
 
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
@@ -41,9 +48,21 @@ from pathlib import Path
 
 from csws.standard import Category
 
-from . import STORE_TIMEOUT_S, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite, checked_idle_s
+from . import (
+    STORE_TIMEOUT_S,
+    Box,
+    Place,
+    PlacedSession,
+    StateStore,
+    StoredVehicle,
+    StoreUnavailable,
+    VehicleSetting,
+    VehicleWrite,
+    checked_idle_s,
+    prefix_end,
+)
 
-__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "SQLiteStore"]
+__all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "BOX_PROBE_FACTOR", "SQLiteStore"]
 
 logger = logging.getLogger("csws.service")
 
@@ -62,6 +81,16 @@ _SCHEMA = (
     "vehicle_id TEXT PRIMARY KEY, switched_on INTEGER NOT NULL, category TEXT)",
     "CREATE TABLE IF NOT EXISTS vehicle_sessions ("
     "vehicle_id TEXT PRIMARY KEY, version INTEGER NOT NULL, written_s REAL NOT NULL, session BLOB NOT NULL)",
+    "CREATE TABLE IF NOT EXISTS vehicle_places ("
+    "vehicle_id TEXT PRIMARY KEY, network TEXT NOT NULL, x REAL NOT NULL, y REAL NOT NULL)",
+    "CREATE VIRTUAL TABLE IF NOT EXISTS vehicle_place_boxes USING rtree(id, min_x, max_x, min_y, max_y)",
+    "CREATE TRIGGER IF NOT EXISTS vehicle_place_added AFTER INSERT ON vehicle_places BEGIN "
+    "INSERT INTO vehicle_place_boxes VALUES (new.rowid, new.x, new.x, new.y, new.y); END",
+    "CREATE TRIGGER IF NOT EXISTS vehicle_place_moved AFTER UPDATE ON vehicle_places BEGIN "
+    "UPDATE vehicle_place_boxes SET min_x = new.x, max_x = new.x, min_y = new.y, max_y = new.y "
+    "WHERE id = new.rowid; END",
+    "CREATE TRIGGER IF NOT EXISTS vehicle_place_gone AFTER DELETE ON vehicle_places BEGIN "
+    "DELETE FROM vehicle_place_boxes WHERE id = old.rowid; END",
 )
 #: Settings and live sessions of the vehicles of a JSON list, in one statement.
 _READ = (
@@ -86,6 +115,46 @@ _INSERT_SESSION = (
     "WHERE vehicle_sessions.written_s < ?"
 )
 _WRITE_SETTING = "INSERT OR REPLACE INTO vehicle_settings (vehicle_id, switched_on, category) VALUES (?, ?, ?)"
+#: A place, updated in its row (its rowid, the R*Tree's id, stays).
+_WRITE_PLACE = (
+    "INSERT INTO vehicle_places (vehicle_id, network, x, y) VALUES (?, ?, ?, ?) "
+    "ON CONFLICT (vehicle_id) DO UPDATE SET network = excluded.network, x = excluded.x, y = excluded.y"
+)
+_SWEEP = (
+    "DELETE FROM vehicle_places WHERE vehicle_id IN (SELECT vehicle_id FROM vehicle_sessions WHERE written_s < ?)",
+    "DELETE FROM vehicle_sessions WHERE written_s < ?",
+)
+_PLACED_COLUMNS = "SELECT places.vehicle_id, sessions.session, places.network, places.x, places.y "
+#: A box holding at least this many places per vehicle asked for is read in key order (below). Measured
+#: on 100,000 places, pieces of 501: the R*Tree plan costs about 6 µs per place in the box (21 ms for
+#: 3,300, 0.4 ms for 19), the key-order plan about 0.5 µs per place it passes (4 ms for a box of 3 %
+#: of the places, 50 ms for a box of 19): they meet near 2,000 places in the box.
+BOX_PROBE_FACTOR = 4
+#: How many places of any fleet the R*Tree holds in a box, counted up to :limit.
+_BOX_PROBE = (
+    "SELECT count(*) FROM (SELECT 1 FROM vehicle_place_boxes "
+    "WHERE max_x >= :min_x AND min_x <= :max_x AND max_y >= :min_y AND min_y <= :max_y LIMIT :probe)"
+)
+_INSIDE = "AND places.x BETWEEN :min_x AND :max_x AND places.y BETWEEN :min_y AND :max_y "
+#: The places of a key range in key order (the primary key's), each joined to its live session.
+_PLACED_IN_ORDER = (
+    "FROM vehicle_places AS places CROSS JOIN vehicle_sessions AS sessions "
+    "WHERE places.vehicle_id > :after AND places.vehicle_id >= :prefix {below} {inside}"
+    "AND places.network IN (SELECT value FROM json_each(:networks)) "
+    "AND sessions.vehicle_id = places.vehicle_id AND sessions.written_s >= :oldest "
+    "ORDER BY places.vehicle_id LIMIT :limit"
+)
+#: The places in a box (the R*Tree's hits, checked against the exact points), then as above.
+_PLACED_IN_BOX = (
+    "FROM vehicle_place_boxes AS boxes CROSS JOIN vehicle_places AS places CROSS JOIN vehicle_sessions AS sessions "
+    "WHERE boxes.max_x >= :min_x AND boxes.min_x <= :max_x AND boxes.max_y >= :min_y AND boxes.min_y <= :max_y "
+    "AND places.rowid = boxes.id "
+    "AND places.x BETWEEN :min_x AND :max_x AND places.y BETWEEN :min_y AND :max_y "
+    "AND places.vehicle_id > :after AND places.vehicle_id >= :prefix {below} "
+    "AND places.network IN (SELECT value FROM json_each(:networks)) "
+    "AND sessions.vehicle_id = places.vehicle_id AND sessions.written_s >= :oldest "
+    "ORDER BY places.vehicle_id LIMIT :limit"
+)
 
 
 def _setting(switched_on: int, category: str | None) -> VehicleSetting:
@@ -224,6 +293,7 @@ class SQLiteStore(StateStore):
             for switched_on, category in self._execute("SELECT switched_on, category FROM vehicle_settings"):
                 _setting(switched_on, category)
             self._execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
+            self._execute("SELECT vehicle_id, network, x, y FROM vehicle_places LIMIT 1").fetchall()
         except (sqlite3.Error, ValueError) as exc:
             raise OSError(f"the vehicle state database {self.name} cannot be read: {exc}") from None
 
@@ -287,8 +357,12 @@ class SQLiteStore(StateStore):
         ]
         if settings:
             self._db.executemany(_WRITE_SETTING, settings)
+        places = [(v, *w.place) for v, w in writes.items() if w.place is not None and v not in conflicts]
+        if places:
+            self._db.executemany(_WRITE_PLACE, places)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
-            self._db.execute("DELETE FROM vehicle_sessions WHERE written_s < ?", (oldest_live_s,))
+            for statement in _SWEEP:
+                self._db.execute(statement, (oldest_live_s,))
             self._swept_s = now_s
         return conflicts
 
@@ -305,7 +379,7 @@ class SQLiteStore(StateStore):
             self._db.executemany(_INSERT_SESSION, inserts).rowcount if inserts else 0
         )
 
-    def _execute(self, statement: str, parameters: tuple = ()) -> sqlite3.Cursor:
+    def _execute(self, statement: str, parameters: tuple | dict = ()) -> sqlite3.Cursor:
         """Execute a statement that may need a lock another worker holds: tried again every
         :data:`LOCK_RETRY_S` while the lock is taken, for at most :data:`STORE_TIMEOUT_S`."""
         deadline_s = time.monotonic() + STORE_TIMEOUT_S
@@ -327,17 +401,39 @@ class SQLiteStore(StateStore):
         """When the oldest session that has not expired was written, on the store's clock."""
         return self.clock() - self.idle_s
 
-    def sessions(self, prefix: str = "") -> dict[str, bytes]:
+    def placed(
+        self, prefix: str, after: str, limit: int, networks: Collection[str], box: Box | None
+    ) -> list[PlacedSession]:
+        """Read with one statement, whose cost the page bounds: in key order along the primary key (the
+        exact points checked against the box if any), except for a box holding fewer than
+        :data:`BOX_PROBE_FACTOR` places per vehicle asked for (a bounded count in the R*Tree tells), read
+        from the R*Tree's hits, sorted."""
         self._refuse_if_lost()
+        end = prefix_end(prefix)
+        parameters = {
+            "after": after,
+            "prefix": prefix,
+            "end": end,
+            "networks": json.dumps(list(networks)),
+            "oldest": self._oldest_live_s(),
+            "limit": limit,
+        }
+        if box is not None:
+            parameters |= dict(zip(("min_x", "min_y", "max_x", "max_y"), box, strict=True))
+        below = "" if end is None else "AND places.vehicle_id < :end"
         try:
-            rows = self._execute(
-                "SELECT vehicle_id, session FROM vehicle_sessions "
-                "WHERE written_s >= ? AND substr(vehicle_id, 1, ?) = ?",
-                (self._oldest_live_s(), len(prefix), prefix),
-            ).fetchall()
+            if box is not None and self._few_in(parameters, BOX_PROBE_FACTOR * limit):
+                statement = _PLACED_IN_BOX.format(below=below)
+            else:
+                statement = _PLACED_IN_ORDER.format(below=below, inside="" if box is None else _INSIDE)
+            rows = self._execute(_PLACED_COLUMNS + statement, parameters).fetchall()
         except sqlite3.Error as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
-        return dict(rows)
+        return [PlacedSession(key, session, Place(network, x, y)) for key, session, network, x, y in rows]
+
+    def _few_in(self, box: dict, count: int) -> bool:
+        """Whether the R*Tree holds fewer than ``count`` places in the box (``min_x`` ... ``max_y`` of ``box``)."""
+        return int(self._execute(_BOX_PROBE, {**box, "probe": count}).fetchone()[0]) < count
 
     def session_count(self) -> int:
         """Counted in the file, which is looked at first (``/readyz``: not ready once it is gone)."""
