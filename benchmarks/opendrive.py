@@ -11,13 +11,15 @@ left, so every curve is seen on an outer and an inner lane, each way.
 * ``hairpins``: arcs of R 20-40 m turning 150-180 degrees, with short clothoids;
 * ``sections``: an arc road whose lane sections change the lane count on the straights.
 
-The truth of each SUMO lane is the exact κ(σ) of its OpenDRIVE lane (:mod:`csws.opendrive.lanes`,
-held to the design to 1 cm and 1 mm by ``tests/test_opendrive.py``), its curves found with
-R_c = :data:`WARNING_RADIUS_M`. The same network is then read twice: fitted (the road map without the
-exact file, as any SUMO network) and exact (the road map reading it). A true curve is found when a
-found curve of its lane overlaps it; its start error is the distance between the starts, its radius
-error the relative error of the smallest radius. Missed: a true curve of 20 degrees or more no found
-curve overlaps; false: a found curve of 20 degrees or more overlapping no true curve.
+The truth of each SUMO lane is the design: the reference line's κ(s) and heading change θ(s) in closed
+form from the pieces, the lane's κ / (1 − κt) at its offset t every :data:`TRUTH_STEP_M` of road, its
+curves where that reaches 1/R_c with R_c = :data:`WARNING_RADIUS_M` (crossings interpolated), placed at
+σ = ∫(1 − κt) ds from the SUMO lane's first point (whose road position the import records). The same
+network is then read twice: fitted (the road map without the exact file, as any SUMO network) and
+exact (the road map reading it). A true curve is found when a found curve of its lane overlaps it; its
+start error is the distance between the starts, its radius error the relative error of the smallest
+radius. Missed: a true curve of 20 degrees or more no found curve overlaps; false: a found curve of 20
+degrees or more overlapping no true curve.
 """
 
 from __future__ import annotations
@@ -27,17 +29,17 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from benchmarks.rows import Row, at_most, context
-from csws.curvature import Curve, curves_from_profile, profile_from_parts
+from csws.curvature import Curve
 from csws.opendrive.exact import ExactLane
 from csws.opendrive.importer import import_opendrive
 from csws.opendrive.writer import PlanPiece, RoadSpec, SectionSpec, arc, line, spiral, write_opendrive
 from csws.road.network import read_sumo_net
 from csws.road.roadmap import RoadMap
-from csws.standard import DEFAULT_POLICY
 
 __all__ = ["run", "rows", "report", "FAMILIES", "SEED", "ROADS_PER_FAMILY", "WARNING_RADIUS_M", "EXACT_TARGETS"]
 
@@ -45,6 +47,8 @@ SEED = 20261126
 ROADS_PER_FAMILY = 8
 WARNING_RADIUS_M = 500.0
 MIN_COUNTED_ANGLE_DEG = 20.0
+#: Road step of the design truth's samples, m.
+TRUTH_STEP_M = 0.01
 LEAD_M = 150.0
 LANES = SectionSpec(0.0, (3.5,), (3.5, 3.25))
 #: What the exact path must hold on every family: the curve ends and radii of the truth, none missed or false.
@@ -126,13 +130,74 @@ def _roads(rng: np.random.Generator, per_family: int) -> tuple[list[RoadSpec], d
     return specs, family_of
 
 
-def _true_curves(lane: ExactLane) -> list[Curve]:
-    """The curves of an exact lane, in its own arc length σ."""
-    profile = profile_from_parts(lane.bounds.copy(), lane.bounds, lane.start_curvature, lane.end_curvature)
-    return curves_from_profile(profile, WARNING_RADIUS_M, policy=DEFAULT_POLICY)
+class TrueCurve(NamedTuple):
+    """A curve of the design, in the SUMO lane's arc length."""
+
+    start_s: float
+    end_s: float
+    min_radius_m: float
+    angle_deg: float
 
 
-def _score(true: list[Curve], found: list[tuple[float, float, Curve]]) -> dict[str, list[float] | int]:
+def _design(spec: RoadSpec, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference line's κ(s) and heading change θ(s) from the design pieces, closed form."""
+    kappa, turned = np.zeros(len(s)), np.zeros(len(s))
+    start, heading = 0.0, 0.0
+    for piece in spec.pieces:
+        u = np.clip(s - start, 0.0, piece.length_m)
+        rate = (piece.end_curvature - piece.start_curvature) / piece.length_m
+        inside = (s >= start) & (s <= start + piece.length_m)
+        kappa = np.where(inside, piece.start_curvature + rate * u, kappa)
+        turned = np.where(s >= start, heading + piece.start_curvature * u + 0.5 * rate * u**2, turned)
+        start += piece.length_m
+        heading += piece.length_m * 0.5 * (piece.start_curvature + piece.end_curvature)
+    return kappa, turned
+
+
+def _offset_m(spec: RoadSpec, lane: ExactLane) -> float:
+    """The lateral offset of a lane's centre in its section of the design, m (left positive)."""
+    section = next(s for s in reversed(spec.sections) if s.s_m <= lane.section_s + 1e-9)
+    widths = section.left_widths_m if lane.opendrive_lane > 0 else section.right_widths_m
+    number = abs(lane.opendrive_lane)
+    return math.copysign(sum(widths[: number - 1]) + widths[number - 1] / 2, lane.opendrive_lane)
+
+
+def _true_curves(spec: RoadSpec, lane: ExactLane) -> list[TrueCurve]:
+    """The design's curves on a SUMO lane: where |κ / (1 − κt)| >= 1/R_c, every :data:`TRUTH_STEP_M` of road,
+    crossings interpolated, positions σ = ∫(1 − κt) ds from the lane's first point."""
+    low, high = sorted((lane.start_road_s, lane.end_road_s))
+    s = np.linspace(low, high, int(math.ceil((high - low) / TRUTH_STEP_M)) + 1)
+    offset = _offset_m(spec, lane)
+    kappa, turned = _design(spec, s)
+    lane_kappa = kappa / (1.0 - kappa * offset)
+    sigma = (s - offset * turned) - (lane.start_road_s - offset * float(np.interp(lane.start_road_s, s, turned)))
+    sigma = sigma if lane.along_s else -sigma
+    excess = np.abs(lane_kappa) - 1.0 / WARNING_RADIUS_M
+    inside = excess >= 0
+    edges = np.flatnonzero(np.diff(inside.astype(np.int8)))
+    flips = np.flatnonzero(np.sign(lane_kappa[1:]) * np.sign(lane_kappa[:-1]) < 0)
+    cuts = np.unique(np.concatenate(([0], edges + 1, flips + 1, [len(s)])))
+    curves = []
+    for first, stop in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
+        if not inside[first]:
+            continue
+        ends = [_crossing(sigma, excess, first - 1, first), _crossing(sigma, excess, stop - 1, stop)]
+        angle = abs(float(turned[stop - 1] - turned[first]))
+        radius = 1.0 / float(np.abs(lane_kappa[first:stop]).max())
+        curves.append(TrueCurve(min(ends), max(ends), radius, math.degrees(angle)))
+    return sorted(curves)
+
+
+def _crossing(sigma: np.ndarray, excess: np.ndarray, before: int, after: int) -> float:
+    """σ where the excess over 1/R_c crosses zero between two samples (an end sample where there is none)."""
+    if before < 0 or after >= len(sigma):
+        return float(sigma[max(before, 0)] if before >= 0 else sigma[after])
+    a, b = float(excess[before]), float(excess[after])
+    fraction = a / (a - b) if a != b else 0.0
+    return float(sigma[before] + (sigma[after] - sigma[before]) * fraction)
+
+
+def _score(true: list[TrueCurve], found: list[tuple[float, float, Curve]]) -> dict[str, list[float] | int]:
     """Start and radius errors of the matched true curves, missed and false ones, of one lane."""
     starts, radii, missed = [], [], 0
     for curve in true:
@@ -179,6 +244,7 @@ def _summary(scores: list[dict]) -> dict[str, float | int]:
 def run(per_family: int = ROADS_PER_FAMILY, seed: int = SEED) -> dict:
     """Every family's figures, fitted and exact: ``{family: {"fitted": {...}, "exact": {...}}}``, and timings."""
     specs, family_of = _roads(np.random.default_rng(seed), per_family)
+    spec_of = {spec.road_id: spec for spec in specs}
     with tempfile.TemporaryDirectory(prefix="csws-bench-xodr-") as work:
         source = write_opendrive(Path(work) / "roads.xodr", specs)
         result = import_opendrive(source, Path(work) / "roads.net.xml.gz")
@@ -190,7 +256,7 @@ def run(per_family: int = ROADS_PER_FAMILY, seed: int = SEED) -> dict:
         fitted_s = time.perf_counter() - started
     scores: dict[str, dict[str, list[dict]]] = {family: {"fitted": [], "exact": []} for family in FAMILIES}
     for lane_id, lane in exact_map.exact_lanes.items():
-        truth = _true_curves(lane)
+        truth = _true_curves(spec_of[lane.road_id], lane)
         for name, road_map in (("fitted", fitted_map), ("exact", exact_map)):
             scores[family_of[lane.road_id]][name].append(_score(truth, _found(road_map, lane_id, lane)))
     figures: dict = {family: {k: _summary(v) for k, v in methods.items()} for family, methods in scores.items()}

@@ -43,6 +43,8 @@ class ExactLane:
     ----------
     road_id, section_s, opendrive_lane, along_s
         Its OpenDRIVE road, lane section start, lane id and whether it is driven along s.
+    start_road_s, end_road_s
+        The road positions s of its first and last points.
     length_m
         Its exact centre-line length between its SUMO ends, m.
     bounds, start_curvature, end_curvature
@@ -57,6 +59,8 @@ class ExactLane:
     section_s: float
     opendrive_lane: int
     along_s: bool
+    start_road_s: float
+    end_road_s: float
     length_m: float
     bounds: np.ndarray
     start_curvature: np.ndarray
@@ -135,9 +139,21 @@ def _mapped(road: Road, track: LaneTrack, shape: np.ndarray, lane_id: int) -> Ex
     roll = np.array([np.tan(r.value(v)) * 100.0 if (r := road.superelevation(v)) else 0.0 for v in s.tolist()])
     if not along:
         bounds, k0, k1 = length - bounds[::-1], -k1[::-1], -k0[::-1]
-        sigma, grade, roll = sigma[::-1], -grade[::-1], -roll[::-1]
+        sigma, s, grade, roll = sigma[::-1], s[::-1], -grade[::-1], -roll[::-1]
     return ExactLane(
-        road.road_id, track.section_s, lane_id, along, length, bounds, k0, k1, np.abs(sigma - sigma[0]), grade, roll
+        road.road_id,
+        track.section_s,
+        lane_id,
+        along,
+        float(s[0]),
+        float(s[-1]),
+        length,
+        bounds,
+        k0,
+        k1,
+        np.abs(sigma - sigma[0]),
+        grade,
+        roll,
     )
 
 
@@ -184,6 +200,8 @@ def write_exact(path: str | Path, lanes: dict[str, ExactLane]) -> Path:
                 "section_s": lane.section_s,
                 "opendrive_lane": lane.opendrive_lane,
                 "along_s": lane.along_s,
+                "start_road_s": lane.start_road_s,
+                "end_road_s": lane.end_road_s,
                 "length_m": lane.length_m,
                 **{name: getattr(lane, name).tolist() for name in _ARRAYS},
             }
@@ -216,6 +234,8 @@ def read_exact(path: str | Path) -> dict[str, ExactLane]:
                 float(entry["section_s"]),
                 int(entry["opendrive_lane"]),
                 bool(entry["along_s"]),
+                float(entry["start_road_s"]),
+                float(entry["end_road_s"]),
                 float(entry["length_m"]),
                 *(np.array(entry[name], dtype=float) for name in _ARRAYS),
             )
