@@ -14,7 +14,9 @@ Where the reference line is a line or an arc and the offset is constant, the lan
 constant and its part is exact. Elsewhere (spirals, poly3, paramPoly3, widths or offsets that
 change) κ_lane is sampled every :data:`SAMPLE_STEP_M` and cut into linear parts that keep
 every sample within :data:`KAPPA_TOLERANCE_PER_M` (a radius error under 0.1 mm at R = 30 m
-and 0.02 m at R = 450 m).
+and 0.02 m at R = 450 m). Between samples a part errs by at most h²|κ_lane''|/8 more: with
+h = 0.05 m that is under 4e-8 1/m even on a clothoid from R 30 m left to R 30 m right in 20 m
+with the lane 5 m off the reference line, where κ_lane'' ≈ 2 κ'² t / (1 − κt)³ reaches 1e-4 1/m³.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ __all__ = ["KAPPA_TOLERANCE_PER_M", "SAMPLE_STEP_M", "LaneTrack", "lane_track", 
 #: Largest gap between a sampled lane curvature and its linear parts, 1/m.
 KAPPA_TOLERANCE_PER_M = 1e-7
 #: Step of the samples of a lane's curvature and centre line, m.
-SAMPLE_STEP_M = 0.25
+SAMPLE_STEP_M = 0.05
 
 
 @dataclass(frozen=True)
