@@ -40,6 +40,7 @@ from benchmarks import (
     jt808,
     load,
     matching,
+    opendrive,
     osm,
     roadmap,
     roads,
@@ -529,6 +530,12 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
         ),
         Benchmark(
             "roads", lambda: roads.run(cases=10 if quick else roads.CASES_PER_FAMILY), "about 10-40 s", roads_rows
+        ),
+        Benchmark(
+            "opendrive",
+            lambda: opendrive.run(per_family=2 if quick else opendrive.ROADS_PER_FAMILY),
+            "about 1 minute: OpenDRIVE roads imported, fitted and exact",
+            opendrive.rows,
         ),
         Benchmark("warning", warning.run, "a few seconds", warning_rows),
         Benchmark("fcw", fcw.run, "a few seconds", fcw_rows),

@@ -146,6 +146,7 @@ def curve_feature(road_map: RoadMap, lane_curve: LaneCurve, policy: WarningSpeed
             "radius_m": curve.min_radius_m,
             "angle_deg": curve.angle_deg,
             "direction": curve.direction,
+            **(road_map.curve_slopes(lane_curve) or {}),
             "warning_speed_kmh": warning_speeds_kmh(curve.min_radius_m, policy),
             "parts": [
                 {

@@ -48,10 +48,11 @@ internal lanes, edges with a custom length); SUMO maps between them by the facto
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from itertools import chain
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sumolib
@@ -63,6 +64,9 @@ from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vert
 from csws.road.path import PathProfile, path_profile
 from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
+
+if TYPE_CHECKING:
+    from csws.opendrive.exact import ExactLane
 
 __all__ = [
     "Lane",
@@ -118,6 +122,7 @@ class RoadMap(GeoReferenced):
         *,
         cache: bool = True,
         warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+        exact_lanes: Mapping[str, ExactLane] | None = None,
     ) -> None:
         """Profile the lanes and find their curves.
 
@@ -141,6 +146,9 @@ class RoadMap(GeoReferenced):
         warning_policy
             The warning speeds the curves' clothoids are cut into CPOIs by (a piece's V_w changes
             by under :data:`csws.curvature.curves.SPIRAL_PIECE_KMH`): those the warning uses.
+        exact_lanes
+            The exact curvature of lanes of a network imported from OpenDRIVE, by lane id: the
+            road chains of those lanes read it instead of their fit (:mod:`csws.opendrive.profiles`).
         """
         self.warning_radius_m = checked_warning_radius_m(warning_radius_m)
         self.warning_policy = warning_policy
@@ -162,6 +170,11 @@ class RoadMap(GeoReferenced):
             edge_ids=[lane.edge_id for lane in self._lanes],
             lane_index=[lane.index for lane in self._lanes],
         )
+        self.exact_lanes = dict(exact_lanes or {})
+        if exact_lanes:
+            from csws.opendrive.profiles import with_exact_profiles
+
+            self._chains = with_exact_profiles(self._chains, self.lane_ids, exact_lanes)
         self._edge_ids = tuple(lane.edge_id for lane in self._lanes)
         self._curve_index = index_curves(
             self._chains, self.lane_ids, self._edge_ids, self.warning_radius_m, warning_policy
@@ -192,14 +205,20 @@ class RoadMap(GeoReferenced):
         warning_policy
             The warning speeds the curves' clothoids are cut by (see :class:`RoadMap`).
 
+        A network imported from OpenDRIVE (``csws import-opendrive``) has its lanes' exact
+        curvature beside it (``NAME.kappa.json``): the road map reads that instead of the fit.
+
         Raises
         ------
         NetworkError
             If the file is missing, not a SUMO network, or has no lanes.
         """
+        from csws.opendrive.profiles import exact_lanes_beside
+
         net = read_sumo_net(net_path)
+        exact = exact_lanes_beside(net_path)
         try:
-            return cls.from_net(net, warning_radius_m, cache=cache, warning_policy=warning_policy)
+            return cls.from_net(net, warning_radius_m, cache=cache, warning_policy=warning_policy, exact_lanes=exact)
         except NetworkError as error:
             raise NetworkError(f"{Path(net_path).name}: {error}") from None
 
@@ -211,6 +230,7 @@ class RoadMap(GeoReferenced):
         *,
         cache: bool = True,
         warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+        exact_lanes: Mapping[str, ExactLane] | None = None,
     ) -> RoadMap:
         """Build the road map of a sumolib net read with ``withInternal=True``.
 
@@ -228,6 +248,7 @@ class RoadMap(GeoReferenced):
             radius,
             cache=cache,
             warning_policy=warning_policy,
+            exact_lanes=exact_lanes,
         )
 
     # ----------------------------------------------------------------- lanes
@@ -334,6 +355,16 @@ class RoadMap(GeoReferenced):
             if include_junctions or not self._chains.is_junction[chain_index]
             for lane_curve in lane_curves
         ]
+
+    def curve_slopes(self, lane_curve: LaneCurve) -> dict[str, float] | None:
+        """Mean grade and superelevation along a curve, per cent, on a network imported from OpenDRIVE
+        (:func:`csws.opendrive.profiles.curve_slopes`); None elsewhere."""
+        if not self.exact_lanes:
+            return None
+        from csws.opendrive.profiles import curve_slopes
+
+        lengths = {lane_id: self.lane(lane_id).length_m for lane_id in (lane_curve.lane_id, lane_curve.end_lane_id)}
+        return curve_slopes(self.exact_lanes, lengths, lane_curve)
 
     def road_position(self, chain: int, s: float) -> tuple[str, float]:
         """The lane id and lane position of arc length ``s`` along road chain ``chain``

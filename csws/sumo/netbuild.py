@@ -20,7 +20,15 @@ import numpy as np
 from csws.errors import CswsError
 from csws.sumo.binaries import sumo_binary, sumo_home
 
-__all__ = ["NetconvertError", "shape_text", "plain_xml_text", "required_attribute", "netconvert", "netconvert_osm"]
+__all__ = [
+    "NetconvertError",
+    "shape_text",
+    "plain_xml_text",
+    "required_attribute",
+    "netconvert",
+    "netconvert_osm",
+    "netconvert_opendrive",
+]
 
 DEFAULT_OPTIONS = ("--no-turnarounds", "true", "--offset.disable-normalization", "true")
 
@@ -97,6 +105,18 @@ def netconvert_osm(osm_files: Sequence[str | Path], net_file: str | Path, option
     """
     inputs = ["--osm-files", ",".join(str(Path(path).resolve()) for path in osm_files)]
     return _run_netconvert([*inputs, "--no-turnarounds", "true", *options], net_file, strict=False)
+
+
+def netconvert_opendrive(xodr_file: str | Path, net_file: str | Path, options: Sequence[str] = ()) -> Path:
+    """Netconvert an ASAM OpenDRIVE file into ``net_file``, coordinates as authored and no turnarounds.
+
+    Raises
+    ------
+    NetconvertError
+        With netconvert's messages, when it fails (warnings about the road data are not errors).
+    """
+    inputs = ["--opendrive-files", str(Path(xodr_file).resolve())]
+    return _run_netconvert([*inputs, *DEFAULT_OPTIONS, *options], net_file, strict=False)
 
 
 def _run_netconvert(arguments: Sequence[str], net_file: str | Path, strict: bool) -> Path:
