@@ -128,7 +128,7 @@ def test_the_json_access_log_has_a_line_per_request_with_the_fleet_and_never_the
     start_up = stdout.read_text().splitlines()
     assert start_up[0] == f"csws: loading network 1 of 1: {TRACK_NET}"
     assert start_up[1].startswith("csws: loaded 1 network(s), 5 lanes, in ")
-    assert start_up[2].startswith("csws: serving 1 network(s) on http://127.0.0.1:")
+    assert start_up[2].startswith("csws: serving t7_left on http://127.0.0.1:")
     assert any(" INFO " in line or line.startswith("INFO:") for line in text.splitlines())  # --log-level info
 
 
