@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -26,6 +27,7 @@ from csws.road.roadmap import RoadMap
 from csws.standard import Category, kmh_to_mps, warning_distance, warning_speed
 from csws.sumo.netbuild import netconvert
 from csws.warning.rules import WarningSettings
+from service.horizon import CpoiPositions
 
 JUNCTION_S_M = 400.0
 CURVE_AFTER_JUNCTION_M = 80.0
@@ -180,3 +182,22 @@ def test_a_lost_curve_is_kept_only_while_unreached_and_within_the_hold(
     unreached = before.target is not None and before.target.distance_m - step_m > 0.0
     within_hold = times_s[6] - times_s[5] < SETTINGS.hold_s(period_s)
     assert (answers[6].level > 0) == (unreached and within_hold)
+
+
+def test_the_service_places_a_recalled_curve_where_it_lies_on_the_road(road_map: RoadMap) -> None:
+    """The answer's position of a CPOI recalled at a side fix is its part's first point, as on the path."""
+    network = SimpleNamespace(road_map=road_map)
+    fixes = [
+        _fix(s, SPEED_KMH, PERIOD_S * k, on_side=k == 5) for k, s in enumerate(_positions(CURVE_START_S_M - 30, 6))
+    ]
+    answers = _drive(road_map, fixes)
+    on_path, recalled = answers[4], answers[5]
+    assert on_path.path is not None and recalled.path is not None
+    assert on_path.warning.target is not None and recalled.warning.target is not None
+    key = ([on_path.warning.target.curve_id], [on_path.warning.target.part_index])
+    assert key == ([recalled.warning.target.curve_id], [recalled.warning.target.part_index])
+    placed = CpoiPositions(network).of(on_path.path, *key)[0]  # type: ignore[arg-type]
+    placed_recalled = CpoiPositions(network).of(recalled.path, *key)[0]  # type: ignore[arg-type]
+    assert placed_recalled == pytest.approx(placed, abs=1e-6)
+    # The truth: the arc starts CURVE_AFTER_JUNCTION_M past J on the x axis.
+    assert math.hypot(placed["x"] - CURVE_START_S_M, placed["y"]) < JUNCTION_TOLERANCE_M
