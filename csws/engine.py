@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from csws.warning import latency
-from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories, recalled_points
 from csws.warning.rules import (
     BatchWarnings,
     WarningSettings,
@@ -350,12 +350,14 @@ class Engine:
         curve_ids: Sequence[str],
         part_indices: Sequence[int],
         passed: np.ndarray,
+        recalled: np.ndarray | None,
     ) -> BatchWarnings:
         """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
-        ``first[i]:first[i + 1]``), each vehicle's update period ``periods_s``; their warning memories are updated."""
+        ``first[i]:first[i + 1]``, ``recalled`` those recalled from its memory), each vehicle's update
+        period ``periods_s``; their warning memories are updated."""
         held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
         latched, hold = memory_masks(
-            held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s)
+            held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s), recalled
         )
         batch = evaluate_batch(
             speed_kmh,
@@ -370,8 +372,51 @@ class Engine:
             update_period_s=periods_s,
             age_s=age_s,
         )
-        self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule))
+        places = (distance_m, radius_m, speed_kmh)
+        self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule, places))
         return batch
+
+    def _recalled(
+        self,
+        vehicle_ids: Sequence[str],
+        now_s: Sequence[float | None],
+        speed_kmh: np.ndarray,
+        periods_s: np.ndarray,
+        ahead: BatchAhead,
+    ) -> tuple[BatchAhead, np.ndarray | None]:
+        """The roads ahead with the CPOIs the release rule recalls from each vehicle's memory (rule 4,
+        :func:`csws.warning.release.recalled_points`) after the vehicle's own, marked passed; and which
+        CPOIs are recalled (None where none is)."""
+        if not self.held:
+            return ahead, None
+        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
+        hold_s = self.settings.warning.hold_s(periods_s)
+        rows: list[int] = []
+        found: list[tuple[int, str, int, float, float]] = []
+        for vehicle, vehicle_id in enumerate(vehicle_ids):
+            held = self.held.get(vehicle_id)
+            if held is None or not held.places:
+                continue
+            start, stop = first[vehicle], first[vehicle + 1]
+            curve_ids, parts = ahead.cpoi_curve_id[start:stop].tolist(), ahead.cpoi_part_index[start:stop].tolist()
+            keys = list(zip(curve_ids, parts, strict=True))
+            speed = float(speed_kmh[vehicle])
+            for place in recalled_points(held, keys, now_s[vehicle], speed, float(hold_s[vehicle])):
+                rows.append(stop)
+                found.append((vehicle, *place))
+        if not rows:
+            return ahead, None
+        owner, curve_id, part_index, distance_m, radius_m = (list(column) for column in zip(*found, strict=True))
+        with_recalled = replace(
+            ahead,
+            cpoi_vehicle=np.insert(ahead.cpoi_vehicle, rows, owner),
+            cpoi_distance_m=np.insert(ahead.cpoi_distance_m, rows, distance_m),
+            cpoi_radius_m=np.insert(ahead.cpoi_radius_m, rows, radius_m),
+            cpoi_part_index=np.insert(ahead.cpoi_part_index, rows, part_index),
+            cpoi_curve_id=np.insert(ahead.cpoi_curve_id, rows, np.array(curve_id, dtype=object)),
+            cpoi_passed=np.insert(ahead.cpoi_passed, rows, True),
+        )
+        return with_recalled, np.insert(np.zeros(ahead.cpoi_vehicle.size, dtype=bool), rows, True)
 
     def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is."""
@@ -396,6 +441,7 @@ class Engine:
         periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
         ages_s = np.array(age_s, dtype=float)
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
+        ahead, recalled = self._recalled(vehicle_ids, now_s, speed_kmh, periods_s, ahead)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
         # As lists: the release rule reads them one CPOI at a time.
         batch = self._judged(
@@ -412,6 +458,7 @@ class Engine:
             ahead.cpoi_curve_id.tolist(),
             ahead.cpoi_part_index.tolist(),
             ahead.cpoi_passed,
+            recalled,
         )
         return ahead, batch
 

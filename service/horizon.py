@@ -53,18 +53,36 @@ class CpoiPositions:
     def __init__(self, network: ServedNetwork) -> None:
         self.network = network
         self._known: dict[tuple[str, str, int], dict[str, float]] = {}
+        self._road_parts: dict[tuple[str, int], dict[str, float]] | None = None
 
     def of(
         self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int] | np.ndarray
     ) -> list[dict[str, float]]:
-        """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order."""
+        """The positions of CPOIs (curve id, part index) on the path ``ahead``, in order; a CPOI the
+        release rule recalls from the vehicle's memory, not on the path (:mod:`csws.warning.release`,
+        rule 4), lies where its part starts on the lane its road's curve starts on."""
         lane_id = ahead.path.lane_ids[0]
         keys = [(lane_id, curve_id, int(part)) for curve_id, part in zip(curve_ids, part_index, strict=False)]
-        missing = [key for key in dict.fromkeys(keys) if key not in self._known]
+        on_path = set(zip(ahead.cpoi_curve_id, ahead.cpoi_part_index.tolist(), strict=True))
+        missing = [key for key in dict.fromkeys(keys) if key not in self._known and key[1:] in on_path]
         if missing:
             points = cpoi_points(ahead, [curve_id for _, curve_id, _ in missing], [part for _, _, part in missing])
             self._known.update(zip(missing, positions(self.network, points), strict=False))
-        return [self._known[key] for key in keys]
+        return [self._known[key] if key in self._known else self._road_part(key[1], key[2]) for key in keys]
+
+    def _road_part(self, curve_id: str, part: int) -> dict[str, float]:
+        """Where a road's curve's part starts, on the lane the curve starts on (all placed at the first call)."""
+        if self._road_parts is None:
+            road_map = self.network.road_map
+            found, points = [], []
+            for lane_curve in road_map.curves(include_junctions=True):
+                shape, curve = road_map.curve_shape(lane_curve), lane_curve.curve
+                starts_s = [piece.start_s - curve.start_s for piece in curve.parts]
+                found += [(lane_curve.curve_id, lane_curve.first_part_index + k) for k in range(len(starts_s))]
+                points.append(points_along(shape, np.asarray(starts_s, dtype=float)))
+            xy = np.concatenate(points) if points else np.zeros((0, 2))
+            self._road_parts = dict(zip(found, positions(self.network, xy), strict=True))
+        return self._road_parts[(curve_id, part)]
 
 
 def positions(network: ServedNetwork, points: np.ndarray) -> list[dict[str, float]]:

@@ -148,13 +148,18 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     intervals_s: tuple[float, ...] = ()
     #: What map matching keeps of its fixes (sessions of vehicles never matched from a fix have none).
     matching: MatchState | None = None
+    #: Where the release rule's CPOIs were at the last update, and that update's timestamp and speed
+    #: (:class:`csws.warning.release.HeldWarning`; sessions written before these were kept have neither).
+    held_places: tuple[tuple[str, int, float, float], ...] = ()
+    held_seen: tuple[float, float] | None = None
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
         status = VehicleStatus(self.state, self.switched_on, self.activated, self.last_timestamp_s, self.fault)
         if not (self.held_points[0] or self.held_points[1]):
             return VehicleMemory(status, intervals_s=self.intervals_s)  # no level held: no release rule to take up
-        return VehicleMemory(status, HeldWarning(self.held_points, self.held_kept_at_s), self.intervals_s)
+        held = HeldWarning(self.held_points, self.held_kept_at_s, self.held_places, self.held_seen)
+        return VehicleMemory(status, held, self.intervals_s)
 
     @classmethod
     def of(cls, network: str, session: Session, memory: VehicleMemory) -> SessionRecord:
@@ -174,6 +179,8 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
             session.fcw,
             memory.intervals_s,
             session.matching,
+            held.places,
+            held.seen,
         )
 
 

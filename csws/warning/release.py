@@ -24,6 +24,16 @@ towards the distance left. The rule here keeps a level on that is on:
    :data:`csws.ahead.horizon.END_MARGIN_M` (1 m) past its part only rules 1 and 2 may keep a
    level on there, so that position noise at the curve's end cannot switch the warning
    off and on again; beyond that it keeps nothing on, and the level goes off at once.
+4. **Lost.** A CPOI that kept a level on and is missing from the path ahead at the next
+   update (a fix matched onto another connection at a junction, or onto a neighbouring lane
+   leading elsewhere) is recalled from the memory while the vehicle cannot have reached it:
+   its distance then, less the time since times the larger of the vehicle's speeds then and
+   now, is still positive. Recalled at that distance, it is marked passed, so that neither
+   6.1 nor the margin applies to it and only rule 2 may keep its level on: the level stays
+   on until the hold has run out since it was last kept on otherwise, and goes off at once
+   when the vehicle may have reached the CPOI. One fix matched away from the curve so does
+   not switch the warning off and on again; a vehicle that really turned away keeps it for
+   no longer than the hold, and never once it may be in or behind the curve.
 
 Why the rule never hides a warning the standard requires: it only ever adds to 6.1. A
 level that 6.1 requires at some CPOI at this update is on, whatever was before; the rule
@@ -41,6 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csws.standard import kmh_to_mps
+
 __all__ = [
     "HeldWarning",
     "NOT_HELD",
@@ -49,12 +61,19 @@ __all__ = [
     "memory_masks",
     "named_points",
     "next_memories",
+    "recalled_points",
     "vehicle_memory",
     "within_hold",
 ]
 
 #: A CPOI as the release rule remembers it: (curve id, part index).
 PointKey = tuple[str, int]
+
+#: Where a CPOI was at an update: curve id, part index, distance S (m) and radius (m).
+PointPlace = tuple[str, int, float, float]
+
+#: Numbers, as a list or an array.
+Floats = Sequence[float] | np.ndarray
 
 
 class Rule:
@@ -82,10 +101,17 @@ class HeldWarning:
     kept_at_s
         For each level, the timestamp of the last update at which 6.1 or the margin kept
         it on (not the hold); None where it is off or the vehicle sends no timestamps.
+    places
+        Where each CPOI of ``points`` was at the last update (rule 4), nearest first.
+    seen
+        The last update's timestamp, s, and the vehicle's speed then, km/h (rule 4); None
+        without a timestamp.
     """
 
     points: tuple[frozenset[PointKey], frozenset[PointKey]] = (frozenset(), frozenset())
     kept_at_s: tuple[float | None, float | None] = (None, None)
+    places: tuple[PointPlace, ...] = ()
+    seen: tuple[float, float] | None = None
 
     @property
     def is_on(self) -> bool:
@@ -104,6 +130,7 @@ def memory_masks(
     curve_ids: Sequence[str],
     part_indices: Sequence[int],
     hold_s: float | Sequence[float] | np.ndarray,
+    recalled: Sequence[bool] | np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which CPOIs each level's memory names (rule 1), and which of those the hold may keep
     on (rule 2: less than ``hold_s`` since the level was last kept on otherwise; it does
@@ -121,6 +148,9 @@ def memory_masks(
     hold_s
         The hold (:meth:`csws.warning.rules.WarningSettings.hold_s`): one for all vehicles, or
         each vehicle's (it lasts at least some of its update periods).
+    recalled
+        Which of the CPOIs are recalled from the memory (rule 4, :func:`recalled_points`): only the
+        hold may keep them on, never the margin. None where none is.
     """
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
@@ -140,7 +170,45 @@ def memory_masks(
     for level in (0, 1):
         latched[level, named[level]] = True
         hold[level, held_on[level]] = True
+    if recalled is not None:
+        latched &= ~np.asarray(recalled, dtype=bool)
     return latched, hold
+
+
+def recalled_points(
+    held: HeldWarning, keys: Sequence[PointKey], now_s: float | None, speed_kmh: float, hold_s: float
+) -> list[PointPlace]:
+    """Rule 4: the CPOIs that kept a level on, are missing from the path ahead (``keys``) and that the
+    vehicle cannot have reached since the last update, each at its distance less the most the vehicle
+    can have driven; only those whose level the hold may still keep on (rule 2), nearest first.
+
+    Parameters
+    ----------
+    held
+        The vehicle's memory from the last update.
+    keys
+        The CPOIs on its path ahead now.
+    now_s, speed_kmh
+        This update's timestamp, s (None where unknown), and the vehicle's speed now, km/h.
+    hold_s
+        Its hold (:meth:`csws.warning.rules.WarningSettings.hold_s`), s.
+    """
+    if not held.places or held.seen is None or now_s is None:
+        return []
+    seen_at_s, seen_speed_kmh = held.seen
+    driven_m = kmh_to_mps(max(seen_speed_kmh, speed_kmh)) * (now_s - seen_at_s)
+    if not math.isfinite(driven_m) or now_s < seen_at_s:
+        return []
+    holding = [level for level in (0, 1) if within_hold(held.kept_at_s[level], now_s, hold_s)]
+    on_path = set(keys)
+    recalled = []
+    for curve_id, part_index, distance_m, radius_m in held.places:
+        key = (curve_id, part_index)
+        if key in on_path or not any(key in held.points[level] for level in holding):
+            continue
+        if distance_m - driven_m > 0.0:
+            recalled.append((curve_id, part_index, distance_m - driven_m, radius_m))
+    return recalled
 
 
 def next_memories(
@@ -150,9 +218,14 @@ def next_memories(
     curve_ids: Sequence[str],
     part_indices: Sequence[int],
     cpoi_rule: np.ndarray,
+    places: tuple[Floats, Floats, Floats] | None = None,
 ) -> list[HeldWarning]:
     """Each vehicle's memory after this update, from what kept each level on at each of its
-    CPOIs (``cpoi_rule``, ``(2, n_cpois)`` :class:`Rule` codes)."""
+    CPOIs (``cpoi_rule``, ``(2, n_cpois)`` :class:`Rule` codes).
+
+    ``places`` are the flat CPOIs' distances S and radii, m, and each vehicle's speed, km/h, for
+    rule 4; without them the memories keep no places, and rule 4 recalls nothing from them.
+    """
     vehicle_of_row = np.repeat(np.arange(len(held)), np.diff(np.asarray(first_cpoi)))
     memories = [NOT_HELD] * len(held)
     on = np.unique(vehicle_of_row[np.any(cpoi_rule != Rule.OFF, axis=0)]).tolist()
@@ -163,19 +236,25 @@ def next_memories(
         start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
         keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
         here = (level_rules[0][start:stop], level_rules[1][start:stop])
-        memories[vehicle] = vehicle_memory(here, keys, held[vehicle], now_s[vehicle])
+        where = None if places is None else (places[0][start:stop], places[1][start:stop], places[2][vehicle])
+        memories[vehicle] = vehicle_memory(here, keys, held[vehicle], now_s[vehicle], where)
     return memories
 
 
 def vehicle_memory(
-    rules: tuple[Sequence[int], Sequence[int]], keys: Sequence[PointKey], held: HeldWarning, now_s: float | None
+    rules: tuple[Sequence[int], Sequence[int]],
+    keys: Sequence[PointKey],
+    held: HeldWarning,
+    now_s: float | None,
+    places: tuple[Floats, Floats, float] | None = None,
 ) -> HeldWarning:
     """One vehicle's memory after this update, from what kept level 1 and level 2 on at each of its
     CPOIs (``rules``, :class:`Rule` codes in the order of ``keys``) and its memory ``held`` before.
 
     A level keeps the CPOIs that kept it on; its time is now where 6.1 or the margin kept it on,
     the time it had where only the hold did (rule 2 counts from the last time it was kept on
-    otherwise), and none where it is off.
+    otherwise), and none where it is off. With ``places`` (the CPOIs' distances S and radii, m,
+    and the vehicle's speed, km/h) it keeps where those CPOIs are now, for rule 4.
     """
     if not any(rules[0]) and not any(rules[1]):
         return NOT_HELD
@@ -186,7 +265,15 @@ def vehicle_memory(
             kept_at_s.append(now_s)
         else:
             kept_at_s.append(held.kept_at_s[level] if Rule.HOLD in here else None)
-    return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
+    if places is None or now_s is None or not math.isfinite(now_s):
+        return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
+    distances_m, radii_m, speed_kmh = places
+    kept = [
+        (key[0], key[1], float(distance_m), float(radius_m))
+        for key, level_1, level_2, distance_m, radius_m in zip(keys, *rules, distances_m, radii_m, strict=True)
+        if level_1 or level_2
+    ]
+    return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]), tuple(kept), (now_s, float(speed_kmh)))
 
 
 def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:

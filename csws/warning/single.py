@@ -24,6 +24,7 @@ from csws.warning.release import (
     PointKey,
     Rule,
     named_points,
+    recalled_points,
     vehicle_memory,
     within_hold,
 )
@@ -93,6 +94,9 @@ def judge_one(
         the configured one) and its fix's age when answered, s: they lengthen the latency allowance
         and the period the hold (:meth:`csws.warning.rules.WarningSettings.hold_s`).
 
+    The CPOIs the release rule recalls from ``held`` (rule 4, :func:`csws.warning.release.recalled_points`)
+    are judged after ``points``, as the batch judges them after the vehicle's own.
+
     Returns
     -------
     tuple
@@ -101,6 +105,14 @@ def judge_one(
     """
     speed_mps = kmh_to_mps(speed_kmh)
     allowance_m = settings.allowance_m(speed_mps, update_period_s, age_s)
+    hold_s = settings.hold_s(update_period_s)
+    keys = [(point[0], point[1]) for point in points]
+    on_path = len(points)
+    # Rule 4: CPOIs lost from the path, after those on it, passed: only the hold may keep them on.
+    recalled = recalled_points(held, keys, now_s, speed_kmh, hold_s)
+    if recalled:
+        points = [*points, *((curve_id, part, s, r, True) for curve_id, part, s, r in recalled)]
+        keys += [(point[0], point[1]) for point in recalled]
     speeds = [settings.policy.warning_speeds_one_kmh(radius_m, column_index) for _, _, _, radius_m, _ in points]
     distances = [[warning_distance_m(speed_mps, kmh_to_mps(v), settings.g_mps2) for v in pair] for pair in speeds]
     # 6.1, nothing where passed.
@@ -111,13 +123,14 @@ def judge_one(
         ]
         for point, pair, sws in zip(points, speeds, distances, strict=False)
     ]
-    keys = [(point[0], point[1]) for point in points]
+    distances_m = [point[2] for point in points]
     if held.is_on:
-        release = (allowance_m, settings.hold_s(update_period_s))
-        _apply_release(rules, speed_kmh, keys, [point[2] for point in points], speeds, held, now_s, release, settings)
+        release = (allowance_m, hold_s, on_path)
+        _apply_release(rules, speed_kmh, keys, distances_m, speeds, held, now_s, release, settings)
     warning = _warning(rules, points, speeds, distances, path_kind)
     level_rules = ([point_rules[0] for point_rules in rules], [point_rules[1] for point_rules in rules])
-    return warning, vehicle_memory(level_rules, keys, held, now_s)
+    places = (distances_m, [point[3] for point in points], speed_kmh)
+    return warning, vehicle_memory(level_rules, keys, held, now_s, places)
 
 
 def _apply_release(
@@ -128,14 +141,15 @@ def _apply_release(
     speeds: list[tuple[float, float]],
     held: HeldWarning,
     now_s: float | None,
-    release: tuple[float, float],
+    release: tuple[float, float, int],
     settings: WarningSettings,
 ) -> None:
     """Release rules 1 (margin) and 2 (hold) of :mod:`csws.warning.release` on ``rules``, in place;
-    ``release`` is the vehicle's latency allowance, m, and its hold, s."""
-    allowance_m, hold_s = release
+    ``release`` is the vehicle's latency allowance, m, its hold, s, and how many of the CPOIs are on
+    its path (the margin keeps none of those recalled after them, rule 4)."""
+    allowance_m, hold_s, on_path = release
     named = named_points(held, keys)
-    for point, (distance_m, pair, point_rules) in enumerate(zip(distances_m, speeds, rules, strict=True)):
+    for point, (distance_m, pair, point_rules) in enumerate(zip(distances_m[:on_path], speeds, rules, strict=False)):
         for level in (0, 1):
             if point_rules[level] == Rule.OFF and named[level][point]:
                 if meets_margin(speed_kmh, pair[level], distance_m, allowance_m, settings):
