@@ -165,13 +165,15 @@ def browse(served: Running) -> dict:
         try:
             page = browser.new_page(viewport={"width": 1200, "height": 800})
             page.goto(f"{served.url}/map?network={NETWORK}")
-            page.wait_for_function(f"cswsMap.fleetTimes.refreshes.some(r => r.vehicles >= {VEHICLES})", timeout=WAIT_MS)
-            first = page.evaluate(f"cswsMap.fleetTimes.refreshes.find(r => r.vehicles >= {VEHICLES})")
+            page.wait_for_function(
+                f"() => cswsMap.fleetTimes.refreshes.some(r => r.vehicles >= {VEHICLES})", timeout=WAIT_MS
+            )
+            first = page.evaluate(f"() => cswsMap.fleetTimes.refreshes.find(r => r.vehicles >= {VEHICLES})")
             first_draw_ms = first["started_ms"] + first["took_ms"]
             figures = _initial_data(page, first_draw_ms) | {"first_draw_s": round(first_draw_ms / 1000.0, 2)}
             page.wait_for_timeout(WINDOW_S * 1000.0)
-            figures |= _refreshes(page.evaluate("cswsMap.fleetTimes"), first_draw_ms)
-            figures["bbox"] = page.evaluate("document.body.dataset.curvesBbox")
+            figures |= _refreshes(page.evaluate("() => cswsMap.fleetTimes"), first_draw_ms)
+            figures["bbox"] = page.evaluate("() => document.body.dataset.curvesBbox")
         finally:
             browser.close()
     return figures
