@@ -1,0 +1,171 @@
+"""Evaluating a vehicle only where a curve warning can arise gives the warnings of evaluating every one at every step.
+
+Random fleets on constructed roads (straights and arcs of R 60-250 m, two lanes, cut into
+edges at random places) and a short run of the bundled fleet are co-simulated twice, with
+``--evaluate every-step`` and ``--evaluate scheduled``: ``warnings.csv`` and ``entries.csv``
+must be the same bytes, over libsumo and TraCI, while the scheduled run evaluates a fraction of
+the vehicle-steps. The schedule's own bound is checked against formula (1) computed here.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from csws.cosim.driver import DriverSettings
+from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.cosim.schedule import LANE_CHANGE_MARGIN_M, LANE_CHANGE_MARGIN_SHARE, WakeSchedule, speed_bound_mps
+from csws.geometry import arc, sample_pieces, straight
+from csws.networks.fleet import fleet_dir, fleet_routes_xml
+from csws.standard import G_MPS2, REACTION_TIME_S
+from csws.sumo.netbuild import netconvert, shape_text
+from csws.warning.settings import WarningSettings
+
+STEP_S = 0.1
+#: The roads' speed limit, m/s (90 km/h: curves of R 60-250 m then warn most vehicles).
+ROAD_SPEED_MPS = 25.0
+
+
+def _road_pieces(rng: random.Random) -> list:
+    """Straights and arcs of R 60-250 m turning alternately left and right."""
+    pieces = [straight(rng.uniform(300.0, 600.0))]
+    for i in range(4):
+        radius_m = rng.uniform(60.0, 250.0)
+        pieces.append(arc(radius_m, rng.uniform(25.0, 80.0), "left" if i % 2 else "right"))
+        pieces.append(straight(rng.uniform(150.0, 500.0)))
+    return pieces
+
+
+def _build_road(folder: Path, rng: random.Random) -> tuple[Path, list[str]]:
+    """A two-lane one-way road of random pieces, cut into edges at random places; its net and edge ids."""
+    xy, _ = sample_pieces(_road_pieces(rng), 2.0, (0.0, 0.0), 0.0)
+    cuts = sorted(rng.sample(range(20, len(xy) - 20), 3))
+    bounds = [0, *cuts, len(xy) - 1]
+    nodes = [f'<node id="n{i}" x="{xy[b][0]:.6f}" y="{xy[b][1]:.6f}"/>' for i, b in enumerate(bounds)]
+    edges = [
+        f'<edge id="e{i}" from="n{i}" to="n{i + 1}" numLanes="2" speed="{ROAD_SPEED_MPS}" '
+        f'shape="{shape_text(xy[a : b + 1])}"/>'
+        for i, (a, b) in enumerate(zip(bounds, bounds[1:], strict=False))
+    ]
+    net = netconvert(
+        "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "road.net.xml"
+    )
+    return net, [f"e{i}" for i in range(len(edges))]
+
+
+def _fleet(folder: Path, edges: list[str], rng: random.Random, vehicles: int) -> Path:
+    """A random mixed fleet on the road: cars, trucks and buses of random speed factors, departing at random."""
+    types = [
+        '<vType id="car" vClass="passenger" speedFactor="1.1" speedDev="0.15"/>',
+        '<vType id="truck" vClass="truck" maxSpeed="25" speedFactor="1.0" speedDev="0.1"/>',
+        '<vType id="bus" vClass="bus" speedFactor="0.95" speedDev="0.1"/>',
+    ]
+    departures = sorted(rng.uniform(0.0, 60.0) for _ in range(vehicles))
+    cars = [
+        f'<vehicle id="v{i}" type="{rng.choice(("car", "car", "truck", "bus"))}" route="road" '
+        f'depart="{depart:.1f}" departLane="random" departSpeed="random"/>'
+        for i, depart in enumerate(departures)
+    ]
+    path = folder / "fleet.rou.xml"
+    path.write_text(
+        f'<routes>{"".join(types)}<route id="road" edges="{" ".join(edges)}"/>{"".join(cars)}</routes>',
+        encoding="utf-8",
+    )
+    return path
+
+
+def _both(scenario: Scenario, out: Path, **settings) -> tuple[Path, Path, dict]:
+    """Run the scenario every step and scheduled; their folders, and the scheduled run's summary."""
+    every, scheduled = out / "every", out / "scheduled"
+    full = cosimulate(CosimConfig(scenario, every, evaluation="every-step", timeseries="none", **settings))
+    assert full["evaluation"]["mode"] == "every step"
+    summary = cosimulate(CosimConfig(scenario, scheduled, evaluation="scheduled", timeseries="none", **settings))
+    return every, scheduled, summary
+
+
+def _assert_same_warnings(every: Path, scheduled: Path, summary: dict) -> None:
+    """The two runs' warning events and entries are the same bytes; the scheduled one evaluated less."""
+    events = (every / "warnings.csv").read_bytes()
+    assert events.count(b"\n") > 5, "the scenario must warn"
+    assert (scheduled / "warnings.csv").read_bytes() == events
+    assert (scheduled / "entries.csv").read_bytes() == (every / "entries.csv").read_bytes()
+    assert summary["evaluation"]["mode"] == "scheduled"
+    assert summary["evaluation"]["vehicle_steps_evaluated_share"] < 0.9
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+@pytest.mark.parametrize(
+    ("seed", "interface", "driver"),
+    [(1, "libsumo", False), (2, "libsumo", True), (3, "traci", False)],
+)
+def test_scheduled_runs_warn_as_every_step_runs_on_random_fleets(tmp_path, seed, interface, driver):
+    rng = random.Random(seed)
+    net, edges = _build_road(tmp_path, rng)
+    routes = _fleet(tmp_path, edges, rng, vehicles=40)
+    every, scheduled, summary = _both(
+        Scenario(None, net, (routes,)),
+        tmp_path,
+        step_length_s=STEP_S,
+        end_s=150.0,
+        interface=interface,
+        seed=seed,
+        driver=DriverSettings() if driver else None,
+    )
+    _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_scheduled_run_of_the_bundled_fleet_warns_as_every_step(tmp_path):
+    routes = tmp_path / "fleet.rou.xml"
+    routes.write_text(fleet_routes_xml(60, period_s=30.0, seed=4), encoding="utf-8")
+    scenario = Scenario(None, fleet_dir() / "fleet.net.xml", (routes,))
+    every, scheduled, summary = _both(scenario, tmp_path, step_length_s=0.2, end_s=120.0)
+    _assert_same_warnings(every, scheduled, summary)
+
+
+def _formula_1_reach_m(speed_mps: float, settings: WarningSettings) -> float:
+    """S_w with V_w = 0 plus the latency allowance at ``speed_mps``, m: formula (1) written out here."""
+    return (
+        REACTION_TIME_S * speed_mps
+        + speed_mps**2 / G_MPS2
+        + speed_mps * (settings.update_period_s + settings.system_delay_s)
+    )
+
+
+@given(
+    distance_m=st.floats(0.0, 5000.0),
+    speed_mps=st.floats(0.0, 40.0),
+    bound_mps=st.floats(1.0, 40.0),
+    factor=st.floats(0.9, 1.1),
+)
+def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(distance_m, speed_mps, bound_mps, factor):
+    """At every step before its wake-up, a vehicle at its fastest is still farther from the curve than
+    the largest S_w + allowance any speed up to that gives (formula (1) with V_w = 0)."""
+    settings = WarningSettings(update_period_s=STEP_S)
+    schedule = WakeSchedule(STEP_S, settings)
+    schedule.add("v", bound_mps)
+    schedule.sleep(0, "v", speed_mps, distance_m, factor)
+    fastest_mps = max(speed_mps, bound_mps)
+    wake = schedule.wake_step.get("v")
+    if wake is None:
+        return
+    margin_m = LANE_CHANGE_MARGIN_M + LANE_CHANGE_MARGIN_SHARE * distance_m
+    for step in range(1, wake):
+        left_m = distance_m - margin_m - step * STEP_S * fastest_mps / factor
+        assert left_m > _formula_1_reach_m(fastest_mps, settings) * (1 - 1e-12)
+    assert schedule.wake_due(wake) == {"v": 0}
+
+
+def test_the_speed_bound_is_the_lower_of_the_types_and_the_fastest_lanes():
+    assert speed_bound_mps(30.0, 1.2, 25.0) == 30.0
+    assert speed_bound_mps(50.0, 1.2, 25.0) == pytest.approx(30.0)
+    assert math.isclose(speed_bound_mps(22.0, 0.8, 25.0), 20.0)
+    assert np.isfinite(speed_bound_mps(22.0, 0.8, 25.0))
