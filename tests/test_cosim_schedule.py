@@ -12,15 +12,23 @@ from __future__ import annotations
 import math
 import random
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from csws.ahead.horizon import END_MARGIN_M
 from csws.cosim.driver import DriverSettings
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
-from csws.cosim.schedule import LANE_CHANGE_MARGIN_M, LANE_CHANGE_MARGIN_SHARE, WakeSchedule, speed_bound_mps
+from csws.cosim.schedule import (
+    LANE_CHANGE_MARGIN_M,
+    LANE_CHANGE_MARGIN_SHARE,
+    WakeSchedule,
+    distance_to_first_part_m,
+    speed_bound_mps,
+)
 from csws.geometry import arc, sample_pieces, straight
 from csws.networks.fleet import fleet_dir, fleet_routes_xml
 from csws.standard import G_MPS2, REACTION_TIME_S
@@ -162,6 +170,22 @@ def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(dist
         left_m = distance_m - margin_m - step * STEP_S * fastest_mps / factor
         assert left_m > _formula_1_reach_m(fastest_mps, settings) * (1 - 1e-12)
     assert schedule.wake_due(wake) == {"v": 0}
+
+
+@given(
+    parts=st.lists(st.tuples(st.floats(0.0, 2000.0), st.floats(0.0, 300.0)), max_size=8),
+    vehicle_s=st.floats(0.0, 2500.0),
+)
+def test_the_first_part_ahead_is_the_nearest_start_among_the_parts_not_passed(parts, vehicle_s):
+    """The distance to the first curve part is that to the nearest start among the parts whose end (plus the
+    CPOIs' end margin) is still ahead, 0 inside one, else to the end of the path."""
+    starts = np.array([start for start, _ in parts], dtype=float)
+    ends = np.array([start + length for start, length in parts], dtype=float)
+    path = SimpleNamespace(length_m=2600.0, lane_position_factor=np.array([1.02, 0.98]))
+    horizon = SimpleNamespace(part_start_s=starts, part_end_s=ends, path=path)
+    ahead = [start for start, end in zip(starts, ends, strict=True) if end + END_MARGIN_M > vehicle_s]
+    expected_m = max(min(ahead, default=2600.0) - vehicle_s, 0.0)
+    assert distance_to_first_part_m(horizon, vehicle_s) == (expected_m, 0.98)
 
 
 def test_the_speed_bound_is_the_lower_of_the_types_and_the_fastest_lanes():

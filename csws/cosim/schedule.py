@@ -29,9 +29,11 @@ been remembered otherwise.
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import ClassVar
 
 import numpy as np
 
@@ -77,9 +79,42 @@ def distance_to_first_part_m(horizon: Horizon, vehicle_s: float) -> tuple[float,
     """The path distance from ``vehicle_s`` to the start of the first curve part not yet passed (0 inside one),
     or to the end of the path when no part is ahead, m; and the smallest lane-length per path-length
     factor of the path's lanes (a lane position advances ``factor`` times the path's arc length)."""
-    ahead = horizon.part_end_s + END_MARGIN_M > vehicle_s
-    end_s = float(horizon.part_start_s[ahead].min()) if ahead.any() else horizon.path.length_m
-    return max(end_s - vehicle_s, 0.0), float(np.min(horizon.path.lane_position_factor))
+    return _PartsAhead.of(horizon).distance_m(vehicle_s)
+
+
+class _PartsAhead:
+    """A horizon's parts ordered by where they end, with the nearest start among each one and those ending
+    after it: the first part not passed is then one bisection away (built once per horizon)."""
+
+    #: The horizons seen, by identity (each kept alive with its parts); emptied when it holds this many.
+    _CAPACITY: ClassVar[int] = 20_000
+    _cache: ClassVar[dict[int, tuple[Horizon, _PartsAhead]]] = {}
+
+    def __init__(self, horizon: Horizon) -> None:
+        order = np.argsort(horizon.part_end_s, kind="stable")
+        self.ends_s = (horizon.part_end_s[order] + END_MARGIN_M).tolist()
+        starts_s = horizon.part_start_s[order]
+        self.nearest_start_s = np.minimum.accumulate(starts_s[::-1])[::-1].tolist()
+        self.length_m = horizon.path.length_m
+        self.factor = float(np.min(horizon.path.lane_position_factor))
+
+    @classmethod
+    def of(cls, horizon: Horizon) -> _PartsAhead:
+        """The parts of ``horizon`` (built at its first use)."""
+        found = cls._cache.get(id(horizon))
+        if found is not None and found[0] is horizon:
+            return found[1]
+        if len(cls._cache) >= cls._CAPACITY:
+            cls._cache.clear()
+        parts = cls(horizon)
+        cls._cache[id(horizon)] = (horizon, parts)
+        return parts
+
+    def distance_m(self, vehicle_s: float) -> tuple[float, float]:
+        """:func:`distance_to_first_part_m` of a vehicle at ``vehicle_s``."""
+        first = bisect_right(self.ends_s, vehicle_s)
+        end_s = self.nearest_start_s[first] if first < len(self.ends_s) else self.length_m
+        return max(end_s - vehicle_s, 0.0), self.factor
 
 
 class WakeSchedule:
