@@ -133,7 +133,7 @@ class _Run:
         schedule, step = self.schedule, self.summary.steps
         woken = {} if schedule is None else schedule.wake_due(step, everyone=positions)
         with costs.timed("sumo_step_and_read"):
-            fleet = simulation.step(positions, None if schedule is None else schedule.is_asleep)
+            fleet = simulation.step(positions, () if schedule is None else schedule.wake_step)
         self._forget(fleet.arrived)
         self.summary.skipped.update(fleet.skipped)
         if schedule is not None:

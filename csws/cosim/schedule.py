@@ -132,6 +132,7 @@ class WakeSchedule:
         self.step_s = step_s
         self.warning = warning
         self.speed_bound_mps: dict[str, float] = {}
+        #: The wake-up step of each sleeping vehicle (those not read or evaluated this step).
         self.wake_step: dict[str, int] = {}
         #: The step each sleeping vehicle was last evaluated at.
         self.slept_at: dict[str, int] = {}
@@ -167,10 +168,6 @@ class WakeSchedule:
         last :data:`~csws.warning.latency.KEPT_INTERVALS` + 1 of them at most."""
         times = [time_s for step, time_s in self._times_s if step > slept_at]
         return times[:-1][-(KEPT_INTERVALS + 1) :]
-
-    def is_asleep(self, vehicle_id: str) -> bool:
-        """Whether the vehicle is not to be evaluated this step."""
-        return vehicle_id in self.wake_step
 
     def sleep(self, step: int, vehicle_id: str, speed_mps: float, distance_m: float, position_factor: float) -> None:
         """Put a vehicle without a warning to sleep after its evaluation at ``step``, until the first step

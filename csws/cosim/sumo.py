@@ -19,7 +19,7 @@ a type's category once per type.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Container, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
@@ -185,8 +185,8 @@ class Simulation:
         """Vehicles running or still to depart."""
         return int(self._call(self.api.simulation.getMinExpectedNumber))
 
-    def step(self, positions: bool = True, asleep: Callable[[str], bool] | None = None) -> FleetState:
-        """Advance one step and read every evaluated vehicle but those ``asleep`` says are; its x, y only with
+    def step(self, positions: bool = True, asleep: Container[str] = ()) -> FleetState:
+        """Advance one step and read every evaluated vehicle but those ``asleep``; its x, y only with
         ``positions`` (NaN otherwise: :meth:`position` reads one vehicle's when it is needed).
 
         Raises
@@ -252,16 +252,12 @@ class Simulation:
         speed_factor = float(self._call(vehicle.getSpeedFactor, vehicle_id))
         return speed_bound_mps(max_speed_mps, speed_factor, self._fastest_lane_mps or 0.0)
 
-    def _fleet_by_getters(
-        self, positions: bool, asleep: Callable[[str], bool] | None
-    ) -> tuple[list[str], tuple[Sequence, ...]]:
+    def _fleet_by_getters(self, positions: bool, asleep: Container[str]) -> tuple[list[str], tuple[Sequence, ...]]:
         """The evaluated vehicles not ``asleep`` and their values, read by one getter call per vehicle and
         variable (libsumo); x, y (and with headings the angle) only with ``positions`` (empty otherwise)."""
         vehicle = self.api.vehicle
         evaluated = self._evaluated
-        ids = [vehicle_id for vehicle_id in self._call(vehicle.getIDList) if vehicle_id in evaluated]
-        if asleep is not None:
-            ids = [vehicle_id for vehicle_id in ids if not asleep(vehicle_id)]
+        ids = [v for v in self._call(vehicle.getIDList) if v in evaluated and v not in asleep]
         getters = [
             vehicle.getLaneID,
             vehicle.getLanePosition,
@@ -279,11 +275,11 @@ class Simulation:
         """One vehicle's x, y, m (for a step read without positions)."""
         return tuple(self._call(self.api.vehicle.getPosition, vehicle_id))
 
-    def _subscribed_fleet(self, asleep: Callable[[str], bool] | None) -> tuple[list[str], tuple[Sequence, ...]]:
+    def _subscribed_fleet(self, asleep: Container[str]) -> tuple[list[str], tuple[Sequence, ...]]:
         """The evaluated vehicles not ``asleep`` and their values, from one call for every subscription (TraCI)."""
         results = self._call(self.api.vehicle.getAllSubscriptionResults)
-        if asleep is not None:
-            results = {vehicle_id: values for vehicle_id, values in results.items() if not asleep(vehicle_id)}
+        if asleep:
+            results = {vehicle_id: values for vehicle_id, values in results.items() if vehicle_id not in asleep}
         ids = list(results)
         if not ids:
             return ids, ((),) * (len(_SUBSCRIBED) + 1)
