@@ -171,6 +171,9 @@ def _figures(runs: dict[str, dict]) -> dict:
             if "summary" in run
         },
         "default_components_ms_per_step": default["ms_per_step"],
+        "components_ms_per_step": {
+            name: run["summary"]["ms_per_step"] for name, run in runs.items() if "summary" in run
+        },
     }
 
 
@@ -261,7 +264,8 @@ def _print(figures: dict) -> None:
                 else ""
             )
         )
-    print("default run by component, ms/step:", figures["default_components_ms_per_step"])
+    for name, components in figures["components_ms_per_step"].items():
+        print(f"{name} by component, ms/step:", components)
 
 
 def main() -> None:
