@@ -13,7 +13,9 @@ same API; what is read each step is the same, the way it is read is each one's c
   all of them; a getter call there is a round trip to another process.
 
 A route's edges are fetched once per route id (a rerouted vehicle gets a new route id),
-a type's category once per type.
+a type's category once per type. A scheduled run (:mod:`csws.cosim.schedule`) reads only the
+vehicles that are due: getters then cost less still, subscriptions (every vehicle's result
+built at every step) no less.
 """
 
 from __future__ import annotations
