@@ -176,7 +176,8 @@ class _Run:
     def _sleep(self, schedule: WakeSchedule, step: int, fleet: FleetState, warnings: FleetWarnings) -> None:
         """Put to sleep the vehicles evaluated this step that no warning, release hold or driver keeps awake."""
         library = self._library()
-        ahead, held = library.ahead, library.engine.held
+        engine = library.engine
+        ahead, held = library.ahead, engine.held
         if ahead is None or not fleet.vehicle_id:  # no vehicle was evaluated: the evaluator holds an older step's
             return
         driven = self.driver.drivers if self.driver is not None else {}
@@ -186,7 +187,8 @@ class _Run:
             if levels[row] or vehicle_id in held or vehicle_id in driven:
                 continue
             distance_m, factor = distance_to_first_part_m(horizon, vehicle_s)
-            schedule.sleep(step, vehicle_id, speeds_mps[row], distance_m, factor)
+            period_s = engine.update_period_s(vehicle_id)
+            schedule.sleep(step, vehicle_id, speeds_mps[row], distance_m, factor, period_s)
 
     def _library(self) -> LibraryEvaluator:
         """The library's evaluator (a scheduled run has one)."""

@@ -125,7 +125,7 @@ class WakeSchedule:
     step_s
         SUMO's step length, s.
     warning
-        The engine's warning settings (its update period pinned to ``step_s``): the allowance of 6.1.
+        The engine's warning settings: formula (1)'s g and the latency allowance of 6.1.
     """
 
     def __init__(self, step_s: float, warning: WarningSettings) -> None:
@@ -169,14 +169,24 @@ class WakeSchedule:
         times = [time_s for step, time_s in self._times_s if step > slept_at]
         return times[:-1][-(KEPT_INTERVALS + 1) :]
 
-    def sleep(self, step: int, vehicle_id: str, speed_mps: float, distance_m: float, position_factor: float) -> None:
+    def sleep(
+        self,
+        step: int,
+        vehicle_id: str,
+        speed_mps: float,
+        distance_m: float,
+        position_factor: float,
+        update_period_s: float | None = None,
+    ) -> None:
         """Put a vehicle without a warning to sleep after its evaluation at ``step``, until the first step
         at which a CPOI ``distance_m`` ahead on its path (or the end of that path) could come within
-        S_w + the allowance of it at the fastest speed it can reach."""
+        S_w + the allowance of it at the fastest speed it can reach; the allowance for the longer of its
+        update period as the engine takes it (``update_period_s``, the configured one where None) and a step."""
         bound_mps = max(self.speed_bound_mps.get(vehicle_id, math.inf), speed_mps)
         if not (math.isfinite(bound_mps) and bound_mps > 0.0 and position_factor > 0.0):
             return
-        reach_m = float(lookahead_distances_m(float(mps_to_kmh(bound_mps)), self.warning, 0.0))
+        period_s = max(self.warning.update_period_s if update_period_s is None else update_period_s, self.step_s)
+        reach_m = float(lookahead_distances_m(float(mps_to_kmh(bound_mps)), self.warning, 0.0, period_s))
         free_m = distance_m * (1.0 - LANE_CHANGE_MARGIN_SHARE) - LANE_CHANGE_MARGIN_M - reach_m
         # Path arc length driven per step at most: the lane position advances by at most v dt.
         per_step_m = bound_mps * self.step_s / position_factor
