@@ -149,26 +149,33 @@ def _formula_1_reach_m(speed_mps: float, settings: WarningSettings) -> float:
 
 
 @given(
-    distance_m=st.floats(0.0, 5000.0),
+    distance_m=st.floats(0.0, 3000.0),
     speed_mps=st.floats(0.0, 40.0),
     bound_mps=st.floats(1.0, 40.0),
+    accel_mps2=st.one_of(st.just(math.inf), st.floats(0.5, 5.0)),
     factor=st.floats(0.9, 1.1),
 )
-def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(distance_m, speed_mps, bound_mps, factor):
-    """At every step before its wake-up, a vehicle at its fastest is still farther from the curve than
-    the largest S_w + allowance any speed up to that gives (formula (1) with V_w = 0)."""
+def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(
+    distance_m, speed_mps, bound_mps, accel_mps2, factor
+):
+    """Driven as fast as SUMO allows (speed rising by at most its acceleration up to its bound, each step
+    advancing that step's speed times the step), a sleeping vehicle is at every step before its wake-up
+    still farther from the curve than S_w + allowance at its speed then (formula (1) with V_w = 0)."""
     settings = WarningSettings(update_period_s=STEP_S)
     schedule = WakeSchedule(STEP_S, settings)
-    schedule.add("v", bound_mps)
+    schedule.add("v", bound_mps, accel_mps2)
     schedule.sleep(0, "v", speed_mps, distance_m, factor)
-    fastest_mps = max(speed_mps, bound_mps)
     wake = schedule.wake_step.get("v")
     if wake is None:
         return
     margin_m = LANE_CHANGE_MARGIN_M + LANE_CHANGE_MARGIN_SHARE * distance_m
-    for step in range(1, wake):
-        left_m = distance_m - margin_m - step * STEP_S * fastest_mps / factor
-        assert left_m > _formula_1_reach_m(fastest_mps, settings) * (1 - 1e-12)
+    fastest_mps = max(speed_mps, bound_mps)
+    now_mps, driven_m = speed_mps, 0.0
+    for _ in range(1, wake):
+        now_mps = min(fastest_mps, now_mps + accel_mps2 * STEP_S)
+        driven_m += now_mps * STEP_S
+        left_m = distance_m - margin_m - driven_m / factor
+        assert left_m > _formula_1_reach_m(now_mps, settings) * (1 - 1e-9)
     assert schedule.wake_due(wake) == {"v": 0}
 
 

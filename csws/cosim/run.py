@@ -157,14 +157,19 @@ class _Run:
         return config.end_s is None or fleet.time_s < config.end_s
 
     def _catch_up(
-        self, schedule: WakeSchedule, step: int, fleet: FleetState, woken: dict[str, int], bounds: dict[str, float]
+        self,
+        schedule: WakeSchedule,
+        step: int,
+        fleet: FleetState,
+        woken: dict[str, int],
+        bounds: dict[str, tuple[float, float]],
     ) -> None:
         """Note the step, the departed vehicles' speed bounds, and bring the engine's memory of each vehicle
         woken this step up to the steps it slept through (:func:`csws.cosim.schedule.caught_up`)."""
         schedule.stepped(step, fleet.time_s)
         schedule.forget(fleet.arrived)
-        for vehicle_id, bound_mps in bounds.items():
-            schedule.add(vehicle_id, bound_mps)
+        for vehicle_id, (bound_mps, accel_mps2) in bounds.items():
+            schedule.add(vehicle_id, bound_mps, accel_mps2)
         engine = self._library().engine
         arrived = set(fleet.arrived)
         for vehicle_id, slept_at in woken.items():

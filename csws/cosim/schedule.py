@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import ClassVar
 
@@ -132,6 +132,7 @@ class WakeSchedule:
         self.step_s = step_s
         self.warning = warning
         self.speed_bound_mps: dict[str, float] = {}
+        self.accel_mps2: dict[str, float] = {}
         #: The wake-up step of each sleeping vehicle (those not read or evaluated this step).
         self.wake_step: dict[str, int] = {}
         #: The step each sleeping vehicle was last evaluated at.
@@ -143,9 +144,11 @@ class WakeSchedule:
         self.evaluated = 0
         self.present = 0
 
-    def add(self, vehicle_id: str, speed_bound_mps: float) -> None:
-        """A vehicle departed: awake until its first evaluation puts it to sleep."""
+    def add(self, vehicle_id: str, speed_bound_mps: float, accel_mps2: float = math.inf) -> None:
+        """A vehicle departed, with its speed bound (m/s) and maximum acceleration (m/s^2): awake until its
+        first evaluation puts it to sleep."""
         self.speed_bound_mps[vehicle_id] = speed_bound_mps
+        self.accel_mps2[vehicle_id] = accel_mps2
 
     def wake_due(self, step: int, everyone: bool = False) -> dict[str, int]:
         """Wake the sleeping vehicles whose wake-up step is ``step`` (every one with ``everyone``): the step
@@ -180,17 +183,21 @@ class WakeSchedule:
     ) -> None:
         """Put a vehicle without a warning to sleep after its evaluation at ``step``, until the first step
         at which a CPOI ``distance_m`` ahead on its path (or the end of that path) could come within
-        S_w + the allowance of it at the fastest speed it can reach; the allowance for the longer of its
-        update period as the engine takes it (``update_period_s``, the configured one where None) and a step."""
+        S_w + the allowance of it at the fastest speed it can reach by then; the allowance for the longer of
+        its update period as the engine takes it (``update_period_s``, the configured one where None) and a step."""
         bound_mps = max(self.speed_bound_mps.get(vehicle_id, math.inf), speed_mps)
         if not (math.isfinite(bound_mps) and bound_mps > 0.0 and position_factor > 0.0):
             return
         period_s = max(self.warning.update_period_s if update_period_s is None else update_period_s, self.step_s)
-        reach_m = float(lookahead_distances_m(float(mps_to_kmh(bound_mps)), self.warning, 0.0, period_s))
-        free_m = distance_m * (1.0 - LANE_CHANGE_MARGIN_SHARE) - LANE_CHANGE_MARGIN_M - reach_m
-        # Path arc length driven per step at most: the lane position advances by at most v dt.
-        per_step_m = bound_mps * self.step_s / position_factor
-        steps = math.floor(free_m / per_step_m) if free_m > 0.0 else 0
+        drive = _Drive(speed_mps, bound_mps, self.accel_mps2.get(vehicle_id, math.inf), self.step_s)
+        clear_m = distance_m * (1.0 - LANE_CHANGE_MARGIN_SHARE) - LANE_CHANGE_MARGIN_M
+
+        def can_warn(steps: int) -> bool:
+            """Whether a CPOI could be within S_w + allowance ``steps`` steps on."""
+            reach_m = lookahead_distances_m(float(mps_to_kmh(drive.speed_mps(steps))), self.warning, 0.0, period_s)
+            return clear_m - drive.lane_m(steps) / position_factor <= reach_m
+
+        steps = _first(can_warn)
         if steps < 2:
             return
         wake = step + steps
@@ -202,9 +209,52 @@ class WakeSchedule:
         """Drop vehicles that left."""
         for vehicle_id in vehicle_ids:
             self.speed_bound_mps.pop(vehicle_id, None)
+            self.accel_mps2.pop(vehicle_id, None)
             self.wake_step.pop(vehicle_id, None)
             self.slept_at.pop(vehicle_id, None)
 
     def evaluated_share(self) -> float | None:
         """The share of vehicle-steps evaluated, None before any."""
         return None if not self.present else self.evaluated / self.present
+
+
+class _Drive:
+    """The farthest a vehicle can go: from ``speed_mps`` its speed rises by at most ``accel_mps2`` per second
+    (SUMO's car-following models never accelerate faster) up to ``bound_mps``, and each step it advances
+    that step's speed times the step (SUMO's default Euler update; the ballistic one advances less)."""
+
+    def __init__(self, speed_mps: float, bound_mps: float, accel_mps2: float, step_s: float) -> None:
+        self.speed0_mps, self.bound_mps, self.step_s = speed_mps, bound_mps, step_s
+        self.gain_mps = accel_mps2 * step_s
+        #: Steps at which the speed still rises below the bound.
+        rises = 0.0 < self.gain_mps < math.inf
+        self.rising = math.floor((bound_mps - speed_mps) / self.gain_mps) if rises else 0
+
+    def speed_mps(self, steps: int) -> float:
+        """The highest speed after ``steps`` steps, m/s."""
+        return self.bound_mps if steps > self.rising else self.speed0_mps + self.gain_mps * steps
+
+    def lane_m(self, steps: int) -> float:
+        """The longest lane distance driven in ``steps`` steps, m."""
+        rising = min(steps, self.rising)  # 0 where the gain is infinite: the speed is at its bound at once
+        rising_m = rising * self.speed0_mps + self.gain_mps * rising * (rising + 1) / 2 if rising else 0.0
+        return self.step_s * (rising_m + (steps - rising) * self.bound_mps)
+
+
+def _first(holds: Callable[[int], bool], most: int = 1 << 24) -> int:
+    """The first step from 1 on at which ``holds`` (false until then, true from then on), found by doubling
+    then halving; ``most`` when it holds at none up to it."""
+    if holds(1):
+        return 1
+    low, high = 1, 2
+    while not holds(high):
+        if high >= most:
+            return most
+        low, high = high, 2 * high
+    while high - low > 1:
+        middle = (low + high) // 2
+        if holds(middle):
+            high = middle
+        else:
+            low = middle
+    return high

@@ -154,9 +154,9 @@ class Simulation:
         self.closed = False
         #: The fastest lane's speed limit, m/s (read once, with ``speed_bounds``).
         self._fastest_lane_mps = self._fastest_lane() if speed_bounds else None
-        #: The speed bound (:func:`csws.cosim.schedule.speed_bound_mps`) of each vehicle evaluated that
-        #: departed in the last step, m/s (with ``speed_bounds``).
-        self.departed_speed_bounds: dict[str, float] = {}
+        #: The speed bound (:func:`csws.cosim.schedule.speed_bound_mps`, m/s) and maximum acceleration (m/s^2)
+        #: of each vehicle evaluated that departed in the last step (with ``speed_bounds``).
+        self.departed_speed_bounds: dict[str, tuple[float, float]] = {}
 
     def _fastest_lane(self) -> float:
         """The highest speed limit of the network's lanes, m/s."""
@@ -247,12 +247,14 @@ class Simulation:
         """The variables a vehicle is subscribed to (TraCI): with headings, its angle too."""
         return _SUBSCRIBED_WITH_ANGLE if self._headings else _SUBSCRIBED
 
-    def _speed_bound(self, vehicle_id: str) -> float:
-        """The fastest a departing vehicle can drive, m/s (:func:`csws.cosim.schedule.speed_bound_mps`)."""
+    def _speed_bound(self, vehicle_id: str) -> tuple[float, float]:
+        """The fastest a departing vehicle can drive, m/s (:func:`csws.cosim.schedule.speed_bound_mps`), and its
+        maximum acceleration, m/s^2."""
         vehicle = self.api.vehicle
         max_speed_mps = float(self._call(vehicle.getMaxSpeed, vehicle_id))
         speed_factor = float(self._call(vehicle.getSpeedFactor, vehicle_id))
-        return speed_bound_mps(max_speed_mps, speed_factor, self._fastest_lane_mps or 0.0)
+        accel_mps2 = float(self._call(vehicle.getAccel, vehicle_id))
+        return speed_bound_mps(max_speed_mps, speed_factor, self._fastest_lane_mps or 0.0), accel_mps2
 
     def _fleet_by_getters(self, positions: bool, asleep: Container[str]) -> tuple[list[str], tuple[Sequence, ...]]:
         """The evaluated vehicles not ``asleep`` and their values, read by one getter call per vehicle and
