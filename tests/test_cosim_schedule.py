@@ -50,14 +50,14 @@ def _road_pieces(rng: random.Random) -> list:
     return pieces
 
 
-def _build_road(folder: Path, rng: random.Random) -> tuple[Path, list[str]]:
-    """A two-lane one-way road of random pieces, cut into edges at random places; its net and edge ids."""
+def _build_road(folder: Path, rng: random.Random, lanes: int = 2) -> tuple[Path, list[str]]:
+    """A one-way road of ``lanes`` lanes and random pieces, cut into edges at random places; its net and edge ids."""
     xy, _ = sample_pieces(_road_pieces(rng), 2.0, (0.0, 0.0), 0.0)
     cuts = sorted(rng.sample(range(20, len(xy) - 20), 3))
     bounds = [0, *cuts, len(xy) - 1]
     nodes = [f'<node id="n{i}" x="{xy[b][0]:.6f}" y="{xy[b][1]:.6f}"/>' for i, b in enumerate(bounds)]
     edges = [
-        f'<edge id="e{i}" from="n{i}" to="n{i + 1}" numLanes="2" speed="{ROAD_SPEED_MPS}" '
+        f'<edge id="e{i}" from="n{i}" to="n{i + 1}" numLanes="{lanes}" speed="{ROAD_SPEED_MPS}" '
         f'shape="{shape_text(xy[a : b + 1])}"/>'
         for i, (a, b) in enumerate(zip(bounds, bounds[1:], strict=False))
     ]
@@ -67,8 +67,9 @@ def _build_road(folder: Path, rng: random.Random) -> tuple[Path, list[str]]:
     return net, [f"e{i}" for i in range(len(edges))]
 
 
-def _fleet(folder: Path, edges: list[str], rng: random.Random, vehicles: int) -> Path:
-    """A random mixed fleet on the road: cars, trucks and buses of random speed factors, departing at random."""
+def _fleet(folder: Path, edges: list[str], rng: random.Random, vehicles: int, blocker: str = "") -> Path:
+    """A random mixed fleet on the road: cars, trucks and buses of random speed factors, departing at random
+    (after ``blocker``, a vehicle element put first)."""
     types = [
         '<vType id="car" vClass="passenger" speedFactor="1.1" speedDev="0.15"/>',
         '<vType id="truck" vClass="truck" maxSpeed="25" speedFactor="1.0" speedDev="0.1"/>',
@@ -82,7 +83,7 @@ def _fleet(folder: Path, edges: list[str], rng: random.Random, vehicles: int) ->
     ]
     path = folder / "fleet.rou.xml"
     path.write_text(
-        f'<routes>{"".join(types)}<route id="road" edges="{" ".join(edges)}"/>{"".join(cars)}</routes>',
+        f'<routes>{"".join(types)}<route id="road" edges="{" ".join(edges)}"/>{blocker}{"".join(cars)}</routes>',
         encoding="utf-8",
     )
     return path
@@ -125,6 +126,30 @@ def test_scheduled_runs_warn_as_every_step_runs_on_random_fleets(tmp_path, seed,
         interface=interface,
         seed=seed,
         driver=DriverSettings() if driver else None,
+    )
+    _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_vehicles_teleported_out_of_a_jam_warn_as_in_every_step_runs(tmp_path):
+    """A car stopped on a one-lane road for minutes holds up those behind it until SUMO teleports them
+    (after 3 s of waiting) to somewhere ahead, nearer the curves: they are woken when the teleport starts."""
+    rng = random.Random(5)
+    net, edges = _build_road(tmp_path, rng, lanes=1)
+    blocker = (
+        f'<vehicle id="blocker" type="car" route="road" depart="0" departSpeed="0">'
+        f'<stop lane="{edges[1]}_0" endPos="20" duration="500"/></vehicle>'
+    )
+    routes = _fleet(tmp_path, edges, rng, vehicles=30, blocker=blocker)
+    config = tmp_path / "jam.sumocfg"
+    config.write_text(
+        f'<configuration><input><net-file value="{net.name}"/></input>'
+        '<processing><time-to-teleport value="3"/></processing></configuration>',
+        encoding="utf-8",
+    )
+    every, scheduled, summary = _both(
+        Scenario(config, net, (routes,)), tmp_path, step_length_s=STEP_S, end_s=150.0, seed=5
     )
     _assert_same_warnings(every, scheduled, summary)
 

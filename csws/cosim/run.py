@@ -133,7 +133,10 @@ class _Run:
         schedule, step = self.schedule, self.summary.steps
         woken = {} if schedule is None else schedule.wake_due(step, everyone=positions)
         with costs.timed("sumo_step_and_read"):
-            fleet = simulation.step(positions, () if schedule is None else schedule.wake_step)
+            if schedule is None:
+                fleet = simulation.step(positions)
+            else:
+                fleet = simulation.step(positions, schedule.wake_step, lambda ids: woken.update(schedule.wake(ids)))
         self._forget(fleet.arrived)
         self.summary.skipped.update(fleet.skipped)
         if schedule is not None:

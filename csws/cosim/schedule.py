@@ -17,13 +17,13 @@ path only beyond the vehicle's current edge, which lies on the path found; the p
 its end, so the vehicle wakes before it can come near anything the new route puts after it.
 
 Vehicles inside a warning, held by the release rule, answered by the driver-response model or just
-departed are evaluated every step (the run keeps them awake).
+departed are evaluated every step (the run keeps them awake). A vehicle SUMO starts to teleport
+(out of a jam, to somewhere ahead) is woken at that step.
 
 A woken vehicle is answered as if it had been evaluated at every step: the engine's memory of it
 (its last accepted timestamp and the intervals its update period is learnt from) is brought up to the
 steps it slept through (:func:`caught_up`), as the engine would have kept it had it seen each of them.
-Only a vehicle in fault at a step it slept through (SUMO teleporting it off every lane) would have
-been remembered otherwise.
+A vehicle is in fault (5.4) only off every lane, while SUMO teleports it, and it is awake then.
 """
 
 from __future__ import annotations
@@ -158,6 +158,14 @@ class WakeSchedule:
             waking = list(self.wake_step)
             self._waking.clear()
         woken = {v: self.slept_at.pop(v) for v in waking if self.wake_step.get(v) == step or everyone}
+        for vehicle_id in woken:
+            del self.wake_step[vehicle_id]
+        return woken
+
+    def wake(self, vehicle_ids: Sequence[str]) -> dict[str, int]:
+        """Wake vehicles at once (SUMO teleports them: they may reappear anywhere ahead): the step each
+        sleeping one of them was last evaluated at, by vehicle."""
+        woken = {v: self.slept_at.pop(v) for v in vehicle_ids if v in self.wake_step}
         for vehicle_id in woken:
             del self.wake_step[vehicle_id]
         return woken

@@ -187,9 +187,15 @@ class Simulation:
         """Vehicles running or still to depart."""
         return int(self._call(self.api.simulation.getMinExpectedNumber))
 
-    def step(self, positions: bool = True, asleep: Container[str] = ()) -> FleetState:
+    def step(
+        self,
+        positions: bool = True,
+        asleep: Container[str] = (),
+        teleporting: Callable[[tuple[str, ...]], None] | None = None,
+    ) -> FleetState:
         """Advance one step and read every evaluated vehicle but those ``asleep``; its x, y only with
-        ``positions`` (NaN otherwise: :meth:`position` reads one vehicle's when it is needed).
+        ``positions`` (NaN otherwise: :meth:`position` reads one vehicle's when it is needed). The vehicles
+        that start to teleport in the step are given to ``teleporting`` first (which may wake them).
 
         Raises
         ------
@@ -198,6 +204,8 @@ class Simulation:
         """
         api = self.api
         self._call(api.simulationStep)
+        if teleporting is not None:
+            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)))
         departed = tuple(self._call(api.simulation.getDepartedIDList))
         arrived = tuple(self._call(api.simulation.getArrivedIDList))
         skipped = []
