@@ -9,7 +9,9 @@ process of its own, so that no run inherits another's warm caches:
 * ``without evaluation``: reading and the default time series (the older baseline, kept
   for continuity);
 * ``default``: evaluation with the default time series (Parquet, every step);
-* ``events only``: evaluation, no time series (warning events, entries and summary);
+* ``events only``: evaluation, no time series (warning events, entries and summary), each vehicle
+  evaluated only from where a curve warning can arise (``--evaluate scheduled``, the default);
+* ``events every step``: the same with every vehicle evaluated at every step (``--evaluate every-step``);
 * ``both systems``: the curve and the forward collision warning (``--systems csws,fcw``) with
   the default time series (fleet road only).
 
@@ -24,7 +26,9 @@ at most 1.25 times; evaluation adds at most 50 % to the run without it, both sys
 summaries also give their milliseconds per step by component (SUMO's step with the read,
 evaluation, recording).
 
-Run with ``python -m benchmarks.cosim``.
+Each run gives the share of its vehicle-steps that were evaluated. Run with ``python -m benchmarks.cosim``;
+``python -m benchmarks.cosim --small`` runs the fleet road alone with 300 vehicles for 20 s (bare, events
+only, events every step and the default run), a check that takes a minute.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import resource
+import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -57,6 +62,9 @@ TARGET_OVERHEAD = 0.5
 TARGET_DEFAULT_RATIO = 1.5
 TARGET_EVENTS_RATIO = 1.25
 TARGET_BOTH_SYSTEMS_OVERHEAD = 0.25
+#: The small configuration (``--small``): vehicles and simulated seconds.
+SMALL_VEHICLES = 300
+SMALL_DURATION_S = 20.0
 
 
 def _routes_xml(count: int, seed: int = 0) -> str:
@@ -157,16 +165,47 @@ def _figures(runs: dict[str, dict]) -> dict:
         "ms_per_step": ms_per_step,
         "ratio_to_bare": {name: value / ms_per_step["bare"] for name, value in ms_per_step.items() if name != "bare"},
         "peak_rss_mb": {name: round(run["peak_rss_mb"]) for name, run in runs.items()},
+        "evaluated_share": {
+            name: run["summary"]["evaluation"]["vehicle_steps_evaluated_share"]
+            for name, run in runs.items()
+            if "summary" in run
+        },
         "default_components_ms_per_step": default["ms_per_step"],
+        "components_ms_per_step": {
+            name: run["summary"]["ms_per_step"] for name, run in runs.items() if "summary" in run
+        },
     }
+
+
+def _fleet_scenario(work: Path, vehicles: int) -> Scenario:
+    """The fleet road with ``vehicles`` vehicles placed at t = 0."""
+    net = build_fleet_net(work / "fleet4.net.xml", lanes=LANES)
+    routes = work / "bench.rou.xml"
+    routes.write_text(_routes_xml(vehicles), encoding="utf-8")
+    return Scenario(None, net, (routes,))
+
+
+def small_run() -> dict:
+    """The small configuration: the fleet road with :data:`SMALL_VEHICLES` for :data:`SMALL_DURATION_S`."""
+    with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as folder:
+        work = Path(folder)
+        scenario = _fleet_scenario(work, SMALL_VEHICLES)
+        common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SMALL_DURATION_S}
+        runs = {"bare": _in_own_process(_bare_run, scenario, SMALL_DURATION_S)}
+        configs = {
+            "default": CosimConfig(out=work / "default", **common),
+            "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
+            "events_every_step": CosimConfig(
+                out=work / "events-every", timeseries="none", evaluation="every-step", **common
+            ),
+        }
+        runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
+        return _figures(runs)
 
 
 def _fleet_figures(work: Path) -> dict:
     """The fleet road: 1,000 vehicles, every kind of run."""
-    net = build_fleet_net(work / "fleet4.net.xml", lanes=LANES)
-    routes = work / "bench.rou.xml"
-    routes.write_text(_routes_xml(VEHICLES), encoding="utf-8")
-    scenario = Scenario(None, net, (routes,))
+    scenario = _fleet_scenario(work, VEHICLES)
     common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": DURATION_S}
     runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
     configs = {
@@ -174,6 +213,9 @@ def _fleet_figures(work: Path) -> dict:
         "without_evaluation": CosimConfig(out=work / "baseline", evaluate=False, **common),
         "default": CosimConfig(out=work / "default", **common),
         "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
+        "events_every_step": CosimConfig(
+            out=work / "events-every", timeseries="none", evaluation="every-step", **common
+        ),
         "both_systems": CosimConfig(out=work / "both", systems=("csws", "fcw"), **common),
     }
     runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
@@ -216,12 +258,21 @@ def _print(figures: dict) -> None:
             f"{name:<20}{value:>8.2f} ms/step"
             + (f"  {ratio:.2f} x bare SUMO" if ratio else "")
             + f"  peak {figures['peak_rss_mb'][name]} MB"
+            + (
+                f"  {figures['evaluated_share'][name]:.1%} of vehicle-steps evaluated"
+                if figures["evaluated_share"].get(name) is not None
+                else ""
+            )
         )
-    print("default run by component, ms/step:", figures["default_components_ms_per_step"])
+    for name, components in figures["components_ms_per_step"].items():
+        print(f"{name} by component, ms/step:", components)
 
 
 def main() -> None:
-    """Print each figure beside its target."""
+    """Print each figure beside its target (``--small``: the small configuration's)."""
+    if "--small" in sys.argv[1:]:
+        _print(small_run())
+        return
     figures = run()
     _print(figures)
     print(f"evaluation overhead {figures['overhead']:.0%} (target <= {TARGET_OVERHEAD:.0%})")

@@ -12,6 +12,8 @@ from .records import TIMESERIES_FORMATS
 
 #: The warning systems a co-simulation can evaluate (``--systems``).
 SYSTEMS = ("csws", "fcw")
+#: How a co-simulation chooses the vehicles it evaluates (``--evaluate``, :mod:`csws.cosim.schedule`).
+EVALUATION_MODES = ("scheduled", "every-step")
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -96,5 +98,13 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="also write the run as SUMO's FCD export (<fcd-export><timestep><vehicle id x y angle type speed "
         "pos lane .../>) with each vehicle's warning level, at the steps the time series keeps",
+    )
+    parser.add_argument(
+        "--evaluate",
+        choices=EVALUATION_MODES,
+        default="scheduled",
+        help="scheduled (default): evaluate a vehicle only from where a curve warning can arise, with the same "
+        "warnings and entries as every-step (every vehicle at every step); the forward collision warning and "
+        "--service are evaluated every step, and a time series every step reads every vehicle every step",
     )
     parser.set_defaults(handler=deferred("csws.cosim.run"))

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.etree import ElementTree
 
-from .cli import SYSTEMS
+from .cli import EVALUATION_MODES, SYSTEMS
 from .driver import DriverSettings
 
 __all__ = ["CosimConfig", "Scenario", "bundled_scenario", "ignored_options", "scenario_from_args"]
@@ -76,6 +76,12 @@ class CosimConfig:
     fcd
         Also write the run as SUMO's FCD export with each vehicle's warning to this file
         (:mod:`csws.cosim.fcd`), at the steps the time series keeps; None writes none.
+    evaluation
+        ``scheduled``: evaluate a vehicle only from where a curve warning can arise
+        (:mod:`csws.cosim.schedule`), and every vehicle at the steps the time series or the FCD
+        export keeps; ``every-step``: every vehicle at every step. Scheduling applies to the
+        library's curve warning alone: with the forward collision warning or a service, every
+        vehicle is evaluated at every step.
     """
 
     scenario: Scenario
@@ -93,8 +99,11 @@ class CosimConfig:
     timeseries_every: int = 1
     systems: tuple[str, ...] = ("csws",)
     fcd: Path | None = None
+    evaluation: str = "scheduled"
 
     def __post_init__(self) -> None:
+        if self.evaluation not in EVALUATION_MODES:
+            raise ValueError(f"--evaluate takes one of {', '.join(EVALUATION_MODES)}, got {self.evaluation!r}")
         if not self.systems or not set(self.systems) <= set(SYSTEMS):
             raise ValueError(f"--systems takes one or both of {', '.join(SYSTEMS)}, got {','.join(self.systems)!r}")
         if self.service_api_key is not None and self.service_url is None:
@@ -109,6 +118,13 @@ class CosimConfig:
     def fcw(self) -> bool:
         """Whether the forward collision warning is evaluated."""
         return self.evaluate and "fcw" in self.systems
+
+    @property
+    def scheduled(self) -> bool:
+        """Whether vehicles are evaluated only where a curve warning can arise (the library's curve warning alone)."""
+        return (
+            self.evaluation == "scheduled" and self.evaluate and self.systems == ("csws",) and self.service_url is None
+        )
 
 
 def bundled_scenario() -> Scenario:

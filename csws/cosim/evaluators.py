@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Protocol, TypedDict
 from urllib.parse import urlsplit
 
-from csws.ahead.horizon import PathAhead
+from csws.ahead.horizon import BatchAhead, PathAhead
 from csws.engine import Engine, TargetColumns
 from csws.errors import CswsError
 from csws.standard import mps_to_kmh
@@ -98,6 +98,9 @@ class LibraryEvaluator:
         self.engine = engine
         #: Each vehicle's path ahead of the last step (None where not active on the map), for the FCW.
         self.paths_ahead: list[PathAhead | None] = []
+        #: The rows of the last step's vehicles that were active, and their roads ahead in that order.
+        self.active: list[int] = []
+        self.ahead: BatchAhead | None = None
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
         answers = self.engine.evaluate_fleet(
@@ -109,6 +112,7 @@ class LibraryEvaluator:
             fleet.route_edges,
             timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
         )
+        self.active, self.ahead = answers.active, answers.ahead
         self.paths_ahead = [None] * len(fleet.vehicle_id)
         if answers.ahead is not None:
             for i, path in zip(answers.active, answers.ahead.paths_ahead(), strict=False):

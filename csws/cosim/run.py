@@ -1,7 +1,9 @@
 """``csws cosim``: drive a fleet through SUMO and record who was warned where.
 
-Every step, every vehicle of a covered class is evaluated at once (the library's
-``evaluate_fleet``, or one HTTP batch to a service), its state and warning are appended
+Every step, the vehicles of a covered class that are due are evaluated at once (the library's
+``evaluate_fleet``, or one HTTP batch to a service: every vehicle at every step, or with
+``--evaluate scheduled`` only from where a curve warning can arise, :mod:`csws.cosim.schedule`),
+its state and warning are appended
 to the time series, level changes to the warning events and curve entries above the
 warning speed to the entries (:mod:`csws.cosim.recording`); the summary is rewritten at the
 end, also when the run is interrupted or SUMO dies (then marked incomplete, with the reason).
@@ -28,6 +30,7 @@ from .fcw import FcwColumns, FleetFcw, respond_to_fcw
 from .geo import network_location
 from .recording import Streams, Tracker, record_step
 from .records import StepCosts, Summary, write_summary
+from .schedule import WakeSchedule, caught_up, distance_to_first_part_m
 from .summary import write_run_summary
 from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
 
@@ -93,6 +96,7 @@ class _Run:
         self.costs = StepCosts()
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
+        self.schedule: WakeSchedule | None = None
         self.step_s = config.step_length_s  # SUMO's own, read once when it starts
         self.bar = Progress("cosim", config.end_s, "sim s", decimals=1, enabled=config.progress)
 
@@ -108,10 +112,16 @@ class _Run:
             config.end_s,
         )
         simulation = self.simulation = Simulation(
-            sumo_args, config.interface, odometer=self.driver is not None, headings=config.fcd is not None
+            sumo_args,
+            config.interface,
+            odometer=self.driver is not None,
+            headings=config.fcd is not None,
+            speed_bounds=config.scheduled,
         )
         self.forward = FleetFcw(simulation.api) if config.fcw else None
         self.step_s = simulation.step_length_s
+        if config.scheduled and isinstance(self.evaluator, LibraryEvaluator):
+            self.schedule = WakeSchedule(self.step_s, self.evaluator.engine.settings.warning)
         return simulation
 
     def step(self, simulation: Simulation) -> bool:
@@ -120,10 +130,18 @@ class _Run:
         sampled = self.summary.steps % config.timeseries_every == 0
         # Without a time-series row (or FCD timestep) this step, x and y are read only for the vehicles with an event.
         positions = sampled and (config.timeseries != "none" or config.fcd is not None)
+        schedule, step = self.schedule, self.summary.steps
+        woken = {} if schedule is None else schedule.wake_due(step, everyone=positions)
         with costs.timed("sumo_step_and_read"):
-            fleet = simulation.step(positions)
+            if schedule is None:
+                fleet = simulation.step(positions)
+            else:
+                fleet = simulation.step(positions, schedule.wake_step, lambda ids: woken.update(schedule.wake(ids)))
         self._forget(fleet.arrived)
         self.summary.skipped.update(fleet.skipped)
+        if schedule is not None:
+            self._catch_up(schedule, step, fleet, woken, simulation.departed_speed_bounds)
+            schedule.present += simulation.vehicle_count
         warnings, fcw = self._evaluate(fleet)
         commands = self._commands(fleet, warnings, fcw, self.step_s)
         for vehicle_id, speed_mps in commands.items():
@@ -133,11 +151,58 @@ class _Run:
             record_step(
                 fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position, self.geo
             )
+        if schedule is not None:
+            self._sleep(schedule, step, fleet, warnings)
         self.summary.vehicles.update(fleet.vehicle_id)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s
         self.bar.update(self.step_s)
         return config.end_s is None or fleet.time_s < config.end_s
+
+    def _catch_up(
+        self,
+        schedule: WakeSchedule,
+        step: int,
+        fleet: FleetState,
+        woken: dict[str, int],
+        bounds: dict[str, tuple[float, float]],
+    ) -> None:
+        """Note the step, the departed vehicles' speed bounds, and bring the engine's memory of each vehicle
+        woken this step up to the steps it slept through (:func:`csws.cosim.schedule.caught_up`)."""
+        schedule.stepped(step, fleet.time_s)
+        schedule.forget(fleet.arrived)
+        for vehicle_id, (bound_mps, accel_mps2) in bounds.items():
+            schedule.add(vehicle_id, bound_mps, accel_mps2)
+        engine = self._library().engine
+        arrived = set(fleet.arrived)
+        for vehicle_id, slept_at in woken.items():
+            if vehicle_id not in arrived:
+                memory = engine.memory(vehicle_id)
+                engine.restore(vehicle_id, caught_up(memory, schedule.skipped_times_s(slept_at)))
+        schedule.evaluated += len(fleet.vehicle_id)
+
+    def _sleep(self, schedule: WakeSchedule, step: int, fleet: FleetState, warnings: FleetWarnings) -> None:
+        """Put to sleep the vehicles evaluated this step that no warning, release hold or driver keeps awake."""
+        library = self._library()
+        engine = library.engine
+        ahead, held = library.ahead, engine.held
+        if ahead is None or not fleet.vehicle_id:  # no vehicle was evaluated: the evaluator holds an older step's
+            return
+        driven = self.driver.drivers if self.driver is not None else {}
+        levels, speeds_mps = warnings.level, fleet.speed_mps.tolist()
+        for row, horizon, vehicle_s in zip(library.active, ahead.horizons, ahead.vehicle_s.tolist(), strict=True):
+            vehicle_id = fleet.vehicle_id[row]
+            if levels[row] or vehicle_id in held or vehicle_id in driven:
+                continue
+            distance_m, factor = distance_to_first_part_m(horizon, vehicle_s)
+            period_s = engine.update_period_s(vehicle_id)
+            schedule.sleep(step, vehicle_id, speeds_mps[row], distance_m, factor, period_s)
+
+    def _library(self) -> LibraryEvaluator:
+        """The library's evaluator (a scheduled run has one)."""
+        if not isinstance(self.evaluator, LibraryEvaluator):
+            raise RuntimeError("a scheduled co-simulation evaluates in this process")
+        return self.evaluator
 
     def _forget(self, arrived: tuple[str, ...]) -> None:
         """Drop the vehicles that left from everything that remembers them."""
@@ -241,6 +306,10 @@ def _summary_content(config: CosimConfig, run: _Run, status: str, wall_s: float)
         "driver_response": None if config.driver is None else vars(config.driver),
         "timeseries": {"format": config.timeseries, "every_steps": config.timeseries_every},
         "fcd": None if config.fcd is None else str(config.fcd),
+        "evaluation": {
+            "mode": "scheduled" if run.schedule is not None else "every step",
+            "vehicle_steps_evaluated_share": None if run.schedule is None else run.schedule.evaluated_share(),
+        },
         "wall_time_s": round(wall_s, 3),
         "ms_per_step": run.costs.ms_per_step(summary.steps),
         **summary.as_dict(),
@@ -327,6 +396,7 @@ def main(args: argparse.Namespace) -> int:
         timeseries_every=args.timeseries_every or 1,
         systems=tuple(args.systems),
         fcd=args.fcd,
+        evaluation=args.evaluate,
     )
     runs = _runs(base, args.driver_response)
     summaries: list[dict[str, Any]] = []

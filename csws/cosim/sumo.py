@@ -13,13 +13,15 @@ same API; what is read each step is the same, the way it is read is each one's c
   all of them; a getter call there is a round trip to another process.
 
 A route's edges are fetched once per route id (a rerouted vehicle gets a new route id),
-a type's category once per type.
+a type's category once per type. A scheduled run (:mod:`csws.cosim.schedule`) reads only the
+vehicles that are due: getters then cost less still, subscriptions (every vehicle's result
+built at every step) no less.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Container, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
@@ -32,6 +34,7 @@ from csws.standard import Category
 from csws.sumo.binaries import QUIET_OPTIONS, sumo_binary, sumo_home
 
 from .categories import CATEGORY_PARAMETER, category_of
+from .schedule import speed_bound_mps
 
 __all__ = ["SumoStopped", "FleetState", "Simulation", "sumo_arguments"]
 
@@ -108,10 +111,18 @@ class Simulation:
         Whether to read each vehicle's odometer (otherwise it reads as 0).
     headings
         Whether a step read with positions also gives each vehicle's type and angle (the FCD export).
+    speed_bounds
+        Whether each departing vehicle's speed bound is read (:attr:`departed_speed_bounds`) for
+        the schedule of evaluations (:mod:`csws.cosim.schedule`).
     """
 
     def __init__(
-        self, sumo_args: Sequence[str], interface: str = "libsumo", odometer: bool = True, headings: bool = False
+        self,
+        sumo_args: Sequence[str],
+        interface: str = "libsumo",
+        odometer: bool = True,
+        headings: bool = False,
+        speed_bounds: bool = False,
     ) -> None:
         import os
 
@@ -141,6 +152,16 @@ class Simulation:
         #: Whether every step reads x and y whatever :meth:`step` is asked (TraCI's subscriptions hold them).
         self.reads_positions = self._subscribed
         self.closed = False
+        #: The fastest lane's speed limit, m/s (read once, with ``speed_bounds``).
+        self._fastest_lane_mps = self._fastest_lane() if speed_bounds else None
+        #: The speed bound (:func:`csws.cosim.schedule.speed_bound_mps`, m/s) and maximum acceleration (m/s^2)
+        #: of each vehicle evaluated that departed in the last step (with ``speed_bounds``).
+        self.departed_speed_bounds: dict[str, tuple[float, float]] = {}
+
+    def _fastest_lane(self) -> float:
+        """The highest speed limit of the network's lanes, m/s."""
+        lane = self.api.lane
+        return max(map(lane.getMaxSpeed, self._call(lane.getIDList)), default=0.0)
 
     def _error_types(self) -> tuple[type[BaseException], ...]:
         """The exceptions the interface raises when SUMO fails or goes away."""
@@ -153,6 +174,11 @@ class Simulation:
         return (*errors, ConnectionError, EOFError)
 
     @property
+    def vehicle_count(self) -> int:
+        """How many vehicles of a covered class are in the simulation."""
+        return len(self._evaluated)
+
+    @property
     def step_length_s(self) -> float:
         """SUMO's step length, s."""
         return float(self.api.simulation.getDeltaT())
@@ -161,9 +187,15 @@ class Simulation:
         """Vehicles running or still to depart."""
         return int(self._call(self.api.simulation.getMinExpectedNumber))
 
-    def step(self, positions: bool = True) -> FleetState:
-        """Advance one step and read every evaluated vehicle; its x, y only with ``positions``
-        (NaN otherwise: :meth:`position` reads one vehicle's when it is needed).
+    def step(
+        self,
+        positions: bool = True,
+        asleep: Container[str] = (),
+        teleporting: Callable[[tuple[str, ...]], None] | None = None,
+    ) -> FleetState:
+        """Advance one step and read every evaluated vehicle but those ``asleep``; its x, y only with
+        ``positions`` (NaN otherwise: :meth:`position` reads one vehicle's when it is needed). The vehicles
+        that start to teleport in the step are given to ``teleporting`` first (which may wake them).
 
         Raises
         ------
@@ -172,9 +204,12 @@ class Simulation:
         """
         api = self.api
         self._call(api.simulationStep)
+        if teleporting is not None:
+            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)))
         departed = tuple(self._call(api.simulation.getDepartedIDList))
         arrived = tuple(self._call(api.simulation.getArrivedIDList))
         skipped = []
+        self.departed_speed_bounds = {}
         for vehicle_id in departed:
             type_id = self._call(api.vehicle.getTypeID, vehicle_id)
             category = self._category(type_id)
@@ -184,6 +219,8 @@ class Simulation:
                 continue
             self._evaluated[vehicle_id] = category.value
             self._types[vehicle_id] = type_id
+            if self._fastest_lane_mps is not None:
+                self.departed_speed_bounds[vehicle_id] = self._speed_bound(vehicle_id)
             if self._subscribed:
                 self._call(api.vehicle.subscribe, vehicle_id, self._variables())
         self._skipped.difference_update(arrived)
@@ -191,7 +228,7 @@ class Simulation:
             self._evaluated.pop(vehicle_id, None)
             self._types.pop(vehicle_id, None)
         ids, (lane_id, lane_pos_m, speed_mps, position, route_id, odometer_m, angle_deg) = (
-            self._subscribed_fleet() if self._subscribed else self._fleet_by_getters(positions)
+            self._subscribed_fleet(asleep) if self._subscribed else self._fleet_by_getters(positions, asleep)
         )
         if not position:
             position = [(math.nan, math.nan)] * len(ids)
@@ -218,12 +255,21 @@ class Simulation:
         """The variables a vehicle is subscribed to (TraCI): with headings, its angle too."""
         return _SUBSCRIBED_WITH_ANGLE if self._headings else _SUBSCRIBED
 
-    def _fleet_by_getters(self, positions: bool) -> tuple[list[str], tuple[Sequence, ...]]:
-        """The evaluated vehicles and their values, read by one getter call per vehicle and variable
-        (libsumo); x, y (and with headings the angle) only with ``positions`` (empty otherwise)."""
+    def _speed_bound(self, vehicle_id: str) -> tuple[float, float]:
+        """The fastest a departing vehicle can drive, m/s (:func:`csws.cosim.schedule.speed_bound_mps`), and its
+        maximum acceleration, m/s^2."""
+        vehicle = self.api.vehicle
+        max_speed_mps = float(self._call(vehicle.getMaxSpeed, vehicle_id))
+        speed_factor = float(self._call(vehicle.getSpeedFactor, vehicle_id))
+        accel_mps2 = float(self._call(vehicle.getAccel, vehicle_id))
+        return speed_bound_mps(max_speed_mps, speed_factor, self._fastest_lane_mps or 0.0), accel_mps2
+
+    def _fleet_by_getters(self, positions: bool, asleep: Container[str]) -> tuple[list[str], tuple[Sequence, ...]]:
+        """The evaluated vehicles not ``asleep`` and their values, read by one getter call per vehicle and
+        variable (libsumo); x, y (and with headings the angle) only with ``positions`` (empty otherwise)."""
         vehicle = self.api.vehicle
         evaluated = self._evaluated
-        ids = [vehicle_id for vehicle_id in self._call(vehicle.getIDList) if vehicle_id in evaluated]
+        ids = [v for v in self._call(vehicle.getIDList) if v in evaluated and v not in asleep]
         getters = [
             vehicle.getLaneID,
             vehicle.getLanePosition,
@@ -241,9 +287,11 @@ class Simulation:
         """One vehicle's x, y, m (for a step read without positions)."""
         return tuple(self._call(self.api.vehicle.getPosition, vehicle_id))
 
-    def _subscribed_fleet(self) -> tuple[list[str], tuple[Sequence, ...]]:
-        """The evaluated vehicles and their values, from one call for every subscription (TraCI)."""
+    def _subscribed_fleet(self, asleep: Container[str]) -> tuple[list[str], tuple[Sequence, ...]]:
+        """The evaluated vehicles not ``asleep`` and their values, from one call for every subscription (TraCI)."""
         results = self._call(self.api.vehicle.getAllSubscriptionResults)
+        if asleep:
+            results = {vehicle_id: values for vehicle_id, values in results.items() if vehicle_id not in asleep}
         ids = list(results)
         if not ids:
             return ids, ((),) * (len(_SUBSCRIBED) + 1)

@@ -1,0 +1,227 @@
+"""Evaluating a vehicle only where a curve warning can arise gives the warnings of evaluating every one at every step.
+
+Random fleets on constructed roads (straights and arcs of R 60-250 m, two lanes, cut into
+edges at random places) and a short run of the bundled fleet are co-simulated twice, with
+``--evaluate every-step`` and ``--evaluate scheduled``: ``warnings.csv`` and ``entries.csv``
+must be the same bytes, over libsumo and TraCI, while the scheduled run evaluates a fraction of
+the vehicle-steps. The schedule's own bound is checked against formula (1) computed here.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from csws.ahead.horizon import END_MARGIN_M
+from csws.cosim.driver import DriverSettings
+from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.cosim.schedule import (
+    LANE_CHANGE_MARGIN_M,
+    LANE_CHANGE_MARGIN_SHARE,
+    WakeSchedule,
+    distance_to_first_part_m,
+    speed_bound_mps,
+)
+from csws.geometry import arc, sample_pieces, straight
+from csws.networks.fleet import fleet_dir, fleet_routes_xml
+from csws.standard import G_MPS2, REACTION_TIME_S
+from csws.sumo.netbuild import netconvert, shape_text
+from csws.warning.settings import WarningSettings
+
+STEP_S = 0.1
+#: The roads' speed limit, m/s (90 km/h: curves of R 60-250 m then warn most vehicles).
+ROAD_SPEED_MPS = 25.0
+
+
+def _road_pieces(rng: random.Random) -> list:
+    """Straights and arcs of R 60-250 m turning alternately left and right."""
+    pieces = [straight(rng.uniform(300.0, 600.0))]
+    for i in range(4):
+        radius_m = rng.uniform(60.0, 250.0)
+        pieces.append(arc(radius_m, rng.uniform(25.0, 80.0), "left" if i % 2 else "right"))
+        pieces.append(straight(rng.uniform(150.0, 500.0)))
+    return pieces
+
+
+def _build_road(folder: Path, rng: random.Random, lanes: int = 2) -> tuple[Path, list[str]]:
+    """A one-way road of ``lanes`` lanes and random pieces, cut into edges at random places; its net and edge ids."""
+    xy, _ = sample_pieces(_road_pieces(rng), 2.0, (0.0, 0.0), 0.0)
+    cuts = sorted(rng.sample(range(20, len(xy) - 20), 3))
+    bounds = [0, *cuts, len(xy) - 1]
+    nodes = [f'<node id="n{i}" x="{xy[b][0]:.6f}" y="{xy[b][1]:.6f}"/>' for i, b in enumerate(bounds)]
+    edges = [
+        f'<edge id="e{i}" from="n{i}" to="n{i + 1}" numLanes="{lanes}" speed="{ROAD_SPEED_MPS}" '
+        f'shape="{shape_text(xy[a : b + 1])}"/>'
+        for i, (a, b) in enumerate(zip(bounds, bounds[1:], strict=False))
+    ]
+    net = netconvert(
+        "<nodes>" + "".join(nodes) + "</nodes>", "<edges>" + "".join(edges) + "</edges>", folder / "road.net.xml"
+    )
+    return net, [f"e{i}" for i in range(len(edges))]
+
+
+def _fleet(folder: Path, edges: list[str], rng: random.Random, vehicles: int, blocker: str = "") -> Path:
+    """A random mixed fleet on the road: cars, trucks and buses of random speed factors, departing at random
+    (after ``blocker``, a vehicle element put first)."""
+    types = [
+        '<vType id="car" vClass="passenger" speedFactor="1.1" speedDev="0.15"/>',
+        '<vType id="truck" vClass="truck" maxSpeed="25" speedFactor="1.0" speedDev="0.1"/>',
+        '<vType id="bus" vClass="bus" speedFactor="0.95" speedDev="0.1"/>',
+    ]
+    departures = sorted(rng.uniform(0.0, 60.0) for _ in range(vehicles))
+    cars = [
+        f'<vehicle id="v{i}" type="{rng.choice(("car", "car", "truck", "bus"))}" route="road" '
+        f'depart="{depart:.1f}" departLane="random" departSpeed="random"/>'
+        for i, depart in enumerate(departures)
+    ]
+    path = folder / "fleet.rou.xml"
+    path.write_text(
+        f'<routes>{"".join(types)}<route id="road" edges="{" ".join(edges)}"/>{blocker}{"".join(cars)}</routes>',
+        encoding="utf-8",
+    )
+    return path
+
+
+def _both(scenario: Scenario, out: Path, **settings) -> tuple[Path, Path, dict]:
+    """Run the scenario every step and scheduled; their folders, and the scheduled run's summary."""
+    every, scheduled = out / "every", out / "scheduled"
+    full = cosimulate(CosimConfig(scenario, every, evaluation="every-step", timeseries="none", **settings))
+    assert full["evaluation"]["mode"] == "every step"
+    summary = cosimulate(CosimConfig(scenario, scheduled, evaluation="scheduled", timeseries="none", **settings))
+    return every, scheduled, summary
+
+
+def _assert_same_warnings(every: Path, scheduled: Path, summary: dict) -> None:
+    """The two runs' warning events and entries are the same bytes; the scheduled one evaluated less."""
+    events = (every / "warnings.csv").read_bytes()
+    assert events.count(b"\n") > 5, "the scenario must warn"
+    assert (scheduled / "warnings.csv").read_bytes() == events
+    assert (scheduled / "entries.csv").read_bytes() == (every / "entries.csv").read_bytes()
+    assert summary["evaluation"]["mode"] == "scheduled"
+    assert summary["evaluation"]["vehicle_steps_evaluated_share"] < 0.9
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+@pytest.mark.parametrize(
+    ("seed", "interface", "driver"),
+    [(1, "libsumo", False), (2, "libsumo", True), (3, "traci", False)],
+)
+def test_scheduled_runs_warn_as_every_step_runs_on_random_fleets(tmp_path, seed, interface, driver):
+    rng = random.Random(seed)
+    net, edges = _build_road(tmp_path, rng)
+    routes = _fleet(tmp_path, edges, rng, vehicles=40)
+    every, scheduled, summary = _both(
+        Scenario(None, net, (routes,)),
+        tmp_path,
+        step_length_s=STEP_S,
+        end_s=150.0,
+        interface=interface,
+        seed=seed,
+        driver=DriverSettings() if driver else None,
+    )
+    _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_vehicles_teleported_out_of_a_jam_warn_as_in_every_step_runs(tmp_path):
+    """A car stopped on a one-lane road for minutes holds up those behind it until SUMO teleports them
+    (after 3 s of waiting) to somewhere ahead, nearer the curves: they are woken when the teleport starts."""
+    rng = random.Random(5)
+    net, edges = _build_road(tmp_path, rng, lanes=1)
+    blocker = (
+        f'<vehicle id="blocker" type="car" route="road" depart="0" departSpeed="0">'
+        f'<stop lane="{edges[1]}_0" endPos="20" duration="500"/></vehicle>'
+    )
+    routes = _fleet(tmp_path, edges, rng, vehicles=30, blocker=blocker)
+    config = tmp_path / "jam.sumocfg"
+    config.write_text(
+        f'<configuration><input><net-file value="{net.name}"/></input>'
+        '<processing><time-to-teleport value="3"/></processing></configuration>',
+        encoding="utf-8",
+    )
+    every, scheduled, summary = _both(
+        Scenario(config, net, (routes,)), tmp_path, step_length_s=STEP_S, end_s=150.0, seed=5
+    )
+    _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_scheduled_run_of_the_bundled_fleet_warns_as_every_step(tmp_path):
+    routes = tmp_path / "fleet.rou.xml"
+    routes.write_text(fleet_routes_xml(60, period_s=30.0, seed=4), encoding="utf-8")
+    scenario = Scenario(None, fleet_dir() / "fleet.net.xml", (routes,))
+    every, scheduled, summary = _both(scenario, tmp_path, step_length_s=0.2, end_s=120.0)
+    _assert_same_warnings(every, scheduled, summary)
+
+
+def _formula_1_reach_m(speed_mps: float, settings: WarningSettings) -> float:
+    """S_w with V_w = 0 plus the latency allowance at ``speed_mps``, m: formula (1) written out here."""
+    return (
+        REACTION_TIME_S * speed_mps
+        + speed_mps**2 / G_MPS2
+        + speed_mps * (settings.update_period_s + settings.system_delay_s)
+    )
+
+
+@given(
+    distance_m=st.floats(0.0, 3000.0),
+    speed_mps=st.floats(0.0, 40.0),
+    bound_mps=st.floats(1.0, 40.0),
+    accel_mps2=st.one_of(st.just(math.inf), st.floats(0.5, 5.0)),
+    factor=st.floats(0.9, 1.1),
+)
+def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(
+    distance_m, speed_mps, bound_mps, accel_mps2, factor
+):
+    """Driven as fast as SUMO allows (speed rising by at most its acceleration up to its bound, each step
+    advancing that step's speed times the step), a sleeping vehicle is at every step before its wake-up
+    still farther from the curve than S_w + allowance at its speed then (formula (1) with V_w = 0)."""
+    settings = WarningSettings(update_period_s=STEP_S)
+    schedule = WakeSchedule(STEP_S, settings)
+    schedule.add("v", bound_mps, accel_mps2)
+    schedule.sleep(0, "v", speed_mps, distance_m, factor)
+    wake = schedule.wake_step.get("v")
+    if wake is None:
+        return
+    margin_m = LANE_CHANGE_MARGIN_M + LANE_CHANGE_MARGIN_SHARE * distance_m
+    fastest_mps = max(speed_mps, bound_mps)
+    now_mps, driven_m = speed_mps, 0.0
+    for _ in range(1, wake):
+        now_mps = min(fastest_mps, now_mps + accel_mps2 * STEP_S)
+        driven_m += now_mps * STEP_S
+        left_m = distance_m - margin_m - driven_m / factor
+        assert left_m > _formula_1_reach_m(now_mps, settings) * (1 - 1e-9)
+    assert schedule.wake_due(wake) == {"v": 0}
+
+
+@given(
+    parts=st.lists(st.tuples(st.floats(0.0, 2000.0), st.floats(0.0, 300.0)), max_size=8),
+    vehicle_s=st.floats(0.0, 2500.0),
+)
+def test_the_first_part_ahead_is_the_nearest_start_among_the_parts_not_passed(parts, vehicle_s):
+    """The distance to the first curve part is that to the nearest start among the parts whose end (plus the
+    CPOIs' end margin) is still ahead, 0 inside one, else to the end of the path."""
+    starts = np.array([start for start, _ in parts], dtype=float)
+    ends = np.array([start + length for start, length in parts], dtype=float)
+    path = SimpleNamespace(length_m=2600.0, lane_position_factor=np.array([1.02, 0.98]))
+    horizon = SimpleNamespace(part_start_s=starts, part_end_s=ends, path=path)
+    ahead = [start for start, end in zip(starts, ends, strict=True) if end + END_MARGIN_M > vehicle_s]
+    expected_m = max(min(ahead, default=2600.0) - vehicle_s, 0.0)
+    assert distance_to_first_part_m(horizon, vehicle_s) == (expected_m, 0.98)
+
+
+def test_the_speed_bound_is_the_lower_of_the_types_and_the_fastest_lanes():
+    assert speed_bound_mps(30.0, 1.2, 25.0) == 30.0
+    assert speed_bound_mps(50.0, 1.2, 25.0) == pytest.approx(30.0)
+    assert math.isclose(speed_bound_mps(22.0, 0.8, 25.0), 20.0)
+    assert np.isfinite(speed_bound_mps(22.0, 0.8, 25.0))
