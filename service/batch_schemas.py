@@ -1,6 +1,6 @@
 """The error entry of a batch's query that was not answered: the contract's part of :mod:`service.batch_items`.
 
-A batch's answers (:class:`service.schemas.Answers`) hold, in order, an answer per query or, for a
+A batch's answers (:class:`service.answer_schemas.Answers`) hold, in order, an answer per query or, for a
 query the contract refuses or the served networks cannot answer, a :class:`BatchItemError` naming
 its problems as a 422 would.
 """

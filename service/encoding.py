@@ -1,6 +1,6 @@
 """The answers as the JSON of the HTTP contract, written by msgspec (floats unrounded).
 
-Each answer is a struct with the fields of the contract's :class:`service.schemas.WarningAnswer`,
+Each answer is a struct with the fields of the contract's :class:`service.answer_schemas.WarningAnswer`,
 in its order (:func:`encode_answer`); :class:`EncodedAnswers` holds a request's answers in order and
 writes one of them, or all as the contract's ``Answers``.
 """
@@ -20,10 +20,10 @@ from csws.standard import Level
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, HmiHint, PathKind, Trigger
 
+from .answer_schemas import Hmi, Matched, WarningAnswer
 from .horizon import CpoiPositions, positions
 from .networks import ServedNetwork
 from .placement import LanePoints, Placement
-from .schemas import Hmi, Matched, WarningAnswer
 
 __all__ = ["EncodedAnswers", "encode_answer", "hmi_json", "matched_documents"]
 

@@ -13,7 +13,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from .schemas import MAX_SPEED_KMH, XY, Position
+from .answer_schemas import XY
+from .schemas import MAX_SPEED_KMH, Position
 
 __all__ = ["MAX_TRACE", "TraceFix", "Trace", "MatchedFix", "MatchAnswer"]
 

@@ -25,17 +25,10 @@ from hypothesis import strategies as st
 from markers import marks_its_tests
 
 from csws.cosim.driver import DriverSettings
-from csws.cosim.fcw import (
-    FCW_EVENT_COLUMNS,
-    ONCOMING_MPS,
-    MapLanes,
-    SensorPairs,
-    SumoVehicles,
-    read_vehicles,
-    sensor_view,
-)
+from csws.cosim.fcw import FCW_EVENT_COLUMNS
 from csws.cosim.records import EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.cosim.sensor import ONCOMING_MPS, MapLanes, SensorPairs, SumoVehicles, read_vehicles, sensor_view
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.path import offset_from_circle_m
 from csws.fcw.physics import FcwSettings

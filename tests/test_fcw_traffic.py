@@ -21,7 +21,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from csws.cosim.fcw import OFF_PATH_LANE, MapLanes, SumoVehicles, map_lanes, sensor_view
+from csws.cosim.sensor import OFF_PATH_LANE, MapLanes, SumoVehicles, map_lanes, sensor_view
 from csws.fcw.conforming import Lead, standard_requires_warning
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject

@@ -26,12 +26,13 @@ from csws.fcw.tracker import ForwardCollisionWarning
 from csws.networks import networks_dir
 from csws.standard import Category, Level
 from csws.warning.rules import HmiHint
+from service.answer_schemas import FcwAnswer
 from service.app import create_app
 from service.fcw import FCW_HMI_HINTS, combined_hmi
 from service.fcw_objects import _paths
 from service.fcw_settings import FleetFcwSettings
 from service.networks import load_networks
-from service.schemas import MAX_OBJECTS, FcwAnswer, ForwardTarget
+from service.schemas import MAX_OBJECTS, ForwardTarget
 from service.settings import ServiceSettings
 
 TRACK_NET = str(networks_dir() / "single_r120_left.net.xml")

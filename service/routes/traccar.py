@@ -15,9 +15,9 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import Response
 from pydantic import ValidationError
 
+from ..answer_schemas import WarningAnswer
 from ..answering import Answering
 from ..deps import AnsweringDep, CallerDep
-from ..schemas import WarningAnswer
 from ..traccar import IdSource, Ignored, TraccarForward, query_of
 from .common import BOUNDED, INVALID_BODY, KEYED, STORE, json_body
 

@@ -6,11 +6,12 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path
 
+from ..answer_schemas import VehicleState
 from ..decoding import DecodedSwitch, decode
 from ..deps import AdminDep, BodyDep, CallerDep, RegistryDep, ServiceDep, WorkDep
 from ..keys import vehicle_key
 from ..networks import ServedNetwork
-from ..schemas import SWITCH_ADAPTER, VEHICLE_ID_PATTERN, Message, VehicleState, VehicleSwitch
+from ..schemas import SWITCH_ADAPTER, VEHICLE_ID_PATTERN, Message, VehicleSwitch
 from ..vehicles import LoadedVehicles
 from .common import BOUNDED, INVALID_BODY, KEYED, STORE, json_body
 

@@ -16,9 +16,10 @@ from fastapi import Query as QueryParameter
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import Response
 
+from ..answer_schemas import Answers, WarningAnswer
 from ..deps import AnsweringDep, CallerDep
 from ..limits import too_many_queries
-from ..schemas import MAX_BATCH, Answers, Batch, Query, WarningAnswer
+from ..schemas import MAX_BATCH, Batch, Query
 from ..timing import Stages
 from .common import BOUNDED, INVALID_BODY, KEYED, STORE, json_body
 
