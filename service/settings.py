@@ -7,7 +7,7 @@ the same way as ``csws serve``:
 ``CSWS_HOST``, ``CSWS_PORT``, ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``,
 ``CSWS_MATCH_TOLERANCE_M``, ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
 ``CSWS_MATCH_HEADING_SIGMA_DEG``, ``CSWS_MATCH_LANE_CHANGE_LOG_P``, ``CSWS_MATCH_DEAD_RECKONING_S``,
-``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``,
+``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``, ``CSWS_ACTIVATION_SPEED_KMH``,
 ``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``.
@@ -128,6 +128,13 @@ class ServiceSettings(BaseSettings):
         default=_WARNING.max_update_period_s, ge=0, description="the longest update period learnt, s"
     )
     system_delay_s: float = Field(default=_WARNING.system_delay_s, ge=0, description="processing and display delay, s")
+    activation_speed_kmh: float = Field(
+        default=_ENGINE.activation.activation_speed_kmh,
+        ge=0,
+        le=250,
+        description="5.3.2: 0 activates the system on the vehicle's start, at any speed (a); a positive speed "
+        "activates it when the vehicle reaches that speed, a standing vehicle then in standby (b)",
+    )
     api_keys_file: Path | None = Field(
         default=None, description="the fleets' API keys (service.keys); without it the service answers anyone"
     )
@@ -204,7 +211,8 @@ class ServiceSettings(BaseSettings):
             learn_update_period=self.learn_update_period,
             max_update_period_s=self.max_update_period_s,
         )
-        return replace(_ENGINE, warning=warning)
+        activation = replace(_ENGINE.activation, activation_speed_kmh=self.activation_speed_kmh)
+        return replace(_ENGINE, warning=warning, activation=activation)
 
     def match_settings(self) -> MatchSettings:
         """The library's map matching settings with this service's tolerances and the sequence matcher's scales."""

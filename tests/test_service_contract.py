@@ -8,12 +8,15 @@ import time
 
 import pytest
 from builders import TRACK_NET
+from fastapi.testclient import TestClient
 from markers import marks_its_tests
 from servers import Server
 
 from csws.state import Fault, SystemState
 from csws.warning.rules import HmiHint, PathKind
+from service.app import create_app
 from service.fcw import FCW_HMI_HINTS
+from service.settings import ServiceSettings
 
 ROUTE = ["approach", "curve", "runout"]
 #: Where curve 1 (R 120 m) of the Table 7 track begins: curve_0 at 100 m (networks/t7_left.truth.json).
@@ -214,3 +217,19 @@ def test_speed_0_is_active_without_a_warning_as_activation_on_start_has_it(clien
     assert client.get("/v1/vehicles/standing").json()["activated"] is True
     moving = client.post("/v1/warning", json={**standing, "vehicle_id": "moving", "speed_kmh": 100.0}).json()
     assert (moving["state"], moving["level"]) == ("active", 2)
+
+
+def test_speed_activation_is_a_service_setting_with_a_standing_vehicle_in_standby(monkeypatch):
+    """5.3.2 b): CSWS_ACTIVATION_SPEED_KMH activates the system when the vehicle reaches that speed; a vehicle
+    standing below it is in standby (5.3), one at it active."""
+    monkeypatch.setenv("CSWS_ACTIVATION_SPEED_KMH", "15")
+    settings = ServiceSettings(nets=[TRACK_NET], state_db=":memory:")
+    assert settings.activation_speed_kmh == 15.0
+    assert settings.engine_settings().activation.activation_speed_kmh == 15.0
+    with TestClient(create_app(settings)) as client:
+        standing = client.post("/v1/warning", json=_query("standing", speed_kmh=0.0)).json()
+        assert (standing["state"], standing["level"]) == ("standby", 0)
+        moving = client.post("/v1/warning", json=_query("moving", speed_kmh=15.0)).json()
+        assert moving["state"] == "active"
+    with pytest.raises(ValueError, match="activation_speed_kmh"):
+        ServiceSettings(nets=[TRACK_NET], state_db=":memory:", activation_speed_kmh=-1.0)
