@@ -19,9 +19,11 @@ import os
 from pathlib import Path
 
 import pytest
+from browsers import CHROMIUM, CHROMIUM_ARGS
 from builders import SIDE_X_M, build_side_roads
 from hypothesis import settings
 from markers import fixture_markers, marks_its_tests
+from playwright.sync_api import sync_playwright
 from redis_server import RedisServer
 
 settings.register_profile("ci", derandomize=True)
@@ -95,3 +97,13 @@ def state(request: pytest.FixtureRequest, tmp_path: Path) -> dict[str, str]:
 def side_roads_net(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The side roads (:func:`builders.build_side_roads`) placed ``SIDE_X_M`` east of the Table 7 track."""
     return build_side_roads(tmp_path_factory.mktemp("side-roads"), origin_x_m=SIDE_X_M)
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("browser")
+def browser():
+    """Headless Chromium (:mod:`browsers`), one per test module."""
+    with sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield chromium
+        chromium.close()

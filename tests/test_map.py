@@ -10,35 +10,22 @@ against what the service answers for the same view: the curves of ``/v1/curves``
 from __future__ import annotations
 
 import os
-from urllib.parse import urlsplit
 
 import httpx
 import pytest
+from browsers import WAIT_MS, Recorded
+from builders import TRACK_NET
 from markers import marks_its_tests
-from playwright.sync_api import Page, sync_playwright
+from playwright.sync_api import Page
 from servers import Workers
 
 from csws.networks import networks_dir
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-TRACK_NET = networks_dir() / "t7_left.net.xml"
 GEO_NET = networks_dir() / "badhersfeld.net.xml.gz"
 #: The most the map page of the Bad Hersfeld network may fetch before it shows its curves, bytes.
 INITIAL_DATA_LIMIT_BYTES = 2_000_000
 #: Vehicles fed at once to the page of the Bad Hersfeld network.
 FLEET_SIZE = 1000
-#: The longest a page may take to show what it is waiting for, ms.
-WAIT_MS = 30_000
 
 
 @pytest.fixture(scope="module")
@@ -55,42 +42,6 @@ def server(tmp_path_factory):
 def client(server) -> httpx.Client:
     with httpx.Client(base_url=server.url, timeout=30.0) as http:
         yield http
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("browser")
-def browser():
-    with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield chromium
-        chromium.close()
-
-
-class Recorded:
-    """A page with everything it requested, the size of every response body as received (compressed), and
-    its console errors."""
-
-    def __init__(self, browser, viewport: dict[str, int] | None = None) -> None:
-        self.page: Page = browser.new_page(viewport=viewport or {"width": 1200, "height": 800})
-        self.urls: list[str] = []
-        self.errors: list[str] = []
-        self.body_sizes: list[int] = []
-        self.page.on("requestfinished", lambda request: self.body_sizes.append(request.sizes()["responseBodySize"]))
-        self.page.on("request", lambda request: self.urls.append(request.url))
-        self.page.on("console", lambda message: message.type == "error" and self.errors.append(message.text))
-        self.page.on("pageerror", lambda error: self.errors.append(str(error)))
-        self.page.on("requestfailed", lambda request: self.errors.append(f"failed: {request.url}"))
-
-    def assert_offline(self) -> None:
-        """Nothing left the machine: every request went to the loopback service (or to the page's own
-        ``data:`` and ``blob:`` contents), and nothing failed."""
-        remote = [
-            url
-            for url in self.urls
-            if urlsplit(url).scheme not in ("data", "blob") and urlsplit(url).hostname != "127.0.0.1"
-        ]
-        assert self.urls and not remote, remote
-        assert not self.errors, self.errors
 
 
 def _open_map(browser, server, network: str) -> Recorded:

@@ -14,11 +14,11 @@ import time
 import httpx
 import numpy as np
 import pytest
-from builders import write_geo_track
+from browsers import WAIT_MS, Recorded
+from builders import TRACK_NET, write_geo_track
 from markers import marks_its_tests
-from playwright.sync_api import Page, Route, sync_playwright
+from playwright.sync_api import Page, Route
 from servers import Workers
-from test_map import CHROMIUM, CHROMIUM_ARGS, TRACK_NET, WAIT_MS, Recorded
 
 from service.keys import Role, add_key
 
@@ -54,15 +54,6 @@ def server(tmp_path_factory):
 def client(server) -> httpx.Client:
     with httpx.Client(base_url=server.url, timeout=30.0) as http:
         yield http
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("browser")
-def browser():
-    with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield chromium
-        chromium.close()
 
 
 def _lab(hex_colour: str, vision: np.ndarray) -> np.ndarray:

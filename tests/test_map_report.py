@@ -19,13 +19,13 @@ from pathlib import Path
 import numpy as np
 import pyproj
 import pytest
+from browsers import WAIT_MS, Recorded
+from builders import TRACK_NET
 from fastapi.testclient import TestClient
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from markers import marks_its_tests
-from playwright.sync_api import sync_playwright
 from servers import Workers
-from test_map import CHROMIUM, CHROMIUM_ARGS, TRACK_NET, WAIT_MS, Recorded
 from test_osm import ORIGIN_XY, UTM32, OsmWriter
 
 from csws import cli
@@ -335,15 +335,6 @@ def report_server(faulty_import: ImportResult, tmp_path_factory):
     running = Workers([faulty_import.net_path], "--state-db", str(tmp_path_factory.mktemp("state") / "s.db"), workers=1)
     yield running
     running.stop()
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("browser")
-def browser():
-    with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield chromium
-        chromium.close()
 
 
 def test_the_map_shows_the_report_as_a_layer_when_ticked(browser, report_server, faulty_import) -> None:
