@@ -29,8 +29,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import msgspec
-
 from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
 from csws.gateways.jt808.messages import (
     BodyError,
@@ -103,6 +101,15 @@ class GatewaySettings:
         return self.fleet_texts.get(fleet, DriverTexts())
 
 
+@dataclass(frozen=True)
+class AnswerSummary:
+    """What the driver may be told of an answer: its system state, level, and the target's V_w (None without one)."""
+
+    state: str
+    level: int
+    warning_speed_kmh: float | None
+
+
 class Batcher:
     """Answers the queries of all connections in groups, one group on the work thread at a time."""
 
@@ -111,7 +118,7 @@ class Batcher:
         self._waiting: list[tuple[DecodedQuery, str, asyncio.Future[Any]]] = []
         self._running = False
 
-    async def answer(self, query: DecodedQuery, fleet: str) -> dict[str, Any] | None:
+    async def answer(self, query: DecodedQuery, fleet: str) -> AnswerSummary | None:
         """The answer document of ``query`` of ``fleet`` (None when it could not be answered)."""
         done: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
         self._waiting.append((query, fleet, done))
@@ -136,16 +143,16 @@ class Batcher:
         finally:
             self._running = False
 
-    def _answer_group(self, group: Sequence[tuple[DecodedQuery, str]]) -> list[dict[str, Any] | None]:
+    def _answer_group(self, group: Sequence[tuple[DecodedQuery, str]]) -> list[AnswerSummary | None]:
         """Each query's answer, fleet by fleet (on the work thread); one that fails alone is None."""
-        answers: list[dict[str, Any] | None] = [None] * len(group)
+        answers: list[AnswerSummary | None] = [None] * len(group)
         for fleet in {f for _, f in group}:
             indices = [i for i, (_, f) in enumerate(group) if f == fleet]
             for index, answer in zip(indices, self._answer_fleet([group[i][0] for i in indices], fleet), strict=True):
                 answers[index] = answer
         return answers
 
-    def _answer_fleet(self, queries: list[DecodedQuery], fleet: str) -> list[dict[str, Any] | None]:
+    def _answer_fleet(self, queries: list[DecodedQuery], fleet: str) -> list[AnswerSummary | None]:
         try:
             encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet)
         except QueryErrors as errors:
@@ -156,7 +163,10 @@ class Batcher:
         except StoreUnavailable as error:
             log.warning("jt808: state store unavailable: %s", error)
             return [None] * len(queries)
-        return [msgspec.json.decode(encoded.json(i)) for i in range(len(queries))]
+        return [
+            AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"))
+            for state, level, document in zip(encoded.state, encoded.level, encoded.documents, strict=True)
+        ]
 
 
 def _first_error(errors: QueryErrors) -> str:
@@ -345,10 +355,7 @@ async def _warn(conversation: Conversation, terminal: Terminal) -> None:
         for report, answer in zip(reports, answers, strict=True):
             if answer is None:
                 continue
-            target = answer.get("target") or {}
-            told = conversation.announcer.update(
-                answer["state"], answer["level"], target.get("warning_speed_kmh"), report.time_s
-            )
+            told = conversation.announcer.update(answer.state, answer.level, answer.warning_speed_kmh, report.time_s)
             if told is not None:
                 text, urgent = told
                 body = encode_text_message(text, conversation.edition, emergency=urgent)
