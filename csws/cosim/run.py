@@ -13,9 +13,13 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import time
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -250,6 +254,31 @@ class _Run:
             self.evaluator.close()
 
 
+@contextmanager
+def _interrupt_between_steps() -> Iterator[list[bool]]:
+    """Hold a first Ctrl-C until the step under way is recorded; a second one stops at once.
+
+    The yielded flag turns true on the first SIGINT; the loop raises ``KeyboardInterrupt``
+    after the step, so the summary, the time series and the FCD export end at the same step.
+    Off the main thread (where signals cannot be caught) Ctrl-C keeps its default meaning.
+    """
+    requested = [False]
+    if threading.current_thread() is not threading.main_thread():
+        yield requested
+        return
+
+    def hold(signum: int, frame: object) -> None:
+        if requested[0]:
+            raise KeyboardInterrupt
+        requested[0] = True
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield requested
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def cosimulate(config: CosimConfig) -> dict[str, Any]:
     """Run one co-simulation into ``config.out``; its summary (also written to ``summary.json``).
 
@@ -265,9 +294,13 @@ def cosimulate(config: CosimConfig) -> dict[str, Any]:
     run = _Run(config)
     status, started = "running", time.perf_counter()
     try:
-        simulation = run.start()
-        while simulation.expected_vehicles() > 0 and run.step(simulation):
-            pass
+        with _interrupt_between_steps() as interrupted:
+            simulation = run.start()
+            while simulation.expected_vehicles() > 0 and run.step(simulation):
+                if interrupted[0]:
+                    raise KeyboardInterrupt
+            if interrupted[0]:
+                raise KeyboardInterrupt
         status = "complete"
     except SumoStopped as exc:
         status = f"SUMO stopped: {exc}"
