@@ -281,8 +281,8 @@ class WarningService:
             [query.vehicle_id for query in queries],
             categories,
             [query.speed_kmh for query in queries],
-            [placement.lane_id for placement in placements],
-            [placement.lane_pos_m if placement.lane_id is not None else 0.0 for placement in placements],
+            [placement.path_lane_id for placement in placements],
+            [placement.path_lane_pos_m if placement.path_lane_id is not None else 0.0 for placement in placements],
             [tuple(query.route) if query.route else None for query in queries],
             timestamp_s=[query.timestamp_s for query in queries],
             age_s=[query.age_s for query in queries],
@@ -365,13 +365,13 @@ class WarningService:
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, category: Category) -> VehicleInput:
         """The engine's input for a placed query of a vehicle of ``category``."""
-        matched = placement.lane_id is not None
+        matched = placement.path_lane_id is not None
         return VehicleInput(
             query.vehicle_id,
             category,
             query.speed_kmh,
-            placement.lane_id,
-            placement.lane_pos_m if matched else 0.0,
+            placement.path_lane_id,
+            placement.path_lane_pos_m if matched else 0.0,
             tuple(query.route) if query.route else None,
             query.timestamp_s,
             query.age_s,

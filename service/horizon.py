@@ -185,7 +185,8 @@ def road_ahead(
     service: WarningService, registry: VehicleRegistry, query: Query, length_m: float = DEFAULT_HORIZON_M
 ) -> dict[str, Any]:
     """``GET /v1/horizon``: where a position (``query``, of no vehicle) matches, and the :func:`horizon` ahead
-    of it; ``matched`` None with the reason as ``fault`` when nothing matches.
+    of it (of a fix: from the lane of its edge that keeps the road, :class:`csws.ahead.roadlane.RoadLanes`);
+    ``matched`` None with the reason as ``fault`` when nothing matches.
 
     Raises
     ------
@@ -196,13 +197,13 @@ def road_ahead(
     with registry.read(()) as nobody:  # a position, not a vehicle: no previous lane
         service.check([decoded], nobody, loc=("query",))
         (placement,) = service.place([decoded], nobody)
-    if placement.lane_id is None:
+    if placement.lane_id is None or placement.path_lane_id is None:
         return {"matched": None, "fault": placement.reason, "profile": [], "cpois": []}
     ahead = horizon(
         service.networks[placement.network_index],
         service.cpoi_positions[placement.network_index],
-        placement.lane_id,
-        placement.lane_pos_m,
+        placement.path_lane_id,
+        placement.path_lane_pos_m,
         query.route,
         length_m,
     )

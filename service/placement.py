@@ -7,7 +7,8 @@ of a batch's vehicles are one step of the hidden-Markov matcher, in numpy. A fix
 junction whose turn the fixes do not show yet is placed on the road's continuation; a fix that
 matches no lane is dead-reckoned along the road for a while after the last match (see
 docs/service.md, "Map matching"). A fix is taken at its ``timestamp_s``, else at the time it is
-answered less its ``age_s``.
+answered less its ``age_s``. The path ahead of a matched fix starts from the lane of its edge that keeps the
+road (:class:`csws.ahead.roadlane.RoadLanes`): a fix cannot tell the lanes of an edge apart.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from csws.ahead.roadlane import RoadLanes
 from csws.road.hmm import Fixes, SequenceMatcher
 from csws.road.matching import MatchSettings, Probes, lane_points
 from csws.road.roadmap import RoadMap
@@ -44,6 +46,9 @@ class Placement(NamedTuple):
         The lane (None when nothing matched), the lane position and the distance of the fix from it, m.
     reason
         Why nothing matched, else None.
+    path_lane_id, path_lane_pos_m
+        The lane and lane position the path ahead starts from: the given lane, or for a matched fix the lane of
+        its edge that keeps the road (:class:`csws.ahead.roadlane.RoadLanes`); None where nothing matched.
     """
 
     network_index: int
@@ -51,6 +56,8 @@ class Placement(NamedTuple):
     lane_pos_m: float
     distance_m: float
     reason: str | None
+    path_lane_id: str | None
+    path_lane_pos_m: float
 
 
 class LanePoints:
@@ -122,6 +129,7 @@ class Placer:
         self.lanes = lanes
         self.networks = lanes.networks
         self.matcher = SequenceMatcher([n.road_map for n in self.networks], match_settings)
+        self.road_lanes = [RoadLanes(network.horizon) for network in self.networks]
 
     def place(self, queries: Sequence[DecodedQuery], vehicles: LoadedVehicles) -> list[Placement]:
         """Where each query is: its given lane, or the map match of its fix (queries of distinct
@@ -146,7 +154,7 @@ class Placer:
             lanes.append((network_index, lane_id, lane_pos_m))
         distances_m = self._fix_distances_m(queries, lanes)
         return [
-            Placement(network_index, lane_id, lane_pos_m, distance_m, None)
+            Placement(network_index, lane_id, lane_pos_m, distance_m, None, lane_id, lane_pos_m)
             for (network_index, lane_id, lane_pos_m), distance_m in zip(lanes, distances_m, strict=True)
         ]
 
@@ -167,7 +175,12 @@ class Placer:
         ):
             if network_index < 0:
                 network_index = vehicles.network_of(query.vehicle_id)
-            placements.append(Placement(network_index, lane_id, lane_pos_m, distance_m, reason))
+            path_lane_id, path_lane_pos_m = lane_id, lane_pos_m
+            if lane_id is not None:
+                path_lane_id, path_lane_pos_m = self.road_lanes[network_index](lane_id, lane_pos_m, query.route)
+            placements.append(
+                Placement(network_index, lane_id, lane_pos_m, distance_m, reason, path_lane_id, path_lane_pos_m)
+            )
             vehicles.keep_track(query.vehicle_id, track)
         return placements
 

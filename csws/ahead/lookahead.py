@@ -286,7 +286,7 @@ class LookAhead:
         if cached is not None:
             self._horizons.move_to_end(key)
             return cached
-        lanes, kind = self._lanes_ahead(lane_id, lane.length_m, lane.length_m + reach_m, remaining)
+        lanes, kind = self.lanes_ahead(lane_id, lane.length_m, lane.length_m + reach_m, remaining)
         # Vehicles on different routes share a horizon while their lanes ahead are the same.
         horizon = self._by_lanes.get((lanes, kind))
         if horizon is not None:
@@ -295,10 +295,11 @@ class LookAhead:
             horizon = _remember(self._by_lanes, (lanes, kind), self._build_horizon(lanes, kind), self._capacity)
         return _remember(self._horizons, key, horizon, self._capacity)
 
-    def _lanes_ahead(
+    def lanes_ahead(
         self, lane_id: str, remaining_m: float, needed_m: float, route_edges: Sequence[str] | None
     ) -> tuple[tuple[str, ...], PathKind]:
-        """Lanes from ``lane_id`` on until ``needed_m`` is covered, and the path kind."""
+        """Lanes from ``lane_id`` on (``remaining_m`` of it ahead) until ``needed_m`` is covered, and the path kind:
+        along the route, else the most probable path (:meth:`_predicted_successor`)."""
         route_next = _route_successors(route_edges, self.road_map.lane(lane_id))
         kind = PathKind.ROUTE if route_next is not None else PathKind.PREDICTED
         lanes = [lane_id]

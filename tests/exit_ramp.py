@@ -1,0 +1,69 @@
+"""A motorway exit for lane-uncertain paths: a three-lane road whose right lane alone leads onto an exit
+ramp with a sharp curve soon after the diverge, the two other lanes going on as the road."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from builders import node_xml
+
+from csws.geometry import arc, sample_pieces, straight
+from csws.sumo.netbuild import netconvert, shape_text
+
+#: The diverge node D; the main road runs east along y = 0 from x = 0 to 900 m.
+DIVERGE_XY = (400.0, 0.0)
+#: The ramp leaves the road this many degrees to the right, runs straight this far, then curves.
+RAMP_ANGLE_DEG = 25.0
+RAMP_STRAIGHT_M = 40.0
+#: Radius of the ramp's curve, m: a table radius (Tables 1 and 2: 40 m).
+RAMP_RADIUS_M = 40.0
+
+
+def ramp_shape() -> np.ndarray:
+    """The ramp's authored shape from D: straight, a 90 degree right curve of :data:`RAMP_RADIUS_M`, straight."""
+    pieces = (straight(RAMP_STRAIGHT_M), arc(RAMP_RADIUS_M, 90.0, "right"), straight(100.0))
+    xy, _ = sample_pieces(pieces, 1.0, DIVERGE_XY, -math.radians(RAMP_ANGLE_DEG))
+    return xy
+
+
+def ramp_curve_start_xy() -> np.ndarray:
+    """Where the ramp's curve starts as authored: :data:`RAMP_STRAIGHT_M` along the ramp from D."""
+    heading_rad = -math.radians(RAMP_ANGLE_DEG)
+    return np.array(DIVERGE_XY) + RAMP_STRAIGHT_M * np.array([math.cos(heading_rad), math.sin(heading_rad)])
+
+
+def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, priority: int, name: str) -> str:
+    """A motorway edge of ``lanes`` lanes at 30 m/s."""
+    return (
+        f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="{lanes}" speed="30" priority="{priority}" '
+        f'name="{name}" shape="{shape_text(xy)}"/>'
+    )
+
+
+def write_exit_ramp(folder: Path) -> Path:
+    """Write and netconvert the road W -> D -> E (three lanes, then two) and the ramp D -> R, with the
+    connections of an exit: WD_0 onto the ramp alone, WD_1 and WD_2 onto DE_0 and DE_1."""
+    ramp = ramp_shape()
+    nodes = [node_xml("W", (0.0, 0.0)), node_xml("D", DIVERGE_XY), node_xml("E", (900.0, 0.0)), node_xml("R", ramp[-1])]
+    edges = [
+        _edge("WD", "W", "D", np.array([(0.0, 0.0), DIVERGE_XY]), 3, 3, "Motorway"),
+        _edge("DE", "D", "E", np.array([DIVERGE_XY, (900.0, 0.0)]), 2, 3, "Motorway"),
+        _edge("DR", "D", "R", ramp, 1, 1, "Exit"),
+    ]
+    connections = (
+        "<connections>"
+        '<connection from="WD" to="DR" fromLane="0" toLane="0"/>'
+        '<connection from="WD" to="DE" fromLane="1" toLane="0"/>'
+        '<connection from="WD" to="DE" fromLane="2" toLane="1"/>'
+        "</connections>"
+    )
+    connection_file = folder / "exit.con.xml"
+    connection_file.write_text(connections, encoding="utf-8")
+    return netconvert(
+        "<nodes>" + "".join(nodes) + "</nodes>",
+        "<edges>" + "".join(edges) + "</edges>",
+        folder / "exit.net.xml",
+        options=["--connection-files", str(connection_file)],
+    )

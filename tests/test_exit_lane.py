@@ -1,0 +1,139 @@
+"""The path ahead of a GNSS fix is the path of its edge, not of its lane: on a three-lane road whose right lane
+alone leads onto an exit ramp with a sharp curve, vehicles on the through road fed σ 3 m fixes at 1 Hz are never
+warned of the ramp's curve, and vehicles taking the ramp are warned of it from their first fix on the ramp, no
+later than formula (1) requires plus one fix interval of travel. The network is tests/exit_ramp.py; the truth is
+each constructed drive (seeded fixes)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from exit_ramp import ramp_curve_start_xy, write_exit_ramp
+from fastapi.testclient import TestClient
+from junction_town import Drive, drive
+from markers import marks_its_tests
+
+from csws.ahead.lookahead import LookAhead
+from csws.ahead.roadlane import RoadLanes
+from csws.road.roadmap import RoadMap
+from service.app import create_app
+from service.settings import ServiceSettings
+
+SPEED_MPS = 80.0 / 3.6
+FIX_INTERVAL_S = 1.0
+#: Table 1, level 1, column M3/N/O at R = 40 m (T/ITS 0091-2018 6.1): V_w = 39 km/h.
+LEVEL_1_SPEED_AT_40_M_MPS = 39.0 / 3.6
+#: Formula (1) (6.1): S_w = 0.8 v + (v^2 - v_w^2) / g, with g = 9.8 m/s^2.
+REACTION_S, G_MPS2 = 0.8, 9.8
+SEEDS = range(12)
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("sumo")
+def exit_net(tmp_path_factory) -> Path:
+    return write_exit_ramp(tmp_path_factory.mktemp("exit"))
+
+
+@pytest.fixture(scope="module")
+def exit_map(exit_net: Path) -> RoadMap:
+    return RoadMap.load(exit_net)
+
+
+@pytest.fixture(scope="module")
+def client(exit_net: Path, tmp_path_factory):
+    settings = ServiceSettings(nets=[exit_net], state_db=str(tmp_path_factory.mktemp("state") / "v.sqlite3"))
+    with TestClient(create_app(settings)) as test_client:
+        yield test_client
+
+
+def _query(vehicle_id: str, route: Drive, k: int) -> dict:
+    x, y = route.xy[k]
+    return {
+        "vehicle_id": vehicle_id,
+        "category": "N",
+        "speed_kmh": SPEED_MPS * 3.6,
+        "position": {"x": float(x), "y": float(y)},
+        "heading_deg": float(route.heading_deg[k]),
+        "timestamp_s": 1000.0 + float(route.time_s[k]),
+        "accuracy_m": 3.0,
+    }
+
+
+def _drives(exit_map: RoadMap) -> dict[str, Drive]:
+    """Through vehicles on the lane next to the exit lane and on the left lane, and vehicles taking the ramp."""
+    lanes = {"through1": ["WD_1", "DE_0"], "through2": ["WD_2", "DE_1"], "ramp": ["WD_0", "DR_0"]}
+    return {
+        f"{kind}-{seed}": drive(exit_map, path, SPEED_MPS, seed, start_m=250.0, length_m=330.0)
+        for seed in SEEDS
+        for kind, path in lanes.items()
+    }
+
+
+def _answers(client, drives: dict[str, Drive]) -> dict[str, list[dict]]:
+    """Each vehicle's answers, one batch of every vehicle's fix a second."""
+    steps = min(len(route.time_s) for route in drives.values())
+    answers: dict[str, list[dict]] = {vehicle_id: [] for vehicle_id in drives}
+    for k in range(steps):
+        batch = [_query(vehicle_id, route, k) for vehicle_id, route in drives.items()]
+        response = client.post("/v1/warnings", json={"queries": batch})
+        assert response.status_code == 200, response.text
+        for answer in response.json()["answers"]:
+            answers[answer["vehicle_id"]].append(answer)
+    return answers
+
+
+def _warns_of_ramp(answer: dict) -> bool:
+    return answer["level"] > 0 and any(trigger["curve_id"].startswith("DR@") for trigger in answer["triggers"])
+
+
+def _path_s(exit_map: RoadMap, lanes: list[str]) -> tuple[tuple[str, ...], np.ndarray]:
+    """The lanes a drive takes (internal ones filled in) and where each starts along it, m (lane shapes)."""
+    path = exit_map.expand_path(lanes)
+    lengths = [float(np.hypot(*np.diff(np.asarray(exit_map.lane_shape(lane)), axis=0).T).sum()) for lane in path]
+    return path, np.concatenate(([0.0], np.cumsum(lengths)))
+
+
+def _curve_start_s(exit_map: RoadMap, path: tuple[str, ...], starts_s: np.ndarray) -> float:
+    """Where the ramp's authored curve starts along the ramp drive, m: its start projected onto the ramp lane."""
+    shape = np.asarray(exit_map.lane_shape("DR_0"))
+    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T))))
+    nearest = int(np.argmin(np.hypot(*(shape - ramp_curve_start_xy()).T)))
+    return float(starts_s[path.index("DR_0")] + vertex_s[nearest])
+
+
+def test_the_path_ahead_of_the_exit_lane_is_the_roads(exit_map: RoadMap) -> None:
+    road_lanes = RoadLanes(LookAhead(exit_map))
+    length_m = exit_map.lane("WD_0").length_m
+    # The exit lane's path turns off the road at the diverge; its neighbour's goes on: the path starts there.
+    assert road_lanes.road_kept_m("WD_0") == pytest.approx(length_m)
+    assert road_lanes.road_kept_m("WD_1") > length_m + exit_map.lane("DE_0").length_m - 1.0
+    assert road_lanes("WD_0", 123.0) == ("WD_1", pytest.approx(123.0 * exit_map.lane("WD_1").length_m / length_m))
+    # Lanes that keep the road keep their own path; on the ramp the path is the ramp's.
+    assert road_lanes("WD_2", 50.0) == ("WD_2", 50.0)
+    assert road_lanes("DR_0", 20.0) == ("DR_0", 20.0)
+    assert road_lanes("WD_0", 50.0, route_edges=["WD", "DR"]) == ("WD_0", 50.0)
+
+
+def test_through_vehicles_never_get_the_ramps_warning_and_ramp_vehicles_get_it_in_time(
+    client, exit_map: RoadMap
+) -> None:
+    drives = _drives(exit_map)
+    answers = _answers(client, drives)
+    ramp_path, starts_s = _path_s(exit_map, ["WD_0", "DR_0"])
+    curve_s = _curve_start_s(exit_map, ramp_path, starts_s)
+    v, v_w = SPEED_MPS, LEVEL_1_SPEED_AT_40_M_MPS
+    required_s = curve_s - (REACTION_S * v + (v * v - v_w * v_w) / G_MPS2)
+    ramp_start_s = float(starts_s[ramp_path.index("DR_0")])
+    for vehicle_id, route in drives.items():
+        warned = [k for k, answer in enumerate(answers[vehicle_id]) if _warns_of_ramp(answer)]
+        if vehicle_id.startswith("through"):
+            assert not warned, (vehicle_id, warned)
+            continue
+        assert warned, vehicle_id
+        first = warned[0]
+        s = float(starts_s[ramp_path.index(route.lane_id[first])] + route.lane_pos_m[first])
+        # A fix cannot tell the exit lane from its neighbour: the ramp counts from the vehicle's first fix on it.
+        assert s <= max(required_s, ramp_start_s) + v * FIX_INTERVAL_S, (vehicle_id, s, required_s, ramp_start_s)
+        assert s < curve_s, (vehicle_id, s, curve_s)
