@@ -42,25 +42,24 @@ def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, pr
     )
 
 
-def write_exit_ramp(folder: Path) -> Path:
-    """Write and netconvert the road W -> D -> E (three lanes, then two) and the ramp D -> R, with the
-    connections of an exit: WD_0 onto the ramp alone, WD_1 and WD_2 onto DE_0 and DE_1."""
+def write_exit_ramp(folder: Path, ramp_lanes: int = 1) -> Path:
+    """Write and netconvert the road W -> D -> E (three lanes, then two) and the ramp D -> R of ``ramp_lanes`` lanes
+    (1 or 2), with the connections of an exit: the right ``ramp_lanes`` lanes of WD onto the ramp alone, the
+    others onto DE."""
     ramp = ramp_shape()
     nodes = [node_xml("W", (0.0, 0.0)), node_xml("D", DIVERGE_XY), node_xml("E", (900.0, 0.0)), node_xml("R", ramp[-1])]
     edges = [
         _edge("WD", "W", "D", np.array([(0.0, 0.0), DIVERGE_XY]), 3, 3, "Motorway"),
         _edge("DE", "D", "E", np.array([DIVERGE_XY, (900.0, 0.0)]), 2, 3, "Motorway"),
-        _edge("DR", "D", "R", ramp, 1, 1, "Exit"),
+        _edge("DR", "D", "R", ramp, ramp_lanes, 1, "Exit"),
     ]
-    connections = (
-        "<connections>"
-        '<connection from="WD" to="DR" fromLane="0" toLane="0"/>'
-        '<connection from="WD" to="DE" fromLane="1" toLane="0"/>'
-        '<connection from="WD" to="DE" fromLane="2" toLane="1"/>'
-        "</connections>"
+    onto = [("DR", lane) for lane in range(ramp_lanes)] + [("DE", lane) for lane in range(3 - ramp_lanes)]
+    connections = "".join(
+        f'<connection from="WD" to="{edge}" fromLane="{from_lane}" toLane="{to_lane}"/>'
+        for from_lane, (edge, to_lane) in enumerate(onto)
     )
     connection_file = folder / "exit.con.xml"
-    connection_file.write_text(connections, encoding="utf-8")
+    connection_file.write_text(f"<connections>{connections}</connections>", encoding="utf-8")
     return netconvert(
         "<nodes>" + "".join(nodes) + "</nodes>",
         "<edges>" + "".join(edges) + "</edges>",

@@ -106,14 +106,22 @@ def _curve_start_s(exit_map: RoadMap, path: tuple[str, ...], starts_s: np.ndarra
 def test_the_path_ahead_of_the_exit_lane_is_the_roads(exit_map: RoadMap) -> None:
     road_lanes = RoadLanes(LookAhead(exit_map))
     length_m = exit_map.lane("WD_0").length_m
-    # The exit lane's path turns off the road at the diverge; its neighbour's goes on: the path starts there.
-    assert road_lanes.road_kept_m("WD_0") == pytest.approx(length_m)
-    assert road_lanes.road_kept_m("WD_1") > length_m + exit_map.lane("DE_0").length_m - 1.0
+    # The exit lane's path turns off the road at the diverge; its neighbours' go on: the path starts beside it.
+    assert road_lanes.leads_to("WD_0") == ("DR", False)
+    assert road_lanes.leads_to("WD_1") == ("DE", True) and road_lanes.leads_to("WD_2") == ("DE", True)
     assert road_lanes("WD_0", 123.0) == ("WD_1", pytest.approx(123.0 * exit_map.lane("WD_1").length_m / length_m))
     # Lanes that keep the road keep their own path; on the ramp the path is the ramp's.
     assert road_lanes("WD_2", 50.0) == ("WD_2", 50.0)
     assert road_lanes("DR_0", 20.0) == ("DR_0", 20.0)
     assert road_lanes("WD_0", 50.0, route_edges=["WD", "DR"]) == ("WD_0", 50.0)
+
+
+def test_a_turn_most_lanes_take_keeps_the_matched_lanes_path(tmp_path: Path) -> None:
+    two_lane_exit = RoadMap.load(write_exit_ramp(tmp_path, ramp_lanes=2))
+    road_lanes = RoadLanes(LookAhead(two_lane_exit))
+    # Two of the three lanes lead onto the exit: a vehicle matched to either is as likely to take it as not.
+    assert road_lanes.leads_to("WD_1") == ("DR", False) and road_lanes.leads_to("WD_2") == ("DE", True)
+    assert road_lanes("WD_0", 80.0) == ("WD_0", 80.0) and road_lanes("WD_1", 80.0) == ("WD_1", 80.0)
 
 
 def test_through_vehicles_never_get_the_ramps_warning_and_ramp_vehicles_get_it_in_time(

@@ -5,11 +5,13 @@ are off by 3 to 8 m. The lane a fix is matched to is then a guess, and so is the
 that lane: the rightmost lane of a motorway may lead onto an exit ramp alone, a turning lane into
 a side street, and a path from it would warn of the ramp's curve a vehicle on the through road
 never meets. The path ahead of a fix is therefore the path ahead of its edge (:class:`RoadLanes`):
-it starts from the lane of the edge whose path goes farthest along the road's own continuation
-(:attr:`csws.road.network.Lane.continues_road`, :mod:`csws.road.continuations`) before it turns
-off it, the matched lane where none goes farther. A ramp or a turn counts once a fix is matched
-onto it: the path then starts on the ramp. A vehicle that gives its lane (the co-simulation, a
-unit that knows its lane) keeps the path of its lane.
+where the matched lane's path turns off the road at the edge's end (a junction connection that is not
+the road's continuation, :attr:`csws.road.network.Lane.continues_road`, :mod:`csws.road.continuations`)
+while other lanes of the edge keep the road, it starts from the nearest of those instead, unless more
+of the edge's lanes lead into that turn than keep the road (then the turn is where the road's traffic
+goes, and the matched lane keeps its path). A ramp or a turn counts once a fix is matched onto it:
+the path then starts on the ramp. With a route the path starts from a lane that leads along it. A
+vehicle that gives its lane (the co-simulation, a unit that knows its lane) keeps its lane's path.
 """
 
 from __future__ import annotations
@@ -19,15 +21,11 @@ from collections.abc import Sequence
 
 from csws.ahead.lookahead import LookAhead
 from csws.road.roadmap import Lane, RoadMap
-from csws.warning.rules import PathKind
 
-__all__ = ["ROAD_LANE_REACH_M", "RoadLanes"]
+__all__ = ["RoadLanes"]
 
-#: How far ahead the lanes of an edge are compared, m: beyond the longest look-ahead distance S_LAD (3.9) a
-#: vehicle needs at motorway speed (formula (1) at 130 km/h with V_w = 0 and a second of latency: some 200 m).
-ROAD_LANE_REACH_M = 500.0
-#: Two lanes whose paths keep the road for lengths this close keep it equally far, m.
-_TIE_M = 1.0
+#: A path is followed this far beyond its first lane to find the edge it leads to across the junction, m.
+_ACROSS_M = 200.0
 #: Choices remembered before the memory is emptied (a choice depends on the map and route alone).
 _MEMORY = 65_536
 
@@ -38,23 +36,19 @@ class RoadLanes:
     Parameters
     ----------
     lookahead
-        The look-ahead whose paths are compared (its most probable successor at each junction).
-    reach_m
-        How far ahead the lanes of an edge are compared, m.
+        The look-ahead whose paths are followed (its most probable successor at each junction).
     """
 
-    def __init__(self, lookahead: LookAhead, reach_m: float = ROAD_LANE_REACH_M) -> None:
+    def __init__(self, lookahead: LookAhead) -> None:
         self.lookahead = lookahead
         self.road_map: RoadMap = lookahead.road_map
-        self.reach_m = reach_m
         self._chosen: dict[tuple[str, tuple[str, ...] | None], str] = {}
         self._edge_lanes: dict[str, list[str]] | None = None
 
-    def __call__(
-        self, lane_id: str, lane_pos_m: float, route_edges: Sequence[str] | None = None
-    ) -> tuple[str, float]:
+    def __call__(self, lane_id: str, lane_pos_m: float, route_edges: Sequence[str] | None = None) -> tuple[str, float]:
         """The lane of ``lane_id``'s edge the path ahead starts from and the position on it, m (the same fraction
-        of its length): the lane whose path keeps the road farthest, ``lane_id`` itself where none goes farther.
+        of its length): ``lane_id`` itself unless its path turns off the road, or leaves the route, where a
+        lane of the edge beside it would not (see the module's description).
 
         Raises
         ------
@@ -74,7 +68,7 @@ class RoadLanes:
         return chosen, min(max(fraction, 0.0), 1.0) * road.length_m
 
     def _road_lane(self, lane_id: str, route_edges: tuple[str, ...] | None) -> str:
-        """:meth:`__call__`'s lane worked out: the sibling lanes ranked by how far their paths keep the road."""
+        """:meth:`__call__`'s lane worked out from where each lane of the edge leads at the edge's end."""
         matched = self.road_map.lane(lane_id)
         if matched.is_internal:
             return lane_id
@@ -83,29 +77,39 @@ class RoadLanes:
             for sibling in self._lanes_of(matched.edge_id)
             if sibling == lane_id or _shares_a_class(matched, self.road_map.lane(sibling))
         ]
-        if len(siblings) < 2:
+        leads = {sibling: self.leads_to(sibling, route_edges) for sibling in siblings}
+        next_edge, keeps = leads[lane_id]
+        if route_edges:  # the route says where the vehicle goes: a lane that leads there
+            along = [sibling for sibling in siblings if leads[sibling][0] is not None]
+            return lane_id if next_edge is not None or not along else _nearest(self.road_map, matched, along)
+        on_road = [sibling for sibling in siblings if leads[sibling][1]]
+        taking_the_turn = sum(next_edge is not None and leads[sibling][0] == next_edge for sibling in siblings)
+        if keeps or not on_road or taking_the_turn > len(on_road):
             return lane_id
-        kept_m = {sibling: self.road_kept_m(sibling, route_edges) for sibling in siblings}
-        farthest_m = max(kept_m.values())
-        if kept_m[lane_id] >= farthest_m - _TIE_M:
-            return lane_id
-        best = [sibling for sibling in siblings if kept_m[sibling] >= farthest_m - _TIE_M]
-        return min(best, key=lambda sibling: abs(self.road_map.lane(sibling).index - matched.index))
+        return _nearest(self.road_map, matched, on_road)
 
-    def road_kept_m(self, lane_id: str, route_edges: Sequence[str] | None = None) -> float:
-        """How far the path ahead of the start of ``lane_id`` keeps to the road, up to the reach, m: along a route,
-        as far as it goes; predicted, as far as its first turn off the road (a junction connection that is not
-        the road's continuation), since the predicted path is to follow the road, never a guessed turn."""
+    def leads_to(self, lane_id: str, route_edges: Sequence[str] | None = None) -> tuple[str | None, bool]:
+        """The edge the path ahead of ``lane_id`` (along the route, else predicted) reaches at the lane's end (None
+        where it ends there) and whether it keeps the road on the way (no junction connection that is a turn)."""
         lane = self.road_map.lane(lane_id)
-        lanes, kind = self.lookahead.lanes_ahead(lane_id, lane.length_m, lane.length_m + self.reach_m, route_edges)
-        kept_m, previous = lane.length_m, lane
+        lanes, _ = self.lookahead.lanes_ahead(lane_id, lane.length_m, lane.length_m + _ACROSS_M, route_edges)
+        previous = lane
         for following_id in lanes[1:]:
             following = self.road_map.lane(following_id)
-            if kind is PathKind.PREDICTED and not _keeps_road(previous, following):
-                break
-            kept_m += following.length_m
+            if not _keeps_road(previous, following):
+                return self._edge_after(lanes, following_id), False
+            if not following.is_internal:
+                return following.edge_id, True
             previous = following
-        return min(kept_m, lane.length_m + self.reach_m)
+        return None, False
+
+    def _edge_after(self, lanes: Sequence[str], lane_id: str) -> str | None:
+        """The first normal lane's edge in ``lanes`` from ``lane_id`` on (None if there is none)."""
+        for following_id in lanes[lanes.index(lane_id) :]:
+            following = self.road_map.lane(following_id)
+            if not following.is_internal:
+                return following.edge_id
+        return None
 
     def _lanes_of(self, edge_id: str) -> list[str]:
         """The lanes of a normal edge, rightmost first (all edges indexed at the first call)."""
@@ -130,6 +134,11 @@ def _keeps_road(previous: Lane, following: Lane) -> bool:
     if previous.is_internal:
         return previous.continues_road
     return previous.continues_into == following.lane_id
+
+
+def _nearest(road_map: RoadMap, matched: Lane, lanes: Sequence[str]) -> str:
+    """The lane of ``lanes`` nearest ``matched`` by lane index (the rightmost of two as near)."""
+    return min(lanes, key=lambda lane_id: abs(road_map.lane(lane_id).index - matched.index))
 
 
 def _shares_a_class(lane: Lane, other: Lane) -> bool:
