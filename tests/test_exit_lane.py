@@ -145,3 +145,46 @@ def test_through_vehicles_never_get_the_ramps_warning_and_ramp_vehicles_get_it_i
         # A fix cannot tell the exit lane from its neighbour: the ramp counts from the vehicle's first fix on it.
         assert s <= max(required_s, ramp_start_s) + v * FIX_INTERVAL_S, (vehicle_id, s, required_s, ramp_start_s)
         assert s < curve_s, (vehicle_id, s, curve_s)
+
+
+def _level_and_curves(response) -> tuple[int, set[str]]:
+    assert response.status_code == 200, response.text
+    answer = response.json()
+    return answer["level"], {trigger["curve_id"].split("@")[0] for trigger in answer["triggers"]}
+
+
+def test_a_query_that_gives_its_lane_keeps_its_lanes_path(client, exit_map: RoadMap) -> None:
+    # 20 m before the diverge on the exit lane, formula (1) (56 m at 80 km/h) reaches the ramp's curve:
+    # a unit that knows its lane (the co-simulation's exact positions) is warned as before.
+    lane_pos_m = exit_map.lane("WD_0").length_m - 20.0
+    for lane_id, warned in (("WD_0", True), ("WD_1", False)):
+        query = {
+            "vehicle_id": f"exact-{lane_id}",
+            "category": "N",
+            "speed_kmh": SPEED_MPS * 3.6,
+            "lane_id": lane_id,
+            "lane_pos_m": lane_pos_m,
+            "timestamp_s": 1000.0,
+        }
+        level, curves = _level_and_curves(client.post("/v1/warning", json=query))
+        assert (level > 0 and "DR" in curves) == warned, (lane_id, level, curves)
+
+
+def test_a_route_onto_the_ramp_is_followed_from_any_lane(client, exit_map: RoadMap) -> None:
+    # A fix on the road's middle lane 20 m before the diverge, with a route onto the ramp: the path follows the
+    # route from the lane that leads there, and warns of the ramp's curve; without the route it does not.
+    lane_pos_m = exit_map.lane("WD_1").length_m - 20.0
+    shape = np.asarray(exit_map.lane_shape("WD_1"))
+    x, y = shape[0] + (shape[-1] - shape[0]) * lane_pos_m / exit_map.lane("WD_1").length_m
+    for route, warned in ((["WD", "DR"], True), (None, False)):
+        query = {
+            "vehicle_id": f"routed-{route is not None}",
+            "category": "N",
+            "speed_kmh": SPEED_MPS * 3.6,
+            "position": {"x": float(x), "y": float(y)},
+            "heading_deg": 90.0,
+            "timestamp_s": 1000.0,
+            **({"route": route} if route else {}),
+        }
+        level, curves = _level_and_curves(client.post("/v1/warning", json=query))
+        assert (level > 0 and "DR" in curves) == warned, (route, level, curves)
