@@ -21,17 +21,18 @@ RAMP_STRAIGHT_M = 40.0
 RAMP_RADIUS_M = 40.0
 
 
-def ramp_shape() -> np.ndarray:
-    """The ramp's authored shape from D: straight, a 90 degree right curve of :data:`RAMP_RADIUS_M`, straight."""
-    pieces = (straight(RAMP_STRAIGHT_M), arc(RAMP_RADIUS_M, 90.0, "right"), straight(100.0))
+def ramp_shape(straight_m: float = RAMP_STRAIGHT_M) -> np.ndarray:
+    """The ramp's authored shape from D: ``straight_m`` straight, a 90 degree right curve of :data:`RAMP_RADIUS_M`,
+    straight."""
+    pieces = (straight(straight_m), arc(RAMP_RADIUS_M, 90.0, "right"), straight(100.0))
     xy, _ = sample_pieces(pieces, 1.0, DIVERGE_XY, -math.radians(RAMP_ANGLE_DEG))
     return xy
 
 
-def ramp_curve_start_xy() -> np.ndarray:
-    """Where the ramp's curve starts as authored: :data:`RAMP_STRAIGHT_M` along the ramp from D."""
+def ramp_curve_start_xy(straight_m: float = RAMP_STRAIGHT_M) -> np.ndarray:
+    """Where the ramp's curve starts as authored: ``straight_m`` along the ramp from D."""
     heading_rad = -math.radians(RAMP_ANGLE_DEG)
-    return np.array(DIVERGE_XY) + RAMP_STRAIGHT_M * np.array([math.cos(heading_rad), math.sin(heading_rad)])
+    return np.array(DIVERGE_XY) + straight_m * np.array([math.cos(heading_rad), math.sin(heading_rad)])
 
 
 def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, priority: int, name: str) -> str:
@@ -42,11 +43,11 @@ def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, pr
     )
 
 
-def write_exit_ramp(folder: Path, ramp_lanes: int = 1) -> Path:
+def write_exit_ramp(folder: Path, ramp_lanes: int = 1, straight_m: float = RAMP_STRAIGHT_M) -> Path:
     """Write and netconvert the road W -> D -> E (three lanes, then two) and the ramp D -> R of ``ramp_lanes`` lanes
-    (1 or 2), with the connections of an exit: the right ``ramp_lanes`` lanes of WD onto the ramp alone, the
-    others onto DE."""
-    ramp = ramp_shape()
+    (1 or 2) whose curve starts ``straight_m`` from D, with the connections of an exit: the right ``ramp_lanes``
+    lanes of WD onto the ramp alone, the others onto DE."""
+    ramp = ramp_shape(straight_m)
     nodes = [node_xml("W", (0.0, 0.0)), node_xml("D", DIVERGE_XY), node_xml("E", (900.0, 0.0)), node_xml("R", ramp[-1])]
     edges = [
         _edge("WD", "W", "D", np.array([(0.0, 0.0), DIVERGE_XY]), 3, 3, "Motorway"),
