@@ -46,7 +46,9 @@ road, at most 1 % no-match faults).
 Run with ``python -m benchmarks.telematics [--quick] [--out DIR]``: about 4.5 CPU-minutes in all
 (SUMO, the client and the service, which mostly take turns): 9.5 minutes measured on two cores
 shared with other work (load average 5 to 7), 20 minutes at load average 8 to 9. ``--quick``
-does about a fifth of the work (4 minutes at load average 9).
+does about a fifth of the work (4 minutes at load average 9). ``--city "Bad Hersfeld"`` runs one city
+(by the start of its name), ``--one-hz`` the 1 Hz feeds alone, those the issue's targets are on (the
+Bad Hersfeld quick fleet at 1 Hz: some 2 minutes at load average 7).
 """
 
 from __future__ import annotations
@@ -195,22 +197,24 @@ def _prepare(city: City, quick: bool, out: Path) -> _Prepared:
     return _Prepared(net, trajectories, duration_s)
 
 
-def _city_runs(city: City, prepared: _Prepared, sink: IO[str]) -> dict:
-    """One city: start its service, feed it every way and judge each feed against the reference."""
+def _city_runs(city: City, prepared: _Prepared, sink: IO[str], feeds: tuple[Feed, ...] = FEEDS) -> dict:
+    """One city: start its service, feed it each of ``feeds`` and judge each against the reference."""
     if prepared.net is None or prepared.trajectories is None:
         print(prepared.skipped, flush=True)
         return {"skipped": prepared.skipped}
     service = csws_serve(Path(":memory:"), "--net", str(prepared.net))
     try:
         _log(f"{city.name}: csws serve ready in {service.startup_s:.0f} s")
-        runs = _fed(city.name, prepared.net, prepared.trajectories, service.url, sink)
+        runs = _fed(city.name, prepared.net, prepared.trajectories, service.url, sink, feeds)
     finally:
         service.stop()
     return {"vehicles": len(prepared.trajectories.vehicle_ids), "duration_s": prepared.duration_s, "feeds": runs}
 
 
-def _fed(city: str, net: Path, trajectories: Trajectories, url: str, sink: IO[str]) -> dict:
-    """The service fed the reference, then every feed, each judged against the reference."""
+def _fed(
+    city: str, net: Path, trajectories: Trajectories, url: str, sink: IO[str], feeds: tuple[Feed, ...] = FEEDS
+) -> dict:
+    """The service fed the reference, then each of ``feeds``, each judged against the reference."""
     fields = query_fields(url)
     _log(f"{city}: the query schema takes accuracy_m: {fields.accuracy or 'no (not sent)'}")
     started = time.perf_counter()
@@ -220,7 +224,7 @@ def _fed(city: str, net: Path, trajectories: Trajectories, url: str, sink: IO[st
         f"{1000.0 * reference.server_ms / len(reference.rows):.0f} us per query in the service"
     )
     runs = {}
-    for index, feed in enumerate(FEEDS, start=1):
+    for index, feed in enumerate(feeds, start=1):
         answers = feed_service(url, net, trajectories, feed, f"f{index}", fields, _log)
         runs[feed.name] = _judged(city, feed, trajectories, reference, answers, sink)
     return runs
@@ -237,17 +241,20 @@ def _judged(
     return figures
 
 
-def run(quick: bool = False, out: Path = DEFAULT_OUT) -> dict:
-    """Every city's runs, their figures streamed to ``out/telematics.jsonl``."""
+def run(
+    quick: bool = False, out: Path = DEFAULT_OUT, cities: tuple[City, ...] = CITIES, feeds: tuple[Feed, ...] = FEEDS
+) -> dict:
+    """The runs of ``cities`` (all by default) with ``feeds``, their figures streamed to ``out/telematics.jsonl``."""
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     # one city after another is prepared in the background while the one before is fed
     with open(out / "telematics.jsonl", "w", encoding="utf-8") as sink, ThreadPoolExecutor(1) as preparing:
-        prepared = [preparing.submit(_prepare, city, quick, out) for city in CITIES]
-        cities = {
-            city.name: _city_runs(city, ready.result(), sink) for city, ready in zip(CITIES, prepared, strict=True)
+        prepared = [preparing.submit(_prepare, city, quick, out) for city in cities]
+        runs = {
+            city.name: _city_runs(city, ready.result(), sink, feeds)
+            for city, ready in zip(cities, prepared, strict=True)
         }
-    return {"cities": cities, "quick": quick, "seconds": time.perf_counter() - started}
+    return {"cities": runs, "quick": quick, "seconds": time.perf_counter() - started}
 
 
 def _city_rows(name: str, city: dict) -> list[Row]:
@@ -307,8 +314,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.telematics", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller fleets for a shorter time")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output directory (default out/telematics)")
+    parser.add_argument("--city", action="append", help="run only the city whose name starts with this (repeatable)")
+    parser.add_argument("--one-hz", action="store_true", help="only the 1 Hz feeds (those the targets are on)")
     args = parser.parse_args(argv)
-    figures = run(args.quick, args.out)
+    cities = tuple(city for city in CITIES if not args.city or any(city.name.startswith(n) for n in args.city))
+    if not cities:
+        parser.error(
+            f"no city starts with {' or '.join(args.city)}: the cities are {', '.join(c.name for c in CITIES)}"
+        )
+    feeds = tuple(feed for feed in FEEDS if feed.interval_s == 1.0) if args.one_hz else FEEDS
+    figures = run(args.quick, args.out, cities, feeds)
     print(table(rows(figures)))
     print(f"{figures['seconds']:.0f} s; every run's figures in {args.out / 'telematics.jsonl'}")
     return 0
