@@ -216,3 +216,14 @@ def test_a_route_onto_the_ramp_is_followed_from_any_lane(client, exit_map: RoadM
         }
         level, curves = _level_and_curves(client.post("/v1/warning", json=query))
         assert (level > 0 and "DR" in curves) == warned, (route, level, curves)
+
+
+def test_the_horizon_of_a_fix_on_the_exit_lane_follows_the_road(client, exit_map: RoadMap) -> None:
+    shape = np.asarray(exit_map.lane_shape("WD_0"))
+    x, y = shape[-1] - (shape[-1] - shape[0]) * 50.0 / float(np.hypot(*(shape[-1] - shape[0])))
+    fix = client.get("/v1/horizon", params={"x": x, "y": y, "heading_deg": 90.0, "length_m": 300.0}).json()
+    assert fix["matched"]["lane_id"] == "WD_0"  # the fix lies on the exit lane ...
+    assert fix["lanes"][0] == "WD_1" and "DR_0" not in fix["lanes"]  # ... its path ahead is the road's
+    assert not any(cpoi["curve_id"].startswith("DR@") for cpoi in fix["cpois"])
+    lane = client.get("/v1/horizon", params={"lane_id": "WD_0", "lane_pos_m": 350.0, "length_m": 300.0}).json()
+    assert "DR_0" in lane["lanes"] and any(cpoi["curve_id"].startswith("DR@") for cpoi in lane["cpois"])
