@@ -13,7 +13,9 @@ brakes: T = 0, 4.5.4) needs v^2 / (2 x_c).
   (exact kinematics), as early as with the earlier 0.3 g preliminary threshold;
 * approaching a queue's last car as SUMO's drivers do (cruising until a_req peaks between the earlier
   0.3 g and the default, then braking gently to a stop behind it), the default stays silent and the
-  earlier 0.3 g, still a fleet's setting, gives the preliminary warning.
+  earlier 0.3 g, still a fleet's setting, gives the preliminary warning;
+* the traffic benchmark's reference rules hold an accelerating subject's acceleration through the reaction
+  only where asked (as the object FCW reads x_r), by exact kinematics.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from test_fcw_traffic import _braking_lead, least_deceleration_mps2
 
+from csws.fcw.conforming import Lead, warning_due
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.physics import (
     EARLY_PRELIMINARY_A_REQ_MPS2,
@@ -186,3 +189,22 @@ def test_a_fleet_keeps_the_earlier_preliminary_threshold_through_its_settings_fi
     fleets = FleetFcwSettings(path)
     assert fleets.of("early", Category.N) == EARLY
     assert fleets.of("other", Category.N) == DEFAULT
+
+
+@settings(deadline=None, max_examples=200)
+@given(st.floats(20.0, 60.0), st.floats(HIGHEST_MIN_SPEED_MPS, 16.0), st.floats(0.1, 1.5))
+def test_the_traffic_benchmarks_rules_hold_an_accelerating_subjects_acceleration_only_where_asked(
+    clearance_m, subject_mps, accel_mps2
+):
+    """A subject accelerating toward a stopped car (SUMO's false warnings at 0.45 g): the rule is due where the
+    least deceleration avoiding contact after 1.2 s (3.22, exact kinematics here) reaches the threshold, with
+    the acceleration held through the reaction as the object FCW reads x_r, or with the subject steady through
+    it (the floor's least-demanding reading); at a TTC of at most 4 s (4.5.5 e)."""
+    threshold_mps2, reaction_s = DEFAULT.preliminary_a_req_mps2, DEFAULT.reaction_time_s
+    ttc_s = clearance_m / subject_mps
+    lead = Lead("tv", clearance_m, subject_mps, subject_accel_mps2=accel_mps2)
+    for held, accel_held_mps2 in ((True, accel_mps2), (False, 0.0)):
+        truth = least_deceleration_mps2(clearance_m, subject_mps, 0.0, accel_held_mps2, 0.0, reaction_s)
+        assume(abs(truth - threshold_mps2) > 1e-6 and abs(ttc_s - DEFAULT.max_ttc_s) > 1e-9)
+        due = warning_due(lead, reaction_s, threshold_mps2, DEFAULT.min_speed_mps, False, held)
+        assert due is (truth >= threshold_mps2 and ttc_s <= DEFAULT.max_ttc_s), (held, truth)
