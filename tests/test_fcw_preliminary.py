@@ -180,15 +180,21 @@ def test_a_queue_approach_whose_a_req_peaks_below_the_default_gets_no_warning(sp
 
 def test_a_fleet_keeps_the_earlier_preliminary_threshold_through_its_settings_file(tmp_path):
     """The earlier 0.3 g is a fleet's setting: a settings file that names it gives that fleet exactly the
-    earlier settings, the other fleets the default."""
+    earlier settings, the other fleets the default; a fleet that lowers its collision threshold below the
+    default preliminary one is not refused and keeps a preliminary threshold below its own."""
     from service.fcw_settings import FCW_SETTINGS_FORMAT, FleetFcwSettings
 
     path = tmp_path / "fcw.json"
-    fleet = {"preliminary_a_req_mps2": EARLY_PRELIMINARY_A_REQ_MPS2}
-    path.write_text(json.dumps({"format": FCW_SETTINGS_FORMAT, "fleets": {"early": fleet}}), encoding="utf-8")
+    early = {"preliminary_a_req_mps2": EARLY_PRELIMINARY_A_REQ_MPS2}
+    lower = {"collision_a_req_mps2": 0.9 * DEFAULT.preliminary_a_req_mps2}  # below the default preliminary
+    content = {"format": FCW_SETTINGS_FORMAT, "fleets": {"early": early, "lower": lower}}
+    path.write_text(json.dumps(content), encoding="utf-8")
     fleets = FleetFcwSettings(path)
     assert fleets.of("early", Category.N) == EARLY
     assert fleets.of("other", Category.N) == DEFAULT
+    own = fleets.of("lower", Category.N)  # still a preliminary warning, at the default's share of its threshold
+    share = DEFAULT.preliminary_a_req_mps2 / DEFAULT.collision_a_req_mps2
+    assert own.preliminary_a_req_mps2 == pytest.approx(share * own.collision_a_req_mps2)
 
 
 @settings(deadline=None, max_examples=200)
