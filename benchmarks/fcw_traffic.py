@@ -31,14 +31,14 @@ is that threshold with those least figures, to SUMO's true leader (perfect perce
 suppression 4.5.5 allows that SUMO's values show: below V_min = 11.2 m/s, the highest 4.3.3 allows
 (4.5.5 g), at a TTC above 4 s (4.5.5 e), while the subject already decelerates at the threshold
 (4.5.5 a), and, in a second variant, whenever the driver brakes (4.5.5 d: SUMO's brake light).
-Run as a **reference system on the same data** (its level held :attr:`FcwSettings.level_hold_s`
+Run as a **reference system on the same data** (:mod:`benchmarks.fcw_references`, its level held
 as the design's is), its false warnings per vehicle-hour are a floor: any conforming system warns
 at those moments too, and they are false by this benchmark's rule. Each of the design's false
 onsets is also classed **required by the standard** (the least-demanding warning, without
 4.5.5 d, was due at that frame or the next) or **by design choice** (the design's reaction time
 of 1.2 s and its preliminary warning warned earlier), with how much earlier.
 
-Run with ``python -m benchmarks.fcw_traffic``; about 1-5 minutes.
+Run with ``python -m benchmarks.fcw_traffic``; 8-15 minutes on a shared two-core machine (load 6-15).
 """
 
 from __future__ import annotations
@@ -58,21 +58,19 @@ from csws.ahead.lookahead import LookAhead
 from csws.cosim.categories import category_of
 from csws.cosim.config import _config_scenario
 from csws.cosim.fcw import BRAKE_LIGHT, FleetFcw
-from csws.fcw.conforming import STANDARD_A_REQ_MPS2, Lead, standard_requires_warning, warning_due
-from csws.fcw.physics import HIGHEST_MIN_SPEED_MPS, MIN_REACTION_TIME_S, STANDARD_GRAVITY_MPS2, FcwSettings
+from csws.fcw.conforming import Lead, standard_requires_warning
+from csws.fcw.physics import MIN_REACTION_TIME_S
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home
+
+from .fcw_references import FOLLOW_S, NEAR_TTC_S, REFERENCES, Pending, Reference, settle, situation_of
 
 STEP_S = 0.1
 SCENARIOS = {
     "Bad Hersfeld": networks_dir() / "badhersfeld.sumocfg",
     "fleet road": networks_dir() / "fleet_scenario" / "fleet.sumocfg",
 }
-#: A warning is judged by what follows it within this time, s.
-FOLLOW_S = 4.0
-#: A warning is false if the true TTC stays above this in the following FOLLOW_S, s.
-NEAR_TTC_S = 1.5
 #: A conflict: the true TTC below this, s (or a collision).
 CONFLICT_TTC_S = 1.0
 #: A warning is in time for a conflict if it was on at least this long before it (4.5.4), s.
@@ -83,57 +81,8 @@ LEADER_RANGE_M = 200.0
 TURNING_DEG_PER_S = 3.0
 TARGET_FALSE_PER_HOUR = 0.1
 TARGET_MISSED = 0
-#: The design's settings (a commercial vehicle's, :class:`FcwSettings`).
-DESIGN = FcwSettings()
 #: A design onset is "required by the standard" where the least-demanding warning was due within one frame, s.
 REQUIRED_WITHIN_S = STEP_S
-#: The reference systems on SUMO's true leader by name: a warning on a_req alone (:func:`warning_due`) after a
-#: reaction time (s), at a threshold (m/s^2), from a least speed (m/s), silent or not while the driver brakes.
-#: The first two are the least-demanding conforming warning (the floor); the others say which of the
-#: design's choices its false warnings come from (its collision warning, its preliminary one, and that
-#: preliminary one with shorter reaction times or higher thresholds).
-REFERENCES: dict[str, tuple[float, float, float, bool]] = {
-    "standard's latest warning (0.8 s, 0.68 g)": (
-        MIN_REACTION_TIME_S,
-        STANDARD_A_REQ_MPS2,
-        HIGHEST_MIN_SPEED_MPS,
-        False,
-    ),
-    "standard's latest warning, silent while braking": (
-        MIN_REACTION_TIME_S,
-        STANDARD_A_REQ_MPS2,
-        HIGHEST_MIN_SPEED_MPS,
-        True,
-    ),
-    "design's collision warning alone (1.2 s, 0.5 g)": (
-        DESIGN.reaction_time_s,
-        DESIGN.collision_a_req_mps2,
-        DESIGN.min_speed_mps,
-        False,
-    ),
-    "design's preliminary warning (1.2 s, 0.3 g)": (
-        DESIGN.reaction_time_s,
-        DESIGN.preliminary_a_req_mps2,
-        DESIGN.min_speed_mps,
-        False,
-    ),
-    "preliminary warning at 1.0 s, 0.3 g": (1.0, DESIGN.preliminary_a_req_mps2, DESIGN.min_speed_mps, False),
-    "preliminary warning at 0.8 s, 0.3 g": (
-        MIN_REACTION_TIME_S,
-        DESIGN.preliminary_a_req_mps2,
-        DESIGN.min_speed_mps,
-        False,
-    ),
-    **{
-        f"preliminary warning at 1.2 s, {g:g} g": (
-            DESIGN.reaction_time_s,
-            g * STANDARD_GRAVITY_MPS2,
-            DESIGN.min_speed_mps,
-            False,
-        )
-        for g in (0.35, 0.4, 0.45)
-    },
-}
 
 
 @dataclass
@@ -156,52 +105,6 @@ class _Counts:
     collisions: int = 0
 
 
-@dataclass
-class _Pending:
-    """A warning onset waiting for what follows it (``required_after_s``: when, after it, the least-demanding
-    conforming warning was first due, None while it was not)."""
-
-    vehicle_id: str
-    time_s: float
-    situation: str
-    near: bool = False
-    required_after_s: float | None = None
-
-
-@dataclass
-class _Reference:
-    """A reference system's warnings in one run (a rule of :data:`REFERENCES`), held as the design holds its level."""
-
-    rule: tuple[float, float, float, bool]
-    hold_s: float = DESIGN.level_hold_s
-    required_at: dict[str, float] = field(default_factory=dict)
-    on: set[str] = field(default_factory=set)
-    pending: list[_Pending] = field(default_factory=list)
-    onsets: int = 0
-    false_warnings: int = 0
-    false_situations: Counter[str] = field(default_factory=Counter)
-
-    def step(self, sumo: Any, now_s: float, vehicle_id: str, lead: Lead, turning: bool) -> None:
-        """One vehicle's step: whether its rule's warning is due (held); an onset waits to be judged."""
-        if warning_due(lead, *self.rule):
-            self.required_at[vehicle_id] = now_s
-        on = now_s - self.required_at.get(vehicle_id, -math.inf) <= self.hold_s + 1e-9
-        if on and vehicle_id not in self.on:
-            self.onsets += 1
-            situation = _situation(sumo, vehicle_id, lead.leader_id, lead.leader_id, turning)
-            self.pending.append(_Pending(vehicle_id, now_s, situation))
-        if on:
-            self.on.add(vehicle_id)
-        else:
-            self.on.discard(vehicle_id)
-
-    def settle(self, now_s: float) -> None:
-        """Judge the onsets whose FOLLOW_S has passed."""
-        self.pending, false = _settle(self.pending, now_s)
-        self.false_warnings += len(false)
-        self.false_situations.update(onset.situation for onset in false)
-
-
 def _read_lead(sumo: Any, vehicle_id: str) -> Lead:
     """The vehicle and its leader along its lanes, SUMO's truth."""
     vehicle = sumo.vehicle
@@ -221,29 +124,14 @@ def _read_lead(sumo: Any, vehicle_id: str) -> Lead:
     )
 
 
-def _situation(sumo: Any, vehicle_id: str, target_id: str | None, leader_id: str | None, yaw_turning: bool) -> str:
-    """Where a warning came: its target stopped or moving, the subject's leader or another vehicle, turning."""
-    if target_id is None:
-        return "no target"
-    vehicle = sumo.vehicle
-    parts = ["target stopped" if vehicle.getSpeed(target_id) < 0.5 else "target moving"]
-    if target_id != leader_id:
-        parts.append("not the leader (other lane or road)")
-    elif vehicle.getRoadID(target_id) != vehicle.getRoadID(vehicle_id):
-        parts.append("leader across a junction")
-    if yaw_turning:
-        parts.append("subject turning")
-    return ", ".join(parts)
-
-
 @dataclass
 class _Watch:
     """What a scenario's run keeps per vehicle between steps."""
 
     counts: _Counts = field(default_factory=_Counts)
-    pending: list[_Pending] = field(default_factory=list)
-    references: dict[str, _Reference] = field(
-        default_factory=lambda: {name: _Reference(rule) for name, rule in REFERENCES.items()}
+    pending: list[Pending] = field(default_factory=list)
+    references: dict[str, Reference] = field(
+        default_factory=lambda: {name: Reference(rule) for name, rule in REFERENCES.items()}
     )
     levels: dict[str, int] = field(default_factory=dict)
     warned_since: dict[str, float] = field(default_factory=dict)
@@ -351,8 +239,8 @@ def _watch_vehicle(
     if level > 0 and previous == 0:
         watch.warned_since[vehicle_id] = now_s
         watch.counts.onsets += 1
-        situation = _situation(sumo, vehicle_id, target_id, leader_id, turning > TURNING_DEG_PER_S)
-        watch.pending.append(_Pending(vehicle_id, now_s, situation))
+        situation = situation_of(sumo, vehicle_id, target_id, leader_id, turning > TURNING_DEG_PER_S)
+        watch.pending.append(Pending(vehicle_id, now_s, situation))
     near = ttc_s < NEAR_TTC_S or collided
     for waiting in _waiting_for(watch, vehicle_id):
         waiting.near = waiting.near or near
@@ -368,7 +256,7 @@ def _watch_vehicle(
         watch.in_conflict.discard(vehicle_id)
 
 
-def _waiting_for(watch: _Watch, vehicle_id: str) -> list[_Pending]:
+def _waiting_for(watch: _Watch, vehicle_id: str) -> list[Pending]:
     """The onsets of one vehicle, the design's and the reference systems', still waiting to be judged."""
     waiting = [w for w in watch.pending if w.vehicle_id == vehicle_id]
     for reference in watch.references.values():
@@ -392,18 +280,11 @@ def _count_conflict(
     counts.missed_situations[f"{speed_mps:.0f} m/s, warned {'late' if onset_s <= now_s else 'never'}"] += 1
 
 
-def _settle(pending: list[_Pending], now_s: float) -> tuple[list[_Pending], list[_Pending]]:
-    """The onsets still waiting for FOLLOW_S to pass, and those judged false (none near in FOLLOW_S)."""
-    waiting = [onset for onset in pending if now_s - onset.time_s < FOLLOW_S]
-    judged = [onset for onset in pending if now_s - onset.time_s >= FOLLOW_S]
-    return waiting, [onset for onset in judged if not onset.near]
-
-
 def _settle_all(watch: _Watch, now_s: float) -> None:
     """Judge the design's and the reference systems' onsets whose FOLLOW_S has passed; class the design's
     false ones by whether the least-demanding conforming warning was due within one frame of them."""
     counts = watch.counts
-    watch.pending, false = _settle(watch.pending, now_s)
+    watch.pending, false = settle(watch.pending, now_s)
     for onset in false:
         counts.false_warnings += 1
         counts.false_situations[onset.situation] += 1

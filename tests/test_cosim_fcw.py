@@ -198,7 +198,12 @@ def test_the_driver_brakes_on_the_fcw_warning_and_stops_short_of_the_lead(approa
     def stopped_at_m(subject_rows: list[dict]) -> float:
         return _true_clearance_m(next(row for row in subject_rows if float(row["speed_kmh"]) < 1.0))
 
-    assert stopped_at_m(rows) > stopped_at_m(_subject(without_rows)) + 10.0
+    # It stops where the reaction at the test speed and the braking at its deceleration end, from the warning's
+    # clearance (within a step's travel), short of where SUMO's own driver stops.
+    travel_m = SPEED_MPS * settings.reaction_s + SPEED_MPS**2 / (2.0 * settings.decel_mps2)
+    expected_m = float(with_events[0]["fcw_range_m"]) - travel_m
+    assert stopped_at_m(rows) == pytest.approx(expected_m, abs=SPEED_MPS * STEP_S)
+    assert stopped_at_m(rows) > stopped_at_m(_subject(without_rows)) + SPEED_MPS * STEP_S
     assert min(map(_true_clearance_m, rows)) > 0.0
 
 

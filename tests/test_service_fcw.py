@@ -329,7 +329,7 @@ def curve_client(tmp_path):
 
 
 def test_the_answer_shows_the_fcw_over_the_curve_warning_by_the_priority(curve_client):
-    """15 m before curve 1 of Table 7 at 80 km/h a truck gets the curve's level 2; a car 17.6 m ahead closing at
+    """15 m before curve 1 of Table 7 at 80 km/h a truck gets the curve's level 2; a car 16.5 m ahead closing at
     8 m/s a
     preliminary collision warning (level 1), one stopped 28 m ahead a collision warning (level 2)."""
     speed_mps = 80.0 / 3.6
@@ -337,7 +337,7 @@ def test_the_answer_shows_the_fcw_over_the_curve_warning_by_the_priority(curve_c
     levels = {}
     for name, objects in (
         ("none", []),
-        ("slower", [_stopped_car(17.6, 8.0)]),
+        ("slower", [_stopped_car(16.5, 8.0)]),
         ("near", [_stopped_car(28.0, speed_mps)]),
     ):
         answer = curve_client.post("/v1/warning", json={"vehicle_id": name, **at_curve, "objects": objects}).json()
@@ -345,12 +345,12 @@ def test_the_answer_shows_the_fcw_over_the_curve_warning_by_the_priority(curve_c
     curve_2 = {"visual": "curve-warning-red-flashing", "audible": "warning-tone"}
     fcw_2 = {"visual": FCW_HMI_HINTS[2].visual, "audible": FCW_HMI_HINTS[2].audible}
     assert levels == {"none": (2, 0, curve_2), "slower": (2, 1, curve_2), "near": (2, 2, fcw_2)}
-    assert _stopped_car_level(17.6, 8.0) == 1 and _stopped_car_level(28.0, speed_mps) == 2
+    assert _stopped_car_level(16.5, 8.0) == 1 and _stopped_car_level(28.0, speed_mps) == 2
 
 
 def test_an_fcw_level_without_a_curve_warning_shows_in_the_hmi(client):
-    answer = client.post("/v1/warning", json=_query("alone", objects=[_stopped_car(74.0, 20.0)])).json()
-    assert (answer["level"], answer["fcw"]["level"]) == (0, _stopped_car_level(74.0, 20.0)) == (0, 1)
+    answer = client.post("/v1/warning", json=_query("alone", objects=[_stopped_car(67.0, 20.0)])).json()
+    assert (answer["level"], answer["fcw"]["level"]) == (0, _stopped_car_level(67.0, 20.0)) == (0, 1)
     assert answer["hmi"] == {"visual": FCW_HMI_HINTS[1].visual, "audible": FCW_HMI_HINTS[1].audible}
 
 
