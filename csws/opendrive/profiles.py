@@ -15,6 +15,7 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,7 +25,10 @@ from csws.road.sharing import Run
 
 from .exact import ExactLane, exact_path, read_exact
 
-__all__ = ["exact_lanes_beside", "with_exact_profiles", "curve_slopes"]
+if TYPE_CHECKING:
+    from csws.road.roadmap import RoadMap
+
+__all__ = ["exact_lanes_beside", "with_exact_profiles", "curve_slopes", "slopes_by_curve_id"]
 
 
 def exact_lanes_beside(net_path: str | Path) -> dict[str, ExactLane] | None:
@@ -118,3 +122,19 @@ def curve_slopes(
         return None
     toward_inside = 1.0 if lane_curve.curve.direction == "right" else -1.0
     return {"grade_pct": float(np.mean(grades)), "superelevation_pct": toward_inside * float(np.mean(rolls))}
+
+
+def slopes_by_curve_id(road_map: RoadMap) -> dict[str, dict[str, float]]:
+    """The grade and superelevation of every curve of the road map by its id (the curve index's, junction curves
+    included), for the answers that name curves by id; empty on a network without exact data.
+
+    A road's curve has one id on all its lanes (:func:`csws.road.chains.road_curve_id`); its figures are those
+    of the lane it is listed at, whose road shares the same elevation and cross slope.
+    """
+    found: dict[str, dict[str, float]] = {}
+    if not road_map.exact_lanes:
+        return found
+    for lane_curve in road_map.curves(include_junctions=True):
+        if lane_curve.curve_id not in found and (slopes := road_map.curve_slopes(lane_curve)) is not None:
+            found[lane_curve.curve_id] = slopes
+    return found

@@ -61,7 +61,11 @@ class SectionSpec:
 
 @dataclass(frozen=True)
 class RoadSpec:
-    """One road: id, start pose, plan view, lane sections, constant grade (m/m) and superelevation (rad)."""
+    """One road: id, start pose, plan view, lane sections, constant grade (m/m) and superelevation (rad).
+
+    ``elevation_poly`` and ``superelevation_poly``, when given, are the cubics (a, b, c, d) in s of the
+    elevation (m) and the superelevation (rad) over the whole road instead of the constants.
+    """
 
     road_id: str
     pieces: tuple[PlanPiece, ...]
@@ -72,6 +76,8 @@ class RoadSpec:
     grade: float = 0.0
     superelevation_rad: float = 0.0
     lefthand: bool = False
+    elevation_poly: tuple[float, float, float, float] | None = None
+    superelevation_poly: tuple[float, float, float, float] | None = None
 
     @property
     def length_m(self) -> float:
@@ -125,9 +131,13 @@ def _road(root: ElementTree.Element, spec: RoadSpec) -> None:
     for g in spec.geometries():
         geometry = _add(plan_view, "geometry", s=g.s, x=g.x, y=g.y, hdg=g.hdg, length=float(g.length))
         _add(geometry, g.kind, **{name: value for name, value in g.params})
-    _add(_add(road, "elevationProfile"), "elevation", s=0.0, a=0.0, b=float(spec.grade), c=0.0, d=0.0)
-    superelevation = float(spec.superelevation_rad)
-    _add(_add(road, "lateralProfile"), "superelevation", s=0.0, a=superelevation, b=0.0, c=0.0, d=0.0)
+    elevation = spec.elevation_poly or (0.0, spec.grade, 0.0, 0.0)
+    superelevation = spec.superelevation_poly or (spec.superelevation_rad, 0.0, 0.0, 0.0)
+    for profile, tag, cubic in (
+        ("elevationProfile", "elevation", elevation),
+        ("lateralProfile", "superelevation", superelevation),
+    ):
+        _add(_add(road, profile), tag, s=0.0, **{name: float(v) for name, v in zip("abcd", cubic, strict=True)})
     lanes = _add(road, "lanes")
     for section in spec.sections:
         _lanes(lanes, section)
