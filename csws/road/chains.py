@@ -21,14 +21,16 @@ from pathlib import Path
 
 import numpy as np
 
-from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
+from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
 from csws.road.sharing import (
+    JOINT_TOLERANCE_M,
     Run,
     chain_runs,
     clip_curve,
+    joined_at_run_joints,
     lateral_offsets_m,
     moved_curve,
-    moved_parts,
+    read_profile,
     reference_lanes,
     run_at,
 )
@@ -48,11 +50,6 @@ __all__ = [
     "stitch",
 ]
 
-#: Two consecutive lanes of a path whose joint points are closer than this are joined
-#: at one vertex, m. SUMO writes coordinates to the centimetre and makes the lanes of a
-#: connection meet exactly; a few-centimetre segment at the joint would otherwise read
-#: as a spurious sharp bend.
-JOINT_TOLERANCE_M = 0.1
 #: A road chain is cut at a joint where its polyline within this distance either side of the
 #: joint lies within :data:`STRAIGHT_DEVIATION_M` of a line, m: no curve of the road (radius
 #: at most R_c) runs through it, and each stretch is fitted on its own, which keeps the
@@ -255,7 +252,7 @@ class RoadChains:
             for run in runs
             for curve in self._fitted_curves(run.source, warning_radius_m, policy)
         )
-        return _joined_at_run_joints([curve for curve in moved if curve is not None])
+        return joined_at_run_joints([curve for curve in moved if curve is not None])
 
     def _kept(
         self, key: tuple[int, float, int, bool], policy: WarningSpeedPolicy, find: Callable[[], list[Curve]]
@@ -350,32 +347,6 @@ def road_curve_id(
     """
     lane, lane_pos_m, first_part_index = chains.curve_origin(chain, start_s, warning_radius_m, policy)
     return curve_id_of(edge_ids[lane], lane_pos_m), first_part_index
-
-
-def _joined_at_run_joints(curves: list[Curve]) -> list[Curve]:
-    """Curves in driving order with each pair that meets at a run joint turning the same way made one: the curve
-    of a road does not end where a chain switches from its own lanes' fit to a borrowed one (or back), so the
-    joint leaves no short fragment of it. Two curves of one fit never meet turning the same way (a curve is a
-    maximal stretch), so any that meet, within :data:`JOINT_TOLERANCE_M`, were cut by a joint."""
-    joined: list[Curve] = []
-    for curve in curves:
-        previous = joined[-1] if joined else None
-        if (
-            previous is not None
-            and previous.direction == curve.direction
-            and abs(curve.start_s - previous.end_s) <= JOINT_TOLERANCE_M
-        ):
-            joined[-1] = Curve(
-                previous.start_s,
-                curve.end_s,
-                previous.angle_deg + curve.angle_deg,
-                curve.direction,
-                min(previous.min_radius_m, curve.min_radius_m),
-                previous.parts + curve.parts,
-            )
-        else:
-            joined.append(curve)
-    return joined
 
 
 def _straight_joints(xy: np.ndarray, joint_s: np.ndarray) -> np.ndarray:
@@ -473,7 +444,7 @@ def fit_road_chains(
         lanes=tuple(members),
         xy=tuple(chain_xy),
         profiles=tuple(
-            _read_profile(chain, chain_xy[chain], chain_runs_, fitted) for chain, chain_runs_ in enumerate(read_runs)
+            read_profile(chain, chain_xy[chain], chain_runs_, fitted) for chain, chain_runs_ in enumerate(read_runs)
         ),
         runs=read_runs,
         fitted=fitted,
@@ -521,28 +492,6 @@ def _fit_sources(
     for chain, profile in given.items():
         fitted[chain] = profile
     return tuple(fitted)
-
-
-def _read_profile(
-    chain: int, xy: np.ndarray, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
-) -> RadiusProfile:
-    """A chain's profile: its own fit where it reads only that, else the fits its runs read, moved onto it."""
-    if len(runs) == 1 and runs[0].is_own:
-        own = fitted[chain]
-        assert own is not None  # a chain reading itself was fitted
-        return own
-    bounds, start_k, end_k = [0.0], [], []
-    for run in runs:
-        source = fitted[run.source]
-        assert source is not None  # every source was fitted
-        for end_s, k0, k1 in moved_parts(source.parts, run):
-            if end_s > bounds[-1]:
-                bounds.append(end_s)
-                start_k.append(k0)
-                end_k.append(k1)
-    vertex_s = _arc_length(xy)
-    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
 
 
 def index_curves(
