@@ -11,6 +11,11 @@ left, so every curve is seen on an outer and an inner lane, each way.
 * ``hairpins``: arcs of R 20-40 m turning 150-180 degrees, with short clothoids;
 * ``sections``: an arc road whose lane sections change the lane count on the straights.
 
+The scale run (:func:`scale_timing`): roads of the families in turn, :data:`JOINED_ROADS` at a time
+joined end to end (road and lane links) into one long road, until their lanes add up to
+:data:`SCALE_LANE_KM`; the time of ``csws import-opendrive`` (the command, as a user runs it) and of
+``RoadMap.load`` without the profile cache, against :data:`SCALE_TARGETS_S`.
+
 The truth of each SUMO lane is the design: the reference line's κ(s) and heading change θ(s) in closed
 form from the pieces, the lane's κ / (1 − κt) at its offset t every :data:`TRUTH_STEP_M` of road, its
 curves where that reaches 1/R_c with R_c = :data:`WARNING_RADIUS_M` (crossings interpolated), placed at
@@ -24,7 +29,10 @@ degrees or more overlapping no true curve.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -41,7 +49,19 @@ from csws.opendrive.writer import PlanPiece, RoadSpec, SectionSpec, arc, line, s
 from csws.road.network import read_sumo_net
 from csws.road.roadmap import RoadMap
 
-__all__ = ["run", "rows", "report", "FAMILIES", "SEED", "ROADS_PER_FAMILY", "WARNING_RADIUS_M", "EXACT_TARGETS"]
+__all__ = [
+    "run",
+    "rows",
+    "report",
+    "scale_timing",
+    "FAMILIES",
+    "SEED",
+    "ROADS_PER_FAMILY",
+    "WARNING_RADIUS_M",
+    "EXACT_TARGETS",
+    "SCALE_LANE_KM",
+    "SCALE_TARGETS_S",
+]
 
 SEED = 20261126
 ROADS_PER_FAMILY = 8
@@ -53,6 +73,12 @@ LEAD_M = 150.0
 LANES = SectionSpec(0.0, (3.5,), (3.5, 3.25))
 #: What the exact path must hold on every family: the curve ends and radii of the truth, none missed or false.
 EXACT_TARGETS = {"max_start_error_m": 0.01, "max_radius_error": 1e-5, "missed": 0, "false": 0}
+#: Lane length of the scale run's network, km.
+SCALE_LANE_KM = 100.0
+#: Roads joined end to end in the scale run's network.
+JOINED_ROADS = 8
+#: Targets of the scale run, s: the import (``csws import-opendrive``) and the load (``RoadMap.load``).
+SCALE_TARGETS_S = {"import_s": 10.0, "load_s": 3.0}
 
 
 def _turn(rng: np.random.Generator) -> float:
@@ -112,6 +138,14 @@ FAMILIES: dict[str, Callable[[np.random.Generator], list[PlanPiece]]] = {
 }
 
 
+def _sections(family: str, pieces: tuple[PlanPiece, ...]) -> tuple[SectionSpec, ...]:
+    """A road's lane sections: :data:`LANES`, and for ``sections`` one lane each way on its last half lead."""
+    if family != "sections":
+        return (LANES,)
+    total = sum(piece.length_m for piece in pieces)
+    return (LANES, SectionSpec(total - LEAD_M / 2, (3.5,), (3.5,)))
+
+
 def _roads(rng: np.random.Generator, per_family: int) -> tuple[list[RoadSpec], dict[str, str]]:
     """Every road, placed 3 km apart, and the family of each road id."""
     specs: list[RoadSpec] = []
@@ -120,14 +154,70 @@ def _roads(rng: np.random.Generator, per_family: int) -> tuple[list[RoadSpec], d
         for number in range(per_family):
             road_id = f"{family}{number}"
             pieces = (line(LEAD_M), *build(rng), line(LEAD_M))
-            sections: tuple[SectionSpec, ...] = (LANES,)
-            if family == "sections":
-                total = sum(piece.length_m for piece in pieces)
-                sections = (LANES, SectionSpec(total - LEAD_M / 2, (3.5,), (3.5,)))
             x_m, y_m = 3000.0 * (len(specs) % 8), 3000.0 * (len(specs) // 8)
-            specs.append(RoadSpec(road_id, pieces, x_m, y_m, float(rng.uniform(-math.pi, math.pi)), sections))
+            heading = float(rng.uniform(-math.pi, math.pi))
+            specs.append(RoadSpec(road_id, pieces, x_m, y_m, heading, _sections(family, pieces)))
             family_of[road_id] = family
     return specs, family_of
+
+
+def _lane_m(spec: RoadSpec) -> float:
+    """The lane length of a road: each section's length times its lane count, m."""
+    ends = [section.s_m for section in spec.sections[1:]] + [spec.length_m]
+    return sum(
+        (end - section.s_m) * (len(section.left_widths_m) + len(section.right_widths_m))
+        for section, end in zip(spec.sections, ends, strict=True)
+    )
+
+
+def joined_roads(rng: np.random.Generator, lane_km: float) -> list[RoadSpec]:
+    """Roads of the families in turn, :data:`JOINED_ROADS` at a time joined end to end, each such road placed
+    20 km apart, until their lanes add up to ``lane_km``."""
+    specs: list[RoadSpec] = []
+    builders = list(FAMILIES.items())
+    lane_m = 0.0
+    while lane_m < lane_km * 1000.0:
+        number = len(specs)
+        family, build = builders[number % len(builders)]
+        pieces = (line(LEAD_M), *build(rng), line(LEAD_M))
+        road_id = f"j{number}"
+        if number % JOINED_ROADS:
+            specs[-1] = dataclasses.replace(specs[-1], successor=road_id)
+            x_m, y_m, heading = specs[-1].end_pose()
+            spec = RoadSpec(
+                road_id, pieces, x_m, y_m, heading, _sections(family, pieces), predecessor=specs[-1].road_id
+            )
+        else:
+            group = number // JOINED_ROADS
+            x_m, y_m = 20_000.0 * (group % 8), 20_000.0 * (group // 8)
+            spec = RoadSpec(road_id, pieces, x_m, y_m, float(rng.uniform(-math.pi, math.pi)), _sections(family, pieces))
+        specs.append(spec)
+        lane_m += _lane_m(spec)
+    return specs
+
+
+def scale_timing(lane_km: float = SCALE_LANE_KM, seed: int = SEED) -> dict[str, float | int]:
+    """Seconds ``csws import-opendrive`` and ``RoadMap.load`` (no profile cache) take on a network of
+    ``lane_km`` of joined roads (:func:`joined_roads`), with its lane-km and lanes."""
+    specs = joined_roads(np.random.default_rng(seed), lane_km)
+    with tempfile.TemporaryDirectory(prefix="csws-bench-xodr-scale-") as work:
+        source = write_opendrive(Path(work) / "joined.xodr", specs)
+        net_path = Path(work) / "joined.net.xml.gz"
+        command = [sys.executable, "-m", "csws", "import-opendrive", str(source), "-o", str(net_path)]
+        started = time.perf_counter()
+        subprocess.run(command, check=True, capture_output=True)
+        import_s = time.perf_counter() - started
+        started = time.perf_counter()
+        road_map = RoadMap.load(net_path, WARNING_RADIUS_M, cache=False)
+        load_s = time.perf_counter() - started
+    return {
+        "roads": len(specs),
+        "lane_km": road_map.total_length_m / 1000.0,
+        "lanes": len(road_map.lane_ids),
+        "exact_lanes": len(road_map.exact_lanes),
+        "import_s": import_s,
+        "load_s": load_s,
+    }
 
 
 class TrueCurve(NamedTuple):
@@ -241,8 +331,9 @@ def _summary(scores: list[dict]) -> dict[str, float | int]:
     }
 
 
-def run(per_family: int = ROADS_PER_FAMILY, seed: int = SEED) -> dict:
-    """Every family's figures, fitted and exact: ``{family: {"fitted": {...}, "exact": {...}}}``, and timings."""
+def run(per_family: int = ROADS_PER_FAMILY, seed: int = SEED, scale_lane_km: float = SCALE_LANE_KM) -> dict:
+    """Every family's figures, fitted and exact: ``{family: {"fitted": {...}, "exact": {...}}}``, timings, and the
+    scale run's (:func:`scale_timing` of ``scale_lane_km``)."""
     specs, family_of = _roads(np.random.default_rng(seed), per_family)
     spec_of = {spec.road_id: spec for spec in specs}
     with tempfile.TemporaryDirectory(prefix="csws-bench-xodr-") as work:
@@ -267,6 +358,7 @@ def run(per_family: int = ROADS_PER_FAMILY, seed: int = SEED) -> dict:
         "load_fitted_s": fitted_s,
         "notes": len(result.notes),
     }
+    figures["scale"] = scale_timing(scale_lane_km, seed)
     return figures
 
 
@@ -293,6 +385,10 @@ def rows(figures: dict) -> list[Row]:
             f"{timing['lanes']} lanes",
         )
     )
+    scale = figures["scale"]
+    size = f"{scale['lane_km']:.0f} lane-km, {scale['roads']} roads, {scale['exact_lanes']} exact lanes"
+    for name, limit in SCALE_TARGETS_S.items():
+        table.append(at_most(f"opendrive scale: {name.replace('_s', '')}, s", scale[name], limit, size))
     return table
 
 
@@ -313,6 +409,7 @@ def report(figures: dict) -> str:
             values = figures[family][method]
             lines.append(f"{family:10} {method:7} " + "  ".join(f"{values[c]:>20.4g}" for c in columns))
     lines.append(f"timing: {figures['timing']}")
+    lines.append(f"scale: {figures['scale']} (targets {SCALE_TARGETS_S})")
     return "\n".join(lines)
 
 

@@ -73,6 +73,18 @@ class Trigger(BaseModel):
         "not required by 6.1 now",
     )
     position: XY = Field(description="the CPOI: first point of the part")
+    grade_pct: float | None = Field(
+        default=None,
+        description="the curve's mean grade in the driving direction, per cent (uphill positive), on a network "
+        "imported from OpenDRIVE; null elsewhere. Information beside V_w and S_w, which stay the standard's "
+        "(docs/road-model.md: how a grade would change S_w)",
+    )
+    superelevation_pct: float | None = Field(
+        default=None,
+        description="the curve's mean cross slope toward the inside of the turn, per cent (the banking that helps "
+        "positive), on a network imported from OpenDRIVE; null elsewhere. Information beside V_w, which stays the "
+        "standard's (docs/road-model.md: how banking would change V_w)",
+    )
 
 
 class Matched(BaseModel):
@@ -157,6 +169,8 @@ class WarningAnswer(BaseModel):
                         "warning_distance_m": 63.2,
                         "held": False,
                         "position": {"x": 1000.0, "y": 0.0},
+                        "grade_pct": None,
+                        "superelevation_pct": None,
                     },
                     "triggers": [],
                     "matched": {

@@ -72,8 +72,9 @@ def hmi_json(hmi: HmiHint) -> msgspec.Raw:
     return msgspec.Raw(_ENCODER.encode(_document(Hmi)(hmi.visual, hmi.audible)))
 
 
-def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
-    """A CPOI that triggers, as the contract's Trigger, at ``point``."""
+def _trigger(trigger: Trigger, point: dict[str, float], slopes: tuple[float | None, float | None]) -> dict[str, Any]:
+    """A CPOI that triggers, as the contract's Trigger, at ``point``, its curve's grade and superelevation
+    ``slopes`` (:meth:`service.horizon.CpoiPositions.slopes`)."""
     return {
         "curve_id": trigger.curve_id,
         "part_index": int(trigger.part_index),
@@ -84,6 +85,8 @@ def _trigger(trigger: Trigger, point: dict[str, float]) -> dict[str, Any]:
         "warning_distance_m": float(trigger.warning_distance_m),
         "held": bool(trigger.held),
         "position": point,
+        "grade_pct": slopes[0],
+        "superelevation_pct": slopes[1],
     }
 
 
@@ -160,8 +163,10 @@ def encode_answer(
         places = cpoi_positions.of(path, [t.curve_id for t in located], [t.part_index for t in located])
         positions = {id(t): place for t, place in zip(located, places, strict=True)}
         if warning.target is not None:
-            target = _trigger(warning.target, positions[id(warning.target)])
-        triggers = [_trigger(t, positions[id(t)]) for t in warning.triggers]
+            target = _trigger(
+                warning.target, positions[id(warning.target)], cpoi_positions.slopes(warning.target.curve_id)
+            )
+        triggers = [_trigger(t, positions[id(t)], cpoi_positions.slopes(t.curve_id)) for t in warning.triggers]
     return _AnswerDocument(
         vehicle_id=vehicle_id,
         state=state,

@@ -16,6 +16,7 @@ import msgspec
 import numpy as np
 
 from csws.ahead.horizon import PathAhead
+from csws.opendrive.profiles import slopes_by_curve_id
 from csws.road.export import warning_speeds_kmh
 from csws.road.matching import points_along
 
@@ -34,7 +35,8 @@ DEFAULT_HORIZON_M = 1000.0
 
 
 class CpoiPositions:
-    """Where the CPOIs of one network are, as the contract gives positions: each worked out once.
+    """Where the CPOIs of one network are, as the contract gives positions, and their curves' grade and
+    superelevation: each worked out once.
 
     A CPOI is the first point of its constant-radius part (3.11) on the lane a path reaches it
     by; a fleet meets the same CPOIs again and again, and working one out costs an interpolation
@@ -42,7 +44,8 @@ class CpoiPositions:
     first path from a lane that reaches a CPOI places it for paths from that lane (the lanes of a
     road share their curves' ids, not their places: each lies on its own lane, and a path that
     starts inside a curve sees its part from the path's start); the place is kept for as long as
-    the network is served (a network has as many CPOIs as its lanes' curves have parts).
+    the network is served (a network has as many CPOIs as its lanes' curves have parts). The grade
+    and superelevation of the curves (:meth:`slopes`) are read from the curve index at the first call.
 
     Parameters
     ----------
@@ -54,6 +57,16 @@ class CpoiPositions:
         self.network = network
         self._known: dict[tuple[str, str, int], dict[str, float]] = {}
         self._road_parts: dict[tuple[str, int], dict[str, float]] | None = None
+        self._slopes: dict[str, dict[str, float]] | None = None
+
+    def slopes(self, curve_id: str) -> tuple[float | None, float | None]:
+        """The mean grade and superelevation (toward the inside of the turn) of a curve, per cent
+        (:func:`csws.opendrive.profiles.curve_slopes`): information beside V_w and S_w (docs/road-model.md);
+        None and None on a network without them (one not imported from OpenDRIVE)."""
+        if self._slopes is None:
+            self._slopes = slopes_by_curve_id(self.network.road_map)
+        found = self._slopes.get(curve_id)
+        return (None, None) if found is None else (found["grade_pct"], found["superelevation_pct"])
 
     def of(
         self, ahead: PathAhead, curve_ids: Sequence[str], part_index: Sequence[int] | np.ndarray
@@ -125,6 +138,11 @@ def _direction(curvature: float) -> str:
     return "left" if curvature > 0 else "right"
 
 
+def _slope_fields(slopes: tuple[float | None, float | None]) -> dict[str, float | None]:
+    """A curve's grade and superelevation as the contract's fields (:meth:`CpoiPositions.slopes`)."""
+    return {"grade_pct": slopes[0], "superelevation_pct": slopes[1]}
+
+
 def horizon(
     network: ServedNetwork,
     cpoi_positions: CpoiPositions,
@@ -165,6 +183,7 @@ def horizon(
             "radius_m": float(ahead.cpoi_radius_m[i]),
             "position": place,
             "warning_speed_kmh": warning_speeds_kmh(float(ahead.cpoi_radius_m[i]), policy),
+            **_slope_fields(cpoi_positions.slopes(ahead.cpoi_curve_id[i])),
         }
         for i, place in zip(keep, places, strict=False)
     ]

@@ -61,35 +61,89 @@ def _warning_speeds_kmh(radius_m: np.ndarray, policy: WarningSpeedPolicy) -> np.
     )
 
 
-def _spiral_samples(part: ProfilePart, start_s: float, end_s: float, policy: WarningSpeedPolicy) -> np.ndarray:
-    """Arc lengths on ``[start_s, end_s]`` of a clothoid at which V_w moves by about
-    :data:`SPIRAL_SAMPLE_KMH` from one to the next: even in 1/sqrt(|curvature|), which V_w
-    follows (V_w = sqrt(a R) for a lateral acceleration a)."""
-    k_start, k_end = np.abs(part.curvature_at(np.array([start_s, end_s])))
-    speeds = _warning_speeds_kmh(1.0 / np.array([k_start, k_end]), policy)
-    count = int(
-        min(MAX_SPIRAL_SAMPLES, max(2, math.ceil(np.max(np.abs(speeds[:, 1] - speeds[:, 0])) / SPIRAL_SAMPLE_KMH) + 1))
+def _spiral_samples(
+    spans: Sequence[tuple[ProfilePart, tuple[float, float]]], policy: WarningSpeedPolicy
+) -> tuple[np.ndarray, np.ndarray]:
+    """Arc lengths and radii at which consecutive clothoid stretches (``(part, (start_s, end_s))``) are looked at
+    when they are cut into pieces: in each, points at which V_w moves by about :data:`SPIRAL_SAMPLE_KMH` from one
+    to the next, even in 1/sqrt(|curvature|), which V_w follows (V_w = sqrt(a R) for a lateral acceleration a);
+    where one stretch meets the next, the next one's start. All stretches in one pass: a road whose clothoids
+    are given as many short linear parts (an exact lane profile) costs no more per part than a few numbers."""
+    parts = [part for part, _ in spans]
+    start_s = np.array([span[0] for _, span in spans])
+    end_s = np.array([span[1] for _, span in spans])
+    k_start = np.abs(_curvatures_at(parts, np.arange(len(parts)), start_s))
+    k_end = np.abs(_curvatures_at(parts, np.arange(len(parts)), end_s))
+    speeds = _warning_speeds_kmh(1.0 / np.concatenate((k_start, k_end)), policy)
+    moved_kmh = np.max(np.abs(speeds[:, len(spans) :] - speeds[:, : len(spans)]), axis=0)
+    count = np.clip(np.ceil(moved_kmh / SPIRAL_SAMPLE_KMH).astype(np.int64) + 1, 2, MAX_SPIRAL_SAMPLES)
+    span = np.repeat(np.arange(len(spans)), count)
+    first = np.concatenate(([0], np.cumsum(count)[:-1]))
+    step = (np.arange(len(span)) - first[span]) / (count[span] - 1)
+    magnitude = (k_start[span] ** -0.5 + step * (k_end[span] ** -0.5 - k_start[span] ** -0.5)) ** -2.0
+    change = k_end[span] - k_start[span]
+    fraction = np.divide(magnitude - k_start[span], change, out=step.copy(), where=change != 0)
+    s = start_s[span] + np.clip(fraction, 0.0, 1.0) * (end_s[span] - start_s[span])
+    kept = np.ones(len(s), dtype=bool)
+    kept[np.cumsum(count)[:-1] - 1] = False  # a joint is the next stretch's start
+    return s[kept], 1.0 / np.abs(_curvatures_at(parts, span[kept], s[kept]))
+
+
+def _curvatures_at(parts: Sequence[ProfilePart], index: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Signed curvature of ``parts[index[i]]`` at ``s[i]`` for every i (:meth:`ProfilePart.curvature_at`), 1/m."""
+    begin, length, k0, k1 = (
+        np.array([getattr(part, name) for part in parts])[index]
+        for name in ("start_s", "length_m", "curvature", "final_curvature")
     )
-    magnitude = np.linspace(k_start**-0.5, k_end**-0.5, count) ** -2.0
-    fraction = (magnitude - k_start) / (k_end - k_start) if k_end != k_start else np.linspace(0.0, 1.0, count)
-    return start_s + np.clip(fraction, 0.0, 1.0) * (end_s - start_s)
+    fraction = np.clip(np.divide(s - begin, length, out=np.zeros(len(s)), where=length > 0), 0.0, 1.0)
+    return k0 + (k1 - k0) * fraction
+
+
+def _first_moved(speeds_kmh: np.ndarray, start: int) -> int | None:
+    """The first sample after ``start`` whose V_w (``(columns, samples)``) differs from that at ``start`` by
+    :data:`SPIRAL_PIECE_KMH` or more in some column, None where none does: looked for in windows doubling in
+    width, so that cutting a long run of samples into many pieces reads each sample about once."""
+    low, width = start, 64
+    while low < speeds_kmh.shape[1]:
+        high = min(low + width, speeds_kmh.shape[1])
+        window = np.abs(speeds_kmh[:, low:high] - speeds_kmh[:, start, None]).max(axis=0) >= SPIRAL_PIECE_KMH
+        if window.any():
+            return low + int(np.argmax(window))
+        low, width = high, 2 * width
+    return None
+
+
+def _moved_within_monotone(speeds_kmh: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
+    """For every sample, the first later one whose V_w differs from its own by :data:`SPIRAL_PIECE_KMH` or more in
+    some column, looked for along its stretch of monotone radius (where V_w of every column is monotone, so one
+    sorted search per column finds it for all samples at once); the sample count where it is not on that stretch."""
+    count = speeds_kmh.shape[1]
+    found = np.full(count, count)
+    turns = np.flatnonzero(np.diff(np.sign(np.diff(radius_m))) != 0) + 1
+    bounds = [0, *turns.tolist(), count - 1]
+    for low, high in zip(bounds[:-1], bounds[1:], strict=True):
+        rising = radius_m[high] >= radius_m[low]
+        stretch = speeds_kmh[:, low : high + 1] * (1.0 if rising else -1.0)
+        first = np.min([np.searchsorted(row, row + SPIRAL_PIECE_KMH, side="left") for row in stretch], axis=0)
+        found[low : high + 1] = np.where(first <= high - low, low + first, count)
+    return found
 
 
 def _spiral_pieces(
-    part: ProfilePart, start_s: float, end_s: float, policy: WarningSpeedPolicy
+    spans: Sequence[tuple[ProfilePart, tuple[float, float]]], policy: WarningSpeedPolicy
 ) -> list[ConstantRadiusPart]:
-    """The stretch ``[start_s, end_s]`` of a clothoid cut into pieces whose start points' V_w
-    differ from one to the next by less than :data:`SPIRAL_PIECE_KMH` in every column and
-    level, each at the radius of its start."""
-    s = _spiral_samples(part, start_s, end_s, policy)
-    radius = 1.0 / np.abs(part.curvature_at(s))
+    """Consecutive clothoid stretches cut into pieces whose start points' V_w differ from one to the next by less
+    than :data:`SPIRAL_PIECE_KMH` in every column and level, each at the radius of its start."""
+    s, radius = _spiral_samples(spans, policy)
     speeds = _warning_speeds_kmh(radius, policy)
+    within = _moved_within_monotone(speeds, radius)
     starts = [0]
     while True:
-        moved = np.max(np.abs(speeds[:, starts[-1] :] - speeds[:, starts[-1], None]), axis=0) >= SPIRAL_PIECE_KMH
-        if not moved.any():
+        start = starts[-1]
+        moved = int(within[start]) if within[start] < len(s) else _first_moved(speeds, start)
+        if moved is None:
             break
-        starts.append(starts[-1] + max(1, int(np.argmax(moved)) - 1))
+        starts.append(start + max(1, moved - start - 1))
     ends = starts[1:] + [len(s) - 1]
     return [
         ConstantRadiusPart(float(s[a]), float(s[b]), float(radius[a]), spiral=True)
@@ -97,11 +151,22 @@ def _spiral_pieces(
     ]
 
 
-def _pieces(part: ProfilePart, span: tuple[float, float], policy: WarningSpeedPolicy) -> list[ConstantRadiusPart]:
-    """The curvature points of interest of one part's curved stretch."""
-    if part.is_spiral:
-        return _spiral_pieces(part, *span, policy)
-    return [ConstantRadiusPart(span[0], span[1], part.radius_m)]
+def _pieces(
+    spans: Sequence[tuple[ProfilePart, tuple[float, float]]], policy: WarningSpeedPolicy
+) -> list[ConstantRadiusPart]:
+    """The curvature points of interest of a curve's curved stretches: each arc one, each run of consecutive
+    clothoid stretches cut into pieces together (:func:`_spiral_pieces`)."""
+    pieces: list[ConstantRadiusPart] = []
+    run: list[tuple[ProfilePart, tuple[float, float]]] = []
+    for part, span in spans:
+        if part.is_spiral:
+            run.append((part, span))
+            continue
+        if run:
+            pieces += _spiral_pieces(run, policy)
+            run = []
+        pieces.append(ConstantRadiusPart(span[0], span[1], part.radius_m))
+    return pieces + (_spiral_pieces(run, policy) if run else [])
 
 
 def _curve(spans: Sequence[tuple[ProfilePart, tuple[float, float]]], sign: float, policy: WarningSpeedPolicy) -> Curve:
@@ -110,7 +175,7 @@ def _curve(spans: Sequence[tuple[ProfilePart, tuple[float, float]]], sign: float
         abs(part.curvature_at_one(start) + part.curvature_at_one(end)) / 2.0 * (end - start)
         for part, (start, end) in spans
     )
-    parts = tuple(piece for part, span in spans for piece in _pieces(part, span, policy))
+    parts = tuple(_pieces(spans, policy))
     return Curve(
         start_s=spans[0][1][0],
         end_s=spans[-1][1][1],

@@ -4,27 +4,32 @@ A road chain (:mod:`csws.road.chains`) is the lanes a road continues on, stitche
 polyline. Where a network has an exact-curvature file (:mod:`csws.opendrive.exact`), each lane
 of a chain that has an exact κ(σ) gives the chain its parts, placed at the lane's stretch of the
 chain (σ scaled to the shape's length, which netconvert's sampling makes shorter by parts per
-million); the lanes without one (internal lanes netconvert made at junctions and section
-joints) keep the fitted parts of their stretch. The chain then reads only its own profile: the
-curve index, paths, the look-ahead and the warning all follow from it unchanged.
+million); the lanes without one (internal lanes of a few metres netconvert made at junctions and
+section joints) are bridged by one linear part between the curvatures either side. Such a chain
+is not fitted at all (:func:`given_exact_profiles`, given to :func:`csws.road.chains.fit_road_chains`):
+it reads only its own profile, and names its curves after its road's reference lane's, as the
+lanes of a fitted road share one curve id. The curve index, paths, the look-ahead and the warning
+all follow from it unchanged.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from csws.curvature import RadiusProfile, profile_from_parts
-from csws.road.chains import LaneCurve, RoadChains
-from csws.road.sharing import Run
+from csws.road.chains import GivenProfile, LaneCurve
 
 from .exact import ExactLane, exact_path, read_exact
 
-__all__ = ["exact_lanes_beside", "with_exact_profiles", "curve_slopes"]
+if TYPE_CHECKING:
+    from csws.road.roadmap import RoadMap
+
+__all__ = ["BRIDGE_M", "exact_lanes_beside", "given_exact_profiles", "curve_slopes", "slopes_by_curve_id"]
 
 
 def exact_lanes_beside(net_path: str | Path) -> dict[str, ExactLane] | None:
@@ -33,51 +38,71 @@ def exact_lanes_beside(net_path: str | Path) -> dict[str, ExactLane] | None:
     return read_exact(path) if path.is_file() else None
 
 
-def _lane_parts(chains: RoadChains, chain: int, lane: int, exact: ExactLane | None) -> list[tuple[float, float, float]]:
-    """(end s, κ at start, κ at end) of the parts of one lane's stretch of its chain, in chain arc length."""
-    start_s = float(chains.lane_start_s[lane])
-    length_m = float(chains.lane_road_length_m[lane])
-    if exact is not None and exact.length_m > 0:
-        scale = length_m / exact.length_m
-        ends = start_s + exact.bounds[1:] * scale
-        return list(zip(ends.tolist(), exact.start_curvature.tolist(), exact.end_curvature.tolist(), strict=True))
-    parts = []
-    for part in chains.profiles[chain].parts:
-        low, high = max(part.start_s, start_s), min(part.end_s, start_s + length_m)
-        if high > low:
-            k0, k1 = part.curvature_at_one(low), part.curvature_at_one(high)
-            parts.append((high, k0, k1))
-    return parts
+#: The longest stretch of a chain without exact curvature its exact profile bridges, m: the internal lanes
+#: netconvert makes where lane sections or roads join are a few metres. A chain with a longer one (a lane the
+#: import left to the fit) is fitted whole.
+BRIDGE_M = 20.0
+
+#: A chain's parts as (end s, κ at start, κ at end); None for a lane's stretch still to bridge.
+_Parts = list[tuple[float, float, float] | None]
 
 
-def _chain_profile(
-    chains: RoadChains, chain: int, lane_ids: Sequence[str], exact: Mapping[str, ExactLane]
-) -> RadiusProfile:
-    """One chain's profile from its lanes' exact parts, fitted parts where a lane has none."""
-    bounds, start_k, end_k = [0.0], [], []
-    for lane in chains.lanes[chain].tolist():
-        for end_s, k0, k1 in _lane_parts(chains, chain, lane, exact.get(lane_ids[lane])):
+def _exact_parts(lane: ExactLane, start_s: float, length_m: float) -> list[tuple[float, float, float]]:
+    """(end s, κ at start, κ at end) of a lane's exact parts on its stretch of a chain, σ scaled to the stretch."""
+    scale = length_m / lane.length_m
+    ends = start_s + lane.bounds[1:] * scale
+    return list(zip(ends.tolist(), lane.start_curvature.tolist(), lane.end_curvature.tolist(), strict=True))
+
+
+def _bridged(parts: _Parts, gap_ends: list[float]) -> list[tuple[float, float, float]]:
+    """The parts with each stretch without exact curvature (None, ending at the next of ``gap_ends``) one linear
+    part from the curvature where the part before ends to where the one after starts (a lone neighbour's on
+    either side: constant)."""
+    filled: list[tuple[float, float, float]] = []
+    ends = iter(gap_ends)
+    for index, part in enumerate(parts):
+        if part is not None:
+            filled.append(part)
+            continue
+        after = next((p for p in parts[index + 1 :] if p is not None), None)
+        k0 = filled[-1][2] if filled else (after[1] if after else 0.0)
+        filled.append((next(ends), k0, after[1] if after else k0))
+    return filled
+
+
+def given_exact_profiles(lane_ids: Sequence[str], exact: Mapping[str, ExactLane]) -> GivenProfile:
+    """The exact profile of every road chain with a lane of exact curvature (see the module), for
+    :func:`csws.road.chains.fit_road_chains` to take instead of fitting it; None for the others and for
+    chains with a stretch without exact curvature longer than :data:`BRIDGE_M`."""
+
+    def profile(
+        members: np.ndarray, xy: np.ndarray, lane_start_s: np.ndarray, lane_length_m: np.ndarray
+    ) -> RadiusProfile | None:
+        lanes = [exact.get(lane_ids[lane]) for lane in members.tolist()]
+        if all(lane is None for lane in lanes):
+            return None
+        parts: _Parts = []
+        gap_ends: list[float] = []
+        for lane, start_s, length_m in zip(lanes, lane_start_s.tolist(), lane_length_m.tolist(), strict=True):
+            if lane is not None and lane.length_m > 0:
+                parts.extend(_exact_parts(lane, start_s, length_m))
+            elif length_m > BRIDGE_M:
+                return None
+            else:
+                parts.append(None)
+                gap_ends.append(start_s + length_m)
+        filled = _bridged(parts, gap_ends)
+        bounds, start_k, end_k = [0.0], [], []
+        for end_s, k0, k1 in filled:
             if end_s > bounds[-1]:
                 bounds.append(end_s)
                 start_k.append(k0)
                 end_k.append(k1)
-    xy = chains.xy[chain]
-    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
+        vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+        bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
+        return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
 
-
-def with_exact_profiles(chains: RoadChains, lane_ids: Sequence[str], exact: Mapping[str, ExactLane]) -> RoadChains:
-    """``chains`` with every chain that has a lane of exact curvature reading its exact profile (see the module)."""
-    profiles, fitted, runs = list(chains.profiles), list(chains.fitted), list(chains.runs)
-    for chain, members in enumerate(chains.lanes):
-        if not any(lane_ids[lane] in exact for lane in members.tolist()):
-            continue
-        profile = _chain_profile(chains, chain, lane_ids, exact)
-        profiles[chain] = fitted[chain] = profile
-        ends = np.array([0.0, float(profile.s[-1])])
-        runs[chain] = (Run(chain, ends, ends, np.zeros(1), is_own=True),)
-    return dataclasses.replace(chains, profiles=tuple(profiles), fitted=tuple(fitted), runs=tuple(runs), _curves={})
+    return profile
 
 
 def _lane_samples(lane: ExactLane, sumo_length_m: float, from_pos_m: float, to_pos_m: float) -> np.ndarray:
@@ -118,3 +143,19 @@ def curve_slopes(
         return None
     toward_inside = 1.0 if lane_curve.curve.direction == "right" else -1.0
     return {"grade_pct": float(np.mean(grades)), "superelevation_pct": toward_inside * float(np.mean(rolls))}
+
+
+def slopes_by_curve_id(road_map: RoadMap) -> dict[str, dict[str, float]]:
+    """The grade and superelevation of every curve of the road map by its id (the curve index's, junction curves
+    included), for the answers that name curves by id; empty on a network without exact data.
+
+    A road's curve has one id on all its lanes (:func:`csws.road.chains.road_curve_id`); its figures are those
+    of the lane it is listed at, whose road shares the same elevation and cross slope.
+    """
+    found: dict[str, dict[str, float]] = {}
+    if not road_map.exact_lanes:
+        return found
+    for lane_curve in road_map.curves(include_junctions=True):
+        if lane_curve.curve_id not in found and (slopes := road_map.curve_slopes(lane_curve)) is not None:
+            found[lane_curve.curve_id] = slopes
+    return found

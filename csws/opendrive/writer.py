@@ -61,7 +61,13 @@ class SectionSpec:
 
 @dataclass(frozen=True)
 class RoadSpec:
-    """One road: id, start pose, plan view, lane sections, constant grade (m/m) and superelevation (rad)."""
+    """One road: id, start pose, plan view, lane sections, constant grade (m/m) and superelevation (rad).
+
+    ``elevation_poly`` and ``superelevation_poly``, when given, are the cubics (a, b, c, d) in s of the
+    elevation (m) and the superelevation (rad) over the whole road instead of the constants.
+    ``predecessor`` and ``successor`` join the road's start to another road's end and its end to another
+    road's start, each lane to the lane of the same id there.
+    """
 
     road_id: str
     pieces: tuple[PlanPiece, ...]
@@ -72,6 +78,10 @@ class RoadSpec:
     grade: float = 0.0
     superelevation_rad: float = 0.0
     lefthand: bool = False
+    elevation_poly: tuple[float, float, float, float] | None = None
+    superelevation_poly: tuple[float, float, float, float] | None = None
+    predecessor: str | None = None
+    successor: str | None = None
 
     @property
     def length_m(self) -> float:
@@ -94,6 +104,15 @@ class RoadSpec:
             s, x, y, hdg = geometry.end_s, float(end.x[-1]), float(end.y[-1]), float(end.hdg[-1])
         return geometries
 
+    def end_pose(self) -> tuple[float, float, float]:
+        """Where the reference line ends: x, y (m) and heading (rad), for a road to go on from there."""
+        end = geometry_poses(self.geometries()[-1], step=0.01)
+        return float(end.x[-1]), float(end.y[-1]), float(end.hdg[-1])
+
+    def lane_ids(self, section: SectionSpec) -> set[int]:
+        """The lane ids of one of its lane sections (left positive, right negative)."""
+        return set(range(1, len(section.left_widths_m) + 1)) | set(range(-len(section.right_widths_m), 0))
+
 
 def _add(parent: ElementTree.Element, tag: str, **attributes: object) -> ElementTree.Element:
     """A child element with attributes written as text (floats with full precision)."""
@@ -102,43 +121,66 @@ def _add(parent: ElementTree.Element, tag: str, **attributes: object) -> Element
     )
 
 
-def _lanes(parent: ElementTree.Element, section: SectionSpec) -> None:
-    """One ``<laneSection>`` with its left, centre and right lanes."""
+def _lanes(parent: ElementTree.Element, section: SectionSpec, before: set[int], after: set[int]) -> None:
+    """One ``<laneSection>`` with its left, centre and right lanes, each linked to the lane of its id ``before``
+    (in the road it comes from) and ``after`` (in the road it goes on to) where that has one."""
     element = _add(parent, "laneSection", s=float(section.s_m))
     for side, widths, sign in (("left", section.left_widths_m, 1), ("right", section.right_widths_m, -1)):
         if not widths:
             continue
         holder = _add(element, side)
         for number, width in enumerate(widths, start=1):
-            lane = _add(holder, "lane", id=sign * number, type="driving", level="false")
+            lane_id = sign * number
+            lane = _add(holder, "lane", id=lane_id, type="driving", level="false")
+            if lane_id in before | after:
+                link = _add(lane, "link")
+                for tag, ids in (("predecessor", before), ("successor", after)):
+                    if lane_id in ids:
+                        _add(link, tag, id=lane_id)
             _add(lane, "width", sOffset=0.0, a=float(width), b=0.0, c=0.0, d=0.0)
         if side == "left":
             _add(_add(element, "center"), "lane", id=0, type="none", level="false")
 
 
-def _road(root: ElementTree.Element, spec: RoadSpec) -> None:
-    """One ``<road>`` element."""
+def _road(root: ElementTree.Element, spec: RoadSpec, roads: dict[str, RoadSpec]) -> None:
+    """One ``<road>`` element; ``roads`` by id, for the lanes its links join."""
     road = _add(root, "road", id=spec.road_id, length=float(spec.length_m), junction="-1")
     if spec.lefthand:
         road.set("rule", "LHT")
+    before: set[int] = set()
+    after: set[int] = set()
+    if spec.predecessor or spec.successor:
+        link = _add(road, "link")
+        if spec.predecessor:
+            _add(link, "predecessor", elementType="road", elementId=spec.predecessor, contactPoint="end")
+            before = roads[spec.predecessor].lane_ids(roads[spec.predecessor].sections[-1])
+        if spec.successor:
+            _add(link, "successor", elementType="road", elementId=spec.successor, contactPoint="start")
+            after = roads[spec.successor].lane_ids(roads[spec.successor].sections[0])
     plan_view = _add(road, "planView")
     for g in spec.geometries():
         geometry = _add(plan_view, "geometry", s=g.s, x=g.x, y=g.y, hdg=g.hdg, length=float(g.length))
         _add(geometry, g.kind, **{name: value for name, value in g.params})
-    _add(_add(road, "elevationProfile"), "elevation", s=0.0, a=0.0, b=float(spec.grade), c=0.0, d=0.0)
-    superelevation = float(spec.superelevation_rad)
-    _add(_add(road, "lateralProfile"), "superelevation", s=0.0, a=superelevation, b=0.0, c=0.0, d=0.0)
+    elevation = spec.elevation_poly or (0.0, spec.grade, 0.0, 0.0)
+    superelevation = spec.superelevation_poly or (spec.superelevation_rad, 0.0, 0.0, 0.0)
+    for profile, tag, cubic in (
+        ("elevationProfile", "elevation", elevation),
+        ("lateralProfile", "superelevation", superelevation),
+    ):
+        _add(_add(road, profile), tag, s=0.0, **{name: float(v) for name, v in zip("abcd", cubic, strict=True)})
     lanes = _add(road, "lanes")
-    for section in spec.sections:
-        _lanes(lanes, section)
+    for index, section in enumerate(spec.sections):
+        first, last = index == 0, index == len(spec.sections) - 1
+        _lanes(lanes, section, before if first else set(), after if last else set())
 
 
 def opendrive_text(roads: Sequence[RoadSpec]) -> str:
     """The OpenDRIVE 1.6 document of ``roads``."""
     root = ElementTree.Element("OpenDRIVE")
     _add(root, "header", revMajor=1, revMinor=6, name="csws", version="1.0")
+    by_id = {spec.road_id: spec for spec in roads}
     for spec in roads:
-        _road(root, spec)
+        _road(root, spec, by_id)
     ElementTree.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ElementTree.tostring(root, encoding="unicode") + "\n"
 

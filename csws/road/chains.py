@@ -21,20 +21,23 @@ from pathlib import Path
 
 import numpy as np
 
-from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
+from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
 from csws.road.sharing import (
+    JOINT_TOLERANCE_M,
     Run,
     chain_runs,
     clip_curve,
+    joined_at_run_joints,
     lateral_offsets_m,
     moved_curve,
-    moved_parts,
+    read_profile,
     reference_lanes,
     run_at,
 )
 from csws.standard import WarningSpeedPolicy
 
 __all__ = [
+    "GivenProfile",
     "JOINT_TOLERANCE_M",
     "curve_id_of",
     "LaneCurve",
@@ -47,11 +50,6 @@ __all__ = [
     "stitch",
 ]
 
-#: Two consecutive lanes of a path whose joint points are closer than this are joined
-#: at one vertex, m. SUMO writes coordinates to the centimetre and makes the lanes of a
-#: connection meet exactly; a few-centimetre segment at the joint would otherwise read
-#: as a spurious sharp bend.
-JOINT_TOLERANCE_M = 0.1
 #: A road chain is cut at a joint where its polyline within this distance either side of the
 #: joint lies within :data:`STRAIGHT_DEVIATION_M` of a line, m: no curve of the road (radius
 #: at most R_c) runs through it, and each stretch is fitted on its own, which keeps the
@@ -65,6 +63,11 @@ STRAIGHT_DEVIATION_M = 0.15
 #: part of that fit's curve where the borrowing lanes begin at that part's end, m: the run's linear
 #: map rounds.
 _MAPPED_TOLERANCE_M = 1e-6
+
+#: A chain's profile given whole instead of fitted (the exact κ of a network imported from OpenDRIVE), or None
+#: to fit it: called with the chain's lanes in driving order, its stitched polyline, and each of those lanes'
+#: start and length along it, m.
+GivenProfile = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], RadiusProfile | None]
 
 
 def curve_id_of(place_id: str, lane_pos_m: float) -> str:
@@ -195,6 +198,10 @@ class RoadChains:
     lane_position_factor
         Lane position per metre of each lane's stretch of its chain: SUMO's lane length
         over that length (1 where it has none).
+    naming_runs
+        Where some chains were given their profile (:data:`GivenProfile`): the runs their lanes would
+        borrow their road's curves by, which name those chains' own curves after the road's
+        (:meth:`curve_origin`); None where every chain reads its ``runs``.
     """
 
     lanes: tuple[np.ndarray, ...]
@@ -210,6 +217,7 @@ class RoadChains:
     _curves: dict[tuple[int, float, int, bool], tuple[WarningSpeedPolicy, list[Curve]]] = field(
         default_factory=dict, repr=False, compare=False
     )
+    naming_runs: tuple[tuple[Run, ...], ...] | None = None
 
     def curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
         """The curves of one chain for R_c ``warning_radius_m``, clothoids cut by ``policy``, found once and kept.
@@ -244,7 +252,7 @@ class RoadChains:
             for run in runs
             for curve in self._fitted_curves(run.source, warning_radius_m, policy)
         )
-        return _joined_at_run_joints([curve for curve in moved if curve is not None])
+        return joined_at_run_joints([curve for curve in moved if curve is not None])
 
     def _kept(
         self, key: tuple[int, float, int, bool], policy: WarningSpeedPolicy, find: Callable[[], list[Curve]]
@@ -263,8 +271,14 @@ class RoadChains:
 
         A chain's own curve starts where it starts. A curve a chain borrows from its road's reference
         (:mod:`csws.road.sharing`) is the reference's curve: it starts where that one starts, also where
-        the borrowing lanes begin inside it, so that every lane of a road names the curve alike.
+        the borrowing lanes begin inside it, so that every lane of a road names the curve alike. A chain
+        given its own profile (:attr:`naming_runs`) names its curves after the reference's curve they
+        overlap, the same rule: a lane change keeps the curve.
         """
+        if self.naming_runs is not None and self.naming_runs[chain] is not self.runs[chain]:
+            named = self._given_origin(chain, start_s, warning_radius_m, policy)
+            if named is not None:
+                return named
         run = run_at(self.runs[chain], start_s)
         if run.is_own:
             return (*self.lane_position(chain, start_s), 0)
@@ -274,6 +288,34 @@ class RoadChains:
                 before = sum(part.end_s <= source_s + _MAPPED_TOLERANCE_M for part in curve.parts)
                 return (*self.lane_position(run.source, curve.start_s), before)
         return (*self.lane_position(run.source, source_s), 0)
+
+    def _given_origin(
+        self, chain: int, start_s: float, warning_radius_m: float, policy: WarningSpeedPolicy
+    ) -> tuple[int, float, int] | None:
+        """The origin (:meth:`curve_origin`) of a curve of a chain given its profile: the start of the reference's
+        curve overlapping it most where its lanes' naming run borrows, None where they are the reference.
+
+        The chain's curve is mapped onto the reference by the run's lane joints (a lane's stretch scaled
+        linearly, within metres of the true place): the reference's curve it overlaps most is the road's.
+        Its parts are numbered from 0, or, where the chain begins inside that curve, from the reference's
+        parts before the chain's start.
+        """
+        assert self.naming_runs is not None
+        run = run_at(self.naming_runs[chain], start_s)
+        if run.is_own:
+            return None
+        own = [curve for curve in self.curves(chain, warning_radius_m, policy) if abs(curve.start_s - start_s) < 1e-9]
+        end_s = own[0].end_s if own else start_s
+        low, high = run.to_source(start_s), run.to_source(end_s)
+        source_curves = self._fitted_curves(run.source, warning_radius_m, policy)
+        overlaps = [min(high, curve.end_s) - max(low, curve.start_s) for curve in source_curves]
+        if not overlaps or max(overlaps) <= 0:
+            return None
+        curve = source_curves[int(np.argmax(overlaps))]
+        before = 0
+        if start_s <= JOINT_TOLERANCE_M:
+            before = sum(part.end_s <= low + _MAPPED_TOLERANCE_M for part in curve.parts)
+        return (*self.lane_position(run.source, curve.start_s), before)
 
     def lane_at(self, chain: int, s: float, end: bool = False) -> int:
         """The lane of ``chain`` at chain arc length ``s``; on a joint, the lane starting there, or
@@ -305,32 +347,6 @@ def road_curve_id(
     """
     lane, lane_pos_m, first_part_index = chains.curve_origin(chain, start_s, warning_radius_m, policy)
     return curve_id_of(edge_ids[lane], lane_pos_m), first_part_index
-
-
-def _joined_at_run_joints(curves: list[Curve]) -> list[Curve]:
-    """Curves in driving order with each pair that meets at a run joint turning the same way made one: the curve
-    of a road does not end where a chain switches from its own lanes' fit to a borrowed one (or back), so the
-    joint leaves no short fragment of it. Two curves of one fit never meet turning the same way (a curve is a
-    maximal stretch), so any that meet, within :data:`JOINT_TOLERANCE_M`, were cut by a joint."""
-    joined: list[Curve] = []
-    for curve in curves:
-        previous = joined[-1] if joined else None
-        if (
-            previous is not None
-            and previous.direction == curve.direction
-            and abs(curve.start_s - previous.end_s) <= JOINT_TOLERANCE_M
-        ):
-            joined[-1] = Curve(
-                previous.start_s,
-                curve.end_s,
-                previous.angle_deg + curve.angle_deg,
-                curve.direction,
-                min(previous.min_radius_m, curve.min_radius_m),
-                previous.parts + curve.parts,
-            )
-        else:
-            joined.append(curve)
-    return joined
 
 
 def _straight_joints(xy: np.ndarray, joint_s: np.ndarray) -> np.ndarray:
@@ -367,6 +383,7 @@ def fit_road_chains(
     *,
     edge_ids: Sequence[str] | None = None,
     lane_index: Sequence[int] | None = None,
+    given: GivenProfile | None = None,
 ) -> RoadChains:
     """Group lanes into road chains (:func:`road_chains`), stitch each chain's road shapes
     and fit every chain that has a lane of its own at once (:func:`csws.curvature.radius_profiles`),
@@ -388,6 +405,9 @@ def fit_road_chains(
         The folder of fitted profiles; ``None`` fits without a cache.
     edge_ids, lane_index
         Each lane's edge and its index in it; None fits every lane on its own.
+    given
+        The profile of the chains that have one given (:data:`GivenProfile`): those are not fitted, read
+        only their own profile, and name their curves after their road's (:attr:`RoadChains.naming_runs`).
     """
     members = [stretch for chain in road_chains(continues_into) for stretch in _cut_where_straight(chain, road_shapes)]
     lane_chain = np.empty(len(road_shapes), dtype=np.int64)
@@ -409,14 +429,24 @@ def fit_road_chains(
         tuple(chain_runs(lanes, chain, reference, offset_m, lane_chain, bounds_s))
         for chain, lanes in enumerate(members)
     )
-    fitted = _fit_sources(chain_xy, runs, cache_dir)
+    given_profiles = {}
+    if given is not None:
+        for chain, lanes in enumerate(members):
+            profile = given(lanes, chain_xy[chain], bounds_s[lanes, 0], road_length_m[lanes])
+            if profile is not None:
+                given_profiles[chain] = profile
+    read_runs = tuple(
+        (_own_run(chain, given_profiles[chain]),) if chain in given_profiles else chain_runs_
+        for chain, chain_runs_ in enumerate(runs)
+    )
+    fitted = _fit_sources(chain_xy, read_runs, cache_dir, given_profiles)
     return RoadChains(
         lanes=tuple(members),
         xy=tuple(chain_xy),
         profiles=tuple(
-            _read_profile(chain, chain_xy[chain], chain_runs_, fitted) for chain, chain_runs_ in enumerate(runs)
+            read_profile(chain, chain_xy[chain], chain_runs_, fitted) for chain, chain_runs_ in enumerate(read_runs)
         ),
-        runs=runs,
+        runs=read_runs,
         fitted=fitted,
         is_junction=np.array([bool(np.all(is_junction[lanes])) for lanes in members], dtype=bool),
         lane_chain=lane_chain,
@@ -425,7 +455,14 @@ def fit_road_chains(
         lane_position_factor=np.divide(
             lane_length_m, road_length_m, out=np.ones(len(road_length_m)), where=road_length_m > 0
         ),
+        naming_runs=runs if given_profiles else None,
     )
+
+
+def _own_run(chain: int, profile: RadiusProfile) -> Run:
+    """The one run of a chain that reads its own profile from end to end."""
+    ends = np.array([0.0, float(profile.s[-1])])
+    return Run(chain, ends, ends, np.zeros(1), is_own=True)
 
 
 def _arc_length(xy: np.ndarray) -> np.ndarray:
@@ -439,39 +476,22 @@ def _chain_lengths(chain_xy: Sequence[np.ndarray]) -> np.ndarray:
 
 
 def _fit_sources(
-    chain_xy: Sequence[np.ndarray], runs: Sequence[Sequence[Run]], cache_dir: Path | None
+    chain_xy: Sequence[np.ndarray],
+    runs: Sequence[Sequence[Run]],
+    cache_dir: Path | None,
+    given: dict[int, RadiusProfile],
 ) -> tuple[RadiusProfile | None, ...]:
     """The own fit of every chain some run reads (its own lanes, or lanes borrowing from it), None for the others,
     kept to its polyline's net turn and corners (:func:`csws.curvature.artefacts.kept_to_polyline`: map artefacts
-    are no curves, corners are), and kept so on disk."""
-    sources = sorted({run.source for chain_runs_ in runs for run in chain_runs_})
+    are no curves, corners are), and kept so on disk; a chain whose profile is ``given`` has that, unfitted."""
+    sources = sorted({run.source for chain_runs_ in runs for run in chain_runs_} - given.keys())
     fits = cached_radius_profiles([chain_xy[chain] for chain in sources], cache_dir, kept_to_polylines=True)
     fitted: list[RadiusProfile | None] = [None] * len(chain_xy)
     for chain, fit in zip(sources, fits, strict=True):
         fitted[chain] = fit
+    for chain, profile in given.items():
+        fitted[chain] = profile
     return tuple(fitted)
-
-
-def _read_profile(
-    chain: int, xy: np.ndarray, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
-) -> RadiusProfile:
-    """A chain's profile: its own fit where it reads only that, else the fits its runs read, moved onto it."""
-    if len(runs) == 1 and runs[0].is_own:
-        own = fitted[chain]
-        assert own is not None  # a chain reading itself was fitted
-        return own
-    bounds, start_k, end_k = [0.0], [], []
-    for run in runs:
-        source = fitted[run.source]
-        assert source is not None  # every source was fitted
-        for end_s, k0, k1 in moved_parts(source.parts, run):
-            if end_s > bounds[-1]:
-                bounds.append(end_s)
-                start_k.append(k0)
-                end_k.append(k1)
-    vertex_s = _arc_length(xy)
-    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
 
 
 def index_curves(

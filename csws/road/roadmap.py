@@ -148,7 +148,7 @@ class RoadMap(GeoReferenced):
             by under :data:`csws.curvature.curves.SPIRAL_PIECE_KMH`): those the warning uses.
         exact_lanes
             The exact curvature of lanes of a network imported from OpenDRIVE, by lane id: the
-            road chains of those lanes read it instead of their fit (:mod:`csws.opendrive.profiles`).
+            road chains of those lanes read it and are not fitted (:mod:`csws.opendrive.profiles`).
         """
         self.warning_radius_m = checked_warning_radius_m(warning_radius_m)
         self.warning_policy = warning_policy
@@ -161,6 +161,12 @@ class RoadMap(GeoReferenced):
         self._vertex_s = vertex_arc_length(self._xy, self._vertex_start)
         self._successor_start, self._successor_index = _compressed_rows(successors)
         road_shapes = [self._road_shape(i) for i in range(len(self._lanes))]
+        self.exact_lanes = dict(exact_lanes or {})
+        given = None
+        if self.exact_lanes:
+            from csws.opendrive.profiles import given_exact_profiles
+
+            given = given_exact_profiles(self.lane_ids, self.exact_lanes)
         self._chains = fit_road_chains(
             np.array([self._index.get(lane.continues_into, -1) for lane in self._lanes], dtype=np.int64),
             road_shapes,
@@ -169,12 +175,8 @@ class RoadMap(GeoReferenced):
             profile_cache_dir() if cache else None,
             edge_ids=[lane.edge_id for lane in self._lanes],
             lane_index=[lane.index for lane in self._lanes],
+            given=given,
         )
-        self.exact_lanes = dict(exact_lanes or {})
-        if exact_lanes:
-            from csws.opendrive.profiles import with_exact_profiles
-
-            self._chains = with_exact_profiles(self._chains, self.lane_ids, exact_lanes)
         self._edge_ids = tuple(lane.edge_id for lane in self._lanes)
         self._curve_index = index_curves(
             self._chains, self.lane_ids, self._edge_ids, self.warning_radius_m, warning_policy

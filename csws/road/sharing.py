@@ -37,20 +37,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csws.curvature import ConstantRadiusPart, Curve, ProfilePart
+from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_from_parts
 
 __all__ = [
+    "JOINT_TOLERANCE_M",
     "PARALLEL_TOLERANCE_M",
     "Run",
     "chain_runs",
     "clip_curve",
+    "joined_at_run_joints",
     "lateral_offsets_m",
     "moved_curve",
     "moved_parts",
+    "read_profile",
     "reference_lanes",
     "run_at",
 ]
 
+#: Two consecutive lanes of a path whose joint points are closer than this are joined
+#: at one vertex, m. SUMO writes coordinates to the centimetre and makes the lanes of a
+#: connection meet exactly; a few-centimetre segment at the joint would otherwise read
+#: as a spurious sharp bend.
+JOINT_TOLERANCE_M = 0.1
 #: A lane shares its edge's reference lane's curves only if its lateral offset from that lane
 #: varies by at most this along it, m: lanes of an edge are parallel in SUMO unless given a shape
 #: of their own.
@@ -276,3 +284,51 @@ def moved_curve(curve: Curve, run: Run) -> Curve | None:
         min(part.radius_m for part in parts),
         parts,
     )
+
+
+def joined_at_run_joints(curves: list[Curve]) -> list[Curve]:
+    """Curves in driving order with each pair that meets at a run joint turning the same way made one: the curve
+    of a road does not end where a chain switches from its own lanes' fit to a borrowed one (or back), so the
+    joint leaves no short fragment of it. Two curves of one fit never meet turning the same way (a curve is a
+    maximal stretch), so any that meet, within :data:`JOINT_TOLERANCE_M`, were cut by a joint."""
+    joined: list[Curve] = []
+    for curve in curves:
+        previous = joined[-1] if joined else None
+        if (
+            previous is not None
+            and previous.direction == curve.direction
+            and abs(curve.start_s - previous.end_s) <= JOINT_TOLERANCE_M
+        ):
+            joined[-1] = Curve(
+                previous.start_s,
+                curve.end_s,
+                previous.angle_deg + curve.angle_deg,
+                curve.direction,
+                min(previous.min_radius_m, curve.min_radius_m),
+                previous.parts + curve.parts,
+            )
+        else:
+            joined.append(curve)
+    return joined
+
+
+def read_profile(
+    chain: int, xy: np.ndarray, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
+) -> RadiusProfile:
+    """A chain's profile: its own fit where it reads only that, else the fits its runs read, moved onto it."""
+    if len(runs) == 1 and runs[0].is_own:
+        own = fitted[chain]
+        assert own is not None  # a chain reading itself was fitted
+        return own
+    bounds, start_k, end_k = [0.0], [], []
+    for run in runs:
+        source = fitted[run.source]
+        assert source is not None  # every source was fitted
+        for end_s, k0, k1 in moved_parts(source.parts, run):
+            if end_s > bounds[-1]:
+                bounds.append(end_s)
+                start_k.append(k0)
+                end_k.append(k1)
+    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
+    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
