@@ -22,10 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile, profile_from_parts
+from csws.curvature.artefacts import kept_to_net_turn
 from csws.road.sharing import (
     Run,
     chain_runs,
     clip_curve,
+    kept_to_own_turn,
     lateral_offsets_m,
     moved_curve,
     moved_parts,
@@ -223,7 +225,9 @@ class RoadChains:
         return self._kept(
             (chain, float(warning_radius_m), id(policy), False),
             policy,
-            lambda: self._moved_curves(runs, warning_radius_m, policy),
+            lambda: kept_to_own_turn(
+                self._moved_curves(runs, warning_radius_m, policy), self.xy[chain], warning_radius_m
+            ),
         )
 
     def _fitted_curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
@@ -471,7 +475,7 @@ def _read_profile(
                 end_k.append(k1)
     vertex_s = _arc_length(xy)
     bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
+    return kept_to_net_turn(xy, profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k)))
 
 
 def index_curves(

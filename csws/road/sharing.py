@@ -16,6 +16,10 @@ would be warned for another curve. A road has one curve, so here:
   changes do) and each radius moved by the lateral offset ``d`` (left positive): a
   signed curvature k becomes ``k / (1 - k d)``, so R - d on the inside of a turn, R + d
   on the outside;
+* what a lane borrows keeps to its own polyline's net turn (:func:`kept_to_own_turn`,
+  :func:`csws.curvature.artefacts.kept_to_net_turn`): a curve of the reference that runs
+  across the joint where the reference lane begins carries the turn the reference chain
+  makes there, which a lane beside it entered from elsewhere does not make;
 * a chain that has no lane of its own is not fitted at all.
 
 Lanes borrowing from one reference chain in order form a **run**: a curve that crosses
@@ -38,12 +42,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from csws.curvature import ConstantRadiusPart, Curve, ProfilePart
+from csws.curvature.artefacts import polyline_turns, turned_back_scale
 
 __all__ = [
     "PARALLEL_TOLERANCE_M",
     "Run",
     "chain_runs",
     "clip_curve",
+    "kept_to_own_turn",
     "lateral_offsets_m",
     "moved_curve",
     "moved_parts",
@@ -275,4 +281,37 @@ def moved_curve(curve: Curve, run: Run) -> Curve | None:
         clipped.direction,
         min(part.radius_m for part in parts),
         parts,
+    )
+
+
+def kept_to_own_turn(curves: Sequence[Curve], xy: np.ndarray, warning_radius_m: float) -> list[Curve]:
+    """Curves a chain borrows, each turned back to the net turn of the chain's own polyline ``xy`` over its stretch
+    (:func:`csws.curvature.artefacts.turned_back_scale`: its radii widened, or the curve dropped where that turns
+    less than the tolerance, or where its smallest radius so widened exceeds R_c ``warning_radius_m``: 3.4).
+
+    A curve of the reference lane that runs across the joint where the reference lane begins (or ends) carries the
+    turn the reference chain makes there, into its own lane; a lane beside it entered from elsewhere makes no such
+    turn, so a borrowed curve is kept only as far as the lane's own polyline turns, as its own fit would be.
+    """
+    if not curves:
+        return []
+    turns = polyline_turns(xy)
+    kept = []
+    for curve in curves:
+        side = 1.0 if curve.direction == "left" else -1.0
+        scale = turned_back_scale(turns, curve.start_s, curve.end_s, side * math.radians(curve.angle_deg))
+        if scale == 1.0:
+            kept.append(curve)
+        elif scale > 0.0 and curve.min_radius_m / scale <= warning_radius_m:
+            kept.append(_widened(curve, scale))
+    return kept
+
+
+def _widened(curve: Curve, scale: float) -> Curve:
+    """A curve turning ``scale`` times its angle over the same stretch, each radius divided by ``scale``."""
+    parts = tuple(
+        ConstantRadiusPart(part.start_s, part.end_s, part.radius_m / scale, part.spiral) for part in curve.parts
+    )
+    return Curve(
+        curve.start_s, curve.end_s, curve.angle_deg * scale, curve.direction, curve.min_radius_m / scale, parts
     )
