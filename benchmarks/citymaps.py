@@ -4,9 +4,13 @@ Measured on every road chain of a network (its lanes stitched into one polyline)
 :func:`csws.curvature.artefacts.polyline_turns`, which reads the polyline alone, never the fit:
 
 * vertex corners of 45 degrees or more, and of 30-45 degrees, that no curve of the index
-  covers (a curve of the corner's direction reaching within :data:`COVER_M` of the vertex);
-  an artefact's vertices count as one turn (its net turn), and a vertex next to a segment
-  of :data:`csws.curvature.artefacts.JOG_M` or less is no corner (that segment has no heading);
+  covers: a curve of the corner's direction reaching within :data:`COVER_M` of the vertex, or
+  within half the segment on that side of it where that is longer (a road through the nodes
+  turns anywhere on the segments beside a node; the half beyond belongs to the next node, as a
+  single-node corner's arc does in :func:`csws.curvature.corners.corner_arc`); those covered
+  only so are counted too ("corners reached beyond 2 m"); an artefact's vertices count as one
+  turn (its net turn), and a vertex next to a segment of :data:`csws.curvature.artefacts.JOG_M`
+  or less is no corner (that segment has no heading);
 * curves of 20 degrees or more where the polyline turns less than 5 degrees net over the
   curve's stretch (phantom curves), and curves claiming more than 360 degrees;
 * curves at the radius floor of 5 m;
@@ -30,6 +34,8 @@ import tempfile
 import time
 from collections import Counter
 from pathlib import Path
+
+import numpy as np
 
 from csws.curvature.artefacts import polyline_turns
 from csws.curvature.corners import FLOOR_RADIUS_M
@@ -56,17 +62,17 @@ def measure(roadmap: RoadMap) -> dict:
         turns = polyline_turns(xy)
         artefacts.update(artefact.kind for artefact in turns.artefacts)
         curves = by_chain.get(chain, [])
-        at_corner = turns.corner_vertices(30.0)
-        corner_s, corner_turn = turns.vertex_s[1:-1][at_corner], turns.effective_rad[at_corner]
-        for vertex_s, turn in zip(corner_s.tolist(), corner_turn.tolist(), strict=True):
+        at_corner = np.flatnonzero(turns.corner_vertices(30.0))
+        for vertex in at_corner.tolist():
+            vertex_s, turn = float(turns.vertex_s[vertex + 1]), float(turns.effective_rad[vertex])
             turn_deg = abs(math.degrees(turn))
-            direction = "left" if turn > 0 else "right"
-            covered = any(
-                c.direction == direction and c.start_s - COVER_M <= vertex_s <= c.end_s + COVER_M for c in curves
-            )
             figures["corners >= 45 deg" if turn_deg >= 45.0 else "corners 30-45 deg"] += 1
-            if not covered:
+            reach_m = (max(COVER_M, turns.segment_m[vertex] / 2.0), max(COVER_M, turns.segment_m[vertex + 1] / 2.0))
+            direction = [c for c in curves if c.direction == ("left" if turn > 0 else "right")]
+            if not any(c.start_s - reach_m[1] <= vertex_s <= c.end_s + reach_m[0] for c in direction):
                 figures["missed >= 45 deg" if turn_deg >= 45.0 else "missed 30-45 deg"] += 1
+            elif not any(c.start_s - COVER_M <= vertex_s <= c.end_s + COVER_M for c in direction):
+                figures["corners reached beyond 2 m"] += 1
         for curve in curves:
             figures["curves"] += 1
             sign = 1.0 if curve.direction == "left" else -1.0

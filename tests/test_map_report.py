@@ -25,8 +25,8 @@ from fastapi.testclient import TestClient
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from markers import marks_its_tests
+from osm_builders import ORIGIN_XY, UTM32, OsmWriter
 from servers import Workers
-from test_osm import ORIGIN_XY, UTM32, OsmWriter
 
 from csws import cli
 from csws.curvature import artefacts

@@ -19,6 +19,7 @@ import pyproj
 import pytest
 import sumolib
 from markers import marks_its_tests
+from osm_builders import ORIGIN_LONLAT, ORIGIN_XY, UTM32, OsmWriter
 
 from csws import cli
 from csws.ahead.lookahead import LookAhead, LookAheadSettings
@@ -37,56 +38,11 @@ from csws.road.export import curves_geojson
 from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home
 
-UTM32 = pyproj.Proj("+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs")
-ORIGIN_LONLAT = (9.70, 50.80)
-ORIGIN_XY = np.array(UTM32(*ORIGIN_LONLAT))
-
 #: The curve: 200 m straight, a 90 degree left arc of R = 100 m, 200 m straight; OSM nodes every 10 m.
 ARC_RADIUS_M = 100.0
 ARC_PIECES = (straight(200.0), arc(ARC_RADIUS_M, 90.0, "left"), straight(200.0))
 ARC_START_S, ARC_END_S = piece_starts_s(ARC_PIECES)[1:3]
 NODE_SPACING_M = 10.0
-
-
-class OsmWriter:
-    """Collects nodes (given in metres from the origin) and ways, writes them as OSM XML."""
-
-    def __init__(self) -> None:
-        self.nodes: dict[int, tuple[float, float]] = {}
-        self.ways: list[str] = []
-
-    def node(self, xy: np.ndarray) -> int:
-        """The id of the node at local ``xy`` (m), reusing a node already there."""
-        key = (round(float(xy[0]), 3), round(float(xy[1]), 3))
-        for node_id, existing in self.nodes.items():
-            if existing == key:
-                return node_id
-        self.nodes[len(self.nodes) + 1] = key
-        return len(self.nodes)
-
-    def way(self, xy: np.ndarray, highway: str, **tags: str) -> list[int]:
-        refs = [self.node(point) for point in xy]
-        tag_text = "".join(f'<tag k="{k}" v="{v}"/>' for k, v in {"highway": highway, **tags}.items())
-        nds = "".join(f'<nd ref="{ref}"/>' for ref in refs)
-        self.ways.append(f'<way id="{len(self.ways) + 1}" version="1">{nds}{tag_text}</way>')
-        return refs
-
-    def lonlat(self, node_id: int) -> tuple[float, float]:
-        x, y = self.nodes[node_id]
-        lon, lat = UTM32(ORIGIN_XY[0] + x, ORIGIN_XY[1] + y, inverse=True)
-        return float(lon), float(lat)
-
-    def text(self) -> str:
-        nodes = [
-            f'<node id="{node_id}" version="1" lon="{lon:.9f}" lat="{lat:.9f}"/>'
-            for node_id in self.nodes
-            for lon, lat in [self.lonlat(node_id)]
-        ]
-        return (
-            '<?xml version="1.0" encoding="UTF-8"?>\n<osm version="0.6">\n'
-            + "\n".join(nodes + self.ways)
-            + "\n</osm>\n"
-        )
 
 
 def _arc_xy() -> np.ndarray:

@@ -21,9 +21,10 @@ the fit:
 An artefact's vertices count as one turn, their net turn wrapped to (-180, 180] (a spike
 nets nothing, a fold what its lane really turns): the **effective turns**. From them:
 
-* the **net turn** of a stretch one way is the sum of the effective turns of its vertices,
-  and of the nearest one beyond either end where that turns that way (the road may begin
-  to turn anywhere on the segment before a node);
+* the **net turn** of a stretch one way is the sum of the effective turns of the vertices
+  inside it, and of the nearest one at or beyond either end where that turns that way (the road
+  may begin to turn anywhere on the segment before a node; a vertex on an end turns onto the
+  road beyond as much as onto the stretch);
 * a **corner** is a run of consecutive vertices turning the same way by at least
   :data:`CORNER_VERTEX_DEG` each, each between segments longer than :data:`JOG_M` or
   continued straight beyond (a shorter one turning on has no heading of its own: a junction
@@ -35,8 +36,13 @@ nets nothing, a fold what its lane really turns): the **effective turns**. From 
 the net turn of its stretch by more than :data:`ANGLE_TOLERANCE_DEG`, nor does any part of
 a curve (either is turned back to that net turn, and removed where the net turn is below
 the tolerance: a curve at a spike or a zig-zag); and every corner is covered by curves
-turning its net turn within the tolerance, else an arc turning that net turn is laid over it
-(:func:`csws.curvature.corners.corner_arc`).
+turning its net turn within the tolerance near it (from the second vertex before it to the
+second after, or over its arc where that is longer: a long gentle curve run through a corner
+does not cover it), else an arc turning that net turn is laid over it
+(:func:`csws.curvature.corners.corner_arc`), in place of what the curves turned its way there.
+The first rule is applied once more to what the arcs leave, so that no remnant of a curve
+beside an arc claims the corner's turn again. :func:`kept_to_net_turn` applies the first rule
+alone (to a lane's borrowed profile, :mod:`csws.road.sharing`).
 """
 
 from __future__ import annotations
@@ -46,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .corners import ANGLE_TOLERANCE_DEG, corner_arc, curve_runs
+from .corners import ANGLE_TOLERANCE_DEG, corner_arc, corner_arc_extent, curvature_at, curve_runs
 from .profile import RadiusProfile, profile_from_parts
 
 __all__ = [
@@ -66,6 +72,8 @@ __all__ = [
     "Corner",
     "polyline_turns",
     "kept_to_polyline",
+    "kept_to_net_turn",
+    "turned_back_scale",
 ]
 
 #: The longest segment between the two reversals of a spike, m.
@@ -140,11 +148,12 @@ class PolylineTurns:
 
     def net_turn_rad(self, start_s: float, end_s: float, side: float) -> float:
         """The net turn of the stretch ``[start_s, end_s]`` towards ``side`` (+1 left, -1 right), rad: the effective
-        turns of its vertices, and of the nearest one beyond either end where that turns ``side``'s way."""
+        turns of the vertices inside it, and of the nearest one at or beyond either end where that turns ``side``'s
+        way (a vertex on an end turns onto the road beyond as much as onto the stretch)."""
         inner_s = self.vertex_s[1:-1]
-        first = int(np.searchsorted(inner_s, start_s, side="left"))
-        stop = int(np.searchsorted(inner_s, end_s, side="right"))
-        beyond = self.effective_rad[[index for index in (first - 1, stop) if 0 <= index < len(inner_s)]]
+        first = int(np.searchsorted(inner_s, start_s, side="right"))
+        stop = int(np.searchsorted(inner_s, end_s, side="left"))
+        beyond = self.effective_rad[[index for index in {first - 1, stop} if 0 <= index < len(inner_s)]]
         return side * float(self.effective_rad[first:stop].sum()) + float(np.clip(side * beyond, 0.0, None).sum())
 
     def corner_vertices(self, least_deg: float) -> np.ndarray:
@@ -282,16 +291,32 @@ def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
     fitted = bounds, start_k, end_k
     start_k, end_k = _within_net_turn(turns, bounds, start_k, end_k)
     for corner in turns.corners():
-        reach = turns.reach(corner)
-        if not _is_covered(corner, reach, bounds, start_k, end_k):
-            start_k, end_k = _without_curves_at(corner, reach, bounds, start_k, end_k)
+        reach, window = turns.reach(corner), _corner_window(turns, corner)
+        if not _is_covered(corner, reach, window, bounds, start_k, end_k):
+            bounds, start_k, end_k = _without_curves_at(corner, reach, window, bounds, start_k, end_k)
             arms_m, inner_m, vertices = turns.arms(corner)
             bounds, start_k, end_k = corner_arc(
                 (corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices, bounds, start_k, end_k
             )
     if all(np.array_equal(before, after) for before, after in zip(fitted, (bounds, start_k, end_k), strict=True)):
         return profile
+    start_k, end_k = _within_net_turn(turns, bounds, start_k, end_k)
     return profile_from_parts(profile.s, bounds, start_k, end_k)
+
+
+def kept_to_net_turn(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
+    """A profile laid on polyline ``xy`` with no curve, nor part of one, turning more than the polyline's net turn
+    over its stretch (the first rule of :func:`kept_to_polyline` alone): a lane that borrows its road's profile
+    (:mod:`csws.road.sharing`) keeps only the turn its own polyline makes."""
+    start_k = np.array([part.curvature for part in profile.parts])
+    end_k = np.array([part.final_curvature for part in profile.parts])
+    if not (start_k.any() or end_k.any()):
+        return profile
+    bounds = np.array([part.start_s for part in profile.parts] + [profile.parts[-1].end_s])
+    kept_start_k, kept_end_k = _within_net_turn(polyline_turns(xy), bounds, start_k, end_k)
+    if np.array_equal(kept_start_k, start_k) and np.array_equal(kept_end_k, end_k):
+        return profile
+    return profile_from_parts(profile.s, bounds, kept_start_k, kept_end_k)
 
 
 def _turns_less_than(xy: np.ndarray, limit_rad: float) -> bool:
@@ -310,18 +335,27 @@ def _within_net_turn(
     """Curvatures with each curve, then each part of a curve, turned back to its stretch's net turn (removed below
     :data:`ANGLE_TOLERANCE_DEG`)."""
     start_k, end_k = start_k.copy(), end_k.copy()
-    tolerance = math.radians(ANGLE_TOLERANCE_DEG)
     angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
     runs = curve_runs(start_k, end_k)
     for parts in runs + [part[None] for run in runs if len(run) > 1 for part in run]:
-        angle = float(angle_rad[parts].sum())
-        net = turns.net_turn_rad(float(bounds[parts[0]]), float(bounds[parts[-1] + 1]), math.copysign(1.0, angle))
-        if abs(angle) > net + tolerance:
-            scale = net / abs(angle) if net >= tolerance else 0.0
-            start_k[parts] *= scale
-            end_k[parts] *= scale
-            angle_rad[parts] *= scale
+        scale = turned_back_scale(
+            turns, float(bounds[parts[0]]), float(bounds[parts[-1] + 1]), float(angle_rad[parts].sum())
+        )
+        start_k[parts] *= scale
+        end_k[parts] *= scale
+        angle_rad[parts] *= scale
     return start_k, end_k
+
+
+def turned_back_scale(turns: PolylineTurns, start_s: float, end_s: float, angle_rad: float) -> float:
+    """The factor that keeps a curve turning ``angle_rad`` (left positive) over ``[start_s, end_s]`` to the
+    polyline's net turn its way there: 1 where it turns no more than that net turn and :data:`ANGLE_TOLERANCE_DEG`,
+    else the net turn over its angle, and 0 (no curve) where the net turn is below the tolerance."""
+    tolerance = math.radians(ANGLE_TOLERANCE_DEG)
+    net = turns.net_turn_rad(start_s, end_s, math.copysign(1.0, angle_rad))
+    if abs(angle_rad) <= net + tolerance:
+        return 1.0
+    return net / abs(angle_rad) if net >= tolerance else 0.0
 
 
 def _overlapping(
@@ -339,23 +373,87 @@ def _overlapping(
     ]
 
 
+def _corner_window(turns: PolylineTurns, corner: Corner) -> tuple[float, float]:
+    """Where a curve turns a corner, m: from the second vertex before it to the second after (node noise moves
+    turning from one vertex to the next, and a fit spreads it so), or where its arc would lie
+    (:func:`csws.curvature.corners.corner_arc_extent`, the largest arc the map leaves room for) where that reaches
+    further. A curve's turn beyond it is the road's turn beyond: a long gentle curve the fit ran through a corner
+    turns at its own radius at the corner, not at the corner's."""
+    before = int(np.searchsorted(turns.vertex_s, corner.start_s, side="left")) - 2
+    after = int(np.searchsorted(turns.vertex_s, corner.end_s, side="right")) + 1
+    last = len(turns.vertex_s) - 1
+    arms_m, inner_m, vertices = turns.arms(corner)
+    low, high = corner_arc_extent((corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices)
+    return min(low, float(turns.vertex_s[max(before, 0)])), max(high, float(turns.vertex_s[min(after, last)]))
+
+
+def _turn_within(
+    parts: np.ndarray, window: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
+) -> float:
+    """How much ``parts`` turn within ``window`` (left positive), rad: their curvature, linear in each part,
+    integrated there."""
+    turned = 0.0
+    for part in parts.tolist():
+        part_start, part_end = float(bounds[part]), float(bounds[part + 1])
+        low, high = max(part_start, window[0]), min(part_end, window[1])
+        if high > low:
+            slope = (end_k[part] - start_k[part]) / (part_end - part_start)
+            mean_k = start_k[part] + slope * ((low + high) / 2.0 - part_start)
+            turned += float(mean_k) * (high - low)
+    return turned
+
+
+def _split_at(
+    bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The parts with a bound at ``s``: a part across it cut in two, its curvature unchanged."""
+    if s <= bounds[0] or s >= bounds[-1] or np.any(bounds == s):
+        return bounds, start_k, end_k
+    part = int(np.searchsorted(bounds, s, side="right")) - 1
+    at_s = curvature_at(bounds, start_k, end_k, s)
+    return np.insert(bounds, part + 1, s), np.insert(start_k, part + 1, at_s), np.insert(end_k, part, at_s)
+
+
 def _without_curves_at(
-    corner: Corner, reach: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Curvatures with the curves that turn a corner's way at it but fall short of its turn made straight: the
-    corner's arc replaces them, rather than adding to them."""
+    corner: Corner,
+    reach: tuple[float, float],
+    window: tuple[float, float],
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The parts with the curves that turn a corner's way at it but fall short of its turn made straight within its
+    ``window``: the corner's arc replaces them there, rather than adding to them. What is left of them beyond the
+    window goes too where it turns less than :data:`ANGLE_TOLERANCE_DEG`: a sliver of the corner's turn."""
+    for s in window:
+        bounds, start_k, end_k = _split_at(bounds, start_k, end_k, s)
     start_k, end_k = start_k.copy(), end_k.copy()
+    left = np.zeros(len(start_k), dtype=bool)
     for parts in _overlapping(corner, reach, bounds, start_k, end_k):
-        start_k[parts] = 0.0
-        end_k[parts] = 0.0
-    return start_k, end_k
+        inside = (bounds[parts] >= window[0]) & (bounds[parts + 1] <= window[1])
+        start_k[parts[inside]] = 0.0
+        end_k[parts[inside]] = 0.0
+        left[parts[~inside]] = True
+    angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
+    for sliver in curve_runs(np.where(left, start_k, 0.0), np.where(left, end_k, 0.0)):
+        if abs(float(angle_rad[sliver].sum())) < math.radians(ANGLE_TOLERANCE_DEG):
+            start_k[sliver] = 0.0
+            end_k[sliver] = 0.0
+    return bounds, start_k, end_k
 
 
 def _is_covered(
-    corner: Corner, reach: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
+    corner: Corner,
+    reach: tuple[float, float],
+    window: tuple[float, float],
+    bounds: np.ndarray,
+    start_k: np.ndarray,
+    end_k: np.ndarray,
 ) -> bool:
-    """Whether the curves reaching the corner's stretch turn its way by its net turn, less the tolerance, or more
-    (no more than their own stretch's net turn: :func:`_within_net_turn`)."""
-    angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
-    turned = sum(float(angle_rad[parts].sum()) for parts in _overlapping(corner, reach, bounds, start_k, end_k))
+    """Whether the curves reaching the corner's stretch turn its way within its ``window`` by its net turn, less
+    the tolerance, or more (no more than their own stretch's net turn: :func:`_within_net_turn`)."""
+    turned = sum(
+        _turn_within(parts, window, bounds, start_k, end_k)
+        for parts in _overlapping(corner, reach, bounds, start_k, end_k)
+    )
     return turned * math.copysign(1.0, corner.turn_rad) >= abs(corner.turn_rad) - math.radians(ANGLE_TOLERANCE_DEG)

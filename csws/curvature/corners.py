@@ -56,6 +56,8 @@ __all__ = [
     "with_floor",
     "curve_runs",
     "corner_arc",
+    "corner_arc_extent",
+    "curvature_at",
 ]
 
 #: The smallest radius a road curve is given, m: the tightest turning circle of a car is
@@ -313,6 +315,19 @@ def corner_arc(
     kept within half of its arms: where that is shorter, it turns the corner on a smaller
     radius, but none below the floor.
     """
+    low, high = corner_arc_extent(corner, arms_m, inner_chords_m, vertices)
+    if high <= low:
+        return bounds, start_k, end_k
+    turn_rad = corner[2]
+    curvature = math.copysign(min(abs(turn_rad) / (high - low), 1.0 / FLOOR_RADIUS_M), turn_rad)
+    return _laid_over(bounds, start_k, end_k, low, high, curvature)
+
+
+def corner_arc_extent(
+    corner: tuple[float, float, float], arms_m: tuple[float, float], inner_chords_m: float, vertices: int
+) -> tuple[float, float]:
+    """Where :func:`corner_arc` lays a corner's arc (its arguments alike), from and to arc length, m: the stretch
+    over which the map lets the road turn the corner (rule 3)."""
     start_s, end_s, turn_rad = corner
     turn = abs(turn_rad)
     if vertices == 1:
@@ -323,18 +338,14 @@ def corner_arc(
     half_m = radius * turn / 2.0
     room_low, room_high = start_s - arms_m[0] / 2.0, end_s + arms_m[1] / 2.0
     high = min(room_high, max(room_low, (start_s + end_s) / 2.0 - half_m) + 2.0 * half_m)
-    low = max(room_low, high - 2.0 * half_m)
-    if high <= low:
-        return bounds, start_k, end_k
-    curvature = math.copysign(min(turn / (high - low), 1.0 / FLOOR_RADIUS_M), turn_rad)
-    return _laid_over(bounds, start_k, end_k, float(low), float(high), curvature)
+    return float(max(room_low, high - 2.0 * half_m)), float(high)
 
 
 def _laid_over(
     bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, low: float, high: float, curvature: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The parts with ``[low, high]`` replaced by one arc of ``curvature``; parts it cuts keep their curvature there."""
-    at_low, at_high = (_curvature_at(bounds, start_k, end_k, s) for s in (low, high))
+    at_low, at_high = (curvature_at(bounds, start_k, end_k, s) for s in (low, high))
     before = bounds[:-1] < low
     after = bounds[1:] > high
     new_bounds = np.concatenate((bounds[:-1][before], [low, high], bounds[1:][after]))
@@ -344,7 +355,7 @@ def _laid_over(
     return np.append(new_bounds[:-1][kept], new_bounds[-1]), new_start[kept], new_end[kept]
 
 
-def _curvature_at(bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, s: float) -> float:
+def curvature_at(bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, s: float) -> float:
     """The parts' curvature at arc length ``s`` (linear within a part), 1/m."""
     part = int(np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, len(start_k) - 1))
     fraction = (s - bounds[part]) / max(float(bounds[part + 1] - bounds[part]), 1e-12)

@@ -10,7 +10,7 @@ junction manoeuvres left out) is read for what the curve index cannot trust or h
   is :data:`csws.curvature.corners.FLOOR_RADIUS_M`, the least a road curve is given (a lane beside
   its road's reference lane has the same curve, its radii moved by the lanes' offset). Such a curve
   is a **real corner** when the polyline turns its way by :data:`csws.curvature.artefacts.CORNER_MIN_DEG`
-  or more net over the curve's stretch (its vertices and the nearest beyond either end turning that
+  or more net over the curve's stretch (its vertices inside and the nearest at or beyond either end turning that
   way, an artefact's vertices counting their net turn only:
   :meth:`~csws.curvature.artefacts.PolylineTurns.net_turn_rad`), the curve no longer than
   :data:`csws.curvature.artefacts.CORNER_SPAN_M`: the road turns there, drawn by too few nodes, or

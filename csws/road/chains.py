@@ -28,6 +28,7 @@ from csws.road.sharing import (
     chain_runs,
     clip_curve,
     joined_at_run_joints,
+    kept_to_own_turn,
     lateral_offsets_m,
     moved_curve,
     read_profile,
@@ -231,7 +232,9 @@ class RoadChains:
         return self._kept(
             (chain, float(warning_radius_m), id(policy), False),
             policy,
-            lambda: self._moved_curves(runs, warning_radius_m, policy),
+            lambda: kept_to_own_turn(
+                self._moved_curves(runs, warning_radius_m, policy), self.xy[chain], warning_radius_m
+            ),
         )
 
     def _fitted_curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:

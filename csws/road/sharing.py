@@ -16,6 +16,10 @@ would be warned for another curve. A road has one curve, so here:
   changes do) and each radius moved by the lateral offset ``d`` (left positive): a
   signed curvature k becomes ``k / (1 - k d)``, so R - d on the inside of a turn, R + d
   on the outside;
+* what a lane borrows keeps to its own polyline's net turn (:func:`kept_to_own_turn`,
+  :func:`csws.curvature.artefacts.kept_to_net_turn`): a curve of the reference that runs
+  across the joint where the reference lane begins carries the turn the reference chain
+  makes there, which a lane beside it entered from elsewhere does not make;
 * a chain that has no lane of its own is not fitted at all.
 
 Lanes borrowing from one reference chain in order form a **run**: a curve that crosses
@@ -38,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_from_parts
+from csws.curvature.artefacts import kept_to_net_turn, polyline_turns, turned_back_scale
 
 __all__ = [
     "JOINT_TOLERANCE_M",
@@ -46,6 +51,7 @@ __all__ = [
     "chain_runs",
     "clip_curve",
     "joined_at_run_joints",
+    "kept_to_own_turn",
     "lateral_offsets_m",
     "moved_curve",
     "moved_parts",
@@ -331,4 +337,37 @@ def read_profile(
                 end_k.append(k1)
     vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
     bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
+    return kept_to_net_turn(xy, profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k)))
+
+
+def kept_to_own_turn(curves: Sequence[Curve], xy: np.ndarray, warning_radius_m: float) -> list[Curve]:
+    """Curves a chain borrows, each turned back to the net turn of the chain's own polyline ``xy`` over its stretch
+    (:func:`csws.curvature.artefacts.turned_back_scale`: its radii widened, or the curve dropped where that turns
+    less than the tolerance, or where its smallest radius so widened exceeds R_c ``warning_radius_m``: 3.4).
+
+    A curve of the reference lane that runs across the joint where the reference lane begins (or ends) carries the
+    turn the reference chain makes there, into its own lane; a lane beside it entered from elsewhere makes no such
+    turn, so a borrowed curve is kept only as far as the lane's own polyline turns, as its own fit would be.
+    """
+    if not curves:
+        return []
+    turns = polyline_turns(xy)
+    kept = []
+    for curve in curves:
+        side = 1.0 if curve.direction == "left" else -1.0
+        scale = turned_back_scale(turns, curve.start_s, curve.end_s, side * math.radians(curve.angle_deg))
+        if scale == 1.0:
+            kept.append(curve)
+        elif scale > 0.0 and curve.min_radius_m / scale <= warning_radius_m:
+            kept.append(_widened(curve, scale))
+    return kept
+
+
+def _widened(curve: Curve, scale: float) -> Curve:
+    """A curve turning ``scale`` times its angle over the same stretch, each radius divided by ``scale``."""
+    parts = tuple(
+        ConstantRadiusPart(part.start_s, part.end_s, part.radius_m / scale, part.spiral) for part in curve.parts
+    )
+    return Curve(
+        curve.start_s, curve.end_s, curve.angle_deg * scale, curve.direction, curve.min_radius_m / scale, parts
+    )
