@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from markers import marks_its_tests
 from test_opendrive import RADIUS_M, truth_road
@@ -76,6 +76,8 @@ def _clothoid_speeds(radius_m: np.ndarray) -> np.ndarray:
     length_m=st.floats(15.0, 120.0),
     cuts=st.lists(st.floats(0.01, 0.99), min_size=1, max_size=30, unique=True),
 )
+# The arc after the clothoid ends a hair off its curvature (a spiral part in all but rounding): it is one piece.
+@example(radius_m=71.0, length_m=68.17008052741173, cuts=[0.1564222228995652, 0.5715151316186632, 0.1, 0.25])
 def test_a_clothoid_in_many_linear_parts_is_cut_into_pieces_by_warning_speed(
     radius_m: float, length_m: float, cuts: list[float]
 ) -> None:

@@ -34,6 +34,10 @@ SPIRAL_PIECE_KMH = 1.0
 SPIRAL_SAMPLE_KMH = 0.05
 #: Most points a clothoid is looked at.
 MAX_SPIRAL_SAMPLES = 20_000
+#: A clothoid stretch whose curvature changes by less than this share of its own is sampled evenly in s: the
+#: fraction of the change a sample reaches is then lost in rounding (an arc given as a spiral part whose end
+#: curvature differs in the last bits).
+CURVATURE_CHANGE_FLOOR = 1e-9
 
 
 def _curved_span(part: ProfilePart, limit: float, sign: float) -> tuple[float, float] | None:
@@ -82,7 +86,9 @@ def _spiral_samples(
     step = (np.arange(len(span)) - first[span]) / (count[span] - 1)
     magnitude = (k_start[span] ** -0.5 + step * (k_end[span] ** -0.5 - k_start[span] ** -0.5)) ** -2.0
     change = k_end[span] - k_start[span]
-    fraction = np.divide(magnitude - k_start[span], change, out=step.copy(), where=change != 0)
+    # Where the curvature hardly changes, the fraction from it is rounding noise: even steps in s instead.
+    graded = np.abs(change) > CURVATURE_CHANGE_FLOOR * np.maximum(k_start[span], k_end[span])
+    fraction = np.divide(magnitude - k_start[span], change, out=step.copy(), where=graded)
     s = start_s[span] + np.clip(fraction, 0.0, 1.0) * (end_s[span] - start_s[span])
     kept = np.ones(len(s), dtype=bool)
     kept[np.cumsum(count)[:-1] - 1] = False  # a joint is the next stretch's start
