@@ -1,0 +1,122 @@
+"""Push of the service's events to the fleets' webhooks and to an MQTT broker.
+
+The service writes its events (warnings, releases, changes of state) to a durable outbox in its
+state store; push reads them after a durable cursor (:class:`source.EventSource`) and delivers them:
+
+* to each webhook of the event's fleet (:mod:`.webhooks`), signed, retried with backoff in order per
+  vehicle, and put in the dead letters after the last try; the webhooks are the service admin's
+  (:mod:`.targets`, ``csws webhooks``), and reach no address the service must not (:mod:`.addresses`);
+* to an MQTT broker (:mod:`.mqtt`): each event with QoS 1, the vehicle's state retained.
+
+Every worker starts a dispatcher of each kind (:func:`start_push`); a lease (:mod:`.lease`) in the
+push state (:mod:`.state`) lets one deliver at a time. See docs/push.md.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from .addresses import UnsafeTarget
+from .lease import LEASE_S, Lease
+from .mqtt import MqttDispatch, MqttPublisher
+from .policy import RetryPolicy
+from .runner import POLL_S, Runner
+from .source import EventSource, StoredEvent
+from .state import PushState
+from .targets import WebhookBook
+from .webhooks import PushCounts, WebhookDispatch, WebhookSender
+
+__all__ = [
+    "EventSource",
+    "StoredEvent",
+    "PushConfig",
+    "PushCounts",
+    "RetryPolicy",
+    "UnsafeTarget",
+    "start_push",
+]
+
+logger = logging.getLogger("csws.push")
+
+
+@dataclass(frozen=True)
+class PushConfig:
+    """Where and how to push.
+
+    Attributes
+    ----------
+    state_db
+        The push state's SQLite file (cursors, retries, dead letters, leases).
+    webhooks_file
+        The fleets' webhooks (:mod:`.targets`); None: no webhooks.
+    mqtt_url
+        The broker (``mqtt://HOST:PORT``); "": no MQTT.
+    allow_private
+        Whether webhooks may reach loopback and private addresses.
+    policy
+        Retries of the webhooks.
+    lease_s, poll_s
+        The lease's duration and the idle poll interval, s.
+    """
+
+    state_db: str
+    webhooks_file: Path | None = None
+    mqtt_url: str = ""
+    allow_private: bool = False
+    policy: RetryPolicy = RetryPolicy()
+    lease_s: float = LEASE_S
+    poll_s: float = POLL_S
+
+
+def start_push(
+    config: PushConfig,
+    source: EventSource,
+    counts: PushCounts | None = None,
+    clock: Callable[[], float] = time.time,
+) -> Callable[[], None]:
+    """Start the dispatchers ``config`` asks for (none when it names no webhook file and no broker).
+
+    Returns
+    -------
+    Callable
+        What stops them: each finishes the delivery under way, gives its lease up and closes.
+    """
+    if config.webhooks_file is None and not config.mqtt_url:
+        return lambda: None
+    state = PushState(config.state_db)
+    runners: list[Runner] = []
+    closers: list[Callable[[], None]] = [state.close]
+    if config.webhooks_file is not None:
+        lease = Lease(state, "webhooks", config.lease_s, clock)
+        sender = WebhookSender(config.allow_private, config.policy.timeout_s, clock)
+        book = WebhookBook(config.webhooks_file)
+        dispatch = WebhookDispatch(source, state, book.webhooks, lease, sender, config.policy, counts)
+        runners.append(Runner("csws-push-webhooks", lease, dispatch.step, config.poll_s, _idle(counts, "webhook")))
+        closers.insert(0, sender.close)
+    if config.mqtt_url:
+        lease = Lease(state, "mqtt", config.lease_s, clock)
+        publisher = MqttPublisher(config.mqtt_url, client_id=f"csws-{lease.holder}")
+        mqtt = MqttDispatch(source, state, publisher, lease, counts, clock)
+        runners.append(Runner("csws-push-mqtt", lease, mqtt.step, config.poll_s, _idle(counts, "mqtt")))
+        closers.insert(0, publisher.close)
+    for runner in runners:
+        runner.start()
+
+    def stop() -> None:
+        for runner in runners:
+            runner.stop()
+        for close in closers:
+            close()
+
+    return stop
+
+
+def _idle(counts: PushCounts | None, sink: str) -> Callable[[], None] | None:
+    """What zeroes the gauges of a dispatcher that does not hold its lease (the holder's count in the sum)."""
+    if counts is None:
+        return None
+    return lambda: counts.set_push_gauges(sink, 0, 0.0)
