@@ -8,11 +8,12 @@ that has :meth:`EventSource.events_after` serves, and tests serve events of thei
 
 from __future__ import annotations
 
+import threading
 from typing import NamedTuple, Protocol
 
 import msgspec
 
-__all__ = ["EventSource", "StoredEvent", "Event", "parse_event"]
+__all__ = ["EventSource", "StoredEvent", "Event", "parse_event", "MemoryOutbox"]
 
 
 class StoredEvent(NamedTuple):
@@ -67,3 +68,32 @@ def parse_event(body: bytes) -> Event:
         For a body that is no event.
     """
     return _DECODER.decode(body)
+
+
+class MemoryOutbox:
+    """An outbox in memory, in one process: an :class:`EventSource` for tests and benchmarks.
+
+    Its cursors are the events' numbers from 1, zero-padded so that they order as strings too.
+    """
+
+    def __init__(self) -> None:
+        self._events: list[StoredEvent] = []
+        self._fleets: list[str] = []
+        self._lock = threading.Lock()
+
+    def write(self, fleet: str, vehicle_id: str, body: bytes) -> str:
+        """Append an event of ``fleet``'s vehicle ``vehicle_id``; its cursor."""
+        with self._lock:
+            cursor = f"{len(self._events) + 1:020d}"
+            self._events.append(StoredEvent(cursor, f"{fleet}/{vehicle_id}" if fleet else vehicle_id, body))
+            self._fleets.append(fleet)
+        return cursor
+
+    def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
+        """Up to ``limit`` events of ``fleet`` (None: all) after the cursor ``after`` (None: from the first)."""
+        with self._lock:
+            start = int(after) if after is not None else 0
+            if fleet is None:
+                return self._events[start : start + limit]
+            numbers = (number for number in range(start, len(self._events)) if self._fleets[number] == fleet)
+            return [self._events[number] for _, number in zip(range(limit), numbers, strict=False)]

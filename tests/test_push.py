@@ -1,0 +1,494 @@
+"""Push of events to webhooks and MQTT (service.push), against real receivers on loopback.
+
+The webhook receiver is a real HTTP server that fails, times out and recovers on a script; the test
+checks every signature with its own HMAC-SHA256 and the order of each vehicle's events by their
+numbers. The MQTT tests start a real ``mosquitto`` (the Debian package; tests/system-packages.sh
+installs it) on a free loopback port.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import ipaddress
+import json
+import shutil
+import socket
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+
+import paho.mqtt.client as paho
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from servers import free_port
+
+from csws.cli import main as csws_main
+from service.push import PushConfig, RetryPolicy, start_push
+from service.push.addresses import UnsafeTarget, address_refusal, resolved_addresses
+from service.push.source import MemoryOutbox
+from service.push.state import PushState
+from service.push.targets import add_webhook
+
+FLEET = "acme"
+#: A receiver refuses a signature whose time is further than this from its clock, s.
+SIGNATURE_TOLERANCE_S = 300
+
+
+def event_body(vehicle_id: str, seq: int, fleet: str = FLEET, level: int = 0) -> bytes:
+    """An event as the outbox keeps it."""
+    state = "active" if seq % 3 else "standby"
+    body = {
+        "fleet": fleet,
+        "vehicle_id": vehicle_id,
+        "seq": seq,
+        "kind": "curve_level",
+        "time": time.time(),
+        "level": level,
+        "state": state,
+    }
+    return json.dumps(body).encode()
+
+
+def write_events(outbox: MemoryOutbox, vehicles: list[str], count: int, fleet: str = FLEET) -> None:
+    """``count`` events of each vehicle, interleaved (1, 1, 1, 2, 2, 2, ...)."""
+    for seq in range(1, count + 1):
+        for vehicle in vehicles:
+            outbox.write(fleet, vehicle, event_body(vehicle, seq, fleet, level=seq % 3))
+
+
+class Receiver:
+    """A webhook receiver on loopback: each POST is answered as ``script(number, key)`` says: (status, delay s)."""
+
+    def __init__(self, script: Callable[[int, str], tuple[int, float]] = lambda number, key: (200, 0.0)) -> None:
+        self.script = script
+        self.requests: list[dict] = []
+        self.lock = threading.Lock()
+        receiver = self
+
+        class Handler(BaseHTTPRequestHandler):
+            protocol_version = "HTTP/1.1"
+
+            def do_POST(self) -> None:  # noqa: N802 - http.server's name
+                body = self.rfile.read(int(self.headers["Content-Length"]))
+                key = self.headers["Idempotency-Key"]
+                with receiver.lock:
+                    number = len(receiver.requests) + 1
+                    status, delay_s = receiver.script(number, key)
+                    receiver.requests.append(
+                        {
+                            "key": key,
+                            "signature": self.headers["X-CSWS-Signature"],
+                            "body": body,
+                            "status": status,
+                            "arrived_s": time.time(),
+                        }
+                    )
+                time.sleep(delay_s)
+                try:
+                    self.send_response(status)
+                    self.send_header("Content-Length", "0")
+                    self.end_headers()
+                except OSError:
+                    pass
+
+            def log_message(self, *args) -> None:
+                pass
+
+        self.server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.server.daemon_threads = True
+        self.url = f"http://127.0.0.1:{self.server.server_address[1]}/events"
+        self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+        self.thread.start()
+
+    def accepted(self) -> list[dict]:
+        """The requests answered 2xx, in arrival order."""
+        with self.lock:
+            return [request for request in self.requests if 200 <= request["status"] < 300]
+
+    def stop(self) -> None:
+        self.server.shutdown()
+        self.server.server_close()
+
+
+@pytest.fixture
+def receiver_factory() -> Iterator[Callable[..., Receiver]]:
+    receivers: list[Receiver] = []
+
+    def make(script: Callable[[int, str], tuple[int, float]] = lambda number, key: (200, 0.0)) -> Receiver:
+        receivers.append(Receiver(script))
+        return receivers[-1]
+
+    yield make
+    for receiver in receivers:
+        receiver.stop()
+
+
+def signature_holds(secret: str, request: dict) -> bool:
+    """Whether a request's X-CSWS-Signature is the HMAC-SHA256 of ``t.`` + body, with a recent t."""
+    fields = dict(part.split("=", 1) for part in request["signature"].split(","))
+    expected = hmac.new(secret.encode(), fields["t"].encode() + b"." + request["body"], hashlib.sha256).hexdigest()
+    return hmac.compare_digest(expected, fields["v1"]) and abs(time.time() - int(fields["t"])) <= SIGNATURE_TOLERANCE_S
+
+
+def wait_until(condition: Callable[[], bool], timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out")
+        time.sleep(0.02)
+
+
+def push_config(tmp_path: Path, **changes) -> PushConfig:
+    """Push to the webhooks of tmp_path's file, loopback allowed, with quick retries."""
+    policy = changes.pop("policy", RetryPolicy(max_tries=50, first_delay_s=0.05, max_delay_s=0.2, timeout_s=0.3))
+    return PushConfig(
+        str(tmp_path / "push.sqlite3"),
+        webhooks_file=tmp_path / "webhooks.json",
+        allow_private=True,
+        policy=policy,
+        lease_s=1.0,
+        **changes,
+    )
+
+
+def in_order_per_vehicle(requests: list[dict]) -> dict[str, list[int]]:
+    """The numbers of each vehicle's events in the order the requests arrived."""
+    numbers: dict[str, list[int]] = {}
+    for request in requests:
+        event = json.loads(request["body"])
+        assert request["key"] == f"{event['fleet']}:{event['vehicle_id']}:{event['seq']}"
+        numbers.setdefault(event["vehicle_id"], []).append(event["seq"])
+    return numbers
+
+
+def test_a_receiver_that_fails_times_out_and_recovers_gets_every_event_in_order(tmp_path, receiver_factory):
+    # Requests 1-6 are refused (500), 7-9 answered after the delivery's timeout, then all are taken.
+    def script(number: int, key: str) -> tuple[int, float]:
+        return (500, 0.0) if number <= 6 else (200, 0.6) if number <= 9 else (200, 0.0)
+
+    receiver = receiver_factory(script)
+    secret = add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+    assert secret is not None
+    outbox, vehicles, count = MemoryOutbox(), ["truck-1", "truck-2", "bus-3"], 20
+    write_events(outbox, vehicles, count)
+    stop = start_push(push_config(tmp_path), outbox)
+    try:
+        wait_until(
+            lambda: (
+                {r["key"] for r in receiver.accepted()}
+                >= {f"{FLEET}:{v}:{s}" for v in vehicles for s in range(1, count + 1)}
+            )
+        )
+    finally:
+        stop()
+    assert all(signature_holds(secret, request) for request in receiver.requests)
+    for vehicle, numbers in in_order_per_vehicle(receiver.accepted()).items():
+        assert numbers == sorted(numbers), vehicle  # never an earlier event after a later one
+        assert sorted(set(numbers)) == list(range(1, count + 1))
+    assert len(receiver.requests) > len(vehicles) * count  # the failures were retried
+
+
+def test_other_vehicles_go_on_while_one_vehicle_is_refused(tmp_path, receiver_factory):
+    refused_until_s = time.time() + 1.0
+
+    def script(number: int, key: str) -> tuple[int, float]:
+        return (500, 0.0) if key.startswith(f"{FLEET}:stuck:") and time.time() < refused_until_s else (200, 0.0)
+
+    receiver = receiver_factory(script)
+    add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+    outbox = MemoryOutbox()
+    write_events(outbox, ["stuck", "free"], 5)
+    stop = start_push(push_config(tmp_path), outbox)
+    try:
+        wait_until(lambda: len({r["key"] for r in receiver.accepted() if ":free:" in r["key"]}) == 5, 0.9)
+        assert not any(":stuck:" in r["key"] for r in receiver.accepted())  # stuck's first event still refused
+        wait_until(lambda: len({r["key"] for r in receiver.accepted()}) == 10)
+    finally:
+        stop()
+    assert in_order_per_vehicle(receiver.accepted())["stuck"] == [1, 2, 3, 4, 5]
+
+
+def test_an_event_never_taken_is_a_dead_letter_after_the_last_try(tmp_path, receiver_factory, capsys):
+    receiver = receiver_factory(lambda number, key: (503, 0.0))
+    add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+    outbox, tries = MemoryOutbox(), 3
+    write_events(outbox, ["truck-1", "truck-2"], 2)
+    policy = RetryPolicy(max_tries=tries, first_delay_s=0.02, max_delay_s=0.05, timeout_s=0.5)
+    config = push_config(tmp_path, policy=policy)
+    stop = start_push(config, outbox)
+    state = PushState(config.state_db)
+    try:
+        wait_until(lambda: len(state.dead_letters()) == 4)
+    finally:
+        stop()
+    letters = state.dead_letters()
+    state.close()
+    assert all(letter.tries == tries and letter.error == "HTTP 503" for letter in letters)
+    per_key: dict[str, int] = {}
+    for request in receiver.requests:
+        per_key[request["key"]] = per_key.get(request["key"], 0) + 1
+    assert per_key == {f"{FLEET}:{v}:{s}": tries for v in ("truck-1", "truck-2") for s in (1, 2)}
+    for vehicle in ("truck-1", "truck-2"):  # given up in order: a vehicle's second event only after its first
+        assert [json.loads(letter.body)["seq"] for letter in letters if letter.vehicle == f"{FLEET}/{vehicle}"] == [
+            1,
+            2,
+        ]
+    assert csws_main(["webhooks", "dead-letters", "--db", config.state_db, "--fleet", FLEET, "--json"]) == 0
+    shown = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(row["event"]["vehicle_id"], row["event"]["seq"], row["tries"]) for row in shown] == [
+        (json.loads(letter.body)["vehicle_id"], json.loads(letter.body)["seq"], tries) for letter in letters
+    ]
+
+
+def test_two_dispatchers_on_one_lease_deliver_each_event_once(tmp_path, receiver_factory):
+    receiver = receiver_factory()
+    add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+    outbox, vehicles = MemoryOutbox(), [f"truck-{n}" for n in range(10)]
+    config = push_config(tmp_path)
+    stoppers = [start_push(config, outbox), start_push(config, outbox)]
+    try:
+        for seq in range(1, 31):  # written while both run
+            for vehicle in vehicles:
+                outbox.write(FLEET, vehicle, event_body(vehicle, seq))
+            time.sleep(0.005)
+        wait_until(lambda: len(receiver.requests) >= 300)
+        time.sleep(0.5)  # time for any second delivery to show
+    finally:
+        for stop in stoppers:
+            stop()
+    keys = [request["key"] for request in receiver.requests]
+    assert sorted(keys) == sorted(f"{FLEET}:{v}:{s}" for v in vehicles for s in range(1, 31))
+    assert all(numbers == list(range(1, 31)) for numbers in in_order_per_vehicle(receiver.requests).values())
+
+
+def test_a_dispatcher_that_stops_hands_over_and_nothing_is_lost(tmp_path, receiver_factory):
+    receiver = receiver_factory()
+    add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+    outbox, config = MemoryOutbox(), push_config(tmp_path)
+    first, second = start_push(config, outbox), start_push(config, outbox)
+    write_events(outbox, ["truck-1"], 50)
+    wait_until(lambda: len(receiver.requests) >= 50)
+    first()
+    second_time = 50
+    write_events(outbox, ["truck-2"], second_time)
+    try:
+        wait_until(lambda: len({r["key"] for r in receiver.requests}) == 100)
+    finally:
+        second()
+
+
+# --- What a webhook may reach ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("url", "reason"),
+    [
+        ("http://169.254.169.254/latest/meta-data", "metadata"),
+        ("http://[fe80::1]/hook", "link-local"),
+        ("http://[fd00:ec2::254]/hook", "metadata"),
+        ("http://0.0.0.0/hook", "unspecified"),
+        ("http://224.0.0.1/hook", "multicast"),
+        ("http://255.255.255.255/hook", "broadcast"),
+        ("http://[::ffff:169.254.169.254]/hook", "metadata"),
+        ("http://127.0.0.1:8080/hook", "loopback or private"),
+        ("http://10.1.2.3/hook", "loopback or private"),
+        ("ftp://example.com/hook", "http:// or https://"),
+        ("file:///etc/passwd", "http:// or https://"),
+    ],
+)
+def test_refused_webhook_urls(tmp_path, url, reason):
+    with pytest.raises(UnsafeTarget, match=reason):
+        add_webhook(tmp_path / "webhooks.json", FLEET, url, allow_private=False)
+    assert not (tmp_path / "webhooks.json").exists()
+
+
+def test_link_local_is_refused_even_where_private_addresses_are_allowed(tmp_path):
+    for url in ("http://169.254.10.10/hook", "http://[fe80::1]/hook"):
+        with pytest.raises(UnsafeTarget, match="link-local"):
+            add_webhook(tmp_path / "webhooks.json", FLEET, url, allow_private=True)
+
+
+def test_the_cli_refuses_in_one_line_with_a_non_zero_status(tmp_path, capsys):
+    status = csws_main(
+        ["webhooks", "add", "--fleet", FLEET, "http://169.254.169.254/", "--file", str(tmp_path / "w.json")]
+    )
+    error = capsys.readouterr().err
+    assert status != 0 and error.count("\n") == 1 and "metadata" in error
+
+
+def _resolving(monkeypatch: pytest.MonkeyPatch, name: str, address: str) -> None:
+    """Make ``name`` resolve to ``address`` (the system's resolver for any other name)."""
+    real = socket.getaddrinfo
+
+    def getaddrinfo(host, port, *args, **kwargs):
+        if host == name:
+            family = socket.AF_INET6 if ":" in address else socket.AF_INET
+            return [(family, socket.SOCK_STREAM, 6, "", (address, port))]
+        return real(host, port, *args, **kwargs)
+
+    monkeypatch.setattr(socket, "getaddrinfo", getaddrinfo)
+
+
+def test_a_name_resolving_to_link_local_is_refused(tmp_path, monkeypatch):
+    _resolving(monkeypatch, "hooks.example.test", "169.254.169.254")
+    with pytest.raises(UnsafeTarget, match="'hooks.example.test' is 169.254.169.254"):
+        resolved_addresses("https://hooks.example.test/csws", allow_private=True)
+
+
+def test_a_name_that_resolves_elsewhere_later_is_refused_at_the_connection(tmp_path, monkeypatch, receiver_factory):
+    receiver = receiver_factory()
+    _resolving(monkeypatch, "rebinding.example.test", "127.0.0.1")
+    url = receiver.url.replace("127.0.0.1", "rebinding.example.test")
+    add_webhook(tmp_path / "webhooks.json", FLEET, url, allow_private=True)
+    _resolving(monkeypatch, "rebinding.example.test", "169.254.169.254")
+    outbox, config = MemoryOutbox(), push_config(tmp_path)
+    outbox.write(FLEET, "truck-1", event_body("truck-1", 1))
+    stop = start_push(config, outbox)
+    state = PushState(config.state_db)
+    try:
+        wait_until(
+            lambda: any(
+                "link-local" in p.error or "metadata" in p.error
+                for p in state.due(f"webhook {FLEET} {url}", time.time() + 60, 10)
+            )
+        )
+    finally:
+        stop()
+        state.close()
+    assert receiver.requests == []
+
+
+@given(st.integers(min_value=0, max_value=2**16 - 1), st.booleans())
+def test_every_link_local_address_is_refused_in_either_family(low_bits, allow_private):
+    address = ipaddress.IPv4Address((169 << 24) | (254 << 16) | low_bits)
+    mapped = ipaddress.IPv6Address(f"::ffff:{address}")
+    assert address_refusal(address, allow_private) is not None
+    assert address_refusal(mapped, allow_private) == address_refusal(address, allow_private)
+
+
+@given(st.ip_addresses(v=4), st.booleans())
+def test_a_global_address_is_refused_only_when_special(address, allow_private):
+    refusal = address_refusal(address, allow_private)
+    if address.is_global and not address.is_multicast and str(address) != "100.100.100.200":
+        assert refusal is None
+    if address.is_private and not (address.is_link_local or address.is_unspecified or address.is_multicast):
+        assert (refusal is None) == (allow_private and str(address) != "255.255.255.255")
+
+
+# --- MQTT -----------------------------------------------------------------------------------------------------------
+
+
+class Mosquitto:
+    """A real ``mosquitto`` on a free loopback port, anonymous, without persistence."""
+
+    def __init__(self, folder: Path) -> None:
+        binary = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
+        if not Path(binary).exists():
+            raise RuntimeError("the MQTT tests need mosquitto: apt-get install mosquitto (tests/system-packages.sh)")
+        self.port = free_port()
+        self.config = folder / "mosquitto.conf"
+        self.config.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
+        self.process: subprocess.Popen[bytes]
+        self.start()
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self.port}"
+
+    def start(self) -> None:
+        binary = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
+        self.process = subprocess.Popen(
+            [binary, "-c", str(self.config)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        wait_until(self._answers, 10.0)
+
+    def _answers(self) -> bool:
+        try:
+            socket.create_connection(("127.0.0.1", self.port), 0.2).close()
+            return True
+        except OSError:
+            return False
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            self.process.wait(timeout=10)
+
+
+@pytest.fixture
+def mosquitto(tmp_path: Path) -> Iterator[Mosquitto]:
+    broker = Mosquitto(tmp_path)
+    yield broker
+    broker.stop()
+
+
+class Subscriber:
+    """A paho client that records the messages of ``topic`` (QoS 1) as (topic, payload, retained)."""
+
+    def __init__(self, broker: Mosquitto, topic: str) -> None:
+        self.messages: list[tuple[str, bytes, bool]] = []
+        self.subscribed = threading.Event()
+        self.client = paho.Client(paho.CallbackAPIVersion.VERSION2)
+        self.client.on_message = lambda client, data, message: self.messages.append(
+            (message.topic, message.payload, bool(message.retain))
+        )
+        self.client.on_subscribe = lambda *args: self.subscribed.set()
+        self.client.on_connect = lambda client, *args: client.subscribe(topic, qos=1)
+        self.client.connect("127.0.0.1", broker.port)
+        self.client.loop_start()
+        assert self.subscribed.wait(10.0)
+
+    def close(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()
+
+
+def test_mqtt_events_in_order_and_the_state_retained_for_a_late_subscriber(tmp_path, mosquitto):
+    events_seen = Subscriber(mosquitto, "csws/+/+/events")
+    outbox, vehicles, count = MemoryOutbox(), ["truck-1", "bus#2"], 40
+    write_events(outbox, vehicles, count)
+    stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url, lease_s=1.0), outbox)
+    try:
+        wait_until(lambda: len(events_seen.messages) >= len(vehicles) * count)
+        late = Subscriber(mosquitto, f"csws/{FLEET}/+/state")
+        wait_until(lambda: len(late.messages) == len(vehicles))
+    finally:
+        stop()
+        events_seen.close()
+    topics = {"truck-1": f"csws/{FLEET}/truck-1/events", "bus#2": f"csws/{FLEET}/bus%232/events"}
+    for vehicle, topic in topics.items():
+        numbers = [json.loads(payload)["seq"] for seen, payload, _ in events_seen.messages if seen == topic]
+        assert numbers == list(range(1, count + 1))
+    last = {vehicle: json.loads(event_body(vehicle, count, level=count % 3)) for vehicle in vehicles}
+    for topic, payload, retained in late.messages:
+        state = json.loads(payload)
+        vehicle = "truck-1" if "truck-1" in topic else "bus#2"
+        assert retained and set(state) == {"state", "level", "time", "seq"}
+        assert (state["seq"], state["level"], state["state"]) == (count, last[vehicle]["level"], last[vehicle]["state"])
+    late.close()
+
+
+def test_mqtt_events_written_while_the_broker_is_down_arrive_after_it_is_back(tmp_path, mosquitto):
+    outbox = MemoryOutbox()
+    stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url, lease_s=1.0), outbox)
+    try:
+        write_events(outbox, ["truck-1"], 5)
+        state = PushState(tmp_path / "push.sqlite3")
+        wait_until(lambda: state.cursor("mqtt") == f"{5:020d}")
+        mosquitto.stop()
+        write_events(outbox, ["truck-2"], 5)
+        time.sleep(0.5)
+        assert state.cursor("mqtt") == f"{5:020d}"  # nothing acknowledged, nothing passed
+        mosquitto.start()
+        seen = Subscriber(mosquitto, "csws/+/truck-2/events")
+        wait_until(lambda: {json.loads(p)["seq"] for _, p, _ in seen.messages} == {1, 2, 3, 4, 5}, 60.0)
+        wait_until(lambda: state.cursor("mqtt") == f"{10:020d}")
+        state.close()
+        seen.close()
+    finally:
+        stop()
