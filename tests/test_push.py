@@ -12,6 +12,7 @@ import hashlib
 import hmac
 import ipaddress
 import json
+import logging
 import shutil
 import socket
 import subprocess
@@ -28,11 +29,13 @@ from hypothesis import strategies as st
 from servers import free_port
 
 from csws.cli import main as csws_main
-from service.push import PushConfig, RetryPolicy, start_push
+from service.metrics import Metrics
+from service.push import PushConfig, RetryPolicy, push_config, start_push, start_service_push
 from service.push.addresses import UnsafeTarget, address_refusal, resolved_addresses
 from service.push.source import MemoryOutbox
 from service.push.state import PushState
 from service.push.targets import add_webhook
+from service.settings import ServiceSettings
 
 FLEET = "acme"
 #: A receiver refuses a signature whose time is further than this from its clock, s.
@@ -143,7 +146,7 @@ def wait_until(condition: Callable[[], bool], timeout_s: float = 30.0) -> None:
         time.sleep(0.02)
 
 
-def push_config(tmp_path: Path, **changes) -> PushConfig:
+def quick_config(tmp_path: Path, **changes) -> PushConfig:
     """Push to the webhooks of tmp_path's file, loopback allowed, with quick retries."""
     policy = changes.pop("policy", RetryPolicy(max_tries=50, first_delay_s=0.05, max_delay_s=0.2, timeout_s=0.3))
     return PushConfig(
@@ -176,7 +179,7 @@ def test_a_receiver_that_fails_times_out_and_recovers_gets_every_event_in_order(
     assert secret is not None
     outbox, vehicles, count = MemoryOutbox(), ["truck-1", "truck-2", "bus-3"], 20
     write_events(outbox, vehicles, count)
-    stop = start_push(push_config(tmp_path), outbox)
+    stop = start_push(quick_config(tmp_path), outbox)
     try:
         wait_until(
             lambda: (
@@ -203,7 +206,7 @@ def test_other_vehicles_go_on_while_one_vehicle_is_refused(tmp_path, receiver_fa
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
     outbox = MemoryOutbox()
     write_events(outbox, ["stuck", "free"], 5)
-    stop = start_push(push_config(tmp_path), outbox)
+    stop = start_push(quick_config(tmp_path), outbox)
     try:
         wait_until(lambda: len({r["key"] for r in receiver.accepted() if ":free:" in r["key"]}) == 5, 0.9)
         assert not any(":stuck:" in r["key"] for r in receiver.accepted())  # stuck's first event still refused
@@ -219,7 +222,7 @@ def test_an_event_never_taken_is_a_dead_letter_after_the_last_try(tmp_path, rece
     outbox, tries = MemoryOutbox(), 3
     write_events(outbox, ["truck-1", "truck-2"], 2)
     policy = RetryPolicy(max_tries=tries, first_delay_s=0.02, max_delay_s=0.05, timeout_s=0.5)
-    config = push_config(tmp_path, policy=policy)
+    config = quick_config(tmp_path, policy=policy)
     stop = start_push(config, outbox)
     state = PushState(config.state_db)
     try:
@@ -249,7 +252,7 @@ def test_two_dispatchers_on_one_lease_deliver_each_event_once(tmp_path, receiver
     receiver = receiver_factory()
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
     outbox, vehicles = MemoryOutbox(), [f"truck-{n}" for n in range(10)]
-    config = push_config(tmp_path)
+    config = quick_config(tmp_path)
     stoppers = [start_push(config, outbox), start_push(config, outbox)]
     try:
         for seq in range(1, 31):  # written while both run
@@ -269,13 +272,12 @@ def test_two_dispatchers_on_one_lease_deliver_each_event_once(tmp_path, receiver
 def test_a_dispatcher_that_stops_hands_over_and_nothing_is_lost(tmp_path, receiver_factory):
     receiver = receiver_factory()
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
-    outbox, config = MemoryOutbox(), push_config(tmp_path)
+    outbox, config = MemoryOutbox(), quick_config(tmp_path)
     first, second = start_push(config, outbox), start_push(config, outbox)
     write_events(outbox, ["truck-1"], 50)
     wait_until(lambda: len(receiver.requests) >= 50)
-    first()
-    second_time = 50
-    write_events(outbox, ["truck-2"], second_time)
+    first()  # gives its lease up: the other takes over
+    write_events(outbox, ["truck-2"], 50)
     try:
         wait_until(lambda: len({r["key"] for r in receiver.requests}) == 100)
     finally:
@@ -346,7 +348,7 @@ def test_a_name_that_resolves_elsewhere_later_is_refused_at_the_connection(tmp_p
     url = receiver.url.replace("127.0.0.1", "rebinding.example.test")
     add_webhook(tmp_path / "webhooks.json", FLEET, url, allow_private=True)
     _resolving(monkeypatch, "rebinding.example.test", "169.254.169.254")
-    outbox, config = MemoryOutbox(), push_config(tmp_path)
+    outbox, config = MemoryOutbox(), quick_config(tmp_path)
     outbox.write(FLEET, "truck-1", event_body("truck-1", 1))
     stop = start_push(config, outbox)
     state = PushState(config.state_db)
@@ -461,7 +463,7 @@ def test_mqtt_events_in_order_and_the_state_retained_for_a_late_subscriber(tmp_p
         stop()
         events_seen.close()
     topics = {"truck-1": f"csws/{FLEET}/truck-1/events", "bus#2": f"csws/{FLEET}/bus%232/events"}
-    for vehicle, topic in topics.items():
+    for topic in topics.values():
         numbers = [json.loads(payload)["seq"] for seen, payload, _ in events_seen.messages if seen == topic]
         assert numbers == list(range(1, count + 1))
     last = {vehicle: json.loads(event_body(vehicle, count, level=count % 3)) for vehicle in vehicles}
@@ -492,3 +494,34 @@ def test_mqtt_events_written_while_the_broker_is_down_arrive_after_it_is_back(tm
         seen.close()
     finally:
         stop()
+
+
+# --- In the service -------------------------------------------------------------------------------------------------
+
+
+def test_the_service_pushes_from_its_store_and_counts_in_its_metrics(tmp_path, receiver_factory, caplog):
+    receiver = receiver_factory()
+    keys_file = tmp_path / "api-keys.json"
+    add_webhook(keys_file.with_name("webhooks.json"), FLEET, receiver.url, allow_private=True)
+    settings = ServiceSettings(
+        api_keys_file=keys_file, state_db=str(tmp_path / "vehicles.sqlite3"), webhook_allow_private=True
+    )
+    assert push_config(settings).webhooks_file == tmp_path / "webhooks.json"
+    assert push_config(settings).state_db == str(tmp_path / "push.sqlite3")
+    outbox, metrics = MemoryOutbox(), Metrics()
+    write_events(outbox, ["truck-1"], 7)
+    stop = start_service_push(settings, outbox, metrics)
+    try:
+        wait_until(lambda: len(receiver.requests) == 7)
+    finally:
+        stop()
+    assert 'csws_push_events_total{sink="webhook",outcome="delivered"} 7' in metrics.lines()
+    with caplog.at_level(logging.WARNING, logger="csws.push"):
+        start_service_push(settings, object(), metrics)()  # a store without an outbox: nothing to push
+    assert "keeps no outbox" in caplog.text
+
+
+def test_a_broker_url_must_be_mqtt():
+    with pytest.raises(ValueError, match="mqtt://HOST:PORT"):
+        ServiceSettings(mqtt="http://127.0.0.1:1883")
+    assert ServiceSettings(mqtt=" mqtt://127.0.0.1:1883 ").mqtt == "mqtt://127.0.0.1:1883"

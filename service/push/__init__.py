@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .addresses import UnsafeTarget
 from .lease import LEASE_S, Lease
@@ -26,9 +27,12 @@ from .mqtt import MqttDispatch, MqttPublisher
 from .policy import RetryPolicy
 from .runner import POLL_S, Runner
 from .source import EventSource, StoredEvent
-from .state import PushState
+from .state import PushState, push_db_beside
 from .targets import WebhookBook
 from .webhooks import PushCounts, WebhookDispatch, WebhookSender
+
+if TYPE_CHECKING:
+    from ..settings import ServiceSettings
 
 __all__ = [
     "EventSource",
@@ -38,6 +42,8 @@ __all__ = [
     "RetryPolicy",
     "UnsafeTarget",
     "start_push",
+    "push_config",
+    "start_service_push",
 ]
 
 logger = logging.getLogger("csws.push")
@@ -120,3 +126,31 @@ def _idle(counts: PushCounts | None, sink: str) -> Callable[[], None] | None:
     if counts is None:
         return None
     return lambda: counts.set_push_gauges(sink, 0, 0.0)
+
+
+def push_config(settings: ServiceSettings) -> PushConfig:
+    """What the service's settings ask of push: its webhook file (by default ``webhooks.json`` beside the API key
+    file), its broker, and its state's file (by default ``push.sqlite3`` beside the state store's)."""
+    webhooks_file = settings.webhooks_file
+    if webhooks_file is None and settings.api_keys_file is not None:
+        webhooks_file = settings.api_keys_file.with_name("webhooks.json")
+    return PushConfig(
+        settings.push_db.strip() or push_db_beside(settings.state_db),
+        webhooks_file,
+        settings.mqtt,
+        settings.webhook_allow_private,
+    )
+
+
+def start_service_push(settings: ServiceSettings, store: object, counts: PushCounts | None) -> Callable[[], None]:
+    """Start push in a worker of the service, reading the outbox of its state store; what stops it.
+
+    A store without an outbox (no ``events_after``) pushes nothing, which the log says when push is configured.
+    """
+    config = push_config(settings)
+    if config.webhooks_file is None and not config.mqtt_url:
+        return lambda: None
+    if not callable(getattr(store, "events_after", None)):
+        logger.warning("push is configured, but the state store keeps no outbox of events: nothing is pushed")
+        return lambda: None
+    return start_push(config, store, counts)  # type: ignore[arg-type]
