@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import ssl
+import threading
 import time
 from collections.abc import Callable
 from urllib.parse import unquote, urlsplit
@@ -85,6 +86,11 @@ class MqttPublisher:
         self.client.max_inflight_messages_set(MAX_IN_FLIGHT)
         self.client.max_queued_messages_set(0)
         self.client.reconnect_delay_set(min_delay=1, max_delay=30)
+        self.connected = threading.Event()
+        self.client.on_connect = lambda _client, _data, _flags, reason, _properties: (
+            self.connected.set() if not reason.is_failure else None
+        )
+        self.client.on_disconnect = lambda *_arguments: self.connected.clear()
         if parts.username:
             self.client.username_pw_set(unquote(parts.username), unquote(parts.password or "") or None)
         if parts.scheme == "mqtts":
@@ -93,8 +99,9 @@ class MqttPublisher:
         self.client.loop_start()
 
     def publish_all(self, messages: list[tuple[str, bytes, bool]], timeout_s: float) -> bool:
-        """Publish (topic, payload, retain) with QoS 1, in order; whether the broker acknowledged them all."""
-        if not self.client.is_connected():
+        """Publish (topic, payload, retain) with QoS 1, in order; whether the broker acknowledged them all
+        within ``timeout_s`` (which includes waiting for a connection)."""
+        if not self.connected.wait(timeout_s):
             return False
         infos = [self.client.publish(topic, payload, qos=1, retain=retain) for topic, payload, retain in messages]
         deadline_s = time.monotonic() + timeout_s
