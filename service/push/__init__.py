@@ -102,7 +102,7 @@ def start_push(
         book = WebhookBook(config.webhooks_file)
         dispatch = WebhookDispatch(source, state, book.webhooks, lease, sender, config.policy, counts)
         runners.append(Runner("csws-push-webhooks", lease, dispatch.step, config.poll_s, _idle(counts, "webhook")))
-        closers.insert(0, sender.close)
+        closers.insert(0, dispatch.close)
     if config.mqtt_url:
         lease = Lease(state, "mqtt", config.lease_s, clock)
         publisher = MqttPublisher(config.mqtt_url, client_id=f"csws-{lease.holder}")

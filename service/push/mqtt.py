@@ -91,6 +91,10 @@ class MqttPublisher:
             self.connected.set() if not reason.is_failure else None
         )
         self.client.on_disconnect = lambda *_arguments: self.connected.clear()
+        self._acknowledged: set[int] = set()  # acknowledged before their batch waits for them
+        self._awaited: set[int] = set()  # the batch's messages not yet acknowledged
+        self._acknowledgement = threading.Condition()
+        self.client.on_publish = self._acknowledged_one
         if parts.username:
             self.client.username_pw_set(unquote(parts.username), unquote(parts.password or "") or None)
         if parts.scheme == "mqtts":
@@ -104,15 +108,22 @@ class MqttPublisher:
         if not self.connected.wait(timeout_s):
             return False
         infos = [self.client.publish(topic, payload, qos=1, retain=retain) for topic, payload, retain in messages]
-        deadline_s = time.monotonic() + timeout_s
-        for info in infos:
-            try:
-                info.wait_for_publish(max(0.0, deadline_s - time.monotonic()))
-            except (RuntimeError, ValueError):
-                return False
-            if not info.is_published():
-                return False
-        return True
+        if any(info.rc != paho.MQTT_ERR_SUCCESS for info in infos):
+            return False
+        with self._acknowledgement:
+            self._awaited = {info.mid for info in infos} - self._acknowledged
+            self._acknowledged.clear()
+            return self._acknowledgement.wait_for(lambda: not self._awaited, timeout_s)
+
+    def _acknowledged_one(self, _client: paho.Client, _data: object, mid: int, *_arguments: object) -> None:
+        """paho's network thread: the broker acknowledged the message ``mid`` (PUBACK)."""
+        with self._acknowledgement:
+            if mid not in self._awaited:
+                self._acknowledged.add(mid)
+                return
+            self._awaited.discard(mid)
+            if not self._awaited:
+                self._acknowledgement.notify()
 
     def close(self) -> None:
         """Disconnect and stop the network thread."""

@@ -23,7 +23,10 @@ import hmac
 import http.client
 import logging
 import random
+import threading
+import zlib
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple, Protocol
 from urllib.parse import urlsplit
 
@@ -46,6 +49,9 @@ logger = logging.getLogger("csws.push")
 BATCH = 500
 #: Queued events tried per webhook in one pass, before new events get their turn.
 RETRIES_PER_PASS = 500
+#: Connections per webhook over which new events go out at once (retries take the first), each vehicle's always
+#: over the same one, in order: the round trips of one overlap those of the others.
+LANES = 4
 
 
 def signature(secret: str, body: bytes, unix_s: int) -> str:
@@ -80,51 +86,57 @@ class Attempt(NamedTuple):
 class WebhookSender:
     """POSTs to webhooks over kept-alive connections, each opened to an address checked at that moment."""
 
-    def __init__(self, allow_private: bool, timeout_s: float, clock: Callable[[], float]) -> None:
-        self.allow_private, self.timeout_s, self.clock = allow_private, timeout_s, clock
-        self._connections: dict[str, http.client.HTTPConnection] = {}
+    def __init__(self, allow_private: bool, timeout_s: float, clock: Callable[[], float], lanes: int = LANES) -> None:
+        self.allow_private, self.timeout_s, self.clock, self.lanes = allow_private, timeout_s, clock, lanes
+        self._connections: dict[tuple[str, int], http.client.HTTPConnection] = {}
 
-    def post(self, webhook: Webhook, body: bytes, key: str) -> Attempt:
-        """Deliver ``body`` to ``webhook`` once, signed now; a kept connection that went stale is opened anew."""
+    def post(self, webhook: Webhook, body: bytes, key: str, lane: int = 0) -> Attempt:
+        """Deliver ``body`` to ``webhook`` once over the connection of ``lane``, signed now; a kept connection that
+        went stale is opened anew."""
         headers = {
             "Content-Type": "application/json",
             "User-Agent": f"csws/{__version__}",
             "Idempotency-Key": key,
             "X-CSWS-Signature": signature(webhook.secret, body, int(self.clock())),
         }
-        kept = webhook.url in self._connections
-        attempt = self._post_once(webhook.url, body, headers)
+        kept = (webhook.url, lane) in self._connections
+        attempt = self._post_once((webhook.url, lane), body, headers)
         if not attempt.answered and kept:
-            attempt = self._post_once(webhook.url, body, headers)
+            attempt = self._post_once((webhook.url, lane), body, headers)
         return attempt
 
-    def _post_once(self, url: str, body: bytes, headers: dict[str, str]) -> Attempt:
-        """One POST over the kept connection to ``url``, or a new one."""
+    def _post_once(self, lane: tuple[str, int], body: bytes, headers: dict[str, str]) -> Attempt:
+        """One POST over the kept connection of a webhook's lane, or a new one."""
+        url = lane[0]
         try:
-            connection = self._connections.get(url) or pinned_connection(url, self.allow_private, self.timeout_s)
-            self._connections[url] = connection
+            connection = self._connections.get(lane) or pinned_connection(url, self.allow_private, self.timeout_s)
+            self._connections[lane] = connection
             parts = urlsplit(url)
             connection.request("POST", (parts.path or "/") + (f"?{parts.query}" if parts.query else ""), body, headers)
             response = connection.getresponse()
             response.read()
         except UnsafeTarget as error:
-            self.close(url)
+            self._close(lane)
             return Attempt(False, str(error), answered=False)
         except (OSError, http.client.HTTPException) as error:
-            self.close(url)
+            self._close(lane)
             return Attempt(False, f"{type(error).__name__}: {error}", answered=False)
         if response.will_close:
-            self.close(url)
+            self._close(lane)
         if 200 <= response.status < 300:
             return Attempt(True)
         return Attempt(False, f"HTTP {response.status}")
 
-    def close(self, url: str | None = None) -> None:
-        """Close the connection to ``url`` (None: all)."""
-        for each in [url] if url is not None else list(self._connections):
-            connection = self._connections.pop(each, None) if each is not None else None
-            if connection is not None:
-                connection.close()
+    def _close(self, lane: tuple[str, int]) -> None:
+        """Close the connection of a webhook's lane, if open."""
+        connection = self._connections.pop(lane, None)
+        if connection is not None:
+            connection.close()
+
+    def close(self) -> None:
+        """Close every connection."""
+        for lane in list(self._connections):
+            self._close(lane)
 
 
 class WebhookDispatch:
@@ -152,6 +164,13 @@ class WebhookDispatch:
         self.rng = random.Random()
         self._paused_until_s: dict[str, float] = {}
         self._lag_s = 0.0
+        self._pool = ThreadPoolExecutor(sender.lanes, thread_name_prefix="csws-push-lane")
+        self._counting = threading.Lock()
+
+    def close(self) -> None:
+        """Stop the lanes' threads and close the connections."""
+        self._pool.shutdown()
+        self.sender.close()
 
     def step(self) -> float | None:
         """Retry what is due, then deliver the next events of the outbox; 0 when there may be more to do at once,
@@ -177,8 +196,21 @@ class WebhookDispatch:
         self.state.advance(self.SINK, stored[-1].cursor, queued, self.clock())
 
     def _send_or_queue(self, webhook: Webhook, events: list[tuple[StoredEvent, Event]]) -> list[QueuedRow]:
-        """Send the events to one webhook, in order, and the rows to queue: those that failed and those behind."""
-        waiting = self.state.waiting_vehicles(webhook.sink) if events else set()
+        """Send the events to one webhook over its lanes at once, and the rows to queue: those that failed and
+        those behind them. A vehicle's events always take the same lane, in order."""
+        if not events:
+            return []
+        waiting = self.state.waiting_vehicles(webhook.sink)
+        lanes: list[list[tuple[StoredEvent, Event]]] = [[] for _ in range(self.sender.lanes)]
+        for item, event in events:
+            lanes[zlib.crc32(item.vehicle_key.encode()) % len(lanes)].append((item, event))
+        sent = self._pool.map(lambda lane: self._send_lane(webhook, lane, lanes[lane], waiting), range(len(lanes)))
+        return [row for rows in sent for row in rows]
+
+    def _send_lane(
+        self, webhook: Webhook, lane: int, events: list[tuple[StoredEvent, Event]], waiting: set[str]
+    ) -> list[QueuedRow]:
+        """Send one lane's events to a webhook, in order; the rows to queue."""
         queued: list[QueuedRow] = []
         for item, event in events:
             paused_until_s = self._paused_until_s.get(webhook.sink, 0.0)
@@ -187,7 +219,7 @@ class WebhookDispatch:
                 queued.append((webhook.sink, item.vehicle_key, item.body, 0, max(now_s, paused_until_s), ""))
                 continue
             self.lease.keep()
-            attempt = self.sender.post(webhook, item.body, idempotency_key(event))
+            attempt = self.sender.post(webhook, item.body, idempotency_key(event), lane)
             if attempt.ok:
                 self._delivered(event)
                 continue
@@ -246,9 +278,10 @@ class WebhookDispatch:
         self._count("delivered")
 
     def _count(self, outcome: str) -> None:
-        """Count an event of the webhooks with ``outcome`` (delivered, retried, dead_lettered)."""
+        """Count an event of the webhooks with ``outcome`` (delivered, retried, dead_lettered), from any lane."""
         if self.counts is not None:
-            self.counts.observe_push("webhook", outcome)
+            with self._counting:
+                self.counts.observe_push("webhook", outcome)
 
 
 def _parsed(item: StoredEvent | Pending) -> Event | None:
