@@ -42,9 +42,9 @@ FLEET = "acme"
 SIGNATURE_TOLERANCE_S = 300
 
 
-def event_body(vehicle_id: str, seq: int, fleet: str = FLEET, level: int = 0) -> bytes:
-    """An event as the outbox keeps it."""
-    state = "active" if seq % 3 else "standby"
+def event_body(vehicle_id: str, seq: int, fleet: str = FLEET, level: int = 0, state: str = "") -> bytes:
+    """An event as the outbox keeps it (its state by default active, standby at every third)."""
+    state = state or ("active" if seq % 3 else "standby")
     body = {
         "fleet": fleet,
         "vehicle_id": vehicle_id,
@@ -453,25 +453,32 @@ class Subscriber:
 def test_mqtt_events_in_order_and_the_state_retained_for_a_late_subscriber(tmp_path, mosquitto):
     events_seen = Subscriber(mosquitto, "csws/+/+/events")
     outbox, vehicles, count = MemoryOutbox(), ["truck-1", "bus#2"], 40
-    write_events(outbox, vehicles, count)
+    write_events(outbox, vehicles, count)  # state or level changes at every event
+    changed_at = 7  # "steady" goes from level 0 to level 2 at its 7th event and stays there
+    for seq in range(1, count + 1):
+        outbox.write(FLEET, "steady", event_body("steady", seq, level=2 if seq >= changed_at else 0, state="active"))
     stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url, lease_s=1.0), outbox)
     try:
-        wait_until(lambda: len(events_seen.messages) >= len(vehicles) * count)
+        wait_until(lambda: len(events_seen.messages) >= 3 * count)
         late = Subscriber(mosquitto, f"csws/{FLEET}/+/state")
-        wait_until(lambda: len(late.messages) == len(vehicles))
+        wait_until(lambda: len(late.messages) == 3)
     finally:
         stop()
         events_seen.close()
-    topics = {"truck-1": f"csws/{FLEET}/truck-1/events", "bus#2": f"csws/{FLEET}/bus%232/events"}
-    for topic in topics.values():
+    topics = [f"csws/{FLEET}/truck-1/events", f"csws/{FLEET}/bus%232/events", f"csws/{FLEET}/steady/events"]
+    for topic in topics:
         numbers = [json.loads(payload)["seq"] for seen, payload, _ in events_seen.messages if seen == topic]
         assert numbers == list(range(1, count + 1))
-    last = {vehicle: json.loads(event_body(vehicle, count, level=count % 3)) for vehicle in vehicles}
-    for topic, payload, retained in late.messages:
-        state = json.loads(payload)
-        vehicle = "truck-1" if "truck-1" in topic else "bus#2"
-        assert retained and set(state) == {"state", "level", "time", "seq"}
-        assert (state["seq"], state["level"], state["state"]) == (count, last[vehicle]["level"], last[vehicle]["state"])
+    expected = {
+        f"csws/{FLEET}/truck-1/state": (count, count % 3, "active" if count % 3 else "standby"),
+        f"csws/{FLEET}/bus%232/state": (count, count % 3, "active" if count % 3 else "standby"),
+        f"csws/{FLEET}/steady/state": (changed_at, 2, "active"),
+    }
+    retained = {topic: json.loads(payload) for topic, payload, is_retained in late.messages if is_retained}
+    assert set(retained) == set(expected)
+    for topic, state in retained.items():
+        assert set(state) == {"state", "level", "time", "seq"}
+        assert (state["seq"], state["level"], state["state"]) == expected[topic]
     late.close()
 
 

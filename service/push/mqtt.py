@@ -1,8 +1,9 @@
 """Publication of events to an MQTT broker (``csws serve --mqtt mqtt://HOST:PORT``).
 
-Each event goes to ``csws/{fleet}/{vehicle}/events`` with QoS 1, and the vehicle's state after it,
+Each event goes to ``csws/{fleet}/{vehicle}/events`` with QoS 1, and the vehicle's state,
 ``{"state", "level", "time", "seq"}``, is published retained on ``csws/{fleet}/{vehicle}/state``, so
-that an on-board unit or a dashboard that subscribes gets the vehicle's state at once. In a topic a
+that an on-board unit or a dashboard that subscribes gets the vehicle's state at once: whenever its
+system state or warning level changes, with the time and number of the event that changed it. In a topic a
 vehicle id's ``+``, ``#`` and ``%`` are written ``%2B``, ``%23`` and ``%25`` (the wildcards cannot
 stand in a topic name); fleet names and vehicle ids have no ``/``.
 
@@ -148,6 +149,22 @@ class MqttDispatch:
         self.source, self.state, self.publisher, self.lease, self.counts = source, state, publisher, lease, counts
         self.clock = clock
         self.failures = 0
+        #: Per vehicle, the state and level retained last: a state is published again only when it changes.
+        self._retained: dict[tuple[str, str], tuple[str, int]] = {}
+
+    def _changed_states(self, events: list[Event]) -> dict[tuple[str, str], Event]:
+        """Per vehicle whose state or level differs from the one retained, the event of its change to the state
+        it ends the batch in (a vehicle first seen since the dispatcher started counts as changed)."""
+        since: dict[tuple[str, str], Event] = {}
+        for event in events:
+            vehicle = (event.fleet, event.vehicle_id)
+            if vehicle not in since or (since[vehicle].state, since[vehicle].level) != (event.state, event.level):
+                since[vehicle] = event
+        return {
+            vehicle: event
+            for vehicle, event in since.items()
+            if self._retained.get(vehicle) != (event.state, event.level)
+        }
 
     def step(self) -> float | None:
         """Publish the next events and the vehicles' states after them; the wait before the next step, s
@@ -162,8 +179,8 @@ class MqttDispatch:
         pairs = [(event, item.body) for item in stored if (event := _parsed(item.body)) is not None]
         events = [event for event, _ in pairs]
         messages = [(events_topic(e.fleet, e.vehicle_id), body, False) for e, body in pairs]
-        latest = {(e.fleet, e.vehicle_id): e for e in events}
-        messages += [(state_topic(*vehicle), _state_body(e), True) for vehicle, e in latest.items()]
+        changed = self._changed_states(events)
+        messages += [(state_topic(*vehicle), _state_body(e), True) for vehicle, e in changed.items()]
         self.lease.keep()
         if not self.publisher.publish_all(messages, ACK_TIMEOUT_S):
             self.failures += 1
@@ -173,6 +190,7 @@ class MqttDispatch:
                 self.counts.observe_push("mqtt", "retried", len(events))
             return wait_s
         self.failures = 0
+        self._retained.update({vehicle: (e.state, e.level) for vehicle, e in changed.items()})
         self.state.advance(self.SINK, stored[-1].cursor, [], self.clock())
         if self.counts is not None:
             self.counts.observe_push("mqtt", "delivered", len(events))
