@@ -19,6 +19,7 @@ import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
@@ -33,7 +34,7 @@ from service.metrics import Metrics
 from service.push import PushConfig, RetryPolicy, push_config, start_push, start_service_push
 from service.push.addresses import UnsafeTarget, address_refusal, resolved_addresses
 from service.push.source import MemoryOutbox
-from service.push.state import PushState
+from service.push.state import PushState, open_push_state
 from service.push.targets import add_webhook
 from service.settings import ServiceSettings
 
@@ -146,11 +147,12 @@ def wait_until(condition: Callable[[], bool], timeout_s: float = 30.0) -> None:
         time.sleep(0.02)
 
 
-def quick_config(tmp_path: Path, **changes) -> PushConfig:
-    """Push to the webhooks of tmp_path's file, loopback allowed, with quick retries."""
+def quick_config(tmp_path: Path, state: dict[str, str] | None = None, **changes) -> PushConfig:
+    """Push to the webhooks of tmp_path's file, loopback allowed, with quick retries; its state in a SQLite file in
+    tmp_path, or in the Redis of ``state`` (the ``state`` fixture's settings)."""
     policy = changes.pop("policy", RetryPolicy(max_tries=50, first_delay_s=0.05, max_delay_s=0.2, timeout_s=0.3))
     return PushConfig(
-        str(tmp_path / "push.sqlite3"),
+        (state or {}).get("state") or str(tmp_path / "push.sqlite3"),
         webhooks_file=tmp_path / "webhooks.json",
         allow_private=True,
         policy=policy,
@@ -169,7 +171,7 @@ def in_order_per_vehicle(requests: list[dict]) -> dict[str, list[int]]:
     return numbers
 
 
-def test_a_receiver_that_fails_times_out_and_recovers_gets_every_event_in_order(tmp_path, receiver_factory):
+def test_a_receiver_that_fails_times_out_and_recovers_gets_every_event_in_order(tmp_path, receiver_factory, state):
     # Requests 1-6 are refused (500), 7-9 answered after the delivery's timeout, then all are taken.
     def script(number: int, key: str) -> tuple[int, float]:
         return (500, 0.0) if number <= 6 else (200, 0.6) if number <= 9 else (200, 0.0)
@@ -216,21 +218,21 @@ def test_other_vehicles_go_on_while_one_vehicle_is_refused(tmp_path, receiver_fa
     assert in_order_per_vehicle(receiver.accepted())["stuck"] == [1, 2, 3, 4, 5]
 
 
-def test_an_event_never_taken_is_a_dead_letter_after_the_last_try(tmp_path, receiver_factory, capsys):
+def test_an_event_never_taken_is_a_dead_letter_after_the_last_try(tmp_path, receiver_factory, capsys, state):
     receiver = receiver_factory(lambda number, key: (503, 0.0))
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
     outbox, tries = MemoryOutbox(), 3
     write_events(outbox, ["truck-1", "truck-2"], 2)
     policy = RetryPolicy(max_tries=tries, first_delay_s=0.02, max_delay_s=0.05, timeout_s=0.5)
-    config = quick_config(tmp_path, policy=policy)
+    config = quick_config(tmp_path, state, policy=policy)
     stop = start_push(config, outbox)
-    state = PushState(config.state_db)
+    kept = open_push_state(config.state_db)
     try:
-        wait_until(lambda: len(state.dead_letters()) == 4)
+        wait_until(lambda: len(kept.dead_letters()) == 4)
     finally:
         stop()
-    letters = state.dead_letters()
-    state.close()
+    letters = kept.dead_letters()
+    kept.close()
     assert all(letter.tries == tries and letter.error == "HTTP 503" for letter in letters)
     per_key: dict[str, int] = {}
     for request in receiver.requests:
@@ -248,31 +250,39 @@ def test_an_event_never_taken_is_a_dead_letter_after_the_last_try(tmp_path, rece
     ]
 
 
-def test_two_dispatchers_on_one_lease_deliver_each_event_once(tmp_path, receiver_factory):
+def test_two_workers_on_each_of_two_replicas_deliver_each_event_once_per_subscriber(
+    tmp_path, receiver_factory, state, mosquitto
+):
+    # Four dispatchers on one push state (a SQLite file: workers of one machine; a Redis: replicas too), each
+    # with its own connections and its own holder name, push to a webhook and to the broker at once.
     receiver = receiver_factory()
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
-    outbox, vehicles = MemoryOutbox(), [f"truck-{n}" for n in range(10)]
-    config = quick_config(tmp_path)
-    stoppers = [start_push(config, outbox), start_push(config, outbox)]
+    seen = Subscriber(mosquitto, f"csws/{FLEET}/+/events")
+    outbox, vehicles, count = MemoryOutbox(), [f"truck-{n}" for n in range(10)], 30
+    config = replace(quick_config(tmp_path, state), mqtt_url=mosquitto.url)
+    stoppers = [start_push(config, outbox) for _ in range(4)]
     try:
-        for seq in range(1, 31):  # written while both run
+        for seq in range(1, count + 1):  # written while they run
             for vehicle in vehicles:
                 outbox.write(FLEET, vehicle, event_body(vehicle, seq))
             time.sleep(0.005)
-        wait_until(lambda: len(receiver.requests) >= 300)
+        wait_until(lambda: len(receiver.requests) >= len(vehicles) * count and len(seen.messages) >= 300)
         time.sleep(0.5)  # time for any second delivery to show
     finally:
         for stop in stoppers:
             stop()
-    keys = [request["key"] for request in receiver.requests]
-    assert sorted(keys) == sorted(f"{FLEET}:{v}:{s}" for v in vehicles for s in range(1, 31))
-    assert all(numbers == list(range(1, 31)) for numbers in in_order_per_vehicle(receiver.requests).values())
+        seen.close()
+    expected = sorted(f"{FLEET}:{v}:{s}" for v in vehicles for s in range(1, count + 1))
+    assert sorted(request["key"] for request in receiver.requests) == expected
+    assert all(numbers == list(range(1, count + 1)) for numbers in in_order_per_vehicle(receiver.requests).values())
+    published = [json.loads(payload) for _, payload, _ in seen.messages]
+    assert sorted(f"{e['fleet']}:{e['vehicle_id']}:{e['seq']}" for e in published) == expected
 
 
-def test_a_dispatcher_that_stops_hands_over_and_nothing_is_lost(tmp_path, receiver_factory):
+def test_a_dispatcher_that_stops_hands_over_and_nothing_is_lost(tmp_path, receiver_factory, state):
     receiver = receiver_factory()
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
-    outbox, config = MemoryOutbox(), quick_config(tmp_path)
+    outbox, config = MemoryOutbox(), quick_config(tmp_path, state)
     first, second = start_push(config, outbox), start_push(config, outbox)
     write_events(outbox, ["truck-1"], 50)
     wait_until(lambda: len(receiver.requests) >= 50)

@@ -27,7 +27,7 @@ from .mqtt import MqttDispatch, MqttPublisher
 from .policy import RetryPolicy
 from .runner import POLL_S, Runner
 from .source import EventSource, StoredEvent
-from .state import PushState, push_db_beside
+from .state import open_push_state, push_db_beside
 from .targets import WebhookBook
 from .webhooks import PushCounts, WebhookDispatch, WebhookSender
 
@@ -56,7 +56,8 @@ class PushConfig:
     Attributes
     ----------
     state_db
-        The push state's SQLite file (cursors, retries, dead letters, leases).
+        Where push keeps its state (cursors, retries, dead letters, leases): a SQLite file, or a Redis URL for
+        replicas on several machines.
     webhooks_file
         The fleets' webhooks (:mod:`.targets`); None: no webhooks.
     mqtt_url
@@ -93,7 +94,7 @@ def start_push(
     """
     if config.webhooks_file is None and not config.mqtt_url:
         return lambda: None
-    state = PushState(config.state_db)
+    state = open_push_state(config.state_db)
     runners: list[Runner] = []
     closers: list[Callable[[], None]] = [state.close]
     if config.webhooks_file is not None:
@@ -130,12 +131,13 @@ def _idle(counts: PushCounts | None, sink: str) -> Callable[[], None] | None:
 
 def push_config(settings: ServiceSettings) -> PushConfig:
     """What the service's settings ask of push: its webhook file (by default ``webhooks.json`` beside the API key
-    file), its broker, and its state's file (by default ``push.sqlite3`` beside the state store's)."""
+    file), its broker, and where it keeps its state (by default the state store's Redis, else ``push.sqlite3``
+    beside the state store's file)."""
     webhooks_file = settings.webhooks_file
     if webhooks_file is None and settings.api_keys_file is not None:
         webhooks_file = settings.api_keys_file.with_name("webhooks.json")
     return PushConfig(
-        settings.push_db.strip() or push_db_beside(settings.state_db),
+        settings.push_db.strip() or settings.state or push_db_beside(settings.state_db),
         webhooks_file,
         settings.mqtt,
         settings.webhook_allow_private,

@@ -41,7 +41,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     remove.add_argument("url", help="the URL, as listed")
     listing = actions.add_parser("list", help="the webhooks: fleet and URL (never a secret)")
     dead = actions.add_parser("dead-letters", help="the events a webhook never took, with the last error")
-    dead.add_argument("--db", default=None, help="the push state (default: $CSWS_PUSH_DB, else beside the state db)")
+    dead.add_argument(
+        "--db",
+        default=None,
+        help="the push state: a SQLite file or a Redis URL (default: $CSWS_PUSH_DB, else the Redis of $CSWS_STATE, "
+        "else beside $CSWS_STATE_DB)",
+    )
     dead.add_argument("--json", action="store_true", help="JSON lines, each with the event itself")
     for parser, fleet_help, handler in (
         (add, "the fleet", "add_command"),
@@ -109,16 +114,17 @@ def dead_letters_command(args: argparse.Namespace) -> int:
     """``csws webhooks dead-letters``: the events given up, oldest first: when, tries, webhook, vehicle, error."""
     from service.settings import default_state_db
 
-    from .state import PushState, push_db_beside
+    from .state import REDIS_SCHEMES, open_push_state, push_db_beside
 
     db = (
         args.db
         or os.environ.get("CSWS_PUSH_DB")
+        or os.environ.get("CSWS_STATE")
         or push_db_beside(os.environ.get("CSWS_STATE_DB") or str(default_state_db()))
     )
-    if db != ":memory:" and not Path(db).exists():
+    if not db.startswith(REDIS_SCHEMES) and db != ":memory:" and not Path(db).exists():
         raise ValueError(f"{db}: no push state there (give --db FILE or set CSWS_PUSH_DB)")
-    state = PushState(db)
+    state = open_push_state(db)
     try:
         letters = state.dead_letters(f"webhook {args.fleet} " if args.fleet else "webhook ")
     finally:

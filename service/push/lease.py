@@ -1,11 +1,11 @@
 """The lease that lets one dispatcher of each kind deliver at a time, among workers and replicas.
 
-Every worker may run a dispatcher; each tries to hold the lease (:meth:`PushState.hold_lease`), and only
-the holder delivers. The holder renews it while it works, at least every third of its duration; a
-dispatcher that stops gives it up, one that dies lets it expire, and another takes over then. So each
-event goes out once per sink in normal operation, and at least once across a crash: a holder that loses
-the lease stops before its next delivery (:class:`LeaseLost`), and its successor starts again from the
-durable cursor.
+Every worker may run a dispatcher; each tries to hold the lease
+(:meth:`service.push.state.PushStore.hold_lease`), and only the holder delivers. The holder renews it
+while it works, at least every third of its duration; a dispatcher that stops gives it up, one that
+dies lets it expire, and another takes over then. So each event goes out once per sink in normal
+operation, and at least once across a crash: a holder that loses the lease stops before its next
+delivery (:class:`LeaseLost`), and its successor starts again from the durable cursor.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import time
 import uuid
 from collections.abc import Callable
 
-from .state import PushState
+from .state import PushStore
 
 __all__ = ["LEASE_S", "Lease", "LeaseLost"]
 
@@ -44,7 +44,7 @@ class Lease:
     """
 
     def __init__(
-        self, state: PushState, name: str, duration_s: float = LEASE_S, clock: Callable[[], float] = time.time
+        self, state: PushStore, name: str, duration_s: float = LEASE_S, clock: Callable[[], float] = time.time
     ) -> None:
         self.state, self.name, self.duration_s, self.clock = state, name, duration_s, clock
         self.holder = f"{socket.gethostname()}:{os.getpid()}:{uuid.uuid4().hex[:8]}"

@@ -27,7 +27,7 @@ import paho.mqtt.client as paho
 
 from .lease import Lease
 from .source import Event, EventSource, parse_event
-from .state import PushState
+from .state import PushStore
 from .webhooks import BATCH, PushCounts
 
 __all__ = ["MqttPublisher", "MqttDispatch", "events_topic", "state_topic", "check_mqtt_url"]
@@ -140,7 +140,7 @@ class MqttDispatch:
     def __init__(
         self,
         source: EventSource,
-        state: PushState,
+        state: PushStore,
         publisher: MqttPublisher,
         lease: Lease,
         counts: PushCounts | None = None,

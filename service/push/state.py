@@ -13,9 +13,9 @@ from __future__ import annotations
 import sqlite3
 import threading
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
-__all__ = ["PushState", "Pending", "DeadLetter", "QueuedRow", "push_db_beside"]
+__all__ = ["PushStore", "PushState", "Pending", "DeadLetter", "QueuedRow", "push_db_beside", "open_push_state"]
 
 #: An event to queue: its sink, vehicle, body, tries so far, next try (unix s) and last error.
 QueuedRow = tuple[str, str, bytes, int, float, str]
@@ -56,6 +56,39 @@ class DeadLetter(NamedTuple):
     tries: int
     error: str
     dead_s: float
+
+
+class PushStore(Protocol):
+    """Push's durable state: :class:`PushState` (a SQLite file), or :class:`service.push.redis_state.RedisPushState`
+    (for replicas sharing a Redis). Their methods are documented there."""
+
+    path: str
+
+    def close(self) -> None: ...
+    def cursor(self, sink: str) -> str | None: ...
+    def advance(self, sink: str, cursor: str, queued: list[QueuedRow], now_s: float) -> None: ...
+    def waiting_vehicles(self, sink: str) -> set[str]: ...
+    def due(self, sink: str, now_s: float, limit: int) -> list[Pending]: ...
+    def queued_count(self, sink: str) -> int: ...
+    def delivered(self, number: int) -> None: ...
+    def failed(self, number: int, tries: int, next_try_s: float, error: str) -> None: ...
+    def dead(self, pending: Pending, tries: int, error: str, now_s: float) -> None: ...
+    def dead_letters(self, sink_prefix: str = "", limit: int = 1000) -> list[DeadLetter]: ...
+    def hold_lease(self, name: str, holder: str, now_s: float, duration_s: float) -> bool: ...
+    def release_lease(self, name: str, holder: str) -> None: ...
+
+
+#: The schemes of a Redis URL: the push state is kept there rather than in a SQLite file.
+REDIS_SCHEMES = ("redis://", "rediss://", "unix://")
+
+
+def open_push_state(location: str | Path) -> PushStore:
+    """Push's state at ``location``: a Redis URL (``redis://``, ``rediss://``, ``unix://``), else a SQLite file."""
+    if str(location).startswith(REDIS_SCHEMES):
+        from .redis_state import RedisPushState
+
+        return RedisPushState(str(location))
+    return PushState(location)
 
 
 class PushState:

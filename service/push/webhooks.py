@@ -38,7 +38,7 @@ from .addresses import UnsafeTarget, pinned_connection
 from .lease import Lease
 from .policy import RetryPolicy
 from .source import Event, EventSource, StoredEvent, parse_event
-from .state import Pending, PushState, QueuedRow
+from .state import Pending, PushStore, QueuedRow
 from .targets import Webhook
 
 __all__ = ["signature", "idempotency_key", "PushCounts", "WebhookSender", "WebhookDispatch", "Attempt", "BATCH"]
@@ -151,7 +151,7 @@ class WebhookDispatch:
     def __init__(
         self,
         source: EventSource,
-        state: PushState,
+        state: PushStore,
         webhooks: Callable[[], list[Webhook]],
         lease: Lease,
         sender: WebhookSender,
