@@ -33,6 +33,7 @@ from csws.cli import main as csws_main
 from service.metrics import Metrics
 from service.push import PushConfig, RetryPolicy, push_config, start_push, start_service_push
 from service.push.addresses import UnsafeTarget, address_refusal, resolved_addresses
+from service.push.lease import Lease, LeaseLost
 from service.push.source import MemoryOutbox
 from service.push.state import PushState, open_push_state
 from service.push.targets import add_webhook
@@ -156,7 +157,6 @@ def quick_config(tmp_path: Path, state: dict[str, str] | None = None, **changes)
         webhooks_file=tmp_path / "webhooks.json",
         allow_private=True,
         policy=policy,
-        lease_s=1.0,
         **changes,
     )
 
@@ -467,7 +467,7 @@ def test_mqtt_events_in_order_and_the_state_retained_for_a_late_subscriber(tmp_p
     changed_at = 7  # "steady" goes from level 0 to level 2 at its 7th event and stays there
     for seq in range(1, count + 1):
         outbox.write(FLEET, "steady", event_body("steady", seq, level=2 if seq >= changed_at else 0, state="active"))
-    stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url, lease_s=1.0), outbox)
+    stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url), outbox)
     try:
         wait_until(lambda: len(events_seen.messages) >= 3 * count)
         late = Subscriber(mosquitto, f"csws/{FLEET}/+/state")
@@ -494,7 +494,7 @@ def test_mqtt_events_in_order_and_the_state_retained_for_a_late_subscriber(tmp_p
 
 def test_mqtt_events_written_while_the_broker_is_down_arrive_after_it_is_back(tmp_path, mosquitto):
     outbox = MemoryOutbox()
-    stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url, lease_s=1.0), outbox)
+    stop = start_push(PushConfig(str(tmp_path / "push.sqlite3"), mqtt_url=mosquitto.url), outbox)
     try:
         write_events(outbox, ["truck-1"], 5)
         state = PushState(tmp_path / "push.sqlite3")
@@ -542,3 +542,21 @@ def test_a_broker_url_must_be_mqtt():
     with pytest.raises(ValueError, match="mqtt://HOST:PORT"):
         ServiceSettings(mqtt="http://127.0.0.1:1883")
     assert ServiceSettings(mqtt=" mqtt://127.0.0.1:1883 ").mqtt == "mqtt://127.0.0.1:1883"
+
+
+def test_a_lease_not_renewed_goes_to_another_dispatcher_only_once_it_expired(tmp_path, state):
+    store = open_push_state((state or {}).get("state") or str(tmp_path / "push.sqlite3"))
+    duration_s = 0.5
+    first, second = Lease(store, "webhooks", duration_s), Lease(store, "webhooks", duration_s)
+    try:
+        assert first.hold() and not second.hold()
+        time.sleep(duration_s / 2)
+        assert first.hold() and not second.hold()  # renewed: still the first's
+        time.sleep(duration_s * 1.5)  # the first stopped renewing, as a dead worker does
+        assert second.hold()
+        with pytest.raises(LeaseLost):
+            first.keep()
+        second.release()
+        assert first.hold()  # given up: free at once
+    finally:
+        store.close()

@@ -58,9 +58,15 @@ class Lease:
         self._renewed_s = now_s if self.held else -float("inf")
         return self.held
 
+    def current(self) -> bool:
+        """Whether this dispatcher holds the lease, renewing it once a third of it has passed."""
+        if self.held and self.clock() - self._renewed_s < self.duration_s / 3:
+            return True
+        return self.hold()
+
     def keep(self) -> None:
-        """Before a delivery: renew the lease when a third of it has passed; :class:`LeaseLost` when it is gone."""
-        if self.clock() - self._renewed_s >= self.duration_s / 3 and not self.hold():
+        """Before a delivery: :meth:`current`, or :class:`LeaseLost` when the lease went to another dispatcher."""
+        if not self.current():
             raise LeaseLost(f"the {self.name} lease went to another dispatcher")
 
     def release(self) -> None:

@@ -36,8 +36,9 @@ logger = logging.getLogger("csws.push")
 
 #: The schemes of ``--mqtt`` and their default ports.
 MQTT_SCHEMES = {"mqtt": 1883, "mqtts": 8883}
-#: How long a batch may wait for its acknowledgements, s.
-ACK_TIMEOUT_S = 10.0
+#: How long a batch may wait for a connection and its acknowledgements, s: well within the lease, which is
+#: renewed between batches.
+ACK_TIMEOUT_S = 3.0
 #: Messages in flight at once (sent, PUBACK not yet come).
 MAX_IN_FLIGHT = 1000
 _TOPIC_ESCAPES = str.maketrans({"%": "%25", "+": "%2B", "#": "%23"})

@@ -59,7 +59,7 @@ class Runner:
         """Step while holding the lease; a failed step is logged and tried again after the poll interval."""
         try:
             while not self._stopping.is_set():
-                if not self.lease.hold():
+                if not self.lease.current():
                     self._lost()
                     self._stopping.wait(self.lease.duration_s / 3)
                     continue
