@@ -44,6 +44,10 @@ __all__ = ["BENCH_VEHICLES", "TARGET_P99_MS", "rows", "run"]
 BENCH_VEHICLES, TARGET_P99_MS = 10_000, 50.0
 #: How long the writer writes, s, and how long the receivers may take for the last events after it.
 WRITE_S, DRAIN_S = 10.0, 20.0
+#: Time for the dispatchers to connect before the first write (a service's are long up when events come), s.
+WARM_UP_S = 1.0
+#: Keeping up: at least this share of the offered rate, over the writes and the last arrivals after them.
+KEEPING_UP = 0.98
 FLEET = "bench"
 _LENGTH = re.compile(rb"content-length:\s*(\d+)", re.IGNORECASE)
 _SIGNATURE = re.compile(rb"x-csws-signature:\s*([^\r\n]+)", re.IGNORECASE)
@@ -178,6 +182,7 @@ def _one_run(sink: str, vehicles: int, seconds: float, folder: Path) -> dict[str
         config = PushConfig(config.state_db, mqtt_url=f"mqtt://127.0.0.1:{port}")
     outbox = MemoryOutbox()
     stop_push = start_push(config, outbox)
+    time.sleep(WARM_UP_S)
     try:
         written = _write(outbox, vehicles, seconds)
         deadline = time.monotonic() + DRAIN_S
@@ -245,7 +250,7 @@ def rows(figures: dict[str, Any]) -> list[Row]:
         each = figures[sink]
         offered = figures["vehicles"]
         result += [
-            at_least(f"push {sink}: events delivered per s", each["delivered_per_s"], offered, size),
+            at_least(f"push {sink}: events delivered per s", each["delivered_per_s"], KEEPING_UP * offered, size),
             at_most(
                 f"push {sink}: events not arrived {DRAIN_S:g} s after the writes",
                 each["lost"],
