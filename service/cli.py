@@ -106,8 +106,9 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--push-db",
         default=None,
-        metavar="FILE",
-        help="push's cursors, retries and dead letters (default: beside --state-db)",
+        metavar="FILE|URL",
+        help="where push keeps its cursors, retries and dead letters: a SQLite file or a Redis URL (default: the "
+        "Redis of --state, else beside --state-db)",
     )
     parser.add_argument(
         "--log-level",

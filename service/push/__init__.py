@@ -153,6 +153,7 @@ def start_service_push(settings: ServiceSettings, store: object, counts: PushCou
     if config.webhooks_file is None and not config.mqtt_url:
         return lambda: None
     if not callable(getattr(store, "events_after", None)):
-        logger.warning("push is configured, but the state store keeps no outbox of events: nothing is pushed")
+        if config.mqtt_url or (config.webhooks_file is not None and config.webhooks_file.exists()):
+            logger.warning("push is configured, but the state store keeps no outbox of events: nothing is pushed")
         return lambda: None
     return start_push(config, store, counts)  # type: ignore[arg-type]
