@@ -125,6 +125,20 @@ def test_other_vehicles_go_on_while_one_vehicle_is_refused(tmp_path, receiver_fa
     assert in_order_per_vehicle(receiver.accepted())["stuck"] == [1, 2, 3, 4, 5]
 
 
+def test_a_vehicle_id_that_is_no_header_value_is_percent_encoded_in_the_idempotency_key(tmp_path, receiver_factory):
+    receiver = receiver_factory()
+    add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+    outbox, vehicle = MemoryOutbox(), "Lkw ä\r\n%1"
+    outbox.write(FLEET, vehicle, event_body(vehicle, 1))
+    stop = start_push(quick_config(tmp_path), outbox)
+    try:
+        wait_until(lambda: len(receiver.requests) == 1)
+    finally:
+        stop()
+    assert receiver.requests[0]["key"] == f"{FLEET}:Lkw %C3%A4%0D%0A%251:1"
+    assert json.loads(receiver.requests[0]["body"])["vehicle_id"] == vehicle
+
+
 def test_an_event_never_taken_is_a_dead_letter_after_the_last_try(tmp_path, receiver_factory, capsys, state):
     receiver = receiver_factory(lambda number, key: (503, 0.0))
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)

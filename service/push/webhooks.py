@@ -28,7 +28,7 @@ import zlib
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple, Protocol
-from urllib.parse import urlsplit
+from urllib.parse import quote, urlsplit
 
 import msgspec
 
@@ -52,6 +52,9 @@ RETRIES_PER_PASS = 500
 #: Connections per webhook over which new events go out at once (retries take the first), each vehicle's always
 #: over the same one, in order: the round trips of one overlap those of the others.
 LANES = 4
+#: The most of a webhook's answer read, bytes: the status is what counts; a longer answer closes the connection.
+MAX_ANSWER_BYTES = 64 * 1024
+_PRINTABLE = "".join(chr(code) for code in range(0x20, 0x7F) if chr(code) != "%")
 
 
 def signature(secret: str, body: bytes, unix_s: int) -> str:
@@ -61,8 +64,9 @@ def signature(secret: str, body: bytes, unix_s: int) -> str:
 
 
 def idempotency_key(event: Event) -> str:
-    """The ``Idempotency-Key`` of an event: ``<fleet>:<vehicle_id>:<seq>``, the same at every delivery."""
-    return f"{event.fleet}:{event.vehicle_id}:{event.seq}"
+    """The ``Idempotency-Key`` of an event: ``<fleet>:<vehicle_id>:<seq>``, the same at every delivery; a character
+    of the vehicle id that is no printable ASCII (or is ``%``) is percent-encoded, as a header's value must be."""
+    return f"{event.fleet}:{quote(event.vehicle_id, safe=_PRINTABLE)}:{event.seq}"
 
 
 class PushCounts(Protocol):
@@ -114,14 +118,14 @@ class WebhookSender:
             parts = urlsplit(url)
             connection.request("POST", (parts.path or "/") + (f"?{parts.query}" if parts.query else ""), body, headers)
             response = connection.getresponse()
-            response.read()
+            response.read(MAX_ANSWER_BYTES)
         except UnsafeTarget as error:
             self._close(lane)
             return Attempt(False, str(error), answered=False)
         except (OSError, http.client.HTTPException) as error:
             self._close(lane)
             return Attempt(False, f"{type(error).__name__}: {error}", answered=False)
-        if response.will_close:
+        if response.will_close or not response.isclosed():  # to be closed, or an answer longer than read
             self._close(lane)
         if 200 <= response.status < 300:
             return Attempt(True)
