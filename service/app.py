@@ -37,6 +37,7 @@ from .map import CompressedGets, MapData
 from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
 from .problems import MAX_ERRORS_SHOWN, MAX_MESSAGE_CHARS, problem_body
+from .push import start_service_push
 from .routes import docs, map, match, ops, traccar, vehicles, warnings
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
@@ -123,10 +124,14 @@ def _share(
 
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    """Keep the networks out of the garbage collector while serving; close the work thread and the store after."""
+    """Keep the networks out of the garbage collector and push the events while serving; close the work thread and
+    the store after."""
     leave_with_master()
     gc.freeze()  # the networks and engines live as long as the app: keep them out of every collection
+    # Every worker starts push; a lease lets one deliver at a time (service.push).
+    stop_push = start_service_push(app.state.settings, app.state.store, app.state.metrics)
     yield
+    stop_push()
     gc.unfreeze()
     app.state.work.close()
     app.state.store.close()

@@ -88,6 +88,29 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         help="with API keys: /docs, /redoc, /openapi.json and /metrics need no key",
     )
     parser.add_argument(
+        "--mqtt", default=None, metavar="URL", help="publish the events to this MQTT broker (mqtt://HOST:PORT)"
+    )
+    parser.add_argument(
+        "--webhooks",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the fleets' webhooks (csws webhooks add; default: webhooks.json beside --api-keys)",
+    )
+    parser.add_argument(
+        "--webhook-allow-private",
+        action="store_true",
+        default=None,
+        help="webhooks may reach loopback and private addresses (never link-local or metadata ones)",
+    )
+    parser.add_argument(
+        "--push-db",
+        default=None,
+        metavar="FILE|URL",
+        help="where push keeps its cursors, retries and dead letters: a SQLite file or a Redis URL (default: the "
+        "Redis of --state, else beside --state-db)",
+    )
+    parser.add_argument(
         "--log-level",
         choices=("critical", "error", "warning", "info", "debug"),
         default="warning",

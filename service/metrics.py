@@ -68,6 +68,10 @@ class Metrics:
         self.latency_count: dict[str, int] = defaultdict(int)
         self.answers: dict[tuple[str, int], int] = defaultdict(int)
         self.item_errors: dict[str, int] = defaultdict(int)
+        #: Push (service.push): events by kind of sink and outcome, and per kind of sink the events waiting
+        #: and the lag of the last delivery, s (a dispatcher without the lease reports zeros).
+        self.push_events: dict[tuple[str, str], int] = defaultdict(int)
+        self.push_gauges: dict[str, tuple[int, float]] = {}
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Count a request and its latency."""
@@ -87,6 +91,17 @@ class Metrics:
         for code, count in Counter(codes).items():
             self.item_errors[code] += count
 
+    def observe_push(self, sink: str, outcome: str, count: int = 1) -> None:
+        """Count events pushed to a kind of sink (webhook, mqtt) with an outcome (delivered, retried, dead_lettered)."""
+        self.changed = True
+        self.push_events[(sink, outcome)] += count
+
+    def set_push_gauges(self, sink: str, waiting: int, lag_s: float) -> None:
+        """The events waiting for a kind of sink, and the lag of its last delivery, s."""
+        if self.push_gauges.get(sink) != (waiting, lag_s):
+            self.changed = True
+            self.push_gauges[sink] = (waiting, lag_s)
+
     def snapshot(self) -> dict[str, Any]:
         """The counters as JSON values, for the other workers (:meth:`add`)."""
         return {
@@ -97,6 +112,8 @@ class Metrics:
             },
             "answers": [[*key, count] for key, count in self.answers.items()],
             "item_errors": dict(self.item_errors),
+            "push": [[*key, count] for key, count in list(self.push_events.items())],
+            "push_gauges": {sink: list(gauges) for sink, gauges in list(self.push_gauges.items())},
         }
 
     def add(self, snapshot: dict[str, Any]) -> None:
@@ -111,6 +128,11 @@ class Metrics:
             self.answers[(state, level)] += count
         for code, count in snapshot["item_errors"].items():
             self.item_errors[code] += count
+        for sink, outcome, count in snapshot.get("push", []):
+            self.push_events[(sink, outcome)] += count
+        for sink, (waiting, lag_s) in snapshot.get("push_gauges", {}).items():
+            before = self.push_gauges.get(sink, (0, 0.0))
+            self.push_gauges[sink] = (before[0] + waiting, before[1] + lag_s)
 
     def share(self, folder: Path) -> None:
         """Write the counters to this process' file in ``folder``, whole or not at all."""
@@ -194,7 +216,26 @@ class Metrics:
         ]
         for code, count in sorted(self.item_errors.items()):
             lines.append(f"csws_batch_item_errors_total{{{_labels(code=code)}}} {count}")
-        return "\n".join(lines) + "\n"
+        return "\n".join(lines + self._push_lines()) + "\n"
+
+    def _push_lines(self) -> list[str]:
+        """The push counters and gauges in Prometheus' text format."""
+        lines = [
+            "# HELP csws_push_events_total Events pushed, by kind of sink and outcome (delivered, retried, "
+            "dead_lettered).",
+            "# TYPE csws_push_events_total counter",
+        ]
+        for (sink, outcome), count in sorted(self.push_events.items()):
+            lines.append(f"csws_push_events_total{{{_labels(sink=sink, outcome=outcome)}}} {count}")
+        for name, index, text in (
+            ("csws_push_waiting_events", 0, "Events waiting for a retry, by kind of sink."),
+            ("csws_push_lag_seconds", 1, "Time from an event to its delivery, the last one, by kind of sink."),
+        ):
+            lines += [f"# HELP {name} {text}", f"# TYPE {name} gauge"]
+            lines += [
+                f"{name}{{{_labels(sink=sink)}}} {gauges[index]}" for sink, gauges in sorted(self.push_gauges.items())
+            ]
+        return lines
 
 
 def _shared_folder() -> Path | None:

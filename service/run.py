@@ -32,6 +32,10 @@ _OPTIONS = {
     "fcw_settings": "fcw_settings_file",
     "insecure": "insecure",
     "public_docs": "public_docs",
+    "mqtt": "mqtt",
+    "webhooks": "webhooks_file",
+    "webhook_allow_private": "webhook_allow_private",
+    "push_db": "push_db",
 }
 
 

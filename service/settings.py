@@ -10,7 +10,8 @@ the same way as ``csws serve``:
 ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``, ``CSWS_ACTIVATION_SPEED_KMH``,
 ``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
-``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``.
+``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``,
+``CSWS_MQTT``, ``CSWS_WEBHOOKS_FILE``, ``CSWS_WEBHOOK_ALLOW_PRIVATE``, ``CSWS_PUSH_DB`` (push, docs/push.md).
 
 Without an API key file (:mod:`service.keys`) the service answers anyone, so it listens
 only on a loopback address unless ``insecure`` is set.
@@ -153,6 +154,30 @@ class ServiceSettings(BaseSettings):
         default=False, description="with API keys: /docs, /redoc, /openapi.json and /metrics open to all (else a key)"
     )
 
+    mqtt: str = Field(
+        default="",
+        description="mqtt://HOST:PORT (or mqtts://): publish the events there (service.push.mqtt); empty: no MQTT",
+    )
+    webhooks_file: Path | None = Field(
+        default=None,
+        description="the fleets' webhooks (csws webhooks add); default: webhooks.json beside api_keys_file",
+    )
+    webhook_allow_private: bool = Field(
+        default=False, description="webhooks may reach loopback and private addresses (never link-local, metadata)"
+    )
+    push_db: str = Field(
+        default="",
+        description="SQLite file of push's cursors, retries, dead letters and lease; default beside state_db",
+    )
+
+    @field_validator("mqtt")
+    @classmethod
+    def _mqtt_url(cls, value: str) -> str:
+        from .push.mqtt import check_mqtt_url
+
+        value = value.strip()
+        return check_mqtt_url(value) if value else value
+
     @field_validator("state")
     @classmethod
     def _redis_url(cls, value: str) -> str:
@@ -161,7 +186,7 @@ class ServiceSettings(BaseSettings):
             raise ValueError("give a Redis URL, redis://HOST:PORT/DB (or rediss:// or unix://), or nothing for SQLite")
         return value
 
-    @field_validator("api_keys_file", "fcw_settings_file", mode="before")
+    @field_validator("api_keys_file", "fcw_settings_file", "webhooks_file", mode="before")
     @classmethod
     def _no_file(cls, value):
         return None if isinstance(value, str) and not value.strip() else value

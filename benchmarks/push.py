@@ -1,0 +1,276 @@
+"""Push of events to a webhook receiver and to mosquitto, 10,000 vehicles at 1 Hz, on loopback.
+
+A writer appends each vehicle's event once a second to an in-memory outbox (the store's outbox
+stands in: :class:`service.push.source.MemoryOutbox`), spread evenly over the second; the
+dispatcher of :func:`service.push.start_push` runs in this process as in a worker of the service.
+The receivers run in processes of their own: a minimal HTTP/1.1 receiver on asyncio (answers 200 at
+once, keeps each body's arrival time) and a paho subscriber of a real ``mosquitto`` (QoS 1).
+
+Measured, for each: events delivered per second, events lost (written, never arrived), vehicles whose
+events arrived out of order, and the p50/p99 from an event's write to its arrival. For the webhook,
+every signature is checked afterwards with the test's own HMAC-SHA256.
+
+Run with ``python -m benchmarks.push [VEHICLES] [SECONDS]``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import hmac
+import json
+import multiprocessing
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.rows import Row, at_least, at_most
+from service.push import PushConfig, start_push
+from service.push.source import MemoryOutbox
+from service.push.targets import add_webhook
+
+__all__ = ["BENCH_VEHICLES", "TARGET_P99_MS", "rows", "run"]
+
+#: The issue's targets: 10,000 vehicles at 1 Hz, p99 from the event to its arrival within 50 ms on loopback.
+BENCH_VEHICLES, TARGET_P99_MS = 10_000, 50.0
+#: How long the writer writes, s, and how long the receivers may take for the last events after it.
+WRITE_S, DRAIN_S = 10.0, 20.0
+#: Time for the dispatchers to connect before the first write (a service's are long up when events come), s.
+WARM_UP_S = 1.0
+#: Keeping up: at least this share of the offered rate, over the writes and the last arrivals after them.
+KEEPING_UP = 0.98
+FLEET = "bench"
+_LENGTH = re.compile(rb"content-length:\s*(\d+)", re.IGNORECASE)
+_SIGNATURE = re.compile(rb"x-csws-signature:\s*([^\r\n]+)", re.IGNORECASE)
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def _receive_http(port: int, out: str, stop: Any) -> None:
+    """The webhook receiver's process: keep each POST's arrival time, body and signature; write them at ``stop``."""
+    arrivals: list[tuple[float, bytes, bytes]] = []
+
+    async def handle(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            while True:
+                head = await reader.readuntil(b"\r\n\r\n")
+                length = _LENGTH.search(head)
+                body = await reader.readexactly(int(length.group(1)) if length else 0)
+                signature = _SIGNATURE.search(head)
+                arrivals.append((time.time(), body, signature.group(1) if signature else b""))
+                writer.write(b"HTTP/1.1 200 OK\r\nContent-Length: 0\r\n\r\n")
+        except (asyncio.IncompleteReadError, ConnectionError):
+            writer.close()
+
+    async def serve() -> None:
+        server = await asyncio.start_server(handle, "127.0.0.1", port)
+        async with server:
+            while not stop.is_set():
+                await asyncio.sleep(0.1)
+
+    asyncio.run(serve())
+    _write_arrivals(out, [(at, body, sig.decode()) for at, body, sig in arrivals])
+
+
+def _receive_mqtt(port: int, out: str, ready: Any, stop: Any) -> None:
+    """The MQTT subscriber's process: keep each event's arrival time and payload; write them at ``stop``."""
+    import paho.mqtt.client as paho
+
+    arrivals: list[tuple[float, bytes, str]] = []
+    client = paho.Client(paho.CallbackAPIVersion.VERSION2)
+    client.on_message = lambda _client, _data, message: arrivals.append((time.time(), message.payload, ""))
+    client.on_connect = lambda the_client, *args: the_client.subscribe(f"csws/{FLEET}/+/events", qos=1)
+    client.on_subscribe = lambda *args: ready.set()
+    client.connect("127.0.0.1", port)
+    client.loop_start()
+    stop.wait()
+    client.loop_stop()
+    _write_arrivals(out, arrivals)
+
+
+def _write_arrivals(out: str, arrivals: list[tuple[float, bytes, str]]) -> None:
+    """Each arrival as a JSON line: its time, the event's vehicle, number and write time, and the signature."""
+    with open(out, "w") as file:
+        for at, body, signature in arrivals:
+            event = json.loads(body)
+            row = [at, event["vehicle_id"], event["seq"], event["time"], signature, body.decode()]
+            file.write(json.dumps(row) + "\n")
+
+
+def _write(outbox: MemoryOutbox, vehicles: int, seconds: float) -> int:
+    """Write each vehicle's event once a second for ``seconds``, spread over the second; the events written."""
+    written, started = 0, time.time()
+    slots = 100  # a hundredth of the vehicles every 10 ms
+    per_slot = vehicles / slots
+    for tick in range(int(seconds * slots)):
+        while time.time() < started + tick / slots:
+            time.sleep(0.001)
+        seq = tick // slots + 1
+        first, last = int((tick % slots) * per_slot), int((tick % slots + 1) * per_slot)
+        for vehicle in range(first, last):
+            body = {
+                "fleet": FLEET,
+                "vehicle_id": f"v{vehicle}",
+                "seq": seq,
+                "kind": "state",
+                "time": time.time(),
+                "level": 0,
+                "state": "active",
+            }
+            outbox.write(FLEET, f"v{vehicle}", json.dumps(body).encode())
+            written += 1
+    return written
+
+
+def _judged(out: str, written: int, secret: str | None) -> dict[str, Any]:
+    """What arrived: delivered per second, lost, vehicles out of order, latency percentiles, bad signatures."""
+    rows = [json.loads(line) for line in Path(out).read_text().splitlines()]
+    seen: dict[str, list[int]] = {}
+    latencies = np.array([row[0] - row[3] for row in rows]) * 1000.0
+    for row in rows:
+        seen.setdefault(row[1], []).append(row[2])
+    unique = sum(len(set(numbers)) for numbers in seen.values())
+    out_of_order = sum(numbers != sorted(numbers) for numbers in seen.values())
+    bad = 0
+    if secret is not None:
+        for row in rows:
+            fields = dict(part.split("=", 1) for part in row[4].split(","))
+            digest = hmac.new(secret.encode(), f"{fields['t']}.".encode() + row[5].encode(), hashlib.sha256)
+            bad += not hmac.compare_digest(digest.hexdigest(), fields["v1"])
+    span_s = max(row[0] for row in rows) - min(row[3] for row in rows) if rows else 1.0
+    return {
+        "written": written,
+        "arrived": len(rows),
+        "lost": written - unique,
+        "out_of_order_vehicles": out_of_order,
+        "delivered_per_s": unique / span_s,
+        "p50_ms": float(np.percentile(latencies, 50)) if rows else float("nan"),
+        "p99_ms": float(np.percentile(latencies, 99)) if rows else float("nan"),
+        "bad_signatures": bad,
+    }
+
+
+def _one_run(sink: str, vehicles: int, seconds: float, folder: Path) -> dict[str, Any]:
+    """Write for ``seconds`` with push to ``sink`` (webhook or mqtt) and judge what arrived."""
+    spawn = multiprocessing.get_context("spawn")
+    stop, ready, out, port = spawn.Event(), spawn.Event(), str(folder / f"{sink}.jsonl"), _free_port()
+    broker, secret, config = None, None, PushConfig(str(folder / f"{sink}.sqlite3"))
+    if sink == "webhook":
+        receiver = spawn.Process(target=_receive_http, args=(port, out, stop))
+        receiver.start()
+        _wait_for_port(port)
+        secret = add_webhook(folder / "webhooks.json", FLEET, f"http://127.0.0.1:{port}/csws", allow_private=True)
+        config = PushConfig(config.state_db, webhooks_file=folder / "webhooks.json", allow_private=True)
+    else:
+        broker = _start_mosquitto(port, folder)
+        receiver = spawn.Process(target=_receive_mqtt, args=(port, out, ready, stop))
+        receiver.start()
+        ready.wait(30)
+        config = PushConfig(config.state_db, mqtt_url=f"mqtt://127.0.0.1:{port}")
+    outbox = MemoryOutbox()
+    stop_push = start_push(config, outbox)
+    time.sleep(WARM_UP_S)
+    try:
+        written = _write(outbox, vehicles, seconds)
+        deadline = time.monotonic() + DRAIN_S
+        while time.monotonic() < deadline and _pushed(config, sink) < written:
+            time.sleep(0.1)
+        time.sleep(0.5)
+    finally:
+        stop_push()
+        stop.set()
+        receiver.join(60)
+        if broker is not None:
+            broker.terminate()
+            broker.wait(10)
+    return _judged(out, written, secret)
+
+
+def _pushed(config: PushConfig, sink: str) -> int:
+    """How far the cursor of ``sink`` went: the events handed out."""
+    from service.push.state import PushState
+
+    state = PushState(config.state_db)
+    try:
+        cursor = state.cursor("webhooks" if sink == "webhook" else "mqtt")
+    finally:
+        state.close()
+    return int(cursor) if cursor else 0
+
+
+def _wait_for_port(port: int) -> None:
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), 0.2).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise RuntimeError(f"nothing listens on port {port}")
+
+
+def _start_mosquitto(port: int, folder: Path) -> subprocess.Popen[bytes]:
+    """A real mosquitto on ``port``, anonymous, without persistence."""
+    binary = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
+    if not os.path.exists(binary):
+        raise RuntimeError("the MQTT benchmark needs mosquitto: apt-get install mosquitto")
+    config = folder / "mosquitto.conf"
+    config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queued_messages 0\n")
+    process = subprocess.Popen([binary, "-c", str(config)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _wait_for_port(port)
+    return process
+
+
+def run(vehicles: int = BENCH_VEHICLES, seconds: float = WRITE_S) -> dict[str, Any]:
+    """Both runs, one after the other, with the machine's load average at the start."""
+    with tempfile.TemporaryDirectory(prefix="csws-push-bench-") as folder:
+        load = os.getloadavg()[0]
+        figures = {sink: _one_run(sink, vehicles, seconds, Path(folder)) for sink in ("webhook", "mqtt")}
+    return {"vehicles": vehicles, "seconds": seconds, "load_average": load, **figures}
+
+
+def rows(figures: dict[str, Any]) -> list[Row]:
+    """The table's rows: rate, loss, order and p99 of each sink."""
+    result: list[Row] = []
+    size = f"{figures['vehicles']:,} vehicles at 1 Hz for {figures['seconds']:g} s, load {figures['load_average']:.1f}"
+    for sink in ("webhook", "mqtt"):
+        each = figures[sink]
+        offered = figures["vehicles"]
+        result += [
+            at_least(f"push {sink}: events delivered per s", each["delivered_per_s"], KEEPING_UP * offered, size),
+            at_most(
+                f"push {sink}: events not arrived {DRAIN_S:g} s after the writes",
+                each["lost"],
+                0,
+                f"{each['written']:,} written",
+            ),
+            at_most(f"push {sink}: vehicles out of order", each["out_of_order_vehicles"], 0),
+            at_most(
+                f"push {sink}: write to arrival p99, ms", each["p99_ms"], TARGET_P99_MS, f"p50 {each['p50_ms']:.1f} ms"
+            ),
+        ]
+        if sink == "webhook":
+            result.append(at_most("push webhook: signatures that do not verify", each["bad_signatures"], 0))
+    return result
+
+
+if __name__ == "__main__":
+    from benchmarks.rows import table
+
+    arguments = [float(argument) for argument in sys.argv[1:3]]
+    measured = run(int(arguments[0]) if arguments else BENCH_VEHICLES, arguments[1] if len(arguments) > 1 else WRITE_S)
+    print(table(rows(measured)))
+    print(json.dumps({sink: measured[sink] for sink in ("webhook", "mqtt")}, indent=1))

@@ -1,0 +1,191 @@
+"""The fleets' webhooks: the URLs that receive each fleet's events, and the secret that signs them.
+
+Only the service's admin configures them (``csws webhooks add | list | remove``), in a file beside
+the API key file (``webhooks.json`` there, or ``CSWS_WEBHOOKS_FILE``), so the service relays
+nothing to a URL nobody trusted. Its format::
+
+    {"format": "csws-webhooks/1",
+     "fleets": [{"fleet": "acme", "secret": "whsec_...", "urls": ["https://dispatch.example/csws"]}]}
+
+Unlike the key file, it must keep each secret itself, to sign with: it is written readable by its
+owner only. A fleet's secret is made with its first URL and printed that once; its further URLs
+share it. A running service reads the file again when it changes (:class:`WebhookBook`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..keys import FLEET_PATTERN
+from .addresses import resolved_addresses
+
+__all__ = [
+    "WEBHOOKS_FORMAT",
+    "Webhook",
+    "WebhookBook",
+    "add_webhook",
+    "remove_webhook",
+    "list_webhooks",
+    "default_webhooks_file",
+]
+
+WEBHOOKS_FORMAT = "csws-webhooks/1"
+#: Every secret starts with this, so that a leaked one is recognisable.
+SECRET_PREFIX = "whsec_"
+#: A running service looks at the file's status at most this often, s.
+RELOAD_INTERVAL_S = 1.0
+
+
+@dataclass(frozen=True)
+class Webhook:
+    """One URL of a fleet, and the fleet's secret that signs what it receives."""
+
+    fleet: str
+    url: str
+    secret: str
+
+    @property
+    def sink(self) -> str:
+        """The name its cursor, retries and dead letters go by."""
+        return f"webhook {self.fleet} {self.url}"
+
+
+def default_webhooks_file(api_keys_file: Path | None) -> Path | None:
+    """The webhook file: ``$CSWS_WEBHOOKS_FILE``, else ``webhooks.json`` beside the API key file (None without)."""
+    given = os.environ.get("CSWS_WEBHOOKS_FILE")
+    if given:
+        return Path(given)
+    keys = api_keys_file or (Path(os.environ["CSWS_API_KEYS_FILE"]) if os.environ.get("CSWS_API_KEYS_FILE") else None)
+    return keys.with_name("webhooks.json") if keys is not None else None
+
+
+def _fleets(path: Path) -> list[dict]:
+    """The fleets of a webhook file, checked; ValueError naming the file otherwise (no file: none)."""
+    try:
+        content = json.loads(path.read_text("utf-8"))
+    except FileNotFoundError:
+        return []
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a webhook file ({exc})") from None
+    if not isinstance(content, dict) or content.get("format") != WEBHOOKS_FORMAT:
+        raise ValueError(f"{path}: not a webhook file (expected format {WEBHOOKS_FORMAT!r})")
+    fleets = content.get("fleets")
+    valid = isinstance(fleets, list) and all(
+        isinstance(entry, dict)
+        and isinstance(entry.get("fleet"), str)
+        and FLEET_PATTERN.fullmatch(entry["fleet"]) is not None
+        and isinstance(entry.get("secret"), str)
+        and len(entry["secret"]) >= 16
+        and isinstance(entry.get("urls"), list)
+        and all(isinstance(url, str) for url in entry["urls"])
+        for entry in fleets or []
+    )
+    if not valid:
+        raise ValueError(f"{path}: each fleet needs a name, a secret of 16+ characters and a list of URLs")
+    return list(fleets or [])
+
+
+def _write(path: Path, fleets: list[dict]) -> None:
+    """Write the webhook file at once (a reader sees the old file or the new one), readable by its owner only."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".webhooks-", suffix=".json")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as file:
+            json.dump({"format": WEBHOOKS_FORMAT, "fleets": fleets}, file, indent=1, ensure_ascii=False)
+            file.write("\n")
+        os.replace(temporary, path)
+    except OSError:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def add_webhook(path: Path, fleet: str, url: str, allow_private: bool) -> str | None:
+    """Add ``url`` to the webhooks of ``fleet``; the fleet's new secret when this is its first URL, else None.
+
+    Raises
+    ------
+    ValueError
+        For a bad fleet name, a URL already there, a file that is not a webhook file, or a URL the service may
+        not reach (:class:`service.push.addresses.UnsafeTarget`, checked now and at every connection).
+    """
+    if FLEET_PATTERN.fullmatch(fleet) is None:
+        raise ValueError(f"fleet must be 1-64 letters, digits, '_', '.' or '-', got {fleet!r}")
+    resolved_addresses(url, allow_private)
+    fleets = _fleets(path)
+    entry = next((entry for entry in fleets if entry["fleet"] == fleet), None)
+    secret = None
+    if entry is None:
+        secret = SECRET_PREFIX + secrets.token_urlsafe(32)
+        entry = {"fleet": fleet, "secret": secret, "urls": []}
+        fleets.append(entry)
+    if url in entry["urls"]:
+        raise ValueError(f"{path}: fleet {fleet!r} has the webhook {url!r} already")
+    entry["urls"].append(url)
+    _write(path, fleets)
+    return secret
+
+
+def remove_webhook(path: Path, fleet: str, url: str) -> None:
+    """Take ``url`` out of the webhooks of ``fleet`` (its secret goes with its last URL).
+
+    Raises
+    ------
+    ValueError
+        When the fleet has no such webhook, or the file is not a webhook file.
+    """
+    fleets = _fleets(path)
+    entry = next((entry for entry in fleets if entry["fleet"] == fleet and url in entry["urls"]), None)
+    if entry is None:
+        raise ValueError(f"{path}: fleet {fleet!r} has no webhook {url!r} (see csws webhooks list)")
+    entry["urls"].remove(url)
+    _write(path, [entry for entry in fleets if entry["urls"]])
+
+
+def list_webhooks(path: Path) -> list[Webhook]:
+    """The webhooks of the file, fleet by fleet, in the file's order."""
+    return [Webhook(entry["fleet"], url, entry["secret"]) for entry in _fleets(path) for url in entry["urls"]]
+
+
+class WebhookBook:
+    """The webhooks of a file, read again when the file changes (at most every :data:`RELOAD_INTERVAL_S`).
+
+    A file that has become unreadable leaves the webhooks last read in force, and :attr:`reload_error` says why.
+    """
+
+    def __init__(self, path: Path, reload_interval_s: float = RELOAD_INTERVAL_S) -> None:
+        self.path = path
+        self.reload_interval_s = reload_interval_s
+        self.reload_error: str | None = None
+        self._status: tuple[int, int, int] | None = None
+        self._webhooks: list[Webhook] = []
+        self._checked_s = -float("inf")
+
+    def webhooks(self) -> list[Webhook]:
+        """The webhooks in force."""
+        now_s = time.monotonic()
+        if now_s - self._checked_s >= self.reload_interval_s:
+            self._checked_s = now_s
+            self._refresh()
+        return self._webhooks
+
+    def _refresh(self) -> None:
+        """Read the file again if its inode, size or modification time changed."""
+        try:
+            status = os.stat(self.path)
+            key: tuple[int, int, int] | None = (status.st_ino, status.st_size, status.st_mtime_ns)
+        except OSError:
+            key = None
+        if key == self._status:
+            return
+        try:
+            self._webhooks = list_webhooks(self.path)
+        except ValueError as exc:
+            self.reload_error = str(exc)
+            return
+        self._status, self.reload_error = key, None
