@@ -11,6 +11,13 @@ against the exact point). A box holding many places compared with the page asked
 key order instead, checking each place against it: sorting every hit of a large box for each
 page would cost what the box holds, not what the page does.
 
+The outbox (:mod:`service.events`) is the table ``vehicle_events``: its integer key, never reused
+(``AUTOINCREMENT``), is the events' order and cursor; it is indexed by fleet and key (a fleet's
+stream) and by vehicle and time (a vehicle's history). A vehicle's events are inserted in the
+transaction of its session, and the number of its last one is kept in ``vehicle_event_seqs``
+(read with the session, in the same statement). Events older than the retention time (by when
+they were written) are deleted with the expired sessions.
+
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
 ``executemany`` whose count of changed rows tells whether every one was; only when some were
@@ -18,7 +25,7 @@ not (another request wrote them meanwhile) are the stored versions read to find 
 the others written. Writers of the workers take turns for the length of a write,
 never for the engine's work in between; one that finds the lock taken tries again every
 :data:`LOCK_RETRY_S` (SQLite's own busy handler would sleep from 1 ms up to 100 ms, far longer
-than a write holds the lock). Settings are written with ``synchronous=FULL``
+than a write holds the lock). Settings and events are written with ``synchronous=FULL``
 (on disk when the 200 goes out); a transaction of sessions alone with ``NORMAL``, which
 in WAL mode survives a crash of the service and may lose the last sessions only when the
 machine itself fails, costing those vehicles a fresh session.
@@ -49,11 +56,13 @@ from pathlib import Path
 from csws.standard import Category
 
 from . import (
+    DEFAULT_EVENT_RETENTION_S,
     STORE_TIMEOUT_S,
     Box,
     Place,
     PlacedSession,
     StateStore,
+    StoredEvent,
     StoredVehicle,
     StoreUnavailable,
     VehicleSetting,
@@ -91,13 +100,20 @@ _SCHEMA = (
     "WHERE id = new.rowid; END",
     "CREATE TRIGGER IF NOT EXISTS vehicle_place_gone AFTER DELETE ON vehicle_places BEGIN "
     "DELETE FROM vehicle_place_boxes WHERE id = old.rowid; END",
+    "CREATE TABLE IF NOT EXISTS vehicle_events ("
+    "cursor INTEGER PRIMARY KEY AUTOINCREMENT, fleet TEXT NOT NULL, vehicle_id TEXT NOT NULL, seq INTEGER NOT NULL, "
+    "time_s REAL NOT NULL, written_s REAL NOT NULL, body BLOB NOT NULL)",
+    "CREATE INDEX IF NOT EXISTS vehicle_events_by_fleet ON vehicle_events (fleet, cursor)",
+    "CREATE INDEX IF NOT EXISTS vehicle_events_by_vehicle ON vehicle_events (vehicle_id, time_s)",
+    "CREATE TABLE IF NOT EXISTS vehicle_event_seqs (vehicle_id TEXT PRIMARY KEY, seq INTEGER NOT NULL)",
 )
 #: Settings and live sessions of the vehicles of a JSON list, in one statement.
 _READ = (
-    "SELECT wanted.value, settings.switched_on, settings.category, sessions.session, sessions.version "
+    "SELECT wanted.value, settings.switched_on, settings.category, sessions.session, sessions.version, seqs.seq "
     "FROM json_each(?) AS wanted "
     "LEFT JOIN vehicle_settings AS settings ON settings.vehicle_id = wanted.value "
-    "LEFT JOIN vehicle_sessions AS sessions ON sessions.vehicle_id = wanted.value AND sessions.written_s >= ?"
+    "LEFT JOIN vehicle_sessions AS sessions ON sessions.vehicle_id = wanted.value AND sessions.written_s >= ? "
+    "LEFT JOIN vehicle_event_seqs AS seqs ON seqs.vehicle_id = wanted.value"
 )
 _LIVE_VERSIONS = (
     "SELECT vehicle_id, version FROM vehicle_sessions "
@@ -120,6 +136,10 @@ _WRITE_PLACE = (
     "INSERT INTO vehicle_places (vehicle_id, network, x, y) VALUES (?, ?, ?, ?) "
     "ON CONFLICT (vehicle_id) DO UPDATE SET network = excluded.network, x = excluded.x, y = excluded.y"
 )
+_INSERT_EVENT = "INSERT INTO vehicle_events (fleet, vehicle_id, seq, time_s, written_s, body) VALUES (?, ?, ?, ?, ?, ?)"
+_WRITE_SEQ = "INSERT OR REPLACE INTO vehicle_event_seqs (vehicle_id, seq) VALUES (?, ?)"
+_TRIM_EVENTS = "DELETE FROM vehicle_events WHERE written_s < ?"
+_EVENT_COLUMNS = "SELECT cursor, vehicle_id, body FROM vehicle_events "
 _SWEEP = (
     "DELETE FROM vehicle_places WHERE vehicle_id IN (SELECT vehicle_id FROM vehicle_sessions WHERE written_s < ?)",
     "DELETE FROM vehicle_sessions WHERE written_s < ?",
@@ -157,6 +177,13 @@ _PLACED_IN_BOX = (
 )
 
 
+def _cursor_key(cursor: str) -> int:
+    """The outbox key a cursor names (its decimal digits); ValueError for anything else."""
+    if not (cursor.isascii() and cursor.isdigit() and len(cursor) <= 19):
+        raise ValueError(f"not a cursor of this outbox: {cursor[:40]!r}")
+    return int(cursor)
+
+
 def _setting(switched_on: int, category: str | None) -> VehicleSetting:
     """A stored setting from its columns; ValueError for an unknown category."""
     return VehicleSetting(bool(switched_on), Category(category) if category else None)
@@ -175,6 +202,8 @@ class SQLiteStore(StateStore):
         Seconds of the clock that dates the sessions: wall-clock time, which every worker
         shares and which goes on across restarts (injectable, so that expiry is testable
         without waiting).
+    event_retention_s
+        The outbox keeps an event this long after it was written, s.
 
     Raises
     ------
@@ -182,10 +211,17 @@ class SQLiteStore(StateStore):
         One line naming the file, when it cannot be opened as a database.
     """
 
-    def __init__(self, path: str | Path, idle_s: float, clock: Callable[[], float] = time.time) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        idle_s: float,
+        clock: Callable[[], float] = time.time,
+        event_retention_s: float = DEFAULT_EVENT_RETENTION_S,
+    ) -> None:
         idle_s = checked_idle_s(idle_s)
         self.name = str(path)
         self.idle_s = float(idle_s)
+        self.event_retention_s = float(event_retention_s)
         self.clock = clock
         self._swept_s = -float("inf")
         self._pid = os.getpid()
@@ -305,9 +341,9 @@ class SQLiteStore(StateStore):
             rows = self._execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
             return {
                 vehicle_id: StoredVehicle(
-                    None if switched_on is None else _setting(switched_on, category), session, version or 0
+                    None if switched_on is None else _setting(switched_on, category), session, version or 0, seq or 0
                 )
-                for vehicle_id, switched_on, category, session, version in rows
+                for vehicle_id, switched_on, category, session, version, seq in rows
             }
         except (sqlite3.Error, ValueError) as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
@@ -316,7 +352,7 @@ class SQLiteStore(StateStore):
         if not writes:
             return set()
         try:
-            self._set_durable(any(w.setting is not None for w in writes.values()))
+            self._set_durable(any(w.setting is not None or w.events for w in writes.values()))
             self._refuse_if_lost()
             self._execute("BEGIN IMMEDIATE")
             try:
@@ -360,11 +396,24 @@ class SQLiteStore(StateStore):
         places = [(v, *w.place) for v, w in writes.items() if w.place is not None and v not in conflicts]
         if places:
             self._db.executemany(_WRITE_PLACE, places)
+        self._write_events([(v, w) for v, w in writes.items() if w.events and v not in conflicts], now_s)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             for statement in _SWEEP:
                 self._db.execute(statement, (oldest_live_s,))
+            self._db.execute(_TRIM_EVENTS, (now_s - self.event_retention_s,))
             self._swept_s = now_s
         return conflicts
+
+    def _write_events(self, writes: list[tuple[str, VehicleWrite]], now_s: float) -> None:
+        """Inside the write transaction: the events of the vehicles written into the outbox, and the number of
+        each one's last event."""
+        if not writes:
+            return
+        self._db.executemany(
+            _INSERT_EVENT,
+            [(e.fleet, vehicle_id, e.seq, e.time_s, now_s, e.body) for vehicle_id, w in writes for e in w.events],
+        )
+        self._db.executemany(_WRITE_SEQ, [(vehicle_id, w.events[-1].seq) for vehicle_id, w in writes])
 
     def _write_sessions(self, writes: Iterable[tuple[str, VehicleWrite]], now_s: float, oldest_live_s: float) -> int:
         """Write each session over the live one of its expected version (or as the first one);
@@ -392,7 +441,7 @@ class SQLiteStore(StateStore):
             time.sleep(LOCK_RETRY_S)
 
     def _set_durable(self, durable: bool) -> None:
-        """``synchronous=FULL`` for a transaction with settings, ``NORMAL`` for one of sessions alone."""
+        """``synchronous=FULL`` for a transaction with settings or events, ``NORMAL`` for one of sessions alone."""
         if durable != self._durable:
             self._db.execute(f"PRAGMA synchronous={'FULL' if durable else 'NORMAL'}")
             self._durable = durable
@@ -434,6 +483,27 @@ class SQLiteStore(StateStore):
     def _few_in(self, box: dict, count: int) -> bool:
         """Whether the R*Tree holds fewer than ``count`` places in the box (``min_x`` ... ``max_y`` of ``box``)."""
         return int(self._execute(_BOX_PROBE, {**box, "probe": count}).fetchone()[0]) < count
+
+    def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
+        """Read along the key (every fleet) or the fleet's index; the cursor is the key in decimal."""
+        self._refuse_if_lost()
+        first = -1 if after is None else _cursor_key(after)
+        if fleet is None:
+            return self._events("WHERE cursor > ? ORDER BY cursor LIMIT ?", (first, limit))
+        return self._events("WHERE fleet = ? AND cursor > ? ORDER BY cursor LIMIT ?", (fleet, first, limit))
+
+    def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
+        self._refuse_if_lost()
+        where = "WHERE vehicle_id = ? AND time_s >= ? ORDER BY time_s, cursor LIMIT ?"
+        return self._events(where, (vehicle_key, since_s, limit))
+
+    def _events(self, where: str, parameters: tuple) -> list[StoredEvent]:
+        """The outbox's events that ``where`` selects (with its ``parameters``)."""
+        try:
+            rows = self._execute(_EVENT_COLUMNS + where, parameters).fetchall()
+        except sqlite3.Error as exc:
+            raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
+        return [StoredEvent(str(cursor), vehicle_id, body) for cursor, vehicle_id, body in rows]
 
     def session_count(self) -> int:
         """Counted in the file, which is looked at first (``/readyz``: not ready once it is gone)."""
