@@ -15,8 +15,9 @@ its own):
   ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
   trimmed to the retention time (``MINID``) as events are added; ``csws:history:{vehicle}``, a
   vehicle's events in a sorted set by their times (``{id}|{event}`` each, the id's sequence number
-  zero-padded so that events of one time sort in outbox order), trimmed likewise, and deleted
-  (a few per write) once its last event is older than the retention time, which the sorted set
+  zero-padded so that events of one time sort in outbox order), whose earliest entries written
+  before the retention time are taken out as events are added (those a read finds are left out),
+  and deleted (a few per write) once its last event is older than the retention time, which the sorted set
   ``csws:histories`` tells (no key of the outbox expires by TTL, so that the sessions are what
   ``INFO keyspace`` counts as expiring); ``csws:event-seq:{vehicle}``, the number of the
   vehicle's last event, read with its session; no expiry. All are written by the script that writes
@@ -43,6 +44,7 @@ are :class:`service.store.StoreUnavailable`.
 from __future__ import annotations
 
 import re
+import time
 from collections.abc import Collection, Mapping, Sequence
 from typing import cast
 from urllib.parse import urlsplit, urlunsplit
@@ -131,12 +133,16 @@ if first <= #ARGV then
     local key = written[tonumber(ARGV[at])]
     if key then
       local fleet, seq, time_s, body = ARGV[at + 1], ARGV[at + 2], ARGV[at + 3], ARGV[at + 4]
-      local id = redis.call('XADD', '__OUTBOX__', 'MINID', '~', oldest_id, '*', 'k', key, 'b', body)
-      redis.call('XADD', '__OUTBOX__:' .. fleet, 'MINID', '~', oldest_id, id, 'k', key, 'b', body)
+      local id = redis.call('XADD', '__OUTBOX__', 'MINID', oldest_id, '*', 'k', key, 'b', body)
+      redis.call('XADD', '__OUTBOX__:' .. fleet, 'MINID', oldest_id, id, 'k', key, 'b', body)
       local history = '__HISTORY__' .. key
       local ms, sequence = string.match(id, '^(%d+)-(%d+)$')
       redis.call('ZADD', history, time_s, string.format('%s-%020d|', ms, tonumber(sequence)) .. body)
-      redis.call('ZREMRANGEBYSCORE', history, '-inf', '(' .. oldest_s)
+      for _, old in ipairs(redis.call('ZRANGE', history, 0, 15)) do
+        if tonumber(string.match(old, '^(%d+)-')) < tonumber(oldest_id) then
+          redis.call('ZREM', history, old)
+        end
+      end
       redis.call('ZADD', '__HISTORIES__', now_s, key)
       redis.call('SET', '__SEQ__' .. key, seq)
     end
@@ -366,17 +372,25 @@ class RedisStore(StateStore):
         ]
 
     def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
-        """Read from the vehicle's sorted set by time (entries of equal times in the order of their ids)."""
-        try:
-            members = self._redis.zrangebyscore(HISTORY_PREFIX + vehicle_key, repr(since_s), "+inf", 0, limit)
-        except redis.RedisError as exc:
-            raise self._unavailable(exc) from None
-        events = []
-        for member in cast(list[bytes], members):
-            entry_id, _, body = member.partition(b"|")
-            ms, _, sequence = entry_id.partition(b"-")
-            events.append(StoredEvent(f"{int(ms)}-{int(sequence)}", vehicle_key, body))
-        return events
+        """Read from the vehicle's sorted set by time (entries of equal times in the order of their ids), leaving out
+        those written before the retention time that are still there."""
+        oldest_ms = time.time() * 1000.0 - self.retention_ms
+        events: list[StoredEvent] = []
+        offset = 0
+        while len(events) < limit:
+            try:
+                members = self._redis.zrangebyscore(HISTORY_PREFIX + vehicle_key, repr(since_s), "+inf", offset, limit)
+            except redis.RedisError as exc:
+                raise self._unavailable(exc) from None
+            for member in cast(list[bytes], members):
+                entry_id, _, body = member.partition(b"|")
+                ms, _, sequence = entry_id.partition(b"-")
+                if int(ms) >= oldest_ms:
+                    events.append(StoredEvent(f"{int(ms)}-{int(sequence)}", vehicle_key, body))
+            if len(members) < limit:
+                break
+            offset += limit
+        return events[:limit]
 
     def session_count(self) -> int:
         """The keys with a TTL in the service's database: its sessions (a database of its own).
