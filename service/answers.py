@@ -357,7 +357,7 @@ class WarningService:
                 target.warning_speed_kmh if target is not None else None,
                 answered_at_s,
             )
-            vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
+            trail = vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest).trail
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
             answers.documents[index] = encode_answer(
@@ -373,8 +373,7 @@ class WarningService:
             )
             answers.state[index] = state
             answers.level[index] = warning.level
-            fault_code = None if fault is None else fault.code
-            if changes(vehicles.trail(vehicle_id), int(warning.level), state.value, fault_code):
+            if changes(trail, latest.level, state, fault is Fault.NO_MAP_MATCH):
                 vehicles.observe(vehicle_id, observed_of(answers.documents[index], _event_time(query, answered_at_s)))
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, category: Category) -> VehicleInput:

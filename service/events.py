@@ -173,21 +173,21 @@ def _curve_kind(before: int, after: int) -> str | None:
     return CURVE_RELEASE if after == 0 else CURVE_LEVEL
 
 
-def changes(trail: EventTrail, level: int, state: str, fault_code: str | None) -> bool:
-    """Whether an answer at ``level`` in ``state`` with the fault ``fault_code`` changes the ``trail``: most do
-    not, and need no :class:`Observed` told from them."""
-    return level != trail.level or state != trail.state or (fault_code == NO_MAP_MATCH_CODE) != trail.matching_fault
+def changes(trail: EventTrail, level: int, state: str, matching_fault: bool) -> bool:
+    """Whether an answer at ``level`` in ``state`` (a :class:`csws.state.SystemState` is its value), its position
+    matching no lane or not, changes the ``trail``: most do not, and need no :class:`Observed` told from them."""
+    return level != trail.level or state != trail.state or matching_fault != trail.matching_fault
 
 
 def answer_events(key: str, trail: EventTrail, observed: Observed) -> tuple[EventTrail, list[Event]]:
     """The events of an answer of the vehicle kept as ``key`` and the trail it leaves: a state change (5.3-5.5),
     a new map-matching fault (5.4), then a change of the curve warning's level (6.1), each at most once."""
-    if not changes(trail, observed.level, observed.state, observed.fault_code):
+    matching_fault = observed.fault_code == NO_MAP_MATCH_CODE
+    if not changes(trail, observed.level, observed.state, matching_fault):
         return trail, []
     events = []
     if observed.state != trail.state:
         events.append(_event(key, STATE, observed, observed.level))
-    matching_fault = observed.fault_code == NO_MAP_MATCH_CODE
     if matching_fault and not trail.matching_fault:
         events.append(_event(key, MATCHING_FAULT, observed, observed.level))
     kind = _curve_kind(trail.level, observed.level)

@@ -324,9 +324,9 @@ class LoadedVehicles:
 
     def seen(
         self, vehicle_id: str, lane_id: str | None, lane_pos_m: float = 0.0, latest: LatestAnswer | None = None
-    ) -> None:
+    ) -> Session:
         """Record that a vehicle (placed by :meth:`place`) was just answered, its lane and lane position if
-        it matched one, and what its answer said.
+        it matched one, and what its answer said; its session.
 
         A fix that matched nothing keeps the last matched lane, so one bad fix does not
         break the continuity of the next. Its session is written back at the end of the request.
@@ -340,6 +340,7 @@ class LoadedVehicles:
         if latest is not None:
             session.latest = latest
         self.written.add(vehicle_id)
+        return session
 
     def trail(self, vehicle_id: str) -> EventTrail:
         """What the vehicle's events are told by now (a vehicle :meth:`place` placed)."""
@@ -386,7 +387,7 @@ class LoadedVehicles:
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
-            if memory.status.state.value != session.trail.state:  # switched without an answer (5.2)
+            if memory.status.state != session.trail.state:  # switched without an answer (5.2): a StrEnum
                 session.trail, events = state_events(vehicle_id, session.trail, memory.status.state.value, time.time())
                 session.events += events
             record = SessionRecord.of(self.network_names[session.network_index], session, memory)

@@ -38,10 +38,10 @@ router = APIRouter(tags=["events"])
 #: How often a stream looks for new events, s: an event reaches a client within about this of its answer.
 POLL_S = 0.02
 #: A stream without events sends a comment this often, s, so that proxies keep it open.
-KEEP_ALIVE_S = 15.0
+KEEP_ALIVE_S = 2.5
 #: The longest a stream lasts, s (``?wait_s=``); its default.
-MAX_WAIT_S = 60.0
-DEFAULT_WAIT_S = 30.0
+MAX_WAIT_S = 5.0
+DEFAULT_WAIT_S = 5.0
 #: How long a browser's ``EventSource`` waits before it reconnects, ms (the stream's ``retry:``).
 RETRY_MS = 500
 #: The most events one read of the outbox takes, and one history page holds.
@@ -93,7 +93,24 @@ _STREAM_RESPONSE: dict[int | str, dict[str, Any]] = {
     200: {
         "description": "Server-Sent Events: `id: CURSOR` and `data: EVENT` (one JSON EventDocument) per event, "
         "comments as keep-alives, then the end after wait_s",
-        "content": {"text/event-stream": {"schema": {"type": "string"}}},
+        "content": {
+            "text/event-stream": {
+                "schema": {
+                    "type": "object",
+                    "description": "one Server-Sent Event: its id the event's cursor, its data one EventDocument",
+                    "properties": {
+                        "id": {"type": "string", "pattern": CURSOR_PATTERN},
+                        "event": {"type": "string", "enum": ["message"]},
+                        "data": {
+                            "type": "string",
+                            "contentMediaType": "application/json",
+                            "contentSchema": {"$ref": "#/components/schemas/EventDocument"},
+                        },
+                    },
+                    "required": ["id", "data"],
+                }
+            }
+        },
     }
 }
 
