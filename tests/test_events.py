@@ -16,6 +16,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
+from browsers import WAIT_MS, Recorded
 from builders import TRACK, write_geo_track
 from hypothesis import given
 from hypothesis import strategies as st
@@ -260,6 +261,22 @@ def test_a_traccar_position_makes_events_like_any_query(server) -> None:
     assert lane_id and lane_pos_m >= 0.0
 
 
+def test_the_live_map_lists_a_new_warning_from_the_stream(browser, server) -> None:
+    recorded = Recorded(browser)
+    page = recorded.page
+    page.goto(f"{server.url}/map")
+    page.wait_for_function("() => document.body.dataset.ready === 'true'", timeout=WAIT_MS)
+    time.sleep(1.0)  # the page caught up with the events before it
+    answer = server.client.post("/v1/warning", json=_query("mapped-1", TRUTH["curves"][0]["start_s"] - 20.0, 7.0))
+    target = answer.json()["target"]
+    page.wait_for_function("() => document.body.dataset.recentWarnings === '1'", timeout=WAIT_MS)
+    listed = page.inner_text("#recent")
+    assert "mapped-1" in listed and "curve_onset" in listed and f"level {target['level']}" in listed
+    assert f"V_w {target['warning_speed_kmh']:.0f} km/h" in listed
+    recorded.assert_offline()
+    page.close()
+
+
 # ------------------------------------------------------------------ durability
 def test_a_service_killed_after_an_acknowledged_warning_keeps_its_events(geo_net, tmp_path) -> None:
     database = tmp_path / "vehicles.sqlite3"
@@ -283,15 +300,27 @@ def test_two_replicas_of_two_workers_on_one_redis_stream_each_event_once(geo_net
     replicas = [Workers([geo_net], f"--state={redis_url}") for _ in range(2)]
     try:
         received: list[tuple[str, dict]] = []
-        listener = threading.Thread(
-            target=lambda: received.extend(_stream(httpx.Client(base_url=replicas[0].url, timeout=30.0), wait_s=6.0))
-        )
+        driven = threading.Event()
+
+        def follow() -> None:
+            """Streams one after the other, each resumed after the last event's id (Last-Event-ID), on new
+            connections (any worker of the replica), until one ends after the drives."""
+            while True:
+                last_round = driven.is_set()
+                headers = {"Last-Event-ID": received[-1][0]} if received else {}
+                with httpx.Client(base_url=replicas[0].url, timeout=30.0) as listener:
+                    received.extend(_stream(listener, wait_s=1.0, headers=headers))
+                if last_round:
+                    return
+
+        listener = threading.Thread(target=follow)
         listener.start()
         vehicles = []
         for number, replica in enumerate(replicas):  # each replica, each of its two workers, drives one vehicle
             for k, client in enumerate(replica.clients()):
                 vehicles.append(f"r{number}-{k}")
                 _drive(client, vehicles[-1])
+        driven.set()
         listener.join()
         with httpx.Client(base_url=replicas[1].url, timeout=30.0) as reader:
             history = [event for vehicle_id in vehicles for event in _history(reader, vehicle_id)]

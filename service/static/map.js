@@ -276,11 +276,12 @@ function listWarned() {
 
 // ---------------------------------------------------------------- recent warnings (GET /v1/events)
 // The fleet's latest warning events on this network, newest first, as the service's event stream sends them:
-// read with fetch, which sends the API key (EventSource cannot), and resumed after the last event's id when a
-// stream ends (docs/events.md). Only events from the page's start on are listed (the stream starts at the latest).
+// streams of a second each (the list is at most that late), read whole with fetch, which sends the API key
+// (EventSource cannot), each resumed after the last event's id (docs/events.md). Only events from the page's
+// start on are listed: the first streams only catch up with the outbox.
 const RECENT_KEPT = 15;
 const WARNING_KINDS = new Set(["curve_onset", "curve_level", "curve_release", "fcw"]);
-const STREAM_WAIT_S = 5;
+const STREAM_WAIT_S = 1;
 const STREAM_RETRY_MS = 2000;
 const recentWarnings = [];
 let lastEventId = null;
@@ -308,21 +309,12 @@ function takeFrame(frame, listed) {
   listRecent();
 }
 
-// Read one stream to its end; ``listed``: list its events (the first, catching up on what came before the
-// page, only finds the latest cursor).
+// Read one stream to its end; with ``listed``, list its events (else it only catches up with the outbox).
 async function readStream(listed) {
   const after = lastEventId === null ? "" : `&after=${encodeURIComponent(lastEventId)}`;
   const response = await fetch(`/v1/events?wait_s=${listed ? STREAM_WAIT_S : 0}${after}`, { headers: HEADERS });
   if (!response.ok) throw new Error(`/v1/events: HTTP ${response.status}`);
-  const reader = response.body.pipeThrough(new TextDecoderStream()).getReader();
-  let buffered = "";
-  for (;;) {
-    const { value, done } = await reader.read();
-    if (done) return;
-    const frames = (buffered + value).split("\n\n");
-    buffered = frames.pop();
-    frames.forEach((frame) => takeFrame(frame, listed));
-  }
+  (await response.text()).split("\n\n").forEach((frame) => takeFrame(frame, listed));
 }
 
 async function followEvents() {
