@@ -17,9 +17,12 @@ without gaps) and hands them to the state store with the session they came from,
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import msgspec
+
+from .store import NewEvent
 
 __all__ = [
     "CURVE_ONSET",
@@ -39,6 +42,7 @@ __all__ = [
     "fcw_events",
     "state_events",
     "encode_event",
+    "numbered",
     "split_key",
 ]
 
@@ -238,3 +242,11 @@ _ENCODER = msgspec.json.Encoder()
 def encode_event(event: Event, seq: int) -> bytes:
     """The JSON of ``event`` numbered ``seq``, as the outbox keeps it."""
     return _ENCODER.encode(msgspec.structs.replace(event, seq=seq))
+
+
+def numbered(events: Sequence[Event], last_seq: int) -> tuple[NewEvent, ...]:
+    """A vehicle's ``events`` numbered on from the number of its last one, ``last_seq``, for the outbox."""
+    return tuple(
+        NewEvent(event.fleet, seq, event.time, encode_event(event, seq))
+        for seq, event in enumerate(events, last_seq + 1)
+    )

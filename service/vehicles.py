@@ -38,11 +38,10 @@ from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 from csws.warning.release import HeldWarning
 
-from .events import Event, EventTrail, Observed, answer_events, encode_event, fcw_events, state_events
+from .events import Event, EventTrail, Observed, answer_events, fcw_events, numbered, state_events
 from .places import shown_places
 from .store import (
     NOTHING_STORED,
-    NewEvent,
     Place,
     StateStore,
     StoredVehicle,
@@ -397,7 +396,7 @@ class LoadedVehicles:
                 encode(record),
                 new_settings.get(vehicle_id),
                 places.get(vehicle_id),
-                _numbered(session.events, vehicle.event_seq) if session.events else (),
+                numbered(session.events, vehicle.event_seq) if session.events else (),
             )
         return writes
 
@@ -417,14 +416,6 @@ class LoadedVehicles:
             if self.read_lanes.get(vehicle_id) != lane and road_map.has_lane(session.lane_id):
                 lanes[vehicle_id] = lane
         return shown_places(road_maps, self.network_names, lanes)
-
-
-def _numbered(events: Sequence[Event], last_seq: int) -> tuple[NewEvent, ...]:
-    """``events`` numbered on from ``last_seq``, for the outbox."""
-    return tuple(
-        NewEvent(event.fleet, seq, event.time, encode_event(event, seq))
-        for seq, event in enumerate(events, last_seq + 1)
-    )
 
 
 class VehicleRegistry:

@@ -197,13 +197,12 @@ def test_an_event_reaches_an_open_stream_within_the_poll(server) -> None:
 
 def test_history_since_a_time_keeps_the_later_events_in_order(server) -> None:
     client = server.client
-    answers = _drive(client, "since-1")
+    _drive(client, "since-1")
     events = _history(client, "since-1")
     since = events[len(events) // 2]["time"]
     assert _history(client, "since-1", since=since) == [e for e in events if e["time"] >= since]
     assert _history(client, "since-1", limit=2) == events[:2]
     assert _history(client, "never-seen") == []
-    assert answers  # the drive was answered
 
 
 def test_concurrent_requests_of_one_vehicle_number_its_events_without_gaps_or_doubles(server) -> None:
@@ -246,7 +245,6 @@ def test_a_switch_makes_a_state_event(server) -> None:
 
 
 def test_a_traccar_position_makes_events_like_any_query(server) -> None:
-    lane_id, lane_pos_m = _route_lane(700.0)
     answer = server.client.post("/v1/warning", json=_query("probe", 700.0, 1.0)).json()
     x, y = answer["matched"]["position"]["lon"], answer["matched"]["position"]["lat"]
     forward = {
@@ -258,7 +256,6 @@ def test_a_traccar_position_makes_events_like_any_query(server) -> None:
     events = _history(server.client, "traccar-1")
     assert [(e["kind"], e["state"], e["seq"]) for e in events] == [(STATE, served.json()["state"], 1)]
     assert events[0]["time"] == 1795658400.0  # 2026-11-26T02:00:00Z
-    assert lane_id and lane_pos_m >= 0.0
 
 
 def test_the_live_map_lists_a_new_warning_from_the_stream(browser, server) -> None:

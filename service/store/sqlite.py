@@ -330,6 +330,7 @@ class SQLiteStore(StateStore):
                 _setting(switched_on, category)
             self._execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
             self._execute("SELECT vehicle_id, network, x, y FROM vehicle_places LIMIT 1").fetchall()
+            self._execute(_EVENT_COLUMNS + "LIMIT 1").fetchall()
         except (sqlite3.Error, ValueError) as exc:
             raise OSError(f"the vehicle state database {self.name} cannot be read: {exc}") from None
 
