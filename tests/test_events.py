@@ -170,6 +170,8 @@ def test_the_stream_sends_each_event_once_and_resumes_after_its_cursor(server) -
     middle = len(streamed) // 2
     resumed = _stream(client, headers={"Last-Event-ID": streamed[middle][0]}, after="0")
     assert [e for _, e in resumed if e["vehicle_id"] == "stream-1"] == history[middle + 1 :]
+    assert client.get("/v1/events", params={"after": "1-0", "wait_s": 0}).status_code == 422  # Redis's, not SQLite's
+    assert client.get("/v1/events", params={"after": "x", "wait_s": 0}).status_code == 422
     assert [e for _, e in _stream(client, after=streamed[-1][0])] == [
         e for _, e in _stream(client) if (e["vehicle_id"], e["seq"]) > ("stream-1", len(history))
     ]
