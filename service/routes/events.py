@@ -141,9 +141,9 @@ async def _stream(
         elif time.monotonic() - quiet_since_s >= KEEP_ALIVE_S:
             yield b": keep-alive\n\n"
             quiet_since_s = time.monotonic()
+        if time.monotonic() >= end_s:
+            return  # even behind: the client reads on from its last id
         if len(events) < MAX_EVENTS:
-            if time.monotonic() >= end_s:
-                return
             await asyncio.sleep(min(POLL_S, max(0.0, end_s - time.monotonic())))
         try:
             events = await _read(work, store, fleet, after)
