@@ -11,12 +11,10 @@ against the exact point). A box holding many places compared with the page asked
 key order instead, checking each place against it: sorting every hit of a large box for each
 page would cost what the box holds, not what the page does.
 
-The outbox (:mod:`service.events`) is the table ``vehicle_events``: its integer key, never reused
-(``AUTOINCREMENT``), is the events' order and cursor; it is indexed by fleet and key (a fleet's
-stream) and by vehicle and time (a vehicle's history). A vehicle's events are inserted in the
-transaction of its session, and the number of its last one is kept in ``vehicle_event_seqs``
-(read with the session, in the same statement). Events older than the retention time (by when
-they were written) are deleted with the expired sessions.
+The outbox of events (:mod:`service.store.sqlite_outbox`): a vehicle's events are inserted in the
+transaction of its session, and the number of its last one (``vehicle_event_seqs``) is read with the
+session, in the same statement. Events older than the retention time (by when they were written) are
+deleted with the expired sessions.
 
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
@@ -70,6 +68,7 @@ from . import (
     checked_idle_s,
     prefix_end,
 )
+from .sqlite_outbox import EVENT_COLUMNS, OUTBOX_SCHEMA, SQLiteOutbox
 
 __all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "BOX_PROBE_FACTOR", "SQLiteStore"]
 
@@ -100,12 +99,7 @@ _SCHEMA = (
     "WHERE id = new.rowid; END",
     "CREATE TRIGGER IF NOT EXISTS vehicle_place_gone AFTER DELETE ON vehicle_places BEGIN "
     "DELETE FROM vehicle_place_boxes WHERE id = old.rowid; END",
-    "CREATE TABLE IF NOT EXISTS vehicle_events ("
-    "cursor INTEGER PRIMARY KEY AUTOINCREMENT, fleet TEXT NOT NULL, vehicle_id TEXT NOT NULL, seq INTEGER NOT NULL, "
-    "time_s REAL NOT NULL, written_s REAL NOT NULL, body BLOB NOT NULL)",
-    "CREATE INDEX IF NOT EXISTS vehicle_events_by_fleet ON vehicle_events (fleet, cursor)",
-    "CREATE INDEX IF NOT EXISTS vehicle_events_by_vehicle ON vehicle_events (vehicle_id, time_s)",
-    "CREATE TABLE IF NOT EXISTS vehicle_event_seqs (vehicle_id TEXT PRIMARY KEY, seq INTEGER NOT NULL)",
+    *OUTBOX_SCHEMA,
 )
 #: Settings and live sessions of the vehicles of a JSON list, in one statement.
 _READ = (
@@ -136,10 +130,6 @@ _WRITE_PLACE = (
     "INSERT INTO vehicle_places (vehicle_id, network, x, y) VALUES (?, ?, ?, ?) "
     "ON CONFLICT (vehicle_id) DO UPDATE SET network = excluded.network, x = excluded.x, y = excluded.y"
 )
-_INSERT_EVENT = "INSERT INTO vehicle_events (fleet, vehicle_id, seq, time_s, written_s, body) VALUES (?, ?, ?, ?, ?, ?)"
-_WRITE_SEQ = "INSERT OR REPLACE INTO vehicle_event_seqs (vehicle_id, seq) VALUES (?, ?)"
-_TRIM_EVENTS = "DELETE FROM vehicle_events WHERE written_s < ?"
-_EVENT_COLUMNS = "SELECT cursor, vehicle_id, body FROM vehicle_events "
 _SWEEP = (
     "DELETE FROM vehicle_places WHERE vehicle_id IN (SELECT vehicle_id FROM vehicle_sessions WHERE written_s < ?)",
     "DELETE FROM vehicle_sessions WHERE written_s < ?",
@@ -175,13 +165,6 @@ _PLACED_IN_BOX = (
     "AND sessions.vehicle_id = places.vehicle_id AND sessions.written_s >= :oldest "
     "ORDER BY places.vehicle_id LIMIT :limit"
 )
-
-
-def _cursor_key(cursor: str) -> int:
-    """The outbox key a cursor names (its decimal digits); ValueError for anything else."""
-    if not (cursor.isascii() and cursor.isdigit() and len(cursor) <= 19):
-        raise ValueError(f"not a cursor of this outbox: {cursor[:40]!r}")
-    return int(cursor)
 
 
 def _setting(switched_on: int, category: str | None) -> VehicleSetting:
@@ -231,6 +214,7 @@ class SQLiteStore(StateStore):
             self._create_private(Path(self.name))
         self._connection = self._connect()
         self._file = self._identity()
+        self._outbox = SQLiteOutbox(self.name, self.name in _NOT_FILES, lambda: self._db)
 
     @staticmethod
     def _create_private(path: Path) -> None:
@@ -330,7 +314,7 @@ class SQLiteStore(StateStore):
                 _setting(switched_on, category)
             self._execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
             self._execute("SELECT vehicle_id, network, x, y FROM vehicle_places LIMIT 1").fetchall()
-            self._execute(_EVENT_COLUMNS + "LIMIT 1").fetchall()
+            self._execute(EVENT_COLUMNS + "LIMIT 1").fetchall()
         except (sqlite3.Error, ValueError) as exc:
             raise OSError(f"the vehicle state database {self.name} cannot be read: {exc}") from None
 
@@ -397,24 +381,13 @@ class SQLiteStore(StateStore):
         places = [(v, *w.place) for v, w in writes.items() if w.place is not None and v not in conflicts]
         if places:
             self._db.executemany(_WRITE_PLACE, places)
-        self._write_events([(v, w) for v, w in writes.items() if w.events and v not in conflicts], now_s)
+        self._outbox.write(self._db, [(v, w) for v, w in writes.items() if w.events and v not in conflicts], now_s)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             for statement in _SWEEP:
                 self._db.execute(statement, (oldest_live_s,))
-            self._db.execute(_TRIM_EVENTS, (now_s - self.event_retention_s,))
+            self._outbox.trim(self._db, now_s - self.event_retention_s)
             self._swept_s = now_s
         return conflicts
-
-    def _write_events(self, writes: list[tuple[str, VehicleWrite]], now_s: float) -> None:
-        """Inside the write transaction: the events of the vehicles written into the outbox, and the number of
-        each one's last event."""
-        if not writes:
-            return
-        self._db.executemany(
-            _INSERT_EVENT,
-            [(e.fleet, vehicle_id, e.seq, e.time_s, now_s, e.body) for vehicle_id, w in writes for e in w.events],
-        )
-        self._db.executemany(_WRITE_SEQ, [(vehicle_id, w.events[-1].seq) for vehicle_id, w in writes])
 
     def _write_sessions(self, writes: Iterable[tuple[str, VehicleWrite]], now_s: float, oldest_live_s: float) -> int:
         """Write each session over the live one of its expected version (or as the first one);
@@ -486,25 +459,14 @@ class SQLiteStore(StateStore):
         return int(self._execute(_BOX_PROBE, {**box, "probe": count}).fetchone()[0]) < count
 
     def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
-        """Read along the key (every fleet) or the fleet's index; the cursor is the key in decimal."""
+        """Read from the outbox (:mod:`service.store.sqlite_outbox`) on a connection of its own."""
         self._refuse_if_lost()
-        first = -1 if after is None else _cursor_key(after)
-        if fleet is None:
-            return self._events("WHERE cursor > ? ORDER BY cursor LIMIT ?", (first, limit))
-        return self._events("WHERE fleet = ? AND cursor > ? ORDER BY cursor LIMIT ?", (fleet, first, limit))
+        return self._outbox.events_after(fleet, after, limit)
 
     def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
+        """Read from the outbox (:mod:`service.store.sqlite_outbox`) on a connection of its own."""
         self._refuse_if_lost()
-        where = "WHERE vehicle_id = ? AND time_s >= ? ORDER BY time_s, cursor LIMIT ?"
-        return self._events(where, (vehicle_key, since_s, limit))
-
-    def _events(self, where: str, parameters: tuple) -> list[StoredEvent]:
-        """The outbox's events that ``where`` selects (with its ``parameters``)."""
-        try:
-            rows = self._execute(_EVENT_COLUMNS + where, parameters).fetchall()
-        except sqlite3.Error as exc:
-            raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
-        return [StoredEvent(str(cursor), vehicle_id, body) for cursor, vehicle_id, body in rows]
+        return self._outbox.vehicle_events(vehicle_key, since_s, limit)
 
     def session_count(self) -> int:
         """Counted in the file, which is looked at first (``/readyz``: not ready once it is gone)."""
@@ -521,3 +483,4 @@ class SQLiteStore(StateStore):
     def close(self) -> None:
         if self._pid == os.getpid():
             self._connection.close()
+        self._outbox.close()
