@@ -8,7 +8,8 @@
 4. evaluates the vehicles of each network in one :meth:`csws.engine.Engine.evaluate_fleet`;
 5. answers the forward collision warning of the queries with objects (:mod:`service.fcw_objects`, its
    memory in the vehicles' sessions) or a forward_target (:mod:`service.fcw`), and the HMI of both;
-6. writes the vehicles' sessions back to the store, and the answers as the JSON of the HTTP
+6. notes the events of the answers that changed a vehicle's level or state (:mod:`service.events`);
+7. writes the vehicles' sessions (and events) back to the store, and the answers as the JSON of the HTTP
    contract (:mod:`service.encoding`).
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
@@ -36,6 +37,7 @@ from .batch_items import UNANSWERABLE_QUERY, ItemErrors, item_error, problems_by
 from .checks import QueryCheck, QueryErrors
 from .decoding import DecodedQuery
 from .encoding import EncodedAnswers, encode_answer, hmi_json, matched_documents
+from .events import changes, observed_of
 from .fcw import combined_hmi, fcw_answers
 from .fcw_objects import object_fcw
 from .fcw_settings import FleetFcwSettings
@@ -59,6 +61,11 @@ def _category(query: DecodedQuery, vehicles: LoadedVehicles) -> Category:
     category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
     assert category is not None  # a query without one was refused (service.checks)
     return category
+
+
+def _event_time(query: DecodedQuery, now_s: float) -> float:
+    """The time of the events of a query's answer: its fix's timestamp, else the service's clock ``now_s``."""
+    return query.timestamp_s if query.timestamp_s is not None else now_s
 
 
 def _rounds(queries: Sequence[DecodedQuery], indices: Sequence[int]) -> list[list[int]]:
@@ -239,6 +246,7 @@ class WarningService:
         settings = [self.fcw_settings.of(fleet, category) for category in categories]
         fcw = fcw_answers(queries, settings)
         rows = [row for row, query in enumerate(queries) if query.objects is not None]
+        now_s = time.time()
         if rows:
             sessions = [vehicles.sessions[queries[row].vehicle_id] for row in rows]
             found, kept = object_fcw(
@@ -246,16 +254,19 @@ class WarningService:
                 [settings[row] for row in rows],
                 [session.fcw for session in sessions],
                 [paths[row] for row in rows],
-                time.time(),
+                now_s,
             )
             for row, session, found_answer, memory in zip(rows, sessions, found, kept, strict=True):
                 fcw[row], session.fcw = found_answer, memory
-        for index, answer in zip(indices, fcw, strict=True):
+        for query, index, answer in zip(queries, indices, fcw, strict=True):
             if answer is not None:
                 document = answers.documents[index]
                 document.fcw = answer
                 if answer["level"] > 0:
                     document.hmi = hmi_json(combined_hmi(document.level, answer["level"]))
+                if answer["level"] != vehicles.trail(query.vehicle_id).fcw_level:
+                    observed = observed_of(document, _event_time(query, now_s))
+                    vehicles.observe_fcw(query.vehicle_id, answer["level"], answer.get("target_id"), observed)
 
     def evaluate(
         self,
@@ -346,7 +357,7 @@ class WarningService:
                 target.warning_speed_kmh if target is not None else None,
                 answered_at_s,
             )
-            vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest)
+            trail = vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest).trail
             index = indices[row]
             path = evaluated.path(k) if warning.triggers else None
             answers.documents[index] = encode_answer(
@@ -362,6 +373,8 @@ class WarningService:
             )
             answers.state[index] = state
             answers.level[index] = warning.level
+            if changes(trail, latest.level, state, fault is Fault.NO_MAP_MATCH):
+                vehicles.observe(vehicle_id, observed_of(answers.documents[index], _event_time(query, answered_at_s)))
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, category: Category) -> VehicleInput:
         """The engine's input for a placed query of a vehicle of ``category``."""

@@ -38,7 +38,7 @@ from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
 from .problems import MAX_ERRORS_SHOWN, MAX_MESSAGE_CHARS, problem_body
 from .push import start_service_push
-from .routes import docs, map, match, ops, traccar, vehicles, warnings
+from .routes import docs, events, map, match, ops, traccar, vehicles, warnings
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import VehicleRegistry
@@ -174,7 +174,8 @@ def create_app(
     )
     _share(app, settings, clock, progress)
     docs.mount_static(app)
-    for router in (warnings.router, traccar.router, vehicles.router, match.router, map.router, ops.router, docs.router):
+    routers = (warnings.router, traccar.router, vehicles.router, events.router, match.router, map.router)
+    for router in (*routers, ops.router, docs.router):
         app.include_router(router)
     # Innermost first: security headers (on the page before it is gzipped), answers to GETs gzipped,
     # bodies bounded, then metrics over all.

@@ -5,6 +5,7 @@ the same way as ``csws serve``:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``; default the bundled city), ``CSWS_TEST_TRACKS``,
 ``CSWS_HOST``, ``CSWS_PORT``, ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``,
+``CSWS_EVENT_RETENTION_S``,
 ``CSWS_MATCH_TOLERANCE_M``, ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
 ``CSWS_MATCH_HEADING_SIGMA_DEG``, ``CSWS_MATCH_LANE_CHANGE_LOG_P``, ``CSWS_MATCH_DEAD_RECKONING_S``,
 ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``, ``CSWS_ACTIVATION_SPEED_KMH``,
@@ -34,6 +35,7 @@ from csws.road.matching import MatchSettings
 from csws.warning.rules import WarningSettings
 
 from .networks import city_network_paths, track_network_paths
+from .store import DEFAULT_EVENT_RETENTION_S, MAX_SESSION_IDLE_S
 
 __all__ = ["ServiceSettings", "default_state_db"]
 
@@ -81,6 +83,12 @@ class ServiceSettings(BaseSettings):
         "and across restarts, when state names no Redis; ':memory:' keeps them in memory only, for one worker",
     )
     session_idle_s: float = Field(default=600.0, gt=0, description="a vehicle session idle this long expires, s")
+    event_retention_s: float = Field(
+        default=DEFAULT_EVENT_RETENTION_S,
+        gt=0,
+        le=MAX_SESSION_IDLE_S,
+        description="the outbox keeps each warning event this long, s (docs/events.md; default 7 days)",
+    )
     match_tolerance_m: float = Field(
         default=_MATCH.tolerance_m, gt=0, description="a fix matches lanes within this distance, m"
     )

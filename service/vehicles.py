@@ -5,7 +5,8 @@
   fixes (:class:`csws.road.hmm.MatchState`: the sequence its next fix continues), what the
   engine keeps of it (:class:`csws.engine.VehicleMemory`: system state and activation, last
   timestamp, the release rule's memory), and what its forward collision warning keeps
-  (:class:`FcwMemory`: state, level hold, objects in the path, last target).
+  (:class:`FcwMemory`: state, level hold, objects in the path, last target), and what its
+  events are told by (:class:`service.events.EventTrail`: the last level, state and FCW level).
   A vehicle that moves to another network takes its system state along. A session not written for the idle time expires;
   the stored setting remains.
 
@@ -16,12 +17,17 @@ of a vehicle happens only if no other request wrote its session since it was rea
 another request got to first is read and answered again (:meth:`VehicleRegistry.transact`).
 So the requests of one vehicle are answered one after the other, each from the session the
 previous one left, whichever worker or replica serves each.
+
+Each answer that changes what the trail kept becomes events (:mod:`service.events`), numbered on
+from the last number the store kept of the vehicle and written with its session: a vehicle answered
+again after a conflict is numbered again from what it reads then, so its numbers have no gaps.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeVar
 
 import msgspec
@@ -32,8 +38,17 @@ from csws.standard import Category
 from csws.state import Fault, SystemState, VehicleStatus, switch
 from csws.warning.release import HeldWarning
 
+from .events import Event, EventTrail, Observed, answer_events, fcw_events, numbered, state_events
 from .places import shown_places
-from .store import NOTHING_STORED, Place, StateStore, StoredVehicle, StoreUnavailable, VehicleSetting, VehicleWrite
+from .store import (
+    NOTHING_STORED,
+    Place,
+    StateStore,
+    StoredVehicle,
+    StoreUnavailable,
+    VehicleSetting,
+    VehicleWrite,
+)
 from .timing import UNTIMED, Stages
 
 __all__ = [
@@ -115,6 +130,10 @@ class Session:
     matching
         What map matching keeps of its fixes on the network ``network_index`` (:class:`csws.road.hmm.MatchState`),
         None before its first matched fix.
+    trail
+        What its last answer's events were told by (:mod:`service.events`).
+    events
+        The events of this request's answers of it, not yet numbered.
     """
 
     network_index: int
@@ -123,6 +142,8 @@ class Session:
     latest: LatestAnswer | None = None
     fcw: FcwMemory | None = None
     matching: MatchState | None = None
+    trail: EventTrail = EventTrail()
+    events: list[Event] = field(default_factory=list)
 
 
 class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
@@ -152,6 +173,14 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
     #: (:class:`csws.warning.release.HeldWarning`; sessions written before these were kept have neither).
     held_places: tuple[tuple[str, int, float, float], ...] = ()
     held_seen: tuple[float, float] | None = None
+    #: What its last answer's events were told by (sessions written before events were kept have none).
+    trail: EventTrail | None = None
+
+    def event_trail(self) -> EventTrail:
+        """What the last answer's events were told by: as kept, else as the session's state and latest answer say."""
+        if self.trail is not None:
+            return self.trail
+        return EventTrail(self.latest.level if self.latest is not None else 0, self.state.value)
 
     def memory(self) -> VehicleMemory:
         """What the engine keeps of the vehicle."""
@@ -181,6 +210,7 @@ class SessionRecord(msgspec.Struct, array_like=True, frozen=True, gc=False):
             session.matching,
             held.places,
             held.seen,
+            session.trail,
         )
 
 
@@ -216,7 +246,13 @@ class LoadedVehicles:
             if record is not None:
                 network_index = registry.network_index[record.network]
                 self.sessions[vehicle_id] = Session(
-                    network_index, record.lane_id, record.lane_pos_m, record.latest, record.fcw, record.matching
+                    network_index,
+                    record.lane_id,
+                    record.lane_pos_m,
+                    record.latest,
+                    record.fcw,
+                    record.matching,
+                    record.event_trail(),
                 )
                 self.read_lanes[vehicle_id] = (network_index, record.lane_id, record.lane_pos_m)
                 self.engines[network_index].restore(vehicle_id, record.memory())
@@ -287,9 +323,9 @@ class LoadedVehicles:
 
     def seen(
         self, vehicle_id: str, lane_id: str | None, lane_pos_m: float = 0.0, latest: LatestAnswer | None = None
-    ) -> None:
+    ) -> Session:
         """Record that a vehicle (placed by :meth:`place`) was just answered, its lane and lane position if
-        it matched one, and what its answer said.
+        it matched one, and what its answer said; its session.
 
         A fix that matched nothing keeps the last matched lane, so one bad fix does not
         break the continuity of the next. Its session is written back at the end of the request.
@@ -303,6 +339,24 @@ class LoadedVehicles:
         if latest is not None:
             session.latest = latest
         self.written.add(vehicle_id)
+        return session
+
+    def trail(self, vehicle_id: str) -> EventTrail:
+        """What the vehicle's events are told by now (a vehicle :meth:`place` placed)."""
+        return self.sessions[vehicle_id].trail
+
+    def observe(self, vehicle_id: str, observed: Observed) -> None:
+        """Note the events of an answer of the vehicle (placed by :meth:`place`), written with its session."""
+        session = self.sessions[vehicle_id]
+        session.trail, events = answer_events(vehicle_id, session.trail, observed)
+        session.events += events
+
+    def observe_fcw(self, vehicle_id: str, level: int, object_id: int | None, observed: Observed) -> None:
+        """Note the event of a forward collision warning's answer of the vehicle at ``level`` (target ``object_id``)
+        whose curve warning's answer was ``observed``."""
+        session = self.sessions[vehicle_id]
+        session.trail, events = fcw_events(vehicle_id, session.trail, level, object_id, observed)
+        session.events += events
 
     def configure(self, vehicle_id: str, switched_on: bool, category: Category | None) -> None:
         """Set a vehicle's switch (5.2) and category; both are stored with its session."""
@@ -332,12 +386,17 @@ class LoadedVehicles:
         for vehicle_id in self.written:
             session = self.sessions[vehicle_id]
             memory = self.engines[session.network_index].memory(vehicle_id)
+            if memory.status.state != session.trail.state:  # switched without an answer (5.2): a StrEnum
+                session.trail, events = state_events(vehicle_id, session.trail, memory.status.state.value, time.time())
+                session.events += events
             record = SessionRecord.of(self.network_names[session.network_index], session, memory)
+            vehicle = stored.get(vehicle_id, NOTHING_STORED)
             writes[vehicle_id] = VehicleWrite(
-                stored.get(vehicle_id, NOTHING_STORED).version,
+                vehicle.version,
                 encode(record),
                 new_settings.get(vehicle_id),
                 places.get(vehicle_id),
+                numbered(session.events, vehicle.event_seq) if session.events else (),
             )
         return writes
 

@@ -274,6 +274,62 @@ function listWarned() {
   if (html !== warnedHtml) warnedPanel.querySelector("#warned").innerHTML = warnedHtml = html;
 }
 
+// ---------------------------------------------------------------- recent warnings (GET /v1/events)
+// The fleet's latest warning events on this network, newest first, as the service's event stream sends them:
+// streams of a second each (the list is at most that late), read whole with fetch, which sends the API key
+// (EventSource cannot), each resumed after the last event's id (docs/events.md). Only events from the page's
+// start on are listed: the first streams only catch up with the outbox.
+const RECENT_KEPT = 15;
+const WARNING_KINDS = new Set(["curve_onset", "curve_level", "curve_release", "fcw"]);
+const STREAM_WAIT_S = 1;
+const STREAM_RETRY_MS = 2000;
+const recentWarnings = [];
+let lastEventId = null;
+
+function listRecent() {
+  const items = recentWarnings.map((e) => `<li><button data-vehicle="${escaped(e.vehicle_id)}">`
+    + `${new Date(e.time * 1000).toLocaleTimeString()} · ${escaped(e.vehicle_id)} · ${escaped(e.kind)}`
+    + ` · level ${e.level}${e.v_w_kmh == null ? "" : " · V_w " + e.v_w_kmh.toFixed(0) + " km/h"}</button></li>`);
+  recentPanel.querySelector("#recent").innerHTML = items.join("");
+  dataset.recentWarnings = String(recentWarnings.length);
+}
+
+// One frame of the stream: its id (the cursor) and its event, if it has data.
+function takeFrame(frame, listed) {
+  let data = null;
+  for (const line of frame.split("\n")) {
+    if (line.startsWith("id: ")) lastEventId = line.slice(4);
+    else if (line.startsWith("data: ")) data = line.slice(6);
+  }
+  if (data === null || !listed) return;
+  const event = JSON.parse(data);
+  if (!WARNING_KINDS.has(event.kind) || (event.network !== null && event.network !== network.name)) return;
+  recentWarnings.unshift(event);
+  recentWarnings.length = Math.min(recentWarnings.length, RECENT_KEPT);
+  listRecent();
+}
+
+// Read one stream to its end; with ``listed``, list its events (else it only catches up with the outbox).
+async function readStream(listed) {
+  const after = lastEventId === null ? "" : `&after=${encodeURIComponent(lastEventId)}`;
+  const response = await fetch(`/v1/events?wait_s=${listed ? STREAM_WAIT_S : 0}${after}`, { headers: HEADERS });
+  if (!response.ok) throw new Error(`/v1/events: HTTP ${response.status}`);
+  (await response.text()).split("\n\n").forEach((frame) => takeFrame(frame, listed));
+}
+
+async function followEvents() {
+  for (let listed = false; ; ) {
+    try {
+      const before = lastEventId;
+      await readStream(listed);
+      listed = listed || lastEventId === before;  // caught up: from now on every event is new
+    } catch (error) {
+      showStatus(error.message);
+      await new Promise((resolve) => setTimeout(resolve, STREAM_RETRY_MS));
+    }
+  }
+}
+
 // The fleet's answer for the view: its vehicles and the service's time.
 
 let fleetBusy = false;
@@ -367,15 +423,20 @@ function legends() {
   });
 }
 
-const warnedPanel = (() => {
-  legends();
-  const div = panel("topright", `<h4></h4><ol id="warned"></ol>`);
-  div.querySelector("#warned").addEventListener("click", (event) => {
+function selectingList(position, html, list) {
+  const div = panel(position, html);
+  div.querySelector(list).addEventListener("click", (event) => {
     const button = event.target.closest("button[data-vehicle]");
     if (button) select(button.dataset.vehicle);
   });
   return div;
+}
+
+const warnedPanel = (() => {
+  legends();
+  return selectingList("topright", `<h4></h4><ol id="warned"></ol>`, "#warned");
 })();
+const recentPanel = selectingList("bottomright", `<h4>recent warnings</h4><ol id="recent"></ol>`, "#recent");
 
 async function start() {
   try {
@@ -395,6 +456,7 @@ async function start() {
   }
   loadFleet();
   setInterval(loadFleet, FLEET_PERIOD_MS);
+  followEvents();
 }
 
 window.cswsMap = {

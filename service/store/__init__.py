@@ -10,7 +10,13 @@ It holds, per vehicle (by its key, :func:`service.keys.vehicle_key`):
   idle time;
 * its **place**, where the live map shows it (:class:`Place`), written with its session and
   indexed, so that ``GET /v1/fleet`` reads a page of a fleet, or the vehicles in a box, without
-  reading the others (:meth:`StateStore.placed`).
+  reading the others (:meth:`StateStore.placed`);
+* its **events** (:mod:`service.events`), in the **outbox**: written in the transaction (SQLite) or
+  script (Redis) of the session they came from, so that an acknowledged answer's events are kept
+  and a write refused for a version conflict leaves none; numbered per vehicle (``seq``, from 1
+  without gaps: the last number is kept per vehicle, beyond its session), read in outbox order per
+  fleet (:meth:`StateStore.events_after`) or per vehicle by time (:meth:`StateStore.vehicle_events`),
+  and kept for the retention time (:data:`DEFAULT_EVENT_RETENTION_S`), trimmed as the store writes.
 
 Two backends implement :class:`StateStore`: SQLite in WAL mode (:mod:`service.store.sqlite`),
 the embedded default for the workers of one machine, and Redis (:mod:`service.store.redis`),
@@ -40,6 +46,9 @@ if TYPE_CHECKING:
 __all__ = [
     "STORE_TIMEOUT_S",
     "MAX_SESSION_IDLE_S",
+    "DEFAULT_EVENT_RETENTION_S",
+    "NewEvent",
+    "StoredEvent",
     "checked_idle_s",
     "StoreUnavailable",
     "VehicleSetting",
@@ -61,6 +70,8 @@ STORE_TIMEOUT_S = 0.5
 #: whole milliseconds in a signed 64-bit integer, counted from now, and a setting that a store
 #: cannot hold is refused at start rather than failing every write.
 MAX_SESSION_IDLE_S = 366 * 86400.0
+#: How long the outbox keeps an event by default, s (7 days): ``CSWS_EVENT_RETENTION_S``.
+DEFAULT_EVENT_RETENTION_S = 7 * 86400.0
 
 
 def checked_idle_s(idle_s: float) -> float:
@@ -104,11 +115,15 @@ class StoredVehicle(NamedTuple):
         Its session as :mod:`service.vehicles` encoded it; None when it has none (or it expired).
     version
         The version of its session: 0 without one.
+    event_seq
+        The number of its last event (0 before its first): kept beyond its session, so that its events stay
+        numbered without gaps when a new session starts.
     """
 
     setting: VehicleSetting | None = None
     session: bytes | None = None
     version: int = 0
+    event_seq: int = 0
 
 
 #: A vehicle the store holds nothing of.
@@ -154,6 +169,45 @@ class PlacedSession(NamedTuple):
     place: Place
 
 
+class NewEvent(NamedTuple):
+    """An event to put in the outbox with its vehicle's session.
+
+    Attributes
+    ----------
+    fleet
+        The vehicle's fleet: the stream it goes to.
+    seq
+        Its number among the vehicle's events.
+    time_s
+        Its time, s since the epoch: the history's order (:meth:`StateStore.vehicle_events`).
+    body
+        Its JSON (:func:`service.events.encode_event`).
+    """
+
+    fleet: str
+    seq: int
+    time_s: float
+    body: bytes
+
+
+class StoredEvent(NamedTuple):
+    """An event as the outbox holds it.
+
+    Attributes
+    ----------
+    cursor
+        Its place in the outbox, opaque: the events after it are read with :meth:`StateStore.events_after`.
+    vehicle_key
+        Its vehicle's key (:func:`service.keys.vehicle_key`).
+    body
+        Its JSON.
+    """
+
+    cursor: str
+    vehicle_key: str
+    body: bytes
+
+
 class VehicleWrite(NamedTuple):
     """What to write of one vehicle: its session, and with it a new setting if one was made, and its new
     place if it has one (a named tuple: a request writes thousands).
@@ -169,12 +223,15 @@ class VehicleWrite(NamedTuple):
     place
         Where the live map shows the vehicle now, or None to keep the stored place (a vehicle that
         never matched has none): the store indexes it for :meth:`StateStore.placed`.
+    events
+        The vehicle's new events, numbered on from its stored ``event_seq``, for the outbox.
     """
 
     expected_version: int
     session: bytes
     setting: VehicleSetting | None = None
     place: Place | None = None
+    events: tuple[NewEvent, ...] = ()
 
 
 def prefix_end(prefix: str) -> str | None:
@@ -244,6 +301,30 @@ class StateStore(ABC):
         """
 
     @abstractmethod
+    def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
+        """The events of ``fleet`` (None: of every fleet) in outbox order, strictly after the cursor ``after``
+        (None: from the oldest retained), at most ``limit``.
+
+        Raises
+        ------
+        ValueError
+            When ``after`` is no cursor of this store.
+        StoreUnavailable
+            When the store cannot be read now.
+        """
+
+    @abstractmethod
+    def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
+        """The retained events of one vehicle whose time is at least ``since_s``, in the order of their times
+        (then outbox order), at most ``limit``.
+
+        Raises
+        ------
+        StoreUnavailable
+            When the store cannot be read now.
+        """
+
+    @abstractmethod
     def session_count(self) -> int:
         """How many sessions the store holds (those not expired).
 
@@ -264,7 +345,7 @@ def open_store(settings: ServiceSettings, clock: Callable[[], float] = time.time
     Parameters
     ----------
     settings
-        The service's settings (``state``, ``state_db``, ``session_idle_s``).
+        The service's settings (``state``, ``state_db``, ``session_idle_s``, ``event_retention_s``).
     clock
         Seconds of the clock that dates SQLite sessions (Redis expires its own).
 
@@ -278,7 +359,7 @@ def open_store(settings: ServiceSettings, clock: Callable[[], float] = time.time
     if settings.state:
         from .redis import RedisStore
 
-        return RedisStore(settings.state, settings.session_idle_s)
+        return RedisStore(settings.state, settings.session_idle_s, settings.event_retention_s)
     from .sqlite import SQLiteStore
 
-    return SQLiteStore(settings.state_db, settings.session_idle_s, clock)
+    return SQLiteStore(settings.state_db, settings.session_idle_s, clock, settings.event_retention_s)

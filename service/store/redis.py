@@ -10,7 +10,18 @@ its own):
 * ``csws:places``: a hash of the vehicles' places, ``{network}|{x}|{y}`` by vehicle, and
   ``csws:placed``: their vehicles in a sorted set of equal scores, so in key order
   (``ZRANGEBYLEX`` reads a fleet's keys from a cursor on). Both are written with the session;
-  a vehicle whose session expired leaves them when a read of places finds it gone.
+  a vehicle whose session expired leaves them when a read of places finds it gone;
+* the outbox (:mod:`service.events`): ``csws:outbox``, a stream of every fleet's events, and
+  ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
+  trimmed to the retention time (``MINID``) as events are added; ``csws:history:{vehicle}``, a
+  vehicle's events in a sorted set by their times (``{id}|{event}`` each, the id's sequence number
+  zero-padded so that events of one time sort in outbox order), whose earliest entries written
+  before the retention time are taken out as events are added (those a read finds are left out),
+  and deleted (a few per write) once its last event is older than the retention time, which the sorted set
+  ``csws:histories`` tells (no key of the outbox expires by TTL, so that the sessions are what
+  ``INFO keyspace`` counts as expiring); ``csws:event-seq:{vehicle}``, the number of the
+  vehicle's last event, read with its session; no expiry. All are written by the script that writes
+  the session.
 
 Reading places (:meth:`RedisStore.placed`) is one server-side script too: it walks the fleet's
 keys in order from the cursor, a thousand at a time, and keeps those whose place is on the
@@ -32,6 +43,8 @@ are :class:`service.store.StoreUnavailable`.
 
 from __future__ import annotations
 
+import re
+import time
 from collections.abc import Collection, Mapping, Sequence
 from typing import cast
 from urllib.parse import urlsplit, urlunsplit
@@ -43,11 +56,13 @@ from redis.retry import Retry
 from csws.standard import Category
 
 from . import (
+    DEFAULT_EVENT_RETENTION_S,
     STORE_TIMEOUT_S,
     Box,
     Place,
     PlacedSession,
     StateStore,
+    StoredEvent,
     StoredVehicle,
     StoreUnavailable,
     VehicleSetting,
@@ -56,39 +71,93 @@ from . import (
     prefix_end,
 )
 
-__all__ = ["SESSION_PREFIX", "SETTING_PREFIX", "PLACES_KEY", "PLACED_KEY", "RedisStore"]
+__all__ = [
+    "SESSION_PREFIX",
+    "SETTING_PREFIX",
+    "PLACES_KEY",
+    "PLACED_KEY",
+    "OUTBOX_KEY",
+    "HISTORY_PREFIX",
+    "HISTORIES_KEY",
+    "EVENT_SEQ_PREFIX",
+    "RedisStore",
+]
 
 SESSION_PREFIX = "csws:session:"
 SETTING_PREFIX = "csws:setting:"
 PLACES_KEY = "csws:places"
 PLACED_KEY = "csws:placed"
+OUTBOX_KEY = "csws:outbox"
+HISTORY_PREFIX = "csws:history:"
+HISTORIES_KEY = "csws:histories"
+EVENT_SEQ_PREFIX = "csws:event-seq:"
+#: A cursor of the outbox: a stream entry's id.
+_CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 
 #: KEYS: the places hash and the placed set, then per vehicle its session key and its setting key.
-#: ARGV: the sessions' time to live in ms, then per vehicle its key, the expected version, the new
-#: session, the new setting and the new place ('' for none). Returns the (1-based) numbers of the
-#: vehicles whose session version had moved.
-_WRITE_SCRIPT = """
-local conflicts = {}
-for vehicle = 1, (#KEYS - 2) / 2 do
+#: ARGV: the sessions' time to live in ms, the events' retention in ms, the number of vehicles, then per
+#: vehicle its key, the expected version, the new session, the new setting and the new place ('' for
+#: none), then per event the (1-based) number of its vehicle, its fleet, number, time (s) and JSON.
+#: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
+_WRITE_SCRIPT = (
+    """
+local conflicts, written = {}, {}
+local vehicles = tonumber(ARGV[3])
+for vehicle = 1, vehicles do
   local session_key, setting_key = KEYS[2 * vehicle + 1], KEYS[2 * vehicle + 2]
-  local key, expected = ARGV[5 * vehicle - 3], ARGV[5 * vehicle - 2]
+  local at = 5 * vehicle - 1
+  local key, expected = ARGV[at], ARGV[at + 1]
   local stored = redis.call('GET', session_key)
   local version = stored and string.match(stored, '^(%d+)|') or '0'
   if version == expected then
-    redis.call('SET', session_key, (tonumber(version) + 1) .. '|' .. ARGV[5 * vehicle - 1], 'PX', ARGV[1])
-    if ARGV[5 * vehicle] ~= '' then
-      redis.call('SET', setting_key, ARGV[5 * vehicle])
+    written[vehicle] = key
+    redis.call('SET', session_key, (tonumber(version) + 1) .. '|' .. ARGV[at + 2], 'PX', ARGV[1])
+    if ARGV[at + 3] ~= '' then
+      redis.call('SET', setting_key, ARGV[at + 3])
     end
-    if ARGV[5 * vehicle + 1] ~= '' then
-      redis.call('HSET', KEYS[1], key, ARGV[5 * vehicle + 1])
+    if ARGV[at + 4] ~= '' then
+      redis.call('HSET', KEYS[1], key, ARGV[at + 4])
       redis.call('ZADD', KEYS[2], 0, key)
     end
   else
     conflicts[#conflicts + 1] = vehicle
   end
 end
+local first = 5 * vehicles + 4
+if first <= #ARGV then
+  local now = redis.call('TIME')
+  local now_s = tonumber(now[1]) + tonumber(now[2]) / 1e6
+  local oldest_id = tostring(math.floor(now_s * 1000 - tonumber(ARGV[2])))
+  local oldest_s = now_s - tonumber(ARGV[2]) / 1000
+  for at = first, #ARGV, 5 do
+    local key = written[tonumber(ARGV[at])]
+    if key then
+      local fleet, seq, time_s, body = ARGV[at + 1], ARGV[at + 2], ARGV[at + 3], ARGV[at + 4]
+      local id = redis.call('XADD', '__OUTBOX__', 'MINID', oldest_id, '*', 'k', key, 'b', body)
+      redis.call('XADD', '__OUTBOX__:' .. fleet, 'MINID', oldest_id, id, 'k', key, 'b', body)
+      local history = '__HISTORY__' .. key
+      local ms, sequence = string.match(id, '^(%d+)-(%d+)$')
+      redis.call('ZADD', history, time_s, string.format('%s-%020d|', ms, tonumber(sequence)) .. body)
+      for _, old in ipairs(redis.call('ZRANGE', history, 0, 15)) do
+        if tonumber(string.match(old, '^(%d+)-')) < tonumber(oldest_id) then
+          redis.call('ZREM', history, old)
+        end
+      end
+      redis.call('ZADD', '__HISTORIES__', now_s, key)
+      redis.call('SET', '__SEQ__' .. key, seq)
+    end
+  end
+  for _, stale in ipairs(redis.call('ZRANGEBYSCORE', '__HISTORIES__', '-inf', '(' .. oldest_s, 'LIMIT', 0, 16)) do
+    redis.call('DEL', '__HISTORY__' .. stale)
+    redis.call('ZREM', '__HISTORIES__', stale)
+  end
+end
 return conflicts
-"""
+""".replace("__OUTBOX__", OUTBOX_KEY)
+    .replace("__HISTORY__", HISTORY_PREFIX)
+    .replace("__HISTORIES__", HISTORIES_KEY)
+    .replace("__SEQ__", EVENT_SEQ_PREFIX)
+)
 #: KEYS: the places hash and the placed set. ARGV: the first key and the end of the key range (as
 #: ZRANGEBYLEX takes them), the page's size, the sessions' key prefix, '1' with a box else '0', the
 #: box (min x, min y, max x, max y), then the networks. Returns key, stored session and place of each
@@ -176,6 +245,8 @@ class RedisStore(StateStore):
         ``redis://[[USER]:PASSWORD@]HOST:PORT/DB`` (``rediss://`` for TLS, ``unix://PATH?db=DB``).
     idle_s
         A session not written for this long expires (its key's TTL), s.
+    event_retention_s
+        The outbox keeps an event this long, s.
 
     Raises
     ------
@@ -183,10 +254,11 @@ class RedisStore(StateStore):
         If the URL is malformed.
     """
 
-    def __init__(self, url: str, idle_s: float) -> None:
+    def __init__(self, url: str, idle_s: float, event_retention_s: float = DEFAULT_EVENT_RETENTION_S) -> None:
         idle_s = checked_idle_s(idle_s)
         self.name = shown_url(url)
         self.ttl_ms = max(1, round(idle_s * 1000.0))
+        self.retention_ms = max(1, round(checked_idle_s(event_retention_s) * 1000.0))
         try:
             # One immediate retry on a broken connection (one the pool kept across a restart of
             # Redis), none on a timeout: a request waits at most about STORE_TIMEOUT_S for its answer.
@@ -220,16 +292,18 @@ class RedisStore(StateStore):
             return {}
         vehicle_ids = list(vehicle_ids)
         keys = [SESSION_PREFIX + v for v in vehicle_ids] + [SETTING_PREFIX + v for v in vehicle_ids]
+        keys += [EVENT_SEQ_PREFIX + v for v in vehicle_ids]
         try:
             values = self._values(keys)
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         count = len(vehicle_ids)
         stored = {}
-        for vehicle_id, session, setting in zip(vehicle_ids, values[:count], values[count:], strict=False):
+        columns = values[:count], values[count : 2 * count], values[2 * count :]
+        for vehicle_id, session, setting, seq in zip(vehicle_ids, *columns, strict=True):
             try:
                 stored[vehicle_id] = StoredVehicle(
-                    None if setting is None else _decode_setting(setting), *_decode_session(session)
+                    None if setting is None else _decode_setting(setting), *_decode_session(session), int(seq or 0)
                 )
             except ValueError as exc:
                 raise StoreUnavailable(
@@ -242,8 +316,9 @@ class RedisStore(StateStore):
             return set()
         vehicle_ids = list(writes)
         keys: list[str] = [PLACES_KEY, PLACED_KEY]
-        args: list[int | str | bytes] = [self.ttl_ms]
-        for vehicle_id in vehicle_ids:
+        args: list[int | str | bytes] = [self.ttl_ms, self.retention_ms, len(vehicle_ids)]
+        events: list[int | str | bytes] = []
+        for number, vehicle_id in enumerate(vehicle_ids, 1):
             w = writes[vehicle_id]
             keys += [SESSION_PREFIX + vehicle_id, SETTING_PREFIX + vehicle_id]
             args += [
@@ -253,6 +328,9 @@ class RedisStore(StateStore):
                 b"" if w.setting is None else _encode_setting(w.setting),
                 b"" if w.place is None else _encode_place(w.place),
             ]
+            for event in w.events:
+                events += [number, event.fleet, event.seq, repr(event.time_s), event.body]
+        args += events
         try:
             conflicts = self._write_script(keys=keys, args=args)
         except redis.RedisError as exc:
@@ -278,6 +356,41 @@ class RedisStore(StateStore):
             assert session is not None  # only live sessions are found
             placed.append(PlacedSession(key.decode(), session, _decode_place(place)))
         return placed
+
+    def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
+        """Read from the stream of every fleet or of ``fleet``; the cursor is the entry's id."""
+        if after is not None and not _CURSOR.fullmatch(after):
+            raise ValueError(f"not a cursor of this outbox: {after[:40]!r}")
+        stream = OUTBOX_KEY if fleet is None else f"{OUTBOX_KEY}:{fleet}"
+        try:
+            entries = self._redis.xrange(stream, "-" if after is None else "(" + after, "+", count=limit)
+        except redis.RedisError as exc:
+            raise self._unavailable(exc) from None
+        return [
+            StoredEvent(entry_id.decode(), fields[b"k"].decode(), fields[b"b"])
+            for entry_id, fields in cast(list[tuple[bytes, dict[bytes, bytes]]], entries)
+        ]
+
+    def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
+        """Read from the vehicle's sorted set by time (entries of equal times in the order of their ids), leaving out
+        those written before the retention time that are still there."""
+        oldest_ms = time.time() * 1000.0 - self.retention_ms
+        events: list[StoredEvent] = []
+        offset = 0
+        while len(events) < limit:
+            try:
+                members = self._redis.zrangebyscore(HISTORY_PREFIX + vehicle_key, repr(since_s), "+inf", offset, limit)
+            except redis.RedisError as exc:
+                raise self._unavailable(exc) from None
+            for member in cast(list[bytes], members):
+                entry_id, _, body = member.partition(b"|")
+                ms, _, sequence = entry_id.partition(b"-")
+                if int(ms) >= oldest_ms:
+                    events.append(StoredEvent(f"{int(ms)}-{int(sequence)}", vehicle_key, body))
+            if len(members) < limit:
+                break
+            offset += limit
+        return events[:limit]
 
     def session_count(self) -> int:
         """The keys with a TTL in the service's database: its sessions (a database of its own).

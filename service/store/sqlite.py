@@ -11,6 +11,11 @@ against the exact point). A box holding many places compared with the page asked
 key order instead, checking each place against it: sorting every hit of a large box for each
 page would cost what the box holds, not what the page does.
 
+The outbox of events (:mod:`service.store.sqlite_outbox`): a vehicle's events are inserted in the
+transaction of its session, and the number of its last one (``vehicle_event_seqs``) is read with the
+session, in the same statement. Events older than the retention time (by when they were written) are
+deleted with the expired sessions.
+
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
 ``executemany`` whose count of changed rows tells whether every one was; only when some were
@@ -18,7 +23,7 @@ not (another request wrote them meanwhile) are the stored versions read to find 
 the others written. Writers of the workers take turns for the length of a write,
 never for the engine's work in between; one that finds the lock taken tries again every
 :data:`LOCK_RETRY_S` (SQLite's own busy handler would sleep from 1 ms up to 100 ms, far longer
-than a write holds the lock). Settings are written with ``synchronous=FULL``
+than a write holds the lock). Settings and events are written with ``synchronous=FULL``
 (on disk when the 200 goes out); a transaction of sessions alone with ``NORMAL``, which
 in WAL mode survives a crash of the service and may lose the last sessions only when the
 machine itself fails, costing those vehicles a fresh session.
@@ -49,11 +54,13 @@ from pathlib import Path
 from csws.standard import Category
 
 from . import (
+    DEFAULT_EVENT_RETENTION_S,
     STORE_TIMEOUT_S,
     Box,
     Place,
     PlacedSession,
     StateStore,
+    StoredEvent,
     StoredVehicle,
     StoreUnavailable,
     VehicleSetting,
@@ -61,6 +68,7 @@ from . import (
     checked_idle_s,
     prefix_end,
 )
+from .sqlite_outbox import EVENT_COLUMNS, OUTBOX_SCHEMA, SQLiteOutbox
 
 __all__ = ["SWEEP_PERIOD_S", "LOCK_RETRY_S", "FILE_MODE", "BOX_PROBE_FACTOR", "SQLiteStore"]
 
@@ -91,13 +99,15 @@ _SCHEMA = (
     "WHERE id = new.rowid; END",
     "CREATE TRIGGER IF NOT EXISTS vehicle_place_gone AFTER DELETE ON vehicle_places BEGIN "
     "DELETE FROM vehicle_place_boxes WHERE id = old.rowid; END",
+    *OUTBOX_SCHEMA,
 )
 #: Settings and live sessions of the vehicles of a JSON list, in one statement.
 _READ = (
-    "SELECT wanted.value, settings.switched_on, settings.category, sessions.session, sessions.version "
+    "SELECT wanted.value, settings.switched_on, settings.category, sessions.session, sessions.version, seqs.seq "
     "FROM json_each(?) AS wanted "
     "LEFT JOIN vehicle_settings AS settings ON settings.vehicle_id = wanted.value "
-    "LEFT JOIN vehicle_sessions AS sessions ON sessions.vehicle_id = wanted.value AND sessions.written_s >= ?"
+    "LEFT JOIN vehicle_sessions AS sessions ON sessions.vehicle_id = wanted.value AND sessions.written_s >= ? "
+    "LEFT JOIN vehicle_event_seqs AS seqs ON seqs.vehicle_id = wanted.value"
 )
 _LIVE_VERSIONS = (
     "SELECT vehicle_id, version FROM vehicle_sessions "
@@ -175,6 +185,8 @@ class SQLiteStore(StateStore):
         Seconds of the clock that dates the sessions: wall-clock time, which every worker
         shares and which goes on across restarts (injectable, so that expiry is testable
         without waiting).
+    event_retention_s
+        The outbox keeps an event this long after it was written, s.
 
     Raises
     ------
@@ -182,10 +194,17 @@ class SQLiteStore(StateStore):
         One line naming the file, when it cannot be opened as a database.
     """
 
-    def __init__(self, path: str | Path, idle_s: float, clock: Callable[[], float] = time.time) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        idle_s: float,
+        clock: Callable[[], float] = time.time,
+        event_retention_s: float = DEFAULT_EVENT_RETENTION_S,
+    ) -> None:
         idle_s = checked_idle_s(idle_s)
         self.name = str(path)
         self.idle_s = float(idle_s)
+        self.event_retention_s = float(event_retention_s)
         self.clock = clock
         self._swept_s = -float("inf")
         self._pid = os.getpid()
@@ -195,6 +214,7 @@ class SQLiteStore(StateStore):
             self._create_private(Path(self.name))
         self._connection = self._connect()
         self._file = self._identity()
+        self._outbox = SQLiteOutbox(self.name, self.name in _NOT_FILES, lambda: self._db)
 
     @staticmethod
     def _create_private(path: Path) -> None:
@@ -294,6 +314,7 @@ class SQLiteStore(StateStore):
                 _setting(switched_on, category)
             self._execute("SELECT vehicle_id, version, written_s, session FROM vehicle_sessions LIMIT 1").fetchall()
             self._execute("SELECT vehicle_id, network, x, y FROM vehicle_places LIMIT 1").fetchall()
+            self._execute(EVENT_COLUMNS + "LIMIT 1").fetchall()
         except (sqlite3.Error, ValueError) as exc:
             raise OSError(f"the vehicle state database {self.name} cannot be read: {exc}") from None
 
@@ -305,9 +326,9 @@ class SQLiteStore(StateStore):
             rows = self._execute(_READ, (json.dumps(list(vehicle_ids)), self._oldest_live_s())).fetchall()
             return {
                 vehicle_id: StoredVehicle(
-                    None if switched_on is None else _setting(switched_on, category), session, version or 0
+                    None if switched_on is None else _setting(switched_on, category), session, version or 0, seq or 0
                 )
-                for vehicle_id, switched_on, category, session, version in rows
+                for vehicle_id, switched_on, category, session, version, seq in rows
             }
         except (sqlite3.Error, ValueError) as exc:
             raise StoreUnavailable(f"the vehicle state database {self.name} cannot be read now: {exc}") from None
@@ -316,7 +337,7 @@ class SQLiteStore(StateStore):
         if not writes:
             return set()
         try:
-            self._set_durable(any(w.setting is not None for w in writes.values()))
+            self._set_durable(any(w.setting is not None or w.events for w in writes.values()))
             self._refuse_if_lost()
             self._execute("BEGIN IMMEDIATE")
             try:
@@ -360,9 +381,11 @@ class SQLiteStore(StateStore):
         places = [(v, *w.place) for v, w in writes.items() if w.place is not None and v not in conflicts]
         if places:
             self._db.executemany(_WRITE_PLACE, places)
+        self._outbox.write(self._db, [(v, w) for v, w in writes.items() if w.events and v not in conflicts], now_s)
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             for statement in _SWEEP:
                 self._db.execute(statement, (oldest_live_s,))
+            self._outbox.trim(self._db, now_s - self.event_retention_s)
             self._swept_s = now_s
         return conflicts
 
@@ -392,7 +415,7 @@ class SQLiteStore(StateStore):
             time.sleep(LOCK_RETRY_S)
 
     def _set_durable(self, durable: bool) -> None:
-        """``synchronous=FULL`` for a transaction with settings, ``NORMAL`` for one of sessions alone."""
+        """``synchronous=FULL`` for a transaction with settings or events, ``NORMAL`` for one of sessions alone."""
         if durable != self._durable:
             self._db.execute(f"PRAGMA synchronous={'FULL' if durable else 'NORMAL'}")
             self._durable = durable
@@ -435,6 +458,16 @@ class SQLiteStore(StateStore):
         """Whether the R*Tree holds fewer than ``count`` places in the box (``min_x`` ... ``max_y`` of ``box``)."""
         return int(self._execute(_BOX_PROBE, {**box, "probe": count}).fetchone()[0]) < count
 
+    def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
+        """Read from the outbox (:mod:`service.store.sqlite_outbox`) on a connection of its own."""
+        self._refuse_if_lost()
+        return self._outbox.events_after(fleet, after, limit)
+
+    def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
+        """Read from the outbox (:mod:`service.store.sqlite_outbox`) on a connection of its own."""
+        self._refuse_if_lost()
+        return self._outbox.vehicle_events(vehicle_key, since_s, limit)
+
     def session_count(self) -> int:
         """Counted in the file, which is looked at first (``/readyz``: not ready once it is gone)."""
         self._check_file()
@@ -450,3 +483,4 @@ class SQLiteStore(StateStore):
     def close(self) -> None:
         if self._pid == os.getpid():
             self._connection.close()
+        self._outbox.close()
