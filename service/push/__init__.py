@@ -144,16 +144,10 @@ def push_config(settings: ServiceSettings) -> PushConfig:
     )
 
 
-def start_service_push(settings: ServiceSettings, store: object, counts: PushCounts | None) -> Callable[[], None]:
-    """Start push in a worker of the service, reading the outbox of its state store; what stops it.
-
-    A store without an outbox (no ``events_after``) pushes nothing, which the log says when push is configured.
-    """
+def start_service_push(settings: ServiceSettings, store: EventSource, counts: PushCounts | None) -> Callable[[], None]:
+    """Start push in a worker of the service, reading the outbox of its state store; what stops it (nothing to
+    stop when neither webhooks nor MQTT are configured)."""
     config = push_config(settings)
     if config.webhooks_file is None and not config.mqtt_url:
         return lambda: None
-    if not callable(getattr(store, "events_after", None)):
-        if config.mqtt_url or (config.webhooks_file is not None and config.webhooks_file.exists()):
-            logger.warning("push is configured, but the state store keeps no outbox of events: nothing is pushed")
-        return lambda: None
-    return start_push(config, store, counts)  # type: ignore[arg-type]
+    return start_push(config, store, counts)

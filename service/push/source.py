@@ -2,37 +2,20 @@
 
 The state store (:mod:`service.store`) keeps each event the service writes (a curve warning's onset,
 change of level and release, a forward collision warning, a change of system state, a matching fault)
-in an outbox, in the order written. Push reads it through :class:`EventSource` alone, so any store
-that has :meth:`EventSource.events_after` serves, and tests serve events of their own.
+in an outbox, in the order written (:class:`service.store.StoredEvent`). Push reads it through
+:class:`EventSource` alone, so every store serves, and tests and benchmarks serve events of their own.
 """
 
 from __future__ import annotations
 
 import threading
-from typing import NamedTuple, Protocol
+from typing import Protocol
 
 import msgspec
 
+from service.store import StoredEvent
+
 __all__ = ["EventSource", "StoredEvent", "Event", "parse_event", "MemoryOutbox"]
-
-
-class StoredEvent(NamedTuple):
-    """One event of the outbox as the store keeps it.
-
-    Attributes
-    ----------
-    cursor
-        Its place in the outbox: opaque, and later events have later cursors.
-    vehicle_key
-        The vehicle as the store keeps it (``fleet/vehicle_id``, :func:`service.keys.vehicle_key`).
-    body
-        The event, one JSON object (``fleet``, ``vehicle_id``, ``seq``, ``kind``, ``time``, ``level``,
-        ``state``, ...).
-    """
-
-    cursor: str
-    vehicle_key: str
-    body: bytes
 
 
 class EventSource(Protocol):
