@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +36,8 @@ from csws.road.sharing import (
 )
 from csws.standard import WarningSpeedPolicy
 
+from .stitching import cut_where_straight, road_chains, stitch
+
 __all__ = [
     "GivenProfile",
     "JOINT_TOLERANCE_M",
@@ -46,20 +47,9 @@ __all__ = [
     "clip_curve",
     "fit_road_chains",
     "index_curves",
-    "road_chains",
     "road_curve_id",
-    "stitch",
 ]
 
-#: A road chain is cut at a joint where its polyline within this distance either side of the
-#: joint lies within :data:`STRAIGHT_DEVIATION_M` of a line, m: no curve of the road (radius
-#: at most R_c) runs through it, and each stretch is fitted on its own, which keeps the
-#: polylines short (the sparse fit's cost grows faster than their length). A curve of
-#: R 300 m deviates 2.7 m from the chord of such a window; one starting 30 m beyond the
-#: joint still 0.17 m.
-STRAIGHT_WINDOW_M = 40.0
-#: See :data:`STRAIGHT_WINDOW_M`, m.
-STRAIGHT_DEVIATION_M = 0.15
 #: A borrowed curve's start, mapped back onto the fit it comes from, lies this close to the end of a
 #: part of that fit's curve where the borrowing lanes begin at that part's end, m: the run's linear
 #: map rounds.
@@ -111,63 +101,6 @@ class LaneCurve:
     chain: int
     curve_id: str
     first_part_index: int = 0
-
-
-def stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Join lane shapes in driving order into one polyline.
-
-    A lane's first point is dropped when it repeats the previous lane's last point
-    (within :data:`JOINT_TOLERANCE_M`), so the joint is one vertex and no zero-length
-    segment is left to disturb the curvature.
-
-    Returns
-    -------
-    xy
-        The polyline, ``(n, 2)``.
-    lane_start_s
-        Arc length along it at each lane's first point, ``(len(shapes),)``.
-    """
-    pieces = [shapes[0]]
-    first_vertex = [0]
-    vertex_count = len(shapes[0])
-    for previous, shape in pairwise(shapes):
-        joined = bool(np.hypot(*(shape[0] - previous[-1])) <= JOINT_TOLERANCE_M)
-        pieces.append(shape[1:] if joined else shape)
-        first_vertex.append(vertex_count - 1 if joined else vertex_count)
-        vertex_count += len(pieces[-1])
-    xy = np.concatenate(pieces)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    return xy, s[first_vertex]
-
-
-def road_chains(continues_into: np.ndarray) -> list[np.ndarray]:
-    """The lanes of a network grouped into road chains, each in driving order.
-
-    ``continues_into[i]`` is the lane lane ``i``'s road continues on (-1: none). Where
-    several lanes continue into one, the first of them keeps it and the others end
-    their chains there. A chain starts at a lane no other continues into; lanes left
-    over lie on a loop (a ring road), which is cut at its lowest-numbered lane.
-    """
-    following = np.asarray(continues_into, dtype=np.int64).copy()
-    has_predecessor = np.zeros(len(following), dtype=bool)
-    for lane, nxt in enumerate(following.tolist()):
-        if nxt >= 0:
-            if has_predecessor[nxt]:
-                following[lane] = -1
-            has_predecessor[nxt] = True
-    chains: list[np.ndarray] = []
-    placed = np.zeros(len(following), dtype=bool)
-    starts = np.flatnonzero(~has_predecessor).tolist() + list(range(len(following)))
-    for start in starts:
-        if placed[start]:
-            continue
-        members = [start]
-        placed[start] = True
-        while following[members[-1]] >= 0 and not placed[following[members[-1]]]:
-            members.append(int(following[members[-1]]))
-            placed[members[-1]] = True
-        chains.append(np.array(members, dtype=np.int64))
-    return chains
 
 
 @dataclass(frozen=True)
@@ -352,31 +285,6 @@ def road_curve_id(
     return curve_id_of(edge_ids[lane], lane_pos_m), first_part_index
 
 
-def _straight_joints(xy: np.ndarray, joint_s: np.ndarray) -> np.ndarray:
-    """Which joints of a stitched chain lie on a straight stretch (:data:`STRAIGHT_WINDOW_M`)."""
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    straight = np.zeros(len(joint_s), dtype=bool)
-    for index, at_s in enumerate(joint_s.tolist()):
-        window = xy[(s >= at_s - STRAIGHT_WINDOW_M) & (s <= at_s + STRAIGHT_WINDOW_M)]
-        chord = window[-1] - window[0]
-        length = float(np.hypot(*chord))
-        if length <= 0:
-            continue
-        relative = window - window[0]
-        offset = np.abs(chord[0] * relative[:, 1] - chord[1] * relative[:, 0]) / length
-        straight[index] = bool(offset.max() <= STRAIGHT_DEVIATION_M)
-    return straight
-
-
-def _cut_where_straight(members: np.ndarray, road_shapes: Sequence[np.ndarray]) -> list[np.ndarray]:
-    """A chain's lanes cut into stretches at the joints no curve runs through (:func:`_straight_joints`)."""
-    if len(members) < 2:
-        return [members]
-    xy, start_s = stitch([road_shapes[lane] for lane in members.tolist()])
-    cuts = np.flatnonzero(_straight_joints(xy, start_s[1:])) + 1
-    return np.split(members, cuts)
-
-
 def fit_road_chains(
     continues_into: np.ndarray,
     road_shapes: Sequence[np.ndarray],
@@ -412,7 +320,7 @@ def fit_road_chains(
         The profile of the chains that have one given (:data:`GivenProfile`): those are not fitted, read
         only their own profile, and name their curves after their road's (:attr:`RoadChains.naming_runs`).
     """
-    members = [stretch for chain in road_chains(continues_into) for stretch in _cut_where_straight(chain, road_shapes)]
+    members = [stretch for chain in road_chains(continues_into) for stretch in cut_where_straight(chain, road_shapes)]
     lane_chain = np.empty(len(road_shapes), dtype=np.int64)
     bounds_s = np.empty((len(road_shapes), 2))
     road_length_m = np.array([np.hypot(*np.diff(shape, axis=0).T).sum() for shape in road_shapes])

@@ -15,7 +15,8 @@ from functools import partial
 import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, profile_from_parts, straight_profile
-from csws.road.chains import RoadChains, clip_curve, stitch
+from csws.road.chains import RoadChains, clip_curve
+from csws.road.stitching import stitch
 from csws.standard import DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 __all__ = ["PathProfile", "path_profile", "path_profile_parts", "path_runs"]
