@@ -45,8 +45,9 @@ from .horizon import CpoiPositions
 from .keys import shown_id, vehicle_key
 from .networks import ServedNetwork
 from .placement import LanePoints, Placement, Placer
+from .sessions import LatestAnswer
 from .timing import UNTIMED, Stages
-from .vehicles import LatestAnswer, LoadedVehicles, VehicleRegistry
+from .vehicles import LoadedVehicles, VehicleRegistry
 
 __all__ = ["QueryErrors", "Placement", "Evaluated", "EncodedAnswers", "WarningService"]
 

@@ -5,7 +5,7 @@ answered by the library's fleet FCW (:func:`csws.fcw.fleet.update_fleet`, the sa
 :class:`csws.fcw.tracker.ForwardCollisionWarning` per vehicle), once per group of vehicles with the
 same settings (:mod:`service.fcw_settings`). What each vehicle's FCW keeps between frames (the
 state of Figure 2, the level's hold, the objects in the path and cutting in, the last target) comes
-from its session and goes back into it (:class:`service.vehicles.FcwMemory`), so the hysteresis
+from its session and goes back into it (:class:`service.sessions.FcwMemory`), so the hysteresis
 holds across queries whichever worker answers them.
 
 The path is predicted from the curvature of the road ahead where the curve warning looked ahead
@@ -32,7 +32,7 @@ from csws.standard import kmh_to_mps
 
 from .decoding import DecodedQuery
 from .fcw import finite
-from .vehicles import FcwMemory
+from .sessions import FcwMemory
 
 __all__ = ["object_fcw"]
 

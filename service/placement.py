@@ -2,7 +2,7 @@
 
 Every fix without a lane id is matched by one :class:`csws.road.hmm.SequenceMatcher` over all
 served networks (a query naming its network on that network alone), continuing the sequence of
-the vehicle's fixes that its session keeps (:attr:`service.vehicles.Session.matching`): the fixes
+the vehicle's fixes that its session keeps (:attr:`service.sessions.Session.matching`): the fixes
 of a batch's vehicles are one step of the hidden-Markov matcher, in numpy. A fix inside a
 junction whose turn the fixes do not show yet is placed on the road's continuation; a fix that
 matches no lane is dead-reckoned along the road for a while after the last match (see

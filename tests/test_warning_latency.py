@@ -21,7 +21,7 @@ from csws.standard import warning_speed
 from csws.sumo.netbuild import netconvert
 from csws.warning.latency import KEPT_INTERVALS, MIN_INTERVALS, fix_age_s, next_intervals, update_period_s
 from csws.warning.rules import WarningSettings
-from service.vehicles import Session, SessionRecord
+from service.sessions import Session, SessionRecord
 
 #: The road: a straight, then an arc turning left, then a straight.
 APPROACH_M = 800.0
