@@ -78,10 +78,10 @@ class CosimConfig:
         (:mod:`csws.cosim.fcd`), at the steps the time series keeps; None writes none.
     evaluation
         ``scheduled``: evaluate a vehicle only from where a curve warning can arise
-        (:mod:`csws.cosim.schedule`), and every vehicle at the steps the time series or the FCD
-        export keeps; ``every-step``: every vehicle at every step. Scheduling applies to the
-        library's curve warning alone: with the forward collision warning or a service, every
-        vehicle is evaluated at every step.
+        (:mod:`csws.cosim.schedule`) or an object can come within its FCW's range of concern
+        (:mod:`csws.cosim.fcw_schedule`), and every vehicle at the steps the time series or the FCD
+        export keeps; ``every-step``: every vehicle at every step. Scheduling applies to runs in
+        this process: with a service, every vehicle is evaluated at every step.
     """
 
     scenario: Scenario
@@ -121,10 +121,8 @@ class CosimConfig:
 
     @property
     def scheduled(self) -> bool:
-        """Whether vehicles are evaluated only where a curve warning can arise (the library's curve warning alone)."""
-        return (
-            self.evaluation == "scheduled" and self.evaluate and self.systems == ("csws",) and self.service_url is None
-        )
+        """Whether vehicles are evaluated only where a warning can arise (runs in this process)."""
+        return self.evaluation == "scheduled" and self.evaluate and self.service_url is None
 
 
 def bundled_scenario() -> Scenario:
