@@ -16,7 +16,28 @@ from xml.etree import ElementTree
 from .cli import EVALUATION_MODES, SYSTEMS
 from .driver import DriverSettings
 
-__all__ = ["CosimConfig", "Scenario", "bundled_scenario", "ignored_options", "scenario_from_args"]
+__all__ = [
+    "TIMESERIES_PERIOD_S",
+    "CosimConfig",
+    "Scenario",
+    "bundled_scenario",
+    "default_timeseries_every",
+    "ignored_options",
+    "scenario_from_args",
+]
+
+#: The command's time series (and FCD export) keeps one step per this much simulated time by default, s.
+TIMESERIES_PERIOD_S = 1.0
+
+
+def default_timeseries_every(step_length_s: float) -> int:
+    """The command's default ``--timeseries-every``: the steps in :data:`TIMESERIES_PERIOD_S` (at least 1).
+
+    A step the time series keeps reads and evaluates every vehicle, so a full series costs what
+    evaluating every vehicle at every step costs; a sampled one, as SUMO's FCD export with a period,
+    only at those steps.
+    """
+    return max(1, round(TIMESERIES_PERIOD_S / step_length_s))
 
 
 @dataclass(frozen=True)
@@ -69,7 +90,8 @@ class CosimConfig:
     timeseries
         How the time series is kept: ``parquet``, ``csv`` or ``none`` (:mod:`csws.cosim.timeseries`).
     timeseries_every
-        Keep every this many steps in the time series.
+        Keep every this many steps in the time series (the command's default:
+        :func:`default_timeseries_every`, one step per simulated second).
     systems
         The warning systems evaluated: ``csws`` (curve speed warning) and ``fcw`` (forward
         collision warning, :mod:`csws.cosim.fcw`), either or both.

@@ -217,11 +217,8 @@ class FcwSchedule:
 
     def wake_due(self, step: int, everyone: bool = False) -> list[str]:
         """Wake the vehicles due at ``step`` (every sleeping one with ``everyone``)."""
-        due = (
-            list(self.wake_step)
-            if everyone
-            else [v for v in self._waking.pop(step, []) if self.wake_step.get(v) == step]
-        )
+        listed = self._waking.pop(step, [])  # a vehicle woken early and put to sleep until ``step`` again is twice
+        due = list(self.wake_step) if everyone else [v for v in dict.fromkeys(listed) if self.wake_step.get(v) == step]
         self.wake(due)
         return due
 
@@ -233,7 +230,7 @@ class FcwSchedule:
 
     def checks_due(self, step: int) -> list[str]:
         """The sleeping vehicles whose speed is read at ``step`` (:meth:`checked` reschedules them)."""
-        due = [v for v in self._checking.pop(step, []) if self.check_step.get(v) == step]
+        due = [v for v in dict.fromkeys(self._checking.pop(step, [])) if self.check_step.get(v) == step]
         for vehicle_id in due:
             del self.check_step[vehicle_id]
         return due

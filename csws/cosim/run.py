@@ -29,7 +29,7 @@ from csws.fcw.physics import FcwSettings
 from csws.standard import Category
 
 from .cli import SYSTEMS
-from .config import CosimConfig, Scenario, bundled_scenario, scenario_from_args
+from .config import CosimConfig, Scenario, bundled_scenario, default_timeseries_every, scenario_from_args
 from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .fcw import FcwColumns, FleetFcw, respond_to_fcw
@@ -396,7 +396,7 @@ def main(args: argparse.Namespace) -> int:
         seed=args.seed,
         progress=True,
         timeseries=args.timeseries,
-        timeseries_every=args.timeseries_every or 1,
+        timeseries_every=args.timeseries_every or default_timeseries_every(args.step_length),
         systems=tuple(args.systems),
         fcd=args.fcd,
         evaluation=args.evaluate,

@@ -154,9 +154,10 @@ class WakeSchedule:
         if everyone:
             waking = list(self.wake_step)
             self._waking.clear()
-        woken = {v: self.slept_at.pop(v) for v in waking if self.wake_step.get(v) == step or everyone}
+        # A vehicle woken early and put to sleep again until the same step is listed twice.
+        woken = {v: self.slept_at[v] for v in dict.fromkeys(waking) if self.wake_step.get(v) == step or everyone}
         for vehicle_id in woken:
-            del self.wake_step[vehicle_id]
+            del self.wake_step[vehicle_id], self.slept_at[vehicle_id]
         return woken
 
     def wake(self, vehicle_ids: Sequence[str]) -> dict[str, int]:
