@@ -25,7 +25,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "each vehicle where a warning can arise, in this process or over HTTP against a csws service. Writes "
         "the time series (timeseries/*.parquet or timeseries.csv, one step per simulated second), warnings.csv, "
         "entries.csv (curve parts entered at or above the level-1 warning speed) and summary.json into --out "
-        "as the run goes (with lon/lat on a geo-referenced network), and summary.png and summary.md when it ends, also when interrupted.",
+        "as the run goes (with lon/lat on a geo-referenced network), and summary.png and summary.md when it "
+        "ends, also when interrupted.",
     )
     scenario = parser.add_argument_group("scenario (default: the bundled fleet, networks/fleet_scenario/fleet.sumocfg)")
     scenario.add_argument("--sumocfg", type=Path, default=None, help="a SUMO configuration")
