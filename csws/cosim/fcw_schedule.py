@@ -54,6 +54,9 @@ __all__ = [
 PAIR_MARGIN_M = 20.0
 #: The longest a vehicle's FCW sleeps, s.
 SLEEP_CAP_S = 5.0
+#: A vehicle sleeps only if no other can meet it within this many steps (:meth:`FcwSchedule.sleep`: it wakes
+#: the step before, and sleeps at least one step).
+FEW_STEPS = 3
 #: A step index beyond any run.
 NEVER = 1 << 62
 
@@ -275,14 +278,23 @@ class FcwSchedule:
         self._waking.setdefault(wake, []).append(vehicle_id)
 
     def _first_meetings(self, step: int, subjects: np.ndarray) -> np.ndarray:
-        """Per subject slot, the first step any other vehicle could be within :attr:`reach_m` of it (within the
-        sleep cap: only vehicles in the grid cells around it can come near before then; a vehicle not read
-        for a while, e.g. teleporting, widens the cells)."""
+        """Per subject slot, the first step any other vehicle could be within :attr:`reach_m` of it, up to the
+        sleep cap: first among the vehicles near enough to meet it within :data:`FEW_STEPS` (in traffic most
+        subjects stay awake there), then, for the others, among those that could meet it before the cap."""
+        first = self._meetings_within(step, subjects, FEW_STEPS)
+        open_ = np.flatnonzero(first >= step + FEW_STEPS)
+        if open_.size:
+            first[open_] = self._meetings_within(step, subjects[open_], self.cap_steps)
+        return first
+
+    def _meetings_within(self, step: int, subjects: np.ndarray, steps: int) -> np.ndarray:
+        """:meth:`_first_meetings` among the vehicles in the grid cells around each subject, cells wide enough
+        that every vehicle that could meet it within ``steps`` is in them (a vehicle not read for a while,
+        e.g. teleporting, widens them); later meetings may be missed (the first found is then later)."""
         alive = np.flatnonzero(self.alive)
         fastest_mps = float(self.bound_mps[alive].max())
-        # Before the cap a vehicle read ``stale`` steps ago meets a subject only within this distance.
         stale = step - int(self.read_step[alive].min())
-        cell_m = self.reach_m + fastest_mps * (2 * self.cap_steps + stale + 1) * self.step_s / self.position_factor
+        cell_m = self.reach_m + fastest_mps * (2 * steps + stale + 1) * self.step_s / self.position_factor
         x_m, y_m = self.x_m[alive], self.y_m[alive]
         cell_x = ((x_m - x_m.min()) // cell_m).astype(np.int64) + 1
         cell_y = ((y_m - y_m.min()) // cell_m).astype(np.int64) + 1

@@ -1,12 +1,13 @@
 """``csws cosim``: drive a fleet through SUMO and record who was warned where.
 
 Every step, the vehicles of a covered class that are due are evaluated at once (the library's
-``evaluate_fleet``, or one HTTP batch to a service: every vehicle at every step, or with
-``--evaluate scheduled`` only from where a curve warning can arise, :mod:`csws.cosim.schedule`),
-its state and warning are appended
-to the time series, level changes to the warning events and curve entries above the
-warning speed to the entries (:mod:`csws.cosim.recording`); the summary is rewritten at the
-end, also when the run is interrupted or SUMO dies (then marked incomplete, with the reason).
+``evaluate_fleet`` and the FCW's fleet update, or one HTTP batch to a service: every vehicle at
+every step, or with ``--evaluate scheduled`` in this process only from where a curve warning can
+arise or another vehicle can come within the FCW's range, :mod:`csws.cosim.scheduling`), their
+states and warnings are appended to the time series at the steps it keeps, level changes to the
+warning events and curve entries above the warning speed to the entries
+(:mod:`csws.cosim.recording`); the summary is rewritten at the end, also when the run is
+interrupted or SUMO dies (then marked incomplete, with the reason).
 """
 
 from __future__ import annotations
