@@ -35,7 +35,8 @@ Each run gives the share of its vehicle-steps that were evaluated. Run with ``py
 with SUMO's SSM device on every vehicle (TTC within 200 m, the FCW's range), events only, events every
 step, the default run, and both systems with events only, scheduled and every step), a check that takes a
 few minutes; it gives both systems' cost over bare SUMO as a share of the SSM device's (target at most
-0.5).
+0.5), and the FCW alone scheduled and every step on the fleet road with 20 vehicles one every 15 s in one
+direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles sleep).
 """
 
 from __future__ import annotations
@@ -76,6 +77,8 @@ TARGET_BOTH_SYSTEMS_OVERHEAD = 0.25
 TARGET_FCW_OF_SSM_OVERHEAD = 0.5
 #: The SSM device's range, m: the FCW's range of concern (4.3.2 a).
 SSM_RANGE_M = 200.0
+#: The sparse fleet of the small configuration: vehicles, one every this many seconds, simulated seconds.
+SPARSE_VEHICLES, SPARSE_PERIOD_S, SPARSE_DURATION_S = 20, 15.0, 300.0
 #: The small configuration (``--small``): vehicles and simulated seconds.
 SMALL_VEHICLES = 300
 SMALL_DURATION_S = 20.0
@@ -93,6 +96,19 @@ def _routes_xml(count: int, seed: int = 0) -> str:
         lines.append(
             f'<vehicle id="{type_id}{index}" type="{type_id}" depart="0" departPos="random_free" departLane="random" '
             f'departSpeed="max"><route edges="{" ".join(edges[first:])}"/></vehicle>'
+        )
+    return "\n".join(lines + ["</routes>"]) + "\n"
+
+
+def _sparse_routes_xml(count: int, period_s: float, seed: int = 0) -> str:
+    """``count`` vehicles of the fleet's mix departing one every ``period_s`` along the whole road in one
+    direction (some 400 m apart at 100 km/h with 15 s): the sparse traffic the FCW's schedule is for."""
+    rng = np.random.default_rng(seed)
+    lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
+    for index, fleet_type in enumerate(draw_types(count, rng)):
+        lines.append(
+            f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="{index * period_s:g}" '
+            f'departSpeed="max"><route edges="{" ".join(forward_edges())}"/></vehicle>'
         )
     return "\n".join(lines + ["</routes>"]) + "\n"
 
@@ -227,7 +243,28 @@ def small_run() -> dict:
             "both_systems_every_step": CosimConfig(out=work / "both-every", evaluation="every-step", **both, **common),
         }
         runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
-        return _figures(runs) | _fcw_of_ssm(runs)
+        return _figures(runs) | _fcw_of_ssm(runs) | {"sparse_fcw": _sparse_fcw(work)}
+
+
+def _sparse_fcw(work: Path) -> dict:
+    """The FCW alone, events only, on the fleet road with :data:`SPARSE_VEHICLES` one every
+    :data:`SPARSE_PERIOD_S` in one direction: ms per step and the share evaluated, scheduled and every step."""
+    routes = work / "sparse.rou.xml"
+    routes.write_text(_sparse_routes_xml(SPARSE_VEHICLES, SPARSE_PERIOD_S), encoding="utf-8")
+    scenario = Scenario(None, build_fleet_net(work / "sparse.net.xml", lanes=LANES), (routes,))
+    common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SPARSE_DURATION_S}
+    figures = {}
+    for evaluation in ("scheduled", "every-step"):
+        config = CosimConfig(
+            out=work / f"sparse-{evaluation}", systems=("fcw",), timeseries="none", evaluation=evaluation, **common
+        )
+        run = _in_own_process(_csws_run, config)
+        figures[evaluation] = {
+            "ms_per_step": 1000.0 * run["seconds"] / run["steps"],
+            "evaluated_share": run["summary"]["evaluation"]["vehicle_steps_evaluated_share"],
+            "components_ms_per_step": run["summary"]["ms_per_step"],
+        }
+    return figures
 
 
 def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
@@ -320,6 +357,7 @@ def main() -> None:
         _print(figures)
         for name, share in figures["fcw_of_ssm_overhead"].items():
             print(f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})")
+        print("sparse road, FCW alone, events only:", figures["sparse_fcw"])
         return
     figures = run()
     _print(figures)
