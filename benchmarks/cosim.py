@@ -232,7 +232,7 @@ def small_run() -> dict:
         common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SMALL_DURATION_S}
         runs = {"bare": _in_own_process(_bare_run, scenario, SMALL_DURATION_S)}
         runs["ssm"] = _in_own_process(_bare_run, scenario, SMALL_DURATION_S, tuple(_ssm_arguments(work)))
-        both = {"systems": ("csws", "fcw"), "timeseries": "none"}
+        both: dict[str, Any] = {"systems": ("csws", "fcw"), "timeseries": "none"}
         configs = {
             "default": CosimConfig(out=work / "default", timeseries_every=DEFAULT_EVERY, **common),
             "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
@@ -286,7 +286,7 @@ def _fleet_figures(work: Path) -> dict:
     common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": DURATION_S}
     runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
     runs["ssm"] = _in_own_process(_bare_run, scenario, DURATION_S, tuple(_ssm_arguments(work)))
-    sampled = {"timeseries_every": DEFAULT_EVERY}
+    sampled: dict[str, Any] = {"timeseries_every": DEFAULT_EVERY}
     configs = {
         "read_only": CosimConfig(out=work / "read", evaluate=False, timeseries="none", **common),
         "without_evaluation": CosimConfig(out=work / "baseline", evaluate=False, **sampled, **common),
