@@ -57,6 +57,8 @@ SLEEP_CAP_S = 5.0
 #: A vehicle sleeps only if no other can meet it within this many steps (:meth:`FcwSchedule.sleep`: it wakes
 #: the step before, and sleeps at least one step).
 FEW_STEPS = 3
+#: At most this many steps between two searches for vehicles to put to sleep.
+SEARCH_GAP_MOST_STEPS = 8
 #: A step index beyond any run.
 NEVER = 1 << 62
 
@@ -159,6 +161,8 @@ class FcwSchedule:
         #: The step each sleeping vehicle's speed is read next (to bring its state up to date).
         self._checking: dict[int, list[str]] = {}
         self.check_step: dict[str, int] = {}
+        #: The steps between searches for vehicles to put to sleep (doubled while none is found), and the next one.
+        self._search_gap, self._next_search = 1, 0
 
     def add(
         self, vehicle_id: str, x_m: float, y_m: float, step: int, bound_mps: float, limits: tuple[float, float]
@@ -261,7 +265,7 @@ class FcwSchedule:
         bounds = np.array([self.speed_bound_mps[v] for v in vehicle_ids])
         self._note(slots, x_m, y_m, np.maximum(bounds, speed_mps), step)
         subjects = slots[quiet]
-        if not subjects.size:
+        if not subjects.size or step < self._next_search:
             return []
         wake = np.minimum(self._first_meetings(step, subjects) - 1.0, float(step + self.cap_steps))
         rows = np.flatnonzero(quiet)
@@ -270,6 +274,10 @@ class FcwSchedule:
             vehicle_id = vehicle_ids[int(rows[k])]
             self._sleep_until(vehicle_id, int(wake[k]))
             asleep.append(vehicle_id)
+        # Searching costs a step's time; in dense traffic it finds nobody: search less often then (a vehicle
+        # kept awake longer is evaluated as at every step, which changes no answer).
+        self._search_gap = 1 if asleep else min(2 * self._search_gap, SEARCH_GAP_MOST_STEPS)
+        self._next_search = step + self._search_gap
         return asleep
 
     def _sleep_until(self, vehicle_id: str, wake: int) -> None:
