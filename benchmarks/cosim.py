@@ -8,12 +8,16 @@ process of its own, so that no run inherits another's warm caches:
   least a co-simulation that looks at every vehicle costs;
 * ``without evaluation``: reading and the default time series (the older baseline, kept
   for continuity);
-* ``default``: evaluation with the default time series (Parquet, every step);
+* ``default``: evaluation with the command's default time series (Parquet, one step per simulated
+  second);
 * ``events only``: evaluation, no time series (warning events, entries and summary), each vehicle
   evaluated only from where a curve warning can arise (``--evaluate scheduled``, the default);
 * ``events every step``: the same with every vehicle evaluated at every step (``--evaluate every-step``);
 * ``both systems``: the curve and the forward collision warning (``--systems csws,fcw``) with
-  the default time series (fleet road only).
+  the default time series, and with events only (fleet road only);
+* ``ssm``: libsumo with SUMO's SSM device on every vehicle (TTC within 200 m, the FCW's range of
+  concern), the cost the FCW is measured against: both systems' cost over bare SUMO at most half
+  the SSM device's.
 
 The fleet: the fleet network built with four lanes each way, 1,000 vehicles placed along
 the road at t = 0, 30 s at 0.1 s steps. The city: Bad Hersfeld's network, 10,000 vehicles
@@ -27,8 +31,12 @@ summaries also give their milliseconds per step by component (SUMO's step with t
 evaluation, recording).
 
 Each run gives the share of its vehicle-steps that were evaluated. Run with ``python -m benchmarks.cosim``;
-``python -m benchmarks.cosim --small`` runs the fleet road alone with 300 vehicles for 20 s (bare, events
-only, events every step and the default run), a check that takes a minute.
+``python -m benchmarks.cosim --small`` runs the fleet road alone with 300 vehicles for 20 s (bare, bare
+with SUMO's SSM device on every vehicle (TTC within 200 m, the FCW's range), events only, events every
+step, the default run, and both systems with events only, scheduled and every step), a check that takes a
+few minutes; it gives both systems' cost over bare SUMO as a share of the SSM device's (target at most
+0.5), and the FCW alone scheduled and every step on the fleet road with 20 vehicles one every 15 s in one
+direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles sleep).
 """
 
 from __future__ import annotations
@@ -45,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from csws.cosim.config import default_timeseries_every
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sumo import sumo_arguments
 from csws.networks import networks_dir
@@ -59,9 +68,17 @@ CITY_NET = networks_dir() / "badhersfeld.net.xml.gz"
 CITY_VEHICLES = 10_000
 CITY_DURATION_S = 30.0
 TARGET_OVERHEAD = 0.5
+#: The command's default time series: one step per simulated second.
+DEFAULT_EVERY = default_timeseries_every(STEP_S)
 TARGET_DEFAULT_RATIO = 1.5
 TARGET_EVENTS_RATIO = 1.25
 TARGET_BOTH_SYSTEMS_OVERHEAD = 0.25
+#: The forward collision warning's cost over bare SUMO at most this share of SSM's (every vehicle with the device).
+TARGET_FCW_OF_SSM_OVERHEAD = 0.5
+#: The SSM device's range, m: the FCW's range of concern (4.3.2 a).
+SSM_RANGE_M = 200.0
+#: The sparse fleet of the small configuration: vehicles, one every this many seconds, simulated seconds.
+SPARSE_VEHICLES, SPARSE_PERIOD_S, SPARSE_DURATION_S = 20, 15.0, 300.0
 #: The small configuration (``--small``): vehicles and simulated seconds.
 SMALL_VEHICLES = 300
 SMALL_DURATION_S = 20.0
@@ -79,6 +96,19 @@ def _routes_xml(count: int, seed: int = 0) -> str:
         lines.append(
             f'<vehicle id="{type_id}{index}" type="{type_id}" depart="0" departPos="random_free" departLane="random" '
             f'departSpeed="max"><route edges="{" ".join(edges[first:])}"/></vehicle>'
+        )
+    return "\n".join(lines + ["</routes>"]) + "\n"
+
+
+def _sparse_routes_xml(count: int, period_s: float, seed: int = 0) -> str:
+    """``count`` vehicles of the fleet's mix departing one every ``period_s`` along the whole road in one
+    direction (some 400 m apart at 100 km/h with 15 s): the sparse traffic the FCW's schedule is for."""
+    rng = np.random.default_rng(seed)
+    lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
+    for index, fleet_type in enumerate(draw_types(count, rng)):
+        lines.append(
+            f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="{index * period_s:g}" '
+            f'departSpeed="max"><route edges="{" ".join(forward_edges())}"/></vehicle>'
         )
     return "\n".join(lines + ["</routes>"]) + "\n"
 
@@ -117,12 +147,21 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _bare_run(scenario: Scenario, duration_s: float) -> dict:
-    """libsumo alone: start, ``simulationStep()`` until the end, close (run in a process of its own)."""
+def _ssm_arguments(folder: Path) -> list[str]:
+    """SUMO's SSM device on every vehicle, TTC over the FCW's range of concern (the ``ssm`` run's options)."""
+    return [
+        *("--device.ssm.probability", "1", "--device.ssm.measures", "TTC"),
+        *("--device.ssm.range", f"{SSM_RANGE_M:g}", "--device.ssm.file", str(folder / "ssm.xml")),
+    ]
+
+
+def _bare_run(scenario: Scenario, duration_s: float, options: tuple[str, ...] = ()) -> dict:
+    """libsumo alone (with SUMO ``options``): start, ``simulationStep()`` until the end, close (run in a
+    process of its own)."""
     os.environ.setdefault("SUMO_HOME", str(sumo_home()))
     import libsumo
 
-    arguments = sumo_arguments(None, scenario.net, scenario.routes, STEP_S, 0, duration_s)
+    arguments = [*sumo_arguments(None, scenario.net, scenario.routes, STEP_S, 0, duration_s), *options]
     started = time.perf_counter()
     libsumo.start([str(sumo_binary("sumo")), *arguments])
     steps = 0
@@ -192,15 +231,53 @@ def small_run() -> dict:
         scenario = _fleet_scenario(work, SMALL_VEHICLES)
         common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SMALL_DURATION_S}
         runs = {"bare": _in_own_process(_bare_run, scenario, SMALL_DURATION_S)}
+        runs["ssm"] = _in_own_process(_bare_run, scenario, SMALL_DURATION_S, tuple(_ssm_arguments(work)))
+        both: dict[str, Any] = {"systems": ("csws", "fcw"), "timeseries": "none"}
         configs = {
-            "default": CosimConfig(out=work / "default", **common),
+            "default": CosimConfig(out=work / "default", timeseries_every=DEFAULT_EVERY, **common),
             "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
             "events_every_step": CosimConfig(
                 out=work / "events-every", timeseries="none", evaluation="every-step", **common
             ),
+            "both_systems_events": CosimConfig(out=work / "both", **both, **common),
+            "both_systems_every_step": CosimConfig(out=work / "both-every", evaluation="every-step", **both, **common),
         }
         runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
-        return _figures(runs)
+        return _figures(runs) | _fcw_of_ssm(runs) | {"sparse_fcw": _sparse_fcw(work)}
+
+
+def _sparse_fcw(work: Path) -> dict:
+    """The FCW alone, events only, on the fleet road with :data:`SPARSE_VEHICLES` one every
+    :data:`SPARSE_PERIOD_S` in one direction: ms per step and the share evaluated, scheduled and every step."""
+    routes = work / "sparse.rou.xml"
+    routes.write_text(_sparse_routes_xml(SPARSE_VEHICLES, SPARSE_PERIOD_S), encoding="utf-8")
+    scenario = Scenario(None, build_fleet_net(work / "sparse.net.xml", lanes=LANES), (routes,))
+    common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SPARSE_DURATION_S}
+    figures = {}
+    for evaluation in ("scheduled", "every-step"):
+        config = CosimConfig(
+            out=work / f"sparse-{evaluation}", systems=("fcw",), timeseries="none", evaluation=evaluation, **common
+        )
+        run = _in_own_process(_csws_run, config)
+        figures[evaluation] = {
+            "ms_per_step": 1000.0 * run["seconds"] / run["steps"],
+            "evaluated_share": run["summary"]["evaluation"]["vehicle_steps_evaluated_share"],
+            "components_ms_per_step": run["summary"]["ms_per_step"],
+        }
+    return figures
+
+
+def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
+    """Both systems' cost over bare SUMO (events only, scheduled and every step) as a share of the SSM device's."""
+    seconds = {name: run["seconds"] for name, run in runs.items()}
+    ssm_s = seconds["ssm"] - seconds["bare"]
+    return {
+        "fcw_of_ssm_overhead": {
+            name: (seconds[name] - seconds["bare"]) / ssm_s
+            for name in ("both_systems", "both_systems_events", "both_systems_every_step")
+            if name in seconds
+        }
+    }
 
 
 def _fleet_figures(work: Path) -> dict:
@@ -208,15 +285,20 @@ def _fleet_figures(work: Path) -> dict:
     scenario = _fleet_scenario(work, VEHICLES)
     common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": DURATION_S}
     runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
+    runs["ssm"] = _in_own_process(_bare_run, scenario, DURATION_S, tuple(_ssm_arguments(work)))
+    sampled: dict[str, Any] = {"timeseries_every": DEFAULT_EVERY}
     configs = {
         "read_only": CosimConfig(out=work / "read", evaluate=False, timeseries="none", **common),
-        "without_evaluation": CosimConfig(out=work / "baseline", evaluate=False, **common),
-        "default": CosimConfig(out=work / "default", **common),
+        "without_evaluation": CosimConfig(out=work / "baseline", evaluate=False, **sampled, **common),
+        "default": CosimConfig(out=work / "default", timeseries_every=DEFAULT_EVERY, **common),
         "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
         "events_every_step": CosimConfig(
             out=work / "events-every", timeseries="none", evaluation="every-step", **common
         ),
-        "both_systems": CosimConfig(out=work / "both", systems=("csws", "fcw"), **common),
+        "both_systems": CosimConfig(out=work / "both", systems=("csws", "fcw"), **sampled, **common),
+        "both_systems_events": CosimConfig(
+            out=work / "both-events", systems=("csws", "fcw"), timeseries="none", **common
+        ),
     }
     runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
     figures = _figures(runs)
@@ -225,7 +307,7 @@ def _fleet_figures(work: Path) -> dict:
     figures["both_systems_overhead"] = seconds["both_systems"] / seconds["without_evaluation"] - 1.0
     figures["fcw_over_default"] = seconds["both_systems"] / seconds["default"] - 1.0
     figures["both_systems_components_ms_per_step"] = runs["both_systems"]["summary"]["ms_per_step"]
-    return figures
+    return figures | _fcw_of_ssm(runs)
 
 
 def _city_figures(work: Path) -> dict:
@@ -235,7 +317,7 @@ def _city_figures(work: Path) -> dict:
     scenario = Scenario(None, CITY_NET, (routes,))
     common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": CITY_DURATION_S}
     configs = {
-        "default": CosimConfig(out=work / "city-default", **common),
+        "default": CosimConfig(out=work / "city-default", timeseries_every=DEFAULT_EVERY, **common),
         "events_only": CosimConfig(out=work / "city-events", timeseries="none", **common),
     }
     runs = {"bare": _in_own_process(_bare_run, scenario, CITY_DURATION_S)}
@@ -271,7 +353,11 @@ def _print(figures: dict) -> None:
 def main() -> None:
     """Print each figure beside its target (``--small``: the small configuration's)."""
     if "--small" in sys.argv[1:]:
-        _print(small_run())
+        figures = small_run()
+        _print(figures)
+        for name, share in figures["fcw_of_ssm_overhead"].items():
+            print(f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})")
+        print("sparse road, FCW alone, events only:", figures["sparse_fcw"])
         return
     figures = run()
     _print(figures)
@@ -281,6 +367,8 @@ def main() -> None:
         f"(target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
         f"FCW over the default run {figures['fcw_over_default']:.0%}"
     )
+    for name, share in figures["fcw_of_ssm_overhead"].items():
+        print(f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})")
     print("city:")
     _print(figures["city"])
 

@@ -189,7 +189,20 @@ def _assert_complete_csv(path: Path, columns) -> int:
 
 def _start(tmp_path: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "csws", "cosim", "--out", str(tmp_path), "--vehicles", str(VEHICLES), *extra],
+        # Every step kept (not the default one a second): the files grow fast enough to stop the run in them.
+        [
+            sys.executable,
+            "-m",
+            "csws",
+            "cosim",
+            "--out",
+            str(tmp_path),
+            "--vehicles",
+            str(VEHICLES),
+            "--timeseries-every",
+            "1",
+            *extra,
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -366,3 +366,19 @@ def test_an_option_the_run_would_ignore_is_one_error_line(arguments, message, tm
     assert captured.out == ""
     assert captured.err.startswith(f"csws: error: {message}") and captured.err.count("\n") == 1
     assert not (tmp_path / "out" / "summary.json").exists()
+
+
+# ------------------------------------------------------------------ the command's default time series
+@pytest.mark.sumo
+def test_the_command_keeps_one_step_a_second_by_default(tmp_path, capsys) -> None:
+    """Without ``--timeseries-every`` the time series keeps one step per simulated second (every 10th of
+    0.1 s), the cheap sampled series a study needs; the warnings still come from every step."""
+    out = tmp_path / "out"
+    argv = ["cosim", "--out", str(out), "--vehicles", "20", "--end", "5", "--timeseries", "csv"]
+    assert csws_main(argv) == 0
+    capsys.readouterr()
+    times_s = sorted({float(row["time_s"]) for row in _csv_rows(out / "timeseries.csv")})
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["timeseries"] == {"format": "csv", "every_steps": 10}
+    assert len(times_s) == math.ceil(summary["steps"] / 10) > 1
+    assert np.diff(times_s) == pytest.approx(np.ones(len(times_s) - 1), abs=1e-9)

@@ -27,12 +27,12 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 @pytest.fixture(scope="module")
 @marks_its_tests("slow", "sumo")
 def compared(tmp_path_factory) -> Path:
-    """``csws cosim --driver-response`` over the first minute of the bundled fleet."""
+    """``csws cosim --driver-response`` over the first minute of the bundled fleet, every step kept."""
     out = tmp_path_factory.mktemp("cosim")
     subprocess.run(
         [
             *(sys.executable, "-m", "csws", "cosim", "--driver-response", "--end", END_S, "--out", str(out)),
-            *("--fcd", str(out / "fcd.xml")),
+            *("--fcd", str(out / "fcd.xml"), "--timeseries-every", "1"),
         ],
         check=True,
         capture_output=True,

@@ -22,10 +22,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "cosim",
         help="co-simulate a fleet in SUMO and record who was warned where",
         description="Drive a SUMO scenario (default: the bundled mixed fleet on the fleet network) and evaluate "
-        "every vehicle at every step, in this process or over HTTP against a csws service. Writes the time "
-        "series (timeseries/*.parquet or timeseries.csv), warnings.csv, entries.csv (curve parts entered at or "
-        "above the level-1 warning speed) and summary.json into --out as the run goes (with lon/lat on a "
-        "geo-referenced network), and summary.png and summary.md when it ends, also when interrupted.",
+        "each vehicle where a warning can arise, in this process or over HTTP against a csws service. Writes "
+        "the time series (timeseries/*.parquet or timeseries.csv, one step per simulated second), warnings.csv, "
+        "entries.csv (curve parts entered at or above the level-1 warning speed) and summary.json into --out "
+        "as the run goes (with lon/lat on a geo-referenced network), and summary.png and summary.md when it "
+        "ends, also when interrupted.",
     )
     scenario = parser.add_argument_group("scenario (default: the bundled fleet, networks/fleet_scenario/fleet.sumocfg)")
     scenario.add_argument("--sumocfg", type=Path, default=None, help="a SUMO configuration")
@@ -81,7 +82,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--timeseries",
         choices=TIMESERIES_FORMATS,
         default="parquet",
-        help="how to keep every vehicle at every step: a folder of Parquet files (default), "
+        help="how to keep the vehicles' states: a folder of Parquet files (default), "
         "timeseries.csv, or none (warning events, entries and summary only)",
     )
     parser.add_argument(
@@ -89,7 +90,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         type=positive_int,
         default=None,
         metavar="N",
-        help="keep every N-th step in the time series (default 1: every step)",
+        help="keep every N-th step in the time series and the FCD export (default: one step per simulated "
+        "second, every 10th at 0.1 s steps; 1 keeps every step, which reads every vehicle at every step)",
     )
     parser.add_argument(
         "--fcd",
@@ -103,8 +105,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--evaluate",
         choices=EVALUATION_MODES,
         default="scheduled",
-        help="scheduled (default): evaluate a vehicle only from where a curve warning can arise, with the same "
-        "warnings and entries as every-step (every vehicle at every step); the forward collision warning and "
-        "--service are evaluated every step, and a time series every step reads every vehicle every step",
+        help="scheduled (default): evaluate a vehicle only from where a curve warning can arise or another "
+        "vehicle can come within its forward collision warning's range, with the same warnings and entries as "
+        "every-step (every vehicle at every step); --service is evaluated every step, and each step the time "
+        "series keeps reads every vehicle",
     )
     parser.set_defaults(handler=deferred("csws.cosim.run"))

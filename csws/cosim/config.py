@@ -16,7 +16,28 @@ from xml.etree import ElementTree
 from .cli import EVALUATION_MODES, SYSTEMS
 from .driver import DriverSettings
 
-__all__ = ["CosimConfig", "Scenario", "bundled_scenario", "ignored_options", "scenario_from_args"]
+__all__ = [
+    "TIMESERIES_PERIOD_S",
+    "CosimConfig",
+    "Scenario",
+    "bundled_scenario",
+    "default_timeseries_every",
+    "ignored_options",
+    "scenario_from_args",
+]
+
+#: The command's time series (and FCD export) keeps one step per this much simulated time by default, s.
+TIMESERIES_PERIOD_S = 1.0
+
+
+def default_timeseries_every(step_length_s: float) -> int:
+    """The command's default ``--timeseries-every``: the steps in :data:`TIMESERIES_PERIOD_S` (at least 1).
+
+    A step the time series keeps reads and evaluates every vehicle, so a full series costs what
+    evaluating every vehicle at every step costs; a sampled one, as SUMO's FCD export with a period,
+    only at those steps.
+    """
+    return max(1, round(TIMESERIES_PERIOD_S / step_length_s))
 
 
 @dataclass(frozen=True)
@@ -69,7 +90,8 @@ class CosimConfig:
     timeseries
         How the time series is kept: ``parquet``, ``csv`` or ``none`` (:mod:`csws.cosim.timeseries`).
     timeseries_every
-        Keep every this many steps in the time series.
+        Keep every this many steps in the time series (the command's default:
+        :func:`default_timeseries_every`, one step per simulated second).
     systems
         The warning systems evaluated: ``csws`` (curve speed warning) and ``fcw`` (forward
         collision warning, :mod:`csws.cosim.fcw`), either or both.
@@ -78,10 +100,10 @@ class CosimConfig:
         (:mod:`csws.cosim.fcd`), at the steps the time series keeps; None writes none.
     evaluation
         ``scheduled``: evaluate a vehicle only from where a curve warning can arise
-        (:mod:`csws.cosim.schedule`), and every vehicle at the steps the time series or the FCD
-        export keeps; ``every-step``: every vehicle at every step. Scheduling applies to the
-        library's curve warning alone: with the forward collision warning or a service, every
-        vehicle is evaluated at every step.
+        (:mod:`csws.cosim.schedule`) or an object can come within its FCW's range of concern
+        (:mod:`csws.cosim.fcw_schedule`), and every vehicle at the steps the time series or the FCD
+        export keeps; ``every-step``: every vehicle at every step. Scheduling applies to runs in
+        this process: with a service, every vehicle is evaluated at every step.
     """
 
     scenario: Scenario
@@ -121,10 +143,8 @@ class CosimConfig:
 
     @property
     def scheduled(self) -> bool:
-        """Whether vehicles are evaluated only where a curve warning can arise (the library's curve warning alone)."""
-        return (
-            self.evaluation == "scheduled" and self.evaluate and self.systems == ("csws",) and self.service_url is None
-        )
+        """Whether vehicles are evaluated only where a warning can arise (runs in this process)."""
+        return self.evaluation == "scheduled" and self.evaluate and self.service_url is None
 
 
 def bundled_scenario() -> Scenario:

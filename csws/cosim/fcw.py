@@ -13,7 +13,7 @@ clockwise from north); the brake light is the driver braking (4.5.4), the blinke
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Container, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,16 +21,19 @@ import numpy as np
 
 from csws.fcw.fleet import FleetEgo, FleetFrame, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.path import yaw_path_curvature_1pm
-from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
+from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, fcw_state_code
 
 from .driver import DriverResponse
+from .fcw_schedule import FcwSchedule, steps_state_kept
 from .records import StepValues, Summary
+from .schedule import speed_bound_mps
 from .sensor import (
     BLINKER_LEFT,
     BLINKER_RIGHT,
     BRAKE_LIGHT,
     ID_BITS,
     MAX_ID_MASK,
+    SumoVehicles,
     VehicleNumbers,
     map_lanes,
     read_vehicles,
@@ -137,6 +140,10 @@ class FleetFcw:
         self.memory = FleetMemory.new(0)
         self.last_heading_rad = np.zeros(0)
         self.last_time_s = -math.inf
+        #: Each subject's category, and the vehicles read in the last call with the subjects' rows among them.
+        self.category_of: dict[str, str] = {}
+        self.read: SumoVehicles | None = None
+        self.subject_rows = np.zeros(0, dtype=np.int64)
 
     def __call__(
         self,
@@ -144,15 +151,22 @@ class FleetFcw:
         categories: Sequence[str],
         on_lane: Sequence[bool],
         paths: Sequence[Any | None] | None = None,
+        asleep: Container[str] = (),
     ) -> FcwColumns:
         """The warning of every equipped vehicle (``vehicle_ids``, of ``categories``), in order; a vehicle on
         no lane is in fault (4.4.5). ``paths``: each vehicle's map path ahead where it is map-matched (a
         :class:`csws.ahead.horizon.PathAhead`, else None; the curve warning's horizon), which assigns the
-        objects' lanes (:func:`sensor_view`)."""
+        objects' lanes (:func:`sensor_view`). The vehicles ``asleep`` are not read (none can be seen,
+        :mod:`csws.cosim.fcw_schedule`)."""
         now_s = float(self.sumo.simulation.getTime())
-        vehicles = read_vehicles(self.sumo, self.numbers, self.sizes, self.roads)
+        if not vehicle_ids:  # no subject: nothing to read or evaluate
+            self.read, self.last_time_s = None, now_s
+            self.memory.in_path_keys = self.memory.cut_in_keys = np.zeros(0, np.int64)
+            return FcwColumns.quiet([])
+        vehicles = self.read = read_vehicles(self.sumo, self.numbers, self.sizes, self.roads, asleep)
         row_of = {vehicle_id: row for row, vehicle_id in enumerate(vehicles.vehicle_id)}
-        rows = np.array([row_of[vehicle_id] for vehicle_id in vehicle_ids], dtype=np.int64)
+        rows = self.subject_rows = np.array([row_of[vehicle_id] for vehicle_id in vehicle_ids], dtype=np.int64)
+        self.category_of.update(zip(vehicle_ids, categories, strict=True))
         numbers = vehicles.number[rows]
         self._grow(int(vehicles.number.max()) + 1 if vehicles.number.size else 0)
         yaw_rate = self._yaw_rate_rps(numbers, vehicles.heading_rad[rows], now_s)
@@ -265,9 +279,67 @@ class FleetFcw:
 
         return by_number(kept.in_path_keys), by_number(kept.cut_in_keys)
 
+    def appeared(
+        self, step: int, vehicle_ids: Sequence[str], fastest_lane_mps: float, schedule: FcwSchedule
+    ) -> list[str]:
+        """Add the vehicles that departed or ended a teleport at ``step`` to ``schedule``: where they are, their
+        speed bound (:func:`csws.cosim.schedule.speed_bound_mps`), acceleration and emergency deceleration;
+        the sleeping vehicles they woke at once."""
+        vehicle = self.sumo.vehicle
+        for vehicle_id in vehicle_ids:
+            x_m, y_m = vehicle.getPosition(vehicle_id)
+            bound_mps = speed_bound_mps(
+                vehicle.getMaxSpeed(vehicle_id), vehicle.getSpeedFactor(vehicle_id), fastest_lane_mps
+            )
+            limits = (float(vehicle.getAccel(vehicle_id)), float(vehicle.getEmergencyDecel(vehicle_id)))
+            schedule.add(vehicle_id, x_m, y_m, step, max(bound_mps, vehicle.getSpeed(vehicle_id)), limits)
+        return schedule.appeared(step, vehicle_ids)
+
+    def sleep(self, step: int, schedule: FcwSchedule, level: Sequence[int], awake: Container[str]) -> None:
+        """Put to sleep the vehicles read in the last call that nothing keeps awake: a subject with a warning
+        (``level``, in the subjects' order), a held level, a state other than standby or active, or ``awake``
+        (answered by the driver-response model); and read each sleeping subject's speed when its state could
+        change (:func:`csws.cosim.fcw_schedule.steps_state_kept`)."""
+        vehicles = self.read
+        if vehicles is None or not vehicles.vehicle_id:
+            return
+        numbers = vehicles.number[self.subject_rows]
+        state, held = self.memory.state[numbers], self.memory.held_level[numbers]
+        quiet = np.ones(len(vehicles.vehicle_id), dtype=bool)
+        quiet[self.subject_rows] = (np.asarray(level) == 0) & (held == 0) & ((state == ACTIVE) | (state == STANDBY))
+        quiet[self.subject_rows] &= [vehicles.vehicle_id[row] not in awake for row in self.subject_rows.tolist()]
+        asleep = schedule.sleep(
+            step, vehicles.vehicle_id, vehicles.front_x_m, vehicles.front_y_m, vehicles.speed_mps, quiet
+        )
+        speed_of = dict(zip(vehicles.vehicle_id, vehicles.speed_mps.tolist(), strict=True))
+        for vehicle_id in asleep:
+            if vehicle_id in self.category_of:
+                self._check_later(step, vehicle_id, speed_of[vehicle_id], schedule)
+
+    def check_states(self, step: int, schedule: FcwSchedule) -> None:
+        """4.3: bring the state of the sleeping subjects due a speed read at ``step`` up to date (the state
+        :func:`csws.fcw.fleet.update_fleet` would have given them), and schedule their next read."""
+        for vehicle_id in schedule.checks_due(step):
+            speed_mps = float(self.sumo.vehicle.getSpeed(vehicle_id))
+            number = self.numbers[vehicle_id]
+            settings = self.distinct_settings[self._settings_code(self.category_of[vehicle_id])]
+            self.memory.state[number] = fcw_state_code(
+                int(self.memory.state[number]), speed_mps, True, True, True, settings
+            )
+            self._check_later(step, vehicle_id, speed_mps, schedule)
+
+    def _check_later(self, step: int, vehicle_id: str, speed_mps: float, schedule: FcwSchedule) -> None:
+        """Schedule the next speed read of a sleeping subject at ``speed_mps`` now."""
+        settings = self.distinct_settings[self._settings_code(self.category_of[vehicle_id])]
+        state = int(self.memory.state[self.numbers[vehicle_id]])
+        accel_mps2, decel_mps2 = schedule.limits_mps2[vehicle_id]
+        steps = steps_state_kept(state, speed_mps, settings, accel_mps2, decel_mps2, schedule.step_s)
+        schedule.check_after(step, vehicle_id, max(steps, 1))
+
     def forget(self, vehicle_ids: Sequence[str]) -> None:
         """Drop vehicles that left (their numbers are not given again)."""
         for vehicle_id in vehicle_ids:
+            self.category_of.pop(vehicle_id, None)
             self.sizes.pop(vehicle_id, None)
             number = self.numbers.pop(vehicle_id, None)
             if number is not None and number < self.memory.state.size:

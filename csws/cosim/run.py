@@ -1,12 +1,13 @@
 """``csws cosim``: drive a fleet through SUMO and record who was warned where.
 
 Every step, the vehicles of a covered class that are due are evaluated at once (the library's
-``evaluate_fleet``, or one HTTP batch to a service: every vehicle at every step, or with
-``--evaluate scheduled`` only from where a curve warning can arise, :mod:`csws.cosim.schedule`),
-its state and warning are appended
-to the time series, level changes to the warning events and curve entries above the
-warning speed to the entries (:mod:`csws.cosim.recording`); the summary is rewritten at the
-end, also when the run is interrupted or SUMO dies (then marked incomplete, with the reason).
+``evaluate_fleet`` and the FCW's fleet update, or one HTTP batch to a service: every vehicle at
+every step, or with ``--evaluate scheduled`` in this process only from where a curve warning can
+arise or another vehicle can come within the FCW's range, :mod:`csws.cosim.scheduling`), their
+states and warnings are appended to the time series at the steps it keeps, level changes to the
+warning events and curve entries above the warning speed to the entries
+(:mod:`csws.cosim.recording`); the summary is rewritten at the end, also when the run is
+interrupted or SUMO dies (then marked incomplete, with the reason).
 """
 
 from __future__ import annotations
@@ -25,16 +26,20 @@ from pathlib import Path
 from typing import Any
 
 from csws.cli.progress import Progress
+from csws.fcw.physics import FcwSettings
+from csws.standard import Category
 
 from .cli import SYSTEMS
-from .config import CosimConfig, Scenario, bundled_scenario, scenario_from_args
+from .config import CosimConfig, Scenario, bundled_scenario, default_timeseries_every, scenario_from_args
 from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .fcw import FcwColumns, FleetFcw, respond_to_fcw
+from .fcw_schedule import FcwSchedule, network_spread
 from .geo import network_location
 from .recording import Streams, Tracker, record_step
 from .records import StepCosts, Summary, write_summary
-from .schedule import WakeSchedule, caught_up, distance_to_first_part_m
+from .schedule import WakeSchedule
+from .scheduling import RunSchedule
 from .summary import write_run_summary
 from .sumo import FleetState, Simulation, SumoStopped, sumo_arguments
 
@@ -100,7 +105,7 @@ class _Run:
         self.costs = StepCosts()
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
-        self.schedule: WakeSchedule | None = None
+        self.schedule: RunSchedule | None = None
         self.step_s = config.step_length_s  # SUMO's own, read once when it starts
         self.bar = Progress("cosim", config.end_s, "sim s", decimals=1, enabled=config.progress)
 
@@ -122,10 +127,18 @@ class _Run:
             headings=config.fcd is not None,
             speed_bounds=config.scheduled,
         )
-        self.forward = FleetFcw(simulation.api) if config.fcw else None
+        forward = self.forward = FleetFcw(simulation.api) if config.fcw else None
         self.step_s = simulation.step_length_s
-        if config.scheduled and isinstance(self.evaluator, LibraryEvaluator):
-            self.schedule = WakeSchedule(self.step_s, self.evaluator.engine.settings.warning)
+        if config.scheduled:
+            curve = None
+            if isinstance(self.evaluator, LibraryEvaluator):
+                curve = (WakeSchedule(self.step_s, self.evaluator.engine.settings.warning), self.evaluator)
+            fcw = None
+            if forward is not None:
+                range_m = max(FcwSettings.for_category(category).range_m for category in Category)
+                fcw_schedule = FcwSchedule(self.step_s, range_m, *network_spread(simulation.api.lane))
+                fcw = (fcw_schedule, forward, simulation.fastest_lane_mps)
+            self.schedule = RunSchedule(curve, fcw)
         return simulation
 
     def step(self, simulation: Simulation) -> bool:
@@ -135,17 +148,18 @@ class _Run:
         # Without a time-series row (or FCD timestep) this step, x and y are read only for the vehicles with an event.
         positions = sampled and (config.timeseries != "none" or config.fcd is not None)
         schedule, step = self.schedule, self.summary.steps
-        woken = {} if schedule is None else schedule.wake_due(step, everyone=positions)
+        if schedule is not None:
+            schedule.wake_due(step, everyone=positions)
         with costs.timed("sumo_step_and_read"):
             if schedule is None:
                 fleet = simulation.step(positions)
             else:
-                fleet = simulation.step(positions, schedule.wake_step, lambda ids: woken.update(schedule.wake(ids)))
+                appearing = schedule.appearing if schedule.fcw else None
+                fleet = simulation.step(positions, schedule.asleep, schedule.teleporting, appearing)
         self._forget(fleet.arrived)
         self.summary.skipped.update(fleet.skipped)
         if schedule is not None:
-            self._catch_up(schedule, step, fleet, woken, simulation.departed_speed_bounds)
-            schedule.present += simulation.vehicle_count
+            schedule.read(fleet, simulation.departed_speed_bounds, simulation.vehicle_count)
         warnings, fcw = self._evaluate(fleet)
         commands = self._commands(fleet, warnings, fcw, self.step_s)
         for vehicle_id, speed_mps in commands.items():
@@ -156,57 +170,12 @@ class _Run:
                 fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position, self.geo
             )
         if schedule is not None:
-            self._sleep(schedule, step, fleet, warnings)
+            schedule.sleep(fleet, warnings, fcw, self.driver)
         self.summary.vehicles.update(fleet.vehicle_id)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s
         self.bar.update(self.step_s)
         return config.end_s is None or fleet.time_s < config.end_s
-
-    def _catch_up(
-        self,
-        schedule: WakeSchedule,
-        step: int,
-        fleet: FleetState,
-        woken: dict[str, int],
-        bounds: dict[str, tuple[float, float]],
-    ) -> None:
-        """Note the step, the departed vehicles' speed bounds, and bring the engine's memory of each vehicle
-        woken this step up to the steps it slept through (:func:`csws.cosim.schedule.caught_up`)."""
-        schedule.stepped(step, fleet.time_s)
-        schedule.forget(fleet.arrived)
-        for vehicle_id, (bound_mps, accel_mps2) in bounds.items():
-            schedule.add(vehicle_id, bound_mps, accel_mps2)
-        engine = self._library().engine
-        arrived = set(fleet.arrived)
-        for vehicle_id, slept_at in woken.items():
-            if vehicle_id not in arrived:
-                memory = engine.memory(vehicle_id)
-                engine.restore(vehicle_id, caught_up(memory, schedule.skipped_times_s(slept_at)))
-        schedule.evaluated += len(fleet.vehicle_id)
-
-    def _sleep(self, schedule: WakeSchedule, step: int, fleet: FleetState, warnings: FleetWarnings) -> None:
-        """Put to sleep the vehicles evaluated this step that no warning, release hold or driver keeps awake."""
-        library = self._library()
-        engine = library.engine
-        ahead, held = library.ahead, engine.held
-        if ahead is None or not fleet.vehicle_id:  # no vehicle was evaluated: the evaluator holds an older step's
-            return
-        driven = self.driver.drivers if self.driver is not None else {}
-        levels, speeds_mps = warnings.level, fleet.speed_mps.tolist()
-        for row, horizon, vehicle_s in zip(library.active, ahead.horizons, ahead.vehicle_s.tolist(), strict=True):
-            vehicle_id = fleet.vehicle_id[row]
-            if levels[row] or vehicle_id in held or vehicle_id in driven:
-                continue
-            distance_m, factor = distance_to_first_part_m(horizon, vehicle_s)
-            period_s = engine.update_period_s(vehicle_id)
-            schedule.sleep(step, vehicle_id, speeds_mps[row], distance_m, factor, period_s)
-
-    def _library(self) -> LibraryEvaluator:
-        """The library's evaluator (a scheduled run has one)."""
-        if not isinstance(self.evaluator, LibraryEvaluator):
-            raise RuntimeError("a scheduled co-simulation evaluates in this process")
-        return self.evaluator
 
     def _forget(self, arrived: tuple[str, ...]) -> None:
         """Drop the vehicles that left from everything that remembers them."""
@@ -214,7 +183,7 @@ class _Run:
             self.tracker.forget(vehicle_id)
             if self.driver is not None:
                 self.driver.forget(vehicle_id)
-        for forgetting in (self.evaluator, self.forward):
+        for forgetting in (self.evaluator, self.forward, self.schedule):
             if forgetting is not None:
                 forgetting.forget(arrived)
 
@@ -230,7 +199,9 @@ class _Run:
             with self.costs.timed("fcw"):
                 # The curve warning's path ahead of each vehicle, where it computed one, assigns the objects' lanes.
                 paths = getattr(self.evaluator, "paths_ahead", None) if fleet.vehicle_id else None
-                fcw = self.forward(fleet.vehicle_id, fleet.category, [bool(lane) for lane in fleet.lane_id], paths)
+                asleep = self.schedule.fcw[0].wake_step if self.schedule and self.schedule.fcw else ()
+                on_lane = [bool(lane) for lane in fleet.lane_id]
+                fcw = self.forward(fleet.vehicle_id, fleet.category, on_lane, paths, asleep)
         return warnings, fcw
 
     def _commands(
@@ -426,7 +397,7 @@ def main(args: argparse.Namespace) -> int:
         seed=args.seed,
         progress=True,
         timeseries=args.timeseries,
-        timeseries_every=args.timeseries_every or 1,
+        timeseries_every=args.timeseries_every or default_timeseries_every(args.step_length),
         systems=tuple(args.systems),
         fcd=args.fcd,
         evaluation=args.evaluate,

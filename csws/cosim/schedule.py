@@ -140,9 +140,6 @@ class WakeSchedule:
         self._waking: dict[int, list[str]] = {}
         #: The times of the last steps, s, by step: enough to catch a memory up (:func:`caught_up`).
         self._times_s: deque[tuple[int, float]] = deque(maxlen=KEPT_INTERVALS + 2)
-        #: Vehicle-steps evaluated and vehicle-steps there were (the share :meth:`evaluated_share`).
-        self.evaluated = 0
-        self.present = 0
 
     def add(self, vehicle_id: str, speed_bound_mps: float, accel_mps2: float = math.inf) -> None:
         """A vehicle departed, with its speed bound (m/s) and maximum acceleration (m/s^2): awake until its
@@ -157,9 +154,10 @@ class WakeSchedule:
         if everyone:
             waking = list(self.wake_step)
             self._waking.clear()
-        woken = {v: self.slept_at.pop(v) for v in waking if self.wake_step.get(v) == step or everyone}
+        # A vehicle woken early and put to sleep again until the same step is listed twice.
+        woken = {v: self.slept_at[v] for v in dict.fromkeys(waking) if self.wake_step.get(v) == step or everyone}
         for vehicle_id in woken:
-            del self.wake_step[vehicle_id]
+            del self.wake_step[vehicle_id], self.slept_at[vehicle_id]
         return woken
 
     def wake(self, vehicle_ids: Sequence[str]) -> dict[str, int]:
@@ -220,10 +218,6 @@ class WakeSchedule:
             self.accel_mps2.pop(vehicle_id, None)
             self.wake_step.pop(vehicle_id, None)
             self.slept_at.pop(vehicle_id, None)
-
-    def evaluated_share(self) -> float | None:
-        """The share of vehicle-steps evaluated, None before any."""
-        return None if not self.present else self.evaluated / self.present
 
 
 class _Drive:

@@ -17,7 +17,7 @@ leader turning on the path moves away from the line of sight to it).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Container, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,6 +36,7 @@ __all__ = [
     "SumoVehicles",
     "read_vehicles",
     "MapLanes",
+    "nearby_pairs",
     "map_lanes",
     "SensorPairs",
     "sensor_view",
@@ -104,13 +105,17 @@ class VehicleNumbers(dict[str, int]):
 
 
 def read_vehicles(
-    sumo: Any, numbers: dict[str, int], sizes: dict[str, tuple[float, float]], roads: dict[str, int] | None = None
+    sumo: Any,
+    numbers: dict[str, int],
+    sizes: dict[str, tuple[float, float]],
+    roads: dict[str, int] | None = None,
+    asleep: Container[str] = (),
 ) -> SumoVehicles:
-    """Every SUMO vehicle's values of this step, one getter call per vehicle and value (lengths and
-    widths read once per vehicle into ``sizes``; ``numbers`` gives each id its number, ``roads`` each
-    road id its code, kept from step to step where given)."""
+    """Every SUMO vehicle's values of this step but those ``asleep``, in SUMO's order, one getter call per
+    vehicle and value (lengths and widths read once per vehicle into ``sizes``; ``numbers`` gives each id
+    its number, ``roads`` each road id its code, kept from step to step where given)."""
     vehicle = sumo.vehicle
-    ids = list(vehicle.getIDList())
+    ids = [v for v in vehicle.getIDList() if v not in asleep] if asleep else list(vehicle.getIDList())
     for vehicle_id in ids:
         if vehicle_id not in sizes:
             sizes[vehicle_id] = (vehicle.getLength(vehicle_id), vehicle.getWidth(vehicle_id))
@@ -284,7 +289,7 @@ class SensorPairs:
     lane: np.ndarray
 
 
-def _nearby(cell_x: np.ndarray, cell_y: np.ndarray, subjects: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def nearby_pairs(cell_x: np.ndarray, cell_y: np.ndarray, subjects: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(subject, vehicle) index pairs of every vehicle in the 3 x 3 cells around each subject's cell.
 
     The vehicles are sorted by the key cell_x * rows + cell_y, so that one column's three cells
@@ -313,7 +318,7 @@ def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) 
     y0 = vehicles.front_y_m.min() if subjects.size else 0.0
     cell_x = ((vehicles.front_x_m - x0) // cell_m).astype(np.int64) + 1
     cell_y = ((vehicles.front_y_m - y0) // cell_m).astype(np.int64) + 1
-    owner, seen = _nearby(cell_x, cell_y, subjects)
+    owner, seen = nearby_pairs(cell_x, cell_y, subjects)
     other = seen != subjects[owner]
     return owner[other], seen[other]
 
@@ -383,5 +388,7 @@ def sensor_view(
         x_m = np.where(on_path, along_m, x_m)
         range_rate = np.where(on_path, vehicles.speed_mps[seen] - vehicles.speed_mps[me], range_rate)
         accel = np.where(on_path, vehicles.accel_mps2[seen], accel)
+    # In SUMO's order of the vehicles per subject, whichever grid cells they fell in (ties go to the first listed).
     k = np.flatnonzero(keep)
+    k = k[np.lexsort((seen[k], owner[k]))]
     return SensorPairs(owner[k], seen[k], x_m[k], y_m[k], range_rate[k], accel[k], lane[k])

@@ -179,6 +179,11 @@ class Simulation:
         return len(self._evaluated)
 
     @property
+    def fastest_lane_mps(self) -> float:
+        """The highest speed limit of the network's lanes, m/s (read with ``speed_bounds``, else 0)."""
+        return self._fastest_lane_mps or 0.0
+
+    @property
     def step_length_s(self) -> float:
         """SUMO's step length, s."""
         return float(self.api.simulation.getDeltaT())
@@ -192,10 +197,12 @@ class Simulation:
         positions: bool = True,
         asleep: Container[str] = (),
         teleporting: Callable[[tuple[str, ...]], None] | None = None,
+        appearing: Callable[[tuple[str, ...]], None] | None = None,
     ) -> FleetState:
         """Advance one step and read every evaluated vehicle but those ``asleep``; its x, y only with
         ``positions`` (NaN otherwise: :meth:`position` reads one vehicle's when it is needed). The vehicles
-        that start to teleport in the step are given to ``teleporting`` first (which may wake them).
+        that start to teleport in the step are given to ``teleporting`` first (which may wake them), then
+        those that departed or ended a teleport, of any class, to ``appearing`` (which may wake others).
 
         Raises
         ------
@@ -227,6 +234,9 @@ class Simulation:
         for vehicle_id in arrived:
             self._evaluated.pop(vehicle_id, None)
             self._types.pop(vehicle_id, None)
+        if appearing is not None:
+            appeared = departed + tuple(self._call(api.simulation.getEndingTeleportIDList))
+            appearing(tuple(vehicle_id for vehicle_id in appeared if vehicle_id not in arrived))
         ids, (lane_id, lane_pos_m, speed_mps, position, route_id, odometer_m, angle_deg) = (
             self._subscribed_fleet(asleep) if self._subscribed else self._fleet_by_getters(positions, asleep)
         )

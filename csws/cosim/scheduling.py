@@ -1,0 +1,190 @@
+"""The schedules of one scheduled run together: a vehicle is read while the curve warning or the FCW wants it.
+
+The curve warning's schedule (:mod:`csws.cosim.schedule`) and the FCW's (:mod:`csws.cosim.fcw_schedule`)
+each keep their own sleeping vehicles; SUMO reads a vehicle unless it sleeps in both. A vehicle read
+for one of them is evaluated by both, which each allows at any step: the curve warning's memory of it is
+caught up (:func:`csws.cosim.schedule.caught_up`), and the FCW's state was kept up to date while it slept
+(no object can be in its range then, so nothing else of its FCW has changed).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Container, Sequence
+
+from csws.engine import Engine
+
+from .driver import DriverResponse
+from .evaluators import FleetWarnings, LibraryEvaluator
+from .fcw import FcwColumns, FleetFcw
+from .fcw_schedule import FcwSchedule
+from .schedule import WakeSchedule, caught_up, distance_to_first_part_m
+from .sumo import FleetState
+
+__all__ = ["AsleepInAll", "RunSchedule"]
+
+
+class AsleepInAll:
+    """The vehicles asleep in every one of some schedules (a live view of their sleeping vehicles)."""
+
+    def __init__(self, sleeping: Sequence[Container[str]]) -> None:
+        self.sleeping = sleeping
+
+    def __contains__(self, vehicle_id: object) -> bool:
+        return all(vehicle_id in asleep for asleep in self.sleeping)
+
+    def __bool__(self) -> bool:
+        return all(bool(asleep) for asleep in self.sleeping)
+
+
+class _Awake:
+    """The vehicles not in a schedule's sleeping ones."""
+
+    def __init__(self, sleeping: Container[str]) -> None:
+        self.sleeping = sleeping
+
+    def __contains__(self, vehicle_id: object) -> bool:
+        return vehicle_id not in self.sleeping
+
+
+class _Either:
+    """The vehicles in either of two collections."""
+
+    def __init__(self, first: Container[str], second: Container[str]) -> None:
+        self.first, self.second = first, second
+
+    def __contains__(self, vehicle_id: object) -> bool:
+        return vehicle_id in self.first or vehicle_id in self.second
+
+
+class RunSchedule:
+    """Which vehicles a scheduled run reads and evaluates at each step, for the curve warning, the FCW or both.
+
+    Parameters
+    ----------
+    curve
+        The curve warning's schedule with the library's evaluator it schedules, or None without the curve warning.
+    fcw
+        The FCW's schedule with the FCW it schedules and the network's fastest lane speed (m/s), or None.
+    """
+
+    def __init__(
+        self,
+        curve: tuple[WakeSchedule, LibraryEvaluator] | None,
+        fcw: tuple[FcwSchedule, FleetFcw, float] | None,
+    ) -> None:
+        self.curve = curve
+        self.fcw = fcw
+        sleeping = [
+            schedule.wake_step for schedule in (curve[0] if curve else None, fcw[0] if fcw else None) if schedule
+        ]
+        #: The vehicles SUMO does not read this step.
+        self.asleep = AsleepInAll(sleeping)
+        #: The step each vehicle the curve warning woke this step was last evaluated at.
+        self.woken: dict[str, int] = {}
+        self.step = 0
+        #: Vehicle-steps evaluated and vehicle-steps there were.
+        self.evaluated = 0
+        self.present = 0
+
+    def wake_due(self, step: int, everyone: bool) -> None:
+        """Wake the vehicles due at ``step`` (every one with ``everyone``: a step the time series keeps)."""
+        self.step = step
+        self.woken = self.curve[0].wake_due(step, everyone) if self.curve else {}
+        if self.fcw:
+            self.fcw[0].wake_due(step, everyone)
+
+    def teleporting(self, vehicle_ids: tuple[str, ...]) -> None:
+        """Wake the vehicles SUMO starts to teleport (they may reappear anywhere ahead)."""
+        if self.curve:
+            self.woken.update(self.curve[0].wake(vehicle_ids))
+        if self.fcw:
+            self.fcw[0].wake(vehicle_ids)
+
+    def appearing(self, vehicle_ids: tuple[str, ...]) -> None:
+        """Note the vehicles that departed or ended a teleport: the FCW wakes the sleeping ones they could come near."""
+        if self.fcw:
+            schedule, forward, fastest_lane_mps = self.fcw
+            forward.appeared(self.step, vehicle_ids, fastest_lane_mps, schedule)
+
+    def read(self, fleet: FleetState, bounds: dict[str, tuple[float, float]], vehicle_count: int) -> None:
+        """After SUMO's read: wake in each schedule the vehicles read for the other, note the departed vehicles'
+        speed bounds, and catch up the curve warning's memory of the vehicles it woke."""
+        if self.fcw:
+            fcw_sleeping = self.fcw[0].wake_step
+            self.fcw[0].wake([v for v in fleet.vehicle_id if v in fcw_sleeping])
+        if self.curve:
+            schedule, library = self.curve
+            self.woken.update(schedule.wake([v for v in fleet.vehicle_id if v in schedule.wake_step]))
+            _catch_up(schedule, library.engine, self.step, fleet, self.woken, bounds)
+        self.evaluated += len(fleet.vehicle_id)
+        self.present += vehicle_count
+
+    def sleep(
+        self, fleet: FleetState, warnings: FleetWarnings, fcw: FcwColumns | None, driver: DriverResponse | None
+    ) -> None:
+        """Put to sleep the vehicles evaluated this step that no warning, hold or driver keeps awake, and bring
+        the FCW state of the sleeping vehicles due a speed read up to date."""
+        fcw_awake: Container[str] = ()
+        if self.fcw and fcw is not None:
+            schedule, forward, _ = self.fcw
+            forward.check_states(self.step, schedule)
+            driven = set(driver.drivers) | set(driver.fcw_drivers) if driver is not None else set()
+            forward.sleep(self.step, schedule, fcw.level, driven)
+            fcw_awake = _Awake(schedule.wake_step)
+        if self.curve:
+            # A vehicle its FCW keeps awake is read at the next step anyway: the curve warning keeps it too.
+            kept = _Either(driver.drivers if driver is not None else {}, fcw_awake)
+            _sleep_curve(*self.curve, self.step, fleet, warnings, kept)
+
+    def forget(self, vehicle_ids: Sequence[str]) -> None:
+        """Drop vehicles that left."""
+        if self.fcw:
+            self.fcw[0].forget(vehicle_ids)
+
+    def evaluated_share(self) -> float | None:
+        """The share of vehicle-steps evaluated, None before any."""
+        return None if not self.present else self.evaluated / self.present
+
+
+def _catch_up(
+    schedule: WakeSchedule,
+    engine: Engine,
+    step: int,
+    fleet: FleetState,
+    woken: dict[str, int],
+    bounds: dict[str, tuple[float, float]],
+) -> None:
+    """Note the step, the departed vehicles' speed bounds, and bring the engine's memory of each vehicle
+    woken this step up to the steps it slept through (:func:`csws.cosim.schedule.caught_up`)."""
+    schedule.stepped(step, fleet.time_s)
+    schedule.forget(fleet.arrived)
+    for vehicle_id, (bound_mps, accel_mps2) in bounds.items():
+        schedule.add(vehicle_id, bound_mps, accel_mps2)
+    arrived = set(fleet.arrived)
+    for vehicle_id, slept_at in woken.items():
+        if vehicle_id not in arrived:
+            memory = engine.memory(vehicle_id)
+            engine.restore(vehicle_id, caught_up(memory, schedule.skipped_times_s(slept_at)))
+
+
+def _sleep_curve(
+    schedule: WakeSchedule,
+    library: LibraryEvaluator,
+    step: int,
+    fleet: FleetState,
+    warnings: FleetWarnings,
+    driven: Container[str],
+) -> None:
+    """Put to sleep the vehicles evaluated this step that no curve warning, release hold or driver keeps awake."""
+    engine = library.engine
+    ahead, held = library.ahead, engine.held
+    if ahead is None or not fleet.vehicle_id:  # no vehicle was evaluated: the evaluator holds an older step's
+        return
+    levels, speeds_mps = warnings.level, fleet.speed_mps.tolist()
+    for row, horizon, vehicle_s in zip(library.active, ahead.horizons, ahead.vehicle_s.tolist(), strict=True):
+        vehicle_id = fleet.vehicle_id[row]
+        if levels[row] or vehicle_id in held or vehicle_id in driven:
+            continue
+        distance_m, factor = distance_to_first_part_m(horizon, vehicle_s)
+        period_s = engine.update_period_s(vehicle_id)
+        schedule.sleep(step, vehicle_id, speeds_mps[row], distance_m, factor, period_s)
