@@ -129,8 +129,8 @@ class FcwSettings:
         preliminary one with it. 0.45 g because in SUMO's mixed traffic (``python -m benchmarks.fcw_traffic``,
         17.85 equipped vehicle-hours) every false warning at 0.3 g began as a preliminary one (0.90 per
         vehicle-hour; a queue's last car approached at 10-15 m/s by drivers who brake at about 2.2 m/s^2), and
-        0.45 g takes the object FCW to 0.50 (the same rule on SUMO's true leader from 0.896 to 0.056; at 0.4 g
-        0.784; the rest is the subject's acceleration held through the reaction, docs/fcw.md), while every run
+        0.45 g takes the object FCW to 0.056 with the subject at its speed through the reaction (the same rule on
+        SUMO's true leader from 0.896 to 0.056; at 0.4 g 0.784; docs/fcw.md), while every run
         of the FCW conformance suite gives the same figure as at 0.3 g (its rows judge the collision warning;
         GB/T 33577 5.5.3.1 asks for the preliminary one, not its timing). On a steady approach at a closing
         speed c it comes c (1/a_pre - 1/a_col) / 2 before the collision warning (0.23 s at 20 m/s), where
@@ -328,7 +328,7 @@ def reaction_accel_mps2(subject_accel_mps2: Any) -> Any:
     reaction, D = v_SV T + ..., and formula (5) (4.5.6) x_r = 0.8 v_r: a subject that accelerates is not taken
     to keep accelerating. A deceleration is held: 4.4.4 makes the warning depend on the vehicles' possible
     braking decelerations and 4.5.5 a on the subject's own, and a subject already slowing does not speed up
-    while its driver reacts (docs/fcw.md, "How x_r is read").
+    while its driver reacts (docs/fcw.md, "The subject's acceleration through the reaction").
     """
     return fmin(subject_accel_mps2, 0.0)
 
