@@ -10,9 +10,9 @@ as the design holds its own. The first two are the least-demanding conforming wa
 (4.5.3-4.5.6: 0.8 s, 0.68 g, V_min 11.2 m/s, every suppression 4.5.5 allows; the second also silent while
 the driver brakes, 4.5.5 d): the floor of any conforming system. The others say which of the design's
 choices (:class:`csws.fcw.physics.FcwSettings`) its false warnings come from: its collision warning alone,
-its preliminary warning, each also with the subject's acceleration held through the reaction as the design
-reads x_r (the floor holds only a deceleration), and preliminary warnings at the earlier 0.3 g (the default
-until the traffic run showed its false warnings), after shorter reaction times or at thresholds between.
+its preliminary warning, and preliminary warnings at the earlier 0.3 g (the default until the traffic run
+showed its false warnings), after shorter reaction times or at thresholds between. Every rule, as the design,
+holds only a deceleration of the subject through the reaction (:func:`csws.fcw.physics.reaction_accel_mps2`).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from csws.fcw.physics import (
     FcwSettings,
 )
 
-__all__ = ["FOLLOW_S", "NEAR_TTC_S", "DESIGN", "HELD", "REFERENCES", "Pending", "Reference", "settle", "situation_of"]
+__all__ = ["FOLLOW_S", "NEAR_TTC_S", "DESIGN", "REFERENCES", "Pending", "Reference", "settle", "situation_of"]
 
 #: A warning is judged by what follows it within this time, s.
 FOLLOW_S = 4.0
@@ -39,16 +39,14 @@ FOLLOW_S = 4.0
 NEAR_TTC_S = 1.5
 #: The design's settings (a commercial vehicle's, :class:`FcwSettings`).
 DESIGN = FcwSettings()
-#: A rule: a reaction time (s), a threshold (m/s^2), a least speed (m/s), silent or not while the driver brakes,
-#: the subject's acceleration held through the reaction or only a deceleration (:func:`warning_due`).
-Rule = tuple[float, float, float, bool, bool]
-#: How the rules' names say that the subject's acceleration is held through the reaction, as the design holds it.
-HELD = ", acceleration held"
+#: A rule: a reaction time (s), a threshold (m/s^2), a least speed (m/s), silent or not while the driver brakes
+#: (:func:`warning_due`).
+Rule = tuple[float, float, float, bool]
 
 
-def _design_rule(reaction_s: float, threshold_mps2: float, hold_acceleration: bool = False) -> Rule:
+def _design_rule(reaction_s: float, threshold_mps2: float) -> Rule:
     """A rule at the design's least speed, warning while the driver brakes."""
-    return (reaction_s, threshold_mps2, DESIGN.min_speed_mps, False, hold_acceleration)
+    return (reaction_s, threshold_mps2, DESIGN.min_speed_mps, False)
 
 
 def _g(threshold_mps2: float) -> str:
@@ -63,35 +61,27 @@ REFERENCES: dict[str, Rule] = {
         STANDARD_A_REQ_MPS2,
         HIGHEST_MIN_SPEED_MPS,
         False,
-        False,
     ),
     "standard's latest warning, silent while braking": (
         MIN_REACTION_TIME_S,
         STANDARD_A_REQ_MPS2,
         HIGHEST_MIN_SPEED_MPS,
         True,
-        False,
     ),
     **{
-        f"design's {what} ({DESIGN.reaction_time_s:g} s, {_g(threshold_mps2)}){HELD if held else ''}": (
-            _design_rule(DESIGN.reaction_time_s, threshold_mps2, held)
+        f"design's {what} ({DESIGN.reaction_time_s:g} s, {_g(threshold_mps2)})": (
+            _design_rule(DESIGN.reaction_time_s, threshold_mps2)
         )
         for what, threshold_mps2 in (
             ("collision warning alone", DESIGN.collision_a_req_mps2),
             ("preliminary warning", DESIGN.preliminary_a_req_mps2),
         )
-        for held in (False, True)
     },
     **{
-        f"preliminary warning at {reaction_s:g} s, {_g(EARLY_PRELIMINARY_A_REQ_MPS2)}{HELD if held else ''}": (
-            _design_rule(reaction_s, EARLY_PRELIMINARY_A_REQ_MPS2, held)
+        f"preliminary warning at {reaction_s:g} s, {_g(EARLY_PRELIMINARY_A_REQ_MPS2)}": (
+            _design_rule(reaction_s, EARLY_PRELIMINARY_A_REQ_MPS2)
         )
-        for reaction_s, held in (
-            (DESIGN.reaction_time_s, True),
-            (DESIGN.reaction_time_s, False),
-            (1.0, False),
-            (MIN_REACTION_TIME_S, False),
-        )
+        for reaction_s in (DESIGN.reaction_time_s, 1.0, MIN_REACTION_TIME_S)
     },
     **{
         f"preliminary warning at {DESIGN.reaction_time_s:g} s, {g:g} g": _design_rule(

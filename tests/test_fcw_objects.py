@@ -274,9 +274,11 @@ def _required_by_thresholds(
     avoiding deceleration by exact kinematics (:func:`test_fcw_traffic.least_deceleration_mps2`);
     for an object coming toward the subject, formula (4) at the end of the reaction T with both
     accelerations held through it: a_req = d_TV + v_r'^2 / (2 x_c'), x_c' and v_r' the clearance and the
-    closing speed then (T cut where the vehicles stop closing first). The preliminary level only at a
+    closing speed then (T cut where the vehicles stop closing first). Through the reaction the subject keeps
+    a deceleration, an acceleration not (Annex A.1: at its speed). The preliminary level only at a
     TTC of at most ``max_ttc_s`` (4.5.5 e); a_req just at a threshold (within 1e-6) is left out."""
     lost = 0.0 if braking else settings.reaction_time_s + settings.brake_response_s
+    a_sv = min(a_sv, 0.0)
     if v_sv + v_r >= 0.0:
         a_req = least_deceleration_mps2(x_m, v_sv, v_sv + v_r, a_sv, a_tv, lost) - 1e-6
     else:

@@ -112,10 +112,12 @@ def test_a_req_is_3_22s_least_avoiding_deceleration_for_a_braking_lead(
     clearance_m, subject_mps, lead_mps, subject_accel, lead_accel, lost_s
 ):
     """For a lead that brakes (to a stop, or not before the speeds meet) a_req is 3.22's value: the least
-    deceleration after the reaction that avoids contact, computed here by exact kinematics; never above
+    deceleration after the reaction that avoids contact, computed here by exact kinematics with the subject's
+    deceleration held through the reaction and an acceleration not (Annex A.1: at its speed); never above
     formula (4), which holds d_TV for ever."""
-    assume(subject_mps + subject_accel * lost_s > 0.5)  # the subject still moves after its reaction
-    truth = least_deceleration_mps2(clearance_m, subject_mps, lead_mps, subject_accel, lead_accel, lost_s)
+    reaction_accel = min(subject_accel, 0.0)
+    assume(subject_mps + reaction_accel * lost_s > 0.5)  # the subject still moves after its reaction
+    truth = least_deceleration_mps2(clearance_m, subject_mps, lead_mps, reaction_accel, lead_accel, lost_s)
     v_r = lead_mps - subject_mps
     a_req = required_deceleration_mps2(clearance_m, v_r, lead_accel, lost_s, subject_accel, subject_mps)
     formula_4 = required_deceleration_mps2(clearance_m, v_r, lead_accel, lost_s, subject_accel)

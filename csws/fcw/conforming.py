@@ -72,13 +72,12 @@ def warning_due(
     threshold_mps2: float = STANDARD_A_REQ_MPS2,
     min_speed_mps: float = HIGHEST_MIN_SPEED_MPS,
     silent_while_braking: bool = False,
-    hold_acceleration: bool = False,
 ) -> bool:
     """4.5.3-4.5.5: whether a warning on a_req alone, at ``threshold_mps2`` after ``reaction_time_s``, is due now.
 
     a_req (3.22, :func:`csws.fcw.physics.required_deceleration_mps2`) after the reaction (0 while the driver
-    brakes, 4.5.4), holding only a deceleration of the subject through it (an acceleration is not held: the
-    least-demanding reading of x_r; with ``hold_acceleration`` it is, as the object FCW reads x_r), at or above
+    brakes, 4.5.4), holding only a deceleration of the subject through it (Annex A.1 takes the subject at its
+    speed: :func:`csws.fcw.physics.reaction_accel_mps2`), at or above
     the threshold; for a steady subject and lead at the standard's
     least figures that is x_c at or below formula (5)'s distance. Not due where 4.5.5 lets a system be silent:
     below ``min_speed_mps`` or above V_max 27.8 m/s (4.3.3, 4.5.5 g), TTC above 4 s (4.5.5 e), the subject
@@ -95,7 +94,7 @@ def warning_due(
         lead.lead_mps - lead.subject_mps,
         lead.lead_accel_mps2,
         0.0 if lead.braking else reaction_time_s,
-        lead.subject_accel_mps2 if hold_acceleration else min(lead.subject_accel_mps2, 0.0),
+        lead.subject_accel_mps2,
         lead.subject_mps,
     )
     return bool(a_req_mps2 >= threshold_mps2)

@@ -15,13 +15,15 @@ positive forward):
 * the required deceleration a_req = d_TV + v_r^2 / (2 (x_c - x_r)), formula (4), with
   d_TV the target's deceleration and x_r "the total reduction of the clearance caused by the
   driver's reaction time to the warning" (3.22), read at the end of the reaction
-  T = T_resp + T_b with both vehicles' accelerations held through it: x_r = -v_r T -
-  (a_TV - a_SV) T^2 / 2, and the closing speed is then v_r + (a_TV - a_SV) T, not v_r
-  (:func:`required_deceleration_mps2`). For a steady lead (a_TV = a_SV) that is the standard's
-  x_r = -v_r T, which formula (5) writes as 0.8 v_r; for a lead that brakes during the reaction
-  it is what a driver who reacts T after the warning and then brakes at a_req needs to just
-  avoid it. Given the subject's speed, where the target stops before the speeds meet, a_req is
-  3.22's value for the stopped target (stopping at its stopping point), never above formula (4).
+  T = T_resp + T_b with the target's acceleration and the subject's deceleration held through it
+  (a positive subject acceleration taken as 0, as Annex A.1 takes the subject at its speed:
+  :func:`reaction_accel_mps2`): x_r = -v_r T - (a_TV - a_SV) T^2 / 2, and the closing speed is
+  then v_r + (a_TV - a_SV) T, not v_r (:func:`required_deceleration_mps2`). For a steady lead
+  and subject that is the standard's x_r = -v_r T, which formula (5) writes as 0.8 v_r; for a
+  lead that brakes during the reaction it is what a driver who reacts T after the warning and
+  then brakes at a_req needs to just avoid it. Given the subject's speed, where the target stops
+  before the speeds meet, a_req is 3.22's value for the stopped target (stopping at its stopping
+  point), never above formula (4).
 
 Where GB/T 33577 and the Russian text of ISO 15623 differ, this module follows GB/T 33577:
 the factor 2 under the root of (3) and x_c - x_r in (4) (docs/fcw.md).
@@ -69,6 +71,7 @@ __all__ = [
     "required_deceleration_mps2",
     "warning_clearance_m",
     "formula_5_clearance_m",
+    "reaction_accel_mps2",
     "warning_level",
     "evaluate_fcw",
     "fcw_state_code",
@@ -126,8 +129,8 @@ class FcwSettings:
         preliminary one with it. 0.45 g because in SUMO's mixed traffic (``python -m benchmarks.fcw_traffic``,
         17.85 equipped vehicle-hours) every false warning at 0.3 g began as a preliminary one (0.90 per
         vehicle-hour; a queue's last car approached at 10-15 m/s by drivers who brake at about 2.2 m/s^2), and
-        0.45 g takes the object FCW to 0.50 (the same rule on SUMO's true leader from 0.896 to 0.056; at 0.4 g
-        0.784; the rest is the subject's acceleration held through the reaction, docs/fcw.md), while every run
+        0.45 g takes the object FCW to 0.056 with the subject at its speed through the reaction (the same rule on
+        SUMO's true leader from 0.896 to 0.056; at 0.4 g 0.784; docs/fcw.md), while every run
         of the FCW conformance suite gives the same figure as at 0.3 g (its rows judge the collision warning;
         GB/T 33577 5.5.3.1 asks for the preliminary one, not its timing). On a steady approach at a closing
         speed c it comes c (1/a_pre - 1/a_col) / 2 before the collision warning (0.23 s at 20 m/s), where
@@ -280,18 +283,19 @@ def required_deceleration_mps2(
     brakes' response (``lost_time_s``, T), with d_TV = -a_TV the target's deceleration; with the subject's
     speed, 3.22's a_req also where the target stops first.
 
-    3.22: x_r is the clearance lost during the reaction; with both accelerations held through it
-    (a = a_TV - a_SV), x_r = -v_r T - a T^2 / 2, and the closing speed at its end is
-    v_r' = v_r + a T (0 where the vehicles stop closing, and T is cut where that happens first).
-    On a steady lead this is the standard's x_r = -v_r T. ``inf`` where the reaction uses up the
-    clearance.
+    3.22: x_r is the clearance lost during the reaction; with the accelerations held through it
+    (a = a_TV - a_SV, a_SV a deceleration only: a positive one is taken as 0 through the reaction,
+    Annex A.1, :func:`reaction_accel_mps2`), x_r = -v_r T - a T^2 / 2, and the closing speed at its
+    end is v_r' = v_r + a T (0 where the vehicles stop closing, and T is cut where that happens
+    first). On a steady lead this is the standard's x_r = -v_r T. ``inf`` where the reaction uses
+    up the clearance.
 
     3.22 defines a_req as the least deceleration that brings the subject to the target's speed
     without a collision. Formula (4) is that value while the target still moves when the speeds
     meet; it holds d_TV for ever, so for a target that brakes to a stop before then (a lead braking
     gently far ahead) it asks for at least d_TV however far ahead the target stops. Given
     ``subject_speed_mps`` (finite), where the target stops first the value is 3.22's for a stopped
-    target: the subject, after T with its own acceleration held, stops at the target's stopping
+    target: the subject, after T with its deceleration held, stops at the target's stopping
     point, a_req = v_SV'^2 / (2 (x_c + v_TV^2 / (2 d_TV) - s_SV)) (:func:`a_req_core`). Without it
     (``inf``), formula (4) alone. Floats give a float, anything else an array.
     """
@@ -310,14 +314,27 @@ def required_deceleration_mps2(
 
 def a_req_core(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any, v_sv: Any = math.inf) -> Any:
     """:func:`required_deceleration_mps2` on floats or float arrays as they are (``v_sv`` inf: formula (4) alone)."""
+    a_sv = reaction_accel_mps2(a_sv)
     a_f = _formula_4(x_c, v_r, a_tv, a_sv, lost_s)
     stops = isfinite(v_sv) & (a_tv < -STOPPING_MPS2) & isfinite(a_f) & (v_sv + v_r >= 0.0)
     a_s, binds = _stopped_target_a_req(x_c, v_r, where(stops, a_tv, -1.0), a_sv, lost_s, where(stops, v_sv, 0.0))
     return where(stops & binds, where(isfinite(a_s), fmin(a_s, a_f), a_s), a_f)
 
 
+def reaction_accel_mps2(subject_accel_mps2: Any) -> Any:
+    """The subject's acceleration held through the driver's reaction: its deceleration, a positive acceleration as 0.
+
+    GB/T 33577 Annex A (A.1, normative; ISO 15623 A.1 the same) takes the subject at its speed through the
+    reaction, D = v_SV T + ..., and formula (5) (4.5.6) x_r = 0.8 v_r: a subject that accelerates is not taken
+    to keep accelerating. A deceleration is held: 4.4.4 makes the warning depend on the vehicles' possible
+    braking decelerations and 4.5.5 a on the subject's own, and a subject already slowing does not speed up
+    while its driver reacts (docs/fcw.md, "The subject's acceleration through the reaction").
+    """
+    return fmin(subject_accel_mps2, 0.0)
+
+
 def _formula_4(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any) -> Any:
-    """Formula (4) with both accelerations held through the reaction (:func:`required_deceleration_mps2`)."""
+    """Formula (4) with a_TV and ``a_sv`` held through the reaction (:func:`required_deceleration_mps2`)."""
     a_rel = a_tv - a_sv
     stops_closing = (v_r < 0.0) & (a_rel > 0.0) & (-v_r < a_rel * lost_s)
     reaction_s = where(stops_closing, -v_r / where(stops_closing, a_rel, 1.0), lost_s)
@@ -329,7 +346,7 @@ def _formula_4(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any) -> Any:
 
 def _stopped_target_a_req(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any, v_sv: Any) -> tuple[Any, Any]:
     """3.22 for a braking target (a_TV < 0) that stops before the speeds meet: the deceleration that stops
-    the subject, after ``lost_s`` with a_SV held (cut where it stops), at the target's stopping point
+    the subject, after ``lost_s`` with a_SV (<= 0) held (cut where it stops), at the target's stopping point
     (``inf`` where the subject is past that point by then: contact is certain); and whether that value
     binds: the target stops first (at or before the subject braking so), or there is no room.
 
