@@ -95,6 +95,9 @@ class MatchSettings:
     standstill_edge_log_p
         The log-probability that a vehicle standing still moved on to another edge between two fixes: a
         truck waiting at a stop line whose fixes scatter metres into the junction is still before it.
+    standstill_junction_log_p
+        The log-probability that a vehicle whose fix gives a speed under ``standstill_mps`` stands inside a
+        junction rather than before it: vehicles wait at stop lines, seldom in the junction.
     dead_reckoning_s
         A fix that matches no lane is placed by dead reckoning along the road from the last
         match for up to this long after it, s; later it matches nothing.
@@ -132,7 +135,7 @@ class MatchSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        for name in ("lane_change_log_p", "standstill_edge_log_p"):
+        for name in ("lane_change_log_p", "standstill_edge_log_p", "standstill_junction_log_p"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value <= 0):
                 raise ValueError(f"{name} must be a log-probability (<= 0), got {value!r}")
