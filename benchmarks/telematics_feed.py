@@ -76,13 +76,25 @@ class FeedAnswers:
 
 
 def query_fields(url: str) -> QueryFields:
-    """The optional fix fields the running service's query schema accepts, from its OpenAPI document."""
-    schemas = httpx.get(f"{url}/openapi.json", timeout=30.0).json()["components"]["schemas"]
-    for where, model in (("query", "Query"), ("position", "Position")):
-        # pydantic may name a model's request schema "Query-Input"
-        if any(name.split("-")[0] == model and "accuracy_m" in s.get("properties", {}) for name, s in schemas.items()):
-            return QueryFields(where)
+    """The optional fix fields the running service's query schema accepts, from its OpenAPI document (the
+    ``POST /v1/warnings`` request body, its schemas inline or referred to)."""
+    document = httpx.get(f"{url}/openapi.json", timeout=30.0).json()
+    body = document["paths"]["/v1/warnings"]["post"]["requestBody"]["content"]["application/json"]["schema"]
+    query = _resolved(document, _resolved(document, body)["properties"]["queries"]["items"])
+    if "accuracy_m" in query.get("properties", {}):
+        return QueryFields("query")
+    position = query.get("properties", {}).get("position", {})
+    for schema in (position, *position.get("anyOf", ())):
+        if "accuracy_m" in _resolved(document, schema).get("properties", {}):
+            return QueryFields("position")
     return QueryFields(None)
+
+
+def _resolved(document: dict, schema: dict) -> dict:
+    """A schema with its ``$ref`` (``#/components/schemas/NAME``) followed."""
+    while "$ref" in schema:
+        schema = document["components"]["schemas"][schema["$ref"].rpartition("/")[2]]
+    return schema
 
 
 def _exact_columns(trajectories: Trajectories, rows: np.ndarray) -> dict[str, list]:
