@@ -316,9 +316,9 @@ def _city_rows(name: str, city: dict) -> list[Row]:
         rows.append(
             context(
                 f"telematics {name}, {SIGMA_8_1_HZ.name}: true road online (in-process) / full-trace Viterbi / "
-                "nearest road / a candidate at all",
+                "nearest road / reachable at all",
                 f"{bounds['online_true_road_share']:.1%} / {bounds['full_trace_true_road_share']:.1%} / "
-                f"{bounds['nearest_true_road_share']:.1%} / {bounds['candidate_true_road_share']:.1%}",
+                f"{bounds['nearest_true_road_share']:.1%} / {bounds['reachable_true_road_share']:.1%}",
                 f"within sigma of 2+ roads {bounds['ambiguous_share']:.1%}",
             )
         )
