@@ -34,7 +34,10 @@ Judged per vehicle against the reference's warning onsets (level 0 -> 1 or 2):
   within 20 m of travel before or after the fix ("the true road": an error along the road is
   not a wrong road, a wrong connection or side street is), to its exact lane, and answered
   with no match;
-* **us per fix**: the service's own time (its ``Server-Timing`` header) per fix.
+* **us per fix**: the service's own time (its ``Server-Timing`` header) per fix;
+* **reference methods** (sigma 8 m at 1 Hz): the same fixes matched in-process online, by the
+  full-trace Viterbi, by the nearest road, and whether the true road is a candidate at all, and the
+  share within sigma of two roads (:mod:`benchmarks.telematics_reference`): what any matcher can reach.
 
 Each run's figures are written as a line of ``telematics.jsonl`` in the output directory
 (``out/telematics/`` by default) as soon as it is measured, beside the issue's targets (At 1 Hz
@@ -69,7 +72,10 @@ from benchmarks.telematics_analysis import Noise
 from benchmarks.telematics_feed import FeedAnswers, feed_service, query_fields
 from benchmarks.telematics_fleet import STEP_S, Trajectories, drive_fleet
 from benchmarks.telematics_judge import judge
+from benchmarks.telematics_reference import reference_figures
+from benchmarks.telematics_reference import summary as reference_summary
 from csws.networks import networks_dir
+from csws.road.roadmap import RoadMap
 
 #: The repository's neighbour holding the shared data (read at run time only, when present).
 SHARED_DIR = Path(__file__).resolve().parents[1].parent / "shared"
@@ -227,7 +233,20 @@ def _fed(
     for index, feed in enumerate(feeds, start=1):
         answers = feed_service(url, net, trajectories, feed, f"f{index}", fields, _log)
         runs[feed.name] = _judged(city, feed, trajectories, reference, answers, sink)
+    if SIGMA_8_1_HZ in feeds:
+        runs[SIGMA_8_1_HZ.name]["matching"]["reference"] = _bounds(city, net, trajectories)
     return runs
+
+
+def _bounds(city: str, net: Path, trajectories: Trajectories) -> dict:
+    """The reference methods on the sigma 8 m 1 Hz fixes the service was sent (in-process): what any matcher
+    can reach with them, printed beside the service's figure."""
+    assert SIGMA_8_1_HZ.noise is not None
+    started = time.perf_counter()
+    figures = reference_figures(RoadMap.load(net), trajectories, SIGMA_8_1_HZ.noise, SIGMA_8_1_HZ.seed)
+    print(f"{city} | {SIGMA_8_1_HZ.name}, reference methods: {reference_summary(figures)}", flush=True)
+    _log(f"{city}: reference methods in {time.perf_counter() - started:.0f} s")
+    return figures
 
 
 def _judged(
@@ -292,6 +311,17 @@ def _city_rows(name: str, city: dict) -> list[Row]:
             TARGET_NO_MATCH_SHARE,
         ),
     ]
+    bounds = sigma_8["matching"].get("reference")
+    if bounds:
+        rows.append(
+            context(
+                f"telematics {name}, {SIGMA_8_1_HZ.name}: true road online (in-process) / full-trace Viterbi / "
+                "nearest road / reachable at all",
+                f"{bounds['online_true_road_share']:.1%} / {bounds['full_trace_true_road_share']:.1%} / "
+                f"{bounds['nearest_true_road_share']:.1%} / {bounds['reachable_true_road_share']:.1%}",
+                f"within sigma of 2+ roads {bounds['ambiguous_share']:.1%}",
+            )
+        )
     for feed_name, figures in feeds.items():
         rows.append(
             context(

@@ -18,13 +18,22 @@ import msgspec
 import numpy as np
 
 from benchmarks.service import server_timing
-from benchmarks.telematics_analysis import Noise, noisy_fixes, sample_mask
+from benchmarks.telematics_analysis import Fixes, Noise, noisy_fixes, sample_mask
 from benchmarks.telematics_fleet import STEP_S, Trajectories, lonlat
 
 if TYPE_CHECKING:
     from benchmarks.telematics import Feed
 
-__all__ = ["QueryFields", "FeedAnswers", "query_fields", "feed_service", "EPOCH_S", "BATCH_S"]
+__all__ = [
+    "QueryFields",
+    "FeedAnswers",
+    "query_fields",
+    "feed_rows",
+    "feed_fixes",
+    "feed_service",
+    "EPOCH_S",
+    "BATCH_S",
+]
 
 #: The fleet's clock at the simulation's start (timestamps are this plus the simulation time), s.
 EPOCH_S = 1_700_000_000.0
@@ -67,13 +76,25 @@ class FeedAnswers:
 
 
 def query_fields(url: str) -> QueryFields:
-    """The optional fix fields the running service's query schema accepts, from its OpenAPI document."""
-    schemas = httpx.get(f"{url}/openapi.json", timeout=30.0).json()["components"]["schemas"]
-    for where, model in (("query", "Query"), ("position", "Position")):
-        # pydantic may name a model's request schema "Query-Input"
-        if any(name.split("-")[0] == model and "accuracy_m" in s.get("properties", {}) for name, s in schemas.items()):
-            return QueryFields(where)
+    """The optional fix fields the running service's query schema accepts, from its OpenAPI document (the
+    ``POST /v1/warnings`` request body, its schemas inline or referred to)."""
+    document = httpx.get(f"{url}/openapi.json", timeout=30.0).json()
+    body = document["paths"]["/v1/warnings"]["post"]["requestBody"]["content"]["application/json"]["schema"]
+    query = _resolved(document, _resolved(document, body)["properties"]["queries"]["items"])
+    if "accuracy_m" in query.get("properties", {}):
+        return QueryFields("query")
+    position = query.get("properties", {}).get("position", {})
+    for schema in (position, *position.get("anyOf", ())):
+        if "accuracy_m" in _resolved(document, schema).get("properties", {}):
+            return QueryFields("position")
     return QueryFields(None)
+
+
+def _resolved(document: dict, schema: dict) -> dict:
+    """A schema with its ``$ref`` (``#/components/schemas/NAME``) followed."""
+    while "$ref" in schema:
+        schema = document["components"]["schemas"][schema["$ref"].rpartition("/")[2]]
+    return schema
 
 
 def _exact_columns(trajectories: Trajectories, rows: np.ndarray) -> dict[str, list]:
@@ -86,21 +107,35 @@ def _exact_columns(trajectories: Trajectories, rows: np.ndarray) -> dict[str, li
     }
 
 
-def _fix_columns(
-    net: Path, trajectories: Trajectories, rows: np.ndarray, noise: Noise, seed: int
-) -> tuple[np.ndarray, dict[str, list]]:
-    """The surviving rows and their measured fixes (lon/lat, or network x/y without a projection)."""
+def feed_rows(trajectories: Trajectories, interval_s: float) -> np.ndarray:
+    """The trajectory rows a feed with fixes every ``interval_s`` samples, in time order."""
+    interval_steps = round(interval_s / STEP_S)
+    batch_steps = min(interval_steps, round(BATCH_S / STEP_S))
+    return np.flatnonzero(sample_mask(trajectories.step, trajectories.vehicle, interval_steps, batch_steps))
+
+
+def feed_fixes(trajectories: Trajectories, rows: np.ndarray, noise: Noise, seed: int) -> tuple[np.ndarray, Fixes]:
+    """The rows that survive a receiver's drops and their measured fixes in network x/y (the fixes a feed
+    sends, before they are turned into lon/lat)."""
     t = trajectories
     fixes = noisy_fixes(
         t.x_m[rows], t.y_m[rows], t.heading_deg[rows], 3.6 * t.speed_mps[rows], noise, np.random.default_rng(seed)
     )
+    return rows[fixes.kept], fixes
+
+
+def _fix_columns(
+    net: Path, trajectories: Trajectories, rows: np.ndarray, noise: Noise, seed: int
+) -> tuple[np.ndarray, dict[str, list]]:
+    """The surviving rows and their measured fixes (lon/lat, or network x/y without a projection)."""
+    kept, fixes = feed_fixes(trajectories, rows, noise, seed)
     geo = lonlat(net, fixes.x_m, fixes.y_m)
     names, values = (("lon", "lat"), geo) if geo is not None else (("x", "y"), (fixes.x_m, fixes.y_m))
     positions = [
         dict(zip(names, pair, strict=True)) for pair in zip(values[0].tolist(), values[1].tolist(), strict=True)
     ]
     columns = {"position": positions, "heading_deg": fixes.heading_deg.tolist(), "speed_kmh": fixes.speed_kmh.tolist()}
-    return rows[fixes.kept], columns
+    return kept, columns
 
 
 def _queries(
@@ -141,9 +176,7 @@ def _columns(
     net: Path, trajectories: Trajectories, feed: Feed, fields: QueryFields
 ) -> tuple[np.ndarray, dict[str, list], tuple[str, float] | None]:
     """A feed's rows, in time order, with their columns, and where and what ``accuracy_m`` is sent."""
-    interval_steps = round(feed.interval_s / STEP_S)
-    batch_steps = min(interval_steps, round(BATCH_S / STEP_S))
-    rows = np.flatnonzero(sample_mask(trajectories.step, trajectories.vehicle, interval_steps, batch_steps))
+    rows = feed_rows(trajectories, feed.interval_s)
     if feed.noise is None:
         return rows, _exact_columns(trajectories, rows), None
     rows, columns = _fix_columns(net, trajectories, rows, feed.noise, feed.seed)

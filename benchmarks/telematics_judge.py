@@ -4,6 +4,7 @@ well its fixes were matched to the road the vehicle truly drove (definitions in
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -12,7 +13,15 @@ from benchmarks.telematics_analysis import match_onsets, on_at, onsets, repeat_o
 from benchmarks.telematics_feed import FeedAnswers
 from benchmarks.telematics_fleet import STEP_S, Trajectories
 
-__all__ = ["judge", "BEFORE_INTERVALS", "AFTER_INTERVALS", "REPEAT_INTERVALS", "TRUE_ROAD_REACH_M"]
+__all__ = [
+    "judge",
+    "true_roads",
+    "on_true_road",
+    "BEFORE_INTERVALS",
+    "AFTER_INTERVALS",
+    "REPEAT_INTERVALS",
+    "TRUE_ROAD_REACH_M",
+]
 
 #: A feed onset is the reference's if it comes at most this many fix intervals before it ...
 BEFORE_INTERVALS = 2.0
@@ -129,20 +138,35 @@ def _lane_visits(trajectories: Trajectories) -> tuple[np.ndarray, np.ndarray, np
     return keys, end_keys, start_keys, edges[lane[starts]]
 
 
-def _matching(trajectories: Trajectories, answers: FeedAnswers) -> dict:
-    """Shares of the fixes matched to the true road (an edge the vehicle drove within TRUE_ROAD_REACH_M
-    of travel before or after the fix), to the true lane, and to nothing."""
+def true_roads(trajectories: Trajectories, rows: np.ndarray) -> list[set[str]]:
+    """The true roads of fixes taken at trajectory ``rows``: the edges the vehicle drove on within
+    TRUE_ROAD_REACH_M of travel before or after each (an error along the road is not a wrong road, a wrong
+    connection or side street is)."""
     keys, end_keys, start_keys, visit_edges = _lane_visits(trajectories)
-    fix_keys = keys[answers.rows]
+    fix_keys = keys[rows]
     first = np.searchsorted(end_keys, fix_keys - TRUE_ROAD_REACH_M, side="left")
     last = np.searchsorted(start_keys, fix_keys + TRUE_ROAD_REACH_M, side="right")
-    on_road = 0
-    for lane_id, begin, end in zip(answers.matched_lane, first.tolist(), last.tolist(), strict=True):
-        on_road += lane_id is not None and lane_id.rpartition("_")[0] in visit_edges[begin:end]
+    return [set(visit_edges[begin:end]) for begin, end in zip(first.tolist(), last.tolist(), strict=True)]
+
+
+def on_true_road(lane_ids: Sequence[str | None], roads: list[set[str]]) -> np.ndarray:
+    """Whether each matched lane (None: matched nothing) lies on an edge of its fix's true roads."""
+    return np.array(
+        [
+            lane_id is not None and lane_id.rpartition("_")[0] in road
+            for lane_id, road in zip(lane_ids, roads, strict=True)
+        ],
+        dtype=bool,
+    )
+
+
+def _matching(trajectories: Trajectories, answers: FeedAnswers) -> dict:
+    """Shares of the fixes matched to the true road (:func:`true_roads`), to the true lane, and to nothing."""
+    on_road = on_true_road(answers.matched_lane.tolist(), true_roads(trajectories, answers.rows))
     true_lanes = np.array(trajectories.lanes, dtype=object)[trajectories.lane[answers.rows]]
     fixes = max(len(answers.rows), 1)
     return {
-        "true_road_share": on_road / fixes,
+        "true_road_share": float(on_road.sum() / fixes),
         "true_lane_share": float((true_lanes == answers.matched_lane).sum() / fixes),
         "no_match_share": sum(lane is None for lane in answers.matched_lane) / fixes,
     }

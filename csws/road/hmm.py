@@ -146,7 +146,9 @@ class SequenceMatcher:
         candidates, near = self._candidates(fixes, sigma_m, radius_m)
         previous = self._previous(tracks, count)
         beta_m = transition_scale_m(self.settings.transition_beta_m, sigma_m)
-        step = forward_step(candidates, previous, count, self.graph, self.settings, beta_m)
+        step = forward_step(
+            candidates, previous, count, self.graph, self.settings, beta_m, self._standing(fixes, previous)
+        )
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
@@ -184,6 +186,11 @@ class SequenceMatcher:
         agrees = ~(np.abs(off_rad) > self._heading_tolerance_rad)  # a NaN heading agrees
         heading_term = np.where(np.isnan(off_rad), 0.0, off_rad / self._heading_sigma_rad)
         emission = -0.5 * ((found.distance_m / sigma_m[fix]) ** 2 + heading_term**2)
+        with np.errstate(invalid="ignore"):
+            standing = fixes.speed_mps[fix] < self.settings.standstill_mps
+        emission += np.where(
+            standing & self.graph.internal[found.lane_index], self.settings.standstill_junction_log_p, 0.0
+        )
         order = np.argsort(fix, kind="stable")
         order = order[agrees[order]]
         candidates = Candidates(
@@ -212,12 +219,23 @@ class SequenceMatcher:
         pos_m = np.fromiter(chain.from_iterable(state.candidate_pos_m for state in states), float, lane.size)
         log_p = np.fromiter(chain.from_iterable(state.log_p for state in states), float, lane.size)
         xy = np.full((count, 2), np.nan)
-        time_s = np.full(count, np.nan)
+        time_s, speed_mps = np.full(count, np.nan), np.full(count, np.nan)
         if rows:
             xy[rows] = [(state.x_m, state.y_m) for state in states]
             time_s[rows] = [state.time_s for state in states]
+            speed_mps[rows] = [state.speed_mps for state in states]
         counts = np.bincount(fix, minlength=count)
-        return Previous(fix, lane[known], pos_m[known], log_p[known], np.cumsum(counts) - counts, counts, xy, time_s)
+        starts = np.cumsum(counts) - counts
+        return Previous(fix, lane[known], pos_m[known], log_p[known], starts, counts, xy, time_s, speed_mps)
+
+    def _standing(self, fixes: Fixes, previous: Previous) -> np.ndarray:
+        """Whether each fix's vehicle stood still since its previous fix: the fix gives a speed, and it and
+        the previous one are both under :attr:`MatchSettings.standstill_mps` (a vehicle waiting at a stop
+        line, its fixes scattered into the junction by the noise, has not entered it)."""
+        with np.errstate(invalid="ignore"):
+            return (fixes.speed_mps < self.settings.standstill_mps) & (
+                previous.speed_mps < self.settings.standstill_mps
+            )
 
     # ------------------------------------------------------------------ what is reported
     def _reported(self, step: Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:

@@ -90,6 +90,14 @@ class MatchSettings:
         Inside a junction, the matcher reports a turn off the road only once the connections into
         that turn's road hold this share of the probability of all connections from the vehicle's
         incoming edge; until then it reports the road's own continuation.
+    standstill_mps
+        A vehicle whose fix gives a speed under this, its previous fix's too, stood still between them, m/s.
+    standstill_edge_log_p
+        The log-probability that a vehicle standing still moved on to another edge between two fixes: a
+        truck waiting at a stop line whose fixes scatter metres into the junction is still before it.
+    standstill_junction_log_p
+        The log-probability that a vehicle whose fix gives a speed under ``standstill_mps`` stands inside a
+        junction rather than before it: vehicles wait at stop lines, seldom in the junction.
     dead_reckoning_s
         A fix that matches no lane is placed by dead reckoning along the road from the last
         match for up to this long after it, s; later it matches nothing.
@@ -109,6 +117,9 @@ class MatchSettings:
     transition_beta_m: float = 6.0
     lane_change_log_p: float = -1.5
     commit_share: float = 0.95
+    standstill_mps: float = 1.0
+    standstill_edge_log_p: float = -4.0
+    standstill_junction_log_p: float = -4.0
     dead_reckoning_s: float = 10.0
     reach_m: float = 250.0
     max_candidates: int = 8
@@ -124,8 +135,12 @@ class MatchSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        if not (math.isfinite(self.lane_change_log_p) and self.lane_change_log_p <= 0):
-            raise ValueError(f"lane_change_log_p must be a log-probability (<= 0), got {self.lane_change_log_p!r}")
+        for name in ("lane_change_log_p", "standstill_edge_log_p", "standstill_junction_log_p"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value <= 0):
+                raise ValueError(f"{name} must be a log-probability (<= 0), got {value!r}")
+        if not (math.isfinite(self.standstill_mps) and self.standstill_mps >= 0):
+            raise ValueError(f"standstill_mps must be a non-negative speed, got {self.standstill_mps!r}")
         if not (0.5 <= self.commit_share <= 1):
             raise ValueError(f"commit_share must lie in [0.5, 1], got {self.commit_share!r}")
         if not (math.isfinite(self.dead_reckoning_s) and self.dead_reckoning_s >= 0):

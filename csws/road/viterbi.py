@@ -29,6 +29,7 @@ class Previous:
     count: np.ndarray
     xy: np.ndarray
     time_s: np.ndarray
+    speed_mps: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -93,10 +94,13 @@ def forward_step(
     graph: LaneGraph,
     settings: MatchSettings,
     beta_m: np.ndarray,
+    standing: np.ndarray,
 ) -> Step:
     """The forward (Viterbi) step: each candidate's best transition from the previous candidates of its
     fix plus its emission, normalised per fix; a fix none of whose candidates is reached from its
-    previous ones starts afresh from the emissions. ``beta_m`` is each fix's transition scale, m."""
+    previous ones starts afresh from the emissions. ``beta_m`` is each fix's transition scale, m;
+    ``standing`` whether each fix's vehicle stood still since its previous fix (moving on to another
+    edge then costs :attr:`MatchSettings.standstill_edge_log_p`)."""
     reps = previous.count[candidates.fix]
     first_pair = np.cumsum(reps) - reps
     pair_candidate = np.repeat(np.arange(len(reps)), reps)
@@ -105,9 +109,11 @@ def forward_step(
     from_lane, to_lane = previous.lane[pair_previous], candidates.lane[pair_candidate]
     route_m = graph.route_m(from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate])
     straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[candidates.fix[pair_candidate]]).T)
-    lane_change = (from_lane != to_lane) & (graph.lane_edge[from_lane] == graph.lane_edge[to_lane])
+    same_edge = graph.lane_edge[from_lane] == graph.lane_edge[to_lane]
+    lane_change = (from_lane != to_lane) & same_edge
     transition = -np.abs(route_m - straight_m) / beta_m[candidates.fix[pair_candidate]]
     transition += np.where(lane_change, settings.lane_change_log_p, 0.0)
+    transition += np.where(~same_edge & standing[candidates.fix[pair_candidate]], settings.standstill_edge_log_p, 0.0)
     score = np.where(np.isnan(transition), -np.inf, previous.log_p[pair_previous] + transition)
     best_score = np.full(len(reps), -np.inf)
     back = np.full(len(reps), -1, dtype=np.intp)
