@@ -122,6 +122,21 @@ class ServiceSettings(BaseSettings):
         ge=0,
         description="a fix matching no lane is dead-reckoned along the road this long after the last match, s",
     )
+    match_standstill_mps: float = Field(
+        default=_MATCH.standstill_mps,
+        ge=0,
+        description="a fix slower than this is standing (waiting at a stop line), m/s: see the two penalties below",
+    )
+    match_standstill_edge_log_p: float = Field(
+        default=_MATCH.standstill_edge_log_p,
+        le=0,
+        description="the log-probability of moving to another edge between two standing fixes",
+    )
+    match_standstill_junction_log_p: float = Field(
+        default=_MATCH.standstill_junction_log_p,
+        le=0,
+        description="the log-probability added to a junction's lane as the match of a standing fix",
+    )
     update_period_s: float = Field(
         default=_WARNING.update_period_s,
         ge=0,
@@ -258,6 +273,9 @@ class ServiceSettings(BaseSettings):
             heading_sigma_deg=self.match_heading_sigma_deg,
             lane_change_log_p=self.match_lane_change_log_p,
             dead_reckoning_s=self.match_dead_reckoning_s,
+            standstill_mps=self.match_standstill_mps,
+            standstill_edge_log_p=self.match_standstill_edge_log_p,
+            standstill_junction_log_p=self.match_standstill_junction_log_p,
         )
 
 

@@ -238,7 +238,15 @@ def test_a_fix_matching_nothing_is_a_fault_answer(client) -> None:
 def test_the_matchers_scales_are_settings(monkeypatch) -> None:
     from service.settings import ServiceSettings
 
-    given = {"accuracy_m": 8.0, "search_sigmas": 3.0, "heading_sigma_deg": 15.0, "lane_change_log_p": -2.5}
+    given = {
+        "accuracy_m": 8.0,
+        "search_sigmas": 3.0,
+        "heading_sigma_deg": 15.0,
+        "lane_change_log_p": -2.5,
+        "standstill_mps": 0.5,
+        "standstill_edge_log_p": -3.0,
+        "standstill_junction_log_p": -6.0,
+    }
     for name, value in given.items():
         monkeypatch.setenv(f"CSWS_MATCH_{name.upper()}", str(value))
     monkeypatch.setenv("CSWS_MATCH_DEAD_RECKONING_S", "4")
