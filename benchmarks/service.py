@@ -238,21 +238,13 @@ def server_timing(header: str) -> dict[str, float]:
     return stages
 
 
-def batch_ms(
-    service: Running, queries: list[dict], repeats: int = BATCH_REPEATS, turn_every: int = 0
-) -> dict[str, float]:
+def batch_ms(service: Running, queries: list[dict], repeats: int = BATCH_REPEATS) -> dict[str, float]:
     """The median server time of a batch of ``queries`` and of its stages, ms, over ``repeats`` fleet
-    ticks one second apart (after one that starts the sessions); the median round trip. With ``turn_every``,
-    every ``turn_every``-th vehicle drives at each of :data:`EVENT_SPEEDS_KMH` in turn, one a tick."""
+    ticks one second apart (after one that starts the sessions); the median round trip."""
     timings, round_trip_ms = [], []
     with httpx.Client(base_url=service.url, timeout=60.0) as client:
         for tick in range(repeats + 1):
-            turned = {"speed_kmh": EVENT_SPEEDS_KMH[tick % 2]}
-            ticked = [
-                {**q, "timestamp_s": 1000.0 + tick, **(turned if turn_every and not k % turn_every else {})}
-                for k, q in enumerate(queries)
-            ]
-            body = json.dumps({"queries": ticked})
+            body = json.dumps({"queries": [{**query, "timestamp_s": 1000.0 + tick} for query in queries]})
             started = time.perf_counter()
             response = client.post("/v1/warnings", content=body, headers={"content-type": "application/json"})
             response.raise_for_status()
@@ -300,17 +292,37 @@ def single_event_rates(service: Running, state_db: Path, query: dict, count: int
     return {name: (requests / elapsed_s[name], events[name] / requests) for name in turns}
 
 
-def _batch_events(served: Running, state_db: Path, queries: list[dict], turn_every: int) -> dict:
-    """:func:`batch_ms` of vehicles of their own at the first of :data:`EVENT_SPEEDS_KMH`, every ``turn_every``-th
-    (none with 0) changing speed every tick; and the events each timed tick made."""
-    tag = f"turn{turn_every}"
-    vehicles = [{**q, "vehicle_id": f"{q['vehicle_id']}-{tag}", "speed_kmh": EVENT_SPEEDS_KMH[0]} for q in queries]
-    with httpx.Client(base_url=served.url, timeout=60.0) as client:  # the first tick, whose onsets are not counted
-        ticked = [{**q, "timestamp_s": 999.0} for q in vehicles]
-        client.post("/v1/warnings", json={"queries": ticked}).raise_for_status()
-    before = outbox_events(state_db)
-    stages = batch_ms(served, vehicles, EVENT_BATCH_REPEATS, turn_every)
-    return {**stages, "events_per_tick": round((outbox_events(state_db) - before) / EVENT_BATCH_REPEATS)}
+def _event_batches(served: Running, state_db: Path, queries: list[dict]) -> dict[int, dict]:
+    """The median server time of the batch and of its stages, ms, and the events per tick, of three fleets of
+    ``queries`` (vehicles of their own) at the first of :data:`EVENT_SPEEDS_KMH`: steady (0), one vehicle in
+    :data:`EVENT_TURN_EVERY` changing speed every tick, and every vehicle (1); their ticks interleaved, so that
+    each fleet sees the same machine load, one second apart after one that starts the sessions."""
+    fleets = {
+        every: [{**q, "vehicle_id": f"{q['vehicle_id']}-{every}"} for q in queries]
+        for every in (0, EVENT_TURN_EVERY, 1)
+    }
+    timings: dict[int, list[dict[str, float]]] = {every: [] for every in fleets}
+    events = dict.fromkeys(fleets, 0)
+    with httpx.Client(base_url=served.url, timeout=60.0) as client:
+        for tick in range(EVENT_BATCH_REPEATS + 1):
+            for every, vehicles in fleets.items():
+                speed = {"speed_kmh": EVENT_SPEEDS_KMH[tick % 2]}
+                ticked = [
+                    {**q, "speed_kmh": EVENT_SPEEDS_KMH[0], "timestamp_s": 1000.0 + tick}
+                    | (speed if every and not k % every else {})
+                    for k, q in enumerate(vehicles)
+                ]
+                before = outbox_events(state_db)
+                response = client.post("/v1/warnings", json={"queries": ticked})
+                response.raise_for_status()
+                if tick:
+                    timings[every].append(server_timing(response.headers["server-timing"]))
+                    events[every] += outbox_events(state_db) - before
+    return {
+        every: {name: round(float(np.median([t.get(name, 0.0) for t in rows])), 1) for name in rows[0]}
+        | {"events_per_tick": round(events[every] / EVENT_BATCH_REPEATS)}
+        for every, rows in timings.items()
+    }
 
 
 def outbox_figures(state_db: Path, queries: list[dict]) -> dict:
@@ -320,7 +332,7 @@ def outbox_figures(state_db: Path, queries: list[dict]) -> dict:
     served = csws_serve(state_db, "--net", str(TRACK_NET))
     try:
         single = single_event_rates(served, state_db, queries[0])
-        batches = {every: _batch_events(served, state_db, queries, every) for every in (0, EVENT_TURN_EVERY, 1)}
+        batches = _event_batches(served, state_db, queries)
     finally:
         served.stop()
     figures: dict = {"outbox_load_average": round(os.getloadavg()[0], 1)}

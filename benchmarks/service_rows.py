@@ -67,13 +67,14 @@ def _stages(stages_ms: dict) -> str:
 
 
 def outbox_rows(figures: dict) -> list[Row]:
-    """The cost of the warning events' outbox: a drive whose warnings start or end on a tenth of the answers (the
-    target) and on every answer (the worst case), against the same vehicles driving steadily (no events)."""
+    """The cost of the warning events' outbox: drives whose warnings start and end (single: on a tenth of the
+    answers; batch: a tenth of the vehicles changing speed every tick) and the worst case (every answer, every
+    vehicle), against the same vehicles driving steadily (events only where a warning changes by itself)."""
     load_average = f"load average {figures['outbox_load_average']:g}"
     steady_batch, steady_rps = figures["outbox_batch_steady_ms"], figures["outbox_single_rps_steady"]
     return [
         at_most(
-            "service: outbox, batch of 10,000 with events on 1/10 of the answers / steady",
+            "service: outbox, batch of 10,000 with 1/10 of the vehicles changing speed / steady",
             figures["outbox_batch_ratio_some"],
             1.10,
             f"{figures['outbox_batch_some_ms']:g} vs {steady_batch:g} ms, "
@@ -87,7 +88,7 @@ def outbox_rows(figures: dict) -> list[Row]:
             f"{figures['outbox_single_rps_some']:.0f} vs {steady_rps:.0f} req/s; {load_average}",
         ),
         context(
-            "service: outbox, an event on every answer / steady: batch, single",
+            "service: outbox, every vehicle changing speed / steady: batch, single",
             f"{figures['outbox_batch_ratio_every']:g}, {figures['outbox_single_ratio_every']:g}",
             f"{figures['outbox_batch_every_ms']:g} ms ({figures['outbox_batch_every_events_per_tick']} events), "
             f"{figures['outbox_single_rps_every']:.0f} req/s; write stage "
