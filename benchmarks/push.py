@@ -3,9 +3,10 @@
 A writer appends each vehicle's event once a second to an outbox, spread evenly over the second: an
 in-memory one (:class:`service.push.source.MemoryOutbox`), and the SQLite state store's
 (:class:`service.store.sqlite.SQLiteStore`), written through ``StateStore.write`` with each vehicle's
-session as the service writes them (a hundredth of the vehicles a transaction, as a batch request's), so
-that the figures of the second include the store's writes and the dispatcher's reads of them. The
-dispatcher of :func:`service.push.start_push` runs in this process as in a worker of the service.
+session as the service writes them (a tenth of the vehicles a transaction, as a batch request's), from
+a process of their own (as the service's workers write), so that the figures of the second include the
+store's writes and the dispatcher's reads of them. The dispatcher of :func:`service.push.start_push`
+runs in this process as in a worker of the service.
 The receivers run in processes of their own: a minimal HTTP/1.1 receiver on asyncio (answers 200 at
 once, keeps each body's arrival time) and a paho subscriber of a real ``mosquitto`` (QoS 1).
 
@@ -117,6 +118,10 @@ def _write_arrivals(out: str, arrivals: list[tuple[float, bytes, str]]) -> None:
 
 #: The outboxes the runs read: in memory, and the SQLite state store's.
 OUTBOXES = ("memory", "sqlite")
+#: The writes a second into each outbox: in memory a hundredth of the vehicles every 10 ms; into the store a
+#: tenth every 100 ms, one transaction each, as batch requests of a thousand vehicles write them (every
+#: transaction with events is synced to disk, some 10 ms here, so a hundred a second would be the disk's limit).
+SLOTS_PER_S = {"memory": 100, "sqlite": 10}
 
 
 class _StoreWriter:
@@ -151,10 +156,9 @@ class _MemoryWriter:
             self.outbox.write(FLEET, vehicle_id, body)
 
 
-def _write(outbox: _StoreWriter | _MemoryWriter, vehicles: int, seconds: float) -> int:
+def _write(outbox: _StoreWriter | _MemoryWriter, vehicles: int, seconds: float, slots: int) -> int:
     """Write each vehicle's event once a second for ``seconds``, spread over the second; the events written."""
     written, started = 0, time.time()
-    slots = 100  # a hundredth of the vehicles every 10 ms
     per_slot = vehicles / slots
     for tick in range(int(seconds * slots)):
         while time.time() < started + tick / slots:
@@ -177,6 +181,28 @@ def _write(outbox: _StoreWriter | _MemoryWriter, vehicles: int, seconds: float) 
         outbox.write_slot(events)
         written += len(events)
     return written
+
+
+def _write_into_store(path: Path, vehicles: int, seconds: float, written: Any) -> None:
+    """A writer's process: :func:`_write` into the SQLite store at ``path``; the events written in ``written``."""
+    store = SQLiteStore(path, 600.0)
+    try:
+        written.value = _write(_StoreWriter(store), vehicles, seconds, SLOTS_PER_S["sqlite"])
+    finally:
+        store.close()
+
+
+def _write_elsewhere(path: Path, vehicles: int, seconds: float) -> int:
+    """:func:`_write` into the SQLite store at ``path`` from a process of its own, as the service's workers write
+    while push reads in one of them; the events written."""
+    spawn = multiprocessing.get_context("spawn")
+    written = spawn.Value("q", 0)
+    writer = spawn.Process(target=_write_into_store, args=(path, vehicles, seconds, written))
+    writer.start()
+    writer.join(seconds + 60.0)
+    if writer.exitcode != 0:
+        raise RuntimeError(f"the writer's process ended with {writer.exitcode}")
+    return int(written.value)
 
 
 def _judged(out: str, written: int, secret: str | None) -> dict[str, Any]:
@@ -228,17 +254,17 @@ def _one_run(sink: str, vehicles: int, seconds: float, folder: Path, kind: str =
         ready.wait(30)
         config = PushConfig(config.state_db, mqtt_url=f"mqtt://127.0.0.1:{port}")
     source: EventSource
-    writer: _StoreWriter | _MemoryWriter
     if kind == "sqlite":
-        store = SQLiteStore(folder / "vehicles.sqlite3", 600.0)
-        source, writer = store, _StoreWriter(store)
+        source = SQLiteStore(folder / "vehicles.sqlite3", 600.0)
     else:
-        memory = MemoryOutbox()
-        source, writer = memory, _MemoryWriter(memory)
+        source = MemoryOutbox()
     stop_push = start_push(config, source)
     time.sleep(WARM_UP_S)
     try:
-        written = _write(writer, vehicles, seconds)
+        if isinstance(source, MemoryOutbox):
+            written = _write(_MemoryWriter(source), vehicles, seconds, SLOTS_PER_S[kind])
+        else:
+            written = _write_elsewhere(folder / "vehicles.sqlite3", vehicles, seconds)
         deadline = time.monotonic() + DRAIN_S
         while time.monotonic() < deadline and _pushed(config, sink) < written:
             time.sleep(0.1)
