@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from service.settings import ServiceSettings
-from service.store import MAX_SESSION_IDLE_S, EventRetention, NewEvent, VehicleWrite
+from service.store import MAX_SESSION_IDLE_S, EventRetention, NewEvent, VehicleWrite, open_store
 from service.store.redis import HISTORY_PREFIX, OUTBOX_KEY, RedisStore
 from service.store.sqlite import SWEEP_PERIOD_S, SQLiteStore
 
@@ -134,3 +134,13 @@ def test_the_setting_reads_a_json_object_of_fleets(monkeypatch) -> None:
         monkeypatch.setenv("CSWS_EVENT_RETENTION_BY_FLEET", bad)
         with pytest.raises(ValidationError):
             ServiceSettings()
+
+
+def test_the_service_opens_its_store_with_the_fleets_windows(tmp_path, redis_url) -> None:
+    fleets_s = {"acme": 86400.0, "trial": 3600.0}
+    for where in ({"state_db": str(tmp_path / "vehicles.sqlite3")}, {"state": redis_url}):
+        store = open_store(ServiceSettings(**where, event_retention_s=604800.0, event_retention_by_fleet=fleets_s))
+        try:
+            assert [store.event_retention.of(f) for f in ("acme", "trial", "other")] == [86400.0, 3600.0, 604800.0]
+        finally:
+            store.close()
