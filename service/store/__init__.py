@@ -102,7 +102,9 @@ class EventRetention:
         If a time is not positive or longer than a store can hold (:data:`MAX_SESSION_IDLE_S`).
     """
 
-    def __init__(self, default_s: float = DEFAULT_EVENT_RETENTION_S, fleets_s: Mapping[str, float] | None = None):
+    def __init__(
+        self, default_s: float = DEFAULT_EVENT_RETENTION_S, fleets_s: Mapping[str, float] | None = None
+    ) -> None:
         self.default_s = checked_idle_s(default_s)
         self.fleets_s = {fleet: checked_idle_s(s) for fleet, s in (fleets_s or {}).items()}
 
