@@ -1,8 +1,12 @@
 """Push of events to a webhook receiver and to mosquitto, 10,000 vehicles at 1 Hz, on loopback.
 
-A writer appends each vehicle's event once a second to an in-memory outbox (the store's outbox
-stands in: :class:`service.push.source.MemoryOutbox`), spread evenly over the second; the
-dispatcher of :func:`service.push.start_push` runs in this process as in a worker of the service.
+A writer appends each vehicle's event once a second to an outbox, spread evenly over the second: an
+in-memory one (:class:`service.push.source.MemoryOutbox`), and the SQLite state store's
+(:class:`service.store.sqlite.SQLiteStore`), written through ``StateStore.write`` with each vehicle's
+session as the service writes them (a tenth of the vehicles a transaction, as a batch request's), from
+a process of their own (as the service's workers write), so that the figures of the second include the
+store's writes and the dispatcher's reads of them. The dispatcher of :func:`service.push.start_push`
+runs in this process as in a worker of the service.
 The receivers run in processes of their own: a minimal HTTP/1.1 receiver on asyncio (answers 200 at
 once, keeps each body's arrival time) and a paho subscriber of a real ``mosquitto`` (QoS 1).
 
@@ -35,8 +39,10 @@ import numpy as np
 
 from benchmarks.rows import Row, at_least, at_most
 from service.push import PushConfig, start_push
-from service.push.source import MemoryOutbox
+from service.push.source import EventSource, MemoryOutbox
 from service.push.targets import add_webhook
+from service.store import NewEvent, StateStore, VehicleWrite
+from service.store.sqlite import SQLiteStore
 
 __all__ = ["BENCH_VEHICLES", "TARGET_P99_MS", "rows", "run"]
 
@@ -91,7 +97,7 @@ def _receive_mqtt(port: int, out: str, ready: Any, stop: Any) -> None:
 
     arrivals: list[tuple[float, bytes, str]] = []
     client = paho.Client(paho.CallbackAPIVersion.VERSION2)
-    client.on_message = lambda _client, _data, message: arrivals.append((time.time(), message.payload, ""))
+    client.on_message = lambda _client, _data, message: arrivals.append((time.time(), bytes(message.payload), ""))
     client.on_connect = lambda the_client, *args: the_client.subscribe(f"csws/{FLEET}/+/events", qos=1)
     client.on_subscribe = lambda *args: ready.set()
     client.connect("127.0.0.1", port)
@@ -110,29 +116,93 @@ def _write_arrivals(out: str, arrivals: list[tuple[float, bytes, str]]) -> None:
             file.write(json.dumps(row) + "\n")
 
 
-def _write(outbox: MemoryOutbox, vehicles: int, seconds: float) -> int:
+#: The outboxes the runs read: in memory, and the SQLite state store's.
+OUTBOXES = ("memory", "sqlite")
+#: The writes a second into each outbox: in memory a hundredth of the vehicles every 10 ms; into the store a
+#: tenth every 100 ms, one transaction each, as batch requests of a thousand vehicles write them (every
+#: transaction with events is synced to disk, some 10 ms here, so a hundred a second would be the disk's limit).
+SLOTS_PER_S = {"memory": 100, "sqlite": 10}
+
+
+class _StoreWriter:
+    """Writes a slot's events into a state store as the service does: each with its vehicle's session, in one
+    ``StateStore.write`` (one transaction), each vehicle at the session version its last write left."""
+
+    def __init__(self, store: StateStore) -> None:
+        self.store = store
+        self.versions: dict[str, int] = {}
+
+    def write_slot(self, events: list[tuple[str, int, float, bytes]]) -> None:
+        """Write ``events`` (vehicle id, number, time, JSON) of :data:`FLEET`; raise if a write was refused."""
+        writes = {}
+        for vehicle_id, seq, time_s, body in events:
+            key = f"{FLEET}/{vehicle_id}"
+            event = NewEvent(FLEET, seq, time_s, body)
+            writes[key] = VehicleWrite(self.versions.get(key, 0), b"session", events=(event,))
+        if refused := self.store.write(writes):
+            raise RuntimeError(f"{len(refused)} session writes refused")
+        for key in writes:
+            self.versions[key] = self.versions.get(key, 0) + 1
+
+
+class _MemoryWriter:
+    """Writes a slot's events into a :class:`MemoryOutbox`."""
+
+    def __init__(self, outbox: MemoryOutbox) -> None:
+        self.outbox = outbox
+
+    def write_slot(self, events: list[tuple[str, int, float, bytes]]) -> None:
+        for vehicle_id, _seq, _time_s, body in events:
+            self.outbox.write(FLEET, vehicle_id, body)
+
+
+def _write(outbox: _StoreWriter | _MemoryWriter, vehicles: int, seconds: float, slots: int) -> int:
     """Write each vehicle's event once a second for ``seconds``, spread over the second; the events written."""
     written, started = 0, time.time()
-    slots = 100  # a hundredth of the vehicles every 10 ms
     per_slot = vehicles / slots
     for tick in range(int(seconds * slots)):
         while time.time() < started + tick / slots:
             time.sleep(0.001)
         seq = tick // slots + 1
         first, last = int((tick % slots) * per_slot), int((tick % slots + 1) * per_slot)
+        events = []
         for vehicle in range(first, last):
+            now_s = time.time()
             body = {
                 "fleet": FLEET,
                 "vehicle_id": f"v{vehicle}",
                 "seq": seq,
                 "kind": "state",
-                "time": time.time(),
+                "time": now_s,
                 "level": 0,
                 "state": "active",
             }
-            outbox.write(FLEET, f"v{vehicle}", json.dumps(body).encode())
-            written += 1
+            events.append((f"v{vehicle}", seq, now_s, json.dumps(body).encode()))
+        outbox.write_slot(events)
+        written += len(events)
     return written
+
+
+def _write_into_store(path: Path, vehicles: int, seconds: float, written: Any) -> None:
+    """A writer's process: :func:`_write` into the SQLite store at ``path``; the events written in ``written``."""
+    store = SQLiteStore(path, 600.0)
+    try:
+        written.value = _write(_StoreWriter(store), vehicles, seconds, SLOTS_PER_S["sqlite"])
+    finally:
+        store.close()
+
+
+def _write_elsewhere(path: Path, vehicles: int, seconds: float) -> int:
+    """:func:`_write` into the SQLite store at ``path`` from a process of its own, as the service's workers write
+    while push reads in one of them; the events written."""
+    spawn = multiprocessing.get_context("spawn")
+    written = spawn.Value("q", 0)
+    writer = spawn.Process(target=_write_into_store, args=(path, vehicles, seconds, written))
+    writer.start()
+    writer.join(seconds + 60.0)
+    if writer.exitcode != 0:
+        raise RuntimeError(f"the writer's process ended with {writer.exitcode}")
+    return int(written.value)
 
 
 def _judged(out: str, written: int, secret: str | None) -> dict[str, Any]:
@@ -163,9 +233,12 @@ def _judged(out: str, written: int, secret: str | None) -> dict[str, Any]:
     }
 
 
-def _one_run(sink: str, vehicles: int, seconds: float, folder: Path) -> dict[str, Any]:
-    """Write for ``seconds`` with push to ``sink`` (webhook or mqtt) and judge what arrived."""
+def _one_run(sink: str, vehicles: int, seconds: float, folder: Path, kind: str = "memory") -> dict[str, Any]:
+    """Write for ``seconds`` into the outbox ``kind`` (memory or sqlite) with push to ``sink`` (webhook or mqtt)
+    and judge what arrived."""
     spawn = multiprocessing.get_context("spawn")
+    folder = folder / f"{sink}-{kind}"
+    folder.mkdir()
     stop, ready, out, port = spawn.Event(), spawn.Event(), str(folder / f"{sink}.jsonl"), _free_port()
     broker, secret, config = None, None, PushConfig(str(folder / f"{sink}.sqlite3"))
     if sink == "webhook":
@@ -180,11 +253,18 @@ def _one_run(sink: str, vehicles: int, seconds: float, folder: Path) -> dict[str
         receiver.start()
         ready.wait(30)
         config = PushConfig(config.state_db, mqtt_url=f"mqtt://127.0.0.1:{port}")
-    outbox = MemoryOutbox()
-    stop_push = start_push(config, outbox)
+    source: EventSource
+    if kind == "sqlite":
+        source = SQLiteStore(folder / "vehicles.sqlite3", 600.0)
+    else:
+        source = MemoryOutbox()
+    stop_push = start_push(config, source)
     time.sleep(WARM_UP_S)
     try:
-        written = _write(outbox, vehicles, seconds)
+        if isinstance(source, MemoryOutbox):
+            written = _write(_MemoryWriter(source), vehicles, seconds, SLOTS_PER_S[kind])
+        else:
+            written = _write_elsewhere(folder / "vehicles.sqlite3", vehicles, seconds)
         deadline = time.monotonic() + DRAIN_S
         while time.monotonic() < deadline and _pushed(config, sink) < written:
             time.sleep(0.1)
@@ -196,6 +276,8 @@ def _one_run(sink: str, vehicles: int, seconds: float, folder: Path) -> dict[str
         if broker is not None:
             broker.terminate()
             broker.wait(10)
+        if isinstance(source, SQLiteStore):
+            source.close()
     return _judged(out, written, secret)
 
 
@@ -234,19 +316,28 @@ def _start_mosquitto(port: int, folder: Path) -> subprocess.Popen[bytes]:
     return process
 
 
-def run(vehicles: int = BENCH_VEHICLES, seconds: float = WRITE_S) -> dict[str, Any]:
-    """Both runs, one after the other, with the machine's load average at the start."""
+def run(vehicles: int = BENCH_VEHICLES, seconds: float = WRITE_S, outboxes: tuple[str, ...] = OUTBOXES) -> dict:
+    """The runs of each sink and outbox, one after the other, with the machine's load average at the start."""
     with tempfile.TemporaryDirectory(prefix="csws-push-bench-") as folder:
         load = os.getloadavg()[0]
-        figures = {sink: _one_run(sink, vehicles, seconds, Path(folder)) for sink in ("webhook", "mqtt")}
+        figures = {
+            _name(sink, kind): _one_run(sink, vehicles, seconds, Path(folder), kind)
+            for kind in outboxes
+            for sink in ("webhook", "mqtt")
+        }
     return {"vehicles": vehicles, "seconds": seconds, "load_average": load, **figures}
+
+
+def _name(sink: str, kind: str) -> str:
+    """The figures' name of a run: the sink, with ``-sqlite`` when it read the SQLite store's outbox."""
+    return sink if kind == "memory" else f"{sink}-{kind}"
 
 
 def rows(figures: dict[str, Any]) -> list[Row]:
     """The table's rows: rate, loss, order and p99 of each sink."""
     result: list[Row] = []
     size = f"{figures['vehicles']:,} vehicles at 1 Hz for {figures['seconds']:g} s, load {figures['load_average']:.1f}"
-    for sink in ("webhook", "mqtt"):
+    for sink in [name for name in figures if name.partition("-")[0] in ("webhook", "mqtt")]:
         each = figures[sink]
         offered = figures["vehicles"]
         result += [
@@ -262,8 +353,8 @@ def rows(figures: dict[str, Any]) -> list[Row]:
                 f"push {sink}: write to arrival p99, ms", each["p99_ms"], TARGET_P99_MS, f"p50 {each['p50_ms']:.1f} ms"
             ),
         ]
-        if sink == "webhook":
-            result.append(at_most("push webhook: signatures that do not verify", each["bad_signatures"], 0))
+        if sink.startswith("webhook"):
+            result.append(at_most(f"push {sink}: signatures that do not verify", each["bad_signatures"], 0))
     return result
 
 
@@ -273,4 +364,4 @@ if __name__ == "__main__":
     arguments = [float(argument) for argument in sys.argv[1:3]]
     measured = run(int(arguments[0]) if arguments else BENCH_VEHICLES, arguments[1] if len(arguments) > 1 else WRITE_S)
     print(table(rows(measured)))
-    print(json.dumps({sink: measured[sink] for sink in ("webhook", "mqtt")}, indent=1))
+    print(json.dumps({name: value for name, value in measured.items() if isinstance(value, dict)}, indent=1))

@@ -19,7 +19,11 @@ Hersfeld. Figures:
 * the first query on each of 1,000 never-queried lanes of Bad Hersfeld (a fix at the middle of
   the lane, as a batch of one, so that the server times it);
 * the start-up (to the first ready ``/readyz``) of the default serve, of Bad Hersfeld alone, and
-  of the default serve with two workers, and the memory of each of those workers.
+  of the default serve with two workers, and the memory of each of those workers;
+* the cost of the warning events' outbox (:func:`outbox_figures`): single queries and the 10,000-query
+  batch of vehicles whose warnings start and end (on a tenth of the answers, and on every answer) against
+  the same vehicles driving steadily, which make none (the outbox cannot be switched off);
+* ``POST /v1/traccar``: positions in Traccar's forwarding format on Bad Hersfeld, sequential, per second.
 
 Run with ``python -m benchmarks.service``.
 """
@@ -28,8 +32,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import sqlite3
 import tempfile
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 
 import httpx
@@ -40,6 +47,7 @@ from fastapi.responses import Response
 from csws.networks import networks_dir
 from csws.road.matching import lane_points
 from csws.road.roadmap import RoadMap
+from service.traccar import KNOT_KMH
 
 from .servers import Running, children, csws_serve, memory_mb, start
 
@@ -50,6 +58,19 @@ SINGLE_ROUNDS = 10
 BATCH_SIZE = 10_000
 BATCH_REPEATS = 5
 FIRST_QUERIES = 1000
+#: The speeds of the drive that makes warning events, km/h, one a tick: at 130 km/h every curve of the Table 7
+#: track ahead within its warning distance warns, at 10 km/h (under every V_w) none does, so the level of each
+#: vehicle whose curve is near rises and falls again with every tick (curve_onset, curve_release).
+EVENT_SPEEDS_KMH = (130.0, 10.0)
+#: Sizes of the outbox's measurement: single requests per kind, and batch ticks.
+EVENT_SINGLE_REQUESTS = 1000
+EVENT_BATCH_REPEATS = 4
+#: The drive with some events: one vehicle in this many changes speed (batch), or a vehicle changes it every this
+#: many requests (single): a warning starting or ending on a tenth of the answers.
+EVENT_TURN_EVERY = 10
+#: Positions posted to ``/v1/traccar``, one per device each round, and the rounds.
+TRACCAR_DEVICES = 200
+TRACCAR_ROUNDS = 5
 #: Sensor objects in each query of the batch with objects.
 OBJECTS_PER_QUERY = 5
 #: GNSS noise of the fixes on Bad Hersfeld's roads: position (per axis) and heading, m and degrees.
@@ -64,6 +85,8 @@ TARGETS = {
     "batch_xy_default_ms": "<= 150",
     "batch_objects_ratio": "<= 2.0",
     "first_query_ms_p99": "<= 10",
+    "outbox_batch_ratio_some": "<= 1.10",
+    "outbox_single_ratio_some": ">= 0.90",
 }
 
 trivial_app = FastAPI()
@@ -232,6 +255,140 @@ def batch_ms(service: Running, queries: list[dict], repeats: int = BATCH_REPEATS
     return {**stages, "round_trip": round(float(np.median(round_trip_ms)), 1)}
 
 
+def outbox_events(state_db: Path) -> int:
+    """How many events the service's SQLite outbox holds (what the drives made)."""
+    with sqlite3.connect(state_db) as db:
+        return int(db.execute("SELECT count(*) FROM vehicle_events").fetchone()[0])
+
+
+def _turning(query: dict, vehicle_id: str, turn_every: int | None, count: int) -> list[bytes]:
+    """``count`` requests of one vehicle: at the first of :data:`EVENT_SPEEDS_KMH` throughout (``turn_every``
+    None), or changing to the next one every ``turn_every`` requests."""
+    speeds = [EVENT_SPEEDS_KMH[0 if turn_every is None else k // turn_every % 2] for k in range(count)]
+    return [json.dumps({**query, "vehicle_id": vehicle_id, "speed_kmh": v}).encode() for v in speeds]
+
+
+def single_event_rates(service: Running, state_db: Path, query: dict, count: int = EVENT_SINGLE_REQUESTS) -> dict:
+    """Requests per second of sequential ``POST /v1/warning`` of three vehicles: one at a steady speed (no event
+    after its first answer), one changing its speed every :data:`EVENT_TURN_EVERY` requests and one every request
+    (an event on each), in interleaved rounds; and the events per request of each."""
+    headers = {"content-type": "application/json"}
+    per_round = count // SINGLE_ROUNDS
+    turns = {"steady": None, "some": EVENT_TURN_EVERY, "every": 1}
+    bodies = {name: _turning(query, f"single-{name}", every, per_round) for name, every in turns.items()}
+    elapsed_s, events = dict.fromkeys(turns, 0.0), dict.fromkeys(turns, 0)
+    with httpx.Client(base_url=service.url) as client:
+        for name in turns:
+            client.post("/v1/warning", content=bodies[name][-1], headers=headers).raise_for_status()
+        for _ in range(SINGLE_ROUNDS):
+            for name in turns:
+                before = outbox_events(state_db)
+                started = time.perf_counter()
+                for body in bodies[name]:
+                    client.post("/v1/warning", content=body, headers=headers).raise_for_status()
+                elapsed_s[name] += time.perf_counter() - started
+                events[name] += outbox_events(state_db) - before
+    requests = per_round * SINGLE_ROUNDS
+    return {name: (requests / elapsed_s[name], events[name] / requests) for name in turns}
+
+
+def _event_batches(served: Running, state_db: Path, queries: list[dict]) -> dict[int, dict]:
+    """The median server time of the batch and of its stages, ms, and the events per tick, of three fleets of
+    ``queries`` (vehicles of their own) at the first of :data:`EVENT_SPEEDS_KMH`: steady (0), one vehicle in
+    :data:`EVENT_TURN_EVERY` changing speed every tick, and every vehicle (1); their ticks interleaved, so that
+    each fleet sees the same machine load, one second apart after one that starts the sessions."""
+    fleets = {
+        every: [{**q, "vehicle_id": f"{q['vehicle_id']}-{every}"} for q in queries]
+        for every in (0, EVENT_TURN_EVERY, 1)
+    }
+    timings: dict[int, list[dict[str, float]]] = {every: [] for every in fleets}
+    events = dict.fromkeys(fleets, 0)
+    with httpx.Client(base_url=served.url, timeout=60.0) as client:
+        for tick in range(EVENT_BATCH_REPEATS + 1):
+            for every, vehicles in fleets.items():
+                speed = {"speed_kmh": EVENT_SPEEDS_KMH[tick % 2]}
+                ticked = [
+                    {**q, "speed_kmh": EVENT_SPEEDS_KMH[0], "timestamp_s": 1000.0 + tick}
+                    | (speed if every and not k % every else {})
+                    for k, q in enumerate(vehicles)
+                ]
+                before = outbox_events(state_db)
+                response = client.post("/v1/warnings", json={"queries": ticked})
+                response.raise_for_status()
+                if tick:
+                    timings[every].append(server_timing(response.headers["server-timing"]))
+                    events[every] += outbox_events(state_db) - before
+    return {
+        every: {name: round(float(np.median([t.get(name, 0.0) for t in rows])), 1) for name in rows[0]}
+        | {"events_per_tick": round(events[every] / EVENT_BATCH_REPEATS)}
+        for every, rows in timings.items()
+    }
+
+
+def outbox_figures(state_db: Path, queries: list[dict]) -> dict:
+    """The cost of writing warning events (the outbox cannot be switched off, so against drives that make none):
+    single queries and the 10,000-query batch by lane id on the Table 7 track, steady (no event after the first
+    answer) against vehicles changing speed so that their warnings start and end, on one service."""
+    served = csws_serve(state_db, "--net", str(TRACK_NET))
+    try:
+        single = single_event_rates(served, state_db, queries[0])
+        batches = _event_batches(served, state_db, queries)
+    finally:
+        served.stop()
+    figures: dict = {"outbox_load_average": round(os.getloadavg()[0], 1)}
+    for name, (rate, per_request) in single.items():
+        figures[f"outbox_single_rps_{name}"] = round(rate, 1)
+        figures[f"outbox_single_events_per_request_{name}"] = round(per_request, 2)
+    for every, stages in batches.items():
+        name = {0: "steady", 1: "every"}.get(every, "some")
+        figures[f"outbox_batch_{name}_ms"] = stages.pop("csws")
+        figures[f"outbox_batch_{name}_events_per_tick"] = stages.pop("events_per_tick")
+        figures[f"outbox_batch_{name}_stages_ms"] = stages
+    for kind in ("some", "every"):
+        figures[f"outbox_single_ratio_{kind}"] = round(
+            figures[f"outbox_single_rps_{kind}"] / figures["outbox_single_rps_steady"], 3
+        )
+        figures[f"outbox_batch_ratio_{kind}"] = round(
+            figures[f"outbox_batch_{kind}_ms"] / figures["outbox_batch_steady_ms"], 3
+        )
+    return figures
+
+
+def traccar_payloads(road_map: RoadMap, count: int, fix_time: str) -> list[bytes]:
+    """Positions of ``count`` trucks on a geo-referenced map's roads in Traccar's forwarding format
+    (``forward.type=json``: degrees, knots, ``course``, ``fixTime``), encoded."""
+    payloads = []
+    for number, fix in enumerate(road_fixes(road_map, count, seed=13)):
+        lon, lat = road_map.xy_to_lonlat(fix["position"]["x"], fix["position"]["y"])
+        position = {
+            "id": number, "deviceId": number, "protocol": "osmand", "fixTime": fix_time, "deviceTime": fix_time,
+            "serverTime": fix_time, "outdated": False, "valid": True, "latitude": lat, "longitude": lon,
+            "altitude": 200.0, "speed": fix["speed_kmh"] / KNOT_KMH, "course": fix["heading_deg"], "accuracy": 3.0,
+            "attributes": {"motion": True},
+        }  # fmt: skip
+        device = {"id": number, "name": f"truck-{number}", "uniqueId": f"86612345{number:07d}", "category": "truck"}
+        payloads.append(json.dumps({"position": position, "device": device}).encode())
+    return payloads
+
+
+def traccar_rate(served: Running, road_map: RoadMap, devices: int = TRACCAR_DEVICES) -> float:
+    """Positions per second of sequential keep-alive ``POST /v1/traccar``: each device's position once a round,
+    every round with the fix time of its start (the fixes are fresh, so evaluated)."""
+    headers = {"content-type": "application/json"}
+    elapsed_s = 0.0
+    with httpx.Client(base_url=served.url) as client:
+        for _ in range(TRACCAR_ROUNDS):
+            fix_time = datetime.now(UTC).isoformat(timespec="milliseconds")
+            payloads = traccar_payloads(road_map, devices, fix_time)
+            started = time.perf_counter()
+            for payload in payloads:
+                response = client.post("/v1/traccar", content=payload, headers=headers)
+                if response.status_code != 200:  # 202: a position not evaluated
+                    raise RuntimeError(f"/v1/traccar answered {response.status_code}: {response.text[:200]}")
+            elapsed_s += time.perf_counter() - started
+    return devices * TRACCAR_ROUNDS / elapsed_s
+
+
 def first_queries_ms(service: Running, road_map: RoadMap, count: int = FIRST_QUERIES, seed: int = 3) -> np.ndarray:
     """The server time of the first query on each of ``count`` random truck lanes of a map no query
     reached before: a new vehicle at the middle of the lane, sent as a batch of one, ms."""
@@ -309,6 +466,7 @@ def run() -> dict:
         real = csws_serve(Path(folder) / "real.sqlite3", "--net", str(REAL_NET))
         try:
             first_ms = first_queries_ms(real, real_map)
+            figures["traccar_positions_per_s"] = round(traccar_rate(real, real_map), 1)
         finally:
             real.stop()
         figures |= {
@@ -319,6 +477,7 @@ def run() -> dict:
             "first_query_ms_max": round(float(first_ms.max()), 2),
         }
         figures |= _workers_memory(Path(folder) / "workers.sqlite3")
+        figures |= outbox_figures(Path(folder) / "outbox.sqlite3", lane_queries(RoadMap.load(TRACK_NET), BATCH_SIZE))
     return figures
 
 

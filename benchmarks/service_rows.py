@@ -7,6 +7,7 @@ from __future__ import annotations
 from benchmarks import (
     fleet,
     load,
+    service,
 )
 from benchmarks.rows import Row, at_least, at_most, context
 
@@ -65,6 +66,38 @@ def _stages(stages_ms: dict) -> str:
     return ", ".join(f"{name} {ms:.0f}" for name, ms in stages_ms.items() if name != "round_trip") + " ms"
 
 
+def outbox_rows(figures: dict) -> list[Row]:
+    """The cost of the warning events' outbox: drives whose warnings start and end (single: on a tenth of the
+    answers; batch: a tenth of the vehicles changing speed every tick) and the worst case (every answer, every
+    vehicle), against the same vehicles driving steadily (events only where a warning changes by itself)."""
+    load_average = f"load average {figures['outbox_load_average']:g}"
+    steady_batch, steady_rps = figures["outbox_batch_steady_ms"], figures["outbox_single_rps_steady"]
+    return [
+        at_most(
+            "service: outbox, batch of 10,000 with 1/10 of the vehicles changing speed / steady",
+            figures["outbox_batch_ratio_some"],
+            1.10,
+            f"{figures['outbox_batch_some_ms']:g} vs {steady_batch:g} ms, "
+            f"{figures['outbox_batch_some_events_per_tick']} vs {figures['outbox_batch_steady_events_per_tick']} "
+            f"events a tick; {load_average}",
+        ),
+        at_least(
+            "service: outbox, single queries with events on 1/10 of the answers / steady",
+            figures["outbox_single_ratio_some"],
+            0.90,
+            f"{figures['outbox_single_rps_some']:.0f} vs {steady_rps:.0f} req/s; {load_average}",
+        ),
+        context(
+            "service: outbox, every vehicle changing speed / steady: batch, single",
+            f"{figures['outbox_batch_ratio_every']:g}, {figures['outbox_single_ratio_every']:g}",
+            f"{figures['outbox_batch_every_ms']:g} ms ({figures['outbox_batch_every_events_per_tick']} events), "
+            f"{figures['outbox_single_rps_every']:.0f} req/s; write stage "
+            f"{figures['outbox_batch_every_stages_ms']['write']:g} vs "
+            f"{figures['outbox_batch_steady_stages_ms']['write']:g} ms",
+        ),
+    ]
+
+
 def service_rows(figures: dict) -> list[Row]:
     trivial = f"vs {figures['trivial_rps']:.0f} req/s (trivial endpoint)"
     return [
@@ -97,6 +130,12 @@ def service_rows(figures: dict) -> list[Row]:
             figures["first_query_ms_p99"],
             10.0,
             f"p50 {figures['first_query_ms_p50']:g}, max {figures['first_query_ms_max']:g} ms (server time)",
+        ),
+        *outbox_rows(figures),
+        context(
+            "service: POST /v1/traccar, Traccar-forwarded positions per second, sequential, Bad Hersfeld",
+            figures["traccar_positions_per_s"],
+            f"{service.TRACCAR_DEVICES} devices x {service.TRACCAR_ROUNDS} rounds, one keep-alive connection",
         ),
         context(
             "service: start-up s, default serve / Bad Hersfeld / default serve with 2 workers",

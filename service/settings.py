@@ -5,7 +5,7 @@ the same way as ``csws serve``:
 
 ``CSWS_NETS`` (network files separated by ``os.pathsep``; default the bundled city), ``CSWS_TEST_TRACKS``,
 ``CSWS_HOST``, ``CSWS_PORT``, ``CSWS_WORKERS``, ``CSWS_STATE``, ``CSWS_STATE_DB``, ``CSWS_SESSION_IDLE_S``,
-``CSWS_EVENT_RETENTION_S``,
+``CSWS_EVENT_RETENTION_S``, ``CSWS_EVENT_RETENTION_BY_FLEET`` (a JSON object of seconds by fleet),
 ``CSWS_MATCH_TOLERANCE_M``, ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
 ``CSWS_MATCH_HEADING_SIGMA_DEG``, ``CSWS_MATCH_LANE_CHANGE_LOG_P``, ``CSWS_MATCH_DEAD_RECKONING_S``,
 ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``, ``CSWS_ACTIVATION_SPEED_KMH``,
@@ -34,6 +34,7 @@ from csws.engine import EngineSettings
 from csws.road.matching import MatchSettings
 from csws.warning.rules import WarningSettings
 
+from .keys import FLEET_PATTERN
 from .networks import city_network_paths, track_network_paths
 from .store import DEFAULT_EVENT_RETENTION_S, MAX_SESSION_IDLE_S
 
@@ -88,6 +89,11 @@ class ServiceSettings(BaseSettings):
         gt=0,
         le=MAX_SESSION_IDLE_S,
         description="the outbox keeps each warning event this long, s (docs/events.md; default 7 days)",
+    )
+    event_retention_by_fleet: dict[str, Annotated[float, Field(gt=0, le=MAX_SESSION_IDLE_S)]] = Field(
+        default_factory=dict,
+        description='fleets whose warning events are kept for a time of their own, s by fleet, e.g. {"acme": 86400} '
+        "(JSON); the others' are kept for event_retention_s",
     )
     match_tolerance_m: float = Field(
         default=_MATCH.tolerance_m, gt=0, description="a fix matches lanes within this distance, m"
@@ -200,6 +206,16 @@ class ServiceSettings(BaseSettings):
 
         value = value.strip()
         return check_mqtt_url(value) if value else value
+
+    @field_validator("event_retention_by_fleet")
+    @classmethod
+    def _fleet_names(cls, value: dict[str, float]) -> dict[str, float]:
+        """Each fleet named as API keys name fleets (``service.keys.FLEET_PATTERN``), so that none is a typo that
+        no key could ever match."""
+        for fleet in value:
+            if not FLEET_PATTERN.fullmatch(fleet):
+                raise ValueError(f"not a fleet name: {fleet[:70]!r} (letters, digits, '_', '.', '-')")
+        return value
 
     @field_validator("state")
     @classmethod

@@ -16,7 +16,8 @@ It holds, per vehicle (by its key, :func:`service.keys.vehicle_key`):
   and a write refused for a version conflict leaves none; numbered per vehicle (``seq``, from 1
   without gaps: the last number is kept per vehicle, beyond its session), read in outbox order per
   fleet (:meth:`StateStore.events_after`) or per vehicle by time (:meth:`StateStore.vehicle_events`),
-  and kept for the retention time (:data:`DEFAULT_EVENT_RETENTION_S`), trimmed as the store writes.
+  and kept for their fleet's retention time (:class:`EventRetention`; :data:`DEFAULT_EVENT_RETENTION_S`
+  unless set), trimmed as the store writes.
 
 Two backends implement :class:`StateStore`: SQLite in WAL mode (:mod:`service.store.sqlite`),
 the embedded default for the workers of one machine, and Redis (:mod:`service.store.redis`),
@@ -50,6 +51,7 @@ __all__ = [
     "NewEvent",
     "StoredEvent",
     "checked_idle_s",
+    "EventRetention",
     "StoreUnavailable",
     "VehicleSetting",
     "StoredVehicle",
@@ -82,6 +84,47 @@ def checked_idle_s(idle_s: float) -> float:
             f"got {idle_s!r} s"
         )
     return float(idle_s)
+
+
+class EventRetention:
+    """How long the outbox keeps an event after it was written: a fleet's own time, else the service's.
+
+    Parameters
+    ----------
+    default_s
+        The service's retention time (``CSWS_EVENT_RETENTION_S``), s.
+    fleets_s
+        Fleets with a retention time of their own (``CSWS_EVENT_RETENTION_BY_FLEET``), s by fleet name.
+
+    Raises
+    ------
+    ValueError
+        If a time is not positive or longer than a store can hold (:data:`MAX_SESSION_IDLE_S`).
+    """
+
+    def __init__(
+        self, default_s: float = DEFAULT_EVENT_RETENTION_S, fleets_s: Mapping[str, float] | None = None
+    ) -> None:
+        self.default_s = checked_idle_s(default_s)
+        self.fleets_s = {fleet: checked_idle_s(s) for fleet, s in (fleets_s or {}).items()}
+
+    def of(self, fleet: str) -> float:
+        """The retention time of ``fleet``'s events, s."""
+        return self.fleets_s.get(fleet, self.default_s)
+
+    def of_key(self, vehicle_key: str) -> float:
+        """The retention time of the events of the vehicle kept as ``vehicle_key``, s: its fleet's, the fleet being
+        what comes before the key's first ``/`` (:func:`service.keys.vehicle_key`)."""
+        fleet, slash, _ = vehicle_key.partition("/")
+        return self.of(fleet if slash else "")
+
+    @property
+    def longest_s(self) -> float:
+        """The longest retention time of any fleet, s: what an outbox of every fleet keeps."""
+        return max([self.default_s, *self.fleets_s.values()])
+
+    def __repr__(self) -> str:
+        return f"EventRetention({self.default_s!r}, {self.fleets_s!r})"
 
 
 class StoreUnavailable(OSError):
@@ -345,7 +388,8 @@ def open_store(settings: ServiceSettings, clock: Callable[[], float] = time.time
     Parameters
     ----------
     settings
-        The service's settings (``state``, ``state_db``, ``session_idle_s``, ``event_retention_s``).
+        The service's settings (``state``, ``state_db``, ``session_idle_s``, ``event_retention_s``,
+        ``event_retention_by_fleet``).
     clock
         Seconds of the clock that dates SQLite sessions (Redis expires its own).
 
@@ -359,7 +403,11 @@ def open_store(settings: ServiceSettings, clock: Callable[[], float] = time.time
     if settings.state:
         from .redis import RedisStore
 
-        return RedisStore(settings.state, settings.session_idle_s, settings.event_retention_s)
+        return RedisStore(
+            settings.state, settings.session_idle_s, settings.event_retention_s, settings.event_retention_by_fleet
+        )
     from .sqlite import SQLiteStore
 
-    return SQLiteStore(settings.state_db, settings.session_idle_s, clock, settings.event_retention_s)
+    return SQLiteStore(
+        settings.state_db, settings.session_idle_s, clock, settings.event_retention_s, settings.event_retention_by_fleet
+    )

@@ -13,15 +13,19 @@ its own):
   a vehicle whose session expired leaves them when a read of places finds it gone;
 * the outbox (:mod:`service.events`): ``csws:outbox``, a stream of every fleet's events, and
   ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
-  trimmed to the retention time (``MINID``) as events are added; ``csws:history:{vehicle}``, a
-  vehicle's events in a sorted set by their times (``{id}|{event}`` each, the id's sequence number
-  zero-padded so that events of one time sort in outbox order), whose earliest entries written
-  before the retention time are taken out as events are added (those a read finds are left out),
-  and deleted (a few per write) once its last event is older than the retention time, which the sorted set
-  ``csws:histories`` tells (no key of the outbox expires by TTL, so that the sessions are what
-  ``INFO keyspace`` counts as expiring); ``csws:event-seq:{vehicle}``, the number of the
-  vehicle's last event, read with its session; no expiry. All are written by the script that writes
-  the session.
+  trimmed as events are added (``MINID``): a fleet's stream to the fleet's retention time, the
+  stream of every fleet to the longest (:class:`service.store.EventRetention`);
+  ``csws:history:{vehicle}``, a vehicle's events in a sorted set by their times (``{id}|{event}``
+  each, the id's sequence number zero-padded so that events of one time sort in outbox order), whose
+  earliest entries written before its fleet's retention time are taken out as events are added, and
+  deleted (a few per write) once its last event is past its fleet's retention time, which the sorted
+  set ``csws:histories`` tells (scored by when that last event was written, plus its fleet's
+  retention time less the longest: a score older than the longest retention time marks a history
+  past its own); ``csws:event-seq:{vehicle}``, the number of the vehicle's last event, read with its
+  session. All are written by the script that writes the session; none expires by TTL, so that the
+  sessions are what ``INFO keyspace`` counts as expiring. The reads leave out what is past its
+  fleet's retention time and not yet trimmed, a vehicle's fleet being its key's
+  (:meth:`service.store.EventRetention.of_key`).
 
 Reading places (:meth:`RedisStore.placed`) is one server-side script too: it walks the fleet's
 keys in order from the cursor, a thousand at a time, and keeps those whose place is on the
@@ -43,6 +47,7 @@ are :class:`service.store.StoreUnavailable`.
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from collections.abc import Collection, Mapping, Sequence
@@ -59,6 +64,7 @@ from . import (
     DEFAULT_EVENT_RETENTION_S,
     STORE_TIMEOUT_S,
     Box,
+    EventRetention,
     Place,
     PlacedSession,
     StateStore,
@@ -95,9 +101,10 @@ EVENT_SEQ_PREFIX = "csws:event-seq:"
 _CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 
 #: KEYS: the places hash and the placed set, then per vehicle its session key and its setting key.
-#: ARGV: the sessions' time to live in ms, the events' retention in ms, the number of vehicles, then per
+#: ARGV: the sessions' time to live in ms, the longest retention of events in ms, the number of vehicles, then per
 #: vehicle its key, the expected version, the new session, the new setting and the new place ('' for
-#: none), then per event the (1-based) number of its vehicle, its fleet, number, time (s) and JSON.
+#: none), then per event the (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's
+#: retention in ms.
 #: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
 _WRITE_SCRIPT = (
     """
@@ -127,13 +134,16 @@ local first = 5 * vehicles + 4
 if first <= #ARGV then
   local now = redis.call('TIME')
   local now_s = tonumber(now[1]) + tonumber(now[2]) / 1e6
-  local oldest_id = tostring(math.floor(now_s * 1000 - tonumber(ARGV[2])))
-  local oldest_s = now_s - tonumber(ARGV[2]) / 1000
-  for at = first, #ARGV, 5 do
+  local longest_ms = tonumber(ARGV[2])
+  local oldest_s = now_s - longest_ms / 1000
+  for at = first, #ARGV, 6 do
     local key = written[tonumber(ARGV[at])]
     if key then
       local fleet, seq, time_s, body = ARGV[at + 1], ARGV[at + 2], ARGV[at + 3], ARGV[at + 4]
-      local id = redis.call('XADD', '__OUTBOX__', 'MINID', oldest_id, '*', 'k', key, 'b', body)
+      local retention_ms = tonumber(ARGV[at + 5])
+      local oldest_id = tostring(math.floor(now_s * 1000 - retention_ms))
+      local longest_id = tostring(math.floor(now_s * 1000 - longest_ms))
+      local id = redis.call('XADD', '__OUTBOX__', 'MINID', longest_id, '*', 'k', key, 'b', body)
       redis.call('XADD', '__OUTBOX__:' .. fleet, 'MINID', oldest_id, id, 'k', key, 'b', body)
       local history = '__HISTORY__' .. key
       local ms, sequence = string.match(id, '^(%d+)-(%d+)$')
@@ -143,7 +153,7 @@ if first <= #ARGV then
           redis.call('ZREM', history, old)
         end
       end
-      redis.call('ZADD', '__HISTORIES__', now_s, key)
+      redis.call('ZADD', '__HISTORIES__', now_s + (retention_ms - longest_ms) / 1000, key)
       redis.call('SET', '__SEQ__' .. key, seq)
     end
   end
@@ -193,6 +203,11 @@ while #found < 3 * limit do
 end
 return found
 """
+
+
+def _ms(duration_s: float) -> int:
+    """A duration in whole milliseconds, at least one, as the write script takes it."""
+    return max(1, round(duration_s * 1000.0))
 
 
 def shown_url(url: str) -> str:
@@ -247,6 +262,8 @@ class RedisStore(StateStore):
         A session not written for this long expires (its key's TTL), s.
     event_retention_s
         The outbox keeps an event this long, s.
+    fleet_retention_s
+        Fleets whose events are kept for a time of their own, s by fleet (:class:`service.store.EventRetention`).
 
     Raises
     ------
@@ -254,11 +271,17 @@ class RedisStore(StateStore):
         If the URL is malformed.
     """
 
-    def __init__(self, url: str, idle_s: float, event_retention_s: float = DEFAULT_EVENT_RETENTION_S) -> None:
+    def __init__(
+        self,
+        url: str,
+        idle_s: float,
+        event_retention_s: float = DEFAULT_EVENT_RETENTION_S,
+        fleet_retention_s: Mapping[str, float] | None = None,
+    ) -> None:
         idle_s = checked_idle_s(idle_s)
         self.name = shown_url(url)
         self.ttl_ms = max(1, round(idle_s * 1000.0))
-        self.retention_ms = max(1, round(checked_idle_s(event_retention_s) * 1000.0))
+        self.event_retention = EventRetention(event_retention_s, fleet_retention_s)
         try:
             # One immediate retry on a broken connection (one the pool kept across a restart of
             # Redis), none on a timeout: a request waits at most about STORE_TIMEOUT_S for its answer.
@@ -316,7 +339,7 @@ class RedisStore(StateStore):
             return set()
         vehicle_ids = list(writes)
         keys: list[str] = [PLACES_KEY, PLACED_KEY]
-        args: list[int | str | bytes] = [self.ttl_ms, self.retention_ms, len(vehicle_ids)]
+        args: list[int | str | bytes] = [self.ttl_ms, _ms(self.event_retention.longest_s), len(vehicle_ids)]
         events: list[int | str | bytes] = []
         for number, vehicle_id in enumerate(vehicle_ids, 1):
             w = writes[vehicle_id]
@@ -329,7 +352,8 @@ class RedisStore(StateStore):
                 b"" if w.place is None else _encode_place(w.place),
             ]
             for event in w.events:
-                events += [number, event.fleet, event.seq, repr(event.time_s), event.body]
+                retention_ms = _ms(self.event_retention.of(event.fleet))
+                events += [number, event.fleet, event.seq, repr(event.time_s), event.body, retention_ms]
         args += events
         try:
             conflicts = self._write_script(keys=keys, args=args)
@@ -358,23 +382,49 @@ class RedisStore(StateStore):
         return placed
 
     def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
-        """Read from the stream of every fleet or of ``fleet``; the cursor is the entry's id."""
+        """Read from the stream of every fleet or of ``fleet``; the cursor is the entry's id. The read starts at the
+        oldest id within the retention time (the fleet's, or the longest), and in the stream of every fleet leaves
+        out the entries past their own fleet's, reading on until the page is full or the stream ends."""
         if after is not None and not _CURSOR.fullmatch(after):
             raise ValueError(f"not a cursor of this outbox: {after[:40]!r}")
+        now_ms = time.time() * 1000.0
+        retention_s = self.event_retention.longest_s if fleet is None else self.event_retention.of(fleet)
+        oldest_ms = math.ceil(now_ms - retention_s * 1000.0)
+        start = f"{oldest_ms}-0" if after is None or int(after.partition("-")[0]) < oldest_ms else "(" + after
         stream = OUTBOX_KEY if fleet is None else f"{OUTBOX_KEY}:{fleet}"
+        events: list[StoredEvent] = []
+        while len(events) < limit:
+            wanted = limit - len(events)
+            entries = self._entries(stream, start, wanted)
+            events += [
+                StoredEvent(entry_id, key, body)
+                for entry_id, key, body in entries
+                if fleet is not None or int(entry_id.partition("-")[0]) >= now_ms - self._retention_ms(key)
+            ]
+            if fleet is not None or len(entries) < wanted:
+                break
+            start = "(" + entries[-1][0]
+        return events
+
+    def _entries(self, stream: str, start: str, count: int) -> list[tuple[str, str, bytes]]:
+        """Id, vehicle key and event of at most ``count`` entries of ``stream`` from ``start`` on."""
         try:
-            entries = self._redis.xrange(stream, "-" if after is None else "(" + after, "+", count=limit)
+            entries = self._redis.xrange(stream, start, "+", count=count)
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         return [
-            StoredEvent(entry_id.decode(), fields[b"k"].decode(), fields[b"b"])
+            (entry_id.decode(), fields[b"k"].decode(), fields[b"b"])
             for entry_id, fields in cast(list[tuple[bytes, dict[bytes, bytes]]], entries)
         ]
 
+    def _retention_ms(self, vehicle_key: str) -> float:
+        """How long the events of the vehicle kept as ``vehicle_key`` are kept, ms."""
+        return self.event_retention.of_key(vehicle_key) * 1000.0
+
     def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
         """Read from the vehicle's sorted set by time (entries of equal times in the order of their ids), leaving out
-        those written before the retention time that are still there."""
-        oldest_ms = time.time() * 1000.0 - self.retention_ms
+        those written before its fleet's retention time that are still there."""
+        oldest_ms = time.time() * 1000.0 - self._retention_ms(vehicle_key)
         events: list[StoredEvent] = []
         offset = 0
         while len(events) < limit:

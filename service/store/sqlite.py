@@ -13,8 +13,9 @@ page would cost what the box holds, not what the page does.
 
 The outbox of events (:mod:`service.store.sqlite_outbox`): a vehicle's events are inserted in the
 transaction of its session, and the number of its last one (``vehicle_event_seqs``) is read with the
-session, in the same statement. Events older than the retention time (by when they were written) are
-deleted with the expired sessions.
+session, in the same statement. Events older than their fleet's retention time (by when they were
+written; :class:`service.store.EventRetention`) are deleted with the expired sessions, and left out of
+the reads until then.
 
 A request reads its vehicles with one statement (one snapshot) and writes them in one
 ``BEGIN IMMEDIATE`` transaction: each session is written only over the version read, by an
@@ -57,6 +58,7 @@ from . import (
     DEFAULT_EVENT_RETENTION_S,
     STORE_TIMEOUT_S,
     Box,
+    EventRetention,
     Place,
     PlacedSession,
     StateStore,
@@ -187,6 +189,8 @@ class SQLiteStore(StateStore):
         without waiting).
     event_retention_s
         The outbox keeps an event this long after it was written, s.
+    fleet_retention_s
+        Fleets whose events are kept for a time of their own, s by fleet (:class:`service.store.EventRetention`).
 
     Raises
     ------
@@ -200,11 +204,12 @@ class SQLiteStore(StateStore):
         idle_s: float,
         clock: Callable[[], float] = time.time,
         event_retention_s: float = DEFAULT_EVENT_RETENTION_S,
+        fleet_retention_s: Mapping[str, float] | None = None,
     ) -> None:
         idle_s = checked_idle_s(idle_s)
         self.name = str(path)
         self.idle_s = float(idle_s)
-        self.event_retention_s = float(event_retention_s)
+        self.event_retention = EventRetention(event_retention_s, fleet_retention_s)
         self.clock = clock
         self._swept_s = -float("inf")
         self._pid = os.getpid()
@@ -214,7 +219,7 @@ class SQLiteStore(StateStore):
             self._create_private(Path(self.name))
         self._connection = self._connect()
         self._file = self._identity()
-        self._outbox = SQLiteOutbox(self.name, self.name in _NOT_FILES, lambda: self._db)
+        self._outbox = SQLiteOutbox(self.name, self.name in _NOT_FILES, lambda: self._db, self.event_retention, clock)
 
     @staticmethod
     def _create_private(path: Path) -> None:
@@ -385,7 +390,7 @@ class SQLiteStore(StateStore):
         if now_s - self._swept_s >= SWEEP_PERIOD_S:
             for statement in _SWEEP:
                 self._db.execute(statement, (oldest_live_s,))
-            self._outbox.trim(self._db, now_s - self.event_retention_s)
+            self._outbox.trim(self._db, now_s)
             self._swept_s = now_s
         return conflicts
 

@@ -4,7 +4,9 @@ The table ``vehicle_events``: its integer key, never reused (``AUTOINCREMENT``),
 and cursor; it is indexed by fleet and key (a fleet's stream) and by vehicle and time (a vehicle's
 history). The number of each vehicle's last event is kept in ``vehicle_event_seqs``, which the store
 reads with the vehicle's session. Events are written by :meth:`SQLiteOutbox.write` inside the store's
-write transaction, and read on a connection of their own (:meth:`SQLiteOutbox.reader`).
+write transaction, and read on a connection of their own (:meth:`SQLiteOutbox.reader`). An event is kept for
+its fleet's retention time (:class:`service.store.EventRetention`) after it was written: deleted by
+:meth:`SQLiteOutbox.trim`, and left out of the reads from then on until it is.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import sqlite3
 import threading
 from collections.abc import Callable, Sequence
 
-from . import STORE_TIMEOUT_S, StoredEvent, StoreUnavailable, VehicleWrite
+from . import STORE_TIMEOUT_S, EventRetention, StoredEvent, StoreUnavailable, VehicleWrite
 
 __all__ = ["OUTBOX_SCHEMA", "SQLiteOutbox"]
 
@@ -28,7 +30,6 @@ OUTBOX_SCHEMA = (
 )
 _INSERT_EVENT = "INSERT INTO vehicle_events (fleet, vehicle_id, seq, time_s, written_s, body) VALUES (?, ?, ?, ?, ?, ?)"
 _WRITE_SEQ = "INSERT OR REPLACE INTO vehicle_event_seqs (vehicle_id, seq) VALUES (?, ?)"
-_TRIM = "DELETE FROM vehicle_events WHERE written_s < ?"
 EVENT_COLUMNS = "SELECT cursor, vehicle_id, body FROM vehicle_events "
 
 
@@ -50,10 +51,23 @@ class SQLiteOutbox:
         Whether the database is private to one connection, so read on the store's own.
     connection
         The store's connection of this process (the writes').
+    retention
+        How long each fleet's events are kept after they were written.
+    clock
+        The store's clock, s.
     """
 
-    def __init__(self, name: str, private: bool, connection: Callable[[], sqlite3.Connection]) -> None:
+    def __init__(
+        self,
+        name: str,
+        private: bool,
+        connection: Callable[[], sqlite3.Connection],
+        retention: EventRetention,
+        clock: Callable[[], float],
+    ) -> None:
         self.name = name
+        self.retention = retention
+        self.clock = clock
         self.private = private
         self.connection = connection
         self._reader: sqlite3.Connection | None = None
@@ -72,23 +86,39 @@ class SQLiteOutbox:
         )
         db.executemany(_WRITE_SEQ, [(vehicle_id, w.events[-1].seq) for vehicle_id, w in writes])
 
-    @staticmethod
-    def trim(db: sqlite3.Connection, oldest_s: float) -> None:
-        """Inside the write transaction on ``db``: delete the events written before ``oldest_s``."""
-        db.execute(_TRIM, (oldest_s,))
+    def kept(self, now_s: float) -> tuple[str, tuple]:
+        """The condition (SQL and its parameters) of an event still within its fleet's retention time at ``now_s``:
+        written at most that long before."""
+        fleets = list(self.retention.fleets_s.items())
+        retention_s = f"CASE fleet {' '.join(['WHEN ? THEN ?'] * len(fleets))} ELSE ? END" if fleets else "?"
+        return f"written_s >= ? - {retention_s}", (
+            now_s,
+            *(v for pair in fleets for v in pair),
+            self.retention.default_s,
+        )
+
+    def trim(self, db: sqlite3.Connection, now_s: float) -> None:
+        """Inside the write transaction on ``db``: delete the events past their fleet's retention time at ``now_s``."""
+        condition, parameters = self.kept(now_s)
+        db.execute(f"DELETE FROM vehicle_events WHERE NOT ({condition})", parameters)
 
     def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
         """:meth:`service.store.StateStore.events_after`: along the key (every fleet) or the fleet's index; the
         cursor is the key in decimal."""
         first = -1 if after is None else _cursor_key(after)
+        kept, kept_parameters = self.kept(self.clock())
         if fleet is None:
-            return self._events("WHERE cursor > ? ORDER BY cursor LIMIT ?", (first, limit))
-        return self._events("WHERE fleet = ? AND cursor > ? ORDER BY cursor LIMIT ?", (fleet, first, limit))
+            return self._events(
+                f"WHERE cursor > ? AND {kept} ORDER BY cursor LIMIT ?", (first, *kept_parameters, limit)
+            )
+        where = f"WHERE fleet = ? AND cursor > ? AND {kept} ORDER BY cursor LIMIT ?"
+        return self._events(where, (fleet, first, *kept_parameters, limit))
 
     def vehicle_events(self, vehicle_key: str, since_s: float, limit: int) -> list[StoredEvent]:
         """:meth:`service.store.StateStore.vehicle_events`, along the vehicle's index."""
-        where = "WHERE vehicle_id = ? AND time_s >= ? ORDER BY time_s, cursor LIMIT ?"
-        return self._events(where, (vehicle_key, since_s, limit))
+        kept, kept_parameters = self.kept(self.clock())
+        where = f"WHERE vehicle_id = ? AND time_s >= ? AND {kept} ORDER BY time_s, cursor LIMIT ?"
+        return self._events(where, (vehicle_key, since_s, *kept_parameters, limit))
 
     def _events(self, where: str, parameters: tuple) -> list[StoredEvent]:
         """The events that ``where`` selects (with its ``parameters``), read on :meth:`reader`."""
