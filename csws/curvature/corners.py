@@ -148,7 +148,7 @@ def curve_runs(start_k: np.ndarray, end_k: np.ndarray) -> list[np.ndarray]:
 def with_corner_rules(
     chord_start_s: np.ndarray,
     chord_length_m: np.ndarray,
-    chord_heading: np.ndarray,
+    turn_rad: np.ndarray,
     noise_m: float,
     bounds: np.ndarray,
     start_k: np.ndarray,
@@ -158,9 +158,14 @@ def with_corner_rules(
 
     Parameters
     ----------
-    chord_start_s, chord_length_m, chord_heading
+    chord_start_s, chord_length_m
         Its chords (segments between vertices, repeated vertices dropped): arc length of
-        their starts, lengths (m) and headings (rad).
+        their starts and lengths, m.
+    turn_rad
+        The turn of each vertex between two chords, left positive, with the way's map
+        artefacts netted (:func:`csws.curvature.artefacts.netted_turns`): a spike's two
+        reversals, which turn by 180 degrees each, turn the road by nothing, and rules 2
+        and 3 count a vertex's turning only as far as the road can turn there.
     noise_m
         The coordinate noise of its nodes, m: a turn counts only beyond what it makes.
     bounds, start_k, end_k
@@ -174,7 +179,6 @@ def with_corner_rules(
     """
     noise_m = min(noise_m, MAX_NOISE_M)
     vertex_s = np.append(chord_start_s, chord_start_s[-1] + chord_length_m[-1])
-    turn_rad = np.remainder(np.diff(chord_heading) + np.pi, 2.0 * np.pi) - np.pi
     bounds, start_k, end_k = _within_turning(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
     return _with_missed_corners(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
 
