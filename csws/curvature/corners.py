@@ -15,7 +15,11 @@ can put an arc of centimetres somewhere. These rules are kept apart from the fit
    node noise can take off that sum (:data:`NOISE_DEVIATIONS` deviations of the noise of
    the headings of the two segments it is measured between): no road through those nodes
    turns more. Node noise moves turning from one vertex to the next (hence the vertex
-   beyond either end). A curve that breaks rule 1 or 2 is removed whole.
+   beyond either end). A curve that breaks rule 1 or 2 is removed whole. The vertices of
+   a map artefact count as one, turning by their net turn (the effective turns of
+   :mod:`csws.curvature.artefacts`): the two reversals of a spike of a decimetre turn by
+   180 degrees each, which counted as turning would let a curve turn a full circle more
+   there, and would make them a loop at the floor radius under rule 3.
 3. **A corner gets a radius.** Vertices that no curved part covers (none was fitted there,
    or rule 1 or 2 removed it) and that turn the same way one after another, by
    :data:`CORNER_MIN_DEG` or more together (and by more than node noise makes them
