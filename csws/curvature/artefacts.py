@@ -71,6 +71,7 @@ __all__ = [
     "PolylineTurns",
     "Corner",
     "polyline_turns",
+    "netted_turns",
     "kept_to_polyline",
     "kept_to_net_turn",
     "turned_back_scale",
@@ -223,17 +224,40 @@ def polyline_turns(xy: np.ndarray) -> PolylineTurns:
     step, length = step[length > 0], length[length > 0]
     vertex_s = np.concatenate(([0.0], np.cumsum(length)))
     turn = _wrapped(np.diff(np.arctan2(step[:, 1], step[:, 0]))) if len(step) > 1 else np.zeros(0)
-    effective = turn.copy()
-    taken = np.zeros(len(turn), dtype=bool)
+    effective, found = netted_turns(turn, length)
+    artefacts = (
+        Artefact(kind, float(vertex_s[first + 1]), float(vertex_s[last + 1]), size) for kind, first, last, size in found
+    )
+    return PolylineTurns(vertex_s, length, turn, effective, tuple(artefacts))
+
+
+def netted_turns(turn_rad: np.ndarray, segment_m: np.ndarray) -> tuple[np.ndarray, list[tuple[str, int, int, float]]]:
+    """The effective turn of each inner vertex of a polyline, and its artefacts (see the module).
+
+    Parameters
+    ----------
+    turn_rad
+        Each inner vertex's turn, wrapped to (-pi, pi], left positive.
+    segment_m
+        The length of each segment (none of them 0), m.
+
+    Returns
+    -------
+    effective_rad, artefacts
+        Each inner vertex's effective turn (an artefact's net turn at its first vertex, 0 at its others), rad; and
+        each artefact's kind, first and last inner vertex and size, in order.
+    """
+    effective = np.array(turn_rad, dtype=float)
+    taken = np.zeros(len(effective), dtype=bool)
     artefacts = []
-    for kind, first, last, size in _artefact_vertices(turn, length):
+    for kind, first, last, size in _artefact_vertices(np.asarray(turn_rad), segment_m):
         if taken[first : last + 1].any():
             continue  # a jog inside a zig-zag, a spike next to another: one artefact
         taken[first : last + 1] = True
-        artefacts.append(Artefact(kind, float(vertex_s[first + 1]), float(vertex_s[last + 1]), size))
-        effective[first] = _wrapped(float(turn[first : last + 1].sum()))
+        artefacts.append((kind, first, last, size))
+        effective[first] = _wrapped(float(turn_rad[first : last + 1].sum()))
         effective[first + 1 : last + 1] = 0.0
-    return PolylineTurns(vertex_s, length, turn, effective, tuple(artefacts))
+    return effective, artefacts
 
 
 def _artefact_vertices(turn: np.ndarray, segment_m: np.ndarray) -> list[tuple[str, int, int, float]]:

@@ -15,7 +15,11 @@ can put an arc of centimetres somewhere. These rules are kept apart from the fit
    node noise can take off that sum (:data:`NOISE_DEVIATIONS` deviations of the noise of
    the headings of the two segments it is measured between): no road through those nodes
    turns more. Node noise moves turning from one vertex to the next (hence the vertex
-   beyond either end). A curve that breaks rule 1 or 2 is removed whole.
+   beyond either end). A curve that breaks rule 1 or 2 is removed whole. The vertices of
+   a map artefact count as one, turning by their net turn (the effective turns of
+   :mod:`csws.curvature.artefacts`): the two reversals of a spike of a decimetre turn by
+   180 degrees each, which counted as turning would let a curve turn a full circle more
+   there, and would make them a loop at the floor radius under rule 3.
 3. **A corner gets a radius.** Vertices that no curved part covers (none was fitted there,
    or rule 1 or 2 removed it) and that turn the same way one after another, by
    :data:`CORNER_MIN_DEG` or more together (and by more than node noise makes them
@@ -148,7 +152,7 @@ def curve_runs(start_k: np.ndarray, end_k: np.ndarray) -> list[np.ndarray]:
 def with_corner_rules(
     chord_start_s: np.ndarray,
     chord_length_m: np.ndarray,
-    chord_heading: np.ndarray,
+    turn_rad: np.ndarray,
     noise_m: float,
     bounds: np.ndarray,
     start_k: np.ndarray,
@@ -158,9 +162,14 @@ def with_corner_rules(
 
     Parameters
     ----------
-    chord_start_s, chord_length_m, chord_heading
+    chord_start_s, chord_length_m
         Its chords (segments between vertices, repeated vertices dropped): arc length of
-        their starts, lengths (m) and headings (rad).
+        their starts and lengths, m.
+    turn_rad
+        The turn of each vertex between two chords, left positive, with the way's map
+        artefacts netted (:func:`csws.curvature.artefacts.netted_turns`): a spike's two
+        reversals, which turn by 180 degrees each, turn the road by nothing, and rules 2
+        and 3 count a vertex's turning only as far as the road can turn there.
     noise_m
         The coordinate noise of its nodes, m: a turn counts only beyond what it makes.
     bounds, start_k, end_k
@@ -174,7 +183,6 @@ def with_corner_rules(
     """
     noise_m = min(noise_m, MAX_NOISE_M)
     vertex_s = np.append(chord_start_s, chord_start_s[-1] + chord_length_m[-1])
-    turn_rad = np.remainder(np.diff(chord_heading) + np.pi, 2.0 * np.pi) - np.pi
     bounds, start_k, end_k = _within_turning(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
     return _with_missed_corners(vertex_s, turn_rad, chord_length_m, noise_m, bounds, start_k, end_k)
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from csws.standard import DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
+from .artefacts import netted_turns
 from .chords import _chords, _coordinate_noise_m, _validated
 from .corners import with_corner_rules, with_floor
 from .curves import curves_from_profile
@@ -91,10 +92,16 @@ def _polyline_profile(
         )
     if mapped:
         noise_m = float(segmentation.noise_variance[rows.start] / 2.0) ** 0.5
-        parts = with_corner_rules(chords.start_s[rows], chords.length_m[rows], chords.heading[rows], noise_m, *parts)
+        turn_rad, _ = netted_turns(_vertex_turns(chords.heading[rows]), chords.length_m[rows])
+        parts = with_corner_rules(chords.start_s[rows], chords.length_m[rows], turn_rad, noise_m, *parts)
     else:
         parts = (parts[0], *with_floor(*parts[1:]))
     return profile_from_parts(vertex_s, *parts)
+
+
+def _vertex_turns(heading_rad: np.ndarray) -> np.ndarray:
+    """The turn at each vertex between consecutive chords of the given headings, wrapped to [-pi, pi), rad."""
+    return np.remainder(np.diff(heading_rad) + np.pi, 2.0 * np.pi) - np.pi
 
 
 def radius_profile(xy: np.ndarray) -> RadiusProfile:
