@@ -7,10 +7,13 @@ its own):
   no expiry;
 * ``csws:session:{vehicle}``: ``{version}|{session}``, expiring ``session_idle_s`` after its
   last write (Redis's key TTL: nothing to sweep);
-* ``csws:places``: a hash of the vehicles' places, ``{network}|{x}|{y}`` by vehicle, and
+* ``csws:places``: a hash of the vehicles' places, ``{network}|{x}|{y}`` by vehicle;
   ``csws:placed``: their vehicles in a sorted set of equal scores, so in key order
-  (``ZRANGEBYLEX`` reads a fleet's keys from a cursor on). Both are written with the session;
-  a vehicle whose session expired leaves them when a read of places finds it gone;
+  (``ZRANGEBYLEX`` reads a fleet's keys from a cursor on); and ``csws:grid:{network}``, the
+  spatial index: the network's vehicles in a sorted set scored by their cell (:func:`place_cell`).
+  All are written with the session (a vehicle that moves has its score changed, one that changes
+  network leaves the other network's set); a vehicle whose session expired leaves them when a read
+  of places finds it gone;
 * the outbox (:mod:`service.events`): ``csws:outbox``, a stream of every fleet's events, and
   ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
   trimmed to the retention time (``MINID``) as events are added; ``csws:history:{vehicle}``, a
@@ -23,11 +26,19 @@ its own):
   vehicle's last event, read with its session; no expiry. All are written by the script that writes
   the session.
 
-Reading places (:meth:`RedisStore.placed`) is one server-side script too: it walks the fleet's
-keys in order from the cursor, a thousand at a time, and keeps those whose place is on the
-networks and in the box, until the page is full. Unlike the SQLite store's R*Tree this is no
-spatial index: a small box over a large fleet walks the fleet's places (on the server, not
-over the network), about 50 ms per 100,000.
+Reading places (:meth:`RedisStore.placed`) is one server-side script too. A cell is a point of a
+quadtree over both axes: each coordinate is mapped to a 26-bit ordinal that never decreases as the
+coordinate grows (:func:`axis_ordinal`: fine steps near zero, then steps relative to the value, like
+a floating-point number's, so that one mapping serves lon/lat and network metres alike), and the two
+ordinals are interleaved (a Morton code, 52 bits: exact as a score). Every quadtree square is then one
+range of scores, and a box is read as at most :data:`BOX_SQUARES` squares (:func:`box_ranges`). When these ranges
+hold fewer than :data:`BOX_PROBE_FACTOR` places per vehicle asked for (``ZCOUNT``), the script reads
+their vehicles, checks their exact places against the box and the networks, sorts them by key (in a
+scratch sorted set of equal scores: Redis orders it by bytes) and reads them from the cursor on, so that
+a small box over a large fleet reads only the places near it. Otherwise (no box, or a large one) it
+walks the fleet's keys in order from the cursor, a thousand at a time, keeping those whose place is on
+the networks and in the box, until the page is full: a page then costs about what it passes, not what
+the box holds.
 
 A request reads its vehicles with one ``MGET`` (atomic) and writes them with one Lua script
 (atomic, run by the server): per vehicle, it compares the session's version with the one read
@@ -43,6 +54,7 @@ are :class:`service.store.StoreUnavailable`.
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from collections.abc import Collection, Mapping, Sequence
@@ -76,6 +88,11 @@ __all__ = [
     "SETTING_PREFIX",
     "PLACES_KEY",
     "PLACED_KEY",
+    "GRID_PREFIX",
+    "BOX_PROBE_FACTOR",
+    "axis_ordinal",
+    "place_cell",
+    "box_ranges",
     "OUTBOX_KEY",
     "HISTORY_PREFIX",
     "HISTORIES_KEY",
@@ -87,17 +104,36 @@ SESSION_PREFIX = "csws:session:"
 SETTING_PREFIX = "csws:setting:"
 PLACES_KEY = "csws:places"
 PLACED_KEY = "csws:placed"
+GRID_PREFIX = "csws:grid:"
+#: A sorted set the read of a box sorts its vehicles in, emptied before the script ends.
+PLACED_SCRATCH_KEY = "csws:placed-scratch"
 OUTBOX_KEY = "csws:outbox"
 HISTORY_PREFIX = "csws:history:"
 HISTORIES_KEY = "csws:histories"
 EVENT_SEQ_PREFIX = "csws:event-seq:"
+#: Bits of a coordinate's ordinal (:func:`axis_ordinal`): two interleaved (52 bits) are exact in a score (a double).
+AXIS_BITS = 26
+#: Bits of an ordinal below each power of two (its steps are 2**-19 of the power), and the first power with such steps.
+_STEP_BITS = 19
+_FIRST_POWER = 1.0
+#: Larger magnitudes share the last ordinal of their sign.
+_LARGEST = 2.0**62
+_ZERO = 1 << (AXIS_BITS - 1)
+#: A box is read as at most this many quadtree squares (:func:`box_ranges`): each costs the script two
+#: look-ups in a sorted set per network, and more of them follow the box's edges more closely.
+BOX_SQUARES = 64
+#: A box whose squares hold at least this many places per vehicle asked for is read in key order, as a
+#: page without a box, checking each place: sorting every place of a large box for each page would cost
+#: what the box holds, not what the page does (the SQLite store's rule).
+BOX_PROBE_FACTOR = 4
 #: A cursor of the outbox: a stream entry's id.
 _CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 
 #: KEYS: the places hash and the placed set, then per vehicle its session key and its setting key.
 #: ARGV: the sessions' time to live in ms, the events' retention in ms, the number of vehicles, then per
-#: vehicle its key, the expected version, the new session, the new setting and the new place ('' for
-#: none), then per event the (1-based) number of its vehicle, its fleet, number, time (s) and JSON.
+#: vehicle its key, the expected version, the new session, the new setting, the new place ('' for
+#: none) and its cell (:func:`place_cell`), then per event the (1-based) number of its vehicle, its
+#: fleet, number, time (s) and JSON.
 #: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
 _WRITE_SCRIPT = (
     """
@@ -105,7 +141,7 @@ local conflicts, written = {}, {}
 local vehicles = tonumber(ARGV[3])
 for vehicle = 1, vehicles do
   local session_key, setting_key = KEYS[2 * vehicle + 1], KEYS[2 * vehicle + 2]
-  local at = 5 * vehicle - 1
+  local at = 6 * vehicle - 2
   local key, expected = ARGV[at], ARGV[at + 1]
   local stored = redis.call('GET', session_key)
   local version = stored and string.match(stored, '^(%d+)|') or '0'
@@ -116,14 +152,20 @@ for vehicle = 1, vehicles do
       redis.call('SET', setting_key, ARGV[at + 3])
     end
     if ARGV[at + 4] ~= '' then
+      local network = string.match(ARGV[at + 4], '^(.*)|[^|]+|[^|]+$')
+      local left = string.match(redis.call('HGET', KEYS[1], key) or '', '^(.*)|[^|]+|[^|]+$')
+      if left and left ~= network then
+        redis.call('ZREM', '__GRID__' .. left, key)
+      end
       redis.call('HSET', KEYS[1], key, ARGV[at + 4])
       redis.call('ZADD', KEYS[2], 0, key)
+      redis.call('ZADD', '__GRID__' .. network, ARGV[at + 5], key)
     end
   else
     conflicts[#conflicts + 1] = vehicle
   end
 end
-local first = 5 * vehicles + 4
+local first = 6 * vehicles + 4
 if first <= #ARGV then
   local now = redis.call('TIME')
   local now_s = tonumber(now[1]) + tonumber(now[2]) / 1e6
@@ -157,42 +199,194 @@ return conflicts
     .replace("__HISTORY__", HISTORY_PREFIX)
     .replace("__HISTORIES__", HISTORIES_KEY)
     .replace("__SEQ__", EVENT_SEQ_PREFIX)
+    .replace("__GRID__", GRID_PREFIX)
 )
-#: KEYS: the places hash and the placed set. ARGV: the first key and the end of the key range (as
-#: ZRANGEBYLEX takes them), the page's size, the sessions' key prefix, '1' with a box else '0', the
-#: box (min x, min y, max x, max y), then the networks. Returns key, stored session and place of each
-#: vehicle found, flat; takes out the places whose session expired.
+#: KEYS: the places hash, the placed set and the scratch set. ARGV: the first key and the end of the key
+#: range (as ZRANGEBYLEX takes them), the page's size, '1' with a box else '0', the box (min x, min y,
+#: max x, max y), the most places its squares may hold to be read from the index, the number of networks,
+#: the networks, then the box's ranges of cells (first, last). Returns key, stored session and place of
+#: each vehicle found, flat; takes out the places whose session expired.
 _PLACED_SCRIPT = """
-local networks = {}
-for i = 10, #ARGV do networks[ARGV[i]] = true end
-local boxed = ARGV[5] == '1'
-local min_x, min_y, max_x, max_y = tonumber(ARGV[6]), tonumber(ARGV[7]), tonumber(ARGV[8]), tonumber(ARGV[9])
-local limit, low, found = tonumber(ARGV[3]), ARGV[1], {}
-while #found < 3 * limit do
-  local keys = redis.call('ZRANGEBYLEX', KEYS[2], low, ARGV[2], 'LIMIT', 0, 1000)
-  if #keys == 0 then break end
-  local places = redis.call('HMGET', KEYS[1], unpack(keys))
-  for i, key in ipairs(keys) do
-    local place = places[i]
-    local network, x, y = string.match(place or '', '^(.*)|([^|]+)|([^|]+)$')
-    x, y = tonumber(x), tonumber(y)
-    if network and networks[network] and (not boxed or (x >= min_x and x <= max_x and y >= min_y and y <= max_y)) then
-      local session = redis.call('GET', ARGV[4] .. key)
-      if session then
-        found[#found + 1] = key
-        found[#found + 1] = session
-        found[#found + 1] = place
-        if #found == 3 * limit then break end
-      else
-        redis.call('ZREM', KEYS[2], key)
-        redis.call('HDEL', KEYS[1], key)
+local limit, boxed, found = tonumber(ARGV[3]), ARGV[4] == '1', {}
+local min_x, min_y, max_x, max_y = tonumber(ARGV[5]), tonumber(ARGV[6]), tonumber(ARGV[7]), tonumber(ARGV[8])
+local networks, names = {}, {}
+for i = 11, 10 + tonumber(ARGV[10]) do
+  networks[ARGV[i]] = true
+  names[#names + 1] = ARGV[i]
+end
+local first_range = 11 + tonumber(ARGV[10])
+
+local function parsed(place)
+  local network, x, y = string.match(place or '', '^(.*)|([^|]+)|([^|]+)$')
+  return network, tonumber(x), tonumber(y)
+end
+
+local function wanted(network, x, y)
+  return network and networks[network] and (not boxed or (x >= min_x and x <= max_x and y >= min_y and y <= max_y))
+end
+
+-- Adds a vehicle if its session is live, else takes its place out; whether the page is full.
+local function take(key, place, network)
+  local session = redis.call('GET', '__SESSION__' .. key)
+  if session then
+    found[#found + 1] = key
+    found[#found + 1] = session
+    found[#found + 1] = place
+  else
+    redis.call('ZREM', KEYS[2], key)
+    redis.call('HDEL', KEYS[1], key)
+    redis.call('ZREM', '__GRID__' .. network, key)
+  end
+  return #found == 3 * limit
+end
+
+-- Reads the keys of a sorted set of equal scores in order from the cursor, a thousand at a time,
+-- taking those whose place is wanted until the page is full (places: by key, nil to read them).
+local function walk(set, places)
+  local low = ARGV[1]
+  while true do
+    local keys = redis.call('ZRANGEBYLEX', set, low, ARGV[2], 'LIMIT', 0, 1000)
+    if #keys == 0 then return end
+    local known = places
+    if not known then
+      known = {}
+      for i, place in ipairs(redis.call('HMGET', KEYS[1], unpack(keys))) do known[keys[i]] = place end
+    end
+    for _, key in ipairs(keys) do
+      local place = known[key]
+      local network, x, y = parsed(place)
+      if wanted(network, x, y) and take(key, place, network) then return end
+    end
+    low = '(' .. keys[#keys]
+  end
+end
+
+-- The places of the box's cells that are in the box, by key; nil when the cells hold too many.
+local function boxed_places()
+  local count = 0
+  for _, network in ipairs(names) do
+    for i = first_range, #ARGV, 2 do
+      count = count + redis.call('ZCOUNT', '__GRID__' .. network, ARGV[i], ARGV[i + 1])
+    end
+  end
+  if count >= tonumber(ARGV[9]) then return nil end
+  local places = {}
+  for _, network in ipairs(names) do
+    for i = first_range, #ARGV, 2 do
+      local offset = 0
+      while true do
+        local keys = redis.call('ZRANGEBYSCORE', '__GRID__' .. network, ARGV[i], ARGV[i + 1], 'LIMIT', offset, 1000)
+        if #keys == 0 then break end
+        for j, place in ipairs(redis.call('HMGET', KEYS[1], unpack(keys))) do
+          if wanted(parsed(place)) then
+            places[keys[j]] = place
+            redis.call('ZADD', KEYS[3], 0, keys[j])
+          end
+        end
+        offset = offset + #keys
       end
     end
   end
-  low = '(' .. keys[#keys]
+  return places
+end
+
+redis.call('DEL', KEYS[3])
+local places = boxed and boxed_places()
+if places then
+  walk(KEYS[3], places)
+  redis.call('DEL', KEYS[3])
+else
+  walk(KEYS[2], nil)
 end
 return found
-"""
+""".replace("__SESSION__", SESSION_PREFIX).replace("__GRID__", GRID_PREFIX)
+
+
+def axis_ordinal(value: float) -> int:
+    """The ordinal of a coordinate on its axis, in ``[0, 2**AXIS_BITS)``, never decreasing as the coordinate grows.
+
+    Magnitudes below 1 are cut into 2**19 equal steps; each power of two above into 2**19 steps (of
+    2**-19 of it, as a floating-point number's are): about 7 m in latitude and 1 m in longitude near
+    8 degrees, 2 cm at 10 km of network metres. Negative coordinates mirror the positive ones below
+    zero's ordinal; magnitudes from 2**62 share the last ordinal.
+
+    Parameters
+    ----------
+    value
+        A coordinate (degrees or metres).
+    """
+    magnitude = min(abs(value), _LARGEST)
+    if magnitude < _FIRST_POWER:
+        steps = int(magnitude * (1 << _STEP_BITS))
+    else:
+        fraction, exponent = math.frexp(magnitude)
+        steps = (exponent << _STEP_BITS) + int((2.0 * fraction - 1.0) * (1 << _STEP_BITS))
+    return _ZERO + steps if value >= 0.0 else _ZERO - 1 - steps
+
+
+def _spread(ordinal: int) -> int:
+    """The bits of an ordinal of :data:`AXIS_BITS` bits moved to the even bits: half of a Morton code."""
+    ordinal = (ordinal | ordinal << 16) & 0x0000FFFF0000FFFF
+    ordinal = (ordinal | ordinal << 8) & 0x00FF00FF00FF00FF
+    ordinal = (ordinal | ordinal << 4) & 0x0F0F0F0F0F0F0F0F
+    ordinal = (ordinal | ordinal << 2) & 0x3333333333333333
+    return (ordinal | ordinal << 1) & 0x5555555555555555
+
+
+def place_cell(place: Place) -> int:
+    """The cell of a place in the spatial index: the Morton code of its two ordinals (:func:`axis_ordinal`),
+    x on the even bits, y on the odd ones."""
+    return _spread(axis_ordinal(place.x)) | _spread(axis_ordinal(place.y)) << 1
+
+
+def _square_range(level: int, square_x: int, square_y: int) -> tuple[int, int]:
+    """The cells (first, last) of a quadtree square: the ordinals ``[square << level, (square + 1) << level)``
+    on each axis are one range of Morton codes."""
+    code = _spread(square_x) | _spread(square_y) << 1
+    return code << 2 * level, ((code + 1) << 2 * level) - 1
+
+
+def box_ranges(box: Box) -> list[tuple[int, int]]:
+    """The ranges of cells (first, last) whose places may be in a box, adjacent ranges joined; none for a
+    box whose minimum exceeds its maximum.
+
+    The box's ordinals (:func:`axis_ordinal`) are covered by quadtree squares, those across its edges
+    split into their quarters that meet it, one level after the other, as long as the squares are at
+    most :data:`BOX_SQUARES`; squares inside the box stay whole. Each square is one range of Morton
+    codes (:func:`place_cell`), so the places read beyond the box are those of the edges' squares.
+    """
+    low_x, low_y, high_x, high_y = (axis_ordinal(value) for value in box)
+
+    def meets(level: int, x: int, y: int) -> bool:
+        return (
+            x << level <= high_x and ((x + 1) << level) > low_x and y << level <= high_y and ((y + 1) << level) > low_y
+        )
+
+    def inside(level: int, x: int, y: int) -> bool:
+        return (
+            x << level >= low_x
+            and ((x + 1) << level) <= high_x + 1
+            and y << level >= low_y
+            and ((y + 1) << level) <= high_y + 1
+        )
+
+    level, across = AXIS_BITS, [(0, 0)] if meets(AXIS_BITS, 0, 0) else []
+    ranges: list[tuple[int, int]] = []
+    while across and level > 0:
+        quarters = [(2 * x + i, 2 * y + j) for x, y in across for i in (0, 1) for j in (0, 1)]
+        quarters = [(x, y) for x, y in quarters if meets(level - 1, x, y)]
+        if len(ranges) + len(quarters) > BOX_SQUARES:
+            break
+        level -= 1
+        ranges += [_square_range(level, x, y) for x, y in quarters if inside(level, x, y)]
+        across = [(x, y) for x, y in quarters if not inside(level, x, y)]
+    joined: list[tuple[int, int]] = []
+    for first, last in sorted(ranges + [_square_range(level, x, y) for x, y in across]):
+        if joined and joined[-1][1] + 1 == first:
+            joined[-1] = (joined[-1][0], last)
+        else:
+            joined.append((first, last))
+    return joined
 
 
 def shown_url(url: str) -> str:
@@ -327,6 +521,7 @@ class RedisStore(StateStore):
                 w.session,
                 b"" if w.setting is None else _encode_setting(w.setting),
                 b"" if w.place is None else _encode_place(w.place),
+                b"" if w.place is None else place_cell(w.place),
             ]
             for event in w.events:
                 events += [number, event.fleet, event.seq, repr(event.time_s), event.body]
@@ -340,13 +535,17 @@ class RedisStore(StateStore):
     def placed(
         self, prefix: str, after: str, limit: int, networks: Collection[str], box: Box | None
     ) -> list[PlacedSession]:
+        """Read with one script: from the spatial index for a box whose cells hold fewer than
+        :data:`BOX_PROBE_FACTOR` places per vehicle asked for, else along the fleet's keys."""
         end = prefix_end(prefix)
         first = "(" + after if after >= prefix and after else "[" + prefix if prefix else "-"
-        args: list[str | int] = [first, "+" if end is None else "(" + end, limit, SESSION_PREFIX]
-        args.append("0" if box is None else "1")
+        networks = list(networks)
+        args: list[str | int] = [first, "+" if end is None else "(" + end, limit, "0" if box is None else "1"]
         args += [repr(v) for v in box or (0.0, 0.0, 0.0, 0.0)]
+        args += [BOX_PROBE_FACTOR * limit, len(networks), *networks]
+        args += [cell for cells in (box_ranges(box) if box is not None else ()) for cell in cells]
         try:
-            found = self._placed_script(keys=[PLACES_KEY, PLACED_KEY], args=[*args, *networks])
+            found = self._placed_script(keys=[PLACES_KEY, PLACED_KEY, PLACED_SCRATCH_KEY], args=args)
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         placed = []
