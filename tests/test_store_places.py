@@ -19,7 +19,16 @@ from hypothesis import strategies as st
 
 import service.store.redis as redis_store
 from service.store import Box, Place, StateStore, VehicleWrite
-from service.store.redis import GRID_PREFIX, PLACED_KEY, PLACES_KEY, RedisStore, axis_ordinal, box_ranges, place_cell
+from service.store.redis import (
+    GRID_BUILT_KEY,
+    GRID_PREFIX,
+    PLACED_KEY,
+    PLACES_KEY,
+    RedisStore,
+    axis_ordinal,
+    box_ranges,
+    place_cell,
+)
 from service.store.sqlite import SQLiteStore
 
 IDLE_S = 60.0
@@ -213,5 +222,27 @@ def test_expired_sessions_leave_the_index_when_a_read_meets_them(redis_url: str)
                 f"alpha/{n:03d}" for n in range(1, 50, 2)
             ]
             assert client.zcard(GRID_PREFIX + "town") == client.zcard(PLACED_KEY) == client.hlen(PLACES_KEY) == 25
+    finally:
+        store.close()
+
+
+def test_places_written_before_the_index_are_indexed_at_start_up(redis_url: str) -> None:
+    store = RedisStore(redis_url, IDLE_S)
+    try:
+        places = {f"alpha/{n:04d}": Place("town", 3.0 * n, -2.0 * n) for n in range(2500)}
+        store.write({key: VehicleWrite(0, b"s", place=place) for key, place in places.items()})
+        with redis.Redis.from_url(redis_url) as client:
+            # As a store without the index left them: places and keys, no cells.
+            client.delete(GRID_PREFIX + "town")
+            assert store.placed("", "", 10, ["town"], (2.5, -2.5, 3.5, -1.5)) == []
+            moved = Place("town", 1e5, 1e5)
+            store.write({"alpha/0007": VehicleWrite(1, b"m", place=moved)})
+            store.check()
+            assert client.get(GRID_BUILT_KEY) == b"1"
+            assert client.zcard(GRID_PREFIX + "town") == 2500
+            assert client.zscore(GRID_PREFIX + "town", "alpha/0007") == place_cell(moved)
+        for key in ("alpha/0001", "alpha/2499"):
+            x, y = places[key].x, places[key].y
+            assert [p.key for p in store.placed("", "", 10, ["town"], (x - 0.5, y - 0.5, x + 0.5, y + 0.5))] == [key]
     finally:
         store.close()

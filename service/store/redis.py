@@ -89,6 +89,9 @@ __all__ = [
     "PLACES_KEY",
     "PLACED_KEY",
     "GRID_PREFIX",
+    "GRID_BUILT_KEY",
+    "AXIS_BITS",
+    "BOX_SQUARES",
     "BOX_PROBE_FACTOR",
     "axis_ordinal",
     "place_cell",
@@ -107,6 +110,8 @@ PLACED_KEY = "csws:placed"
 GRID_PREFIX = "csws:grid:"
 #: A sorted set the read of a box sorts its vehicles in, emptied before the script ends.
 PLACED_SCRATCH_KEY = "csws:placed-scratch"
+#: Set once the places written before the spatial index existed are in it (:meth:`RedisStore.check`).
+GRID_BUILT_KEY = "csws:grid-built"
 OUTBOX_KEY = "csws:outbox"
 HISTORY_PREFIX = "csws:history:"
 HISTORIES_KEY = "csws:histories"
@@ -301,6 +306,17 @@ end
 return found
 """.replace("__SESSION__", SESSION_PREFIX).replace("__GRID__", GRID_PREFIX)
 
+#: KEYS: the places hash. ARGV: per place its vehicle, its place as read and its cell. Indexes each place
+#: that is still the one read and not yet indexed (a write since then indexed the new one).
+_INDEX_SCRIPT = """
+for at = 1, #ARGV, 3 do
+  local place = ARGV[at + 1]
+  if redis.call('HGET', KEYS[1], ARGV[at]) == place then
+    redis.call('ZADD', '__GRID__' .. string.match(place, '^(.*)|[^|]+|[^|]+$'), 'NX', ARGV[at + 2], ARGV[at])
+  end
+end
+""".replace("__GRID__", GRID_PREFIX)
+
 
 def axis_ordinal(value: float) -> int:
     """The ordinal of a coordinate on its axis, in ``[0, 2**AXIS_BITS)``, never decreasing as the coordinate grows.
@@ -467,15 +483,37 @@ class RedisStore(StateStore):
         self._database = int(self._redis.connection_pool.connection_kwargs.get("db", 0))
         self._write_script = self._redis.register_script(_WRITE_SCRIPT)
         self._placed_script = self._redis.register_script(_PLACED_SCRIPT)
+        self._index_script = self._redis.register_script(_INDEX_SCRIPT)
 
     def _unavailable(self, exc: Exception) -> StoreUnavailable:
         return StoreUnavailable(f"the state store {self.name} cannot be reached now: {type(exc).__name__}: {exc}")
 
     def check(self) -> None:
+        """Ping Redis, and index the places written before the spatial index existed (once)."""
         try:
             self._redis.ping()
+            if not self._redis.exists(GRID_BUILT_KEY):
+                self._index_places()
         except redis.RedisError as exc:
             raise OSError(f"cannot reach the state store {self.name}: {exc}") from None
+        except ValueError as exc:
+            raise OSError(f"the state store {self.name} holds an unreadable place: {exc}") from None
+
+    def _index_places(self) -> None:
+        """Put every place of the hash into the spatial index unless a write indexed it (``HSCAN``: each place
+        there all along is read at least once; those written meanwhile were indexed by their write), then
+        mark the index built."""
+        cursor = 0
+        while True:
+            cursor, places = self._redis.hscan(PLACES_KEY, cursor, count=1000)
+            args: list[bytes | int] = []
+            for key, place in cast(dict[bytes, bytes], places).items():
+                args += [key, place, place_cell(_decode_place(place))]
+            if args:
+                self._index_script(keys=[PLACES_KEY], args=args)
+            if cursor == 0:
+                break
+        self._redis.set(GRID_BUILT_KEY, 1)
 
     def _values(self, keys: Sequence[str | bytes]) -> list[bytes | None]:
         """The values of ``keys`` in one ``MGET`` (the client decodes no responses: they are bytes)."""
