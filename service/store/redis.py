@@ -13,7 +13,8 @@ its own):
   spatial index: the network's vehicles in a sorted set scored by their cell (:func:`place_cell`).
   All are written with the session (a vehicle that moves has its score changed, one that changes
   network leaves the other network's set); a vehicle whose session expired leaves them when a read
-  of places finds it gone;
+  of places finds it gone. The places a store without the index wrote are indexed once, at start-up
+  (:meth:`RedisStore.check`), which then sets ``csws:grid-built``;
 * the outbox (:mod:`service.events`): ``csws:outbox``, a stream of every fleet's events, and
   ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
   trimmed to the retention time (``MINID``) as events are added; ``csws:history:{vehicle}``, a
@@ -30,15 +31,16 @@ Reading places (:meth:`RedisStore.placed`) is one server-side script too. A cell
 quadtree over both axes: each coordinate is mapped to a 26-bit ordinal that never decreases as the
 coordinate grows (:func:`axis_ordinal`: fine steps near zero, then steps relative to the value, like
 a floating-point number's, so that one mapping serves lon/lat and network metres alike), and the two
-ordinals are interleaved (a Morton code, 52 bits: exact as a score). Every quadtree square is then one
-range of scores, and a box is read as at most :data:`BOX_SQUARES` squares (:func:`box_ranges`). When these ranges
-hold fewer than :data:`BOX_PROBE_FACTOR` places per vehicle asked for (``ZCOUNT``), the script reads
-their vehicles, checks their exact places against the box and the networks, sorts them by key (in a
-scratch sorted set of equal scores: Redis orders it by bytes) and reads them from the cursor on, so that
-a small box over a large fleet reads only the places near it. Otherwise (no box, or a large one) it
-walks the fleet's keys in order from the cursor, a thousand at a time, keeping those whose place is on
-the networks and in the box, until the page is full: a page then costs about what it passes, not what
-the box holds.
+ordinals are interleaved (a Morton code, 52 bits: exact as a score). Every quadtree square is then
+one range of scores, and a box is read as at most :data:`BOX_SQUARES` squares (:func:`box_ranges`).
+When these hold fewer than :data:`BOX_PROBE_FACTOR` places per vehicle asked for (``ZCOUNT``), the
+script reads their vehicles, checks their exact places against the box and the networks, sorts them
+by key (in a scratch sorted set of equal scores: Redis orders it by bytes, not by Lua's locale) and
+reads them from the cursor on, so that a small box over a large fleet reads only the places near it.
+Otherwise (no box, or a large one) it walks the fleet's keys in order from the cursor, a thousand at
+a time, keeping those whose place is on the networks and in the box, until the page is full: a page
+then costs about what it passes, not what the box holds (100,000 places: a 1 x 1 m box in under
+5 ms rather than 0.3 to 0.7 s, ``python -m benchmarks.fleet redis``).
 
 A request reads its vehicles with one ``MGET`` (atomic) and writes them with one Lua script
 (atomic, run by the server): per vehicle, it compares the session's version with the one read
