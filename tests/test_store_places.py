@@ -207,21 +207,30 @@ def test_a_small_box_reads_only_what_is_near_it_and_a_move_leaves_the_old_cell(r
         store.close()
 
 
-def test_expired_sessions_leave_the_index_when_a_read_meets_them(redis_url: str) -> None:
+def test_expired_sessions_leave_the_index_when_a_read_meets_them_or_sweeps_them(redis_url: str) -> None:
     store = RedisStore(redis_url, IDLE_S)
+    vehicles = 5 * redis_store.PLACES_SWEPT_PER_READ // 2
     try:
-        store.write({f"alpha/{n:03d}": VehicleWrite(0, b"s", place=Place("town", float(n), 0.0)) for n in range(50)})
+        store.write(
+            {f"alpha/{n:04d}": VehicleWrite(0, b"s", place=Place("town", float(n), 0.0)) for n in range(vehicles)}
+        )
         with redis.Redis.from_url(redis_url) as client:
-            for n in range(0, 50, 2):
-                client.pexpire(redis_store.SESSION_PREFIX + f"alpha/{n:03d}", 1)
+            for n in range(0, vehicles, 2):
+                client.pexpire(redis_store.SESSION_PREFIX + f"alpha/{n:04d}", 1)
             time.sleep(0.005)
-            in_box = store.placed("", "", 100, ["town"], (-0.5, -1.0, 9.5, 1.0))
-            assert [p.key for p in in_box] == [f"alpha/{n:03d}" for n in range(1, 10, 2)]
-            assert client.zcard(GRID_PREFIX + "town") == 45  # the five the box met are gone
-            assert [p.key for p in store.placed("", "", 100, ["town"], None)] == [
-                f"alpha/{n:03d}" for n in range(1, 50, 2)
+            small_box = (-0.5, -1.0, 9.5, 1.0)
+            in_box = store.placed("", "", 100, ["town"], small_box)
+            assert [p.key for p in in_box] == [f"alpha/{n:04d}" for n in range(1, 10, 2)]
+            # The five the box met are gone, and more: those the sweep checked after them.
+            assert client.zcard(GRID_PREFIX + "town") < vehicles - 5
+            # Reading the same small box again and again sweeps the whole placed set, round and round.
+            for _ in range(3):
+                assert store.placed("", "", 100, ["town"], small_box) == in_box
+            live = vehicles // 2
+            assert client.zcard(GRID_PREFIX + "town") == client.zcard(PLACED_KEY) == client.hlen(PLACES_KEY) == live
+            assert [p.key for p in store.placed("", "", vehicles, ["town"], None)] == [
+                f"alpha/{n:04d}" for n in range(1, vehicles, 2)
             ]
-            assert client.zcard(GRID_PREFIX + "town") == client.zcard(PLACED_KEY) == client.hlen(PLACES_KEY) == 25
     finally:
         store.close()
 

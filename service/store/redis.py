@@ -13,8 +13,9 @@ its own):
   spatial index: the network's vehicles in a sorted set scored by their cell (:func:`place_cell`).
   All are written with the session (a vehicle that moves has its score changed, one that changes
   network leaves the other network's set); a vehicle whose session expired leaves them when a read
-  of places finds it gone. The places a store without the index wrote are indexed once, at start-up
-  (:meth:`RedisStore.check`), which then sets ``csws:grid-built``;
+  of places meets it, or checks it on its sweep (:data:`PLACES_SWEPT_PER_READ` vehicles per read,
+  round and round the placed set from ``csws:places-swept``). The places a store without the index
+  wrote are indexed once, at start-up (:meth:`RedisStore.check`), which then sets ``csws:grid-built``;
 * the outbox (:mod:`service.events`): ``csws:outbox``, a stream of every fleet's events, and
   ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
   trimmed to the retention time (``MINID``) as events are added; ``csws:history:{vehicle}``, a
@@ -92,6 +93,7 @@ __all__ = [
     "PLACED_KEY",
     "GRID_PREFIX",
     "GRID_BUILT_KEY",
+    "PLACES_SWEPT_PER_READ",
     "AXIS_BITS",
     "BOX_SQUARES",
     "BOX_PROBE_FACTOR",
@@ -114,6 +116,11 @@ GRID_PREFIX = "csws:grid:"
 PLACED_SCRATCH_KEY = "csws:placed-scratch"
 #: Set once the places written before the spatial index existed are in it (:meth:`RedisStore.check`).
 GRID_BUILT_KEY = "csws:grid-built"
+#: The last vehicle whose session a read of places checked on its sweep.
+PLACES_SWEPT_KEY = "csws:places-swept"
+#: How many vehicles of the placed set each read of places checks for an expired session, besides those it
+#: meets: the places of expired sessions leave the index (and the hash) even when only small boxes are read.
+PLACES_SWEPT_PER_READ = 100
 OUTBOX_KEY = "csws:outbox"
 HISTORY_PREFIX = "csws:history:"
 HISTORIES_KEY = "csws:histories"
@@ -208,12 +215,13 @@ return conflicts
     .replace("__SEQ__", EVENT_SEQ_PREFIX)
     .replace("__GRID__", GRID_PREFIX)
 )
-#: KEYS: the places hash, the placed set and the scratch set. ARGV: the first key and the end of the key
-#: range (as ZRANGEBYLEX takes them), the page's size, '1' with a box else '0', the box (min x, min y,
+#: KEYS: the places hash, the placed set, the scratch set and the sweep's key. ARGV: the first key and the
+#: end of the key range (as ZRANGEBYLEX takes them), the page's size, '1' with a box else '0', the box (min x, min y,
 #: max x, max y), the most places its squares may hold to be read from the index, the number of networks,
 #: the networks, then the box's ranges of cells (first, last). Returns key, stored session and place of
 #: each vehicle found, flat; takes out the places whose session expired.
-_PLACED_SCRIPT = """
+_PLACED_SCRIPT = (
+    """
 local limit, boxed, found = tonumber(ARGV[3]), ARGV[4] == '1', {}
 local min_x, min_y, max_x, max_y = tonumber(ARGV[5]), tonumber(ARGV[6]), tonumber(ARGV[7]), tonumber(ARGV[8])
 local networks, names = {}, {}
@@ -233,6 +241,13 @@ local function wanted(network, x, y)
 end
 
 -- Adds a vehicle if its session is live, else takes its place out; whether the page is full.
+-- Takes out the place of a vehicle whose session expired.
+local function forget(key, network)
+  redis.call('ZREM', KEYS[2], key)
+  redis.call('HDEL', KEYS[1], key)
+  if network then redis.call('ZREM', '__GRID__' .. network, key) end
+end
+
 local function take(key, place, network)
   local session = redis.call('GET', '__SESSION__' .. key)
   if session then
@@ -240,11 +255,26 @@ local function take(key, place, network)
     found[#found + 1] = session
     found[#found + 1] = place
   else
-    redis.call('ZREM', KEYS[2], key)
-    redis.call('HDEL', KEYS[1], key)
-    redis.call('ZREM', '__GRID__' .. network, key)
+    forget(key, network)
   end
   return #found == 3 * limit
+end
+
+-- Checks the next keys of the placed set (from where the last read stopped, round and round) for
+-- sessions that expired, so that their places leave whatever boxes the reads ask for.
+local function sweep()
+  local last = redis.call('GET', KEYS[4])
+  local keys = redis.call('ZRANGEBYLEX', KEYS[2], last and '(' .. last or '-', '+', 'LIMIT', 0, __SWEPT__)
+  if #keys < __SWEPT__ then
+    redis.call('DEL', KEYS[4])
+  else
+    redis.call('SET', KEYS[4], keys[#keys])
+  end
+  for _, key in ipairs(keys) do
+    if redis.call('EXISTS', '__SESSION__' .. key) == 0 then
+      forget(key, (parsed(redis.call('HGET', KEYS[1], key))))
+    end
+  end
 end
 
 -- Reads the keys of a sorted set of equal scores in order from the cursor, a thousand at a time,
@@ -305,8 +335,12 @@ if places then
 else
   walk(KEYS[2], nil)
 end
+sweep()
 return found
-""".replace("__SESSION__", SESSION_PREFIX).replace("__GRID__", GRID_PREFIX)
+""".replace("__SESSION__", SESSION_PREFIX)
+    .replace("__GRID__", GRID_PREFIX)
+    .replace("__SWEPT__", str(PLACES_SWEPT_PER_READ))
+)
 
 #: KEYS: the places hash. ARGV: per place its vehicle, its place as read and its cell. Indexes each place
 #: that is still the one read and not yet indexed (a write since then indexed the new one).
@@ -585,7 +619,8 @@ class RedisStore(StateStore):
         args += [BOX_PROBE_FACTOR * limit, len(networks), *networks]
         args += [cell for cells in (box_ranges(box) if box is not None else ()) for cell in cells]
         try:
-            found = self._placed_script(keys=[PLACES_KEY, PLACED_KEY, PLACED_SCRATCH_KEY], args=args)
+            keys = [PLACES_KEY, PLACED_KEY, PLACED_SCRATCH_KEY, PLACES_SWEPT_KEY]
+            found = self._placed_script(keys=keys, args=args)
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         placed = []
