@@ -166,13 +166,16 @@ for vehicle = 1, vehicles do
       redis.call('SET', setting_key, ARGV[at + 3])
     end
     if ARGV[at + 4] ~= '' then
-      local network = string.match(ARGV[at + 4], '^(.*)|[^|]+|[^|]+$')
-      local left = string.match(redis.call('HGET', KEYS[1], key) or '', '^(.*)|[^|]+|[^|]+$')
+      local network = string.sub(ARGV[at + 4], 1, string.find(ARGV[at + 4], '|[^|]+|[^|]+$') - 1)
+      local stored_place = redis.call('HGET', KEYS[1], key)
+      local left = stored_place and string.sub(stored_place, 1, string.find(stored_place, '|[^|]+|[^|]+$') - 1)
       if left and left ~= network then
         redis.call('ZREM', '__GRID__' .. left, key)
       end
       redis.call('HSET', KEYS[1], key, ARGV[at + 4])
-      redis.call('ZADD', KEYS[2], 0, key)
+      if not stored_place then
+        redis.call('ZADD', KEYS[2], 0, key)
+      end
       redis.call('ZADD', '__GRID__' .. network, ARGV[at + 5], key)
     end
   else
@@ -232,8 +235,9 @@ end
 local first_range = 11 + tonumber(ARGV[10])
 
 local function parsed(place)
-  local network, x, y = string.match(place or '', '^(.*)|([^|]+)|([^|]+)$')
-  return network, tonumber(x), tonumber(y)
+  local bar, _, x, y = string.find(place or '', '|([^|]+)|([^|]+)$')
+  if not bar then return nil end
+  return string.sub(place, 1, bar - 1), tonumber(x), tonumber(y)
 end
 
 local function wanted(network, x, y)
@@ -348,7 +352,8 @@ _INDEX_SCRIPT = """
 for at = 1, #ARGV, 3 do
   local place = ARGV[at + 1]
   if redis.call('HGET', KEYS[1], ARGV[at]) == place then
-    redis.call('ZADD', '__GRID__' .. string.match(place, '^(.*)|[^|]+|[^|]+$'), 'NX', ARGV[at + 2], ARGV[at])
+    local network = string.sub(place, 1, string.find(place, '|[^|]+|[^|]+$') - 1)
+    redis.call('ZADD', '__GRID__' .. network, 'NX', ARGV[at + 2], ARGV[at])
   end
 end
 """.replace("__GRID__", GRID_PREFIX)
