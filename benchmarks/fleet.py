@@ -12,7 +12,13 @@ of its own along the track's lanes). Figures:
   pause (the whole fleet at the default page size, cursor after cursor): the fixes' p99 must stay
   within :data:`FIX_P99_TARGET_MS`.
 
-Run with ``python -m benchmarks.fleet [VEHICLES]``.
+The Redis store is measured on its own (:func:`run_redis`, no HTTP): :data:`VEHICLES` places spread
+over a square of network metres, written in batches through :class:`service.store.redis.RedisStore`;
+figures: the first page of 1,000 (no box, and in a box holding 3 % of the fleet), a 1 x 1 m box, and
+the p99 of one vehicle's write (a single fix's round trip to the store) alone and while a second
+client reads pages of 1,000 of the 3 % box without pause (Redis runs one script at a time).
+
+Run with ``python -m benchmarks.fleet [VEHICLES]``, or ``python -m benchmarks.fleet redis [VEHICLES]``.
 """
 
 from __future__ import annotations
@@ -26,9 +32,11 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-from benchmarks.servers import csws_serve
+from benchmarks.servers import csws_serve, redis_server
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
+from service.store import Place, VehicleWrite
+from service.store.redis import RedisStore
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
 VEHICLES = 100_000
@@ -37,6 +45,14 @@ MEASURE_S = 8.0
 FIX_P99_TARGET_MS = 20.0
 TARGETS = {"fix_p99_reading_pages_ms": f"<= {FIX_P99_TARGET_MS:g}"}
 LANES = ("approach_0", "curve_0", "runout_0")
+#: The side of the square the Redis benchmark spreads its places over, m, and the size of its pages.
+REDIS_SQUARE_M = 1000.0
+REDIS_PAGE = 1000
+#: Places written per request while filling the store: small enough that a loaded machine answers each within
+#: the store's timeout (the fill is not what is measured).
+REDIS_BATCH = 2000
+#: A session as large as the service's (a matched lane, the state, the release rule's memory), bytes.
+REDIS_SESSION = b"s" * 200
 
 
 def _fill(client: httpx.Client, vehicles: int) -> float:
@@ -147,9 +163,89 @@ def run(vehicles: int = VEHICLES) -> dict:
     return figures
 
 
+def _fill_redis(store: RedisStore, vehicles: int) -> tuple[float, np.ndarray]:
+    """Write ``vehicles`` places spread at random over the square; the seconds it took and the places (x, y)."""
+    points = np.random.default_rng(1).uniform(0.0, REDIS_SQUARE_M, (vehicles, 2))
+    started = time.perf_counter()
+    for first in range(0, vehicles, REDIS_BATCH):
+        store.write(
+            {
+                f"bench|truck-{n:06d}": VehicleWrite(0, REDIS_SESSION, place=Place("track", x, y))
+                for n, (x, y) in enumerate(points[first : first + REDIS_BATCH].tolist(), first)
+            }
+        )
+    return time.perf_counter() - started, points
+
+
+def _placed_ms(store: RedisStore, box: tuple[float, float, float, float] | None) -> tuple[float, int]:
+    """The first page of :data:`REDIS_PAGE` in ``box``: its ms and its vehicles."""
+    started = time.perf_counter()
+    page = store.placed("bench|", "", REDIS_PAGE, ["track"], box)
+    return (time.perf_counter() - started) * 1000.0, len(page)
+
+
+def _writes_ms(store: RedisStore, seconds: float) -> np.ndarray:
+    """Latencies of one vehicle's writes, one after the other, for ``seconds``, ms."""
+    latencies, version = [], 0
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        write = VehicleWrite(version, REDIS_SESSION, place=Place("track", float(version % 800), 1.0))
+        started = time.perf_counter()
+        store.write({"bench|probe": write})
+        latencies.append((time.perf_counter() - started) * 1000.0)
+        version += 1
+    return np.array(latencies)
+
+
+def run_redis(vehicles: int = VEHICLES) -> dict:
+    """Fill a Redis store with ``vehicles`` places and measure its pages and one vehicle's writes; the figures."""
+    three_pc_side_m = REDIS_SQUARE_M * 0.03**0.5
+    three_pc = (0.0, 0.0, three_pc_side_m, three_pc_side_m)
+    with tempfile.TemporaryDirectory(prefix="csws-bench-fleet-redis-") as folder:
+        process, url = redis_server(Path(folder))
+        store = RedisStore(url, 3600.0)
+        try:
+            fill_s, points = _fill_redis(store, vehicles)
+            figures: dict = {"vehicles": vehicles, "fill_s": fill_s}
+            figures["first_page_ms"], figures["first_page_vehicles"] = _placed_ms(store, None)
+            x, y = points[0].tolist()
+            figures["box_1m_ms"], figures["box_1m_vehicles"] = _placed_ms(store, (x - 0.5, y - 0.5, x + 0.5, y + 0.5))
+            figures["box_3pc_ms"], figures["box_3pc_vehicles_first_page"] = _placed_ms(store, three_pc)
+            alone = _writes_ms(store, MEASURE_S / 2)
+            stop, read = threading.Event(), list[int]()
+
+            def read_pages() -> None:
+                pages_store = RedisStore(url, 3600.0)
+                try:
+                    while not stop.is_set():
+                        pages_store.placed("bench|", "", REDIS_PAGE, ["track"], three_pc)
+                        read.append(1)
+                finally:
+                    pages_store.close()
+
+            reader = threading.Thread(target=read_pages)
+            reader.start()
+            during = _writes_ms(store, MEASURE_S / 2)
+            stop.set()
+            reader.join()
+        finally:
+            store.close()
+            process.terminate()
+            process.wait(timeout=30)
+    figures |= {
+        "write_p99_alone_ms": float(np.percentile(alone, 99)),
+        "write_p99_reading_pages_ms": float(np.percentile(during, 99)),
+        "pages_read_per_s": len(read) / (MEASURE_S / 2),
+    }
+    return {name: round(value, 2) if isinstance(value, float) else value for name, value in figures.items()}
+
+
 def main() -> None:
     """Print each figure beside its target."""
-    for name, value in run(int(sys.argv[1]) if len(sys.argv) > 1 else VEHICLES).items():
+    arguments = sys.argv[1:]
+    measure = run_redis if arguments[:1] == ["redis"] else run
+    vehicles = int(arguments[-1]) if arguments and arguments[-1] != "redis" else VEHICLES
+    for name, value in measure(vehicles).items():
         target = TARGETS.get(name, "")
         print(f"{name:>32}: {value!s:<10} {('target ' + target) if target else ''}")
 

@@ -19,8 +19,6 @@ from __future__ import annotations
 import asyncio
 import os
 import re
-import shutil
-import socket
 import subprocess
 import sys
 import tempfile
@@ -32,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.rows import Row, at_least, at_most, context
-from benchmarks.servers import cpu_s, memory_mb
+from benchmarks.servers import cpu_s, memory_mb, redis_server
 from benchmarks.telematics_fleet import drive_fleet, lonlat
 from csws.gateways.jt808.simulator import SimulatedTerminal, Track, simulate
 from csws.gateways.jt808.terminals import NewTerminal, add_terminals
@@ -166,22 +164,6 @@ def run_all(terminals: int = BENCH_TERMINALS) -> dict[str, Any]:
     return {**run(terminals), "scaleout": run_scaleout(terminals // 2)}
 
 
-def _redis(folder: Path) -> tuple[subprocess.Popen, str]:
-    """A redis-server on a free loopback port (no persistence: this measures the gateways, not the disk)."""
-    binary = shutil.which("redis-server")
-    if binary is None:
-        raise RuntimeError("the scale-out figure needs redis-server (apt-get install redis-server)")
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
-    process = subprocess.Popen(
-        [binary, "--bind", "127.0.0.1", "--port", str(port), "--dir", str(folder), "--save", ""],
-        stdout=subprocess.DEVNULL,
-    )
-    time.sleep(0.5)
-    return process, f"redis://127.0.0.1:{port}/0"
-
-
 def run_scaleout(terminals: int = 1000, report_s: float = 30.0, speedup: float = 5.0) -> dict[str, Any]:
     """Reports evaluated per second by one gateway and by two on one Redis, offered more than one can take.
 
@@ -195,7 +177,7 @@ def run_scaleout(terminals: int = 1000, report_s: float = 30.0, speedup: float =
         folder = Path(temporary)
         phones = [f"1390{i:07d}" for i in range(terminals)]
         add_terminals(folder / "terminals.json", "bench", [NewTerminal(p, "N", f"t{p}") for p in phones])
-        redis_process, url = _redis(folder)
+        redis_process, url = redis_server(folder)
         try:
             for count in (1, 2):
                 gateways = [_gateway(folder / "terminals.json", "--state", url) for _ in range(count)]

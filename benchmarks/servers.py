@@ -11,6 +11,7 @@ RSS counts in each of them and PSS divides among them.
 from __future__ import annotations
 
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import httpx
 
-__all__ = ["STARTUP_TIMEOUT_S", "Running", "start", "csws_serve", "memory_mb", "children", "cpu_s"]
+__all__ = ["STARTUP_TIMEOUT_S", "Running", "start", "csws_serve", "memory_mb", "children", "cpu_s", "redis_server"]
 
 #: How long a server may take to answer /readyz, s: the bundled networks fitted afresh take a while.
 STARTUP_TIMEOUT_S = 180.0
@@ -119,3 +120,18 @@ def cpu_s(pids: list[int]) -> float:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
         ticks += int(fields[11]) + int(fields[12])
     return ticks / os.sysconf("SC_CLK_TCK")
+
+
+def redis_server(folder: Path) -> tuple[subprocess.Popen, str]:
+    """A redis-server on a free loopback port, keeping its files in ``folder`` (no persistence: the benchmarks
+    measure the service, not the disk); the process and the URL of its database 0."""
+    binary = shutil.which("redis-server")
+    if binary is None:
+        raise RuntimeError("this benchmark needs redis-server (apt-get install redis-server)")
+    port = _free_port()
+    process = subprocess.Popen(
+        [binary, "--bind", "127.0.0.1", "--port", str(port), "--dir", str(folder), "--save", ""],
+        stdout=subprocess.DEVNULL,
+    )
+    time.sleep(0.5)
+    return process, f"redis://127.0.0.1:{port}/0"

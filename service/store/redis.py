@@ -7,10 +7,15 @@ its own):
   no expiry;
 * ``csws:session:{vehicle}``: ``{version}|{session}``, expiring ``session_idle_s`` after its
   last write (Redis's key TTL: nothing to sweep);
-* ``csws:places``: a hash of the vehicles' places, ``{network}|{x}|{y}`` by vehicle, and
+* ``csws:places``: a hash of the vehicles' places, ``{network}|{x}|{y}`` by vehicle;
   ``csws:placed``: their vehicles in a sorted set of equal scores, so in key order
-  (``ZRANGEBYLEX`` reads a fleet's keys from a cursor on). Both are written with the session;
-  a vehicle whose session expired leaves them when a read of places finds it gone;
+  (``ZRANGEBYLEX`` reads a fleet's keys from a cursor on); and ``csws:grid:{network}``, the
+  spatial index: the network's vehicles in a sorted set scored by their cell (:func:`place_cell`).
+  All are written with the session (a vehicle that moves has its score changed, one that changes
+  network leaves the other network's set); a vehicle whose session expired leaves them when a read
+  of places meets it, or checks it on its sweep (:data:`PLACES_SWEPT_PER_READ` vehicles per read,
+  round and round the placed set from ``csws:places-swept``). The places a store without the index
+  wrote are indexed once, at start-up (:meth:`RedisStore.check`), which then sets ``csws:grid-built``;
 * the outbox (:mod:`service.events`): ``csws:outbox``, a stream of every fleet's events, and
   ``csws:outbox:{fleet}``, one per fleet, each event added to both under the same id (its cursor),
   trimmed as events are added (``MINID``): a fleet's stream to the fleet's retention time, the
@@ -27,11 +32,8 @@ its own):
   fleet's retention time and not yet trimmed, a vehicle's fleet being its key's
   (:meth:`service.store.EventRetention.of_key`).
 
-Reading places (:meth:`RedisStore.placed`) is one server-side script too: it walks the fleet's
-keys in order from the cursor, a thousand at a time, and keeps those whose place is on the
-networks and in the box, until the page is full. Unlike the SQLite store's R*Tree this is no
-spatial index: a small box over a large fleet walks the fleet's places (on the server, not
-over the network), about 50 ms per 100,000.
+Reading places (:meth:`RedisStore.placed`) is one server-side script too, over the spatial index
+(:mod:`service.store.redis_places`): a small box over a large fleet reads only the places near it.
 
 A request reads its vehicles with one ``MGET`` (atomic) and writes them with one Lua script
 (atomic, run by the server): per vehicle, it compares the session's version with the one read
@@ -76,12 +78,36 @@ from . import (
     checked_idle_s,
     prefix_end,
 )
+from .redis_places import (
+    AXIS_BITS,
+    BOX_PROBE_FACTOR,
+    BOX_SQUARES,
+    GRID_BUILT_KEY,
+    GRID_PREFIX,
+    INDEX_SCRIPT,
+    PLACED_SCRATCH_KEY,
+    PLACED_SCRIPT,
+    PLACES_SWEPT_KEY,
+    PLACES_SWEPT_PER_READ,
+    axis_ordinal,
+    box_ranges,
+    place_cell,
+)
 
 __all__ = [
     "SESSION_PREFIX",
     "SETTING_PREFIX",
     "PLACES_KEY",
     "PLACED_KEY",
+    "GRID_PREFIX",
+    "GRID_BUILT_KEY",
+    "PLACES_SWEPT_PER_READ",
+    "AXIS_BITS",
+    "BOX_SQUARES",
+    "BOX_PROBE_FACTOR",
+    "axis_ordinal",
+    "place_cell",
+    "box_ranges",
     "OUTBOX_KEY",
     "HISTORY_PREFIX",
     "HISTORIES_KEY",
@@ -102,9 +128,9 @@ _CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 
 #: KEYS: the places hash and the placed set, then per vehicle its session key and its setting key.
 #: ARGV: the sessions' time to live in ms, the longest retention of events in ms, the number of vehicles, then per
-#: vehicle its key, the expected version, the new session, the new setting and the new place ('' for
-#: none), then per event the (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's
-#: retention in ms.
+#: vehicle its key, the expected version, the new session, the new setting, the new place ('' for
+#: none) and its cell (:func:`place_cell`), then per event the (1-based) number of its vehicle, its fleet,
+#: number, time (s), JSON and its fleet's retention in ms.
 #: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
 _WRITE_SCRIPT = (
     """
@@ -112,7 +138,7 @@ local conflicts, written = {}, {}
 local vehicles = tonumber(ARGV[3])
 for vehicle = 1, vehicles do
   local session_key, setting_key = KEYS[2 * vehicle + 1], KEYS[2 * vehicle + 2]
-  local at = 5 * vehicle - 1
+  local at = 6 * vehicle - 2
   local key, expected = ARGV[at], ARGV[at + 1]
   local stored = redis.call('GET', session_key)
   local version = stored and string.match(stored, '^(%d+)|') or '0'
@@ -123,14 +149,23 @@ for vehicle = 1, vehicles do
       redis.call('SET', setting_key, ARGV[at + 3])
     end
     if ARGV[at + 4] ~= '' then
+      local network = string.sub(ARGV[at + 4], 1, string.find(ARGV[at + 4], '|[^|]+|[^|]+$') - 1)
+      local stored_place = redis.call('HGET', KEYS[1], key)
+      local left = stored_place and string.sub(stored_place, 1, string.find(stored_place, '|[^|]+|[^|]+$') - 1)
+      if left and left ~= network then
+        redis.call('ZREM', '__GRID__' .. left, key)
+      end
       redis.call('HSET', KEYS[1], key, ARGV[at + 4])
-      redis.call('ZADD', KEYS[2], 0, key)
+      if not stored_place then
+        redis.call('ZADD', KEYS[2], 0, key)
+      end
+      redis.call('ZADD', '__GRID__' .. network, ARGV[at + 5], key)
     end
   else
     conflicts[#conflicts + 1] = vehicle
   end
 end
-local first = 5 * vehicles + 4
+local first = 6 * vehicles + 4
 if first <= #ARGV then
   local now = redis.call('TIME')
   local now_s = tonumber(now[1]) + tonumber(now[2]) / 1e6
@@ -167,42 +202,8 @@ return conflicts
     .replace("__HISTORY__", HISTORY_PREFIX)
     .replace("__HISTORIES__", HISTORIES_KEY)
     .replace("__SEQ__", EVENT_SEQ_PREFIX)
+    .replace("__GRID__", GRID_PREFIX)
 )
-#: KEYS: the places hash and the placed set. ARGV: the first key and the end of the key range (as
-#: ZRANGEBYLEX takes them), the page's size, the sessions' key prefix, '1' with a box else '0', the
-#: box (min x, min y, max x, max y), then the networks. Returns key, stored session and place of each
-#: vehicle found, flat; takes out the places whose session expired.
-_PLACED_SCRIPT = """
-local networks = {}
-for i = 10, #ARGV do networks[ARGV[i]] = true end
-local boxed = ARGV[5] == '1'
-local min_x, min_y, max_x, max_y = tonumber(ARGV[6]), tonumber(ARGV[7]), tonumber(ARGV[8]), tonumber(ARGV[9])
-local limit, low, found = tonumber(ARGV[3]), ARGV[1], {}
-while #found < 3 * limit do
-  local keys = redis.call('ZRANGEBYLEX', KEYS[2], low, ARGV[2], 'LIMIT', 0, 1000)
-  if #keys == 0 then break end
-  local places = redis.call('HMGET', KEYS[1], unpack(keys))
-  for i, key in ipairs(keys) do
-    local place = places[i]
-    local network, x, y = string.match(place or '', '^(.*)|([^|]+)|([^|]+)$')
-    x, y = tonumber(x), tonumber(y)
-    if network and networks[network] and (not boxed or (x >= min_x and x <= max_x and y >= min_y and y <= max_y)) then
-      local session = redis.call('GET', ARGV[4] .. key)
-      if session then
-        found[#found + 1] = key
-        found[#found + 1] = session
-        found[#found + 1] = place
-        if #found == 3 * limit then break end
-      else
-        redis.call('ZREM', KEYS[2], key)
-        redis.call('HDEL', KEYS[1], key)
-      end
-    end
-  end
-  low = '(' .. keys[#keys]
-end
-return found
-"""
 
 
 def _ms(duration_s: float) -> int:
@@ -295,16 +296,38 @@ class RedisStore(StateStore):
             raise ValueError(f"bad Redis URL {self.name}: {exc}") from None
         self._database = int(self._redis.connection_pool.connection_kwargs.get("db", 0))
         self._write_script = self._redis.register_script(_WRITE_SCRIPT)
-        self._placed_script = self._redis.register_script(_PLACED_SCRIPT)
+        self._placed_script = self._redis.register_script(PLACED_SCRIPT.replace("__SESSION__", SESSION_PREFIX))
+        self._index_script = self._redis.register_script(INDEX_SCRIPT)
 
     def _unavailable(self, exc: Exception) -> StoreUnavailable:
         return StoreUnavailable(f"the state store {self.name} cannot be reached now: {type(exc).__name__}: {exc}")
 
     def check(self) -> None:
+        """Ping Redis, and index the places written before the spatial index existed (once)."""
         try:
             self._redis.ping()
+            if not self._redis.exists(GRID_BUILT_KEY):
+                self._index_places()
         except redis.RedisError as exc:
             raise OSError(f"cannot reach the state store {self.name}: {exc}") from None
+        except ValueError as exc:
+            raise OSError(f"the state store {self.name} holds an unreadable place: {exc}") from None
+
+    def _index_places(self) -> None:
+        """Put every place of the hash into the spatial index unless a write indexed it (``HSCAN``: each place
+        there all along is read at least once; those written meanwhile were indexed by their write), then
+        mark the index built."""
+        cursor = 0
+        while True:
+            cursor, places = self._redis.hscan(PLACES_KEY, cursor, count=1000)
+            args: list[bytes | int] = []
+            for key, place in cast(dict[bytes, bytes], places).items():
+                args += [key, place, place_cell(_decode_place(place))]
+            if args:
+                self._index_script(keys=[PLACES_KEY], args=args)
+            if cursor == 0:
+                break
+        self._redis.set(GRID_BUILT_KEY, 1)
 
     def _values(self, keys: Sequence[str | bytes]) -> list[bytes | None]:
         """The values of ``keys`` in one ``MGET`` (the client decodes no responses: they are bytes)."""
@@ -350,6 +373,7 @@ class RedisStore(StateStore):
                 w.session,
                 b"" if w.setting is None else _encode_setting(w.setting),
                 b"" if w.place is None else _encode_place(w.place),
+                b"" if w.place is None else place_cell(w.place),
             ]
             for event in w.events:
                 retention_ms = _ms(self.event_retention.of(event.fleet))
@@ -364,13 +388,18 @@ class RedisStore(StateStore):
     def placed(
         self, prefix: str, after: str, limit: int, networks: Collection[str], box: Box | None
     ) -> list[PlacedSession]:
+        """Read with one script: from the spatial index for a box whose cells hold fewer than
+        :data:`BOX_PROBE_FACTOR` places per vehicle asked for, else along the fleet's keys."""
         end = prefix_end(prefix)
         first = "(" + after if after >= prefix and after else "[" + prefix if prefix else "-"
-        args: list[str | int] = [first, "+" if end is None else "(" + end, limit, SESSION_PREFIX]
-        args.append("0" if box is None else "1")
+        networks = list(networks)
+        args: list[str | int] = [first, "+" if end is None else "(" + end, limit, "0" if box is None else "1"]
         args += [repr(v) for v in box or (0.0, 0.0, 0.0, 0.0)]
+        args += [BOX_PROBE_FACTOR * limit, len(networks), *networks]
+        args += [cell for cells in (box_ranges(box) if box is not None else ()) for cell in cells]
         try:
-            found = self._placed_script(keys=[PLACES_KEY, PLACED_KEY], args=[*args, *networks])
+            keys = [PLACES_KEY, PLACED_KEY, PLACED_SCRATCH_KEY, PLACES_SWEPT_KEY]
+            found = self._placed_script(keys=keys, args=args)
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         placed = []
