@@ -166,6 +166,9 @@ def test_a_url_that_is_no_http_url_is_a_422_and_a_huge_one_a_validation_error(fl
         assert refused.status_code == 422 and isinstance(refused.json()["detail"], str), refused.text
     huge = fleets.call("POST", "/v1/webhooks", fleets.admin, json={"url": "http://127.0.0.1/" + "a" * 2048})
     assert huge.status_code == 422 and isinstance(huge.json()["detail"], list)
+    as_json = {**fleets.admin, "Content-Type": "application/json"}
+    not_utf8 = fleets.call("POST", "/v1/webhooks", as_json, content=b"\xa0\x05\xb3")
+    assert not_utf8.status_code == 422 and isinstance(not_utf8.json()["detail"], list)
 
 
 def test_the_command_line_and_the_api_see_the_same_list(fleets, capsys):
