@@ -28,6 +28,7 @@ from service.keys import Role, add_key
 from service.push.addresses import address_refusal
 from service.push.state import Pending, PushState, push_db_beside
 from service.push.targets import RELOAD_INTERVAL_S, SECRET_PREFIX
+from service.routes.webhooks import MAX_FLEET_WEBHOOKS
 
 FLEET, RIVAL = "acme", "rival"
 #: When the dead letters of the test were given up, unix s.
@@ -92,6 +93,7 @@ def test_a_fleet_admin_adds_a_webhook_and_the_next_warnings_reach_it_signed_with
     added = fleets.call("POST", "/v1/webhooks", fleets.admin, json={"url": receiver.url})
     assert added.status_code == 201, added.text
     secret = added.json()["secret"]
+    assert added.headers["cache-control"] == "no-store"
     assert secret.startswith(SECRET_PREFIX) and added.json()["url"] == receiver.url
     assert fleets.urls(fleets.admin) == [receiver.url]
     time.sleep(RELOAD_INTERVAL_S + 1.0)  # every worker reads the file again within RELOAD_INTERVAL_S of a change
@@ -119,6 +121,19 @@ def test_a_fleet_s_second_url_shares_its_secret_which_is_not_given_again(fleets)
     assert "secret" not in fleets.call("GET", "/v1/webhooks", fleets.admin).text.replace('"urls"', "")
     for url in (first, second):
         assert fleets.call("DELETE", "/v1/webhooks", fleets.admin, params={"url": url}).status_code == 204
+
+
+def test_a_fleet_has_at_most_max_fleet_webhooks_urls(fleets):
+    urls = [f"http://127.0.0.1:9/{number}" for number in range(MAX_FLEET_WEBHOOKS + 1)]
+    for url in urls[:-1]:
+        assert fleets.call("POST", "/v1/webhooks", fleets.admin, json={"url": url}).status_code == 201
+    refused = fleets.call("POST", "/v1/webhooks", fleets.admin, json={"url": urls[-1]})
+    assert refused.status_code == 409 and str(MAX_FLEET_WEBHOOKS) in refused.json()["detail"]
+    assert fleets.urls(fleets.admin) == urls[:-1]
+    assert fleets.call("POST", "/v1/webhooks", fleets.rival, json={"url": urls[-1]}).status_code == 201
+    for url in urls[:-1]:
+        assert fleets.call("DELETE", "/v1/webhooks", fleets.admin, params={"url": url}).status_code == 204
+    assert fleets.call("DELETE", "/v1/webhooks", fleets.rival, params={"url": urls[-1]}).status_code == 204
 
 
 def test_a_query_key_is_refused_and_no_key_is_a_401(fleets):

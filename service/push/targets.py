@@ -34,6 +34,7 @@ __all__ = [
     "Webhook",
     "WebhookBook",
     "DuplicateWebhook",
+    "TooManyWebhooks",
     "UnknownWebhook",
     "add_webhook",
     "remove_webhook",
@@ -50,6 +51,10 @@ RELOAD_INTERVAL_S = 1.0
 
 class DuplicateWebhook(ValueError):
     """The fleet has this URL among its webhooks already."""
+
+
+class TooManyWebhooks(ValueError):
+    """The fleet has as many webhooks as it may."""
 
 
 class UnknownWebhook(ValueError):
@@ -132,13 +137,19 @@ def _changing(path: Path) -> Iterator[None]:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def add_webhook(path: Path, fleet: str, url: str, allow_private: bool) -> str | None:
+def add_webhook(path: Path, fleet: str, url: str, allow_private: bool, max_urls: int | None = None) -> str | None:
     """Add ``url`` to the webhooks of ``fleet``; the fleet's new secret when this is its first URL, else None.
+
+    Parameters
+    ----------
+    max_urls
+        The most URLs the fleet may have (None: no bound), so that one fleet's events cannot fan out without end.
 
     Raises
     ------
     ValueError
-        For a bad fleet name, a URL already there (:class:`DuplicateWebhook`), a file that is not a webhook file,
+        For a bad fleet name, a URL already there (:class:`DuplicateWebhook`), a fleet with ``max_urls`` already
+        (:class:`TooManyWebhooks`), a file that is not a webhook file,
         or a URL the service may not reach (:class:`service.push.addresses.UnsafeTarget`, checked now and at every
         connection).
     """
@@ -146,10 +157,10 @@ def add_webhook(path: Path, fleet: str, url: str, allow_private: bool) -> str | 
         raise ValueError(f"fleet must be 1-64 letters, digits, '_', '.' or '-', got {fleet!r}")
     resolved_addresses(url, allow_private)
     with _changing(path):
-        return _added(path, fleet, url)
+        return _added(path, fleet, url, max_urls)
 
 
-def _added(path: Path, fleet: str, url: str) -> str | None:
+def _added(path: Path, fleet: str, url: str, max_urls: int | None) -> str | None:
     """Add ``url`` to the webhooks of ``fleet`` in the file, under its lock; the fleet's new secret or None."""
     fleets = _fleets(path)
     entry = next((entry for entry in fleets if entry["fleet"] == fleet), None)
@@ -160,6 +171,8 @@ def _added(path: Path, fleet: str, url: str) -> str | None:
         fleets.append(entry)
     if url in entry["urls"]:
         raise DuplicateWebhook(f"{path}: fleet {fleet!r} has the webhook {url!r} already")
+    if max_urls is not None and len(entry["urls"]) >= max_urls:
+        raise TooManyWebhooks(f"{path}: fleet {fleet!r} has {max_urls} webhooks, the most it may have")
     entry["urls"].append(url)
     _write(path, fleets)
     return secret

@@ -30,7 +30,14 @@ from ..deps import BodyDep
 from ..push import push_config
 from ..push.addresses import UnsafeTarget
 from ..push.state import open_push_state
-from ..push.targets import DuplicateWebhook, UnknownWebhook, add_webhook, list_webhooks, remove_webhook
+from ..push.targets import (
+    DuplicateWebhook,
+    TooManyWebhooks,
+    UnknownWebhook,
+    add_webhook,
+    list_webhooks,
+    remove_webhook,
+)
 from ..schemas import Message
 from ..security import CallerDep
 from .common import BOUNDED, KEYED, json_body
@@ -52,6 +59,8 @@ logger = logging.getLogger("csws.service")
 
 #: The longest URL a webhook may have, characters.
 MAX_URL_CHARS = 2048
+#: The most webhooks a fleet's admin may give the fleet: each event goes to every one of them.
+MAX_FLEET_WEBHOOKS = 16
 #: The most dead letters one answer holds.
 MAX_DEAD_LETTERS = 1000
 #: A key without the admin role, or a service without keys.
@@ -84,7 +93,7 @@ Url = Annotated[
         max_length=MAX_URL_CHARS,
         description="an http:// or https:// URL whose host resolves only to addresses the service may reach "
         "(docs/push.md: never link-local or cloud metadata; loopback and private only where the service allows)",
-        examples=["https://dispatch.example/csws"],  # a reserved name (RFC 2606): the fuzzer relays nothing,
+        examples=["https://dispatch.example/csws"],  # a reserved name (RFC 2606): the fuzzer relays nothing
     ),
 ]
 
@@ -189,11 +198,13 @@ async def get_webhooks(fleet: FleetAdminDep, request: Request) -> FleetWebhooks:
 def _add(path: Path, fleet: str, url: str, allow_private: bool) -> str | None:
     """Add the URL by :func:`~service.push.targets.add_webhook`; its refusals as 422, 409 and 500."""
     try:
-        return add_webhook(path, fleet, url, allow_private)
+        return add_webhook(path, fleet, url, allow_private, MAX_FLEET_WEBHOOKS)
     except UnsafeTarget as refusal:
         raise HTTPException(422, str(refusal)) from None
     except DuplicateWebhook:
         raise HTTPException(409, f"the fleet has the webhook {url!r} already") from None
+    except TooManyWebhooks:
+        raise HTTPException(409, f"the fleet has {MAX_FLEET_WEBHOOKS} webhooks, the most it may have") from None
     except ValueError as error:
         raise _broken(error) from None
 
@@ -208,16 +219,17 @@ def _add(path: Path, fleet: str, url: str, allow_private: bool) -> str | None:
         **FORBIDDEN,
         **BOUNDED,
         **REFUSED_URL,
-        409: {"model": Message, "description": "the fleet has this URL already"},
+        409: {"model": Message, "description": "the fleet has this URL already, or MAX_FLEET_WEBHOOKS (16) URLs"},
     },
     openapi_extra=json_body(WebhookUrl),
 )
-async def post_webhook(fleet: FleetAdminDep, request: Request, body: BodyDep) -> WebhookAdded:
+async def post_webhook(fleet: FleetAdminDep, request: Request, response: Response, body: BodyDep) -> WebhookAdded:
     """Add a URL to the fleet's webhooks: it receives the events written from a second on, signed with the fleet's
     secret, which this answer gives when the URL is the fleet's first (only then). Needs the admin role."""
     url = decode(body, DecodedWebhookUrl, WEBHOOK_URL_ADAPTER).url
     allow_private = request.app.state.settings.webhook_allow_private
     secret = await asyncio.to_thread(_add, _webhooks_file(request), fleet, url, allow_private)
+    response.headers["Cache-Control"] = "no-store"  # it may carry the secret
     return WebhookAdded(url=url, secret=secret)
 
 
