@@ -13,6 +13,7 @@ import ipaddress
 import json
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -134,6 +135,20 @@ def test_a_fleet_has_at_most_max_fleet_webhooks_urls(fleets):
     for url in urls[:-1]:
         assert fleets.call("DELETE", "/v1/webhooks", fleets.admin, params={"url": url}).status_code == 204
     assert fleets.call("DELETE", "/v1/webhooks", fleets.rival, params={"url": urls[-1]}).status_code == 204
+
+
+def test_urls_added_at_once_are_all_kept(fleets):
+    urls = [f"http://127.0.0.1:9/at-once-{number}" for number in range(MAX_FLEET_WEBHOOKS)]
+    with ThreadPoolExecutor(len(urls)) as pool:
+        answers = list(pool.map(lambda url: fleets.call("POST", "/v1/webhooks", fleets.admin, json={"url": url}), urls))
+    assert [answer.status_code for answer in answers] == [201] * len(urls)
+    assert sum(answer.json()["secret"] is not None for answer in answers) == 1  # one secret, made with the first
+    assert sorted(fleets.urls(fleets.admin)) == sorted(urls)
+    with ThreadPoolExecutor(len(urls)) as pool:
+        removed = list(
+            pool.map(lambda url: fleets.call("DELETE", "/v1/webhooks", fleets.admin, params={"url": url}), urls)
+        )
+    assert [answer.status_code for answer in removed] == [204] * len(urls) and fleets.urls(fleets.admin) == []
 
 
 def test_a_query_key_is_refused_and_no_key_is_a_401(fleets):
