@@ -38,7 +38,7 @@ from .metrics import Metrics, MetricsMiddleware
 from .networks import load_networks
 from .problems import MAX_ERRORS_SHOWN, MAX_MESSAGE_CHARS, problem_body
 from .push import start_service_push
-from .routes import docs, events, map, match, ops, traccar, vehicles, warnings
+from .routes import docs, events, map, match, ops, traccar, vehicles, warnings, webhooks
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import VehicleRegistry
@@ -174,7 +174,15 @@ def create_app(
     )
     _share(app, settings, clock, progress)
     docs.mount_static(app)
-    routers = (warnings.router, traccar.router, vehicles.router, events.router, match.router, map.router)
+    routers = (
+        warnings.router,
+        traccar.router,
+        vehicles.router,
+        events.router,
+        webhooks.router,
+        match.router,
+        map.router,
+    )
     for router in (*routers, ops.router, docs.router):
         app.include_router(router)
     # Innermost first: security headers (on the page before it is gzipped), answers to GETs gzipped,

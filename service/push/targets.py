@@ -1,8 +1,9 @@
 """The fleets' webhooks: the URLs that receive each fleet's events, and the secret that signs them.
 
-Only the service's admin configures them (``csws webhooks add | list | remove``), in a file beside
-the API key file (``webhooks.json`` there, or ``CSWS_WEBHOOKS_FILE``), so the service relays
-nothing to a URL nobody trusted. Its format::
+The service's admin configures them (``csws webhooks add | list | remove``), and a fleet's admin its
+own over the API (``/v1/webhooks``, :mod:`service.routes.webhooks`), so the service relays nothing
+to a URL nobody trusted; both change one file beside the API key file (``webhooks.json`` there, or
+``CSWS_WEBHOOKS_FILE``), each change under its lock and written at once. Its format::
 
     {"format": "csws-webhooks/1",
      "fleets": [{"fleet": "acme", "secret": "whsec_...", "urls": ["https://dispatch.example/csws"]}]}
@@ -14,11 +15,14 @@ share it. A running service reads the file again when it changes (:class:`Webhoo
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import secrets
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +33,9 @@ __all__ = [
     "WEBHOOKS_FORMAT",
     "Webhook",
     "WebhookBook",
+    "DuplicateWebhook",
+    "TooManyWebhooks",
+    "UnknownWebhook",
     "add_webhook",
     "remove_webhook",
     "list_webhooks",
@@ -40,6 +47,18 @@ WEBHOOKS_FORMAT = "csws-webhooks/1"
 SECRET_PREFIX = "whsec_"
 #: A running service looks at the file's status at most this often, s.
 RELOAD_INTERVAL_S = 1.0
+
+
+class DuplicateWebhook(ValueError):
+    """The fleet has this URL among its webhooks already."""
+
+
+class TooManyWebhooks(ValueError):
+    """The fleet has as many webhooks as it may."""
+
+
+class UnknownWebhook(ValueError):
+    """The fleet has no such webhook."""
 
 
 @dataclass(frozen=True)
@@ -105,18 +124,44 @@ def _write(path: Path, fleets: list[dict]) -> None:
         raise
 
 
-def add_webhook(path: Path, fleet: str, url: str, allow_private: bool) -> str | None:
+@contextmanager
+def _changing(path: Path) -> Iterator[None]:
+    """Hold the webhook file's lock (``.NAME.lock`` beside it) while it is read and written again, so that two
+    changes at once (the command line, the API in several workers) do not lose one of them."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(f".{path.name}.lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def add_webhook(path: Path, fleet: str, url: str, allow_private: bool, max_urls: int | None = None) -> str | None:
     """Add ``url`` to the webhooks of ``fleet``; the fleet's new secret when this is its first URL, else None.
+
+    Parameters
+    ----------
+    max_urls
+        The most URLs the fleet may have (None: no bound), so that one fleet's events cannot fan out without end.
 
     Raises
     ------
     ValueError
-        For a bad fleet name, a URL already there, a file that is not a webhook file, or a URL the service may
-        not reach (:class:`service.push.addresses.UnsafeTarget`, checked now and at every connection).
+        For a bad fleet name, a URL already there (:class:`DuplicateWebhook`), a fleet with ``max_urls`` already
+        (:class:`TooManyWebhooks`), a file that is not a webhook file,
+        or a URL the service may not reach (:class:`service.push.addresses.UnsafeTarget`, checked now and at every
+        connection).
     """
     if FLEET_PATTERN.fullmatch(fleet) is None:
         raise ValueError(f"fleet must be 1-64 letters, digits, '_', '.' or '-', got {fleet!r}")
     resolved_addresses(url, allow_private)
+    with _changing(path):
+        return _added(path, fleet, url, max_urls)
+
+
+def _added(path: Path, fleet: str, url: str, max_urls: int | None) -> str | None:
+    """Add ``url`` to the webhooks of ``fleet`` in the file, under its lock; the fleet's new secret or None."""
     fleets = _fleets(path)
     entry = next((entry for entry in fleets if entry["fleet"] == fleet), None)
     secret = None
@@ -125,7 +170,9 @@ def add_webhook(path: Path, fleet: str, url: str, allow_private: bool) -> str | 
         entry = {"fleet": fleet, "secret": secret, "urls": []}
         fleets.append(entry)
     if url in entry["urls"]:
-        raise ValueError(f"{path}: fleet {fleet!r} has the webhook {url!r} already")
+        raise DuplicateWebhook(f"{path}: fleet {fleet!r} has the webhook {url!r} already")
+    if max_urls is not None and len(entry["urls"]) >= max_urls:
+        raise TooManyWebhooks(f"{path}: fleet {fleet!r} has {max_urls} webhooks, the most it may have")
     entry["urls"].append(url)
     _write(path, fleets)
     return secret
@@ -137,14 +184,15 @@ def remove_webhook(path: Path, fleet: str, url: str) -> None:
     Raises
     ------
     ValueError
-        When the fleet has no such webhook, or the file is not a webhook file.
+        When the fleet has no such webhook (:class:`UnknownWebhook`), or the file is not a webhook file.
     """
-    fleets = _fleets(path)
-    entry = next((entry for entry in fleets if entry["fleet"] == fleet and url in entry["urls"]), None)
-    if entry is None:
-        raise ValueError(f"{path}: fleet {fleet!r} has no webhook {url!r} (see csws webhooks list)")
-    entry["urls"].remove(url)
-    _write(path, [entry for entry in fleets if entry["urls"]])
+    with _changing(path):
+        fleets = _fleets(path)
+        entry = next((entry for entry in fleets if entry["fleet"] == fleet and url in entry["urls"]), None)
+        if entry is None:
+            raise UnknownWebhook(f"{path}: fleet {fleet!r} has no webhook {url!r} (see csws webhooks list)")
+        entry["urls"].remove(url)
+        _write(path, [entry for entry in fleets if entry["urls"]])
 
 
 def list_webhooks(path: Path) -> list[Webhook]:
