@@ -179,7 +179,10 @@ def test_two_workers_on_each_of_two_replicas_deliver_each_event_once_per_subscri
     add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
     seen = Subscriber(mosquitto, f"csws/{FLEET}/+/events")
     outbox, vehicles, count = MemoryOutbox(), [f"truck-{n}" for n in range(10)], 30
-    config = replace(quick_config(tmp_path, state), mqtt_url=mosquitto.url)
+    # A receiver slower than the timeout is retried (at least once, by design): here the answer may wait for the
+    # loaded machine, so the timeout is long and a second delivery can come only from two dispatchers at once.
+    policy = RetryPolicy(max_tries=50, first_delay_s=0.05, max_delay_s=0.2, timeout_s=10.0)
+    config = replace(quick_config(tmp_path, state, policy=policy), mqtt_url=mosquitto.url)
     stoppers = [start_push(config, outbox) for _ in range(4)]
     try:
         for seq in range(1, count + 1):  # written while they run
