@@ -17,6 +17,7 @@ Run with ``python -m benchmarks.jt808 [TERMINALS]``.
 from __future__ import annotations
 
 import asyncio
+import math
 import os
 import re
 import shutil
@@ -122,6 +123,17 @@ async def _loop_lag(lags_s: list[float], period_s: float = 0.01) -> None:
         lags_s.append(time.perf_counter() - asked - period_s)
 
 
+def _waited_s(pid: int) -> float:
+    """Seconds the threads of process ``pid`` have spent runnable but waiting for a core (``schedstat``)."""
+    total_ns = 0
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            total_ns += int((task / "schedstat").read_text().split()[1])
+        except (OSError, IndexError, ValueError):
+            continue  # a thread that ended meanwhile
+    return total_ns / 1e9
+
+
 def _percentile_ms(values: list[float], q: float) -> float:
     return float(np.percentile(np.array(values) * 1000.0, q)) if values else float("nan")
 
@@ -136,7 +148,7 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
         process, port = _gateway(folder / "terminals.json", "--state-db", str(folder / "state.db"))
         try:
             idle_mb, _ = memory_mb(process.pid)
-            cpu_before = cpu_s([process.pid])
+            cpu_before, waited_before = cpu_s([process.pid]), _waited_s(process.pid)
             simulated = [
                 SimulatedTerminal(phone, _cut(tracks[i % len(tracks)], report_s)) for i, phone in enumerate(phones)
             ]
@@ -159,6 +171,7 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
             stats = asyncio.run(watched())
             elapsed_s = time.perf_counter() - started
             cpu_used_s = cpu_s([process.pid]) - cpu_before
+            waited_s = _waited_s(process.pid) - waited_before
             simulator_cpu_s = time.process_time() - simulator_cpu_before
         finally:
             evaluated, stages = _stopped(process)
@@ -178,6 +191,7 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
         "memory_per_terminal_kb": (peak["mb"] - idle_mb) * 1024.0 / terminals,
         "gateway_cpu_us_per_report": cpu_used_s / max(reports, 1) * 1e6,
         "gateway_cores": cpu_used_s / elapsed_s,
+        "gateway_waited_per_cpu_s": waited_s / max(cpu_used_s, 1e-9),
         "simulator_cores": simulator_cpu_s / elapsed_s,
         "simulator_lag_p50_ms": _percentile_ms(lags_s, 50),
         "simulator_lag_p99_ms": _percentile_ms(lags_s, 99),
@@ -242,6 +256,8 @@ def run_scaleout(terminals: int = 1000, report_s: float = 30.0, speedup: float =
         "evaluated_per_s_2": used[2]["evaluated_per_s"],
         "ratio": used[2]["evaluated_per_s"] / used[1]["evaluated_per_s"],
         "bound": bound,
+        "gateway_ms_per_report_1": used[1]["gateway_cores"] / used[1]["evaluated_per_s"] * 1000.0,
+        "gateway_ms_per_report_2": used[2]["gateway_cores"] / used[2]["evaluated_per_s"] * 1000.0,
         "one": used[1],
         "two": used[2],
         "load_1min": os.getloadavg()[0],
@@ -305,12 +321,25 @@ def _cut(track: Track, report_s: float) -> Track:
 def rows(figures: dict[str, Any]) -> list[Row]:
     """The benchmark table's rows of :func:`run`'s figures."""
     size = f"{figures['terminals']:,} terminals at 1 Hz, {figures['reports_per_s']:.0f} reports/s"
+    # A text does not name its report: the terminals time it from their latest one, which understates
+    # beyond the reporting interval; the gateway's own read-to-written time does not.
+    text_p99_ms = max(figures["text_p99_ms"], figures["stages_ms"].get("text", (0.0, 0.0))[1])
     return [
         at_most(
             "jt808: report to 0x8300 p99, ms",
-            figures["text_p99_ms"],
+            text_p99_ms,
             TARGET_P99_MS,
-            f"{figures['texts']} texts; {size}",
+            f"{figures['texts']} texts; {size}; the terminals' or the gateway's own, the longer",
+        ),
+        context(
+            "jt808: report read to 0x8300 written inside the gateway p50 / p99, ms",
+            "{:.1f} / {:.1f}".format(*figures["stages_ms"].get("text", (math.nan, math.nan))),
+            "gateway loop lag p99 {:.1f} ms, terminals' {:.1f} ms; load {:.1f} on {} cores".format(
+                figures["stages_ms"].get("loop_lag", (math.nan, math.nan))[1],
+                figures["simulator_lag_p99_ms"],
+                figures["load_1min"],
+                figures["cpus"],
+            ),
         ),
         context(
             "jt808: report to 0x8001 p50 / p99, ms",
@@ -319,11 +348,16 @@ def rows(figures: dict[str, Any]) -> list[Row]:
         at_most("jt808: terminals refused", figures["refused"], 0),
         at_least(
             "jt808: terminals at 1 Hz on one node",
-            figures["terminals"] if figures["text_p99_ms"] <= TARGET_P99_MS else 0,
+            figures["terminals"] if text_p99_ms <= TARGET_P99_MS else 0,
             TARGET_TERMINALS,
             f"{figures['terminals']:,} run, counted if their p99 met the target",
         ),
         context("jt808: gateway CPU per report, µs", figures["gateway_cpu_us_per_report"], size),
+        context(
+            f"jt808: cores {TARGET_TERMINALS:,} terminals at 1 Hz take in gateways",
+            TARGET_TERMINALS * figures["gateway_cpu_us_per_report"] / 1e6,
+            "at the CPU per report measured; one gateway process gets at most one core",
+        ),
         context("jt808: gateway memory per terminal, KB", figures["memory_per_terminal_kb"]),
         *_scaleout_rows(figures["scaleout"]),
     ]
@@ -345,6 +379,12 @@ def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
             scaleout["bound"],
             f"the terminals take {two['simulator_cores']:.2f} cores, Redis {two['redis_cores']:.2f}, "
             f"the gateways {two['gateway_cores']:.2f} (load {scaleout['load_1min']:.1f})",
+        ),
+        context(
+            "jt808: gateway CPU per report, 1 gateway / 2, ms",
+            f"{scaleout['gateway_ms_per_report_1']:.3f} / {scaleout['gateway_ms_per_report_2']:.3f}",
+            f"the gateways ran on {scaleout['one']['gateway_cores']:.2f} then {two['gateway_cores']:.2f} cores; "
+            "each of two forms groups half as large",
         ),
     ]
 
