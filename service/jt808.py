@@ -85,9 +85,10 @@ class GatewaySettings:
     max_connections
         Connections beyond this many are closed at once.
     batch_window_s
-        Reports that arrive within this long of each other are answered together: a group of
-        reports costs far less per report than one at a time (map matching, the state store's
-        round trip), for a few milliseconds more latency.
+        The first report after an idle spell waits this long for others to answer together: a
+        group of reports costs far less per report than one at a time (map matching, the state
+        store's round trip), for a few milliseconds more latency. Reports that arrive while a group
+        is evaluated go next without waiting.
     """
 
     host: str = "127.0.0.1"
