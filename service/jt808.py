@@ -24,12 +24,14 @@ import logging
 import signal
 import ssl
 import time
-from collections import Counter
-from collections.abc import Callable, Sequence
+from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
+from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.messages import (
     BodyError,
     LocationReport,
@@ -48,10 +50,9 @@ from csws.gateways.jt808.terminals import Terminal, TerminalList
 from csws.gateways.jt808.texts import Announcer, DriverTexts
 
 from .answers import WarningService
-from .checks import QueryErrors
 from .decoding import DecodedPosition, DecodedQuery
 from .guard import OncePerInterval
-from .store import StoreUnavailable
+from .jt808_groups import AnswerSummary, Batcher, Waiting
 from .work import WorkThread
 
 __all__ = ["GatewaySettings", "Gateway"]
@@ -82,9 +83,10 @@ class GatewaySettings:
     max_connections
         Connections beyond this many are closed at once.
     batch_window_s
-        Reports that arrive within this long of each other are answered together: a group of
-        reports costs far less per report than one at a time (map matching, the state store's
-        round trip), for a few milliseconds more latency.
+        The first report after an idle spell waits this long for others to answer together: a
+        group of reports costs far less per report than one at a time (map matching, the state
+        store's round trip), for a few milliseconds more latency. Reports that arrive while a group
+        is evaluated go next without waiting.
     """
 
     host: str = "127.0.0.1"
@@ -99,79 +101,6 @@ class GatewaySettings:
     def texts(self, fleet: str) -> DriverTexts:
         """The texts of ``fleet`` (the defaults where it has none)."""
         return self.fleet_texts.get(fleet, DriverTexts())
-
-
-@dataclass(frozen=True)
-class AnswerSummary:
-    """What the driver may be told of an answer: its system state, level, and the target's V_w (None without one)."""
-
-    state: str
-    level: int
-    warning_speed_kmh: float | None
-
-
-class Batcher:
-    """Answers the queries of all connections in groups, one group on the work thread at a time."""
-
-    def __init__(self, service: WarningService, work: WorkThread, window_s: float = 0.0) -> None:
-        self.service, self.work, self.window_s = service, work, window_s
-        self._waiting: list[tuple[DecodedQuery, str, asyncio.Future[Any]]] = []
-        self._running = False
-
-    async def answer(self, query: DecodedQuery, fleet: str) -> AnswerSummary | None:
-        """The answer document of ``query`` of ``fleet`` (None when it could not be answered)."""
-        done: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
-        self._waiting.append((query, fleet, done))
-        if not self._running:
-            self._running = True
-            asyncio.get_running_loop().create_task(self._drain())
-        return await done
-
-    async def _drain(self) -> None:
-        try:
-            while self._waiting:
-                await asyncio.sleep(self.window_s)
-                group, self._waiting = self._waiting, []
-                try:
-                    answers = await self.work.run(self._answer_group, [(q, f) for q, f, _ in group])
-                except Exception:  # noqa: BLE001 - a fault of one group must not stop the gateway
-                    log.exception("jt808: a group of %d reports was not answered", len(group))
-                    answers = [None] * len(group)
-                for (_, _, done), answer in zip(group, answers, strict=True):
-                    if not done.done():
-                        done.set_result(answer)
-        finally:
-            self._running = False
-
-    def _answer_group(self, group: Sequence[tuple[DecodedQuery, str]]) -> list[AnswerSummary | None]:
-        """Each query's answer, fleet by fleet (on the work thread); one that fails alone is None."""
-        answers: list[AnswerSummary | None] = [None] * len(group)
-        for fleet in {f for _, f in group}:
-            indices = [i for i, (_, f) in enumerate(group) if f == fleet]
-            for index, answer in zip(indices, self._answer_fleet([group[i][0] for i in indices], fleet), strict=True):
-                answers[index] = answer
-        return answers
-
-    def _answer_fleet(self, queries: list[DecodedQuery], fleet: str) -> list[AnswerSummary | None]:
-        try:
-            encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet)
-        except QueryErrors as errors:
-            if len(queries) > 1:
-                return [answer for query in queries for answer in self._answer_fleet([query], fleet)]
-            log.warning("jt808: report of %s not answered: %s", queries[0].vehicle_id, _first_error(errors))
-            return [None]
-        except StoreUnavailable as error:
-            log.warning("jt808: state store unavailable: %s", error)
-            return [None] * len(queries)
-        return [
-            AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"))
-            for state, level, document in zip(encoded.state, encoded.level, encoded.documents, strict=True)
-        ]
-
-
-def _first_error(errors: QueryErrors) -> str:
-    """The first problem QueryErrors names."""
-    return str(errors.errors[0]["msg"]) if errors.errors else str(errors)
 
 
 def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> DecodedQuery:
@@ -197,8 +126,9 @@ class Conversation:
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
         self.announcer: Announcer | None = None
-        self.pending: list[LocationReport] = []
-        self.warning: asyncio.Task[None] | None = None
+        #: The connection's reports queued for their warning, oldest first (those started are dropped lazily).
+        self.waiting: deque[Waiting] = deque()
+        self.read_at = 0.0
         self.allowance, self.allowance_at = gateway.settings.frames_burst, time.monotonic()
 
     def send(self, message_id: int, body: bytes) -> None:
@@ -223,6 +153,7 @@ class Conversation:
 
     async def received(self, data: bytes) -> bool:
         """Handle the bytes ``data``; False once the terminal has deregistered."""
+        self.read_at = time.perf_counter()
         for escaped in self.splitter.feed(data):
             if not self._allowed():
                 log.warning(
@@ -327,41 +258,46 @@ async def _locations(conversation: Conversation, frame: Frame) -> bool:
 
 
 def _queue(conversation: Conversation, terminal: Terminal, reports: list[LocationReport]) -> None:
-    """Hand ``reports`` to the connection's warning task (started if idle), shedding the oldest beyond
+    """Queue ``reports`` for their warnings in time order, shedding the oldest not yet started beyond
     :data:`MAX_PENDING_REPORTS`, so that reading and answering ``0x8001`` never wait for a warning."""
-    conversation.pending += reports
-    if len(conversation.pending) > MAX_PENDING_REPORTS:
-        conversation.pending.sort(key=lambda r: r.time_s)
-        shed = len(conversation.pending) - MAX_PENDING_REPORTS
-        del conversation.pending[:shed]
-        conversation.gateway.counts["shed"] += shed
+    gateway, waiting = conversation.gateway, conversation.waiting
+    now_s, read_at = gateway.clock(), conversation.read_at
+    for report in sorted(reports, key=lambda r: r.time_s):
+        query = report_query(terminal, report, now_s)
+        entry = Waiting(query, terminal.fleet, partial(_tell, conversation, terminal, report, read_at))
+        waiting.append(entry)
+        gateway.batcher.queue(entry)
+    while waiting and waiting[0].started:
+        waiting.popleft()
+    if len(waiting) > MAX_PENDING_REPORTS:
+        shed = len(waiting) - MAX_PENDING_REPORTS
+        for _ in range(shed):
+            waiting.popleft().shed = True
+        gateway.counts["shed"] += shed
         log.warning("jt808: the gateway falls behind; %d old report(s) of %s shed", shed, terminal.phone)
-    if conversation.warning is None or conversation.warning.done():
-        conversation.warning = asyncio.get_running_loop().create_task(_warn(conversation, terminal))
 
 
-async def _warn(conversation: Conversation, terminal: Terminal) -> None:
-    """Answer the pending reports in time order and tell the driver when the indication changes (``0x8300``)."""
+def _tell(
+    conversation: Conversation, terminal: Terminal, report: LocationReport, read_at: float, answer: AnswerSummary | None
+) -> None:
+    """Tell the driver when ``report``'s answer changes the indication (``0x8300``), at once.
+
+    Counted in the gateway's stage times: ``answered`` from the report's bytes read to its answer
+    here, ``text`` from read to its ``0x8300`` handed to the connection (where one was due).
+    """
     gateway = conversation.gateway
+    gateway.counts["evaluated"] += 1
+    gateway.times.add("answered", time.perf_counter() - read_at)
+    if answer is None or conversation.writer.is_closing():
+        return
     if conversation.announcer is None:
         conversation.announcer = Announcer(gateway.settings.texts(terminal.fleet))
-    while conversation.pending:
-        reports = sorted(conversation.pending, key=lambda r: r.time_s)
-        conversation.pending = []
-        now_s = gateway.clock()
-        queries = [report_query(terminal, report, now_s) for report in reports]
-        answers = await asyncio.gather(*(gateway.batcher.answer(query, terminal.fleet) for query in queries))
-        gateway.counts["evaluated"] += len(queries)
-        for report, answer in zip(reports, answers, strict=True):
-            if answer is None:
-                continue
-            told = conversation.announcer.update(answer.state, answer.level, answer.warning_speed_kmh, report.time_s)
-            if told is not None:
-                text, urgent = told
-                body = encode_text_message(text, conversation.edition, emergency=urgent)
-                conversation.send(MessageId.TEXT_MESSAGE, body)
-                gateway.counts["told"] += 1
-        await conversation.writer.drain()
+    told = conversation.announcer.update(answer.state, answer.level, answer.warning_speed_kmh, report.time_s)
+    if told is not None:
+        text, urgent = told
+        conversation.send(MessageId.TEXT_MESSAGE, encode_text_message(text, conversation.edition, emergency=urgent))
+        gateway.counts["told"] += 1
+        gateway.times.add("text", time.perf_counter() - read_at)
 
 
 _HANDLERS: dict[int, Callable[[Conversation, Frame], Any]] = {
@@ -397,7 +333,9 @@ class Gateway:
         settings: GatewaySettings,
         clock: Callable[[], float] = time.time,
     ) -> None:
-        self.batcher = Batcher(service, work, settings.batch_window_s)
+        #: Where reports' time went, stage by stage (:meth:`stages`).
+        self.times = StageTimes()
+        self.batcher = Batcher(service, work, settings.batch_window_s, self.times)
         self.terminals, self.settings, self.clock = terminals, settings, clock
         self.handlers = _HANDLERS
         self.connections = 0
@@ -423,8 +361,9 @@ class Gateway:
             pass  # idle, gone, or the gateway stops
         finally:
             self.connections -= 1
-            if conversation is not None and conversation.warning is not None:
-                conversation.warning.cancel()
+            if conversation is not None:
+                for waiting in conversation.waiting:
+                    waiting.shed = True  # those started are answered all the same; the rest are not evaluated
             writer.close()
 
     async def serve(self, tls: ssl.SSLContext | None = None, ready: Callable[[int], None] | None = None) -> None:
@@ -435,6 +374,7 @@ class Gateway:
         serving = asyncio.current_task()
         if serving is not None:  # SIGTERM stops it as Ctrl-C does, so that what it did is told
             asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, serving.cancel)
+        lagging = asyncio.get_running_loop().create_task(self._sample_loop_lag())
         async with server:
             if ready is not None:
                 ready(server.sockets[0].getsockname()[1])
@@ -442,6 +382,16 @@ class Gateway:
                 await server.serve_forever()
             except asyncio.CancelledError:
                 pass
+            finally:
+                lagging.cancel()
+
+    async def _sample_loop_lag(self, period_s: float = 0.01) -> None:
+        """Count how late the event loop wakes a sleeper (``loop_lag``): the delay before a terminal's bytes are read
+        and before a text leaves, which the other stages do not see."""
+        while True:
+            asked = time.perf_counter()
+            await asyncio.sleep(period_s)
+            self.times.add("loop_lag", time.perf_counter() - asked - period_s)
 
     def summary(self) -> str:
         """One line of what the gateway did."""
@@ -450,3 +400,7 @@ class Gateway:
             f"{counts['connections']} connection(s), {counts['evaluated']} report(s) evaluated, "
             f"{counts['shed']} shed, {counts['told']} text(s) told, {counts['dropped']} frame(s) dropped"
         )
+
+    def stages(self) -> str:
+        """One line of where reports' time went: p50/p99 of each stage (:class:`StageTimes`)."""
+        return self.times.line()

@@ -147,6 +147,7 @@ def main(args: argparse.Namespace) -> int:
         state.work.close()
         state.store.close()
         print(f"csws: JT/T 808 gateway stopped: {gateway.summary()}", flush=True)
+        print(f"csws: {gateway.stages()}", flush=True)
     return 0
 
 

@@ -23,6 +23,7 @@ from builders import edge_xml, node_xml
 from fastapi.testclient import TestClient
 from jt808_terminal import Terminal, general_response, location_body, wire
 
+from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
 from csws.geometry import arc, sample_pieces, straight
 from csws.standard import warning_speed
@@ -135,7 +136,7 @@ def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, 
     assert v_w1 < slow_kmh < v_w2 < fast_kmh  # 80 km/h: level 1 only; 95 km/h: level 2
     delay_s = WarningSettings().system_delay_s
 
-    async def run() -> list[tuple[float, str]]:
+    async def run() -> tuple[list[tuple[float, str]], StageTimes]:
         async with Rig(net, tmp_path) as rig:
             terminal = Terminal(PHONE)
             await terminal.connect(rig.port)
@@ -147,9 +148,15 @@ def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, 
                 texts += await drive.report(slow_kmh)
             texts += await drive.report(fast_kmh)
             await terminal.close()
-            return texts
+            return texts, rig.gateway.times
 
-    texts = asyncio.run(run())
+    texts, times = asyncio.run(run())
+    # Each report's time from read to answer holds its group's evaluation, so every quantile does too.
+    for answered_ms, evaluated_ms in zip(
+        times.percentiles_ms("answered"), times.percentiles_ms("evaluate"), strict=True
+    ):
+        assert answered_ms >= evaluated_ms > 0.0
+    assert not any(math.isnan(ms) for ms in times.percentiles_ms("text"))
     assert [("弯道超速" in t, "前方弯道" in t) for _, t in texts] == [(False, True), (True, False)]
     assert str(math.floor(v_w1)) in texts[0][1] and str(math.floor(v_w2)) in texts[1][1]
     sw_m, speed_mps = formula_1_m(slow_kmh, v_w1), slow_kmh / 3.6

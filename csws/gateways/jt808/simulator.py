@@ -72,7 +72,10 @@ class SimulationStats:
     response_s
         Seconds from each report's last byte to its general response.
     text_s
-        Seconds from the last byte of the report before each text message to the text's arrival.
+        Seconds from the last byte of the report before each text message to the text's arrival. A
+        text does not name its report: one that takes longer than the reporting interval is timed
+        from a later report, so beyond the interval this understates (the gateway's own ``text``
+        stage, :mod:`.latency`, does not).
     texts
         Each text received, decoded.
     refused

@@ -1,0 +1,154 @@
+"""The JT/T 808 gateway's groups: the reports of all connections answered together on the work thread.
+
+A report's query is queued as its report is read and answered in the next group; its answer is
+handed to the callback it came with, on the event loop, in the turn that learns the group is done.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from csws.gateways.jt808.latency import StageTimes
+
+from .answers import WarningService
+from .checks import QueryErrors
+from .decoding import DecodedQuery
+from .guard import OncePerInterval
+from .store import StoreUnavailable
+from .timing import Stages
+from .work import WorkThread
+
+__all__ = ["AnswerSummary", "Batcher", "Waiting"]
+
+log = logging.getLogger("csws.jt808.groups")
+log.addFilter(OncePerInterval())
+
+
+@dataclass(frozen=True)
+class AnswerSummary:
+    """What the driver may be told of an answer: its system state, level, and the target's V_w (None without one)."""
+
+    state: str
+    level: int
+    warning_speed_kmh: float | None
+
+
+class Waiting:
+    """A query waiting for its group, and what to do with its answer.
+
+    Attributes
+    ----------
+    deliver
+        Called on the event loop with the answer (None when it could not be answered), as soon as
+        its group is done.
+    queued_at
+        When it was queued (``time.perf_counter``).
+    started, shed
+        Whether its group has started; whether it was withdrawn before that (it is then skipped).
+    """
+
+    __slots__ = ("query", "fleet", "deliver", "queued_at", "started", "shed")
+
+    def __init__(self, query: DecodedQuery, fleet: str, deliver: Callable[[AnswerSummary | None], None]) -> None:
+        self.query, self.fleet, self.deliver = query, fleet, deliver
+        self.queued_at, self.started, self.shed = time.perf_counter(), False, False
+
+
+class Batcher:
+    """Answers the queries of all connections in groups, one group on the work thread at a time.
+
+    A query is queued as its report is read, and its answer delivered by the callback it came with in
+    the same turn of the event loop that learns its group is done: no task per report stands between
+    the work thread and the ``0x8300``. The first query after an idle spell waits ``window_s`` for
+    others; the queries that arrive while a group is evaluated go next, at once (they have waited).
+
+    Each query's time is counted in ``times``: ``wait`` from queued to its group's start on the work
+    thread, ``evaluate`` its group's evaluation, ``handback`` from there to the event loop; and each
+    group's stages of the warning service (``group:read``, ``group:match``, ... ``group:write``) once
+    per query.
+    """
+
+    def __init__(
+        self, service: WarningService, work: WorkThread, window_s: float = 0.0, times: StageTimes | None = None
+    ) -> None:
+        self.service, self.work, self.window_s = service, work, window_s
+        self.times = times if times is not None else StageTimes()
+        self._waiting: list[Waiting] = []
+        self._running = False
+
+    def queue(self, waiting: Waiting) -> None:
+        """Queue ``waiting`` for the next group (started now, or after the window when idle)."""
+        self._waiting.append(waiting)
+        if not self._running:
+            self._running = True
+            asyncio.get_running_loop().create_task(self._drain())
+
+    async def _drain(self) -> None:
+        try:
+            await asyncio.sleep(self.window_s)
+            while self._waiting:
+                group = [waiting for waiting in self._waiting if not waiting.shed]
+                self._waiting = []
+                if not group:
+                    continue
+                for waiting in group:
+                    waiting.started = True
+                try:
+                    answers, timed = await self.work.run(self._answer_group, [(w.query, w.fleet) for w in group])
+                    self._count(group, *timed)
+                except Exception:  # noqa: BLE001 - a fault of one group must not stop the gateway
+                    log.exception("jt808: a group of %d reports was not answered", len(group))
+                    answers = [None] * len(group)
+                for waiting, answer in zip(group, answers, strict=True):
+                    waiting.deliver(answer)
+        finally:
+            self._running = False
+
+    def _count(self, group: list[Waiting], started: float, ended: float, stages: Stages) -> None:
+        """Count the group's wait, evaluation, hand-back and service stages, once per query."""
+        now, times = time.perf_counter(), self.times
+        for waiting in group:
+            times.add("wait", started - waiting.queued_at)
+        times.add("evaluate", ended - started, len(group))
+        times.add("handback", now - ended, len(group))
+        for name, milliseconds in stages.milliseconds.items():
+            times.add(f"group:{name}", milliseconds / 1000.0, len(group))
+
+    def _answer_group(
+        self, group: Sequence[tuple[DecodedQuery, str]]
+    ) -> tuple[list[AnswerSummary | None], tuple[float, float, Stages]]:
+        """Each query's answer, fleet by fleet (on the work thread; one that fails alone is None), and when the
+        group started and ended with the time of its stages."""
+        started, stages = time.perf_counter(), Stages()
+        answers: list[AnswerSummary | None] = [None] * len(group)
+        for fleet in {f for _, f in group}:
+            indices = [i for i, (_, f) in enumerate(group) if f == fleet]
+            fleet_answers = self._answer_fleet([group[i][0] for i in indices], fleet, stages)
+            for index, answer in zip(indices, fleet_answers, strict=True):
+                answers[index] = answer
+        return answers, (started, time.perf_counter(), stages)
+
+    def _answer_fleet(self, queries: list[DecodedQuery], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
+        try:
+            encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet, stages=stages)
+        except QueryErrors as errors:
+            if len(queries) > 1:
+                return [answer for query in queries for answer in self._answer_fleet([query], fleet, stages)]
+            log.warning("jt808: report of %s not answered: %s", queries[0].vehicle_id, _first_error(errors))
+            return [None]
+        except StoreUnavailable as error:
+            log.warning("jt808: state store unavailable: %s", error)
+            return [None] * len(queries)
+        return [
+            AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"))
+            for state, level, document in zip(encoded.state, encoded.level, encoded.documents, strict=True)
+        ]
+
+
+def _first_error(errors: QueryErrors) -> str:
+    """The first problem QueryErrors names."""
+    return str(errors.errors[0]["msg"]) if errors.errors else str(errors)
