@@ -288,6 +288,21 @@ class SensorPairs:
     accel_mps2: np.ndarray
     lane: np.ndarray
 
+    def of_subjects(self, chosen: np.ndarray) -> SensorPairs:
+        """The pairs of the subjects ``chosen`` (a mask over the subjects), the subjects renumbered among them
+        in order (the view of a part of the subjects, as :func:`sensor_view` gives it for that part alone)."""
+        number = np.cumsum(chosen) - 1
+        keep = chosen[self.subject]
+        return SensorPairs(
+            number[self.subject[keep]],
+            self.seen[keep],
+            self.x_m[keep],
+            self.y_m[keep],
+            self.relative_speed_mps[keep],
+            self.accel_mps2[keep],
+            self.lane[keep],
+        )
+
 
 def nearby_pairs(cell_x: np.ndarray, cell_y: np.ndarray, subjects: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(subject, vehicle) index pairs of every vehicle in the 3 x 3 cells around each subject's cell.
@@ -376,19 +391,25 @@ def sensor_view(
     x_m = sight_x * ahead_x + sight_y * ahead_y
     oncoming = vehicles.speed_mps[seen] * own_along < -ONCOMING_MPS
     keep = (x_m >= 0.0) & (sight_m <= range_m) & ~oncoming
-    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     same_road = vehicles.road[seen] == vehicles.road[me]
     lane = np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE)
-    range_rate = vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y)
-    accel = vehicles.accel_mps2[seen] * own_along
+    on_path = np.zeros(seen.size, dtype=bool)
     if lanes is not None:
         lane, along_m = _lane_on_map(vehicles, owner, seen, x_m, lanes, lane)
         on_path = ~np.isnan(along_m)
         keep = np.where(on_path, (along_m >= 0.0) & (along_m <= range_m), keep)
         x_m = np.where(on_path, along_m, x_m)
-        range_rate = np.where(on_path, vehicles.speed_mps[seen] - vehicles.speed_mps[me], range_rate)
-        accel = np.where(on_path, vehicles.accel_mps2[seen], accel)
-    # In SUMO's order of the vehicles per subject, whichever grid cells they fell in (ties go to the first listed).
+    # In SUMO's order of the vehicles per subject, whichever grid cells they fell in (ties go to the first listed);
+    # the rest of the columns for the pairs seen only.
     k = np.flatnonzero(keep)
     k = k[np.lexsort((seen[k], owner[k]))]
-    return SensorPairs(owner[k], seen[k], x_m[k], y_m[k], range_rate[k], accel[k], lane[k])
+    owner, me, seen, ahead_x, ahead_y, on_path = owner[k], me[k], seen[k], ahead_x[k], ahead_y[k], on_path[k]
+    own_x, own_y, back, sight_x, sight_y = own_x[k], own_y[k], back[k], sight_x[k], sight_y[k]
+    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
+    range_rate = np.where(
+        on_path,
+        vehicles.speed_mps[seen] - vehicles.speed_mps[me],
+        vehicles.speed_mps[seen] * own_along[k] - vehicles.speed_mps[me] * (ahead_x * unit_x[k] + ahead_y * unit_y[k]),
+    )
+    accel = np.where(on_path, vehicles.accel_mps2[seen], vehicles.accel_mps2[seen] * own_along[k])
+    return SensorPairs(owner, seen, x_m[k], y_m, range_rate, accel, lane[k])
