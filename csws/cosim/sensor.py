@@ -338,6 +338,28 @@ def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) 
     return owner[other], seen[other]
 
 
+def _near_pairs(
+    vehicles: SumoVehicles, subjects: np.ndarray, range_m: float, path_turn_rad: np.ndarray | None
+) -> tuple[np.ndarray, ...]:
+    """The (subject, vehicle) pairs whose fronts are near enough for the vehicle's rear to be ahead within
+    ``range_m``: the subject index, its row, the vehicle's row, and the subject's frame's x axis (:func:`sensor_view`).
+
+    A rear ahead (x >= 0) within the range has its front at most a vehicle's length farther and at most a
+    length behind the subject's front, so the rest is computed for those only.
+    """
+    owner, seen = _pairs_within(vehicles, subjects, range_m)
+    me = subjects[owner]
+    heading = vehicles.heading_rad[subjects] - (0.0 if path_turn_rad is None else path_turn_rad)
+    ahead_x, ahead_y = np.sin(heading)[owner], np.cos(heading)[owner]
+    front_x = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
+    front_y = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
+    near = np.flatnonzero(
+        (front_x * front_x + front_y * front_y <= (range_m + LONGEST_VEHICLE_M) ** 2)
+        & (front_x * ahead_x + front_y * ahead_y >= -LONGEST_VEHICLE_M)
+    )
+    return owner[near], me[near], seen[near], ahead_x[near], ahead_y[near]
+
+
 def sensor_view(
     vehicles: SumoVehicles,
     subjects: np.ndarray,
@@ -366,19 +388,7 @@ def sensor_view(
     that x is within [0, ``range_m``]. Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
     """
-    owner, seen = _pairs_within(vehicles, subjects, range_m)
-    me = subjects[owner]
-    heading = vehicles.heading_rad[subjects] - (0.0 if path_turn_rad is None else path_turn_rad)
-    ahead_x, ahead_y = np.sin(heading)[owner], np.cos(heading)[owner]
-    # The fronts first: a rear ahead (x >= 0) within the range has its front at most a vehicle's length
-    # farther and at most a length behind the subject's front, so the rest is computed for those only.
-    front_x = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
-    front_y = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
-    near = np.flatnonzero(
-        (front_x * front_x + front_y * front_y <= (range_m + LONGEST_VEHICLE_M) ** 2)
-        & (front_x * ahead_x + front_y * ahead_y >= -LONGEST_VEHICLE_M)
-    )
-    owner, me, seen, ahead_x, ahead_y = owner[near], me[near], seen[near], ahead_x[near], ahead_y[near]
+    owner, me, seen, ahead_x, ahead_y = _near_pairs(vehicles, subjects, range_m, path_turn_rad)
     own_x, own_y = np.sin(vehicles.heading_rad)[seen], np.cos(vehicles.heading_rad)[seen]
     back = vehicles.length_m[seen]
     sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
