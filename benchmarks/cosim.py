@@ -15,6 +15,8 @@ process of its own, so that no run inherits another's warm caches:
 * ``events every step``: the same with every vehicle evaluated at every step (``--evaluate every-step``);
 * ``both systems``: the curve and the forward collision warning (``--systems csws,fcw``) with
   the default time series, and with events only (fleet road only);
+* ``fcw read``: libsumo with the forward collision warning's read of every vehicle at every step and
+  nothing else (small configuration): the floor of any evaluator driven through libsumo;
 * ``ssm``: libsumo with SUMO's SSM device on every vehicle (TTC within 200 m, the FCW's range of
   concern), the cost the FCW is measured against: both systems' cost over bare SUMO at most half
   the SSM device's.
@@ -55,6 +57,7 @@ import numpy as np
 
 from csws.cosim.config import default_timeseries_every
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
+from csws.cosim.sensor import VehicleNumbers, read_vehicles
 from csws.cosim.sumo import sumo_arguments
 from csws.networks import networks_dir
 from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
@@ -172,6 +175,28 @@ def _bare_run(scenario: Scenario, duration_s: float, options: tuple[str, ...] = 
     return {"seconds": time.perf_counter() - started, "steps": steps, "peak_rss_mb": _peak_rss_mb()}
 
 
+def _fcw_read_run(scenario: Scenario, duration_s: float) -> dict:
+    """libsumo with the forward collision warning's read of every vehicle at every step and nothing else
+    (:func:`csws.cosim.sensor.read_vehicles`, a getter call per vehicle and value): the least any evaluator
+    driven through libsumo that looks at every vehicle costs (run in a process of its own)."""
+    os.environ.setdefault("SUMO_HOME", str(sumo_home()))
+    import libsumo
+
+    arguments = sumo_arguments(None, scenario.net, scenario.routes, STEP_S, 0, duration_s)
+    numbers = VehicleNumbers()
+    sizes: dict[str, tuple[float, float]] = {}
+    roads: dict[str, int] = {}
+    started = time.perf_counter()
+    libsumo.start([str(sumo_binary("sumo")), *arguments])
+    steps = 0
+    while libsumo.simulation.getMinExpectedNumber() > 0 and libsumo.simulation.getTime() < duration_s - 1e-9:
+        libsumo.simulationStep()
+        read_vehicles(libsumo, numbers, sizes, roads)
+        steps += 1
+    libsumo.close()
+    return {"seconds": time.perf_counter() - started, "steps": steps, "peak_rss_mb": _peak_rss_mb()}
+
+
 def _csws_run(config: CosimConfig) -> dict:
     """One ``csws cosim`` run (in a process of its own): its time, summary and peak memory. libsumo is
     imported before the clock starts, as in the bare run; csws's own imports are timed."""
@@ -232,6 +257,7 @@ def small_run() -> dict:
         common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SMALL_DURATION_S}
         runs = {"bare": _in_own_process(_bare_run, scenario, SMALL_DURATION_S)}
         runs["ssm"] = _in_own_process(_bare_run, scenario, SMALL_DURATION_S, tuple(_ssm_arguments(work)))
+        runs["fcw_read"] = _in_own_process(_fcw_read_run, scenario, SMALL_DURATION_S)
         both: dict[str, Any] = {"systems": ("csws", "fcw"), "timeseries": "none"}
         configs = {
             "default": CosimConfig(out=work / "default", timeseries_every=DEFAULT_EVERY, **common),
@@ -268,15 +294,26 @@ def _sparse_fcw(work: Path) -> dict:
 
 
 def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
-    """Both systems' cost over bare SUMO (events only, scheduled and every step) as a share of the SSM device's."""
-    seconds = {name: run["seconds"] for name, run in runs.items()}
-    ssm_s = seconds["ssm"] - seconds["bare"]
+    """Both systems' cost over bare SUMO (events only, scheduled and every step) as a share of the SSM device's,
+    beside the FCW's read alone's (the floor of a libsumo-driven FCW) and the curve warning alone's: whole runs
+    (csws's map load included), and per step (the runs' steps alone: their ``ms_per_step`` components less
+    bare SUMO's ms per step), with the FCW component's own share."""
+    ms = {name: 1000.0 * run["seconds"] / run["steps"] for name, run in runs.items()}
+    ssm_ms = ms["ssm"] - ms["bare"]
+    names = [
+        name
+        for name in ("fcw_read", "events_only", "both_systems", "both_systems_events", "both_systems_every_step")
+        if name in runs
+    ]
+    stepping = {name: sum(runs[name]["summary"]["ms_per_step"].values()) for name in names if "summary" in runs[name]}
     return {
-        "fcw_of_ssm_overhead": {
-            name: (seconds[name] - seconds["bare"]) / ssm_s
-            for name in ("both_systems", "both_systems_events", "both_systems_every_step")
-            if name in seconds
-        }
+        "fcw_of_ssm_overhead": {name: (ms[name] - ms["bare"]) / ssm_ms for name in names},
+        "fcw_of_ssm_overhead_per_step": {name: (value - ms["bare"]) / ssm_ms for name, value in stepping.items()},
+        "fcw_component_of_ssm_overhead": {
+            name: runs[name]["summary"]["ms_per_step"]["fcw"] / ssm_ms
+            for name in stepping
+            if "fcw" in runs[name]["summary"]["ms_per_step"]
+        },
     }
 
 
@@ -350,13 +387,23 @@ def _print(figures: dict) -> None:
         print(f"{name} by component, ms/step:", components)
 
 
+def _print_of_ssm(figures: dict) -> None:
+    """Each run's cost over bare SUMO as a share of the SSM device's: whole run, per step, the FCW's own."""
+    per_step, fcw = figures["fcw_of_ssm_overhead_per_step"], figures["fcw_component_of_ssm_overhead"]
+    for name, share in figures["fcw_of_ssm_overhead"].items():
+        print(
+            f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})"
+            + (f", per step {per_step[name]:.2f}" if name in per_step else "")
+            + (f", the FCW's own {fcw[name]:.2f}" if name in fcw else "")
+        )
+
+
 def main() -> None:
     """Print each figure beside its target (``--small``: the small configuration's)."""
     if "--small" in sys.argv[1:]:
         figures = small_run()
         _print(figures)
-        for name, share in figures["fcw_of_ssm_overhead"].items():
-            print(f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})")
+        _print_of_ssm(figures)
         print("sparse road, FCW alone, events only:", figures["sparse_fcw"])
         return
     figures = run()
@@ -367,8 +414,7 @@ def main() -> None:
         f"(target <= {TARGET_BOTH_SYSTEMS_OVERHEAD:.0%}), "
         f"FCW over the default run {figures['fcw_over_default']:.0%}"
     )
-    for name, share in figures["fcw_of_ssm_overhead"].items():
-        print(f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})")
+    _print_of_ssm(figures)
     print("city:")
     _print(figures["city"])
 

@@ -83,6 +83,24 @@ def test_the_grid_finds_every_pair_the_brute_force_finds(seed, count, range_m):
         assert found[key] == pytest.approx((x_m, y_m), abs=1e-9)
 
 
+@settings(deadline=None, max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 200))
+def test_a_part_of_the_subjects_sees_in_the_whole_view_what_it_sees_alone(seed, count):
+    """The co-simulation views every subject at once and splits the view by settings: each part's pairs
+    (``SensorPairs.of_subjects``) are, to the bit, those of viewing that part alone, in the same order."""
+    rng = np.random.default_rng(seed)
+    vehicles = _vehicles(
+        rng.uniform(-600.0, 600.0, (count, 2)), rng.uniform(-math.pi, math.pi, count), rng.uniform(0.0, 30.0, count)
+    )
+    subjects = np.flatnonzero(rng.random(count) < 0.7)
+    turn_rad = rng.uniform(-0.05, 0.05, subjects.size)
+    chosen = rng.random(subjects.size) < 0.5
+    part = sensor_view(vehicles, subjects, 200.0, turn_rad).of_subjects(chosen)
+    alone = sensor_view(vehicles, subjects[chosen], 200.0, turn_rad[chosen])
+    for name in ("subject", "seen", "x_m", "y_m", "relative_speed_mps", "accel_mps2", "lane"):
+        assert np.array_equal(getattr(part, name), getattr(alone, name)), name
+
+
 def test_two_vehicles_at_one_speed_on_one_circle_neither_close_nor_open():
     """On a circle of R 60 m, a car 30 m of arc behind another at the same speed: the range rate along
     the line of sight is about 0 (the chord between two points of the circle is constant), though the

@@ -33,6 +33,7 @@ from .sensor import (
     BRAKE_LIGHT,
     ID_BITS,
     MAX_ID_MASK,
+    SensorPairs,
     SumoVehicles,
     VehicleNumbers,
     map_lanes,
@@ -176,42 +177,56 @@ class FleetFcw:
         path_turn_rad = kappa * vehicles.length_m[rows] / 2.0
         columns = FcwColumns.quiet([FCW_STATES[STANDBY].value] * len(rows))
         kinds = np.array([self._settings_code(category) for category in categories], dtype=np.int64)
+        ranges_m = np.array([settings.range_m for settings in self.distinct_settings])[kinds]
+        sensor_ok = np.asarray(on_lane, dtype=bool)
         keys = []
-        for kind in dict.fromkeys(kinds.tolist()):
-            settings = self.distinct_settings[kind]
-            group = np.flatnonzero(kinds == kind)
-            subjects = rows[group]
+        # One sensor view per range for every subject with it (all categories share 200 m), split by settings.
+        for range_m in dict.fromkeys(ranges_m.tolist()):
+            viewers = np.flatnonzero(ranges_m == range_m)
             lanes = None
             if paths is not None:
-                lanes = map_lanes([paths[i] for i in group.tolist()], self.roads, settings.range_m, self.horizons)
-            pairs = sensor_view(vehicles, subjects, settings.range_m, path_turn_rad[group], lanes)
-            ego = FleetEgo.of(
-                vehicles.speed_mps[subjects],
-                vehicles.accel_mps2[subjects],
-                yaw_rate[group],
-                braking=(vehicles.signals[subjects] & BRAKE_LIGHT) > 0,
-                turn_signal=_turn_signal(vehicles.signals[subjects]),
-                sensor_ok=np.asarray(on_lane, dtype=bool)[group],
-            )
-            objects = FleetObjects.of(
-                pairs.subject,
-                vehicles.number[pairs.seen],
-                pairs.x_m,
-                pairs.y_m,
-                pairs.relative_speed_mps,
-                pairs.accel_mps2,
-                width_m=vehicles.width_m[pairs.seen],
-                lane=pairs.lane,
-            )
-            if self.measure is not None:
-                ego, objects = self.measure(ego, objects)
-            frame, kept = update_fleet(settings, self._recall(numbers[group]), now_s, ego, objects)
-            keys.append(self._keep(numbers[group], kept))
-            _write(columns, group, frame, vehicles.vehicle_id, pairs.seen)
+                lanes = map_lanes([paths[i] for i in viewers.tolist()], self.roads, range_m, self.horizons)
+            view = sensor_view(vehicles, rows[viewers], range_m, path_turn_rad[viewers], lanes)
+            for kind in dict.fromkeys(kinds[viewers].tolist()):
+                members = kinds[viewers] == kind
+                group = viewers[members]
+                ego = _ego(vehicles, rows[group], yaw_rate[group], sensor_ok[group])
+                pairs = view.of_subjects(members)
+                frame, in_path_keys, cut_in_keys = self._update(
+                    self.distinct_settings[kind], numbers[group], now_s, ego, pairs, vehicles
+                )
+                keys.append((in_path_keys, cut_in_keys))
+                _write(columns, group, frame, vehicles.vehicle_id, pairs.seen)
         self.memory.in_path_keys = np.sort(np.concatenate([k[0] for k in keys])) if keys else np.zeros(0, np.int64)
         self.memory.cut_in_keys = np.sort(np.concatenate([k[1] for k in keys])) if keys else np.zeros(0, np.int64)
         self.last_time_s = now_s
         return columns
+
+    def _update(
+        self,
+        settings: FcwSettings,
+        numbers: np.ndarray,
+        now_s: float,
+        ego: FleetEgo,
+        pairs: SensorPairs,
+        vehicles: SumoVehicles,
+    ) -> tuple[FleetFrame, np.ndarray, np.ndarray]:
+        """One :func:`update_fleet` call for the subjects ``numbers`` of one settings, their sensor view
+        ``pairs``: the frame, and the objects' keys kept (in the path, cutting in) by number."""
+        objects = FleetObjects.of(
+            pairs.subject,
+            vehicles.number[pairs.seen],
+            pairs.x_m,
+            pairs.y_m,
+            pairs.relative_speed_mps,
+            pairs.accel_mps2,
+            width_m=vehicles.width_m[pairs.seen],
+            lane=pairs.lane,
+        )
+        if self.measure is not None:
+            ego, objects = self.measure(ego, objects)
+        frame, kept = update_fleet(settings, self._recall(numbers), now_s, ego, objects)
+        return frame, *self._keep(numbers, kept)
 
     def _settings_code(self, category: str) -> int:
         """A category's settings as an index into :attr:`distinct_settings`, made once (categories with
@@ -344,6 +359,20 @@ class FleetFcw:
             number = self.numbers.pop(vehicle_id, None)
             if number is not None and number < self.memory.state.size:
                 self.memory.last_time_s[number] = -math.inf
+
+
+def _ego(vehicles: SumoVehicles, subjects: np.ndarray, yaw_rate_rps: np.ndarray, sensor_ok: np.ndarray) -> FleetEgo:
+    """The subjects' own columns (rows ``subjects`` of ``vehicles``): speed, acceleration, yaw rate, the brake
+    light as the driver braking (4.5.4), the blinkers as the turn signal, whether the sensor works (4.4.5)."""
+    signals = vehicles.signals[subjects]
+    return FleetEgo.of(
+        vehicles.speed_mps[subjects],
+        vehicles.accel_mps2[subjects],
+        yaw_rate_rps,
+        braking=(signals & BRAKE_LIGHT) > 0,
+        turn_signal=_turn_signal(signals),
+        sensor_ok=sensor_ok,
+    )
 
 
 def _turn_signal(signals: np.ndarray) -> np.ndarray:

@@ -288,6 +288,21 @@ class SensorPairs:
     accel_mps2: np.ndarray
     lane: np.ndarray
 
+    def of_subjects(self, chosen: np.ndarray) -> SensorPairs:
+        """The pairs of the subjects ``chosen`` (a mask over the subjects), the subjects renumbered among them
+        in order (the view of a part of the subjects, as :func:`sensor_view` gives it for that part alone)."""
+        number = np.cumsum(chosen) - 1
+        keep = chosen[self.subject]
+        return SensorPairs(
+            number[self.subject[keep]],
+            self.seen[keep],
+            self.x_m[keep],
+            self.y_m[keep],
+            self.relative_speed_mps[keep],
+            self.accel_mps2[keep],
+            self.lane[keep],
+        )
+
 
 def nearby_pairs(cell_x: np.ndarray, cell_y: np.ndarray, subjects: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(subject, vehicle) index pairs of every vehicle in the 3 x 3 cells around each subject's cell.
@@ -323,6 +338,28 @@ def _pairs_within(vehicles: SumoVehicles, subjects: np.ndarray, range_m: float) 
     return owner[other], seen[other]
 
 
+def _near_pairs(
+    vehicles: SumoVehicles, subjects: np.ndarray, range_m: float, path_turn_rad: np.ndarray | None
+) -> tuple[np.ndarray, ...]:
+    """The (subject, vehicle) pairs whose fronts are near enough for the vehicle's rear to be ahead within
+    ``range_m``: the subject index, its row, the vehicle's row, and the subject's frame's x axis (:func:`sensor_view`).
+
+    A rear ahead (x >= 0) within the range has its front at most a vehicle's length farther and at most a
+    length behind the subject's front, so the rest is computed for those only.
+    """
+    owner, seen = _pairs_within(vehicles, subjects, range_m)
+    me = subjects[owner]
+    heading = vehicles.heading_rad[subjects] - (0.0 if path_turn_rad is None else path_turn_rad)
+    ahead_x, ahead_y = np.sin(heading)[owner], np.cos(heading)[owner]
+    front_x = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
+    front_y = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
+    near = np.flatnonzero(
+        (front_x * front_x + front_y * front_y <= (range_m + LONGEST_VEHICLE_M) ** 2)
+        & (front_x * ahead_x + front_y * ahead_y >= -LONGEST_VEHICLE_M)
+    )
+    return owner[near], me[near], seen[near], ahead_x[near], ahead_y[near]
+
+
 def sensor_view(
     vehicles: SumoVehicles,
     subjects: np.ndarray,
@@ -351,19 +388,7 @@ def sensor_view(
     that x is within [0, ``range_m``]. Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
     """
-    owner, seen = _pairs_within(vehicles, subjects, range_m)
-    me = subjects[owner]
-    heading = vehicles.heading_rad[subjects] - (0.0 if path_turn_rad is None else path_turn_rad)
-    ahead_x, ahead_y = np.sin(heading)[owner], np.cos(heading)[owner]
-    # The fronts first: a rear ahead (x >= 0) within the range has its front at most a vehicle's length
-    # farther and at most a length behind the subject's front, so the rest is computed for those only.
-    front_x = vehicles.front_x_m[seen] - vehicles.front_x_m[me]
-    front_y = vehicles.front_y_m[seen] - vehicles.front_y_m[me]
-    near = np.flatnonzero(
-        (front_x * front_x + front_y * front_y <= (range_m + LONGEST_VEHICLE_M) ** 2)
-        & (front_x * ahead_x + front_y * ahead_y >= -LONGEST_VEHICLE_M)
-    )
-    owner, me, seen, ahead_x, ahead_y = owner[near], me[near], seen[near], ahead_x[near], ahead_y[near]
+    owner, me, seen, ahead_x, ahead_y = _near_pairs(vehicles, subjects, range_m, path_turn_rad)
     own_x, own_y = np.sin(vehicles.heading_rad)[seen], np.cos(vehicles.heading_rad)[seen]
     back = vehicles.length_m[seen]
     sight_x = vehicles.front_x_m[seen] - back * own_x - vehicles.front_x_m[me]
@@ -376,19 +401,25 @@ def sensor_view(
     x_m = sight_x * ahead_x + sight_y * ahead_y
     oncoming = vehicles.speed_mps[seen] * own_along < -ONCOMING_MPS
     keep = (x_m >= 0.0) & (sight_m <= range_m) & ~oncoming
-    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
     same_road = vehicles.road[seen] == vehicles.road[me]
     lane = np.where(same_road, vehicles.lane_index[seen] - vehicles.lane_index[me], UNKNOWN_LANE)
-    range_rate = vehicles.speed_mps[seen] * own_along - vehicles.speed_mps[me] * (ahead_x * unit_x + ahead_y * unit_y)
-    accel = vehicles.accel_mps2[seen] * own_along
+    on_path = np.zeros(seen.size, dtype=bool)
     if lanes is not None:
         lane, along_m = _lane_on_map(vehicles, owner, seen, x_m, lanes, lane)
         on_path = ~np.isnan(along_m)
         keep = np.where(on_path, (along_m >= 0.0) & (along_m <= range_m), keep)
         x_m = np.where(on_path, along_m, x_m)
-        range_rate = np.where(on_path, vehicles.speed_mps[seen] - vehicles.speed_mps[me], range_rate)
-        accel = np.where(on_path, vehicles.accel_mps2[seen], accel)
-    # In SUMO's order of the vehicles per subject, whichever grid cells they fell in (ties go to the first listed).
+    # In SUMO's order of the vehicles per subject, whichever grid cells they fell in (ties go to the first listed);
+    # the rest of the columns for the pairs seen only.
     k = np.flatnonzero(keep)
     k = k[np.lexsort((seen[k], owner[k]))]
-    return SensorPairs(owner[k], seen[k], x_m[k], y_m[k], range_rate[k], accel[k], lane[k])
+    owner, me, seen, ahead_x, ahead_y, on_path = owner[k], me[k], seen[k], ahead_x[k], ahead_y[k], on_path[k]
+    own_x, own_y, back, sight_x, sight_y = own_x[k], own_y[k], back[k], sight_x[k], sight_y[k]
+    y_m = (sight_y + back / 2.0 * own_y) * ahead_x - (sight_x + back / 2.0 * own_x) * ahead_y
+    range_rate = np.where(
+        on_path,
+        vehicles.speed_mps[seen] - vehicles.speed_mps[me],
+        vehicles.speed_mps[seen] * own_along[k] - vehicles.speed_mps[me] * (ahead_x * unit_x[k] + ahead_y * unit_y[k]),
+    )
+    accel = np.where(on_path, vehicles.accel_mps2[seen], vehicles.accel_mps2[seen] * own_along[k])
+    return SensorPairs(owner, seen, x_m[k], y_m, range_rate, accel, lane[k])
