@@ -44,11 +44,20 @@ exact nodes, with straights tried at its ends where the heading fit ran a curve 
 from .cache import cached_radius_profiles, profile_cache_dir
 from .curves import checked_warning_radius_m, curves_from_profile
 from .fitting import find_curves, radius_profile, radius_profiles, three_point_radius
-from .profile import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_from_parts, straight_profile
+from .profile import (
+    ConstantRadiusPart,
+    Curve,
+    ProfilePart,
+    RadiusProfile,
+    profile_along,
+    profile_from_parts,
+    straight_profile,
+)
 
 __all__ = [
     "ProfilePart",
     "RadiusProfile",
+    "profile_along",
     "profile_from_parts",
     "straight_profile",
     "ConstantRadiusPart",

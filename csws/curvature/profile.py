@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -181,3 +182,18 @@ def profile_from_parts(
         for a, b, k0, k1 in zip(edges[:-1], edges[1:], starts, ends, strict=False)
     )
     return RadiusProfile(vertex_s.copy(), curvature, radius, parts)
+
+
+def profile_along(xy: np.ndarray, parts: Iterable[tuple[float, float, float]]) -> RadiusProfile:
+    """The radius profile of the polyline ``xy`` from its parts in order, each ``(end_s, start curvature, end
+    curvature)`` from where the one before ended (the first from 0): a part that ends no later than the one
+    before is left out, and the last is stretched to the polyline's end."""
+    bounds, start_k, end_k = [0.0], [], []
+    for end_s, k0, k1 in parts:
+        if end_s > bounds[-1]:
+            bounds.append(end_s)
+            start_k.append(k0)
+            end_k.append(k1)
+    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
+    return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from csws.curvature import RadiusProfile, profile_from_parts
+from csws.curvature import RadiusProfile, profile_along
 from csws.road.chains import GivenProfile, LaneCurve
 
 from .exact import ExactLane, exact_path, read_exact
@@ -92,15 +92,7 @@ def given_exact_profiles(lane_ids: Sequence[str], exact: Mapping[str, ExactLane]
                 parts.append(None)
                 gap_ends.append(start_s + length_m)
         filled = _bridged(parts, gap_ends)
-        bounds, start_k, end_k = [0.0], [], []
-        for end_s, k0, k1 in filled:
-            if end_s > bounds[-1]:
-                bounds.append(end_s)
-                start_k.append(k0)
-                end_k.append(k1)
-        vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-        bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-        return profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k))
+        return profile_along(xy, filled)
 
     return profile
 

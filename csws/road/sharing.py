@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_from_parts
+from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_along
 from csws.curvature.artefacts import kept_to_net_turn, polyline_turns, turned_back_scale
 
 __all__ = [
@@ -326,18 +326,12 @@ def read_profile(
         own = fitted[chain]
         assert own is not None  # a chain reading itself was fitted
         return own
-    bounds, start_k, end_k = [0.0], [], []
+    moved: list[tuple[float, float, float]] = []
     for run in runs:
         source = fitted[run.source]
         assert source is not None  # every source was fitted
-        for end_s, k0, k1 in moved_parts(source.parts, run):
-            if end_s > bounds[-1]:
-                bounds.append(end_s)
-                start_k.append(k0)
-                end_k.append(k1)
-    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    bounds[-1] = max(bounds[-1], float(vertex_s[-1]))
-    return kept_to_net_turn(xy, profile_from_parts(vertex_s, np.array(bounds), np.array(start_k), np.array(end_k)))
+        moved += moved_parts(source.parts, run)
+    return kept_to_net_turn(xy, profile_along(xy, moved))
 
 
 def kept_to_own_turn(curves: Sequence[Curve], xy: np.ndarray, warning_radius_m: float) -> list[Curve]:
