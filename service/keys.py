@@ -32,12 +32,13 @@ import json
 import os
 import re
 import secrets
-import tempfile
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
+
+from csws.files import replace_json
 
 __all__ = [
     "KEYS_FORMAT",
@@ -256,16 +257,7 @@ def _new_key() -> tuple[str, str]:
 
 def _write(path: Path, entries: list[dict]) -> None:
     """Write a key file at once (a reader sees the old file or the new one), readable by its owner only."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".api-keys-", suffix=".json")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as file:
-            json.dump({"format": KEYS_FORMAT, "keys": entries}, file, indent=1, ensure_ascii=False)
-            file.write("\n")
-        os.replace(temporary, path)
-    except OSError:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    replace_json(path, {"format": KEYS_FORMAT, "keys": entries})
 
 
 def add_key(path: str | Path, fleet: str, role: Role | str, label: str = "") -> str:

@@ -19,12 +19,13 @@ import fcntl
 import json
 import os
 import secrets
-import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+
+from csws.files import replace_json
 
 from ..keys import FLEET_PATTERN
 from .addresses import resolved_addresses
@@ -112,16 +113,7 @@ def _fleets(path: Path) -> list[dict]:
 
 def _write(path: Path, fleets: list[dict]) -> None:
     """Write the webhook file at once (a reader sees the old file or the new one), readable by its owner only."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".webhooks-", suffix=".json")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as file:
-            json.dump({"format": WEBHOOKS_FORMAT, "fleets": fleets}, file, indent=1, ensure_ascii=False)
-            file.write("\n")
-        os.replace(temporary, path)
-    except OSError:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    replace_json(path, {"format": WEBHOOKS_FORMAT, "fleets": fleets})
 
 
 @contextmanager

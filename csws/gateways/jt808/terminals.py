@@ -22,10 +22,8 @@ from __future__ import annotations
 import hashlib
 import hmac
 import json
-import os
 import re
 import secrets
-import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -33,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from csws.errors import CswsError
+from csws.files import replace_json
 from csws.standard import Category
 
 __all__ = [
@@ -179,16 +178,7 @@ def _terminal(entry: dict[str, Any]) -> Terminal:
 
 def _write(path: Path, content: dict[str, Any]) -> None:
     """Replace the file at once with ``content``, readable by its owner only."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".terminals-", suffix=".json")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as file:
-            json.dump(content, file, indent=1, ensure_ascii=False)
-            file.write("\n")
-        os.replace(temporary, path)
-    except OSError:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    replace_json(path, content)
 
 
 @dataclass(frozen=True)
