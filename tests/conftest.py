@@ -4,7 +4,7 @@
   user's own loads) left behind.
 * In CI (``CI`` set), hypothesis draws the same examples every run, so that a run's verdict is
   the code's and not the draw's (locally it keeps exploring new ones, and keeps the failures it
-  finds).
+  finds). No example has a deadline: timing is for the benchmarks.
 * A real ``redis-server`` for the tests of the Redis state store (one for the run, and one of a
   test's own to stop, hang and kill), and the ``state`` fixture that runs a test on each store.
 * The side roads of tests/builders.py, netconverted once for each module that serves them.
@@ -26,9 +26,11 @@ from markers import fixture_markers, marks_its_tests
 from playwright.sync_api import sync_playwright
 from redis_server import RedisServer
 
-settings.register_profile("ci", derandomize=True)
-if os.environ.get("CI"):
-    settings.load_profile("ci")
+# No example has a deadline: how long a test takes is a benchmark's business, and a loaded machine must not turn
+# a slow example into a failure.
+settings.register_profile("local", deadline=None)
+settings.register_profile("ci", derandomize=True, deadline=None)
+settings.load_profile("ci" if os.environ.get("CI") else "local")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
