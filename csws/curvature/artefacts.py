@@ -253,11 +253,21 @@ def netted_turns(turn_rad: np.ndarray, segment_m: np.ndarray) -> tuple[np.ndarra
     for kind, first, last, size in _artefact_vertices(np.asarray(turn_rad), segment_m):
         if taken[first : last + 1].any():
             continue  # a jog inside a zig-zag, a spike next to another: one artefact
+        if kind in ("spike", "fold") and not _comes_back(turn_rad[first : last + 1]):
+            continue  # two reversals the same way round: a tight loop, whose turn is real, not a back-and-forth
         taken[first : last + 1] = True
         artefacts.append((kind, first, last, size))
         effective[first] = _wrapped(float(turn_rad[first : last + 1].sum()))
         effective[first + 1 : last + 1] = 0.0
     return effective, artefacts
+
+
+def _comes_back(reversals_rad: np.ndarray) -> bool:
+    """Whether two reversals make a back-and-forth: they come back to within 180 - :data:`REVERSAL_DEG` degrees of
+    the heading before them (a spike drawn out and back, a shape folded over itself), rather than turning on the
+    same way round (two reversals of 120 degrees or more one way sum to 240 or more: wrapped, that would read as
+    a turn the other way)."""
+    return bool(abs(_wrapped(float(reversals_rad.sum()))) < math.radians(180.0 - REVERSAL_DEG))
 
 
 def _artefact_vertices(turn: np.ndarray, segment_m: np.ndarray) -> list[tuple[str, int, int, float]]:
