@@ -18,6 +18,7 @@ import numpy as np
 import sumolib
 
 from csws.road.georef import GeoReferenced
+from csws.road.network import projection_net
 
 __all__ = ["NetworkLocation", "network_location"]
 
@@ -74,12 +75,5 @@ def network_location(net: Path) -> NetworkLocation | None:
                 return None
     except (ElementTree.ParseError, OSError, EOFError) as exc:
         raise ValueError(f"{net} is not a readable SUMO network: {exc}") from None
-    geo = sumolib.net.Net()
-    geo.setLocation(
-        location.get("netOffset", "0.00,0.00"),
-        location.get("convBoundary", "0.00,0.00,0.00,0.00"),
-        location.get("origBoundary", "0.00,0.00,0.00,0.00"),
-        location.get("projParameter", "!"),
-    )
-    found = NetworkLocation(geo)
+    found = NetworkLocation(projection_net(location))
     return found if found.has_projection else None

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import xml.sax
 import zlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
@@ -27,7 +27,7 @@ import sumolib
 from csws.errors import CswsError
 from csws.road.continuations import road_continuations
 
-__all__ = ["Lane", "NetLanes", "NetworkError", "net_lanes", "read_sumo_net"]
+__all__ = ["Lane", "NetLanes", "NetworkError", "net_lanes", "projection_net", "read_sumo_net"]
 
 #: SUMO edge functions kept, and the name each is known by here.
 _KEPT_FUNCTIONS = {"": "normal", "internal": "internal"}
@@ -331,7 +331,12 @@ def _geo_reference(net: sumolib.net.Net) -> sumolib.net.Net:
     no public getter for all of it; copying it keeps ``convertXY2LonLat`` /
     ``convertLonLat2XY`` available without holding every lane's Python objects.
     """
-    location = getattr(net, "_location", {})
+    return projection_net(getattr(net, "_location", {}))
+
+
+def projection_net(location: Mapping[str, str]) -> sumolib.net.Net:
+    """A bare sumolib net of a SUMO network's ``<location>`` attributes (``netOffset``, ``convBoundary``,
+    ``origBoundary``, ``projParameter``; SUMO's defaults for those missing): its coordinate conversions only."""
     geo = sumolib.net.Net()
     geo.setLocation(
         location.get("netOffset", "0.00,0.00"),
