@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from benchmarks.bounds import road_information, start_bounds_m
+from benchmarks.command import arguments
 from csws.curvature import find_curves, radius_profiles, three_point_radius
 from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M
@@ -504,6 +505,7 @@ def report(figures: dict) -> str:
 
 def main() -> None:
     """Print the benchmark table."""
+    arguments("benchmarks.curvature", __doc__)
     start = time.perf_counter()
     print(report(run()))
     print(f"(benchmark took {time.perf_counter() - start:.1f} s)")

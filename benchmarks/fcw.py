@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, FleetPaths, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.path import PathCurvature
@@ -95,6 +96,7 @@ def run() -> dict:
 
 def main() -> None:
     """Print the figures beside their targets."""
+    arguments("benchmarks.fcw", __doc__)
     figures = run()
     print(f"{'figure (10 objects a vehicle)':<44} {'value':>9}  target")
     print(f"{'FCW objects: one vehicle, per frame':<44} {figures['single_us']:>7.1f}us  <= {TARGET_SINGLE_US:g} us")

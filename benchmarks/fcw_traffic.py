@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.ahead.horizon import PathAhead
 from csws.ahead.lookahead import LookAhead
 from csws.cosim.categories import category_of
@@ -347,6 +348,7 @@ def _figures(watch: _Watch) -> dict:
 
 def main() -> None:
     """Print the figures."""
+    arguments("benchmarks.fcw_traffic", __doc__)
     figures = run()
     for name, s in figures["scenarios"].items():
         print(

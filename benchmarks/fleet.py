@@ -18,12 +18,12 @@ figures: the first page of 1,000 (no box, and in a box holding 3 % of the fleet)
 the p99 of one vehicle's write (a single fix's round trip to the store) alone and while a second
 client reads pages of 1,000 of the 3 % box without pause (Redis runs one script at a time).
 
-Run with ``python -m benchmarks.fleet [VEHICLES]``, or ``python -m benchmarks.fleet redis [VEHICLES]``.
+Run with ``python -m benchmarks.fleet [VEHICLES]``, or ``python -m benchmarks.fleet --redis [VEHICLES]``.
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 import tempfile
 import threading
 import time
@@ -32,6 +32,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 
+from benchmarks.command import arguments
 from benchmarks.servers import csws_serve, redis_server
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
@@ -240,12 +241,16 @@ def run_redis(vehicles: int = VEHICLES) -> dict:
     return {name: round(value, 2) if isinstance(value, float) else value for name, value in figures.items()}
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The fleet's size, and which store is measured."""
+    parser.add_argument("vehicles", type=int, nargs="?", default=VEHICLES, help="vehicles in the fleet")
+    parser.add_argument("--redis", action="store_true", help="measure the Redis store alone (no HTTP)")
+
+
 def main() -> None:
     """Print each figure beside its target."""
-    arguments = sys.argv[1:]
-    measure = run_redis if arguments[:1] == ["redis"] else run
-    vehicles = int(arguments[-1]) if arguments and arguments[-1] != "redis" else VEHICLES
-    for name, value in measure(vehicles).items():
+    given = arguments("benchmarks.fleet", __doc__, _add_arguments)
+    for name, value in (run_redis if given.redis else run)(given.vehicles).items():
         target = TARGETS.get(name, "")
         print(f"{name:>32}: {value!s:<10} {('target ' + target) if target else ''}")
 

@@ -11,11 +11,14 @@ Run with ``python -m benchmarks.fuzz [MAX_EXAMPLES [SEQUENCES [STEPS]]]``.
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from benchmarks.command import arguments
 
 MAX_EXAMPLES = 500
 SEQUENCES = 300
@@ -49,10 +52,17 @@ def run(max_examples: int = MAX_EXAMPLES, sequences: int = SEQUENCES, steps: int
     }
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The three optional bounds of the fuzzing run, in order."""
+    parser.add_argument("max_examples", type=int, nargs="?", default=MAX_EXAMPLES, help="examples per operation")
+    parser.add_argument("sequences", type=int, nargs="?", default=SEQUENCES, help="stateful sequences")
+    parser.add_argument("steps", type=int, nargs="?", default=STEPS, help="steps per stateful sequence")
+
+
 def main() -> None:
     """Print each figure."""
-    bounds = [int(v) for v in sys.argv[1:4]]
-    for name, value in run(*bounds).items():
+    given = arguments("benchmarks.fuzz", __doc__, _add_arguments)
+    for name, value in run(given.max_examples, given.sequences, given.steps).items():
         print(f"{name:>14}: {value}")
 
 

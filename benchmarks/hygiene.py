@@ -39,6 +39,7 @@ from typing import cast
 import httpx
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.networks import networks_dir
 
 TRACK_NET = networks_dir() / "t7_left.net.xml"
@@ -253,6 +254,7 @@ def run() -> dict:
 
 def main() -> None:
     """Print each figure beside its target."""
+    arguments("benchmarks.hygiene", __doc__)
     for name, value in run().items():
         target = TARGETS.get(name, "")
         print(f"{name:>32}: {value!s:<10} {('target ' + target) if target else ''}")

@@ -40,6 +40,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 
@@ -269,6 +270,7 @@ def map_rows(figures: dict) -> list[Row]:
 
 def main() -> None:
     """Print the rows ``python -m benchmarks`` shows of this benchmark: each figure beside its target."""
+    arguments("benchmarks.map", __doc__)
     print(table(map_rows(run())))
 
 

@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.networks import networks_dir
 from csws.road.hmm import Fixes, SequenceMatcher
 from csws.road.matching import Probes, lane_points
@@ -95,6 +96,7 @@ def run(vehicle_count: int = 10_000, seed: int = 1) -> dict:
 
 def main() -> None:
     """Print the µs per fix beside the target."""
+    arguments("benchmarks.matching", __doc__)
     figures = run()
     verdict = "PASS" if figures["continued_cpu_us_per_fix"] <= TARGET_US_PER_FIX else "FAIL"
     print(

@@ -41,6 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from benchmarks.command import arguments
 from benchmarks.rows import Row, at_most, context
 from csws.curvature import Curve
 from csws.opendrive.exact import ExactLane
@@ -414,4 +415,5 @@ def report(figures: dict) -> str:
 
 
 if __name__ == "__main__":
+    arguments("benchmarks.opendrive", __doc__)
     print(report(run()))

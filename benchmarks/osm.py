@@ -17,6 +17,7 @@ Needs the OSM extract (not shipped with csws): ``python -m benchmarks.osm EXTRAC
 
 from __future__ import annotations
 
+import argparse
 import re
 import resource
 import sys
@@ -28,6 +29,7 @@ from typing import Any
 import numpy as np
 import shapely
 
+from benchmarks.command import arguments
 from benchmarks.roadmap import profile_cache_in
 from csws.osm.importer import import_osm
 from csws.road.roadmap import LaneCurve, RoadMap
@@ -191,11 +193,17 @@ def run(osm_path: Path, query_count: int = 300) -> dict:
     return figures
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The one argument: the extract to import."""
+    parser.add_argument("extract", type=Path, help="an OpenStreetMap extract (.osm, .osm.gz, .osm.xml.gz)")
+
+
 def main() -> None:
     """Print the figures beside their targets, then the curve table."""
-    if len(sys.argv) != 2:
-        sys.exit("usage: python -m benchmarks.osm EXTRACT.osm.xml.gz")
-    figures = run(Path(sys.argv[1]))
+    extract = arguments("benchmarks.osm", __doc__, _add_arguments).extract
+    if not extract.is_file():
+        sys.exit(f"python -m benchmarks.osm: no OSM file at {extract}")
+    figures = run(extract)
     table = figures.pop("curve_table")
     for name, value in figures.items():
         target = TARGETS.get(name)

@@ -19,6 +19,7 @@ Run with ``python -m benchmarks.push [VEHICLES] [SECONDS]``.
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import hashlib
 import hmac
@@ -29,7 +30,6 @@ import re
 import shutil
 import socket
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.command import arguments
 from benchmarks.rows import Row, at_least, at_most
 from service.push import PushConfig, start_push
 from service.push.source import EventSource, MemoryOutbox
@@ -358,10 +359,21 @@ def rows(figures: dict[str, Any]) -> list[Row]:
     return result
 
 
-if __name__ == "__main__":
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The fleet's size and how long its events are written."""
+    parser.add_argument("vehicles", type=int, nargs="?", default=BENCH_VEHICLES, help="vehicles, 1 event/s each")
+    parser.add_argument("seconds", type=float, nargs="?", default=WRITE_S, help="how long events are written, s")
+
+
+def main() -> None:
+    """Print the rows ``python -m benchmarks`` shows of this benchmark, then each sink's figures."""
     from benchmarks.rows import table
 
-    arguments = [float(argument) for argument in sys.argv[1:3]]
-    measured = run(int(arguments[0]) if arguments else BENCH_VEHICLES, arguments[1] if len(arguments) > 1 else WRITE_S)
+    given = arguments("benchmarks.push", __doc__, _add_arguments)
+    measured = run(given.vehicles, given.seconds)
     print(table(rows(measured)))
     print(json.dumps({name: value for name, value in measured.items() if isinstance(value, dict)}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

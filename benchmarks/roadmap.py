@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.ahead.lookahead import LookAhead
 from csws.curvature import radius_profiles
 from csws.geometry import Piece, arc, pose_at, sample_pieces, straight
@@ -240,6 +241,7 @@ def real_network_load() -> dict:
 
 def main() -> None:
     """Print the figures of :func:`run` and :func:`real_network_load`, one per line."""
+    arguments("benchmarks.roadmap", __doc__)
     for name, value in (run() | real_network_load()).items():
         print(f"{name:>16}: {value}")
 

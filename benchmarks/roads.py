@@ -61,6 +61,7 @@ from benchmarks.bounds import (
     road_information,
     start_bounds_m,
 )
+from benchmarks.command import arguments
 from csws.curvature import find_curves
 from csws.curvature.corners import FLOOR_RADIUS_M
 from csws.geometry import Piece, arc, clothoid, piece_starts_s, sample_pieces, straight
@@ -367,6 +368,7 @@ def report(figures: dict) -> str:
 
 
 def main() -> None:
+    arguments("benchmarks.roads", __doc__)
     print(report(run()))
 
 

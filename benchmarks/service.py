@@ -44,6 +44,7 @@ import numpy as np
 from fastapi import FastAPI, Request
 from fastapi.responses import Response
 
+from benchmarks.command import arguments
 from csws.networks import networks_dir
 from csws.road.matching import lane_points
 from csws.road.roadmap import RoadMap
@@ -483,6 +484,7 @@ def run() -> dict:
 
 def main() -> None:
     """Print each figure beside its target."""
+    arguments("benchmarks.service", __doc__)
     for name, value in run().items():
         target = TARGETS.get(name, "")
         print(f"{name:>28}: {value!s:<14} {('target ' + target) if target else ''}")

@@ -23,6 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks.command import arguments
 from csws.sweep.execute import run_sweep
 from csws.sweep.study import Factors, RunSpec, ScenarioSpec
 from csws.sweep.task import run_task
@@ -83,4 +84,5 @@ def run() -> dict:
 
 
 if __name__ == "__main__":
+    arguments("benchmarks.sweep", __doc__)
     print(run())

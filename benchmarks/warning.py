@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.engine import Engine, VehicleInput
 from csws.fcw.physics import evaluate_fcw
 from csws.networks import networks_dir
@@ -86,7 +87,10 @@ def run(batch_size: int = 1000) -> dict:
     engine = Engine(RoadMap.load(networks_dir() / f"{TRACK}.net.xml"))
     singles = _vehicles(truth, 200, 130.0)
     engine_us = _median_us(engine.evaluate, singles, repeat=5)
-    cpois = [engine.evaluate(v).path.cpois for v in singles]
+    paths = [engine.evaluate(v).path for v in singles]
+    cpois = [path.cpois for path in paths if path is not None]
+    if len(cpois) != len(singles):
+        raise RuntimeError(f"{len(singles) - len(cpois)} of the track's vehicles matched no lane")
     warning_us = _median_us(lambda c: evaluate(130.0, "M1", c), cpois, repeat=5)
     fleet = _vehicles(truth, batch_size, 130.0)
     engine.evaluate_many(fleet)
@@ -107,6 +111,7 @@ def run(batch_size: int = 1000) -> dict:
 
 def main() -> None:
     """Print the figures beside their targets."""
+    arguments("benchmarks.warning", __doc__)
     figures = run()
     print(f"{'figure':<34} {'value':>10}  target")
     print(
