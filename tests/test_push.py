@@ -35,9 +35,10 @@ from service.metrics import Metrics
 from service.push import PushConfig, RetryPolicy, push_config, start_push, start_service_push
 from service.push.addresses import UnsafeTarget, address_refusal, resolved_addresses
 from service.push.lease import Lease, LeaseLost
-from service.push.source import MemoryOutbox
+from service.push.source import MemoryOutbox, StoredEvent
 from service.push.state import PushState, open_push_state
 from service.push.targets import add_webhook
+from service.push.webhooks import IDLE_WITHOUT_WEBHOOKS_S
 from service.settings import ServiceSettings
 
 
@@ -215,6 +216,35 @@ def test_a_dispatcher_that_stops_hands_over_and_nothing_is_lost(tmp_path, receiv
         wait_until(lambda: len({r["key"] for r in receiver.requests}) == 100)
     finally:
         second()
+
+
+class CountingOutbox(MemoryOutbox):
+    """An outbox that counts how often it is read."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.reads = 0
+
+    def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
+        self.reads += 1
+        return super().events_after(fleet, after, limit)
+
+
+def test_without_webhooks_the_outbox_is_read_seldom_and_a_webhook_added_gets_what_follows(tmp_path, receiver_factory):
+    outbox = CountingOutbox()
+    stop = start_push(quick_config(tmp_path), outbox)
+    try:
+        write_events(outbox, ["truck-0"], 5)
+        idle_s = 2.0
+        time.sleep(idle_s)
+        # At the poll interval (10 ms) that would be some 200 reads: without a webhook, one a second and the drain.
+        assert outbox.reads <= idle_s / IDLE_WITHOUT_WEBHOOKS_S + 3
+        receiver = receiver_factory()
+        add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
+        write_events(outbox, ["truck-1"], 5)
+        wait_until(lambda: sum(r["key"].startswith(f"{FLEET}:truck-1:") for r in receiver.requests) == 5)
+    finally:
+        stop()
 
 
 # --- What a webhook may reach ---------------------------------------------------------------------------------------

@@ -47,6 +47,10 @@ logger = logging.getLogger("csws.push")
 
 #: Events read from the outbox at a time.
 BATCH = 500
+#: The wait between reads of the outbox while no fleet has a webhook, s: the outbox is still read (its cursor moves
+#: past what nobody subscribed to), but not at the poll interval of a dispatcher with somewhere to deliver; a webhook
+#: added gets its fleet's events from at most this long before it was added.
+IDLE_WITHOUT_WEBHOOKS_S = 1.0
 #: Queued events tried per webhook in one pass, before new events get their turn.
 RETRIES_PER_PASS = 500
 #: Connections per webhook over which new events go out at once (retries take the first), each vehicle's always
@@ -178,7 +182,8 @@ class WebhookDispatch:
 
     def step(self) -> float | None:
         """Retry what is due, then deliver the next events of the outbox; 0 when there may be more to do at once,
-        None when there was nothing to do (wait the poll interval)."""
+        None when there was nothing to do (wait the poll interval), :data:`IDLE_WITHOUT_WEBHOOKS_S` when nothing
+        was stored and no fleet has a webhook."""
         webhooks = self.webhooks()
         worked = any([self._retry(webhook) for webhook in webhooks])
         stored = self.source.events_after(None, self.state.cursor(self.SINK), BATCH)
@@ -187,7 +192,9 @@ class WebhookDispatch:
         if self.counts is not None:
             waiting = sum(self.state.queued_count(webhook.sink) for webhook in webhooks)
             self.counts.set_push_gauges("webhook", waiting, self._lag_s)
-        return 0.0 if worked or stored else None
+        if worked or stored:
+            return 0.0
+        return None if webhooks else IDLE_WITHOUT_WEBHOOKS_S
 
     def _deliver_new(self, webhooks: list[Webhook], stored: list[StoredEvent]) -> None:
         """Send each event to the webhooks of its fleet, or queue it; then move the cursor past them all."""
