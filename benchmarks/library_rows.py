@@ -249,8 +249,35 @@ def cosim_rows(figures: dict) -> list[Row]:
             round(figures["fcw_over_default"], 2),
             "fcw ms/step: " + str(figures["both_systems_components_ms_per_step"].get("fcw")),
         ),
+        *ssm_rows(figures),
         *city_rows(figures["city"]),
     ]
+
+
+def ssm_rows(figures: dict) -> list[Row]:
+    """Both systems' cost over bare SUMO as a share of SUMO's SSM device's on every vehicle (the fleet road)."""
+    ms, shares = figures["ms_per_step"], figures["fcw_of_ssm_overhead"]
+    ssm = f"SSM {ms['ssm']:.1f} vs bare {ms['bare']:.1f} ms/step (TTC within {cosim.SSM_RANGE_M:g} m)"
+    return [
+        at_most(
+            f"cosim: both systems, {label}, {cosim.VEHICLES:,} vehicles (share of the SSM device's overhead)",
+            round(shares[name], 2),
+            cosim.TARGET_FCW_OF_SSM_OVERHEAD,
+            f"{ms[name]:.1f} ms/step; {ssm}",
+        )
+        for name, label in (("both_systems", "time series"), ("both_systems_events", "events only"))
+    ] + [
+        context(
+            "cosim: share of vehicle-steps evaluated (default / events only / both systems)",
+            " / ".join(f"{share:.0%}" for share in shares_evaluated(figures)),
+        )
+    ]
+
+
+def shares_evaluated(figures: dict) -> list[float]:
+    """The share of vehicle-steps the scheduled runs evaluated: default, events only, both systems."""
+    share = figures["evaluated_share"]
+    return [share[name] or 1.0 for name in ("default", "events_only", "both_systems")]
 
 
 def city_rows(city: dict) -> list[Row]:
