@@ -26,6 +26,7 @@ from jt808_terminal import Received, Terminal, general_response, location_body, 
 
 from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
+from csws.gateways.jt808.tracking import TrackingSettings
 from csws.geometry import arc, sample_pieces, straight
 from csws.standard import warning_speed
 from csws.sumo.netbuild import netconvert
@@ -45,6 +46,8 @@ CATEGORY, PHONE, FLEET = "N", "13800138000", "acme"
 #: How far the fitted curve start may lie from the constructed one, m.
 START_TOLERANCE_M = 1.5
 T0_S = 1_790_000_000.0
+#: The gateway's default settings, on a port the system picks.
+ON_A_FREE_PORT = GatewaySettings(port=0)
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
@@ -77,7 +80,7 @@ def formula_1_m(speed_kmh: float, warning_speed_kmh: float) -> float:
 class Rig:
     """The app (HTTP and warning service), its gateway on a free port, and a clock the test sets."""
 
-    def __init__(self, net: Path, folder: Path, untracked_fleets: frozenset[str] = frozenset()) -> None:
+    def __init__(self, net: Path, folder: Path, gateway_settings: GatewaySettings = ON_A_FREE_PORT) -> None:
         self.terminals_file = folder / "terminals.json"
         add_terminal(self.terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY, plate="京A12345")
         self.api_key = add_key(folder / "keys.json", FLEET, "admin")
@@ -88,7 +91,7 @@ class Rig:
             self.app.state.service,
             self.app.state.work,
             TerminalList(self.terminals_file),
-            GatewaySettings(port=0, untracked_fleets=untracked_fleets),
+            gateway_settings,
             clock=lambda: self.now_s,
         )
 
@@ -106,10 +109,19 @@ class Rig:
 class Drive:
     """A terminal reporting along the straight every ``interval_s`` (1 s by default), the test's clock following
     its reports. Asked for temporary tracking (0x8202: WORD interval, DWORD validity, both in s), it answers with
-    its general response (0x0001) and reports at the interval asked for until the validity ends."""
+    its general response (0x0001) and reports at the interval asked for until the validity ends; or, as
+    ``tracking_answer`` says, answers with another result, or does not change its interval."""
 
-    def __init__(self, rig: Rig, terminal: Terminal, x_m: float, interval_s: float = 1.0) -> None:
+    def __init__(
+        self,
+        rig: Rig,
+        terminal: Terminal,
+        x_m: float,
+        interval_s: float = 1.0,
+        tracking_answer: tuple[int, bool] = (0, True),
+    ) -> None:
         self.rig, self.terminal, self.x_m, self.interval_s = rig, terminal, x_m, interval_s
+        self.tracking_result, self.honours = tracking_answer
         self.time_s, self.reports = T0_S, 0
         self.tracking_interval_s, self.tracked_until_s = 0.0, -math.inf
         #: Each tracking request: the distance to the curve at the report before it, its interval and validity.
@@ -149,8 +161,9 @@ class Drive:
         assert len(message.body) == 6
         interval_s, validity_s = struct.unpack(">HI", message.body)
         self.asked.append((APPROACH_M - self.x_m, interval_s, validity_s))
-        self.tracking_interval_s, self.tracked_until_s = float(interval_s), self.time_s + validity_s
-        await self.terminal.send(0x0001, struct.pack(">HHB", message.serial, 0x8202, 0))
+        if self.honours:
+            self.tracking_interval_s, self.tracked_until_s = float(interval_s), self.time_s + validity_s
+        await self.terminal.send(0x0001, struct.pack(">HHB", message.serial, 0x8202, self.tracking_result))
 
 
 def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, tmp_path):
@@ -216,15 +229,21 @@ def _ask_m(interval_s: float) -> float:
     return point_m + max(0.5 * speed_mps, speed_mps * interval_s - (point_m - sw_m) - sw_m / 2)
 
 
-def _slow_drive(net: Path, folder: Path, interval_s: float, untracked: frozenset[str] = frozenset()):
+def _slow_drive(
+    net: Path,
+    folder: Path,
+    interval_s: float,
+    settings: GatewaySettings = ON_A_FREE_PORT,
+    tracking_answer: tuple[int, bool] = (0, True),
+):
     """A terminal at :data:`SLOW_KMH` reporting every ``interval_s``, from four intervals before :func:`_ask_m`
-    until its first text; the drive (with the tracking requests it honoured) and the texts."""
+    until its first text; the drive (with the tracking requests it was sent) and the texts."""
     start_m = _ask_m(interval_s) + 4 * SLOW_KMH / 3.6 * interval_s
 
     async def run() -> tuple[Drive, list[tuple[float, str]]]:
-        async with Rig(net, folder, untracked) as rig:
+        async with Rig(net, folder, settings) as rig:
             terminal = await _connected(rig)
-            drive = Drive(rig, terminal, APPROACH_M - start_m, interval_s)
+            drive = Drive(rig, terminal, APPROACH_M - start_m, interval_s, tracking_answer)
             texts: list[tuple[float, str]] = []
             while not texts:
                 assert drive.x_m < APPROACH_M, "no warning before the curve"
@@ -258,12 +277,22 @@ def test_a_terminal_slower_than_the_cap_and_not_tracked_is_warned_late(net, tmp_
     """The same drive at 10 s with its fleet not tracked: the report after the one that would have asked lies
     halfway to formula (1)'s point, and the warning comes only there (the allowance stops at 5 s)."""
     interval_s, speed_mps = 10.0, SLOW_KMH / 3.6
-    drive, texts = _slow_drive(net, tmp_path, interval_s, untracked=frozenset({FLEET}))
+    drive, texts = _slow_drive(net, tmp_path, interval_s, GatewaySettings(port=0, untracked_fleets=frozenset({FLEET})))
     assert drive.asked == []
     [(onset_m, text)] = texts
     assert "前方弯道" in text
     assert onset_m == pytest.approx(_ask_m(interval_s) - speed_mps * interval_s, abs=START_TOLERANCE_M)
     assert onset_m < formula_1_m(SLOW_KMH, warning_speed(RADIUS_M, CATEGORY, 1)) - START_TOLERANCE_M
+
+
+@pytest.mark.parametrize("result, asked", [(0, 2), (3, 1)])
+def test_a_terminal_that_refuses_tracking_is_not_asked_again(net, tmp_path, result, asked):
+    """Windows of 5 s, and a terminal at 10 s that keeps its interval: once a window has run out, the curve still
+    ahead is asked for again, unless the terminal refused the first request (result 3: not supported)."""
+    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5))
+    drive, texts = _slow_drive(net, tmp_path, 10.0, settings, tracking_answer=(result, False))
+    assert len(drive.asked) == asked and [validity_s for _, _, validity_s in drive.asked] == [5] * asked
+    assert len(texts) == 1  # the reports go on being answered and warned
 
 
 async def _connected(rig: Rig) -> Terminal:
