@@ -8,7 +8,9 @@ category from the terminal list, :mod:`csws.gateways.jt808.terminals`) and is an
 same :class:`service.answers.WarningService` as ``POST /v1/warning``: the same state store, so a
 vehicle switched off over HTTP is off here too, and a terminal that reconnects to another
 gateway process keeps its session. When what the driver should be told changes, the gateway
-sends a text message ``0x8300`` to display and speak (:mod:`csws.gateways.jt808.texts`).
+sends a text message ``0x8300`` to display and speak (:mod:`csws.gateways.jt808.texts`). A
+terminal that reports less often than every 1.5 s is asked for 1 s reports (``0x8202``) while its
+vehicle nears a curve (:mod:`csws.gateways.jt808.tracking`), unless its fleet is switched off for it.
 
 Reports of all connections are answered together: while the work thread answers one group, the
 reports that arrive meanwhile wait for the next, so a busy gateway answers in batches without a
@@ -41,18 +43,22 @@ from csws.gateways.jt808.messages import (
     decode_authentication,
     decode_location,
     decode_location_batch,
+    decode_terminal_response,
     encode_general_response,
     encode_registration_response,
+    encode_temporary_tracking,
     encode_text_message,
 )
 from csws.gateways.jt808.reassembly import Reassembler
 from csws.gateways.jt808.terminals import Terminal, TerminalList
 from csws.gateways.jt808.texts import Announcer, DriverTexts
+from csws.gateways.jt808.tracking import ReportPace, TrackingSettings
 
 from .answers import WarningService
 from .decoding import DecodedPosition, DecodedQuery
 from .guard import OncePerInterval
 from .jt808_groups import AnswerSummary, Batcher, Waiting
+from .jt808_tracking import TrackingPlanner
 from .work import WorkThread
 
 __all__ = ["GatewaySettings", "Gateway"]
@@ -87,6 +93,10 @@ class GatewaySettings:
         group of reports costs far less per report than one at a time (map matching, the state
         store's round trip), for a few milliseconds more latency. Reports that arrive while a group
         is evaluated go next without waiting.
+    tracking
+        When and how slow terminals are asked for temporary tracking (``0x8202``) near a curve.
+    untracked_fleets
+        The fleets whose terminals are never asked for tracking (``*``: none is).
     """
 
     host: str = "127.0.0.1"
@@ -97,10 +107,16 @@ class GatewaySettings:
     max_connections: int = 20_000
     batch_window_s: float = 0.005
     fleet_texts: dict[str, DriverTexts] = field(default_factory=dict)
+    tracking: TrackingSettings = field(default_factory=TrackingSettings)
+    untracked_fleets: frozenset[str] = frozenset()
 
     def texts(self, fleet: str) -> DriverTexts:
         """The texts of ``fleet`` (the defaults where it has none)."""
         return self.fleet_texts.get(fleet, DriverTexts())
+
+    def tracks(self, fleet: str) -> bool:
+        """Whether ``fleet``'s slow terminals are asked for temporary tracking near a curve."""
+        return not ({fleet, "*"} & self.untracked_fleets)
 
 
 def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> DecodedQuery:
@@ -126,6 +142,8 @@ class Conversation:
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
         self.announcer: Announcer | None = None
+        #: The terminal's regular report interval and its tracking window (``0x8202``).
+        self.pace = ReportPace()
         #: The connection's reports queued for their warning, oldest first (those started are dropped lazily).
         self.waiting: deque[Waiting] = deque()
         self.read_at = 0.0
@@ -175,8 +193,7 @@ class Conversation:
         self.edition, self.phone = frame.edition, frame.phone
         handler = self.gateway.handlers.get(frame.message_id)
         if handler is None:
-            if frame.message_id != MessageId.TERMINAL_RESPONSE:
-                self.respond(frame, ResponseResult.NOT_SUPPORTED)
+            self.respond(frame, ResponseResult.NOT_SUPPORTED)
             return True
         return await handler(self, frame)
 
@@ -213,6 +230,20 @@ async def _heartbeat(conversation: Conversation, frame: Frame) -> bool:
     """``0x0002`` -> ``0x8001``: success while the terminal is admitted."""
     if _admitted(conversation, frame) is not None:
         conversation.respond(frame, ResponseResult.SUCCESS)
+    return True
+
+
+async def _terminal_response(conversation: Conversation, frame: Frame) -> bool:
+    """``0x0001``, the terminal's general response: taken without an answer. A terminal that refuses temporary
+    tracking (``0x8202``) is not asked again on this connection."""
+    try:
+        response = decode_terminal_response(frame.body)
+    except BodyError as error:
+        log.warning("jt808: general response of %s unreadable: %s", frame.phone, error)
+        return True
+    if response.message_id == MessageId.TEMPORARY_TRACKING and response.result != ResponseResult.SUCCESS:
+        conversation.pace.refuse()
+        log.warning("jt808: %s refused temporary tracking (result %d)", frame.phone, response.result)
     return True
 
 
@@ -260,11 +291,14 @@ async def _locations(conversation: Conversation, frame: Frame) -> bool:
 def _queue(conversation: Conversation, terminal: Terminal, reports: list[LocationReport]) -> None:
     """Queue ``reports`` for their warnings in time order, shedding the oldest not yet started beyond
     :data:`MAX_PENDING_REPORTS`, so that reading and answering ``0x8001`` never wait for a warning."""
-    gateway, waiting = conversation.gateway, conversation.waiting
+    gateway, waiting, pace = conversation.gateway, conversation.waiting, conversation.pace
     now_s, read_at = gateway.clock(), conversation.read_at
+    tracks = gateway.settings.tracks(terminal.fleet)
     for report in sorted(reports, key=lambda r: r.time_s):
         query = report_query(terminal, report, now_s)
-        entry = Waiting(query, terminal.fleet, partial(_tell, conversation, terminal, report, read_at))
+        pace.observe(report.time_s)
+        intervals_s = pace.due(report.time_s, gateway.settings.tracking) if tracks else None
+        entry = Waiting(query, terminal.fleet, partial(_tell, conversation, terminal, report, read_at), intervals_s)
         waiting.append(entry)
         gateway.batcher.queue(entry)
     while waiting and waiting[0].started:
@@ -298,9 +332,15 @@ def _tell(
         conversation.send(MessageId.TEXT_MESSAGE, encode_text_message(text, conversation.edition, emergency=urgent))
         gateway.counts["told"] += 1
         gateway.times.add("text", time.perf_counter() - read_at)
+    window_s = answer.tracking_window_s
+    if window_s is not None and conversation.pace.start(report.time_s, window_s):
+        interval_s = gateway.settings.tracking.interval_s
+        conversation.send(MessageId.TEMPORARY_TRACKING, encode_temporary_tracking(interval_s, window_s))
+        gateway.counts["tracked"] += 1
 
 
 _HANDLERS: dict[int, Callable[[Conversation, Frame], Any]] = {
+    MessageId.TERMINAL_RESPONSE: _terminal_response,
     MessageId.REGISTRATION: _register,
     MessageId.AUTHENTICATION: _authenticate,
     MessageId.HEARTBEAT: _heartbeat,
@@ -335,11 +375,13 @@ class Gateway:
     ) -> None:
         #: Where reports' time went, stage by stage (:meth:`stages`).
         self.times = StageTimes()
-        self.batcher = Batcher(service, work, settings.batch_window_s, self.times)
+        planner = TrackingPlanner(service, settings.tracking)
+        self.batcher = Batcher(service, work, settings.batch_window_s, self.times, planner)
         self.terminals, self.settings, self.clock = terminals, settings, clock
         self.handlers = _HANDLERS
         self.connections = 0
-        #: What the gateway did so far: connections, reports evaluated and shed, texts told, frames dropped.
+        #: What the gateway did so far: connections, reports evaluated and shed, texts told, tracking requests sent,
+        #: frames dropped.
         self.counts: Counter[str] = Counter()
 
     async def converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
@@ -398,7 +440,8 @@ class Gateway:
         counts = self.counts
         return (
             f"{counts['connections']} connection(s), {counts['evaluated']} report(s) evaluated, "
-            f"{counts['shed']} shed, {counts['told']} text(s) told, {counts['dropped']} frame(s) dropped"
+            f"{counts['shed']} shed, {counts['told']} text(s) told, {counts['tracked']} tracking request(s), "
+            f"{counts['dropped']} frame(s) dropped"
         )
 
     def stages(self) -> str:

@@ -36,6 +36,13 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--terminals", type=Path, default=None, metavar="FILE", help=f"terminal file (${TERMINALS_ENV})"
     )
     gateway.add_argument("--texts", type=Path, default=None, metavar="FILE", help="the drivers' texts per fleet (JSON)")
+    gateway.add_argument(
+        "--no-tracking",
+        action="append",
+        default=[],
+        metavar="FLEET",
+        help="never ask this fleet's slow terminals for 1 s reports near a curve (0x8202); '*' for every fleet",
+    )
     gateway.add_argument("--idle-s", type=float, default=180.0, help="close a connection silent this long, s")
     gateway.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="serve TLS with this certificate")
     gateway.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="the certificate's private key")
@@ -129,7 +136,13 @@ def main(args: argparse.Namespace) -> int:
     tls = _tls(args)
     service_args = argparse.Namespace(net=args.net, state=args.state, state_db=args.state_db)
     state = create_app(settings_from_args(service_args)).state
-    settings = GatewaySettings(host=args.host, port=args.port, idle_s=args.idle_s, fleet_texts=texts)
+    settings = GatewaySettings(
+        host=args.host,
+        port=args.port,
+        idle_s=args.idle_s,
+        fleet_texts=texts,
+        untracked_fleets=frozenset(args.no_tracking),
+    )
     gateway = Gateway(state.service, state.work, terminals, settings)
 
     def ready(port: int) -> None:
@@ -165,7 +178,10 @@ def simulate_command(args: argparse.Namespace) -> int:
     terminals = read_tracks(args.tracks)
     stats = asyncio.run(simulate(terminals, host, int(port), args.ramp_s))
     answered = np.array(stats.response_s) * 1000.0
-    print(f"csws: {len(terminals)} terminal(s), {stats.refused} refused, {len(answered)} report(s) answered")
+    print(
+        f"csws: {len(terminals)} terminal(s), {stats.refused} refused, {len(answered)} report(s) answered, "
+        f"{stats.tracking_requests} tracking request(s) honoured"
+    )
     if len(answered):
         print(f"csws: 0x8001 after p50 {np.percentile(answered, 50):.1f} ms, p99 {np.percentile(answered, 99):.1f} ms")
     for text, count in Counter(stats.texts).most_common():

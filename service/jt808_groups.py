@@ -18,6 +18,7 @@ from .answers import WarningService
 from .checks import QueryErrors
 from .decoding import DecodedQuery
 from .guard import OncePerInterval
+from .jt808_tracking import TrackingPlanner
 from .store import StoreUnavailable
 from .timing import Stages
 from .work import WorkThread
@@ -30,11 +31,18 @@ log.addFilter(OncePerInterval())
 
 @dataclass(frozen=True)
 class AnswerSummary:
-    """What the driver may be told of an answer: its system state, level, and the target's V_w (None without one)."""
+    """What the driver may be told of an answer: its system state, level, the target's V_w (None without one), and
+    how long to ask its terminal for temporary tracking, s (None: not now; :mod:`service.jt808_tracking`)."""
 
     state: str
     level: int
     warning_speed_kmh: float | None
+    tracking_window_s: int | None = None
+
+
+#: One report of a group as the work thread takes it: the query, its fleet, and the terminal's regular intervals
+#: when the report is to be checked for temporary tracking (None: not).
+Item = tuple[DecodedQuery, str, tuple[float, ...] | None]
 
 
 class Waiting:
@@ -45,16 +53,25 @@ class Waiting:
     deliver
         Called on the event loop with the answer (None when it could not be answered), as soon as
         its group is done.
+    intervals_s
+        The terminal's regular report intervals when the report is to be checked for temporary
+        tracking (:meth:`csws.gateways.jt808.tracking.ReportPace.due`), else None.
     queued_at
         When it was queued (``time.perf_counter``).
     started, shed
         Whether its group has started; whether it was withdrawn before that (it is then skipped).
     """
 
-    __slots__ = ("query", "fleet", "deliver", "queued_at", "started", "shed")
+    __slots__ = ("query", "fleet", "deliver", "intervals_s", "queued_at", "started", "shed")
 
-    def __init__(self, query: DecodedQuery, fleet: str, deliver: Callable[[AnswerSummary | None], None]) -> None:
-        self.query, self.fleet, self.deliver = query, fleet, deliver
+    def __init__(
+        self,
+        query: DecodedQuery,
+        fleet: str,
+        deliver: Callable[[AnswerSummary | None], None],
+        intervals_s: tuple[float, ...] | None = None,
+    ) -> None:
+        self.query, self.fleet, self.deliver, self.intervals_s = query, fleet, deliver, intervals_s
         self.queued_at, self.started, self.shed = time.perf_counter(), False, False
 
 
@@ -73,9 +90,14 @@ class Batcher:
     """
 
     def __init__(
-        self, service: WarningService, work: WorkThread, window_s: float = 0.0, times: StageTimes | None = None
+        self,
+        service: WarningService,
+        work: WorkThread,
+        window_s: float = 0.0,
+        times: StageTimes | None = None,
+        planner: TrackingPlanner | None = None,
     ) -> None:
-        self.service, self.work, self.window_s = service, work, window_s
+        self.service, self.work, self.window_s, self.planner = service, work, window_s, planner
         self.times = times if times is not None else StageTimes()
         self._waiting: list[Waiting] = []
         self._running = False
@@ -98,7 +120,9 @@ class Batcher:
                 for waiting in group:
                     waiting.started = True
                 try:
-                    answers, timed = await self.work.run(self._answer_group, [(w.query, w.fleet) for w in group])
+                    answers, timed = await self.work.run(
+                        self._answer_group, [(w.query, w.fleet, w.intervals_s) for w in group]
+                    )
                     self._count(group, *timed)
                 except Exception:  # noqa: BLE001 - a fault of one group must not stop the gateway
                     log.exception("jt808: a group of %d reports was not answered", len(group))
@@ -118,34 +142,40 @@ class Batcher:
         for name, milliseconds in stages.milliseconds.items():
             times.add(f"group:{name}", milliseconds / 1000.0, len(group))
 
-    def _answer_group(
-        self, group: Sequence[tuple[DecodedQuery, str]]
-    ) -> tuple[list[AnswerSummary | None], tuple[float, float, Stages]]:
+    def _answer_group(self, group: Sequence[Item]) -> tuple[list[AnswerSummary | None], tuple[float, float, Stages]]:
         """Each query's answer, fleet by fleet (on the work thread; one that fails alone is None), and when the
         group started and ended with the time of its stages."""
         started, stages = time.perf_counter(), Stages()
         answers: list[AnswerSummary | None] = [None] * len(group)
-        for fleet in {f for _, f in group}:
-            indices = [i for i, (_, f) in enumerate(group) if f == fleet]
-            fleet_answers = self._answer_fleet([group[i][0] for i in indices], fleet, stages)
+        for fleet in {f for _, f, _ in group}:
+            indices = [i for i, (_, f, _) in enumerate(group) if f == fleet]
+            fleet_answers = self._answer_fleet([group[i] for i in indices], fleet, stages)
             for index, answer in zip(indices, fleet_answers, strict=True):
                 answers[index] = answer
         return answers, (started, time.perf_counter(), stages)
 
-    def _answer_fleet(self, queries: list[DecodedQuery], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
+    def _answer_fleet(self, items: list[Item], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
+        queries = [query for query, _, _ in items]
         try:
             encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet, stages=stages)
         except QueryErrors as errors:
-            if len(queries) > 1:
-                return [answer for query in queries for answer in self._answer_fleet([query], fleet, stages)]
+            if len(items) > 1:
+                return [answer for item in items for answer in self._answer_fleet([item], fleet, stages)]
             log.warning("jt808: report of %s not answered: %s", queries[0].vehicle_id, _first_error(errors))
             return [None]
         except StoreUnavailable as error:
             log.warning("jt808: state store unavailable: %s", error)
-            return [None] * len(queries)
+            return [None] * len(items)
+        with stages("tracking"):
+            windows = [
+                None if intervals_s is None or self.planner is None else self.planner.window_s(query, doc, intervals_s)
+                for (query, _, intervals_s), doc in zip(items, encoded.documents, strict=True)
+            ]
         return [
-            AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"))
-            for state, level, document in zip(encoded.state, encoded.level, encoded.documents, strict=True)
+            AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"), window_s)
+            for state, level, document, window_s in zip(
+                encoded.state, encoded.level, encoded.documents, windows, strict=True
+            )
         ]
 
 

@@ -247,7 +247,7 @@ def test_the_documented_conversation_is_well_formed():
     text = (Path(__file__).resolve().parents[1] / "docs" / "jt808.md").read_text("utf-8")
     frames = re.findall(r"^(T>P|P>T) (0x[0-9a-f]{4}) .*\n    ((?:[0-9a-f]{2} ?)+)$", text, re.M)
     assert [message_id for _, message_id, _ in frames] == [
-        "0x0100", "0x8100", "0x0102", "0x8001", "0x0200", "0x8001", "0x8300", "0x0002", "0x8001"
+        "0x0100", "0x8100", "0x0102", "0x8001", "0x0200", "0x8001", "0x8300", "0x0002", "0x8001", "0x8202", "0x0001"
     ]  # fmt: skip
     for _, message_id, hex_bytes in frames:
         raw = bytes.fromhex(hex_bytes)
@@ -258,3 +258,6 @@ def test_the_documented_conversation_is_well_formed():
         assert struct.unpack_from(">H", content)[0] == int(message_id, 16) and len(content) == 12 + body_length + 1
     report = decode_location(bytes.fromhex(frames[4][2])[13:-2])
     assert (report.lat_deg, report.lon_deg, report.speed_kmh, report.heading_deg) == (50.868, 9.707, 80.0, 90)
+    tracking, answer = (bytes.fromhex(hex_bytes)[13:-2] for _, _, hex_bytes in frames[-2:])
+    assert struct.unpack(">HI", tracking) == (1, 34)  # every 1 s, valid 34 s
+    assert struct.unpack(">HHB", answer) == (6, 0x8202, 0)  # to the platform's serial 6: success

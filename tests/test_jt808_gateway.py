@@ -1,8 +1,9 @@
 """The JT/T 808 gateway on loopback: a terminal written from the standard's layout drives a constructed road.
 
-Truth is constructed here: a straight of 800 m, an arc of R 150 m and a straight, geo-referenced in
+Truth is constructed here: a straight of 1,500 m, an arc of R 150 m and a straight, geo-referenced in
 UTM 32N; the terminal's fixes from its constant speed (lon/lat by pyproj, not by csws); V_w from the
-standard's tables and S_w from formula (1) computed by the test. The gateway is the real one
+standard's tables and S_w from formula (1) computed by the test. A slow terminal honours temporary
+tracking (0x8202) as the standard lays it out, read here byte by byte. The gateway is the real one
 (:class:`service.jt808.Gateway` over the app's warning service and a SQLite state store) on a real
 TCP socket; the HTTP API of the same app switches the vehicle off.
 """
@@ -21,10 +22,11 @@ import pyproj
 import pytest
 from builders import edge_xml, node_xml
 from fastapi.testclient import TestClient
-from jt808_terminal import Terminal, general_response, location_body, wire
+from jt808_terminal import Received, Terminal, general_response, location_body, wire
 
 from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
+from csws.gateways.jt808.tracking import TrackingSettings
 from csws.geometry import arc, sample_pieces, straight
 from csws.standard import warning_speed
 from csws.sumo.netbuild import netconvert
@@ -34,8 +36,8 @@ from service.jt808 import Gateway, GatewaySettings
 from service.keys import add_key
 from service.settings import ServiceSettings
 
-APPROACH_M, RADIUS_M = 800.0, 150.0
-PIECES = (straight(APPROACH_M), arc(RADIUS_M, 60.0, "left"), straight(300.0))
+APPROACH_M, RADIUS_M, ARC_DEG = 1500.0, 150.0, 60.0
+PIECES = (straight(APPROACH_M), arc(RADIUS_M, ARC_DEG, "left"), straight(300.0))
 UTM32 = "+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
 #: Network (0, 0) at UTM 32N (550000, 5635000).
 ORIGIN_E, ORIGIN_N = 550_000.0, 5_635_000.0
@@ -44,6 +46,8 @@ CATEGORY, PHONE, FLEET = "N", "13800138000", "acme"
 #: How far the fitted curve start may lie from the constructed one, m.
 START_TOLERANCE_M = 1.5
 T0_S = 1_790_000_000.0
+#: The gateway's default settings, on a port the system picks.
+ON_A_FREE_PORT = GatewaySettings(port=0)
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
@@ -76,7 +80,7 @@ def formula_1_m(speed_kmh: float, warning_speed_kmh: float) -> float:
 class Rig:
     """The app (HTTP and warning service), its gateway on a free port, and a clock the test sets."""
 
-    def __init__(self, net: Path, folder: Path) -> None:
+    def __init__(self, net: Path, folder: Path, gateway_settings: GatewaySettings = ON_A_FREE_PORT) -> None:
         self.terminals_file = folder / "terminals.json"
         add_terminal(self.terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY, plate="京A12345")
         self.api_key = add_key(folder / "keys.json", FLEET, "admin")
@@ -87,7 +91,7 @@ class Rig:
             self.app.state.service,
             self.app.state.work,
             TerminalList(self.terminals_file),
-            GatewaySettings(port=0),
+            gateway_settings,
             clock=lambda: self.now_s,
         )
 
@@ -103,17 +107,38 @@ class Rig:
 
 
 class Drive:
-    """A terminal reporting once a second along the straight, the test's clock following its reports."""
+    """A terminal reporting along the straight every ``interval_s`` (1 s by default), the test's clock following
+    its reports. Asked for temporary tracking (0x8202: WORD interval, DWORD validity, both in s), it answers with
+    its general response (0x0001) and reports at the interval asked for until the validity ends; or, as
+    ``tracking_answer`` says, answers with another result, or does not change its interval."""
 
-    def __init__(self, rig: Rig, terminal: Terminal, x_m: float) -> None:
-        self.rig, self.terminal, self.x_m, self.reports = rig, terminal, x_m, 0
+    def __init__(
+        self,
+        rig: Rig,
+        terminal: Terminal,
+        x_m: float,
+        interval_s: float = 1.0,
+        tracking_answer: tuple[int, bool] = (0, True),
+    ) -> None:
+        self.rig, self.terminal, self.x_m, self.interval_s = rig, terminal, x_m, interval_s
+        self.tracking_result, self.honours = tracking_answer
+        self.time_s, self.reports = T0_S, 0
+        self.tracking_interval_s, self.tracked_until_s = 0.0, -math.inf
+        #: Each tracking request: the distance to the curve at the report before it, its interval and validity.
+        self.asked: list[tuple[float, int, int]] = []
+
+    def _step_s(self) -> float:
+        tracked = self.tracking_interval_s and self.time_s + self.tracking_interval_s <= self.tracked_until_s
+        return self.tracking_interval_s if tracked else self.interval_s
 
     async def report(self, speed_kmh: float) -> list[tuple[float, str]]:
-        """One report (after a second at ``speed_kmh``); the texts (0x8300) it brought, each with the
+        """One report (after an interval at ``speed_kmh``); the texts (0x8300) it brought, each with the
         distance to the curve at the report."""
         if self.reports:
-            self.x_m += speed_kmh / 3.6
-        self.rig.now_s = T0_S + self.reports
+            step_s = self._step_s()
+            self.x_m += speed_kmh / 3.6 * step_s
+            self.time_s += step_s
+        self.rig.now_s = self.time_s
         self.reports += 1
         lon, lat = lonlat(self.x_m)
         serial = await self.terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, self.rig.now_s))
@@ -125,9 +150,20 @@ class Drive:
                 [message] = await self.terminal.receive(1, timeout_s=0.3)
             except (AssertionError, TimeoutError):
                 return texts
+            if message.message_id == 0x8202:
+                await self._track(message)
+                continue
             assert message.message_id == 0x8300
             assert message.body[0] & 0b1100 == 0b1100  # shown and spoken
             texts.append((APPROACH_M - self.x_m, message.body[1:].decode("gbk")))
+
+    async def _track(self, message: Received) -> None:
+        assert len(message.body) == 6
+        interval_s, validity_s = struct.unpack(">HI", message.body)
+        self.asked.append((APPROACH_M - self.x_m, interval_s, validity_s))
+        if self.honours:
+            self.tracking_interval_s, self.tracked_until_s = float(interval_s), self.time_s + validity_s
+        await self.terminal.send(0x0001, struct.pack(">HHB", message.serial, 0x8202, self.tracking_result))
 
 
 def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, tmp_path):
@@ -166,6 +202,97 @@ def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, 
     assert onset_m <= sw_m + speed_mps * (1.0 + delay_s) + START_TOLERANCE_M
     # Level 2 at the first report above V_w2, inside formula (1)'s distance at that speed.
     assert texts[1][0] <= formula_1_m(fast_kmh, v_w2) + fast_kmh / 3.6 * (1.0 + delay_s)
+
+
+#: The slow terminals' speed: above the curve's level-1 V_w, below its level-2 one.
+SLOW_KMH = 80.0
+
+
+def _warning_point_m(interval_s: float) -> float:
+    """Where the warning must be on at the latest for a terminal reporting every ``interval_s``, m before the curve:
+    S_w of formula (1) at :data:`SLOW_KMH`, plus the distance driven in the engine's latency (the period it learns,
+    at most its cap, and the system delay)."""
+    settings = WarningSettings()
+    speed_mps = SLOW_KMH / 3.6
+    period_s = min(interval_s, settings.max_update_period_s)
+    return formula_1_m(SLOW_KMH, warning_speed(RADIUS_M, CATEGORY, 1)) + speed_mps * (
+        period_s + settings.system_delay_s
+    )
+
+
+def _ask_m(interval_s: float) -> float:
+    """Where a report is placed, m before the curve: the first from which the next regular report could pass the
+    warning point. The next regular one would lie halfway to formula (1)'s point where the period is longer than
+    the engine's cap (late), else half a second past the warning point."""
+    speed_mps, sw_m = SLOW_KMH / 3.6, formula_1_m(SLOW_KMH, warning_speed(RADIUS_M, CATEGORY, 1))
+    point_m = _warning_point_m(interval_s)
+    return point_m + max(0.5 * speed_mps, speed_mps * interval_s - (point_m - sw_m) - sw_m / 2)
+
+
+def _slow_drive(
+    net: Path,
+    folder: Path,
+    interval_s: float,
+    settings: GatewaySettings = ON_A_FREE_PORT,
+    tracking_answer: tuple[int, bool] = (0, True),
+):
+    """A terminal at :data:`SLOW_KMH` reporting every ``interval_s``, from four intervals before :func:`_ask_m`
+    until its first text; the drive (with the tracking requests it was sent) and the texts."""
+    start_m = _ask_m(interval_s) + 4 * SLOW_KMH / 3.6 * interval_s
+
+    async def run() -> tuple[Drive, list[tuple[float, str]]]:
+        async with Rig(net, folder, settings) as rig:
+            terminal = await _connected(rig)
+            drive = Drive(rig, terminal, APPROACH_M - start_m, interval_s, tracking_answer)
+            texts: list[tuple[float, str]] = []
+            while not texts:
+                assert drive.x_m < APPROACH_M, "no warning before the curve"
+                texts += await drive.report(SLOW_KMH)
+            await terminal.close()
+            return drive, texts
+
+    return asyncio.run(run())
+
+
+@pytest.mark.parametrize("interval_s", [5.0, 10.0])
+def test_a_slow_terminal_is_tracked_before_the_curve_and_warned_in_time(net, tmp_path, interval_s):
+    v_w1, speed_mps = warning_speed(RADIUS_M, CATEGORY, 1), SLOW_KMH / 3.6
+    sw_m, point_m = formula_1_m(SLOW_KMH, v_w1), _warning_point_m(interval_s)
+    drive, texts = _slow_drive(net, tmp_path, interval_s)
+    [(asked_m, tracking_s, validity_s)] = drive.asked  # once, and not again while its window runs
+    # At the first report from which the next regular one could pass the warning point, not at the one before.
+    assert asked_m == pytest.approx(_ask_m(interval_s), abs=START_TOLERANCE_M)
+    assert asked_m - speed_mps * interval_s <= point_m < asked_m
+    # 1 s reports until the curve is left at its level-1 V_w, and a margin.
+    leave_s = (asked_m + RADIUS_M * math.radians(ARC_DEG)) / (v_w1 / 3.6)
+    assert tracking_s == 1 and leave_s - 1.0 <= validity_s <= leave_s + 12.0
+    [(onset_m, text)] = texts
+    assert "前方弯道" in text and onset_m < asked_m
+    # In time: shown before formula (1)'s point at the latest, and not before the warning point.
+    assert onset_m - speed_mps * WarningSettings().system_delay_s >= sw_m - START_TOLERANCE_M
+    assert onset_m <= point_m + START_TOLERANCE_M
+
+
+def test_a_terminal_slower_than_the_cap_and_not_tracked_is_warned_late(net, tmp_path):
+    """The same drive at 10 s with its fleet not tracked: the report after the one that would have asked lies
+    halfway to formula (1)'s point, and the warning comes only there (the allowance stops at 5 s)."""
+    interval_s, speed_mps = 10.0, SLOW_KMH / 3.6
+    drive, texts = _slow_drive(net, tmp_path, interval_s, GatewaySettings(port=0, untracked_fleets=frozenset({FLEET})))
+    assert drive.asked == []
+    [(onset_m, text)] = texts
+    assert "前方弯道" in text
+    assert onset_m == pytest.approx(_ask_m(interval_s) - speed_mps * interval_s, abs=START_TOLERANCE_M)
+    assert onset_m < formula_1_m(SLOW_KMH, warning_speed(RADIUS_M, CATEGORY, 1)) - START_TOLERANCE_M
+
+
+@pytest.mark.parametrize("result, asked", [(0, 2), (3, 1)])
+def test_a_terminal_that_refuses_tracking_is_not_asked_again(net, tmp_path, result, asked):
+    """Windows of 5 s, and a terminal at 10 s that keeps its interval: once a window has run out, the curve still
+    ahead is asked for again, unless the terminal refused the first request (result 3: not supported)."""
+    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5))
+    drive, texts = _slow_drive(net, tmp_path, 10.0, settings, tracking_answer=(result, False))
+    assert len(drive.asked) == asked and [validity_s for _, _, validity_s in drive.asked] == [5] * asked
+    assert len(texts) == 1  # the reports go on being answered and warned
 
 
 async def _connected(rig: Rig) -> Terminal:

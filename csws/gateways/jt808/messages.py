@@ -30,6 +30,7 @@ __all__ = [
     "decode_location",
     "decode_location_batch",
     "decode_registration",
+    "decode_temporary_tracking",
     "decode_terminal_response",
     "encode_general_response",
     "encode_location",
@@ -303,6 +304,20 @@ def encode_text_message(
     return bytes([flags | (2 if emergency else 1), TEXT_TYPE_NOTICE]) + encoded
 
 
-def encode_temporary_tracking(interval_s: int, duration_s: int) -> bytes:
-    """Temporary location tracking (``0x8202``): report every ``interval_s`` for ``duration_s``."""
-    return struct.pack(">HI", interval_s, duration_s)
+def encode_temporary_tracking(interval_s: int, validity_s: int) -> bytes:
+    """Temporary location tracking (``0x8202``): report every ``interval_s`` for ``validity_s``.
+
+    The body is the interval (WORD, s) and the validity (DWORD, s). (An interval of 0 stops
+    tracking and has no validity after it; the gateway lets its windows expire instead.)
+    """
+    return struct.pack(">HI", interval_s, validity_s)
+
+
+def decode_temporary_tracking(body: bytes) -> tuple[int, int]:
+    """The interval and validity (s) of a ``0x8202`` body: the terminal's side, for simulators (0, 0 to stop)."""
+    if len(body) == 2 and body == b"\x00\x00":
+        return 0, 0
+    if len(body) != 6:
+        raise BodyError(f"temporary tracking has 6 bytes (2 to stop), got {len(body)}")
+    interval_s, validity_s = struct.unpack(">HI", body)
+    return interval_s, validity_s

@@ -6,12 +6,17 @@ wall clock and stamped with the time it is sent. It reads what the platform send
 times it: the general response (``0x8001``) from the report's last byte, and each text message
 (``0x8300``) from the last byte of the report before it. A track is a recorded trajectory:
 times, lon/lat, speed and heading (for example SUMO's, sampled at the terminal's rate).
+
+A terminal honours temporary location tracking (``0x8202``) as the standard asks: it answers
+with its general response (``0x0001``) and, until the window ends, reports every interval asked
+for as well as at its track's times, at the track's point interpolated for that moment.
 """
 
 from __future__ import annotations
 
 import asyncio
 import csv
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -22,7 +27,15 @@ import numpy as np
 from csws.errors import CswsError
 
 from .frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
-from .messages import LocationReport, MessageId, encode_location
+from .messages import (
+    BodyError,
+    LocationReport,
+    MessageId,
+    ResponseResult,
+    decode_temporary_tracking,
+    encode_general_response,
+    encode_location,
+)
 
 __all__ = ["TRACK_COLUMNS", "SimulatedTerminal", "SimulationStats", "Track", "TrackError", "read_tracks", "simulate"]
 
@@ -54,6 +67,20 @@ class Track:
     speed_kmh: np.ndarray
     heading_deg: np.ndarray
 
+    def at(self, offset_s: float) -> tuple[float, float, float, float]:
+        """The lon, lat, speed and heading at ``offset_s`` from the start: a row's own at its time, else interpolated
+        between the rows (the heading the short way round)."""
+        row = int(np.searchsorted(self.time_s, offset_s))
+        if row < len(self.time_s) and self.time_s[row] == offset_s:
+            columns = (self.lon_deg, self.lat_deg, self.speed_kmh, self.heading_deg)
+            lon, lat, speed, heading = (float(column[row]) for column in columns)
+            return lon, lat, speed, heading
+        lon, lat, speed, heading = (
+            float(np.interp(offset_s, self.time_s, column))
+            for column in (self.lon_deg, self.lat_deg, self.speed_kmh, np.unwrap(self.heading_deg, period=360.0))
+        )
+        return lon, lat, speed, heading % 360.0
+
 
 @dataclass(frozen=True)
 class SimulatedTerminal:
@@ -78,6 +105,8 @@ class SimulationStats:
         stage, :mod:`.latency`, does not).
     texts
         Each text received, decoded.
+    tracking_requests
+        Temporary tracking requests (``0x8202``) received, each answered and honoured.
     refused
         Terminals whose registration or authentication was refused, or that could not connect.
     """
@@ -85,6 +114,7 @@ class SimulationStats:
     response_s: list[float] = field(default_factory=list)
     text_s: list[float] = field(default_factory=list)
     texts: list[str] = field(default_factory=list)
+    tracking_requests: int = 0
     refused: int = 0
 
 
@@ -97,6 +127,10 @@ class _Connection:
         self.sent_at: dict[int, float] = {}
         self.last_report_at = 0.0
         self.frames: asyncio.Queue[Frame] = asyncio.Queue()
+        #: The interval of temporary tracking (s) and when its window ends (``time.perf_counter``).
+        self.tracking_interval_s, self.tracking_until = 0, 0.0
+        #: Set when a tracking request changes when the next report is due.
+        self.retracked = asyncio.Event()
 
     def send(self, message_id: int, body: bytes) -> int:
         self.serial = (self.serial + 1) & 0xFFFF
@@ -120,8 +154,37 @@ class _Connection:
                 elif frame.message_id == MessageId.TEXT_MESSAGE:
                     stats.text_s.append(now - self.last_report_at)
                     stats.texts.append(frame.body[1:].decode("gbk", "replace"))
+                elif frame.message_id == MessageId.TEMPORARY_TRACKING:
+                    stats.tracking_requests += 1
+                    self.track(frame, now)
                 else:
                     await self.frames.put(frame)
+
+    def track(self, frame: Frame, now: float) -> None:
+        """Honour a temporary tracking request (``0x8202``) received at ``now``, and answer it (``0x0001``)."""
+        try:
+            interval_s, validity_s = decode_temporary_tracking(frame.body)
+        except BodyError:
+            error = encode_general_response(frame.serial, frame.message_id, ResponseResult.MESSAGE_ERROR)
+            self.send(MessageId.TERMINAL_RESPONSE, error)
+            return
+        self.tracking_interval_s, self.tracking_until = interval_s, now + validity_s if interval_s else 0.0
+        self.send(
+            MessageId.TERMINAL_RESPONSE,
+            encode_general_response(frame.serial, frame.message_id, ResponseResult.SUCCESS),
+        )
+        self.retracked.set()
+
+    def next_report_s(self, track: Track, last_s: float, started: float) -> float:
+        """When the report after the one at ``last_s`` is due, s from the track's start: its next row's time, or
+        sooner while a tracking window runs."""
+        row = int(np.searchsorted(track.time_s, last_s, side="right"))
+        if row == len(track.time_s):
+            return math.inf  # the track has ended
+        due_s = float(track.time_s[row])
+        if self.tracking_interval_s and started + last_s + self.tracking_interval_s <= self.tracking_until:
+            due_s = min(due_s, last_s + self.tracking_interval_s)
+        return due_s
 
 
 async def _admit(connection: _Connection) -> bool:
@@ -149,22 +212,40 @@ async def _drive(terminal: SimulatedTerminal, host: str, port: int, delay_s: flo
         if not await _admit(connection):
             stats.refused += 1
             return
-        track, start = terminal.track, time.perf_counter()
-        for row, offset_s in enumerate(track.time_s.tolist()):
-            await asyncio.sleep(max(0.0, start + offset_s - time.perf_counter()))
-            report = LocationReport(
-                0, _POSITIONED, float(track.lat_deg[row]), float(track.lon_deg[row]), 0,
-                float(track.speed_kmh[row]), int(round(float(track.heading_deg[row]))) % 360, time.time(),
-            )  # fmt: skip
-            serial = connection.send(MessageId.LOCATION, encode_location(report))
-            connection.last_report_at = connection.sent_at[serial] = time.perf_counter()
-            await writer.drain()
+        await _report_along(connection, terminal.track)
         await asyncio.sleep(1.0)  # the last answers
     except (OSError, TimeoutError):
         stats.refused += 1
     finally:
         writer.close()
         reading.cancel()
+
+
+async def _report_along(connection: _Connection, track: Track) -> None:
+    """Report at the track's times (and every tracking interval while a window runs), paced by the wall clock."""
+    started, last_s, due_s = time.perf_counter(), None, float(track.time_s[0])
+    while math.isfinite(due_s):
+        if await _retracked(connection, max(0.0, started + due_s - time.perf_counter())):
+            if last_s is not None:  # a tracking request may make the next report due sooner
+                due_s = connection.next_report_s(track, last_s, started)
+            continue
+        lon, lat, speed_kmh, heading_deg = track.at(due_s)
+        report = LocationReport(0, _POSITIONED, lat, lon, 0, speed_kmh, int(round(heading_deg)) % 360, time.time())
+        serial = connection.send(MessageId.LOCATION, encode_location(report))
+        connection.last_report_at = connection.sent_at[serial] = time.perf_counter()
+        await connection.writer.drain()
+        last_s = due_s
+        due_s = connection.next_report_s(track, last_s, started)
+
+
+async def _retracked(connection: _Connection, wait_s: float) -> bool:
+    """Wait ``wait_s``; True as soon as a tracking request comes in meanwhile."""
+    connection.retracked.clear()
+    try:
+        await asyncio.wait_for(connection.retracked.wait(), wait_s)
+    except TimeoutError:
+        return False
+    return True
 
 
 async def simulate(
