@@ -27,7 +27,8 @@ the path ahead follows the road, never a guessed turn. A later fix on the side s
 A fix that matches no lane is placed by dead reckoning along the road from the last match
 (:attr:`Placed.DEAD_RECKONED`, up to :attr:`MatchSettings.dead_reckoning_s`); a jump beyond
 the graph's reach starts the sequence afresh. :meth:`SequenceMatcher.match_trace` matches a whole
-trace with the same steps and a Viterbi backtrace: each fix on the path the later fixes confirm.
+trace with the same steps and a Viterbi backtrace: each fix on the path the later fixes confirm
+(all of them, or the next ``lag``: what a matcher that waits that many fixes would answer).
 """
 
 from __future__ import annotations
@@ -112,9 +113,18 @@ class SequenceMatcher:
         matches = self._advance(subset(fixes, fresh), [tracks[row] for row in fresh.tolist()])[0]
         return with_repeats(matches, fresh, tracks)
 
-    def match_trace(self, fixes: Fixes, track: Track | None = None) -> SequenceMatches:
-        """Place the fixes of one vehicle, in time order, each on the path the whole trace makes most
-        probable (the Viterbi path: a fix in a junction on the connection the later fixes show)."""
+    def match_trace(self, fixes: Fixes, track: Track | None = None, lag: int | None = None) -> SequenceMatches:
+        """Place the fixes of one vehicle, in time order, each on the path the fixes up to ``lag`` after it
+        make most probable (the Viterbi path: a fix in a junction on the connection the later fixes show);
+        ``lag`` None takes the whole trace, 1 what the fix after it decides.
+
+        Raises
+        ------
+        ValueError
+            If ``lag`` is negative.
+        """
+        if lag is not None and lag < 0:
+            raise ValueError(f"lag must be a number of fixes, 0 or more, got {lag!r}")
         answers, steps = [], []
         for row in range(fixes.probes.count):
             matches, step, kept = self._advance(subset(fixes, np.array([row])), [track])
@@ -126,7 +136,10 @@ class SequenceMatcher:
         pos_m = np.array([matches.lane_pos_m[0] for matches in answers])
         distance_m = np.array([matches.distance_m[0] for matches in answers])
         placed = [matches.placed[0] for matches in answers]
-        for k, row in enumerate(viterbi_path(steps)):
+        chosen = (
+            viterbi_path(steps) if lag is None else [viterbi_path(steps[k : k + lag + 1])[0] for k in range(len(steps))]
+        )
+        for k, row in enumerate(chosen):
             if row >= 0:
                 candidates = steps[k][0].candidates
                 map_index[k], lane_id[k] = self.index.lane_name(int(candidates.lane[row]))
