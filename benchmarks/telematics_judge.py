@@ -97,13 +97,13 @@ def _count_false(tally: _Tally, feed: _Vehicle, onset: int, answers: FeedAnswers
 
 def _tally_vehicle(
     tally: _Tally,
-    reference: tuple[_Vehicle, FeedAnswers],
-    feed: tuple[_Vehicle, FeedAnswers],
+    reference_of: tuple[_Vehicle, FeedAnswers],
+    feed_of: tuple[_Vehicle, FeedAnswers],
     interval_s: float,
 ) -> None:
     """Add one vehicle's onsets (of the reference and the feed, each with its feed's answers): matched, those
     matched with another curve's, missed, false and repeated."""
-    (reference, reference_answers), (feed, answers) = reference, feed
+    (reference, reference_answers), (feed, answers) = reference_of, feed_of
     before_s, after_s = BEFORE_INTERVALS * interval_s, AFTER_INTERVALS * interval_s
     reference_onsets, feed_onsets = onsets(reference.levels), onsets(feed.levels)
     reference_s, feed_s = reference.times_s[reference_onsets], feed.times_s[feed_onsets]
