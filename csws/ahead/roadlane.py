@@ -89,19 +89,24 @@ class RoadLanes:
         return _nearest(self.road_map, matched, on_road)
 
     def leads_to(self, lane_id: str, route_edges: Sequence[str] | None = None) -> tuple[str | None, bool]:
-        """The edge the path ahead of ``lane_id`` (along the route, else predicted) reaches at the lane's end (None
-        where it ends there) and whether it keeps the road on the way (no junction connection that is a turn)."""
+        """Where the path ahead of ``lane_id`` (along the route, else predicted) goes within :data:`_ACROSS_M` of the
+        lane's end: the edge it turns into where it leaves the road (a junction connection that is a turn), else
+        the edge it reaches at the lane's end (None where it ends there); and whether it keeps the road.
+
+        A lane that keeps the road across the first junction but is the one lane of the next edge that turns off
+        it (the right lane of a motorway whose next stretch, a few metres long, splits onto an exit ramp) leads
+        into that turn: a fix cannot tell that lane from its neighbour any better than the next one's."""
         lane = self.road_map.lane(lane_id)
         lanes, _ = self.lookahead.lanes_ahead(lane_id, lane.length_m, lane.length_m + _ACROSS_M, route_edges)
-        previous = lane
+        previous, next_edge = lane, None
         for following_id in lanes[1:]:
             following = self.road_map.lane(following_id)
             if not _keeps_road(previous, following):
                 return self._edge_after(lanes, following_id), False
-            if not following.is_internal:
-                return following.edge_id, True
+            if next_edge is None and not following.is_internal:
+                next_edge = following.edge_id
             previous = following
-        return None, False
+        return next_edge, next_edge is not None
 
     def _edge_after(self, lanes: Sequence[str], lane_id: str) -> str | None:
         """The first normal lane's edge in ``lanes`` from ``lane_id`` on (None if there is none)."""
