@@ -12,8 +12,10 @@ through noise and sparseness", as Valhalla's Meili and OSRM's matcher do):
 * the **transition** from a candidate of the previous fix is an exponential of
   |route distance between them - straight distance between the fixes| (Newson & Krumm's beta,
   widened by the fix's noise: :func:`transition_scale_m`), the route distance taken on the lane
-  graph (:class:`csws.road.lanegraph.LaneGraph`); changing to another lane of the same edge costs
-  a fixed log-probability, so one noisy fix does not move the vehicle to the neighbouring lane.
+  graph (:class:`csws.road.lanegraph.LaneGraph`); changing lanes costs a fixed log-probability (to
+  another lane of the same edge, or across a junction onto a lane the vehicle's own lane does not
+  lead to: :meth:`LaneGraph.changes_lane`), so one noisy fix does not move the vehicle to the
+  neighbouring lane.
 
 Online, each vehicle keeps its candidates and their log-probabilities between fixes
 (:class:`MatchState`, a few hundred bytes, stored with its session); each fix is one
