@@ -154,8 +154,8 @@ def summary(figures: dict) -> str:
     """The reference figures in one line."""
     return (
         f"true road: online {figures['online_true_road_share']:.1%} (no match {figures['online_no_match_share']:.2%}), "
-        f"after 1 fix {figures['lag_1_true_road_share']:.1%}, after 2 fixes {figures['lag_2_true_road_share']:.1%}, "
-        f"full-trace Viterbi {figures['full_trace_true_road_share']:.1%}, nearest road "
+        f"after 1 fix {figures['lag_1_true_road_share']:.2%}, after 2 fixes {figures['lag_2_true_road_share']:.2%}, "
+        f"full-trace Viterbi {figures['full_trace_true_road_share']:.2%}, nearest road "
         f"{figures['nearest_true_road_share']:.1%}, reachable at all {figures['reachable_true_road_share']:.1%}; "
         f"within sigma of 2+ roads {figures['ambiguous_share']:.1%} of {figures['fixes']:,} fixes"
     )

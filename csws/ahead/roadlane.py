@@ -5,9 +5,10 @@ are off by 3 to 8 m. The lane a fix is matched to is then a guess, and so is the
 that lane: the rightmost lane of a motorway may lead onto an exit ramp alone, a turning lane into
 a side street, and a path from it would warn of the ramp's curve a vehicle on the through road
 never meets. The path ahead of a fix is therefore the path ahead of its edge (:class:`RoadLanes`):
-where the matched lane's path turns off the road at the edge's end (a junction connection that is not
-the road's continuation, :attr:`csws.road.network.Lane.continues_road`, :mod:`csws.road.continuations`)
-while other lanes of the edge keep the road, it starts from the nearest of those instead, unless more
+where the matched lane's path turns off the road at the edge's end, or at a junction within 200 m past it
+(a junction connection that is not the road's continuation, :attr:`csws.road.network.Lane.continues_road`,
+:mod:`csws.road.continuations`; the right lane of a motorway whose next stretch, metres long, splits onto
+an exit ramp) while other lanes of the edge keep the road, it starts from the nearest of those instead, unless more
 of the edge's lanes lead into that turn than keep the road (then the turn is where the road's traffic
 goes, and the matched lane keeps its path). A ramp or a turn counts once a fix is matched onto it:
 the path then starts on the ramp. With a route the path starts from a lane that leads along it. A
