@@ -50,6 +50,7 @@ class _Tally:
     false_junction: int = 0
     false_level_2_junction: int = 0
     echoes: int = 0
+    other_curve: int = 0
     repeats: int = 0
     reference_repeats: int = 0
 
@@ -94,8 +95,15 @@ def _count_false(tally: _Tally, feed: _Vehicle, onset: int, answers: FeedAnswers
     tally.false_level_2_junction += level_2 and junction
 
 
-def _tally_vehicle(tally: _Tally, reference: _Vehicle, feed: _Vehicle, answers: FeedAnswers, interval_s: float) -> None:
-    """Add one vehicle's onsets, matched, missed, false and repeated."""
+def _tally_vehicle(
+    tally: _Tally,
+    reference_of: tuple[_Vehicle, FeedAnswers],
+    feed_of: tuple[_Vehicle, FeedAnswers],
+    interval_s: float,
+) -> None:
+    """Add one vehicle's onsets (of the reference and the feed, each with its feed's answers): matched, those
+    matched with another curve's, missed, false and repeated."""
+    (reference, reference_answers), (feed, answers) = reference_of, feed_of
     before_s, after_s = BEFORE_INTERVALS * interval_s, AFTER_INTERVALS * interval_s
     reference_onsets, feed_onsets = onsets(reference.levels), onsets(feed.levels)
     reference_s, feed_s = reference.times_s[reference_onsets], feed.times_s[feed_onsets]
@@ -103,6 +111,11 @@ def _tally_vehicle(tally: _Tally, reference: _Vehicle, feed: _Vehicle, answers: 
     tally.onsets += len(feed_onsets)
     match = match_onsets(reference_s, feed_s, before_s, after_s)
     tally.lateness += [(feed_s[f] - reference_s[r]) / interval_s for r, f in match.pairs]
+    tally.other_curve += sum(
+        reference_answers.target_edge[reference.indices[reference_onsets[r]]]
+        != answers.target_edge[feed.indices[feed_onsets[f]]]
+        for r, f in match.pairs
+    )
     for r in match.unmatched_reference:
         on = on_at(feed.times_s, feed.levels, reference_s[r] - before_s, reference_s[r])
         tally.already_on += on
@@ -195,7 +208,10 @@ def judge(
     empty = _Vehicle(np.zeros(0), np.zeros(0, dtype=np.int8), np.zeros(0, dtype=np.int64))
     for vehicle in sorted(set(reference_by_vehicle) | set(feed_by_vehicle)):
         _tally_vehicle(
-            tally, reference_by_vehicle.get(vehicle, empty), feed_by_vehicle.get(vehicle, empty), answers, interval_s
+            tally,
+            (reference_by_vehicle.get(vehicle, empty), reference),
+            (feed_by_vehicle.get(vehicle, empty), answers),
+            interval_s,
         )
     figures = {name: value for name, value in vars(tally).items() if name != "lateness"}
     figures |= {

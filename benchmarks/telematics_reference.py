@@ -5,6 +5,9 @@ very same fixes (same rows, same noise, same seed; network x/y, the service's ``
 module measures, against the same truth (:func:`benchmarks.telematics_judge.true_roads`):
 
 * **online**: the sequence matcher fed fix by fix, one batch per second, as the service feeds it;
+* **after 1 fix, after 2 fixes**: each fix on the Viterbi path of the fixes up to one (two) after it
+  (:meth:`SequenceMatcher.match_trace` with ``lag``): what the online matcher decides of a fix once the
+  next fix (two) has arrived, e.g. the connection a fix inside a junction is on once the next fix shows it;
 * **full trace**: the same hidden-Markov model over each vehicle's whole trace, each fix on the Viterbi
   path the later fixes confirm (:meth:`SequenceMatcher.match_trace`): the offline best of the model;
 * **nearest road**: the nearest lane by plain distance among those whose direction agrees with the heading;
@@ -38,7 +41,10 @@ from csws.road.hmm import Fixes, SequenceMatcher, Track
 from csws.road.matching import MatchSettings, Probes, compass_to_math_rad
 from csws.road.roadmap import RoadMap
 
-__all__ = ["reference_figures"]
+__all__ = ["reference_figures", "LAGS"]
+
+#: The hindsight methods: each fix on the Viterbi path of the fixes up to this many after it (None: all).
+LAGS = {"lag_1": 1, "lag_2": 2, "full_trace": None}
 
 
 def _fixes_of(
@@ -68,12 +74,12 @@ def _subset(fixes: Fixes, rows: np.ndarray) -> Fixes:
     return Fixes(Probes.everywhere(xy), *(column[rows] for column in columns))
 
 
-def _full_trace(matcher: SequenceMatcher, fixes: Fixes, vehicle: np.ndarray) -> list[str | None]:
-    """Each fix's lane on its vehicle's Viterbi path over the whole trace."""
+def _traced(matcher: SequenceMatcher, fixes: Fixes, vehicle: np.ndarray, lag: int | None) -> list[str | None]:
+    """Each fix's lane on its vehicle's Viterbi path over the fixes up to ``lag`` after it (None: the whole trace)."""
     lanes: list[str | None] = [None] * len(vehicle)
     for number in np.unique(vehicle).tolist():
         rows = np.flatnonzero(vehicle == number)
-        matches = matcher.match_trace(_subset(fixes, rows))
+        matches = matcher.match_trace(_subset(fixes, rows), lag=lag)
         for row, lane_id in zip(rows.tolist(), matches.lane_id, strict=True):
             lanes[row] = lane_id
     return lanes
@@ -134,7 +140,10 @@ def reference_figures(
         "fixes": len(rows),
         "online_true_road_share": float(on_true_road(online, roads).mean()),
         "online_no_match_share": float(np.mean([lane is None for lane in online])),
-        "full_trace_true_road_share": float(on_true_road(_full_trace(matcher, fixes, vehicle), roads).mean()),
+        **{
+            f"{name}_true_road_share": float(on_true_road(_traced(matcher, fixes, vehicle, lag), roads).mean())
+            for name, lag in LAGS.items()
+        },
         "nearest_true_road_share": float(on_true_road(nearest, roads).mean()),
         "reachable_true_road_share": float(reachable.mean()),
         "ambiguous_share": float(ambiguous.mean()),
@@ -145,7 +154,8 @@ def summary(figures: dict) -> str:
     """The reference figures in one line."""
     return (
         f"true road: online {figures['online_true_road_share']:.1%} (no match {figures['online_no_match_share']:.2%}), "
-        f"full-trace Viterbi {figures['full_trace_true_road_share']:.1%}, nearest road "
+        f"after 1 fix {figures['lag_1_true_road_share']:.2%}, after 2 fixes {figures['lag_2_true_road_share']:.2%}, "
+        f"full-trace Viterbi {figures['full_trace_true_road_share']:.2%}, nearest road "
         f"{figures['nearest_true_road_share']:.1%}, reachable at all {figures['reachable_true_road_share']:.1%}; "
         f"within sigma of 2+ roads {figures['ambiguous_share']:.1%} of {figures['fixes']:,} fixes"
     )

@@ -43,21 +43,32 @@ def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, pr
     )
 
 
-def write_exit_ramp(folder: Path, ramp_lanes: int = 1, straight_m: float = RAMP_STRAIGHT_M) -> Path:
+def write_exit_ramp(
+    folder: Path, ramp_lanes: int = 1, straight_m: float = RAMP_STRAIGHT_M, approach_m: float | None = None
+) -> Path:
     """Write and netconvert the road W -> D -> E (three lanes, then two) and the ramp D -> R of ``ramp_lanes`` lanes
     (1 or 2) whose curve starts ``straight_m`` from D, with the connections of an exit: the right ``ramp_lanes``
-    lanes of WD onto the ramp alone, the others onto DE."""
+    lanes of WD onto the ramp alone, the others onto DE. With ``approach_m`` the road before the diverge is two
+    edges, WA and a last stretch WD of that length, each lane of WA going on as the same lane of WD."""
     ramp = ramp_shape(straight_m)
     nodes = [node_xml("W", (0.0, 0.0)), node_xml("D", DIVERGE_XY), node_xml("E", (900.0, 0.0)), node_xml("R", ramp[-1])]
     edges = [
-        _edge("WD", "W", "D", np.array([(0.0, 0.0), DIVERGE_XY]), 3, 3, "Motorway"),
         _edge("DE", "D", "E", np.array([DIVERGE_XY, (900.0, 0.0)]), 2, 3, "Motorway"),
         _edge("DR", "D", "R", ramp, ramp_lanes, 1, "Exit"),
     ]
     onto = [("DR", lane) for lane in range(ramp_lanes)] + [("DE", lane) for lane in range(3 - ramp_lanes)]
+    links = [("WD", edge, from_lane, to_lane) for from_lane, (edge, to_lane) in enumerate(onto)]
+    if approach_m is None:
+        edges.append(_edge("WD", "W", "D", np.array([(0.0, 0.0), DIVERGE_XY]), 3, 3, "Motorway"))
+    else:
+        a_xy = (DIVERGE_XY[0] - approach_m, 0.0)
+        nodes.append(node_xml("A", a_xy))
+        edges.append(_edge("WA", "W", "A", np.array([(0.0, 0.0), a_xy]), 3, 3, "Motorway"))
+        edges.append(_edge("WD", "A", "D", np.array([a_xy, DIVERGE_XY]), 3, 3, "Motorway"))
+        links += [("WA", "WD", lane, lane) for lane in range(3)]
     connections = "".join(
-        f'<connection from="WD" to="{edge}" fromLane="{from_lane}" toLane="{to_lane}"/>'
-        for from_lane, (edge, to_lane) in enumerate(onto)
+        f'<connection from="{from_edge}" to="{edge}" fromLane="{from_lane}" toLane="{to_lane}"/>'
+        for from_edge, edge, from_lane, to_lane in links
     )
     connection_file = folder / "exit.con.xml"
     connection_file.write_text(f"<connections>{connections}</connections>", encoding="utf-8")

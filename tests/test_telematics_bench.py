@@ -151,3 +151,21 @@ def test_a_feed_is_judged_against_the_reference_onset_by_onset() -> None:
     assert matching["true_road_share"] == pytest.approx(37 / 40)
     assert matching["no_match_share"] == pytest.approx(1 / 40)
     assert figures["us_per_fix"] == pytest.approx(2000.0 / 40)
+
+
+def test_onsets_paired_in_time_but_for_another_curve_are_counted() -> None:
+    # Two reference onsets, for curves starting on B and on C; the feed warns in time for both, the second for a
+    # curve on D (its path ahead went elsewhere): both are paired, one of them with another curve's.
+    trajectories = _straight_run(["A_0", "B_0", "C_0", "D_0"], 100, 10.0)
+    reference_levels = np.zeros(400, dtype=int)
+    reference_levels[[*range(50, 80), *range(250, 280)]] = 1
+    reference_target: list[str | None] = [
+        "B" if 50 <= row < 80 else "C" if 250 <= row < 280 else None for row in range(400)
+    ]
+    reference = _answers(list(range(400)), reference_levels.tolist(), ["A_0"] * 400, reference_target)
+    rows = list(range(0, 400, 10))
+    levels = [1 if row in (50, 60, 250, 260) else 0 for row in rows]
+    target = ["B" if row in (50, 60) else "D" if row in (250, 260) else None for row in rows]
+    figures = judge(trajectories, reference, _answers(rows, levels, ["A_0"] * 40, target), 1.0, matching=False)
+    assert (figures["reference_onsets"], figures["onsets"], figures["missed"], figures["false"]) == (2, 2, 0, 0)
+    assert figures["other_curve"] == 1

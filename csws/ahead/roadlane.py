@@ -5,9 +5,10 @@ are off by 3 to 8 m. The lane a fix is matched to is then a guess, and so is the
 that lane: the rightmost lane of a motorway may lead onto an exit ramp alone, a turning lane into
 a side street, and a path from it would warn of the ramp's curve a vehicle on the through road
 never meets. The path ahead of a fix is therefore the path ahead of its edge (:class:`RoadLanes`):
-where the matched lane's path turns off the road at the edge's end (a junction connection that is not
-the road's continuation, :attr:`csws.road.network.Lane.continues_road`, :mod:`csws.road.continuations`)
-while other lanes of the edge keep the road, it starts from the nearest of those instead, unless more
+where the matched lane's path turns off the road at the edge's end, or at a junction within 200 m past it
+(a junction connection that is not the road's continuation, :attr:`csws.road.network.Lane.continues_road`,
+:mod:`csws.road.continuations`; the right lane of a motorway whose next stretch, metres long, splits onto
+an exit ramp) while other lanes of the edge keep the road, it starts from the nearest of those instead, unless more
 of the edge's lanes lead into that turn than keep the road (then the turn is where the road's traffic
 goes, and the matched lane keeps its path). A ramp or a turn counts once a fix is matched onto it:
 the path then starts on the ramp. With a route the path starts from a lane that leads along it. A
@@ -89,19 +90,24 @@ class RoadLanes:
         return _nearest(self.road_map, matched, on_road)
 
     def leads_to(self, lane_id: str, route_edges: Sequence[str] | None = None) -> tuple[str | None, bool]:
-        """The edge the path ahead of ``lane_id`` (along the route, else predicted) reaches at the lane's end (None
-        where it ends there) and whether it keeps the road on the way (no junction connection that is a turn)."""
+        """Where the path ahead of ``lane_id`` (along the route, else predicted) goes within :data:`_ACROSS_M` of the
+        lane's end: the edge it turns into where it leaves the road (a junction connection that is a turn), else
+        the edge it reaches at the lane's end (None where it ends there); and whether it keeps the road.
+
+        A lane that keeps the road across the first junction but is the one lane of the next edge that turns off
+        it (the right lane of a motorway whose next stretch, a few metres long, splits onto an exit ramp) leads
+        into that turn: a fix cannot tell that lane from its neighbour any better than the next one's."""
         lane = self.road_map.lane(lane_id)
         lanes, _ = self.lookahead.lanes_ahead(lane_id, lane.length_m, lane.length_m + _ACROSS_M, route_edges)
-        previous = lane
+        previous, next_edge = lane, None
         for following_id in lanes[1:]:
             following = self.road_map.lane(following_id)
             if not _keeps_road(previous, following):
                 return self._edge_after(lanes, following_id), False
-            if not following.is_internal:
-                return following.edge_id, True
+            if next_edge is None and not following.is_internal:
+                next_edge = following.edge_id
             previous = following
-        return None, False
+        return next_edge, next_edge is not None
 
     def _edge_after(self, lanes: Sequence[str], lane_id: str) -> str | None:
         """The first normal lane's edge in ``lanes`` from ``lane_id`` on (None if there is none)."""

@@ -12,8 +12,10 @@ through noise and sparseness", as Valhalla's Meili and OSRM's matcher do):
 * the **transition** from a candidate of the previous fix is an exponential of
   |route distance between them - straight distance between the fixes| (Newson & Krumm's beta,
   widened by the fix's noise: :func:`transition_scale_m`), the route distance taken on the lane
-  graph (:class:`csws.road.lanegraph.LaneGraph`); changing to another lane of the same edge costs
-  a fixed log-probability, so one noisy fix does not move the vehicle to the neighbouring lane.
+  graph (:class:`csws.road.lanegraph.LaneGraph`); changing lanes costs a fixed log-probability (to
+  another lane of the same edge, or across a junction onto a lane the vehicle's own lane does not
+  lead to: :meth:`LaneGraph.changes_lane`), so one noisy fix does not move the vehicle to the
+  neighbouring lane.
 
 Online, each vehicle keeps its candidates and their log-probabilities between fixes
 (:class:`MatchState`, a few hundred bytes, stored with its session); each fix is one
@@ -27,7 +29,8 @@ the path ahead follows the road, never a guessed turn. A later fix on the side s
 A fix that matches no lane is placed by dead reckoning along the road from the last match
 (:attr:`Placed.DEAD_RECKONED`, up to :attr:`MatchSettings.dead_reckoning_s`); a jump beyond
 the graph's reach starts the sequence afresh. :meth:`SequenceMatcher.match_trace` matches a whole
-trace with the same steps and a Viterbi backtrace: each fix on the path the later fixes confirm.
+trace with the same steps and a Viterbi backtrace: each fix on the path the later fixes confirm
+(all of them, or the next ``lag``: what a matcher that waits that many fixes would answer).
 """
 
 from __future__ import annotations
@@ -112,9 +115,18 @@ class SequenceMatcher:
         matches = self._advance(subset(fixes, fresh), [tracks[row] for row in fresh.tolist()])[0]
         return with_repeats(matches, fresh, tracks)
 
-    def match_trace(self, fixes: Fixes, track: Track | None = None) -> SequenceMatches:
-        """Place the fixes of one vehicle, in time order, each on the path the whole trace makes most
-        probable (the Viterbi path: a fix in a junction on the connection the later fixes show)."""
+    def match_trace(self, fixes: Fixes, track: Track | None = None, lag: int | None = None) -> SequenceMatches:
+        """Place the fixes of one vehicle, in time order, each on the path the fixes up to ``lag`` after it
+        make most probable (the Viterbi path: a fix in a junction on the connection the later fixes show);
+        ``lag`` None takes the whole trace, 1 what the fix after it decides.
+
+        Raises
+        ------
+        ValueError
+            If ``lag`` is negative.
+        """
+        if lag is not None and lag < 0:
+            raise ValueError(f"lag must be a number of fixes, 0 or more, got {lag!r}")
         answers, steps = [], []
         for row in range(fixes.probes.count):
             matches, step, kept = self._advance(subset(fixes, np.array([row])), [track])
@@ -126,7 +138,10 @@ class SequenceMatcher:
         pos_m = np.array([matches.lane_pos_m[0] for matches in answers])
         distance_m = np.array([matches.distance_m[0] for matches in answers])
         placed = [matches.placed[0] for matches in answers]
-        for k, row in enumerate(viterbi_path(steps)):
+        chosen = (
+            viterbi_path(steps) if lag is None else [viterbi_path(steps[k : k + lag + 1])[0] for k in range(len(steps))]
+        )
+        for k, row in enumerate(chosen):
             if row >= 0:
                 candidates = steps[k][0].candidates
                 map_index[k], lane_id[k] = self.index.lane_name(int(candidates.lane[row]))

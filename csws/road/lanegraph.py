@@ -101,12 +101,30 @@ def _edge_reach(
     return key_array[order], np.array(offsets, dtype=float)[order]
 
 
-def _junction_ends(lanes: _Lanes) -> tuple[np.ndarray, np.ndarray]:
-    """For each internal lane, the normal lane its connection starts from and the normal edge it leads
-    to (-1 for normal lanes, and where none is found)."""
+@dataclass(frozen=True)
+class _JunctionEnds:
+    """Where the connections through the junctions start and end (built by :func:`_junction_ends`).
+
+    Attributes
+    ----------
+    entry, exit_lane
+        Per internal lane: the normal lane its connection starts from and the one it leads to (-1 for normal
+        lanes, and where none is found).
+    links
+        Sorted keys ``from * count + to`` of every pair of normal lanes joined by a connection.
+    """
+
+    entry: np.ndarray
+    exit_lane: np.ndarray
+    links: np.ndarray
+
+
+def _junction_ends(lanes: _Lanes) -> _JunctionEnds:
+    """Each connection's first and last normal lane, and the pairs of normal lanes the connections join."""
     count = len(lanes.edge)
     entry = np.full(count, -1, dtype=np.intp)
-    exit_edge = np.full(count, -1, dtype=np.int64)
+    exit_lane = np.full(count, -1, dtype=np.intp)
+    links: list[int] = []
     for lane, following in enumerate(lanes.successors):
         if lanes.internal[lane]:
             continue
@@ -118,10 +136,20 @@ def _junction_ends(lanes: _Lanes) -> tuple[np.ndarray, np.ndarray]:
                 if not nexts:
                     break
                 current = nexts[0]
-            for internal_lane in chain:
-                entry[internal_lane] = lane
-                exit_edge[internal_lane] = -1 if lanes.internal[current] else lanes.edge[current]
-    return entry, exit_edge
+            reached = -1 if lanes.internal[current] else current
+            entry[chain] = lane
+            exit_lane[chain] = reached
+            if reached >= 0:
+                links.append(lane * count + reached)
+    return _JunctionEnds(entry, exit_lane, np.unique(np.array(links, dtype=np.int64)))
+
+
+def _within(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
+    """Whether each of ``keys`` is one of ``sorted_keys``."""
+    if not sorted_keys.size:
+        return np.zeros(len(keys), dtype=bool)
+    at = np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)
+    return sorted_keys[at] == keys
 
 
 class LaneGraph:
@@ -143,9 +171,16 @@ class LaneGraph:
         #: lies in a junction, whether it turns off the road there.
         self.lane_edge, self.lane_length_m, self.continuation = lanes.edge, lanes.length_m, lanes.continuation
         self.internal, self.turns = lanes.internal, lanes.turns
-        #: Per internal lane: the normal lane it starts from and the normal edge it leads to (-1 otherwise).
-        self.entry_lane, self.exit_edge = _junction_ends(lanes)
+        #: Per internal lane: the normal lane it starts from and the normal lane and edge it leads to (-1 otherwise).
+        ends = _junction_ends(lanes)
+        self.entry_lane, self.exit_lane = ends.entry, ends.exit_lane
         self.entry_edge = np.where(self.entry_lane >= 0, lanes.edge[np.maximum(self.entry_lane, 0)], -1)
+        self.exit_edge = np.where(self.exit_lane >= 0, lanes.edge[np.maximum(self.exit_lane, 0)], -1)
+        self._lane_links = ends.links
+        lane_count = len(lanes.edge)
+        self._edge_links = np.unique(
+            lanes.edge[ends.links // lane_count] * lanes.edge_count + lanes.edge[ends.links % lane_count]
+        )
         self._successors = lanes.successors
         self._edge_count = lanes.edge_count
         edge_length_m = np.zeros(lanes.edge_count)
@@ -175,6 +210,23 @@ class LaneGraph:
         ahead_m = self._offsets_m(from_edge, to_edge) - from_pos_m + to_pos_m
         behind_m = -(self._offsets_m(to_edge, from_edge) - to_pos_m + from_pos_m)
         return np.where(np.isnan(ahead_m), behind_m, ahead_m)
+
+    def changes_lane(self, from_lane: np.ndarray, to_lane: np.ndarray) -> np.ndarray:
+        """Whether moving from each lane to its counterpart changes lanes: to another lane of the same edge, or
+        across a junction onto a connection (or the lane beyond it) that another lane of the edge leads to,
+        not this one (a vehicle keeps its lane through a junction unless it changes it)."""
+        edge_count, lane_count = self._edge_count, len(self.lane_edge)
+        from_edge, to_edge = self.lane_edge[from_lane], self.lane_edge[to_lane]
+        same_edge = from_edge == to_edge
+        into = (self.entry_edge[to_lane] == from_edge) & (self.entry_lane[to_lane] != from_lane)
+        out_of = (self.exit_edge[from_lane] == to_edge) & (self.exit_lane[from_lane] != to_lane)
+        normal = ~self.internal[from_lane] & ~self.internal[to_lane] & ~same_edge
+        across = (
+            normal
+            & _within(from_edge * edge_count + to_edge, self._edge_links)
+            & ~_within(from_lane * lane_count + to_lane, self._lane_links)
+        )
+        return (same_edge & (from_lane != to_lane)) | (~same_edge & (into | out_of | across))
 
     def advance(self, lane: int, lane_pos_m: float, distance_m: float) -> tuple[int, float]:
         """The lane position ``distance_m`` further along the road from ``lane_pos_m`` on ``lane``: on

@@ -84,8 +84,8 @@ class MatchSettings:
         The scale of the exponential of |route distance - straight distance| between consecutive
         fixes, m (Newson & Krumm's beta).
     lane_change_log_p
-        The log-probability of changing to another lane of the same edge between two fixes: one
-        noisy fix nearer the neighbouring lane does not move the vehicle there.
+        The log-probability of changing lanes between two fixes (within an edge, or across a junction onto
+        a lane its own does not lead to): one noisy fix nearer the neighbouring lane does not move it there.
     commit_share
         Inside a junction, the matcher reports a turn off the road only once the connections into
         that turn's road hold this share of the probability of all connections from the vehicle's

@@ -110,7 +110,7 @@ def forward_step(
     route_m = graph.route_m(from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate])
     straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[candidates.fix[pair_candidate]]).T)
     same_edge = graph.lane_edge[from_lane] == graph.lane_edge[to_lane]
-    lane_change = (from_lane != to_lane) & same_edge
+    lane_change = graph.changes_lane(from_lane, to_lane)
     transition = -np.abs(route_m - straight_m) / beta_m[candidates.fix[pair_candidate]]
     transition += np.where(lane_change, settings.lane_change_log_p, 0.0)
     transition += np.where(~same_edge & standing[candidates.fix[pair_candidate]], settings.standstill_edge_log_p, 0.0)
