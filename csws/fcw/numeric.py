@@ -6,8 +6,8 @@ operations, so both forms compute the same IEEE operations in the same order: ``
 rounded in both ``math`` and numpy, and no transcendental function (whose numpy and libm versions
 may differ in the last bit) is used.
 
-One vehicle's frame calls these some hundred times, so each tests first for the plain ``float``
-and ``bool`` it gets there (an exact type test, the cheapest dispatch) before the general case.
+One vehicle's frame calls these some hundred times, so each tests first for the plain ``float``,
+``int`` and ``bool`` it gets there (an exact type test, the cheapest dispatch) before the general case.
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ def sqrt(value: Any) -> Any:
 def fmax(a: Any, b: Any) -> Any:
     """The larger of two values (elementwise for arrays); of two numbers the first unless the second is larger,
     as ``max``."""
-    if type(a) is float and type(b) is float:
+    kind = type(a)
+    if kind is type(b) and (kind is float or kind is int):
         return b if b > a else a
     return max(a, b) if is_scalar(a) and is_scalar(b) else np.fmax(a, b)
 
@@ -52,7 +53,8 @@ def fmax(a: Any, b: Any) -> Any:
 def fmin(a: Any, b: Any) -> Any:
     """The smaller of two values (elementwise for arrays); of two numbers the first unless the second is smaller,
     as ``min``."""
-    if type(a) is float and type(b) is float:
+    kind = type(a)
+    if kind is type(b) and (kind is float or kind is int):
         return b if b < a else a
     return min(a, b) if is_scalar(a) and is_scalar(b) else np.fmin(a, b)
 

@@ -80,10 +80,11 @@ class ForwardCollisionWarning:
 
     def update(self, time_s: float, ego: EgoMotion, objects: Sequence[SensorObject]) -> FcwFrame:
         """The answer for one frame at ``time_s`` (s, increasing) with the subject ``ego`` and the ``objects``."""
-        if not (isinstance(time_s, float | int) and math.isfinite(time_s) and time_s > self.last_time_s):
+        number = type(time_s) is float or isinstance(time_s, float | int)
+        if not (number and math.isfinite(time_s) and time_s > self.last_time_s):
             raise ValueError(f"time_s must be finite and increase from frame to frame, got {time_s!r}")
-        ids = [obj.id for obj in objects]
-        if len(set(ids)) != len(ids):
+        if len({obj.id for obj in objects}) != len(objects):
+            ids = [obj.id for obj in objects]
             raise ValueError(f"objects: duplicate object ids {sorted({i for i in ids if ids.count(i) > 1})}")
         self.last_time_s = time_s
         s = self.settings
