@@ -143,10 +143,11 @@ CROWDED_OBJECT = st.fixed_dictionaries(
     {
         "id": st.integers(0, 30),
         # few distinct values, so that objects tie on clearance, speed and a_req and the ranking's order decides
-        "x_m": st.sampled_from([0.0, 8.0, 25.0, 60.0]) | st.floats(0.0, 150.0, **FINITE),
-        "y_m": st.floats(-1.5, 1.5, **FINITE),
-        "relative_speed_mps": st.sampled_from([-20.0, -8.0, 0.0, 1.0]) | st.floats(-30.0, 5.0, **FINITE),
-        "accel_mps2": st.sampled_from([0.0, -3.0, -9.0]) | st.floats(-9.0, 4.0, **FINITE),
+        "x_m": st.sampled_from([0.0, 8.0, 25.0, 60.0]) | st.floats(0.0, 150.0, allow_nan=False, allow_infinity=False),
+        "y_m": st.floats(-1.5, 1.5, allow_nan=False, allow_infinity=False),
+        "relative_speed_mps": st.sampled_from([-20.0, -8.0, 0.0, 1.0])
+        | st.floats(-30.0, 5.0, allow_nan=False, allow_infinity=False),
+        "accel_mps2": st.sampled_from([0.0, -3.0, -9.0]) | st.floats(-9.0, 4.0, allow_nan=False, allow_infinity=False),
         "accel_is_relative": st.booleans(),
         "lane": st.none() | st.just(0),
     }
