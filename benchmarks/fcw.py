@@ -8,11 +8,15 @@ follows a gentle curve (yaw rate path), or, for the map rows, a map path of 20 k
   (the best of several runs of many frames, as the machine is shared);
 * a fleet of 1,000 vehicles in one call: :func:`csws.fcw.fleet.update_fleet`, per vehicle and frame.
 
-Run with ``python -m benchmarks.fcw``.
+Run with ``python -m benchmarks.fcw``; ``python -m benchmarks.fcw --profile`` prints instead where one
+vehicle's frame goes (cProfile of the single loop: the functions by their own time, and the calls a frame).
 """
 
 from __future__ import annotations
 
+import cProfile
+import io
+import pstats
 import time
 
 import numpy as np
@@ -45,11 +49,16 @@ def _map_path() -> PathCurvature:
     return PathCurvature(tuple(s.tolist()), tuple(np.clip((s - 40.0) / 40.0, 0.0, 1.0) / 400.0))
 
 
-def single_us(frames: int = 1000, runs: int = 12, map_path: bool = False, seed: int = 3) -> float:
-    """µs per frame of one vehicle with :data:`OBJECTS` objects (the best run)."""
+def _single_frame(map_path: bool, seed: int) -> tuple[EgoMotion, list[SensorObject]]:
+    """One vehicle's frame: the subject on a gentle curve (or a map path) and :data:`OBJECTS` objects."""
     rng = np.random.default_rng(seed)
     objects = [SensorObject(i, *values) for i, values in enumerate(_objects(rng, OBJECTS))]
-    ego = EgoMotion(25.0, yaw_rate_rps=25.0 / 2000.0, map_path=_map_path() if map_path else None)
+    return EgoMotion(25.0, yaw_rate_rps=25.0 / 2000.0, map_path=_map_path() if map_path else None), objects
+
+
+def single_us(frames: int = 1000, runs: int = 12, map_path: bool = False, seed: int = 3) -> float:
+    """µs per frame of one vehicle with :data:`OBJECTS` objects (the best run)."""
+    ego, objects = _single_frame(map_path, seed)
     best = float("inf")
     for _ in range(runs):
         fcw = ForwardCollisionWarning(FcwSettings.for_category("M1"))
@@ -82,6 +91,22 @@ def batch_us(vehicles: int = 1000, frames: int = 20, map_path: bool = False, see
     return best / vehicles * 1e6
 
 
+def single_profile(frames: int = 2000, map_path: bool = False, top: int = 15, seed: int = 3) -> str:
+    """cProfile of one vehicle's frames: the ``top`` functions by their own time, after the calls per frame."""
+    ego, objects = _single_frame(map_path, seed)
+    fcw = ForwardCollisionWarning(FcwSettings.for_category("M1"))
+    profiler = cProfile.Profile()
+    profiler.enable()
+    for k in range(frames):
+        fcw.update(k * FRAME_S, ego, objects)
+    profiler.disable()
+    text = io.StringIO()
+    stats = pstats.Stats(profiler, stream=text)
+    stats.sort_stats("tottime").print_stats(top)
+    calls_per_frame = stats.total_calls / frames  # type: ignore[attr-defined]  # set by pstats, not in its stubs
+    return f"{calls_per_frame:.0f} function calls a frame ({OBJECTS} objects)\n{text.getvalue()}"
+
+
 def run() -> dict:
     """The figures, µs: one vehicle and a fleet of 1,000, each with the yaw rate path and with a map path."""
     return {
@@ -95,8 +120,17 @@ def run() -> dict:
 
 
 def main() -> None:
-    """Print the figures beside their targets."""
-    arguments("benchmarks.fcw", __doc__)
+    """Print the figures beside their targets (with ``--profile``: where one vehicle's frame goes)."""
+    given = arguments(
+        "benchmarks.fcw",
+        __doc__,
+        lambda parser: parser.add_argument(
+            "--profile", action="store_true", help="print a profile of one vehicle's frames instead"
+        ),
+    )
+    if given.profile:
+        print(single_profile())
+        return
     figures = run()
     print(f"{'figure (10 objects a vehicle)':<44} {'value':>9}  target")
     print(f"{'FCW objects: one vehicle, per frame':<44} {figures['single_us']:>7.1f}us  <= {TARGET_SINGLE_US:g} us")

@@ -137,3 +137,43 @@ def test_bad_fleet_columns_raise_naming_them():
     objects = FleetObjects.of([1], [5], [10.0], [0.0], [-1.0])
     with pytest.raises(ValueError, match="objects vehicle"):
         update_fleet(FcwSettings(), FleetMemory.new(1), 0.0, FleetEgo.of([20.0]), objects)
+
+
+CROWDED_OBJECT = st.fixed_dictionaries(
+    {
+        "id": st.integers(0, 30),
+        # few distinct values, so that objects tie on clearance, speed and a_req and the ranking's order decides
+        "x_m": st.sampled_from([0.0, 8.0, 25.0, 60.0]) | st.floats(0.0, 150.0, allow_nan=False, allow_infinity=False),
+        "y_m": st.floats(-1.5, 1.5, allow_nan=False, allow_infinity=False),
+        "relative_speed_mps": st.sampled_from([-20.0, -8.0, 0.0, 1.0])
+        | st.floats(-30.0, 5.0, allow_nan=False, allow_infinity=False),
+        "accel_mps2": st.sampled_from([0.0, -3.0, -9.0]) | st.floats(-9.0, 4.0, allow_nan=False, allow_infinity=False),
+        "accel_is_relative": st.booleans(),
+        "lane": st.none() | st.just(0),
+    }
+)
+
+
+@settings(deadline=None, max_examples=200)
+@given(
+    st.lists(
+        st.tuples(EGO, st.lists(CROWDED_OBJECT, min_size=2, max_size=10)),
+        min_size=1,
+        max_size=5,
+    ),
+    PATH,
+)
+def test_with_many_objects_in_the_path_the_vehicle_chooses_the_fleets_target_with_its_figures(frames, path):
+    """Up to 10 objects in the path at once, often tied: the single vehicle's ranking (which assesses only
+    what a choice needs) picks the fleet's target (which assesses every object) with the same figures."""
+    settings_ = FcwSettings(min_speed_mps=2.0)
+    system, memory = ForwardCollisionWarning(settings_), FleetMemory.new(1)
+    for k, (ego_values, objects) in enumerate(frames):
+        objects = _unique(objects)
+        batch, memory = _fleet_frame(settings_, memory, 0.1 * k, [ego_values], [objects], [path])
+        one = system.update(0.1 * k, EgoMotion(**ego_values, map_path=path), [SensorObject(**o) for o in objects])
+        event(f"level {one.level}, target {one.target_id is not None}")
+        assert (one.level, one.required_level) == (batch.level[0], batch.required_level[0])
+        assert (one.target_id if one.target_id is not None else -1) == batch.target_id[0]
+        for name in ("clearance_m", "relative_speed_mps", "ttc_s", "ettc_s", "a_req_mps2", "path_offset_m"):
+            assert _same(getattr(one, name), float(getattr(batch, name)[0])), name

@@ -122,9 +122,10 @@ class SensorObject:
             raise ValueError(f"{name}: width_m must be positive, got {self.width_m!r}")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class FcwFrame:
-    """The answer of one frame.
+    """The answer of one frame (a new record each frame, which the system does not keep: not frozen, as a frozen
+    dataclass's construction would be a tenth of one vehicle's frame).
 
     Attributes
     ----------

@@ -316,7 +316,12 @@ def a_req_core(x_c: Any, v_r: Any, a_tv: Any, a_sv: Any, lost_s: Any, v_sv: Any 
     """:func:`required_deceleration_mps2` on floats or float arrays as they are (``v_sv`` inf: formula (4) alone)."""
     a_sv = reaction_accel_mps2(a_sv)
     a_f = _formula_4(x_c, v_r, a_tv, a_sv, lost_s)
-    stops = isfinite(v_sv) & (a_tv < -STOPPING_MPS2) & isfinite(a_f) & (v_sv + v_r >= 0.0)
+    target_brakes = a_tv < -STOPPING_MPS2
+    if target_brakes is False:  # one vehicle's target that does not brake: formula (4) alone, nothing to discard
+        return a_f
+    stops = target_brakes & isfinite(v_sv) & isfinite(a_f) & (v_sv + v_r >= 0.0)
+    if stops is False:  # nor where 3.22's stopped-target value cannot apply (no speed given, no room, no stop)
+        return a_f
     a_s, binds = _stopped_target_a_req(x_c, v_r, where(stops, a_tv, -1.0), a_sv, lost_s, where(stops, v_sv, 0.0))
     return where(stops & binds, where(isfinite(a_s), fmin(a_s, a_f), a_s), a_f)
 

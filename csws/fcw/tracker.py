@@ -48,6 +48,9 @@ from csws.fcw.physics import (
 
 __all__ = ["ForwardCollisionWarning", "ego_curvature_1pm"]
 
+#: The chosen object of a frame: the object, the level it requires, its offset from the path, TTC, ETTC, a_req.
+Assessed = tuple[SensorObject, int, float, float, float, float]
+
 
 def ego_curvature_1pm(speed_mps: float, yaw_rate_rps: float | None, curvature_1pm: float | None) -> float:
     """The predicted path's curvature without a map: the one given, else yaw rate / speed, else 0 (straight)."""
@@ -77,10 +80,11 @@ class ForwardCollisionWarning:
 
     def update(self, time_s: float, ego: EgoMotion, objects: Sequence[SensorObject]) -> FcwFrame:
         """The answer for one frame at ``time_s`` (s, increasing) with the subject ``ego`` and the ``objects``."""
-        if not (isinstance(time_s, float | int) and math.isfinite(time_s) and time_s > self.last_time_s):
+        number = type(time_s) is float or isinstance(time_s, float | int)
+        if not (number and math.isfinite(time_s) and time_s > self.last_time_s):
             raise ValueError(f"time_s must be finite and increase from frame to frame, got {time_s!r}")
-        ids = [obj.id for obj in objects]
-        if len(set(ids)) != len(ids):
+        if len({obj.id for obj in objects}) != len(objects):
+            ids = [obj.id for obj in objects]
             raise ValueError(f"objects: duplicate object ids {sorted({i for i in ids if ids.count(i) > 1})}")
         self.last_time_s = time_s
         s = self.settings
@@ -93,10 +97,7 @@ class ForwardCollisionWarning:
         best, in_path_ids, cut_in_ids = self._assess(ego, objects)
         required, target = 0, None
         if best is not None:
-            obj, a_tv, offset_m, a_req = best
-            ttc = ttc_core(obj.x_m, obj.relative_speed_mps)
-            ettc = ettc_core(obj.x_m, obj.relative_speed_mps, a_tv - ego.accel_mps2)
-            required = warning_level(ego.accel_mps2, ttc, ettc, a_req, s)
+            obj, required, offset_m, ttc, ettc, a_req = best
             target = (obj.id, obj.x_m, obj.relative_speed_mps, ttc, ettc, a_req, offset_m)
         holdable = -ego.accel_mps2 < s.collision_a_req_mps2
         level, self.held_level, self.hold_until_s = hold_level(
@@ -109,25 +110,30 @@ class ForwardCollisionWarning:
 
     def _assess(
         self, ego: EgoMotion, objects: Sequence[SensorObject]
-    ) -> tuple[tuple[SensorObject, float, float, float] | None, frozenset[int], frozenset[int]]:
-        """The most demanding object in the path (with a_TV, offset, a_req): the highest level its thresholds
-        require, then the highest a_req, then the nearest; the ids in the path, and cutting in."""
+    ) -> tuple[Assessed | None, frozenset[int], frozenset[int]]:
+        """The most demanding object in the path: the highest level its thresholds require, then the highest
+        a_req, then the nearest (with its level, offset, TTC, ETTC and a_req); the ids in the path, and cutting in.
+
+        The settings and the subject's motion are read once a frame, and an object's a_req, TTC and ETTC are
+        computed only once it is in the path and not a cut-in (4.5.5 b, c), the only objects that can be chosen.
+        """
         s = self.settings
         table = self._path_table(ego)
         kappa = ego_curvature_1pm(ego.speed_mps, ego.yaw_rate_rps, ego.curvature_1pm)
+        a_sv, v_sv = ego.accel_mps2, ego.speed_mps
         lost_s = 0.0 if ego.braking else s.reaction_time_s + s.brake_response_s
-        best: tuple[SensorObject, float, float, float] | None = None
+        preliminary = s.preliminary_a_req_mps2
+        best: Assessed | None = None
         best_rank: tuple[int, float] = (-1, -math.inf)
         inside_ids, cut_in_ids = [], []
         half_length_m, half_width_m, range_m = s.object_half_length_m, s.path_half_width_m, s.range_m
         was_in_path, was_cut_in = self.in_path_ids, self.cut_in_ids
         for obj in objects:
-            x_m, y_m, v_r = obj.x_m, obj.y_m, obj.relative_speed_mps
+            x_m, y_m, v_r, lane = obj.x_m, obj.y_m, obj.relative_speed_mps, obj.lane
             centre_x_m = x_m + half_length_m
             if table is not None:
                 kappa = equivalent_curvature_1pm(table, centre_x_m, y_m)
             offset_m = offset_from_circle_m(centre_x_m, y_m, kappa)
-            lane = obj.lane
             if not in_path(x_m, offset_m, 0 if lane is None else lane, lane is not None, half_width_m, range_m):
                 continue
             inside_ids.append(obj.id)
@@ -135,12 +141,13 @@ class ForwardCollisionWarning:
             if cut_in(True, v_r, was_in, was_in and obj.id in was_cut_in):
                 cut_in_ids.append(obj.id)
                 continue
-            a_tv = obj.accel_mps2 + ego.accel_mps2 if obj.accel_is_relative else obj.accel_mps2
-            a_req = a_req_core(x_m, v_r, a_tv, ego.accel_mps2, lost_s, ego.speed_mps)
-            ttc, ettc = ttc_core(x_m, v_r), ettc_core(x_m, v_r, a_tv - ego.accel_mps2)
-            rank = (warning_level(ego.accel_mps2, ttc, ettc, a_req, s), max(a_req, s.preliminary_a_req_mps2))
+            a_tv = obj.accel_mps2 + a_sv if obj.accel_is_relative else obj.accel_mps2
+            a_req = a_req_core(x_m, v_r, a_tv, a_sv, lost_s, v_sv)
+            ttc, ettc = ttc_core(x_m, v_r), ettc_core(x_m, v_r, a_tv - a_sv)
+            level = warning_level(a_sv, ttc, ettc, a_req, s)
+            rank = (level, preliminary if preliminary > a_req else a_req)
             if best is None or rank > best_rank or (rank == best_rank and x_m < best[0].x_m):
-                best, best_rank = (obj, a_tv, offset_m, a_req), rank
+                best, best_rank = (obj, level, offset_m, ttc, ettc, a_req), rank
         return best, frozenset(inside_ids), frozenset(cut_in_ids)
 
     def _path_table(self, ego: EgoMotion) -> CurvatureTable | None:
