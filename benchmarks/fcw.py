@@ -14,6 +14,7 @@ vehicle's frame goes (cProfile of the single loop: the functions by their own ti
 
 from __future__ import annotations
 
+import argparse
 import cProfile
 import io
 import pstats
@@ -119,15 +120,14 @@ def run() -> dict:
     }
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The one option: a profile of one vehicle's frames instead of the figures."""
+    parser.add_argument("--profile", action="store_true", help="print a profile of one vehicle's frames instead")
+
+
 def main() -> None:
     """Print the figures beside their targets (with ``--profile``: where one vehicle's frame goes)."""
-    given = arguments(
-        "benchmarks.fcw",
-        __doc__,
-        lambda parser: parser.add_argument(
-            "--profile", action="store_true", help="print a profile of one vehicle's frames instead"
-        ),
-    )
+    given = arguments("benchmarks.fcw", __doc__, _add_arguments)
     if given.profile:
         print(single_profile())
         return
