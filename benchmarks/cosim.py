@@ -297,7 +297,8 @@ def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
     """Both systems' cost over bare SUMO (events only, scheduled and every step) as a share of the SSM device's,
     beside the FCW's read alone's (the floor of a libsumo-driven FCW) and the curve warning alone's: whole runs
     (csws's map load included), and per step (the runs' steps alone: their ``ms_per_step`` components less
-    bare SUMO's ms per step), with the FCW component's own share."""
+    bare SUMO's ms per step), with the FCW component's own share; and both systems' floor, the curve warning's
+    share per step and the FCW's read's added (what both cost before the FCW computes anything)."""
     ms = {name: 1000.0 * run["seconds"] / run["steps"] for name, run in runs.items()}
     ssm_ms = ms["ssm"] - ms["bare"]
     names = [
@@ -306,9 +307,13 @@ def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
         if name in runs
     ]
     stepping = {name: sum(runs[name]["summary"]["ms_per_step"].values()) for name in names if "summary" in runs[name]}
-    return {
+    per_step = {name: (value - ms["bare"]) / ssm_ms for name, value in stepping.items()}
+    floor = {}
+    if "fcw_read" in runs and "events_only" in per_step:
+        floor["both_systems_floor_of_ssm_overhead"] = per_step["events_only"] + (ms["fcw_read"] - ms["bare"]) / ssm_ms
+    return floor | {
         "fcw_of_ssm_overhead": {name: (ms[name] - ms["bare"]) / ssm_ms for name in names},
-        "fcw_of_ssm_overhead_per_step": {name: (value - ms["bare"]) / ssm_ms for name, value in stepping.items()},
+        "fcw_of_ssm_overhead_per_step": per_step,
         "fcw_component_of_ssm_overhead": {
             name: runs[name]["summary"]["ms_per_step"]["fcw"] / ssm_ms
             for name in stepping
@@ -395,6 +400,11 @@ def _print_of_ssm(figures: dict) -> None:
             f"{name}: {share:.2f} of the SSM device's overhead (target <= {TARGET_FCW_OF_SSM_OVERHEAD:g})"
             + (f", per step {per_step[name]:.2f}" if name in per_step else "")
             + (f", the FCW's own {fcw[name]:.2f}" if name in fcw else "")
+        )
+    if "both_systems_floor_of_ssm_overhead" in figures:
+        print(
+            f"both systems' floor (curve warning per step + the FCW's read): "
+            f"{figures['both_systems_floor_of_ssm_overhead']:.2f} of the SSM device's overhead"
         )
 
 
