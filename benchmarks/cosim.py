@@ -38,7 +38,9 @@ with SUMO's SSM device on every vehicle (TTC within 200 m, the FCW's range), eve
 step, the default run, and both systems with events only, scheduled and every step), a check that takes a
 few minutes; it gives both systems' cost over bare SUMO as a share of the SSM device's (target at most
 0.5), and the FCW alone scheduled and every step on the fleet road with 20 vehicles one every 15 s in one
-direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles sleep).
+direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles sleep); and the share of
+vehicle-steps any exact FCW schedule must evaluate on the small fleet (a vehicle ahead on its road whose
+braking at its emergency deceleration could bring a warning at once).
 """
 
 from __future__ import annotations
@@ -57,8 +59,9 @@ import numpy as np
 
 from csws.cosim.config import default_timeseries_every
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
-from csws.cosim.sensor import VehicleNumbers, read_vehicles
+from csws.cosim.sensor import VehicleNumbers, read_vehicles, sensor_view
 from csws.cosim.sumo import sumo_arguments
+from csws.fcw.physics import FcwSettings
 from csws.networks import networks_dir
 from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
 from csws.sumo.binaries import sumo_binary, sumo_home
@@ -269,7 +272,48 @@ def small_run() -> dict:
             "both_systems_every_step": CosimConfig(out=work / "both-every", evaluation="every-step", **both, **common),
         }
         runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
-        return _figures(runs) | _fcw_of_ssm(runs) | {"sparse_fcw": _sparse_fcw(work)}
+        wake = _in_own_process(_wake_floor_run, scenario, SMALL_DURATION_S)
+        return _figures(runs) | _fcw_of_ssm(runs) | {"sparse_fcw": _sparse_fcw(work), "fcw_wake_floor": wake}
+
+
+def _wake_floor_run(scenario: Scenario, duration_s: float) -> dict:
+    """The share of vehicle-steps that any exact FCW schedule must evaluate: those with a vehicle ahead on the
+    same road (any lane: SUMO changes lanes within a step; and in the vehicle's own lane) near enough that its
+    braking at its type's emergency deceleration from the next step would bring a_req (3.22, a target that stops
+    first) to the preliminary threshold at once: clearance <= v T + v^2 / (2 a_pre) - v_L^2 / (2 d_emergency).
+    Every SUMO vehicle is a subject, viewed as the co-simulation does without map paths (run in its own process)."""
+    os.environ.setdefault("SUMO_HOME", str(sumo_home()))
+    import libsumo
+
+    settings = FcwSettings()
+    numbers, sizes, roads = VehicleNumbers(), dict[str, tuple[float, float]](), dict[str, int]()
+    emergency_mps2: dict[int, float] = {}
+    counts = {"vehicle_steps": 0, "any_lane": 0, "own_lane": 0}
+    libsumo.start(
+        [str(sumo_binary("sumo")), *sumo_arguments(None, scenario.net, scenario.routes, STEP_S, 0, duration_s)]
+    )
+    while libsumo.simulation.getMinExpectedNumber() > 0 and libsumo.simulation.getTime() < duration_s - 1e-9:
+        libsumo.simulationStep()
+        vehicles = read_vehicles(libsumo, numbers, sizes, roads)
+        for vehicle_id, number in zip(vehicles.vehicle_id, vehicles.number.tolist(), strict=True):
+            if number not in emergency_mps2:
+                emergency_mps2[number] = float(libsumo.vehicle.getEmergencyDecel(vehicle_id))
+        subjects = np.arange(len(vehicles.vehicle_id))
+        view = sensor_view(vehicles, subjects, settings.range_m)
+        speed_mps = vehicles.speed_mps[view.subject]
+        leader_mps = np.maximum(speed_mps + view.relative_speed_mps, 0.0)
+        braking_mps2 = np.array([emergency_mps2[n] for n in vehicles.number[view.seen].tolist()])
+        reach_m = (
+            speed_mps * settings.reaction_time_s
+            + speed_mps**2 / (2.0 * settings.preliminary_a_req_mps2)
+            - leader_mps**2 / (2.0 * braking_mps2)
+        )
+        near = (view.x_m <= reach_m) & (vehicles.road[view.seen] == vehicles.road[view.subject])
+        counts["vehicle_steps"] += subjects.size
+        counts["any_lane"] += np.unique(view.subject[near]).size
+        counts["own_lane"] += np.unique(view.subject[near & (view.lane == 0)]).size
+    libsumo.close()
+    return {name: counts[name] / max(counts["vehicle_steps"], 1) for name in ("any_lane", "own_lane")}
 
 
 def _sparse_fcw(work: Path) -> dict:
@@ -297,7 +341,8 @@ def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
     """Both systems' cost over bare SUMO (events only, scheduled and every step) as a share of the SSM device's,
     beside the FCW's read alone's (the floor of a libsumo-driven FCW) and the curve warning alone's: whole runs
     (csws's map load included), and per step (the runs' steps alone: their ``ms_per_step`` components less
-    bare SUMO's ms per step), with the FCW component's own share."""
+    bare SUMO's ms per step), with the FCW component's own share; and both systems' floor, the curve warning's
+    share per step and the FCW's read's added (what both cost before the FCW computes anything)."""
     ms = {name: 1000.0 * run["seconds"] / run["steps"] for name, run in runs.items()}
     ssm_ms = ms["ssm"] - ms["bare"]
     names = [
@@ -306,9 +351,13 @@ def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
         if name in runs
     ]
     stepping = {name: sum(runs[name]["summary"]["ms_per_step"].values()) for name in names if "summary" in runs[name]}
-    return {
+    per_step = {name: (value - ms["bare"]) / ssm_ms for name, value in stepping.items()}
+    floor = {}
+    if "fcw_read" in runs and "events_only" in per_step:
+        floor["both_systems_floor_of_ssm_overhead"] = per_step["events_only"] + (ms["fcw_read"] - ms["bare"]) / ssm_ms
+    return floor | {
         "fcw_of_ssm_overhead": {name: (ms[name] - ms["bare"]) / ssm_ms for name in names},
-        "fcw_of_ssm_overhead_per_step": {name: (value - ms["bare"]) / ssm_ms for name, value in stepping.items()},
+        "fcw_of_ssm_overhead_per_step": per_step,
         "fcw_component_of_ssm_overhead": {
             name: runs[name]["summary"]["ms_per_step"]["fcw"] / ssm_ms
             for name in stepping
@@ -396,6 +445,11 @@ def _print_of_ssm(figures: dict) -> None:
             + (f", per step {per_step[name]:.2f}" if name in per_step else "")
             + (f", the FCW's own {fcw[name]:.2f}" if name in fcw else "")
         )
+    if "both_systems_floor_of_ssm_overhead" in figures:
+        print(
+            f"both systems' floor (curve warning per step + the FCW's read): "
+            f"{figures['both_systems_floor_of_ssm_overhead']:.2f} of the SSM device's overhead"
+        )
 
 
 def main() -> None:
@@ -405,6 +459,11 @@ def main() -> None:
         _print(figures)
         _print_of_ssm(figures)
         print("sparse road, FCW alone, events only:", figures["sparse_fcw"])
+        print(
+            "vehicle-steps any exact FCW schedule evaluates (a vehicle ahead on its road whose emergency braking "
+            f"could warn at once): {figures['fcw_wake_floor']['any_lane']:.0%} with one in any lane, "
+            f"{figures['fcw_wake_floor']['own_lane']:.0%} in its own"
+        )
         return
     figures = run()
     _print(figures)

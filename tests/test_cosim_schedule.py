@@ -317,7 +317,9 @@ def test_two_vehicles_cannot_come_within_reach_before_their_first_meeting_step(
 
     tolerance_m = 1e-9 * (distance_m + reach_m)
     if not math.isfinite(meet):
-        assert bound_mps + other_bound_mps == 0.0 and distance_m > reach_m
+        # Never: no closing speed, or one so small (subnormal) that the steps to close the gap exceed any float.
+        closing_m = (bound_mps + other_bound_mps) * STEP_S / factor
+        assert distance_m > reach_m and (closing_m == 0.0 or not math.isfinite((distance_m - reach_m) / closing_m))
         return
     # The closest they can be falls with every step: it is above the reach until the meeting step, not after.
     meet = int(meet)

@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csws.cosim.sensor import ONCOMING_MPS, MapLanes, SensorPairs, SumoVehicles, read_vehicles, sensor_view
-from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
+from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.path import offset_from_circle_m
 from csws.fcw.physics import FcwSettings
 from csws.networks import networks_dir
@@ -314,3 +314,155 @@ def test_a_leader_turning_on_the_path_closes_at_the_speeds_difference(turned_rad
     )
     assert sight_rate < leader_mps - subject_mps - 0.5
     assert sensor_view(vehicles, np.array([0]), 200.0).relative_speed_mps[0] == pytest.approx(sight_rate, abs=1e-9)
+
+
+def _two_way_road(rng: np.random.Generator, count: int) -> SumoVehicles:
+    """``count`` vehicles on a straight two-way road: road 0 northward (+y), road 1 southward beside it, four
+    lanes each 3.5 m wide, fronts anywhere along 800 m, random speeds and accelerations (up to hard braking)."""
+    road = (rng.random(count) < 0.3).astype(np.int64)
+    lane_index = rng.integers(0, 4, count)
+    side = np.where(road == 0, 1.75 + 3.5 * lane_index, -1.75 - 3.5 * lane_index)
+    fronts = np.column_stack((side + rng.uniform(-0.3, 0.3, count), rng.uniform(0.0, 800.0, count)))
+    length = rng.choice([4.5, 7.0, 12.0, 16.5], count)
+    return SumoVehicles(
+        [f"v{i}" for i in range(count)],
+        np.arange(count, dtype=np.int64),
+        fronts[:, 0],
+        fronts[:, 1],
+        np.where(road == 0, 0.0, math.pi) + rng.uniform(-0.02, 0.02, count),
+        np.where(rng.random(count) < 0.2, 0.0, rng.uniform(0.0, 35.0, count)),
+        rng.uniform(-9.0, 2.0, count),
+        length,
+        np.full(count, 1.8),
+        road,
+        lane_index,
+        np.zeros(count, dtype=np.int64),
+        fronts[:, 1] * np.where(road == 0, 1.0, -1.0) + 800.0,
+    )
+
+
+def _own_road_paths(vehicles: SumoVehicles, subjects: np.ndarray, reach_m: np.ndarray) -> MapLanes:
+    """Each subject's map path: its own road and lane from 50 m behind its front to ``reach_m`` ahead (0: none)."""
+    mapped = np.flatnonzero(reach_m > 0.0)
+    rows = subjects[mapped]
+    return MapLanes(
+        mapped.astype(np.int64),
+        vehicles.road[rows],
+        vehicles.lane_index[rows],
+        reach_m,
+        np.full(mapped.size, -50.0),
+        reach_m[mapped],
+        np.ones(mapped.size),
+    )
+
+
+@settings(deadline=None, max_examples=40)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 200), st.booleans())
+def test_without_other_lanes_the_view_keeps_the_pairs_in_the_subjects_lane_or_an_unknown_one(seed, count, mapped):
+    """The view without other lanes is, to the bit and in order, the full view's pairs whose lane is the subject's
+    (0) or unknown, on a two-way road with and without map paths (some shorter than the range)."""
+    rng = np.random.default_rng(seed)
+    vehicles = _two_way_road(rng, count)
+    subjects = np.flatnonzero(rng.random(count) < 0.6)
+    lanes = None
+    if mapped:
+        reach_m = np.where(rng.random(subjects.size) < 0.8, rng.uniform(50.0, 400.0, subjects.size), 0.0)
+        lanes = _own_road_paths(vehicles, subjects, reach_m)
+    full = sensor_view(vehicles, subjects, 200.0, None, lanes)
+    judged = sensor_view(vehicles, subjects, 200.0, None, lanes, other_lanes=False)
+    kept = (full.lane == 0) | (full.lane == UNKNOWN_LANE)
+    for name in ("subject", "seen", "x_m", "y_m", "relative_speed_mps", "accel_mps2", "lane"):
+        assert np.array_equal(getattr(judged, name), getattr(full, name)[kept]), name
+
+
+def _view(vehicles: SumoVehicles, subjects: np.ndarray, reach_m: np.ndarray | None, other_lanes: bool) -> SensorPairs:
+    """The subjects' 200 m view, along their own roads' paths of ``reach_m`` where given."""
+    lanes = None if reach_m is None else _own_road_paths(vehicles, subjects, reach_m)
+    return sensor_view(vehicles, subjects, 200.0, None, lanes, other_lanes)
+
+
+def _fcw_frames(
+    frames: list[SumoVehicles], subjects: np.ndarray, reach_m: np.ndarray | None, other_lanes: bool
+) -> list[tuple]:
+    """The FCW's answers over ``frames`` 0.1 s apart on the subjects' views (:func:`_view`): per frame the levels,
+    states, targets (by vehicle number) with their figures, and the objects remembered."""
+    settings_, memory, answers = FcwSettings(), FleetMemory.new(subjects.size), []
+    for k, vehicles in enumerate(frames):
+        pairs = _view(vehicles, subjects, reach_m, other_lanes)
+        ego = FleetEgo.of(
+            vehicles.speed_mps[subjects], vehicles.accel_mps2[subjects], braking=vehicles.accel_mps2[subjects] < -3
+        )
+        objects = FleetObjects.of(
+            pairs.subject,
+            vehicles.number[pairs.seen],
+            pairs.x_m,
+            pairs.y_m,
+            pairs.relative_speed_mps,
+            pairs.accel_mps2,
+            width_m=vehicles.width_m[pairs.seen],
+            lane=pairs.lane,
+        )
+        frame, memory = update_fleet(settings_, memory, 0.1 * k, ego, objects)
+        target = np.where(frame.target >= 0, vehicles.number[pairs.seen][np.maximum(frame.target, 0)], -1)
+        figures = [frame.clearance_m, frame.relative_speed_mps, frame.ttc_s, frame.ettc_s, frame.a_req_mps2]
+        answers.append(
+            (
+                frame.state.tolist(),
+                frame.level.tolist(),
+                frame.required_level.tolist(),
+                target.tolist(),
+                [np.nan_to_num(figure, nan=-1.0).tolist() for figure in figures],
+                frame.path_offset_m[frame.target >= 0].tolist(),
+                memory.in_path_keys.tolist(),
+                memory.cut_in_keys.tolist(),
+                memory.held_level.tolist(),
+            )
+        )
+    return answers
+
+
+def _moved(vehicles: SumoVehicles, rng: np.random.Generator, step_s: float = 0.1) -> SumoVehicles:
+    """The vehicles a step later: driven along their headings, new accelerations, a tenth changing lane."""
+    speed = np.maximum(vehicles.speed_mps + vehicles.accel_mps2 * step_s, 0.0)
+    changes = np.where(rng.random(speed.size) < 0.1, rng.choice([-1, 1], speed.size), 0)
+    lane_index = np.clip(vehicles.lane_index + changes, 0, 3)
+    side = np.where(vehicles.road == 0, 3.5, -3.5) * (lane_index - vehicles.lane_index)
+    travel = speed * step_s
+    return SumoVehicles(
+        vehicles.vehicle_id,
+        vehicles.number,
+        vehicles.front_x_m + side + travel * np.sin(vehicles.heading_rad),
+        vehicles.front_y_m + travel * np.cos(vehicles.heading_rad),
+        vehicles.heading_rad,
+        speed,
+        rng.uniform(-9.0, 2.0, speed.size),
+        vehicles.length_m,
+        vehicles.width_m,
+        vehicles.road,
+        lane_index,
+        vehicles.signals,
+        vehicles.lane_position_m + travel,
+    )
+
+
+def test_objects_in_another_lane_change_no_answer_of_the_fcw():
+    """4.5.5 b: over five frames of a busy two-way road (lane changes, hard braking, stopped vehicles), the FCW
+    on the view without other lanes gives every subject the same states, levels, targets, figures and memory,
+    to the bit, as on the full view, with and without map paths; the dropped objects are most of the view."""
+    warned = dropped = seen = 0
+    for seed in range(30):
+        rng = np.random.default_rng(seed)
+        frames = [_two_way_road(rng, 150)]
+        for _ in range(4):
+            frames.append(_moved(frames[-1], rng))
+        subjects = np.flatnonzero(rng.random(150) < 0.7)
+        reach_m = np.where(rng.random(subjects.size) < 0.5, rng.uniform(100.0, 400.0, subjects.size), 0.0)
+        for paths in (None, reach_m):
+            full = _fcw_frames(frames, subjects, paths, other_lanes=True)
+            assert _fcw_frames(frames, subjects, paths, other_lanes=False) == full
+            warned += sum(sum(level > 0 for level in answer[1]) for answer in full)
+            views = [_view(vehicles, subjects, paths, other_lanes=True) for vehicles in frames]
+            seen += sum(view.seen.size for view in views)
+            dropped += sum(int(np.sum((view.lane != 0) & (view.lane != UNKNOWN_LANE))) for view in views)
+    assert warned > 50, "the road must give warnings"
+    assert dropped > seen / 2

@@ -186,7 +186,9 @@ class FleetFcw:
             lanes = None
             if paths is not None:
                 lanes = map_lanes([paths[i] for i in viewers.tolist()], self.roads, range_m, self.horizons)
-            view = sensor_view(vehicles, rows[viewers], range_m, path_turn_rad[viewers], lanes)
+            # Objects in another lane change no answer (4.5.5 b); a measuring sensor draws its noise for every one.
+            other_lanes = self.measure is not None
+            view = sensor_view(vehicles, rows[viewers], range_m, path_turn_rad[viewers], lanes, other_lanes)
             for kind in dict.fromkeys(kinds[viewers].tolist()):
                 members = kinds[viewers] == kind
                 group = viewers[members]

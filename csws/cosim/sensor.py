@@ -366,6 +366,7 @@ def sensor_view(
     range_m: float,
     path_turn_rad: np.ndarray | None = None,
     lanes: MapLanes | None = None,
+    other_lanes: bool = True,
 ) -> SensorPairs:
     """The objects each subject (indices into ``vehicles``) sees ahead within ``range_m``, in its frame.
 
@@ -387,6 +388,12 @@ def sensor_view(
     speeds' difference, not at its velocity's change of direction along the line of sight), seen while
     that x is within [0, ``range_m``]. Pairs come from a grid of cells ``range_m`` plus
     :data:`LONGEST_VEHICLE_M` wide, so each subject looks at its 3 x 3 cells only.
+
+    Without ``other_lanes`` the objects in a known lane other than the subject's (SUMO's on the same road,
+    the map path's, :data:`OFF_PATH_LANE` included) are left out: 4.5.5 b puts such an object out of the
+    path whatever its position (:func:`csws.fcw.objects.in_path`), so it is never a target, a cut-in or
+    remembered, and the FCW answers the same without it (the co-simulation's view, which then builds the
+    columns of the few objects that can matter only).
     """
     owner, me, seen, ahead_x, ahead_y = _near_pairs(vehicles, subjects, range_m, path_turn_rad)
     own_x, own_y = np.sin(vehicles.heading_rad)[seen], np.cos(vehicles.heading_rad)[seen]
@@ -409,6 +416,8 @@ def sensor_view(
         on_path = ~np.isnan(along_m)
         keep = np.where(on_path, (along_m >= 0.0) & (along_m <= range_m), keep)
         x_m = np.where(on_path, along_m, x_m)
+    if not other_lanes:
+        keep = keep & ((lane == 0) | (lane == UNKNOWN_LANE))
     # In SUMO's order of the vehicles per subject, whichever grid cells they fell in (ties go to the first listed);
     # the rest of the columns for the pairs seen only.
     k = np.flatnonzero(keep)
