@@ -30,7 +30,9 @@ nets nothing, a fold what its lane really turns): the **effective turns**. From 
   continued straight beyond (a shorter one turning on has no heading of its own: a junction
   stub, a jog), no more than :data:`CORNER_SPAN_M`
   from first to last, whose effective turns add up to :data:`CORNER_MIN_DEG` or more (a
-  hairpin drawn by two, three or four nodes is one corner).
+  hairpin drawn by two, three or four nodes is one corner); a longer run of such vertices
+  (the corners of a block one after another) is cut at its longest segment, and its pieces
+  so, until each spans no more (:func:`csws.curvature.corners.within_span`).
 
 :func:`kept_to_polyline` applies two rules to a fitted profile: no curve turns more than
 the net turn of its stretch by more than :data:`ANGLE_TOLERANCE_DEG`, nor does any part of
@@ -52,7 +54,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .corners import ANGLE_TOLERANCE_DEG, corner_arc, corner_arc_extent, curvature_at, curve_runs
+from .corners import (
+    ANGLE_TOLERANCE_DEG,
+    corner_arc,
+    corner_arc_extent,
+    curvature_at,
+    curve_runs,
+    same_sign_runs,
+    within_span,
+)
 from .profile import RadiusProfile, profile_from_parts
 
 __all__ = [
@@ -193,23 +203,12 @@ class PolylineTurns:
         inner_s = self.vertex_s[1:-1]
         side = np.where(self.corner_vertices(CORNER_VERTEX_DEG), np.sign(self.effective_rad), 0)
         found = []
-        for first, last in _same_sign_runs(side):
+        runs = [piece for run in same_sign_runs(side) for piece in within_span(*run, inner_s, CORNER_SPAN_M)]
+        for first, last in runs:
             turn = float(self.effective_rad[first : last + 1].sum())
-            span_m = float(inner_s[last] - inner_s[first])
-            if abs(turn) >= math.radians(CORNER_MIN_DEG) and span_m <= CORNER_SPAN_M:
+            if abs(turn) >= math.radians(CORNER_MIN_DEG):
                 found.append(Corner(float(inner_s[first]), float(inner_s[last]), turn))
         return found
-
-
-def _same_sign_runs(side: np.ndarray) -> list[tuple[int, int]]:
-    """First and last index of each maximal run of equal non-zero entries of ``side``."""
-    runs: list[tuple[int, int]] = []
-    for index in np.flatnonzero(side != 0).tolist():
-        if runs and runs[-1][1] == index - 1 and side[index - 1] == side[index]:
-            runs[-1] = (runs[-1][0], index)
-        else:
-            runs.append((index, index))
-    return runs
 
 
 def _wrapped(angle_rad: np.ndarray | float) -> np.ndarray:
@@ -324,8 +323,9 @@ def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
     bounds = np.array([part.start_s for part in profile.parts] + [profile.parts[-1].end_s])
     fitted = bounds, start_k, end_k
     start_k, end_k = _within_net_turn(turns, bounds, start_k, end_k)
-    for corner in turns.corners():
-        reach, window = turns.reach(corner), _corner_window(turns, corner)
+    corners = turns.corners()
+    for index, corner in enumerate(corners):
+        reach, window = turns.reach(corner), _corner_window(turns, corner, _halfway_to_neighbours(corners, index))
         if not _is_covered(corner, reach, window, bounds, start_k, end_k):
             bounds, start_k, end_k = _without_curves_at(corner, reach, window, bounds, start_k, end_k)
             arms_m, inner_m, vertices = turns.arms(corner)
@@ -407,18 +407,30 @@ def _overlapping(
     ]
 
 
-def _corner_window(turns: PolylineTurns, corner: Corner) -> tuple[float, float]:
+def _corner_window(turns: PolylineTurns, corner: Corner, limits: tuple[float, float]) -> tuple[float, float]:
     """Where a curve turns a corner, m: from the second vertex before it to the second after (node noise moves
     turning from one vertex to the next, and a fit spreads it so), or where its arc would lie
     (:func:`csws.curvature.corners.corner_arc_extent`, the largest arc the map leaves room for) where that reaches
-    further. A curve's turn beyond it is the road's turn beyond: a long gentle curve the fit ran through a corner
-    turns at its own radius at the corner, not at the corner's."""
+    further, but within ``limits`` (:func:`_halfway_to_neighbours`). A curve's turn beyond it is the road's turn
+    beyond: a long gentle curve the fit ran through a corner turns at its own radius at the corner, not at the
+    corner's, and the arc of the corner next to it turns that corner, not this one."""
     before = int(np.searchsorted(turns.vertex_s, corner.start_s, side="left")) - 2
     after = int(np.searchsorted(turns.vertex_s, corner.end_s, side="right")) + 1
     last = len(turns.vertex_s) - 1
     arms_m, inner_m, vertices = turns.arms(corner)
     low, high = corner_arc_extent((corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices)
-    return min(low, float(turns.vertex_s[max(before, 0)])), max(high, float(turns.vertex_s[min(after, last)]))
+    low, high = min(low, float(turns.vertex_s[max(before, 0)])), max(high, float(turns.vertex_s[min(after, last)]))
+    return max(low, limits[0]), min(high, limits[1])
+
+
+def _halfway_to_neighbours(corners: list[Corner], index: int) -> tuple[float, float]:
+    """From halfway between the last vertex of the corner before corner ``index`` and its first vertex to halfway
+    between its last vertex and the first of the corner after, m (unbounded where it has no such neighbour): the
+    stretch whose turning is this corner's."""
+    corner = corners[index]
+    low = (corners[index - 1].end_s + corner.start_s) / 2.0 if index > 0 else -math.inf
+    high = (corner.end_s + corners[index + 1].start_s) / 2.0 if index + 1 < len(corners) else math.inf
+    return low, high
 
 
 def _turn_within(

@@ -62,6 +62,8 @@ __all__ = [
     "corner_arc",
     "corner_arc_extent",
     "curvature_at",
+    "same_sign_runs",
+    "within_span",
 ]
 
 #: The smallest radius a road curve is given, m: the tightest turning circle of a car is
@@ -249,14 +251,32 @@ def _with_missed_corners(
 def _turning_runs(turn_rad: np.ndarray, covered: np.ndarray) -> list[tuple[int, int]]:
     """First and last index of each maximal run of inner vertices that no curved part covers
     and that turn the same way."""
-    side = np.where(covered, 0, np.sign(turn_rad))
+    return same_sign_runs(np.where(covered, 0, np.sign(turn_rad)))
+
+
+def same_sign_runs(side: np.ndarray) -> list[tuple[int, int]]:
+    """First and last index of each maximal run of equal non-zero entries of ``side``."""
     runs: list[tuple[int, int]] = []
-    for vertex in np.flatnonzero(side != 0):
-        if runs and runs[-1][1] == vertex - 1 and side[vertex - 1] == side[vertex]:
-            runs[-1] = (runs[-1][0], int(vertex))
+    for index in np.flatnonzero(side != 0).tolist():
+        if runs and runs[-1][1] == index - 1 and side[index - 1] == side[index]:
+            runs[-1] = (runs[-1][0], index)
         else:
-            runs.append((int(vertex), int(vertex)))
+            runs.append((index, index))
     return runs
+
+
+def within_span(first: int, last: int, vertex_s: np.ndarray, span_m: float) -> list[tuple[int, int]]:
+    """A run of vertices ``first`` to ``last`` (arc lengths ``vertex_s``) cut at its longest segment, and each piece
+    so again, until no piece spans more than ``span_m``, as first and last index of each piece in order.
+
+    Vertices turning one way one after another far apart (the corners of a block, of a loop round it) are so
+    many corners joined by straights, not one corner: the longest segment between them is the likeliest
+    straight, and cutting there first keeps a corner drawn by several close nodes whole.
+    """
+    if vertex_s[last] - vertex_s[first] <= span_m:
+        return [(first, last)]
+    cut = first + int(np.argmax(np.diff(vertex_s[first : last + 1])))
+    return within_span(first, cut, vertex_s, span_m) + within_span(cut + 1, last, vertex_s, span_m)
 
 
 def _covered(
