@@ -63,7 +63,7 @@ __all__ = [
     "corner_arc_extent",
     "curvature_at",
     "same_sign_runs",
-    "within_span",
+    "cut_at_straights",
 ]
 
 #: The smallest radius a road curve is given, m: the tightest turning circle of a car is
@@ -265,18 +265,15 @@ def same_sign_runs(side: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
-def within_span(first: int, last: int, vertex_s: np.ndarray, span_m: float) -> list[tuple[int, int]]:
-    """A run of vertices ``first`` to ``last`` (arc lengths ``vertex_s``) cut at its longest segment, and each piece
-    so again, until no piece spans more than ``span_m``, as first and last index of each piece in order.
+def cut_at_straights(first: int, last: int, vertex_s: np.ndarray, longest_m: float) -> list[tuple[int, int]]:
+    """A run of vertices ``first`` to ``last`` (arc lengths ``vertex_s``) cut at each segment longer than
+    ``longest_m``, as first and last index of each piece in order.
 
-    Vertices turning one way one after another far apart (the corners of a block, of a loop round it) are so
-    many corners joined by straights, not one corner: the longest segment between them is the likeliest
-    straight, and cutting there first keeps a corner drawn by several close nodes whole.
+    Vertices turning one way one after another with such a segment between them (the corners of a
+    block, of a loop round it) are corners joined by a straight that no corner spans, not one corner.
     """
-    if vertex_s[last] - vertex_s[first] <= span_m:
-        return [(first, last)]
-    cut = first + int(np.argmax(np.diff(vertex_s[first : last + 1])))
-    return within_span(first, cut, vertex_s, span_m) + within_span(cut + 1, last, vertex_s, span_m)
+    cuts = (first + np.flatnonzero(np.diff(vertex_s[first : last + 1]) > longest_m)).tolist()
+    return list(zip([first, *(cut + 1 for cut in cuts)], [*cuts, last], strict=True))
 
 
 def _covered(
