@@ -1,8 +1,8 @@
 """The corners of a block one after another each get a curve of their direction.
 
 A road round a block turns one way at corners tens of metres apart: a 90-degree corner, a corner
-cut by two nodes of 44 degrees a few metres apart, another 90-degree corner, with the lanes stitched
-through junction pieces of a few decimetres. Every polyline here is built from its corners, so the
+cut by two nodes of 44 degrees a few metres apart, another 90-degree corner, a node a few decimetres
+before a corner where a junction piece begins. Every polyline here is built from its corners, so the
 test knows where each corner vertex lies and which way it turns; the curves are those the curve
 index reads (:func:`fit_road_chains`).
 """
@@ -36,17 +36,17 @@ def _unit(heading_deg: float) -> np.ndarray:
 def _block_road(
     turns_deg: list[float], legs_m: list[float], cuts_m: list[float], piece_m: float
 ) -> tuple[list[np.ndarray], list[tuple[np.ndarray, float]]]:
-    """Lanes along straights ``legs_m`` (one more than corners) joined by corners turning ``turns_deg``; a
+    """A way along straights ``legs_m`` (one more than corners) joined by corners turning ``turns_deg``; a
     corner with a cut (``cuts_m`` > 0) is drawn by two nodes that far apart turning half of it each; where
-    ``piece_m`` > 0, a lane ends that far before each corner and a junction piece of that length leads into it.
+    ``piece_m`` > 0, a node lies that far before each corner on its straight (where a junction piece of a
+    network begins).
 
-    Returns the lanes in driving order and each corner vertex: its point and its turn, degrees."""
+    Returns the way as the one lane of a chain and each corner vertex: its point and its turn, degrees."""
     heading, point = 0.0, np.zeros(2)
-    points, corners, joints = [point], [], []
+    points, corners = [point], []
     for turn_deg, leg_m, cut_m in zip(turns_deg, legs_m, cuts_m, strict=False):
         if piece_m > 0:
             points.append(point + (leg_m - piece_m) * _unit(heading))
-            joints += [len(points) - 1, len(points)]
         point = point + leg_m * _unit(heading)
         halves = [turn_deg / 2.0, turn_deg / 2.0] if cut_m > 0 else [turn_deg]
         for index, turn_part_deg in enumerate(halves):
@@ -56,9 +56,7 @@ def _block_road(
             if index + 1 < len(halves):
                 point = point + cut_m * _unit(heading)
     points.append(point + legs_m[-1] * _unit(heading))
-    xy = np.array(points)
-    ends = [0, *joints, len(xy) - 1]
-    return [xy[a : b + 1] for a, b in zip(ends[:-1], ends[1:], strict=True)], corners
+    return [np.array(points)], corners
 
 
 def _chains(lanes: list[np.ndarray]) -> RoadChains:
@@ -101,7 +99,7 @@ def _uncovered(lanes: list[np.ndarray], corners: list[tuple[np.ndarray, float]])
 
 def test_each_corner_of_a_rectangular_loop_with_a_cut_corner_gets_a_curve() -> None:
     # Left round a block: 90 degrees, 60 m, a corner cut by two nodes of 44 degrees 7 m apart, 24 m, 90 degrees;
-    # and the other way round; each drawn as one way and as lanes joined by junction pieces of 0.3 m.
+    # and the other way round; with and without a node 0.3 m before each corner.
     for side in (1.0, -1.0):
         for piece_m in (0.0, 0.3):
             turns = [side * 90.0, side * 88.0, side * 90.0]
@@ -125,7 +123,7 @@ def test_a_corner_two_metres_after_a_right_angle_cut_gets_a_curve() -> None:
 @given(st.integers(2, 5), st.sampled_from([-1.0, 1.0]), st.data(), st.sampled_from([0.0, 0.3, 1.0]))
 def test_every_corner_of_a_block_road_gets_a_curve_of_its_direction(corners, side, data, piece_m) -> None:
     # Corners of 60-120 degrees one way, straights of more than a corner's span (CORNER_SPAN_M) up to 150 m
-    # between them, some corners cut by two nodes 2.5-8 m apart; lanes joined by junction pieces of ``piece_m``.
+    # between them, some corners cut by two nodes 2.5-8 m apart, a node ``piece_m`` before each corner.
     turns = [side * data.draw(st.floats(60.0, 120.0)) for _ in range(corners)]
     between = [data.draw(st.floats(CORNER_SPAN_M + 1.0, 150.0)) for _ in range(corners - 1)]
     legs = [data.draw(st.floats(12.0, 150.0)), *between, data.draw(st.floats(12.0, 150.0))]
@@ -154,12 +152,3 @@ def test_the_corners_of_a_block_are_found_apart() -> None:
     found = polyline_turns(lanes[0]).corners()
     assert [round(math.degrees(c.turn_rad)) for c in found] == [90, 90, 90]
     assert all(c.end_s - c.start_s <= CORNER_SPAN_M for c in found)
-
-
-def test_a_junction_piece_ending_in_a_corner_is_no_straight_joint() -> None:
-    # A lane, a junction piece of 0.3 m, a right angle at its end, a lane on: the vertices within 40 m of
-    # either joint lie on one line, the road 40 m on does not, so the lanes stay one chain. On a straight
-    # road the same joints are straight and cut.
-    for turn_deg, chains in ((90.0, 1), (0.0, 3)):
-        lanes, _ = _block_road([turn_deg], [40.0, 100.0], [0.0], 0.3)
-        assert len(_chains(lanes).xy) == chains

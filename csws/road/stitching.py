@@ -81,17 +81,11 @@ def road_chains(continues_into: np.ndarray) -> list[np.ndarray]:
 
 
 def _straight_joints(xy: np.ndarray, joint_s: np.ndarray) -> np.ndarray:
-    """Which joints of a stitched chain lie on a straight stretch (:data:`STRAIGHT_WINDOW_M`): the polyline from
-    :data:`STRAIGHT_WINDOW_M` before the joint to as far after it, its vertices there and its points at either
-    end, within :data:`STRAIGHT_DEVIATION_M` of a line (the vertices alone miss a corner whose next vertex lies
-    beyond: a junction piece of a few decimetres ending in a corner reads straight)."""
+    """Which joints of a stitched chain lie on a straight stretch (:data:`STRAIGHT_WINDOW_M`)."""
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
     straight = np.zeros(len(joint_s), dtype=bool)
     for index, at_s in enumerate(joint_s.tolist()):
-        ends_s = np.clip([at_s - STRAIGHT_WINDOW_M, at_s + STRAIGHT_WINDOW_M], s[0], s[-1])
-        inside = xy[(s > ends_s[0]) & (s < ends_s[1])]
-        ends = np.column_stack((np.interp(ends_s, s, xy[:, 0]), np.interp(ends_s, s, xy[:, 1])))
-        window = np.vstack((ends[:1], inside, ends[1:]))
+        window = xy[(s >= at_s - STRAIGHT_WINDOW_M) & (s <= at_s + STRAIGHT_WINDOW_M)]
         chord = window[-1] - window[0]
         length = float(np.hypot(*chord))
         if length <= 0:
