@@ -30,16 +30,20 @@ nets nothing, a fold what its lane really turns): the **effective turns**. From 
   continued straight beyond (a shorter one turning on has no heading of its own: a junction
   stub, a jog), no more than :data:`CORNER_SPAN_M`
   from first to last, whose effective turns add up to :data:`CORNER_MIN_DEG` or more (a
-  hairpin drawn by two, three or four nodes is one corner).
+  hairpin drawn by two, three or four nodes is one corner); a run of such vertices is first
+  cut at each segment longer than :data:`CORNER_SPAN_M`, a straight no corner spans (the
+  corners of a block one after another: :func:`csws.curvature.corners.cut_at_straights`).
 
 :func:`kept_to_polyline` applies two rules to a fitted profile: no curve turns more than
 the net turn of its stretch by more than :data:`ANGLE_TOLERANCE_DEG`, nor does any part of
 a curve (either is turned back to that net turn, and removed where the net turn is below
 the tolerance: a curve at a spike or a zig-zag); and every corner is covered by curves
 turning its net turn within the tolerance near it (from the second vertex before it to the
-second after, or over its arc where that is longer: a long gentle curve run through a corner
-does not cover it), else an arc turning that net turn is laid over it
-(:func:`csws.curvature.corners.corner_arc`), in place of what the curves turned its way there.
+second after, or over its arc where that is longer, but only halfway to the corners beside
+it, whose turning is theirs: a long gentle curve run through a corner does not cover it, nor
+does the arc of the corner next to it; :mod:`csws.curvature.coverage`), else an arc turning
+that net turn is laid over it (:func:`csws.curvature.corners.corner_arc`), in place of what the
+curves turned its way there.
 The first rule is applied once more to what the arcs leave, so that no remnant of a curve
 beside an arc claims the corner's turn again. :func:`kept_to_net_turn` applies the first rule
 alone (to a lane's borrowed profile, :mod:`csws.road.sharing`).
@@ -52,7 +56,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .corners import ANGLE_TOLERANCE_DEG, corner_arc, corner_arc_extent, curvature_at, curve_runs
+from .corners import ANGLE_TOLERANCE_DEG, corner_arc, curve_runs, cut_at_straights, same_sign_runs
+from .coverage import corner_window, halfway_to_neighbours, is_covered, without_curves_at
 from .profile import RadiusProfile, profile_from_parts
 
 __all__ = [
@@ -193,23 +198,13 @@ class PolylineTurns:
         inner_s = self.vertex_s[1:-1]
         side = np.where(self.corner_vertices(CORNER_VERTEX_DEG), np.sign(self.effective_rad), 0)
         found = []
-        for first, last in _same_sign_runs(side):
+        runs = [piece for run in same_sign_runs(side) for piece in cut_at_straights(*run, inner_s, CORNER_SPAN_M)]
+        for first, last in runs:
             turn = float(self.effective_rad[first : last + 1].sum())
             span_m = float(inner_s[last] - inner_s[first])
             if abs(turn) >= math.radians(CORNER_MIN_DEG) and span_m <= CORNER_SPAN_M:
                 found.append(Corner(float(inner_s[first]), float(inner_s[last]), turn))
         return found
-
-
-def _same_sign_runs(side: np.ndarray) -> list[tuple[int, int]]:
-    """First and last index of each maximal run of equal non-zero entries of ``side``."""
-    runs: list[tuple[int, int]] = []
-    for index in np.flatnonzero(side != 0).tolist():
-        if runs and runs[-1][1] == index - 1 and side[index - 1] == side[index]:
-            runs[-1] = (runs[-1][0], index)
-        else:
-            runs.append((index, index))
-    return runs
 
 
 def _wrapped(angle_rad: np.ndarray | float) -> np.ndarray:
@@ -324,10 +319,11 @@ def kept_to_polyline(xy: np.ndarray, profile: RadiusProfile) -> RadiusProfile:
     bounds = np.array([part.start_s for part in profile.parts] + [profile.parts[-1].end_s])
     fitted = bounds, start_k, end_k
     start_k, end_k = _within_net_turn(turns, bounds, start_k, end_k)
-    for corner in turns.corners():
-        reach, window = turns.reach(corner), _corner_window(turns, corner)
-        if not _is_covered(corner, reach, window, bounds, start_k, end_k):
-            bounds, start_k, end_k = _without_curves_at(corner, reach, window, bounds, start_k, end_k)
+    corners = turns.corners()
+    for index, corner in enumerate(corners):
+        reach, window = turns.reach(corner), corner_window(turns, corner, halfway_to_neighbours(corners, index))
+        if not is_covered(corner, reach, window, bounds, start_k, end_k):
+            bounds, start_k, end_k = without_curves_at(corner, reach, window, bounds, start_k, end_k)
             arms_m, inner_m, vertices = turns.arms(corner)
             bounds, start_k, end_k = corner_arc(
                 (corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices, bounds, start_k, end_k
@@ -390,104 +386,3 @@ def turned_back_scale(turns: PolylineTurns, start_s: float, end_s: float, angle_
     if abs(angle_rad) <= net + tolerance:
         return 1.0
     return net / abs(angle_rad) if net >= tolerance else 0.0
-
-
-def _overlapping(
-    corner: Corner, reach: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
-) -> list[np.ndarray]:
-    """The curves (runs of parts turning one way) turning the corner's way whose net turn counts its vertices: those
-    running into the segments between its ``reach`` (the vertices before and after it)."""
-    side = math.copysign(1.0, corner.turn_rad)
-    return [
-        parts
-        for parts in curve_runs(start_k, end_k)
-        if bounds[parts[-1] + 1] > reach[0]
-        and bounds[parts[0]] < reach[1]
-        and side * (start_k[parts[0]] + end_k[parts[0]]) > 0
-    ]
-
-
-def _corner_window(turns: PolylineTurns, corner: Corner) -> tuple[float, float]:
-    """Where a curve turns a corner, m: from the second vertex before it to the second after (node noise moves
-    turning from one vertex to the next, and a fit spreads it so), or where its arc would lie
-    (:func:`csws.curvature.corners.corner_arc_extent`, the largest arc the map leaves room for) where that reaches
-    further. A curve's turn beyond it is the road's turn beyond: a long gentle curve the fit ran through a corner
-    turns at its own radius at the corner, not at the corner's."""
-    before = int(np.searchsorted(turns.vertex_s, corner.start_s, side="left")) - 2
-    after = int(np.searchsorted(turns.vertex_s, corner.end_s, side="right")) + 1
-    last = len(turns.vertex_s) - 1
-    arms_m, inner_m, vertices = turns.arms(corner)
-    low, high = corner_arc_extent((corner.start_s, corner.end_s, corner.turn_rad), arms_m, inner_m, vertices)
-    return min(low, float(turns.vertex_s[max(before, 0)])), max(high, float(turns.vertex_s[min(after, last)]))
-
-
-def _turn_within(
-    parts: np.ndarray, window: tuple[float, float], bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray
-) -> float:
-    """How much ``parts`` turn within ``window`` (left positive), rad: their curvature, linear in each part,
-    integrated there."""
-    turned = 0.0
-    for part in parts.tolist():
-        part_start, part_end = float(bounds[part]), float(bounds[part + 1])
-        low, high = max(part_start, window[0]), min(part_end, window[1])
-        if high > low:
-            slope = (end_k[part] - start_k[part]) / (part_end - part_start)
-            mean_k = start_k[part] + slope * ((low + high) / 2.0 - part_start)
-            turned += float(mean_k) * (high - low)
-    return turned
-
-
-def _split_at(
-    bounds: np.ndarray, start_k: np.ndarray, end_k: np.ndarray, s: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The parts with a bound at ``s``: a part across it cut in two, its curvature unchanged."""
-    if s <= bounds[0] or s >= bounds[-1] or np.any(bounds == s):
-        return bounds, start_k, end_k
-    part = int(np.searchsorted(bounds, s, side="right")) - 1
-    at_s = curvature_at(bounds, start_k, end_k, s)
-    return np.insert(bounds, part + 1, s), np.insert(start_k, part + 1, at_s), np.insert(end_k, part, at_s)
-
-
-def _without_curves_at(
-    corner: Corner,
-    reach: tuple[float, float],
-    window: tuple[float, float],
-    bounds: np.ndarray,
-    start_k: np.ndarray,
-    end_k: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The parts with the curves that turn a corner's way at it but fall short of its turn made straight within its
-    ``window``: the corner's arc replaces them there, rather than adding to them. What is left of them beyond the
-    window goes too where it turns less than :data:`ANGLE_TOLERANCE_DEG`: a sliver of the corner's turn."""
-    for s in window:
-        bounds, start_k, end_k = _split_at(bounds, start_k, end_k, s)
-    start_k, end_k = start_k.copy(), end_k.copy()
-    left = np.zeros(len(start_k), dtype=bool)
-    for parts in _overlapping(corner, reach, bounds, start_k, end_k):
-        inside = (bounds[parts] >= window[0]) & (bounds[parts + 1] <= window[1])
-        start_k[parts[inside]] = 0.0
-        end_k[parts[inside]] = 0.0
-        left[parts[~inside]] = True
-    angle_rad = (start_k + end_k) / 2.0 * np.diff(bounds)
-    for sliver in curve_runs(np.where(left, start_k, 0.0), np.where(left, end_k, 0.0)):
-        if abs(float(angle_rad[sliver].sum())) < math.radians(ANGLE_TOLERANCE_DEG):
-            start_k[sliver] = 0.0
-            end_k[sliver] = 0.0
-    return bounds, start_k, end_k
-
-
-def _is_covered(
-    corner: Corner,
-    reach: tuple[float, float],
-    window: tuple[float, float],
-    bounds: np.ndarray,
-    start_k: np.ndarray,
-    end_k: np.ndarray,
-) -> bool:
-    """Whether the curves reaching the corner's stretch turn its way within its ``window`` by its net turn, less
-    the tolerance, or more (no more than their own stretch's net turn: :func:`_within_net_turn`)."""
-    turned = sum(
-        _turn_within(parts, window, bounds, start_k, end_k)
-        for parts in _overlapping(corner, reach, bounds, start_k, end_k)
-    )
-    return turned * math.copysign(1.0, corner.turn_rad) >= abs(corner.turn_rad) - math.radians(ANGLE_TOLERANCE_DEG)

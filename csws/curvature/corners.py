@@ -62,6 +62,8 @@ __all__ = [
     "corner_arc",
     "corner_arc_extent",
     "curvature_at",
+    "same_sign_runs",
+    "cut_at_straights",
 ]
 
 #: The smallest radius a road curve is given, m: the tightest turning circle of a car is
@@ -249,14 +251,29 @@ def _with_missed_corners(
 def _turning_runs(turn_rad: np.ndarray, covered: np.ndarray) -> list[tuple[int, int]]:
     """First and last index of each maximal run of inner vertices that no curved part covers
     and that turn the same way."""
-    side = np.where(covered, 0, np.sign(turn_rad))
+    return same_sign_runs(np.where(covered, 0, np.sign(turn_rad)))
+
+
+def same_sign_runs(side: np.ndarray) -> list[tuple[int, int]]:
+    """First and last index of each maximal run of equal non-zero entries of ``side``."""
     runs: list[tuple[int, int]] = []
-    for vertex in np.flatnonzero(side != 0):
-        if runs and runs[-1][1] == vertex - 1 and side[vertex - 1] == side[vertex]:
-            runs[-1] = (runs[-1][0], int(vertex))
+    for index in np.flatnonzero(side != 0).tolist():
+        if runs and runs[-1][1] == index - 1 and side[index - 1] == side[index]:
+            runs[-1] = (runs[-1][0], index)
         else:
-            runs.append((int(vertex), int(vertex)))
+            runs.append((index, index))
     return runs
+
+
+def cut_at_straights(first: int, last: int, vertex_s: np.ndarray, longest_m: float) -> list[tuple[int, int]]:
+    """A run of vertices ``first`` to ``last`` (arc lengths ``vertex_s``) cut at each segment longer than
+    ``longest_m``, as first and last index of each piece in order.
+
+    Vertices turning one way one after another with such a segment between them (the corners of a
+    block, of a loop round it) are corners joined by a straight that no corner spans, not one corner.
+    """
+    cuts = (first + np.flatnonzero(np.diff(vertex_s[first : last + 1]) > longest_m)).tolist()
+    return list(zip([first, *(cut + 1 for cut in cuts)], [*cuts, last], strict=True))
 
 
 def _covered(
