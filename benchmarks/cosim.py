@@ -45,10 +45,10 @@ braking at its emergency deceleration could bring a warning at once).
 
 from __future__ import annotations
 
+import argparse
 import multiprocessing
 import os
 import resource
-import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.command import arguments
 from csws.cosim.config import default_timeseries_every
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sensor import VehicleNumbers, read_vehicles, sensor_view
@@ -452,9 +453,14 @@ def _print_of_ssm(figures: dict) -> None:
         )
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The one option: the small configuration."""
+    parser.add_argument("--small", action="store_true", help="300 vehicles, with SSM and the FCW's floors")
+
+
 def main() -> None:
     """Print each figure beside its target (``--small``: the small configuration's)."""
-    if "--small" in sys.argv[1:]:
+    if arguments("benchmarks.cosim", __doc__, _add_arguments).small:
         figures = small_run()
         _print(figures)
         _print_of_ssm(figures)
