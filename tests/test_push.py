@@ -241,8 +241,17 @@ def test_without_webhooks_the_outbox_is_read_seldom_and_a_webhook_added_gets_wha
         assert outbox.reads <= idle_s / IDLE_WITHOUT_WEBHOOKS_S + 3
         receiver = receiver_factory()
         add_webhook(tmp_path / "webhooks.json", FLEET, receiver.url, allow_private=True)
-        write_events(outbox, ["truck-1"], 5)
-        wait_until(lambda: sum(r["key"].startswith(f"{FLEET}:truck-1:") for r in receiver.requests) == 5)
+        written = iter(range(1, 10_000))
+
+        def one_more_and_arrived() -> bool:
+            """Write one more event until the first arrives: a webhook added gets what its fleet writes once the
+            dispatcher has read the file again (about a second), and only then."""
+            outbox.write(FLEET, "truck-1", event_body("truck-1", next(written)))
+            return bool(receiver.requests)
+
+        wait_until(one_more_and_arrived)
+        write_events(outbox, ["truck-2"], 5)
+        wait_until(lambda: sum(r["key"].startswith(f"{FLEET}:truck-2:") for r in receiver.requests) == 5)
     finally:
         stop()
 
