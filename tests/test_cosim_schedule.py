@@ -211,6 +211,33 @@ def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(
 
 
 @given(
+    distance_m=st.floats(0.0, 3000.0),
+    speed_mps=st.floats(0.0, 40.0),
+    bound_mps=st.floats(1.0, 40.0),
+    accel_mps2=st.one_of(st.just(math.inf), st.floats(0.5, 5.0)),
+    factor=st.floats(0.9, 1.1),
+    period_s=st.one_of(st.none(), st.floats(STEP_S, 2.0)),
+)
+def test_a_vehicle_kept_awake_by_the_array_test_is_one_that_could_be_warned_at_the_next_step(
+    distance_m, speed_mps, bound_mps, accel_mps2, factor, period_s
+):
+    """The array test keeps a vehicle awake only where, at its present speed, the step it drives and the reach of
+    formula (1) with V_w = 0 plus the allowance over the step, the margined distance to the curve is covered at
+    the next step; and a vehicle it keeps awake is one the schedule itself would not put to sleep."""
+    settings = WarningSettings(update_period_s=STEP_S)
+    schedule = WakeSchedule(STEP_S, settings)
+    awake = schedule.awake_next_step(np.array([speed_mps]), np.array([distance_m]), np.array([factor]))
+    margin_m = LANE_CHANGE_MARGIN_M + LANE_CHANGE_MARGIN_SHARE * distance_m
+    left_m = distance_m - margin_m - speed_mps * STEP_S / factor
+    if left_m > _formula_1_reach_m(speed_mps, settings) * (1 + 1e-9):
+        assert not awake[0]
+    if awake[0]:
+        schedule.add("v", bound_mps, accel_mps2)
+        schedule.sleep(0, "v", speed_mps, distance_m, factor, period_s)
+        assert "v" not in schedule.wake_step
+
+
+@given(
     parts=st.lists(st.tuples(st.floats(0.0, 2000.0), st.floats(0.0, 300.0)), max_size=8),
     vehicle_s=st.floats(0.0, 2500.0),
 )

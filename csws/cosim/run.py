@@ -149,7 +149,8 @@ class _Run:
         positions = sampled and (config.timeseries != "none" or config.fcd is not None)
         schedule, step = self.schedule, self.summary.steps
         if schedule is not None:
-            schedule.wake_due(step, everyone=positions)
+            with costs.timed("schedule"):
+                schedule.wake_due(step, everyone=positions)
         with costs.timed("sumo_step_and_read"):
             if schedule is None:
                 fleet = simulation.step(positions)
@@ -159,7 +160,8 @@ class _Run:
         self._forget(fleet.arrived)
         self.summary.skipped.update(fleet.skipped)
         if schedule is not None:
-            schedule.read(fleet, simulation.departed_speed_bounds, simulation.vehicle_count)
+            with costs.timed("schedule"):
+                schedule.read(fleet, simulation.departed_speed_bounds, simulation.vehicle_count)
         warnings, fcw = self._evaluate(fleet)
         commands = self._commands(fleet, warnings, fcw, self.step_s)
         for vehicle_id, speed_mps in commands.items():
@@ -170,7 +172,8 @@ class _Run:
                 fleet, warnings, fcw, commands, self.tracker, self.summary, self.streams, sampled, position, self.geo
             )
         if schedule is not None:
-            schedule.sleep(fleet, warnings, fcw, self.driver)
+            with costs.timed("schedule"):
+                schedule.sleep(fleet, warnings, fcw, self.driver)
         self.summary.vehicles.update(fleet.vehicle_id)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s

@@ -178,6 +178,19 @@ class WakeSchedule:
         times = [time_s for step, time_s in self._times_s if step > slept_at]
         return times[:-1][-(KEPT_INTERVALS + 1) :]
 
+    def awake_next_step(self, speeds_mps: np.ndarray, distances_m: np.ndarray, factors: np.ndarray) -> np.ndarray:
+        """Whether :meth:`sleep` would keep each vehicle awake whatever its speed bound, acceleration and update
+        period, by its speed (m/s), its distance to the first curve part (m) and its lane position factor: a CPOI
+        could come within reach at the next step even at its present speed and the step as update period (the
+        reach and the distance driven only grow with the bound, the acceleration and the period), or its factor
+        is not positive. One array test for the many vehicles near a curve instead of one schedule each.
+        """
+        clear_m = distances_m * (1.0 - LANE_CHANGE_MARGIN_SHARE) - LANE_CHANGE_MARGIN_M
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nearest_m = clear_m - self.step_s * speeds_mps / factors
+        reach_m = lookahead_distances_m(mps_to_kmh(speeds_mps), self.warning, 0.0, self.step_s)
+        return (factors <= 0.0) | (nearest_m <= reach_m)
+
     def sleep(
         self,
         step: int,

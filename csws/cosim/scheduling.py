@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Container, Sequence
 
+import numpy as np
+
 from csws.engine import Engine
 
 from .driver import DriverResponse
@@ -20,20 +22,34 @@ from .fcw_schedule import FcwSchedule
 from .schedule import WakeSchedule, caught_up, distance_to_first_part_m
 from .sumo import FleetState
 
-__all__ = ["AsleepInAll", "RunSchedule"]
+__all__ = ["AsleepInAll", "RunSchedule", "asleep_in_all"]
 
 
 class AsleepInAll:
-    """The vehicles asleep in every one of some schedules (a live view of their sleeping vehicles)."""
+    """The vehicles asleep in both of two schedules (a live view of their sleeping vehicles).
 
-    def __init__(self, sleeping: Sequence[Container[str]]) -> None:
-        self.sleeping = sleeping
+    SUMO's read asks it once per vehicle and step, so it tests the two directly (a run with one schedule
+    passes that schedule's sleeping vehicles instead, :func:`asleep_in_all`).
+    """
+
+    def __init__(self, first: Container[str], second: Container[str]) -> None:
+        self.first, self.second = first, second
 
     def __contains__(self, vehicle_id: object) -> bool:
-        return all(vehicle_id in asleep for asleep in self.sleeping)
+        return vehicle_id in self.first and vehicle_id in self.second
 
     def __bool__(self) -> bool:
-        return all(bool(asleep) for asleep in self.sleeping)
+        return bool(self.first) and bool(self.second)
+
+
+def asleep_in_all(sleeping: Sequence[dict[str, int]]) -> Container[str]:
+    """The vehicles asleep in every one of some schedules, by their sleeping vehicles (live): the one
+    schedule's own mapping when there is one (the cheapest test of all), else :class:`AsleepInAll`."""
+    if len(sleeping) == 1:
+        return sleeping[0]
+    if len(sleeping) == 2:
+        return AsleepInAll(*sleeping)
+    return ()
 
 
 class _Awake:
@@ -78,7 +94,7 @@ class RunSchedule:
             schedule.wake_step for schedule in (curve[0] if curve else None, fcw[0] if fcw else None) if schedule
         ]
         #: The vehicles SUMO does not read this step.
-        self.asleep = AsleepInAll(sleeping)
+        self.asleep = asleep_in_all(sleeping)
         #: The step each vehicle the curve warning woke this step was last evaluated at.
         self.woken: dict[str, int] = {}
         self.step = 0
@@ -175,16 +191,29 @@ def _sleep_curve(
     warnings: FleetWarnings,
     driven: Container[str],
 ) -> None:
-    """Put to sleep the vehicles evaluated this step that no curve warning, release hold or driver keeps awake."""
+    """Put to sleep the vehicles evaluated this step that no curve warning, release hold or driver keeps awake.
+
+    Most of the vehicles evaluated are near a curve, where a warning can arise at the next step: one array
+    test (:meth:`WakeSchedule.awake_next_step`) keeps those awake, and only the others are scheduled one by one.
+    """
     engine = library.engine
     ahead, held = library.ahead, engine.held
     if ahead is None or not fleet.vehicle_id:  # no vehicle was evaluated: the evaluator holds an older step's
         return
-    levels, speeds_mps = warnings.level, fleet.speed_mps.tolist()
-    for row, horizon, vehicle_s in zip(library.active, ahead.horizons, ahead.vehicle_s.tolist(), strict=True):
-        vehicle_id = fleet.vehicle_id[row]
-        if levels[row] or vehicle_id in held or vehicle_id in driven:
-            continue
-        distance_m, factor = distance_to_first_part_m(horizon, vehicle_s)
-        period_s = engine.update_period_s(vehicle_id)
-        schedule.sleep(step, vehicle_id, speeds_mps[row], distance_m, factor, period_s)
+    levels, vehicle_ids = warnings.level, fleet.vehicle_id
+    candidates = [
+        (row, horizon, vehicle_s)
+        for row, horizon, vehicle_s in zip(library.active, ahead.horizons, ahead.vehicle_s.tolist(), strict=True)
+        if not levels[row] and vehicle_ids[row] not in held and vehicle_ids[row] not in driven
+    ]
+    if not candidates:
+        return
+    rows = [row for row, _, _ in candidates]
+    distances = [distance_to_first_part_m(horizon, vehicle_s) for _, horizon, vehicle_s in candidates]
+    speeds_mps = fleet.speed_mps[rows]
+    distances_m, factors = (np.array(column, dtype=float) for column in zip(*distances, strict=True))
+    awake = schedule.awake_next_step(speeds_mps, distances_m, factors).tolist()
+    for row, speed_mps, (distance_m, factor), stays in zip(rows, speeds_mps.tolist(), distances, awake, strict=True):
+        if not stays:
+            vehicle_id = vehicle_ids[row]
+            schedule.sleep(step, vehicle_id, speed_mps, distance_m, factor, engine.update_period_s(vehicle_id))
