@@ -392,16 +392,7 @@ def _fcw_frames(
         ego = FleetEgo.of(
             vehicles.speed_mps[subjects], vehicles.accel_mps2[subjects], braking=vehicles.accel_mps2[subjects] < -3
         )
-        objects = FleetObjects.of(
-            pairs.subject,
-            vehicles.number[pairs.seen],
-            pairs.x_m,
-            pairs.y_m,
-            pairs.relative_speed_mps,
-            pairs.accel_mps2,
-            width_m=vehicles.width_m[pairs.seen],
-            lane=pairs.lane,
-        )
+        objects = pairs.objects(vehicles)
         frame, memory = update_fleet(settings_, memory, 0.1 * k, ego, objects)
         target = np.where(frame.target >= 0, vehicles.number[pairs.seen][np.maximum(frame.target, 0)], -1)
         figures = [frame.clearance_m, frame.relative_speed_mps, frame.ttc_s, frame.ettc_s, frame.a_req_mps2]

@@ -215,16 +215,7 @@ class FleetFcw:
     ) -> tuple[FleetFrame, np.ndarray, np.ndarray]:
         """One :func:`update_fleet` call for the subjects ``numbers`` of one settings, their sensor view
         ``pairs``: the frame, and the objects' keys kept (in the path, cutting in) by number."""
-        objects = FleetObjects.of(
-            pairs.subject,
-            vehicles.number[pairs.seen],
-            pairs.x_m,
-            pairs.y_m,
-            pairs.relative_speed_mps,
-            pairs.accel_mps2,
-            width_m=vehicles.width_m[pairs.seen],
-            lane=pairs.lane,
-        )
+        objects = pairs.objects(vehicles)
         if self.measure is not None:
             ego, objects = self.measure(ego, objects)
         frame, kept = update_fleet(settings, self._recall(numbers), now_s, ego, objects)

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from csws.fcw.fleet import UNKNOWN_LANE
+from csws.fcw.fleet import UNKNOWN_LANE, FleetObjects
 
 __all__ = [
     "BLINKER_LEFT",
@@ -301,6 +301,20 @@ class SensorPairs:
             self.relative_speed_mps[keep],
             self.accel_mps2[keep],
             self.lane[keep],
+        )
+
+    def objects(self, vehicles: SumoVehicles) -> FleetObjects:
+        """The objects the subjects see, as the FCW's fleet batch takes them: each seen vehicle by its number,
+        with its width (:func:`csws.fcw.fleet.update_fleet`)."""
+        return FleetObjects.of(
+            self.subject,
+            vehicles.number[self.seen],
+            self.x_m,
+            self.y_m,
+            self.relative_speed_mps,
+            self.accel_mps2,
+            width_m=vehicles.width_m[self.seen],
+            lane=self.lane,
         )
 
 
