@@ -102,7 +102,7 @@ def struct_of(
         for check in checks:
             check(self)
 
-    namespace = {name: value for name, value in vars(model).items() if isinstance(value, property)}
+    namespace: dict[str, Any] = {name: value for name, value in vars(model).items() if isinstance(value, property)}
     if checks:  # a struct without checks has no hook: msgspec then calls nothing per decoded item
         namespace["__post_init__"] = __post_init__
     return msgspec.defstruct(
