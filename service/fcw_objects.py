@@ -185,7 +185,7 @@ def _ids_by_row(keys: np.ndarray, rows: int) -> list[tuple[int, ...]]:
     """Each row's ids of sorted keys (row, id)."""
     bounds = np.searchsorted(keys >> _ID_BITS, np.arange(rows + 1)).tolist()
     ids = (keys & ((1 << _ID_BITS) - 1)).tolist()
-    return [tuple(ids[bounds[r] : bounds[r + 1]]) for r in range(rows)]
+    return [tuple(ids[start:end]) for start, end in itertools.pairwise(bounds)]
 
 
 def _memory(memories: Sequence[FcwMemory], time_s: np.ndarray) -> tuple[FleetMemory, np.ndarray]:

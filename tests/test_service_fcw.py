@@ -31,10 +31,10 @@ from csws.warning.rules import HmiHint
 from service.answer_schemas import FcwAnswer
 from service.app import create_app
 from service.fcw import FCW_HMI_HINTS, combined_hmi
-from service.fcw_objects import _json_values, _paths
+from service.fcw_objects import _ids_by_row, _json_values, _keys, _paths
 from service.fcw_settings import FleetFcwSettings
 from service.networks import load_networks
-from service.schemas import MAX_OBJECTS, ForwardTarget
+from service.schemas import MAX_OBJECT_ID, MAX_OBJECTS, ForwardTarget
 from service.settings import ServiceSettings
 
 TRACK_NET = str(networks_dir() / "single_r120_left.net.xml")
@@ -492,3 +492,11 @@ def test_fcw_answer_target_ids_are_plain_ints_or_null(ids: list[int]) -> None:
     listed = _json_values(np.array(ids, dtype=np.int64))
     assert listed == [i if i >= 0 else None for i in ids]
     assert all(i is None or type(i) is int for i in listed)
+
+
+@given(st.lists(st.frozensets(st.integers(min_value=0, max_value=MAX_OBJECT_ID), max_size=6), max_size=20))
+def test_kept_object_ids_come_back_by_vehicle(id_sets: list[frozenset[int]]) -> None:
+    """The ids kept per vehicle (in the path, cutting in) go into the fleet memory's keys and come back to the same
+    vehicles, in ascending order."""
+    kept = [tuple(sorted(ids)) for ids in id_sets]
+    assert _ids_by_row(_keys(kept), len(kept)) == kept
