@@ -177,8 +177,9 @@ def _paths(paths: Sequence[PathAhead | None], range_m: float) -> FleetPaths | No
 
 def _keys(id_lists: Sequence[tuple[int, ...]]) -> np.ndarray:
     """The sorted keys (row, id) of each row's ids, as :class:`csws.fcw.fleet.FleetMemory` holds them."""
-    keys = [(row << _ID_BITS) | i for row, ids in enumerate(id_lists) for i in ids]
-    return np.sort(np.array(keys, dtype=np.int64))
+    counts = np.fromiter(map(len, id_lists), dtype=np.int64, count=len(id_lists))
+    ids = np.fromiter(itertools.chain.from_iterable(id_lists), dtype=np.int64, count=int(counts.sum()))
+    return np.sort((np.repeat(np.arange(len(id_lists), dtype=np.int64), counts) << _ID_BITS) | ids)
 
 
 def _ids_by_row(keys: np.ndarray, rows: int) -> list[tuple[int, ...]]:
