@@ -102,11 +102,13 @@ def struct_of(
         for check in checks:
             check(self)
 
-    namespace = {name: value for name, value in vars(model).items() if isinstance(value, property)}
+    namespace: dict[str, Any] = {name: value for name, value in vars(model).items() if isinstance(value, property)}
+    if checks:  # a struct without checks has no hook: msgspec then calls nothing per decoded item
+        namespace["__post_init__"] = __post_init__
     return msgspec.defstruct(
         model.__name__,
         fields,
-        namespace={**namespace, "__post_init__": __post_init__},
+        namespace=namespace,
         kw_only=True,
         forbid_unknown_fields=model.model_config.get("extra") == "forbid",
         gc=False,

@@ -31,7 +31,6 @@ from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
 from csws.standard import kmh_to_mps
 
 from .decoding import DecodedQuery
-from .fcw import finite
 from .sessions import FcwMemory
 
 __all__ = ["object_fcw"]
@@ -39,6 +38,8 @@ __all__ = ["object_fcw"]
 #: A new vehicle's memory: standby, nothing held, no frame yet.
 NEW_MEMORY = FcwMemory(STANDBY, 0, -math.inf, -math.inf)
 _ID_BITS = 32
+#: The contract's text of each FCW state code.
+_STATE_VALUES = [state.value for state in FCW_STATES]
 #: The fields of an object that may be left out (None).
 _OPTIONAL_FIELDS = frozenset({"accel_mps2", "relative_accel_mps2", "lane"})
 #: A knot of the map path's curvature profile is dropped where the slope changes by less than this, 1/m^2:
@@ -101,8 +102,8 @@ def _ego(queries: Sequence[DecodedQuery]) -> FleetEgo:
 def _column(objects: Sequence[Any], name: str) -> np.ndarray:
     """One field of all objects as floats (None, where not given, as NaN)."""
     values = map(operator.attrgetter(name), objects)
-    if name in _OPTIONAL_FIELDS:
-        return np.array(list(values), dtype=float)
+    if name in _OPTIONAL_FIELDS:  # NaN for None in Python: numpy converts a list holding None twice as slowly
+        return np.fromiter([math.nan if value is None else value for value in values], dtype=float, count=len(objects))
     return np.fromiter(values, dtype=float, count=len(objects))
 
 
@@ -176,15 +177,16 @@ def _paths(paths: Sequence[PathAhead | None], range_m: float) -> FleetPaths | No
 
 def _keys(id_lists: Sequence[tuple[int, ...]]) -> np.ndarray:
     """The sorted keys (row, id) of each row's ids, as :class:`csws.fcw.fleet.FleetMemory` holds them."""
-    keys = [(row << _ID_BITS) | i for row, ids in enumerate(id_lists) for i in ids]
-    return np.sort(np.array(keys, dtype=np.int64))
+    counts = np.fromiter(map(len, id_lists), dtype=np.int64, count=len(id_lists))
+    ids = np.fromiter(itertools.chain.from_iterable(id_lists), dtype=np.int64, count=int(counts.sum()))
+    return np.sort((np.repeat(np.arange(len(id_lists), dtype=np.int64), counts) << _ID_BITS) | ids)
 
 
 def _ids_by_row(keys: np.ndarray, rows: int) -> list[tuple[int, ...]]:
     """Each row's ids of sorted keys (row, id)."""
     bounds = np.searchsorted(keys >> _ID_BITS, np.arange(rows + 1)).tolist()
     ids = (keys & ((1 << _ID_BITS) - 1)).tolist()
-    return [tuple(ids[bounds[r] : bounds[r + 1]]) for r in range(rows)]
+    return [tuple(ids[start:end]) for start, end in itertools.pairwise(bounds)]
 
 
 def _memory(memories: Sequence[FcwMemory], time_s: np.ndarray) -> tuple[FleetMemory, np.ndarray]:
@@ -234,27 +236,35 @@ def _group(
     return answers, new
 
 
+def _json_values(values: np.ndarray) -> list[Any]:
+    """Numbers for JSON, as Python floats or ints: None where NaN, infinite or (ids) negative."""
+    absent = ~np.isfinite(values) if values.dtype.kind == "f" else values < 0
+    listed = values.astype(object)
+    listed[absent] = None
+    return cast(list[Any], listed.tolist())
+
+
 def _answers(frame: FleetFrame) -> list[dict[str, Any]]:
     """The contract's FcwAnswer of each vehicle of a frame."""
     columns = zip(
         frame.state.tolist(),
         frame.level.tolist(),
-        frame.ttc_s.tolist(),
-        frame.ettc_s.tolist(),
-        frame.a_req_mps2.tolist(),
-        frame.target_id.tolist(),
-        frame.clearance_m.tolist(),
+        _json_values(frame.ttc_s),
+        _json_values(frame.ettc_s),
+        _json_values(frame.a_req_mps2),
+        _json_values(frame.target_id),
+        _json_values(frame.clearance_m),
         strict=True,
     )
     return [
         {
-            "state": FCW_STATES[state].value,
+            "state": _STATE_VALUES[state],
             "level": level,
-            "ttc_s": finite(ttc),
-            "ettc_s": finite(ettc),
-            "a_req_mps2": finite(a_req),
-            "target_id": None if target < 0 else target,
-            "clearance_m": finite(clearance),
+            "ttc_s": ttc,
+            "ettc_s": ettc,
+            "a_req_mps2": a_req,
+            "target_id": target,
+            "clearance_m": clearance,
         }
         for state, level, ttc, ettc, a_req, target, clearance in columns
     ]

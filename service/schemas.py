@@ -50,9 +50,10 @@ def check_objects(objects: Any) -> Any:
     """
     if not objects:
         return objects
-    ids = [obj.id for obj in objects]
-    if len(set(ids)) != len(ids):
-        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+    ids = {obj.id for obj in objects}
+    if len(ids) != len(objects):
+        listed = [obj.id for obj in objects]
+        duplicates = sorted({i for i in listed if listed.count(i) > 1})
         raise ValueError(f"object ids must be distinct within a query, got duplicate id(s) {duplicates}")
     both = [obj.id for obj in objects if obj.accel_mps2 is not None and obj.relative_accel_mps2 is not None]
     if both:

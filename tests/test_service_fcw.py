@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import given
+from hypothesis import strategies as st
 from servers import Workers, state_options
 
 from csws.engine import VehicleInput
@@ -29,10 +31,10 @@ from csws.warning.rules import HmiHint
 from service.answer_schemas import FcwAnswer
 from service.app import create_app
 from service.fcw import FCW_HMI_HINTS, combined_hmi
-from service.fcw_objects import _paths
+from service.fcw_objects import _ids_by_row, _json_values, _keys, _paths
 from service.fcw_settings import FleetFcwSettings
 from service.networks import load_networks
-from service.schemas import MAX_OBJECTS, ForwardTarget
+from service.schemas import MAX_OBJECT_ID, MAX_OBJECTS, ForwardTarget
 from service.settings import ServiceSettings
 
 TRACK_NET = str(networks_dir() / "single_r120_left.net.xml")
@@ -474,3 +476,27 @@ def test_a_fleets_block_applies_over_the_default_to_that_fleet_only(tmp_path):
     )
     assert fleets.of("other", Category.M1) == FcwSettings.for_category("M1", reaction_time_s=1.4)
     assert FleetFcwSettings().of("", Category.M3) == FcwSettings.for_category("M3")
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=20))
+def test_fcw_answer_numbers_are_plain_floats_or_null(values: list[float]) -> None:
+    """An FcwAnswer's numbers are Python floats, null where NaN or infinite (the contract's JSON)."""
+    listed = _json_values(np.array(values, dtype=float))
+    assert listed == [v if math.isfinite(v) else None for v in values]
+    assert all(v is None or type(v) is float for v in listed)
+
+
+@given(st.lists(st.integers(min_value=-1, max_value=2**31 - 1), max_size=20))
+def test_fcw_answer_target_ids_are_plain_ints_or_null(ids: list[int]) -> None:
+    """An FcwAnswer's target id is a Python int, null where the frame has none (-1)."""
+    listed = _json_values(np.array(ids, dtype=np.int64))
+    assert listed == [i if i >= 0 else None for i in ids]
+    assert all(i is None or type(i) is int for i in listed)
+
+
+@given(st.lists(st.frozensets(st.integers(min_value=0, max_value=MAX_OBJECT_ID), max_size=6), max_size=20))
+def test_kept_object_ids_come_back_by_vehicle(id_sets: list[frozenset[int]]) -> None:
+    """The ids kept per vehicle (in the path, cutting in) go into the fleet memory's keys and come back to the same
+    vehicles, in ascending order."""
+    kept = [tuple(sorted(ids)) for ids in id_sets]
+    assert _ids_by_row(_keys(kept), len(kept)) == kept
