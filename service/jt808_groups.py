@@ -11,6 +11,7 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from csws.gateways.jt808.latency import StageTimes
 
@@ -168,7 +169,7 @@ class Batcher:
             return [None] * len(items)
         with stages("tracking"):
             windows = [
-                None if intervals_s is None or self.planner is None else self.planner.window_s(query, doc, intervals_s)
+                self._tracking_window_s(query, doc, intervals_s)
                 for (query, _, intervals_s), doc in zip(items, encoded.documents, strict=True)
             ]
         return [
@@ -177,6 +178,17 @@ class Batcher:
                 encoded.state, encoded.level, encoded.documents, windows, strict=True
             )
         ]
+
+    def _tracking_window_s(self, query: DecodedQuery, document: Any, intervals_s: Sequence[float] | None) -> int | None:
+        """The tracking window a report asks for (None: none), where a fault of the planner costs only the
+        request, never the report's answer: temporary tracking is advice, the warning is not."""
+        if intervals_s is None or self.planner is None:
+            return None
+        try:
+            return self.planner.window_s(query, document, intervals_s)
+        except Exception:  # noqa: BLE001 - one report's tracking must not take its group's answers with it
+            log.exception("jt808: no tracking window for %s", query.vehicle_id)
+            return None
 
 
 def _first_error(errors: QueryErrors) -> str:

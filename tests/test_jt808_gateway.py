@@ -16,6 +16,7 @@ import re
 import struct
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pyproj
@@ -141,9 +142,11 @@ class Drive:
         self.rig.now_s = self.time_s
         self.reports += 1
         lon, lat = lonlat(self.x_m)
+        answered = self.rig.gateway.counts["evaluated"] + 1
         serial = await self.terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, self.rig.now_s))
         [response] = await self.terminal.receive(1)
         assert general_response(response) == (serial, 0x0200, 0)
+        await self._answered(answered)
         texts = []
         while True:
             try:
@@ -156,6 +159,14 @@ class Drive:
             assert message.message_id == 0x8300
             assert message.body[0] & 0b1100 == 0b1100  # shown and spoken
             texts.append((APPROACH_M - self.x_m, message.body[1:].decode("gbk")))
+
+    async def _answered(self, count: int, timeout_s: float = 60.0) -> None:
+        """Wait until the gateway has answered ``count`` reports: the texts and the tracking request of the last
+        are then written, and come before anything of the next report however loaded the machine."""
+        deadline = time.monotonic() + timeout_s
+        while self.rig.gateway.counts["evaluated"] < count:
+            assert time.monotonic() < deadline, "the gateway did not answer the report"
+            await asyncio.sleep(0.005)
 
     async def _track(self, message: Received) -> None:
         assert len(message.body) == 6

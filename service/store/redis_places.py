@@ -15,7 +15,7 @@ Lua's locale) and reads them from the cursor on, so that a small box over a larg
 places near it. Otherwise (no box, or a large one) it walks the fleet's keys in order from the cursor, a
 thousand at a time, keeping those whose place is on the networks and in the box, until the page is full:
 a page then costs about what it passes, not what the box holds (100,000 places: a 1 x 1 m box in under 5
-ms rather than 0.3 to 0.7 s, ``python -m benchmarks.fleet redis``).
+ms rather than 0.3 to 0.7 s, ``python -m benchmarks.fleet --redis``).
 """
 
 from __future__ import annotations
