@@ -4,10 +4,11 @@ A terminal reports every T seconds (JT/T 808 parameter ``0x0029``, often 10-30 s
 comes on at the last report before formula (1)'s point S_w plus the latency allowance
 (:mod:`csws.warning.latency`); the allowance is capped at
 :attr:`~csws.warning.rules.WarningSettings.max_update_period_s`, so a terminal slower than that
-can be warned up to v (T - cap - the system's own delay) after S_w, and any terminal slower than 1 s is warned early by up
-to v T and misses a speed change between two reports. The platform can ask a terminal for reports
-every ``interval`` seconds for ``validity`` seconds with ``0x8202`` (JT/T 808-2013 and 2019,
-"temporary location tracking control": WORD interval in s, 0 to stop; DWORD validity in s). So:
+can be warned up to v (T - cap - the system's own delay) after S_w, and any terminal slower than
+1 s is warned early by up to v T and misses a speed change between two reports. The platform can
+ask a terminal for reports every ``interval`` seconds for ``validity`` seconds with ``0x8202``
+(JT/T 808-2013 and 2019, "temporary location tracking control": WORD interval in s, 0 to stop;
+DWORD validity in s). So:
 
 * :class:`ReportPace` learns a terminal's regular interval from the times of its reports outside
   the tracking windows it was asked for, and knows whether a window is running;
