@@ -179,13 +179,18 @@ def _formula_1_reach_m(speed_mps: float, settings: WarningSettings) -> float:
     )
 
 
-@given(
-    distance_m=st.floats(0.0, 3000.0),
-    speed_mps=st.floats(0.0, 40.0),
-    bound_mps=st.floats(1.0, 40.0),
-    accel_mps2=st.one_of(st.just(math.inf), st.floats(0.5, 5.0)),
-    factor=st.floats(0.9, 1.1),
-)
+#: A sleeping vehicle: its distance to the curve, its speed, SUMO's bound on it, its acceleration and the lane's
+#: length factor.
+SLEEPERS = {
+    "distance_m": st.floats(0.0, 3000.0),
+    "speed_mps": st.floats(0.0, 40.0),
+    "bound_mps": st.floats(1.0, 40.0),
+    "accel_mps2": st.one_of(st.just(math.inf), st.floats(0.5, 5.0)),
+    "factor": st.floats(0.9, 1.1),
+}
+
+
+@given(**SLEEPERS)
 def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(
     distance_m, speed_mps, bound_mps, accel_mps2, factor
 ):
@@ -210,14 +215,7 @@ def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(
     assert schedule.wake_due(wake) == {"v": 0}
 
 
-@given(
-    distance_m=st.floats(0.0, 3000.0),
-    speed_mps=st.floats(0.0, 40.0),
-    bound_mps=st.floats(1.0, 40.0),
-    accel_mps2=st.one_of(st.just(math.inf), st.floats(0.5, 5.0)),
-    factor=st.floats(0.9, 1.1),
-    period_s=st.one_of(st.none(), st.floats(STEP_S, 2.0)),
-)
+@given(**SLEEPERS, period_s=st.one_of(st.none(), st.floats(STEP_S, 2.0)))
 def test_a_vehicle_kept_awake_by_the_array_test_is_one_that_could_be_warned_at_the_next_step(
     distance_m, speed_mps, bound_mps, accel_mps2, factor, period_s
 ):
