@@ -103,6 +103,18 @@ class Matched(BaseModel):
     position: XY = Field(description="the point of the lane at lane_pos_m, where the fix was placed")
 
 
+class ConfirmedFix(BaseModel):
+    """The vehicle's last matched fix as this fix confirms it (the matcher's window of one fix; docs/service.md,
+    "Map matching"): a fix inside a junction, answered on the road's continuation while its turn was not shown,
+    lies on the connection the vehicle took once the next fix shows it."""
+
+    timestamp_s: float = Field(description="when that fix was taken, s (its timestamp_s, else answer time less age_s)")
+    network: str = Field(description="the served network of the lane")
+    lane_id: str = Field(description="SUMO lane id, on the path this fix makes most probable")
+    lane_pos_m: float = Field(description="position along the lane, m")
+    revised: bool = Field(description="true where that lane is not the one the fix was answered with")
+
+
 class Hmi(BaseModel):
     """How to present the answer's most urgent warning (5.5.1: the levels told apart; docs/service.md): null and
     null where nothing is to be presented."""
@@ -213,6 +225,11 @@ class WarningAnswer(BaseModel):
         "continuation at each junction); null where the system did not look ahead (not active)"
     )
     hmi: Hmi = Field(description="how to present the most urgent warning of the answer (5.5.1)")
+    confirmed: ConfirmedFix | None = Field(
+        default=None,
+        description="only for a fix matched on the map that continues its vehicle's sequence: the vehicle's last "
+        "matched fix as this one confirms it",
+    )
     fcw: FcwAnswer | None = Field(default=None, description="only when the query has objects or a forward_target")
 
 

@@ -20,7 +20,7 @@ from csws.standard import Level
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, HmiHint, PathKind, Trigger
 
-from .answer_schemas import Hmi, Matched, WarningAnswer
+from .answer_schemas import ConfirmedFix, Hmi, Matched, WarningAnswer
 from .horizon import CpoiPositions, positions
 from .networks import ServedNetwork
 from .placement import LanePoints, Placement
@@ -35,15 +35,21 @@ def _document(model: type[BaseModel]) -> type[msgspec.Struct]:
     )
 
 
-#: An answer's ``fcw`` is left out unless the query had a forward_target: the curve warning's answers stay as they were.
+#: The fields an answer leaves out where they are null: ``confirmed`` (a fix matched on the map that continues a
+#: sequence) and ``fcw`` (a query with objects or a forward_target); the other answers stay as they were.
+_OPTIONAL = ("confirmed", "fcw")
 _AnswerDocument = msgspec.defstruct(
     "WarningAnswerDocument",
-    [*((name, Any) for name in WarningAnswer.model_fields if name != "fcw"), ("fcw", Any, None)],
+    [
+        *((name, Any) for name in WarningAnswer.model_fields if name not in _OPTIONAL),
+        *((name, Any, None) for name in _OPTIONAL),
+    ],
     omit_defaults=True,
     gc=False,
     module=__name__,
 )
 _MatchedDocument = _document(Matched)
+_ConfirmedDocument = _document(ConfirmedFix)
 _ENCODER = msgspec.json.Encoder()
 
 
@@ -178,4 +184,5 @@ def encode_answer(
         matched=matched,
         path_kind=path_kind,
         hmi=hmi_json(warning.hmi),
+        confirmed=None if placement.confirmed is None else _ConfirmedDocument(*placement.confirmed),
     )

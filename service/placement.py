@@ -23,7 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from csws.ahead.roadlane import RoadLanes
-from csws.road.hmm import Fixes, SequenceMatcher
+from csws.road.hmm import Confirmed, Fixes, SequenceMatcher
 from csws.road.matching import MatchSettings, Probes, lane_points
 from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps
@@ -32,7 +32,17 @@ from .checks import QueryCheck
 from .decoding import DecodedPosition, DecodedQuery
 from .vehicles import LoadedVehicles
 
-__all__ = ["Placement", "Placer", "LanePoints"]
+__all__ = ["ConfirmedPlace", "Placement", "Placer", "LanePoints"]
+
+
+class ConfirmedPlace(NamedTuple):
+    """A vehicle's last matched fix as its new fix confirms it, named as the contract's ConfirmedFix."""
+
+    timestamp_s: float
+    network: str
+    lane_id: str
+    lane_pos_m: float
+    revised: bool
 
 
 class Placement(NamedTuple):
@@ -49,6 +59,9 @@ class Placement(NamedTuple):
     path_lane_id, path_lane_pos_m
         The lane and lane position the path ahead starts from: the given lane, or for a matched fix the lane of
         its edge that keeps the road (:class:`csws.ahead.roadlane.RoadLanes`); None where nothing matched.
+    confirmed
+        For a matched fix that continues its vehicle's sequence, the vehicle's last matched fix as this one
+        confirms it (:class:`csws.road.fixes.Confirmed`); else None.
     """
 
     network_index: int
@@ -58,6 +71,7 @@ class Placement(NamedTuple):
     reason: str | None
     path_lane_id: str | None
     path_lane_pos_m: float
+    confirmed: ConfirmedPlace | None = None
 
 
 class LanePoints:
@@ -163,7 +177,7 @@ class Placer:
         vehicle's sequence; what the matcher keeps of each is handed to the vehicle's session."""
         matched = self.matcher.match(self.fixes(fixes), [vehicles.track(query.vehicle_id) for query in fixes])
         placements = []
-        for query, network_index, lane_id, lane_pos_m, distance_m, reason, track in zip(
+        for query, network_index, lane_id, lane_pos_m, distance_m, reason, track, confirmed in zip(
             fixes,
             matched.map_index.tolist(),
             matched.lane_id,
@@ -171,6 +185,7 @@ class Placer:
             matched.distance_m.tolist(),
             matched.reason,
             matched.tracks,
+            matched.confirmed,
             strict=True,
         ):
             if network_index < 0:
@@ -179,10 +194,24 @@ class Placer:
             if lane_id is not None:
                 path_lane_id, path_lane_pos_m = self.road_lanes[network_index](lane_id, lane_pos_m, query.route)
             placements.append(
-                Placement(network_index, lane_id, lane_pos_m, distance_m, reason, path_lane_id, path_lane_pos_m)
+                Placement(
+                    network_index,
+                    lane_id,
+                    lane_pos_m,
+                    distance_m,
+                    reason,
+                    path_lane_id,
+                    path_lane_pos_m,
+                    None if confirmed is None else self._confirmed_place(confirmed),
+                )
             )
             vehicles.keep_track(query.vehicle_id, track)
         return placements
+
+    def _confirmed_place(self, confirmed: Confirmed) -> ConfirmedPlace:
+        """A confirmed fix with its network named."""
+        network = self.networks[confirmed.map_index].name
+        return ConfirmedPlace(confirmed.time_s, network, confirmed.lane_id, confirmed.lane_pos_m, confirmed.revised)
 
     def fixes(self, queries: Sequence[DecodedQuery], now_s: float | None = None) -> Fixes:
         """The fixes of queries as the sequence matcher takes them: each taken at its ``timestamp_s``, else at

@@ -236,6 +236,62 @@ def test_a_fix_in_the_junction_is_on_the_turn_once_the_next_fix_shows_it(
     assert lagged_on_path >= 0.95 * shown
 
 
+@pytest.mark.parametrize("to_lane", ["JE_0", "JS_0", "JN_0"])
+def test_each_answer_confirms_the_last_fix_as_a_lag_of_one_fix_places_it(
+    town: RoadMap, matcher: SequenceMatcher, to_lane: str
+) -> None:
+    # Online, each fix's answer carries the vehicle's last matched fix placed on the path the new fix makes
+    # most probable: the trace matched with a lag of one fix, fix by fix, and never off the path driven
+    # toward another road.
+    path = set(town.expand_path(["WJ_0", to_lane]))
+    confirmed_count, later_fixes = 0, 0
+    for seed in SEEDS[:10]:
+        route = drive(town, ["WJ_0", to_lane], 11.0, seed)
+        lagged = matcher.match_trace(_fixes(route.xy, route.time_s, route.heading_deg), lag=1)
+        answered = [lane for lane, *_ in _online(matcher, route.xy, route.time_s, route.heading_deg, 11.0)]
+        index_at = {float(t): k for k, t in enumerate(route.time_s)}
+        for k, confirmed in enumerate(lagged.confirmed):
+            if confirmed is None:
+                continue
+            earlier = index_at[confirmed.time_s]
+            assert earlier < k
+            assert (confirmed.lane_id, confirmed.lane_pos_m) == (lagged.lane_id[earlier], lagged.lane_pos_m[earlier])
+            assert confirmed.revised == (confirmed.lane_id != answered[earlier])
+            assert confirmed.lane_id in path, (seed, k)
+            confirmed_count += 1
+        later_fixes += len(route.time_s) - 1
+    assert confirmed_count >= 0.9 * later_fixes
+
+
+def test_a_fix_answered_on_the_roads_continuation_is_confirmed_on_the_turn_the_next_fix_shows(
+    town: RoadMap, matcher: SequenceMatcher
+) -> None:
+    # The fix in the junction heading 30 degrees into the turn is answered on the road's continuation
+    # (deferred); the next fix, 10 m into the side street, places it on the connection into that street:
+    # revised, at that fix's time. A vehicle going straight on has its fix confirmed where it was answered.
+    entry_end = town.lane_shape("WJ_0")[-1]
+    before = Fixes.of(Probes.everywhere(np.array([entry_end - (14.0, 0.0)])), [0.0], [90.0])
+    start = matcher.match(before, [None])
+    assert start.confirmed == [None]  # a first fix confirms nothing
+    for to_side, turn_sign, side_heading_deg in (("JS_0", 1.0, 180.0), ("JN_0", -1.0, 0.0)):
+        shared_start = town.lane_shape(_connection(town, "WJ_0", to_side))[[1]]
+        inside = Fixes.of(Probes.everywhere(shared_start), [1.0], [90.0 + turn_sign * 30.0])
+        answer = matcher.match(inside, start.tracks)
+        assert answer.placed == [Placed.DEFERRED]
+        on_side = Fixes.of(Probes.everywhere(town.lane_shape(to_side)[[10]]), [2.0], [side_heading_deg])
+        (confirmed,) = matcher.match(on_side, answer.tracks).confirmed
+        assert confirmed is not None
+        assert (confirmed.time_s, confirmed.lane_id) == (1.0, _connection(town, "WJ_0", to_side))
+        assert confirmed.revised
+    straight_on = _connection(town, "WJ_0", "JE_0")
+    inside = Fixes.of(Probes.everywhere(town.lane_shape(straight_on)[[1]]), [1.0], [90.0])
+    answer = matcher.match(inside, start.tracks)
+    ahead = Fixes.of(Probes.everywhere(town.lane_shape("JE_0")[[0]] + (10.0, 0.0)), [2.0], [90.0])
+    (confirmed,) = matcher.match(ahead, answer.tracks).confirmed
+    assert confirmed is not None
+    assert (confirmed.lane_id, confirmed.revised) == (answer.lane_id[0], False)
+
+
 def test_a_lag_as_long_as_the_trace_is_the_whole_trace_and_no_lag_the_fix_alone(
     town: RoadMap, matcher: SequenceMatcher
 ) -> None:

@@ -149,9 +149,11 @@ def _batches(town: RoadMap) -> tuple[list[list[dict]], dict[str, list[str]]]:
 
 def _check_answers(town: RoadMap, answers_by_step: list[list[dict]], truth: dict[str, list[str]]) -> None:
     """Straight-on vehicles never matched onto a side street or its connection nor warned of its curve; turning
-    ones on their side street (or the connection into it) from their first fix there."""
+    ones on their side street (or the connection into it) from their first fix there; from the second fix on,
+    each answer confirms the vehicle's previous fix on the path it drives."""
     side_lanes = {lane for side in SIDE_STREETS for lane in town.expand_path(["WJ_0", side])[1:]}
     side_roads = {town.lane(side).edge_id for side in SIDE_STREETS}
+    answered: dict[tuple[str, float], str] = {}
     for k, answers in enumerate(answers_by_step):
         for answer in answers:
             vehicle_id = answer["vehicle_id"]
@@ -163,6 +165,22 @@ def _check_answers(town: RoadMap, answers_by_step: list[list[dict]], truth: dict
             true_lane = truth[vehicle_id][k]
             if true_lane in SIDE_STREETS:
                 assert lane_id in town.expand_path(["WJ_0", true_lane])[1:], (vehicle_id, k, answer)
+            _check_confirmed(town, answer, answered, k)
+            answered[(vehicle_id, 1000.0 + k)] = lane_id
+
+
+def _check_confirmed(town: RoadMap, answer: dict, answered: dict[tuple[str, float], str], k: int) -> None:
+    """An answer's confirmed fix: none for a vehicle's first fix; else an earlier fix of the vehicle, placed on
+    the path it drives, revised exactly where that fix was answered on another lane."""
+    confirmed = answer.get("confirmed")
+    if k == 0:
+        assert confirmed is None, answer
+        return
+    assert confirmed is not None, answer
+    vehicle_id = answer["vehicle_id"]
+    to_lane = {"straight": "JE_0", "south": "JS_0", "north": "JN_0"}[vehicle_id.split("-")[0]]
+    assert confirmed["lane_id"] in town.expand_path(["WJ_0", to_lane]), answer
+    assert confirmed["revised"] == (confirmed["lane_id"] != answered[(vehicle_id, confirmed["timestamp_s"])])
 
 
 def _lost_batch(batch: list[dict]) -> list[dict]:

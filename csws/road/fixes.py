@@ -13,13 +13,24 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import NamedTuple
 
 import msgspec
 import numpy as np
 
 from csws.road.matching import Probes
 
-__all__ = ["Placed", "MatchState", "Track", "Fixes", "SequenceMatches", "subset", "repeats", "with_repeats"]
+__all__ = [
+    "Placed",
+    "MatchState",
+    "Track",
+    "Fixes",
+    "Confirmed",
+    "SequenceMatches",
+    "subset",
+    "repeats",
+    "with_repeats",
+]
 
 
 class Placed(StrEnum):
@@ -110,6 +121,31 @@ class Fixes:
         return cls(probes, column(time_s), column(heading_deg), column(speed_mps), column(accuracy_m))
 
 
+class Confirmed(NamedTuple):
+    """A vehicle's last matched fix as its new fix confirms it: the matcher's window of one fix.
+
+    The forward step picks the new fix's most probable candidate together with the candidate of the
+    last fix it came from (the Viterbi path over the two, Newson & Krumm 2009): a fix inside a
+    junction, answered on the road's continuation while its turn was not shown, lies on the
+    connection the vehicle took once the next fix is on the side street.
+
+    Attributes
+    ----------
+    time_s
+        When that fix was taken, s.
+    map_index, lane_id, lane_pos_m
+        Where it lies on the path the new fix makes most probable: map, lane and lane position, m.
+    revised
+        Whether that lane is not the one the fix was answered with.
+    """
+
+    time_s: float
+    map_index: int
+    lane_id: str
+    lane_pos_m: float
+    revised: bool
+
+
 @dataclass(frozen=True)
 class SequenceMatches:
     """Where each of many fixes was placed, as columns (see :class:`csws.road.matching.FixMatches`).
@@ -127,6 +163,9 @@ class SequenceMatches:
     tracks
         What to keep of each vehicle for its next fix (its previous track where the fix matched
         nothing; None for a vehicle with none).
+    confirmed
+        Each vehicle's last matched fix as this one confirms it; None where this fix does not continue
+        that fix's sequence (a first fix, one sent again, one matching nothing or starting afresh).
     """
 
     map_index: np.ndarray
@@ -136,6 +175,7 @@ class SequenceMatches:
     placed: list[Placed | None]
     reason: list[str | None]
     tracks: list[Track | None]
+    confirmed: list[Confirmed | None]
 
     def __len__(self) -> int:
         return len(self.lane_id)
@@ -178,14 +218,16 @@ def with_repeats(matches: SequenceMatches | None, fresh: np.ndarray, tracks: Seq
     placed: list[Placed | None] = [None if t is None else t.state.placed for t in tracks]
     reason: list[str | None] = [None] * count
     kept = list(tracks)
+    confirmed: list[Confirmed | None] = [None] * count
     if matches is None:
-        return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept)
+        return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept, confirmed)
     map_index[fresh], pos_m[fresh], distance_m[fresh] = matches.map_index, matches.lane_pos_m, matches.distance_m
     for k, row in enumerate(fresh.tolist()):
-        lane_id[row], placed[row], reason[row], kept[row] = (
+        lane_id[row], placed[row], reason[row], kept[row], confirmed[row] = (
             matches.lane_id[k],
             matches.placed[k],
             matches.reason[k],
             matches.tracks[k],
+            matches.confirmed[k],
         )
-    return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept)
+    return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept, confirmed)

@@ -30,7 +30,10 @@ A fix that matches no lane is placed by dead reckoning along the road from the l
 (:attr:`Placed.DEAD_RECKONED`, up to :attr:`MatchSettings.dead_reckoning_s`); a jump beyond
 the graph's reach starts the sequence afresh. :meth:`SequenceMatcher.match_trace` matches a whole
 trace with the same steps and a Viterbi backtrace: each fix on the path the later fixes confirm
-(all of them, or the next ``lag``: what a matcher that waits that many fixes would answer).
+(all of them, or the next ``lag``: what a matcher that waits that many fixes would answer). Online,
+each fix's answer carries the window of one fix: the vehicle's last matched fix placed on the path the
+new fix confirms (:class:`Confirmed`), so a fix in a junction is on the connection taken as soon as the
+next fix shows it.
 """
 
 from __future__ import annotations
@@ -38,11 +41,22 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from itertools import chain
+from typing import cast
 
 import numpy as np
 
 from csws.geometry import wrap_angle_rad
-from csws.road.fixes import Fixes, MatchState, Placed, SequenceMatches, Track, repeats, subset, with_repeats
+from csws.road.fixes import (
+    Confirmed,
+    Fixes,
+    MatchState,
+    Placed,
+    SequenceMatches,
+    Track,
+    repeats,
+    subset,
+    with_repeats,
+)
 from csws.road.lanegraph import LaneGraph
 from csws.road.matching import MapMatcher, MatchSettings, compass_to_math_rad, lane_point
 from csws.road.roadmap import RoadMap
@@ -53,10 +67,11 @@ __all__ = [
     "Track",
     "Fixes",
     "Placed",
+    "Confirmed",
     "SequenceMatches",
     "SequenceMatcher",
     "transition_scale_m",
-]  # the first five from csws.road.fixes
+]  # the first six from csws.road.fixes
 
 #: The library's matching settings (frozen: one instance serves every matcher left to them).
 _DEFAULTS = MatchSettings()
@@ -148,7 +163,8 @@ class SequenceMatcher:
                 pos_m[k], distance_m[k] = candidates.pos_m[row], candidates.distance_m[row]
                 placed[k] = Placed.MATCHED
         reason = [matches.reason[0] for matches in answers]
-        return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, [track])
+        confirmed = [matches.confirmed[0] for matches in answers]
+        return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, [track], confirmed)
 
     # ------------------------------------------------------------------ one step
     def _advance(
@@ -182,6 +198,7 @@ class SequenceMatcher:
             placed,
             reason,
             new_tracks,
+            self._confirmed(step, previous, tracks),
         )
         return matches, step, kept
 
@@ -253,6 +270,20 @@ class SequenceMatcher:
             )
 
     # ------------------------------------------------------------------ what is reported
+    def _confirmed(self, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> list[Confirmed | None]:
+        """Each vehicle's last matched fix as its new fix confirms it: the candidate its most probable
+        candidate came from (the Viterbi path over the two fixes: the matcher's window of one fix)."""
+        confirmed: list[Confirmed | None] = [None] * len(tracks)
+        has = np.flatnonzero(step.best >= 0)
+        came_from = step.back[step.best[has]]
+        for fix, row in zip(has[came_from >= 0].tolist(), came_from[came_from >= 0].tolist(), strict=True):
+            state = cast(Track, tracks[fix]).state  # a candidate came from its previous fix: it has a track
+            map_index, lane_id = self.index.lane_name(int(previous.lane[row]))
+            confirmed[fix] = Confirmed(
+                state.time_s, map_index, lane_id, float(previous.pos_m[row]), lane_id != state.lane_id
+            )
+        return confirmed
+
     def _reported(self, step: Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
         """Each fix's reported lane (-1: none), lane position and distance, and how it was placed: its best
         candidate, or, inside a junction whose turn is not yet decided, the road's continuation."""
