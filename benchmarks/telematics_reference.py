@@ -38,7 +38,8 @@ from benchmarks.telematics_feed import feed_fixes, feed_rows
 from benchmarks.telematics_fleet import STEP_S, Trajectories, drive_fleet
 from benchmarks.telematics_judge import on_true_road, true_roads
 from csws.road.hmm import Fixes, SequenceMatcher, Track
-from csws.road.matching import MatchSettings, Probes, compass_to_math_rad
+from csws.road.match_settings import MatchSettings
+from csws.road.matching import Probes, compass_to_math_rad
 from csws.road.roadmap import RoadMap
 
 __all__ = ["reference_figures", "LAGS"]

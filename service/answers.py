@@ -28,7 +28,7 @@ import msgspec
 
 from csws.ahead.horizon import PathAhead
 from csws.engine import VehicleInput
-from csws.road.matching import MatchSettings
+from csws.road.match_settings import MatchSettings
 from csws.standard import Category, Level
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, PathKind

@@ -24,7 +24,8 @@ import numpy as np
 
 from csws.ahead.roadlane import RoadLanes
 from csws.road.hmm import Confirmed, Fixes, SequenceMatcher
-from csws.road.matching import MatchSettings, Probes, lane_points
+from csws.road.match_settings import MatchSettings
+from csws.road.matching import Probes, lane_points
 from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps
 

@@ -31,7 +31,7 @@ from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from csws.engine import EngineSettings
-from csws.road.matching import MatchSettings
+from csws.road.match_settings import MatchSettings
 from csws.warning.rules import WarningSettings
 
 from .keys import FLEET_PATTERN

@@ -10,10 +10,10 @@ import pytest
 from builders import CROSSING_X_M, FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
 from markers import marks_its_tests
 
+from csws.road.match_settings import MatchSettings
 from csws.road.matching import (
     MapMatcher,
     MapPosition,
-    MatchSettings,
     Probes,
     compass_to_math_rad,
     lane_point,

@@ -21,7 +21,8 @@ from markers import marks_its_tests
 
 from csws.engine import Engine, VehicleInput
 from csws.road.hmm import Fixes, MatchState, Placed, SequenceMatcher, Track, transition_scale_m
-from csws.road.matching import MatchSettings, Probes
+from csws.road.match_settings import MatchSettings
+from csws.road.matching import Probes
 from csws.road.roadmap import RoadMap
 from csws.standard import Level
 

@@ -20,7 +20,8 @@ from junction_town import build_junction_town
 from markers import marks_its_tests
 
 from csws.road.hmm import Fixes, SequenceMatcher, Track
-from csws.road.matching import MatchSettings, Probes
+from csws.road.match_settings import MatchSettings
+from csws.road.matching import Probes
 from csws.road.roadmap import RoadMap
 
 #: The receiver: sigma 8 m per axis, 5 degree heading, 0.5 km/h speed (as the telematics benchmark's).

@@ -58,7 +58,8 @@ from csws.road.fixes import (
     with_repeats,
 )
 from csws.road.lanegraph import LaneGraph
-from csws.road.matching import MapMatcher, MatchSettings, compass_to_math_rad, lane_point
+from csws.road.match_settings import DEFAULT_MATCH_SETTINGS, MatchSettings
+from csws.road.matching import MapMatcher, compass_to_math_rad, lane_point
 from csws.road.roadmap import RoadMap
 from csws.road.viterbi import Candidates, Previous, Step, forward_step, kept_rows, viterbi_path
 
@@ -72,9 +73,6 @@ __all__ = [
     "SequenceMatcher",
     "transition_scale_m",
 ]  # the first six from csws.road.fixes
-
-#: The library's matching settings (frozen: one instance serves every matcher left to them).
-_DEFAULTS = MatchSettings()
 
 
 def transition_scale_m(beta_m: float, sigma_m: np.ndarray) -> np.ndarray:
@@ -101,7 +99,7 @@ class SequenceMatcher:
         Tolerances and the model's scales.
     """
 
-    def __init__(self, road_maps: Sequence[RoadMap], settings: MatchSettings = _DEFAULTS) -> None:
+    def __init__(self, road_maps: Sequence[RoadMap], settings: MatchSettings = DEFAULT_MATCH_SETTINGS) -> None:
         self.index = MapMatcher(road_maps, settings)
         self.road_maps = self.index.road_maps
         self.settings = settings

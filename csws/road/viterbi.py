@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csws.road.lanegraph import LaneGraph
-from csws.road.matching import MatchSettings
+from csws.road.match_settings import MatchSettings
 
 __all__ = ["Previous", "Candidates", "Step", "forward_step", "kept_rows", "viterbi_path"]
 
