@@ -298,9 +298,11 @@ def test_a_terminal_slower_than_the_cap_and_not_tracked_is_warned_late(net, tmp_
 
 @pytest.mark.parametrize("result, asked", [(0, 2), (3, 1)])
 def test_a_terminal_that_refuses_tracking_is_not_asked_again(net, tmp_path, result, asked):
-    """Windows of 5 s, and a terminal at 10 s that keeps its interval: once a window has run out, the curve still
-    ahead is asked for again, unless the terminal refused the first request (result 3: not supported)."""
-    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5))
+    """Windows of 5 s that end with their validity (no overrun: a terminal never seen at the tracked pace is let go
+    only that much after the window's end), and a terminal at 10 s that keeps its interval: once a window has run
+    out, the curve still ahead is asked for again, unless the terminal refused the first request (result 3: not
+    supported)."""
+    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5, overrun_s=0.0))
     drive, texts = _slow_drive(net, tmp_path, 10.0, settings, tracking_answer=(result, False))
     assert len(drive.asked) == asked and [validity_s for _, _, validity_s in drive.asked] == [5] * asked
     assert len(texts) == 1  # the reports go on being answered and warned
