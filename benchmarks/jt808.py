@@ -30,7 +30,7 @@ from collections import Counter
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -41,6 +41,7 @@ from csws.gateways.jt808.latency import parse_stages
 from csws.gateways.jt808.messages import STATUS_POSITIONED, LocationReport
 from csws.gateways.jt808.simulator import SimulatedTerminal, Track, simulate
 from csws.gateways.jt808.terminals import NewTerminal, Terminal, add_terminals
+from csws.gateways.jt808.tracking import TrackingSettings
 from csws.networks import networks_dir
 from csws.standard import Category
 from service.timing import Stages
@@ -305,15 +306,18 @@ def run_group_sizes(sizes: tuple[int, ...] = GROUP_SIZES, vehicles: int = 256) -
     """CPU per report of a group's evaluation on the work thread at each group size, and its fit.
 
     ``vehicles`` terminals' reports along SUMO tracks of the bundled city are answered in groups of
-    each size, as a gateway answers them (:meth:`service.answers.WarningService.answer`: the state
-    store's read, matching, engine, encoding and write, on Redis). Timed by the thread's CPU time,
-    which the node's other work barely moves (Redis's own CPU is not in it). The fit ``c(n) =
-    marginal + fixed / n`` gives what a group costs whatever its size and what each report adds:
-    two gateways sharing the reports form groups half as large, so each pays ``fixed`` twice as
-    often per report.
+    each size, as a gateway answers them (:meth:`service.jt808_groups.Batcher.answer_group` around
+    :meth:`service.answers.WarningService.answer`: the state store's read, matching, engine, encoding
+    and write, on Redis). Timed by the thread's CPU time, which the node's other work barely moves
+    (Redis's own CPU is not in it). The fit ``c(n) = marginal + fixed / n`` gives what a group costs
+    whatever its size and what each report adds: two gateways sharing the reports form groups half
+    as large, so each pays ``fixed`` twice as often per report. ``gateway_ms_per_group`` is the
+    fixed part of what the gateway's group step adds around the warning service.
     """
     from service.app import create_app
     from service.jt808 import report_query
+    from service.jt808_groups import Batcher
+    from service.jt808_tracking import TrackingPlanner
     from service.settings import ServiceSettings
 
     tracks = _tracks(VEHICLES, GROUP_ROUNDS + 10.0)
@@ -321,8 +325,11 @@ def run_group_sizes(sizes: tuple[int, ...] = GROUP_SIZES, vehicles: int = 256) -
     with tempfile.TemporaryDirectory() as temporary:
         redis_process, url = redis_server(Path(temporary))
         app = create_app(ServiceSettings(nets=[NET], state=url))
+        service = _CpuCounted(app.state.service)
+        planner = TrackingPlanner(app.state.service, TrackingSettings())
+        batcher = Batcher(cast(Any, service), app.state.work, planner=planner)  # its answer() counted
         try:
-            costs = {size: _group_cpu_us(app.state.service, terminals, tracks, size, T0_S + 1e4 * k, report_query)
+            costs = {size: _group_cpu_us(batcher, service, terminals, tracks, size, T0_S + 1e4 * k, report_query)
                      for k, size in enumerate((sizes[0], *sizes))}  # fmt: skip
         finally:
             app.state.work.close()
@@ -335,12 +342,14 @@ def run_group_sizes(sizes: tuple[int, ...] = GROUP_SIZES, vehicles: int = 256) -
     fixed_us, marginal_us = np.polyfit(inverse, per_report_us, 1)
     stages = {name: float(np.polyfit(inverse, [costs[size][1].get(name, 0.0) for size in sizes], 1)[0]) / 1000.0
               for name in costs[sizes[0]][1]}  # fmt: skip
+    gateway_fixed_us, _ = np.polyfit(inverse, [costs[size][2] for size in sizes], 1)
     return {
         "sizes": list(sizes),
         "cpu_us_per_report": [round(cost, 1) for cost in per_report_us],
         "fixed_ms_per_group": float(fixed_us) / 1000.0,
         "marginal_us_per_report": float(marginal_us),
         "fixed_ms_per_group_by_stage": {name: round(ms, 2) for name, ms in stages.items()},
+        "gateway_ms_per_group": round(float(gateway_fixed_us) / 1000.0, 3),
         "load_1min": os.getloadavg()[0],
     }
 
@@ -365,13 +374,33 @@ class _CpuStage(AbstractContextManager):
         self.stages.milliseconds[self.name] = self.stages.milliseconds.get(self.name, 0.0) + spent_ms
 
 
+class _CpuCounted:
+    """A warning service whose :meth:`answer` counts the thread CPU seconds spent in it (``cpu_s``)."""
+
+    def __init__(self, service: Any) -> None:
+        self.service, self.cpu_s = service, 0.0
+
+    def answer(self, *args: Any, **kwargs: Any) -> Any:
+        started = time.thread_time()
+        try:
+            return self.service.answer(*args, **kwargs)
+        finally:
+            self.cpu_s += time.thread_time() - started
+
+
 def _group_cpu_us(
-    service: Any, terminals: list[Terminal], tracks: list[Track], size: int, t0_s: float, query: Callable[..., Any]
-) -> tuple[float, dict[str, float]]:
-    """Thread CPU µs per report of answering the terminals' reports in groups of ``size``, round after round (a
-    later pass starts hours after the one before, so no vehicle's session carries over between sizes), in all
-    and by stage of the warning service."""
-    cpu_s, reports, stages = 0.0, 0, _CpuStages()
+    batcher: Any,
+    service: _CpuCounted,
+    terminals: list[Terminal],
+    tracks: list[Track],
+    size: int,
+    t0_s: float,
+    query: Callable[..., Any],
+) -> tuple[float, dict[str, float], float]:
+    """Thread CPU µs per report of the gateway's group step on the terminals' reports in groups of ``size``, round
+    after round (a later pass starts hours after the one before, so no vehicle's session carries over between
+    sizes): in all, by stage of the warning service, and what the step adds around the service."""
+    cpu_s, reports, stages, service.cpu_s = 0.0, 0, _CpuStages(), 0.0
     for step in range(GROUP_ROUNDS):
         for start in range(0, len(terminals), size):
             queries = []
@@ -382,10 +411,11 @@ def _group_cpu_us(
                 report = LocationReport(0, STATUS_POSITIONED, *fix, int(track.heading_deg[row]) % 360, t0_s + step)
                 queries.append(query(terminals[number], report, t0_s + step))
             started = time.thread_time()
-            service.answer(queries, loc=("jt808",), fleet="bench", stages=stages)
+            batcher.answer_group([(q, "bench", None) for q in queries], stages)
             cpu_s += time.thread_time() - started
             reports += len(queries)
-    return cpu_s / reports * 1e6, {name: ms / reports * 1000.0 for name, ms in stages.milliseconds.items()}
+    by_stage = {name: ms / reports * 1000.0 for name, ms in stages.milliseconds.items()}
+    return cpu_s / reports * 1e6, by_stage, (cpu_s - service.cpu_s) / reports * 1e6
 
 
 def _faster(track: Track, speedup: float) -> Track:
