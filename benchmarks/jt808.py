@@ -27,8 +27,6 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Callable
-from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
@@ -38,21 +36,20 @@ from benchmarks.rows import Row, at_least, at_most, context
 from benchmarks.servers import cpu_s, memory_mb, redis_server
 from benchmarks.telematics_fleet import drive_fleet, lonlat
 from csws.gateways.jt808.latency import parse_stages
-from csws.gateways.jt808.messages import STATUS_POSITIONED, LocationReport
 from csws.gateways.jt808.simulator import SimulatedTerminal, Track, simulate
-from csws.gateways.jt808.terminals import NewTerminal, Terminal, add_terminals
+from csws.gateways.jt808.terminals import NewTerminal, add_terminals
 from csws.networks import networks_dir
-from csws.standard import Category
-from service.timing import Stages
 
 __all__ = [
     "BENCH_TERMINALS",
+    "NET",
+    "VEHICLES",
     "TARGET_P99_MS",
     "TARGET_SCALEOUT",
+    "city_tracks",
     "rows",
     "run",
     "run_all",
-    "run_group_sizes",
     "run_scaleout",
     "scaleout_bound",
 ]
@@ -68,7 +65,7 @@ REPORT_S, VEHICLES = 60.0, 200
 STARTUP_TIMEOUT_S = 180.0
 
 
-def _tracks(vehicles: int, duration_s: float) -> list[Track]:
+def city_tracks(vehicles: int, duration_s: float) -> list[Track]:
     """1 Hz tracks of a SUMO fleet on the bundled city, each at least half the run long."""
     trajectories = drive_fleet(NET, vehicles, duration_s + 30.0, seed=808)
     ten = trajectories.step % 10 == 0
@@ -146,7 +143,7 @@ def _percentile_ms(values: list[float], q: float) -> float:
 
 def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[str, Any]:
     """Drive ``terminals`` simulated terminals for ``report_s`` against one gateway; the figures."""
-    tracks = _tracks(VEHICLES, report_s)
+    tracks = city_tracks(VEHICLES, report_s)
     with tempfile.TemporaryDirectory() as temporary:
         folder = Path(temporary)
         phones = [f"1380{i:07d}" for i in range(terminals)]
@@ -221,7 +218,7 @@ def run_scaleout(terminals: int = 1000, report_s: float = 30.0, speedup: float =
     (the gateways, Redis, the terminals in this process) and the best ratio the node's cores allow
     (:func:`scaleout_bound`).
     """
-    tracks = _tracks(VEHICLES, report_s * speedup)
+    tracks = city_tracks(VEHICLES, report_s * speedup)
     used: dict[int, dict[str, float]] = {}
     with tempfile.TemporaryDirectory() as temporary:
         folder = Path(temporary)
@@ -293,99 +290,6 @@ async def _split(simulated: list[tuple[SimulatedTerminal, int]], ports: list[int
     await asyncio.gather(
         *(simulate([t for t, i in simulated if i % len(ports) == k], "127.0.0.1", port) for k, port in enumerate(ports))
     )
-
-
-#: Group sizes at which a group's evaluation is timed (``--group-sizes``), and how many rounds of reports each.
-GROUP_SIZES, GROUP_ROUNDS = (256, 128, 64, 32, 16, 8), 30
-#: The reports' clock of the first pass, POSIX s.
-T0_S = 1_790_000_000.0
-
-
-def run_group_sizes(sizes: tuple[int, ...] = GROUP_SIZES, vehicles: int = 256) -> dict[str, Any]:
-    """CPU per report of a group's evaluation on the work thread at each group size, and its fit.
-
-    ``vehicles`` terminals' reports along SUMO tracks of the bundled city are answered in groups of
-    each size, as a gateway answers them (:meth:`service.answers.WarningService.answer`: the state
-    store's read, matching, engine, encoding and write, on Redis). Timed by the thread's CPU time,
-    which the node's other work barely moves (Redis's own CPU is not in it). The fit ``c(n) =
-    marginal + fixed / n`` gives what a group costs whatever its size and what each report adds:
-    two gateways sharing the reports form groups half as large, so each pays ``fixed`` twice as
-    often per report.
-    """
-    from service.app import create_app
-    from service.jt808 import report_query
-    from service.settings import ServiceSettings
-
-    tracks = _tracks(VEHICLES, GROUP_ROUNDS + 10.0)
-    terminals = [Terminal(f"1{i:010d}", "bench", f"v{i}", Category.N, "", 1) for i in range(vehicles)]
-    with tempfile.TemporaryDirectory() as temporary:
-        redis_process, url = redis_server(Path(temporary))
-        app = create_app(ServiceSettings(nets=[NET], state=url))
-        try:
-            costs = {size: _group_cpu_us(app.state.service, terminals, tracks, size, T0_S + 1e4 * k, report_query)
-                     for k, size in enumerate((sizes[0], *sizes))}  # fmt: skip
-        finally:
-            app.state.work.close()
-            app.state.store.close()
-            redis_process.terminate()
-            redis_process.wait(timeout=30)
-    # The first size's first pass warmed the caches up; its figures are those of the second.
-    per_report_us = [costs[size][0] for size in sizes]
-    inverse = 1.0 / np.array(sizes, dtype=float)
-    fixed_us, marginal_us = np.polyfit(inverse, per_report_us, 1)
-    stages = {name: float(np.polyfit(inverse, [costs[size][1].get(name, 0.0) for size in sizes], 1)[0]) / 1000.0
-              for name in costs[sizes[0]][1]}  # fmt: skip
-    return {
-        "sizes": list(sizes),
-        "cpu_us_per_report": [round(cost, 1) for cost in per_report_us],
-        "fixed_ms_per_group": float(fixed_us) / 1000.0,
-        "marginal_us_per_report": float(marginal_us),
-        "fixed_ms_per_group_by_stage": {name: round(ms, 2) for name, ms in stages.items()},
-        "load_1min": os.getloadavg()[0],
-    }
-
-
-class _CpuStages(Stages):
-    """The stages of the warning service timed by the thread's CPU time, not the wall clock."""
-
-    def __call__(self, name: str) -> AbstractContextManager:
-        return _CpuStage(self, name)
-
-
-class _CpuStage(AbstractContextManager):
-    def __init__(self, stages: Stages, name: str) -> None:
-        self.stages, self.name = stages, name
-
-    def __enter__(self) -> _CpuStage:
-        self.started = time.thread_time()
-        return self
-
-    def __exit__(self, *_exc: object) -> None:
-        spent_ms = (time.thread_time() - self.started) * 1000.0
-        self.stages.milliseconds[self.name] = self.stages.milliseconds.get(self.name, 0.0) + spent_ms
-
-
-def _group_cpu_us(
-    service: Any, terminals: list[Terminal], tracks: list[Track], size: int, t0_s: float, query: Callable[..., Any]
-) -> tuple[float, dict[str, float]]:
-    """Thread CPU µs per report of answering the terminals' reports in groups of ``size``, round after round (a
-    later pass starts hours after the one before, so no vehicle's session carries over between sizes), in all
-    and by stage of the warning service."""
-    cpu_s, reports, stages = 0.0, 0, _CpuStages()
-    for step in range(GROUP_ROUNDS):
-        for start in range(0, len(terminals), size):
-            queries = []
-            for number in range(start, min(start + size, len(terminals))):
-                track = tracks[number % len(tracks)]
-                row = min(step, len(track.time_s) - 1)
-                fix = (float(track.lat_deg[row]), float(track.lon_deg[row]), 0, float(track.speed_kmh[row]))
-                report = LocationReport(0, STATUS_POSITIONED, *fix, int(track.heading_deg[row]) % 360, t0_s + step)
-                queries.append(query(terminals[number], report, t0_s + step))
-            started = time.thread_time()
-            service.answer(queries, loc=("jt808",), fleet="bench", stages=stages)
-            cpu_s += time.thread_time() - started
-            reports += len(queries)
-    return cpu_s / reports * 1e6, {name: ms / reports * 1000.0 for name, ms in stages.milliseconds.items()}
 
 
 def _faster(track: Track, speedup: float) -> Track:
@@ -487,6 +391,8 @@ def main(argv: list[str] | None = None) -> None:
     )
     args = parser.parse_args(argv)
     if args.group_sizes:
+        from benchmarks.jt808_groups import run_group_sizes  # it builds on this module
+
         figures = run_group_sizes()
     elif args.scaleout_only:
         figures = run_scaleout(args.terminals, args.report_s)

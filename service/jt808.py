@@ -333,9 +333,11 @@ def _tell(
         gateway.counts["told"] += 1
         gateway.times.add("text", time.perf_counter() - read_at)
     window_s = answer.tracking_window_s
-    if window_s is not None and conversation.pace.start(report.time_s, window_s):
-        interval_s = gateway.settings.tracking.interval_s
-        conversation.send(MessageId.TEMPORARY_TRACKING, encode_temporary_tracking(interval_s, window_s))
+    settings = gateway.settings.tracking
+    if window_s is not None and conversation.pace.start(
+        report.time_s, window_s, gateway.clock() - report.time_s, settings
+    ):
+        conversation.send(MessageId.TEMPORARY_TRACKING, encode_temporary_tracking(settings.interval_s, window_s))
         gateway.counts["tracked"] += 1
 
 

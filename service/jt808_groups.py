@@ -122,7 +122,7 @@ class Batcher:
                     waiting.started = True
                 try:
                     answers, timed = await self.work.run(
-                        self._answer_group, [(w.query, w.fleet, w.intervals_s) for w in group]
+                        self.answer_group, [(w.query, w.fleet, w.intervals_s) for w in group]
                     )
                     self._count(group, *timed)
                 except Exception:  # noqa: BLE001 - a fault of one group must not stop the gateway
@@ -143,19 +143,24 @@ class Batcher:
         for name, milliseconds in stages.milliseconds.items():
             times.add(f"group:{name}", milliseconds / 1000.0, len(group))
 
-    def _answer_group(self, group: Sequence[Item]) -> tuple[list[AnswerSummary | None], tuple[float, float, Stages]]:
+    def answer_group(
+        self, group: Sequence[Item], stages: Stages | None = None
+    ) -> tuple[list[AnswerSummary | None], tuple[float, float, Stages]]:
         """Each query's answer, fleet by fleet (on the work thread; one that fails alone is None), and when the
-        group started and ended with the time of its stages."""
-        started, stages = time.perf_counter(), Stages()
+        group started and ended with the time of its stages (counted in ``stages``, new ones by default)."""
+        started, stages = time.perf_counter(), stages if stages is not None else Stages()
+        fleets = {fleet for _, fleet, _ in group}
+        if len(fleets) == 1:  # the usual case: one fleet per gateway, no regrouping
+            return self._answer_fleet(group, fleets.pop(), stages), (started, time.perf_counter(), stages)
         answers: list[AnswerSummary | None] = [None] * len(group)
-        for fleet in {f for _, f, _ in group}:
+        for fleet in fleets:
             indices = [i for i, (_, f, _) in enumerate(group) if f == fleet]
             fleet_answers = self._answer_fleet([group[i] for i in indices], fleet, stages)
             for index, answer in zip(indices, fleet_answers, strict=True):
                 answers[index] = answer
         return answers, (started, time.perf_counter(), stages)
 
-    def _answer_fleet(self, items: list[Item], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
+    def _answer_fleet(self, items: Sequence[Item], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
         queries = [query for query, _, _ in items]
         try:
             encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet, stages=stages)
@@ -167,11 +172,13 @@ class Batcher:
         except StoreUnavailable as error:
             log.warning("jt808: state store unavailable: %s", error)
             return [None] * len(items)
-        with stages("tracking"):
-            windows = [
-                self._tracking_window_s(query, doc, intervals_s)
-                for (query, _, intervals_s), doc in zip(items, encoded.documents, strict=True)
-            ]
+        windows: list[int | None] = [None] * len(items)
+        due = [(row, query, intervals_s) for row, (query, _, intervals_s) in enumerate(items) if intervals_s]
+        planner = self.planner
+        if due and planner is not None:
+            with stages("tracking"):
+                for row, query, intervals_s in due:
+                    windows[row] = _tracking_window_s(planner, query, encoded.documents[row], intervals_s)
         return [
             AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"), window_s)
             for state, level, document, window_s in zip(
@@ -179,16 +186,17 @@ class Batcher:
             )
         ]
 
-    def _tracking_window_s(self, query: DecodedQuery, document: Any, intervals_s: Sequence[float] | None) -> int | None:
-        """The tracking window a report asks for (None: none), where a fault of the planner costs only the
-        request, never the report's answer: temporary tracking is advice, the warning is not."""
-        if intervals_s is None or self.planner is None:
-            return None
-        try:
-            return self.planner.window_s(query, document, intervals_s)
-        except Exception:  # noqa: BLE001 - one report's tracking must not take its group's answers with it
-            log.exception("jt808: no tracking window for %s", query.vehicle_id)
-            return None
+
+def _tracking_window_s(
+    planner: TrackingPlanner, query: DecodedQuery, document: Any, intervals_s: Sequence[float]
+) -> int | None:
+    """The tracking window a report asks for (None: none), where a fault of the planner costs only the
+    request, never the report's answer: temporary tracking is advice, the warning is not."""
+    try:
+        return planner.window_s(query, document, intervals_s)
+    except Exception:  # noqa: BLE001 - one report's tracking must not take its group's answers with it
+        log.exception("jt808: no tracking window for %s", query.vehicle_id)
+        return None
 
 
 def _first_error(errors: QueryErrors) -> str:

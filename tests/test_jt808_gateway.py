@@ -18,6 +18,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pyproj
 import pytest
@@ -25,6 +26,7 @@ from builders import edge_xml, node_xml
 from fastapi.testclient import TestClient
 from jt808_terminal import Received, Terminal, general_response, location_body, wire
 
+import service.jt808
 from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
 from csws.gateways.jt808.tracking import TrackingSettings
@@ -109,9 +111,11 @@ class Rig:
 
 class Drive:
     """A terminal reporting along the straight every ``interval_s`` (1 s by default), the test's clock following
-    its reports. Asked for temporary tracking (0x8202: WORD interval, DWORD validity, both in s), it answers with
-    its general response (0x0001) and reports at the interval asked for until the validity ends; or, as
-    ``tracking_answer`` says, answers with another result, or does not change its interval."""
+    its reports: each reaches the gateway ``uplink_s`` late, and a request the terminal ``downlink_s`` after the
+    report that brought it. Asked for temporary tracking (0x8202: WORD interval, DWORD validity, both in s), it
+    answers with its general response (0x0001) and, from the moment the request reached it, reports at the
+    interval asked for until the validity ends; or, as ``tracking_answer`` says, answers with another result, or
+    does not change its interval."""
 
     def __init__(
         self,
@@ -120,17 +124,20 @@ class Drive:
         x_m: float,
         interval_s: float = 1.0,
         tracking_answer: tuple[int, bool] = (0, True),
+        uplink_s: float = 0.0,
+        downlink_s: float = 0.0,
     ) -> None:
         self.rig, self.terminal, self.x_m, self.interval_s = rig, terminal, x_m, interval_s
         self.tracking_result, self.honours = tracking_answer
-        self.time_s, self.reports = T0_S, 0
-        self.tracking_interval_s, self.tracked_until_s = 0.0, -math.inf
+        self.time_s, self.reports, self.uplink_s, self.downlink_s = T0_S, 0, uplink_s, downlink_s
+        self.tracking_interval_s, self.tracked_from_s, self.tracked_until_s = 0.0, -math.inf, -math.inf
         #: Each tracking request: the distance to the curve at the report before it, its interval and validity.
         self.asked: list[tuple[float, int, int]] = []
 
     def _step_s(self) -> float:
-        tracked = self.tracking_interval_s and self.time_s + self.tracking_interval_s <= self.tracked_until_s
-        return self.tracking_interval_s if tracked else self.interval_s
+        step_s = max(self.tracking_interval_s, self.tracked_from_s + self.tracking_interval_s - self.time_s)
+        tracked = self.tracking_interval_s and self.time_s + step_s <= self.tracked_until_s
+        return min(step_s, self.interval_s) if tracked else self.interval_s
 
     async def report(self, speed_kmh: float) -> list[tuple[float, str]]:
         """One report (after an interval at ``speed_kmh``); the texts (0x8300) it brought, each with the
@@ -139,11 +146,11 @@ class Drive:
             step_s = self._step_s()
             self.x_m += speed_kmh / 3.6 * step_s
             self.time_s += step_s
-        self.rig.now_s = self.time_s
+        self.rig.now_s = self.time_s + self.uplink_s
         self.reports += 1
         lon, lat = lonlat(self.x_m)
         answered = self.rig.gateway.counts["evaluated"] + 1
-        serial = await self.terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, self.rig.now_s))
+        serial = await self.terminal.send(0x0200, location_body(lat, lon, speed_kmh, 90.0, self.time_s))
         [response] = await self.terminal.receive(1)
         assert general_response(response) == (serial, 0x0200, 0)
         await self._answered(answered)
@@ -173,7 +180,9 @@ class Drive:
         interval_s, validity_s = struct.unpack(">HI", message.body)
         self.asked.append((APPROACH_M - self.x_m, interval_s, validity_s))
         if self.honours:
-            self.tracking_interval_s, self.tracked_until_s = float(interval_s), self.time_s + validity_s
+            received_s = self.time_s + self.uplink_s + self.downlink_s
+            self.tracking_interval_s, self.tracked_from_s = float(interval_s), received_s
+            self.tracked_until_s = self.tracked_from_s + validity_s
         await self.terminal.send(0x0001, struct.pack(">HHB", message.serial, 0x8202, self.tracking_result))
 
 
@@ -298,12 +307,51 @@ def test_a_terminal_slower_than_the_cap_and_not_tracked_is_warned_late(net, tmp_
 
 @pytest.mark.parametrize("result, asked", [(0, 2), (3, 1)])
 def test_a_terminal_that_refuses_tracking_is_not_asked_again(net, tmp_path, result, asked):
-    """Windows of 5 s, and a terminal at 10 s that keeps its interval: once a window has run out, the curve still
-    ahead is asked for again, unless the terminal refused the first request (result 3: not supported)."""
-    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5))
+    """Windows of 5 s that end with their validity (no overrun: a terminal never seen at the tracked pace is let go
+    only that much after the window's end), and a terminal at 10 s that keeps its interval: once a window has run
+    out, the curve still ahead is asked for again, unless the terminal refused the first request (result 3: not
+    supported)."""
+    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5, overrun_s=0.0))
     drive, texts = _slow_drive(net, tmp_path, 10.0, settings, tracking_answer=(result, False))
     assert len(drive.asked) == asked and [validity_s for _, _, validity_s in drive.asked] == [5] * asked
     assert len(texts) == 1  # the reports go on being answered and warned
+
+
+def test_a_late_terminals_tracked_reports_never_count_as_its_regular_interval(net, tmp_path, monkeypatch):
+    """A terminal at 10 s whose reports reach the gateway 1.5 s late (not yet stale), and the 0x8202 the terminal
+    2 s after that, asked for 5 s windows: it reports every second from the request's arrival until 5 s after,
+    up to 3.5 s past the asking report's time plus the validity, then every 10 s again. The gateway's connection
+    learns only 10 s intervals, never one of the 1 s ones, so it still takes the terminal for slow."""
+    uplink_s, downlink_s, interval_s = 1.5, 2.0, 10.0
+    conversations: list[service.jt808.Conversation] = []
+
+    class Recorded(service.jt808.Conversation):
+        def __init__(self, *args: Any) -> None:
+            super().__init__(*args)
+            conversations.append(self)
+
+    monkeypatch.setattr(service.jt808, "Conversation", Recorded)
+    settings = GatewaySettings(port=0, tracking=TrackingSettings(max_window_s=5))
+    start_m = _ask_m(interval_s) + 4 * SLOW_KMH / 3.6 * interval_s
+
+    async def run() -> Drive:
+        async with Rig(net, tmp_path, settings) as rig:
+            terminal = await _connected(rig)
+            drive = Drive(rig, terminal, APPROACH_M - start_m, interval_s, uplink_s=uplink_s, downlink_s=downlink_s)
+            asked_at_s = math.inf
+            while drive.time_s < asked_at_s + uplink_s + downlink_s + 5.0 + 4 * interval_s:
+                await drive.report(SLOW_KMH)
+                if drive.asked and asked_at_s == math.inf:
+                    asked_at_s = drive.time_s
+                assert drive.reports < 60, "never asked for tracking"
+            await terminal.close()
+            return drive
+
+    drive = asyncio.run(run())
+    [conversation] = conversations
+    assert drive.asked and all(validity_s == 5 for _, _, validity_s in drive.asked)
+    assert set(conversation.pace.intervals_s) == {interval_s}
+    assert conversation.pace.regular_interval_s() == interval_s
 
 
 async def _connected(rig: Rig) -> Terminal:

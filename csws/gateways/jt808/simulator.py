@@ -10,6 +10,10 @@ times, lon/lat, speed and heading (for example SUMO's, sampled at the terminal's
 A terminal honours temporary location tracking (``0x8202``) as the standard asks: it answers
 with its general response (``0x0001``) and, until the window ends, reports every interval asked
 for as well as at its track's times, at the track's point interpolated for that moment.
+
+The pace and the reports' time stamps come from a :class:`Clock`: the wall clock
+(:class:`WallClock`) for a real run, or one a test moves itself. The times of responses and texts
+are always measured on the wall clock.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -37,7 +42,17 @@ from .messages import (
     encode_location,
 )
 
-__all__ = ["TRACK_COLUMNS", "SimulatedTerminal", "SimulationStats", "Track", "TrackError", "read_tracks", "simulate"]
+__all__ = [
+    "TRACK_COLUMNS",
+    "Clock",
+    "SimulatedTerminal",
+    "SimulationStats",
+    "Track",
+    "TrackError",
+    "WallClock",
+    "read_tracks",
+    "simulate",
+]
 
 #: Status bits of a report: 1 positioned.
 _POSITIONED = 1 << 1
@@ -47,6 +62,46 @@ _REGISTRATION = bytes(4) + b"CSWS0" + b"SIM".ljust(20, b"\x00") + b"0000000" + b
 
 class TrackError(CswsError, ValueError):
     """A tracks file that cannot be read."""
+
+
+class Clock(Protocol):
+    """What paces simulated terminals: a steady time to wait on, and the POSIX time reports are stamped with."""
+
+    def monotonic(self) -> float:
+        """Seconds on a steady clock, for the pace of reports and the end of tracking windows."""
+        ...
+
+    def posix(self) -> float:
+        """POSIX seconds now, the time a report is stamped with."""
+        ...
+
+    async def wait(self, until: float, event: asyncio.Event | None = None) -> bool:
+        """Wait until :meth:`monotonic` reaches ``until``; True as soon as ``event`` is set meanwhile."""
+        ...
+
+
+class WallClock:
+    """The wall clock: ``time.perf_counter`` to wait on, ``time.time`` for the stamps."""
+
+    def monotonic(self) -> float:
+        """Seconds on ``time.perf_counter``."""
+        return time.perf_counter()
+
+    def posix(self) -> float:
+        """POSIX seconds now (``time.time``)."""
+        return time.time()
+
+    async def wait(self, until: float, event: asyncio.Event | None = None) -> bool:
+        """Sleep until ``until`` on ``time.perf_counter``; True as soon as ``event`` is set meanwhile."""
+        wait_s = max(0.0, until - time.perf_counter())
+        if event is None:
+            await asyncio.sleep(wait_s)
+            return False
+        try:
+            await asyncio.wait_for(event.wait(), wait_s)
+        except TimeoutError:
+            return False
+        return True
 
 
 @dataclass(frozen=True)
@@ -121,13 +176,13 @@ class SimulationStats:
 class _Connection:
     """One simulated terminal's connection and what it has received."""
 
-    def __init__(self, phone: str, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        self.phone, self.reader, self.writer = phone, reader, writer
+    def __init__(self, phone: str, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, clock: Clock) -> None:
+        self.phone, self.reader, self.writer, self.clock = phone, reader, writer, clock
         self.serial = 0
         self.sent_at: dict[int, float] = {}
         self.last_report_at = 0.0
         self.frames: asyncio.Queue[Frame] = asyncio.Queue()
-        #: The interval of temporary tracking (s) and when its window ends (``time.perf_counter``).
+        #: The interval of temporary tracking (s) and when its window ends (the clock's :meth:`Clock.monotonic`).
         self.tracking_interval_s, self.tracking_until = 0, 0.0
         #: Set when a tracking request changes when the next report is due.
         self.retracked = asyncio.Event()
@@ -156,7 +211,7 @@ class _Connection:
                     stats.texts.append(frame.body[1:].decode("gbk", "replace"))
                 elif frame.message_id == MessageId.TEMPORARY_TRACKING:
                     stats.tracking_requests += 1
-                    self.track(frame, now)
+                    self.track(frame, self.clock.monotonic())
                 else:
                     await self.frames.put(frame)
 
@@ -198,22 +253,24 @@ async def _admit(connection: _Connection) -> bool:
     return response.message_id == MessageId.PLATFORM_RESPONSE and response.body[4] == 0
 
 
-async def _drive(terminal: SimulatedTerminal, host: str, port: int, delay_s: float, stats: SimulationStats) -> None:
+async def _drive(
+    terminal: SimulatedTerminal, host: str, port: int, delay_s: float, stats: SimulationStats, clock: Clock
+) -> None:
     """One terminal's whole run: connect after ``delay_s``, be admitted, report along the track, leave."""
-    await asyncio.sleep(delay_s)
+    await clock.wait(clock.monotonic() + delay_s)
     try:
         reader, writer = await asyncio.open_connection(host, port)
     except OSError:
         stats.refused += 1
         return
-    connection = _Connection(terminal.phone, reader, writer)
+    connection = _Connection(terminal.phone, reader, writer, clock)
     reading = asyncio.create_task(connection.read_all(stats))
     try:
         if not await _admit(connection):
             stats.refused += 1
             return
         await _report_along(connection, terminal.track)
-        await asyncio.sleep(1.0)  # the last answers
+        await clock.wait(clock.monotonic() + 1.0)  # the last answers
     except (OSError, TimeoutError):
         stats.refused += 1
     finally:
@@ -222,15 +279,18 @@ async def _drive(terminal: SimulatedTerminal, host: str, port: int, delay_s: flo
 
 
 async def _report_along(connection: _Connection, track: Track) -> None:
-    """Report at the track's times (and every tracking interval while a window runs), paced by the wall clock."""
-    started, last_s, due_s = time.perf_counter(), None, float(track.time_s[0])
+    """Report at the track's times (and every tracking interval while a window runs), paced by the connection's
+    clock."""
+    clock = connection.clock
+    started, last_s, due_s = clock.monotonic(), None, float(track.time_s[0])
     while math.isfinite(due_s):
-        if await _retracked(connection, max(0.0, started + due_s - time.perf_counter())):
+        connection.retracked.clear()
+        if await clock.wait(started + due_s, connection.retracked):
             if last_s is not None:  # a tracking request may make the next report due sooner
                 due_s = connection.next_report_s(track, last_s, started)
             continue
         lon, lat, speed_kmh, heading_deg = track.at(due_s)
-        report = LocationReport(0, _POSITIONED, lat, lon, 0, speed_kmh, int(round(heading_deg)) % 360, time.time())
+        report = LocationReport(0, _POSITIONED, lat, lon, 0, speed_kmh, int(round(heading_deg)) % 360, clock.posix())
         serial = connection.send(MessageId.LOCATION, encode_location(report))
         connection.last_report_at = connection.sent_at[serial] = time.perf_counter()
         await connection.writer.drain()
@@ -238,27 +298,19 @@ async def _report_along(connection: _Connection, track: Track) -> None:
         due_s = connection.next_report_s(track, last_s, started)
 
 
-async def _retracked(connection: _Connection, wait_s: float) -> bool:
-    """Wait ``wait_s``; True as soon as a tracking request comes in meanwhile."""
-    connection.retracked.clear()
-    try:
-        await asyncio.wait_for(connection.retracked.wait(), wait_s)
-    except TimeoutError:
-        return False
-    return True
-
-
 async def simulate(
-    terminals: Sequence[SimulatedTerminal], host: str, port: int, ramp_s: float = 5.0
+    terminals: Sequence[SimulatedTerminal], host: str, port: int, ramp_s: float = 5.0, clock: Clock | None = None
 ) -> SimulationStats:
     """Run ``terminals`` against the gateway at ``host:port``; what they saw.
 
     The terminals connect spread over ``ramp_s`` seconds (as a fleet's terminals come online),
-    then each reports at its track's times from its own start.
+    then each reports at its track's times from its own start, paced by ``clock`` (the wall clock
+    by default).
     """
-    stats = SimulationStats()
+    stats, clock = SimulationStats(), clock if clock is not None else WallClock()
     delays_s = np.linspace(0.0, ramp_s, len(terminals), endpoint=False).tolist()
-    await asyncio.gather(*(_drive(t, host, port, delay, stats) for t, delay in zip(terminals, delays_s, strict=True)))
+    drives = (_drive(t, host, port, delay, stats, clock) for t, delay in zip(terminals, delays_s, strict=True))
+    await asyncio.gather(*drives)
     return stats
 
 
