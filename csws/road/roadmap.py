@@ -111,16 +111,8 @@ class RoadMap(LaneMap):
 
         Parameters
         ----------
-        lanes
-            The lanes' attributes.
-        xy
-            Vertices of all lanes back to back, ``(n, 2)``, m.
-        vertex_start
-            Offset of each lane's first vertex in ``xy`` and ``n`` at the end, ``(len(lanes) + 1,)``.
-        successors
-            For each lane, the indices of the lanes a vehicle can drive onto from its end.
-        geo
-            A sumolib net carrying the network's location.
+        lanes, xy, vertex_start, successors, geo
+            The lanes, their shapes and links, as :class:`~csws.road.lanemap.LaneMap` holds them.
         warning_radius_m
             Warning curvature radius R_c (3.2), m.
         cache
