@@ -62,7 +62,7 @@ from csws.cosim.config import default_timeseries_every
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sensor import VehicleNumbers, read_vehicles, sensor_view
 from csws.cosim.sumo import sumo_arguments
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.networks import networks_dir
 from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
 from csws.sumo.binaries import sumo_binary, sumo_home

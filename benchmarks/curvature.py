@@ -26,11 +26,11 @@ circumcircle radius is <= R_c and that turn the same way; its radius is the medi
 over the run. Of several curves found on an arc, the one overlapping the arc most is
 scored; an arc where none is found scores an infinite error.
 
-On the sparse ways two references say what the nodes allow: the Cramér-Rao bound on
-the start's standard deviation (:func:`start_bound_m`), and the maximum-likelihood road
-of the true form (:func:`reference_start_error_m`), a fit told that the road is
-straight-arc-straight and searched from starts about the truth. An extractor, which
-must also find the form, cannot be expected to start arcs closer than that fit does.
+On the sparse ways two references say what the nodes allow (:mod:`benchmarks.curvature_reference`):
+the Cramér-Rao bound on the start's standard deviation, and the maximum-likelihood road of the
+true form, a fit told that the road is straight-arc-straight and searched from starts about the
+truth. An extractor, which must also find the form, cannot be expected to start arcs closer than
+that fit does. The roads themselves are built by :mod:`benchmarks.curvature_roads`.
 
 Speed: vertices per second on a synthetic network of dense lane shapes and on the sparse
 ways (the bundled real network's load is timed by :mod:`benchmarks.roadmap`).
@@ -40,30 +40,30 @@ Run with ``python -m benchmarks.curvature``; :func:`run` returns the figures.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
-from benchmarks.bounds import road_information, start_bounds_m
 from benchmarks.command import arguments
+from benchmarks.curvature_reference import bound_figures, reference_figures
+from benchmarks.curvature_roads import (
+    ARC_WARNING_RADIUS_M,
+    MAPPED_ARC_FRACTION,
+    MAPPED_RADIUS_FRACTION,
+    Road,
+    arc_road,
+    dense_shape,
+    mapped_way,
+    sparse_way,
+    straight_road,
+)
 from csws.curvature import find_curves, radius_profiles, three_point_radius
-from csws.geometry import Piece, arc, piece_starts_s, pose_at, sample_pieces, straight
+from csws.geometry import arc, straight
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M
 
 SEED = 20180091
 CASES_PER_CATEGORY = 300
-#: Warning radius used on the arc cases, so that every arc of R <= 500 m is a curve, m.
-ARC_WARNING_RADIUS_M = 1000.0
-DENSE_SPACING_M = (0.5, 1.0)
-SPARSE_SPACING_M = (5.0, 30.0)
-SPARSE_NOISE_RMS_M = 0.5
-#: On mapped ways, the longest node gap on an arc as a fraction of its length and of its radius.
-MAPPED_ARC_FRACTION = 1.0 / 3.0
-MAPPED_RADIUS_FRACTION = 0.5
-ROUNDING_M = 0.01
 #: Vertices in the throughput network (about 1,500 lane-km of dense shapes).
 THROUGHPUT_VERTICES = 300_000
 
@@ -76,222 +76,8 @@ TARGETS = {
 MULTI_STEP_TARGET_M = 1.0
 #: The sparse target on the curve start, m: the bound figures count the arcs started further off.
 SPARSE_START_LIMIT_M = TARGETS["max_start_error_m"][1]
-#: The maximum-likelihood reference (:func:`reference_start_error_m`): its starting roads
-#: (arc start moved, m; arc lengthened, curvature kept turning the same angle), its
-#: Levenberg-Marquardt iterations and the central-difference steps of its parameters.
-ORACLE_START_SHIFTS_M = (-10.0, -5.0, 0.0, 5.0, 10.0)
-ORACLE_LENGTH_FACTORS = (0.7, 1.0, 1.4)
-ORACLE_ITERATIONS = 60
-ORACLE_DIFFERENCE_STEPS = (1e-5, 1e-5, 1e-7, 1e-9, 1e-5)
-
 #: A found curve: (start_s, end_s, radius_m).
 FoundCurve = tuple[float, float, float]
-
-
-@dataclass(frozen=True)
-class Road:
-    """A constructed polyline with its truth: the arc's start and end, its radius and
-    signed curvature, and where the road starts (the first node's true place) and heads."""
-
-    xy: np.ndarray
-    arc_start_s: float
-    arc_end_s: float
-    radius_m: float
-    curvature: float
-    origin_xy: tuple[float, float]
-    heading: float
-
-
-def _random_pose(rng: np.random.Generator) -> tuple[tuple[float, float], float]:
-    """A random start point (network-sized coordinates) and heading."""
-    return (float(rng.uniform(-5000, 5000)), float(rng.uniform(-5000, 5000))), float(rng.uniform(-np.pi, np.pi))
-
-
-Pose = tuple[tuple[float, float], float]
-
-
-def dense_shape(pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None) -> np.ndarray:
-    """A SUMO-like lane shape: vertices 0.5-1 m apart, coordinates rounded to 1 cm, starting
-    at ``pose`` (random if not given)."""
-    start_xy, heading = pose or _random_pose(rng)
-    xy, _ = sample_pieces(pieces, float(rng.uniform(*DENSE_SPACING_M)), start_xy, heading)
-    return np.round(xy / ROUNDING_M) * ROUNDING_M
-
-
-def _node_arc_lengths(pieces: list[Piece], rng: np.random.Generator, mapped: bool) -> np.ndarray:
-    """Arc lengths of a way's nodes: gaps drawn from :data:`SPARSE_SPACING_M`; when
-    ``mapped``, a gap that overlaps an arc is scaled down so that it is at most
-    :data:`MAPPED_ARC_FRACTION` of the arc's length and :data:`MAPPED_RADIUS_FRACTION` of
-    its radius."""
-    starts = piece_starts_s(pieces)
-    arcs = [(starts[i], starts[i + 1], piece) for i, piece in enumerate(pieces) if piece.curvature != 0]
-    s = [0.0]
-    while s[-1] < starts[-1]:
-        gap = float(rng.uniform(*SPARSE_SPACING_M))
-        for arc_start, arc_end, piece in arcs if mapped else ():
-            if s[-1] < arc_end and s[-1] + gap > arc_start:
-                longest_m = min(
-                    SPARSE_SPACING_M[1], MAPPED_ARC_FRACTION * piece.length_m, MAPPED_RADIUS_FRACTION * piece.radius_m
-                )
-                gap *= longest_m / SPARSE_SPACING_M[1]
-        s.append(s[-1] + gap)
-    return np.append(np.array(s[:-1]), starts[-1])
-
-
-def sparse_way(
-    pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None, mapped: bool = False
-) -> np.ndarray:
-    """A map-like way: nodes at irregular arc lengths 5-30 m apart (closer on arcs when
-    ``mapped``, see :func:`_node_arc_lengths`), 0.5 m RMS noise, starting at ``pose``."""
-    start_xy, heading = pose or _random_pose(rng)
-    s = _node_arc_lengths(pieces, rng, mapped)
-    x, y, _ = pose_at(pieces, s, start_xy, heading)
-    noise = rng.normal(0.0, SPARSE_NOISE_RMS_M / np.sqrt(2.0), size=(len(s), 2))
-    return np.column_stack((x, y)) + noise
-
-
-def mapped_way(pieces: list[Piece], rng: np.random.Generator, pose: Pose | None = None) -> np.ndarray:
-    """A sparse way whose nodes follow mapping practice on arcs (:func:`sparse_way`)."""
-    return sparse_way(pieces, rng, pose, mapped=True)
-
-
-def arc_road(rng: np.random.Generator, shape: Callable[..., np.ndarray]) -> Road:
-    """Straight, arc of R 25-500 m turning 20-120 degrees either way, straight."""
-    radius_m = float(np.exp(rng.uniform(np.log(25.0), np.log(500.0))))
-    before_m = float(rng.uniform(50, 150))
-    pieces = [
-        straight(before_m),
-        arc(radius_m, float(rng.uniform(20, 120)), str(rng.choice(["left", "right"]))),
-        straight(float(rng.uniform(50, 150))),
-    ]
-    pose = _random_pose(rng)
-    return Road(shape(pieces, rng, pose), before_m, before_m + pieces[1].length_m, radius_m, pieces[1].curvature, *pose)
-
-
-def straight_road(
-    rng: np.random.Generator, shape: Callable[[list[Piece], np.random.Generator], np.ndarray]
-) -> np.ndarray:
-    """A straight of 200-1,000 m."""
-    return shape([straight(float(rng.uniform(200, 1000)))], rng)
-
-
-def start_bound_m(road: Road) -> float:
-    """The Cramér-Rao bound on the standard deviation of any unbiased estimate of the arc's
-    start from the nodes of ``road`` (sparse cases), m: :func:`benchmarks.bounds.start_bounds_m`
-    of the straight-arc-straight road, the nodes taken at their arc lengths along the polyline."""
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(road.xy, axis=0).T))))
-    arc_length_m = road.arc_end_s - road.arc_start_s
-    pieces = [straight(road.arc_start_s), Piece(arc_length_m, road.curvature), straight(s[-1] + 100.0)]
-    return float(start_bounds_m(road_information(pieces, s, SPARSE_NOISE_RMS_M), ARC_WARNING_RADIUS_M)[0])
-
-
-def bound_figures(roads: list[Road], limit_m: float) -> dict:
-    """What the Cramér-Rao bound allows: the median and p90 bound on the start's standard
-    deviation, the number of arcs an efficient estimator is expected to start more than
-    ``limit_m`` off, and the chance it misses none by that much."""
-    sigma = np.array([start_bound_m(road) for road in roads])
-    beyond = np.array([math.erfc(limit_m / (value * math.sqrt(2.0))) for value in sigma])
-    return {
-        "median_start_bound_m": float(np.median(sigma)),
-        "p90_start_bound_m": float(np.percentile(sigma, 90)),
-        "expected_beyond_limit": float(beyond.sum()),
-        "chance_none_beyond_limit": float(np.prod(1.0 - beyond)),
-    }
-
-
-def _road_distances(parameters: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Signed distances (left positive) ``(k, n)`` of the nodes ``uv`` ``(n, 2)`` from the
-    straight-arc-straight roads ``parameters`` ``(k, 5)``: the arc's start point (two
-    coordinates), the heading there, the arc's curvature and length. The straights run on
-    without end; a node beside no piece takes its distance from the nearer piece end."""
-    along, side, heading, curvature, length = (parameters[:, column, None] for column in range(5))
-    curvature = np.where(np.abs(curvature) < 1e-9, np.where(curvature < 0, -1e-9, 1e-9), curvature)
-    z = ((uv[None, :, 0] - along) + 1j * (uv[None, :, 1] - side)) * np.exp(-1j * heading)
-    centre = 1j / curvature
-    turned = np.angle((z - centre) / -centre) * np.sign(curvature)
-    turn = np.abs(curvature * length)
-    before = (np.where(z.real <= 0.0, np.abs(z.imag), np.abs(z)), z.imag)
-    on_arc = (turned >= 0.0) & (turned <= turn)
-    arc_side = (np.abs(1.0 / curvature) - np.abs(z - centre)) * np.sign(curvature)
-    arc_piece = (np.where(on_arc, np.abs(arc_side), np.inf), arc_side)
-    beyond = (z - (centre - centre * np.exp(1j * curvature * length))) * np.exp(-1j * curvature * length)
-    after = (np.where(beyond.real >= 0.0, np.abs(beyond.imag), np.abs(beyond)), beyond.imag)
-    unsigned = np.stack((before[0], arc_piece[0], after[0]))
-    signed = np.stack((before[1], arc_piece[1], after[1]))
-    return np.take_along_axis(signed, np.argmin(unsigned, axis=0)[None], axis=0)[0]
-
-
-def _fitted_roads(starts: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Levenberg-Marquardt fits of straight-arc-straight roads (:func:`_road_distances`)
-    from each of the ``starts`` ``(k, 5)`` to the nodes ``uv``; returns the fitted
-    parameters and their sums of squared distances."""
-    parameters, damping = starts.copy(), np.full(len(starts), 1e-3)
-    distances = _road_distances(parameters, uv)
-    squares = np.einsum("kn,kn->k", distances, distances)
-    for _ in range(ORACLE_ITERATIONS):
-        jacobian = np.empty(distances.shape + (5,))
-        for column, step in enumerate(ORACLE_DIFFERENCE_STEPS):
-            moved = np.zeros(5)
-            moved[column] = step
-            jacobian[..., column] = (
-                _road_distances(parameters + moved, uv) - _road_distances(parameters - moved, uv)
-            ) / (2.0 * step)
-        normal = np.swapaxes(jacobian, 1, 2) @ jacobian
-        diagonal = np.einsum("kmm->km", normal)
-        normal += np.eye(5) * (damping[:, None] * diagonal + 1e-12)[:, None, :]
-        trial = parameters + np.linalg.solve(normal, -np.einsum("knm,kn->km", jacobian, distances)[..., None])[..., 0]
-        trial[:, 4] = np.fmax(trial[:, 4], 0.1)
-        trial_distances = _road_distances(trial, uv)
-        trial_squares = np.einsum("kn,kn->k", trial_distances, trial_distances)
-        better = trial_squares < squares
-        parameters[better], distances[better], squares[better] = (
-            trial[better],
-            trial_distances[better],
-            trial_squares[better],
-        )
-        damping = np.where(better, np.fmax(damping / 10.0, 1e-9), damping * 10.0)
-    return parameters, squares
-
-
-def _polyline_s(xy: np.ndarray, point: complex) -> float:
-    """Arc length along the polyline ``xy`` of the point of it nearest ``point``."""
-    start, chord = xy[:-1, 0] + 1j * xy[:-1, 1], np.diff(xy[:, 0] + 1j * xy[:, 1])
-    fraction = np.clip(np.real((point - start) * np.conj(chord)) / np.fmax(np.abs(chord) ** 2, 1e-12), 0.0, 1.0)
-    nearest = int(np.argmin(np.abs(start + fraction * chord - point)))
-    return float(np.sum(np.abs(chord[:nearest])) + fraction[nearest] * np.abs(chord[nearest]))
-
-
-def reference_start_error_m(road: Road) -> float:
-    """The start error of the maximum-likelihood road of the true form: the straight-arc-
-    straight road whose nodes' squared distances are least, searched from
-    :data:`ORACLE_START_SHIFTS_M` x :data:`ORACLE_LENGTH_FACTORS` starts about the truth.
-    Told the form, it knows more than any extractor; it is scored as the extractor is,
-    along the polyline (m)."""
-    origin = road.origin_xy[0] + 1j * road.origin_xy[1]
-    local = (road.xy[:, 0] + 1j * road.xy[:, 1] - origin) * np.exp(-1j * road.heading)
-    length_m = road.arc_end_s - road.arc_start_s
-    starts = np.array(
-        [
-            (road.arc_start_s + shift, 0.0, 0.0, road.curvature / factor, length_m * factor)
-            for shift in ORACLE_START_SHIFTS_M
-            for factor in ORACLE_LENGTH_FACTORS
-        ]
-    )
-    parameters, squares = _fitted_roads(starts, np.column_stack((local.real, local.imag)))
-    best = parameters[int(np.argmin(squares))]
-    start_point = origin + (best[0] + 1j * best[1]) * np.exp(1j * road.heading)
-    return abs(_polyline_s(road.xy, start_point) - road.arc_start_s)
-
-
-def reference_figures(roads: list[Road], limit_m: float) -> dict:
-    """The start-error figures of :func:`reference_start_error_m` on ``roads``."""
-    errors = np.array([reference_start_error_m(road) for road in roads])
-    return {
-        "median_start_error_m": float(np.median(errors)),
-        "p90_start_error_m": float(np.percentile(errors, 90)),
-        "max_start_error_m": float(errors.max()),
-        "arcs_started_over_5_m": int(np.sum(errors > limit_m)),
-    }
 
 
 # --------------------------------------------------------------------------- the two methods

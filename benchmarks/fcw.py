@@ -26,7 +26,7 @@ from benchmarks.command import arguments
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, FleetPaths, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.path import PathCurvature
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.fcw.tracker import ForwardCollisionWarning
 
 OBJECTS = 10

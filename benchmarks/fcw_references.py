@@ -9,7 +9,7 @@ The reference systems (:data:`REFERENCES`, each a :class:`Reference` per run) wa
 as the design holds its own. The first two are the least-demanding conforming warning of GB/T 33577-2017
 (4.5.3-4.5.6: 0.8 s, 0.68 g, V_min 11.2 m/s, every suppression 4.5.5 allows; the second also silent while
 the driver brakes, 4.5.5 d): the floor of any conforming system. The others say which of the design's
-choices (:class:`csws.fcw.physics.FcwSettings`) its false warnings come from: its collision warning alone,
+choices (:class:`csws.fcw.settings.FcwSettings`) its false warnings come from: its collision warning alone,
 its preliminary warning, and preliminary warnings at the earlier 0.3 g (the default until the traffic run
 showed its false warnings), after shorter reaction times or at thresholds between. Every rule, as the design,
 holds only a deceleration of the subject through the reaction (:func:`csws.fcw.physics.reaction_accel_mps2`).
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from csws.fcw.conforming import STANDARD_A_REQ_MPS2, Lead, warning_due
-from csws.fcw.physics import (
+from csws.fcw.settings import (
     EARLY_PRELIMINARY_A_REQ_MPS2,
     HIGHEST_MIN_SPEED_MPS,
     MIN_REACTION_TIME_S,

@@ -60,7 +60,7 @@ from csws.cosim.categories import category_of
 from csws.cosim.config import _config_scenario
 from csws.cosim.fcw import BRAKE_LIGHT, FleetFcw
 from csws.fcw.conforming import Lead, standard_requires_warning
-from csws.fcw.physics import MIN_REACTION_TIME_S
+from csws.fcw.settings import MIN_REACTION_TIME_S
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.sumo.binaries import sumo_binary, sumo_home

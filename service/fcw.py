@@ -1,7 +1,7 @@
 """The forward collision warning of queries that carry a ``forward_target``, and the HMI of both systems.
 
 A ``forward_target`` is answered by the library's :func:`csws.fcw.physics.evaluate_fcw` and
-:func:`csws.fcw.physics.next_fcw_states`, once for the queries of a round with the same settings.
+:func:`csws.fcw.state.next_fcw_states`, once for the queries of a round with the same settings.
 The target is the one the on-board unit's sensor selected (GB/T 33577 4.4.3); the service keeps no
 FCW state for such queries, so the state is taken from each query's speed alone (the hysteresis of
 Figure 2 is the on-board unit's). Queries with ``objects`` are answered with state kept between
@@ -18,7 +18,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, evaluate_fcw, next_fcw_states
+from csws.fcw.physics import evaluate_fcw
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, FCW_STATES, STANDBY, next_fcw_states
 from csws.standard import Level, kmh_to_mps
 from csws.warning.rules import HmiHint
 

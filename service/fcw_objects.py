@@ -27,7 +27,8 @@ import numpy as np
 
 from csws.ahead.horizon import PathAhead
 from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetFrame, FleetMemory, FleetObjects, FleetPaths, update_fleet
-from csws.fcw.physics import FCW_STATES, STANDBY, FcwSettings
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import FCW_STATES, STANDBY
 from csws.standard import kmh_to_mps
 
 from .decoding import DecodedQuery

@@ -1,14 +1,14 @@
 """The forward collision warning's settings per fleet, from a settings file (``--fcw-settings FILE``).
 
 Every vehicle's FCW runs with the library's settings for its category
-(:meth:`csws.fcw.physics.FcwSettings.for_category`: V_max by category, 4.3.3), with what the file
+(:meth:`csws.fcw.settings.FcwSettings.for_category`: V_max by category, 4.3.3), with what the file
 sets for every fleet (``default``) and then for the vehicle's fleet over them. The file::
 
     {"format": "csws-fcw-settings/1",
      "default": {"reaction_time_s": 1.4},
      "fleets": {"acme": {"collision_a_req_mps2": 4.0, "max_speed_by_category_mps": {"N": 30.0}}}}
 
-Each block may set any field of :class:`csws.fcw.physics.FcwSettings` except ``max_speed_mps``,
+Each block may set any field of :class:`csws.fcw.settings.FcwSettings` except ``max_speed_mps``,
 which it sets by category in ``max_speed_by_category_mps``; the library's checks apply (e.g. the
 collision threshold at most 0.68 g, 4.5.3). The file is read at start-up, by every worker alike, so
 all of them answer a fleet with the same settings; a file that cannot be read, or a block the
@@ -24,7 +24,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.standard import Category
 
 __all__ = ["FCW_SETTINGS_FORMAT", "FleetFcwSettings"]

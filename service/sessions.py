@@ -43,7 +43,7 @@ class FcwMemory(msgspec.Struct, array_like=True, frozen=True, gc=False):
     Attributes
     ----------
     state
-        The system state's code (:data:`csws.fcw.physics.FCW_STATES`): Figure 2's hysteresis starts from it.
+        The system state's code (:data:`csws.fcw.state.FCW_STATES`): Figure 2's hysteresis starts from it.
     held_level, hold_until_s
         The level held and until when (the level's hold, :func:`csws.fcw.objects.hold_level`).
     last_time_s

@@ -7,7 +7,8 @@
   finds). No example has a deadline: timing is for the benchmarks.
 * A real ``redis-server`` for the tests of the Redis state store (one for the run, and one of a
   test's own to stop, hang and kill), and the ``state`` fixture that runs a test on each store.
-* The side roads of tests/builders.py, netconverted once for each module that serves them.
+* The side roads of tests/builders.py, netconverted once for each module that serves them, and
+  a real server of them beside the geo-referenced Table 7 track (``served_nets``, ``served_server``).
 * The markers of ``pyproject.toml`` that follow from the fixtures a test uses (see
   :func:`pytest_collection_modifyitems`); a test whose own body is slow, or runs SUMO or
   netconvert, carries its marker itself.
@@ -20,11 +21,12 @@ from pathlib import Path
 
 import pytest
 from browsers import CHROMIUM, CHROMIUM_ARGS
-from builders import SIDE_X_M, build_side_roads
+from builders import SIDE_X_M, build_side_roads, write_geo_track
 from hypothesis import settings
 from markers import fixture_markers, marks_its_tests
 from playwright.sync_api import sync_playwright
 from redis_server import RedisServer
+from servers import Server
 
 # No example has a deadline: how long a test takes is a benchmark's business, and a loaded machine must not turn
 # a slow example into a failure.
@@ -99,6 +101,21 @@ def state(request: pytest.FixtureRequest, tmp_path: Path) -> dict[str, str]:
 def side_roads_net(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The side roads (:func:`builders.build_side_roads`) placed ``SIDE_X_M`` east of the Table 7 track."""
     return build_side_roads(tmp_path_factory.mktemp("side-roads"), origin_x_m=SIDE_X_M)
+
+
+@pytest.fixture(scope="module")
+def served_nets(tmp_path_factory: pytest.TempPathFactory, side_roads_net: Path) -> list[Path]:
+    """The Table 7 track made geo-referenced (:func:`builders.write_geo_track`) and the side roads."""
+    return [write_geo_track(tmp_path_factory.mktemp("served")), side_roads_net]
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("slow")
+def served_server(served_nets: list[Path], tmp_path_factory: pytest.TempPathFactory):
+    """A real server (:class:`servers.Server`) of :func:`served_nets`, one per test module."""
+    running = Server(served_nets, tmp_path_factory.mktemp("state") / "vehicles.sqlite3")
+    yield running
+    running.stop()
 
 
 @pytest.fixture(scope="module")

@@ -23,7 +23,7 @@ from csws.cosim.driver import DriverSettings
 from csws.cosim.fcw import FCW_EVENT_COLUMNS
 from csws.cosim.records import EVENT_COLUMNS, TIMESERIES_COLUMNS
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.networks import networks_dir
 from csws.networks.fleet import fleet_dir, fleet_routes_xml
 

@@ -33,7 +33,8 @@ from csws.cosim.schedule import (
     distance_to_first_part_m,
     speed_bound_mps,
 )
-from csws.fcw.physics import ACTIVE, STANDBY, FcwSettings, fcw_state_code
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, STANDBY, fcw_state_code
 from csws.geometry import arc, sample_pieces, straight
 from csws.networks.fleet import fleet_dir, fleet_routes_xml
 from csws.standard import G_MPS2, REACTION_TIME_S

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from csws.cosim.sensor import ONCOMING_MPS, MapLanes, SensorPairs, SumoVehicles, read_vehicles, sensor_view
 from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.path import offset_from_circle_m
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import LANE_WIDTH_M
 from csws.sumo.binaries import sumo_binary, sumo_home

@@ -11,14 +11,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from csws.fcw.physics import (
-    STANDARD_GRAVITY_MPS2,
-    FcwSettings,
     enhanced_time_to_collision_s,
     evaluate_fcw,
     formula_5_clearance_m,
     required_deceleration_mps2,
     time_to_collision_s,
 )
+from csws.fcw.settings import STANDARD_GRAVITY_MPS2, FcwSettings
 
 G = STANDARD_GRAVITY_MPS2
 

@@ -24,13 +24,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from csws.fcw.objects import EgoMotion, SensorObject
-from csws.fcw.physics import (
-    MAX_COLLISION_A_REQ_MPS2,
-    MIN_REACTION_TIME_S,
-    FcwSettings,
-    reaction_accel_mps2,
-    required_deceleration_mps2,
-)
+from csws.fcw.physics import reaction_accel_mps2, required_deceleration_mps2
+from csws.fcw.settings import MAX_COLLISION_A_REQ_MPS2, MIN_REACTION_TIME_S, FcwSettings
 from csws.fcw.tracker import ForwardCollisionWarning
 
 DEFAULT = FcwSettings()

@@ -22,7 +22,7 @@ from csws.conformance.fcw.judge import FcwRunResult, criterion, group_passes, ju
 from csws.conformance.fcw.rows import LEAD_BRAKE_MPS2, fcw_rows
 from csws.conformance.fcw.run import fcw_conformance, select_fcw_rows
 from csws.conformance.fcw.scripts import TARGET_BRAKES
-from csws.fcw.physics import STANDARD_GRAVITY_MPS2, FcwSettings
+from csws.fcw.settings import STANDARD_GRAVITY_MPS2, FcwSettings
 
 SUBSET = ("GB-5.4.2", "GB-5.5.2.1.2", "GB-5.5.2.2", "GB-5.5.3.2-III", "IVISTA-A.1.2")
 STEPS_S = (0.01, 0.2)

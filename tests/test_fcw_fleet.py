@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from csws.fcw.fleet import UNKNOWN_LANE, FleetEgo, FleetMemory, FleetObjects, FleetPaths, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.path import PathCurvature
-from csws.fcw.physics import FCW_STATES, FcwSettings
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import FCW_STATES
 from csws.fcw.tracker import ForwardCollisionWarning
 
 FINITE = {"allow_nan": False, "allow_infinity": False}

@@ -15,7 +15,8 @@ from test_fcw_traffic import least_deceleration_mps2
 
 from csws.fcw.objects import EgoMotion, SensorObject
 from csws.fcw.path import PathCurvature, straight_beam_range_m
-from csws.fcw.physics import LOWEST_MAX_SPEED_MPS, STANDARD_GRAVITY_MPS2, FcwSettings, warning_level
+from csws.fcw.physics import warning_level
+from csws.fcw.settings import LOWEST_MAX_SPEED_MPS, STANDARD_GRAVITY_MPS2, FcwSettings
 from csws.fcw.tracker import ForwardCollisionWarning
 from csws.state import SystemState
 

@@ -31,7 +31,7 @@ from test_fcw_traffic import _braking_lead, least_deceleration_mps2
 
 from csws.fcw.conforming import Lead, warning_due
 from csws.fcw.objects import EgoMotion, SensorObject
-from csws.fcw.physics import (
+from csws.fcw.settings import (
     EARLY_PRELIMINARY_A_REQ_MPS2,
     HIGHEST_MIN_SPEED_MPS,
     MAX_COLLISION_A_REQ_MPS2,

@@ -8,16 +8,9 @@ from dataclasses import replace
 
 import pytest
 
-from csws.fcw.physics import (
-    ACTIVE,
-    FAULT,
-    OFF,
-    STANDBY,
-    FcwSettings,
-    next_fcw_states,
-    required_deceleration_mps2,
-    warning_clearance_m,
-)
+from csws.fcw.physics import required_deceleration_mps2, warning_clearance_m
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, FAULT, OFF, STANDBY, next_fcw_states
 from csws.fcw.target import CurveClass, curve_start_speed_mps
 from csws.networks import networks_dir
 from csws.networks.fcw_tracks import FCW_DIR, compare_fcw_tracks

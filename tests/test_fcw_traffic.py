@@ -25,13 +25,8 @@ from csws.cosim.sensor import OFF_PATH_LANE, MapLanes, SumoVehicles, map_lanes, 
 from csws.fcw.conforming import Lead, standard_requires_warning
 from csws.fcw.fleet import FleetEgo, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.objects import EgoMotion, SensorObject
-from csws.fcw.physics import (
-    EARLY_PRELIMINARY_A_REQ_MPS2,
-    MAX_COLLISION_A_REQ_MPS2,
-    MIN_REACTION_TIME_S,
-    FcwSettings,
-    required_deceleration_mps2,
-)
+from csws.fcw.physics import required_deceleration_mps2
+from csws.fcw.settings import EARLY_PRELIMINARY_A_REQ_MPS2, MAX_COLLISION_A_REQ_MPS2, MIN_REACTION_TIME_S, FcwSettings
 from csws.fcw.tracker import ForwardCollisionWarning
 
 #: The hardest deceleration :func:`least_deceleration_mps2` tries, m/s^2.

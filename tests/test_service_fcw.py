@@ -23,7 +23,8 @@ from csws.fcw.path import (
     path_curvature_ahead,
     path_table,
 )
-from csws.fcw.physics import FcwSettings, evaluate_fcw
+from csws.fcw.physics import evaluate_fcw
+from csws.fcw.settings import FcwSettings
 from csws.fcw.tracker import ForwardCollisionWarning
 from csws.networks import networks_dir
 from csws.standard import Category, Level

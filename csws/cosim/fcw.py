@@ -4,7 +4,7 @@ Each step :class:`FleetFcw` reads every SUMO vehicle once, turns the vehicles ar
 vehicle into that vehicle's object list (:mod:`csws.cosim.sensor`: the sensor view, with the objects'
 lanes from the vehicle's map path where it is map-matched), and calls the object FCW's fleet form
 (:func:`csws.fcw.fleet.update_fleet`) once per category (4.3.3: V_max by category,
-:meth:`csws.fcw.physics.FcwSettings.for_category`).
+:meth:`csws.fcw.settings.FcwSettings.for_category`).
 
 The subject's yaw rate is its angle's change over the step (SUMO's angle is its body's heading,
 clockwise from north); the brake light is the driver braking (4.5.4), the blinkers the turn signal.
@@ -21,7 +21,8 @@ import numpy as np
 
 from csws.fcw.fleet import FleetEgo, FleetFrame, FleetMemory, FleetObjects, update_fleet
 from csws.fcw.path import yaw_path_curvature_1pm
-from csws.fcw.physics import ACTIVE, FCW_STATES, STANDBY, FcwSettings, fcw_state_code
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, FCW_STATES, STANDBY, fcw_state_code
 
 from .driver import DriverResponse
 from .fcw_schedule import FcwSchedule, steps_state_kept
@@ -118,7 +119,7 @@ class FleetFcw:
     sumo
         libsumo or traci, with a simulation running.
     settings
-        The settings of a category (default :meth:`csws.fcw.physics.FcwSettings.for_category`).
+        The settings of a category (default :meth:`csws.fcw.settings.FcwSettings.for_category`).
     measure
         What the sensor makes of the true view, or None (the truth).
     """

@@ -1,7 +1,7 @@
 """When each vehicle's forward collision warning must be evaluated again (``--evaluate scheduled`` with FCW).
 
 A vehicle's FCW can warn (4.5) only of an object its sensor sees, one within the range of concern
-(:attr:`csws.fcw.physics.FcwSettings.range_m`, the detection range of 4.3.2 a; the sensor view of
+(:attr:`csws.fcw.settings.FcwSettings.range_m`, the detection range of 4.3.2 a; the sensor view of
 :mod:`csws.cosim.sensor` measures it from the subject's front to the object's rear, straight or
 along the map path). Two vehicles' fronts are then at most :attr:`FcwSchedule.reach_m` apart: that
 range, the longest vehicle, the widest road twice (a lane change moves a vehicle across its road at
@@ -37,7 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from csws.fcw.physics import ACTIVE, STANDBY, FcwSettings
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, STANDBY
 
 from .sensor import LONGEST_VEHICLE_M, nearby_pairs
 

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from csws.cli.progress import Progress
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.standard import Category
 
 from .cli import SYSTEMS

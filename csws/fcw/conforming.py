@@ -15,13 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from csws.fcw.physics import (
-    FORMULA_5_A_REQ_MPS2,
-    HIGHEST_MIN_SPEED_MPS,
-    LOWEST_MAX_SPEED_MPS,
-    MIN_REACTION_TIME_S,
-    required_deceleration_mps2,
-)
+from csws.fcw.physics import FORMULA_5_A_REQ_MPS2, required_deceleration_mps2
+from csws.fcw.settings import HIGHEST_MIN_SPEED_MPS, LOWEST_MAX_SPEED_MPS, MIN_REACTION_TIME_S
 
 __all__ = ["STANDARD_A_REQ_MPS2", "SUPPRESS_ABOVE_TTC_S", "Lead", "warning_due", "standard_requires_warning"]
 

@@ -20,16 +20,9 @@ from numpy.typing import ArrayLike
 
 from csws.fcw.objects import MAX_OBJECT_ID, cut_in, hold_level, in_path
 from csws.fcw.path import curvature_tables, fleet_equivalent_curvature_1pm, offset_from_circle_m, yaw_path_curvature_1pm
-from csws.fcw.physics import (
-    ACTIVE,
-    STANDBY,
-    FcwSettings,
-    a_req_core,
-    ettc_core,
-    fcw_state_code,
-    ttc_core,
-    warning_level,
-)
+from csws.fcw.physics import a_req_core, ettc_core, ttc_core, warning_level
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, STANDBY, fcw_state_code
 
 __all__ = ["FleetEgo", "FleetObjects", "FleetPaths", "FleetMemory", "FleetFrame", "UNKNOWN_LANE", "update_fleet"]
 
@@ -192,7 +185,7 @@ class FleetMemory:
 @dataclass(frozen=True)
 class FleetFrame:
     """The answers of one frame, arrays ``(n,)`` (the fields of :class:`csws.fcw.objects.FcwFrame`;
-    ``state`` as codes into :data:`csws.fcw.physics.FCW_STATES`, ``target`` the target's index into
+    ``state`` as codes into :data:`csws.fcw.state.FCW_STATES`, ``target`` the target's index into
     the objects or -1, ``target_id`` its id or -1)."""
 
     state: np.ndarray

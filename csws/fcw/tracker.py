@@ -34,17 +34,9 @@ from csws.fcw.path import (
     path_table,
     yaw_path_curvature_1pm,
 )
-from csws.fcw.physics import (
-    ACTIVE,
-    FCW_STATES,
-    STANDBY,
-    FcwSettings,
-    a_req_core,
-    ettc_core,
-    fcw_state_code,
-    ttc_core,
-    warning_level,
-)
+from csws.fcw.physics import a_req_core, ettc_core, ttc_core, warning_level
+from csws.fcw.settings import FcwSettings
+from csws.fcw.state import ACTIVE, FCW_STATES, STANDBY, fcw_state_code
 
 __all__ = ["ForwardCollisionWarning", "ego_curvature_1pm"]
 

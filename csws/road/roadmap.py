@@ -4,7 +4,9 @@ A :class:`RoadMap` is read once from a ``.net.xml`` (or ``.net.xml.gz``) and the
 answers the questions the warning needs about the road ahead:
 
 * which lanes a vehicle at (x, y) may be on, where along them and heading which way
-  (:meth:`RoadMap.nearest_lanes`, :meth:`RoadMap.match_points` for many fixes at once);
+  (:meth:`RoadMap.nearest_lanes`, :meth:`RoadMap.match_points` for many fixes at once;
+  the lanes themselves, their shapes and links, are the lane map it extends,
+  :class:`csws.road.lanemap.LaneMap`);
 * where the curves are: per lane (:meth:`RoadMap.lane_curves`, :meth:`RoadMap.curves`)
   and along a path of consecutive lanes (:meth:`RoadMap.path_profile`). A path is
   stitched into one polyline before it is profiled, so a curve that crosses an edge
@@ -32,25 +34,17 @@ and :meth:`RoadMap.lonlat_to_xy` (and their vectorised ``*_many`` variants) conv
 the network's own projection (UTM for an OSM import); :mod:`csws.road.export` gives the curve
 index as a table, JSON, CSV or GeoJSON.
 
-Storage is columnar: the vertices of all lanes sit in one ``(n, 2)`` array with an
-offset per lane (read by :mod:`csws.road.network`), all road chains are profiled in one
+Storage is columnar (:mod:`csws.road.lanemap`), and all road chains are profiled in one
 :func:`csws.curvature.radius_profiles` call, so a regional network of some 1,500 lane-km
-loads and profiles in seconds, and positions are looked up in a spatial index of the
-lane shapes (:mod:`csws.road.search`).
+loads and profiles in seconds.
 
-Lane positions follow SUMO: a lane position runs from 0 to the lane's ``length``
-attribute, which may differ from the length of its shape (outer lanes of a curve,
-internal lanes, edges with a custom length); SUMO maps between them by the factor
-``length / shape length``, and so does this module. Radius profiles and the
-:class:`~csws.curvature.Curve` objects they yield are in shape arc length.
+Lane positions follow SUMO (``length / shape length``, :mod:`csws.road.lanemap`); radius
+profiles and the :class:`~csws.curvature.Curve` objects they yield are in shape arc length.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
-from functools import cached_property
-from itertools import chain
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -59,10 +53,10 @@ import sumolib
 
 from csws.curvature import checked_warning_radius_m, profile_cache_dir
 from csws.road.chains import LaneCurve, RoadChains, fit_road_chains, index_curves, road_curve_id
-from csws.road.georef import GeoReferenced, finite_pairs
-from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net, vertex_arc_length
+from csws.road.lanemap import LaneMap
+from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net
 from csws.road.path import PathProfile, path_profile
-from csws.road.search import LaneMatch, LaneMatches, LaneSearch, LaneShapes
+from csws.road.search import LaneMatch, LaneMatches
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 if TYPE_CHECKING:
@@ -80,12 +74,6 @@ __all__ = [
 ]
 
 
-def _compressed_rows(rows: Sequence[Sequence[int]]) -> tuple[np.ndarray, np.ndarray]:
-    """Ragged integer rows as (row start offsets, concatenated values)."""
-    start = np.concatenate(([0], np.cumsum([len(row) for row in rows]))).astype(np.int64)
-    return start, np.fromiter(chain.from_iterable(rows), dtype=np.int64, count=int(start[-1]))
-
-
 def _shape_between(shape: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
     """The part of a polyline between two arc lengths, its ends interpolated, ``(m, 2)``."""
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T))))
@@ -94,8 +82,8 @@ def _shape_between(shape: np.ndarray, start_s: float, end_s: float) -> np.ndarra
     return np.column_stack((np.interp(cut_s, s, shape[:, 0]), np.interp(cut_s, s, shape[:, 1])))
 
 
-class RoadMap(GeoReferenced):
-    """Every lane of a SUMO network: attributes, shape, successors, radius profile and curves.
+class RoadMap(LaneMap):
+    """Every lane of a SUMO network (a :class:`~csws.road.lanemap.LaneMap`) with its road's radius profile and curves.
 
     Build one with :meth:`load` (from a file) or :meth:`from_net` (from a sumolib net).
     Lanes are addressed by their SUMO id.
@@ -104,11 +92,6 @@ class RoadMap(GeoReferenced):
     ----------
     warning_radius_m
         Warning curvature radius R_c (3.2) the per-lane curves were found with, m.
-    has_projection
-        Whether the network is geo-referenced (see :meth:`xy_to_lonlat`).
-    geo
-        A sumolib net holding only the network's location, whose
-        ``convertXY2LonLat`` / ``convertLonLat2XY`` do the geo-conversions.
     """
 
     def __init__(
@@ -128,16 +111,8 @@ class RoadMap(GeoReferenced):
 
         Parameters
         ----------
-        lanes
-            The lanes' attributes.
-        xy
-            Vertices of all lanes back to back, ``(n, 2)``, m.
-        vertex_start
-            Offset of each lane's first vertex in ``xy`` and ``n`` at the end, ``(len(lanes) + 1,)``.
-        successors
-            For each lane, the indices of the lanes a vehicle can drive onto from its end.
-        geo
-            A sumolib net carrying the network's location.
+        lanes, xy, vertex_start, successors, geo
+            The lanes, their shapes and links, as :class:`~csws.road.lanemap.LaneMap` holds them.
         warning_radius_m
             Warning curvature radius R_c (3.2), m.
         cache
@@ -152,14 +127,7 @@ class RoadMap(GeoReferenced):
         """
         self.warning_radius_m = checked_warning_radius_m(warning_radius_m)
         self.warning_policy = warning_policy
-        self.geo = geo
-        self.has_projection = bool(geo.hasGeoProj())
-        self._lanes = tuple(lanes)
-        self._index = {lane.lane_id: i for i, lane in enumerate(self._lanes)}
-        self._xy = np.ascontiguousarray(xy, dtype=float)
-        self._vertex_start = np.asarray(vertex_start, dtype=np.int64)
-        self._vertex_s = vertex_arc_length(self._xy, self._vertex_start)
-        self._successor_start, self._successor_index = _compressed_rows(successors)
+        super().__init__(lanes, xy, vertex_start, successors, geo)
         road_shapes = [self._road_shape(i) for i in range(len(self._lanes))]
         self.exact_lanes = dict(exact_lanes or {})
         given = None
@@ -253,22 +221,7 @@ class RoadMap(GeoReferenced):
             exact_lanes=exact_lanes,
         )
 
-    # ----------------------------------------------------------------- lanes
-    @cached_property
-    def lane_ids(self) -> tuple[str, ...]:
-        """Ids of all lanes, internal lanes included, in network order."""
-        return tuple(lane.lane_id for lane in self._lanes)
-
-    @property
-    def vertex_count(self) -> int:
-        """Number of shape vertices over all lanes."""
-        return len(self._xy)
-
-    @property
-    def total_length_m(self) -> float:
-        """Sum of the SUMO lengths of all lanes, m (lane-km x 1000)."""
-        return float(sum(lane.length_m for lane in self._lanes))
-
+    # ----------------------------------------------------------------- curves
     @property
     def nbytes(self) -> int:
         """Bytes held by the map's arrays: vertices, arc lengths, links, road chains and their profiles."""
@@ -276,45 +229,6 @@ class RoadMap(GeoReferenced):
         profiles = {id(p): p for p in (*self._chains.profiles, *self._chains.fitted) if p is not None}.values()
         arrays += list(self._chains.xy) + [a for p in profiles for a in (p.s, p.curvature, p.radius)]
         return int(sum(array.nbytes for array in arrays))
-
-    @cached_property
-    def lane_shapes(self) -> LaneShapes:
-        """The lanes' shapes back to back, in the order of :attr:`lane_ids`, as a spatial index of
-        lanes takes them (:class:`csws.road.search.LaneSearch`; the arrays are the map's own)."""
-        return LaneShapes(self._xy, self._vertex_start, self._vertex_s, self._lane_id_array, self._position_factor)
-
-    def lane_index(self, lane_id: str) -> int:
-        """The position of ``lane_id`` in :attr:`lane_ids`."""
-        return self._lane_index(lane_id)
-
-    def has_lane(self, lane_id: str) -> bool:
-        """Whether ``lane_id`` is a lane of the map."""
-        return lane_id in self._index
-
-    def lane(self, lane_id: str) -> Lane:
-        """The SUMO attributes of a lane (:class:`Lane`)."""
-        return self._lanes[self._lane_index(lane_id)]
-
-    def lane_shape(self, lane_id: str) -> np.ndarray:
-        """The lane's polyline in driving direction, ``(n, 2)``, m (a read-only view)."""
-        return self._shape(self._lane_index(lane_id))
-
-    def successors(self, lane_id: str) -> tuple[str, ...]:
-        """Lanes a vehicle can drive onto from the end of ``lane_id``.
-
-        From a normal lane these are the internal via lanes of its connections (or the
-        next normal lanes where a connection has no via lane); from an internal lane,
-        the next internal lane or the normal lane it leads to.
-        """
-        return self._successor_ids[self._lane_index(lane_id)]
-
-    @cached_property
-    def _successor_ids(self) -> tuple[tuple[str, ...], ...]:
-        """The successors of every lane by ids, in the order of :attr:`lane_ids` (asked for at every
-        step of every path built)."""
-        ids = [lane.lane_id for lane in self._lanes]
-        starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
-        return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=False))
 
     @property
     def chains(self) -> RoadChains:
@@ -385,29 +299,6 @@ class RoadMap(GeoReferenced):
         return _shape_between(self._chains.xy[lane_curve.chain], lane_curve.curve.start_s, lane_curve.curve.end_s)
 
     # ----------------------------------------------------------------- paths
-    def expand_path(self, lane_ids: Sequence[str]) -> tuple[str, ...]:
-        """The lanes of a path with the internal via lanes between consecutive lanes filled in.
-
-        ``lane_ids`` may list only normal lanes (as a route does); where a lane does not
-        lead directly to the next one, the chain of internal lanes of the connection
-        between them is inserted.
-
-        Raises
-        ------
-        ValueError
-            If the path is empty or two consecutive lanes are not connected.
-        """
-        if not lane_ids:
-            raise ValueError("a path needs at least one lane")
-        indices = [self._lane_index(lane_ids[0])]
-        for following_id in lane_ids[1:]:
-            following = self._lane_index(following_id)
-            via = self._via_chain(indices[-1], following)
-            if via is None:
-                raise ValueError(f"lane {following_id!r} does not follow lane {self._lanes[indices[-1]].lane_id!r}")
-            indices += via + [following]
-        return tuple(self._lanes[i].lane_id for i in indices)
-
     def path_profile(self, lane_ids: Sequence[str]) -> PathProfile:
         """The road along consecutive lanes: one polyline, with the profile and curves of its road chains.
 
@@ -428,37 +319,7 @@ class RoadMap(GeoReferenced):
             self.warning_policy,
         )
 
-    # ----------------------------------------------------------------- positions
-    def match_points(self, xy: np.ndarray, radius_m: float) -> LaneMatches:
-        """All lanes within ``radius_m`` of each of many positions, projected onto each lane.
-
-        Parameters
-        ----------
-        xy
-            Positions in network coordinates, ``(k, 2)``, m.
-        radius_m
-            Search radius, m (> 0).
-        """
-        if not (math.isfinite(radius_m) and radius_m > 0):
-            raise ValueError(f"search radius must be a positive number of metres, got {radius_m!r}")
-        return self._lane_search.match(finite_pairs(xy, "positions"), radius_m)
-
-    def nearest_lanes(self, x: float, y: float, radius_m: float) -> list[LaneMatch]:
-        """The lanes within ``radius_m`` of (x, y), nearest first (see :meth:`match_points`)."""
-        return self.match_points(np.array([[x, y]]), radius_m).for_point(0)
-
     # ----------------------------------------------------------------- internals
-    def _lane_index(self, lane_id: str) -> int:
-        try:
-            return self._index[lane_id]
-        except KeyError:
-            raise KeyError(f"no lane {lane_id!r} in the network") from None
-
-    def _shape(self, lane: int) -> np.ndarray:
-        view = self._xy[self._vertex_start[lane] : self._vertex_start[lane + 1]]
-        view.flags.writeable = False
-        return view
-
     def _road_shape(self, lane: int) -> np.ndarray:
         """The shape a path takes along a lane: the lane's own, but only the two ends of an
         internal lane that continues the road (:attr:`Lane.continues_road`).
@@ -471,34 +332,3 @@ class RoadMap(GeoReferenced):
         """
         shape = self._shape(lane)
         return shape[[0, -1]] if self._lanes[lane].continues_road and len(shape) > 2 else shape
-
-    def _successor_indices(self, lane: int) -> np.ndarray:
-        return self._successor_index[self._successor_start[lane] : self._successor_start[lane + 1]]
-
-    def _via_chain(self, lane: int, following: int) -> list[int] | None:
-        """Internal lanes leading from the end of ``lane`` to ``following`` ([] if adjacent, None if unreachable)."""
-        frontier: list[tuple[int, list[int]]] = [(lane, [])]
-        seen = {lane}
-        while frontier:
-            current, chain_so_far = frontier.pop()
-            successors = self._successor_indices(current)
-            if following in successors:
-                return chain_so_far
-            for nxt in successors.tolist():
-                if self._lanes[nxt].is_internal and nxt not in seen:
-                    seen.add(nxt)
-                    frontier.append((nxt, chain_so_far + [nxt]))
-        return None
-
-    @cached_property
-    def _lane_id_array(self) -> np.ndarray:
-        return np.array(self.lane_ids, dtype=object)
-
-    @cached_property
-    def _position_factor(self) -> np.ndarray:
-        return np.array([lane.position_factor for lane in self._lanes])
-
-    @cached_property
-    def _lane_search(self) -> LaneSearch:
-        """The spatial index of the lanes' shapes, built on the first position look-up."""
-        return LaneSearch(self.lane_shapes)

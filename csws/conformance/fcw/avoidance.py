@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from csws.fcw.physics import MIN_REACTION_TIME_S, STANDARD_GRAVITY_MPS2
+from csws.fcw.settings import MIN_REACTION_TIME_S, STANDARD_GRAVITY_MPS2
 
 __all__ = ["AVOIDANCE_REACTION_S", "AVOIDANCE_BRAKING_MPS2", "latest_useful_warning_s"]
 

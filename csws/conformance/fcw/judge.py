@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csws.fcw.physics import STANDARD_GRAVITY_MPS2
+from csws.fcw.settings import STANDARD_GRAVITY_MPS2
 
 from .avoidance import AVOIDANCE_BRAKING_MPS2, AVOIDANCE_REACTION_S, latest_useful_warning_s
 from .drive import Trace

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from csws.fcw.physics import FcwSettings
+from csws.fcw.settings import FcwSettings
 from csws.fcw.target import CurveClass
 from csws.networks.fcw_tracks import CURVE_RADII_M
 from csws.standard import kmh_to_mps

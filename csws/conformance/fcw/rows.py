@@ -25,7 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from csws.fcw.physics import STANDARD_GRAVITY_MPS2, FcwSettings, formula_5_clearance_m, warning_clearance_m
+from csws.fcw.physics import formula_5_clearance_m, warning_clearance_m
+from csws.fcw.settings import STANDARD_GRAVITY_MPS2, FcwSettings
 from csws.fcw.target import CurveClass, curve_start_speed_mps
 from csws.networks.fcw_tracks import CURVE_RADII_M
 from csws.standard import kmh_to_mps
