@@ -12,12 +12,12 @@ Which way the path goes:
   network, the path ends. The route is taken from the first time it passes the
   vehicle's edge: a route that passes an edge twice should be given from the vehicle's
   position on (SUMO's route index tells where that is);
-* without one it follows the most probable path: at each junction the successor
-  whose way on keeps to the road the farthest, the road's continuation (:mod:`csws.road.continuations`),
-  so that at a lane split the path goes on with the road rather than into the lane that
-  leads off it onto a ramp further on; then the one on an edge with the same street name, then
-  the same road type, then the smallest change of heading (:mod:`csws.ahead.successors`).
-  Such a path is marked ``predicted``.
+* without one it follows the most probable path: at each junction a successor whose way
+  on keeps to the road, the road's continuation (:mod:`csws.road.continuations`), over the
+  path's reach, so that at a lane split the path goes on with the road rather than into the
+  lane that leads off it onto a ramp further on; then the road's continuation through the
+  junction, then the one on an edge with the same street name, then the same road type, then
+  the smallest change of heading (:mod:`csws.ahead.successors`). Such a path is marked ``predicted``.
 
 A path reads the profiles and curves of the road chains it runs along, each fitted once
 for the whole map (:mod:`csws.road.chains`), so a curve that runs across an edge boundary
