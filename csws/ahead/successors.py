@@ -72,7 +72,7 @@ class SuccessorChoice:
         if route_next is None:
             return self._predicted_successor(lane_id, successors)
         candidates = self._route_lanes(lane_id, successors, route_next)
-        if candidates is None or not candidates:
+        if not candidates:
             return None
         return candidates[0] if len(candidates) == 1 else self._most_probable(lane_id, candidates, route_next)
 
