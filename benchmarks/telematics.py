@@ -51,7 +51,9 @@ alone costs, which no matcher can undo.
   (that share, at the answer, is printed beside).
 
 Each run's figures are written as a line of ``telematics.jsonl`` in the output directory
-(``out/telematics/`` by default) as soon as it is measured, beside the issue's targets (At 1 Hz
+(``out/telematics/`` by default) as soon as it is measured, with every missed and false onset named
+(``onsets_named``: the vehicle, the time, the lane it drove, the lane its fix was matched to, the warned
+curve's edge), beside the issue's targets (At 1 Hz
 sigma 3 m: missed at most the exact 1 Hz feed's, false at most 0.5 % of the reference onsets, no
 level-2 false warning at a junction connection, p90 lateness at most one fix interval, repeat
 onsets at most 1.2 times the reference's; at sigma 8 m: at least 97 % of fixes matched to the true

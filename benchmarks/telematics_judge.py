@@ -53,6 +53,9 @@ class _Tally:
     other_curve: int = 0
     repeats: int = 0
     reference_repeats: int = 0
+    #: Each missed and false onset: its kind, the answer it is (the reference's for a missed one, the feed's for a
+    #: false one) and the feed's answer then (its last before a missed onset, -1 if none).
+    named: list[tuple[str, int, int]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,7 @@ def _count_false(tally: _Tally, feed: _Vehicle, onset: int, answers: FeedAnswers
     answer = feed.indices[onset]
     junction = _is_junction(answers.matched_lane[answer]) or _is_junction(answers.target_edge[answer])
     tally.false += 1
+    tally.named.append(("false", int(answer), int(answer)))
     tally.false_level_2 += level_2
     tally.false_junction += junction
     tally.false_level_2_junction += level_2 and junction
@@ -120,6 +124,10 @@ def _tally_vehicle(
         on = on_at(feed.times_s, feed.levels, reference_s[r] - before_s, reference_s[r])
         tally.already_on += on
         tally.missed += not on
+        if not on:
+            before = np.flatnonzero(feed.times_s <= reference_s[r])
+            feed_answer = int(feed.indices[before[-1]]) if len(before) else -1
+            tally.named.append(("missed", int(reference.indices[reference_onsets[r]]), feed_answer))
     for f in match.unmatched_feed:
         if on_at(reference.times_s, reference.levels, feed_s[f] - after_s, feed_s[f] + before_s):
             tally.echoes += 1
@@ -213,7 +221,7 @@ def judge(
             (feed_by_vehicle.get(vehicle, empty), answers),
             interval_s,
         )
-    figures = {name: value for name, value in vars(tally).items() if name != "lateness"}
+    figures = {name: value for name, value in vars(tally).items() if name not in ("lateness", "named")}
     figures |= {
         "fixes": len(answers.rows),
         "interval_s": interval_s,
@@ -224,4 +232,30 @@ def judge(
     }
     if matching:
         figures["matching"] = _matching(trajectories, answers)
+    figures["onsets_named"] = _named(trajectories, reference, answers, tally.named)
     return figures
+
+
+def _named(
+    trajectories: Trajectories, reference: FeedAnswers, answers: FeedAnswers, named: list[tuple[str, int, int]]
+) -> list[dict]:
+    """Where each missed and false onset came, to trace its cause: the vehicle, the time, its speed, the lane it
+    truly drove, the lane the feed's fix then was matched to (for a missed onset, its last fix before the
+    reference's onset) and the edge of the warned curve (for a missed onset, the one the reference warned of)."""
+    records = []
+    for kind, answer, feed_answer in named:
+        source = reference if kind == "missed" else answers
+        row = int(source.rows[answer])
+        records.append(
+            {
+                "kind": kind,
+                "vehicle": trajectories.vehicle_ids[int(trajectories.vehicle[row])],
+                "time_s": round(float(trajectories.step[row]) * STEP_S, 1),
+                "speed_kmh": round(float(trajectories.speed_mps[row]) * 3.6, 1),
+                "true_lane": trajectories.lanes[int(trajectories.lane[row])],
+                "matched_lane": answers.matched_lane[feed_answer] if feed_answer >= 0 else None,
+                "curve_edge": source.target_edge[answer],
+                "level": int(source.level[answer]),
+            }
+        )
+    return records

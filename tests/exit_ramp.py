@@ -1,5 +1,7 @@
 """A motorway exit for lane-uncertain paths: a three-lane road whose right lane alone leads onto an exit
-ramp with a sharp curve soon after the diverge, the two other lanes going on as the road."""
+ramp with a sharp curve soon after the diverge, the two other lanes going on as the road; and a lane split
+before such an exit: a one-lane road whose lane splits in two, the right one going straight on onto the exit
+ramp alone, the left one going on as the road."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import numpy as np
 from builders import node_xml
 
 from csws.geometry import arc, sample_pieces, straight
+from csws.road.roadmap import RoadMap
 from csws.sumo.netbuild import netconvert, shape_text
 
 #: The diverge node D; the main road runs east along y = 0 from x = 0 to 900 m.
@@ -35,11 +38,13 @@ def ramp_curve_start_xy(straight_m: float = RAMP_STRAIGHT_M) -> np.ndarray:
     return np.array(DIVERGE_XY) + straight_m * np.array([math.cos(heading_rad), math.sin(heading_rad)])
 
 
-def _edge(edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, priority: int, name: str) -> str:
-    """A motorway edge of ``lanes`` lanes at 30 m/s."""
+def _edge(
+    edge_id: str, from_id: str, to_id: str, xy: np.ndarray, lanes: int, priority: int, name: str, spread: str = "right"
+) -> str:
+    """A motorway edge of ``lanes`` lanes at 30 m/s, spread to the right of ``xy`` or centred on it."""
     return (
         f'<edge id="{edge_id}" from="{from_id}" to="{to_id}" numLanes="{lanes}" speed="30" priority="{priority}" '
-        f'name="{name}" shape="{shape_text(xy)}"/>'
+        f'name="{name}" spreadType="{spread}" shape="{shape_text(xy)}"/>'
     )
 
 
@@ -78,3 +83,59 @@ def write_exit_ramp(
         folder / "exit.net.xml",
         options=["--connection-files", str(connection_file)],
     )
+
+
+#: The lane split's lanes are this wide, m (SUMO's default): the split road's left lane runs this far left of the
+#: line the one-lane road and the exit lane run along.
+LANE_WIDTH_M = 3.2
+
+
+def write_lane_split(folder: Path, split_m: float) -> Path:
+    """Write and netconvert a lane split ``split_m`` before the diverge D: the one-lane road W -> S runs east along
+    y = 0 and splits at S into the two lanes of S -> D; the right one goes straight on along y = 0 and leads onto the
+    ramp D -> R alone (the lane a vehicle on the road drives straight into), the left one, a lane width to the left,
+    goes on as the road D -> E. Every edge is centred on its shape."""
+    split_xy = (DIVERGE_XY[0] - split_m, 0.0)
+    left_y = LANE_WIDTH_M
+    ramp = ramp_shape()
+    nodes = [
+        node_xml("W", (0.0, 0.0)),
+        node_xml("S", split_xy),
+        node_xml("D", DIVERGE_XY),
+        node_xml("E", (900.0, left_y)),
+        node_xml("R", ramp[-1]),
+    ]
+    edges = [
+        _edge("WS", "W", "S", np.array([(0.0, 0.0), split_xy]), 1, 3, "Motorway", "center"),
+        _edge("SD", "S", "D", np.array([split_xy, DIVERGE_XY]) + (0.0, left_y / 2), 2, 3, "Motorway", "center"),
+        _edge("DE", "D", "E", np.array([(DIVERGE_XY[0], left_y), (900.0, left_y)]), 1, 3, "Motorway", "center"),
+        _edge("DR", "D", "R", ramp, 1, 1, "Exit", "center"),
+    ]
+    links = [("WS", "SD", 0, 0), ("WS", "SD", 0, 1), ("SD", "DR", 0, 0), ("SD", "DE", 1, 0)]
+    connections = "".join(
+        f'<connection from="{from_edge}" to="{edge}" fromLane="{from_lane}" toLane="{to_lane}"/>'
+        for from_edge, edge, from_lane, to_lane in links
+    )
+    connection_file = folder / "split.con.xml"
+    connection_file.write_text(f"<connections>{connections}</connections>", encoding="utf-8")
+    return netconvert(
+        "<nodes>" + "".join(nodes) + "</nodes>",
+        "<edges>" + "".join(edges) + "</edges>",
+        folder / "split.net.xml",
+        options=["--connection-files", str(connection_file)],
+    )
+
+
+def path_starts_s(road_map: RoadMap, lanes: list[str]) -> tuple[tuple[str, ...], np.ndarray]:
+    """The lanes a drive takes (internal ones filled in) and where each starts along it, m (lane shapes)."""
+    path = road_map.expand_path(lanes)
+    lengths = [float(np.hypot(*np.diff(np.asarray(road_map.lane_shape(lane)), axis=0).T).sum()) for lane in path]
+    return path, np.concatenate(([0.0], np.cumsum(lengths)))
+
+
+def ramp_curve_start_s(road_map: RoadMap, path: tuple[str, ...], starts_s: np.ndarray, straight_m: float) -> float:
+    """Where the ramp's authored curve starts along a drive onto the ramp, m: its start projected onto the ramp lane."""
+    shape = np.asarray(road_map.lane_shape("DR_0"))
+    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T))))
+    nearest = int(np.argmin(np.hypot(*(shape - ramp_curve_start_xy(straight_m)).T)))
+    return float(starts_s[path.index("DR_0")] + vertex_s[nearest])

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from exit_ramp import RAMP_STRAIGHT_M, ramp_curve_start_xy, write_exit_ramp
+from exit_ramp import RAMP_STRAIGHT_M, path_starts_s, ramp_curve_start_s, write_exit_ramp
 from fastapi.testclient import TestClient
 from junction_town import Drive, drive
 from markers import marks_its_tests
@@ -100,21 +100,6 @@ def _warns_of_ramp(answer: dict) -> bool:
     return answer["level"] > 0 and any(trigger["curve_id"].startswith("DR@") for trigger in answer["triggers"])
 
 
-def _path_s(exit_map: RoadMap, lanes: list[str]) -> tuple[tuple[str, ...], np.ndarray]:
-    """The lanes a drive takes (internal ones filled in) and where each starts along it, m (lane shapes)."""
-    path = exit_map.expand_path(lanes)
-    lengths = [float(np.hypot(*np.diff(np.asarray(exit_map.lane_shape(lane)), axis=0).T).sum()) for lane in path]
-    return path, np.concatenate(([0.0], np.cumsum(lengths)))
-
-
-def _curve_start_s(exit_map: RoadMap, path: tuple[str, ...], starts_s: np.ndarray, straight_m: float) -> float:
-    """Where the ramp's authored curve starts along the ramp drive, m: its start projected onto the ramp lane."""
-    shape = np.asarray(exit_map.lane_shape("DR_0"))
-    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T))))
-    nearest = int(np.argmin(np.hypot(*(shape - ramp_curve_start_xy(straight_m)).T)))
-    return float(starts_s[path.index("DR_0")] + vertex_s[nearest])
-
-
 def test_the_path_ahead_of_the_exit_lane_is_the_roads(exit_map: RoadMap) -> None:
     road_lanes = RoadLanes(LookAhead(exit_map))
     length_m = exit_map.lane("WD_0").length_m
@@ -142,8 +127,8 @@ def _check_ramp_warnings(client, exit_map: RoadMap, straight_m: float) -> None:
     the curve."""
     drives = _drives(exit_map)
     answers = _answers(client, drives)
-    ramp_path, starts_s = _path_s(exit_map, ["WD_0", "DR_0"])
-    curve_s = _curve_start_s(exit_map, ramp_path, starts_s, straight_m)
+    ramp_path, starts_s = path_starts_s(exit_map, ["WD_0", "DR_0"])
+    curve_s = ramp_curve_start_s(exit_map, ramp_path, starts_s, straight_m)
     v, v_w = SPEED_MPS, LEVEL_1_SPEED_AT_40_M_MPS
     required_s = curve_s - (REACTION_S * v + (v * v - v_w * v_w) / G_MPS2)
     ramp_start_s = float(starts_s[ramp_path.index("DR_0")])

@@ -12,10 +12,12 @@ Which way the path goes:
   network, the path ends. The route is taken from the first time it passes the
   vehicle's edge: a route that passes an edge twice should be given from the vehicle's
   position on (SUMO's route index tells where that is);
-* without one it follows the most probable path: at each junction the successor
-  that keeps the road, i.e. the road's continuation (:mod:`csws.road.continuations`), then the
-  one on an edge with the same street name, then the same road type, then the
-  smallest change of heading. Such a path is marked ``predicted``.
+* without one it follows the most probable path: at each junction a successor whose way
+  on keeps to the road, the road's continuation (:mod:`csws.road.continuations`), over the
+  path's reach, so that at a lane split the path goes on with the road rather than into the
+  lane that leads off it onto a ramp further on; then the road's continuation through the
+  junction, then the one on an edge with the same street name, then the same road type, then
+  the smallest change of heading (:mod:`csws.ahead.successors`). Such a path is marked ``predicted``.
 
 A path reads the profiles and curves of the road chains it runs along, each fitted once
 for the whole map (:mod:`csws.road.chains`), so a curve that runs across an edge boundary
@@ -48,8 +50,8 @@ from csws.ahead.horizon import (
     radius_at_end,
     radius_under,
 )
+from csws.ahead.successors import SuccessorChoice
 from csws.curvature import Curve
-from csws.geometry import wrap_angle_rad
 from csws.road.path import PathProfile
 from csws.road.roadmap import Lane, RoadMap
 from csws.standard import DEFAULT_WARNING_RADIUS_M, Category, formula_1_m, kmh_to_mps
@@ -165,7 +167,7 @@ class LookAhead:
         self._by_lanes: OrderedDict[tuple, Horizon] = OrderedDict()
         self._by_query: dict[tuple, int] = {}
         self._pool = PartPool()
-        self._predicted: dict[tuple[str, tuple[str, ...]], str] = {}
+        self._successors = SuccessorChoice(road_map, _successor_reach_m(settings), settings.max_lanes)
         self._capacity = settings.cache_size
 
     def __call__(
@@ -299,84 +301,17 @@ class LookAhead:
         self, lane_id: str, remaining_m: float, needed_m: float, route_edges: Sequence[str] | None
     ) -> tuple[tuple[str, ...], PathKind]:
         """Lanes from ``lane_id`` on (``remaining_m`` of it ahead) until ``needed_m`` is covered, and the path kind:
-        along the route, else the most probable path (:meth:`_predicted_successor`)."""
+        along the route, else the most probable path (:class:`csws.ahead.successors.SuccessorChoice`)."""
         route_next = _route_successors(route_edges, self.road_map.lane(lane_id))
         kind = PathKind.ROUTE if route_next is not None else PathKind.PREDICTED
         lanes = [lane_id]
         while remaining_m < needed_m and len(lanes) < self.settings.max_lanes:
-            following = self._following_lane(lanes[-1], route_next)
+            following = self._successors.following(lanes[-1], route_next)
             if following is None:
                 break
             lanes.append(following)
             remaining_m += self.road_map.lane(following).length_m
         return tuple(lanes), kind
-
-    def _following_lane(self, lane_id: str, route_next: dict[str, str] | None) -> str | None:
-        """The lane after ``lane_id``: along the route if there is one, else the most probable."""
-        successors = self.road_map.successors(lane_id)
-        if not successors:
-            return None
-        lane = self.road_map.lane(lane_id)
-        if route_next is None:
-            return self._predicted_successor(lane_id, successors)
-        if lane.is_internal:
-            return successors[0] if len(successors) == 1 else self._predicted_successor(lane_id, successors)
-        next_edge = route_next.get(lane.edge_id)
-        if next_edge is None:
-            return None
-        leading = [s for s in successors if self._leads_to_edge(s, next_edge)]
-        return self._predicted_successor(lane_id, leading) if leading else None
-
-    def _leads_to_edge(self, lane_id: str, edge_id: str) -> bool:
-        """Whether ``lane_id`` is on ``edge_id`` or is an internal lane whose chain ends on it."""
-        for _ in range(self.settings.max_lanes):
-            lane = self.road_map.lane(lane_id)
-            if not lane.is_internal:
-                return lane.edge_id == edge_id
-            successors = self.road_map.successors(lane_id)
-            if len(successors) != 1:
-                return False
-            lane_id = successors[0]
-        return False
-
-    def _predicted_successor(self, lane_id: str, successors: Sequence[str]) -> str:
-        """The successor that keeps the road: the road's continuation through the junction
-        (:attr:`Lane.continues_road`), then the same street name, then road type, then least turning."""
-        if len(successors) == 1:
-            return successors[0]
-        key = (lane_id, tuple(successors))
-        chosen = self._predicted.get(key)
-        if chosen is None:
-            chosen = self._predicted[key] = self._most_probable(lane_id, successors)
-        return chosen
-
-    def _most_probable(self, lane_id: str, successors: Sequence[str]) -> str:
-        """:meth:`_predicted_successor` worked out (it depends on the map alone, so it is remembered)."""
-        current = self.road_map.lane(lane_id)
-        heading_out = _lane_end_heading(self.road_map.lane_shape(lane_id), -1)
-
-        def preference(candidate: str) -> tuple[bool, bool, bool, float]:
-            destination = self.road_map.lane(self._destination(candidate))
-            turning = abs(wrap_angle_rad(_lane_end_heading(self.road_map.lane_shape(candidate), 0) - heading_out))
-            return (
-                not self.road_map.lane(candidate).continues_road,
-                not (current.street_name and destination.street_name == current.street_name),
-                not (current.road_type and destination.road_type == current.road_type),
-                turning,
-            )
-
-        return min(successors, key=preference)
-
-    def _destination(self, lane_id: str) -> str:
-        """The first normal lane reached from ``lane_id`` (itself when it is normal)."""
-        for _ in range(self.settings.max_lanes):
-            if not self.road_map.lane(lane_id).is_internal:
-                return lane_id
-            successors = self.road_map.successors(lane_id)
-            if not successors:
-                return lane_id
-            lane_id = successors[0]
-        return lane_id
 
     def _build_horizon(self, lanes: tuple[str, ...], kind: PathKind) -> Horizon:
         """The stitched, profiled path of ``lanes`` and the parts of its curves (junction manoeuvres aside)."""
@@ -414,6 +349,12 @@ def _parts_cut_off(path: PathProfile, curve: Curve, chain: int, whole: Curve) ->
     run = int(runs[-1])
     chain_start_s = curve.start_s - float(path.run_path_start_s[run] - path.run_chain_start_s[run])
     return sum(part.end_s <= chain_start_s + _CUT_TOLERANCE_M for part in whole.parts)
+
+
+def _successor_reach_m(settings: LookAheadSettings) -> float:
+    """How far a successor's way on is followed to choose the lane a path goes on to: the S_LAD floor (or the fixed
+    S_LAD) and the context profiled beyond it, the stretch a warning looks along at most speeds, m."""
+    return max(settings.floor_m, settings.fixed_distance_m or 0.0) + settings.context_m
 
 
 def _remember(cache: OrderedDict, key: tuple, horizon: Horizon, capacity: int) -> Horizon:
@@ -465,11 +406,3 @@ def _route_successors(route_edges: Sequence[str] | None, lane: Lane) -> dict[str
     for edge, next_edge in pairwise(route_edges[start:]):
         following.setdefault(edge, next_edge)
     return following
-
-
-def _lane_end_heading(shape: np.ndarray, end: int) -> float:
-    """Heading of a lane's first (``end=0``) or last (``end=-1``) segment, radians."""
-    if len(shape) < 2:
-        return 0.0
-    dx, dy = shape[1] - shape[0] if end == 0 else shape[-1] - shape[-2]
-    return math.atan2(dy, dx)

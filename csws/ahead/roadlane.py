@@ -21,6 +21,7 @@ from collections import defaultdict
 from collections.abc import Sequence
 
 from csws.ahead.lookahead import LookAhead
+from csws.ahead.successors import keeps_road
 from csws.road.roadmap import Lane, RoadMap
 
 __all__ = ["RoadLanes"]
@@ -102,7 +103,7 @@ class RoadLanes:
         previous, next_edge = lane, None
         for following_id in lanes[1:]:
             following = self.road_map.lane(following_id)
-            if not _keeps_road(previous, following):
+            if not keeps_road(previous, following):
                 return self._edge_after(lanes, following_id), False
             if next_edge is None and not following.is_internal:
                 next_edge = following.edge_id
@@ -130,16 +131,6 @@ class RoadLanes:
                 for edge, lanes in by_edge.items()
             }
         return self._edge_lanes[edge_id]
-
-
-def _keeps_road(previous: Lane, following: Lane) -> bool:
-    """Whether the step from ``previous`` onto ``following`` keeps to the road: onto a connection that continues it,
-    off such a connection, or from a normal lane straight onto the lane its road continues on."""
-    if following.is_internal:
-        return following.continues_road
-    if previous.is_internal:
-        return previous.continues_road
-    return previous.continues_into == following.lane_id
 
 
 def _nearest(road_map: RoadMap, matched: Lane, lanes: Sequence[str]) -> str:
