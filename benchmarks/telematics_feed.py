@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,6 +27,8 @@ if TYPE_CHECKING:
 __all__ = [
     "QueryFields",
     "FeedAnswers",
+    "AnswersRead",
+    "read_answers",
     "query_fields",
     "feed_rows",
     "feed_fixes",
@@ -62,6 +64,9 @@ class FeedAnswers:
         Each answer's curve warning level.
     matched_lane
         Each answer's matched lane id (None: matched nothing).
+    confirmed_lane
+        Each answer's fix as the service placed it once the vehicle's next matched fix had arrived (the
+        ``confirmed`` of that answer: the matcher's window of one fix), else its own matched lane.
     target_edge
         The edge the warned curve starts on (its id's EDGE of EDGE@POS; None without a warning).
     server_ms
@@ -71,6 +76,7 @@ class FeedAnswers:
     rows: np.ndarray
     level: np.ndarray
     matched_lane: np.ndarray
+    confirmed_lane: np.ndarray
     target_edge: np.ndarray
     server_ms: float
 
@@ -163,13 +169,29 @@ def _queries(
     return queries
 
 
-def _read(answers: list[dict], level: list, matched: list, target: list) -> None:
-    """Append each answer's level, matched lane and warned curve's edge."""
-    for answer in answers:
-        level.append(answer["level"])
-        matched.append(answer["matched"]["lane_id"] if answer["matched"] else None)
+@dataclass
+class AnswersRead:
+    """What a feed's answers said so far, in order, and each answer's place by vehicle and fix time."""
+
+    level: list[int] = field(default_factory=list)
+    matched: list[str | None] = field(default_factory=list)
+    confirmed: list[str | None] = field(default_factory=list)
+    target: list[str | None] = field(default_factory=list)
+    index: dict[tuple[str, float], int] = field(default_factory=dict)
+
+
+def read_answers(answers: list[dict], queries: list[dict], read: AnswersRead) -> None:
+    """Append each answer's level, matched lane and warned curve's edge; place again the earlier fix it confirms."""
+    for answer, query in zip(answers, queries, strict=True):
+        read.index[(query["vehicle_id"], query["timestamp_s"])] = len(read.level)
+        read.level.append(answer["level"])
+        read.matched.append(answer["matched"]["lane_id"] if answer["matched"] else None)
+        read.confirmed.append(read.matched[-1])
         curve = answer["target"]["curve_id"] if answer["target"] else None
-        target.append(curve.rpartition("@")[0] if curve else None)
+        read.target.append(curve.rpartition("@")[0] if curve else None)
+        confirmed = answer.get("confirmed")
+        if confirmed is not None:
+            read.confirmed[read.index[(query["vehicle_id"], confirmed["timestamp_s"])]] = confirmed["lane_id"]
 
 
 def _columns(
@@ -195,23 +217,23 @@ def _send(
     """Send some rows, one batch per step that has any, and keep their answers."""
     cuts = np.flatnonzero(np.diff(trajectories.step[rows])) + 1
     bounds = list(zip(np.concatenate(([0], cuts)).tolist(), np.concatenate((cuts, [len(rows)])).tolist(), strict=True))
-    level: list[int] = []
-    matched: list[str | None] = []
-    target: list[str | None] = []
+    read = AnswersRead()
     server_ms = 0.0
     for number, (start, end) in enumerate(bounds, start=1):
         batch = {name: values[start:end] for name, values in columns.items()}
-        body = msgspec.json.encode({"queries": _queries(trajectories, rows[start:end], batch, prefix, accuracy)})
+        queries = _queries(trajectories, rows[start:end], batch, prefix, accuracy)
+        body = msgspec.json.encode({"queries": queries})
         response = client.post("/v1/warnings", content=body, headers={"content-type": "application/json"})
         response.raise_for_status()
         server_ms += server_timing(response.headers["server-timing"])["csws"]
-        _read(msgspec.json.decode(response.content)["answers"], level, matched, target)
+        read_answers(msgspec.json.decode(response.content)["answers"], queries, read)
         progress(number, len(bounds), end)
     return FeedAnswers(
         rows=rows,
-        level=np.asarray(level, dtype=np.int8),
-        matched_lane=np.asarray(matched, dtype=object),
-        target_edge=np.asarray(target, dtype=object),
+        level=np.asarray(read.level, dtype=np.int8),
+        matched_lane=np.asarray(read.matched, dtype=object),
+        confirmed_lane=np.asarray(read.confirmed, dtype=object),
+        target_edge=np.asarray(read.target, dtype=object),
         server_ms=server_ms,
     )
 

@@ -182,12 +182,15 @@ def on_true_road(lane_ids: Sequence[str | None], roads: list[set[str]]) -> np.nd
 
 
 def _matching(trajectories: Trajectories, answers: FeedAnswers) -> dict:
-    """Shares of the fixes matched to the true road (:func:`true_roads`), to the true lane, and to nothing."""
-    on_road = on_true_road(answers.matched_lane.tolist(), true_roads(trajectories, answers.rows))
+    """Shares of the fixes matched to the true road (:func:`true_roads`) at their answer and as the next answer
+    confirmed them, to the true lane, and to nothing."""
+    roads = true_roads(trajectories, answers.rows)
+    on_road = on_true_road(answers.matched_lane.tolist(), roads)
     true_lanes = np.array(trajectories.lanes, dtype=object)[trajectories.lane[answers.rows]]
     fixes = max(len(answers.rows), 1)
     return {
         "true_road_share": float(on_road.sum() / fixes),
+        "confirmed_true_road_share": float(on_true_road(answers.confirmed_lane.tolist(), roads).sum() / fixes),
         "true_lane_share": float((true_lanes == answers.matched_lane).sum() / fixes),
         "no_match_share": sum(lane is None for lane in answers.matched_lane) / fixes,
     }

@@ -23,7 +23,7 @@ from benchmarks.telematics_analysis import (  # noqa: E402
     repeat_onsets,
     sample_mask,
 )
-from benchmarks.telematics_feed import FeedAnswers  # noqa: E402
+from benchmarks.telematics_feed import AnswersRead, FeedAnswers, read_answers  # noqa: E402
 from benchmarks.telematics_fleet import Trajectories  # noqa: E402
 from benchmarks.telematics_judge import judge  # noqa: E402
 
@@ -123,9 +123,35 @@ def _answers(rows: list[int], levels: list[int], matched: list[str | None], targ
         rows=np.array(rows),
         level=np.array(levels, dtype=np.int8),
         matched_lane=np.array(matched, dtype=object),
+        confirmed_lane=np.array(matched, dtype=object),
         target_edge=np.array(target, dtype=object),
         server_ms=2.0,
     )
+
+
+def test_a_later_answers_confirmed_fix_replaces_the_earlier_fixs_lane() -> None:
+    # Two vehicles; the second answer of v1 confirms its first fix on another lane (a junction fix the next fix
+    # showed on the turn); v2's first fix is never confirmed and keeps its own lane.
+    queries = [
+        {"vehicle_id": "v1", "timestamp_s": 10.0},
+        {"vehicle_id": "v2", "timestamp_s": 10.0},
+        {"vehicle_id": "v1", "timestamp_s": 11.0},
+    ]
+    answers = [
+        {"level": 0, "matched": {"lane_id": ":J_0_0"}, "target": None},
+        {"level": 0, "matched": {"lane_id": "A_0"}, "target": None},
+        {
+            "level": 1,
+            "matched": {"lane_id": "S_0"},
+            "target": {"curve_id": "S_0@12.5"},
+            "confirmed": {"timestamp_s": 10.0, "lane_id": ":J_1_0", "revised": True},
+        },
+    ]
+    read = AnswersRead()
+    read_answers(answers, queries, read)
+    assert read.matched == [":J_0_0", "A_0", "S_0"]
+    assert read.confirmed == [":J_1_0", "A_0", "S_0"]
+    assert read.target == [None, None, "S_0"]
 
 
 def test_a_feed_is_judged_against_the_reference_onset_by_onset() -> None:
