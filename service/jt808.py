@@ -89,10 +89,10 @@ class GatewaySettings:
     max_connections
         Connections beyond this many are closed at once.
     batch_window_s
-        The first report after an idle spell waits this long for others to answer together: a
-        group of reports costs far less per report than one at a time (map matching, the state
-        store's round trip), for a few milliseconds more latency. Reports that arrive while a group
-        is evaluated go next without waiting.
+        A group of reports starts at most this often (:class:`service.jt808_groups.Batcher`): a group
+        costs a few milliseconds whatever its size (map matching, the engine, the state store's round
+        trips) and little more per report, so reports answered together cost far less than a handful
+        at a time, for at most this much more latency.
     tracking
         When and how slow terminals are asked for temporary tracking (``0x8202``) near a curve.
     untracked_fleets
@@ -105,7 +105,7 @@ class GatewaySettings:
     frames_per_s: float = 20.0
     frames_burst: float = 60.0
     max_connections: int = 20_000
-    batch_window_s: float = 0.005
+    batch_window_s: float = 0.02
     fleet_texts: dict[str, DriverTexts] = field(default_factory=dict)
     tracking: TrackingSettings = field(default_factory=TrackingSettings)
     untracked_fleets: frozenset[str] = frozenset()

@@ -81,8 +81,12 @@ class Batcher:
 
     A query is queued as its report is read, and its answer delivered by the callback it came with in
     the same turn of the event loop that learns its group is done: no task per report stands between
-    the work thread and the ``0x8300``. The first query after an idle spell waits ``window_s`` for
-    others; the queries that arrive while a group is evaluated go next, at once (they have waited).
+    the work thread and the ``0x8300``. A group starts at most every ``window_s``: the first query
+    after an idle spell waits that long for others, and the queries that arrive while a group is
+    evaluated go next once ``window_s`` has passed since that group started (at once if it took
+    longer). A group's fixed cost (the store's round trips, the matcher's and engine's set-up: a few
+    milliseconds) is thereby paid at most once a window however many terminals report, instead of
+    once for every handful of reports that met during the last evaluation.
 
     Each query's time is counted in ``times``: ``wait`` from queued to its group's start on the work
     thread, ``evaluate`` its group's evaluation, ``handback`` from there to the event loop; and each
@@ -104,16 +108,18 @@ class Batcher:
         self._running = False
 
     def queue(self, waiting: Waiting) -> None:
-        """Queue ``waiting`` for the next group (started now, or after the window when idle)."""
+        """Queue ``waiting`` for the next group (at most one starts every window)."""
         self._waiting.append(waiting)
         if not self._running:
             self._running = True
             asyncio.get_running_loop().create_task(self._drain())
 
     async def _drain(self) -> None:
+        loop = asyncio.get_running_loop()
         try:
             await asyncio.sleep(self.window_s)
             while self._waiting:
+                group_started_s = loop.time()
                 group = [waiting for waiting in self._waiting if not waiting.shed]
                 self._waiting = []
                 if not group:
@@ -130,6 +136,9 @@ class Batcher:
                     answers = [None] * len(group)
                 for waiting, answer in zip(group, answers, strict=True):
                     waiting.deliver(answer)
+                rest_s = self.window_s - (loop.time() - group_started_s)
+                if self._waiting and rest_s > 0:
+                    await asyncio.sleep(rest_s)
         finally:
             self._running = False
 

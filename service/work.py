@@ -78,13 +78,13 @@ class WorkThread:
             loop, done, function, args = piece
             gc.disable()
             try:
-                result = function(*args)
-            except BaseException as error:  # noqa: BLE001 - handed to the request that awaits it
-                loop.call_soon_threadsafe(_settle, done, None, error)
-            else:
-                loop.call_soon_threadsafe(_settle, done, result, None)
+                result, error = function(*args), None
+            except BaseException as raised:  # noqa: BLE001 - handed to the request that awaits it
+                result, error = None, raised
             finally:
                 gc.enable()
+            if not loop.is_closed():  # a loop that ended meanwhile (a shutdown) awaits nothing more
+                loop.call_soon_threadsafe(_settle, done, result, error)
 
     def close(self) -> None:
         """Let the pieces handed so far finish, then end the thread."""
