@@ -264,7 +264,9 @@ class WakeSchedule:
             reach_m = lookahead_distances_m(speed_kmh, self.warning, 0.0, period_s[which])
             return clear_m[which] - drive.lane_m(which, steps) / factor[which] <= reach_m
 
-        wake = step + _first(can_warn, rows.size)
+        # At its bound, a vehicle could warn once it has driven the margined distance less the reach at its bound.
+        reach_at_bound_m = lookahead_distances_m(mps_to_kmh(drive.bound_mps), self.warning, 0.0, period_s)
+        wake = step + _first(can_warn, drive.steps_to_m((clear_m - reach_at_bound_m) * factor))
         for k in np.flatnonzero(wake >= step + 2).tolist():
             vehicle_id, at = vehicle_ids[int(rows[k])], int(wake[k])
             self.wake_step[vehicle_id] = at
@@ -287,35 +289,55 @@ class _Drive:
 
     def __init__(self, speed_mps: np.ndarray, bound_mps: np.ndarray, accel_mps2: np.ndarray, step_s: float) -> None:
         self.speed0_mps, self.bound_mps, self.step_s = speed_mps, bound_mps, step_s
-        self.gain_mps = accel_mps2 * step_s
-        #: Steps at which the speed still rises below the bound (0 where the gain is 0 or infinite: at its bound).
-        rises = (0.0 < self.gain_mps) & (self.gain_mps < math.inf)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            self.rising = np.where(rises, np.floor((bound_mps - speed_mps) / self.gain_mps), 0.0)
+        gain_mps = accel_mps2 * step_s
+        rises = (0.0 < gain_mps) & (gain_mps < math.inf)
+        #: The speed gained per step where it rises (0 where the gain is 0 or infinite: at its bound at once).
+        self.gain_mps = np.where(rises, gain_mps, 0.0)
+        #: Steps at which the speed still rises below the bound.
+        self.rising = np.where(rises, np.floor((bound_mps - speed_mps) / np.where(rises, gain_mps, 1.0)), 0.0)
 
     def speed_mps(self, which: np.ndarray, steps: np.ndarray) -> np.ndarray:
         """The highest speed of the vehicles ``which`` after ``steps`` steps, m/s."""
-        with np.errstate(invalid="ignore"):
-            rising_mps = self.speed0_mps[which] + self.gain_mps[which] * steps
+        rising_mps = self.speed0_mps[which] + self.gain_mps[which] * steps
         return np.where(steps > self.rising[which], self.bound_mps[which], rising_mps)
 
     def lane_m(self, which: np.ndarray, steps: np.ndarray) -> np.ndarray:
         """The longest lane distance the vehicles ``which`` drive in ``steps`` steps, m."""
         rising = np.minimum(steps, self.rising[which])
-        with np.errstate(invalid="ignore"):
-            gained_m = self.gain_mps[which] * rising * (rising + 1) / 2
-        rising_m = np.where(rising > 0, rising * self.speed0_mps[which] + gained_m, 0.0)
+        rising_m = np.where(rising > 0, self._rising_m(which, rising), 0.0)
         return self.step_s * (rising_m + (steps - rising) * self.bound_mps[which])
 
+    def _rising_m(self, which: np.ndarray, rising: np.ndarray) -> np.ndarray:
+        """The lane distance over the first ``rising`` steps while the speed rises, in steps (m over the step)."""
+        return rising * self.speed0_mps[which] + self.gain_mps[which] * rising * (rising + 1) / 2
 
-def _first(holds: Callable[[np.ndarray, np.ndarray], np.ndarray], count: int, most: int = 1 << 24) -> np.ndarray:
-    """Per one of ``count`` vehicles, the first step from 1 on at which ``holds(vehicles, steps)`` (false until
-    then, true from then on), found by doubling then halving; ``most`` where it holds at none up to it."""
-    first = np.full(count, most, dtype=np.int64)
+    def steps_to_m(self, lane_m: np.ndarray) -> np.ndarray:
+        """The fewest steps after which each vehicle could have driven ``lane_m`` at its bound after its rise, as
+        the closed form gives it (a first guess: rounding may put it a step off, and a vehicle that gets there
+        while still speeding up needs fewer)."""
+        every = np.arange(self.rising.size)
+        rising_m = np.where(self.rising > 0, self._rising_m(every, self.rising), 0.0)
+        steps = self.rising + np.ceil((lane_m / self.step_s - rising_m) / self.bound_mps)
+        return np.nan_to_num(np.maximum(steps, self.rising + 1.0), nan=1.0, posinf=float(_MOST), neginf=1.0)
+
+
+#: The most steps a vehicle sleeps.
+_MOST = 1 << 24
+
+
+def _first(holds: Callable[[np.ndarray, np.ndarray], np.ndarray], guess: np.ndarray, most: int = _MOST) -> np.ndarray:
+    """Per vehicle, the first step from 1 on at which ``holds(vehicles, steps)`` (false until then, true from then
+    on), ``most`` where it holds at none up to it: ``guess`` where it holds there and not the step before, else
+    found by doubling then halving."""
+    count = guess.size
+    guess = np.clip(guess, 1, most).astype(np.int64)
     which = np.arange(count)
-    ones = np.ones(count, dtype=np.int64)
+    right = (holds(which, guess) | (guess == most)) & ((guess == 1) | ~holds(which, guess - 1))
+    first = np.where(right, guess, most)
+    which = which[~right]
+    ones = np.ones(which.size, dtype=np.int64)
     at_once = holds(which, ones)
-    first[at_once] = 1
+    first[which[at_once]] = 1
     which, low, high = which[~at_once], ones[~at_once], 2 * ones[~at_once]
     found, found_low, found_high = [], [], []
     while which.size:  # doubling: [low, high) brackets the first step where it holds at high
