@@ -264,9 +264,11 @@ class WakeSchedule:
             reach_m = lookahead_distances_m(speed_kmh, self.warning, 0.0, period_s[which])
             return clear_m[which] - drive.lane_m(which, steps) / factor[which] <= reach_m
 
-        # At its bound, a vehicle could warn once it has driven the margined distance less the reach at its bound.
-        reach_at_bound_m = lookahead_distances_m(mps_to_kmh(drive.bound_mps), self.warning, 0.0, period_s)
-        wake = step + _first(can_warn, drive.steps_to_m((clear_m - reach_at_bound_m) * factor))
+        def reach_m(speed_mps: np.ndarray) -> np.ndarray:
+            """S_w + allowance at ``speed_mps`` of every vehicle scheduled, m."""
+            return lookahead_distances_m(mps_to_kmh(speed_mps), self.warning, 0.0, period_s)
+
+        wake = step + _first(can_warn, drive.first_step_guess(clear_m * factor, factor, reach_m))
         for k in np.flatnonzero(wake >= step + 2).tolist():
             vehicle_id, at = vehicle_ids[int(rows[k])], int(wake[k])
             self.wake_step[vehicle_id] = at
@@ -311,14 +313,31 @@ class _Drive:
         """The lane distance over the first ``rising`` steps while the speed rises, in steps (m over the step)."""
         return rising * self.speed0_mps[which] + self.gain_mps[which] * rising * (rising + 1) / 2
 
-    def steps_to_m(self, lane_m: np.ndarray) -> np.ndarray:
-        """The fewest steps after which each vehicle could have driven ``lane_m`` at its bound after its rise, as
-        the closed form gives it (a first guess: rounding may put it a step off, and a vehicle that gets there
-        while still speeding up needs fewer)."""
+    def first_step_guess(
+        self, target_m: np.ndarray, factor: np.ndarray, reach_m: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """Per vehicle, the first step at which the lane distance driven plus ``factor`` times the reach at the speed
+        then, ``reach_m(speed_mps)``, could be ``target_m``, as the closed form gives it: a quadratic in the steps
+        while the speed still rises (the reach, formula (1) plus the allowance, is a quadratic in the speed: its
+        coefficients are read from it at 1 and 2 m/s), linear once at the bound. A first guess: rounding may put it
+        a step off."""
         every = np.arange(self.rising.size)
         rising_m = np.where(self.rising > 0, self._rising_m(every, self.rising), 0.0)
-        steps = self.rising + np.ceil((lane_m / self.step_s - rising_m) / self.bound_mps)
-        return np.nan_to_num(np.maximum(steps, self.rising + 1.0), nan=1.0, posinf=float(_MOST), neginf=1.0)
+        reach_at_bound_m = reach_m(self.bound_mps)
+        at_bound = self.rising + np.ceil(
+            ((target_m - factor * reach_at_bound_m) / self.step_s - rising_m) / self.bound_mps
+        )
+        at_one_m, at_two_m = reach_m(np.ones(every.size)), reach_m(np.full(every.size, 2.0))
+        square, linear = (at_two_m - 2.0 * at_one_m) / 2.0, at_one_m - (at_two_m - 2.0 * at_one_m) / 2.0
+        speed_mps, gain_mps = self.speed0_mps, self.gain_mps
+        a = self.step_s * gain_mps / 2.0 + factor * square * gain_mps**2
+        b = self.step_s * (speed_mps + gain_mps / 2.0) + factor * gain_mps * (linear + 2.0 * square * speed_mps)
+        c = factor * (linear * speed_mps + square * speed_mps**2) - target_m
+        root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            while_rising = np.ceil(np.where(a > 0.0, (root - b) / (2.0 * a), np.inf))
+        guess = np.where(while_rising <= self.rising, while_rising, np.maximum(at_bound, self.rising + 1.0))
+        return np.nan_to_num(guess, nan=1.0, posinf=float(_MOST), neginf=1.0)
 
 
 #: The most steps a vehicle sleeps.
