@@ -40,7 +40,9 @@ few minutes; it gives both systems' cost over bare SUMO as a share of the SSM de
 0.5), and the FCW alone scheduled and every step on the fleet road with 20 vehicles one every 15 s in one
 direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles sleep); and the share of
 vehicle-steps any exact FCW schedule must evaluate on the small fleet (a vehicle ahead on its road whose
-braking at its emergency deceleration could bring a warning at once).
+braking at its emergency deceleration could bring a warning at once). ``python -m benchmarks.cosim --city 10``
+runs the city alone for 10 simulated seconds, with events only evaluated every step beside the scheduled run
+(the schedule's own cost is its ``schedule`` component).
 """
 
 from __future__ import annotations
@@ -397,17 +399,22 @@ def _fleet_figures(work: Path) -> dict:
     return figures | _fcw_of_ssm(runs)
 
 
-def _city_figures(work: Path) -> dict:
-    """Bad Hersfeld: 10,000 vehicles, bare, default and events only."""
+def _city_figures(work: Path, duration_s: float = CITY_DURATION_S, every_step: bool = False) -> dict:
+    """Bad Hersfeld: 10,000 vehicles for ``duration_s``, bare, default and events only (and with ``every_step``
+    events only with every vehicle evaluated at every step, the schedule's comparison)."""
     routes = work / "city.rou.xml"
     routes.write_text(_city_routes_xml(CITY_NET, CITY_VEHICLES), encoding="utf-8")
     scenario = Scenario(None, CITY_NET, (routes,))
-    common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": CITY_DURATION_S}
+    common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": duration_s}
     configs = {
         "default": CosimConfig(out=work / "city-default", timeseries_every=DEFAULT_EVERY, **common),
         "events_only": CosimConfig(out=work / "city-events", timeseries="none", **common),
     }
-    runs = {"bare": _in_own_process(_bare_run, scenario, CITY_DURATION_S)}
+    if every_step:
+        configs["events_every_step"] = CosimConfig(
+            out=work / "city-events-every", timeseries="none", evaluation="every-step", **common
+        )
+    runs = {"bare": _in_own_process(_bare_run, scenario, duration_s)}
     runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
     return _figures(runs)
 
@@ -454,13 +461,24 @@ def _print_of_ssm(figures: dict) -> None:
 
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The one option: the small configuration."""
+    """The small configuration, or the city alone (for how many simulated seconds)."""
     parser.add_argument("--small", action="store_true", help="300 vehicles, with SSM and the FCW's floors")
+    parser.add_argument(
+        "--city",
+        type=float,
+        metavar="SECONDS",
+        help="the city alone for SECONDS simulated seconds, with events only evaluated every step beside scheduled",
+    )
 
 
 def main() -> None:
     """Print each figure beside its target (``--small``: the small configuration's)."""
-    if arguments("benchmarks.cosim", __doc__, _add_arguments).small:
+    options = arguments("benchmarks.cosim", __doc__, _add_arguments)
+    if options.city is not None:
+        with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as work:
+            _print(_city_figures(Path(work), options.city, every_step=True))
+        return
+    if options.small:
         figures = small_run()
         _print(figures)
         _print_of_ssm(figures)

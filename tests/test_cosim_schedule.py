@@ -29,8 +29,8 @@ from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.schedule import (
     LANE_CHANGE_MARGIN_M,
     LANE_CHANGE_MARGIN_SHARE,
+    PartsAhead,
     WakeSchedule,
-    distance_to_first_part_m,
     speed_bound_mps,
 )
 from csws.fcw.settings import FcwSettings
@@ -201,7 +201,7 @@ def test_a_sleeping_vehicle_cannot_reach_a_warning_distance_before_it_wakes(
     settings = WarningSettings(update_period_s=STEP_S)
     schedule = WakeSchedule(STEP_S, settings)
     schedule.add("v", bound_mps, accel_mps2)
-    schedule.sleep(0, "v", speed_mps, distance_m, factor)
+    schedule.sleep(0, ["v"], np.array([speed_mps]), np.array([distance_m]), np.array([factor]))
     wake = schedule.wake_step.get("v")
     if wake is None:
         return
@@ -232,24 +232,62 @@ def test_a_vehicle_kept_awake_by_the_array_test_is_one_that_could_be_warned_at_t
         assert not awake[0]
     if awake[0]:
         schedule.add("v", bound_mps, accel_mps2)
-        schedule.sleep(0, "v", speed_mps, distance_m, factor, period_s)
+        periods_s = None if period_s is None else np.array([period_s])
+        schedule.sleep(0, ["v"], np.array([speed_mps]), np.array([distance_m]), np.array([factor]), periods_s)
         assert "v" not in schedule.wake_step
 
 
+@given(sleepers=st.lists(st.fixed_dictionaries(SLEEPERS), min_size=1, max_size=6), shared=st.booleans())
+def test_vehicles_put_to_sleep_together_wake_as_each_would_alone(sleepers, shared):
+    """Scheduling many vehicles in one call wakes each at the step it would wake scheduled alone (the arrays of one
+    vehicle never reach another's), also with one departing bound shared by all."""
+    settings = WarningSettings(update_period_s=STEP_S)
+    together = WakeSchedule(STEP_S, settings)
+    ids = [f"v{i}" for i in range(len(sleepers))]
+    for vehicle_id, sleeper in zip(ids, sleepers, strict=True):
+        sleeper = sleepers[0] if shared else sleeper
+        together.add(vehicle_id, sleeper["bound_mps"], sleeper["accel_mps2"])
+    columns = {
+        name: np.array([sleeper[name] for sleeper in sleepers]) for name in ("speed_mps", "distance_m", "factor")
+    }
+    together.sleep(3, ids, columns["speed_mps"], columns["distance_m"], columns["factor"])
+    for vehicle_id, sleeper in zip(ids, sleepers, strict=True):
+        alone = WakeSchedule(STEP_S, settings)
+        bound = sleepers[0] if shared else sleeper
+        alone.add("v", bound["bound_mps"], bound["accel_mps2"])
+        alone.sleep(3, ["v"], *(np.array([sleeper[name]]) for name in ("speed_mps", "distance_m", "factor")))
+        assert together.wake_step.get(vehicle_id) == alone.wake_step.get("v")
+
+
+#: A horizon's curve parts: (start, length), m.
+PARTS = st.lists(st.tuples(st.floats(0.0, 2000.0), st.floats(0.0, 300.0)), max_size=8)
+
+
 @given(
-    parts=st.lists(st.tuples(st.floats(0.0, 2000.0), st.floats(0.0, 300.0)), max_size=8),
-    vehicle_s=st.floats(0.0, 2500.0),
+    roads=st.lists(st.tuples(PARTS, st.floats(100.0, 2600.0)), min_size=1, max_size=4),
+    vehicles=st.lists(st.tuples(st.integers(0, 3), st.floats(0.0, 2500.0)), max_size=12),
+    capacity=st.integers(1, 6),
 )
-def test_the_first_part_ahead_is_the_nearest_start_among_the_parts_not_passed(parts, vehicle_s):
+def test_the_first_part_ahead_is_the_nearest_start_among_the_parts_not_passed(roads, vehicles, capacity):
     """The distance to the first curve part is that to the nearest start among the parts whose end (plus the
-    CPOIs' end margin) is still ahead, 0 inside one, else to the end of the path."""
-    starts = np.array([start for start, _ in parts], dtype=float)
-    ends = np.array([start + length for start, length in parts], dtype=float)
-    path = SimpleNamespace(length_m=2600.0, lane_position_factor=np.array([1.02, 0.98]))
-    horizon = SimpleNamespace(part_start_s=starts, part_end_s=ends, path=path)
-    ahead = [start for start, end in zip(starts, ends, strict=True) if end + END_MARGIN_M > vehicle_s]
-    expected_m = max(min(ahead, default=2600.0) - vehicle_s, 0.0)
-    assert distance_to_first_part_m(horizon, vehicle_s) == (expected_m, 0.98)
+    CPOIs' end margin) is still ahead, 0 inside one, else to the end of the path; for many vehicles on several
+    horizons at once, over calls that lay out new horizons and empty a small pool."""
+    horizons = []
+    for parts, length_m in roads:
+        starts = np.array([start for start, _ in parts], dtype=float)
+        ends = np.array([start + length for start, length in parts], dtype=float)
+        path = SimpleNamespace(length_m=length_m, lane_position_factor=np.array([1.02, 0.98]))
+        horizons.append(SimpleNamespace(part_start_s=starts, part_end_s=ends, path=path))
+    pool = PartsAhead(capacity)
+    for batch in (vehicles[: len(vehicles) // 2], vehicles):
+        chosen = [horizons[k % len(horizons)] for k, _ in batch]
+        vehicle_s = np.array([s for _, s in batch], dtype=float)
+        distances_m, factors = pool.distances_m(chosen, vehicle_s)
+        for horizon, s, distance_m, factor in zip(chosen, vehicle_s.tolist(), distances_m, factors, strict=True):
+            ends_s = horizon.part_end_s + END_MARGIN_M
+            ahead = [a for a, end in zip(horizon.part_start_s.tolist(), ends_s.tolist(), strict=True) if end > s]
+            assert distance_m == max(min(ahead, default=horizon.path.length_m) - s, 0.0)
+            assert factor == 0.98
 
 
 def test_the_speed_bound_is_the_lower_of_the_types_and_the_fastest_lanes():

@@ -84,7 +84,7 @@ def first_meeting_steps(
     closing_m = (bound_mps + other_bound_mps) * per_step
     head_start_m = other_bound_mps * (now_step - other_read_step) * per_step
     gap_m = distance_m - reach_m - head_start_m
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         steps = np.where(closing_m > 0.0, np.ceil(gap_m / closing_m), math.inf)
     return np.where(gap_m <= 0.0, float(now_step), now_step + np.maximum(steps, 0.0))
 

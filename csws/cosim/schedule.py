@@ -29,11 +29,10 @@ A vehicle is in fault (5.4) only off every lane, while SUMO teleports it, and it
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import ClassVar
+from itertools import repeat
 
 import numpy as np
 
@@ -48,8 +47,8 @@ __all__ = [
     "LANE_CHANGE_MARGIN_M",
     "LANE_CHANGE_MARGIN_SHARE",
     "WakeSchedule",
+    "PartsAhead",
     "caught_up",
-    "distance_to_first_part_m",
     "speed_bound_mps",
 ]
 
@@ -75,46 +74,86 @@ def caught_up(memory: VehicleMemory, skipped_times_s: Sequence[float]) -> Vehicl
     return VehicleMemory(replace(memory.status, last_timestamp_s=last_s), memory.held, intervals_s)
 
 
-def distance_to_first_part_m(horizon: Horizon, vehicle_s: float) -> tuple[float, float]:
-    """The path distance from ``vehicle_s`` to the start of the first curve part not yet passed (0 inside one),
-    or to the end of the path when no part is ahead, m; and the smallest lane-length per path-length
-    factor of the path's lanes (a lane position advances ``factor`` times the path's arc length)."""
-    return _PartsAhead.of(horizon).distance_m(vehicle_s)
+class PartsAhead:
+    """The curve parts of many horizons in flat arrays, ordered by where they end within each horizon, with the
+    nearest start among each part and those ending after it: the first part not passed by each of many vehicles is
+    then one vectorised bisection away (each horizon is laid out once, at its first use).
+
+    The pool keeps every horizon it holds alive (so that a horizon's ``id`` names its slot) and is emptied when it
+    would hold more than ``capacity`` of them.
+    """
+
+    def __init__(self, capacity: int = 20_000) -> None:
+        self.capacity = capacity
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget every horizon."""
+        self._horizons: list[Horizon] = []
+        self._slot_of: dict[int, int] = {}
+        #: Per slot: its first part in the part arrays, its number of parts, its path's length (m) and factor.
+        self._first, self._count = np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+        self._length_m, self._factor = np.zeros(0), np.zeros(0)
+        #: Per part: its end with the end margin, and the nearest start among it and the parts after it, s (m).
+        self._ends_s, self._nearest_start_s = np.zeros(0), np.zeros(0)
+
+    def distances_m(self, horizons: Sequence[Horizon], vehicle_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per vehicle, the path distance from ``vehicle_s`` to the start of the first curve part of its horizon not
+        yet passed (0 inside one; a part counts until :data:`~csws.ahead.horizon.END_MARGIN_M` after its end), or
+        to the end of the path when no part is ahead, m; and the smallest lane-length per path-length factor of the
+        path's lanes (a lane position advances ``factor`` times the path's arc length)."""
+        slots = self._slots(horizons)
+        low, high = self._first[slots], self._first[slots] + self._count[slots]
+        found = _bisect_right(self._ends_s, vehicle_s, low, high)
+        ahead = found < high
+        nearest_s = self._nearest_start_s[np.where(ahead, found, 0)] if ahead.any() else vehicle_s
+        end_s = np.where(ahead, nearest_s, self._length_m[slots])
+        return np.maximum(end_s - vehicle_s, 0.0), self._factor[slots]
+
+    def _slots(self, horizons: Sequence[Horizon]) -> np.ndarray:
+        """The slot of each horizon, laying out those not yet in the pool (emptied first when it would overflow)."""
+        ids = list(map(id, horizons))
+        found = list(map(self._slot_of.get, ids))
+        if None in found:
+            new = {ids[k]: horizons[k] for k, slot in enumerate(found) if slot is None}
+            if len(self._horizons) + len(new) > self.capacity:
+                self.clear()
+                new = dict(zip(ids, horizons, strict=True))
+            self._extend(list(new.values()))
+            found = list(map(self._slot_of.get, ids))
+        return np.array(found, dtype=np.intp)
+
+    def _extend(self, horizons: list[Horizon]) -> None:
+        """Lay out horizons' parts in new slots."""
+        orders = [np.argsort(horizon.part_end_s, kind="stable") for horizon in horizons]
+        counts = np.array([order.size for order in orders], dtype=np.intp)
+        ends_s = [h.part_end_s[order] + END_MARGIN_M for h, order in zip(horizons, orders, strict=True)]
+        starts_s = [h.part_start_s[order][::-1] for h, order in zip(horizons, orders, strict=True)]
+        nearest_s = [np.minimum.accumulate(reversed_s)[::-1] for reversed_s in starts_s]
+        first = self._ends_s.size + np.cumsum(counts) - counts
+        self._first, self._count = np.concatenate([self._first, first]), np.concatenate([self._count, counts])
+        lengths_m = np.array([horizon.path.length_m for horizon in horizons], dtype=float)
+        factors = np.array([np.min(horizon.path.lane_position_factor) for horizon in horizons], dtype=float)
+        self._length_m = np.concatenate([self._length_m, lengths_m])
+        self._factor = np.concatenate([self._factor, factors])
+        self._ends_s = np.concatenate([self._ends_s, *ends_s])
+        self._nearest_start_s = np.concatenate([self._nearest_start_s, *nearest_s])
+        for horizon in horizons:
+            self._slot_of[id(horizon)] = len(self._horizons)
+            self._horizons.append(horizon)
 
 
-class _PartsAhead:
-    """A horizon's parts ordered by where they end, with the nearest start among each one and those ending
-    after it: the first part not passed is then one bisection away (built once per horizon)."""
-
-    #: The horizons seen, by identity (each kept alive with its parts); emptied when it holds this many.
-    _CAPACITY: ClassVar[int] = 20_000
-    _cache: ClassVar[dict[int, tuple[Horizon, _PartsAhead]]] = {}
-
-    def __init__(self, horizon: Horizon) -> None:
-        order = np.argsort(horizon.part_end_s, kind="stable")
-        self.ends_s = (horizon.part_end_s[order] + END_MARGIN_M).tolist()
-        starts_s = horizon.part_start_s[order]
-        self.nearest_start_s = np.minimum.accumulate(starts_s[::-1])[::-1].tolist()
-        self.length_m = horizon.path.length_m
-        self.factor = float(np.min(horizon.path.lane_position_factor))
-
-    @classmethod
-    def of(cls, horizon: Horizon) -> _PartsAhead:
-        """The parts of ``horizon`` (built at its first use)."""
-        found = cls._cache.get(id(horizon))
-        if found is not None and found[0] is horizon:
-            return found[1]
-        if len(cls._cache) >= cls._CAPACITY:
-            cls._cache.clear()
-        parts = cls(horizon)
-        cls._cache[id(horizon)] = (horizon, parts)
-        return parts
-
-    def distance_m(self, vehicle_s: float) -> tuple[float, float]:
-        """:func:`distance_to_first_part_m` of a vehicle at ``vehicle_s``."""
-        first = bisect_right(self.ends_s, vehicle_s)
-        end_s = self.nearest_start_s[first] if first < len(self.ends_s) else self.length_m
-        return max(end_s - vehicle_s, 0.0), self.factor
+def _bisect_right(values: np.ndarray, x: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Per element, :func:`bisect.bisect_right` of ``x`` in the sorted run ``values[low:high]`` (a position
+    within ``[low, high]``), for many runs of one flat array at once."""
+    while True:
+        open_ = low < high
+        if not open_.any():
+            return low
+        middle = np.where(open_, (low + high) // 2, 0)
+        right = values[middle] <= x
+        low = np.where(open_ & right, middle + 1, low)
+        high = np.where(open_ & ~right, middle, high)
 
 
 class WakeSchedule:
@@ -140,6 +179,8 @@ class WakeSchedule:
         self._waking: dict[int, list[str]] = {}
         #: The times of the last steps, s, by step: enough to catch a memory up (:func:`caught_up`).
         self._times_s: deque[tuple[int, float]] = deque(maxlen=KEPT_INTERVALS + 2)
+        #: The curve parts of the horizons of the vehicles evaluated, for their distances to the first part ahead.
+        self.parts = PartsAhead()
 
     def add(self, vehicle_id: str, speed_bound_mps: float, accel_mps2: float = math.inf) -> None:
         """A vehicle departed, with its speed bound (m/s) and maximum acceleration (m/s^2): awake until its
@@ -194,35 +235,45 @@ class WakeSchedule:
     def sleep(
         self,
         step: int,
-        vehicle_id: str,
-        speed_mps: float,
-        distance_m: float,
-        position_factor: float,
-        update_period_s: float | None = None,
+        vehicle_ids: Sequence[str],
+        speed_mps: np.ndarray,
+        distance_m: np.ndarray,
+        position_factor: np.ndarray,
+        update_period_s: np.ndarray | None = None,
     ) -> None:
-        """Put a vehicle without a warning to sleep after its evaluation at ``step``, until the first step
-        at which a CPOI ``distance_m`` ahead on its path (or the end of that path) could come within
-        S_w + the allowance of it at the fastest speed it can reach by then; the allowance for the longer of
-        its update period as the engine takes it (``update_period_s``, the configured one where None) and a step."""
-        bound_mps = max(self.speed_bound_mps.get(vehicle_id, math.inf), speed_mps)
-        if not (math.isfinite(bound_mps) and bound_mps > 0.0 and position_factor > 0.0):
-            return
-        period_s = max(self.warning.update_period_s if update_period_s is None else update_period_s, self.step_s)
-        drive = _Drive(speed_mps, bound_mps, self.accel_mps2.get(vehicle_id, math.inf), self.step_s)
-        clear_m = distance_m * (1.0 - LANE_CHANGE_MARGIN_SHARE) - LANE_CHANGE_MARGIN_M
+        """Put vehicles without a warning to sleep after their evaluation at ``step``, each until the first step at
+        which a CPOI ``distance_m`` ahead on its path (or the end of that path) could come within S_w + the allowance
+        of it at the fastest speed it can reach by then; the allowance for the longer of its update period as the
+        engine takes it (``update_period_s``, the configured one where None) and a step. A vehicle that could be
+        that near within two steps, or has no finite positive speed bound or position factor, stays awake."""
+        count = len(vehicle_ids)
+        bounds_mps = np.fromiter(map(self.speed_bound_mps.get, vehicle_ids, repeat(math.inf)), float, count)
+        bound_mps = np.maximum(bounds_mps, speed_mps)
+        accel_mps2 = np.fromiter(map(self.accel_mps2.get, vehicle_ids, repeat(math.inf)), float, count)
+        if update_period_s is None:
+            update_period_s = np.full(count, self.warning.update_period_s)
+        rows = np.flatnonzero(np.isfinite(bound_mps) & (bound_mps > 0.0) & (position_factor > 0.0))
+        drive = _Drive(speed_mps[rows], bound_mps[rows], accel_mps2[rows], self.step_s)
+        clear_m = distance_m[rows] * (1.0 - LANE_CHANGE_MARGIN_SHARE) - LANE_CHANGE_MARGIN_M
+        period_s = np.maximum(update_period_s[rows], self.step_s)
+        factor = position_factor[rows]
 
-        def can_warn(steps: int) -> bool:
-            """Whether a CPOI could be within S_w + allowance ``steps`` steps on."""
-            reach_m = lookahead_distances_m(float(mps_to_kmh(drive.speed_mps(steps))), self.warning, 0.0, period_s)
-            return clear_m - drive.lane_m(steps) / position_factor <= reach_m
+        def can_warn(which: np.ndarray, steps: np.ndarray) -> np.ndarray:
+            """Whether a CPOI could be within S_w + allowance ``steps`` steps on, for the vehicles ``which``."""
+            speed_kmh = mps_to_kmh(drive.speed_mps(which, steps))
+            reach_m = lookahead_distances_m(speed_kmh, self.warning, 0.0, period_s[which])
+            return clear_m[which] - drive.lane_m(which, steps) / factor[which] <= reach_m
 
-        steps = _first(can_warn)
-        if steps < 2:
-            return
-        wake = step + steps
-        self.wake_step[vehicle_id] = wake
-        self.slept_at[vehicle_id] = step
-        self._waking.setdefault(wake, []).append(vehicle_id)
+        def reach_m(speed_mps: np.ndarray) -> np.ndarray:
+            """S_w + allowance at ``speed_mps`` of every vehicle scheduled, m."""
+            return lookahead_distances_m(mps_to_kmh(speed_mps), self.warning, 0.0, period_s)
+
+        wake = step + _first(can_warn, drive.first_step_guess(clear_m * factor, factor, reach_m))
+        for k in np.flatnonzero(wake >= step + 2).tolist():
+            vehicle_id, at = vehicle_ids[int(rows[k])], int(wake[k])
+            self.wake_step[vehicle_id] = at
+            self.slept_at[vehicle_id] = step
+            self._waking.setdefault(at, []).append(vehicle_id)
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
         """Drop vehicles that left."""
@@ -234,42 +285,95 @@ class WakeSchedule:
 
 
 class _Drive:
-    """The farthest a vehicle can go: from ``speed_mps`` its speed rises by at most ``accel_mps2`` per second
-    (SUMO's car-following models never accelerate faster) up to ``bound_mps``, and each step it advances
-    that step's speed times the step (SUMO's default Euler update; the ballistic one advances less)."""
+    """The farthest vehicles can go: from ``speed_mps`` each one's speed rises by at most ``accel_mps2`` per second
+    (SUMO's car-following models never accelerate faster) up to ``bound_mps``, and each step it advances that step's
+    speed times the step (SUMO's default Euler update; the ballistic one advances less). Arrays, one per vehicle."""
 
-    def __init__(self, speed_mps: float, bound_mps: float, accel_mps2: float, step_s: float) -> None:
+    def __init__(self, speed_mps: np.ndarray, bound_mps: np.ndarray, accel_mps2: np.ndarray, step_s: float) -> None:
         self.speed0_mps, self.bound_mps, self.step_s = speed_mps, bound_mps, step_s
-        self.gain_mps = accel_mps2 * step_s
+        gain_mps = accel_mps2 * step_s
+        rises = (0.0 < gain_mps) & (gain_mps < math.inf)
+        #: The speed gained per step where it rises (0 where the gain is 0 or infinite: at its bound at once).
+        self.gain_mps = np.where(rises, gain_mps, 0.0)
         #: Steps at which the speed still rises below the bound.
-        rises = 0.0 < self.gain_mps < math.inf
-        self.rising = math.floor((bound_mps - speed_mps) / self.gain_mps) if rises else 0
+        self.rising = np.where(rises, np.floor((bound_mps - speed_mps) / np.where(rises, gain_mps, 1.0)), 0.0)
 
-    def speed_mps(self, steps: int) -> float:
-        """The highest speed after ``steps`` steps, m/s."""
-        return self.bound_mps if steps > self.rising else self.speed0_mps + self.gain_mps * steps
+    def speed_mps(self, which: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """The highest speed of the vehicles ``which`` after ``steps`` steps, m/s."""
+        rising_mps = self.speed0_mps[which] + self.gain_mps[which] * steps
+        return np.where(steps > self.rising[which], self.bound_mps[which], rising_mps)
 
-    def lane_m(self, steps: int) -> float:
-        """The longest lane distance driven in ``steps`` steps, m."""
-        rising = min(steps, self.rising)  # 0 where the gain is infinite: the speed is at its bound at once
-        rising_m = rising * self.speed0_mps + self.gain_mps * rising * (rising + 1) / 2 if rising else 0.0
-        return self.step_s * (rising_m + (steps - rising) * self.bound_mps)
+    def lane_m(self, which: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """The longest lane distance the vehicles ``which`` drive in ``steps`` steps, m."""
+        rising = np.minimum(steps, self.rising[which])
+        rising_m = np.where(rising > 0, self._rising_m(which, rising), 0.0)
+        return self.step_s * (rising_m + (steps - rising) * self.bound_mps[which])
+
+    def _rising_m(self, which: np.ndarray, rising: np.ndarray) -> np.ndarray:
+        """The lane distance over the first ``rising`` steps while the speed rises, in steps (m over the step)."""
+        return rising * self.speed0_mps[which] + self.gain_mps[which] * rising * (rising + 1) / 2
+
+    def first_step_guess(
+        self, target_m: np.ndarray, factor: np.ndarray, reach_m: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """Per vehicle, the first step at which the lane distance driven plus ``factor`` times the reach at the speed
+        then, ``reach_m(speed_mps)``, could be ``target_m``, as the closed form gives it: a quadratic in the steps
+        while the speed still rises (the reach, formula (1) plus the allowance, is a quadratic in the speed: its
+        coefficients are read from it at 1 and 2 m/s), linear once at the bound. A first guess: rounding may put it
+        a step off."""
+        every = np.arange(self.rising.size)
+        rising_m = np.where(self.rising > 0, self._rising_m(every, self.rising), 0.0)
+        reach_at_bound_m = reach_m(self.bound_mps)
+        at_bound = self.rising + np.ceil(
+            ((target_m - factor * reach_at_bound_m) / self.step_s - rising_m) / self.bound_mps
+        )
+        at_one_m, at_two_m = reach_m(np.ones(every.size)), reach_m(np.full(every.size, 2.0))
+        square, linear = (at_two_m - 2.0 * at_one_m) / 2.0, at_one_m - (at_two_m - 2.0 * at_one_m) / 2.0
+        speed_mps, gain_mps = self.speed0_mps, self.gain_mps
+        a = self.step_s * gain_mps / 2.0 + factor * square * gain_mps**2
+        b = self.step_s * (speed_mps + gain_mps / 2.0) + factor * gain_mps * (linear + 2.0 * square * speed_mps)
+        c = factor * (linear * speed_mps + square * speed_mps**2) - target_m
+        root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            while_rising = np.ceil(np.where(a > 0.0, (root - b) / (2.0 * a), np.inf))
+        guess = np.where(while_rising <= self.rising, while_rising, np.maximum(at_bound, self.rising + 1.0))
+        return np.nan_to_num(guess, nan=1.0, posinf=float(_MOST), neginf=1.0)
 
 
-def _first(holds: Callable[[int], bool], most: int = 1 << 24) -> int:
-    """The first step from 1 on at which ``holds`` (false until then, true from then on), found by doubling
-    then halving; ``most`` when it holds at none up to it."""
-    if holds(1):
-        return 1
-    low, high = 1, 2
-    while not holds(high):
-        if high >= most:
-            return most
-        low, high = high, 2 * high
-    while high - low > 1:
+#: The most steps a vehicle sleeps.
+_MOST = 1 << 24
+
+
+def _first(holds: Callable[[np.ndarray, np.ndarray], np.ndarray], guess: np.ndarray, most: int = _MOST) -> np.ndarray:
+    """Per vehicle, the first step from 1 on at which ``holds(vehicles, steps)`` (false until then, true from then
+    on), ``most`` where it holds at none up to it: ``guess`` where it holds there and not the step before, else
+    found by doubling then halving."""
+    count = guess.size
+    guess = np.clip(guess, 1, most).astype(np.int64)
+    which = np.arange(count)
+    right = (holds(which, guess) | (guess == most)) & ((guess == 1) | ~holds(which, guess - 1))
+    first = np.where(right, guess, most)
+    which = which[~right]
+    ones = np.ones(which.size, dtype=np.int64)
+    at_once = holds(which, ones)
+    first[which[at_once]] = 1
+    which, low, high = which[~at_once], ones[~at_once], 2 * ones[~at_once]
+    found, found_low, found_high = [], [], []
+    while which.size:  # doubling: [low, high) brackets the first step where it holds at high
+        held = holds(which, high)
+        found.append(which[held])
+        found_low.append(low[held])
+        found_high.append(high[held])
+        going = ~held & (high < most)
+        which, low, high = which[going], high[going], 2 * high[going]
+    which, low, high = (np.concatenate([np.zeros(0, dtype=np.int64), *part]) for part in (found, found_low, found_high))
+    while which.size:  # halving
+        wide = high - low > 1
+        first[which[~wide]] = high[~wide]
+        which, low, high = which[wide], low[wide], high[wide]
+        if not which.size:
+            break
         middle = (low + high) // 2
-        if holds(middle):
-            high = middle
-        else:
-            low = middle
-    return high
+        held = holds(which, middle)
+        low, high = np.where(held, low, middle), np.where(held, middle, high)
+    return first

@@ -19,7 +19,7 @@ from .driver import DriverResponse
 from .evaluators import FleetWarnings, LibraryEvaluator
 from .fcw import FcwColumns, FleetFcw
 from .fcw_schedule import FcwSchedule
-from .schedule import WakeSchedule, caught_up, distance_to_first_part_m
+from .schedule import WakeSchedule, caught_up
 from .sumo import FleetState
 
 __all__ = ["AsleepInAll", "RunSchedule", "asleep_in_all"]
@@ -50,26 +50,6 @@ def asleep_in_all(sleeping: Sequence[dict[str, int]]) -> Container[str]:
     if len(sleeping) == 2:
         return AsleepInAll(*sleeping)
     return ()
-
-
-class _Awake:
-    """The vehicles not in a schedule's sleeping ones."""
-
-    def __init__(self, sleeping: Container[str]) -> None:
-        self.sleeping = sleeping
-
-    def __contains__(self, vehicle_id: object) -> bool:
-        return vehicle_id not in self.sleeping
-
-
-class _Either:
-    """The vehicles in either of two collections."""
-
-    def __init__(self, first: Container[str], second: Container[str]) -> None:
-        self.first, self.second = first, second
-
-    def __contains__(self, vehicle_id: object) -> bool:
-        return vehicle_id in self.first or vehicle_id in self.second
 
 
 class RunSchedule:
@@ -125,12 +105,12 @@ class RunSchedule:
     def read(self, fleet: FleetState, bounds: dict[str, tuple[float, float]], vehicle_count: int) -> None:
         """After SUMO's read: wake in each schedule the vehicles read for the other, note the departed vehicles'
         speed bounds, and catch up the curve warning's memory of the vehicles it woke."""
-        if self.fcw:
-            fcw_sleeping = self.fcw[0].wake_step
-            self.fcw[0].wake([v for v in fleet.vehicle_id if v in fcw_sleeping])
+        if self.fcw and self.curve:  # with one schedule, no vehicle read sleeps in it
+            fcw_sleeping, curve_sleeping = self.fcw[0].wake_step, self.curve[0].wake_step
+            self.fcw[0].wake(list(filter(fcw_sleeping.__contains__, fleet.vehicle_id)))
+            self.woken.update(self.curve[0].wake(list(filter(curve_sleeping.__contains__, fleet.vehicle_id))))
         if self.curve:
             schedule, library = self.curve
-            self.woken.update(schedule.wake([v for v in fleet.vehicle_id if v in schedule.wake_step]))
             _catch_up(schedule, library.engine, self.step, fleet, self.woken, bounds)
         self.evaluated += len(fleet.vehicle_id)
         self.present += vehicle_count
@@ -140,16 +120,16 @@ class RunSchedule:
     ) -> None:
         """Put to sleep the vehicles evaluated this step that no warning, hold or driver keeps awake, and bring
         the FCW state of the sleeping vehicles due a speed read up to date."""
-        fcw_awake: Container[str] = ()
+        fcw_sleeping: dict[str, int] | None = None
         if self.fcw and fcw is not None:
             schedule, forward, _ = self.fcw
             forward.check_states(self.step, schedule)
             driven = set(driver.drivers) | set(driver.fcw_drivers) if driver is not None else set()
             forward.sleep(self.step, schedule, fcw.level, driven)
-            fcw_awake = _Awake(schedule.wake_step)
+            fcw_sleeping = schedule.wake_step
         if self.curve:
             # A vehicle its FCW keeps awake is read at the next step anyway: the curve warning keeps it too.
-            kept = _Either(driver.drivers if driver is not None else {}, fcw_awake)
+            kept = _kept_awake(fleet.vehicle_id, driver.drivers if driver is not None else {}, fcw_sleeping)
             _sleep_curve(*self.curve, self.step, fleet, warnings, kept)
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
@@ -183,37 +163,52 @@ def _catch_up(
             engine.restore(vehicle_id, caught_up(memory, schedule.skipped_times_s(slept_at)))
 
 
+def _kept_awake(
+    vehicle_ids: Sequence[str], driven: Container[str], fcw_sleeping: Container[str] | None
+) -> np.ndarray | None:
+    """Per vehicle read, whether the curve warning keeps it awake for another reason than its own warning: a driver
+    answers it, or (``fcw_sleeping`` given) its FCW keeps it awake; None where nothing does."""
+    count = len(vehicle_ids)
+    kept = np.fromiter(map(driven.__contains__, vehicle_ids), bool, count) if driven else None
+    if fcw_sleeping is not None:
+        fcw_awake = ~np.fromiter(map(fcw_sleeping.__contains__, vehicle_ids), bool, count)
+        kept = fcw_awake if kept is None else kept | fcw_awake
+    return kept
+
+
 def _sleep_curve(
     schedule: WakeSchedule,
     library: LibraryEvaluator,
     step: int,
     fleet: FleetState,
     warnings: FleetWarnings,
-    driven: Container[str],
+    kept: np.ndarray | None,
 ) -> None:
-    """Put to sleep the vehicles evaluated this step that no curve warning, release hold or driver keeps awake.
+    """Put to sleep the vehicles evaluated this step that no curve warning, release hold, driver or FCW (``kept``,
+    per vehicle read) keeps awake.
 
     Most of the vehicles evaluated are near a curve, where a warning can arise at the next step: one array
-    test (:meth:`WakeSchedule.awake_next_step`) keeps those awake, and only the others are scheduled one by one.
+    test (:meth:`WakeSchedule.awake_next_step`) keeps those awake, and only the others are scheduled, together.
     """
     engine = library.engine
-    ahead, held = library.ahead, engine.held
-    if ahead is None or not fleet.vehicle_id:  # no vehicle was evaluated: the evaluator holds an older step's
+    ahead, held, vehicle_ids = library.ahead, engine.held, fleet.vehicle_id
+    if ahead is None or not vehicle_ids:  # no vehicle was evaluated: the evaluator holds an older step's
         return
-    levels, vehicle_ids = warnings.level, fleet.vehicle_id
-    candidates = [
-        (row, horizon, vehicle_s)
-        for row, horizon, vehicle_s in zip(library.active, ahead.horizons, ahead.vehicle_s.tolist(), strict=True)
-        if not levels[row] and vehicle_ids[row] not in held and vehicle_ids[row] not in driven
-    ]
-    if not candidates:
+    active = np.asarray(library.active, dtype=np.intp)
+    awake_now = np.asarray(warnings.level) != 0
+    if held:
+        awake_now |= np.fromiter(map(held.__contains__, vehicle_ids), bool, len(vehicle_ids))
+    if kept is not None:
+        awake_now |= kept
+    quiet = np.flatnonzero(~awake_now[active])  # positions in the active vehicles (and their roads ahead)
+    if not quiet.size:
         return
-    rows = [row for row, _, _ in candidates]
-    distances = [distance_to_first_part_m(horizon, vehicle_s) for _, horizon, vehicle_s in candidates]
+    rows = active[quiet]
+    horizons = [ahead.horizons[k] for k in quiet.tolist()]
+    distances_m, factors = schedule.parts.distances_m(horizons, ahead.vehicle_s[quiet])
     speeds_mps = fleet.speed_mps[rows]
-    distances_m, factors = (np.array(column, dtype=float) for column in zip(*distances, strict=True))
-    awake = schedule.awake_next_step(speeds_mps, distances_m, factors).tolist()
-    for row, speed_mps, (distance_m, factor), stays in zip(rows, speeds_mps.tolist(), distances, awake, strict=True):
-        if not stays:
-            vehicle_id = vehicle_ids[row]
-            schedule.sleep(step, vehicle_id, speed_mps, distance_m, factor, engine.update_period_s(vehicle_id))
+    due = np.flatnonzero(~schedule.awake_next_step(speeds_mps, distances_m, factors))
+    if due.size:
+        ids = [vehicle_ids[row] for row in rows[due].tolist()]
+        periods_s = np.array([engine.update_period_s(vehicle_id) for vehicle_id in ids], dtype=float)
+        schedule.sleep(step, ids, speeds_mps[due], distances_m[due], factors[due], periods_s)
