@@ -60,13 +60,14 @@ from typing import Any
 import numpy as np
 
 from benchmarks.command import arguments
+from benchmarks.cosim_routes import city_routes_xml, sparse_routes_xml, start_routes_xml
 from csws.cosim.config import default_timeseries_every
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.cosim.sensor import VehicleNumbers, read_vehicles, sensor_view
 from csws.cosim.sumo import sumo_arguments
 from csws.fcw.settings import FcwSettings
 from csws.networks import networks_dir
-from csws.networks.fleet import FLEET_TYPES, backward_edges, build_fleet_net, draw_types, forward_edges, vtype_xml
+from csws.networks.fleet import build_fleet_net
 from csws.sumo.binaries import sumo_binary, sumo_home
 
 VEHICLES = 1000
@@ -91,64 +92,6 @@ SPARSE_VEHICLES, SPARSE_PERIOD_S, SPARSE_DURATION_S = 20, 15.0, 300.0
 #: The small configuration (``--small``): vehicles and simulated seconds.
 SMALL_VEHICLES = 300
 SMALL_DURATION_S = 20.0
-
-
-def _routes_xml(count: int, seed: int = 0) -> str:
-    """``count`` vehicles of the fleet's mix, each starting at a random section of either direction at t = 0."""
-    rng = np.random.default_rng(seed)
-    directions = (forward_edges(), backward_edges())
-    lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
-    for index, fleet_type in enumerate(draw_types(count, rng)):
-        edges = directions[index % 2]
-        first = int(rng.integers(0, len(edges) - 1))
-        type_id = fleet_type.type_id
-        lines.append(
-            f'<vehicle id="{type_id}{index}" type="{type_id}" depart="0" departPos="random_free" departLane="random" '
-            f'departSpeed="max"><route edges="{" ".join(edges[first:])}"/></vehicle>'
-        )
-    return "\n".join(lines + ["</routes>"]) + "\n"
-
-
-def _sparse_routes_xml(count: int, period_s: float, seed: int = 0) -> str:
-    """``count`` vehicles of the fleet's mix departing one every ``period_s`` along the whole road in one
-    direction (some 400 m apart at 100 km/h with 15 s): the sparse traffic the FCW's schedule is for."""
-    rng = np.random.default_rng(seed)
-    lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
-    for index, fleet_type in enumerate(draw_types(count, rng)):
-        lines.append(
-            f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="{index * period_s:g}" '
-            f'departSpeed="max"><route edges="{" ".join(forward_edges())}"/></vehicle>'
-        )
-    return "\n".join(lines + ["</routes>"]) + "\n"
-
-
-def _city_routes_xml(net: Path, count: int, seed: int = 0, edges_per_route: int = 40) -> str:
-    """``count`` vehicles of the fleet's mix placed at t = 0, each on a random walk of up to
-    ``edges_per_route`` edges through the network's roads that every type of the mix may use."""
-    import sumolib
-
-    classes = {t.vclass for t in FLEET_TYPES}
-    network = sumolib.net.readNet(str(net))
-    usable = [e for e in network.getEdges() if e.getFunction() != "internal" and all(map(e.allows, classes))]
-    usable_ids = {e.getID() for e in usable}
-    starts = [e for e in usable if e.getLength() >= 20.0]
-    rng = np.random.default_rng(seed)
-    lines = ["<routes>", *(vtype_xml(t) for t in FLEET_TYPES)]
-    for index, fleet_type in enumerate(draw_types(count, rng)):
-        edge = starts[int(rng.integers(len(starts)))]
-        walk = [edge.getID()]
-        for _ in range(edges_per_route - 1):
-            onward = [e for e in edge.getOutgoing() if e.getID() in usable_ids and e.getToNode() != edge.getFromNode()]
-            if not onward:
-                break
-            edge = onward[int(rng.integers(len(onward)))]
-            walk.append(edge.getID())
-        lines.append(
-            f'<vehicle id="{fleet_type.type_id}{index}" type="{fleet_type.type_id}" depart="0" '
-            f'departPos="random_free" departLane="best" departSpeed="max"><route edges="{" ".join(walk)}"/>'
-            "</vehicle>"
-        )
-    return "\n".join(lines + ["</routes>"]) + "\n"
 
 
 def _peak_rss_mb() -> float:
@@ -251,7 +194,7 @@ def _fleet_scenario(work: Path, vehicles: int) -> Scenario:
     """The fleet road with ``vehicles`` vehicles placed at t = 0."""
     net = build_fleet_net(work / "fleet4.net.xml", lanes=LANES)
     routes = work / "bench.rou.xml"
-    routes.write_text(_routes_xml(vehicles), encoding="utf-8")
+    routes.write_text(start_routes_xml(vehicles), encoding="utf-8")
     return Scenario(None, net, (routes,))
 
 
@@ -323,7 +266,7 @@ def _sparse_fcw(work: Path) -> dict:
     """The FCW alone, events only, on the fleet road with :data:`SPARSE_VEHICLES` one every
     :data:`SPARSE_PERIOD_S` in one direction: ms per step and the share evaluated, scheduled and every step."""
     routes = work / "sparse.rou.xml"
-    routes.write_text(_sparse_routes_xml(SPARSE_VEHICLES, SPARSE_PERIOD_S), encoding="utf-8")
+    routes.write_text(sparse_routes_xml(SPARSE_VEHICLES, SPARSE_PERIOD_S), encoding="utf-8")
     scenario = Scenario(None, build_fleet_net(work / "sparse.net.xml", lanes=LANES), (routes,))
     common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": SPARSE_DURATION_S}
     figures = {}
@@ -403,7 +346,7 @@ def _city_figures(work: Path, duration_s: float = CITY_DURATION_S, every_step: b
     """Bad Hersfeld: 10,000 vehicles for ``duration_s``, bare, default and events only (and with ``every_step``
     events only with every vehicle evaluated at every step, the schedule's comparison)."""
     routes = work / "city.rou.xml"
-    routes.write_text(_city_routes_xml(CITY_NET, CITY_VEHICLES), encoding="utf-8")
+    routes.write_text(city_routes_xml(CITY_NET, CITY_VEHICLES), encoding="utf-8")
     scenario = Scenario(None, CITY_NET, (routes,))
     common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": duration_s}
     configs = {
