@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import compress
 
 import numpy as np
 
@@ -156,16 +157,15 @@ def memory_masks(
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
     named: tuple[list[int], list[int]] = ([], [])
     held_on: tuple[list[int], list[int]] = ([], [])
-    for vehicle, memory in enumerate(held):
-        if memory is NOT_HELD or not memory.is_on:  # most vehicles: no warning to keep
-            continue
+    holds_s = np.broadcast_to(np.asarray(hold_s, dtype=float), (len(held),)).tolist()
+    for vehicle in _vehicles_held(held):
+        memory = held[vehicle]
         start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
         keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
-        vehicle_hold_s = hold_s if isinstance(hold_s, float | int) else float(hold_s[vehicle])
         for level, level_named in enumerate(named_points(memory, keys)):
             rows_named = [row for row, is_named in enumerate(level_named, start) if is_named]
             named[level].extend(rows_named)
-            if within_hold(memory.kept_at_s[level], now_s[vehicle], vehicle_hold_s):
+            if rows_named and within_hold(memory.kept_at_s[level], now_s[vehicle], holds_s[vehicle]):
                 held_on[level].extend(rows_named)
     for level in (0, 1):
         latched[level, named[level]] = True
@@ -173,6 +173,11 @@ def memory_masks(
     if recalled is not None:
         latched &= ~np.asarray(recalled, dtype=bool)
     return latched, hold
+
+
+def _vehicles_held(held: Sequence[HeldWarning]) -> list[int]:
+    """The vehicles whose memory keeps a level on (most of a fleet's keep none: :data:`NOT_HELD`)."""
+    return [vehicle for vehicle, memory in enumerate(held) if memory is not NOT_HELD and memory.is_on]
 
 
 def recalled_points(
@@ -225,19 +230,27 @@ def next_memories(
 
     ``places`` are the flat CPOIs' distances S and radii, m, and each vehicle's speed, km/h, for
     rule 4; without them the memories keep no places, and rule 4 recalls nothing from them.
+
+    The CPOIs that keep a level on are found once for all vehicles; each vehicle's memory is built
+    from those rows only (a CPOI that keeps nothing on adds nothing to it, :func:`vehicle_memory`).
     """
-    vehicle_of_row = np.repeat(np.arange(len(held)), np.diff(np.asarray(first_cpoi)))
     memories = [NOT_HELD] * len(held)
-    on = np.unique(vehicle_of_row[np.any(cpoi_rule != Rule.OFF, axis=0)]).tolist()
-    if not on:
+    on_rows = np.flatnonzero(np.any(cpoi_rule != Rule.OFF, axis=0))
+    if not on_rows.size:
         return memories
-    level_rules = cpoi_rule.tolist()
-    for vehicle in on:
-        start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
-        keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
-        here = (level_rules[0][start:stop], level_rules[1][start:stop])
-        where = None if places is None else (places[0][start:stop], places[1][start:stop], places[2][vehicle])
-        memories[vehicle] = vehicle_memory(here, keys, held[vehicle], now_s[vehicle], where)
+    vehicle_of_row = np.searchsorted(np.asarray(first_cpoi), on_rows, side="right") - 1
+    vehicles, starts = np.unique(vehicle_of_row, return_index=True)
+    bounds = [*starts.tolist(), int(on_rows.size)]
+    rows = on_rows.tolist()
+    level_1, level_2 = cpoi_rule[:, on_rows].tolist()
+    keys = [(curve_ids[row], int(part_indices[row])) for row in rows]
+    if places is not None:
+        distances_m = np.asarray(places[0], dtype=float)[on_rows].tolist()
+        radii_m = np.asarray(places[1], dtype=float)[on_rows].tolist()
+    for vehicle, start, stop in zip(vehicles.tolist(), bounds, bounds[1:], strict=False):
+        here = (level_1[start:stop], level_2[start:stop])
+        where = None if places is None else (distances_m[start:stop], radii_m[start:stop], places[2][vehicle])
+        memories[vehicle] = vehicle_memory(here, keys[start:stop], held[vehicle], now_s[vehicle], where)
     return memories
 
 
@@ -256,24 +269,30 @@ def vehicle_memory(
     otherwise), and none where it is off. With ``places`` (the CPOIs' distances S and radii, m,
     and the vehicle's speed, km/h) it keeps where those CPOIs are now, for rule 4.
     """
-    if not any(rules[0]) and not any(rules[1]):
+    rules_1, rules_2 = rules
+    if not any(rules_1) and not any(rules_2):
         return NOT_HELD
-    points, kept_at_s = [], []
-    for level, here in enumerate(rules):
-        points.append(frozenset(key for key, rule in zip(keys, here, strict=True) if rule))
-        if Rule.REQUIRED in here or Rule.MARGIN in here:
-            kept_at_s.append(now_s)
-        else:
-            kept_at_s.append(held.kept_at_s[level] if Rule.HOLD in here else None)
+    points = (frozenset(compress(keys, rules_1)), frozenset(compress(keys, rules_2)))
+    kept_at_s = (_kept_at_s(rules_1, held.kept_at_s[0], now_s), _kept_at_s(rules_2, held.kept_at_s[1], now_s))
     if places is None or now_s is None or not math.isfinite(now_s):
-        return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
+        return HeldWarning(points, kept_at_s)
     distances_m, radii_m, speed_kmh = places
-    kept = [
+    kept = tuple(
         (key[0], key[1], float(distance_m), float(radius_m))
-        for key, level_1, level_2, distance_m, radius_m in zip(keys, *rules, distances_m, radii_m, strict=True)
+        for key, level_1, level_2, distance_m, radius_m in zip(
+            keys, rules_1, rules_2, distances_m, radii_m, strict=True
+        )
         if level_1 or level_2
-    ]
-    return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]), tuple(kept), (now_s, float(speed_kmh)))
+    )
+    return HeldWarning(points, kept_at_s, kept, (now_s, float(speed_kmh)))
+
+
+def _kept_at_s(rules: Sequence[int], kept_before_s: float | None, now_s: float | None) -> float | None:
+    """When a level was last kept on by 6.1 or the margin: now where one of them keeps it on, the time
+    it had where only the hold does (rule 2), none where it is off."""
+    if Rule.REQUIRED in rules or Rule.MARGIN in rules:
+        return now_s
+    return kept_before_s if Rule.HOLD in rules else None
 
 
 def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:
