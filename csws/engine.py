@@ -167,6 +167,17 @@ class Engine:
         configured one (:mod:`csws.warning.latency`), s."""
         return latency.update_period_s(self.intervals.get(vehicle_id, ()), self.settings.warning)
 
+    def _update_periods_s(self, vehicle_ids: Sequence[str]) -> np.ndarray:
+        """:meth:`update_period_s` of many vehicles: the configured one, but where a vehicle's intervals
+        are known and the period is learnt (:func:`csws.warning.latency.update_period_s`), s."""
+        periods_s = np.full(len(vehicle_ids), self.settings.warning.update_period_s)
+        if self.intervals and self.settings.warning.learn_update_period:
+            intervals = self.intervals
+            for vehicle, vehicle_id in enumerate(vehicle_ids):
+                if vehicle_id in intervals:
+                    periods_s[vehicle] = latency.update_period_s(intervals[vehicle_id], self.settings.warning)
+        return periods_s
+
     def _learn_interval(self, vehicle_id: str, last_timestamp_s: float | None, status: VehicleStatus) -> None:
         """Add the interval between the vehicle's last accepted fix and this one, if it was accepted."""
         before = self.intervals.get(vehicle_id, ())
@@ -182,14 +193,16 @@ class Engine:
         if not status.warns:
             self.held.pop(vehicle.vehicle_id, None)
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
+        period_s = self.update_period_s(vehicle.vehicle_id)
+        age_s = latency.fix_age_s(vehicle.age_s)
         path = self._lookahead_on_map()(
             _lanes_of_active([vehicle.lane_id])[0],
             vehicle.lane_pos_m,
             vehicle.speed_kmh,
             vehicle.category,
             vehicle.route_edges,
-            self.update_period_s(vehicle.vehicle_id),
-            latency.fix_age_s(vehicle.age_s),
+            period_s,
+            age_s,
         )
         warning, memory = judge_one(
             float(vehicle.speed_kmh),
@@ -199,8 +212,8 @@ class Engine:
             self.held.get(vehicle.vehicle_id, NOT_HELD),
             vehicle.timestamp_s,
             self.settings.warning,
-            self.update_period_s(vehicle.vehicle_id),
-            latency.fix_age_s(vehicle.age_s),
+            period_s,
+            age_s,
         )
         self._keep([vehicle.vehicle_id], [memory])
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
@@ -287,7 +300,8 @@ class Engine:
         )
         self.statuses.update(zip(vehicle_ids, statuses, strict=False))
         for vehicle_id, was, status in zip(vehicle_ids, before, statuses, strict=False):
-            if status.last_timestamp_s is not None:
+            # Only a fix accepted after an earlier accepted one adds an interval (latency.next_intervals).
+            if status.last_timestamp_s is not None and was.last_timestamp_s is not None:
                 self._learn_interval(vehicle_id, was.last_timestamp_s, status)
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
         self._forget_warnings_of_inactive(vehicle_ids, statuses)
@@ -387,16 +401,14 @@ class Engine:
         """The roads ahead with the CPOIs the release rule recalls from each vehicle's memory (rule 4,
         :func:`csws.warning.release.recalled_points`) after the vehicle's own, marked passed; and which
         CPOIs are recalled (None where none is)."""
-        if not self.held:
+        remembered = self._remembered_places(vehicle_ids)
+        if not remembered:
             return ahead, None
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
         hold_s = self.settings.warning.hold_s(periods_s)
         rows: list[int] = []
         found: list[tuple[int, str, int, float, float]] = []
-        for vehicle, vehicle_id in enumerate(vehicle_ids):
-            held = self.held.get(vehicle_id)
-            if held is None or not held.places:
-                continue
+        for vehicle, held in remembered:
             start, stop = first[vehicle], first[vehicle + 1]
             curve_ids, parts = ahead.cpoi_curve_id[start:stop].tolist(), ahead.cpoi_part_index[start:stop].tolist()
             keys = list(zip(curve_ids, parts, strict=True))
@@ -418,6 +430,17 @@ class Engine:
         )
         return with_recalled, np.insert(np.zeros(ahead.cpoi_vehicle.size, dtype=bool), rows, True)
 
+    def _remembered_places(self, vehicle_ids: Sequence[str]) -> list[tuple[int, HeldWarning]]:
+        """The vehicles (index, memory) whose memory keeps where its CPOIs were (rule 4 may recall them)."""
+        if not self.held:
+            return []
+        held = self.held
+        return [
+            (vehicle, memory)
+            for vehicle, vehicle_id in enumerate(vehicle_ids)
+            if vehicle_id in held and (memory := held[vehicle_id]).places
+        ]
+
     def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is."""
         for vehicle_id, memory in zip(vehicle_ids, memories, strict=False):
@@ -438,7 +461,7 @@ class Engine:
         route_edges: Sequence[Sequence[str] | None],
     ) -> tuple[BatchAhead, BatchWarnings]:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
-        periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
+        periods_s = self._update_periods_s(vehicle_ids)
         ages_s = np.array(age_s, dtype=float)
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
         ahead, recalled = self._recalled(vehicle_ids, now_s, speed_kmh, periods_s, ahead)
