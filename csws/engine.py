@@ -361,8 +361,8 @@ class Engine:
         first: Sequence[int],
         distance_m: np.ndarray,
         radius_m: np.ndarray,
-        curve_ids: Sequence[str],
-        part_indices: Sequence[int],
+        curve_ids: np.ndarray,
+        part_indices: np.ndarray,
         passed: np.ndarray,
         recalled: np.ndarray | None,
     ) -> BatchWarnings:
@@ -466,7 +466,6 @@ class Engine:
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
         ahead, recalled = self._recalled(vehicle_ids, now_s, speed_kmh, periods_s, ahead)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
-        # As lists: the release rule reads them one CPOI at a time.
         batch = self._judged(
             vehicle_ids,
             now_s,
@@ -478,8 +477,8 @@ class Engine:
             first,
             ahead.cpoi_distance_m,
             ahead.cpoi_radius_m,
-            ahead.cpoi_curve_id.tolist(),
-            ahead.cpoi_part_index.tolist(),
+            ahead.cpoi_curve_id,
+            ahead.cpoi_part_index,
             ahead.cpoi_passed,
             recalled,
         )

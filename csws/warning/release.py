@@ -128,8 +128,8 @@ def memory_masks(
     held: Sequence[HeldWarning],
     now_s: Sequence[float | None],
     first_cpoi: Sequence[int],
-    curve_ids: Sequence[str],
-    part_indices: Sequence[int],
+    curve_ids: Sequence[str] | np.ndarray,
+    part_indices: Sequence[int] | np.ndarray,
     hold_s: float | Sequence[float] | np.ndarray,
     recalled: Sequence[bool] | np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -155,21 +155,21 @@ def memory_masks(
     """
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
-    named: tuple[list[int], list[int]] = ([], [])
-    held_on: tuple[list[int], list[int]] = ([], [])
+    vehicles = _vehicles_held(held)
+    if not vehicles:  # most updates of most fleets: no warning to keep
+        return latched, hold
+    rows, owner = _rows_of(first_cpoi, vehicles)
+    names = _named_levels(held, vehicles)
+    ids = np.asarray(curve_ids, dtype=object)[rows].tolist()
+    parts = np.asarray(part_indices, dtype=np.int64)[rows].tolist()
+    bits = np.array([names.get(key, 0) for key in zip(owner.tolist(), ids, parts, strict=True)], dtype=np.int8)
     holds_s = np.broadcast_to(np.asarray(hold_s, dtype=float), (len(held),)).tolist()
-    for vehicle in _vehicles_held(held):
-        memory = held[vehicle]
-        start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
-        keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
-        for level, level_named in enumerate(named_points(memory, keys)):
-            rows_named = [row for row, is_named in enumerate(level_named, start) if is_named]
-            named[level].extend(rows_named)
-            if rows_named and within_hold(memory.kept_at_s[level], now_s[vehicle], holds_s[vehicle]):
-                held_on[level].extend(rows_named)
     for level in (0, 1):
-        latched[level, named[level]] = True
-        hold[level, held_on[level]] = True
+        named = ((bits >> level) & 1).astype(bool)
+        kept_at_s = [held[vehicle].kept_at_s[level] for vehicle in vehicles]
+        within = [within_hold(kept_s, now_s[v], holds_s[v]) for kept_s, v in zip(kept_at_s, vehicles, strict=True)]
+        latched[level, rows] = named
+        hold[level, rows] = named & np.array(within, dtype=bool)[owner]
     if recalled is not None:
         latched &= ~np.asarray(recalled, dtype=bool)
     return latched, hold
@@ -178,6 +178,30 @@ def memory_masks(
 def _vehicles_held(held: Sequence[HeldWarning]) -> list[int]:
     """The vehicles whose memory keeps a level on (most of a fleet's keep none: :data:`NOT_HELD`)."""
     return [vehicle for vehicle, memory in enumerate(held) if memory is not NOT_HELD and memory.is_on]
+
+
+def _rows_of(first_cpoi: Sequence[int], vehicles: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the flat CPOI arrays that belong to ``vehicles``, and to which of them (its place in
+    ``vehicles``) each row belongs."""
+    first = np.asarray(first_cpoi, dtype=np.intp)
+    chosen = np.asarray(vehicles, dtype=np.intp)
+    starts = first[chosen]
+    counts = first[chosen + 1] - starts
+    owner = np.repeat(np.arange(chosen.size), counts)
+    rows = np.arange(int(counts.sum())) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
+    return rows, owner
+
+
+def _named_levels(held: Sequence[HeldWarning], vehicles: Sequence[int]) -> dict[tuple[int, str, int], int]:
+    """Rule 1: the CPOIs each of ``vehicles`` (by its place in it) names in its memory, as
+    ``(place, curve id, part index) -> levels``, bit 0 for level 1 and bit 1 for level 2."""
+    names: dict[tuple[int, str, int], int] = {}
+    for place, vehicle in enumerate(vehicles):
+        for level, points in enumerate(held[vehicle].points):
+            for curve_id, part_index in points:
+                key = (place, curve_id, part_index)
+                names[key] = names.get(key, 0) | (1 << level)
+    return names
 
 
 def recalled_points(
@@ -220,8 +244,8 @@ def next_memories(
     held: Sequence[HeldWarning],
     now_s: Sequence[float | None],
     first_cpoi: Sequence[int],
-    curve_ids: Sequence[str],
-    part_indices: Sequence[int],
+    curve_ids: Sequence[str] | np.ndarray,
+    part_indices: Sequence[int] | np.ndarray,
     cpoi_rule: np.ndarray,
     places: tuple[Floats, Floats, Floats] | None = None,
 ) -> list[HeldWarning]:
@@ -241,9 +265,9 @@ def next_memories(
     vehicle_of_row = np.searchsorted(np.asarray(first_cpoi), on_rows, side="right") - 1
     vehicles, starts = np.unique(vehicle_of_row, return_index=True)
     bounds = [*starts.tolist(), int(on_rows.size)]
-    rows = on_rows.tolist()
     level_1, level_2 = cpoi_rule[:, on_rows].tolist()
-    keys = [(curve_ids[row], int(part_indices[row])) for row in rows]
+    ids = np.asarray(curve_ids, dtype=object)[on_rows].tolist()
+    keys = list(zip(ids, np.asarray(part_indices, dtype=np.int64)[on_rows].tolist(), strict=True))
     if places is not None:
         distances_m = np.asarray(places[0], dtype=float)[on_rows].tolist()
         radii_m = np.asarray(places[1], dtype=float)[on_rows].tolist()
