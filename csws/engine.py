@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from operator import attrgetter
 
 import numpy as np
 
@@ -26,7 +27,14 @@ from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from csws.warning import latency
-from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories, recalled_points
+from csws.warning.release import (
+    NOT_HELD,
+    HeldWarning,
+    memory_masks,
+    next_memories,
+    recalled_points,
+    rows_of_vehicles,
+)
 from csws.warning.rules import (
     BatchWarnings,
     WarningSettings,
@@ -81,6 +89,19 @@ class EngineSettings:
     lookahead: LookAheadSettings = field(default_factory=LookAheadSettings)
     activation: ActivationSettings = field(default_factory=ActivationSettings)
 
+
+#: The fields of a :class:`VehicleInput` that :meth:`Engine.evaluate_fleet` takes as columns, in its order.
+_INPUT_FIELD_NAMES = (
+    "vehicle_id",
+    "category",
+    "speed_kmh",
+    "lane_id",
+    "lane_pos_m",
+    "route_edges",
+    "timestamp_s",
+    "age_s",
+)
+_INPUT_FIELDS = attrgetter(*_INPUT_FIELD_NAMES)
 
 #: The status of a vehicle not seen before (shared: statuses are immutable).
 _NEW_STATUS = VehicleStatus()
@@ -246,16 +267,8 @@ class Engine:
 
     def evaluate_many(self, vehicles: Sequence[VehicleInput]) -> list[Answer]:
         """The answers for many vehicles, in order (:meth:`evaluate_fleet` of their columns, with paths)."""
-        fleet = self.evaluate_fleet(
-            [v.vehicle_id for v in vehicles],
-            [v.category for v in vehicles],
-            [v.speed_kmh for v in vehicles],
-            [v.lane_id for v in vehicles],
-            [v.lane_pos_m for v in vehicles],
-            [v.route_edges for v in vehicles],
-            timestamp_s=[v.timestamp_s for v in vehicles],
-            age_s=[v.age_s for v in vehicles],
-        )
+        ids, categories, speeds, lanes, positions, routes, times, ages = _input_columns(vehicles)
+        fleet = self.evaluate_fleet(ids, categories, speeds, lanes, positions, routes, timestamp_s=times, age_s=ages)
         paths: list[PathAhead | None] = [None] * len(vehicles)
         if fleet.ahead is not None:
             for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=False):
@@ -404,17 +417,20 @@ class Engine:
         remembered = self._remembered_places(vehicle_ids)
         if not remembered:
             return ahead, None
-        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
+        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1))
         hold_s = self.settings.warning.hold_s(periods_s)
+        vehicles = [vehicle for vehicle, _ in remembered]
+        path_rows, _ = rows_of_vehicles(first, vehicles)
+        keys = list(
+            zip(ahead.cpoi_curve_id[path_rows].tolist(), ahead.cpoi_part_index[path_rows].tolist(), strict=True)
+        )
+        bounds = np.cumsum(np.diff(first)[vehicles]).tolist()
         rows: list[int] = []
         found: list[tuple[int, str, int, float, float]] = []
-        for vehicle, held in remembered:
-            start, stop = first[vehicle], first[vehicle + 1]
-            curve_ids, parts = ahead.cpoi_curve_id[start:stop].tolist(), ahead.cpoi_part_index[start:stop].tolist()
-            keys = list(zip(curve_ids, parts, strict=True))
-            speed = float(speed_kmh[vehicle])
-            for place in recalled_points(held, keys, now_s[vehicle], speed, float(hold_s[vehicle])):
-                rows.append(stop)
+        for (vehicle, held), start, stop in zip(remembered, [0, *bounds[:-1]], bounds, strict=True):
+            speed, vehicle_hold_s = float(speed_kmh[vehicle]), float(hold_s[vehicle])
+            for place in recalled_points(held, keys[start:stop], now_s[vehicle], speed, vehicle_hold_s):
+                rows.append(int(first[vehicle + 1]))
                 found.append((vehicle, *place))
         if not rows:
             return ahead, None
@@ -483,6 +499,12 @@ class Engine:
             recalled,
         )
         return ahead, batch
+
+
+def _input_columns(vehicles: Sequence[VehicleInput]) -> list[Sequence]:
+    """The fields of the vehicles as columns, in :data:`_INPUT_FIELD_NAMES`' order, read in one pass."""
+    columns: list[Sequence] = list(zip(*map(_INPUT_FIELDS, vehicles), strict=True))
+    return columns if columns else [()] * len(_INPUT_FIELD_NAMES)
 
 
 def _lanes_of_active(lane_ids: Sequence[str | None]) -> list[str]:

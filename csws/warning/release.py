@@ -63,6 +63,7 @@ __all__ = [
     "named_points",
     "next_memories",
     "recalled_points",
+    "rows_of_vehicles",
     "vehicle_memory",
     "within_hold",
 ]
@@ -158,7 +159,7 @@ def memory_masks(
     vehicles = _vehicles_held(held)
     if not vehicles:  # most updates of most fleets: no warning to keep
         return latched, hold
-    rows, owner = _rows_of(first_cpoi, vehicles)
+    rows, owner = rows_of_vehicles(first_cpoi, vehicles)
     names = _named_levels(held, vehicles)
     ids = np.asarray(curve_ids, dtype=object)[rows].tolist()
     parts = np.asarray(part_indices, dtype=np.int64)[rows].tolist()
@@ -180,7 +181,7 @@ def _vehicles_held(held: Sequence[HeldWarning]) -> list[int]:
     return [vehicle for vehicle, memory in enumerate(held) if memory is not NOT_HELD and memory.is_on]
 
 
-def _rows_of(first_cpoi: Sequence[int], vehicles: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+def rows_of_vehicles(first_cpoi: Sequence[int] | np.ndarray, vehicles: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
     """The rows of the flat CPOI arrays that belong to ``vehicles``, and to which of them (its place in
     ``vehicles``) each row belongs."""
     first = np.asarray(first_cpoi, dtype=np.intp)
