@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from operator import attrgetter
 
 import numpy as np
@@ -27,14 +27,7 @@ from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from csws.warning import latency
-from csws.warning.release import (
-    NOT_HELD,
-    HeldWarning,
-    memory_masks,
-    next_memories,
-    recalled_points,
-    rows_of_vehicles,
-)
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories, recalled_points, rows_of_vehicles
 from csws.warning.rules import (
     BatchWarnings,
     WarningSettings,
@@ -90,17 +83,8 @@ class EngineSettings:
     activation: ActivationSettings = field(default_factory=ActivationSettings)
 
 
-#: The fields of a :class:`VehicleInput` that :meth:`Engine.evaluate_fleet` takes as columns, in its order.
-_INPUT_FIELD_NAMES = (
-    "vehicle_id",
-    "category",
-    "speed_kmh",
-    "lane_id",
-    "lane_pos_m",
-    "route_edges",
-    "timestamp_s",
-    "age_s",
-)
+#: The fields of a :class:`VehicleInput`, in the order :meth:`Engine.evaluate_fleet` takes them as columns.
+_INPUT_FIELD_NAMES = tuple(input_field.name for input_field in fields(VehicleInput))
 _INPUT_FIELDS = attrgetter(*_INPUT_FIELD_NAMES)
 
 #: The status of a vehicle not seen before (shared: statuses are immutable).
