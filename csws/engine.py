@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
+from operator import attrgetter
 
 import numpy as np
 
@@ -26,7 +27,7 @@ from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from csws.warning import latency
-from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories, recalled_points
+from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories, recalled_points, rows_of_vehicles
 from csws.warning.rules import (
     BatchWarnings,
     WarningSettings,
@@ -81,6 +82,10 @@ class EngineSettings:
     lookahead: LookAheadSettings = field(default_factory=LookAheadSettings)
     activation: ActivationSettings = field(default_factory=ActivationSettings)
 
+
+#: The fields of a :class:`VehicleInput`, in the order :meth:`Engine.evaluate_fleet` takes them as columns.
+_INPUT_FIELD_NAMES = tuple(input_field.name for input_field in fields(VehicleInput))
+_INPUT_FIELDS = attrgetter(*_INPUT_FIELD_NAMES)
 
 #: The status of a vehicle not seen before (shared: statuses are immutable).
 _NEW_STATUS = VehicleStatus()
@@ -167,6 +172,17 @@ class Engine:
         configured one (:mod:`csws.warning.latency`), s."""
         return latency.update_period_s(self.intervals.get(vehicle_id, ()), self.settings.warning)
 
+    def _update_periods_s(self, vehicle_ids: Sequence[str]) -> np.ndarray:
+        """:meth:`update_period_s` of many vehicles: the configured one, but where a vehicle's intervals
+        are known and the period is learnt (:func:`csws.warning.latency.update_period_s`), s."""
+        periods_s = np.full(len(vehicle_ids), self.settings.warning.update_period_s)
+        if self.intervals and self.settings.warning.learn_update_period:
+            intervals = self.intervals
+            for vehicle, vehicle_id in enumerate(vehicle_ids):
+                if vehicle_id in intervals:
+                    periods_s[vehicle] = latency.update_period_s(intervals[vehicle_id], self.settings.warning)
+        return periods_s
+
     def _learn_interval(self, vehicle_id: str, last_timestamp_s: float | None, status: VehicleStatus) -> None:
         """Add the interval between the vehicle's last accepted fix and this one, if it was accepted."""
         before = self.intervals.get(vehicle_id, ())
@@ -182,14 +198,16 @@ class Engine:
         if not status.warns:
             self.held.pop(vehicle.vehicle_id, None)
             return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
+        period_s = self.update_period_s(vehicle.vehicle_id)
+        age_s = latency.fix_age_s(vehicle.age_s)
         path = self._lookahead_on_map()(
             _lanes_of_active([vehicle.lane_id])[0],
             vehicle.lane_pos_m,
             vehicle.speed_kmh,
             vehicle.category,
             vehicle.route_edges,
-            self.update_period_s(vehicle.vehicle_id),
-            latency.fix_age_s(vehicle.age_s),
+            period_s,
+            age_s,
         )
         warning, memory = judge_one(
             float(vehicle.speed_kmh),
@@ -199,8 +217,8 @@ class Engine:
             self.held.get(vehicle.vehicle_id, NOT_HELD),
             vehicle.timestamp_s,
             self.settings.warning,
-            self.update_period_s(vehicle.vehicle_id),
-            latency.fix_age_s(vehicle.age_s),
+            period_s,
+            age_s,
         )
         self._keep([vehicle.vehicle_id], [memory])
         return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
@@ -233,16 +251,8 @@ class Engine:
 
     def evaluate_many(self, vehicles: Sequence[VehicleInput]) -> list[Answer]:
         """The answers for many vehicles, in order (:meth:`evaluate_fleet` of their columns, with paths)."""
-        fleet = self.evaluate_fleet(
-            [v.vehicle_id for v in vehicles],
-            [v.category for v in vehicles],
-            [v.speed_kmh for v in vehicles],
-            [v.lane_id for v in vehicles],
-            [v.lane_pos_m for v in vehicles],
-            [v.route_edges for v in vehicles],
-            timestamp_s=[v.timestamp_s for v in vehicles],
-            age_s=[v.age_s for v in vehicles],
-        )
+        ids, categories, speeds, lanes, positions, routes, times, ages = _input_columns(vehicles)
+        fleet = self.evaluate_fleet(ids, categories, speeds, lanes, positions, routes, timestamp_s=times, age_s=ages)
         paths: list[PathAhead | None] = [None] * len(vehicles)
         if fleet.ahead is not None:
             for i, path in zip(fleet.active, fleet.ahead.paths_ahead(), strict=False):
@@ -287,7 +297,8 @@ class Engine:
         )
         self.statuses.update(zip(vehicle_ids, statuses, strict=False))
         for vehicle_id, was, status in zip(vehicle_ids, before, statuses, strict=False):
-            if status.last_timestamp_s is not None:
+            # Only a fix accepted after an earlier accepted one adds an interval (latency.next_intervals).
+            if status.last_timestamp_s is not None and was.last_timestamp_s is not None:
                 self._learn_interval(vehicle_id, was.last_timestamp_s, status)
         active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
         self._forget_warnings_of_inactive(vehicle_ids, statuses)
@@ -347,8 +358,8 @@ class Engine:
         first: Sequence[int],
         distance_m: np.ndarray,
         radius_m: np.ndarray,
-        curve_ids: Sequence[str],
-        part_indices: Sequence[int],
+        curve_ids: np.ndarray,
+        part_indices: np.ndarray,
         passed: np.ndarray,
         recalled: np.ndarray | None,
     ) -> BatchWarnings:
@@ -387,22 +398,23 @@ class Engine:
         """The roads ahead with the CPOIs the release rule recalls from each vehicle's memory (rule 4,
         :func:`csws.warning.release.recalled_points`) after the vehicle's own, marked passed; and which
         CPOIs are recalled (None where none is)."""
-        if not self.held:
+        remembered = self._remembered_places(vehicle_ids)
+        if not remembered:
             return ahead, None
-        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1)).tolist()
+        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1))
         hold_s = self.settings.warning.hold_s(periods_s)
+        vehicles = [vehicle for vehicle, _ in remembered]
+        path_rows, _ = rows_of_vehicles(first, vehicles)
+        keys = list(
+            zip(ahead.cpoi_curve_id[path_rows].tolist(), ahead.cpoi_part_index[path_rows].tolist(), strict=True)
+        )
+        bounds = np.cumsum(np.diff(first)[vehicles]).tolist()
         rows: list[int] = []
         found: list[tuple[int, str, int, float, float]] = []
-        for vehicle, vehicle_id in enumerate(vehicle_ids):
-            held = self.held.get(vehicle_id)
-            if held is None or not held.places:
-                continue
-            start, stop = first[vehicle], first[vehicle + 1]
-            curve_ids, parts = ahead.cpoi_curve_id[start:stop].tolist(), ahead.cpoi_part_index[start:stop].tolist()
-            keys = list(zip(curve_ids, parts, strict=True))
-            speed = float(speed_kmh[vehicle])
-            for place in recalled_points(held, keys, now_s[vehicle], speed, float(hold_s[vehicle])):
-                rows.append(stop)
+        for (vehicle, held), start, stop in zip(remembered, [0, *bounds[:-1]], bounds, strict=True):
+            speed, vehicle_hold_s = float(speed_kmh[vehicle]), float(hold_s[vehicle])
+            for place in recalled_points(held, keys[start:stop], now_s[vehicle], speed, vehicle_hold_s):
+                rows.append(int(first[vehicle + 1]))
                 found.append((vehicle, *place))
         if not rows:
             return ahead, None
@@ -417,6 +429,17 @@ class Engine:
             cpoi_passed=np.insert(ahead.cpoi_passed, rows, True),
         )
         return with_recalled, np.insert(np.zeros(ahead.cpoi_vehicle.size, dtype=bool), rows, True)
+
+    def _remembered_places(self, vehicle_ids: Sequence[str]) -> list[tuple[int, HeldWarning]]:
+        """The vehicles (index, memory) whose memory keeps where its CPOIs were (rule 4 may recall them)."""
+        if not self.held:
+            return []
+        held = self.held
+        return [
+            (vehicle, memory)
+            for vehicle, vehicle_id in enumerate(vehicle_ids)
+            if vehicle_id in held and (memory := held[vehicle_id]).places
+        ]
 
     def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is."""
@@ -438,12 +461,11 @@ class Engine:
         route_edges: Sequence[Sequence[str] | None],
     ) -> tuple[BatchAhead, BatchWarnings]:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
-        periods_s = np.array([self.update_period_s(vehicle_id) for vehicle_id in vehicle_ids], dtype=float)
+        periods_s = self._update_periods_s(vehicle_ids)
         ages_s = np.array(age_s, dtype=float)
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
         ahead, recalled = self._recalled(vehicle_ids, now_s, speed_kmh, periods_s, ahead)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
-        # As lists: the release rule reads them one CPOI at a time.
         batch = self._judged(
             vehicle_ids,
             now_s,
@@ -455,12 +477,18 @@ class Engine:
             first,
             ahead.cpoi_distance_m,
             ahead.cpoi_radius_m,
-            ahead.cpoi_curve_id.tolist(),
-            ahead.cpoi_part_index.tolist(),
+            ahead.cpoi_curve_id,
+            ahead.cpoi_part_index,
             ahead.cpoi_passed,
             recalled,
         )
         return ahead, batch
+
+
+def _input_columns(vehicles: Sequence[VehicleInput]) -> list[Sequence]:
+    """The fields of the vehicles as columns, in :data:`_INPUT_FIELD_NAMES`' order, read in one pass."""
+    columns: list[Sequence] = list(zip(*map(_INPUT_FIELDS, vehicles), strict=True))
+    return columns if columns else [()] * len(_INPUT_FIELD_NAMES)
 
 
 def _lanes_of_active(lane_ids: Sequence[str | None]) -> list[str]:

@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import compress
 
 import numpy as np
 
@@ -62,6 +63,7 @@ __all__ = [
     "named_points",
     "next_memories",
     "recalled_points",
+    "rows_of_vehicles",
     "vehicle_memory",
     "within_hold",
 ]
@@ -127,8 +129,8 @@ def memory_masks(
     held: Sequence[HeldWarning],
     now_s: Sequence[float | None],
     first_cpoi: Sequence[int],
-    curve_ids: Sequence[str],
-    part_indices: Sequence[int],
+    curve_ids: Sequence[str] | np.ndarray,
+    part_indices: Sequence[int] | np.ndarray,
     hold_s: float | Sequence[float] | np.ndarray,
     recalled: Sequence[bool] | np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -154,25 +156,53 @@ def memory_masks(
     """
     latched = np.zeros((2, len(curve_ids)), dtype=bool)
     hold = np.zeros((2, len(curve_ids)), dtype=bool)
-    named: tuple[list[int], list[int]] = ([], [])
-    held_on: tuple[list[int], list[int]] = ([], [])
-    for vehicle, memory in enumerate(held):
-        if memory is NOT_HELD or not memory.is_on:  # most vehicles: no warning to keep
-            continue
-        start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
-        keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
-        vehicle_hold_s = hold_s if isinstance(hold_s, float | int) else float(hold_s[vehicle])
-        for level, level_named in enumerate(named_points(memory, keys)):
-            rows_named = [row for row, is_named in enumerate(level_named, start) if is_named]
-            named[level].extend(rows_named)
-            if within_hold(memory.kept_at_s[level], now_s[vehicle], vehicle_hold_s):
-                held_on[level].extend(rows_named)
+    vehicles = _vehicles_held(held)
+    if not vehicles:  # most updates of most fleets: no warning to keep
+        return latched, hold
+    rows, owner = rows_of_vehicles(first_cpoi, vehicles)
+    names = _named_levels(held, vehicles)
+    ids = np.asarray(curve_ids, dtype=object)[rows].tolist()
+    parts = np.asarray(part_indices, dtype=np.int64)[rows].tolist()
+    bits = np.array([names.get(key, 0) for key in zip(owner.tolist(), ids, parts, strict=True)], dtype=np.int8)
+    holds_s = np.broadcast_to(np.asarray(hold_s, dtype=float), (len(held),)).tolist()
     for level in (0, 1):
-        latched[level, named[level]] = True
-        hold[level, held_on[level]] = True
+        named = ((bits >> level) & 1).astype(bool)
+        kept_at_s = [held[vehicle].kept_at_s[level] for vehicle in vehicles]
+        within = [within_hold(kept_s, now_s[v], holds_s[v]) for kept_s, v in zip(kept_at_s, vehicles, strict=True)]
+        latched[level, rows] = named
+        hold[level, rows] = named & np.array(within, dtype=bool)[owner]
     if recalled is not None:
         latched &= ~np.asarray(recalled, dtype=bool)
     return latched, hold
+
+
+def _vehicles_held(held: Sequence[HeldWarning]) -> list[int]:
+    """The vehicles whose memory keeps a level on (most of a fleet's keep none: :data:`NOT_HELD`)."""
+    return [vehicle for vehicle, memory in enumerate(held) if memory is not NOT_HELD and memory.is_on]
+
+
+def rows_of_vehicles(first_cpoi: Sequence[int] | np.ndarray, vehicles: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the flat CPOI arrays that belong to ``vehicles``, and to which of them (its place in
+    ``vehicles``) each row belongs."""
+    first = np.asarray(first_cpoi, dtype=np.intp)
+    chosen = np.asarray(vehicles, dtype=np.intp)
+    starts = first[chosen]
+    counts = first[chosen + 1] - starts
+    owner = np.repeat(np.arange(chosen.size), counts)
+    rows = np.arange(int(counts.sum())) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
+    return rows, owner
+
+
+def _named_levels(held: Sequence[HeldWarning], vehicles: Sequence[int]) -> dict[tuple[int, str, int], int]:
+    """Rule 1: the CPOIs each of ``vehicles`` (by its place in it) names in its memory, as
+    ``(place, curve id, part index) -> levels``, bit 0 for level 1 and bit 1 for level 2."""
+    names: dict[tuple[int, str, int], int] = {}
+    for place, vehicle in enumerate(vehicles):
+        for level, points in enumerate(held[vehicle].points):
+            for curve_id, part_index in points:
+                key = (place, curve_id, part_index)
+                names[key] = names.get(key, 0) | (1 << level)
+    return names
 
 
 def recalled_points(
@@ -215,8 +245,8 @@ def next_memories(
     held: Sequence[HeldWarning],
     now_s: Sequence[float | None],
     first_cpoi: Sequence[int],
-    curve_ids: Sequence[str],
-    part_indices: Sequence[int],
+    curve_ids: Sequence[str] | np.ndarray,
+    part_indices: Sequence[int] | np.ndarray,
     cpoi_rule: np.ndarray,
     places: tuple[Floats, Floats, Floats] | None = None,
 ) -> list[HeldWarning]:
@@ -225,19 +255,27 @@ def next_memories(
 
     ``places`` are the flat CPOIs' distances S and radii, m, and each vehicle's speed, km/h, for
     rule 4; without them the memories keep no places, and rule 4 recalls nothing from them.
+
+    The CPOIs that keep a level on are found once for all vehicles; each vehicle's memory is built
+    from those rows only (a CPOI that keeps nothing on adds nothing to it, :func:`vehicle_memory`).
     """
-    vehicle_of_row = np.repeat(np.arange(len(held)), np.diff(np.asarray(first_cpoi)))
     memories = [NOT_HELD] * len(held)
-    on = np.unique(vehicle_of_row[np.any(cpoi_rule != Rule.OFF, axis=0)]).tolist()
-    if not on:
+    on_rows = np.flatnonzero(np.any(cpoi_rule != Rule.OFF, axis=0))
+    if not on_rows.size:
         return memories
-    level_rules = cpoi_rule.tolist()
-    for vehicle in on:
-        start, stop = first_cpoi[vehicle], first_cpoi[vehicle + 1]
-        keys = [(curve_ids[row], int(part_indices[row])) for row in range(start, stop)]
-        here = (level_rules[0][start:stop], level_rules[1][start:stop])
-        where = None if places is None else (places[0][start:stop], places[1][start:stop], places[2][vehicle])
-        memories[vehicle] = vehicle_memory(here, keys, held[vehicle], now_s[vehicle], where)
+    vehicle_of_row = np.searchsorted(np.asarray(first_cpoi), on_rows, side="right") - 1
+    vehicles, starts = np.unique(vehicle_of_row, return_index=True)
+    bounds = [*starts.tolist(), int(on_rows.size)]
+    level_1, level_2 = cpoi_rule[:, on_rows].tolist()
+    ids = np.asarray(curve_ids, dtype=object)[on_rows].tolist()
+    keys = list(zip(ids, np.asarray(part_indices, dtype=np.int64)[on_rows].tolist(), strict=True))
+    if places is not None:
+        distances_m = np.asarray(places[0], dtype=float)[on_rows].tolist()
+        radii_m = np.asarray(places[1], dtype=float)[on_rows].tolist()
+    for vehicle, start, stop in zip(vehicles.tolist(), bounds, bounds[1:], strict=False):
+        here = (level_1[start:stop], level_2[start:stop])
+        where = None if places is None else (distances_m[start:stop], radii_m[start:stop], places[2][vehicle])
+        memories[vehicle] = vehicle_memory(here, keys[start:stop], held[vehicle], now_s[vehicle], where)
     return memories
 
 
@@ -256,24 +294,30 @@ def vehicle_memory(
     otherwise), and none where it is off. With ``places`` (the CPOIs' distances S and radii, m,
     and the vehicle's speed, km/h) it keeps where those CPOIs are now, for rule 4.
     """
-    if not any(rules[0]) and not any(rules[1]):
+    rules_1, rules_2 = rules
+    if not any(rules_1) and not any(rules_2):
         return NOT_HELD
-    points, kept_at_s = [], []
-    for level, here in enumerate(rules):
-        points.append(frozenset(key for key, rule in zip(keys, here, strict=True) if rule))
-        if Rule.REQUIRED in here or Rule.MARGIN in here:
-            kept_at_s.append(now_s)
-        else:
-            kept_at_s.append(held.kept_at_s[level] if Rule.HOLD in here else None)
+    points = (frozenset(compress(keys, rules_1)), frozenset(compress(keys, rules_2)))
+    kept_at_s = (_kept_at_s(rules_1, held.kept_at_s[0], now_s), _kept_at_s(rules_2, held.kept_at_s[1], now_s))
     if places is None or now_s is None or not math.isfinite(now_s):
-        return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]))
+        return HeldWarning(points, kept_at_s)
     distances_m, radii_m, speed_kmh = places
-    kept = [
+    kept = tuple(
         (key[0], key[1], float(distance_m), float(radius_m))
-        for key, level_1, level_2, distance_m, radius_m in zip(keys, *rules, distances_m, radii_m, strict=True)
+        for key, level_1, level_2, distance_m, radius_m in zip(
+            keys, rules_1, rules_2, distances_m, radii_m, strict=True
+        )
         if level_1 or level_2
-    ]
-    return HeldWarning((points[0], points[1]), (kept_at_s[0], kept_at_s[1]), tuple(kept), (now_s, float(speed_kmh)))
+    )
+    return HeldWarning(points, kept_at_s, kept, (now_s, float(speed_kmh)))
+
+
+def _kept_at_s(rules: Sequence[int], kept_before_s: float | None, now_s: float | None) -> float | None:
+    """When a level was last kept on by 6.1 or the margin: now where one of them keeps it on, the time
+    it had where only the hold does (rule 2), none where it is off."""
+    if Rule.REQUIRED in rules or Rule.MARGIN in rules:
+        return now_s
+    return kept_before_s if Rule.HOLD in rules else None
 
 
 def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:
