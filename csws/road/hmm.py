@@ -181,9 +181,9 @@ class SequenceMatcher:
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
-        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane, pos_m, distance_m, placed))
-        placed_anywhere = lane >= 0
         lane_ids: list[str | None] = self.index.lane_ids[np.maximum(lane, 0)].tolist()
+        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane_ids, pos_m, distance_m, placed))
+        placed_anywhere = lane >= 0
         reason: list[str | None] = [None] * count
         for fix in np.flatnonzero(~placed_anywhere).tolist():
             lane_ids[fix] = None
@@ -236,16 +236,18 @@ class SequenceMatcher:
     def _previous(self, tracks: Sequence[Track | None], count: int) -> Previous:
         """The candidates of the vehicles' previous fixes, their lanes numbered over all maps (a lane the maps
         no longer have is dropped)."""
-        rows = [row for row, track in enumerate(tracks) if track is not None]
-        states = [track.state for track in tracks if track is not None]
-        numbers = [self._numbers[track.map_index] for track in tracks if track is not None]
-        pairs = zip(numbers, states, strict=True)
-        lane = np.array(
-            [by_id.get(lane_id, -1) for by_id, state in pairs for lane_id in state.candidates], dtype=np.intp
-        )
-        sizes = [len(state.candidates) for state in states]
+        rows: list[int] = []
+        states: list[MatchState] = []
+        lanes: list[int] = []
+        for row, track in enumerate(tracks):
+            if track is not None:
+                rows.append(row)
+                states.append(track.state)
+                by_id = self._numbers[track.map_index]
+                lanes += [by_id.get(lane_id, -1) for lane_id in track.state.candidates]
+        lane = np.array(lanes, dtype=np.intp)
         known = lane >= 0
-        fix = np.repeat(np.array(rows, dtype=np.intp), sizes)[known]
+        fix = np.repeat(np.array(rows, dtype=np.intp), [len(state.candidates) for state in states])[known]
         pos_m = np.fromiter(chain.from_iterable(state.candidate_pos_m for state in states), float, lane.size)
         log_p = np.fromiter(chain.from_iterable(state.log_p for state in states), float, lane.size)
         xy = np.full((count, 2), np.nan)
@@ -274,12 +276,14 @@ class SequenceMatcher:
         confirmed: list[Confirmed | None] = [None] * len(tracks)
         has = np.flatnonzero(step.best >= 0)
         came_from = step.back[step.best[has]]
-        for fix, row in zip(has[came_from >= 0].tolist(), came_from[came_from >= 0].tolist(), strict=True):
+        linked = came_from >= 0
+        rows = came_from[linked]
+        for fix, lane, pos_m in zip(
+            has[linked].tolist(), previous.lane[rows].tolist(), previous.pos_m[rows].tolist(), strict=True
+        ):
             state = cast(Track, tracks[fix]).state  # a candidate came from its previous fix: it has a track
-            map_index, lane_id = self.index.lane_name(int(previous.lane[row]))
-            confirmed[fix] = Confirmed(
-                state.time_s, map_index, lane_id, float(previous.pos_m[row]), lane_id != state.lane_id
-            )
+            map_index, lane_id = self.index.lane_name(lane)
+            confirmed[fix] = Confirmed(state.time_s, map_index, lane_id, pos_m, lane_id != state.lane_id)
         return confirmed
 
     def _reported(self, step: Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
@@ -373,10 +377,10 @@ class SequenceMatcher:
         kept: tuple[np.ndarray, np.ndarray],
         previous: Previous,
         tracks: Sequence[Track | None],
-        reported: tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]],
+        reported: tuple[list[str | None], np.ndarray, np.ndarray, list[Placed | None]],
     ) -> list[Track | None]:
         """What each vehicle keeps for its next fix: the fix's kept candidates where it matched, else its
-        previous track."""
+        previous track (``reported``: each fix's reported lane id, lane position, distance and placing)."""
         candidates, best = step.candidates, step.best
         rows, bounds = kept
         best_rows = np.where(best >= 0, best, 0) if len(candidates.lane) else np.zeros(len(best), dtype=np.intp)
@@ -384,7 +388,7 @@ class SequenceMatcher:
         map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
         names = self.index.lane_ids[candidates.lane[rows]].tolist()
         log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
-        lane, pos_m, distance_m, placed = reported
+        lane_ids, pos_m, distance_m, placed = reported
         columns = zip(
             (best >= 0).tolist(),
             bounds[:-1].tolist(),
@@ -392,7 +396,7 @@ class SequenceMatcher:
             fixes.time_s.tolist(),
             xy,
             self._speeds_mps(fixes, step, previous, tracks).tolist(),
-            self.index.lane_ids[np.maximum(lane, 0)].tolist(),
+            lane_ids,
             pos_m.tolist(),
             distance_m.tolist(),
             placed,
