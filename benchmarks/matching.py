@@ -113,8 +113,7 @@ def _group_cpu_s(matcher: SequenceMatcher, second: Fixes, tracks: list, size: in
     """CPU time of one round of matching the continuing fixes in consecutive groups of ``size`` (at most
     :data:`GROUPS_PER_ROUND` groups), s, and how many groups it matched."""
     groups = [
-        np.arange(start, start + size)
-        for start in range(0, second.probes.count - size + 1, size)[:GROUPS_PER_ROUND]
+        np.arange(start, start + size) for start in range(0, second.probes.count - size + 1, size)[:GROUPS_PER_ROUND]
     ]
     parts = [(subset(second, rows), [tracks[row] for row in rows.tolist()]) for rows in groups]
     started_cpu = time.process_time()
