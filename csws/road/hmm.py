@@ -293,8 +293,11 @@ class SequenceMatcher:
         has = best >= 0
         lane = np.full(count, -1, dtype=np.intp)
         pos_m, distance_m = np.full(count, np.nan), np.full(count, np.nan)
+        chosen = best[has]
         lane[has], pos_m[has], distance_m[has] = (
-            column[best[has]] for column in (candidates.lane, candidates.pos_m, candidates.distance_m)
+            candidates.lane[chosen],
+            candidates.pos_m[chosen],
+            candidates.distance_m[chosen],
         )
         placed: list[Placed | None] = [Placed.MATCHED if h else None for h in has.tolist()]
         for fix in np.flatnonzero(self._undecided(step, count)).tolist():
@@ -306,13 +309,15 @@ class SequenceMatcher:
         """Which fixes' best candidate turns off the road inside a junction while the connections into its
         road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge."""
         candidates, graph = step.candidates, self.graph
-        turning = np.zeros(count, dtype=bool)
-        best_lane = np.zeros(count, dtype=np.intp)
         has = step.best >= 0
-        best_lane[has] = candidates.lane[step.best[has]]
-        turning[has] = graph.turns[best_lane[has]] & (graph.entry_lane[best_lane[has]] >= 0)
-        if not turning.any():
+        has_lane = candidates.lane[step.best[has]]
+        has_turning = graph.turns[has_lane] & (graph.entry_lane[has_lane] >= 0)
+        turning = np.zeros(count, dtype=bool)
+        if not has_turning.any():
             return turning
+        turning[has] = has_turning
+        best_lane = np.zeros(count, dtype=np.intp)
+        best_lane[has] = has_lane
         lane, fix = candidates.lane, candidates.fix
         probability = np.exp(step.log_p)
         group = graph.internal[lane] & (graph.entry_edge[lane] == graph.entry_edge[best_lane][fix]) & turning[fix]
