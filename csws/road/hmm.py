@@ -122,7 +122,7 @@ class SequenceMatcher:
         repeated = repeats(fixes, tracks)
         if not repeated.any():
             return self._advance(fixes, tracks)[0]
-        fresh = np.flatnonzero(~repeated)
+        fresh = (~repeated).nonzero()[0]
         if not fresh.size:
             return with_repeats(None, fresh, tracks)
         matches = self._advance(subset(fixes, fresh), [tracks[row] for row in fresh.tolist()])[0]
@@ -172,11 +172,13 @@ class SequenceMatcher:
         count = fixes.probes.count
         sigma_m = np.where(np.isfinite(fixes.accuracy_m), fixes.accuracy_m, self.settings.accuracy_m)
         radius_m = np.maximum(self.settings.tolerance_m, self.settings.search_sigmas * sigma_m)
-        candidates, near = self._candidates(fixes, sigma_m, radius_m)
+        with np.errstate(invalid="ignore"):  # a speed not given (NaN) is not slow
+            slow = fixes.speed_mps < self.settings.standstill_mps
+        candidates, near = self._candidates(fixes, sigma_m, radius_m, slow)
         previous = self._previous(tracks, count)
         beta_m = transition_scale_m(self.settings.transition_beta_m, sigma_m)
         step = forward_step(
-            candidates, previous, count, self.graph, self.settings, beta_m, self._standing(fixes, previous)
+            candidates, previous, count, self.graph, self.settings, beta_m, self._standing(slow, previous)
         )
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
@@ -185,7 +187,7 @@ class SequenceMatcher:
         new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane_ids, pos_m, distance_m, placed))
         placed_anywhere = lane >= 0
         reason: list[str | None] = [None] * count
-        for fix in np.flatnonzero(~placed_anywhere).tolist():
+        for fix in (~placed_anywhere).nonzero()[0].tolist():
             lane_ids[fix] = None
             reason[fix] = self._reason(bool(near[fix]), float(radius_m[fix]), float(fixes.heading_deg[fix]))
         matches = SequenceMatches(
@@ -200,9 +202,12 @@ class SequenceMatcher:
         )
         return matches, step, kept
 
-    def _candidates(self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray) -> tuple[Candidates, np.ndarray]:
+    def _candidates(
+        self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray, slow: np.ndarray
+    ) -> tuple[Candidates, np.ndarray]:
         """The lanes near each fix agreeing with its heading, with their emission log-probabilities,
-        and whether any lane at all was near each fix."""
+        and whether any lane at all was near each fix (``slow``: whether each fix gives a speed under
+        :attr:`MatchSettings.standstill_mps`)."""
         probes = fixes.probes
         found = self.index.nearby(probes, radius_m) if len(probes.fix) else None
         if found is None or not len(found):
@@ -216,10 +221,8 @@ class SequenceMatcher:
         agrees = ~(np.abs(off_rad) > self._heading_tolerance_rad)  # a NaN heading agrees
         heading_term = np.where(np.isnan(off_rad), 0.0, off_rad / self._heading_sigma_rad)
         emission = -0.5 * ((found.distance_m / sigma_m[fix]) ** 2 + heading_term**2)
-        with np.errstate(invalid="ignore"):
-            standing = fixes.speed_mps[fix] < self.settings.standstill_mps
         emission += np.where(
-            standing & self.graph.internal[found.lane_index], self.settings.standstill_junction_log_p, 0.0
+            slow[fix] & self.graph.internal[found.lane_index], self.settings.standstill_junction_log_p, 0.0
         )
         order = np.argsort(fix, kind="stable")
         order = order[agrees[order]]
@@ -260,21 +263,19 @@ class SequenceMatcher:
         starts = np.cumsum(counts) - counts
         return Previous(fix, lane[known], pos_m[known], log_p[known], starts, counts, xy, time_s, speed_mps)
 
-    def _standing(self, fixes: Fixes, previous: Previous) -> np.ndarray:
+    def _standing(self, slow: np.ndarray, previous: Previous) -> np.ndarray:
         """Whether each fix's vehicle stood still since its previous fix: the fix gives a speed, and it and
-        the previous one are both under :attr:`MatchSettings.standstill_mps` (a vehicle waiting at a stop
-        line, its fixes scattered into the junction by the noise, has not entered it)."""
+        the previous one are both under :attr:`MatchSettings.standstill_mps` (``slow``: the fix's is; a
+        vehicle waiting at a stop line, its fixes scattered into the junction by the noise, has not entered it)."""
         with np.errstate(invalid="ignore"):
-            return (fixes.speed_mps < self.settings.standstill_mps) & (
-                previous.speed_mps < self.settings.standstill_mps
-            )
+            return slow & (previous.speed_mps < self.settings.standstill_mps)
 
     # ------------------------------------------------------------------ what is reported
     def _confirmed(self, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> list[Confirmed | None]:
         """Each vehicle's last matched fix as its new fix confirms it: the candidate its most probable
         candidate came from (the Viterbi path over the two fixes: the matcher's window of one fix)."""
         confirmed: list[Confirmed | None] = [None] * len(tracks)
-        has = np.flatnonzero(step.best >= 0)
+        has = (step.best >= 0).nonzero()[0]
         came_from = step.back[step.best[has]]
         linked = came_from >= 0
         rows = came_from[linked]
@@ -300,7 +301,7 @@ class SequenceMatcher:
             candidates.distance_m[chosen],
         )
         placed: list[Placed | None] = [Placed.MATCHED if h else None for h in has.tolist()]
-        for fix in np.flatnonzero(self._undecided(step, count)).tolist():
+        for fix in self._undecided(step, count).nonzero()[0].tolist():
             lane[fix], pos_m[fix], distance_m[fix] = self._continuation(step, fix)
             placed[fix] = Placed.DEFERRED
         return lane, pos_m, distance_m, placed
@@ -332,7 +333,7 @@ class SequenceMatcher:
         candidates, graph = step.candidates, self.graph
         entry = int(graph.entry_lane[candidates.lane[step.best[fix]]])
         following = int(graph.continuation[entry])
-        rows = np.flatnonzero((candidates.fix == fix) & (candidates.lane == following))
+        rows = ((candidates.fix == fix) & (candidates.lane == following)).nonzero()[0]
         if following >= 0 and rows.size:
             row = int(rows[0])
             return following, float(candidates.pos_m[row]), float(candidates.distance_m[row])
@@ -358,7 +359,7 @@ class SequenceMatcher:
         :attr:`MatchSettings.dead_reckoning_s` of it: on along the road at the fix's speed (else the
         last one), filled into the columns."""
         probes = fixes.probes
-        for fix in np.flatnonzero(lane < 0).tolist():
+        for fix in (lane < 0).nonzero()[0].tolist():
             track = tracks[fix]
             if track is None:
                 continue
