@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from itertools import chain
 from typing import cast
 
 import numpy as np
@@ -240,28 +239,39 @@ class SequenceMatcher:
         """The candidates of the vehicles' previous fixes, their lanes numbered over all maps (a lane the maps
         no longer have is dropped)."""
         rows: list[int] = []
-        states: list[MatchState] = []
+        sizes: list[int] = []
         lanes: list[int] = []
+        pos_m: list[float] = []
+        log_p: list[float] = []
+        places: list[tuple[float, float, float, float]] = []  # x, y, time, speed
         for row, track in enumerate(tracks):
             if track is not None:
+                state, by_id = track.state, self._numbers[track.map_index]
                 rows.append(row)
-                states.append(track.state)
-                by_id = self._numbers[track.map_index]
-                lanes += [by_id.get(lane_id, -1) for lane_id in track.state.candidates]
+                sizes.append(len(state.candidates))
+                lanes += [by_id.get(lane_id, -1) for lane_id in state.candidates]
+                pos_m += state.candidate_pos_m
+                log_p += state.log_p
+                places.append((state.x_m, state.y_m, state.time_s, state.speed_mps))
         lane = np.array(lanes, dtype=np.intp)
         known = lane >= 0
-        fix = np.repeat(np.array(rows, dtype=np.intp), [len(state.candidates) for state in states])[known]
-        pos_m = np.fromiter(chain.from_iterable(state.candidate_pos_m for state in states), float, lane.size)
-        log_p = np.fromiter(chain.from_iterable(state.log_p for state in states), float, lane.size)
-        xy = np.full((count, 2), np.nan)
-        time_s, speed_mps = np.full(count, np.nan), np.full(count, np.nan)
+        fix = np.repeat(np.array(rows, dtype=np.intp), sizes)[known]
+        columns = np.full((count, 4), np.nan)
         if rows:
-            xy[rows] = [(state.x_m, state.y_m) for state in states]
-            time_s[rows] = [state.time_s for state in states]
-            speed_mps[rows] = [state.speed_mps for state in states]
+            columns[rows] = places
         counts = np.bincount(fix, minlength=count)
         starts = np.cumsum(counts) - counts
-        return Previous(fix, lane[known], pos_m[known], log_p[known], starts, counts, xy, time_s, speed_mps)
+        return Previous(
+            fix,
+            lane[known],
+            np.array(pos_m, dtype=float)[known],
+            np.array(log_p, dtype=float)[known],
+            starts,
+            counts,
+            columns[:, :2],
+            columns[:, 2],
+            columns[:, 3],
+        )
 
     def _standing(self, slow: np.ndarray, previous: Previous) -> np.ndarray:
         """Whether each fix's vehicle stood still since its previous fix: the fix gives a speed, and it and
