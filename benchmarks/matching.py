@@ -20,6 +20,7 @@ Run with ``python -m benchmarks.matching`` (``--group-sizes``: the cost per call
 
 from __future__ import annotations
 
+import argparse
 import gc
 import math
 import os
@@ -159,15 +160,14 @@ def _print_group_sizes(figures: dict) -> None:
     )
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The module's one option, ``--group-sizes``."""
+    parser.add_argument("--group-sizes", action="store_true", help="only the CPU per call and per fix by group size")
+
+
 def main() -> None:
     """Print the µs per fix beside the target (``--group-sizes``: the cost per call by group size)."""
-    args = arguments(
-        "benchmarks.matching",
-        __doc__,
-        lambda parser: parser.add_argument(
-            "--group-sizes", action="store_true", help="only the CPU per call and per fix by group size"
-        ),
-    )
+    args = arguments("benchmarks.matching", __doc__, _add_arguments)
     if args.group_sizes:
         _print_group_sizes(run_group_sizes())
         return
