@@ -182,7 +182,8 @@ class SequenceMatcher:
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
-        lane_ids: list[str | None] = self.index.lane_ids[np.maximum(lane, 0)].tolist()
+        some_lane = np.maximum(lane, 0)  # a lane for every fix, read only where one was placed
+        lane_ids: list[str | None] = self.index.lane_ids[some_lane].tolist()
         new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane_ids, pos_m, distance_m, placed))
         placed_anywhere = lane >= 0
         reason: list[str | None] = [None] * count
@@ -190,7 +191,7 @@ class SequenceMatcher:
             lane_ids[fix] = None
             reason[fix] = self._reason(bool(near[fix]), float(radius_m[fix]), float(fixes.heading_deg[fix]))
         matches = SequenceMatches(
-            np.where(placed_anywhere, self.index.lane_map[np.maximum(lane, 0)], -1),
+            np.where(placed_anywhere, self.index.lane_map[some_lane], -1),
             lane_ids,
             pos_m,
             distance_m,

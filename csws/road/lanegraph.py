@@ -176,12 +176,13 @@ def _crossing_changes(lanes: _Lanes, ends: _JunctionEnds, entry_edge: np.ndarray
     return np.unique(np.array(keys, dtype=np.int64))
 
 
+#: The key after every sorted array of keys here, so that a search never runs past the end.
+_BEYOND_KEYS = np.iinfo(np.int64).max
+
+
 def _within(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
-    """Whether each of ``keys`` is one of ``sorted_keys``."""
-    if not sorted_keys.size:
-        return np.zeros(len(keys), dtype=bool)
-    at = np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)
-    return sorted_keys[at] == keys
+    """Whether each of ``keys`` is one of ``sorted_keys`` (ending in :data:`_BEYOND_KEYS`)."""
+    return sorted_keys[sorted_keys.searchsorted(keys)] == keys
 
 
 class LaneGraph:
@@ -208,7 +209,9 @@ class LaneGraph:
         self.entry_lane, self.exit_lane = ends.entry, ends.exit_lane
         self.entry_edge = np.where(self.entry_lane >= 0, lanes.edge[np.maximum(self.entry_lane, 0)], -1)
         self.exit_edge = np.where(self.exit_lane >= 0, lanes.edge[np.maximum(self.exit_lane, 0)], -1)
-        self._crossing_changes = _crossing_changes(lanes, ends, self.entry_edge, self.exit_edge)
+        self._crossing_changes = np.append(
+            _crossing_changes(lanes, ends, self.entry_edge, self.exit_edge), _BEYOND_KEYS
+        )
         self._successors = lanes.successors
         self._edge_count = lanes.edge_count
         edge_length_m = np.zeros(lanes.edge_count)
@@ -217,15 +220,15 @@ class LaneGraph:
         lane_edge = lanes.edge.tolist()
         for lane, following in enumerate(lanes.successors):
             edge_successors[lane_edge[lane]].update(lane_edge[f] for f in following)
-        self._reach_key, self._reach_offset_m = _edge_reach(edge_successors, edge_length_m, reach_m)
+        reach_key, reach_offset_m = _edge_reach(edge_successors, edge_length_m, reach_m)
+        self._reach_key = np.append(reach_key, _BEYOND_KEYS)
+        self._reach_offset_m = np.append(reach_offset_m, np.nan)
 
     def _offsets_m(self, from_edge: np.ndarray, to_edge: np.ndarray) -> np.ndarray:
         """Route distance from the start of each ``from_edge`` to the start of its ``to_edge``, m; NaN
         beyond the reach."""
-        if not self._reach_key.size:
-            return np.full(len(from_edge), np.nan)
         key = from_edge * self._edge_count + to_edge
-        at = np.minimum(np.searchsorted(self._reach_key, key), self._reach_key.size - 1)
+        at = self._reach_key.searchsorted(key)
         return np.where(self._reach_key[at] == key, self._reach_offset_m[at], np.nan)
 
     def route_m(

@@ -104,8 +104,7 @@ def _best_transitions(
     first_pair = np.cumsum(reps) - reps
     pair_candidate = np.repeat(np.arange(len(reps)), reps)
     pair_fix = candidates.fix[pair_candidate]
-    pair_previous = previous.start[candidates.fix][pair_candidate] + np.arange(int(reps.sum()))
-    pair_previous -= first_pair[pair_candidate]
+    pair_previous = (previous.start[candidates.fix] - first_pair)[pair_candidate] + np.arange(pair_candidate.size)
     from_lane, to_lane = previous.lane[pair_previous], candidates.lane[pair_candidate]
     route_m = graph.route_m(from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate])
     straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[pair_fix]).T)
