@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 from builders import CROSSING_X_M, FRONTAGE_OFFSET_M, LANE_WIDTH_M, build_side_roads
 from markers import marks_its_tests
 
@@ -142,3 +143,26 @@ def test_settings_are_checked() -> None:
         MatchSettings(tolerance_m=0.0)
     with pytest.raises(ValueError, match="heading_tolerance_deg"):
         MatchSettings(heading_tolerance_deg=200.0)
+
+
+def test_nearby_finds_every_lane_within_each_fixs_own_radius(side_map: RoadMap) -> None:
+    # The lanes near each fix, its radius its own: against each lane's distance from the fix measured on its
+    # full shape (the index holds the shapes simplified within 0.01 m, so lanes that close to the edge of the
+    # radius are left out of the comparison).
+    rng = np.random.default_rng(5)
+    shapes = {lane_id: shapely.LineString(side_map.lane_shape(lane_id)) for lane_id in side_map.lane_ids}
+    xy = np.column_stack((rng.uniform(-50.0, 1300.0, 300), rng.uniform(-60.0, 260.0, 300)))
+    radius_m = rng.uniform(1.0, 30.0, 300)
+    matcher = MapMatcher([side_map])
+    found = matcher.nearby(Probes.everywhere(xy), radius_m)
+    for fix, point in enumerate(shapely.points(xy)):
+        distance_m = {lane_id: shape.distance(point) for lane_id, shape in shapes.items()}
+        rows = np.flatnonzero(found.point_index == fix)
+        pairs = zip(found.lane_index[rows].tolist(), found.distance_m[rows].tolist(), strict=True)
+        got = {matcher.lane_name(lane)[1]: d for lane, d in pairs}
+        clear = {lane_id for lane_id, d in distance_m.items() if abs(d - radius_m[fix]) > 0.02}
+        assert {lane_id for lane_id in clear if distance_m[lane_id] <= radius_m[fix]} == set(got) & clear
+        assert all(
+            d <= radius_m[fix] and d == pytest.approx(distance_m[lane_id], abs=0.02) for lane_id, d in got.items()
+        )
+    assert 0 < len(found) and len(set(found.point_index.tolist())) < 300

@@ -66,3 +66,43 @@ def test_a_vehicle_keeps_its_lane_through_a_junction_unless_it_changes_it(split_
     from_lane = np.array([number[a] for a, _ in moves])
     to_lane = np.array([number[b] for _, b in moves])
     assert graph.changes_lane(from_lane, to_lane).tolist() == list(moves.values())
+
+
+def _changes_lane_by_definition(road_map: RoadMap, graph: LaneGraph, a: int, b: int) -> bool:
+    """Whether moving from lane ``a`` to lane ``b`` changes lanes, from the rule's wording: within an edge onto
+    another lane; onto a connection another lane of the edge leads to; off a connection onto a lane beside the
+    one it leads to; across a junction between normal lanes that no connection joins although one joins their
+    edges (the connections followed here from the map's successors)."""
+    ids = road_map.lane_ids
+    lane_a, lane_b = road_map.lane(ids[a]), road_map.lane(ids[b])
+    if lane_a.edge_id == lane_b.edge_id:
+        return a != b
+    entry_b, exit_a = int(graph.entry_lane[b]), int(graph.exit_lane[a])
+    if lane_b.is_internal and entry_b >= 0 and road_map.lane(ids[entry_b]).edge_id == lane_a.edge_id:
+        return entry_b != a
+    if lane_a.is_internal and exit_a >= 0 and road_map.lane(ids[exit_a]).edge_id == lane_b.edge_id:
+        return exit_a != b
+    if lane_a.is_internal or lane_b.is_internal:
+        return False
+    reached_edges = set()
+    for lane_id in road_map.lane_ids:
+        if road_map.lane(lane_id).edge_id != lane_a.edge_id:
+            continue
+        for first in road_map.successors(lane_id):
+            current = first
+            while road_map.lane(current).is_internal and road_map.successors(current):
+                current = road_map.successors(current)[0]
+            if not road_map.lane(current).is_internal:
+                reached_edges.add(road_map.lane(current).edge_id)
+                if lane_id == ids[a] and current == ids[b]:
+                    return False
+    return lane_b.edge_id in reached_edges
+
+
+def test_lane_changes_are_those_the_rule_names_for_every_pair_of_lanes(split_ahead: RoadMap) -> None:
+    graph = LaneGraph([split_ahead], reach_m=250.0)
+    count = len(split_ahead.lane_ids)
+    from_lane, to_lane = (pair.ravel() for pair in np.meshgrid(np.arange(count), np.arange(count), indexing="ij"))
+    expected = [_changes_lane_by_definition(split_ahead, graph, a, b) for a, b in zip(from_lane, to_lane, strict=True)]
+    assert graph.changes_lane(from_lane, to_lane).tolist() == expected
+    assert any(expected) and not all(expected)

@@ -194,7 +194,8 @@ def subset(fixes: Fixes, rows: np.ndarray) -> Fixes:
 
 def repeats(fixes: Fixes, tracks: Sequence[Track | None]) -> np.ndarray:
     """Which fixes repeat their vehicle's last matched fix: the same time, a probe at the same place on its map."""
-    if all(track is None for track in tracks):
+    last_time_s = np.array([math.nan if t is None else t.state.time_s for t in tracks])
+    if not (fixes.time_s == last_time_s).any():  # the common case: every fix is new
         return np.zeros(fixes.probes.count, dtype=bool)
     states = [
         (math.nan, math.nan, math.nan, -2) if t is None else (t.state.time_s, t.state.x_m, t.state.y_m, t.map_index)

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from itertools import chain
 from typing import cast
 
 import numpy as np
@@ -122,7 +121,7 @@ class SequenceMatcher:
         repeated = repeats(fixes, tracks)
         if not repeated.any():
             return self._advance(fixes, tracks)[0]
-        fresh = np.flatnonzero(~repeated)
+        fresh = (~repeated).nonzero()[0]
         if not fresh.size:
             return with_repeats(None, fresh, tracks)
         matches = self._advance(subset(fixes, fresh), [tracks[row] for row in fresh.tolist()])[0]
@@ -172,24 +171,27 @@ class SequenceMatcher:
         count = fixes.probes.count
         sigma_m = np.where(np.isfinite(fixes.accuracy_m), fixes.accuracy_m, self.settings.accuracy_m)
         radius_m = np.maximum(self.settings.tolerance_m, self.settings.search_sigmas * sigma_m)
-        candidates, near = self._candidates(fixes, sigma_m, radius_m)
+        with np.errstate(invalid="ignore"):  # a speed not given (NaN) is not slow
+            slow = fixes.speed_mps < self.settings.standstill_mps
+        candidates, near = self._candidates(fixes, sigma_m, radius_m, slow)
         previous = self._previous(tracks, count)
         beta_m = transition_scale_m(self.settings.transition_beta_m, sigma_m)
         step = forward_step(
-            candidates, previous, count, self.graph, self.settings, beta_m, self._standing(fixes, previous)
+            candidates, previous, count, self.graph, self.settings, beta_m, self._standing(slow, previous)
         )
         kept = kept_rows(step, count, self.index.lane_map, self.settings.max_candidates)
         lane, pos_m, distance_m, placed = self._reported(step, count)
         self._dead_reckon(fixes, tracks, lane, pos_m, distance_m, placed)
-        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane, pos_m, distance_m, placed))
+        some_lane = np.maximum(lane, 0)  # a lane for every fix, read only where one was placed
+        lane_ids: list[str | None] = self.index.lane_ids[some_lane].tolist()
+        new_tracks = self._tracks(fixes, step, kept, previous, tracks, (lane_ids, pos_m, distance_m, placed))
         placed_anywhere = lane >= 0
-        lane_ids: list[str | None] = self.index.lane_ids[np.maximum(lane, 0)].tolist()
         reason: list[str | None] = [None] * count
-        for fix in np.flatnonzero(~placed_anywhere).tolist():
+        for fix in (~placed_anywhere).nonzero()[0].tolist():
             lane_ids[fix] = None
             reason[fix] = self._reason(bool(near[fix]), float(radius_m[fix]), float(fixes.heading_deg[fix]))
         matches = SequenceMatches(
-            np.where(placed_anywhere, self.index.lane_map[np.maximum(lane, 0)], -1),
+            np.where(placed_anywhere, self.index.lane_map[some_lane], -1),
             lane_ids,
             pos_m,
             distance_m,
@@ -200,9 +202,12 @@ class SequenceMatcher:
         )
         return matches, step, kept
 
-    def _candidates(self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray) -> tuple[Candidates, np.ndarray]:
+    def _candidates(
+        self, fixes: Fixes, sigma_m: np.ndarray, radius_m: np.ndarray, slow: np.ndarray
+    ) -> tuple[Candidates, np.ndarray]:
         """The lanes near each fix agreeing with its heading, with their emission log-probabilities,
-        and whether any lane at all was near each fix."""
+        and whether any lane at all was near each fix (``slow``: whether each fix gives a speed under
+        :attr:`MatchSettings.standstill_mps`)."""
         probes = fixes.probes
         found = self.index.nearby(probes, radius_m) if len(probes.fix) else None
         if found is None or not len(found):
@@ -216,10 +221,8 @@ class SequenceMatcher:
         agrees = ~(np.abs(off_rad) > self._heading_tolerance_rad)  # a NaN heading agrees
         heading_term = np.where(np.isnan(off_rad), 0.0, off_rad / self._heading_sigma_rad)
         emission = -0.5 * ((found.distance_m / sigma_m[fix]) ** 2 + heading_term**2)
-        with np.errstate(invalid="ignore"):
-            standing = fixes.speed_mps[fix] < self.settings.standstill_mps
         emission += np.where(
-            standing & self.graph.internal[found.lane_index], self.settings.standstill_junction_log_p, 0.0
+            slow[fix] & self.graph.internal[found.lane_index], self.settings.standstill_junction_log_p, 0.0
         )
         order = np.argsort(fix, kind="stable")
         order = order[agrees[order]]
@@ -236,50 +239,63 @@ class SequenceMatcher:
     def _previous(self, tracks: Sequence[Track | None], count: int) -> Previous:
         """The candidates of the vehicles' previous fixes, their lanes numbered over all maps (a lane the maps
         no longer have is dropped)."""
-        rows = [row for row, track in enumerate(tracks) if track is not None]
-        states = [track.state for track in tracks if track is not None]
-        numbers = [self._numbers[track.map_index] for track in tracks if track is not None]
-        pairs = zip(numbers, states, strict=True)
-        lane = np.array(
-            [by_id.get(lane_id, -1) for by_id, state in pairs for lane_id in state.candidates], dtype=np.intp
-        )
-        sizes = [len(state.candidates) for state in states]
+        rows: list[int] = []
+        sizes: list[int] = []
+        lanes: list[int] = []
+        pos_m: list[float] = []
+        log_p: list[float] = []
+        places: list[tuple[float, float, float, float]] = []  # x, y, time, speed
+        for row, track in enumerate(tracks):
+            if track is not None:
+                state, by_id = track.state, self._numbers[track.map_index]
+                rows.append(row)
+                sizes.append(len(state.candidates))
+                lanes += [by_id.get(lane_id, -1) for lane_id in state.candidates]
+                pos_m += state.candidate_pos_m
+                log_p += state.log_p
+                places.append((state.x_m, state.y_m, state.time_s, state.speed_mps))
+        lane = np.array(lanes, dtype=np.intp)
         known = lane >= 0
         fix = np.repeat(np.array(rows, dtype=np.intp), sizes)[known]
-        pos_m = np.fromiter(chain.from_iterable(state.candidate_pos_m for state in states), float, lane.size)
-        log_p = np.fromiter(chain.from_iterable(state.log_p for state in states), float, lane.size)
-        xy = np.full((count, 2), np.nan)
-        time_s, speed_mps = np.full(count, np.nan), np.full(count, np.nan)
+        columns = np.full((count, 4), np.nan)
         if rows:
-            xy[rows] = [(state.x_m, state.y_m) for state in states]
-            time_s[rows] = [state.time_s for state in states]
-            speed_mps[rows] = [state.speed_mps for state in states]
+            columns[rows] = places
         counts = np.bincount(fix, minlength=count)
         starts = np.cumsum(counts) - counts
-        return Previous(fix, lane[known], pos_m[known], log_p[known], starts, counts, xy, time_s, speed_mps)
+        return Previous(
+            fix,
+            lane[known],
+            np.array(pos_m, dtype=float)[known],
+            np.array(log_p, dtype=float)[known],
+            starts,
+            counts,
+            columns[:, :2],
+            columns[:, 2],
+            columns[:, 3],
+        )
 
-    def _standing(self, fixes: Fixes, previous: Previous) -> np.ndarray:
+    def _standing(self, slow: np.ndarray, previous: Previous) -> np.ndarray:
         """Whether each fix's vehicle stood still since its previous fix: the fix gives a speed, and it and
-        the previous one are both under :attr:`MatchSettings.standstill_mps` (a vehicle waiting at a stop
-        line, its fixes scattered into the junction by the noise, has not entered it)."""
+        the previous one are both under :attr:`MatchSettings.standstill_mps` (``slow``: the fix's is; a
+        vehicle waiting at a stop line, its fixes scattered into the junction by the noise, has not entered it)."""
         with np.errstate(invalid="ignore"):
-            return (fixes.speed_mps < self.settings.standstill_mps) & (
-                previous.speed_mps < self.settings.standstill_mps
-            )
+            return slow & (previous.speed_mps < self.settings.standstill_mps)
 
     # ------------------------------------------------------------------ what is reported
     def _confirmed(self, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> list[Confirmed | None]:
         """Each vehicle's last matched fix as its new fix confirms it: the candidate its most probable
         candidate came from (the Viterbi path over the two fixes: the matcher's window of one fix)."""
         confirmed: list[Confirmed | None] = [None] * len(tracks)
-        has = np.flatnonzero(step.best >= 0)
+        has = (step.best >= 0).nonzero()[0]
         came_from = step.back[step.best[has]]
-        for fix, row in zip(has[came_from >= 0].tolist(), came_from[came_from >= 0].tolist(), strict=True):
+        linked = came_from >= 0
+        rows = came_from[linked]
+        for fix, lane, pos_m in zip(
+            has[linked].tolist(), previous.lane[rows].tolist(), previous.pos_m[rows].tolist(), strict=True
+        ):
             state = cast(Track, tracks[fix]).state  # a candidate came from its previous fix: it has a track
-            map_index, lane_id = self.index.lane_name(int(previous.lane[row]))
-            confirmed[fix] = Confirmed(
-                state.time_s, map_index, lane_id, float(previous.pos_m[row]), lane_id != state.lane_id
-            )
+            map_index, lane_id = self.index.lane_name(lane)
+            confirmed[fix] = Confirmed(state.time_s, map_index, lane_id, pos_m, lane_id != state.lane_id)
         return confirmed
 
     def _reported(self, step: Step, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]]:
@@ -289,11 +305,14 @@ class SequenceMatcher:
         has = best >= 0
         lane = np.full(count, -1, dtype=np.intp)
         pos_m, distance_m = np.full(count, np.nan), np.full(count, np.nan)
+        chosen = best[has]
         lane[has], pos_m[has], distance_m[has] = (
-            column[best[has]] for column in (candidates.lane, candidates.pos_m, candidates.distance_m)
+            candidates.lane[chosen],
+            candidates.pos_m[chosen],
+            candidates.distance_m[chosen],
         )
         placed: list[Placed | None] = [Placed.MATCHED if h else None for h in has.tolist()]
-        for fix in np.flatnonzero(self._undecided(step, count)).tolist():
+        for fix in self._undecided(step, count).nonzero()[0].tolist():
             lane[fix], pos_m[fix], distance_m[fix] = self._continuation(step, fix)
             placed[fix] = Placed.DEFERRED
         return lane, pos_m, distance_m, placed
@@ -302,13 +321,15 @@ class SequenceMatcher:
         """Which fixes' best candidate turns off the road inside a junction while the connections into its
         road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge."""
         candidates, graph = step.candidates, self.graph
-        turning = np.zeros(count, dtype=bool)
-        best_lane = np.zeros(count, dtype=np.intp)
         has = step.best >= 0
-        best_lane[has] = candidates.lane[step.best[has]]
-        turning[has] = graph.turns[best_lane[has]] & (graph.entry_lane[best_lane[has]] >= 0)
-        if not turning.any():
+        has_lane = candidates.lane[step.best[has]]
+        has_turning = graph.turns[has_lane] & (graph.entry_lane[has_lane] >= 0)
+        turning = np.zeros(count, dtype=bool)
+        if not has_turning.any():
             return turning
+        turning[has] = has_turning
+        best_lane = np.zeros(count, dtype=np.intp)
+        best_lane[has] = has_lane
         lane, fix = candidates.lane, candidates.fix
         probability = np.exp(step.log_p)
         group = graph.internal[lane] & (graph.entry_edge[lane] == graph.entry_edge[best_lane][fix]) & turning[fix]
@@ -323,7 +344,7 @@ class SequenceMatcher:
         candidates, graph = step.candidates, self.graph
         entry = int(graph.entry_lane[candidates.lane[step.best[fix]]])
         following = int(graph.continuation[entry])
-        rows = np.flatnonzero((candidates.fix == fix) & (candidates.lane == following))
+        rows = ((candidates.fix == fix) & (candidates.lane == following)).nonzero()[0]
         if following >= 0 and rows.size:
             row = int(rows[0])
             return following, float(candidates.pos_m[row]), float(candidates.distance_m[row])
@@ -349,7 +370,7 @@ class SequenceMatcher:
         :attr:`MatchSettings.dead_reckoning_s` of it: on along the road at the fix's speed (else the
         last one), filled into the columns."""
         probes = fixes.probes
-        for fix in np.flatnonzero(lane < 0).tolist():
+        for fix in (lane < 0).nonzero()[0].tolist():
             track = tracks[fix]
             if track is None:
                 continue
@@ -373,10 +394,10 @@ class SequenceMatcher:
         kept: tuple[np.ndarray, np.ndarray],
         previous: Previous,
         tracks: Sequence[Track | None],
-        reported: tuple[np.ndarray, np.ndarray, np.ndarray, list[Placed | None]],
+        reported: tuple[list[str | None], np.ndarray, np.ndarray, list[Placed | None]],
     ) -> list[Track | None]:
         """What each vehicle keeps for its next fix: the fix's kept candidates where it matched, else its
-        previous track."""
+        previous track (``reported``: each fix's reported lane id, lane position, distance and placing)."""
         candidates, best = step.candidates, step.best
         rows, bounds = kept
         best_rows = np.where(best >= 0, best, 0) if len(candidates.lane) else np.zeros(len(best), dtype=np.intp)
@@ -384,7 +405,7 @@ class SequenceMatcher:
         map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
         names = self.index.lane_ids[candidates.lane[rows]].tolist()
         log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
-        lane, pos_m, distance_m, placed = reported
+        lane_ids, pos_m, distance_m, placed = reported
         columns = zip(
             (best >= 0).tolist(),
             bounds[:-1].tolist(),
@@ -392,7 +413,7 @@ class SequenceMatcher:
             fixes.time_s.tolist(),
             xy,
             self._speeds_mps(fixes, step, previous, tracks).tolist(),
-            self.index.lane_ids[np.maximum(lane, 0)].tolist(),
+            lane_ids,
             pos_m.tolist(),
             distance_m.tolist(),
             placed,

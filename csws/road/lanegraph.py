@@ -144,12 +144,45 @@ def _junction_ends(lanes: _Lanes) -> _JunctionEnds:
     return _JunctionEnds(entry, exit_lane, np.unique(np.array(links, dtype=np.int64)))
 
 
+def _crossing_changes(lanes: _Lanes, ends: _JunctionEnds, entry_edge: np.ndarray, exit_edge: np.ndarray) -> np.ndarray:
+    """Sorted keys ``from * count + to`` of every move between lanes of different edges that changes lanes
+    (:meth:`LaneGraph.changes_lane`), found once so that a move costs one look-up: onto a connection from
+    another lane of its incoming edge, off a connection onto a lane beside the one it leads to, or across a
+    junction between normal lanes no connection joins although their edges are joined."""
+    count = len(lanes.edge)
+    edge_lanes: list[list[int]] = [[] for _ in range(lanes.edge_count)]
+    for lane, edge in enumerate(lanes.edge.tolist()):
+        edge_lanes[edge].append(lane)
+    keys: list[int] = []
+    for lane, (entry, incoming, exit_lane, outgoing) in enumerate(
+        zip(ends.entry.tolist(), entry_edge.tolist(), ends.exit_lane.tolist(), exit_edge.tolist(), strict=True)
+    ):
+        if incoming >= 0:
+            keys += [beside * count + lane for beside in edge_lanes[incoming] if beside != entry]
+        if outgoing >= 0:
+            keys += [lane * count + beside for beside in edge_lanes[outgoing] if beside != exit_lane]
+    linked = set(ends.links.tolist())
+    internal = lanes.internal.tolist()
+    for edge_key in np.unique(lanes.edge[ends.links // count] * lanes.edge_count + lanes.edge[ends.links % count]):
+        from_edge, to_edge = divmod(int(edge_key), lanes.edge_count)
+        if from_edge == to_edge:
+            continue
+        keys += [
+            a * count + b
+            for a in edge_lanes[from_edge]
+            for b in edge_lanes[to_edge]
+            if not internal[a] and not internal[b] and a * count + b not in linked
+        ]
+    return np.unique(np.array(keys, dtype=np.int64))
+
+
+#: The key after every sorted array of keys here, so that a search never runs past the end.
+_BEYOND_KEYS = np.iinfo(np.int64).max
+
+
 def _within(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
-    """Whether each of ``keys`` is one of ``sorted_keys``."""
-    if not sorted_keys.size:
-        return np.zeros(len(keys), dtype=bool)
-    at = np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)
-    return sorted_keys[at] == keys
+    """Whether each of ``keys`` is one of ``sorted_keys`` (ending in :data:`_BEYOND_KEYS`)."""
+    return sorted_keys[sorted_keys.searchsorted(keys)] == keys
 
 
 class LaneGraph:
@@ -176,10 +209,8 @@ class LaneGraph:
         self.entry_lane, self.exit_lane = ends.entry, ends.exit_lane
         self.entry_edge = np.where(self.entry_lane >= 0, lanes.edge[np.maximum(self.entry_lane, 0)], -1)
         self.exit_edge = np.where(self.exit_lane >= 0, lanes.edge[np.maximum(self.exit_lane, 0)], -1)
-        self._lane_links = ends.links
-        lane_count = len(lanes.edge)
-        self._edge_links = np.unique(
-            lanes.edge[ends.links // lane_count] * lanes.edge_count + lanes.edge[ends.links % lane_count]
+        self._crossing_changes = np.append(
+            _crossing_changes(lanes, ends, self.entry_edge, self.exit_edge), _BEYOND_KEYS
         )
         self._successors = lanes.successors
         self._edge_count = lanes.edge_count
@@ -189,15 +220,15 @@ class LaneGraph:
         lane_edge = lanes.edge.tolist()
         for lane, following in enumerate(lanes.successors):
             edge_successors[lane_edge[lane]].update(lane_edge[f] for f in following)
-        self._reach_key, self._reach_offset_m = _edge_reach(edge_successors, edge_length_m, reach_m)
+        reach_key, reach_offset_m = _edge_reach(edge_successors, edge_length_m, reach_m)
+        self._reach_key = np.append(reach_key, _BEYOND_KEYS)
+        self._reach_offset_m = np.append(reach_offset_m, np.nan)
 
     def _offsets_m(self, from_edge: np.ndarray, to_edge: np.ndarray) -> np.ndarray:
         """Route distance from the start of each ``from_edge`` to the start of its ``to_edge``, m; NaN
         beyond the reach."""
-        if not self._reach_key.size:
-            return np.full(len(from_edge), np.nan)
         key = from_edge * self._edge_count + to_edge
-        at = np.minimum(np.searchsorted(self._reach_key, key), self._reach_key.size - 1)
+        at = self._reach_key.searchsorted(key)
         return np.where(self._reach_key[at] == key, self._reach_offset_m[at], np.nan)
 
     def route_m(
@@ -207,26 +238,17 @@ class LaneGraph:
         for a position behind (GNSS noise moving a stopped vehicle back), NaN where neither is
         reached from the other within the reach (or they lie on different maps)."""
         from_edge, to_edge = self.lane_edge[from_lane], self.lane_edge[to_lane]
-        ahead_m = self._offsets_m(from_edge, to_edge) - from_pos_m + to_pos_m
-        behind_m = -(self._offsets_m(to_edge, from_edge) - to_pos_m + from_pos_m)
+        offsets_m = self._offsets_m(np.concatenate((from_edge, to_edge)), np.concatenate((to_edge, from_edge)))
+        ahead_m = offsets_m[: len(from_edge)] - from_pos_m + to_pos_m
+        behind_m = -(offsets_m[len(from_edge) :] - to_pos_m + from_pos_m)
         return np.where(np.isnan(ahead_m), behind_m, ahead_m)
 
     def changes_lane(self, from_lane: np.ndarray, to_lane: np.ndarray) -> np.ndarray:
         """Whether moving from each lane to its counterpart changes lanes: to another lane of the same edge, or
         across a junction onto a connection (or the lane beyond it) that another lane of the edge leads to,
         not this one (a vehicle keeps its lane through a junction unless it changes it)."""
-        edge_count, lane_count = self._edge_count, len(self.lane_edge)
-        from_edge, to_edge = self.lane_edge[from_lane], self.lane_edge[to_lane]
-        same_edge = from_edge == to_edge
-        into = (self.entry_edge[to_lane] == from_edge) & (self.entry_lane[to_lane] != from_lane)
-        out_of = (self.exit_edge[from_lane] == to_edge) & (self.exit_lane[from_lane] != to_lane)
-        normal = ~self.internal[from_lane] & ~self.internal[to_lane] & ~same_edge
-        across = (
-            normal
-            & _within(from_edge * edge_count + to_edge, self._edge_links)
-            & ~_within(from_lane * lane_count + to_lane, self._lane_links)
-        )
-        return (same_edge & (from_lane != to_lane)) | (~same_edge & (into | out_of | across))
+        within_edge = (self.lane_edge[from_lane] == self.lane_edge[to_lane]) & (from_lane != to_lane)
+        return within_edge | _within(from_lane * len(self.lane_edge) + to_lane, self._crossing_changes)
 
     def advance(self, lane: int, lane_pos_m: float, distance_m: float) -> tuple[int, float]:
         """The lane position ``distance_m`` further along the road from ``lane_pos_m`` on ``lane``: on

@@ -207,11 +207,6 @@ class _Chosen:
             self.continued[chosen] = continued[first]
 
 
-def _columns(found: LaneMatches) -> tuple[np.ndarray, ...]:
-    """The columns of lane matches in the order :class:`LaneMatches` takes them."""
-    return (found.point_index, found.lane_index, found.lane_id, found.distance_m, found.lane_pos_m, found.heading_rad)
-
-
 class MapMatcher:
     """Matches fixes to the lanes of one or more road maps.
 
@@ -239,6 +234,9 @@ class MapMatcher:
         )
         self._lane_map = np.repeat(np.arange(len(self.road_maps), dtype=np.intp), lane_counts)
         self._lane_ids = np.concatenate([road_map.lane_shapes.lane_ids for road_map in self.road_maps])
+        #: The same as Python lists: a look-up of one lane's is cheaper in a list than in an array.
+        self._lane_map_list: list[int] = self._lane_map.tolist()
+        self._lane_id_list: list[str] = [str(lane_id) for lane_id in self._lane_ids.tolist()]
         self._search = LaneSearch(LaneShapes.joined([road_map.lane_shapes for road_map in self.road_maps]))
         self._edge_lanes = [
             self._lanes_by_edge(map_index, int(first_lane[map_index])) for map_index in range(len(self.road_maps))
@@ -297,7 +295,7 @@ class MapMatcher:
 
     def lane_name(self, number: int) -> tuple[int, str]:
         """The map index and lane id of a lane numbered over all maps (:meth:`lane_number`)."""
-        return int(self._lane_map[number]), str(self._lane_ids[number])
+        return self._lane_map_list[number], self._lane_id_list[number]
 
     def nearby(self, probes: Probes, radius_m: np.ndarray) -> LaneMatches:
         """Every lane within each fix's ``radius_m`` (``(probes.count,)``, m) of its probes, each probe
@@ -305,9 +303,9 @@ class MapMatcher:
         over all maps; rows by probe, then lane."""
         confined = probes.map_index
         lane_range = None if (confined < 0).all() else self._lane_range[confined]
-        found = self._search.nearest_per_lane(probes.xy, float(radius_m.max(initial=0.0)), lane_range)
-        inside = found.distance_m <= radius_m[probes.fix[found.point_index]]
-        return LaneMatches(*(column[inside] for column in _columns(found)))
+        return self._search.nearest_per_lane(
+            probes.xy, float(radius_m.max(initial=0.0)), lane_range, radius_m[probes.fix]
+        )
 
     def _match_on_previous_maps(
         self, probes: Probes, heading: np.ndarray, previous: Sequence[MapPosition | None], chosen: _Chosen

@@ -248,7 +248,13 @@ class LaneSearch:
             )
         )
 
-    def nearest_per_lane(self, xy: np.ndarray, radius_m: float, lane_range: np.ndarray | None = None) -> LaneMatches:
+    def nearest_per_lane(
+        self,
+        xy: np.ndarray,
+        radius_m: float,
+        lane_range: np.ndarray | None = None,
+        point_radius_m: np.ndarray | None = None,
+    ) -> LaneMatches:
         """Each position ``xy`` ``(k, 2)`` projected onto each lane within ``radius_m`` (its nearest
         segment); rows by position, then lane.
 
@@ -261,6 +267,10 @@ class LaneSearch:
         lane_range
             ``(k, 2)``: only lanes numbered from ``lane_range[i, 0]`` up to, not including,
             ``lane_range[i, 1]`` for position ``i``; every lane when None.
+        point_radius_m
+            ``(k,)``: each position's own search radius, at most ``radius_m``, m; ``radius_m`` for all
+            when None (filtered before the nearest segment of each lane is taken: the same lanes as
+            filtering after, in one pass).
         """
         # The segments whose bounding box meets the square around each point (cheaper for the tree than
         # a distance predicate), then those within the radius by their own distance.
@@ -274,7 +284,7 @@ class LaneSearch:
         along = np.einsum("ij,ij->i", p - start_xy, direction) / self._divisor[segment]
         fraction = np.minimum(np.maximum(along, 0.0), 1.0)  # as np.clip, with less overhead
         distance_m = np.hypot(*(p - (start_xy + fraction[:, None] * direction)).T)
-        near = np.flatnonzero(distance_m <= radius_m)
+        near = np.flatnonzero(distance_m <= (radius_m if point_radius_m is None else point_radius_m[point_index]))
         point_index, segment, lane, fraction, distance_m = (
             point_index[near],
             segment[near],

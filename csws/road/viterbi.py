@@ -66,7 +66,7 @@ def _group_starts(group: np.ndarray) -> np.ndarray:
     """The first row of each run of equal values of a sorted ``group``."""
     if not group.size:
         return np.zeros(0, dtype=np.intp)
-    return np.flatnonzero(np.concatenate(([True], group[1:] != group[:-1])))
+    return np.concatenate(([True], group[1:] != group[:-1])).nonzero()[0]
 
 
 def _per_fix_max(values: np.ndarray, fix: np.ndarray, count: int) -> np.ndarray:
@@ -81,10 +81,47 @@ def _per_fix_max(values: np.ndarray, fix: np.ndarray, count: int) -> np.ndarray:
 def _first_where(mask: np.ndarray, group: np.ndarray, count: int) -> np.ndarray:
     """Per group (rows sorted by ``group``), the first row where ``mask`` holds, -1 where none does."""
     result = np.full(count, -1, dtype=np.intp)
-    rows = np.flatnonzero(mask)
+    rows = mask.nonzero()[0]
     firsts = rows[_group_starts(group[rows])]
     result[group[firsts]] = firsts
     return result
+
+
+def _best_transitions(
+    candidates: Candidates,
+    previous: Previous,
+    graph: LaneGraph,
+    settings: MatchSettings,
+    beta_m: np.ndarray,
+    standing: np.ndarray,
+    best: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """Each candidate's best score over the transitions from its fix's previous candidates (their log-probability
+    plus the transition's), the previous candidate it comes from and the route distance from there, filled into
+    ``best`` (score, previous row, route m) where a transition is possible."""
+    best_score, back, best_route_m = best
+    reps = previous.count[candidates.fix]
+    first_pair = np.cumsum(reps) - reps
+    pair_candidate = np.repeat(np.arange(len(reps)), reps)
+    pair_fix = candidates.fix[pair_candidate]
+    pair_previous = (previous.start[candidates.fix] - first_pair)[pair_candidate] + np.arange(pair_candidate.size)
+    from_lane, to_lane = previous.lane[pair_previous], candidates.lane[pair_candidate]
+    route_m = graph.route_m(from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate])
+    straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[pair_fix]).T)
+    same_edge = graph.lane_edge[from_lane] == graph.lane_edge[to_lane]
+    lane_change = graph.changes_lane(from_lane, to_lane)
+    transition = -np.abs(route_m - straight_m) / beta_m[pair_fix]
+    transition += np.where(lane_change, settings.lane_change_log_p, 0.0)
+    transition += np.where(~same_edge & standing[pair_fix], settings.standstill_edge_log_p, 0.0)
+    score = np.where(np.isnan(transition), -np.inf, previous.log_p[pair_previous] + transition)
+    paired = (reps > 0).nonzero()[0]
+    if paired.size:
+        best_score[paired] = np.maximum.reduceat(score, first_pair[paired])
+        at_best = (score == best_score[pair_candidate]) & np.isfinite(score)
+        first = _first_where(at_best, pair_candidate, len(reps))
+        found = first >= 0
+        back[found] = pair_previous[first[found]]
+        best_route_m[found] = route_m[first[found]]
 
 
 def forward_step(
@@ -102,30 +139,11 @@ def forward_step(
     ``standing`` whether each fix's vehicle stood still since its previous fix (moving on to another
     edge then costs :attr:`MatchSettings.standstill_edge_log_p`)."""
     reps = previous.count[candidates.fix]
-    first_pair = np.cumsum(reps) - reps
-    pair_candidate = np.repeat(np.arange(len(reps)), reps)
-    pair_previous = previous.start[candidates.fix][pair_candidate] + np.arange(int(reps.sum()))
-    pair_previous -= first_pair[pair_candidate]
-    from_lane, to_lane = previous.lane[pair_previous], candidates.lane[pair_candidate]
-    route_m = graph.route_m(from_lane, previous.pos_m[pair_previous], to_lane, candidates.pos_m[pair_candidate])
-    straight_m = np.hypot(*(candidates.xy[pair_candidate] - previous.xy[candidates.fix[pair_candidate]]).T)
-    same_edge = graph.lane_edge[from_lane] == graph.lane_edge[to_lane]
-    lane_change = graph.changes_lane(from_lane, to_lane)
-    transition = -np.abs(route_m - straight_m) / beta_m[candidates.fix[pair_candidate]]
-    transition += np.where(lane_change, settings.lane_change_log_p, 0.0)
-    transition += np.where(~same_edge & standing[candidates.fix[pair_candidate]], settings.standstill_edge_log_p, 0.0)
-    score = np.where(np.isnan(transition), -np.inf, previous.log_p[pair_previous] + transition)
     best_score = np.full(len(reps), -np.inf)
     back = np.full(len(reps), -1, dtype=np.intp)
     best_route_m = np.full(len(reps), np.nan)
-    paired = np.flatnonzero(reps > 0)
-    if paired.size:
-        best_score[paired] = np.maximum.reduceat(score, first_pair[paired])
-        at_best = (score == best_score[pair_candidate]) & np.isfinite(score)
-        first = _first_where(at_best, pair_candidate, len(reps))
-        found = first >= 0
-        back[found] = pair_previous[first[found]]
-        best_route_m[found] = route_m[first[found]]
+    if previous.fix.size:  # else no vehicle continues a sequence: every fix starts afresh
+        _best_transitions(candidates, previous, graph, settings, beta_m, standing, (best_score, back, best_route_m))
     linked = np.zeros(count, dtype=bool)
     linked[candidates.fix[np.isfinite(best_score)]] = True
     total = candidates.emission + np.where(linked[candidates.fix], best_score, 0.0)
@@ -144,12 +162,12 @@ def kept_rows(step: Step, count: int, lane_map: np.ndarray, max_candidates: int)
     has = step.best >= 0
     best_map[has] = lane_map[candidates.lane[step.best[has]]]
     possible = np.isfinite(step.log_p) & (lane_map[candidates.lane] == best_map[candidates.fix])
-    rows = np.flatnonzero(possible)
+    rows = possible.nonzero()[0]
     rows = rows[np.lexsort((-step.log_p[rows], candidates.fix[rows]))]
     fix = candidates.fix[rows]
-    rank = np.arange(rows.size) - np.searchsorted(fix, fix)
+    rank = np.arange(rows.size) - fix.searchsorted(fix)
     rows = rows[rank < max_candidates]
-    return rows, np.searchsorted(candidates.fix[rows], np.arange(count + 1))
+    return rows, candidates.fix[rows].searchsorted(np.arange(count + 1))
 
 
 def viterbi_path(steps: list[tuple[Step, np.ndarray]]) -> list[int]:
