@@ -71,18 +71,7 @@ def write_exit_ramp(
         edges.append(_edge("WA", "W", "A", np.array([(0.0, 0.0), a_xy]), 3, 3, "Motorway"))
         edges.append(_edge("WD", "A", "D", np.array([a_xy, DIVERGE_XY]), 3, 3, "Motorway"))
         links += [("WA", "WD", lane, lane) for lane in range(3)]
-    connections = "".join(
-        f'<connection from="{from_edge}" to="{edge}" fromLane="{from_lane}" toLane="{to_lane}"/>'
-        for from_edge, edge, from_lane, to_lane in links
-    )
-    connection_file = folder / "exit.con.xml"
-    connection_file.write_text(f"<connections>{connections}</connections>", encoding="utf-8")
-    return netconvert(
-        "<nodes>" + "".join(nodes) + "</nodes>",
-        "<edges>" + "".join(edges) + "</edges>",
-        folder / "exit.net.xml",
-        options=["--connection-files", str(connection_file)],
-    )
+    return _netconvert_linked(folder, "exit", nodes, edges, links)
 
 
 #: The lane split's lanes are this wide, m (SUMO's default): the split road's left lane runs this far left of the
@@ -112,16 +101,24 @@ def write_lane_split(folder: Path, split_m: float) -> Path:
         _edge("DR", "D", "R", ramp, 1, 1, "Exit", "center"),
     ]
     links = [("WS", "SD", 0, 0), ("WS", "SD", 0, 1), ("SD", "DR", 0, 0), ("SD", "DE", 1, 0)]
+    return _netconvert_linked(folder, "split", nodes, edges, links)
+
+
+def _netconvert_linked(
+    folder: Path, name: str, nodes: list[str], edges: list[str], links: list[tuple[str, str, int, int]]
+) -> Path:
+    """Netconvert ``nodes`` and ``edges`` into ``folder/name.net.xml`` with exactly the lane-to-lane ``links``
+    (from edge, to edge, from lane, to lane) as its connections."""
     connections = "".join(
         f'<connection from="{from_edge}" to="{edge}" fromLane="{from_lane}" toLane="{to_lane}"/>'
         for from_edge, edge, from_lane, to_lane in links
     )
-    connection_file = folder / "split.con.xml"
+    connection_file = folder / f"{name}.con.xml"
     connection_file.write_text(f"<connections>{connections}</connections>", encoding="utf-8")
     return netconvert(
         "<nodes>" + "".join(nodes) + "</nodes>",
         "<edges>" + "".join(edges) + "</edges>",
-        folder / "split.net.xml",
+        folder / f"{name}.net.xml",
         options=["--connection-files", str(connection_file)],
     )
 
