@@ -62,7 +62,7 @@ class Placement(NamedTuple):
         its edge that keeps the road (:class:`csws.ahead.roadlane.RoadLanes`); None where nothing matched.
     confirmed
         For a matched fix that continues its vehicle's sequence, the vehicle's last matched fix as this one
-        confirms it (:class:`csws.road.fixes.Confirmed`); else None.
+        confirms it (the matcher's :class:`csws.road.fixes.Confirmed` with its network named); else None.
     """
 
     network_index: int
