@@ -4,6 +4,7 @@ are answered in groups started at most once a window, every one of them, in orde
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 from types import SimpleNamespace
 from typing import Any
@@ -17,11 +18,12 @@ from service.work import WorkThread
 
 class CountingService:
     """A warning service that answers each query at level 0 after ``cost_s`` of work, and notes each group's size
-    and start (``time.monotonic``, on the work thread)."""
+    and start (``time.monotonic``, on the work thread) and when the first report was queued."""
 
     def __init__(self, cost_s: float) -> None:
         self.cost_s = cost_s
         self.groups: list[tuple[float, int]] = []
+        self.first_queued_s = math.nan
 
     def answer(self, queries: list[Any], **_: Any) -> SimpleNamespace:
         self.groups.append((time.monotonic(), len(queries)))
@@ -52,6 +54,7 @@ def _run(window_s: float, gap_s: float, count: int, cost_s: float) -> tuple[Coun
 
             return take
 
+        service.first_queued_s = time.monotonic()
         for k in range(count):
             query = SimpleNamespace(vehicle_id=f"v{k}")
             batcher.queue(Waiting(query, "fleet", deliver(f"v{k}")))  # type: ignore[arg-type]
@@ -76,8 +79,11 @@ def test_groups_start_at_most_once_a_window_and_answer_every_report_in_order(win
 
 
 def test_a_lone_report_is_answered_after_one_window() -> None:
-    service, answered, _ = _run(0.02, 0.0, 1, 0.0)
+    window_s = 0.02
+    service, answered, _ = _run(window_s, 0.0, 1, 0.0)
     assert answered == ["v0"] and [size for _, size in service.groups] == [1]
+    # Its group waited the window for others (less the event loop's clock resolution) before it started.
+    assert service.groups[0][0] - service.first_queued_s >= window_s - 1e-3
 
 
 def test_without_a_window_reports_that_meet_during_an_evaluation_go_next_at_once() -> None:
