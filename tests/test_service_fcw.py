@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from fcw_queries import N_SETTINGS, TRACK_NET, fcw_query, stopped_car, stopped_car_level
 from hypothesis import given
 from hypothesis import strategies as st
 from servers import Workers, state_options
@@ -24,21 +25,18 @@ from csws.fcw.path import (
     path_table,
 )
 from csws.fcw.physics import evaluate_fcw
-from csws.fcw.settings import FcwSettings
 from csws.fcw.tracker import ForwardCollisionWarning
 from csws.networks import networks_dir
-from csws.standard import Category, Level
+from csws.standard import Level
 from csws.warning.rules import HmiHint
 from service.answer_schemas import FcwAnswer
 from service.app import create_app
 from service.fcw import FCW_HMI_HINTS, combined_hmi
 from service.fcw_objects import _ids_by_row, _json_values, _keys, _paths
-from service.fcw_settings import FleetFcwSettings
 from service.networks import load_networks
 from service.schemas import MAX_OBJECT_ID, MAX_OBJECTS, ForwardTarget
 from service.settings import ServiceSettings
 
-TRACK_NET = str(networks_dir() / "single_r120_left.net.xml")
 T7_NET = networks_dir() / "t7_left.net.xml"
 
 
@@ -49,21 +47,9 @@ def client(tmp_path):
         yield client
 
 
-def _query(vehicle_id: str, speed_kmh: float = 72.0, **extra) -> dict:
-    return {
-        "vehicle_id": vehicle_id,
-        "category": "N",
-        "speed_kmh": speed_kmh,
-        "lane_id": "approach_0",
-        "lane_pos_m": 100.0,
-        "timestamp_s": 1.0,
-        **extra,
-    }
-
-
 def test_a_forward_target_gets_the_fcw_of_the_seeds_formulas(client):
     target = {"range_m": 40.0, "range_rate_mps": -15.0, "target_accel_mps2": -1.0}
-    answer = client.post("/v1/warning", json=_query("truck-1", forward_target=target)).json()
+    answer = client.post("/v1/warning", json=fcw_query("truck-1", forward_target=target)).json()
     fcw = answer["fcw"]
     assert fcw["ttc_s"] == pytest.approx(40.0 / 15.0)  # formula (2)
     assert fcw["ettc_s"] == pytest.approx((15.0 - math.sqrt(15.0**2 + 2.0 * 1.0 * 40.0)) / -1.0)  # formula (3)
@@ -77,10 +63,10 @@ def test_a_forward_target_gets_the_fcw_of_the_seeds_formulas(client):
 
 def test_the_batch_answers_fcw_only_where_asked_and_the_state_follows_the_speed(client):
     queries = [
-        _query("a"),
-        _query("b", speed_kmh=20.0, forward_target={"range_m": 10.0, "range_rate_mps": -5.0}),
-        _query("c", forward_target={"range_m": 10.0, "range_rate_mps": -5.0, "measured": False}),
-        _query("d", forward_target={"range_m": 80.0, "range_rate_mps": 2.0}),
+        fcw_query("a"),
+        fcw_query("b", speed_kmh=20.0, forward_target={"range_m": 10.0, "range_rate_mps": -5.0}),
+        fcw_query("c", forward_target={"range_m": 10.0, "range_rate_mps": -5.0, "measured": False}),
+        fcw_query("d", forward_target={"range_m": 80.0, "range_rate_mps": 2.0}),
     ]
     answers = client.post("/v1/warnings", json={"queries": queries}).json()["answers"]
     assert "fcw" not in answers[0]
@@ -93,7 +79,7 @@ def test_the_batch_answers_fcw_only_where_asked_and_the_state_follows_the_speed(
 
 
 def test_without_a_forward_target_the_answer_is_as_before(client):
-    plain = client.post("/v1/warning", json=_query("e")).content
+    plain = client.post("/v1/warning", json=fcw_query("e")).content
     assert b"fcw" not in plain
 
 
@@ -107,7 +93,7 @@ def test_without_a_forward_target_the_answer_is_as_before(client):
     ],
 )
 def test_a_bad_forward_target_is_a_422_naming_the_field(client, target, field):
-    body = json.dumps({"queries": [_query("f", forward_target=target)]}).encode()
+    body = json.dumps({"queries": [fcw_query("f", forward_target=target)]}).encode()
     locs = [error["loc"] for error in _refused(client, body)]
     assert ["body", "queries", 0, "forward_target", field] in locs
 
@@ -128,7 +114,7 @@ def _refused(client, body: bytes) -> list[dict]:
 def test_the_schema_examples_of_a_target_and_its_answer_agree(client):
     """The OpenAPI example of an fcw answer is what the service answers to the example target."""
     target = ForwardTarget.model_config["json_schema_extra"]["examples"][0]
-    answer = client.post("/v1/warning", json=_query("truck-ex", speed_kmh=60.0, forward_target=target)).json()["fcw"]
+    answer = client.post("/v1/warning", json=fcw_query("truck-ex", speed_kmh=60.0, forward_target=target)).json()["fcw"]
     example = FcwAnswer.model_config["json_schema_extra"]["examples"][0]
     assert {name: answer[name] for name in ("state", "level")} == {name: example[name] for name in ("state", "level")}
     for name in ("ttc_s", "ettc_s", "a_req_mps2"):
@@ -136,25 +122,6 @@ def test_the_schema_examples_of_a_target_and_its_answer_agree(client):
 
 
 # ------------------------------------------------------------------ objects: the service selects the target
-G = 9.80665
-#: The library's commercial defaults for category N: T_resp 1.2 s, collision 0.5 g, preliminary 0.3 g, hold 0.4 s.
-N_SETTINGS = FcwSettings.for_category("N")
-
-
-def _stopped_car(x_m: float, speed_mps: float, object_id: int = 7, **extra) -> dict:
-    """A stopped car straight ahead: it closes at the subject's speed."""
-    return {"id": object_id, "x_m": x_m, "y_m": 0.0, "relative_speed_mps": -speed_mps, "accel_mps2": 0.0, **extra}
-
-
-def _stopped_car_level(x_m: float, speed_mps: float, settings: FcwSettings = N_SETTINGS) -> int:
-    """Formula (4) by hand for a car ahead closing at ``speed_mps`` without accelerating (a_TV 0):
-    a_req = v^2 / (2 (x_c - v T_resp)); the level of 4.5.3 after 4.5.5 e."""
-    left_m = x_m - speed_mps * (settings.reaction_time_s + settings.brake_response_s)
-    a_req = math.inf if left_m <= 0.0 else speed_mps**2 / (2.0 * left_m)
-    ttc_s = x_m / speed_mps
-    if ttc_s > settings.max_ttc_s and a_req < settings.preliminary_a_req_mps2:
-        return 0  # 4.5.5 e: no measure shows a threat
-    return 2 if a_req >= settings.collision_a_req_mps2 else 1 if a_req >= settings.preliminary_a_req_mps2 else 0
 
 
 def _library_frame(time_s: float, speed_mps: float, objects: list[dict], tracker: ForwardCollisionWarning):
@@ -168,11 +135,11 @@ def _library_frame(time_s: float, speed_mps: float, objects: list[dict], tracker
 @pytest.mark.parametrize("x_m", [25.0, 40.0, 55.0, 70.0, 120.0])
 def test_a_stopped_car_ahead_warns_at_the_level_of_formula_4_and_of_the_library(client, x_m):
     speed_mps = 20.0
-    car = _stopped_car(x_m, speed_mps)
-    answer = client.post("/v1/warning", json=_query(f"car-{x_m}", speed_kmh=72.0, objects=[car])).json()
+    car = stopped_car(x_m, speed_mps)
+    answer = client.post("/v1/warning", json=fcw_query(f"car-{x_m}", speed_kmh=72.0, objects=[car])).json()
     fcw = answer["fcw"]
     library = _library_frame(1.0, speed_mps, [car], ForwardCollisionWarning(N_SETTINGS))
-    assert fcw["level"] == library.level == _stopped_car_level(x_m, speed_mps)
+    assert fcw["level"] == library.level == stopped_car_level(x_m, speed_mps)
     assert (fcw["state"], fcw["target_id"], fcw["clearance_m"]) == ("active", 7, x_m)
     assert fcw["ttc_s"] == pytest.approx(x_m / speed_mps)  # formula (2)
     assert fcw["a_req_mps2"] == pytest.approx(speed_mps**2 / (2.0 * (x_m - 1.2 * speed_mps)))  # formula (4)
@@ -180,11 +147,11 @@ def test_a_stopped_car_ahead_warns_at_the_level_of_formula_4_and_of_the_library(
 
 def test_the_target_is_the_most_demanding_object_in_the_path(client):
     speed_mps = 20.0
-    beside = {**_stopped_car(20.0, speed_mps, object_id=1), "y_m": 3.5}  # the next lane: not in the path
-    ahead_far = _stopped_car(90.0, speed_mps, object_id=2)
+    beside = {**stopped_car(20.0, speed_mps, object_id=1), "y_m": 3.5}  # the next lane: not in the path
+    ahead_far = stopped_car(90.0, speed_mps, object_id=2)
     braking_lead = {"id": 3, "x_m": 45.0, "y_m": 0.3, "relative_speed_mps": -2.0, "accel_mps2": -6.0}
     objects = [beside, ahead_far, braking_lead]
-    fcw = client.post("/v1/warning", json=_query("pick", objects=objects)).json()["fcw"]
+    fcw = client.post("/v1/warning", json=fcw_query("pick", objects=objects)).json()["fcw"]
     # 3.22: the braking lead (18 m/s at 6 m/s^2) stops 27 m on, 72 m ahead, before the speeds could meet; the
     # subject, 24 m on after the 1.2 s reaction, must stop in the 48 m left (formula (4), d_TV held for ever,
     # would ask 6 + 9.2^2 / (2 (45 - 6.72)) = 7.1 m/s^2).
@@ -213,10 +180,10 @@ def test_the_map_path_on_a_curve_keeps_the_own_lane_and_drops_the_next_one(clien
         {"id": 2, "x_m": x_next, "y_m": y_next, "relative_speed_mps": -speed_mps},
     ]
     on_curve = {"lane_id": "curve_0", "lane_pos_m": 110.0}  # the lane's R 120 m arc runs from 100 m to 196 m
-    own = client.post("/v1/warning", json={**_query("bend", **on_curve), "objects": objects}).json()["fcw"]
-    assert (own["target_id"], own["level"]) == (1, _stopped_car_level(x_own, speed_mps))
+    own = client.post("/v1/warning", json={**fcw_query("bend", **on_curve), "objects": objects}).json()["fcw"]
+    assert (own["target_id"], own["level"]) == (1, stopped_car_level(x_own, speed_mps))
     alone = [objects[1]]
-    next_lane = client.post("/v1/warning", json={**_query("bend-2", **on_curve), "objects": alone}).json()["fcw"]
+    next_lane = client.post("/v1/warning", json={**fcw_query("bend-2", **on_curve), "objects": alone}).json()["fcw"]
     assert (next_lane["target_id"], next_lane["level"]) == (None, 0)
 
 
@@ -224,39 +191,39 @@ def test_the_level_is_held_across_queries_as_the_library_holds_it(client):
     """A collision warning stays on for the hold after the object leaves, then goes: as the library's tracker."""
     speed_mps, hold_s = 20.0, N_SETTINGS.level_hold_s
     tracker = ForwardCollisionWarning(N_SETTINGS)
-    frames = [(10.0, [_stopped_car(30.0, speed_mps)]), (10.1, []), (10.0 + hold_s - 0.05, []), (10.0 + hold_s, [])]
+    frames = [(10.0, [stopped_car(30.0, speed_mps)]), (10.1, []), (10.0 + hold_s - 0.05, []), (10.0 + hold_s, [])]
     levels = []
     for time_s, objects in frames:
-        answer = client.post("/v1/warning", json=_query("held", timestamp_s=time_s, objects=objects)).json()
+        answer = client.post("/v1/warning", json=fcw_query("held", timestamp_s=time_s, objects=objects)).json()
         levels.append((answer["fcw"]["level"], _library_frame(time_s, speed_mps, objects, tracker).level))
     assert levels == [(2, 2), (2, 2), (2, 2), (0, 0)]
 
 
 def test_a_query_not_after_the_last_frame_changes_nothing_kept(client):
     speed_mps = 20.0
-    client.post("/v1/warning", json=_query("late", timestamp_s=5.0, objects=[_stopped_car(30.0, speed_mps)]))
+    client.post("/v1/warning", json=fcw_query("late", timestamp_s=5.0, objects=[stopped_car(30.0, speed_mps)]))
     # An older frame without objects is answered from the kept hold, and does not end it.
-    assert client.post("/v1/warning", json=_query("late", timestamp_s=4.0, objects=[])).json()["fcw"]["level"] == 2
-    assert client.post("/v1/warning", json=_query("late", timestamp_s=5.3, objects=[])).json()["fcw"]["level"] == 2
+    assert client.post("/v1/warning", json=fcw_query("late", timestamp_s=4.0, objects=[])).json()["fcw"]["level"] == 2
+    assert client.post("/v1/warning", json=fcw_query("late", timestamp_s=5.3, objects=[])).json()["fcw"]["level"] == 2
 
 
 def test_a_batch_with_objects_answers_each_vehicle_as_the_library(client):
     speed_mps = 20.0
     distances = {"b1": 25.0, "b2": 45.0, "b3": 60.0, "b4": 150.0}
     queries = [
-        _query(
+        fcw_query(
             vehicle_id,
             category=category,
-            objects=[_stopped_car(x_m, speed_mps), {**_stopped_car(10.0, 0.0), "id": 9, "y_m": -4.0}],
+            objects=[stopped_car(x_m, speed_mps), {**stopped_car(10.0, 0.0), "id": 9, "y_m": -4.0}],
         )
         for (vehicle_id, x_m), category in zip(distances.items(), ["N", "M1", "M3", "O"], strict=True)
     ]
-    queries.append(_query("plain"))
+    queries.append(fcw_query("plain"))
     answers = client.post("/v1/warnings", json={"queries": queries}).json()["answers"]
     for answer, (vehicle_id, x_m) in zip(answers, distances.items(), strict=False):
         assert answer["vehicle_id"] == vehicle_id
         assert (answer["fcw"]["level"], answer["fcw"]["target_id"]) == (
-            _stopped_car_level(x_m, speed_mps),
+            stopped_car_level(x_m, speed_mps),
             7 if x_m < N_SETTINGS.range_m else None,
         )
     assert "fcw" not in answers[-1]
@@ -264,10 +231,10 @@ def test_a_batch_with_objects_answers_each_vehicle_as_the_library(client):
 
 def test_v_max_comes_from_the_category(client):
     """4.3.3: at 120 km/h a car (V_max 250 km/h) is active, a truck (V_max 27.8 m/s + delta) on standby."""
-    car = [_stopped_car(150.0, 120.0 / 3.6)]
+    car = [stopped_car(150.0, 120.0 / 3.6)]
     states = {
         category: client.post(
-            "/v1/warning", json=_query(f"vmax-{category}", speed_kmh=120.0, category=category, objects=car)
+            "/v1/warning", json=fcw_query(f"vmax-{category}", speed_kmh=120.0, category=category, objects=car)
         ).json()["fcw"]["state"]
         for category in ("M1", "N")
     }
@@ -288,7 +255,7 @@ def test_the_hold_is_kept_across_two_workers(workers):
     speed_mps, hold_s = 20.0, N_SETTINGS.level_hold_s
     tracker = ForwardCollisionWarning(N_SETTINGS)
     frames = [
-        (10.0, [_stopped_car(30.0, speed_mps)]),
+        (10.0, [stopped_car(30.0, speed_mps)]),
         (10.1, []),
         (10.0 + hold_s - 0.05, []),
         (10.0 + hold_s, []),
@@ -304,7 +271,7 @@ def test_the_hold_is_kept_across_two_workers(workers):
     levels, targets = [], []
     for step, (time_s, objects) in enumerate(frames):
         client = (first, second)[step % 2]
-        fcw = client.post("/v1/warning", json=_query("shared", timestamp_s=time_s, objects=objects)).json()["fcw"]
+        fcw = client.post("/v1/warning", json=fcw_query("shared", timestamp_s=time_s, objects=objects)).json()["fcw"]
         library = _library_frame(time_s, speed_mps, objects, tracker)
         levels.append((fcw["level"], library.level))
         targets.append((fcw["target_id"], library.target_id))
@@ -340,53 +307,53 @@ def test_the_answer_shows_the_fcw_over_the_curve_warning_by_the_priority(curve_c
     levels = {}
     for name, objects in (
         ("none", []),
-        ("slower", [_stopped_car(16.5, 8.0)]),
-        ("near", [_stopped_car(28.0, speed_mps)]),
+        ("slower", [stopped_car(16.5, 8.0)]),
+        ("near", [stopped_car(28.0, speed_mps)]),
     ):
         answer = curve_client.post("/v1/warning", json={"vehicle_id": name, **at_curve, "objects": objects}).json()
         levels[name] = (answer["level"], answer["fcw"]["level"], answer["hmi"])
     curve_2 = {"visual": "curve-warning-red-flashing", "audible": "warning-tone"}
     fcw_2 = {"visual": FCW_HMI_HINTS[2].visual, "audible": FCW_HMI_HINTS[2].audible}
     assert levels == {"none": (2, 0, curve_2), "slower": (2, 1, curve_2), "near": (2, 2, fcw_2)}
-    assert _stopped_car_level(16.5, 8.0) == 1 and _stopped_car_level(28.0, speed_mps) == 2
+    assert stopped_car_level(16.5, 8.0) == 1 and stopped_car_level(28.0, speed_mps) == 2
 
 
 def test_an_fcw_level_without_a_curve_warning_shows_in_the_hmi(client):
-    answer = client.post("/v1/warning", json=_query("alone", objects=[_stopped_car(67.0, 20.0)])).json()
-    assert (answer["level"], answer["fcw"]["level"]) == (0, _stopped_car_level(67.0, 20.0)) == (0, 1)
+    answer = client.post("/v1/warning", json=fcw_query("alone", objects=[stopped_car(67.0, 20.0)])).json()
+    assert (answer["level"], answer["fcw"]["level"]) == (0, stopped_car_level(67.0, 20.0)) == (0, 1)
     assert answer["hmi"] == {"visual": FCW_HMI_HINTS[1].visual, "audible": FCW_HMI_HINTS[1].audible}
 
 
 # ------------------------------------------------------------------ 422
 def _post_objects(client, objects) -> list[dict]:
-    return _refused(client, json.dumps({"queries": [_query("bad", objects=objects)]}).encode())
+    return _refused(client, json.dumps({"queries": [fcw_query("bad", objects=objects)]}).encode())
 
 
 def test_an_object_with_nan_is_a_422_naming_the_field(client):
-    errors = _post_objects(client, [{**_stopped_car(30.0, 20.0), "x_m": math.nan}])
+    errors = _post_objects(client, [{**stopped_car(30.0, 20.0), "x_m": math.nan}])
     assert ["body", "queries", 0, "objects", 0, "x_m"] in [e["loc"] for e in errors]
 
 
 def test_duplicate_object_ids_are_a_422_naming_them(client):
-    errors = _post_objects(client, [_stopped_car(30.0, 20.0), _stopped_car(50.0, 20.0)])
+    errors = _post_objects(client, [stopped_car(30.0, 20.0), stopped_car(50.0, 20.0)])
     (error,) = errors
     assert error["loc"] == ["body", "queries", 0, "objects"] and "duplicate id(s) [7]" in error["msg"]
 
 
 def test_more_objects_than_the_limit_are_a_422(client):
-    objects = [_stopped_car(10.0 + i, 20.0, object_id=i) for i in range(MAX_OBJECTS + 1)]
+    objects = [stopped_car(10.0 + i, 20.0, object_id=i) for i in range(MAX_OBJECTS + 1)]
     errors = _post_objects(client, objects)
     assert [e["loc"] for e in errors] == [["body", "queries", 0, "objects"]] and errors[0]["type"] == "too_long"
-    assert client.post("/v1/warning", json=_query("limit", objects=objects[:MAX_OBJECTS])).status_code == 200
+    assert client.post("/v1/warning", json=fcw_query("limit", objects=objects[:MAX_OBJECTS])).status_code == 200
 
 
 def test_an_unknown_object_field_is_a_422_naming_it(client):
-    errors = _post_objects(client, [{**_stopped_car(30.0, 20.0), "speed_kmh": 3.0}])
+    errors = _post_objects(client, [{**stopped_car(30.0, 20.0), "speed_kmh": 3.0}])
     assert [e["loc"] for e in errors] == [["body", "queries", 0, "objects", 0, "speed_kmh"]]
 
 
 def test_both_accelerations_of_an_object_are_a_422(client):
-    errors = _post_objects(client, [{**_stopped_car(30.0, 20.0), "relative_accel_mps2": 1.0}])
+    errors = _post_objects(client, [{**stopped_car(30.0, 20.0), "relative_accel_mps2": 1.0}])
     assert errors[0]["loc"] == ["body", "queries", 0, "objects"]
 
 
@@ -401,42 +368,6 @@ def test_the_openapi_document_describes_the_objects(client):
         item["properties"]
     )
     assert {"accel_mps2", "yaw_rate_dps", "braking", "turn_signal"} <= set(body["properties"])
-
-
-# ------------------------------------------------------------------ settings per fleet
-def test_a_fleet_settings_file_sets_the_thresholds_and_v_max(tmp_path):
-    path = tmp_path / "fcw.json"
-    settings_file = {
-        "format": "csws-fcw-settings/1",
-        "default": {"collision_a_req_mps2": 4.0, "max_speed_by_category_mps": {"N": 35.0}},
-    }
-    path.write_text(json.dumps(settings_file))
-    settings = ServiceSettings(nets=[TRACK_NET], state_db=str(tmp_path / "v.sqlite3"), fcw_settings_file=path)
-    own = FcwSettings.for_category("N", collision_a_req_mps2=4.0, max_speed_mps=35.0)
-    # a_req of 4.5 m/s^2: below the library's 0.5 g, above the fleet's 4.0
-    speed_mps = 20.0
-    x_m = 1.2 * speed_mps + speed_mps**2 / (2.0 * 4.5)
-    with TestClient(create_app(settings)) as client:
-        fcw = client.post("/v1/warning", json=_query("fleet", objects=[_stopped_car(x_m, speed_mps)])).json()["fcw"]
-        fast = client.post("/v1/warning", json=_query("fast", speed_kmh=120.0, objects=[])).json()["fcw"]
-    assert fcw["a_req_mps2"] == pytest.approx(4.5)
-    assert fcw["level"] == _stopped_car_level(x_m, speed_mps, own) == 2 != _stopped_car_level(x_m, speed_mps)
-    assert fast["state"] == "active"  # 33.3 m/s: within the fleet's V_max for N
-
-
-@pytest.mark.parametrize(
-    "content",
-    [
-        {"format": "csws-fcw-settings/1", "default": {"collision_a_req_mps2": 9.0}},  # above 0.68 g (4.5.3)
-        {"format": "csws-fcw-settings/1", "fleets": {"acme": {"reaction_s": 1.0}}},
-        {"format": "other"},
-    ],
-)
-def test_a_bad_fleet_settings_file_stops_start_up_naming_it(tmp_path, content):
-    path = tmp_path / "fcw.json"
-    path.write_text(json.dumps(content))
-    with pytest.raises(ValueError, match=str(path)):
-        FleetFcwSettings(path)
 
 
 # ------------------------------------------------------------------ the map path
@@ -461,22 +392,6 @@ def test_the_map_path_puts_objects_where_the_librarys_full_profile_does(lane_pos
                 for path in (full, served_path)
             ]
             assert offsets[1] == pytest.approx(offsets[0], abs=1e-3), (x_m, y_m)
-
-
-def test_a_fleets_block_applies_over_the_default_to_that_fleet_only(tmp_path):
-    path = tmp_path / "fcw.json"
-    default = {"reaction_time_s": 1.4, "max_speed_by_category_mps": {"N": 30.0}}
-    acme = {"collision_a_req_mps2": 4.0, "max_speed_by_category_mps": {"M1": 60.0}}
-    path.write_text(json.dumps({"format": "csws-fcw-settings/1", "default": default, "fleets": {"acme": acme}}))
-    fleets = FleetFcwSettings(path)
-    assert fleets.of("acme", Category.N) == FcwSettings.for_category(
-        "N", reaction_time_s=1.4, collision_a_req_mps2=4.0, max_speed_mps=30.0
-    )
-    assert fleets.of("acme", Category.M1) == FcwSettings.for_category(
-        "M1", reaction_time_s=1.4, collision_a_req_mps2=4.0, max_speed_mps=60.0
-    )
-    assert fleets.of("other", Category.M1) == FcwSettings.for_category("M1", reaction_time_s=1.4)
-    assert FleetFcwSettings().of("", Category.M3) == FcwSettings.for_category("M3")
 
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=20))
