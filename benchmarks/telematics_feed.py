@@ -32,6 +32,7 @@ __all__ = [
     "query_fields",
     "feed_rows",
     "feed_fixes",
+    "feed_columns",
     "feed_service",
     "EPOCH_S",
     "BATCH_S",
@@ -194,13 +195,16 @@ def read_answers(answers: list[dict], queries: list[dict], read: AnswersRead) ->
             read.confirmed[read.index[(query["vehicle_id"], confirmed["timestamp_s"])]] = confirmed["lane_id"]
 
 
-def _columns(
+def feed_columns(
     net: Path, trajectories: Trajectories, feed: Feed, fields: QueryFields
 ) -> tuple[np.ndarray, dict[str, list], tuple[str, float] | None]:
     """A feed's rows, in time order, with their columns, and where and what ``accuracy_m`` is sent."""
     rows = feed_rows(trajectories, feed.interval_s)
     if feed.noise is None:
         return rows, _exact_columns(trajectories, rows), None
+    if feed.exact_lanes:
+        kept, fixes = feed_fixes(trajectories, rows, feed.noise, feed.seed)
+        return kept, {**_exact_columns(trajectories, kept), "speed_kmh": fixes.speed_kmh.tolist()}, None
     rows, columns = _fix_columns(net, trajectories, rows, feed.noise, feed.seed)
     return rows, columns, (fields.accuracy, feed.noise.position_sigma_m) if fields.accuracy else None
 
@@ -242,7 +246,7 @@ def feed_service(
     url: str, net: Path, trajectories: Trajectories, feed: Feed, prefix: str, fields: QueryFields, log: Callable
 ) -> FeedAnswers:
     """Send a feed whole to the service, one batch per instant, and keep its answers."""
-    rows, columns, accuracy = _columns(net, trajectories, feed, fields)
+    rows, columns, accuracy = feed_columns(net, trajectories, feed, fields)
     started = time.perf_counter()
 
     def progress(number: int, batches: int, queries: int) -> None:

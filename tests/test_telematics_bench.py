@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 # The benchmarks are run from the repository, not installed: import them from there.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.telematics import EXACT_RECEIVER_1_HZ, SIGMA_3_1_HZ  # noqa: E402
 from benchmarks.telematics_analysis import (  # noqa: E402
     Noise,
     match_onsets,
@@ -23,7 +24,15 @@ from benchmarks.telematics_analysis import (  # noqa: E402
     repeat_onsets,
     sample_mask,
 )
-from benchmarks.telematics_feed import AnswersRead, FeedAnswers, read_answers  # noqa: E402
+from benchmarks.telematics_feed import (  # noqa: E402
+    AnswersRead,
+    FeedAnswers,
+    QueryFields,
+    feed_columns,
+    feed_fixes,
+    feed_rows,
+    read_answers,
+)
 from benchmarks.telematics_fleet import Trajectories  # noqa: E402
 from benchmarks.telematics_judge import judge  # noqa: E402
 
@@ -116,6 +125,21 @@ def _straight_run(lanes: list[str], steps_per_lane: int, speed_mps: float) -> Tr
         categories=["N"],
         lanes=lanes,
     )
+
+
+def test_the_receivers_speeds_and_drops_on_exact_lanes_are_those_the_sigma_3_m_feed_sends() -> None:
+    trajectories = _straight_run(["A_0", ":J_0_0", "B_0", "C_0"], 500, 12.0)
+    rows = feed_rows(trajectories, 1.0)
+    assert SIGMA_3_1_HZ.noise is not None
+    sent_rows, fixes = feed_fixes(trajectories, rows, SIGMA_3_1_HZ.noise, SIGMA_3_1_HZ.seed)
+    kept, columns, accuracy = feed_columns(Path("unused.net.xml"), trajectories, EXACT_RECEIVER_1_HZ, QueryFields(None))
+    # the same fixes survive, with the same measured speeds, but each is sent as its exact lane and position
+    assert len(kept) < len(rows) and kept.tolist() == sent_rows.tolist()
+    assert columns["speed_kmh"] == fixes.speed_kmh.tolist()
+    assert columns["lane_id"] == [trajectories.lanes[row // 500] for row in kept.tolist()]
+    assert columns["lane_pos_m"] == pytest.approx([1.2 * (row % 500) for row in kept.tolist()])
+    assert "position" not in columns and accuracy is None
+    assert EXACT_RECEIVER_1_HZ.noise is not None and not EXACT_RECEIVER_1_HZ.sends_positions
 
 
 def _answers(rows: list[int], levels: list[int], matched: list[str | None], target: list[str | None]) -> FeedAnswers:
