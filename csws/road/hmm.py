@@ -24,7 +24,8 @@ most probable candidate, with one exception at junctions: a fix that could be on
 connections from the vehicle's incoming edge commits to a turn off the road only once the
 connections into that turn's road hold :attr:`MatchSettings.commit_share` of their probability;
 until then the fix is reported on the road's own continuation (:attr:`Placed.DEFERRED`), so
-the path ahead follows the road, never a guessed turn. A later fix on the side street decides.
+the path ahead follows the road, never a guessed turn; so is a fix whose best candidate is the very start of
+a turn (the point every connection from the incoming lane starts at). A later fix on the side street decides.
 
 A fix that matches no lane is placed by dead reckoning along the road from the last match
 (:attr:`Placed.DEAD_RECKONED`, up to :attr:`MatchSettings.dead_reckoning_s`); a jump beyond
