@@ -24,7 +24,8 @@ most probable candidate, with one exception at junctions: a fix that could be on
 connections from the vehicle's incoming edge commits to a turn off the road only once the
 connections into that turn's road hold :attr:`MatchSettings.commit_share` of their probability;
 until then the fix is reported on the road's own continuation (:attr:`Placed.DEFERRED`), so
-the path ahead follows the road, never a guessed turn. A later fix on the side street decides.
+the path ahead follows the road, never a guessed turn; so is a fix whose best candidate is the very start of
+a turn (the point every connection from the incoming lane starts at). A later fix on the side street decides.
 
 A fix that matches no lane is placed by dead reckoning along the road from the last match
 (:attr:`Placed.DEAD_RECKONED`, up to :attr:`MatchSettings.dead_reckoning_s`); a jump beyond
@@ -319,7 +320,10 @@ class SequenceMatcher:
 
     def _undecided(self, step: Step, count: int) -> np.ndarray:
         """Which fixes' best candidate turns off the road inside a junction while the connections into its
-        road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge."""
+        road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge, or lies at
+        the very start of its connection (a fix level with or behind it, its projection clamped there): that
+        point is the end of the lane the connection comes from, where every connection from it starts, so it is
+        no evidence for this one's turn."""
         candidates, graph = step.candidates, self.graph
         has = step.best >= 0
         has_lane = candidates.lane[step.best[has]]
@@ -336,7 +340,9 @@ class SequenceMatcher:
         same = group & (graph.exit_edge[lane] == graph.exit_edge[best_lane][fix])
         group_p = np.bincount(fix, weights=probability * group, minlength=count)
         same_p = np.bincount(fix, weights=probability * same, minlength=count)
-        return turning & (same_p < self.settings.commit_share * group_p)
+        at_start = np.zeros(count, dtype=bool)
+        at_start[has] = candidates.pos_m[step.best[has]] <= 0.0
+        return turning & ((same_p < self.settings.commit_share * group_p) | at_start)
 
     def _continuation(self, step: Step, fix: int) -> tuple[int, float, float]:
         """Where a fix whose turn is undecided is reported: on the lane the road continues on from the
