@@ -225,16 +225,19 @@ def recalled_points(
     """
     if not held.places or held.seen is None or now_s is None:
         return []
+    on_path = set(keys)
+    missing = [place for place in held.places if (place[0], place[1]) not in on_path]
+    if not missing:  # most updates: every CPOI that kept a level on is still ahead
+        return []
     seen_at_s, seen_speed_kmh = held.seen
     driven_m = kmh_to_mps(max(seen_speed_kmh, speed_kmh)) * (now_s - seen_at_s)
     if not math.isfinite(driven_m) or now_s < seen_at_s:
         return []
     holding = [level for level in (0, 1) if within_hold(held.kept_at_s[level], now_s, hold_s)]
-    on_path = set(keys)
     recalled = []
-    for curve_id, part_index, distance_m, radius_m in held.places:
+    for curve_id, part_index, distance_m, radius_m in missing:
         key = (curve_id, part_index)
-        if key in on_path or not any(key in held.points[level] for level in holding):
+        if not any(key in held.points[level] for level in holding):
             continue
         if distance_m - driven_m > 0.0:
             recalled.append((curve_id, part_index, distance_m - driven_m, radius_m))
