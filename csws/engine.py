@@ -173,25 +173,8 @@ class Engine:
         return latency.update_period_s(self.intervals.get(vehicle_id, ()), self.settings.warning)
 
     def _update_periods_s(self, vehicle_ids: Sequence[str]) -> np.ndarray:
-        """:meth:`update_period_s` of many vehicles: the configured one, but where a vehicle's intervals
-        are known and the period is learnt (:func:`csws.warning.latency.update_period_s`), s.
-
-        The period is a function of the intervals alone, so it is found once per distinct intervals: a
-        fleet updated at one clock shares a few of them."""
-        settings = self.settings.warning
-        if not (self.intervals and settings.learn_update_period):
-            return np.full(len(vehicle_ids), settings.update_period_s)
-        no_intervals: tuple[float, ...] = ()
-        known = self.intervals.get
-        of_intervals: dict[tuple[float, ...], float] = {}
-        periods_s = []
-        for vehicle_id in vehicle_ids:
-            intervals_s = known(vehicle_id, no_intervals)
-            period_s = of_intervals.get(intervals_s)
-            if period_s is None:
-                period_s = of_intervals[intervals_s] = latency.update_period_s(intervals_s, settings)
-            periods_s.append(period_s)
-        return np.array(periods_s, dtype=float)
+        """:meth:`update_period_s` of many vehicles (:func:`csws.warning.latency.update_periods_s`), s."""
+        return np.array(latency.update_periods_s(self.intervals, vehicle_ids, self.settings.warning), dtype=float)
 
     def _learn_interval(self, vehicle_id: str, last_timestamp_s: float | None, status: VehicleStatus) -> None:
         """Add the interval between the vehicle's last accepted fix and this one, if it was accepted."""
@@ -199,27 +182,6 @@ class Engine:
         after = latency.next_intervals(before, last_timestamp_s, status.last_timestamp_s)
         if after is not before:
             self.intervals[vehicle_id] = after
-
-    def _learn_intervals(
-        self, vehicle_ids: Sequence[str], before: Sequence[VehicleStatus], statuses: Sequence[VehicleStatus]
-    ) -> None:
-        """:meth:`_learn_interval` of many vehicles, each distinct (intervals, last timestamp, accepted
-        timestamp) worked out once: a fleet updated at one clock shares them, and so its intervals."""
-        intervals = self.intervals
-        no_intervals: tuple[float, ...] = ()
-        learnt: dict[tuple, tuple[float, ...]] = {}
-        for vehicle_id, was, status in zip(vehicle_ids, before, statuses, strict=False):
-            # Only a fix accepted after an earlier accepted one adds an interval (latency.next_intervals).
-            accepted_s, last_s = status.last_timestamp_s, was.last_timestamp_s
-            if accepted_s is None or last_s is None:
-                continue
-            intervals_s = intervals.get(vehicle_id, no_intervals)
-            key = (intervals_s, last_s, accepted_s)
-            after = learnt.get(key)
-            if after is None:
-                after = learnt[key] = latency.next_intervals(intervals_s, last_s, accepted_s)
-            if after != intervals_s:
-                intervals[vehicle_id] = after
 
     def evaluate(self, vehicle: VehicleInput) -> Answer:
         """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
@@ -327,7 +289,12 @@ class Engine:
             settings=self.settings.activation,
         )
         self.statuses.update(zip(vehicle_ids, statuses, strict=False))
-        self._learn_intervals(vehicle_ids, before, statuses)
+        latency.learn_intervals(
+            self.intervals,
+            vehicle_ids,
+            [status.last_timestamp_s for status in before],
+            [status.last_timestamp_s for status in statuses],
+        )
         states = [status.state for status in statuses]
         active = [i for i, state in enumerate(states) if state is SystemState.ACTIVE]
         everyone = len(active) == len(states)
