@@ -173,15 +173,8 @@ class Engine:
         return latency.update_period_s(self.intervals.get(vehicle_id, ()), self.settings.warning)
 
     def _update_periods_s(self, vehicle_ids: Sequence[str]) -> np.ndarray:
-        """:meth:`update_period_s` of many vehicles: the configured one, but where a vehicle's intervals
-        are known and the period is learnt (:func:`csws.warning.latency.update_period_s`), s."""
-        periods_s = np.full(len(vehicle_ids), self.settings.warning.update_period_s)
-        if self.intervals and self.settings.warning.learn_update_period:
-            intervals = self.intervals
-            for vehicle, vehicle_id in enumerate(vehicle_ids):
-                if vehicle_id in intervals:
-                    periods_s[vehicle] = latency.update_period_s(intervals[vehicle_id], self.settings.warning)
-        return periods_s
+        """:meth:`update_period_s` of many vehicles (:func:`csws.warning.latency.update_periods_s`), s."""
+        return np.array(latency.update_periods_s(self.intervals, vehicle_ids, self.settings.warning), dtype=float)
 
     def _learn_interval(self, vehicle_id: str, last_timestamp_s: float | None, status: VehicleStatus) -> None:
         """Add the interval between the vehicle's last accepted fix and this one, if it was accepted."""
@@ -296,33 +289,37 @@ class Engine:
             settings=self.settings.activation,
         )
         self.statuses.update(zip(vehicle_ids, statuses, strict=False))
-        for vehicle_id, was, status in zip(vehicle_ids, before, statuses, strict=False):
-            # Only a fix accepted after an earlier accepted one adds an interval (latency.next_intervals).
-            if status.last_timestamp_s is not None and was.last_timestamp_s is not None:
-                self._learn_interval(vehicle_id, was.last_timestamp_s, status)
-        active = [i for i, status in enumerate(statuses) if status.state is SystemState.ACTIVE]
-        self._forget_warnings_of_inactive(vehicle_ids, statuses)
+        latency.learn_intervals(
+            self.intervals,
+            vehicle_ids,
+            [status.last_timestamp_s for status in before],
+            [status.last_timestamp_s for status in statuses],
+        )
+        states = [status.state for status in statuses]
+        active = [i for i, state in enumerate(states) if state is SystemState.ACTIVE]
+        everyone = len(active) == len(states)
+        if not everyone:
+            self._forget_warnings_of_inactive(vehicle_ids, states)
         ahead = judged = None
         if active:
             rows = np.array(active, dtype=np.intp)
             ahead, judged = self._warnings(
-                [vehicle_ids[i] for i in active],
-                [None] * len(active) if timestamp_s is None else [timestamp_s[i] for i in active],
+                _of_active(vehicle_ids, active, everyone),
+                [None] * len(active) if timestamp_s is None else _of_active(timestamp_s, active, everyone),
                 [0.0] * len(active) if age_s is None else [latency.fix_age_s(age_s[i]) for i in active],
                 speeds_kmh[rows],
                 columns[rows],
-                _lanes_of_active([lane_ids[i] for i in active]),
+                _lanes_of_active(_of_active(lane_ids, active, everyone)),
                 positions_m[rows],
-                [route_edges[i] for i in active],
+                _of_active(route_edges, active, everyone),
             )
-        states = [status.state for status in statuses]
         return FleetAnswers(vehicle_ids, states, [status.fault for status in statuses], active, ahead, judged)
 
-    def _forget_warnings_of_inactive(self, vehicle_ids: Sequence[str], statuses: Sequence[VehicleStatus]) -> None:
+    def _forget_warnings_of_inactive(self, vehicle_ids: Sequence[str], states: Sequence[SystemState]) -> None:
         """Drop the warning memory of every vehicle that is not active: its warning is off (5.2-5.4)."""
         if self.held:
-            for vehicle_id, status in zip(vehicle_ids, statuses, strict=False):
-                if status.state is not SystemState.ACTIVE:
+            for vehicle_id, state in zip(vehicle_ids, states, strict=False):
+                if state is not SystemState.ACTIVE:
                     self.held.pop(vehicle_id, None)
 
     def _found_faults(self, lane_ids: Sequence[str | None], lane_pos_m: np.ndarray) -> list[Fault | None]:
@@ -349,6 +346,7 @@ class Engine:
     def _judged(
         self,
         vehicle_ids: Sequence[str],
+        held: Sequence[HeldWarning],
         now_s: Sequence[float | None],
         periods_s: np.ndarray,
         age_s: np.ndarray,
@@ -364,9 +362,8 @@ class Engine:
         recalled: np.ndarray | None,
     ) -> BatchWarnings:
         """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
-        ``first[i]:first[i + 1]``, ``recalled`` those recalled from its memory), each vehicle's update
-        period ``periods_s``; their warning memories are updated."""
-        held = [self.held.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids]
+        ``first[i]:first[i + 1]``, ``recalled`` those recalled from its memory ``held``), each vehicle's
+        update period ``periods_s``; their warning memories are updated."""
         latched, hold = memory_masks(
             held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s), recalled
         )
@@ -384,12 +381,13 @@ class Engine:
             age_s=age_s,
         )
         places = (distance_m, radius_m, speed_kmh)
-        self._keep(vehicle_ids, next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule, places))
+        memories = next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule, places)
+        self._keep(vehicle_ids, memories, held)
         return batch
 
     def _recalled(
         self,
-        vehicle_ids: Sequence[str],
+        held: Sequence[HeldWarning],
         now_s: Sequence[float | None],
         speed_kmh: np.ndarray,
         periods_s: np.ndarray,
@@ -398,10 +396,10 @@ class Engine:
         """The roads ahead with the CPOIs the release rule recalls from each vehicle's memory (rule 4,
         :func:`csws.warning.release.recalled_points`) after the vehicle's own, marked passed; and which
         CPOIs are recalled (None where none is)."""
-        remembered = self._remembered_places(vehicle_ids)
+        remembered = [(vehicle, memory) for vehicle, memory in enumerate(held) if memory.places]
         if not remembered:
             return ahead, None
-        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(vehicle_ids) + 1))
+        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(held) + 1))
         hold_s = self.settings.warning.hold_s(periods_s)
         vehicles = [vehicle for vehicle, _ in remembered]
         path_rows, _ = rows_of_vehicles(first, vehicles)
@@ -411,9 +409,9 @@ class Engine:
         bounds = np.cumsum(np.diff(first)[vehicles]).tolist()
         rows: list[int] = []
         found: list[tuple[int, str, int, float, float]] = []
-        for (vehicle, held), start, stop in zip(remembered, [0, *bounds[:-1]], bounds, strict=True):
+        for (vehicle, memory), start, stop in zip(remembered, [0, *bounds[:-1]], bounds, strict=True):
             speed, vehicle_hold_s = float(speed_kmh[vehicle]), float(hold_s[vehicle])
-            for place in recalled_points(held, keys[start:stop], now_s[vehicle], speed, vehicle_hold_s):
+            for place in recalled_points(memory, keys[start:stop], now_s[vehicle], speed, vehicle_hold_s):
                 rows.append(int(first[vehicle + 1]))
                 found.append((vehicle, *place))
         if not rows:
@@ -430,24 +428,17 @@ class Engine:
         )
         return with_recalled, np.insert(np.zeros(ahead.cpoi_vehicle.size, dtype=bool), rows, True)
 
-    def _remembered_places(self, vehicle_ids: Sequence[str]) -> list[tuple[int, HeldWarning]]:
-        """The vehicles (index, memory) whose memory keeps where its CPOIs were (rule 4 may recall them)."""
-        if not self.held:
-            return []
-        held = self.held
-        return [
-            (vehicle, memory)
-            for vehicle, vehicle_id in enumerate(vehicle_ids)
-            if vehicle_id in held and (memory := held[vehicle_id]).places
-        ]
-
-    def _keep(self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning]) -> None:
-        """Keep each vehicle's warning memory while a level is on; drop it when none is."""
-        for vehicle_id, memory in zip(vehicle_ids, memories, strict=False):
+    def _keep(
+        self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning], before: Sequence[HeldWarning] | None = None
+    ) -> None:
+        """Keep each vehicle's warning memory while a level is on; drop it when none is (where ``before``,
+        each vehicle's memory before this update, is given, only where it had one)."""
+        kept = self.held
+        for vehicle, (vehicle_id, memory) in enumerate(zip(vehicle_ids, memories, strict=False)):
             if memory is not NOT_HELD and memory.is_on:
-                self.held[vehicle_id] = memory
-            elif self.held:
-                self.held.pop(vehicle_id, None)
+                kept[vehicle_id] = memory
+            elif kept and (before is None or before[vehicle] is not NOT_HELD):
+                kept.pop(vehicle_id, None)
 
     def _warnings(
         self,
@@ -464,10 +455,13 @@ class Engine:
         periods_s = self._update_periods_s(vehicle_ids)
         ages_s = np.array(age_s, dtype=float)
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
-        ahead, recalled = self._recalled(vehicle_ids, now_s, speed_kmh, periods_s, ahead)
+        kept = self.held
+        held = [kept.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids] if kept else [NOT_HELD] * len(lane_ids)
+        ahead, recalled = self._recalled(held, now_s, speed_kmh, periods_s, ahead)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
         batch = self._judged(
             vehicle_ids,
+            held,
             now_s,
             periods_s,
             ages_s,
@@ -489,6 +483,11 @@ def _input_columns(vehicles: Sequence[VehicleInput]) -> list[Sequence]:
     """The fields of the vehicles as columns, in :data:`_INPUT_FIELD_NAMES`' order, read in one pass."""
     columns: list[Sequence] = list(zip(*map(_INPUT_FIELDS, vehicles), strict=True))
     return columns if columns else [()] * len(_INPUT_FIELD_NAMES)
+
+
+def _of_active(column: Sequence, active: Sequence[int], everyone: bool) -> list:
+    """The entries of a fleet's column at the rows of its active vehicles (``everyone`` when all are)."""
+    return list(column) if everyone else [column[i] for i in active]
 
 
 def _lanes_of_active(lane_ids: Sequence[str | None]) -> list[str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 
 import pytest
 from hypothesis import given, settings
@@ -13,6 +14,8 @@ from csws.engine import Engine, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
+from csws.warning import latency
+from csws.warning.rules import WarningSettings
 
 TRACK = "t9_m1_test1_left"
 
@@ -107,3 +110,46 @@ def test_an_unknown_category_changes_no_status(track):
             ["a", "b"], ["M1", "X9"], [50.0, 50.0], ["approach_0", "approach_0"], [1.0, 1.0], [None, None]
         )
     assert engine.statuses == {}
+
+
+_clock_gaps = st.lists(st.sampled_from([0.1, 0.1, 0.2, 0.5, 1.0, 3.0, -0.4]), min_size=3, max_size=12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 2), st.floats(40.0, 130.0), st.booleans()), min_size=1, max_size=9),
+    st.lists(_clock_gaps, min_size=3, max_size=3),
+)
+def test_a_fleet_on_shared_clocks_learns_each_vehicles_own_intervals_and_answers(track, vehicles, clocks):
+    road_map, truth = track
+    route = tuple(truth["route"]["edges"])
+    curve_s = truth["curves"][0]["start_s"]
+    lane = next(lane for lane in reversed(truth["lanes"]) if lane["start_s"] <= curve_s - 120.0)
+    ids = [f"v{i}" for i in range(len(vehicles))]
+    fleet_engine, single_engine = Engine(road_map), Engine(road_map)
+    accepted: dict[str, list[float]] = {vehicle_id: [] for vehicle_id in ids}
+    for step in range(len(clocks[0])):
+        # Vehicles on one clock share its timestamps (and so their intervals); a gap < 0 sends a stale fix.
+        times = [sum(clocks[clock][: step + 1]) + 10.0 for clock, _, _ in vehicles]
+        timed = [None if (step % 4 == 3 and untimed) else t for (_, _, untimed), t in zip(vehicles, times, strict=True)]
+        inputs = [
+            VehicleInput(
+                vehicle_id, "M1", speed, lane["lane"], curve_s - 120.0 - lane["start_s"] + 8.0 * step, route, t
+            )
+            for vehicle_id, (_, speed, _), t in zip(ids, vehicles, timed, strict=True)
+        ]
+        columns = [[getattr(v, name) for v in inputs] for name in ("vehicle_id", "category", "speed_kmh", "lane_id")]
+        fleet = fleet_engine.evaluate_fleet(
+            *columns, [v.lane_pos_m for v in inputs], [route] * len(inputs), timestamp_s=timed
+        )
+        assert fleet.warning == [single_engine.evaluate(v).warning for v in inputs]
+        for vehicle_id, t in zip(ids, timed, strict=True):
+            kept = accepted[vehicle_id]
+            if t is not None and (not kept or t >= kept[-1]):
+                kept.append(t)
+            gaps = [b - a for a, b in zip(kept, kept[1:], strict=False) if b > a][-latency.KEPT_INTERVALS :]
+            assert fleet_engine.intervals.get(vehicle_id, ()) == tuple(gaps)
+            assert fleet_engine.memory(vehicle_id) == single_engine.memory(vehicle_id)
+            if len(gaps) >= latency.MIN_INTERVALS:
+                expected_s = min(statistics.median(gaps), WarningSettings().max_update_period_s)
+                assert fleet_engine.update_period_s(vehicle_id) == expected_s

@@ -96,11 +96,23 @@ class LibraryEvaluator:
 
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
-        #: Each vehicle's path ahead of the last step (None where not active on the map), for the FCW.
-        self.paths_ahead: list[PathAhead | None] = []
         #: The rows of the last step's vehicles that were active, and their roads ahead in that order.
         self.active: list[int] = []
         self.ahead: BatchAhead | None = None
+        self._count = 0
+        self._paths_ahead: list[PathAhead | None] | None = []
+
+    @property
+    def paths_ahead(self) -> list[PathAhead | None]:
+        """Each vehicle's path ahead of the last step (None where not active on the map), for the FCW: built
+        when first read after the step, so that a run without the FCW builds no path object per vehicle."""
+        if self._paths_ahead is None:
+            paths: list[PathAhead | None] = [None] * self._count
+            if self.ahead is not None:
+                for i, path in zip(self.active, self.ahead.paths_ahead(), strict=False):
+                    paths[i] = path
+            self._paths_ahead = paths
+        return self._paths_ahead
 
     def __call__(self, fleet: FleetState) -> FleetWarnings:
         answers = self.engine.evaluate_fleet(
@@ -113,10 +125,7 @@ class LibraryEvaluator:
             timestamp_s=[fleet.time_s] * len(fleet.vehicle_id),
         )
         self.active, self.ahead = answers.active, answers.ahead
-        self.paths_ahead = [None] * len(fleet.vehicle_id)
-        if answers.ahead is not None:
-            for i, path in zip(answers.active, answers.ahead.paths_ahead(), strict=False):
-                self.paths_ahead[i] = path
+        self._count, self._paths_ahead = len(fleet.vehicle_id), None
         return FleetWarnings(answers.state, answers.level, answers.targets(), answers.entries())
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:

@@ -27,11 +27,19 @@ does not switch a level off and on.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, MutableMapping, Sequence
 
 from csws.warning.settings import WarningSettings
 
-__all__ = ["KEPT_INTERVALS", "MIN_INTERVALS", "fix_age_s", "next_intervals", "update_period_s"]
+__all__ = [
+    "KEPT_INTERVALS",
+    "MIN_INTERVALS",
+    "fix_age_s",
+    "learn_intervals",
+    "next_intervals",
+    "update_period_s",
+    "update_periods_s",
+]
 
 #: How many of its last intervals between fixes a vehicle's memory keeps.
 KEPT_INTERVALS = 5
@@ -73,6 +81,54 @@ def update_period_s(intervals_s: Sequence[float], settings: WarningSettings) -> 
     middle = count // 2
     median_s = ordered[middle] if count % 2 else (ordered[middle - 1] + ordered[middle]) / 2
     return min(median_s, settings.max_update_period_s)
+
+
+def learn_intervals(
+    intervals: MutableMapping[str, tuple[float, ...]],
+    vehicle_ids: Sequence[str],
+    last_timestamp_s: Sequence[float | None],
+    accepted_timestamp_s: Sequence[float | None],
+) -> None:
+    """:func:`next_intervals` of many vehicles, kept in ``intervals`` (by vehicle id) where they change.
+
+    Each distinct (intervals, last timestamp, accepted timestamp) is worked out once: a fleet updated
+    at one clock shares them, and so its intervals.
+    """
+    no_intervals: tuple[float, ...] = ()
+    learnt: dict[tuple, tuple[float, ...]] = {}
+    for vehicle_id, last_s, accepted_s in zip(vehicle_ids, last_timestamp_s, accepted_timestamp_s, strict=True):
+        # Only a fix accepted after an earlier accepted one adds an interval.
+        if accepted_s is None or last_s is None:
+            continue
+        intervals_s = intervals.get(vehicle_id, no_intervals)
+        key = (intervals_s, last_s, accepted_s)
+        after = learnt.get(key)
+        if after is None:
+            after = learnt[key] = next_intervals(intervals_s, last_s, accepted_s)
+        if after != intervals_s:
+            intervals[vehicle_id] = after
+
+
+def update_periods_s(
+    intervals: Mapping[str, tuple[float, ...]], vehicle_ids: Sequence[str], settings: WarningSettings
+) -> list[float]:
+    """:func:`update_period_s` of many vehicles from their intervals (by vehicle id; none where absent), s.
+
+    The period is a function of the intervals alone, so it is found once per distinct intervals: a fleet
+    updated at one clock shares a few of them.
+    """
+    if not (intervals and settings.learn_update_period):
+        return [settings.update_period_s] * len(vehicle_ids)
+    no_intervals: tuple[float, ...] = ()
+    of_intervals: dict[tuple[float, ...], float] = {}
+    periods_s = []
+    for vehicle_id in vehicle_ids:
+        intervals_s = intervals.get(vehicle_id, no_intervals)
+        period_s = of_intervals.get(intervals_s)
+        if period_s is None:
+            period_s = of_intervals[intervals_s] = update_period_s(intervals_s, settings)
+        periods_s.append(period_s)
+    return periods_s
 
 
 def fix_age_s(age_s: float | None) -> float:

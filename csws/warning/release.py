@@ -225,16 +225,19 @@ def recalled_points(
     """
     if not held.places or held.seen is None or now_s is None:
         return []
+    on_path = set(keys)
+    missing = [place for place in held.places if (place[0], place[1]) not in on_path]
+    if not missing:  # most updates: every CPOI that kept a level on is still ahead
+        return []
     seen_at_s, seen_speed_kmh = held.seen
     driven_m = kmh_to_mps(max(seen_speed_kmh, speed_kmh)) * (now_s - seen_at_s)
     if not math.isfinite(driven_m) or now_s < seen_at_s:
         return []
     holding = [level for level in (0, 1) if within_hold(held.kept_at_s[level], now_s, hold_s)]
-    on_path = set(keys)
     recalled = []
-    for curve_id, part_index, distance_m, radius_m in held.places:
+    for curve_id, part_index, distance_m, radius_m in missing:
         key = (curve_id, part_index)
-        if key in on_path or not any(key in held.points[level] for level in holding):
+        if not any(key in held.points[level] for level in holding):
             continue
         if distance_m - driven_m > 0.0:
             recalled.append((curve_id, part_index, distance_m - driven_m, radius_m))
@@ -266,16 +269,24 @@ def next_memories(
     vehicle_of_row = np.searchsorted(np.asarray(first_cpoi), on_rows, side="right") - 1
     vehicles, starts = np.unique(vehicle_of_row, return_index=True)
     bounds = [*starts.tolist(), int(on_rows.size)]
-    level_1, level_2 = cpoi_rule[:, on_rows].tolist()
+    rules_on = cpoi_rule[:, on_rows]
+    level_1, level_2 = rules_on.tolist()
+    kept_1, kept_2 = np.maximum.reduceat(_KEPT[rules_on], starts, axis=1).tolist()
     ids = np.asarray(curve_ids, dtype=object)[on_rows].tolist()
-    keys = list(zip(ids, np.asarray(part_indices, dtype=np.int64)[on_rows].tolist(), strict=True))
+    parts = np.asarray(part_indices, dtype=np.int64)[on_rows].tolist()
+    keys = list(zip(ids, parts, strict=True))
     if places is not None:
+        # Every row here keeps a level on, so each vehicle keeps the places of all its rows.
         distances_m = np.asarray(places[0], dtype=float)[on_rows].tolist()
         radii_m = np.asarray(places[1], dtype=float)[on_rows].tolist()
-    for vehicle, start, stop in zip(vehicles.tolist(), bounds, bounds[1:], strict=False):
+        kept_places = list(zip(ids, parts, distances_m, radii_m, strict=True))
+        speeds_kmh = np.asarray(places[2], dtype=float)[vehicles].tolist()
+    for k, (vehicle, start, stop) in enumerate(zip(vehicles.tolist(), bounds, bounds[1:], strict=False)):
         here = (level_1[start:stop], level_2[start:stop])
-        where = None if places is None else (distances_m[start:stop], radii_m[start:stop], places[2][vehicle])
-        memories[vehicle] = vehicle_memory(here, keys[start:stop], held[vehicle], now_s[vehicle], where)
+        where = None if places is None else (tuple(kept_places[start:stop]), speeds_kmh[k])
+        memories[vehicle] = _memory(
+            keys[start:stop], here, (kept_1[k], kept_2[k]), held[vehicle], now_s[vehicle], where
+        )
     return memories
 
 
@@ -297,27 +308,51 @@ def vehicle_memory(
     rules_1, rules_2 = rules
     if not any(rules_1) and not any(rules_2):
         return NOT_HELD
-    points = (frozenset(compress(keys, rules_1)), frozenset(compress(keys, rules_2)))
-    kept_at_s = (_kept_at_s(rules_1, held.kept_at_s[0], now_s), _kept_at_s(rules_2, held.kept_at_s[1], now_s))
-    if places is None or now_s is None or not math.isfinite(now_s):
-        return HeldWarning(points, kept_at_s)
-    distances_m, radii_m, speed_kmh = places
-    kept = tuple(
-        (key[0], key[1], float(distance_m), float(radius_m))
-        for key, level_1, level_2, distance_m, radius_m in zip(
-            keys, rules_1, rules_2, distances_m, radii_m, strict=True
+    kept = (max(map(_KEPT_OF.__getitem__, rules_1), default=0), max(map(_KEPT_OF.__getitem__, rules_2), default=0))
+    where = None
+    if places is not None:
+        distances_m, radii_m, speed_kmh = places
+        kept_places = tuple(
+            (key[0], key[1], float(distance_m), float(radius_m))
+            for key, level_1, level_2, distance_m, radius_m in zip(
+                keys, rules_1, rules_2, distances_m, radii_m, strict=True
+            )
+            if level_1 or level_2
         )
-        if level_1 or level_2
-    )
-    return HeldWarning(points, kept_at_s, kept, (now_s, float(speed_kmh)))
+        where = (kept_places, float(speed_kmh))
+    return _memory(keys, rules, kept, held, now_s, where)
 
 
-def _kept_at_s(rules: Sequence[int], kept_before_s: float | None, now_s: float | None) -> float | None:
-    """When a level was last kept on by 6.1 or the margin: now where one of them keeps it on, the time
-    it had where only the hold does (rule 2), none where it is off."""
-    if Rule.REQUIRED in rules or Rule.MARGIN in rules:
+#: What each :class:`Rule` code says of when its level was last kept on (rule 2): 2 now (6.1 or the
+#: margin keeps it on), 1 when it was before (only the hold keeps it on), 0 never (off); a level's
+#: time follows the largest of its CPOIs'.
+_KEPT = np.array([0, 2, 2, 1], dtype=np.int8)
+_KEPT_OF = tuple(_KEPT.tolist())
+
+
+def _memory(
+    keys: Sequence[PointKey],
+    rules: tuple[Sequence[int], Sequence[int]],
+    kept: tuple[int, int],
+    held: HeldWarning,
+    now_s: float | None,
+    where: tuple[tuple[PointPlace, ...], float] | None,
+) -> HeldWarning:
+    """A vehicle's memory from its CPOIs' rules and each level's ``kept`` code (:data:`_KEPT`), with where
+    (``where``: the places of the CPOIs that keep a level on, and the speed, km/h) for rule 4."""
+    points = (frozenset(compress(keys, rules[0])), frozenset(compress(keys, rules[1])))
+    kept_at_s = (_kept_at_s(kept[0], held.kept_at_s[0], now_s), _kept_at_s(kept[1], held.kept_at_s[1], now_s))
+    if where is None or now_s is None or not math.isfinite(now_s):
+        return HeldWarning(points, kept_at_s)
+    return HeldWarning(points, kept_at_s, where[0], (now_s, where[1]))
+
+
+def _kept_at_s(kept: int, kept_before_s: float | None, now_s: float | None) -> float | None:
+    """When a level was last kept on by 6.1 or the margin (its ``kept`` code, :data:`_KEPT`): now where one
+    of them keeps it on, the time it had where only the hold does (rule 2), none where it is off."""
+    if kept == 2:
         return now_s
-    return kept_before_s if Rule.HOLD in rules else None
+    return kept_before_s if kept == 1 else None
 
 
 def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:
