@@ -4,7 +4,8 @@ Random writes (any bytes in a session, keys in any script, places on networks wh
 settings or none, places or none) go to a real ``redis-server`` and to a SQLite store; each store must read
 back exactly what was written, with the next version, and the raw keys of Redis must hold the stored format
 the reads of older code take (``{version}|{session}``, the setting's switch and category). A write at a stale
-version is refused for that vehicle alone, and a session written by older code is taken up and written over.
+version is refused for that vehicle alone, a session written by older code is read (with its last event's number)
+and written over, and a vehicle the store holds nothing of is read as nothing.
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from csws.standard import Category
-from service.store import Place, VehicleSetting, VehicleWrite
-from service.store.redis import PLACES_KEY, SESSION_PREFIX, SETTING_PREFIX, RedisStore
+from service.store import Place, StoredVehicle, VehicleSetting, VehicleWrite
+from service.store.redis import EVENT_SEQ_PREFIX, PLACES_KEY, SESSION_PREFIX, SETTING_PREFIX, RedisStore
 from service.store.sqlite import SQLiteStore
 
 IDLE_S = 600.0
@@ -81,7 +82,10 @@ def test_a_stale_version_is_refused_for_its_vehicle_alone_and_an_older_session_i
     client = redis.Redis.from_url(redis_url)
     try:
         client.set(SESSION_PREFIX + "f/old", b"7|\x93written|before")  # as older code stored it
-        assert store.read(["f/old"])["f/old"].version == 7
+        client.set(EVENT_SEQ_PREFIX + "f/old", b"41")
+        read = store.read(["f/old", "f/never"])
+        assert read["f/old"] == StoredVehicle(None, b"\x93written|before", 7, 41)
+        assert read["f/never"] == StoredVehicle()
         first = {"f/a": VehicleWrite(0, b"a1"), "f/b": VehicleWrite(0, b"b1")}
         assert store.write(first) == set()
         again = {"f/a": VehicleWrite(0, b"a2"), "f/b": VehicleWrite(1, b"b2"), "f/old": VehicleWrite(7, b"o8")}

@@ -35,9 +35,11 @@ its own):
 Reading places (:meth:`RedisStore.placed`) is one server-side script too, over the spatial index
 (:mod:`service.store.redis_places`): a small box over a large fleet reads only the places near it.
 
-A request reads its vehicles with one ``MGET`` (atomic) and writes them with one Lua script
-(atomic, run by the server): per vehicle, it compares the session's version with the one read
-and writes session and setting only if it matches.
+A request reads its vehicles with one Lua script (one ``MGET``, atomic) and writes them with one
+more (atomic, run by the server): per vehicle, it compares the session's version with the one read
+and writes session and setting only if it matches. Each takes its vehicles packed in one argument
+and the read returns them packed in one value, so that the client packs and parses one value, not
+a few per vehicle.
 
 Durability is Redis's: with ``appendonly yes`` and ``appendfsync always`` every write is on disk
 before its reply, so no acknowledged ``PUT`` is lost when Redis or its machine fails; with
@@ -53,7 +55,7 @@ import math
 import re
 import struct
 import time
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping
 from typing import cast
 from urllib.parse import urlsplit, urlunsplit
 
@@ -129,10 +131,10 @@ _CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 
 #: KEYS: the places hash and the placed set.
 #: ARGV: the sessions' time to live in ms, the longest retention of events in ms, the vehicles packed in one value
-#: (:func:`_packed_vehicles`: per vehicle its key, the expected version, the new session, the new setting ('' for
-#: none), the new place ('' for none) and its cell (:func:`place_cell`), each a 4-byte big-endian length and its
-#: bytes), then per event the (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's
-#: retention in ms. One packed value instead of 8 arguments a vehicle: the client packs 3 arguments, not thousands.
+#: (:func:`_packed` of :func:`_vehicle_fields`: per vehicle its key, the expected version, the new session, the new
+#: setting ('' for none), the new place ('' for none) and its cell (:func:`place_cell`)), then per event the
+#: (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's retention in ms. One packed value
+#: instead of 8 arguments a vehicle: the client packs 3 arguments, not thousands.
 #: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
 _WRITE_SCRIPT = (
     """
@@ -214,8 +216,35 @@ return conflicts
     .replace("__SESSION__", SESSION_PREFIX)
     .replace("__SETTING__", SETTING_PREFIX)
 )
-#: A packed field's length (:func:`_packed_vehicles`): 4 bytes, big-endian, as the write script unpacks it.
-_FIELD_LENGTH = struct.Struct(">I")
+#: ARGV: the vehicles' keys packed in one value (:func:`_packed`). Returns the session, the setting and the number
+#: of the last event of each vehicle, in that order, packed in one value the same way, a length of 2^32 - 1
+#: standing for a key that does not exist (:func:`_unpacked`). Atomic as the ``MGET`` it makes is; one argument and
+#: one reply instead of 3 keys and 3 values a vehicle, which redis-py packed and parsed one by one.
+_READ_SCRIPT = (
+    """
+local packed, at, keys = ARGV[1], 1, {}
+while at <= #packed do
+  local length = struct.unpack('>I4', packed, at)
+  local key = string.sub(packed, at + 4, at + 3 + length)
+  at = at + 4 + length
+  keys[#keys + 1] = '__SESSION__' .. key
+  keys[#keys + 1] = '__SETTING__' .. key
+  keys[#keys + 1] = '__SEQ__' .. key
+end
+local out, missing = {}, string.char(255, 255, 255, 255)
+for first = 1, #keys, 3000 do
+  for _, value in ipairs(redis.call('MGET', unpack(keys, first, math.min(first + 2999, #keys)))) do
+    out[#out + 1] = value and (struct.pack('>I4', #value) .. value) or missing
+  end
+end
+return table.concat(out)
+""".replace("__SESSION__", SESSION_PREFIX)
+    .replace("__SETTING__", SETTING_PREFIX)
+    .replace("__SEQ__", EVENT_SEQ_PREFIX)
+)
+#: A packed field's length (:func:`_packed`): 4 bytes, big-endian, as the scripts unpack it; and the length that
+#: stands for a key that does not exist in what the read script returns.
+_FIELD_LENGTH, _MISSING = struct.Struct(">I"), 0xFFFFFFFF
 
 
 def _ms(duration_s: float) -> int:
@@ -256,24 +285,38 @@ def _decode_place(value: bytes) -> Place:
     return Place(network, float(x), float(y))
 
 
-def _packed_vehicles(writes: Mapping[str, VehicleWrite]) -> bytes:
-    """The vehicles of a write as the write script takes them, in one value: per vehicle its key, expected version,
-    session, setting, place and cell, each its length (4 bytes, big-endian) and its bytes."""
-    parts: list[bytes] = []
+def _packed(values: Iterable[bytes]) -> bytes:
+    """``values`` in one value as the scripts unpack them: each its length (4 bytes, big-endian) and its bytes."""
     length = _FIELD_LENGTH.pack
-    for vehicle_id, w in writes.items():
-        place = b"" if w.place is None else _encode_place(w.place).encode()
-        fields = (
-            vehicle_id.encode(),
-            str(w.expected_version).encode(),
-            w.session,
-            b"" if w.setting is None else _encode_setting(w.setting),
-            place,
-            b"" if w.place is None else str(place_cell(w.place)).encode(),
-        )
-        for value in fields:
-            parts += (length(len(value)), value)
-    return b"".join(parts)
+    return b"".join(part for value in values for part in (length(len(value)), value))
+
+
+def _unpacked(packed: bytes) -> list[bytes | None]:
+    """The values the read script packed in one (None for a key that does not exist)."""
+    values: list[bytes | None] = []
+    at, end, length_at = 0, len(packed), _FIELD_LENGTH.unpack_from
+    while at < end:
+        (length,) = length_at(packed, at)
+        at += 4
+        if length == _MISSING:
+            values.append(None)
+        else:
+            values.append(packed[at : at + length])
+            at += length
+    return values
+
+
+def _vehicle_fields(vehicle_id: str, w: VehicleWrite) -> tuple[bytes, ...]:
+    """What the write script takes of one vehicle: its key, expected version, session, setting, place and cell
+    (the last three empty for none)."""
+    return (
+        vehicle_id.encode(),
+        str(w.expected_version).encode(),
+        w.session,
+        b"" if w.setting is None else _encode_setting(w.setting),
+        b"" if w.place is None else _encode_place(w.place).encode(),
+        b"" if w.place is None else str(place_cell(w.place)).encode(),
+    )
 
 
 def _decode_session(value: bytes | None) -> tuple[bytes | None, int]:
@@ -328,6 +371,7 @@ class RedisStore(StateStore):
             raise ValueError(f"bad Redis URL {self.name}: {exc}") from None
         self._database = int(self._redis.connection_pool.connection_kwargs.get("db", 0))
         self._write_script = self._redis.register_script(_WRITE_SCRIPT)
+        self._read_script = self._redis.register_script(_READ_SCRIPT)
         self._placed_script = self._redis.register_script(PLACED_SCRIPT.replace("__SESSION__", SESSION_PREFIX))
         self._index_script = self._redis.register_script(INDEX_SCRIPT)
 
@@ -361,23 +405,16 @@ class RedisStore(StateStore):
                 break
         self._redis.set(GRID_BUILT_KEY, 1)
 
-    def _values(self, keys: Sequence[str | bytes]) -> list[bytes | None]:
-        """The values of ``keys`` in one ``MGET`` (the client decodes no responses: they are bytes)."""
-        return cast(list[bytes | None], self._redis.mget(keys))
-
     def read(self, vehicle_ids: Collection[str]) -> dict[str, StoredVehicle]:
         if not vehicle_ids:
             return {}
         vehicle_ids = list(vehicle_ids)
-        keys = [SESSION_PREFIX + v for v in vehicle_ids] + [SETTING_PREFIX + v for v in vehicle_ids]
-        keys += [EVENT_SEQ_PREFIX + v for v in vehicle_ids]
         try:
-            values = self._values(keys)
+            values = _unpacked(self._read_script(args=[_packed(v.encode() for v in vehicle_ids)]))
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
-        count = len(vehicle_ids)
         stored = {}
-        columns = values[:count], values[count : 2 * count], values[2 * count :]
+        columns = values[0::3], values[1::3], values[2::3]
         for vehicle_id, session, setting, seq in zip(vehicle_ids, *columns, strict=True):
             try:
                 stored[vehicle_id] = StoredVehicle(
@@ -393,7 +430,11 @@ class RedisStore(StateStore):
         if not writes:
             return set()
         vehicle_ids = list(writes)
-        args: list[int | str | bytes] = [self.ttl_ms, _ms(self.event_retention.longest_s), _packed_vehicles(writes)]
+        args: list[int | str | bytes] = [
+            self.ttl_ms,
+            _ms(self.event_retention.longest_s),
+            _packed(value for vehicle_id, w in writes.items() for value in _vehicle_fields(vehicle_id, w)),
+        ]
         for number, vehicle_id in enumerate(vehicle_ids, 1):
             for event in writes[vehicle_id].events:
                 retention_ms = _ms(self.event_retention.of(event.fleet))
