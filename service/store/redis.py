@@ -55,7 +55,7 @@ import math
 import re
 import struct
 import time
-from collections.abc import Collection, Iterable, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from typing import cast
 from urllib.parse import urlsplit, urlunsplit
 
@@ -130,23 +130,23 @@ EVENT_SEQ_PREFIX = "csws:event-seq:"
 _CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 
 #: KEYS: the places hash and the placed set.
-#: ARGV: the sessions' time to live in ms, the longest retention of events in ms, the vehicles packed in one value
+#: ARGV: the sessions' time to live in ms, the longest retention of events in ms, the vehicles packed in two values
 #: (:func:`_packed` of :func:`_vehicle_fields`: per vehicle its key, the expected version, the new session, the new
 #: setting ('' for none), the new place ('' for none) and its cell (:func:`place_cell`)), then per event the
-#: (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's retention in ms. One packed value
-#: instead of 8 arguments a vehicle: the client packs 3 arguments, not thousands.
+#: (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's retention in ms. Two packed values
+#: instead of 8 arguments a vehicle: the client packs 4 arguments, not thousands.
 #: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
 _WRITE_SCRIPT = (
     """
 local conflicts, written = {}, {}
-local packed, at, vehicle = ARGV[3], 1, 0
+local lengths, packed, length_at, at, vehicle = ARGV[3], ARGV[4], 1, 1, 0
 local function field()
-  local length = struct.unpack('>I4', packed, at)
-  local value = string.sub(packed, at + 4, at + 3 + length)
-  at = at + 4 + length
+  local length = struct.unpack('>I4', lengths, length_at)
+  local value = string.sub(packed, at, at + length - 1)
+  length_at, at = length_at + 4, at + length
   return value
 end
-while at <= #packed do
+while length_at <= #lengths do
   vehicle = vehicle + 1
   local key, expected, session, setting, place, cell = field(), field(), field(), field(), field(), field()
   local session_key = '__SESSION__' .. key
@@ -175,7 +175,7 @@ while at <= #packed do
     conflicts[#conflicts + 1] = vehicle
   end
 end
-local first = 4
+local first = 5
 if first <= #ARGV then
   local now = redis.call('TIME')
   local now_s = tonumber(now[1]) + tonumber(now[2]) / 1e6
@@ -216,35 +216,33 @@ return conflicts
     .replace("__SESSION__", SESSION_PREFIX)
     .replace("__SETTING__", SETTING_PREFIX)
 )
-#: ARGV: the vehicles' keys packed in one value (:func:`_packed`). Returns the session, the setting and the number
-#: of the last event of each vehicle, in that order, packed in one value the same way, a length of 2^32 - 1
-#: standing for a key that does not exist (:func:`_unpacked`). Atomic as the ``MGET`` it makes is; one argument and
-#: one reply instead of 3 keys and 3 values a vehicle, which redis-py packed and parsed one by one.
+#: ARGV: the vehicles' keys packed in two values (:func:`_packed`). Returns the session, the setting and the number
+#: of the last event of each vehicle, in that order, packed the same way, a length of -1 standing for a key that
+#: does not exist (:func:`_unpacked`). Atomic as the ``MGET`` it makes is; two arguments and two values in the reply
+#: instead of 3 keys and 3 values a vehicle, which redis-py packed and parsed one by one.
 _READ_SCRIPT = (
     """
-local packed, at, keys = ARGV[1], 1, {}
-while at <= #packed do
-  local length = struct.unpack('>I4', packed, at)
-  local key = string.sub(packed, at + 4, at + 3 + length)
-  at = at + 4 + length
+local lengths, packed, length_at, at, keys = ARGV[1], ARGV[2], 1, 1, {}
+while length_at <= #lengths do
+  local length = struct.unpack('>I4', lengths, length_at)
+  local key = string.sub(packed, at, at + length - 1)
+  length_at, at = length_at + 4, at + length
   keys[#keys + 1] = '__SESSION__' .. key
   keys[#keys + 1] = '__SETTING__' .. key
   keys[#keys + 1] = '__SEQ__' .. key
 end
-local out, missing = {}, string.char(255, 255, 255, 255)
+local out_lengths, out = {}, {}
 for first = 1, #keys, 3000 do
   for _, value in ipairs(redis.call('MGET', unpack(keys, first, math.min(first + 2999, #keys)))) do
-    out[#out + 1] = value and (struct.pack('>I4', #value) .. value) or missing
+    out_lengths[#out_lengths + 1] = struct.pack('>i4', value and #value or -1)
+    out[#out + 1] = value or ''
   end
 end
-return table.concat(out)
+return {table.concat(out_lengths), table.concat(out)}
 """.replace("__SESSION__", SESSION_PREFIX)
     .replace("__SETTING__", SETTING_PREFIX)
     .replace("__SEQ__", EVENT_SEQ_PREFIX)
 )
-#: A packed field's length (:func:`_packed`): 4 bytes, big-endian, as the scripts unpack it; and the length that
-#: stands for a key that does not exist in what the read script returns.
-_FIELD_LENGTH, _MISSING = struct.Struct(">I"), 0xFFFFFFFF
 
 
 def _ms(duration_s: float) -> int:
@@ -285,20 +283,19 @@ def _decode_place(value: bytes) -> Place:
     return Place(network, float(x), float(y))
 
 
-def _packed(values: Iterable[bytes]) -> bytes:
-    """``values`` in one value as the scripts unpack them: each its length (4 bytes, big-endian) and its bytes."""
-    length = _FIELD_LENGTH.pack
-    return b"".join(part for value in values for part in (length(len(value)), value))
+def _packed(values: Sequence[bytes]) -> tuple[bytes, bytes]:
+    """``values`` as the scripts unpack them, in two values: their lengths (4 bytes each, big-endian), and their
+    bytes one after the other."""
+    return struct.pack(f">{len(values)}I", *map(len, values)), b"".join(values)
 
 
-def _unpacked(packed: bytes) -> list[bytes | None]:
-    """The values the read script packed in one (None for a key that does not exist)."""
+def _unpacked(lengths: bytes, packed: bytes) -> list[bytes | None]:
+    """The values the read script packed (their lengths, 4 bytes each, big-endian and signed: -1 for a key that does
+    not exist; and their bytes one after the other), None for a key that does not exist."""
     values: list[bytes | None] = []
-    at, end, length_at = 0, len(packed), _FIELD_LENGTH.unpack_from
-    while at < end:
-        (length,) = length_at(packed, at)
-        at += 4
-        if length == _MISSING:
+    at = 0
+    for length in struct.unpack(f">{len(lengths) // 4}i", lengths):
+        if length < 0:
             values.append(None)
         else:
             values.append(packed[at : at + length])
@@ -410,7 +407,7 @@ class RedisStore(StateStore):
             return {}
         vehicle_ids = list(vehicle_ids)
         try:
-            values = _unpacked(self._read_script(args=[_packed(v.encode() for v in vehicle_ids)]))
+            values = _unpacked(*self._read_script(args=[*_packed([v.encode() for v in vehicle_ids])]))
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         stored = {}
@@ -430,11 +427,8 @@ class RedisStore(StateStore):
         if not writes:
             return set()
         vehicle_ids = list(writes)
-        args: list[int | str | bytes] = [
-            self.ttl_ms,
-            _ms(self.event_retention.longest_s),
-            _packed(value for vehicle_id, w in writes.items() for value in _vehicle_fields(vehicle_id, w)),
-        ]
+        fields = [value for vehicle_id, w in writes.items() for value in _vehicle_fields(vehicle_id, w)]
+        args: list[int | str | bytes] = [self.ttl_ms, _ms(self.event_retention.longest_s), *_packed(fields)]
         for number, vehicle_id in enumerate(vehicle_ids, 1):
             for event in writes[vehicle_id].events:
                 retention_ms = _ms(self.event_retention.of(event.fleet))
