@@ -10,7 +10,8 @@
    memory in the vehicles' sessions) or a forward_target (:mod:`service.fcw`), and the HMI of both;
 6. notes the events of the answers that changed a vehicle's level or state (:mod:`service.events`);
 7. writes the vehicles' sessions (and events) back to the store, and the answers as the JSON of the HTTP
-   contract (:mod:`service.encoding`).
+   contract (:mod:`service.encoding`), or for a caller that sends no JSON (the JT/T 808 gateway) as the
+   columns it reads: state, level, the target's V_w and the placement.
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
 rounds holding each vehicle at most once.

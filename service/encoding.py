@@ -61,8 +61,8 @@ class EncodedAnswers:
     Attributes
     ----------
     documents
-        The answers as msgspec structs of the contract, None until answered (and, in answers of
-        :meth:`of_count` without ``documents``, None where no event or FCW needed one).
+        The answers as msgspec structs of the contract, None until answered (and, without
+        ``with_documents``, None where no event or forward collision warning needed one).
     state, level
         Each answer's system state and curve warning level.
     warning_speed_kmh
