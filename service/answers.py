@@ -10,7 +10,8 @@
    memory in the vehicles' sessions) or a forward_target (:mod:`service.fcw`), and the HMI of both;
 6. notes the events of the answers that changed a vehicle's level or state (:mod:`service.events`);
 7. writes the vehicles' sessions (and events) back to the store, and the answers as the JSON of the HTTP
-   contract (:mod:`service.encoding`).
+   contract (:mod:`service.encoding`), or for a caller that sends no JSON (the JT/T 808 gateway) as the
+   columns it reads: state, level, the target's V_w and the placement.
 
 A vehicle queried twice in one batch is evaluated in order: the batch is cut into
 rounds holding each vehicle at most once.
@@ -29,7 +30,7 @@ import msgspec
 from csws.ahead.horizon import PathAhead
 from csws.engine import VehicleInput
 from csws.road.match_settings import MatchSettings
-from csws.standard import Category, Level
+from csws.standard import Category
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, PathKind
 
@@ -120,6 +121,7 @@ class WarningService:
         fleet: str = "",
         stages: Stages = UNTIMED,
         errors: ItemErrors | None = None,
+        documents: bool = True,
     ) -> EncodedAnswers:
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
@@ -127,7 +129,9 @@ class WarningService:
         (:meth:`service.vehicles.VehicleRegistry.transact`); the time of each stage is counted in
         ``stages``. With ``errors`` (a batch answered per query, :mod:`service.batch_items`), the queries
         that are None are those already in it, and each query the networks cannot answer goes into it
-        instead of raising: neither is evaluated, nor is its vehicle's session touched.
+        instead of raising: neither is evaluated, nor is its vehicle's session touched. Without ``documents``,
+        the answers are their columns (state, level, V_w, placement) and only the answers whose events or
+        forward collision warning need one get their document: for a caller that sends no JSON.
 
         Raises
         ------
@@ -144,7 +148,7 @@ class WarningService:
                 cast(DecodedQuery, query) if query is None else _of_vehicle(query, vehicle_key(fleet, query.vehicle_id))
                 for query in queries
             ]
-        answers = EncodedAnswers([None] * len(queries), [SystemState.OFF] * len(queries), [Level.NONE] * len(queries))
+        answers = EncodedAnswers.of_count(len(queries), documents)
 
         def answer_vehicles(vehicles: LoadedVehicles, vehicle_ids: Collection[str]) -> None:
             with stages("check"):
@@ -329,22 +333,11 @@ class WarningService:
         fleet: str,
     ) -> None:
         """Note the answered vehicles' lanes and answers in their sessions, and their answers at ``indices[rows]``
-        (the rows of one network)."""
+        (the rows of one network): the columns of each, and the documents of those that need one."""
         answered_at_s = time.time()
-        network_index = placements[rows[0]].network_index
-        matched = matched_documents(
-            self.networks[network_index], self.lane_points[network_index], [placements[row] for row in rows]
-        )
-        for k, (row, vehicle_id, state, fault, warning, kind) in enumerate(
-            zip(
-                rows,
-                evaluated.vehicle_id,
-                evaluated.state,
-                evaluated.fault,
-                evaluated.warning,
-                evaluated.path_kind,
-                strict=False,
-            )
+        documented: list[tuple[int, bool]] = []  # (k, whether its answer changes its events' trail)
+        for k, (row, vehicle_id, state, fault, warning) in enumerate(
+            zip(rows, evaluated.vehicle_id, evaluated.state, evaluated.fault, evaluated.warning, strict=False)
         ):
             placement, query = placements[row], queries[row]
             target = warning.target
@@ -360,22 +353,52 @@ class WarningService:
             )
             trail = vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest).trail
             index = indices[row]
-            path = evaluated.path(k) if warning.triggers else None
-            answers.documents[index] = encode_answer(
+            answers.state[index], answers.level[index], answers.placement[index] = state, warning.level, placement
+            answers.warning_speed_kmh[index] = float(target.warning_speed_kmh) if target is not None else None
+            changed = changes(trail, latest.level, state, fault is Fault.NO_MAP_MATCH)
+            if changed or answers.with_documents or query.objects is not None or query.forward_target is not None:
+                documented.append((k, changed))
+        if documented:
+            self._document(queries, indices, placements, rows, evaluated, documented, vehicles, answers, fleet)
+        for k, changed in documented:
+            if changed:
+                index, query = indices[rows[k]], queries[rows[k]]
+                observed = observed_of(answers.documents[index], _event_time(query, answered_at_s))
+                vehicles.observe(evaluated.vehicle_id[k], observed)
+
+    def _document(
+        self,
+        queries: Sequence[DecodedQuery],
+        indices: Sequence[int],
+        placements: Sequence[Placement],
+        rows: Sequence[int],
+        evaluated: Evaluated,
+        documented: Sequence[tuple[int, bool]],
+        vehicles: LoadedVehicles,
+        answers: EncodedAnswers,
+        fleet: str,
+    ) -> None:
+        """The contract's WarningAnswer of the ``documented`` answers (their k among ``rows``, of one network),
+        placed at their points in one interpolation, into ``answers.documents``."""
+        network_index = placements[rows[0]].network_index
+        matched = matched_documents(
+            self.networks[network_index],
+            self.lane_points[network_index],
+            [placements[rows[k]] for k, _ in documented],
+        )
+        for (k, _), matched_document in zip(documented, matched, strict=True):
+            row, warning = rows[k], evaluated.warning[k]
+            answers.documents[indices[row]] = encode_answer(
                 self.cpoi_positions[network_index],
-                shown_id(fleet, vehicle_id),
-                state,
-                fault,
+                shown_id(fleet, evaluated.vehicle_id[k]),
+                evaluated.state[k],
+                evaluated.fault[k],
                 warning,
-                kind,
-                path,
-                placement,
-                matched[k],
+                evaluated.path_kind[k],
+                evaluated.path(k) if warning.triggers else None,
+                placements[row],
+                matched_document,
             )
-            answers.state[index] = state
-            answers.level[index] = warning.level
-            if changes(trail, latest.level, state, fault is Fault.NO_MAP_MATCH):
-                vehicles.observe(vehicle_id, observed_of(answers.documents[index], _event_time(query, answered_at_s)))
 
     def vehicle_input(self, query: DecodedQuery, placement: Placement, category: Category) -> VehicleInput:
         """The engine's input for a placed query of a vehicle of ``category``."""

@@ -55,13 +55,40 @@ _ENCODER = msgspec.json.Encoder()
 
 @dataclass
 class EncodedAnswers:
-    """The answers of queries, in order (the contract's WarningAnswer each, see :meth:`WarningService.encode`),
-    with their system states and warning levels (for the metrics).
+    """The answers of queries, in order (the contract's WarningAnswer each, see :meth:`WarningService.answer`),
+    with their system states and warning levels (for the metrics), their target's V_w and their placements.
+
+    Attributes
+    ----------
+    documents
+        The answers as msgspec structs of the contract, None until answered (and, without
+        ``with_documents``, None where no event or forward collision warning needed one).
+    state, level
+        Each answer's system state and curve warning level.
+    warning_speed_kmh
+        Each answer's target curve's V_w at the target's level (3.12), km/h: the target's
+        ``warning_speed_kmh`` of its document; None without a target.
+    placement
+        Where each query was placed, None until answered.
+    with_documents
+        Whether every answer gets its document (the HTTP contract), or only those an event or the
+        forward collision warning needs (a gateway reading the columns alone).
     """
 
-    documents: list[Any]  # the answers (msgspec structs of the contract), None until answered
+    documents: list[Any]
     state: list[SystemState]
     level: list[Level]
+    warning_speed_kmh: list[float | None]
+    placement: list[Placement | None]
+    with_documents: bool = True
+
+    @classmethod
+    def of_count(cls, count: int, with_documents: bool = True) -> EncodedAnswers:
+        """The answers of ``count`` queries before any is answered (off, level 0)."""
+        return cls(
+            [None] * count, [SystemState.OFF] * count, [Level.NONE] * count, [None] * count, [None] * count,
+            with_documents,
+        )  # fmt: skip
 
     def json(self, index: int) -> bytes:
         """One answer's JSON."""

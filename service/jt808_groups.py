@@ -11,15 +11,16 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from csws.gateways.jt808.latency import StageTimes
+from csws.state import SystemState
 
 from .answers import WarningService
 from .checks import QueryErrors
 from .decoding import DecodedQuery
 from .guard import OncePerInterval
 from .jt808_tracking import TrackingPlanner
+from .placement import Placement
 from .store import StoreUnavailable
 from .timing import Stages
 from .work import WorkThread
@@ -172,7 +173,7 @@ class Batcher:
     def _answer_fleet(self, items: Sequence[Item], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
         queries = [query for query, _, _ in items]
         try:
-            encoded = self.service.answer(queries, loc=("jt808",), fleet=fleet, stages=stages)
+            answers = self.service.answer(queries, loc=("jt808",), fleet=fleet, stages=stages, documents=False)
         except QueryErrors as errors:
             if len(items) > 1:
                 return [answer for item in items for answer in self._answer_fleet([item], fleet, stages)]
@@ -187,22 +188,28 @@ class Batcher:
         if due and planner is not None:
             with stages("tracking"):
                 for row, query, intervals_s in due:
-                    windows[row] = _tracking_window_s(planner, query, encoded.documents[row], intervals_s)
+                    windows[row] = _tracking_window_s(
+                        planner, query, answers.state[row], answers.placement[row], intervals_s
+                    )
         return [
-            AnswerSummary(str(state.value), int(level), (document.target or {}).get("warning_speed_kmh"), window_s)
-            for state, level, document, window_s in zip(
-                encoded.state, encoded.level, encoded.documents, windows, strict=True
+            AnswerSummary(str(state.value), int(level), warning_speed_kmh, window_s)
+            for state, level, warning_speed_kmh, window_s in zip(
+                answers.state, answers.level, answers.warning_speed_kmh, windows, strict=True
             )
         ]
 
 
 def _tracking_window_s(
-    planner: TrackingPlanner, query: DecodedQuery, document: Any, intervals_s: Sequence[float]
+    planner: TrackingPlanner,
+    query: DecodedQuery,
+    state: SystemState,
+    placement: Placement | None,
+    intervals_s: Sequence[float],
 ) -> int | None:
     """The tracking window a report asks for (None: none), where a fault of the planner costs only the
     request, never the report's answer: temporary tracking is advice, the warning is not."""
     try:
-        return planner.window_s(query, document, intervals_s)
+        return planner.window_s(query, state, placement, intervals_s)
     except Exception:  # noqa: BLE001 - one report's tracking must not take its group's answers with it
         log.exception("jt808: no tracking window for %s", query.vehicle_id)
         return None

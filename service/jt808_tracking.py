@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import statistics
 from collections.abc import Sequence
-from typing import Any
 
 from csws.ahead.horizon import PathAhead
 from csws.gateways.jt808.tracking import CurveAhead, TrackingSettings, tracking_window_s
@@ -21,6 +20,7 @@ from csws.warning.latency import fix_age_s, update_period_s
 
 from .answers import WarningService
 from .decoding import DecodedQuery
+from .placement import Placement
 
 __all__ = ["TrackingPlanner", "curves_ahead"]
 
@@ -50,26 +50,27 @@ class TrackingPlanner:
 
     def __init__(self, service: WarningService, settings: TrackingSettings) -> None:
         self.service, self.settings = service, settings
-        self._network_index = {network.name: index for index, network in enumerate(service.networks)}
 
-    def window_s(self, query: DecodedQuery, document: Any, intervals_s: Sequence[float]) -> int | None:
-        """The tracking window to ask for after ``query``'s answer ``document``, s, for a terminal whose regular
-        intervals are ``intervals_s``; None when its vehicle is not active on a matched lane or no curve is near.
+    def window_s(
+        self, query: DecodedQuery, state: SystemState, placement: Placement | None, intervals_s: Sequence[float]
+    ) -> int | None:
+        """The tracking window to ask for after ``query``'s answer (its system state ``state``, the query placed at
+        ``placement``), s, for a terminal whose regular intervals are ``intervals_s``; None when its vehicle is not
+        active on a matched lane or no curve is near.
 
         The path ahead is the one the engine looks along from the same lane (the most probable path), as far
         as the warning needs at the terminal's period and one regular interval more.
         """
-        matched = document.matched
-        if matched is None or document.state != SystemState.ACTIVE or query.category is None:
+        if placement is None or placement.lane_id is None or state != SystemState.ACTIVE or query.category is None:
             return None
-        index = self._network_index.get(matched.network)
-        engine = None if index is None else self.service.networks[index].engine
-        if index is None or engine is None or engine.lookahead is None:
+        index = placement.network_index
+        engine = self.service.networks[index].engine
+        if engine is None or engine.lookahead is None:
             return None
         warning = engine.settings.warning
         age_s = fix_age_s(query.age_s)
         try:
-            lane_id, lane_pos_m = self.service.placer.road_lanes[index](matched.lane_id, matched.lane_pos_m)
+            lane_id, lane_pos_m = self.service.placer.road_lanes[index](placement.lane_id, placement.lane_pos_m)
             reach_period_s = update_period_s(intervals_s, warning) + statistics.median(intervals_s)
             path = engine.lookahead(lane_id, lane_pos_m, query.speed_kmh, query.category, None, reach_period_s, age_s)
         except KeyError:  # a lane of a network reloaded since: no tracking this time

@@ -30,7 +30,11 @@ class CountingService:
         time.sleep(self.cost_s)
         documents = [SimpleNamespace(target=None) for _ in queries]
         return SimpleNamespace(
-            state=[SimpleNamespace(value="active")] * len(queries), level=[0] * len(queries), documents=documents
+            state=[SimpleNamespace(value="active")] * len(queries),
+            level=[0] * len(queries),
+            documents=documents,
+            warning_speed_kmh=[None] * len(queries),
+            placement=[None] * len(queries),
         )
 
 
