@@ -23,10 +23,14 @@ import pytest
 from browsers import CHROMIUM, CHROMIUM_ARGS
 from builders import SIDE_X_M, build_side_roads, write_geo_track
 from hypothesis import settings
+from junction_town import build_junction_town
 from markers import fixture_markers, marks_its_tests
 from playwright.sync_api import sync_playwright
 from redis_server import RedisServer
 from servers import Server
+
+from csws.road.hmm import SequenceMatcher
+from csws.road.roadmap import RoadMap
 
 # No example has a deadline: how long a test takes is a benchmark's business, and a loaded machine must not turn
 # a slow example into a failure.
@@ -126,3 +130,16 @@ def browser():
         chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         yield chromium
         chromium.close()
+
+
+@pytest.fixture(scope="module")
+@marks_its_tests("sumo")
+def town(tmp_path_factory: pytest.TempPathFactory) -> RoadMap:
+    """The junction town (:mod:`junction_town`): a straight road through a junction with side streets."""
+    return build_junction_town(tmp_path_factory.mktemp("town"))
+
+
+@pytest.fixture(scope="module")
+def matcher(town: RoadMap) -> SequenceMatcher:
+    """A sequence matcher over the junction town alone."""
+    return SequenceMatcher([town])

@@ -17,8 +17,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from junction_town import JUNCTION_XY, build_junction_town, drive
-from markers import marks_its_tests
+from junction_town import JUNCTION_XY, drive
 
 from csws.engine import Engine, VehicleInput
 from csws.road.hmm import Fixes, SequenceMatcher, Track
@@ -29,17 +28,6 @@ from csws.standard import Level
 
 #: GNSS position noise of the fixes, m (the issue's 1 Hz feed).
 SIGMA_M = 3.0
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("sumo")
-def town(tmp_path_factory) -> RoadMap:
-    return build_junction_town(tmp_path_factory.mktemp("town"))
-
-
-@pytest.fixture(scope="module")
-def matcher(town: RoadMap) -> SequenceMatcher:
-    return SequenceMatcher([town])
 
 
 def _branching_point(town: RoadMap) -> np.ndarray:

@@ -17,8 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from junction_town import JUNCTION_XY, build_junction_town
-from markers import marks_its_tests
+from junction_town import JUNCTION_XY
 
 from csws.road.roadmap import RoadMap
 
@@ -32,12 +31,6 @@ NOISE = Noise(position_sigma_m=8.0, heading_sigma_deg=5.0, speed_sigma_kmh=0.5, 
 SPEED_MPS = 12.0
 #: Each vehicle's path of normal lanes (the connections filled in).
 PATHS = (["WJ_0", "JE_0"], ["WJ_0", "JS_0"], ["WJ_0", "JN_0"]) * 4
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("sumo")
-def town(tmp_path_factory) -> RoadMap:
-    return build_junction_town(tmp_path_factory.mktemp("town"))
 
 
 def _recorded(town: RoadMap) -> Trajectories:

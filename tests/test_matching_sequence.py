@@ -16,8 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from junction_town import SIDE_RADIUS_M, build_junction_town, drive
-from markers import marks_its_tests
+from junction_town import SIDE_RADIUS_M, drive
 
 from csws.engine import Engine, VehicleInput
 from csws.road.hmm import Fixes, MatchState, Placed, SequenceMatcher, Track, transition_scale_m
@@ -30,17 +29,6 @@ from csws.standard import Level
 SEEDS = range(40)
 #: Speeds driven, m/s: 30 and 70 km/h.
 SPEEDS_MPS = (8.3, 19.4)
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("sumo")
-def town(tmp_path_factory) -> RoadMap:
-    return build_junction_town(tmp_path_factory.mktemp("town"))
-
-
-@pytest.fixture(scope="module")
-def matcher(town: RoadMap) -> SequenceMatcher:
-    return SequenceMatcher([town])
 
 
 def _connection(town: RoadMap, from_lane: str, to_lane: str) -> str:

@@ -16,8 +16,6 @@ import math
 
 import numpy as np
 import pytest
-from junction_town import build_junction_town
-from markers import marks_its_tests
 
 from csws.road.hmm import Fixes, SequenceMatcher, Track
 from csws.road.match_settings import MatchSettings
@@ -32,12 +30,6 @@ GAP_M = 2.0
 APPROACH_S, WAIT_S, DRIVE_OFF_S = 6, 30, 16
 APPROACH_MPS, DRIVE_OFF_MPS = 8.0, 5.0
 SEEDS = range(20)
-
-
-@pytest.fixture(scope="module")
-@marks_its_tests("sumo")
-def town(tmp_path_factory) -> RoadMap:
-    return build_junction_town(tmp_path_factory.mktemp("town"))
 
 
 def _along(town: RoadMap, path: tuple[str, ...], s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
