@@ -179,9 +179,7 @@ def path_profile_parts(
         strict=False,
     ):
         add(start_s + offset_s, 0.0, 0.0)
-        for part in chains.profiles[chain].parts:
-            if part.end_s <= start_s or part.start_s >= end_s:
-                continue
+        for part in chains.profile_parts_between(chain, start_s, end_s):
             a, b = max(part.start_s, start_s), min(part.end_s, end_s)
             add(b + offset_s, part.curvature_at_one(a), part.curvature_at_one(b))
     add(float(vertex_s[-1]), 0.0, 0.0)

@@ -4,7 +4,6 @@ on a straight, and the one polyline its lanes make (:mod:`csws.road.chains` fits
 from __future__ import annotations
 
 from collections.abc import Sequence
-from itertools import pairwise
 
 import numpy as np
 
@@ -40,8 +39,9 @@ def stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     pieces = [shapes[0]]
     first_vertex = [0]
     vertex_count = len(shapes[0])
-    for previous, shape in pairwise(shapes):
-        joined = bool(np.hypot(*(shape[0] - previous[-1])) <= JOINT_TOLERANCE_M)
+    gap = np.array([shape[0] for shape in shapes[1:]]).reshape(-1, 2)
+    gap -= np.array([shape[-1] for shape in shapes[:-1]]).reshape(-1, 2)
+    for shape, joined in zip(shapes[1:], (np.hypot(gap[:, 0], gap[:, 1]) <= JOINT_TOLERANCE_M).tolist(), strict=True):
         pieces.append(shape[1:] if joined else shape)
         first_vertex.append(vertex_count - 1 if joined else vertex_count)
         vertex_count += len(pieces[-1])
