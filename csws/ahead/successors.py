@@ -62,6 +62,7 @@ class SuccessorChoice:
         self.reach_m = reach_m
         self.max_lanes = max_lanes
         self._predicted: dict[tuple[str, tuple[str, ...]], str] = {}
+        self._toward_edge: dict[tuple[str, str], tuple[str, ...]] = {}
 
     def following(self, lane_id: str, route_next: RouteNext) -> str | None:
         """The lane after ``lane_id``: along the route if there is one (None where it ends or cannot be followed),
@@ -116,16 +117,23 @@ class SuccessorChoice:
             return [s for s in successors if keeps_road(lane, self.road_map.lane(s))]
         return self._route_lanes(lane_id, successors, route_next)
 
-    def _route_lanes(self, lane_id: str, successors: Sequence[str], route_next: Mapping[str, str]) -> list[str] | None:
+    def _route_lanes(
+        self, lane_id: str, successors: Sequence[str], route_next: Mapping[str, str]
+    ) -> Sequence[str] | None:
         """The successors of ``lane_id`` that lead along the route (all of an internal lane's); None where the route
-        ends at the lane's edge."""
+        ends at the lane's edge. Which lead to an edge depends on the map alone, so it is remembered."""
         lane = self.road_map.lane(lane_id)
         if lane.is_internal:
-            return list(successors)
+            return successors
         next_edge = route_next.get(lane.edge_id)
         if next_edge is None:
             return None
-        return [s for s in successors if self.leads_to_edge(s, next_edge)]
+        toward = self._toward_edge.get((lane_id, next_edge))
+        if toward is None:
+            toward = self._toward_edge[(lane_id, next_edge)] = tuple(
+                s for s in successors if self.leads_to_edge(s, next_edge)
+            )
+        return toward
 
     def _predicted_successor(self, lane_id: str, successors: Sequence[str]) -> str:
         """The most probable successor without a route (it depends on the map alone, so it is remembered)."""
