@@ -17,6 +17,7 @@ from __future__ import annotations
 import bisect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -154,6 +155,11 @@ class RoadChains:
     )
     naming_runs: tuple[tuple[Run, ...], ...] | None = None
     _part_end_s: dict[int, list[float]] = field(default_factory=dict, repr=False, compare=False)
+
+    @cached_property
+    def lane_chain_and_start(self) -> tuple[list[int], list[float]]:
+        """:attr:`lane_chain` and :attr:`lane_start_s` as plain lists, read lane by lane as a path is cut into runs."""
+        return self.lane_chain.tolist(), self.lane_start_s.tolist()
 
     def profile_parts_between(self, chain: int, start_s: float, end_s: float) -> Sequence[ProfilePart]:
         """The parts of a chain's profile that overlap ``(start_s, end_s)``, in order: found by bisection,

@@ -139,13 +139,14 @@ def path_runs(chains: RoadChains, lanes: Sequence[int]) -> list[tuple[int, int]]
     """The path's lanes cut into runs along one chain each: ``(first, last)`` indices into ``lanes``."""
     runs: list[tuple[int, int]] = []
     first = 0
+    lane_chain, lane_start_s = chains.lane_chain_and_start
     for position in range(1, len(lanes) + 1):
         if position == len(lanes):
             runs.append((first, position - 1))
             break
         previous, lane = lanes[position - 1], lanes[position]
-        same_chain = chains.lane_chain[lane] == chains.lane_chain[previous]
-        if not (same_chain and chains.lane_start_s[lane] > chains.lane_start_s[previous]):
+        same_chain = lane_chain[lane] == lane_chain[previous]
+        if not (same_chain and lane_start_s[lane] > lane_start_s[previous]):
             runs.append((first, position - 1))
             first = position
     return runs
