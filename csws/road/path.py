@@ -91,12 +91,17 @@ class PathProfile:
         also when the path starts inside it or turns off the road before its end.
         """
         found = []
-        for run in range(len(self.run_chain)):
-            if self.run_is_junction[run] and not junctions:
+        for chain, start_s, end_s, path_start_s, is_junction in zip(
+            self.run_chain.tolist(),
+            self.run_chain_start_s.tolist(),
+            self.run_chain_end_s.tolist(),
+            self.run_path_start_s.tolist(),
+            self.run_is_junction.tolist(),
+            strict=True,
+        ):
+            if is_junction and not junctions:
                 continue
-            chain = int(self.run_chain[run])
-            start_s, end_s = float(self.run_chain_start_s[run]), float(self.run_chain_end_s[run])
-            offset_m = float(self.run_path_start_s[run]) - start_s
+            offset_m = path_start_s - start_s
             for curve in self.chain_curves(chain, warning_radius_m):
                 clipped = clip_curve(curve, start_s, end_s, offset_m)
                 if clipped is not None:
