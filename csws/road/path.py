@@ -16,7 +16,7 @@ import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, profile_from_parts, straight_profile
 from csws.road.chains import RoadChains, clip_curve
-from csws.road.stitching import stitch
+from csws.road.stitching import stitch_vertices
 from csws.standard import DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 __all__ = ["PathProfile", "path_profile", "path_profile_parts", "path_runs"]
@@ -220,7 +220,8 @@ def path_profile(
     warning_policy
         The warning speeds its curves' clothoids are cut by (:func:`csws.curvature.curves_from_profile`).
     """
-    xy, lane_start_s = stitch(road_shapes)
+    xy, vertex_s, lane_first_vertex = stitch_vertices(road_shapes)
+    lane_start_s = vertex_s[lane_first_vertex]
     shape_length_m = chains.lane_road_length_m[list(lanes)]
     runs = path_runs(chains, lanes)
     first = np.array([lanes[a] for a, _ in runs], dtype=np.int64)
@@ -229,7 +230,6 @@ def path_profile(
     run_chain_start_s = chains.lane_start_s[first]
     run_chain_end_s = chains.lane_start_s[last] + chains.lane_road_length_m[last]
     run_path_start_s = lane_start_s[[a for a, _ in runs]]
-    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
     return PathProfile(
         lane_ids=tuple(lane_ids),
         xy=xy,
