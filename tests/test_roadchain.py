@@ -3,6 +3,7 @@ junction manoeuvre. Every network is built by netconvert from geometry construct
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -13,9 +14,13 @@ from builders import APPROACH_M, CURVE_RADIUS_M
 from builders import edge_xml as _edge
 from builders import node_xml as _node
 from builders import split_curve_map as _split_curve_map
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from csws.ahead.lookahead import LookAhead
 from csws.engine import Engine, VehicleInput
+from csws.networks import networks_dir
+from csws.road.chains import RoadChains
 from csws.road.continuations import road_continuations
 from csws.road.roadmap import RoadMap
 from csws.standard import kmh_to_mps, warning_distance, warning_speed
@@ -103,3 +108,25 @@ def test_turns_at_a_crossroads_are_junction_lanes_and_straight_ahead_is_road(tmp
 
 def _heading_rad(direction: np.ndarray) -> float:
     return math.atan2(direction[1], direction[0])
+
+
+@functools.cache
+def _fleet_chains() -> RoadChains:
+    return RoadMap.load(networks_dir() / "fleet_scenario" / "fleet.net.xml").chains
+
+
+@settings(max_examples=200, deadline=None)
+@given(chain_fraction=st.floats(0.0, 1.0, exclude_max=True), start=st.floats(-0.1, 1.1), length=st.floats(0.0, 0.5))
+def test_the_profile_parts_between_two_arc_lengths_are_those_that_overlap_the_stretch(
+    chain_fraction: float, start: float, length: float
+) -> None:
+    """A path reads a chain's parts that overlap its run, found by bisection: the same parts, in order, as a scan of
+    every part of the chain for overlap with the open stretch."""
+    chains = _fleet_chains()
+    chain = int(chain_fraction * len(chains.profiles))
+    parts = chains.profiles[chain].parts
+    chain_length_m = parts[-1].end_s if parts else 0.0
+    start_s = start * chain_length_m
+    end_s = start_s + length * chain_length_m
+    overlapping = [part for part in parts if not (part.end_s <= start_s or part.start_s >= end_s)]
+    assert list(chains.profile_parts_between(chain, start_s, end_s)) == overlapping

@@ -14,6 +14,7 @@ import bisect
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from operator import attrgetter
 
 import numpy as np
 
@@ -317,10 +318,14 @@ class PartPool:
 
 def radius_at_end(profile: RadiusProfile, end_s: float) -> float:
     """The road's radius at arc length ``end_s``, approached from before it, m."""
-    starts = [part.start_s for part in profile.parts]
-    part = profile.parts[min(max(bisect.bisect_left(starts, end_s) - 1, 0), len(starts) - 1)]
-    curvature = abs(float(part.curvature_at(np.array(end_s))))
+    parts = profile.parts
+    part = parts[min(max(bisect.bisect_left(parts, end_s, key=_start_s) - 1, 0), len(parts) - 1)]
+    curvature = abs(part.curvature_at_one(end_s))
     return 1.0 / curvature if curvature > 0 else math.inf
+
+
+#: A profile part's start, m (the key its parts are bisected by).
+_start_s = attrgetter("start_s")
 
 
 def radius_under(

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from functools import cached_property
 
 import numpy as np
 
@@ -62,11 +63,19 @@ class SuccessorChoice:
         self.reach_m = reach_m
         self.max_lanes = max_lanes
         self._predicted: dict[tuple[str, tuple[str, ...]], str] = {}
+        self._toward_edge: dict[tuple[str, str], tuple[str, ...]] = {}
+
+    @cached_property
+    def _successors_of(self) -> dict[str, tuple[str, ...]]:
+        """The successors of every lane of the map by lane id, looked up at every lane of every path built."""
+        return dict(zip(self.road_map.lane_ids, map(self.road_map.successors, self.road_map.lane_ids), strict=True))
 
     def following(self, lane_id: str, route_next: RouteNext) -> str | None:
         """The lane after ``lane_id``: along the route if there is one (None where it ends or cannot be followed),
         else the most probable; None where nothing follows."""
-        successors = self.road_map.successors(lane_id)
+        successors = self._successors_of.get(lane_id)
+        if successors is None:
+            successors = self.road_map.successors(lane_id)  # raises KeyError: no such lane
         if not successors:
             return None
         if route_next is None:
@@ -116,16 +125,23 @@ class SuccessorChoice:
             return [s for s in successors if keeps_road(lane, self.road_map.lane(s))]
         return self._route_lanes(lane_id, successors, route_next)
 
-    def _route_lanes(self, lane_id: str, successors: Sequence[str], route_next: Mapping[str, str]) -> list[str] | None:
+    def _route_lanes(
+        self, lane_id: str, successors: Sequence[str], route_next: Mapping[str, str]
+    ) -> Sequence[str] | None:
         """The successors of ``lane_id`` that lead along the route (all of an internal lane's); None where the route
-        ends at the lane's edge."""
+        ends at the lane's edge. Which lead to an edge depends on the map alone, so it is remembered."""
         lane = self.road_map.lane(lane_id)
         if lane.is_internal:
-            return list(successors)
+            return successors
         next_edge = route_next.get(lane.edge_id)
         if next_edge is None:
             return None
-        return [s for s in successors if self.leads_to_edge(s, next_edge)]
+        toward = self._toward_edge.get((lane_id, next_edge))
+        if toward is None:
+            toward = self._toward_edge[(lane_id, next_edge)] = tuple(
+                s for s in successors if self.leads_to_edge(s, next_edge)
+            )
+        return toward
 
     def _predicted_successor(self, lane_id: str, successors: Sequence[str]) -> str:
         """The most probable successor without a route (it depends on the map alone, so it is remembered)."""

@@ -14,13 +14,15 @@ does not depend on the lane a path starts from or on how far back it was stitche
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from csws.curvature import Curve, RadiusProfile, cached_radius_profiles, curves_from_profile
+from csws.curvature import Curve, ProfilePart, RadiusProfile, cached_radius_profiles, curves_from_profile
 from csws.road.sharing import (
     JOINT_TOLERANCE_M,
     Run,
@@ -152,6 +154,25 @@ class RoadChains:
         default_factory=dict, repr=False, compare=False
     )
     naming_runs: tuple[tuple[Run, ...], ...] | None = None
+    _part_end_s: dict[int, list[float]] = field(default_factory=dict, repr=False, compare=False)
+
+    @cached_property
+    def lane_chain_and_start(self) -> tuple[list[int], list[float]]:
+        """:attr:`lane_chain` and :attr:`lane_start_s` as plain lists, read lane by lane as a path is cut into runs."""
+        return self.lane_chain.tolist(), self.lane_start_s.tolist()
+
+    def profile_parts_between(self, chain: int, start_s: float, end_s: float) -> Sequence[ProfilePart]:
+        """The parts of a chain's profile that overlap ``(start_s, end_s)``, in order: found by bisection,
+        as a path reads a short stretch of a long chain."""
+        parts = self.profiles[chain].parts
+        part_end_s = self._part_end_s.get(chain)
+        if part_end_s is None:
+            part_end_s = self._part_end_s[chain] = [part.end_s for part in parts]
+        first = bisect.bisect_right(part_end_s, start_s)
+        last = first
+        while last < len(parts) and parts[last].start_s < end_s:
+            last += 1
+        return parts[first:last]
 
     def curves(self, chain: int, warning_radius_m: float, policy: WarningSpeedPolicy) -> list[Curve]:
         """The curves of one chain for R_c ``warning_radius_m``, clothoids cut by ``policy``, found once and kept.

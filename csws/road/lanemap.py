@@ -152,6 +152,11 @@ class LaneMap(GeoReferenced):
         ValueError
             If the path is empty or two consecutive lanes are not connected.
         """
+        lane_ids_by_index = self.lane_ids
+        return tuple(lane_ids_by_index[i] for i in self._expanded_indices(lane_ids))
+
+    def _expanded_indices(self, lane_ids: Sequence[str]) -> list[int]:
+        """The indices of the lanes of :meth:`expand_path`."""
         if not lane_ids:
             raise ValueError("a path needs at least one lane")
         indices = [self._lane_index(lane_ids[0])]
@@ -161,7 +166,7 @@ class LaneMap(GeoReferenced):
             if via is None:
                 raise ValueError(f"lane {following_id!r} does not follow lane {self._lanes[indices[-1]].lane_id!r}")
             indices += via + [following]
-        return tuple(self._lanes[i].lane_id for i in indices)
+        return indices
 
     # ----------------------------------------------------------------- positions
     def match_points(self, xy: np.ndarray, radius_m: float) -> LaneMatches:
@@ -194,20 +199,31 @@ class LaneMap(GeoReferenced):
         view.flags.writeable = False
         return view
 
-    def _successor_indices(self, lane: int) -> np.ndarray:
-        return self._successor_index[self._successor_start[lane] : self._successor_start[lane + 1]]
+    @cached_property
+    def _successor_indices(self) -> tuple[tuple[int, ...], ...]:
+        """The successors of every lane by index, as plain ints (a path's lanes are checked against them)."""
+        starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
+        return tuple(tuple(indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=False))
+
+    @cached_property
+    def _is_internal(self) -> tuple[bool, ...]:
+        """Whether each lane is internal, by index."""
+        return tuple(lane.is_internal for lane in self._lanes)
 
     def _via_chain(self, lane: int, following: int) -> list[int] | None:
         """Internal lanes leading from the end of ``lane`` to ``following`` ([] if adjacent, None if unreachable)."""
+        successor_indices, is_internal = self._successor_indices, self._is_internal
+        if following in successor_indices[lane]:
+            return []
         frontier: list[tuple[int, list[int]]] = [(lane, [])]
         seen = {lane}
         while frontier:
             current, chain_so_far = frontier.pop()
-            successors = self._successor_indices(current)
+            successors = successor_indices[current]
             if following in successors:
                 return chain_so_far
-            for nxt in successors.tolist():
-                if self._lanes[nxt].is_internal and nxt not in seen:
+            for nxt in successors:
+                if is_internal[nxt] and nxt not in seen:
                     seen.add(nxt)
                     frontier.append((nxt, chain_so_far + [nxt]))
         return None

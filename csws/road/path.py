@@ -16,7 +16,7 @@ import numpy as np
 
 from csws.curvature import Curve, RadiusProfile, profile_from_parts, straight_profile
 from csws.road.chains import RoadChains, clip_curve
-from csws.road.stitching import stitch
+from csws.road.stitching import stitch_vertices
 from csws.standard import DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
 
 __all__ = ["PathProfile", "path_profile", "path_profile_parts", "path_runs"]
@@ -91,12 +91,17 @@ class PathProfile:
         also when the path starts inside it or turns off the road before its end.
         """
         found = []
-        for run in range(len(self.run_chain)):
-            if self.run_is_junction[run] and not junctions:
+        for chain, start_s, end_s, path_start_s, is_junction in zip(
+            self.run_chain.tolist(),
+            self.run_chain_start_s.tolist(),
+            self.run_chain_end_s.tolist(),
+            self.run_path_start_s.tolist(),
+            self.run_is_junction.tolist(),
+            strict=True,
+        ):
+            if is_junction and not junctions:
                 continue
-            chain = int(self.run_chain[run])
-            start_s, end_s = float(self.run_chain_start_s[run]), float(self.run_chain_end_s[run])
-            offset_m = float(self.run_path_start_s[run]) - start_s
+            offset_m = path_start_s - start_s
             for curve in self.chain_curves(chain, warning_radius_m):
                 clipped = clip_curve(curve, start_s, end_s, offset_m)
                 if clipped is not None:
@@ -139,13 +144,14 @@ def path_runs(chains: RoadChains, lanes: Sequence[int]) -> list[tuple[int, int]]
     """The path's lanes cut into runs along one chain each: ``(first, last)`` indices into ``lanes``."""
     runs: list[tuple[int, int]] = []
     first = 0
+    lane_chain, lane_start_s = chains.lane_chain_and_start
     for position in range(1, len(lanes) + 1):
         if position == len(lanes):
             runs.append((first, position - 1))
             break
         previous, lane = lanes[position - 1], lanes[position]
-        same_chain = chains.lane_chain[lane] == chains.lane_chain[previous]
-        if not (same_chain and chains.lane_start_s[lane] > chains.lane_start_s[previous]):
+        same_chain = lane_chain[lane] == lane_chain[previous]
+        if not (same_chain and lane_start_s[lane] > lane_start_s[previous]):
             runs.append((first, position - 1))
             first = position
     return runs
@@ -179,9 +185,7 @@ def path_profile_parts(
         strict=False,
     ):
         add(start_s + offset_s, 0.0, 0.0)
-        for part in chains.profiles[chain].parts:
-            if part.end_s <= start_s or part.start_s >= end_s:
-                continue
+        for part in chains.profile_parts_between(chain, start_s, end_s):
             a, b = max(part.start_s, start_s), min(part.end_s, end_s)
             add(b + offset_s, part.curvature_at_one(a), part.curvature_at_one(b))
     add(float(vertex_s[-1]), 0.0, 0.0)
@@ -216,7 +220,8 @@ def path_profile(
     warning_policy
         The warning speeds its curves' clothoids are cut by (:func:`csws.curvature.curves_from_profile`).
     """
-    xy, lane_start_s = stitch(road_shapes)
+    xy, vertex_s, lane_first_vertex = stitch_vertices(road_shapes)
+    lane_start_s = vertex_s[lane_first_vertex]
     shape_length_m = chains.lane_road_length_m[list(lanes)]
     runs = path_runs(chains, lanes)
     first = np.array([lanes[a] for a, _ in runs], dtype=np.int64)
@@ -225,7 +230,6 @@ def path_profile(
     run_chain_start_s = chains.lane_start_s[first]
     run_chain_end_s = chains.lane_start_s[last] + chains.lane_road_length_m[last]
     run_path_start_s = lane_start_s[[a for a, _ in runs]]
-    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
     return PathProfile(
         lane_ids=tuple(lane_ids),
         xy=xy,

@@ -45,6 +45,7 @@ profiles and the :class:`~csws.curvature.Curve` objects they yield are in shape 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -307,19 +308,34 @@ class RoadMap(LaneMap):
         the path leaves a road (a turn at a junction) it runs on along the next road's
         chain. Internal via lanes missing from ``lane_ids`` are filled in (:meth:`expand_path`).
         """
-        path = self.expand_path(lane_ids)
-        indices = [self._index[lane_id] for lane_id in path]
+        indices = self._expanded_indices(lane_ids)
+        lane_ids_by_index, road_shapes = self.lane_ids, self._road_shapes
         return path_profile(
             self._chains,
             indices,
-            path,
-            [self._road_shape(i) for i in indices],
-            np.array([self._lanes[i].length_m for i in indices]),
-            np.array([self._lanes[i].is_junction for i in indices], dtype=bool),
+            [lane_ids_by_index[i] for i in indices],
+            [road_shapes[i] for i in indices],
+            self._lane_length_m[indices],
+            self._lane_is_junction[indices],
             self.warning_policy,
         )
 
     # ----------------------------------------------------------------- internals
+    @cached_property
+    def _road_shapes(self) -> tuple[np.ndarray, ...]:
+        """The shape a path takes along each lane (:meth:`_road_shape`), by index: read at every path built."""
+        return tuple(self._road_shape(lane) for lane in range(len(self._lanes)))
+
+    @cached_property
+    def _lane_length_m(self) -> np.ndarray:
+        """The SUMO length of each lane, by index, m."""
+        return np.array([lane.length_m for lane in self._lanes])
+
+    @cached_property
+    def _lane_is_junction(self) -> np.ndarray:
+        """Whether each lane is a junction manoeuvre, by index."""
+        return np.array([lane.is_junction for lane in self._lanes], dtype=bool)
+
     def _road_shape(self, lane: int) -> np.ndarray:
         """The shape a path takes along a lane: the lane's own, but only the two ends of an
         internal lane that continues the road (:attr:`Lane.continues_road`).

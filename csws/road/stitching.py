@@ -4,13 +4,19 @@ on a straight, and the one polyline its lanes make (:mod:`csws.road.chains` fits
 from __future__ import annotations
 
 from collections.abc import Sequence
-from itertools import pairwise
 
 import numpy as np
 
 from csws.road.sharing import JOINT_TOLERANCE_M
 
-__all__ = ["STRAIGHT_DEVIATION_M", "STRAIGHT_WINDOW_M", "cut_where_straight", "road_chains", "stitch"]
+__all__ = [
+    "STRAIGHT_DEVIATION_M",
+    "STRAIGHT_WINDOW_M",
+    "cut_where_straight",
+    "road_chains",
+    "stitch",
+    "stitch_vertices",
+]
 
 #: A road chain is cut at a joint where its polyline within this distance either side of the
 #: joint lies within :data:`STRAIGHT_DEVIATION_M` of a line, m: no curve of the road (radius
@@ -37,17 +43,25 @@ def stitch(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     lane_start_s
         Arc length along it at each lane's first point, ``(len(shapes),)``.
     """
+    xy, vertex_s, first_vertex = stitch_vertices(shapes)
+    return xy, vertex_s[first_vertex]
+
+
+def stitch_vertices(shapes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """:func:`stitch`, with the arc length at every vertex of the polyline and the index of each lane's first vertex
+    (a path's profile is read at every vertex)."""
     pieces = [shapes[0]]
     first_vertex = [0]
     vertex_count = len(shapes[0])
-    for previous, shape in pairwise(shapes):
-        joined = bool(np.hypot(*(shape[0] - previous[-1])) <= JOINT_TOLERANCE_M)
+    gap = np.array([shape[0] for shape in shapes[1:]]).reshape(-1, 2)
+    gap -= np.array([shape[-1] for shape in shapes[:-1]]).reshape(-1, 2)
+    for shape, joined in zip(shapes[1:], (np.hypot(gap[:, 0], gap[:, 1]) <= JOINT_TOLERANCE_M).tolist(), strict=True):
         pieces.append(shape[1:] if joined else shape)
         first_vertex.append(vertex_count - 1 if joined else vertex_count)
         vertex_count += len(pieces[-1])
     xy = np.concatenate(pieces)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    return xy, s[first_vertex]
+    vertex_s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    return xy, vertex_s, first_vertex
 
 
 def road_chains(continues_into: np.ndarray) -> list[np.ndarray]:
