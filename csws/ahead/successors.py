@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from functools import cached_property
 
 import numpy as np
 
@@ -65,17 +64,10 @@ class SuccessorChoice:
         self._predicted: dict[tuple[str, tuple[str, ...]], str] = {}
         self._toward_edge: dict[tuple[str, str], tuple[str, ...]] = {}
 
-    @cached_property
-    def _successors_of(self) -> dict[str, tuple[str, ...]]:
-        """The successors of every lane of the map by lane id, looked up at every lane of every path built."""
-        return dict(zip(self.road_map.lane_ids, map(self.road_map.successors, self.road_map.lane_ids), strict=True))
-
     def following(self, lane_id: str, route_next: RouteNext) -> str | None:
         """The lane after ``lane_id``: along the route if there is one (None where it ends or cannot be followed),
         else the most probable; None where nothing follows."""
-        successors = self._successors_of.get(lane_id)
-        if successors is None:
-            successors = self.road_map.successors(lane_id)  # raises KeyError: no such lane
+        successors = self.road_map.successors(lane_id)
         if not successors:
             return None
         if route_next is None:

@@ -129,7 +129,16 @@ class LaneMap(GeoReferenced):
         next normal lanes where a connection has no via lane); from an internal lane,
         the next internal lane or the normal lane it leads to.
         """
-        return self._successor_ids[self._lane_index(lane_id)]
+        try:
+            return self._successors_by_id[lane_id]
+        except KeyError:
+            raise KeyError(f"no lane {lane_id!r} in the network") from None
+
+    @cached_property
+    def _successors_by_id(self) -> dict[str, tuple[str, ...]]:
+        """The successors of every lane by lane id: one lookup at every step of every path built, for the
+        map's lifetime (a table kept by whoever builds paths would be built again by each of them)."""
+        return dict(zip((lane.lane_id for lane in self._lanes), self._successor_ids, strict=True))
 
     @cached_property
     def _successor_ids(self) -> tuple[tuple[str, ...], ...]:
