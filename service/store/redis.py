@@ -39,7 +39,7 @@ A request reads its vehicles with one Lua script (one ``MGET``, atomic) and writ
 more (atomic, run by the server): per vehicle, it compares the session's version with the one read
 and writes session and setting only if it matches. Each takes its vehicles packed in one argument
 and the read returns them packed in one value, so that the client packs and parses one value, not
-a few per vehicle.
+a few per vehicle: the scripts and their values are in :mod:`service.store.redis_layout`.
 
 Durability is Redis's: with ``appendonly yes`` and ``appendfsync always`` every write is on disk
 before its reply, so no acknowledged ``PUT`` is lost when Redis or its machine fails; with
@@ -53,9 +53,8 @@ from __future__ import annotations
 
 import math
 import re
-import struct
 import time
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Mapping
 from typing import cast
 from urllib.parse import urlsplit, urlunsplit
 
@@ -63,23 +62,37 @@ import redis
 from redis.backoff import NoBackoff
 from redis.retry import Retry
 
-from csws.standard import Category
-
 from . import (
     DEFAULT_EVENT_RETENTION_S,
     STORE_TIMEOUT_S,
     Box,
     EventRetention,
-    Place,
     PlacedSession,
     StateStore,
     StoredEvent,
     StoredVehicle,
     StoreUnavailable,
-    VehicleSetting,
     VehicleWrite,
     checked_idle_s,
     prefix_end,
+)
+from .redis_layout import (
+    EVENT_SEQ_PREFIX,
+    HISTORIES_KEY,
+    HISTORY_PREFIX,
+    OUTBOX_KEY,
+    PLACED_KEY,
+    PLACES_KEY,
+    READ_SCRIPT,
+    SESSION_PREFIX,
+    SETTING_PREFIX,
+    WRITE_SCRIPT,
+    decode_place,
+    decode_session,
+    decode_setting,
+    packed,
+    unpacked,
+    vehicle_fields,
 )
 from .redis_places import (
     AXIS_BITS,
@@ -118,131 +131,8 @@ __all__ = [
     "RedisStore",
 ]
 
-SESSION_PREFIX = "csws:session:"
-SETTING_PREFIX = "csws:setting:"
-PLACES_KEY = "csws:places"
-PLACED_KEY = "csws:placed"
-OUTBOX_KEY = "csws:outbox"
-HISTORY_PREFIX = "csws:history:"
-HISTORIES_KEY = "csws:histories"
-EVENT_SEQ_PREFIX = "csws:event-seq:"
 #: A cursor of the outbox: a stream entry's id.
 _CURSOR = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
-
-#: KEYS: the places hash and the placed set.
-#: ARGV: the sessions' time to live in ms, the longest retention of events in ms, the vehicles packed in two values
-#: (:func:`_packed` of :func:`_vehicle_fields`: per vehicle its key, the expected version, the new session, the new
-#: setting ('' for none), the new place ('' for none) and its cell (:func:`place_cell`)), then per event the
-#: (1-based) number of its vehicle, its fleet, number, time (s), JSON and its fleet's retention in ms. Two packed values
-#: instead of 8 arguments a vehicle: the client packs 4 arguments, not thousands.
-#: Returns the numbers of the vehicles whose session version had moved (none of their events is added).
-_WRITE_SCRIPT = (
-    """
-local conflicts, written = {}, {}
-local lengths, packed, length_at, at, vehicle = ARGV[3], ARGV[4], 1, 1, 0
-local function field()
-  local length = struct.unpack('>I4', lengths, length_at)
-  local value = string.sub(packed, at, at + length - 1)
-  length_at, at = length_at + 4, at + length
-  return value
-end
-while length_at <= #lengths do
-  vehicle = vehicle + 1
-  local key, expected, session, setting, place, cell = field(), field(), field(), field(), field(), field()
-  local session_key = '__SESSION__' .. key
-  local stored = redis.call('GET', session_key)
-  local version = stored and string.match(stored, '^(%d+)|') or '0'
-  if version == expected then
-    written[vehicle] = key
-    redis.call('SET', session_key, (tonumber(version) + 1) .. '|' .. session, 'PX', ARGV[1])
-    if setting ~= '' then
-      redis.call('SET', '__SETTING__' .. key, setting)
-    end
-    if place ~= '' then
-      local network = string.sub(place, 1, string.find(place, '|[^|]+|[^|]+$') - 1)
-      local stored_place = redis.call('HGET', KEYS[1], key)
-      local left = stored_place and string.sub(stored_place, 1, string.find(stored_place, '|[^|]+|[^|]+$') - 1)
-      if left and left ~= network then
-        redis.call('ZREM', '__GRID__' .. left, key)
-      end
-      redis.call('HSET', KEYS[1], key, place)
-      if not stored_place then
-        redis.call('ZADD', KEYS[2], 0, key)
-      end
-      redis.call('ZADD', '__GRID__' .. network, cell, key)
-    end
-  else
-    conflicts[#conflicts + 1] = vehicle
-  end
-end
-local first = 5
-if first <= #ARGV then
-  local now = redis.call('TIME')
-  local now_s = tonumber(now[1]) + tonumber(now[2]) / 1e6
-  local longest_ms = tonumber(ARGV[2])
-  local oldest_s = now_s - longest_ms / 1000
-  for at = first, #ARGV, 6 do
-    local key = written[tonumber(ARGV[at])]
-    if key then
-      local fleet, seq, time_s, body = ARGV[at + 1], ARGV[at + 2], ARGV[at + 3], ARGV[at + 4]
-      local retention_ms = tonumber(ARGV[at + 5])
-      local oldest_id = tostring(math.floor(now_s * 1000 - retention_ms))
-      local longest_id = tostring(math.floor(now_s * 1000 - longest_ms))
-      local id = redis.call('XADD', '__OUTBOX__', 'MINID', longest_id, '*', 'k', key, 'b', body)
-      redis.call('XADD', '__OUTBOX__:' .. fleet, 'MINID', oldest_id, id, 'k', key, 'b', body)
-      local history = '__HISTORY__' .. key
-      local ms, sequence = string.match(id, '^(%d+)-(%d+)$')
-      redis.call('ZADD', history, time_s, string.format('%s-%020d|', ms, tonumber(sequence)) .. body)
-      for _, old in ipairs(redis.call('ZRANGE', history, 0, 15)) do
-        if tonumber(string.match(old, '^(%d+)-')) < tonumber(oldest_id) then
-          redis.call('ZREM', history, old)
-        end
-      end
-      redis.call('ZADD', '__HISTORIES__', now_s + (retention_ms - longest_ms) / 1000, key)
-      redis.call('SET', '__SEQ__' .. key, seq)
-    end
-  end
-  for _, stale in ipairs(redis.call('ZRANGEBYSCORE', '__HISTORIES__', '-inf', '(' .. oldest_s, 'LIMIT', 0, 16)) do
-    redis.call('DEL', '__HISTORY__' .. stale)
-    redis.call('ZREM', '__HISTORIES__', stale)
-  end
-end
-return conflicts
-""".replace("__OUTBOX__", OUTBOX_KEY)
-    .replace("__HISTORY__", HISTORY_PREFIX)
-    .replace("__HISTORIES__", HISTORIES_KEY)
-    .replace("__SEQ__", EVENT_SEQ_PREFIX)
-    .replace("__GRID__", GRID_PREFIX)
-    .replace("__SESSION__", SESSION_PREFIX)
-    .replace("__SETTING__", SETTING_PREFIX)
-)
-#: ARGV: the vehicles' keys packed in two values (:func:`_packed`). Returns the session, the setting and the number
-#: of the last event of each vehicle, in that order, packed the same way, a length of -1 standing for a key that
-#: does not exist (:func:`_unpacked`). Atomic as the ``MGET`` it makes is; two arguments and two values in the reply
-#: instead of 3 keys and 3 values a vehicle, which redis-py packed and parsed one by one.
-_READ_SCRIPT = (
-    """
-local lengths, packed, length_at, at, keys = ARGV[1], ARGV[2], 1, 1, {}
-while length_at <= #lengths do
-  local length = struct.unpack('>I4', lengths, length_at)
-  local key = string.sub(packed, at, at + length - 1)
-  length_at, at = length_at + 4, at + length
-  keys[#keys + 1] = '__SESSION__' .. key
-  keys[#keys + 1] = '__SETTING__' .. key
-  keys[#keys + 1] = '__SEQ__' .. key
-end
-local out_lengths, out = {}, {}
-for first = 1, #keys, 3000 do
-  for _, value in ipairs(redis.call('MGET', unpack(keys, first, math.min(first + 2999, #keys)))) do
-    out_lengths[#out_lengths + 1] = struct.pack('>i4', value and #value or -1)
-    out[#out + 1] = value or ''
-  end
-end
-return {table.concat(out_lengths), table.concat(out)}
-""".replace("__SESSION__", SESSION_PREFIX)
-    .replace("__SETTING__", SETTING_PREFIX)
-    .replace("__SEQ__", EVENT_SEQ_PREFIX)
-)
 
 
 def _ms(duration_s: float) -> int:
@@ -258,70 +148,6 @@ def shown_url(url: str) -> str:
     user = f"{parts.username}:***@" if parts.username else ":***@"
     host = parts.hostname or ""
     return urlunsplit(parts._replace(netloc=f"{user}{host}" + (f":{parts.port}" if parts.port else "")))
-
-
-def _encode_setting(setting: VehicleSetting) -> bytes:
-    return (("1" if setting.switched_on else "0") + (setting.category.value if setting.category else "")).encode()
-
-
-def _decode_setting(value: bytes) -> VehicleSetting:
-    """A stored setting; ValueError for one this service did not write."""
-    text = value.decode()
-    if text[:1] not in ("0", "1"):
-        raise ValueError(f"not a vehicle setting: {text[:40]!r}")
-    return VehicleSetting(text[0] == "1", Category(text[1:]) if text[1:] else None)
-
-
-def _encode_place(place: Place) -> str:
-    """A place as the store keeps it: ``{network}|{x}|{y}``, the numbers exact (``repr``)."""
-    return f"{place.network}|{place.x!r}|{place.y!r}"
-
-
-def _decode_place(value: bytes) -> Place:
-    """A stored place (network names may hold ``|``; the numbers do not)."""
-    network, x, y = value.decode().rsplit("|", 2)
-    return Place(network, float(x), float(y))
-
-
-def _packed(values: Sequence[bytes]) -> tuple[bytes, bytes]:
-    """``values`` as the scripts unpack them, in two values: their lengths (4 bytes each, big-endian), and their
-    bytes one after the other."""
-    return struct.pack(f">{len(values)}I", *map(len, values)), b"".join(values)
-
-
-def _unpacked(lengths: bytes, packed: bytes) -> list[bytes | None]:
-    """The values the read script packed (their lengths, 4 bytes each, big-endian and signed: -1 for a key that does
-    not exist; and their bytes one after the other), None for a key that does not exist."""
-    values: list[bytes | None] = []
-    at = 0
-    for length in struct.unpack(f">{len(lengths) // 4}i", lengths):
-        if length < 0:
-            values.append(None)
-        else:
-            values.append(packed[at : at + length])
-            at += length
-    return values
-
-
-def _vehicle_fields(vehicle_id: str, w: VehicleWrite) -> tuple[bytes, ...]:
-    """What the write script takes of one vehicle: its key, expected version, session, setting, place and cell
-    (the last three empty for none)."""
-    return (
-        vehicle_id.encode(),
-        str(w.expected_version).encode(),
-        w.session,
-        b"" if w.setting is None else _encode_setting(w.setting),
-        b"" if w.place is None else _encode_place(w.place).encode(),
-        b"" if w.place is None else str(place_cell(w.place)).encode(),
-    )
-
-
-def _decode_session(value: bytes | None) -> tuple[bytes | None, int]:
-    """A stored session and its version."""
-    if value is None:
-        return None, 0
-    version, _, session = value.partition(b"|")
-    return session, int(version)
 
 
 class RedisStore(StateStore):
@@ -367,8 +193,8 @@ class RedisStore(StateStore):
         except ValueError as exc:
             raise ValueError(f"bad Redis URL {self.name}: {exc}") from None
         self._database = int(self._redis.connection_pool.connection_kwargs.get("db", 0))
-        self._write_script = self._redis.register_script(_WRITE_SCRIPT)
-        self._read_script = self._redis.register_script(_READ_SCRIPT)
+        self._write_script = self._redis.register_script(WRITE_SCRIPT)
+        self._read_script = self._redis.register_script(READ_SCRIPT)
         self._placed_script = self._redis.register_script(PLACED_SCRIPT.replace("__SESSION__", SESSION_PREFIX))
         self._index_script = self._redis.register_script(INDEX_SCRIPT)
 
@@ -395,7 +221,7 @@ class RedisStore(StateStore):
             cursor, places = self._redis.hscan(PLACES_KEY, cursor, count=1000)
             args: list[bytes | int] = []
             for key, place in cast(dict[bytes, bytes], places).items():
-                args += [key, place, place_cell(_decode_place(place))]
+                args += [key, place, place_cell(decode_place(place))]
             if args:
                 self._index_script(keys=[PLACES_KEY], args=args)
             if cursor == 0:
@@ -407,7 +233,7 @@ class RedisStore(StateStore):
             return {}
         vehicle_ids = list(vehicle_ids)
         try:
-            values = _unpacked(*self._read_script(args=[*_packed([v.encode() for v in vehicle_ids])]))
+            values = unpacked(*self._read_script(args=[*packed([v.encode() for v in vehicle_ids])]))
         except redis.RedisError as exc:
             raise self._unavailable(exc) from None
         stored = {}
@@ -415,7 +241,7 @@ class RedisStore(StateStore):
         for vehicle_id, session, setting, seq in zip(vehicle_ids, *columns, strict=True):
             try:
                 stored[vehicle_id] = StoredVehicle(
-                    None if setting is None else _decode_setting(setting), *_decode_session(session), int(seq or 0)
+                    None if setting is None else decode_setting(setting), *decode_session(session), int(seq or 0)
                 )
             except ValueError as exc:
                 raise StoreUnavailable(
@@ -427,8 +253,8 @@ class RedisStore(StateStore):
         if not writes:
             return set()
         vehicle_ids = list(writes)
-        fields = [value for vehicle_id, w in writes.items() for value in _vehicle_fields(vehicle_id, w)]
-        args: list[int | str | bytes] = [self.ttl_ms, _ms(self.event_retention.longest_s), *_packed(fields)]
+        fields = [value for vehicle_id, w in writes.items() for value in vehicle_fields(vehicle_id, w)]
+        args: list[int | str | bytes] = [self.ttl_ms, _ms(self.event_retention.longest_s), *packed(fields)]
         for number, vehicle_id in enumerate(vehicle_ids, 1):
             for event in writes[vehicle_id].events:
                 retention_ms = _ms(self.event_retention.of(event.fleet))
@@ -459,9 +285,9 @@ class RedisStore(StateStore):
         placed = []
         for k in range(0, len(found), 3):
             key, stored, place = found[k : k + 3]
-            session, _version = _decode_session(stored)
+            session, _version = decode_session(stored)
             assert session is not None  # only live sessions are found
-            placed.append(PlacedSession(key.decode(), session, _decode_place(place)))
+            placed.append(PlacedSession(key.decode(), session, decode_place(place)))
         return placed
 
     def events_after(self, fleet: str | None, after: str | None, limit: int) -> list[StoredEvent]:
