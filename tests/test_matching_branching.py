@@ -20,7 +20,9 @@ from hypothesis import strategies as st
 from junction_town import JUNCTION_XY, drive
 
 from csws.engine import Engine, VehicleInput
+from csws.networks import networks_dir
 from csws.road.hmm import Fixes, SequenceMatcher, Track
+from csws.road.lanegraph import LaneGraph
 from csws.road.match_settings import MatchSettings
 from csws.road.matching import Probes
 from csws.road.roadmap import RoadMap
@@ -127,3 +129,28 @@ def test_a_fix_behind_the_branching_point_turned_toward_a_side_street_is_not_pla
     answer = _one(matcher, point + (-behind_m, beside_m), 1.0, 90.0 + turned_deg, speed_mps, before.tracks[0])
     road_on = town.expand_path(["WJ_0", "JE_0"])
     assert answer.lane_id[0] in road_on, (answer.lane_id, answer.lane_pos_m)
+
+
+def test_only_the_first_internal_lane_of_a_connection_is_its_start() -> None:
+    # Bad Hersfeld's left turns are split by SUMO where turning vehicles wait for a gap: the start of the second
+    # internal lane lies inside the turn, not at the end of the lane the connection comes from.
+    city = RoadMap.load(networks_dir() / "badhersfeld.net.xml.gz")
+    graph = LaneGraph([city], MatchSettings().reach_m)
+    reached_from_a_road = {
+        following
+        for lane_id in city.lane_ids
+        if not city.lane(lane_id).is_internal
+        for following in city.successors(lane_id)
+        if city.lane(following).is_internal
+    }
+    starts = {city.lane_ids[i] for i in np.flatnonzero(graph.connection_start)}
+    assert starts == reached_from_a_road
+    later = {lane_id for lane_id in city.lane_ids if city.lane(lane_id).is_internal} - starts
+    assert later, "the city has split connections"
+    internal_before = {
+        following
+        for lane_id in city.lane_ids
+        if city.lane(lane_id).is_internal
+        for following in city.successors(lane_id)
+    }
+    assert later <= internal_before  # each is reached from within a junction only

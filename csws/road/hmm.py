@@ -321,9 +321,10 @@ class SequenceMatcher:
     def _undecided(self, step: Step, count: int) -> np.ndarray:
         """Which fixes' best candidate turns off the road inside a junction while the connections into its
         road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge, or lies at
-        the very start of its connection (a fix level with or behind it, its projection clamped there): that
-        point is the end of the lane the connection comes from, where every connection from it starts, so it is
-        no evidence for this one's turn."""
+        the very start of its connection's first internal lane (a fix level with or behind it, its projection
+        clamped there): that point is the end of the lane the connection comes from, where every connection from
+        it starts, so it is no evidence for this one's turn. The start of a later internal lane of a connection
+        (SUMO splits a left turn where its vehicles wait for a gap) is inside the turn, and is not such a point."""
         candidates, graph = step.candidates, self.graph
         has = step.best >= 0
         has_lane = candidates.lane[step.best[has]]
@@ -341,7 +342,7 @@ class SequenceMatcher:
         group_p = np.bincount(fix, weights=probability * group, minlength=count)
         same_p = np.bincount(fix, weights=probability * same, minlength=count)
         at_start = np.zeros(count, dtype=bool)
-        at_start[has] = candidates.pos_m[step.best[has]] <= 0.0
+        at_start[has] = (candidates.pos_m[step.best[has]] <= 0.0) & graph.connection_start[has_lane]
         return turning & ((same_p < self.settings.commit_share * group_p) | at_start)
 
     def _continuation(self, step: Step, fix: int) -> tuple[int, float, float]:

@@ -110,12 +110,16 @@ class _JunctionEnds:
     entry, exit_lane
         Per internal lane: the normal lane its connection starts from and the one it leads to (-1 for normal
         lanes, and where none is found).
+    first
+        Per lane: whether it is the first internal lane of a connection (where the connection starts, at the end
+        of the normal lane it comes from).
     links
         Sorted keys ``from * count + to`` of every pair of normal lanes joined by a connection.
     """
 
     entry: np.ndarray
     exit_lane: np.ndarray
+    first: np.ndarray
     links: np.ndarray
 
 
@@ -124,6 +128,7 @@ def _junction_ends(lanes: _Lanes) -> _JunctionEnds:
     count = len(lanes.edge)
     entry = np.full(count, -1, dtype=np.intp)
     exit_lane = np.full(count, -1, dtype=np.intp)
+    first_lane = np.zeros(count, dtype=bool)
     links: list[int] = []
     for lane, following in enumerate(lanes.successors):
         if lanes.internal[lane]:
@@ -139,9 +144,10 @@ def _junction_ends(lanes: _Lanes) -> _JunctionEnds:
             reached = -1 if lanes.internal[current] else current
             entry[chain] = lane
             exit_lane[chain] = reached
+            first_lane[chain[:1]] = True
             if reached >= 0:
                 links.append(lane * count + reached)
-    return _JunctionEnds(entry, exit_lane, np.unique(np.array(links, dtype=np.int64)))
+    return _JunctionEnds(entry, exit_lane, first_lane, np.unique(np.array(links, dtype=np.int64)))
 
 
 def _crossing_changes(lanes: _Lanes, ends: _JunctionEnds, entry_edge: np.ndarray, exit_edge: np.ndarray) -> np.ndarray:
@@ -207,6 +213,8 @@ class LaneGraph:
         #: Per internal lane: the normal lane it starts from and the normal lane and edge it leads to (-1 otherwise).
         ends = _junction_ends(lanes)
         self.entry_lane, self.exit_lane = ends.entry, ends.exit_lane
+        #: Per lane: whether it is the first internal lane of a connection.
+        self.connection_start = ends.first
         self.entry_edge = np.where(self.entry_lane >= 0, lanes.edge[np.maximum(self.entry_lane, 0)], -1)
         self.exit_edge = np.where(self.exit_lane >= 0, lanes.edge[np.maximum(self.exit_lane, 0)], -1)
         self._crossing_changes = np.append(
