@@ -359,7 +359,7 @@ class WarningService:
             if changed or answers.with_documents or query.objects is not None or query.forward_target is not None:
                 documented.append((k, changed))
         if documented:
-            self._document(queries, indices, placements, rows, evaluated, documented, vehicles, answers, fleet)
+            self._document(queries, indices, placements, rows, evaluated, documented, answers, fleet)
         for k, changed in documented:
             if changed:
                 index, query = indices[rows[k]], queries[rows[k]]
@@ -374,7 +374,6 @@ class WarningService:
         rows: Sequence[int],
         evaluated: Evaluated,
         documented: Sequence[tuple[int, bool]],
-        vehicles: LoadedVehicles,
         answers: EncodedAnswers,
         fleet: str,
     ) -> None:

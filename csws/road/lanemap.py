@@ -142,8 +142,8 @@ class LaneMap(GeoReferenced):
 
     @cached_property
     def _successor_ids(self) -> tuple[tuple[str, ...], ...]:
-        """The successors of every lane by ids, in the order of :attr:`lane_ids` (asked for at every
-        step of every path built)."""
+        """The successors of every lane by ids, in the order of :attr:`lane_ids` (the table
+        :attr:`_successors_by_id` is made of)."""
         ids = [lane.lane_id for lane in self._lanes]
         starts, indices = self._successor_start.tolist(), self._successor_index.tolist()
         return tuple(tuple(ids[i] for i in indices[a:b]) for a, b in zip(starts[:-1], starts[1:], strict=False))

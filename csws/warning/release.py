@@ -260,7 +260,8 @@ def next_memories(
     rule 4; without them the memories keep no places, and rule 4 recalls nothing from them.
 
     The CPOIs that keep a level on are found once for all vehicles; each vehicle's memory is built
-    from those rows only (a CPOI that keeps nothing on adds nothing to it, :func:`vehicle_memory`).
+    from those rows only (a CPOI that keeps nothing on adds nothing to it), by the same helper as
+    :func:`vehicle_memory`.
     """
     memories = [NOT_HELD] * len(held)
     on_rows = np.flatnonzero(np.any(cpoi_rule != Rule.OFF, axis=0))

@@ -37,9 +37,10 @@ Reading places (:meth:`RedisStore.placed`) is one server-side script too, over t
 
 A request reads its vehicles with one Lua script (one ``MGET``, atomic) and writes them with one
 more (atomic, run by the server): per vehicle, it compares the session's version with the one read
-and writes session and setting only if it matches. Each takes its vehicles packed in one argument
-and the read returns them packed in one value, so that the client packs and parses one value, not
-a few per vehicle: the scripts and their values are in :mod:`service.store.redis_layout`.
+and writes session and setting only if it matches. Each takes its vehicles packed in two
+arguments (their values' lengths, and their bytes one after the other) and the read returns them
+packed the same way, so that the client packs and parses two values, not a few per vehicle: the
+scripts and their values are in :mod:`service.store.redis_layout`.
 
 Durability is Redis's: with ``appendonly yes`` and ``appendfsync always`` every write is on disk
 before its reply, so no acknowledged ``PUT`` is lost when Redis or its machine fails; with
