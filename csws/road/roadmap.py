@@ -129,7 +129,6 @@ class RoadMap(LaneMap):
         self.warning_radius_m = checked_warning_radius_m(warning_radius_m)
         self.warning_policy = warning_policy
         super().__init__(lanes, xy, vertex_start, successors, geo)
-        road_shapes = [self._road_shape(i) for i in range(len(self._lanes))]
         self.exact_lanes = dict(exact_lanes or {})
         given = None
         if self.exact_lanes:
@@ -138,9 +137,9 @@ class RoadMap(LaneMap):
             given = given_exact_profiles(self.lane_ids, self.exact_lanes)
         self._chains = fit_road_chains(
             np.array([self._index.get(lane.continues_into, -1) for lane in self._lanes], dtype=np.int64),
-            road_shapes,
-            np.array([lane.length_m for lane in self._lanes]),
-            np.array([lane.is_junction for lane in self._lanes], dtype=bool),
+            self._road_shapes,
+            self._lane_length_m,
+            self._lane_is_junction,
             profile_cache_dir() if cache else None,
             edge_ids=[lane.edge_id for lane in self._lanes],
             lane_index=[lane.index for lane in self._lanes],
@@ -323,7 +322,8 @@ class RoadMap(LaneMap):
     # ----------------------------------------------------------------- internals
     @cached_property
     def _road_shapes(self) -> tuple[np.ndarray, ...]:
-        """The shape a path takes along each lane (:meth:`_road_shape`), by index: read at every path built."""
+        """The shape a path takes along each lane (:meth:`_road_shape`), by index: the road chains are fitted
+        to them, and every path built reads them."""
         return tuple(self._road_shape(lane) for lane in range(len(self._lanes)))
 
     @cached_property
