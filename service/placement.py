@@ -8,7 +8,8 @@ junction whose turn the fixes do not show yet is placed on the road's continuati
 matches no lane is dead-reckoned along the road for a while after the last match (see
 docs/service.md, "Map matching"). A fix is taken at its ``timestamp_s``, else at the time it is
 answered less its ``age_s``. The path ahead of a matched fix starts from the lane of its edge that keeps the
-road (:class:`csws.ahead.roadlane.RoadLanes`): a fix cannot tell the lanes of an edge apart.
+road (:class:`csws.ahead.roadlane.RoadLanes`): a fix cannot tell the lanes of an edge apart, unless the
+sequence of fixes shows its lane (:attr:`csws.road.fixes.MatchState.lane_shown`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from csws.ahead.roadlane import RoadLanes
-from csws.road.hmm import Confirmed, Fixes, SequenceMatcher
+from csws.road.hmm import Confirmed, Fixes, SequenceMatcher, Track
 from csws.road.match_settings import MatchSettings
 from csws.road.matching import Probes, lane_points
 from csws.road.roadmap import RoadMap
@@ -192,7 +193,7 @@ class Placer:
             if network_index < 0:
                 network_index = vehicles.network_of(query.vehicle_id)
             path_lane_id, path_lane_pos_m = lane_id, lane_pos_m
-            if lane_id is not None:
+            if lane_id is not None and not self._shows_lane(track, lane_id):
                 path_lane_id, path_lane_pos_m = self.road_lanes[network_index](lane_id, lane_pos_m, query.route)
             placements.append(
                 Placement(
@@ -208,6 +209,12 @@ class Placer:
             )
             vehicles.keep_track(query.vehicle_id, track)
         return placements
+
+    @staticmethod
+    def _shows_lane(track: Track | None, lane_id: str) -> bool:
+        """Whether the fixes show ``lane_id``, where the vehicle's newest fix was matched (not dead-reckoned from
+        an earlier one), among its edge's lanes: its path ahead then starts from that lane."""
+        return track is not None and track.state.lane_id == lane_id and track.state.lane_shown
 
     def _confirmed_place(self, confirmed: Confirmed) -> ConfirmedPlace:
         """A confirmed fix with its network named."""

@@ -6,6 +6,7 @@ travel. The network is tests/exit_ramp.py; the truth is each constructed drive (
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -212,3 +213,36 @@ def test_the_horizon_of_a_fix_on_the_exit_lane_follows_the_road(client, exit_map
     assert not any(cpoi["curve_id"].startswith("DR@") for cpoi in fix["cpois"])
     lane = client.get("/v1/horizon", params={"lane_id": "WD_0", "lane_pos_m": 350.0, "length_m": 300.0}).json()
     assert "DR_0" in lane["lanes"] and any(cpoi["curve_id"].startswith("DR@") for cpoi in lane["cpois"])
+
+
+def _outside_fix(route: Drive, k: int, offset_m: float) -> Drive:
+    """``route`` with its fix ``k`` moved ``offset_m`` to the right of the road (south: the road runs east)."""
+    xy = route.xy.copy()
+    xy[k, 1] -= offset_m
+    return dataclasses.replace(route, xy=xy)
+
+
+def test_fixes_that_show_the_exit_lane_put_the_ramp_ahead_before_the_diverge(client, exit_map: RoadMap) -> None:
+    # Fixes on the exit lane's centre line (accuracy 3 m) and one 3 m beyond it, away from the road: that one is
+    # 6.2 m from the neighbouring lane, and the sequence holds the matcher's commit share of the edge's candidates
+    # on the exit lane. From that fix the path ahead is the exit lane's, and the ramp's curve is warned on the exit
+    # lane, where formula (1) requires it or earlier. Fixes of the neighbouring lane with one on the exit lane's
+    # centre line (3.2 m off: as likely noise as not) never are.
+    path, starts_s = path_starts_s(exit_map, ["WD_0", "DR_0"])
+    curve_s = ramp_curve_start_s(exit_map, path, starts_s, RAMP_STRAIGHT_M)
+    v, v_w = SPEED_MPS, LEVEL_1_SPEED_AT_40_M_MPS
+    required_s = curve_s - (REACTION_S * v + (v * v - v_w * v_w) / G_MPS2)
+    assert required_s < float(starts_s[path.index("DR_0")])  # the warning is due on the exit lane itself
+    for seed in range(5):
+        exact = drive(exit_map, ["WD_0", "DR_0"], SPEED_MPS, seed, sigma_m=0.0, heading_sigma_deg=0.0, start_m=150.0)
+        along_s = starts_s[[path.index(lane) for lane in exact.lane_id]] + exact.lane_pos_m
+        outside = int(np.flatnonzero(along_s < required_s - v)[-1])
+        route = _outside_fix(exact, outside, 3.0)
+        answers = _answers(client, {f"shown-{seed}": route})[f"shown-{seed}"]
+        warned = [k for k, answer in enumerate(answers) if _warns_of_ramp(answer)]
+        assert warned and warned[0] <= outside + 1, (seed, warned, outside)
+        assert route.lane_id[warned[0]] == "WD_0" and along_s[warned[0]] <= required_s, (seed, warned)
+        beside = drive(exit_map, ["WD_1", "DE_0"], SPEED_MPS, seed, sigma_m=0.0, heading_sigma_deg=0.0, start_m=150.0)
+        on_exit_lane = _outside_fix(beside, outside, 3.2)
+        neighbour = _answers(client, {f"beside-{seed}": on_exit_lane})[f"beside-{seed}"]
+        assert not any(_warns_of_ramp(answer) for answer in neighbour), seed

@@ -60,6 +60,11 @@ class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
         placed there again), and its distance from there, m.
     candidates, candidate_pos_m, log_p
         The candidate lanes of that fix, their lane positions (m) and log-probabilities (the best 0).
+    lane_shown
+        Whether the fixes show that lane among the lanes of its edge, so that the path ahead may start from it
+        (a turning lane, an exit lane): the fix was matched there and its candidates on the lane hold the commit
+        share of those on the edge's lanes (:attr:`csws.road.match_settings.MatchSettings.commit_share`), or the
+        previous fix's lane was shown and this one is on it still.
     """
 
     time_s: float
@@ -73,6 +78,7 @@ class MatchState(msgspec.Struct, array_like=True, frozen=True, gc=False):
     candidates: tuple[str, ...]
     candidate_pos_m: tuple[float, ...]
     log_p: tuple[float, ...]
+    lane_shown: bool = False
 
 
 class Track(msgspec.Struct, frozen=True, gc=False):

@@ -410,7 +410,8 @@ class SequenceMatcher:
         best_rows = np.where(best >= 0, best, 0) if len(candidates.lane) else np.zeros(len(best), dtype=np.intp)
         xy = candidates.xy[best_rows].tolist() if len(candidates.lane) else [(0.0, 0.0)] * len(best)
         map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
-        names = self.index.lane_ids[candidates.lane[rows]].tolist()
+        kept_lanes = candidates.lane[rows]
+        names = self.index.lane_ids[kept_lanes].tolist()
         log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
         lane_ids, pos_m, distance_m, placed = reported
         columns = zip(
@@ -431,6 +432,11 @@ class SequenceMatcher:
             columns
         ):
             if is_matched:
+                previous_state = None if tracks[fix] is None else cast(Track, tracks[fix]).state
+                shown = how is Placed.MATCHED and (
+                    self._holds_its_lane(int(candidates.lane[best_rows[fix]]), kept_lanes[a:b], step.log_p[rows[a:b]])
+                    or (previous_state is not None and previous_state.lane_shown and previous_state.lane_id == lane_id)
+                )
                 state = MatchState(
                     time_s,
                     x_m,
@@ -443,9 +449,17 @@ class SequenceMatcher:
                     tuple(names[a:b]),
                     tuple(cand_pos_m[a:b]),
                     tuple(log_p[a:b]),
+                    shown,
                 )
                 result[fix] = Track(map_index[fix], state)
         return result
+
+    def _holds_its_lane(self, lane: int, candidate_lanes: np.ndarray, log_p: np.ndarray) -> bool:
+        """Whether a fix's candidates on ``lane`` hold :attr:`MatchSettings.commit_share` of the probability of its
+        candidates on lanes of the same edge (those kept for the next fix; lanes numbered over all maps)."""
+        lane_edge = self.graph.lane_edge
+        probability = np.exp(log_p) * (lane_edge[candidate_lanes] == lane_edge[lane])
+        return bool(probability[candidate_lanes == lane].sum() >= self.settings.commit_share * probability.sum())
 
     @staticmethod
     def _speeds_mps(fixes: Fixes, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> np.ndarray:
