@@ -61,7 +61,7 @@ class TrackingPlanner:
         The path ahead is the one the engine looks along from the same lane (the most probable path), as far
         as the warning needs at the terminal's period and one regular interval more.
         """
-        if placement is None or placement.lane_id is None or state != SystemState.ACTIVE or query.category is None:
+        if placement is None or placement.path_lane_id is None or state != SystemState.ACTIVE or query.category is None:
             return None
         index = placement.network_index
         engine = self.service.networks[index].engine
@@ -70,9 +70,16 @@ class TrackingPlanner:
         warning = engine.settings.warning
         age_s = fix_age_s(query.age_s)
         try:
-            lane_id, lane_pos_m = self.service.placer.road_lanes[index](placement.lane_id, placement.lane_pos_m)
             reach_period_s = update_period_s(intervals_s, warning) + statistics.median(intervals_s)
-            path = engine.lookahead(lane_id, lane_pos_m, query.speed_kmh, query.category, None, reach_period_s, age_s)
+            path = engine.lookahead(
+                placement.path_lane_id,
+                placement.path_lane_pos_m,
+                query.speed_kmh,
+                query.category,
+                None,
+                reach_period_s,
+                age_s,
+            )
         except KeyError:  # a lane of a network reloaded since: no tracking this time
             return None
         curves = curves_ahead(path)
