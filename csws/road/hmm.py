@@ -21,9 +21,10 @@ Online, each vehicle keeps its candidates and their log-probabilities between fi
 (:class:`MatchState`, a few hundred bytes, stored with its session); each fix is one
 forward (Viterbi) step for all vehicles of a batch at once, in numpy. The matched lane is the
 most probable candidate, with one exception at junctions: a fix that could be on several
-connections from the vehicle's incoming edge commits to a turn off the road only once the
-connections into that turn's road hold :attr:`MatchSettings.commit_share` of their probability;
-until then the fix is reported on the road's own continuation (:attr:`Placed.DEFERRED`), so
+junction connections commits to a turn off the road only once the connections into that turn's
+road hold :attr:`MatchSettings.commit_share` of the probability of all its candidate connections
+(from any incoming edge: in a cluster of junctions metres apart, the next junction's connection is
+a rival too); until then the fix is reported on the road's own continuation (:attr:`Placed.DEFERRED`), so
 the path ahead follows the road, never a guessed turn; so is a fix whose best candidate is the very start of
 a turn (the point every connection from the incoming lane starts at). A later fix on the side street decides.
 
@@ -320,7 +321,7 @@ class SequenceMatcher:
 
     def _undecided(self, step: Step, count: int) -> np.ndarray:
         """Which fixes' best candidate turns off the road inside a junction while the connections into its
-        road hold less than :attr:`MatchSettings.commit_share` of those from the same incoming edge, or lies at
+        road hold less than :attr:`MatchSettings.commit_share` of all its candidate connections, or lies at
         the very start of its connection's first internal lane (a fix level with or behind it, its projection
         clamped there): that point is the end of the lane the connection comes from, where every connection from
         it starts, so it is no evidence for this one's turn. The start of a later internal lane of a connection
@@ -337,7 +338,7 @@ class SequenceMatcher:
         best_lane[has] = has_lane
         lane, fix = candidates.lane, candidates.fix
         probability = np.exp(step.log_p)
-        group = graph.internal[lane] & (graph.entry_edge[lane] == graph.entry_edge[best_lane][fix]) & turning[fix]
+        group = graph.internal[lane] & turning[fix]
         same = group & (graph.exit_edge[lane] == graph.exit_edge[best_lane][fix])
         group_p = np.bincount(fix, weights=probability * group, minlength=count)
         same_p = np.bincount(fix, weights=probability * same, minlength=count)

@@ -45,8 +45,9 @@ class MatchSettings:
         a lane its own does not lead to): one noisy fix nearer the neighbouring lane does not move it there.
     commit_share
         Inside a junction, the matcher reports a turn off the road only once the connections into
-        that turn's road hold this share of the probability of all connections from the vehicle's
-        incoming edge; until then it reports the road's own continuation.
+        that turn's road hold this share of the probability of all the fix's candidate connections
+        (of any junction); until then it reports the road's own continuation. A lane of an edge counts as
+        shown once its candidates hold this share of those on the edge's lanes.
     standstill_mps
         A vehicle whose fix gives a speed under this, its previous fix's too, stood still between them, m/s.
     standstill_edge_log_p
