@@ -14,6 +14,11 @@ city's network alone, is then fed:
   speeds and dropped fixes (the same seed) on exact lane ids, so that what the sigma 3 m feed
   misses beyond it is what its position noise (map matching) costs, and the rest is speed noise
   and drops, which no matcher undoes either;
+* **exact positions with the receiver's speed noise, drops and accuracy** at 1 Hz: the true
+  positions and headings sent as fixes, with the sigma 3 m feed's speeds, drops and ``accuracy_m``,
+  so that the service matches them with the sigma 3 m model: what the matcher's rules cost (a turn
+  not yet shown, the road's lane for the path ahead) with no position error; the sigma 3 m feed's
+  figures beyond it are the position noise's;
 * **GNSS fixes** at 1 Hz and 0.2 Hz with sigma 3 m and 8 m position noise (each of east and
   north), 5 deg heading noise, 0.5 km/h speed noise and 2 % of the fixes dropped (fixed seeds),
   as lon/lat, heading, speed and timestamp (and ``accuracy_m``, the sigma, when the service's
@@ -86,7 +91,7 @@ from typing import IO
 from benchmarks.rows import Row, at_least, at_most, context, table
 from benchmarks.servers import csws_serve
 from benchmarks.telematics_analysis import Noise
-from benchmarks.telematics_feed import FeedAnswers, feed_service, query_fields
+from benchmarks.telematics_feed import FeedAnswers, Sends, feed_service, query_fields
 from benchmarks.telematics_fleet import STEP_S, Trajectories, drive_fleet
 from benchmarks.telematics_judge import judge
 from benchmarks.telematics_reference import reference_figures
@@ -120,13 +125,13 @@ class Feed:
     interval_s: float
     noise: Noise | None
     seed: int
-    exact_lanes: bool = False
-    """Send exact lane ids even with a receiver: only its speed noise and drops reach the service."""
+    sends: Sends = Sends.FIXES
+    """What a feed with a receiver sends of its measurements."""
 
     @property
     def sends_positions(self) -> bool:
-        """Whether the feed sends measured positions (which the service map-matches), not lane ids."""
-        return self.noise is not None and not self.exact_lanes
+        """Whether the feed sends positions (which the service map-matches), not lane ids."""
+        return self.noise is not None and self.sends is not Sends.EXACT_LANES
 
 
 REFERENCE = Feed("reference: exact lane ids, 10 Hz", STEP_S, None, 0)
@@ -138,11 +143,19 @@ EXACT_RECEIVER_1_HZ = Feed(
     1.0,
     NOISE_3_M,
     SIGMA_3_1_HZ.seed,
-    exact_lanes=True,
+    Sends.EXACT_LANES,
+)
+EXACT_POSITIONS_1_HZ = Feed(
+    "exact positions with the sigma 3 m receiver's speed noise, drops and accuracy, 1 Hz",
+    1.0,
+    NOISE_3_M,
+    SIGMA_3_1_HZ.seed,
+    Sends.EXACT_POSITIONS,
 )
 FEEDS = (
     EXACT_1_HZ,
     EXACT_RECEIVER_1_HZ,
+    EXACT_POSITIONS_1_HZ,
     SIGMA_3_1_HZ,
     SIGMA_8_1_HZ,
     Feed("exact lane ids, 0.2 Hz", 5.0, None, 0),
@@ -319,18 +332,21 @@ def _floor(figures: dict, exact: dict) -> str:
     )
 
 
-def _sigma_3_rows(name: str, sigma_3: dict, exact: dict, receiver: dict | None) -> list[Row]:
+def _sigma_3_rows(name: str, sigma_3: dict, exact: dict, receivers: tuple[dict | None, dict | None]) -> list[Row]:
     """The issue's targets at 1 Hz and sigma 3 m, each beside the exact 1 Hz feed's figure (sampling alone) and,
-    for missed and false, beside the exact lane ids with the same receiver's speed noise and drops (``receiver``):
-    what is left between the two is the position noise's share."""
+    for missed and false, beside the same receiver's speed noise and drops sent with exact lane ids and with exact
+    positions (``receivers``, where run): from the sampling floor to the first is the receiver's speeds and drops,
+    to the second what the matcher's rules cost with no position error, to sigma 3 m the position noise."""
     reference_onsets = sigma_3["reference_onsets"]
     prefix = f"telematics {name}, {SIGMA_3_1_HZ.name}:"
     floor = "exact 1 Hz (sampling alone): {}"
+    on_lanes, at_positions = receivers
 
     def beside(figure: str) -> str:
-        """The floor's figure, and the receiver's without its position noise where it was run."""
+        """The floor's figure, and the receiver's without its position noise on exact lanes and positions."""
         text = floor.format(exact[figure])
-        return text + (f"; with the receiver's speed noise and drops: {receiver[figure]}" if receiver else "")
+        text += f"; with the receiver's speed noise and drops: {on_lanes[figure]}" if on_lanes else ""
+        return text + (f"; matched from exact positions: {at_positions[figure]}" if at_positions else "")
 
     return [
         at_most(f"{prefix} missed", sigma_3["missed"], exact["missed"], beside("missed")),
@@ -344,7 +360,7 @@ def _sigma_3_rows(name: str, sigma_3: dict, exact: dict, receiver: dict | None) 
             f"{prefix} level-2 false warnings at a junction connection",
             sigma_3["false_level_2_junction"],
             0,
-            floor.format(exact["false_level_2_junction"]),
+            beside("false_level_2_junction"),
         ),
         at_most(
             f"{prefix} p90 lateness, fix intervals",
@@ -404,8 +420,8 @@ def _city_rows(name: str, city: dict) -> list[Row]:
         return [Row(f"telematics {name}", "skipped", "", None, city["skipped"])]
     feeds = city["feeds"]
     exact = feeds[EXACT_1_HZ.name]
-    receiver = feeds.get(EXACT_RECEIVER_1_HZ.name)
-    rows = _sigma_3_rows(name, feeds[SIGMA_3_1_HZ.name], exact, receiver) + _sigma_8_rows(
+    receivers = (feeds.get(EXACT_RECEIVER_1_HZ.name), feeds.get(EXACT_POSITIONS_1_HZ.name))
+    rows = _sigma_3_rows(name, feeds[SIGMA_3_1_HZ.name], exact, receivers) + _sigma_8_rows(
         name, feeds[SIGMA_8_1_HZ.name]
     )
     for feed in FEEDS:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +26,7 @@ if TYPE_CHECKING:
     from benchmarks.telematics import Feed
 
 __all__ = [
+    "Sends",
     "QueryFields",
     "FeedAnswers",
     "AnswersRead",
@@ -44,6 +46,17 @@ EPOCH_S = 1_700_000_000.0
 BATCH_S = 1.0
 #: How many progress lines a feed prints.
 PROGRESS_LINES = 5
+
+
+class Sends(StrEnum):
+    """What of a receiver's measurements a feed sends: the service map-matches positions, takes lane ids as they are."""
+
+    #: The measured fixes: position, heading and speed, each with the receiver's noise.
+    FIXES = "fixes"
+    #: The true positions and headings, with the receiver's speeds and drops (what the matcher's rules cost alone).
+    EXACT_POSITIONS = "exact positions"
+    #: The true lane ids and lane positions, with the receiver's speeds and drops (what matching costs at all).
+    EXACT_LANES = "exact lanes"
 
 
 @dataclass(frozen=True)
@@ -131,18 +144,16 @@ def feed_fixes(trajectories: Trajectories, rows: np.ndarray, noise: Noise, seed:
     return rows[fixes.kept], fixes
 
 
-def _fix_columns(
-    net: Path, trajectories: Trajectories, rows: np.ndarray, noise: Noise, seed: int
-) -> tuple[np.ndarray, dict[str, list]]:
-    """The surviving rows and their measured fixes (lon/lat, or network x/y without a projection)."""
-    kept, fixes = feed_fixes(trajectories, rows, noise, seed)
-    geo = lonlat(net, fixes.x_m, fixes.y_m)
-    names, values = (("lon", "lat"), geo) if geo is not None else (("x", "y"), (fixes.x_m, fixes.y_m))
+def _position_columns(
+    net: Path, x_m: np.ndarray, y_m: np.ndarray, heading_deg: np.ndarray, speed_kmh: np.ndarray
+) -> dict[str, list]:
+    """Fixes as sent: positions (lon/lat, or network x/y without a projection), headings and speeds."""
+    geo = lonlat(net, x_m, y_m)
+    names, values = (("lon", "lat"), geo) if geo is not None else (("x", "y"), (x_m, y_m))
     positions = [
         dict(zip(names, pair, strict=True)) for pair in zip(values[0].tolist(), values[1].tolist(), strict=True)
     ]
-    columns = {"position": positions, "heading_deg": fixes.heading_deg.tolist(), "speed_kmh": fixes.speed_kmh.tolist()}
-    return kept, columns
+    return {"position": positions, "heading_deg": heading_deg.tolist(), "speed_kmh": speed_kmh.tolist()}
 
 
 def _queries(
@@ -202,11 +213,15 @@ def feed_columns(
     rows = feed_rows(trajectories, feed.interval_s)
     if feed.noise is None:
         return rows, _exact_columns(trajectories, rows), None
-    if feed.exact_lanes:
-        kept, fixes = feed_fixes(trajectories, rows, feed.noise, feed.seed)
+    kept, fixes = feed_fixes(trajectories, rows, feed.noise, feed.seed)
+    if feed.sends is Sends.EXACT_LANES:
         return kept, {**_exact_columns(trajectories, kept), "speed_kmh": fixes.speed_kmh.tolist()}, None
-    rows, columns = _fix_columns(net, trajectories, rows, feed.noise, feed.seed)
-    return rows, columns, (fields.accuracy, feed.noise.position_sigma_m) if fields.accuracy else None
+    t = trajectories
+    measured = (fixes.x_m, fixes.y_m, fixes.heading_deg)
+    exact = (t.x_m[kept], t.y_m[kept], t.heading_deg[kept])
+    x_m, y_m, heading_deg = exact if feed.sends is Sends.EXACT_POSITIONS else measured
+    columns = _position_columns(net, x_m, y_m, heading_deg, fixes.speed_kmh)
+    return kept, columns, (fields.accuracy, feed.noise.position_sigma_m) if fields.accuracy else None
 
 
 def _send(
