@@ -14,11 +14,12 @@ city's network alone, is then fed:
   speeds and dropped fixes (the same seed) on exact lane ids, so that what the sigma 3 m feed
   misses beyond it is what its position noise (map matching) costs, and the rest is speed noise
   and drops, which no matcher undoes either;
-* **exact positions with the receiver's speed noise, drops and accuracy** at 1 Hz: the true
-  positions and headings sent as fixes, with the sigma 3 m feed's speeds, drops and ``accuracy_m``,
-  so that the service matches them with the sigma 3 m model: what the matcher's rules cost (a turn
-  not yet shown, the road's lane for the path ahead) with no position error; the sigma 3 m feed's
-  figures beyond it are the position noise's;
+* **exact positions** at 1 Hz: the true positions and headings sent as fixes, with the sigma 3 m
+  feed's speeds and drops, once with ``accuracy_m`` 0.5 m (a precise receiver: what the matcher's
+  rules cost, a turn not yet shown and the road's lane for the path ahead, when the fixes can show
+  them) and once with 3 m, the sigma 3 m feed's own (the service matches them with the sigma 3 m
+  model: what that model's caution costs with no position error); the sigma 3 m feed's figures
+  beyond the second are what its realised position errors cost;
 * **GNSS fixes** at 1 Hz and 0.2 Hz with sigma 3 m and 8 m position noise (each of east and
   north), 5 deg heading noise, 0.5 km/h speed noise and 2 % of the fixes dropped (fixed seeds),
   as lon/lat, heading, speed and timestamp (and ``accuracy_m``, the sigma, when the service's
@@ -108,6 +109,8 @@ DEFAULT_OUT = Path(__file__).resolve().parents[1] / "out" / "telematics"
 #: The GNSS receivers: sigma 3 m and 8 m of position, 5 deg of heading, 0.5 km/h of speed, 2 % dropped.
 NOISE_3_M = Noise(position_sigma_m=3.0, heading_sigma_deg=5.0, speed_sigma_kmh=0.5, drop_share=0.02)
 NOISE_8_M = Noise(position_sigma_m=8.0, heading_sigma_deg=5.0, speed_sigma_kmh=0.5, drop_share=0.02)
+#: A precise receiver's accuracy claimed for exact positions (its speed noise and drops are the sigma 3 m one's).
+PRECISE_0_5_M = Noise(position_sigma_m=0.5, heading_sigma_deg=5.0, speed_sigma_kmh=0.5, drop_share=0.02)
 
 #: Targets of the issue (at 1 Hz, sigma 3 m and 8 m).
 TARGET_FALSE_SHARE = 0.005
@@ -146,15 +149,23 @@ EXACT_RECEIVER_1_HZ = Feed(
     Sends.EXACT_LANES,
 )
 EXACT_POSITIONS_1_HZ = Feed(
-    "exact positions with the sigma 3 m receiver's speed noise, drops and accuracy, 1 Hz",
+    "exact positions claimed at 3 m, with the sigma 3 m receiver's speed noise and drops, 1 Hz",
     1.0,
     NOISE_3_M,
+    SIGMA_3_1_HZ.seed,
+    Sends.EXACT_POSITIONS,
+)
+PRECISE_POSITIONS_1_HZ = Feed(
+    "exact positions claimed at 0.5 m, with the sigma 3 m receiver's speed noise and drops, 1 Hz",
+    1.0,
+    PRECISE_0_5_M,
     SIGMA_3_1_HZ.seed,
     Sends.EXACT_POSITIONS,
 )
 FEEDS = (
     EXACT_1_HZ,
     EXACT_RECEIVER_1_HZ,
+    PRECISE_POSITIONS_1_HZ,
     EXACT_POSITIONS_1_HZ,
     SIGMA_3_1_HZ,
     SIGMA_8_1_HZ,
@@ -332,21 +343,23 @@ def _floor(figures: dict, exact: dict) -> str:
     )
 
 
-def _sigma_3_rows(name: str, sigma_3: dict, exact: dict, receivers: tuple[dict | None, dict | None]) -> list[Row]:
+def _sigma_3_rows(name: str, sigma_3: dict, exact: dict, receivers: tuple[dict | None, ...]) -> list[Row]:
     """The issue's targets at 1 Hz and sigma 3 m, each beside the exact 1 Hz feed's figure (sampling alone) and,
-    for missed and false, beside the same receiver's speed noise and drops sent with exact lane ids and with exact
-    positions (``receivers``, where run): from the sampling floor to the first is the receiver's speeds and drops,
-    to the second what the matcher's rules cost with no position error, to sigma 3 m the position noise."""
+    for missed and false, beside the same receiver's speed noise and drops sent with exact lane ids, with exact
+    positions claimed at 0.5 m and at 3 m (``receivers``, where run): from the sampling floor to the first is the
+    receiver's speeds and drops, to the second what the matcher's rules cost, to the third the caution of the
+    sigma 3 m model, to sigma 3 m the realised position errors."""
     reference_onsets = sigma_3["reference_onsets"]
     prefix = f"telematics {name}, {SIGMA_3_1_HZ.name}:"
     floor = "exact 1 Hz (sampling alone): {}"
-    on_lanes, at_positions = receivers
+    on_lanes, precise, at_3_m = receivers
 
     def beside(figure: str) -> str:
         """The floor's figure, and the receiver's without its position noise on exact lanes and positions."""
         text = floor.format(exact[figure])
         text += f"; with the receiver's speed noise and drops: {on_lanes[figure]}" if on_lanes else ""
-        return text + (f"; matched from exact positions: {at_positions[figure]}" if at_positions else "")
+        text += f"; matched from exact positions claimed at 0.5 m: {precise[figure]}" if precise else ""
+        return text + (f", at 3 m: {at_3_m[figure]}" if at_3_m else "")
 
     return [
         at_most(f"{prefix} missed", sigma_3["missed"], exact["missed"], beside("missed")),
@@ -420,7 +433,7 @@ def _city_rows(name: str, city: dict) -> list[Row]:
         return [Row(f"telematics {name}", "skipped", "", None, city["skipped"])]
     feeds = city["feeds"]
     exact = feeds[EXACT_1_HZ.name]
-    receivers = (feeds.get(EXACT_RECEIVER_1_HZ.name), feeds.get(EXACT_POSITIONS_1_HZ.name))
+    receivers = tuple(feeds.get(f.name) for f in (EXACT_RECEIVER_1_HZ, PRECISE_POSITIONS_1_HZ, EXACT_POSITIONS_1_HZ))
     rows = _sigma_3_rows(name, feeds[SIGMA_3_1_HZ.name], exact, receivers) + _sigma_8_rows(
         name, feeds[SIGMA_8_1_HZ.name]
     )

@@ -14,7 +14,12 @@ from hypothesis import strategies as st
 # The benchmarks are run from the repository, not installed: import them from there.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.telematics import EXACT_POSITIONS_1_HZ, EXACT_RECEIVER_1_HZ, SIGMA_3_1_HZ  # noqa: E402
+from benchmarks.telematics import (  # noqa: E402
+    EXACT_POSITIONS_1_HZ,
+    EXACT_RECEIVER_1_HZ,
+    PRECISE_POSITIONS_1_HZ,
+    SIGMA_3_1_HZ,
+)
 from benchmarks.telematics_analysis import (  # noqa: E402
     Noise,
     match_onsets,
@@ -142,7 +147,10 @@ def test_the_receivers_speeds_and_drops_on_exact_lanes_are_those_the_sigma_3_m_f
     assert EXACT_RECEIVER_1_HZ.noise is not None and not EXACT_RECEIVER_1_HZ.sends_positions
 
 
-def test_exact_positions_are_sent_with_the_sigma_3_m_receivers_speeds_drops_and_accuracy(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("feed", "accuracy_m"), [(EXACT_POSITIONS_1_HZ, 3.0), (PRECISE_POSITIONS_1_HZ, 0.5)])
+def test_exact_positions_are_sent_with_the_sigma_3_m_receivers_speeds_and_drops(
+    tmp_path: Path, feed, accuracy_m: float
+) -> None:
     trajectories = _straight_run(["A_0", ":J_0_0", "B_0", "C_0"], 500, 12.0)
     rows = feed_rows(trajectories, 1.0)
     assert SIGMA_3_1_HZ.noise is not None
@@ -150,16 +158,16 @@ def test_exact_positions_are_sent_with_the_sigma_3_m_receivers_speeds_drops_and_
     # a network without a projection: positions go as network x/y
     net = tmp_path / "plain.net.xml"
     net.write_text('<net><location netOffset="0.00,0.00" convBoundary="0,0,100,0" projParameter="!"/></net>')
-    kept, columns, accuracy = feed_columns(net, trajectories, EXACT_POSITIONS_1_HZ, QueryFields("query"))
-    # the same fixes survive with the same measured speeds, each sent at its true position and heading, and the
-    # receiver's accuracy: the service matches them as the sigma 3 m fixes, without their position error
+    kept, columns, accuracy = feed_columns(net, trajectories, feed, QueryFields("query"))
+    # the same fixes survive with the same measured speeds, each sent at its true position and heading with the
+    # accuracy the feed claims: the service matches them with that accuracy, without a position error
     assert kept.tolist() == sent_rows.tolist()
     assert columns["speed_kmh"] == fixes.speed_kmh.tolist()
     assert [p["x"] for p in columns["position"]] == pytest.approx([1.2 * row for row in kept.tolist()])
     assert [p["y"] for p in columns["position"]] == [0.0] * len(kept)
     assert columns["heading_deg"] == [90.0] * len(kept)
-    assert "lane_id" not in columns and accuracy == ("query", SIGMA_3_1_HZ.noise.position_sigma_m)
-    assert EXACT_POSITIONS_1_HZ.sends_positions
+    assert "lane_id" not in columns and accuracy == ("query", accuracy_m)
+    assert feed.sends_positions
 
 
 def _answers(rows: list[int], levels: list[int], matched: list[str | None], target: list[str | None]) -> FeedAnswers:
