@@ -90,7 +90,7 @@ def city_tracks(vehicles: int, duration_s: float) -> list[Track]:
 
 
 def _gateway(terminals_file: Path, *state: str) -> tuple[subprocess.Popen, int]:
-    """A ``csws jt808`` process on a free port with the state options ``state``, ready: it and its port."""
+    """A ``csws jt808`` process on a free port with the state (and other) options ``state``, ready: it and its port."""
     command = [sys.executable, "-m", "csws", "jt808", "--net", str(NET), "--port", "0"]
     process = subprocess.Popen(
         [*command, "--terminals", str(terminals_file), *state],
@@ -137,21 +137,40 @@ def _waited_s(pid: int) -> float:
     return total_ns / 1e9
 
 
+def _thread_cpu_s(pid: int) -> tuple[float, float]:
+    """CPU seconds process ``pid`` used so far in its main thread (the event loop) and in all its other threads
+    (the work thread that answers groups, the state store's)."""
+    main = others = 0.0
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # a thread that ended meanwhile
+        used_s = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        if task.name == str(pid):
+            main += used_s
+        else:
+            others += used_s
+    return main, others
+
+
 def _percentile_ms(values: list[float], q: float) -> float:
     return float(np.percentile(np.array(values) * 1000.0, q)) if values else float("nan")
 
 
-def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[str, Any]:
-    """Drive ``terminals`` simulated terminals for ``report_s`` against one gateway; the figures."""
+def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S, *gateway_options: str) -> dict[str, Any]:
+    """Drive ``terminals`` simulated terminals for ``report_s`` against one gateway started with ``gateway_options``
+    (e.g. ``--loop asyncio``); the figures."""
     tracks = city_tracks(VEHICLES, report_s)
     with tempfile.TemporaryDirectory() as temporary:
         folder = Path(temporary)
         phones = [f"1380{i:07d}" for i in range(terminals)]
         add_terminals(folder / "terminals.json", "bench", [NewTerminal(p, "N", f"t{p}") for p in phones])
-        process, port = _gateway(folder / "terminals.json", "--state-db", str(folder / "state.db"))
+        process, port = _gateway(folder / "terminals.json", "--state-db", str(folder / "state.db"), *gateway_options)
         try:
             idle_mb, _ = memory_mb(process.pid)
             cpu_before, waited_before = cpu_s([process.pid]), _waited_s(process.pid)
+            threads_before = _thread_cpu_s(process.pid)
             simulated = [
                 SimulatedTerminal(phone, _cut(tracks[i % len(tracks)], report_s)) for i, phone in enumerate(phones)
             ]
@@ -174,6 +193,7 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
             stats = asyncio.run(watched())
             elapsed_s = time.perf_counter() - started
             cpu_used_s = cpu_s([process.pid]) - cpu_before
+            loop_cpu_s, work_cpu_s = np.subtract(_thread_cpu_s(process.pid), threads_before)
             waited_s = _waited_s(process.pid) - waited_before
             simulator_cpu_s = time.process_time() - simulator_cpu_before
         finally:
@@ -194,6 +214,8 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
         "memory_per_terminal_kb": (peak["mb"] - idle_mb) * 1024.0 / terminals,
         "gateway_cpu_us_per_report": cpu_used_s / max(reports, 1) * 1e6,
         "gateway_cores": cpu_used_s / elapsed_s,
+        "gateway_loop_cpu_us_per_report": loop_cpu_s / max(reports, 1) * 1e6,
+        "gateway_work_cpu_us_per_report": work_cpu_s / max(reports, 1) * 1e6,
         "gateway_waited_per_cpu_s": waited_s / max(cpu_used_s, 1e-9),
         "simulator_cores": simulator_cpu_s / elapsed_s,
         "simulator_lag_p50_ms": _percentile_ms(lags_s, 50),
@@ -385,7 +407,12 @@ def main(argv: list[str] | None = None) -> None:
         action="store_true",
         help="only one gateway against two on one Redis, with TERMINALS terminals (a small run: 300)",
     )
-    parser.add_argument("--report-s", type=float, default=30.0, help="how long the scale-out terminals report, s")
+    parser.add_argument(
+        "--report-s", type=float, default=None, help="how long the terminals report, s (scale-out 30, one gateway 60)"
+    )
+    parser.add_argument("--single", action="store_true", help="only one gateway under TERMINALS, no scale-out")
+    parser.add_argument("--loop", default="auto", help="the gateway's event loop: auto, uvloop or asyncio")
+    parser.add_argument("--profile", default=None, metavar="FILE", help="the gateway's cProfile of its event loop")
     parser.add_argument(
         "--group-sizes", action="store_true", help="only the CPU per report of a group's evaluation by group size"
     )
@@ -395,7 +422,10 @@ def main(argv: list[str] | None = None) -> None:
 
         figures = run_group_sizes()
     elif args.scaleout_only:
-        figures = run_scaleout(args.terminals, args.report_s)
+        figures = run_scaleout(args.terminals, args.report_s or 30.0)
+    elif args.single:
+        options = ["--loop", args.loop, *(["--profile", str(Path(args.profile).resolve())] if args.profile else [])]
+        figures = run(args.terminals, args.report_s or REPORT_S, *options)
     else:
         figures = run_all(args.terminals)
     for name, value in figures.items():
