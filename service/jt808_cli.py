@@ -8,6 +8,7 @@ import cProfile
 import os
 import ssl
 import sys
+import time
 from collections.abc import Callable, Coroutine
 from pathlib import Path
 from typing import Any
@@ -49,9 +50,9 @@ def loop_factory(name: str) -> Callable[[], asyncio.AbstractEventLoop] | None:
 def run_profiled(
     main: Coroutine[Any, Any, None], factory: Callable[[], asyncio.AbstractEventLoop] | None, profile: Path | None
 ) -> None:
-    """Run ``main`` on a new event loop of ``factory``; with ``profile``, a cProfile of this thread (the event loop's
-    side: reading, frames, responses, writes) is written there when it ends."""
-    profiler = cProfile.Profile() if profile is not None else None
+    """Run ``main`` on a new event loop of ``factory``; with ``profile``, a cProfile of this thread's CPU time (the
+    event loop's side: reading, frames, responses, writes) is written there when it ends."""
+    profiler = cProfile.Profile(time.thread_time_ns, 1e-9) if profile is not None else None
     if profiler is not None:
         profiler.enable()
     try:
