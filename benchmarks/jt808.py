@@ -137,21 +137,22 @@ def _waited_s(pid: int) -> float:
     return total_ns / 1e9
 
 
-def _thread_cpu_s(pid: int) -> tuple[float, float]:
-    """CPU seconds process ``pid`` used so far in its main thread (the event loop) and in all its other threads
-    (the work thread that answers groups, the state store's)."""
-    main = others = 0.0
+def _thread_cpu_s(pid: int) -> tuple[float, float, float]:
+    """CPU seconds process ``pid`` used so far: its main thread's (the event loop's) in user and in kernel mode
+    (the kernel's share is mostly the sockets' reads and writes), and all its other threads' (the work thread that
+    answers groups, the state store's)."""
+    user = kernel = others = 0.0
+    tick_s = 1.0 / os.sysconf("SC_CLK_TCK")
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
             fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
         except OSError:
             continue  # a thread that ended meanwhile
-        used_s = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
         if task.name == str(pid):
-            main += used_s
+            user, kernel = int(fields[11]) * tick_s, int(fields[12]) * tick_s
         else:
-            others += used_s
-    return main, others
+            others += (int(fields[11]) + int(fields[12])) * tick_s
+    return user, kernel, others
 
 
 def _percentile_ms(values: list[float], q: float) -> float:
@@ -193,7 +194,7 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S, *gateway_o
             stats = asyncio.run(watched())
             elapsed_s = time.perf_counter() - started
             cpu_used_s = cpu_s([process.pid]) - cpu_before
-            loop_cpu_s, work_cpu_s = np.subtract(_thread_cpu_s(process.pid), threads_before)
+            loop_user_s, loop_kernel_s, work_cpu_s = np.subtract(_thread_cpu_s(process.pid), threads_before)
             waited_s = _waited_s(process.pid) - waited_before
             simulator_cpu_s = time.process_time() - simulator_cpu_before
         finally:
@@ -214,7 +215,8 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S, *gateway_o
         "memory_per_terminal_kb": (peak["mb"] - idle_mb) * 1024.0 / terminals,
         "gateway_cpu_us_per_report": cpu_used_s / max(reports, 1) * 1e6,
         "gateway_cores": cpu_used_s / elapsed_s,
-        "gateway_loop_cpu_us_per_report": loop_cpu_s / max(reports, 1) * 1e6,
+        "gateway_loop_cpu_us_per_report": (loop_user_s + loop_kernel_s) / max(reports, 1) * 1e6,
+        "gateway_loop_kernel_us_per_report": loop_kernel_s / max(reports, 1) * 1e6,
         "gateway_work_cpu_us_per_report": work_cpu_s / max(reports, 1) * 1e6,
         "gateway_waited_per_cpu_s": waited_s / max(cpu_used_s, 1e-9),
         "simulator_cores": simulator_cpu_s / elapsed_s,
