@@ -12,7 +12,9 @@ Measured: reports answered, the p50/p99 from a report's last byte to its general
 per connected terminal, and its CPU seconds per report.
 
 Run with ``python -m benchmarks.jt808 [TERMINALS]``; ``--scaleout-only`` runs only one gateway against two on
-one Redis (``--help`` lists the options).
+one Redis, ``--single`` only the one gateway, on the event loop ``--loop`` names, its loop thread profiled with
+``--profile FILE`` (``--help`` lists the options). The gateway's CPU is also given per thread: the event loop's
+(in user and kernel time) and the others' (the work thread's).
 """
 
 from __future__ import annotations
@@ -401,7 +403,8 @@ def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m benchmarks.jt808 [TERMINALS] [--scaleout-only] [--report-s S]``: print the figures."""
+    """``python -m benchmarks.jt808 [TERMINALS] [--scaleout-only | --single] [--report-s S] [--loop L] [--profile F]``:
+    print the figures."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.jt808", description=__doc__.split("\n\n")[0])
     parser.add_argument("terminals", type=int, nargs="?", default=BENCH_TERMINALS, help="terminals at 1 Hz")
     parser.add_argument(

@@ -37,6 +37,7 @@ from csws.gateways.jt808.terminals import add_terminal, revoke_terminal
 from csws.standard import warning_speed
 from csws.warning.rules import WarningSettings
 from service.jt808 import GatewaySettings
+from service.jt808_cli import loop_factory
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
@@ -164,9 +165,11 @@ def test_reports_before_authentication_fail_and_a_batch_upload_is_answered(net, 
     asyncio.run(run())
 
 
-def test_the_frames_of_one_read_are_answered_in_order_and_a_deregistration_ends_the_connection(net, tmp_path):
+@pytest.mark.parametrize("loop", ["asyncio", "uvloop"])
+def test_the_frames_of_one_read_are_answered_in_order_and_a_deregistration_ends_the_connection(net, tmp_path, loop):
     """Three heartbeats and a deregistration (0x0003) in one TCP write: four general responses, each naming its
-    frame's serial and message id with success, in the order sent; then the gateway closes the connection."""
+    frame's serial and message id with success, in the order sent; then the gateway closes the connection. On the
+    standard event loop and on uvloop alike."""
 
     async def run() -> tuple[list[tuple[int, int, int]], list[tuple[int, int, int]], bytes]:
         async with Rig(net, tmp_path) as rig:
@@ -182,7 +185,8 @@ def test_the_frames_of_one_read_are_answered_in_order_and_a_deregistration_ends_
             await terminal.close()
             return sent, answered, closed
 
-    sent, answered, closed = asyncio.run(run())
+    with asyncio.Runner(loop_factory=loop_factory(loop)) as runner:
+        sent, answered, closed = runner.run(run())
     assert answered == sent
     assert closed == b""
 
