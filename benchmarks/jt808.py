@@ -12,7 +12,9 @@ Measured: reports answered, the p50/p99 from a report's last byte to its general
 per connected terminal, and its CPU seconds per report.
 
 Run with ``python -m benchmarks.jt808 [TERMINALS]``; ``--scaleout-only`` runs only one gateway against two on
-one Redis (``--help`` lists the options).
+one Redis, ``--single`` only the one gateway, on the event loop ``--loop`` names, its loop thread profiled with
+``--profile FILE`` (``--help`` lists the options). The gateway's CPU is also given per thread: the event loop's
+(in user and kernel time) and the others' (the work thread's).
 """
 
 from __future__ import annotations
@@ -90,7 +92,7 @@ def city_tracks(vehicles: int, duration_s: float) -> list[Track]:
 
 
 def _gateway(terminals_file: Path, *state: str) -> tuple[subprocess.Popen, int]:
-    """A ``csws jt808`` process on a free port with the state options ``state``, ready: it and its port."""
+    """A ``csws jt808`` process on a free port with the state (and other) options ``state``, ready: it and its port."""
     command = [sys.executable, "-m", "csws", "jt808", "--net", str(NET), "--port", "0"]
     process = subprocess.Popen(
         [*command, "--terminals", str(terminals_file), *state],
@@ -137,21 +139,41 @@ def _waited_s(pid: int) -> float:
     return total_ns / 1e9
 
 
+def _thread_cpu_s(pid: int) -> tuple[float, float, float]:
+    """CPU seconds process ``pid`` used so far: its main thread's (the event loop's) in user and in kernel mode
+    (the kernel's share is mostly the sockets' reads and writes), and all its other threads' (the work thread that
+    answers groups, the state store's)."""
+    user = kernel = others = 0.0
+    tick_s = 1.0 / os.sysconf("SC_CLK_TCK")
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # a thread that ended meanwhile
+        if task.name == str(pid):
+            user, kernel = int(fields[11]) * tick_s, int(fields[12]) * tick_s
+        else:
+            others += (int(fields[11]) + int(fields[12])) * tick_s
+    return user, kernel, others
+
+
 def _percentile_ms(values: list[float], q: float) -> float:
     return float(np.percentile(np.array(values) * 1000.0, q)) if values else float("nan")
 
 
-def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[str, Any]:
-    """Drive ``terminals`` simulated terminals for ``report_s`` against one gateway; the figures."""
+def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S, *gateway_options: str) -> dict[str, Any]:
+    """Drive ``terminals`` simulated terminals for ``report_s`` against one gateway started with ``gateway_options``
+    (e.g. ``--loop asyncio``); the figures."""
     tracks = city_tracks(VEHICLES, report_s)
     with tempfile.TemporaryDirectory() as temporary:
         folder = Path(temporary)
         phones = [f"1380{i:07d}" for i in range(terminals)]
         add_terminals(folder / "terminals.json", "bench", [NewTerminal(p, "N", f"t{p}") for p in phones])
-        process, port = _gateway(folder / "terminals.json", "--state-db", str(folder / "state.db"))
+        process, port = _gateway(folder / "terminals.json", "--state-db", str(folder / "state.db"), *gateway_options)
         try:
             idle_mb, _ = memory_mb(process.pid)
             cpu_before, waited_before = cpu_s([process.pid]), _waited_s(process.pid)
+            threads_before = _thread_cpu_s(process.pid)
             simulated = [
                 SimulatedTerminal(phone, _cut(tracks[i % len(tracks)], report_s)) for i, phone in enumerate(phones)
             ]
@@ -174,6 +196,7 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
             stats = asyncio.run(watched())
             elapsed_s = time.perf_counter() - started
             cpu_used_s = cpu_s([process.pid]) - cpu_before
+            loop_user_s, loop_kernel_s, work_cpu_s = np.subtract(_thread_cpu_s(process.pid), threads_before)
             waited_s = _waited_s(process.pid) - waited_before
             simulator_cpu_s = time.process_time() - simulator_cpu_before
         finally:
@@ -194,6 +217,9 @@ def run(terminals: int = BENCH_TERMINALS, report_s: float = REPORT_S) -> dict[st
         "memory_per_terminal_kb": (peak["mb"] - idle_mb) * 1024.0 / terminals,
         "gateway_cpu_us_per_report": cpu_used_s / max(reports, 1) * 1e6,
         "gateway_cores": cpu_used_s / elapsed_s,
+        "gateway_loop_cpu_us_per_report": (loop_user_s + loop_kernel_s) / max(reports, 1) * 1e6,
+        "gateway_loop_kernel_us_per_report": loop_kernel_s / max(reports, 1) * 1e6,
+        "gateway_work_cpu_us_per_report": work_cpu_s / max(reports, 1) * 1e6,
         "gateway_waited_per_cpu_s": waited_s / max(cpu_used_s, 1e-9),
         "simulator_cores": simulator_cpu_s / elapsed_s,
         "simulator_lag_p50_ms": _percentile_ms(lags_s, 50),
@@ -377,7 +403,8 @@ def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m benchmarks.jt808 [TERMINALS] [--scaleout-only] [--report-s S]``: print the figures."""
+    """``python -m benchmarks.jt808 [TERMINALS] [--scaleout-only | --single] [--report-s S] [--loop L] [--profile F]``:
+    print the figures."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.jt808", description=__doc__.split("\n\n")[0])
     parser.add_argument("terminals", type=int, nargs="?", default=BENCH_TERMINALS, help="terminals at 1 Hz")
     parser.add_argument(
@@ -385,7 +412,12 @@ def main(argv: list[str] | None = None) -> None:
         action="store_true",
         help="only one gateway against two on one Redis, with TERMINALS terminals (a small run: 300)",
     )
-    parser.add_argument("--report-s", type=float, default=30.0, help="how long the scale-out terminals report, s")
+    parser.add_argument(
+        "--report-s", type=float, default=None, help="how long the terminals report, s (scale-out 30, one gateway 60)"
+    )
+    parser.add_argument("--single", action="store_true", help="only one gateway under TERMINALS, no scale-out")
+    parser.add_argument("--loop", default="auto", help="the gateway's event loop: auto, uvloop or asyncio")
+    parser.add_argument("--profile", default=None, metavar="FILE", help="the gateway's cProfile of its event loop")
     parser.add_argument(
         "--group-sizes", action="store_true", help="only the CPU per report of a group's evaluation by group size"
     )
@@ -395,7 +427,10 @@ def main(argv: list[str] | None = None) -> None:
 
         figures = run_group_sizes()
     elif args.scaleout_only:
-        figures = run_scaleout(args.terminals, args.report_s)
+        figures = run_scaleout(args.terminals, args.report_s or 30.0)
+    elif args.single:
+        options = ["--loop", args.loop, *(["--profile", str(Path(args.profile).resolve())] if args.profile else [])]
+        figures = run(args.terminals, args.report_s or REPORT_S, *options)
     else:
         figures = run_all(args.terminals)
     for name, value in figures.items():

@@ -30,7 +30,7 @@ from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
+from typing import cast
 
 from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
 from csws.gateways.jt808.latency import StageTimes
@@ -133,11 +133,18 @@ def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> De
     )
 
 
-class Conversation:
-    """One terminal's connection: its frames in, the platform's answers and texts out."""
+class Conversation(asyncio.Protocol):
+    """One terminal's connection: its frames in, the platform's answers and texts out.
 
-    def __init__(self, gateway: Gateway, writer: asyncio.StreamWriter) -> None:
-        self.gateway, self.writer = gateway, writer
+    The connection is read by the event loop's own callbacks (no task and no timeout per read): every read
+    is split into frames and answered at once, and what a read or an answer sends leaves in one write. A
+    connection whose writes back up stops being read until they drain; one silent for
+    :attr:`GatewaySettings.idle_s` is closed by a timer that looks at the time of its last read.
+    """
+
+    def __init__(self, gateway: Gateway) -> None:
+        self.gateway = gateway
+        self.transport: asyncio.Transport | None = None
         self.splitter, self.reassembler = FrameSplitter(), Reassembler()
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
@@ -148,12 +155,66 @@ class Conversation:
         self.waiting: deque[Waiting] = deque()
         self.read_at = 0.0
         self.allowance, self.allowance_at = gateway.settings.frames_burst, time.monotonic()
+        self._outgoing: list[bytes] = []
+        self._idle: asyncio.TimerHandle | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        """Take the connection, or close it at once beyond :attr:`GatewaySettings.max_connections`."""
+        self.transport = cast(asyncio.Transport, transport)  # uvloop's transports do not subclass asyncio's
+        self.read_at = time.perf_counter()
+        if not self.gateway.admit(self):
+            transport.close()
+            return
+        self._idle = asyncio.get_running_loop().call_later(self.gateway.settings.idle_s, self._check_idle)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        """Forget the connection: its reports not yet started are not evaluated (those started are answered)."""
+        if self._idle is not None:
+            self._idle.cancel()
+        for waiting in self.waiting:
+            waiting.shed = True
+        self.gateway.release(self)
+
+    def data_received(self, data: bytes) -> None:
+        """Handle the bytes ``data``; the connection ends once the terminal has deregistered."""
+        if not self.received(data) and self.transport is not None:
+            self.transport.close()
+
+    def pause_writing(self) -> None:
+        """Stop reading while the terminal does not take what was written (as ``drain`` would wait)."""
+        if self.transport is not None:
+            self.transport.pause_reading()
+
+    def resume_writing(self) -> None:
+        """Read again once the writes have drained."""
+        if self.transport is not None and not self.transport.is_closing():
+            self.transport.resume_reading()
+
+    def _check_idle(self) -> None:
+        """Close the connection if nothing came for :attr:`GatewaySettings.idle_s`; else look again when it could."""
+        idle_s = self.gateway.settings.idle_s
+        silent_s = time.perf_counter() - self.read_at
+        if silent_s >= idle_s:
+            if self.transport is not None:
+                self.transport.close()
+            return
+        self._idle = asyncio.get_running_loop().call_later(idle_s - silent_s, self._check_idle)
+
+    def closing(self) -> bool:
+        """Whether the connection is gone or going."""
+        return self.transport is None or self.transport.is_closing()
 
     def send(self, message_id: int, body: bytes) -> None:
-        """Send the platform's message ``message_id`` with ``body`` to the terminal."""
+        """Queue the platform's message ``message_id`` with ``body`` for the terminal (:meth:`flush` sends)."""
         self.serial = (self.serial + 1) & 0xFFFF
         frame = Frame(message_id, self.phone, self.serial, body, self.edition, 1 if self.edition == 2019 else 0)
-        self.writer.write(encode_frame(frame))
+        self._outgoing.append(encode_frame(frame))
+
+    def flush(self) -> None:
+        """Write what :meth:`send` queued, in one write."""
+        if self._outgoing and self.transport is not None and not self.transport.is_closing():
+            self.transport.write(b"".join(self._outgoing))
+        self._outgoing.clear()
 
     def respond(self, frame: Frame, result: ResponseResult) -> None:
         """The general response ``0x8001`` to ``frame``."""
@@ -169,36 +230,41 @@ class Conversation:
         self.allowance -= 1.0
         return True
 
-    async def received(self, data: bytes) -> bool:
-        """Handle the bytes ``data``; False once the terminal has deregistered."""
+    def received(self, data: bytes) -> bool:
+        """Handle the bytes ``data`` and send what they call for; False once the terminal has deregistered."""
         self.read_at = time.perf_counter()
-        for escaped in self.splitter.feed(data):
-            if not self._allowed():
-                log.warning(
-                    "jt808: %s sends frames faster than %s/s; dropped", self.phone, self.gateway.settings.frames_per_s
-                )
-                continue
-            try:
-                frame = self.reassembler.add(decode_frame(escaped))
-            except FrameError as error:
-                self.gateway.counts["dropped"] += 1
-                log.warning("jt808: frame dropped from %s: %s", self.phone, error)
-                continue
-            if frame is not None and not await self.handle(frame):
-                return False
-        return True
+        try:
+            for escaped in self.splitter.feed(data):
+                if not self._allowed():
+                    log.warning(
+                        "jt808: %s sends frames faster than %s/s; dropped",
+                        self.phone,
+                        self.gateway.settings.frames_per_s,
+                    )
+                    continue
+                try:
+                    frame = self.reassembler.add(decode_frame(escaped))
+                except FrameError as error:
+                    self.gateway.counts["dropped"] += 1
+                    log.warning("jt808: frame dropped from %s: %s", self.phone, error)
+                    continue
+                if frame is not None and not self.handle(frame):
+                    return False
+            return True
+        finally:
+            self.flush()
 
-    async def handle(self, frame: Frame) -> bool:
+    def handle(self, frame: Frame) -> bool:
         """Answer one message; False when the terminal deregistered."""
         self.edition, self.phone = frame.edition, frame.phone
         handler = self.gateway.handlers.get(frame.message_id)
         if handler is None:
             self.respond(frame, ResponseResult.NOT_SUPPORTED)
             return True
-        return await handler(self, frame)
+        return handler(self, frame)
 
 
-async def _register(conversation: Conversation, frame: Frame) -> bool:
+def _register(conversation: Conversation, frame: Frame) -> bool:
     """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for any other."""
     terminals = conversation.gateway.terminals
     terminals.refresh()
@@ -211,7 +277,7 @@ async def _register(conversation: Conversation, frame: Frame) -> bool:
     return True
 
 
-async def _authenticate(conversation: Conversation, frame: Frame) -> bool:
+def _authenticate(conversation: Conversation, frame: Frame) -> bool:
     """``0x0102`` -> ``0x8001``: success for a listed terminal with its current code, failure otherwise."""
     terminals = conversation.gateway.terminals
     terminals.refresh()
@@ -226,14 +292,14 @@ async def _authenticate(conversation: Conversation, frame: Frame) -> bool:
     return True
 
 
-async def _heartbeat(conversation: Conversation, frame: Frame) -> bool:
+def _heartbeat(conversation: Conversation, frame: Frame) -> bool:
     """``0x0002`` -> ``0x8001``: success while the terminal is admitted."""
     if _admitted(conversation, frame) is not None:
         conversation.respond(frame, ResponseResult.SUCCESS)
     return True
 
 
-async def _terminal_response(conversation: Conversation, frame: Frame) -> bool:
+def _terminal_response(conversation: Conversation, frame: Frame) -> bool:
     """``0x0001``, the terminal's general response: taken without an answer. A terminal that refuses temporary
     tracking (``0x8202``) is not asked again on this connection."""
     try:
@@ -247,7 +313,7 @@ async def _terminal_response(conversation: Conversation, frame: Frame) -> bool:
     return True
 
 
-async def _deregister(conversation: Conversation, frame: Frame) -> bool:
+def _deregister(conversation: Conversation, frame: Frame) -> bool:
     """``0x0003`` -> ``0x8001``, then the connection ends."""
     conversation.respond(frame, ResponseResult.SUCCESS)
     return False
@@ -266,7 +332,7 @@ def _admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
     return terminal
 
 
-async def _locations(conversation: Conversation, frame: Frame) -> bool:
+def _locations(conversation: Conversation, frame: Frame) -> bool:
     """``0x0200`` and ``0x0704`` -> ``0x8001``, then the warning of the newest live report."""
     terminal = _admitted(conversation, frame)
     if terminal is None:
@@ -322,7 +388,7 @@ def _tell(
     gateway = conversation.gateway
     gateway.counts["evaluated"] += 1
     gateway.times.add("answered", time.perf_counter() - read_at)
-    if answer is None or conversation.writer.is_closing():
+    if answer is None or conversation.closing():
         return
     if conversation.announcer is None:
         conversation.announcer = Announcer(gateway.settings.texts(terminal.fleet))
@@ -339,9 +405,10 @@ def _tell(
     ):
         conversation.send(MessageId.TEMPORARY_TRACKING, encode_temporary_tracking(settings.interval_s, window_s))
         gateway.counts["tracked"] += 1
+    conversation.flush()
 
 
-_HANDLERS: dict[int, Callable[[Conversation, Frame], Any]] = {
+_HANDLERS: dict[int, Callable[[Conversation, Frame], bool]] = {
     MessageId.TERMINAL_RESPONSE: _terminal_response,
     MessageId.REGISTRATION: _register,
     MessageId.AUTHENTICATION: _authenticate,
@@ -381,44 +448,39 @@ class Gateway:
         self.batcher = Batcher(service, work, settings.batch_window_s, self.times, planner)
         self.terminals, self.settings, self.clock = terminals, settings, clock
         self.handlers = _HANDLERS
-        self.connections = 0
+        #: The open connections.
+        self.conversations: set[Conversation] = set()
         #: What the gateway did so far: connections, reports evaluated and shed, texts told, tracking requests sent,
         #: frames dropped.
         self.counts: Counter[str] = Counter()
 
-    async def converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        """Serve one connection until the terminal leaves, deregisters or idles."""
-        self.connections += 1
+    def admit(self, conversation: Conversation) -> bool:
+        """Count a new connection; False beyond :attr:`GatewaySettings.max_connections` (it is closed)."""
         self.counts["connections"] += 1
-        conversation: Conversation | None = None
-        try:
-            if self.connections > self.settings.max_connections:
-                log.warning("jt808: more than %d connections; one refused", self.settings.max_connections)
-                return
-            conversation = Conversation(self, writer)
-            while True:
-                data = await asyncio.wait_for(reader.read(65536), timeout=self.settings.idle_s)
-                if not data or not await conversation.received(data):
-                    break
-                await writer.drain()
-        except (TimeoutError, ConnectionError, asyncio.CancelledError):
-            pass  # idle, gone, or the gateway stops
-        finally:
-            self.connections -= 1
-            if conversation is not None:
-                for waiting in conversation.waiting:
-                    waiting.shed = True  # those started are answered all the same; the rest are not evaluated
-            writer.close()
+        if len(self.conversations) >= self.settings.max_connections:
+            log.warning("jt808: more than %d connections; one refused", self.settings.max_connections)
+            return False
+        self.conversations.add(conversation)
+        return True
+
+    def release(self, conversation: Conversation) -> None:
+        """Forget a connection that ended."""
+        self.conversations.discard(conversation)
+
+    def _conversation(self) -> Conversation:
+        return Conversation(self)
 
     async def serve(self, tls: ssl.SSLContext | None = None, ready: Callable[[int], None] | None = None) -> None:
-        """Listen on the settings' address until cancelled; ``ready(port)`` once listening."""
-        server = await asyncio.start_server(
-            self.converse, self.settings.host, self.settings.port, ssl=tls, limit=65536, backlog=4096
+        """Listen on the settings' address until cancelled; ``ready(port)`` once listening. The connections still
+        open are closed when it ends."""
+        loop = asyncio.get_running_loop()
+        server = await loop.create_server(
+            self._conversation, self.settings.host, self.settings.port, ssl=tls, backlog=4096
         )
         serving = asyncio.current_task()
         if serving is not None:  # SIGTERM stops it as Ctrl-C does, so that what it did is told
-            asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, serving.cancel)
-        lagging = asyncio.get_running_loop().create_task(self._sample_loop_lag())
+            loop.add_signal_handler(signal.SIGTERM, serving.cancel)
+        lagging = loop.create_task(self._sample_loop_lag())
         async with server:
             if ready is not None:
                 ready(server.sockets[0].getsockname()[1])
@@ -428,6 +490,9 @@ class Gateway:
                 pass
             finally:
                 lagging.cancel()
+                for conversation in list(self.conversations):
+                    if conversation.transport is not None:
+                        conversation.transport.close()
 
     async def _sample_loop_lag(self, period_s: float = 0.01) -> None:
         """Count how late the event loop wakes a sleeper (``loop_lag``): the delay before a terminal's bytes are read

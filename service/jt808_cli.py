@@ -4,17 +4,64 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import cProfile
 import os
 import ssl
 import sys
+import time
+from collections.abc import Callable, Coroutine
 from pathlib import Path
+from typing import Any
 
 from csws.cli import deferred
 
-__all__ = ["add_commands", "main", "simulate_command", "terminals_command"]
+__all__ = [
+    "EVENT_LOOPS",
+    "add_commands",
+    "loop_factory",
+    "main",
+    "run_profiled",
+    "simulate_command",
+    "terminals_command",
+]
 
 #: The environment variable naming the terminal file when --terminals is not given.
 TERMINALS_ENV = "CSWS_JT808_TERMINALS_FILE"
+#: The event loops ``csws jt808 --loop`` runs on.
+EVENT_LOOPS = ("auto", "uvloop", "asyncio")
+
+
+def loop_factory(name: str) -> Callable[[], asyncio.AbstractEventLoop] | None:
+    """The factory of the event loop ``name`` (:data:`EVENT_LOOPS`); None for asyncio's own.
+
+    ``auto`` takes uvloop where it is installed (it is not on Windows) and asyncio's loop otherwise.
+    """
+    if name == "asyncio":
+        return None
+    try:
+        import uvloop
+    except ImportError:
+        if name == "uvloop":
+            raise ValueError("--loop uvloop: uvloop is not installed (pip install uvloop)") from None
+        return None
+    return uvloop.new_event_loop
+
+
+def run_profiled(
+    main: Coroutine[Any, Any, None], factory: Callable[[], asyncio.AbstractEventLoop] | None, profile: Path | None
+) -> None:
+    """Run ``main`` on a new event loop of ``factory``; with ``profile``, a cProfile of this thread's CPU time (the
+    event loop's side: reading, frames, responses, writes) is written there when it ends."""
+    profiler = cProfile.Profile(time.thread_time_ns, 1e-9) if profile is not None else None
+    if profiler is not None:
+        profiler.enable()
+    try:
+        with asyncio.Runner(loop_factory=factory) as runner:
+            runner.run(main)
+    finally:
+        if profiler is not None and profile is not None:
+            profiler.disable()
+            profiler.dump_stats(profile)
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -46,6 +93,15 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     gateway.add_argument("--idle-s", type=float, default=180.0, help="close a connection silent this long, s")
     gateway.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="serve TLS with this certificate")
     gateway.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="the certificate's private key")
+    gateway.add_argument(
+        "--loop",
+        choices=EVENT_LOOPS,
+        default="auto",
+        help="the event loop: uvloop (libuv), asyncio (the standard one), or auto: uvloop where installed",
+    )
+    gateway.add_argument(
+        "--profile", type=Path, default=None, metavar="FILE", help="write a cProfile of the event loop's thread at exit"
+    )
     gateway.set_defaults(handler=deferred("service.jt808_cli"))
     simulator = commands.add_parser(
         "jt808-sim",
@@ -134,6 +190,7 @@ def main(args: argparse.Namespace) -> int:
     terminals = TerminalList(_terminal_file(args.terminals))
     texts = load_fleet_texts(args.texts) if args.texts is not None else {}
     tls = _tls(args)
+    factory = loop_factory(args.loop)
     service_args = argparse.Namespace(net=args.net, state=args.state, state_db=args.state_db)
     state = create_app(settings_from_args(service_args)).state
     settings = GatewaySettings(
@@ -147,10 +204,12 @@ def main(args: argparse.Namespace) -> int:
 
     def ready(port: int) -> None:
         networks = len(state.service.networks)
+        loop = type(asyncio.get_running_loop()).__module__.split(".")[0]
         print(f"csws: JT/T 808 gateway for {networks} network(s) on {args.host}:{port}", flush=True)
+        print(f"csws: event loop {loop}", flush=True)
 
     try:
-        asyncio.run(gateway.serve(tls, ready))
+        run_profiled(gateway.serve(tls, ready), factory, args.profile)
     except KeyboardInterrupt:
         pass
     except OSError as error:

@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
+import pstats
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+import uvloop
+
 from csws.gateways.jt808.terminals import TerminalList
 from csws.gateways.jt808.texts import DriverTexts, Indication, TextsError, load_fleet_texts, text_of
+from service.jt808_cli import loop_factory, run_profiled
 
 
 def csws(*args: str) -> subprocess.CompletedProcess[str]:
@@ -100,3 +106,33 @@ def test_a_fault_is_told_only_once_it_lasts():
         texts.level2.replace("{speed_kmh}", "87"),
         True,
     )
+
+
+def test_the_event_loop_is_uvloop_where_installed_and_asyncio_when_asked_or_missing(monkeypatch):
+    """``--loop auto`` takes uvloop when it imports and the standard loop when it does not; ``--loop asyncio`` always
+    the standard loop; ``--loop uvloop`` without uvloop is an error, not a silent fallback."""
+    loops: list[type] = []
+
+    async def which() -> None:
+        loops.append(type(asyncio.get_running_loop()))
+
+    run_profiled(which(), loop_factory("auto"), None)
+    run_profiled(which(), loop_factory("uvloop"), None)
+    run_profiled(which(), loop_factory("asyncio"), None)
+    assert loops[0] is loops[1] is uvloop.Loop
+    assert issubclass(loops[2], asyncio.BaseEventLoop) and loops[2] is not uvloop.Loop
+    monkeypatch.setitem(sys.modules, "uvloop", None)  # as if it were not installed
+    assert loop_factory("auto") is None
+    with pytest.raises(ValueError, match="uvloop is not installed"):
+        loop_factory("uvloop")
+
+
+def test_the_profile_of_the_event_loop_is_written(tmp_path: Path):
+    """``--profile``: the loop thread's cProfile is written when the loop ends, and names the coroutine it ran."""
+
+    async def named_for_the_profile() -> None:
+        await asyncio.sleep(0)
+
+    run_profiled(named_for_the_profile(), loop_factory("asyncio"), tmp_path / "loop.prof")
+    functions = pstats.Stats(str(tmp_path / "loop.prof")).stats  # type: ignore[attr-defined]
+    assert any(name == "named_for_the_profile" for _, _, name in functions)

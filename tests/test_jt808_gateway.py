@@ -30,13 +30,14 @@ from jt808_rig import (
     heartbeat,
     lonlat,
 )
-from jt808_terminal import Terminal, general_response, location_body, wire
+from jt808_terminal import Terminal, general_response, header_2013, location_body, wire
 
 from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.terminals import add_terminal, revoke_terminal
 from csws.standard import warning_speed
 from csws.warning.rules import WarningSettings
 from service.jt808 import GatewaySettings
+from service.jt808_cli import loop_factory
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
@@ -162,6 +163,65 @@ def test_reports_before_authentication_fail_and_a_batch_upload_is_answered(net, 
             await terminal.close()
 
     asyncio.run(run())
+
+
+@pytest.mark.parametrize("loop", ["asyncio", "uvloop"])
+def test_the_frames_of_one_read_are_answered_in_order_and_a_deregistration_ends_the_connection(net, tmp_path, loop):
+    """Three heartbeats and a deregistration (0x0003) in one TCP write: four general responses, each naming its
+    frame's serial and message id with success, in the order sent; then the gateway closes the connection. On the
+    standard event loop and on uvloop alike."""
+
+    async def run() -> tuple[list[tuple[int, int, int]], list[tuple[int, int, int]], bytes]:
+        async with Rig(net, tmp_path) as rig:
+            terminal = await connected(rig)
+            sent = []
+            for message_id in (0x0002, 0x0002, 0x0002, 0x0003):
+                terminal.serial += 1
+                sent.append((terminal.serial, message_id, 0))
+                terminal.writer.write(wire(header_2013(message_id, PHONE, terminal.serial, 0)))
+            await terminal.writer.drain()
+            answered = [general_response(r) for r in await terminal.receive(4)]
+            closed = await asyncio.wait_for(terminal.reader.read(10), 5.0)
+            await terminal.close()
+            return sent, answered, closed
+
+    with asyncio.Runner(loop_factory=loop_factory(loop)) as runner:
+        sent, answered, closed = runner.run(run())
+    assert answered == sent
+    assert closed == b""
+
+
+def test_connections_beyond_the_cap_are_closed_and_the_one_admitted_lives(net, tmp_path):
+    """With room for one connection, a second is closed at once while the first is answered; once the first
+    has gone, a new connection is admitted again."""
+
+    async def refused(port: int) -> bool:
+        terminal = Terminal("13900000000")
+        await terminal.connect(port)
+        try:
+            await terminal.send(0x0002)
+            return await asyncio.wait_for(terminal.reader.read(10), 5.0) == b""
+        except ConnectionError:
+            return True
+        finally:
+            await terminal.close()
+
+    async def run() -> tuple[bool, int, bool]:
+        async with Rig(net, tmp_path, GatewaySettings(port=0, max_connections=1)) as rig:
+            first = await connected(rig)
+            second_refused = await refused(rig.port)
+            first_result = general_response(await heartbeat(first))[2]
+            await first.close()
+            for _ in range(100):  # the gateway learns of the close on one of its next turns
+                if not rig.gateway.conversations:
+                    break
+                await asyncio.sleep(0.01)
+            third = await connected(rig)
+            third_answered = general_response(await heartbeat(third))[2] == 0
+            await third.close()
+            return second_refused, first_result, third_answered
+
+    assert asyncio.run(run()) == (True, 0, True)
 
 
 def test_an_idle_connection_is_closed(net, tmp_path):

@@ -18,6 +18,7 @@ Everything here is pure: bytes in, frames out, and :class:`FrameError` naming wh
 
 from __future__ import annotations
 
+import functools
 import struct
 from dataclasses import dataclass
 
@@ -48,6 +49,9 @@ MAX_BODY_BYTES = 0x3FF
 #: The longest frame between the flags once unescaped: a 2019 header with sub-packages (21 bytes),
 #: the longest body and the check code.
 MAX_FRAME_BYTES = 21 + MAX_BODY_BYTES + 1
+
+#: Phone numbers whose BCD form is kept, so that a connection's every frame does not convert its phone again.
+PHONES_KEPT = 32_768
 
 _SUBPACKAGED = 1 << 13
 _VERSION_FLAG = 1 << 14
@@ -128,15 +132,18 @@ def check_code(data: bytes) -> int:
     return code
 
 
+@functools.lru_cache(maxsize=PHONES_KEPT)
 def bcd_encode(digits: str, size: int) -> bytes:
-    """``digits`` as ``size`` bytes of packed BCD, zero-padded on the left."""
+    """``digits`` as ``size`` bytes of packed BCD, zero-padded on the left (kept for the phones in use)."""
     if not digits.isdigit() or len(digits) > 2 * size:
         raise FrameError(f"a BCD[{size}] field holds up to {2 * size} decimal digits, got {digits[:40]!r}")
     return bytes.fromhex(digits.rjust(2 * size, "0"))
 
 
+@functools.lru_cache(maxsize=PHONES_KEPT)
 def bcd_decode(data: bytes) -> str:
-    """The decimal digits of packed BCD ``data``; :class:`FrameError` for a nibble above 9."""
+    """The decimal digits of packed BCD ``data``; :class:`FrameError` for a nibble above 9 (kept for the phones in
+    use)."""
     digits = data.hex()
     if not digits.isdigit():
         raise FrameError(f"not BCD: {digits}")

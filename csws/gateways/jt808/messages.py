@@ -11,6 +11,7 @@ time), turned into POSIX seconds here.
 from __future__ import annotations
 
 import calendar
+import functools
 import struct
 import time
 from dataclasses import dataclass
@@ -161,8 +162,12 @@ def _text(data: bytes) -> str:
         raise BodyError(f"text is not GBK: {data[:40]!r}") from error
 
 
+@functools.lru_cache(maxsize=1024)
 def _bcd_time_s(data: bytes) -> float:
-    """POSIX seconds of a BCD ``YYMMDDhhmmss`` time in UTC+8 (years 2000-2099)."""
+    """POSIX seconds of a BCD ``YYMMDDhhmmss`` time in UTC+8 (years 2000-2099).
+
+    Kept for the last 1,024 times: terminals that report every second send the same few times at once.
+    """
     digits = bcd_decode(data)
     year, month, day, hour, minute, second = (int(digits[i : i + 2]) for i in range(0, 12, 2))
     if not (1 <= month <= 12 and 1 <= day <= calendar.monthrange(2000 + year, month)[1]):

@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import hmac
 import json
+import os
 import re
 import secrets
 from collections.abc import Iterator, Sequence
@@ -87,6 +88,7 @@ class TerminalList:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self._path_name = os.fspath(self.path)
         self._stamp: tuple[int, int, int] | None = None
         self._load()
 
@@ -98,7 +100,7 @@ class TerminalList:
 
     def refresh(self) -> None:
         """Read the file again if it changed since it was read (revocations take effect at once)."""
-        if _stamp(self.path) != self._stamp:
+        if _stamp(self._path_name) != self._stamp:
             self._load()
 
     def terminal(self, phone: str) -> Terminal | None:
@@ -121,9 +123,9 @@ class TerminalList:
         return iter(self._terminals.values())
 
 
-def _stamp(path: Path) -> tuple[int, int, int]:
+def _stamp(path: str | Path) -> tuple[int, int, int]:
     """What changes when the file is replaced or written: inode, size and modification time."""
-    status = path.stat()
+    status = os.stat(path)
     return status.st_ino, status.st_size, status.st_mtime_ns
 
 
