@@ -28,7 +28,6 @@ import ssl
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from functools import partial
 from typing import cast
 
@@ -51,17 +50,18 @@ from csws.gateways.jt808.messages import (
 )
 from csws.gateways.jt808.reassembly import Reassembler
 from csws.gateways.jt808.terminals import Terminal, TerminalList
-from csws.gateways.jt808.texts import Announcer, DriverTexts
-from csws.gateways.jt808.tracking import ReportPace, TrackingSettings
+from csws.gateways.jt808.texts import Announcer
+from csws.gateways.jt808.tracking import ReportPace
 
 from .answers import WarningService
 from .decoding import DecodedPosition, DecodedQuery
 from .guard import OncePerInterval
 from .jt808_groups import AnswerSummary, Batcher, Waiting
+from .jt808_settings import GatewaySettings
 from .jt808_tracking import TrackingPlanner
 from .work import WorkThread
 
-__all__ = ["GatewaySettings", "Gateway"]
+__all__ = ["Gateway"]
 
 log = logging.getLogger("csws.jt808")
 log.addFilter(OncePerInterval())
@@ -72,51 +72,6 @@ MAX_PENDING_REPORTS = 8
 #: A report older than this when it arrives is not given to the latency allowance (a terminal clock
 #: that is off would otherwise push every warning forward), s.
 MAX_REPORT_AGE_S = 30.0
-
-
-@dataclass(frozen=True)
-class GatewaySettings:
-    """How the gateway listens and what it allows a connection.
-
-    Attributes
-    ----------
-    idle_s
-        A connection that sends nothing this long is closed (three missed 60 s heartbeats, the
-        standard's default heartbeat interval).
-    frames_per_s, frames_burst
-        Each connection may send this many frames per second on average, this many at once;
-        the excess is dropped (and logged, rate-limited).
-    max_connections
-        Connections beyond this many are closed at once.
-    batch_window_s
-        A group of reports starts at most this often (:class:`service.jt808_groups.Batcher`): a group
-        costs a few milliseconds whatever its size (map matching, the engine, the state store's round
-        trips) and little more per report, so reports answered together cost far less than a handful
-        at a time, for at most this much more latency.
-    tracking
-        When and how slow terminals are asked for temporary tracking (``0x8202``) near a curve.
-    untracked_fleets
-        The fleets whose terminals are never asked for tracking (``*``: none is).
-    """
-
-    host: str = "127.0.0.1"
-    port: int = 6808
-    idle_s: float = 180.0
-    frames_per_s: float = 20.0
-    frames_burst: float = 60.0
-    max_connections: int = 20_000
-    batch_window_s: float = 0.02
-    fleet_texts: dict[str, DriverTexts] = field(default_factory=dict)
-    tracking: TrackingSettings = field(default_factory=TrackingSettings)
-    untracked_fleets: frozenset[str] = frozenset()
-
-    def texts(self, fleet: str) -> DriverTexts:
-        """The texts of ``fleet`` (the defaults where it has none)."""
-        return self.fleet_texts.get(fleet, DriverTexts())
-
-    def tracks(self, fleet: str) -> bool:
-        """Whether ``fleet``'s slow terminals are asked for temporary tracking near a curve."""
-        return not ({fleet, "*"} & self.untracked_fleets)
 
 
 def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> DecodedQuery:

@@ -184,7 +184,8 @@ def main(args: argparse.Namespace) -> int:
     from csws.gateways.jt808.texts import load_fleet_texts
 
     from .app import create_app
-    from .jt808 import Gateway, GatewaySettings
+    from .jt808 import Gateway
+    from .jt808_settings import GatewaySettings
     from .run import settings_from_args
 
     terminals = TerminalList(_terminal_file(args.terminals))

@@ -25,7 +25,8 @@ from csws.gateways.jt808.terminals import TerminalList, add_terminal
 from csws.geometry import arc, sample_pieces, straight
 from csws.sumo.netbuild import netconvert
 from service.app import create_app
-from service.jt808 import Gateway, GatewaySettings
+from service.jt808 import Gateway
+from service.jt808_settings import GatewaySettings
 from service.keys import add_key
 from service.settings import ServiceSettings
 

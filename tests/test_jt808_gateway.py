@@ -36,8 +36,8 @@ from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.terminals import add_terminal, revoke_terminal
 from csws.standard import warning_speed
 from csws.warning.rules import WarningSettings
-from service.jt808 import GatewaySettings
 from service.jt808_cli import loop_factory
+from service.jt808_settings import GatewaySettings
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 

@@ -30,7 +30,7 @@ import service.jt808
 from csws.gateways.jt808.tracking import TrackingSettings
 from csws.standard import warning_speed
 from csws.warning.rules import WarningSettings
-from service.jt808 import GatewaySettings
+from service.jt808_settings import GatewaySettings
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
