@@ -121,11 +121,16 @@ class PathAhead:
         """``route`` when the path follows the vehicle's route, else ``predicted``."""
         return self.horizon.kind
 
+    def _row_list(self) -> list[int]:
+        """The horizon's parts that are CPOIs (3.11), by :func:`is_cpoi` on plain floats: a horizon has
+        a few parts, on which numpy's cost per call would be most of the work."""
+        vehicle_s, lookahead_m = self.vehicle_s, self.lookahead_m
+        return [row for row, part in enumerate(self.horizon.parts) if is_cpoi(part[0], part[1], vehicle_s, lookahead_m)]
+
     @cached_property
     def _rows(self) -> np.ndarray:
-        """The horizon's parts that are CPOIs (3.11)."""
-        h = self.horizon
-        return np.flatnonzero(is_cpoi(h.part_start_s, h.part_end_s, self.vehicle_s, self.lookahead_m))
+        """The horizon's parts that are CPOIs (3.11), as an array of rows."""
+        return np.array(self._row_list(), dtype=np.intp)
 
     @property
     def cpoi_distance_m(self) -> np.ndarray:
@@ -165,7 +170,7 @@ class PathAhead:
         (m) and whether it is passed, equal to the arrays above (:func:`radius_under` in floats)."""
         vehicle_s, parts = self.vehicle_s, self.horizon.parts
         points = []
-        for row in self._rows.tolist():
+        for row in self._row_list():
             start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id = parts[row]
             length_m = end_s - start_s
             fraction = min(max((vehicle_s - start_s) / length_m if length_m > 0 else 0.0, 0.0), 1.0)
@@ -358,5 +363,6 @@ END_MARGIN_M = 1.0
 
 def is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
     """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``, or one it passed by at
-    most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
+    most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on
+    floats and on arrays alike."""
     return (part_end_s + END_MARGIN_M > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)
