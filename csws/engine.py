@@ -501,4 +501,4 @@ def _lanes_of_active(lane_ids: Sequence[str | None]) -> list[str]:
     """The lanes of active vehicles: each is on one, or it would be in fault (5.4: no map match)."""
     if None in lane_ids:
         raise RuntimeError("an active vehicle has no lane: it should be in fault (5.4)")
-    return cast(list[str], list(lane_ids))
+    return cast("list[str]", list(lane_ids))

@@ -35,6 +35,7 @@ from csws.warning.rules import (
     PathKind,
     Trigger,
     WarningSettings,
+    by_distance,
     column_index,
     meets_clause_6_1,
     meets_margin,
@@ -210,7 +211,7 @@ def _warning(
     return CurveWarning(
         target.level,
         target,
-        tuple(sorted(triggers, key=lambda t: t.distance_m)),
+        tuple(sorted(triggers, key=by_distance)),
         path_kind,
         HmiHint.for_level(target.level),
     )
