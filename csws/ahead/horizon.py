@@ -168,10 +168,11 @@ class PathAhead:
     def cpoi_points(self) -> list[tuple[str, int, float, float, bool]]:
         """Each CPOI as plain values, nearest first: curve id, part index, distance S (m), radius
         (m) and whether it is passed, equal to the arrays above (:func:`radius_under` in floats)."""
-        vehicle_s, parts = self.vehicle_s, self.horizon.parts
+        vehicle_s, lookahead_m = self.vehicle_s, self.lookahead_m
         points = []
-        for row in self._row_list():
-            start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id = parts[row]
+        for start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id in self.horizon.parts:
+            if not is_cpoi(start_s, end_s, vehicle_s, lookahead_m):
+                continue
             length_m = end_s - start_s
             fraction = min(max((vehicle_s - start_s) / length_m if length_m > 0 else 0.0, 0.0), 1.0)
             radius_m = start_radius_m

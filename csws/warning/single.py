@@ -137,15 +137,18 @@ def _required(
     speeds, distances, rules = [], [], []
     for _, _, distance_m, radius_m, passed in points:
         pair = settings.warning_speeds_one_kmh(radius_m, column_index)
-        sws = [warning_distance_m(speed_mps, kmh_to_mps(v), g_mps2) for v in pair]
+        sws = [
+            warning_distance_m(speed_mps, kmh_to_mps(pair[0]), g_mps2),
+            warning_distance_m(speed_mps, kmh_to_mps(pair[1]), g_mps2),
+        ]
         speeds.append(pair)
         distances.append(sws)
-        rules.append(
-            [
-                Rule.REQUIRED if not passed and meets_clause_6_1(speed_kmh, v, distance_m, s, allowance_m) else Rule.OFF
-                for v, s in zip(pair, sws, strict=True)
-            ]
-        )
+        if passed:
+            rules.append([Rule.OFF, Rule.OFF])
+            continue
+        level_1 = meets_clause_6_1(speed_kmh, pair[0], distance_m, sws[0], allowance_m)
+        level_2 = meets_clause_6_1(speed_kmh, pair[1], distance_m, sws[1], allowance_m)
+        rules.append([Rule.REQUIRED if level_1 else Rule.OFF, Rule.REQUIRED if level_2 else Rule.OFF])
     return speeds, distances, rules
 
 
