@@ -121,16 +121,11 @@ class PathAhead:
         """``route`` when the path follows the vehicle's route, else ``predicted``."""
         return self.horizon.kind
 
-    def _row_list(self) -> list[int]:
-        """The horizon's parts that are CPOIs (3.11), by :func:`is_cpoi` on plain floats: a horizon has
-        a few parts, on which numpy's cost per call would be most of the work."""
-        vehicle_s, lookahead_m = self.vehicle_s, self.lookahead_m
-        return [row for row, part in enumerate(self.horizon.parts) if is_cpoi(part[0], part[1], vehicle_s, lookahead_m)]
-
     @cached_property
     def _rows(self) -> np.ndarray:
-        """The horizon's parts that are CPOIs (3.11), as an array of rows."""
-        return np.array(self._row_list(), dtype=np.intp)
+        """The horizon's parts that are CPOIs (3.11)."""
+        h = self.horizon
+        return np.flatnonzero(is_cpoi(h.part_start_s, h.part_end_s, self.vehicle_s, self.lookahead_m))
 
     @property
     def cpoi_distance_m(self) -> np.ndarray:
@@ -167,7 +162,8 @@ class PathAhead:
 
     def cpoi_points(self) -> list[tuple[str, int, float, float, bool]]:
         """Each CPOI as plain values, nearest first: curve id, part index, distance S (m), radius
-        (m) and whether it is passed, equal to the arrays above (:func:`radius_under` in floats)."""
+        (m) and whether it is passed, equal to the arrays above (:func:`is_cpoi` and :func:`radius_under` in
+        floats: a horizon has a few parts, on which numpy's cost per call would be most of the work)."""
         vehicle_s, lookahead_m = self.vehicle_s, self.lookahead_m
         points = []
         for start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id in self.horizon.parts:
