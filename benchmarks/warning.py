@@ -10,7 +10,10 @@ over the 300 m before the curves at test speed:
   timestamps 0.1 s apart, so that the release rule keeps each warned vehicle's places and times
   (rules 2 and 4) as a fleet sending timestamps has it do;
 * the forward collision warning of 1,000 vehicles in one batch (:func:`csws.fcw.physics.evaluate_fcw`),
-  per vehicle.
+  per vehicle;
+* the same engine in a city (Bad Hersfeld): vehicles of every category on lanes drawn at random,
+  anywhere along them, at 0.7-1.1 times the lane's speed limit, their fixes 0.1 s apart: one vehicle
+  at a time (median) and 1,000 in one batch (``Engine.evaluate_fleet``), per vehicle.
 
 Run with ``python -m benchmarks.warning``.
 """
@@ -32,6 +35,9 @@ from csws.road.roadmap import RoadMap
 from csws.warning.single import evaluate
 
 TRACK = "t9_m1_test1_left"
+CITY_NET = "badhersfeld.net.xml.gz"
+#: The categories of the city's vehicles, drawn in turn.
+CITY_CATEGORIES = ("M1", "M1", "M1", "N", "M2", "M3", "N")
 TARGET_SINGLE_US = 30.0
 TARGET_BATCH_US = 5.0
 TARGET_FCW_BATCH_US = 5.0
@@ -98,8 +104,65 @@ def _fcw_batch_us(count: int, seed: int = 2) -> float:
     return min(timings) / count * 1e6
 
 
+def _city_vehicles(road_map: RoadMap, count: int, seed: int = 1) -> list[VehicleInput]:
+    """``count`` vehicles on the city's lanes (normal lanes open to cars, longer than 20 m) drawn at random,
+    anywhere along them, at 0.7-1.1 times the lane's speed limit."""
+    rng = np.random.default_rng(seed)
+    lanes = [
+        road_map.lane(lane_id)
+        for lane_id in road_map.lane_ids
+        if not lane_id.startswith(":")
+        and road_map.lane(lane_id).length_m > 20.0
+        and "passenger" in road_map.lane(lane_id).allowed_vclasses
+    ]
+    vehicles = []
+    for i, k in enumerate(rng.choice(len(lanes), count).tolist()):
+        lane = lanes[k]
+        vehicles.append(
+            VehicleInput(
+                f"c{i}",
+                CITY_CATEGORIES[i % len(CITY_CATEGORIES)],
+                float(lane.speed_limit_mps * 3.6 * rng.uniform(0.7, 1.1)),
+                lane.lane_id,
+                float(rng.uniform(0.0, lane.length_m)),
+            )
+        )
+    return vehicles
+
+
+def _city_us(count: int, repeat: int = 5, period_s: float = 0.1) -> tuple[float, float]:
+    """The engine in the city: median µs of one vehicle evaluated alone, and least µs per vehicle of
+    ``count`` evaluated in one batch, every vehicle's fixes ``period_s`` apart."""
+    road_map = RoadMap.load(networks_dir() / CITY_NET)
+    fleet = _city_vehicles(road_map, count)
+    engine = Engine(road_map)
+    samples = []
+    for update in range(repeat + 1):
+        for vehicle in fleet[: max(count // 4, 1)]:
+            vehicle = replace(vehicle, timestamp_s=update * period_s)
+            start = time.perf_counter()
+            engine.evaluate(vehicle)
+            if update:  # the first warms the caches
+                samples.append(time.perf_counter() - start)
+    batch = Engine(road_map)
+    ids = [vehicle.vehicle_id for vehicle in fleet]
+    categories = [vehicle.category for vehicle in fleet]
+    speeds_kmh = [vehicle.speed_kmh for vehicle in fleet]
+    lanes = [vehicle.lane_id for vehicle in fleet]
+    positions_m = [vehicle.lane_pos_m for vehicle in fleet]
+    timings = []
+    for update in range(repeat + 2):
+        start = time.perf_counter()
+        times_s = [update * period_s] * count
+        batch.evaluate_fleet(ids, categories, speeds_kmh, lanes, positions_m, [None] * count, timestamp_s=times_s)
+        if update:  # the first warms the caches
+            timings.append(time.perf_counter() - start)
+    return statistics.median(samples) * 1e6, min(timings) / count * 1e6
+
+
 def run(batch_size: int = 1000) -> dict:
-    """The figures: µs per vehicle alone (whole engine, warning step only) and in a batch."""
+    """The figures: µs per vehicle alone (whole engine, warning step only) and in a batch, on the test track
+    and in the city."""
     truth = json.loads((networks_dir() / f"{TRACK}.truth.json").read_text())
     engine = Engine(RoadMap.load(networks_dir() / f"{TRACK}.net.xml"))
     singles = _vehicles(truth, 200, 130.0)
@@ -112,7 +175,10 @@ def run(batch_size: int = 1000) -> dict:
     fleet = _vehicles(truth, batch_size, 130.0)
     batch_us = _batch_us(engine, fleet)
     timed_us = _batch_us(Engine(engine.road_map), fleet, period_s=0.1)
+    city_single_us, city_batch_us = _city_us(batch_size)
     return {
+        "engine_city_single_median_us": city_single_us,
+        "engine_city_batch_per_vehicle_us": city_batch_us,
         "fcw_batch_per_vehicle_us": _fcw_batch_us(batch_size),
         "engine_single_median_us": engine_us,
         "warning_single_median_us": warning_us,
@@ -140,6 +206,8 @@ def main() -> None:
         f"{'FCW, batch of 1000, per vehicle':<34} {figures['fcw_batch_per_vehicle_us']:>8.2f}us  "
         f"<= {TARGET_FCW_BATCH_US:g} us"
     )
+    print(f"{'city: engine, one vehicle (median)':<34} {figures['engine_city_single_median_us']:>8.1f}us")
+    print(f"{'city: engine, batch of 1000, per veh.':<34} {figures['engine_city_batch_per_vehicle_us']:>8.1f}us")
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
 from operator import attrgetter
+from typing import cast
 
 import numpy as np
 
@@ -185,16 +186,17 @@ class Engine:
 
     def evaluate(self, vehicle: VehicleInput) -> Answer:
         """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
-        last_timestamp_s = self.status(vehicle.vehicle_id).last_timestamp_s
+        vehicle_id = vehicle.vehicle_id
+        last_timestamp_s = self.status(vehicle_id).last_timestamp_s
         status = self._next_status(vehicle)
-        self._learn_interval(vehicle.vehicle_id, last_timestamp_s, status)
+        self._learn_interval(vehicle_id, last_timestamp_s, status)
         if not status.warns:
-            self.held.pop(vehicle.vehicle_id, None)
-            return Answer(vehicle.vehicle_id, status.state, status.fault, no_warning(), None)
-        period_s = self.update_period_s(vehicle.vehicle_id)
+            self.held.pop(vehicle_id, None)
+            return Answer(vehicle_id, status.state, status.fault, no_warning(), None)
+        period_s = self.update_period_s(vehicle_id)
         age_s = latency.fix_age_s(vehicle.age_s)
         path = self._lookahead_on_map()(
-            _lanes_of_active([vehicle.lane_id])[0],
+            _lanes_of_active((vehicle.lane_id,))[0],
             vehicle.lane_pos_m,
             vehicle.speed_kmh,
             vehicle.category,
@@ -207,14 +209,14 @@ class Engine:
             column_index(vehicle.category),
             path.cpoi_points(),
             path.kind,
-            self.held.get(vehicle.vehicle_id, NOT_HELD),
+            self.held.get(vehicle_id, NOT_HELD),
             vehicle.timestamp_s,
             self.settings.warning,
             period_s,
             age_s,
         )
-        self._keep([vehicle.vehicle_id], [memory])
-        return Answer(vehicle.vehicle_id, status.state, status.fault, warning, path)
+        self._keep_one(vehicle_id, memory)
+        return Answer(vehicle_id, status.state, status.fault, warning, path)
 
     def _lookahead_on_map(self) -> LookAhead:
         """The look-ahead of the map; a vehicle is active (5.2) only where there is one."""
@@ -433,12 +435,17 @@ class Engine:
     ) -> None:
         """Keep each vehicle's warning memory while a level is on; drop it when none is (where ``before``,
         each vehicle's memory before this update, is given, only where it had one)."""
-        kept = self.held
         for vehicle, (vehicle_id, memory) in enumerate(zip(vehicle_ids, memories, strict=False)):
-            if memory is not NOT_HELD and memory.is_on:
-                kept[vehicle_id] = memory
-            elif kept and (before is None or before[vehicle] is not NOT_HELD):
-                kept.pop(vehicle_id, None)
+            if memory is not NOT_HELD or before is None or before[vehicle] is not NOT_HELD:
+                self._keep_one(vehicle_id, memory)
+
+    def _keep_one(self, vehicle_id: str, memory: HeldWarning) -> None:
+        """Keep a vehicle's warning memory while a level is on; drop any it had when none is."""
+        kept = self.held
+        if memory is not NOT_HELD and memory.is_on:
+            kept[vehicle_id] = memory
+        elif kept:
+            kept.pop(vehicle_id, None)
 
     def _warnings(
         self,
@@ -492,6 +499,6 @@ def _of_active(column: Sequence, active: Sequence[int], everyone: bool) -> list:
 
 def _lanes_of_active(lane_ids: Sequence[str | None]) -> list[str]:
     """The lanes of active vehicles: each is on one, or it would be in fault (5.4: no map match)."""
-    if any(lane_id is None for lane_id in lane_ids):
+    if None in lane_ids:
         raise RuntimeError("an active vehicle has no lane: it should be in fault (5.4)")
-    return [lane_id for lane_id in lane_ids if lane_id is not None]
+    return cast("list[str]", list(lane_ids))

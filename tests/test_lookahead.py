@@ -6,8 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from markers import marks_its_tests
 
+from csws.ahead.horizon import is_cpoi
 from csws.ahead.lookahead import LookAhead, LookAheadSettings, lookahead_distances_m
 from csws.geometry import arc, sample_pieces, straight
 from csws.road.roadmap import RoadMap
@@ -170,3 +173,32 @@ def test_paths_are_cached(junction_map: RoadMap) -> None:
 def test_unknown_lanes_raise_key_error(junction_map: RoadMap) -> None:
     with pytest.raises(KeyError):
         LookAhead(junction_map)("nope_0", 0.0, 50.0, "N")
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    lane_pos_m=st.floats(min_value=-5.0, max_value=300.0),
+    speed_kmh=st.floats(min_value=0.0, max_value=220.0),
+    fixed_distance_m=st.one_of(st.none(), st.floats(min_value=1.0, max_value=600.0)),
+)
+def test_one_vehicles_cpois_in_plain_floats_are_the_batchs_to_the_bit(
+    junction_map: RoadMap, lane_pos_m: float, speed_kmh: float, fixed_distance_m: float | None
+) -> None:
+    """One vehicle's CPOIs, found in plain floats, are those the array rule (3.11) picks from its horizon, and
+    those of the same vehicle in a batch: same horizon, rows, distances, radii and passed flags."""
+    lookahead = LookAhead(junction_map, LookAheadSettings(fixed_distance_m=fixed_distance_m))
+    for lane_id in ("in_0", "main_0", "side_0"):
+        ahead = lookahead(lane_id, lane_pos_m, speed_kmh, "M1")
+        batch = lookahead.many([lane_id], np.array([lane_pos_m]), np.array([speed_kmh]), [None])
+        assert ahead.horizon is batch.horizons[0]
+        assert ahead.vehicle_s == batch.vehicle_s[0] and ahead.lookahead_m == batch.lookahead_m[0]
+        h = ahead.horizon
+        rows = np.flatnonzero(is_cpoi(h.part_start_s, h.part_end_s, ahead.vehicle_s, ahead.lookahead_m))
+        points = ahead.cpoi_points()
+        assert [(curve_id, part) for curve_id, part, *_ in points] == list(
+            zip(h.part_curve_id[rows].tolist(), h.part_index[rows].tolist(), strict=True)
+        )
+        assert [point[2] for point in points] == np.maximum(h.part_start_s[rows] - ahead.vehicle_s, 0.0).tolist()
+        assert [point[2] for point in points] == batch.cpoi_distance_m.tolist() == ahead.cpoi_distance_m.tolist()
+        assert [point[3] for point in points] == batch.cpoi_radius_m.tolist() == ahead.cpoi_radius_m.tolist()
+        assert [point[4] for point in points] == batch.cpoi_passed.tolist() == ahead.cpoi_passed.tolist()

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from csws.engine import Engine, VehicleInput
@@ -152,3 +152,21 @@ def test_a_drive_through_curves_is_answered_alike_one_at_a_time_and_in_a_batch()
         s += speed_kmh / 3.6 * 0.1
         speed_kmh = max(speed_kmh - (0.9 if one.level == 2 else 0.2), 40.0)
     assert levels == {0, 1, 2}
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    policy=_policies(),
+    radii=st.lists(_radii, min_size=1, max_size=12),
+    columns=st.lists(st.integers(0, len(Column) - 1), min_size=1, max_size=3),
+)
+def test_remembered_warning_speeds_are_the_tables_to_the_bit(monkeypatch, policy, radii, columns) -> None:
+    """V_w of both levels as the settings remember them per radius and column is the array look-up's
+    (Tables 1-2), on the first ask, the next, and after the memory started afresh."""
+    monkeypatch.setattr("csws.warning.settings.WARNING_SPEEDS_REMEMBERED", 5)
+    warning_settings = WarningSettings(policy=policy)
+    for _ in range(2):
+        for radius_m in radii:
+            for column in columns:
+                truth = policy.warning_speeds_kmh(np.array([radius_m]), np.array([column]))[:, 0].tolist()
+                assert list(warning_settings.warning_speeds_one_kmh(radius_m, column)) == truth

@@ -162,11 +162,13 @@ class PathAhead:
 
     def cpoi_points(self) -> list[tuple[str, int, float, float, bool]]:
         """Each CPOI as plain values, nearest first: curve id, part index, distance S (m), radius
-        (m) and whether it is passed, equal to the arrays above (:func:`radius_under` in floats)."""
-        vehicle_s, parts = self.vehicle_s, self.horizon.parts
+        (m) and whether it is passed, equal to the arrays above (:func:`is_cpoi` and :func:`radius_under` in
+        floats: a horizon has a few parts, on which numpy's cost per call would be most of the work)."""
+        vehicle_s, lookahead_m = self.vehicle_s, self.lookahead_m
         points = []
-        for row in self._rows.tolist():
-            start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id = parts[row]
+        for start_s, end_s, start_radius_m, end_radius_m, part_index, curve_id in self.horizon.parts:
+            if not is_cpoi(start_s, end_s, vehicle_s, lookahead_m):
+                continue
             length_m = end_s - start_s
             fraction = min(max((vehicle_s - start_s) / length_m if length_m > 0 else 0.0, 0.0), 1.0)
             radius_m = start_radius_m
@@ -358,5 +360,6 @@ END_MARGIN_M = 1.0
 
 def is_cpoi(part_start_s, part_end_s, vehicle_s, lookahead_m):
     """Whether each part is a CPOI (3.11) of a vehicle at ``vehicle_s``, or one it passed by at
-    most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on arrays."""
+    most :data:`END_MARGIN_M`: starting closer than the look-ahead distance S_LAD (3.9). Works on
+    floats and on arrays alike."""
     return (part_end_s + END_MARGIN_M > vehicle_s) & (part_start_s < vehicle_s + lookahead_m)

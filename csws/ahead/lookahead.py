@@ -367,7 +367,10 @@ def _remember(cache: OrderedDict, key: tuple, horizon: Horizon, capacity: int) -
 
 def _reach_m(lookahead_m, context_m: float):
     """How far a horizon reaches beyond its first lane for S_LAD ``lookahead_m``: S_LAD plus the context,
-    rounded up to a multiple of :data:`HORIZON_STEP_M` so that horizons are shared, m (floats or arrays)."""
+    rounded up to a multiple of :data:`HORIZON_STEP_M` so that horizons are shared, m (floats or arrays, the
+    same to the bit: the multiple is a whole number, exact in a float)."""
+    if isinstance(lookahead_m, float) and math.isfinite(lookahead_m):
+        return math.ceil((lookahead_m + context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
     return np.ceil((np.asarray(lookahead_m, dtype=float) + context_m) / HORIZON_STEP_M) * HORIZON_STEP_M
 
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
+from operator import attrgetter
 
 import numpy as np
 
@@ -269,7 +270,7 @@ class BatchWarnings:
                 CurveWarning(
                     level=level,
                     target=triggers.get(targets[vehicle]),
-                    triggers=tuple(sorted(triggers.values(), key=lambda t: t.distance_m)),
+                    triggers=tuple(sorted(triggers.values(), key=by_distance)),
                     path_kind=path_kind,
                     hmi=_HMI_HINTS[level],
                 )
@@ -280,6 +281,8 @@ class BatchWarnings:
 #: A category's column; its name finds it too (a StrEnum member is equal to its name, and hashes as it).
 _COLUMN_INDEX: dict[str, int] = {category: list(Column).index(category.column) for category in Category}
 _LEVELS = (Level.NONE, Level.LEVEL_1, Level.LEVEL_2)
+#: Orders triggers nearest first (a warning lists its triggers so).
+by_distance = attrgetter("distance_m")
 
 
 def column_index(category: str | Category) -> int:

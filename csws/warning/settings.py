@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from csws.standard import DEFAULT_POLICY, G_MPS2, WarningSpeedPolicy
 
 __all__ = ["WarningSettings"]
+
+#: How many (radius, column) pairs a settings object remembers the warning speeds of before it starts afresh.
+WARNING_SPEEDS_REMEMBERED = 4096
 
 
 @dataclass(frozen=True)
@@ -103,3 +107,23 @@ class WarningSettings:
         if isinstance(period_s, np.ndarray):
             return np.fmax(self.release_hold_s, self.release_hold_intervals * period_s)
         return max(self.release_hold_s, self.release_hold_intervals * period_s)
+
+    def warning_speeds_one_kmh(self, radius_m: float, column_index: int) -> tuple[float, float]:
+        """V_w (km/h) of both levels at one radius and column (Tables 1-2), the policy's
+        :meth:`~csws.standard.WarningSpeedPolicy.warning_speeds_one_kmh` remembered per radius and column:
+        a vehicle meets the same curve parts, at their same radii, update after update."""
+        if not (isinstance(radius_m, float) and radius_m > 0):
+            return self.policy.warning_speeds_one_kmh(radius_m, column_index)
+        remembered = self._warning_speeds_one
+        key = (radius_m, column_index)
+        speeds_kmh = remembered.get(key)
+        if speeds_kmh is None:
+            if len(remembered) >= WARNING_SPEEDS_REMEMBERED:
+                remembered.clear()
+            speeds_kmh = remembered[key] = self.policy.warning_speeds_one_kmh(radius_m, column_index)
+        return speeds_kmh
+
+    @cached_property
+    def _warning_speeds_one(self) -> dict[tuple[float, int], tuple[float, float]]:
+        """The warning speeds :meth:`warning_speeds_one_kmh` found, by (radius, column)."""
+        return {}

@@ -5,7 +5,7 @@ numpy arrays. One vehicle has a few CPOIs (one or two on most roads), and on arr
 small numpy's cost per call is most of the work: an on-board unit's query, or the service's
 answer to one vehicle, would wait on it. :func:`judge_one` applies the same rules to Python
 floats through the same functions, each of which takes floats or arrays: the table look-up
-(:meth:`csws.standard.WarningSpeedPolicy.warning_speeds_one_kmh`), formula (1)
+(:meth:`csws.warning.settings.WarningSettings.warning_speeds_one_kmh`), formula (1)
 (:func:`csws.standard.warning_distance_m`), the latency allowance, 6.1's condition
 (:func:`csws.warning.rules.meets_clause_6_1`), the margin (:func:`csws.warning.rules.meets_margin`)
 and the memory (:func:`csws.warning.release.vehicle_memory`). Its answer and the memory it leaves
@@ -35,6 +35,7 @@ from csws.warning.rules import (
     PathKind,
     Trigger,
     WarningSettings,
+    by_distance,
     column_index,
     meets_clause_6_1,
     meets_margin,
@@ -103,6 +104,8 @@ def judge_one(
         The :class:`CurveWarning` (as :meth:`csws.warning.rules.BatchWarnings.vehicle_warning` gives
         it) and the vehicle's memory after this update (:func:`csws.warning.release.next_memories`).
     """
+    if not points and not held.is_on:  # a straight ahead, nothing held: nothing to judge, nothing kept
+        return no_warning(path_kind), NOT_HELD
     speed_mps = kmh_to_mps(speed_kmh)
     allowance_m = settings.allowance_m(speed_mps, update_period_s, age_s)
     hold_s = settings.hold_s(update_period_s)
@@ -113,16 +116,7 @@ def judge_one(
     if recalled:
         points = [*points, *((curve_id, part, s, r, True) for curve_id, part, s, r in recalled)]
         keys += [(point[0], point[1]) for point in recalled]
-    speeds = [settings.policy.warning_speeds_one_kmh(radius_m, column_index) for _, _, _, radius_m, _ in points]
-    distances = [[warning_distance_m(speed_mps, kmh_to_mps(v), settings.g_mps2) for v in pair] for pair in speeds]
-    # 6.1, nothing where passed.
-    rules = [
-        [
-            Rule.REQUIRED if meets_clause_6_1(speed_kmh, v, point[2], s, allowance_m) and not point[4] else Rule.OFF
-            for v, s in zip(pair, sws, strict=True)
-        ]
-        for point, pair, sws in zip(points, speeds, distances, strict=False)
-    ]
+    speeds, distances, rules = _required(points, speed_kmh, column_index, allowance_m, settings)
     distances_m = [point[2] for point in points]
     if held.is_on:
         release = (allowance_m, hold_s, on_path)
@@ -131,6 +125,31 @@ def judge_one(
     level_rules = ([point_rules[0] for point_rules in rules], [point_rules[1] for point_rules in rules])
     places = (distances_m, [point[3] for point in points], speed_kmh)
     return warning, vehicle_memory(level_rules, keys, held, now_s, places)
+
+
+def _required(
+    points: Sequence[CpoiPoint], speed_kmh: float, column_index: int, allowance_m: float, settings: WarningSettings
+) -> tuple[list[tuple[float, float]], list[list[float]], list[list[int]]]:
+    """Each CPOI's V_w (Tables 1-2) and S_w (formula (1)) of both levels, and which levels 6.1 requires
+    there (:class:`Rule` codes; nothing where passed), in one pass over the CPOIs."""
+    speed_mps = kmh_to_mps(speed_kmh)
+    g_mps2 = settings.g_mps2
+    speeds, distances, rules = [], [], []
+    for _, _, distance_m, radius_m, passed in points:
+        pair = settings.warning_speeds_one_kmh(radius_m, column_index)
+        sws = [
+            warning_distance_m(speed_mps, kmh_to_mps(pair[0]), g_mps2),
+            warning_distance_m(speed_mps, kmh_to_mps(pair[1]), g_mps2),
+        ]
+        speeds.append(pair)
+        distances.append(sws)
+        if passed:
+            rules.append([Rule.OFF, Rule.OFF])
+            continue
+        level_1 = meets_clause_6_1(speed_kmh, pair[0], distance_m, sws[0], allowance_m)
+        level_2 = meets_clause_6_1(speed_kmh, pair[1], distance_m, sws[1], allowance_m)
+        rules.append([Rule.REQUIRED if level_1 else Rule.OFF, Rule.REQUIRED if level_2 else Rule.OFF])
+    return speeds, distances, rules
 
 
 def _apply_release(
@@ -195,7 +214,7 @@ def _warning(
     return CurveWarning(
         target.level,
         target,
-        tuple(sorted(triggers, key=lambda t: t.distance_m)),
+        tuple(sorted(triggers, key=by_distance)),
         path_kind,
         HmiHint.for_level(target.level),
     )
