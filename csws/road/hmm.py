@@ -411,8 +411,8 @@ class SequenceMatcher:
         best_rows = np.where(best >= 0, best, 0) if len(candidates.lane) else np.zeros(len(best), dtype=np.intp)
         xy = candidates.xy[best_rows].tolist() if len(candidates.lane) else [(0.0, 0.0)] * len(best)
         map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
-        kept_lanes = candidates.lane[rows]
-        names = self.index.lane_ids[kept_lanes].tolist()
+        names = self.index.lane_ids[candidates.lane[rows]].tolist()
+        held = self._holding_their_lanes(step, kept).tolist()
         log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
         lane_ids, pos_m, distance_m, placed = reported
         columns = zip(
@@ -435,7 +435,7 @@ class SequenceMatcher:
             if is_matched:
                 previous_state = None if tracks[fix] is None else cast(Track, tracks[fix]).state
                 shown = how is Placed.MATCHED and (
-                    self._holds_its_lane(int(candidates.lane[best_rows[fix]]), kept_lanes[a:b], step.log_p[rows[a:b]])
+                    held[fix]
                     or (previous_state is not None and previous_state.lane_shown and previous_state.lane_id == lane_id)
                 )
                 state = MatchState(
@@ -455,12 +455,20 @@ class SequenceMatcher:
                 result[fix] = Track(map_index[fix], state)
         return result
 
-    def _holds_its_lane(self, lane: int, candidate_lanes: np.ndarray, log_p: np.ndarray) -> bool:
-        """Whether a fix's candidates on ``lane`` hold :attr:`MatchSettings.commit_share` of the probability of its
-        candidates on lanes of the same edge (those kept for the next fix; lanes numbered over all maps)."""
-        lane_edge = self.graph.lane_edge
-        probability = np.exp(log_p) * (lane_edge[candidate_lanes] == lane_edge[lane])
-        return bool(probability[candidate_lanes == lane].sum() >= self.settings.commit_share * probability.sum())
+    def _holding_their_lanes(self, step: Step, kept: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """Per fix, whether its kept candidates on its best candidate's lane hold :attr:`MatchSettings.commit_share`
+        of the probability of its kept candidates on lanes of the same edge."""
+        rows, bounds = kept
+        count = len(bounds) - 1
+        if not rows.size:
+            return np.zeros(count, dtype=bool)
+        fix = np.repeat(np.arange(count), np.diff(bounds))
+        best_lane = step.candidates.lane[np.maximum(step.best, 0)]
+        lanes, lane_edge = step.candidates.lane[rows], self.graph.lane_edge
+        probability = np.exp(step.log_p[rows]) * (lane_edge[lanes] == lane_edge[best_lane[fix]])
+        edge_p = np.bincount(fix, weights=probability, minlength=count)
+        lane_p = np.bincount(fix, weights=probability * (lanes == best_lane[fix]), minlength=count)
+        return (step.best >= 0) & (edge_p > 0) & (lane_p >= self.settings.commit_share * edge_p)
 
     @staticmethod
     def _speeds_mps(fixes: Fixes, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> np.ndarray:
