@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from csws.ahead.roadlane import RoadLanes
-from csws.road.hmm import Confirmed, Fixes, SequenceMatcher, Track
+from csws.road.hmm import Confirmed, Fixes, Placed, SequenceMatcher, Track
 from csws.road.match_settings import MatchSettings
 from csws.road.matching import Probes, lane_points
 from csws.road.roadmap import RoadMap
@@ -179,7 +179,7 @@ class Placer:
         vehicle's sequence; what the matcher keeps of each is handed to the vehicle's session."""
         matched = self.matcher.match(self.fixes(fixes), [vehicles.track(query.vehicle_id) for query in fixes])
         placements = []
-        for query, network_index, lane_id, lane_pos_m, distance_m, reason, track, confirmed in zip(
+        for query, network_index, lane_id, lane_pos_m, distance_m, reason, track, confirmed, placed in zip(
             fixes,
             matched.map_index.tolist(),
             matched.lane_id,
@@ -188,12 +188,14 @@ class Placer:
             matched.reason,
             matched.tracks,
             matched.confirmed,
+            matched.placed,
             strict=True,
         ):
             if network_index < 0:
                 network_index = vehicles.network_of(query.vehicle_id)
             path_lane_id, path_lane_pos_m = lane_id, lane_pos_m
-            if lane_id is not None and not self._shows_lane(track, lane_id):
+            shown = placed is Placed.MATCHED and query.route is None and self._shows_lane(track, lane_id)
+            if lane_id is not None and not shown:
                 path_lane_id, path_lane_pos_m = self.road_lanes[network_index](lane_id, lane_pos_m, query.route)
             placements.append(
                 Placement(
@@ -211,9 +213,10 @@ class Placer:
         return placements
 
     @staticmethod
-    def _shows_lane(track: Track | None, lane_id: str) -> bool:
-        """Whether the fixes show ``lane_id``, where the vehicle's newest fix was matched (not dead-reckoned from
-        an earlier one), among its edge's lanes: its path ahead then starts from that lane."""
+    def _shows_lane(track: Track | None, lane_id: str | None) -> bool:
+        """Whether the fixes show ``lane_id``, where the vehicle's newest fix was matched, among its edge's lanes:
+        its path ahead then starts from that lane (a query with a route has its path start from a lane that
+        leads along it instead, :class:`csws.ahead.roadlane.RoadLanes`)."""
         return track is not None and track.state.lane_id == lane_id and track.state.lane_shown
 
     def _confirmed_place(self, confirmed: Confirmed) -> ConfirmedPlace:

@@ -18,6 +18,8 @@ from markers import marks_its_tests
 
 from csws.ahead.lookahead import LookAhead
 from csws.ahead.roadlane import RoadLanes
+from csws.road.hmm import Fixes, SequenceMatcher, Track
+from csws.road.matching import Probes
 from csws.road.roadmap import RoadMap
 from service.app import create_app
 from service.settings import ServiceSettings
@@ -243,6 +245,37 @@ def test_fixes_that_show_the_exit_lane_put_the_ramp_ahead_before_the_diverge(cli
         assert warned and warned[0] <= outside + 1, (seed, warned, outside)
         assert route.lane_id[warned[0]] == "WD_0" and along_s[warned[0]] <= required_s, (seed, warned)
         beside = drive(exit_map, ["WD_1", "DE_0"], SPEED_MPS, seed, sigma_m=0.0, heading_sigma_deg=0.0, start_m=150.0)
-        on_exit_lane = _outside_fix(beside, outside, 3.2)
-        neighbour = _answers(client, {f"beside-{seed}": on_exit_lane})[f"beside-{seed}"]
-        assert not any(_warns_of_ramp(answer) for answer in neighbour), seed
+        # one fix on the exit lane's centre line, or 10 m off to its side (7 m beyond the exit lane: no other lane
+        # of the edge is a candidate of that fix, so it shows nothing about the lanes)
+        for offset_m in (3.2, 10.0):
+            vehicle_id = f"beside-{seed}-{offset_m}"
+            neighbour = _answers(client, {vehicle_id: _outside_fix(beside, outside, offset_m)})[vehicle_id]
+            assert not any(_warns_of_ramp(answer) for answer in neighbour), (seed, offset_m)
+
+
+def test_a_shown_lane_stays_shown_while_the_sequence_goes_on_along_it(exit_map: RoadMap) -> None:
+    # Centre-line fixes of the exit lane at 1 Hz do not show it; one 3 m beyond it does; the next centre-line
+    # fixes, each continuing from the previous fix's candidate on the same lane, keep it shown. A new vehicle's
+    # centre-line fix on it shows nothing.
+    matcher = SequenceMatcher([exit_map])
+    shape = np.asarray(exit_map.lane_shape("WD_0"))
+    start_x = float(shape[0][0])
+
+    def fix(x_m: float, beyond_m: float, time_s: float, track: Track | None) -> Track | None:
+        y_m = float(np.interp(x_m, shape[:, 0], shape[:, 1])) - beyond_m
+        fixes = Fixes.of(Probes.everywhere(np.array([[x_m, y_m]])), [time_s], [90.0], [SPEED_MPS], [3.0])
+        matched = matcher.match(fixes, [track])
+        assert matched.lane_id == ["WD_0"], (x_m, beyond_m, matched.lane_id)
+        return matched.tracks[0]
+
+    track = None
+    for k in range(4):
+        track = fix(start_x + 10.0 + SPEED_MPS * k, 0.0, float(k), track)
+    assert track is not None and not track.state.lane_shown  # centre-line fixes alone do not show it
+    track = fix(start_x + 10.0 + SPEED_MPS * 4, 3.0, 4.0, track)
+    assert track is not None and track.state.lane_shown
+    for k in (5, 6):
+        track = fix(start_x + 10.0 + SPEED_MPS * k, 0.0, float(k), track)
+        assert track is not None and track.state.lane_shown
+    fresh = fix(start_x + 10.0 + SPEED_MPS * 6, 0.0, 6.0, None)
+    assert fresh is not None and not fresh.state.lane_shown

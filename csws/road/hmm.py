@@ -59,6 +59,7 @@ from csws.road.fixes import (
     with_repeats,
 )
 from csws.road.lanegraph import LaneGraph
+from csws.road.lanes_shown import LaneHistory, lanes_shown
 from csws.road.match_settings import DEFAULT_MATCH_SETTINGS, MatchSettings
 from csws.road.matching import MapMatcher, compass_to_math_rad, lane_point
 from csws.road.roadmap import RoadMap
@@ -339,7 +340,8 @@ class SequenceMatcher:
         lane, fix = candidates.lane, candidates.fix
         probability = np.exp(step.log_p)
         group = graph.internal[lane] & turning[fix]
-        same = group & (graph.exit_edge[lane] == graph.exit_edge[best_lane][fix])
+        best_exit = graph.exit_edge[best_lane][fix]
+        same = group & (graph.exit_edge[lane] == best_exit) & (best_exit >= 0)
         group_p = np.bincount(fix, weights=probability * group, minlength=count)
         same_p = np.bincount(fix, weights=probability * same, minlength=count)
         at_start = np.zeros(count, dtype=bool)
@@ -412,9 +414,12 @@ class SequenceMatcher:
         xy = candidates.xy[best_rows].tolist() if len(candidates.lane) else [(0.0, 0.0)] * len(best)
         map_index = self.index.lane_map[candidates.lane[best_rows]].tolist() if len(candidates.lane) else []
         names = self.index.lane_ids[candidates.lane[rows]].tolist()
-        held = self._holding_their_lanes(step, kept).tolist()
         log_p, cand_pos_m = step.log_p[rows].tolist(), candidates.pos_m[rows].tolist()
         lane_ids, pos_m, distance_m, placed = reported
+        was_shown = [track is not None and track.state.lane_shown for track in tracks]
+        shown = lanes_shown(
+            step, kept, previous, LaneHistory(placed, was_shown), self.graph, self.settings.commit_share
+        ).tolist()
         columns = zip(
             (best >= 0).tolist(),
             bounds[:-1].tolist(),
@@ -433,11 +438,6 @@ class SequenceMatcher:
             columns
         ):
             if is_matched:
-                previous_state = None if tracks[fix] is None else cast(Track, tracks[fix]).state
-                shown = how is Placed.MATCHED and (
-                    held[fix]
-                    or (previous_state is not None and previous_state.lane_shown and previous_state.lane_id == lane_id)
-                )
                 state = MatchState(
                     time_s,
                     x_m,
@@ -450,25 +450,10 @@ class SequenceMatcher:
                     tuple(names[a:b]),
                     tuple(cand_pos_m[a:b]),
                     tuple(log_p[a:b]),
-                    shown,
+                    shown[fix],
                 )
                 result[fix] = Track(map_index[fix], state)
         return result
-
-    def _holding_their_lanes(self, step: Step, kept: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-        """Per fix, whether its kept candidates on its best candidate's lane hold :attr:`MatchSettings.commit_share`
-        of the probability of its kept candidates on lanes of the same edge."""
-        rows, bounds = kept
-        count = len(bounds) - 1
-        if not rows.size:
-            return np.zeros(count, dtype=bool)
-        fix = np.repeat(np.arange(count), np.diff(bounds))
-        best_lane = step.candidates.lane[np.maximum(step.best, 0)]
-        lanes, lane_edge = step.candidates.lane[rows], self.graph.lane_edge
-        probability = np.exp(step.log_p[rows]) * (lane_edge[lanes] == lane_edge[best_lane[fix]])
-        edge_p = np.bincount(fix, weights=probability, minlength=count)
-        lane_p = np.bincount(fix, weights=probability * (lanes == best_lane[fix]), minlength=count)
-        return (step.best >= 0) & (edge_p > 0) & (lane_p >= self.settings.commit_share * edge_p)
 
     @staticmethod
     def _speeds_mps(fixes: Fixes, step: Step, previous: Previous, tracks: Sequence[Track | None]) -> np.ndarray:
