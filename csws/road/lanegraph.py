@@ -210,6 +210,8 @@ class LaneGraph:
         #: lies in a junction, whether it turns off the road there.
         self.lane_edge, self.lane_length_m, self.continuation = lanes.edge, lanes.length_m, lanes.continuation
         self.internal, self.turns = lanes.internal, lanes.turns
+        #: Per edge: how many lanes it has.
+        self.edge_lane_count = np.bincount(lanes.edge, minlength=lanes.edge_count)
         #: Per internal lane: the normal lane it starts from and the normal lane and edge it leads to (-1 otherwise).
         ends = _junction_ends(lanes)
         self.entry_lane, self.exit_lane = ends.entry, ends.exit_lane

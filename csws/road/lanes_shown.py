@@ -70,7 +70,7 @@ def lanes_shown(
     edge_p = np.bincount(fix, weights=probability, minlength=count)
     lane_p = np.bincount(fix, weights=probability * own, minlength=count)
     beside = np.bincount(fix, weights=on_edge & ~own, minlength=count) > 0
-    alone = np.bincount(lane_edge)[lane_edge[best_lane]] == 1
+    alone = graph.edge_lane_count[lane_edge[best_lane]] == 1
     held = (edge_p > 0) & (lane_p >= commit_share * edge_p) & (beside | alone)
     came_from = step.back[np.maximum(step.best, 0)]
     stayed = step.linked & (step.best >= 0) & (came_from >= 0) & np.asarray(history.was_shown, dtype=bool)
