@@ -255,3 +255,55 @@ def test_a_lane_that_begins_inside_the_curve_names_it_and_its_parts_as_the_road_
     assert [answer.warning.level for answer in answers] == [1, 1] and None not in targets
     assert targets[0].curve_id == targets[1].curve_id == road_curve.curve_id
     assert targets[0].part_index == targets[1].part_index >= added_curve.first_part_index
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    radius_m=st.floats(30.0, 500.0),
+    offset_m=st.floats(-6.0, 6.0),
+    points=st.integers(70, 400),
+    turn_deg=st.floats(20.0, 170.0),
+)
+def test_a_long_lane_beside_a_bend_is_offset_by_its_distance_from_it(
+    radius_m: float, offset_m: float, points: int, turn_deg: float
+):
+    """A lane of many points (measured through the spatial index, not against every segment) sampled on an arc
+    ``offset_m`` left of its reference's arc lies that far across it, within the reference's chord sagitta."""
+    assume(abs(offset_m) >= 0.1)
+    turn_rad = math.radians(turn_deg)
+    angles = np.linspace(-math.pi / 2, -math.pi / 2 + turn_rad, points)
+    inside = np.linspace(angles[0], angles[-1], points + 7)[2:-2]  # the lane's points lie within the reference's span
+    reference = radius_m * np.column_stack((np.cos(angles), np.sin(angles)))
+    lane = (radius_m - offset_m) * np.column_stack((np.cos(inside), np.sin(inside)))  # a left turn: left is inward
+    sagitta_m = radius_m * (1.0 - math.cos(turn_rad / (points - 1) / 2.0))
+    assume(sagitta_m < 0.05)
+    offsets = lateral_offsets_m([lane, reference], np.array([1, 1]))
+    assert abs(offsets[0] - offset_m) <= sagitta_m + 1e-9
+    assert offsets[1] == 0.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), points=st.integers(60, 200), vertices=st.integers(60, 200))
+def test_a_lanes_offset_is_measured_to_its_nearest_segment_as_against_every_segment(
+    seed: int, points: int, vertices: int
+):
+    """Against a wiggly reference, the offset of a lane of many points (the spatial index's path) is the median of
+    each point's signed distance square to its nearest segment (the first of equals), found here against every
+    segment, to the last bit."""
+    rng = np.random.default_rng(seed)
+    reference = np.column_stack((np.linspace(0.0, 300.0, vertices), np.cumsum(rng.normal(0.0, 0.05, vertices))))
+    lane_x = np.sort(rng.uniform(0.0, 300.0, points))
+    lane = np.column_stack((lane_x, np.interp(lane_x, *reference.T) + rng.normal(3.0, 0.05, points)))
+    start, direction = reference[:-1], np.diff(reference, axis=0)
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    relative = lane[:, None, :] - start[None, :, :]
+    dot = relative[..., 0] * direction[None, :, 0] + relative[..., 1] * direction[None, :, 1]
+    along = np.clip(dot / length[None, :] ** 2, 0.0, 1.0)
+    away = lane[:, None, :] - (start[None, :, :] + along[..., None] * direction[None, :, :])
+    nearest = np.argmin(np.hypot(away[..., 0], away[..., 1]), axis=1)
+    rows = np.arange(points)
+    across = (
+        direction[nearest, 0] * relative[rows, nearest, 1] - direction[nearest, 1] * relative[rows, nearest, 0]
+    ) / length[nearest]
+    assert np.ptp(across) <= 0.5  # parallel: the lane has an offset
+    assert lateral_offsets_m([lane, reference], np.array([1, 1]))[0] == float(np.median(across))

@@ -40,6 +40,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 
 from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_along
 from csws.curvature.artefacts import kept_to_net_turn, polyline_turns, turned_back_scale
@@ -69,6 +70,12 @@ JOINT_TOLERANCE_M = 0.1
 #: varies by at most this along it, m: lanes of an edge are parallel in SUMO unless given a shape
 #: of their own.
 PARALLEL_TOLERANCE_M = 0.5
+#: A segment within this of a point's nearest (as the spatial index measures) is measured again, m: the
+#: index's distances and this module's differ in the last bits, never by this much.
+_NEAR_MARGIN_M = 1e-6
+#: A lane with at most this many (point, segment) pairs is measured against every segment: cheaper than an
+#: index.
+_ALL_PAIRS = 4096
 #: A moved curvature's denominator 1 - k d is never below this: a lane far inside a tight turn
 #: (a junction's double turn) keeps a tenth of the reference's radius at least.
 _MIN_SCALE = 0.1
@@ -87,21 +94,51 @@ def reference_lanes(edge_ids: Sequence[str], lane_index: Sequence[int], chain_le
 
 def _signed_offsets_m(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """Each point's signed distance across ``reference`` (left positive), measured square to the
-    reference's segment nearest it, m."""
-    start, direction = reference[:-1], np.diff(reference, axis=0)
+    reference's segment nearest it (the first of equals), m."""
+    start, end = reference[:-1], reference[1:]
+    direction = end - start
     length = np.hypot(direction[:, 0], direction[:, 1])
     keep = length > 0
-    start, direction, length = start[keep], direction[keep], length[keep]
+    start, end, direction, length = start[keep], end[keep], direction[keep], length[keep]
     if not len(length):
         return np.full(len(points), np.nan)
-    relative = points[:, None, :] - start[None, :, :]
-    along = np.clip((relative * direction).sum(axis=2) / length**2, 0.0, 1.0)
-    nearest = start + along[:, :, None] * direction
-    gap = np.hypot(*(points[:, None, :] - nearest).transpose(2, 0, 1))
-    segment = np.argmin(gap, axis=1)
-    rows = np.arange(len(points))
-    cross = direction[segment, 0] * relative[rows, segment, 1] - direction[segment, 1] * relative[rows, segment, 0]
-    return cross / length[segment]
+    if len(points) * len(start) <= _ALL_PAIRS:  # every point against every segment
+        point = np.arange(len(points))
+        segment = np.argmin(_gaps_m(points[:, None, :], start[None], direction[None], length[None]), axis=1)
+    else:
+        point, candidate = _near_pairs(points, start, end)
+        gap = _gaps_m(points[point], start[candidate], direction[candidate], length[candidate])
+        order = np.lexsort((candidate, gap, point))
+        first = order[np.flatnonzero(np.diff(point[order], prepend=-1))]
+        point, segment = point[first], candidate[first]
+    relative = points[point] - start[segment]
+    cross = direction[segment, 0] * relative[:, 1] - direction[segment, 1] * relative[:, 0]
+    offsets = np.full(len(points), np.nan)
+    offsets[point] = cross / length[segment]
+    return offsets
+
+
+def _gaps_m(points: np.ndarray, start: np.ndarray, direction: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """The distance of each point from its segment (``start``, ``direction``, ``length``; arrays that broadcast,
+    coordinates on the last axis), m."""
+    relative = points - start
+    dot = relative[..., 0] * direction[..., 0] + relative[..., 1] * direction[..., 1]
+    along = np.clip(dot / length**2, 0.0, 1.0)
+    away = points - (start + along[..., None] * direction)
+    return np.hypot(away[..., 0], away[..., 1])
+
+
+def _near_pairs(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (point, segment) pairs to measure for each point's nearest segment: every segment within its nearest
+    one's distance plus :data:`_NEAR_MARGIN_M` (a spatial index's answer, so that a lane of a thousand points is
+    not measured against every segment of its reference), by point."""
+    tree = shapely.STRtree(shapely.linestrings(np.stack((start, end), axis=1)))
+    probes = shapely.points(points)
+    (point, _), distance_m = tree.query_nearest(probes, return_distance=True)
+    nearest_m = np.full(len(points), np.inf)
+    np.minimum.at(nearest_m, point, distance_m)
+    point, segment = tree.query(probes, predicate="dwithin", distance=nearest_m + _NEAR_MARGIN_M)
+    return point.astype(np.intp), segment.astype(np.intp)
 
 
 def lateral_offsets_m(road_shapes: Sequence[np.ndarray], reference: np.ndarray) -> np.ndarray:
