@@ -81,12 +81,13 @@ def with_recalled(
     path_rows, _ = rows_of_vehicles(first, vehicles)
     keys = list(zip(ahead.cpoi_curve_id[path_rows].tolist(), ahead.cpoi_part_index[path_rows].tolist(), strict=True))
     bounds = np.cumsum(np.diff(first)[vehicles]).tolist()
+    # Python floats and ints once for the fleet, not a numpy scalar per vehicle.
+    speeds_kmh, holds_s, firsts = speed_kmh.tolist(), hold_s.tolist(), first.tolist()
     rows: list[int] = []
     found: list[tuple[int, str, int, float, float]] = []
     for (vehicle, memory), start, stop in zip(remembered, [0, *bounds[:-1]], bounds, strict=True):
-        speed, vehicle_hold_s = float(speed_kmh[vehicle]), float(hold_s[vehicle])
-        for place in recalled_points(memory, keys[start:stop], now_s[vehicle], speed, vehicle_hold_s):
-            rows.append(int(first[vehicle + 1]))
+        for place in recalled_points(memory, keys[start:stop], now_s[vehicle], speeds_kmh[vehicle], holds_s[vehicle]):
+            rows.append(firsts[vehicle + 1])
             found.append((vehicle, *place))
     if not rows:
         return ahead, None
