@@ -46,9 +46,9 @@ held level 2 never stands where level 1 was not due first.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from itertools import compress
+from itertools import compress, repeat
 
 import numpy as np
 
@@ -160,17 +160,28 @@ def memory_masks(
     if not vehicles:  # most updates of most fleets: no warning to keep
         return latched, hold
     rows, owner = rows_of_vehicles(first_cpoi, vehicles)
-    names = _named_levels(held, vehicles)
-    ids = np.asarray(curve_ids, dtype=object)[rows].tolist()
-    parts = np.asarray(part_indices, dtype=np.int64)[rows].tolist()
-    bits = np.array([names.get(key, 0) for key in zip(owner.tolist(), ids, parts, strict=True)], dtype=np.int8)
+    keys = list(
+        zip(
+            np.asarray(curve_ids, dtype=object)[rows].tolist(),
+            np.asarray(part_indices, dtype=np.int64)[rows].tolist(),
+            strict=True,
+        )
+    )
     holds_s = np.broadcast_to(np.asarray(hold_s, dtype=float), (len(held),)).tolist()
+    memories = [held[vehicle] for vehicle in vehicles]
+    points = [memory.points for memory in memories]
+    owners = owner.tolist()
+    within = [
+        [
+            within_hold(memory.kept_at_s[level], now_s[v], holds_s[v])
+            for memory, v in zip(memories, vehicles, strict=True)
+        ]
+        for level in (0, 1)
+    ]
     for level in (0, 1):
-        named = ((bits >> level) & 1).astype(bool)
-        kept_at_s = [held[vehicle].kept_at_s[level] for vehicle in vehicles]
-        within = [within_hold(kept_s, now_s[v], holds_s[v]) for kept_s, v in zip(kept_at_s, vehicles, strict=True)]
+        named = np.array(_named_rows(points, owners, keys, level), dtype=bool)
         latched[level, rows] = named
-        hold[level, rows] = named & np.array(within, dtype=bool)[owner]
+        hold[level, rows] = named & np.array(within[level], dtype=bool)[owner]
     if recalled is not None:
         latched &= ~np.asarray(recalled, dtype=bool)
     return latched, hold
@@ -191,18 +202,6 @@ def rows_of_vehicles(first_cpoi: Sequence[int] | np.ndarray, vehicles: Sequence[
     owner = np.repeat(np.arange(chosen.size), counts)
     rows = np.arange(int(counts.sum())) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
     return rows, owner
-
-
-def _named_levels(held: Sequence[HeldWarning], vehicles: Sequence[int]) -> dict[tuple[int, str, int], int]:
-    """Rule 1: the CPOIs each of ``vehicles`` (by its place in it) names in its memory, as
-    ``(place, curve id, part index) -> levels``, bit 0 for level 1 and bit 1 for level 2."""
-    names: dict[tuple[int, str, int], int] = {}
-    for place, vehicle in enumerate(vehicles):
-        for level, points in enumerate(held[vehicle].points):
-            for curve_id, part_index in points:
-                key = (place, curve_id, part_index)
-                names[key] = names.get(key, 0) | (1 << level)
-    return names
 
 
 def recalled_points(
@@ -358,7 +357,20 @@ def _kept_at_s(kept: int, kept_before_s: float | None, now_s: float | None) -> f
 
 def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:
     """For level 1 and level 2, which of a vehicle's CPOIs (``keys``, in order) its memory names (rule 1)."""
-    return [key in held.points[0] for key in keys], [key in held.points[1] for key in keys]
+    points = [held.points]
+    return _named_rows(points, repeat(0), keys, 0), _named_rows(points, repeat(0), keys, 1)
+
+
+def _named_rows(
+    points: Sequence[tuple[frozenset[PointKey], frozenset[PointKey]]],
+    owners: Iterable[int],
+    keys: Sequence[PointKey],
+    level: int,
+) -> list[bool]:
+    """Rule 1 for one level (0 for level 1): whether the memory of each CPOI's vehicle names it, the CPOIs
+    given by ``keys`` and their vehicles by ``owners``, each one's place in ``points`` (the vehicles'
+    :attr:`HeldWarning.points`)."""
+    return [key in points[place][level] for place, key in zip(owners, keys, strict=False)]
 
 
 def lowered_warning_speed_kmh(warning_speed_kmh, margin_kmh: float):
