@@ -46,9 +46,9 @@ held level 2 never stands where level 1 was not due first.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import compress, repeat
+from itertools import compress
 
 import numpy as np
 
@@ -168,20 +168,15 @@ def memory_masks(
         )
     )
     holds_s = np.broadcast_to(np.asarray(hold_s, dtype=float), (len(held),)).tolist()
-    memories = [held[vehicle] for vehicle in vehicles]
-    points = [memory.points for memory in memories]
+    points = [held[vehicle].points for vehicle in vehicles]
     owners = owner.tolist()
-    within = [
-        [
-            within_hold(memory.kept_at_s[level], now_s[v], holds_s[v])
-            for memory, v in zip(memories, vehicles, strict=True)
-        ]
-        for level in (0, 1)
-    ]
     for level in (0, 1):
-        named = np.array(_named_rows(points, owners, keys, level), dtype=bool)
+        # Rule 1 as :func:`named_points` asks it of one vehicle, for the rows of every vehicle at once.
+        named = np.array([key in points[place][level] for place, key in zip(owners, keys, strict=True)], dtype=bool)
+        kept_at_s = [held[vehicle].kept_at_s[level] for vehicle in vehicles]
+        within = [within_hold(kept_s, now_s[v], holds_s[v]) for kept_s, v in zip(kept_at_s, vehicles, strict=True)]
         latched[level, rows] = named
-        hold[level, rows] = named & np.array(within[level], dtype=bool)[owner]
+        hold[level, rows] = named & np.array(within, dtype=bool)[owner]
     if recalled is not None:
         latched &= ~np.asarray(recalled, dtype=bool)
     return latched, hold
@@ -357,20 +352,7 @@ def _kept_at_s(kept: int, kept_before_s: float | None, now_s: float | None) -> f
 
 def named_points(held: HeldWarning, keys: Sequence[PointKey]) -> tuple[list[bool], list[bool]]:
     """For level 1 and level 2, which of a vehicle's CPOIs (``keys``, in order) its memory names (rule 1)."""
-    points = [held.points]
-    return _named_rows(points, repeat(0), keys, 0), _named_rows(points, repeat(0), keys, 1)
-
-
-def _named_rows(
-    points: Sequence[tuple[frozenset[PointKey], frozenset[PointKey]]],
-    owners: Iterable[int],
-    keys: Sequence[PointKey],
-    level: int,
-) -> list[bool]:
-    """Rule 1 for one level (0 for level 1): whether the memory of each CPOI's vehicle names it, the CPOIs
-    given by ``keys`` and their vehicles by ``owners``, each one's place in ``points`` (the vehicles'
-    :attr:`HeldWarning.points`)."""
-    return [key in points[place][level] for place, key in zip(owners, keys, strict=False)]
+    return [key in held.points[0] for key in keys], [key in held.points[1] for key in keys]
 
 
 def lowered_warning_speed_kmh(warning_speed_kmh, margin_kmh: float):
