@@ -42,7 +42,10 @@ direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles slee
 vehicle-steps any exact FCW schedule must evaluate on the small fleet (a vehicle ahead on its road whose
 braking at its emergency deceleration could bring a warning at once). ``python -m benchmarks.cosim --city 10``
 runs the city alone for 10 simulated seconds, with events only evaluated every step beside the scheduled run
-(the schedule's own cost is its ``schedule`` component).
+(the schedule's own cost is its ``schedule`` component); ``python -m benchmarks.cosim --fleet`` the fleet road
+alone with the curve warning's runs (bare, read only, default, events only scheduled and every step). Each run
+also gives what it spends once, before its first step (``once_s``: the map's load): its whole time less the
+summary's wall time.
 """
 
 from __future__ import annotations
@@ -183,6 +186,9 @@ def _figures(runs: dict[str, dict]) -> dict:
             for name, run in runs.items()
             if "summary" in run
         },
+        "once_s": {
+            name: run["seconds"] - run["summary"]["wall_time_s"] for name, run in runs.items() if "summary" in run
+        },
         "default_components_ms_per_step": default["ms_per_step"],
         "components_ms_per_step": {
             name: run["summary"]["ms_per_step"] for name, run in runs.items() if "summary" in run
@@ -312,6 +318,31 @@ def _fcw_of_ssm(runs: dict[str, dict]) -> dict:
     }
 
 
+def _curve_configs(work: Path, common: dict[str, Any]) -> dict[str, CosimConfig]:
+    """The fleet road's runs of the curve warning alone: reading only, default, events only (scheduled and
+    every step)."""
+    return {
+        "read_only": CosimConfig(out=work / "read", evaluate=False, timeseries="none", **common),
+        "default": CosimConfig(out=work / "default", timeseries_every=DEFAULT_EVERY, **common),
+        "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
+        "events_every_step": CosimConfig(
+            out=work / "events-every", timeseries="none", evaluation="every-step", **common
+        ),
+    }
+
+
+def fleet_run() -> dict:
+    """The fleet road alone, the curve warning's runs only (``--fleet``): bare SUMO, reading only, default,
+    events only scheduled and every step."""
+    with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as folder:
+        work = Path(folder)
+        scenario = _fleet_scenario(work, VEHICLES)
+        common: dict[str, Any] = {"scenario": scenario, "step_length_s": STEP_S, "end_s": DURATION_S}
+        runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
+        runs |= {name: _in_own_process(_csws_run, config) for name, config in _curve_configs(work, common).items()}
+        return _figures(runs)
+
+
 def _fleet_figures(work: Path) -> dict:
     """The fleet road: 1,000 vehicles, every kind of run."""
     scenario = _fleet_scenario(work, VEHICLES)
@@ -319,14 +350,8 @@ def _fleet_figures(work: Path) -> dict:
     runs = {"bare": _in_own_process(_bare_run, scenario, DURATION_S)}
     runs["ssm"] = _in_own_process(_bare_run, scenario, DURATION_S, tuple(_ssm_arguments(work)))
     sampled: dict[str, Any] = {"timeseries_every": DEFAULT_EVERY}
-    configs = {
-        "read_only": CosimConfig(out=work / "read", evaluate=False, timeseries="none", **common),
+    configs = _curve_configs(work, common) | {
         "without_evaluation": CosimConfig(out=work / "baseline", evaluate=False, **sampled, **common),
-        "default": CosimConfig(out=work / "default", timeseries_every=DEFAULT_EVERY, **common),
-        "events_only": CosimConfig(out=work / "events", timeseries="none", **common),
-        "events_every_step": CosimConfig(
-            out=work / "events-every", timeseries="none", evaluation="every-step", **common
-        ),
         "both_systems": CosimConfig(out=work / "both", systems=("csws", "fcw"), **sampled, **common),
         "both_systems_events": CosimConfig(
             out=work / "both-events", systems=("csws", "fcw"), timeseries="none", **common
@@ -384,7 +409,11 @@ def _print(figures: dict) -> None:
             )
         )
     for name, components in figures["components_ms_per_step"].items():
-        print(f"{name} by component, ms/step:", components)
+        print(
+            f"{name} by component, ms/step:",
+            components,
+            f"once per run (the map's load): {figures['once_s'][name]:.2f} s",
+        )
 
 
 def _print_of_ssm(figures: dict) -> None:
@@ -407,6 +436,9 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     """The small configuration, or the city alone (for how many simulated seconds)."""
     parser.add_argument("--small", action="store_true", help="300 vehicles, with SSM and the FCW's floors")
     parser.add_argument(
+        "--fleet", action="store_true", help="the fleet road alone, the curve warning's runs only (no SSM, no FCW)"
+    )
+    parser.add_argument(
         "--city",
         type=float,
         metavar="SECONDS",
@@ -420,6 +452,9 @@ def main() -> None:
     if options.city is not None:
         with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as work:
             _print(_city_figures(Path(work), options.city, every_step=True))
+        return
+    if options.fleet:
+        _print(fleet_run())
         return
     if options.small:
         figures = small_run()

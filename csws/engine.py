@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from operator import attrgetter
 from typing import cast
 
@@ -28,15 +28,9 @@ from csws.answers import Answer, FleetAnswers, TargetColumns
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
 from csws.warning import latency
-from csws.warning.release import NOT_HELD, HeldWarning, memory_masks, next_memories, recalled_points, rows_of_vehicles
-from csws.warning.rules import (
-    BatchWarnings,
-    WarningSettings,
-    column_index,
-    column_indices,
-    evaluate_batch,
-    no_warning,
-)
+from csws.warning.fleet import judged, keep_memories, keep_memory, with_recalled
+from csws.warning.release import NOT_HELD, HeldWarning
+from csws.warning.rules import BatchWarnings, WarningSettings, column_index, column_indices, no_warning
 from csws.warning.single import judge_one
 
 __all__ = ["VehicleInput", "Answer", "FleetAnswers", "TargetColumns", "EngineSettings", "VehicleMemory", "Engine"]
@@ -215,7 +209,7 @@ class Engine:
             period_s,
             age_s,
         )
-        self._keep_one(vehicle_id, memory)
+        keep_memory(self.held, vehicle_id, memory)
         return Answer(vehicle_id, status.state, status.fault, warning, path)
 
     def _lookahead_on_map(self) -> LookAhead:
@@ -345,108 +339,6 @@ class Engine:
             return Fault.INVALID_INPUT
         return None
 
-    def _judged(
-        self,
-        vehicle_ids: Sequence[str],
-        held: Sequence[HeldWarning],
-        now_s: Sequence[float | None],
-        periods_s: np.ndarray,
-        age_s: np.ndarray,
-        speed_kmh: np.ndarray,
-        columns: np.ndarray,
-        cpoi_vehicle: np.ndarray,
-        first: Sequence[int],
-        distance_m: np.ndarray,
-        radius_m: np.ndarray,
-        curve_ids: np.ndarray,
-        part_indices: np.ndarray,
-        passed: np.ndarray,
-        recalled: np.ndarray | None,
-    ) -> BatchWarnings:
-        """Clause 6 with the release rule for vehicles and their CPOIs (vehicle ``i``'s are rows
-        ``first[i]:first[i + 1]``, ``recalled`` those recalled from its memory ``held``), each vehicle's
-        update period ``periods_s``; their warning memories are updated."""
-        latched, hold = memory_masks(
-            held, now_s, first, curve_ids, part_indices, self.settings.warning.hold_s(periods_s), recalled
-        )
-        batch = evaluate_batch(
-            speed_kmh,
-            columns,
-            cpoi_vehicle,
-            distance_m,
-            radius_m,
-            self.settings.warning,
-            cpoi_latched=latched,
-            cpoi_hold=hold,
-            cpoi_passed=passed,
-            update_period_s=periods_s,
-            age_s=age_s,
-        )
-        places = (distance_m, radius_m, speed_kmh)
-        memories = next_memories(held, now_s, first, curve_ids, part_indices, batch.cpoi_rule, places)
-        self._keep(vehicle_ids, memories, held)
-        return batch
-
-    def _recalled(
-        self,
-        held: Sequence[HeldWarning],
-        now_s: Sequence[float | None],
-        speed_kmh: np.ndarray,
-        periods_s: np.ndarray,
-        ahead: BatchAhead,
-    ) -> tuple[BatchAhead, np.ndarray | None]:
-        """The roads ahead with the CPOIs the release rule recalls from each vehicle's memory (rule 4,
-        :func:`csws.warning.release.recalled_points`) after the vehicle's own, marked passed; and which
-        CPOIs are recalled (None where none is)."""
-        remembered = [(vehicle, memory) for vehicle, memory in enumerate(held) if memory.places]
-        if not remembered:
-            return ahead, None
-        first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(held) + 1))
-        hold_s = self.settings.warning.hold_s(periods_s)
-        vehicles = [vehicle for vehicle, _ in remembered]
-        path_rows, _ = rows_of_vehicles(first, vehicles)
-        keys = list(
-            zip(ahead.cpoi_curve_id[path_rows].tolist(), ahead.cpoi_part_index[path_rows].tolist(), strict=True)
-        )
-        bounds = np.cumsum(np.diff(first)[vehicles]).tolist()
-        rows: list[int] = []
-        found: list[tuple[int, str, int, float, float]] = []
-        for (vehicle, memory), start, stop in zip(remembered, [0, *bounds[:-1]], bounds, strict=True):
-            speed, vehicle_hold_s = float(speed_kmh[vehicle]), float(hold_s[vehicle])
-            for place in recalled_points(memory, keys[start:stop], now_s[vehicle], speed, vehicle_hold_s):
-                rows.append(int(first[vehicle + 1]))
-                found.append((vehicle, *place))
-        if not rows:
-            return ahead, None
-        owner, curve_id, part_index, distance_m, radius_m = (list(column) for column in zip(*found, strict=True))
-        with_recalled = replace(
-            ahead,
-            cpoi_vehicle=np.insert(ahead.cpoi_vehicle, rows, owner),
-            cpoi_distance_m=np.insert(ahead.cpoi_distance_m, rows, distance_m),
-            cpoi_radius_m=np.insert(ahead.cpoi_radius_m, rows, radius_m),
-            cpoi_part_index=np.insert(ahead.cpoi_part_index, rows, part_index),
-            cpoi_curve_id=np.insert(ahead.cpoi_curve_id, rows, np.array(curve_id, dtype=object)),
-            cpoi_passed=np.insert(ahead.cpoi_passed, rows, True),
-        )
-        return with_recalled, np.insert(np.zeros(ahead.cpoi_vehicle.size, dtype=bool), rows, True)
-
-    def _keep(
-        self, vehicle_ids: Sequence[str], memories: Sequence[HeldWarning], before: Sequence[HeldWarning] | None = None
-    ) -> None:
-        """Keep each vehicle's warning memory while a level is on; drop it when none is (where ``before``,
-        each vehicle's memory before this update, is given, only where it had one)."""
-        for vehicle, (vehicle_id, memory) in enumerate(zip(vehicle_ids, memories, strict=False)):
-            if memory is not NOT_HELD or before is None or before[vehicle] is not NOT_HELD:
-                self._keep_one(vehicle_id, memory)
-
-    def _keep_one(self, vehicle_id: str, memory: HeldWarning) -> None:
-        """Keep a vehicle's warning memory while a level is on; drop any it had when none is."""
-        kept = self.held
-        if memory is not NOT_HELD and memory.is_on:
-            kept[vehicle_id] = memory
-        elif kept:
-            kept.pop(vehicle_id, None)
-
     def _warnings(
         self,
         vehicle_ids: Sequence[str],
@@ -464,25 +356,11 @@ class Engine:
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
         kept = self.held
         held = [kept.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids] if kept else [NOT_HELD] * len(lane_ids)
-        ahead, recalled = self._recalled(held, now_s, speed_kmh, periods_s, ahead)
+        warning = self.settings.warning
+        ahead, recalled = with_recalled(held, now_s, speed_kmh, warning.hold_s(periods_s), ahead)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
-        batch = self._judged(
-            vehicle_ids,
-            held,
-            now_s,
-            periods_s,
-            ages_s,
-            speed_kmh,
-            columns,
-            ahead.cpoi_vehicle,
-            first,
-            ahead.cpoi_distance_m,
-            ahead.cpoi_radius_m,
-            ahead.cpoi_curve_id,
-            ahead.cpoi_part_index,
-            ahead.cpoi_passed,
-            recalled,
-        )
+        batch, memories = judged(ahead, first, held, now_s, periods_s, ages_s, speed_kmh, columns, recalled, warning)
+        keep_memories(kept, vehicle_ids, memories, held)
         return ahead, batch
 
 

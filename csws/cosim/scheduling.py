@@ -13,7 +13,7 @@ from collections.abc import Container, Sequence
 
 import numpy as np
 
-from csws.engine import Engine
+from csws.engine import Engine, VehicleMemory
 
 from .driver import DriverResponse
 from .evaluators import FleetWarnings, LibraryEvaluator
@@ -151,16 +151,25 @@ def _catch_up(
     bounds: dict[str, tuple[float, float]],
 ) -> None:
     """Note the step, the departed vehicles' speed bounds, and bring the engine's memory of each vehicle
-    woken this step up to the steps it slept through (:func:`csws.cosim.schedule.caught_up`)."""
+    woken this step up to the steps it slept through (:func:`csws.cosim.schedule.caught_up`).
+
+    A catch-up is a function of the memory and the step the vehicle fell asleep at alone, so each distinct
+    pair is worked out once: vehicles of a fleet on one clock that slept through the same steps share it.
+    """
     schedule.stepped(step, fleet.time_s)
     schedule.forget(fleet.arrived)
     for vehicle_id, (bound_mps, accel_mps2) in bounds.items():
         schedule.add(vehicle_id, bound_mps, accel_mps2)
     arrived = set(fleet.arrived)
+    caught: dict[tuple[VehicleMemory, int], VehicleMemory] = {}
     for vehicle_id, slept_at in woken.items():
         if vehicle_id not in arrived:
             memory = engine.memory(vehicle_id)
-            engine.restore(vehicle_id, caught_up(memory, schedule.skipped_times_s(slept_at)))
+            key = (memory, slept_at)
+            after = caught.get(key)
+            if after is None:
+                after = caught[key] = caught_up(memory, schedule.skipped_times_s(slept_at))
+            engine.restore(vehicle_id, after)
 
 
 def _kept_awake(

@@ -160,13 +160,19 @@ def memory_masks(
     if not vehicles:  # most updates of most fleets: no warning to keep
         return latched, hold
     rows, owner = rows_of_vehicles(first_cpoi, vehicles)
-    names = _named_levels(held, vehicles)
-    ids = np.asarray(curve_ids, dtype=object)[rows].tolist()
-    parts = np.asarray(part_indices, dtype=np.int64)[rows].tolist()
-    bits = np.array([names.get(key, 0) for key in zip(owner.tolist(), ids, parts, strict=True)], dtype=np.int8)
+    keys = list(
+        zip(
+            np.asarray(curve_ids, dtype=object)[rows].tolist(),
+            np.asarray(part_indices, dtype=np.int64)[rows].tolist(),
+            strict=True,
+        )
+    )
     holds_s = np.broadcast_to(np.asarray(hold_s, dtype=float), (len(held),)).tolist()
+    points = [held[vehicle].points for vehicle in vehicles]
+    owners = owner.tolist()
     for level in (0, 1):
-        named = ((bits >> level) & 1).astype(bool)
+        # Rule 1 as :func:`named_points` asks it of one vehicle, for the rows of every vehicle at once.
+        named = np.array([key in points[place][level] for place, key in zip(owners, keys, strict=True)], dtype=bool)
         kept_at_s = [held[vehicle].kept_at_s[level] for vehicle in vehicles]
         within = [within_hold(kept_s, now_s[v], holds_s[v]) for kept_s, v in zip(kept_at_s, vehicles, strict=True)]
         latched[level, rows] = named
@@ -191,18 +197,6 @@ def rows_of_vehicles(first_cpoi: Sequence[int] | np.ndarray, vehicles: Sequence[
     owner = np.repeat(np.arange(chosen.size), counts)
     rows = np.arange(int(counts.sum())) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
     return rows, owner
-
-
-def _named_levels(held: Sequence[HeldWarning], vehicles: Sequence[int]) -> dict[tuple[int, str, int], int]:
-    """Rule 1: the CPOIs each of ``vehicles`` (by its place in it) names in its memory, as
-    ``(place, curve id, part index) -> levels``, bit 0 for level 1 and bit 1 for level 2."""
-    names: dict[tuple[int, str, int], int] = {}
-    for place, vehicle in enumerate(vehicles):
-        for level, points in enumerate(held[vehicle].points):
-            for curve_id, part_index in points:
-                key = (place, curve_id, part_index)
-                names[key] = names.get(key, 0) | (1 << level)
-    return names
 
 
 def recalled_points(
