@@ -316,7 +316,7 @@ def _queue(conversation: Conversation, terminal: Terminal, reports: list[Locatio
     gateway, waiting, pace = conversation.gateway, conversation.waiting, conversation.pace
     now_s, read_at = gateway.clock(), conversation.read_at
     tracks = gateway.tracks(terminal.fleet)
-    for report in sorted(reports, key=lambda r: r.time_s):
+    for report in reports if len(reports) == 1 else sorted(reports, key=lambda r: r.time_s):
         query = report_query(terminal, report, now_s)
         pace.observe(report.time_s)
         intervals_s = pace.due(report.time_s, gateway.settings.tracking) if tracks else None

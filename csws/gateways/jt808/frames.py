@@ -294,7 +294,7 @@ class FrameSplitter:
         for piece in pieces[1:]:  # each piece after a flag
             if pending:
                 frames.append(pending)
-            pending = self._within_bounds(piece)
+            pending = piece if len(piece) <= self.MAX_ESCAPED_BYTES else self._within_bounds(piece)
         self._pending = pending
         return frames
 
