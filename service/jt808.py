@@ -31,7 +31,7 @@ from collections.abc import Callable
 from functools import partial
 from typing import cast
 
-from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
+from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, FrameWriter, decode_frame
 from csws.gateways.jt808.latency import StageTimes
 from csws.gateways.jt808.messages import (
     BodyError,
@@ -103,13 +103,15 @@ class Conversation(asyncio.Protocol):
         self.splitter, self.reassembler = FrameSplitter(), Reassembler()
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
+        #: Writes the frames to the terminal (its phone and edition are those of its latest frame).
+        self.writer = FrameWriter(self.phone, self.edition)
         self.announcer: Announcer | None = None
         #: The terminal's regular report interval and its tracking window (``0x8202``).
         self.pace = ReportPace()
         #: The connection's reports queued for their warning, oldest first (those started are dropped lazily).
         self.waiting: deque[Waiting] = deque()
         self.read_at = 0.0
-        self.allowance, self.allowance_at = gateway.settings.frames_burst, time.monotonic()
+        self.allowance, self.allowance_at = gateway.settings.frames_burst, time.perf_counter()
         self._outgoing: list[bytes] = []
         self._idle: asyncio.TimerHandle | None = None
 
@@ -161,9 +163,8 @@ class Conversation(asyncio.Protocol):
 
     def send(self, message_id: int, body: bytes) -> None:
         """Queue the platform's message ``message_id`` with ``body`` for the terminal (:meth:`flush` sends)."""
-        self.serial = (self.serial + 1) & 0xFFFF
-        frame = Frame(message_id, self.phone, self.serial, body, self.edition, 1 if self.edition == 2019 else 0)
-        self._outgoing.append(encode_frame(frame))
+        self.serial = serial = (self.serial + 1) & 0xFFFF
+        self._outgoing.append(self.writer.frame(message_id, serial, body))
 
     def flush(self) -> None:
         """Write what :meth:`send` queued, in one write."""
@@ -175,9 +176,10 @@ class Conversation(asyncio.Protocol):
         """The general response ``0x8001`` to ``frame``."""
         self.send(MessageId.PLATFORM_RESPONSE, encode_general_response(frame.serial, frame.message_id, result))
 
-    def _allowed(self) -> bool:
-        """Whether one more frame fits the connection's rate (a token bucket)."""
-        settings, now = self.gateway.settings, time.monotonic()
+    def _allowed(self, now: float) -> bool:
+        """Whether one more frame read at ``now`` (``time.perf_counter``) fits the connection's rate (a token
+        bucket)."""
+        settings = self.gateway.settings
         self.allowance = min(settings.frames_burst, self.allowance + (now - self.allowance_at) * settings.frames_per_s)
         self.allowance_at = now
         if self.allowance < 1.0:
@@ -187,10 +189,10 @@ class Conversation(asyncio.Protocol):
 
     def received(self, data: bytes) -> bool:
         """Handle the bytes ``data`` and send what they call for; False once the terminal has deregistered."""
-        self.read_at = time.perf_counter()
+        self.read_at = read_at = time.perf_counter()
         try:
             for escaped in self.splitter.feed(data):
-                if not self._allowed():
+                if not self._allowed(read_at):
                     log.warning(
                         "jt808: %s sends frames faster than %s/s; dropped",
                         self.phone,
@@ -211,7 +213,9 @@ class Conversation(asyncio.Protocol):
 
     def handle(self, frame: Frame) -> bool:
         """Answer one message; False when the terminal deregistered."""
-        self.edition, self.phone = frame.edition, frame.phone
+        if frame.phone != self.phone or frame.edition != self.edition:
+            self.edition, self.phone = frame.edition, frame.phone
+            self.writer = FrameWriter(frame.phone, frame.edition)
         handler = self.gateway.handlers.get(frame.message_id)
         if handler is None:
             self.respond(frame, ResponseResult.NOT_SUPPORTED)
@@ -221,8 +225,7 @@ class Conversation(asyncio.Protocol):
 
 def _register(conversation: Conversation, frame: Frame) -> bool:
     """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for any other."""
-    terminals = conversation.gateway.terminals
-    terminals.refresh()
+    terminals = conversation.gateway.current_terminals()
     terminal = terminals.terminal(frame.phone)
     if terminal is None or terminal.revoked:
         body = encode_registration_response(frame.serial, RegistrationResult.NO_SUCH_TERMINAL)
@@ -234,8 +237,7 @@ def _register(conversation: Conversation, frame: Frame) -> bool:
 
 def _authenticate(conversation: Conversation, frame: Frame) -> bool:
     """``0x0102`` -> ``0x8001``: success for a listed terminal with its current code, failure otherwise."""
-    terminals = conversation.gateway.terminals
-    terminals.refresh()
+    terminals = conversation.gateway.current_terminals()
     try:
         code = decode_authentication(frame.body, frame.edition)
     except BodyError as error:
@@ -278,8 +280,7 @@ def _admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
     """The conversation's terminal if it is still admitted; a failure response otherwise."""
     terminal = conversation.terminal
     if terminal is not None:
-        conversation.gateway.terminals.refresh()
-        listed = conversation.gateway.terminals.terminal(terminal.phone)
+        listed = conversation.gateway.current_terminals().terminal(terminal.phone)
         if listed is None or listed.revoked or listed.generation != terminal.generation:
             conversation.terminal = terminal = None
     if terminal is None:
@@ -314,8 +315,8 @@ def _queue(conversation: Conversation, terminal: Terminal, reports: list[Locatio
     :data:`MAX_PENDING_REPORTS`, so that reading and answering ``0x8001`` never wait for a warning."""
     gateway, waiting, pace = conversation.gateway, conversation.waiting, conversation.pace
     now_s, read_at = gateway.clock(), conversation.read_at
-    tracks = gateway.settings.tracks(terminal.fleet)
-    for report in sorted(reports, key=lambda r: r.time_s):
+    tracks = gateway.tracks(terminal.fleet)
+    for report in reports if len(reports) == 1 else sorted(reports, key=lambda r: r.time_s):
         query = report_query(terminal, report, now_s)
         pace.observe(report.time_s)
         intervals_s = pace.due(report.time_s, gateway.settings.tracking) if tracks else None
@@ -408,6 +409,9 @@ class Gateway:
         #: What the gateway did so far: connections, reports evaluated and shed, texts told, tracking requests sent,
         #: frames dropped.
         self.counts: Counter[str] = Counter()
+        #: Whether the terminal file was checked for changes in this turn of the event loop (:meth:`current_terminals`).
+        self.terminals_checked = False
+        self._tracks: dict[str, bool] = {}
 
     def admit(self, conversation: Conversation) -> bool:
         """Count a new connection; False beyond :attr:`GatewaySettings.max_connections` (it is closed)."""
@@ -421,6 +425,32 @@ class Gateway:
     def release(self, conversation: Conversation) -> None:
         """Forget a connection that ended."""
         self.conversations.discard(conversation)
+
+    def current_terminals(self) -> TerminalList:
+        """The admitted terminals as the terminal file lists them, looked at (one ``stat``) once per turn of the event
+        loop rather than once per frame.
+
+        A revocation holds from the first turn of the loop that begins after it was written: a terminal that
+        waits for the answer to its last frame, as the standard's terminals do, has its next frame refused. Only a
+        frame read in the very turn the file was rewritten may still pass.
+        """
+        if not self.terminals_checked:
+            self.terminals.refresh()
+            self.terminals_checked = True
+            asyncio.get_running_loop().call_soon(self._next_turn)
+        return self.terminals
+
+    def _next_turn(self) -> None:
+        """Have the next turn of the event loop check the terminal file again."""
+        self.terminals_checked = False
+
+    def tracks(self, fleet: str) -> bool:
+        """Whether ``fleet``'s slow terminals are asked for temporary tracking (:meth:`GatewaySettings.tracks`, kept
+        per fleet)."""
+        tracks = self._tracks.get(fleet)
+        if tracks is None:
+            tracks = self._tracks[fleet] = self.settings.tracks(fleet)
+        return tracks
 
     def _conversation(self) -> Conversation:
         return Conversation(self)

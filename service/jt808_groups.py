@@ -10,7 +10,7 @@ import asyncio
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from csws.gateways.jt808.latency import StageTimes
 from csws.state import SystemState
@@ -31,10 +31,10 @@ log = logging.getLogger("csws.jt808.groups")
 log.addFilter(OncePerInterval())
 
 
-@dataclass(frozen=True)
-class AnswerSummary:
+class AnswerSummary(NamedTuple):
     """What the driver may be told of an answer: its system state, level, the target's V_w (None without one), and
-    how long to ask its terminal for temporary tracking, s (None: not now; :mod:`service.jt808_tracking`)."""
+    how long to ask its terminal for temporary tracking, s (None: not now; :mod:`service.jt808_tracking`). A named
+    tuple: one is made for every report."""
 
     state: str
     level: int

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, decode_frame, encode_frame
+from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, FrameWriter, decode_frame, encode_frame
 from csws.gateways.jt808.messages import (
     BodyError,
     LocationReport,
@@ -147,6 +147,66 @@ def test_the_splitter_drops_a_run_without_flags_and_recovers():
     assert splitter.dropped_bytes >= 10_000
     good = wire(header_2013(0x0002, "1", 9, 0))
     assert [decode_frame(f).serial for f in splitter.feed(good)] == [9]
+
+
+@given(
+    message_id=st.integers(0, 0xFFFF),
+    serial=st.integers(0, 0xFFFF),
+    body=st.binary(max_size=300),
+    phone=st.text("0123456789", min_size=1, max_size=12),
+    edition=st.sampled_from([2013, 2019]),
+)
+def test_a_terminals_frame_writer_writes_the_standards_bytes(message_id, serial, body, phone, edition):
+    """The platform's frames to one terminal, its header's shared part packed once, are the standard's bytes:
+    the 2019 ones with the version flag and protocol version 1, the check code over every byte."""
+    header = (header_2013 if edition == 2013 else header_2019)(message_id, phone, serial, len(body))
+    writer = FrameWriter(phone.rjust(12 if edition == 2013 else 20, "0"), edition)
+    assert writer.frame(message_id, serial, body) == wire(header + body)
+    assert writer.frame(message_id, serial, body) == encode_frame(
+        Frame(message_id, writer.phone, serial, body, edition, 1 if edition == 2019 else 0)
+    )
+
+
+def test_a_frame_writer_refuses_a_body_too_long_and_an_unknown_edition():
+    with pytest.raises(FrameError, match="at most 1023"):
+        FrameWriter("1", 2013).frame(0x8300, 1, bytes(1024))
+    with pytest.raises(FrameError, match="2013 or 2019"):
+        FrameWriter("1", 2011)
+
+
+@st.composite
+def chopped_stream(draw: st.DrawFn) -> tuple[list[bytes], list[int], list[bytes]]:
+    """Frames whose contents are rich in 0x7d and 0x7e (escaped on the wire), and their stream cut into reads at
+    random places: inside a frame, between its two flags, and between an escape byte and the one it escapes."""
+    serials = draw(st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=6))
+    rich = st.binary(max_size=40).map(lambda b: b.replace(b"\x00", b"\x7d").replace(b"\x01", b"\x7e"))
+    bodies = draw(st.lists(rich, min_size=len(serials), max_size=len(serials)))
+    frames = [wire(header_2013(0x0200, "13800138000", s, len(b)) + b) for s, b in zip(serials, bodies, strict=True)]
+    stream = b"".join(frames)
+    cuts = sorted(draw(st.sets(st.integers(1, len(stream) - 1), max_size=12)))
+    reads = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
+    return reads, serials, bodies
+
+
+@given(chopped_stream())
+def test_the_splitter_finds_every_frame_however_the_reads_cut_the_stream(case):
+    """Several frames in one read, a frame over several reads, an escape cut from the byte it escapes: each frame
+    comes out once, whole, in order, and nothing is dropped."""
+    reads, serials, bodies = case
+    splitter = FrameSplitter()
+    found = [decode_frame(escaped) for read in reads for escaped in splitter.feed(read)]
+    assert [(f.serial, f.body) for f in found] == list(zip(serials, bodies, strict=True))
+    assert splitter.dropped_bytes == 0
+
+
+def test_an_escape_cut_at_a_read_boundary_is_read_as_one_byte():
+    body = b"\x7e\x7d"
+    frame = wire(header_2013(0x0200, "1", 3, len(body)) + body)
+    cut = frame.index(b"\x7d\x02") + 1  # the read ends between 0x7d and 0x02
+    splitter = FrameSplitter()
+    assert splitter.feed(frame[:cut]) == []
+    [escaped] = splitter.feed(frame[cut:])
+    assert decode_frame(escaped).body == body
 
 
 def location_body(lat_e6, lon_e6, speed_01kmh, heading, bcd_time, status=0b10, extra=b""):

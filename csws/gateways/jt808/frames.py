@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import functools
 import struct
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from csws.errors import CswsError
 
@@ -31,6 +31,7 @@ __all__ = [
     "Frame",
     "FrameError",
     "FrameSplitter",
+    "FrameWriter",
     "bcd_decode",
     "bcd_encode",
     "check_code",
@@ -57,15 +58,18 @@ _SUBPACKAGED = 1 << 13
 _VERSION_FLAG = 1 << 14
 _ENCRYPTION_MASK = 0b111 << 10
 _PHONE_BYTES = {2013: 6, 2019: 10}
+_FLAG_BYTE = bytes([FLAG])
+#: The header up to the serial, whole: message id, body properties, (2019: protocol version,) phone, serial.
+_HEAD_2013, _HEAD_2019 = struct.Struct(">HH6sH"), struct.Struct(">HHB10sH")
+_WORDS = struct.Struct(">HH")
 
 
 class FrameError(CswsError, ValueError):
     """A frame that cannot be read: a bad escape, check code, length or header."""
 
 
-@dataclass(frozen=True)
-class Frame:
-    """One JT/T 808 message: its header's fields and its body.
+class Frame(NamedTuple):
+    """One JT/T 808 message: its header's fields and its body (a named tuple: made for every frame read).
 
     Attributes
     ----------
@@ -177,6 +181,9 @@ def encode_frame(frame: Frame) -> bytes:
 def decode_frame(escaped: bytes) -> Frame:
     """The frame whose bytes between the two flags are ``escaped``.
 
+    The check code is right when the XOR of every byte, itself included, is 0; the header up to the
+    serial is read in one unpack.
+
     Raises
     ------
     FrameError
@@ -184,40 +191,77 @@ def decode_frame(escaped: bytes) -> Frame:
         length differs from the header's, or a phone number that is not BCD.
     """
     content = unescape(escaped)
-    if len(content) < 13:
-        raise FrameError(f"a frame has at least 13 bytes (a 2013 header and the check code), got {len(content)}")
-    if check_code(content[:-1]) != content[-1]:
+    size = len(content)
+    if size < 13:
+        raise FrameError(f"a frame has at least 13 bytes (a 2013 header and the check code), got {size}")
+    if check_code(content):
         raise FrameError(f"check code {content[-1]:#04x} does not match {check_code(content[:-1]):#04x}")
-    message_id, properties = struct.unpack_from(">HH", content)
-    edition = 2019 if properties & _VERSION_FLAG else 2013
-    offset, protocol_version = 4, 0
+    properties = content[2] << 8 | content[3]
+    if properties & _VERSION_FLAG:
+        edition, head = 2019, _HEAD_2019
+    else:
+        edition, head = 2013, _HEAD_2013
+    head_bytes = head.size + (4 if properties & _SUBPACKAGED else 0)
+    if size < head_bytes + 1:
+        raise FrameError(f"the header is cut short: {size - 1} bytes for a {head_bytes}-byte header")
     if edition == 2019:
-        protocol_version, offset = content[4], 5
-    phone_bytes = _PHONE_BYTES[edition]
-    head_bytes = offset + phone_bytes + 2 + (4 if properties & _SUBPACKAGED else 0)
-    if len(content) < head_bytes + 1:
-        raise FrameError(f"the header is cut short: {len(content) - 1} bytes for a {head_bytes}-byte header")
-    phone = bcd_decode(content[offset : offset + phone_bytes])
-    (serial,) = struct.unpack_from(">H", content, offset + phone_bytes)
+        message_id, _, protocol_version, phone_bcd, serial = head.unpack_from(content)
+    else:
+        (message_id, _, phone_bcd, serial), protocol_version = head.unpack_from(content), 0
     package_count = package_number = 0
     if properties & _SUBPACKAGED:
-        package_count, package_number = struct.unpack_from(">HH", content, offset + phone_bytes + 2)
+        package_count, package_number = _WORDS.unpack_from(content, head.size)
         if not 1 <= package_number <= package_count:
             raise FrameError(f"package {package_number} of {package_count} does not exist")
-    body = content[head_bytes:-1]
-    if len(body) != properties & MAX_BODY_BYTES:
-        raise FrameError(f"the header gives a {properties & MAX_BODY_BYTES}-byte body, the frame has {len(body)}")
+    if size - head_bytes - 1 != properties & MAX_BODY_BYTES:
+        raise FrameError(
+            f"the header gives a {properties & MAX_BODY_BYTES}-byte body, the frame has {size - head_bytes - 1}"
+        )
     return Frame(
-        message_id=message_id,
-        phone=phone,
-        serial=serial,
-        body=body,
-        edition=edition,
-        protocol_version=protocol_version,
-        encryption=(properties & _ENCRYPTION_MASK) >> 10,
-        package_count=package_count,
-        package_number=package_number,
+        message_id,
+        bcd_decode(phone_bcd),
+        serial,
+        content[head_bytes:-1],
+        edition,
+        protocol_version,
+        (properties & _ENCRYPTION_MASK) >> 10,
+        package_count,
+        package_number,
     )
+
+
+class FrameWriter:
+    """Writes the platform's frames to one terminal, with the part of the header they all share packed once.
+
+    Every frame to a terminal has the same phone number (BCD), edition and, in 2019, protocol
+    version (1); only the message id, the body's length, the serial and the body change, so the
+    check code of the shared part is kept too. The bytes are :func:`encode_frame`'s for the same
+    fields (a frame in one package, unencrypted).
+
+    Raises
+    ------
+    FrameError
+        For an edition other than 2013 and 2019 or a phone number that is not decimal digits.
+    """
+
+    def __init__(self, phone: str, edition: int) -> None:
+        if edition not in _PHONE_BYTES:
+            raise FrameError(f"the edition is 2013 or 2019, got {edition}")
+        self.phone, self.edition = phone, edition
+        shared = (b"\x01" if edition == 2019 else b"") + bcd_encode(phone, _PHONE_BYTES[edition])
+        self._shared, self._shared_code = shared, check_code(shared)
+        self._version_flag = _VERSION_FLAG if edition == 2019 else 0
+        self._head = struct.Struct(f">HH{len(shared)}sH")
+
+    def frame(self, message_id: int, serial: int, body: bytes) -> bytes:
+        """The frame of message ``message_id`` number ``serial`` with ``body``, as it goes on the wire."""
+        if len(body) > MAX_BODY_BYTES:
+            raise FrameError(f"a body holds at most {MAX_BODY_BYTES} bytes, got {len(body)}")
+        properties = len(body) | self._version_flag
+        words = message_id ^ properties ^ serial  # the XOR of the header's words, byte by byte below
+        code = self._shared_code ^ (words >> 8) ^ (words & 0xFF) ^ check_code(body)
+        content = self._head.pack(message_id, properties, self._shared, serial) + body + bytes((code,))
+        return _FLAG_BYTE + escape(content) + _FLAG_BYTE
 
 
 class FrameSplitter:
@@ -233,25 +277,30 @@ class FrameSplitter:
     MAX_ESCAPED_BYTES = 2 * MAX_FRAME_BYTES
 
     def __init__(self) -> None:
-        self._buffer = bytearray()
-        self._in_frame = False
+        #: The escaped bytes of the frame begun and not yet ended; None outside a frame (before the first flag,
+        #: or after a run too long for a frame).
+        self._pending: bytes | None = None
         self.dropped_bytes = 0
 
     def feed(self, data: bytes) -> list[bytes]:
         """The complete frames (their escaped bytes between the flags) that ``data`` ends."""
+        pieces = bytes(data).split(_FLAG_BYTE)
         frames: list[bytes] = []
-        for piece_index, piece in enumerate(bytes(data).split(bytes([FLAG]))):
-            if piece_index > 0:  # a flag came before this piece
-                if self._in_frame and self._buffer:
-                    frames.append(bytes(self._buffer))
-                self._buffer.clear()
-                self._in_frame = True
-            if not self._in_frame:
-                self.dropped_bytes += len(piece)
-                continue
-            self._buffer += piece
-            if len(self._buffer) > self.MAX_ESCAPED_BYTES:
-                self.dropped_bytes += len(self._buffer)
-                self._buffer.clear()
-                self._in_frame = False
+        pending = self._pending
+        if pending is None:
+            self.dropped_bytes += len(pieces[0])
+        else:
+            pending = self._within_bounds(pending + pieces[0])
+        for piece in pieces[1:]:  # each piece after a flag
+            if pending:
+                frames.append(pending)
+            pending = piece if len(piece) <= self.MAX_ESCAPED_BYTES else self._within_bounds(piece)
+        self._pending = pending
         return frames
+
+    def _within_bounds(self, run: bytes) -> bytes | None:
+        """``run`` if a frame can be that long; else None, its bytes counted as dropped."""
+        if len(run) <= self.MAX_ESCAPED_BYTES:
+            return run
+        self.dropped_bytes += len(run)
+        return None

@@ -38,7 +38,10 @@ class StageTimes:
         samples = self._samples.get(stage)
         if samples is None:
             samples = self._samples[stage] = deque(maxlen=self.keep)
-        samples.extend([seconds] * count)
+        if count == 1:
+            samples.append(seconds)
+        else:
+            samples.extend([seconds] * count)
 
     def percentiles_ms(self, stage: str, quantiles: tuple[float, ...] = (50.0, 99.0)) -> tuple[float, ...]:
         """The ``quantiles`` (in percent) of ``stage``, ms; NaN for a stage without samples."""

@@ -16,6 +16,7 @@ import struct
 import time
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import NamedTuple
 
 from .frames import FrameError, bcd_decode, bcd_encode
 
@@ -94,9 +95,9 @@ TEXT_EMERGENCY, TEXT_DISPLAY, TEXT_SPEECH = 1 << 0, 1 << 2, 1 << 3
 TEXT_TYPE_NOTICE, TEXT_TYPE_SERVICE = 1, 2
 
 
-@dataclass(frozen=True)
-class LocationReport:
-    """A location report's basic information (``0x0200``) and its additional items.
+class LocationReport(NamedTuple):
+    """A location report's basic information (``0x0200``) and its additional items (a named tuple: one is made
+    for every report read).
 
     Attributes
     ----------
@@ -195,15 +196,15 @@ def decode_location(body: bytes) -> LocationReport:
     if lat > 90_000_000 or lon > 180_000_000 or heading > 359:
         raise BodyError(f"latitude {lat}, longitude {lon} (1e-6 degrees) or direction {heading} out of range")
     return LocationReport(
-        alarm_flags=alarm,
-        status_flags=status,
-        lat_deg=(-lat if status & STATUS_SOUTH else lat) / 1e6,
-        lon_deg=(-lon if status & STATUS_WEST else lon) / 1e6,
-        altitude_m=altitude,
-        speed_kmh=speed / 10.0,
-        heading_deg=heading,
-        time_s=_bcd_time_s(when),
-        additional=body[_LOCATION.size :],
+        alarm,
+        status,
+        (-lat if status & STATUS_SOUTH else lat) / 1e6,
+        (-lon if status & STATUS_WEST else lon) / 1e6,
+        altitude,
+        speed / 10.0,
+        heading,
+        _bcd_time_s(when),
+        body[_LOCATION.size :],
     )
 
 

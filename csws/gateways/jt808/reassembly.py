@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import replace
 
 from .frames import Frame, FrameError
 
@@ -59,4 +58,4 @@ class Reassembler:
             return None
         del self._open[key]
         body = b"".join(packages[number] for number in range(1, frame.package_count + 1))
-        return replace(frame, serial=first_serial, body=body, package_count=0, package_number=0)
+        return frame._replace(serial=first_serial, body=body, package_count=0, package_number=0)

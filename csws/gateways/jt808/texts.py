@@ -14,6 +14,7 @@ import json
 import math
 from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import NamedTuple
 
 from csws.errors import CswsError
 
@@ -49,9 +50,9 @@ class DriverTexts:
     restored: str = "弯道预警已恢复"
 
 
-@dataclass(frozen=True)
-class Indication:
-    """What the driver is being told: a warning level (0-2), or that the system is off or faulty."""
+class Indication(NamedTuple):
+    """What the driver is being told: a warning level (0-2), or that the system is off or faulty (a named tuple:
+    one is made for every answer)."""
 
     level: int
     state: str
@@ -122,6 +123,9 @@ class Announcer:
         A fault shorter than :data:`FAULT_CONFIRM_S` leaves the driver's indication as it was.
         """
         now = indication(state, level)
+        if now == self.told and state != "fault":  # most answers: the same as told before, nothing to say
+            self.fault_since_s = None
+            return None
         if now.kind == "fault":
             self.fault_since_s = time_s if self.fault_since_s is None else self.fault_since_s
             if time_s - self.fault_since_s < FAULT_CONFIRM_S:

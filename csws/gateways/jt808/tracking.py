@@ -144,6 +144,7 @@ class ReportPace:
 
     def __init__(self) -> None:
         self.intervals_s: deque[float] = deque(maxlen=KEPT_INTERVALS)
+        self._regular_s: float | None = None  # the median of intervals_s, kept as they change
         self._last_s: float | None = None
         self._last_tracked = False
         self.window: TrackingWindow | None = None
@@ -159,6 +160,8 @@ class ReportPace:
             interval_s = time_s - self._last_s
             if interval_s > 0 and math.isfinite(interval_s):
                 self.intervals_s.append(interval_s)
+                if len(self.intervals_s) >= MIN_INTERVALS:
+                    self._regular_s = statistics.median(self.intervals_s)
         self._last_s, self._last_tracked = time_s, tracked
 
     def tracking(self, time_s: float) -> bool:
@@ -167,7 +170,7 @@ class ReportPace:
 
     def regular_interval_s(self) -> float | None:
         """The terminal's own interval, s; None until enough intervals are known."""
-        return statistics.median(self.intervals_s) if len(self.intervals_s) >= MIN_INTERVALS else None
+        return self._regular_s
 
     def start(self, time_s: float, window_s: float, age_s: float, settings: TrackingSettings) -> bool:
         """Start a window of ``window_s`` asked for by the report taken at ``time_s`` and ``age_s`` old when the
