@@ -296,10 +296,10 @@ class Engine:
         everyone = len(active) == len(states)
         if not everyone:
             self._forget_warnings_of_inactive(vehicle_ids, states)
-        ahead = judged = None
+        ahead = judgement = None
         if active:
             rows = np.array(active, dtype=np.intp)
-            ahead, judged = self._warnings(
+            ahead, judgement = self._warnings(
                 _of_active(vehicle_ids, active, everyone),
                 [None] * len(active) if timestamp_s is None else _of_active(timestamp_s, active, everyone),
                 [0.0] * len(active) if age_s is None else [latency.fix_age_s(age_s[i]) for i in active],
@@ -309,7 +309,7 @@ class Engine:
                 positions_m[rows],
                 _of_active(route_edges, active, everyone),
             )
-        return FleetAnswers(vehicle_ids, states, [status.fault for status in statuses], active, ahead, judged)
+        return FleetAnswers(vehicle_ids, states, [status.fault for status in statuses], active, ahead, judgement)
 
     def _forget_warnings_of_inactive(self, vehicle_ids: Sequence[str], states: Sequence[SystemState]) -> None:
         """Drop the warning memory of every vehicle that is not active: its warning is off (5.2-5.4)."""

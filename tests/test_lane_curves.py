@@ -283,7 +283,7 @@ def test_a_long_lane_beside_a_bend_is_offset_by_its_distance_from_it(
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), points=st.integers(60, 200), vertices=st.integers(60, 200))
+@given(seed=st.integers(0, 2**32 - 1), points=st.integers(70, 200), vertices=st.integers(70, 200))
 def test_a_lanes_offset_is_measured_to_its_nearest_segment_as_against_every_segment(
     seed: int, points: int, vertices: int
 ):
@@ -307,3 +307,13 @@ def test_a_lanes_offset_is_measured_to_its_nearest_segment_as_against_every_segm
     ) / length[nearest]
     assert np.ptp(across) <= 0.5  # parallel: the lane has an offset
     assert lateral_offsets_m([lane, reference], np.array([1, 1]))[0] == float(np.median(across))
+
+
+def test_a_long_lane_with_a_point_that_is_not_a_number_has_no_offset():
+    """A lane of many points, one of them not a number, is not parallel to its reference: it has no offset
+    (the spatial index leaves such a point out; it is measured as a short lane is, and its distance is NaN)."""
+    reference = np.column_stack((np.linspace(0.0, 300.0, 100), np.zeros(100)))
+    lane = reference + [0.0, 3.0]
+    lane[40, 0] = math.nan
+    offsets = lateral_offsets_m([lane, reference], np.array([1, 1]))
+    assert math.isnan(offsets[0]) and offsets[1] == 0.0

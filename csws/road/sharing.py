@@ -74,7 +74,7 @@ PARALLEL_TOLERANCE_M = 0.5
 #: index's distances and this module's differ in the last bits, never by this much.
 _NEAR_MARGIN_M = 1e-6
 #: A lane with at most this many (point, segment) pairs is measured against every segment: cheaper than an
-#: index.
+#: index (so is a shape with a coordinate that is not a finite number, which an index leaves out).
 _ALL_PAIRS = 4096
 #: A moved curvature's denominator 1 - k d is never below this: a lane far inside a tight turn
 #: (a junction's double turn) keeps a tenth of the reference's radius at least.
@@ -102,7 +102,8 @@ def _signed_offsets_m(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
     start, end, direction, length = start[keep], end[keep], direction[keep], length[keep]
     if not len(length):
         return np.full(len(points), np.nan)
-    if len(points) * len(start) <= _ALL_PAIRS:  # every point against every segment
+    finite = bool(np.isfinite(points).all() and np.isfinite(reference).all())
+    if len(points) * len(start) <= _ALL_PAIRS or not finite:  # every point against every segment
         point = np.arange(len(points))
         segment = np.argmin(_gaps_m(points[:, None, :], start[None], direction[None], length[None]), axis=1)
     else:
