@@ -55,7 +55,8 @@ import sumolib
 from csws.curvature import checked_warning_radius_m, profile_cache_dir
 from csws.road.chains import LaneCurve, RoadChains, fit_road_chains, index_curves, road_curve_id
 from csws.road.lanemap import LaneMap
-from csws.road.network import Lane, NetworkError, net_lanes, read_sumo_net
+from csws.road.netcache import read_net_lanes
+from csws.road.network import Lane, NetLanes, NetworkError, net_lanes, read_sumo_net
 from csws.road.path import PathProfile, path_profile
 from csws.road.search import LaneMatch, LaneMatches
 from csws.standard import DEFAULT_POLICY, DEFAULT_WARNING_RADIUS_M, WarningSpeedPolicy
@@ -185,12 +186,9 @@ class RoadMap(LaneMap):
         """
         from csws.opendrive.profiles import exact_lanes_beside
 
-        net = read_sumo_net(net_path)
+        lanes = read_net_lanes(net_path, profile_cache_dir() if cache else None)
         exact = exact_lanes_beside(net_path)
-        try:
-            return cls.from_net(net, warning_radius_m, cache=cache, warning_policy=warning_policy, exact_lanes=exact)
-        except NetworkError as error:
-            raise NetworkError(f"{Path(net_path).name}: {error}") from None
+        return cls.of_lanes(lanes, warning_radius_m, cache=cache, warning_policy=warning_policy, exact_lanes=exact)
 
     @classmethod
     def from_net(
@@ -207,7 +205,21 @@ class RoadMap(LaneMap):
         Only the location of ``net`` is kept: lanes are copied into arrays so the
         sumolib objects can be freed.
         """
-        lanes = net_lanes(net)
+        return cls.of_lanes(
+            net_lanes(net), warning_radius_m, cache=cache, warning_policy=warning_policy, exact_lanes=exact_lanes
+        )
+
+    @classmethod
+    def of_lanes(
+        cls,
+        lanes: NetLanes,
+        warning_radius_m: float | None = None,
+        *,
+        cache: bool = True,
+        warning_policy: WarningSpeedPolicy = DEFAULT_POLICY,
+        exact_lanes: Mapping[str, ExactLane] | None = None,
+    ) -> RoadMap:
+        """Build the road map of what it keeps of a SUMO network (:func:`csws.road.network.net_lanes`)."""
         radius = DEFAULT_WARNING_RADIUS_M if warning_radius_m is None else warning_radius_m
         return cls(
             lanes.lanes,
