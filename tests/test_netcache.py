@@ -111,3 +111,33 @@ def test_the_most_recently_used_networks_are_kept(
     assert len(kept) == 2
     RoadMap.load(paths[0])
     assert _kept(cache_dir) == kept  # the first is still kept: read, nothing written
+
+
+def test_a_network_file_changed_while_it_is_parsed_is_not_kept(
+    cache_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "road.net.xml"
+    shutil.copy(networks_dir() / "t7_left.net.xml", path)
+    parse = netcache.read_sumo_net
+
+    def parse_after_a_rewrite(net_path: Path):
+        text = path.read_text(encoding="utf-8")
+        path.write_text(text.replace('speed="50.000"', 'speed="7.000"'), encoding="utf-8")
+        return parse(net_path)
+
+    monkeypatch.setattr(netcache, "read_sumo_net", parse_after_a_rewrite)
+    RoadMap.load(path)
+    assert not _kept(cache_dir)
+
+
+def test_a_kept_file_that_cannot_be_removed_does_not_fail_a_load(cache_dir: Path) -> None:
+    (cache_dir / "lanes-0000000000000000-aaaa.msgpack").mkdir(parents=True)  # another reader's, not a file
+    _assert_same(RoadMap.load(networks_dir() / "t7_left.net.xml"), RoadMap.load(networks_dir() / "t7_left.net.xml"))
+
+
+def test_lanes_read_back_share_their_vehicle_class_sets_as_parsed_ones_do(cache_dir: Path) -> None:
+    path = networks_dir() / "real_roads/rr_side_road.net.xml"
+    RoadMap.load(path)
+    loaded = RoadMap.load(path)
+    sets = [loaded.lane(lane_id).allowed_vclasses for lane_id in loaded.lane_ids]
+    assert len({id(vclasses) for vclasses in sets}) == len(set(sets))

@@ -96,6 +96,11 @@ def test_files_of_another_road_model_are_never_read_and_are_removed(tmp_path: Pa
     assert [path.name.startswith("profiles-a-changed-model-") for path in tmp_path.glob("profiles-*.npz")] == [True]
 
 
+def test_a_file_of_another_road_model_that_cannot_be_removed_does_not_fail_the_fit(tmp_path: Path) -> None:
+    (tmp_path / "profiles-another-model-0000.npz").mkdir()  # not a file: unlink refuses it
+    _assert_same(cached_radius_profiles(_polylines(), tmp_path), radius_profiles(_polylines()))
+
+
 def test_a_folder_that_cannot_be_written_only_costs_the_fit(tmp_path: Path) -> None:
     blocked = tmp_path / "a-file"
     blocked.write_text("not a folder")

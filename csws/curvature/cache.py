@@ -165,4 +165,7 @@ def _write(path: Path, profiles: Sequence[RadiusProfile], model: str) -> None:
         return
     for old in path.parent.glob("profiles-*.npz"):
         if not old.name.startswith(f"profiles-{model}-"):
-            old.unlink(missing_ok=True)
+            try:
+                old.unlink(missing_ok=True)
+            except OSError:  # another user's, or a read-only folder: it stays, the cache still works
+                continue
