@@ -85,13 +85,17 @@ def test_a_subpackaged_header_has_count_and_number():
     assert encode_frame(decoded) == wire(content)
 
 
-@given(
-    message_id=st.integers(0, 0xFFFF),
-    serial=st.integers(0, 0xFFFF),
-    body=st.binary(max_size=300),
-    phone=st.text("0123456789", min_size=1, max_size=12),
-    edition=st.sampled_from([2013, 2019]),
-)
+#: Any frame's fields: escapes (0x7d, 0x7e) may fall in the id, the serial, the body and the check code.
+FRAME_FIELDS = {
+    "message_id": st.integers(0, 0xFFFF),
+    "serial": st.integers(0, 0xFFFF),
+    "body": st.binary(max_size=300),
+    "phone": st.text("0123456789", min_size=1, max_size=12),
+    "edition": st.sampled_from([2013, 2019]),
+}
+
+
+@given(**FRAME_FIELDS)
 def test_frames_round_trip_with_escapes_anywhere(message_id, serial, body, phone, edition):
     """Bytes 0x7d and 0x7e in the id, the serial, the body and the check code all survive."""
     header = (header_2013 if edition == 2013 else header_2019)(message_id, phone, serial, len(body))
@@ -149,13 +153,7 @@ def test_the_splitter_drops_a_run_without_flags_and_recovers():
     assert [decode_frame(f).serial for f in splitter.feed(good)] == [9]
 
 
-@given(
-    message_id=st.integers(0, 0xFFFF),
-    serial=st.integers(0, 0xFFFF),
-    body=st.binary(max_size=300),
-    phone=st.text("0123456789", min_size=1, max_size=12),
-    edition=st.sampled_from([2013, 2019]),
-)
+@given(**FRAME_FIELDS)
 def test_a_terminals_frame_writer_writes_the_standards_bytes(message_id, serial, body, phone, edition):
     """The platform's frames to one terminal, its header's shared part packed once, are the standard's bytes:
     the 2019 ones with the version flag and protocol version 1, the check code over every byte."""

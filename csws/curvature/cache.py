@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 import zipfile
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
 
 import numpy as np
+
+from csws.files import replace_file
 
 from .artefacts import kept_to_polyline
 from .chords import _chords, _validated
@@ -152,16 +153,8 @@ def _write(path: Path, profiles: Sequence[RadiusProfile], model: str) -> None:
         "end_curvature": np.array([part.final_curvature for part in parts], dtype=float),
     }
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".profiles-", suffix=".npz")
+        replace_file(path, lambda file: np.savez(file, **arrays), ".profiles-", ".npz")  # type: ignore[arg-type]
     except OSError:
-        return
-    try:
-        with os.fdopen(handle, "wb") as file:
-            np.savez(file, **arrays)  # type: ignore[arg-type]  # numpy's stub types the names as allow_pickle's
-        os.replace(temporary, path)
-    except OSError:
-        Path(temporary).unlink(missing_ok=True)
         return
     for old in path.parent.glob("profiles-*.npz"):
         if not old.name.startswith(f"profiles-{model}-"):

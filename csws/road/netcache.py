@@ -23,7 +23,6 @@ from __future__ import annotations
 import hashlib
 import os
 import sys
-import tempfile
 import time
 from functools import cache
 from pathlib import Path
@@ -32,6 +31,7 @@ import msgspec
 import numpy as np
 import sumolib
 
+from csws.files import replace_file
 from csws.road import continuations, network
 from csws.road.network import Lane, NetLanes, NetworkError, net_lanes, projection_net, read_sumo_net
 
@@ -222,17 +222,10 @@ def _stored(lanes: NetLanes) -> _Stored:
 def _write(path: Path, lanes: NetLanes, reader: str) -> None:
     """Write ``lanes`` to ``path`` atomically, then remove the files of other readers than ``reader`` and all but
     the :data:`KEPT_NETWORKS` most recently used of its own."""
+    content = _ENCODER.encode(_stored(lanes))
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".lanes-", suffix=".msgpack")
+        replace_file(path, lambda file: file.write(content), ".lanes-", ".msgpack")
     except OSError:
-        return
-    try:
-        with os.fdopen(handle, "wb") as file:
-            file.write(_ENCODER.encode(_stored(lanes)))
-        os.replace(temporary, path)
-    except OSError:
-        _remove(Path(temporary))
         return
     _prune(path.parent, reader)
 
