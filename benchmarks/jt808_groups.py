@@ -48,8 +48,8 @@ def run_group_sizes(sizes: tuple[int, ...] = GROUP_SIZES, vehicles: int = 256) -
     fixed part of what the gateway's group step adds around the warning service.
     """
     from service.app import create_app
-    from service.jt808 import report_query
     from service.jt808_groups import Batcher
+    from service.jt808_messages import report_query
     from service.jt808_tracking import TrackingPlanner
     from service.settings import ServiceSettings
 

@@ -5,7 +5,8 @@ authentication code), authenticate (``0x0102``) and send location reports (``0x0
 ``0x0704``) and heartbeats. Every message is answered by the general response ``0x8001`` as the
 standard asks. Each report becomes a query of the terminal's vehicle (its fleet, vehicle id and
 category from the terminal list, :mod:`csws.gateways.jt808.terminals`) and is answered by the
-same :class:`service.answers.WarningService` as ``POST /v1/warning``: the same state store, so a
+same :class:`service.answers.WarningService` as ``POST /v1/warning`` (what each message does:
+:mod:`service.jt808_messages`): the same state store, so a
 vehicle switched off over HTTP is off here too, and a terminal that reconnects to another
 gateway process keeps its session. When what the driver should be told changes, the gateway
 sends a text message ``0x8300`` to display and speak (:mod:`csws.gateways.jt808.texts`). A
@@ -15,77 +16,37 @@ vehicle nears a curve (:mod:`csws.gateways.jt808.tracking`), unless its fleet is
 Reports of all connections are answered together: while the work thread answers one group, the
 reports that arrive meanwhile wait for the next, so a busy gateway answers in batches without a
 timer. Frames that cannot be read are dropped with a rate-limited log line; the connection
-lives on. A connection idle for :attr:`GatewaySettings.idle_s` is closed, and a terminal that
-sends more than its share of frames per second has the excess dropped.
+lives on. A connection idle for :attr:`GatewaySettings.idle_s` is closed, and a connection that
+sends more than its share of frames per second has the excess dropped. Once a terminal has
+authenticated, its connection speaks for it alone: a frame naming another terminal is refused.
 """
 
 from __future__ import annotations
 
 import asyncio
-import logging
 import signal
 import ssl
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from functools import partial
 from typing import cast
 
 from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, FrameWriter, decode_frame
 from csws.gateways.jt808.latency import StageTimes
-from csws.gateways.jt808.messages import (
-    BodyError,
-    LocationReport,
-    MessageId,
-    RegistrationResult,
-    ResponseResult,
-    decode_authentication,
-    decode_location,
-    decode_location_batch,
-    decode_terminal_response,
-    encode_general_response,
-    encode_registration_response,
-    encode_temporary_tracking,
-    encode_text_message,
-)
+from csws.gateways.jt808.messages import MessageId, ResponseResult, encode_general_response
 from csws.gateways.jt808.reassembly import Reassembler
-from csws.gateways.jt808.terminals import Terminal, TerminalList
+from csws.gateways.jt808.terminals import Terminal, TerminalError, TerminalList
 from csws.gateways.jt808.texts import Announcer
 from csws.gateways.jt808.tracking import ReportPace
 
 from .answers import WarningService
-from .decoding import DecodedPosition, DecodedQuery
-from .guard import OncePerInterval
-from .jt808_groups import AnswerSummary, Batcher, Waiting
+from .jt808_groups import Batcher, Waiting
+from .jt808_messages import HANDLERS, NAMING, log
 from .jt808_settings import GatewaySettings
 from .jt808_tracking import TrackingPlanner
 from .work import WorkThread
 
-__all__ = ["Gateway"]
-
-log = logging.getLogger("csws.jt808")
-log.addFilter(OncePerInterval())
-
-#: Reports of one connection waiting for their warnings beyond this many are shed, oldest first: a
-#: gateway that falls behind answers the newest position, not a queue of old ones.
-MAX_PENDING_REPORTS = 8
-#: A report older than this when it arrives is not given to the latency allowance (a terminal clock
-#: that is off would otherwise push every warning forward), s.
-MAX_REPORT_AGE_S = 30.0
-
-
-def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> DecodedQuery:
-    """The query of ``terminal``'s vehicle for ``report`` (its fix, speed, heading and time)."""
-    age_s = now_s - report.time_s
-    return DecodedQuery(
-        vehicle_id=terminal.vehicle_id,
-        category=terminal.category,
-        speed_kmh=min(report.speed_kmh, 250.0),
-        position=DecodedPosition(lon=report.lon_deg, lat=report.lat_deg),
-        heading_deg=float(report.heading_deg % 360),
-        timestamp_s=report.time_s,
-        age_s=age_s if 0.0 <= age_s <= MAX_REPORT_AGE_S else None,
-    )
+__all__ = ["Conversation", "Gateway"]
 
 
 class Conversation(asyncio.Protocol):
@@ -161,10 +122,14 @@ class Conversation(asyncio.Protocol):
         """Whether the connection is gone or going."""
         return self.transport is None or self.transport.is_closing()
 
+    def _next_serial(self) -> int:
+        """The serial of the platform's next message on this connection."""
+        self.serial = (self.serial + 1) & 0xFFFF
+        return self.serial
+
     def send(self, message_id: int, body: bytes) -> None:
         """Queue the platform's message ``message_id`` with ``body`` for the terminal (:meth:`flush` sends)."""
-        self.serial = serial = (self.serial + 1) & 0xFFFF
-        self._outgoing.append(self.writer.frame(message_id, serial, body))
+        self._outgoing.append(self.writer.frame(message_id, self._next_serial(), body))
 
     def flush(self) -> None:
         """Write what :meth:`send` queued, in one write."""
@@ -201,18 +166,33 @@ class Conversation(asyncio.Protocol):
                     continue
                 try:
                     frame = self.reassembler.add(decode_frame(escaped))
-                except FrameError as error:
+                    if frame is not None and not self.handle(frame):
+                        return False
+                except FrameError as error:  # a handler meets what its body check did not foresee: dropped too
                     self.gateway.counts["dropped"] += 1
                     log.warning("jt808: frame dropped from %s: %s", self.phone, error)
-                    continue
-                if frame is not None and not self.handle(frame):
-                    return False
             return True
         finally:
             self.flush()
 
     def handle(self, frame: Frame) -> bool:
-        """Answer one message; False when the terminal deregistered."""
+        """Answer one message; False when the terminal deregistered.
+
+        Once a terminal has authenticated, the connection is its own: a frame naming another phone number
+        (other than a registration or an authentication, which name the terminal anew) is refused with failure,
+        answered to that number, and evaluated for no one.
+        """
+        if self.terminal is not None and frame.message_id not in NAMING and not self.terminal.speaks_as(frame.phone):
+            self.gateway.counts["dropped"] += 1
+            log.warning("jt808: %s sent a frame as %s; refused", self.terminal.phone, frame.phone)
+            self._outgoing.append(
+                FrameWriter(frame.phone, frame.edition).frame(
+                    MessageId.PLATFORM_RESPONSE,
+                    self._next_serial(),
+                    encode_general_response(frame.serial, frame.message_id, ResponseResult.FAILURE),
+                )
+            )
+            return True
         if frame.phone != self.phone or frame.edition != self.edition:
             self.edition, self.phone = frame.edition, frame.phone
             self.writer = FrameWriter(frame.phone, frame.edition)
@@ -221,158 +201,6 @@ class Conversation(asyncio.Protocol):
             self.respond(frame, ResponseResult.NOT_SUPPORTED)
             return True
         return handler(self, frame)
-
-
-def _register(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for any other."""
-    terminals = conversation.gateway.current_terminals()
-    terminal = terminals.terminal(frame.phone)
-    if terminal is None or terminal.revoked:
-        body = encode_registration_response(frame.serial, RegistrationResult.NO_SUCH_TERMINAL)
-    else:
-        body = encode_registration_response(frame.serial, RegistrationResult.SUCCESS, terminals.auth_code(terminal))
-    conversation.send(MessageId.REGISTRATION_RESPONSE, body)
-    return True
-
-
-def _authenticate(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0102`` -> ``0x8001``: success for a listed terminal with its current code, failure otherwise."""
-    terminals = conversation.gateway.current_terminals()
-    try:
-        code = decode_authentication(frame.body, frame.edition)
-    except BodyError as error:
-        log.warning("jt808: authentication of %s unreadable: %s", frame.phone, error)
-        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
-        return True
-    conversation.terminal = terminals.admitted(frame.phone, code)
-    conversation.respond(frame, ResponseResult.SUCCESS if conversation.terminal else ResponseResult.FAILURE)
-    return True
-
-
-def _heartbeat(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0002`` -> ``0x8001``: success while the terminal is admitted."""
-    if _admitted(conversation, frame) is not None:
-        conversation.respond(frame, ResponseResult.SUCCESS)
-    return True
-
-
-def _terminal_response(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0001``, the terminal's general response: taken without an answer. A terminal that refuses temporary
-    tracking (``0x8202``) is not asked again on this connection."""
-    try:
-        response = decode_terminal_response(frame.body)
-    except BodyError as error:
-        log.warning("jt808: general response of %s unreadable: %s", frame.phone, error)
-        return True
-    if response.message_id == MessageId.TEMPORARY_TRACKING and response.result != ResponseResult.SUCCESS:
-        conversation.pace.refuse()
-        log.warning("jt808: %s refused temporary tracking (result %d)", frame.phone, response.result)
-    return True
-
-
-def _deregister(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0003`` -> ``0x8001``, then the connection ends."""
-    conversation.respond(frame, ResponseResult.SUCCESS)
-    return False
-
-
-def _admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
-    """The conversation's terminal if it is still admitted; a failure response otherwise."""
-    terminal = conversation.terminal
-    if terminal is not None:
-        listed = conversation.gateway.current_terminals().terminal(terminal.phone)
-        if listed is None or listed.revoked or listed.generation != terminal.generation:
-            conversation.terminal = terminal = None
-    if terminal is None:
-        conversation.respond(frame, ResponseResult.FAILURE)
-    return terminal
-
-
-def _locations(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0200`` and ``0x0704`` -> ``0x8001``, then the warning of the newest live report."""
-    terminal = _admitted(conversation, frame)
-    if terminal is None:
-        return True
-    try:
-        if frame.message_id == MessageId.LOCATION:
-            reports = [decode_location(frame.body)]
-        else:
-            kind, reports = decode_location_batch(frame.body)
-            reports = reports if kind == 0 else []  # 1: back-filled from a blind area, too old to warn
-    except BodyError as error:
-        log.warning("jt808: location report of %s unreadable: %s", frame.phone, error)
-        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
-        return True
-    conversation.respond(frame, ResponseResult.SUCCESS)
-    positioned = [report for report in reports if report.positioned]
-    if positioned:
-        _queue(conversation, terminal, positioned)
-    return True
-
-
-def _queue(conversation: Conversation, terminal: Terminal, reports: list[LocationReport]) -> None:
-    """Queue ``reports`` for their warnings in time order, shedding the oldest not yet started beyond
-    :data:`MAX_PENDING_REPORTS`, so that reading and answering ``0x8001`` never wait for a warning."""
-    gateway, waiting, pace = conversation.gateway, conversation.waiting, conversation.pace
-    now_s, read_at = gateway.clock(), conversation.read_at
-    tracks = gateway.tracks(terminal.fleet)
-    for report in reports if len(reports) == 1 else sorted(reports, key=lambda r: r.time_s):
-        query = report_query(terminal, report, now_s)
-        pace.observe(report.time_s)
-        intervals_s = pace.due(report.time_s, gateway.settings.tracking) if tracks else None
-        entry = Waiting(query, terminal.fleet, partial(_tell, conversation, terminal, report, read_at), intervals_s)
-        waiting.append(entry)
-        gateway.batcher.queue(entry)
-    while waiting and waiting[0].started:
-        waiting.popleft()
-    if len(waiting) > MAX_PENDING_REPORTS:
-        shed = len(waiting) - MAX_PENDING_REPORTS
-        for _ in range(shed):
-            waiting.popleft().shed = True
-        gateway.counts["shed"] += shed
-        log.warning("jt808: the gateway falls behind; %d old report(s) of %s shed", shed, terminal.phone)
-
-
-def _tell(
-    conversation: Conversation, terminal: Terminal, report: LocationReport, read_at: float, answer: AnswerSummary | None
-) -> None:
-    """Tell the driver when ``report``'s answer changes the indication (``0x8300``), at once.
-
-    Counted in the gateway's stage times: ``answered`` from the report's bytes read to its answer
-    here, ``text`` from read to its ``0x8300`` handed to the connection (where one was due).
-    """
-    gateway = conversation.gateway
-    gateway.counts["evaluated"] += 1
-    gateway.times.add("answered", time.perf_counter() - read_at)
-    if answer is None or conversation.closing():
-        return
-    if conversation.announcer is None:
-        conversation.announcer = Announcer(gateway.settings.texts(terminal.fleet))
-    told = conversation.announcer.update(answer.state, answer.level, answer.warning_speed_kmh, report.time_s)
-    if told is not None:
-        text, urgent = told
-        conversation.send(MessageId.TEXT_MESSAGE, encode_text_message(text, conversation.edition, emergency=urgent))
-        gateway.counts["told"] += 1
-        gateway.times.add("text", time.perf_counter() - read_at)
-    window_s = answer.tracking_window_s
-    settings = gateway.settings.tracking
-    if window_s is not None and conversation.pace.start(
-        report.time_s, window_s, gateway.clock() - report.time_s, settings
-    ):
-        conversation.send(MessageId.TEMPORARY_TRACKING, encode_temporary_tracking(settings.interval_s, window_s))
-        gateway.counts["tracked"] += 1
-    conversation.flush()
-
-
-_HANDLERS: dict[int, Callable[[Conversation, Frame], bool]] = {
-    MessageId.TERMINAL_RESPONSE: _terminal_response,
-    MessageId.REGISTRATION: _register,
-    MessageId.AUTHENTICATION: _authenticate,
-    MessageId.HEARTBEAT: _heartbeat,
-    MessageId.DEREGISTRATION: _deregister,
-    MessageId.LOCATION: _locations,
-    MessageId.LOCATION_BATCH: _locations,
-}
 
 
 class Gateway:
@@ -403,7 +231,7 @@ class Gateway:
         planner = TrackingPlanner(service, settings.tracking)
         self.batcher = Batcher(service, work, settings.batch_window_s, self.times, planner)
         self.terminals, self.settings, self.clock = terminals, settings, clock
-        self.handlers = _HANDLERS
+        self.handlers = HANDLERS
         #: The open connections.
         self.conversations: set[Conversation] = set()
         #: What the gateway did so far: connections, reports evaluated and shed, texts told, tracking requests sent,
@@ -435,7 +263,10 @@ class Gateway:
         frame read in the very turn the file was rewritten may still pass.
         """
         if not self.terminals_checked:
-            self.terminals.refresh()
+            try:
+                self.terminals.refresh()
+            except TerminalError as error:
+                log.warning("jt808: %s; the terminals read before stay admitted", error)
             self.terminals_checked = True
             asyncio.get_running_loop().call_soon(self._next_turn)
         return self.terminals

@@ -193,7 +193,13 @@ def main(args: argparse.Namespace) -> int:
     tls = _tls(args)
     factory = loop_factory(args.loop)
     service_args = argparse.Namespace(net=args.net, state=args.state, state_db=args.state_db)
-    state = create_app(settings_from_args(service_args)).state
+    # Terminals are admitted by the terminal file; the fleets' API keys are the HTTP API's, not read here.
+    state = create_app(settings_from_args(service_args).model_copy(update={"api_keys_file": None})).state
+    if not any(network.road_map.has_projection for network in state.service.networks):
+        state.work.close()
+        state.store.close()
+        print("csws: error: no served network is geo-referenced, and JT/T 808 reports give lon/lat", file=sys.stderr)
+        return 2
     settings = GatewaySettings(
         host=args.host,
         port=args.port,

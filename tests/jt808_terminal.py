@@ -35,6 +35,17 @@ def header_2013(message_id: int, phone: str, serial: int, body_len: int) -> byte
     return struct.pack(">HH", message_id, body_len) + bytes.fromhex(phone.rjust(12, "0")) + struct.pack(">H", serial)
 
 
+def header_2019(message_id: int, phone: str, serial: int, body_len: int) -> bytes:
+    """The 2019 header: the version flag (bit 14 of the body properties), protocol version 1, a 20-digit phone."""
+    head = struct.pack(">HHB", message_id, body_len | 0x4000, 1)
+    return head + bytes.fromhex(phone.rjust(20, "0")) + struct.pack(">H", serial)
+
+
+def package_header_2013(message_id: int, phone: str, serial: int, body_len: int, count: int, number: int) -> bytes:
+    """The 2013 header of package ``number`` of ``count``: the sub-package flag (bit 13) and the package item."""
+    return header_2013(message_id, phone, serial, body_len | 0x2000) + struct.pack(">HH", count, number)
+
+
 def bcd_time(time_s: float) -> bytes:
     t = time.gmtime(int(time_s) + BEIJING_S)
     return bytes.fromhex(
@@ -63,6 +74,9 @@ class Received:
     message_id: int
     serial: int
     body: bytes
+    #: The phone number of the header, its BCD digits (2013: 12 digits, 2019: 20).
+    phone: str = ""
+    edition: int = 2013
 
 
 def read_frames(data: bytes) -> list[Received]:
@@ -74,10 +88,13 @@ def read_frames(data: bytes) -> list[Received]:
         raw = part.replace(b"\x7d\x02", b"\x7e").replace(b"\x7d\x01", b"\x7d")
         assert xor(raw[:-1]) == raw[-1], "the platform's check code is wrong"
         message_id, properties = struct.unpack_from(">HH", raw)
-        (serial,) = struct.unpack_from(">H", raw, 10)
-        body = raw[12:-1]
+        if properties & 0x4000:  # 2019: a version byte, then a 10-byte phone
+            assert raw[4] == 1, "the platform's protocol version is wrong"
+            phone, (serial,), body, edition = raw[5:15].hex(), struct.unpack_from(">H", raw, 15), raw[17:-1], 2019
+        else:
+            phone, (serial,), body, edition = raw[4:10].hex(), struct.unpack_from(">H", raw, 10), raw[12:-1], 2013
         assert len(body) == properties & 0x3FF, "the platform's body length is wrong"
-        frames.append(Received(message_id, serial, body))
+        frames.append(Received(message_id, serial, body, phone, edition))
     return frames
 
 

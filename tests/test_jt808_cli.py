@@ -14,6 +14,7 @@ import uvloop
 
 from csws.gateways.jt808.terminals import TerminalList
 from csws.gateways.jt808.texts import DriverTexts, Indication, TextsError, load_fleet_texts, text_of
+from csws.networks import networks_dir
 from service.jt808_cli import loop_factory, run_profiled
 
 
@@ -44,8 +45,12 @@ def test_terminals_are_added_listed_and_revoked(tmp_path: Path):
 
 
 def test_bad_input_is_one_line_and_a_non_zero_exit(tmp_path: Path):
+    listed = tmp_path / "listed.json"
+    assert csws("terminals", "add", "acme", "13800138000", "--category", "N", "--file", str(listed)).returncode == 0
+    no_lonlat = str(networks_dir() / "single_r120_left.net.xml")  # x, y only: a report's lon/lat has no place there
     cases = [
         ("jt808", "--terminals", str(tmp_path / "missing.json")),
+        ("jt808", "--terminals", str(listed), "--net", no_lonlat, "--port", "0"),
         ("terminals", "add", "acme", "12ab", "--category", "N", "--file", str(tmp_path / "t.json")),
         ("terminals", "add", "acme", "1380", "--category", "X9", "--file", str(tmp_path / "t.json")),
         ("terminals", "revoke", "1380", "--file", str(tmp_path / "missing.json")),
@@ -136,3 +141,27 @@ def test_the_profile_of_the_event_loop_is_written(tmp_path: Path):
     run_profiled(named_for_the_profile(), loop_factory("asyncio"), tmp_path / "loop.prof")
     functions = pstats.Stats(str(tmp_path / "loop.prof")).stats  # type: ignore[attr-defined]
     assert any(name == "named_for_the_profile" for _, _, name in functions)
+
+
+def test_the_two_gateway_compose_example_runs_gateways_on_its_redis_behind_its_balancer():
+    """examples/jt808: each gateway's command is a ``csws jt808`` the parser takes, on the port the balancer sends to,
+    sharing the Redis service, with the terminal file mounted where it reads it; the balancer's backends are the two."""
+    import yaml
+
+    from csws.cli import build_parser
+
+    folder = Path(__file__).resolve().parents[1] / "examples" / "jt808"
+    services = yaml.safe_load((folder / "compose.yaml").read_text())["services"]
+    gateways = {name: service for name, service in services.items() if name.startswith("gateway-")}
+    assert len(gateways) == 2 and services["redis"]["command"][-1] == "always"
+    balancer = (folder / "haproxy.cfg").read_text()
+    backends = [line.split()[2] for line in balancer.splitlines() if line.strip().startswith("server ")]
+    assert (folder / "haproxy.cfg").name in services["balancer"]["volumes"][0]
+    for name, gateway in gateways.items():
+        args = build_parser().parse_args([str(word) for word in gateway["command"]][1:])
+        assert args.command == "jt808" and args.host == "0.0.0.0" and args.state == "redis://redis:6379/0"
+        assert f"{name}:{args.port}" in backends
+        mounted = {volume.split(":")[1]: volume.split(":")[0] for volume in gateway["volumes"]}
+        assert mounted[str(args.terminals)] == "./terminals.json"
+        assert (folder / gateway["build"] / "Dockerfile").exists()
+    assert services["balancer"]["ports"] == ["6808:6808"] and "bind :6808" in balancer

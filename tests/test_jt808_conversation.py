@@ -10,11 +10,21 @@ from the next turn; frames beyond a connection's burst are dropped; the driver i
 from __future__ import annotations
 
 import asyncio
+import struct
 from pathlib import Path
 from typing import Any, cast
 
 import pytest
-from jt808_terminal import Received, general_response, header_2013, location_body, read_frames, wire
+from jt808_terminal import (
+    Received,
+    general_response,
+    header_2013,
+    header_2019,
+    location_body,
+    package_header_2013,
+    read_frames,
+    wire,
+)
 
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
 from csws.gateways.jt808.texts import DriverTexts
@@ -177,5 +187,121 @@ def test_the_driver_is_told_a_level_when_it_comes_on_or_rises_and_not_again(tmp_
             (display_and_speech, texts.level1.replace("{speed_kmh}", "61")),
             (display_and_speech | 1, texts.level2.replace("{speed_kmh}", "48")),  # level 2 is urgent
         ]
+
+    asyncio.run(run())
+
+
+def test_a_report_whose_time_is_not_bcd_is_answered_as_unreadable_and_the_connection_lives(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        conversation, transport = authenticated(gateway)
+        report = location_body(50.86, 9.70, 70.0, 90.0, T0_S)
+        unreadable = report[:-6] + bytes([0x26, 0x11, 0xAA, 0x10, 0x00, 0x00])  # a day of 0xAA: no BCD digits
+        assert conversation.received(frame(0x0200, 2, unreadable) + frame(0x0002, 3))
+        assert [general_response(f) for f in transport.frames()] == [(2, 0x0200, 2), (3, 0x0002, 0)]
+        assert queue.waiting == [] and not transport.closed
+
+    asyncio.run(run())
+
+
+def test_a_terminal_file_that_cannot_be_read_leaves_the_terminals_read_before_admitted(tmp_path):
+    async def run() -> None:
+        gateway, _ = open_gateway(tmp_path)
+        conversation, transport = authenticated(gateway)
+        path = tmp_path / "terminals.json"
+        content = path.read_text("utf-8")
+        path.write_text(content[: len(content) // 2], "utf-8")  # a hand edit saved half way
+        await asyncio.sleep(0)
+        assert conversation.received(frame(0x0002, 2))
+        path.unlink()
+        await asyncio.sleep(0)
+        assert conversation.received(frame(0x0002, 3))
+        assert [general_response(f) for f in transport.frames()] == [(2, 0x0002, 0), (3, 0x0002, 0)]
+        path.write_text(content, "utf-8")
+        revoke_terminal(path, PHONE)  # a good file again: read, and its revocation holds
+        await asyncio.sleep(0)
+        assert conversation.received(frame(0x0002, 4))
+        assert [general_response(f) for f in transport.frames()] == [(4, 0x0002, 1)]
+
+    asyncio.run(run())
+
+
+def test_an_authenticated_connection_speaks_for_its_terminal_alone(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        other = "13900000000"
+        add_terminal(tmp_path / "terminals.json", "acme", other, category="N")
+        conversation, transport = authenticated(gateway)
+        report = location_body(50.86, 9.70, 70.0, 90.0, T0_S)
+        posing = wire(header_2013(0x0200, other, 2, len(report)) + report)
+        assert conversation.received(posing + frame(0x0200, 3, report))
+        refused, answered = transport.frames()
+        assert general_response(refused) == (2, 0x0200, 1)
+        assert refused.phone.lstrip("0") == other and answered.phone.lstrip("0") == PHONE  # each to its sender
+        assert general_response(answered) == (3, 0x0200, 0)
+        assert [waiting.query.vehicle_id for waiting in queue.waiting] == [gateway.terminals.terminal(PHONE).vehicle_id]
+
+    asyncio.run(run())
+
+
+def test_a_report_that_cannot_be_answered_tells_the_driver_of_a_fault_once_it_lasts(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        conversation, transport = authenticated(gateway)
+        texts = DriverTexts()
+        told = []
+        answers = [AnswerSummary("active", 0, None), None, None, None, AnswerSummary("active", 0, None)]
+        for serial, (offset_s, answer) in enumerate(zip([0.0, 1.0, 6.0, 11.0, 12.0], answers, strict=True), 2):
+            conversation.received(frame(0x0200, serial, location_body(50.86, 9.70, 70.0, 90.0, T0_S + offset_s)))
+            queue.waiting.pop().deliver(answer)  # None: the state store was unreachable
+            told += [f.body[1:].decode("gbk") for f in transport.frames() if f.message_id == 0x8300]
+        assert told == [texts.fault, texts.restored]  # after 10 s without an answer, and once answered again
+
+    asyncio.run(run())
+
+
+def test_a_batch_upload_in_packages_arriving_out_of_order_is_answered_once_as_one_message(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        conversation, transport = authenticated(gateway)
+        items = [location_body(50.86, 9.70 + k * 1e-4, 70.0, 90.0, T0_S + k) for k in (2, 0, 1)]  # not in time order
+        body = struct.pack(">HB", len(items), 0) + b"".join(struct.pack(">H", len(item)) + item for item in items)
+        cuts = [0, 20, 45, len(body)]
+        packages = {
+            number: wire(package_header_2013(0x0704, PHONE, 9 + number, b - a, 3, number) + body[a:b])
+            for number, (a, b) in enumerate(zip(cuts, cuts[1:], strict=False), 1)
+        }
+        for number in (3, 1):
+            assert conversation.received(packages[number])
+            assert transport.frames() == [] and queue.waiting == []  # not whole yet: nothing answered
+        assert conversation.received(packages[2])
+        assert [general_response(f) for f in transport.frames()] == [(10, 0x0704, 0)]  # the first package's serial
+        assert [waiting.query.timestamp_s for waiting in queue.waiting] == [T0_S, T0_S + 1, T0_S + 2]
+
+    asyncio.run(run())
+
+
+def test_a_2019_terminal_is_answered_in_its_own_edition(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        listed = gateway.terminals.terminal(PHONE)
+        assert listed is not None
+        conversation, transport = Conversation(gateway), Transport()
+        conversation.connection_made(cast(Any, transport))
+        code = gateway.terminals.auth_code(listed).encode()
+        # 2019 authentication: code length, code, IMEI (15) and software version (20)
+        authentication = bytes([len(code)]) + code + b"8".ljust(15, b"0") + b"1.0".ljust(20, b"\x00")
+        report = location_body(50.86, 9.70, 70.0, 90.0, T0_S)
+        sent = [(0x0102, 1, authentication), (0x0200, 2, report)]
+        assert conversation.received(b"".join(wire(header_2019(m, PHONE, n, len(b)) + b) for m, n, b in sent))
+        answers = transport.frames()
+        assert [general_response(f) for f in answers] == [(1, 0x0102, 0), (2, 0x0200, 0)]
+        assert {(f.edition, f.phone) for f in answers} == {(2019, PHONE.rjust(20, "0"))}
+        [waiting] = queue.waiting
+        waiting.deliver(AnswerSummary("active", 2, 48.2))
+        [text] = transport.frames()
+        assert text.message_id == 0x8300 and text.edition == 2019
+        assert text.body[:2] == bytes([0b1110, 1])  # 2019: display, speech, kind 2 (emergency); text type 1 (notice)
+        assert text.body[2:].decode("gbk") == DriverTexts().level2.replace("{speed_kmh}", "48")
 
     asyncio.run(run())

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from jt808_terminal import header_2013, header_2019, wire, xor
 
 from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, FrameWriter, decode_frame, encode_frame
 from csws.gateways.jt808.messages import (
@@ -30,31 +31,6 @@ from csws.gateways.jt808.messages import (
     encode_registration_response,
     encode_text_message,
 )
-
-
-def xor(data: bytes) -> int:
-    out = 0
-    for b in data:
-        out ^= b
-    return out
-
-
-def wire(content: bytes) -> bytes:
-    """Content (header + body) framed as the standard says: check code, escape byte by byte, flags."""
-    raw = content + bytes([xor(content)])
-    escaped = bytearray()
-    for b in raw:
-        escaped += {0x7E: b"\x7d\x02", 0x7D: b"\x7d\x01"}.get(b, bytes([b]))
-    return b"\x7e" + bytes(escaped) + b"\x7e"
-
-
-def header_2013(message_id: int, phone: str, serial: int, body_len: int) -> bytes:
-    return struct.pack(">HH", message_id, body_len) + bytes.fromhex(phone.rjust(12, "0")) + struct.pack(">H", serial)
-
-
-def header_2019(message_id: int, phone: str, serial: int, body_len: int) -> bytes:
-    head = struct.pack(">HHB", message_id, body_len | 0x4000, 1)
-    return head + bytes.fromhex(phone.rjust(20, "0")) + struct.pack(">H", serial)
 
 
 def test_a_heartbeat_frame_is_the_standards_bytes():

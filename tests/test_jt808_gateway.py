@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import os
 import struct
 import subprocess
 import sys
@@ -83,6 +84,33 @@ def test_a_terminal_is_warned_at_level_1_then_level_2_where_formula_1_says(net, 
     assert onset_m <= sw_m + speed_mps * (1.0 + delay_s) + START_TOLERANCE_M
     # Level 2 at the first report above V_w2, inside formula (1)'s distance at that speed.
     assert texts[1][0] <= formula_1_m(fast_kmh, v_w2) + fast_kmh / 3.6 * (1.0 + delay_s)
+
+
+def test_a_terminal_at_a_steady_speed_above_both_warning_speeds_hears_each_level_where_formula_1_says(net, tmp_path):
+    """At 95 km/h, above both levels' V_w, reporting every 1 s: level 1 at the last report that could show it before
+    S_w(V_w1), then level 2 likewise before S_w(V_w2), each within one report interval of travel of formula (1)."""
+    speed_kmh = 95.0
+    v_w1, v_w2 = (warning_speed(RADIUS_M, CATEGORY, level) for level in (1, 2))
+    assert v_w1 < v_w2 < speed_kmh
+    delay_s, speed_mps = WarningSettings().system_delay_s, speed_kmh / 3.6
+
+    async def run() -> list[tuple[float, str]]:
+        async with Rig(net, tmp_path) as rig:
+            terminal = await connected(rig)
+            drive = Drive(rig, terminal, APPROACH_M - 600.0)
+            texts: list[tuple[float, str]] = []
+            while len(texts) < 2:
+                assert drive.x_m < APPROACH_M, f"only {texts} before the curve"
+                texts += await drive.report(speed_kmh)
+            await terminal.close()
+            return texts
+
+    (level_1_m, level_1), (level_2_m, level_2) = asyncio.run(run())
+    assert "前方弯道" in level_1 and "弯道超速" in level_2
+    for onset_m, v_w in ((level_1_m, v_w1), (level_2_m, v_w2)):
+        sw_m = formula_1_m(speed_kmh, v_w)
+        assert onset_m - speed_mps * delay_s >= sw_m - START_TOLERANCE_M  # on before S_w is reached
+        assert onset_m <= sw_m + speed_mps * (1.0 + delay_s) + START_TOLERANCE_M  # at the last report that could
 
 
 #: The slow terminals' speed: above the curve's level-1 V_w, below its level-2 one.
@@ -242,11 +270,14 @@ class GatewayProcess:
 
     def __init__(self, net: Path, terminals_file: Path, state_url: str) -> None:
         command = [sys.executable, "-m", "csws", "jt808", "--net", str(net), "--port", "0"]
+        # The container image names an API key file the gateway's compose example does not mount: it reads none.
+        no_keys = {**os.environ, "CSWS_API_KEYS_FILE": str(terminals_file.parent / "no-such-api-keys.json")}
         self.process = subprocess.Popen(
             [*command, "--terminals", str(terminals_file), "--state", state_url],
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
+            env=no_keys,
         )
         assert self.process.stdout is not None
         line = self.process.stdout.readline()

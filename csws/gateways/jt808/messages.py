@@ -169,7 +169,10 @@ def _bcd_time_s(data: bytes) -> float:
 
     Kept for the last 1,024 times: terminals that report every second send the same few times at once.
     """
-    digits = bcd_decode(data)
+    try:
+        digits = bcd_decode(data)
+    except FrameError as error:  # a nibble above 9: the body is unreadable, not the frame
+        raise BodyError(f"the time is not BCD: {data.hex()}") from error
     year, month, day, hour, minute, second = (int(digits[i : i + 2]) for i in range(0, 12, 2))
     if not (1 <= month <= 12 and 1 <= day <= calendar.monthrange(2000 + year, month)[1]):
         raise BodyError(f"no such date: {digits}")

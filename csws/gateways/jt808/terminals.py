@@ -76,6 +76,10 @@ class Terminal:
     generation: int
     revoked: bool = False
 
+    def speaks_as(self, phone: str) -> bool:
+        """Whether a frame's header ``phone`` is this terminal's number (leading zeros ignored)."""
+        return phone == self.phone or phone_key(phone) == phone_key(self.phone)
+
 
 class TerminalList:
     """The admitted terminals, read from a terminal file, re-read when the file changes.
@@ -99,8 +103,19 @@ class TerminalList:
         self._stamp = _stamp(self.path)
 
     def refresh(self) -> None:
-        """Read the file again if it changed since it was read (revocations take effect at once)."""
-        if _stamp(self._path_name) != self._stamp:
+        """Read the file again if it changed since it was read (revocations take effect at once).
+
+        Raises
+        ------
+        TerminalError
+            When the file is gone or cannot be read now (a hand edit half written): the terminals read last
+            stay as they were.
+        """
+        try:
+            stamp = _stamp(self._path_name)
+        except OSError as exc:
+            raise TerminalError(f"{self.path}: cannot be read ({exc.strerror or exc})") from None
+        if stamp != self._stamp:
             self._load()
 
     def terminal(self, phone: str) -> Terminal | None:
