@@ -58,9 +58,11 @@ def _of_vehicle(query: DecodedQuery, vehicle_id: str) -> DecodedQuery:
     return cast(DecodedQuery, msgspec.structs.replace(cast(msgspec.Struct, query), vehicle_id=vehicle_id))
 
 
-def _category(query: DecodedQuery, vehicles: LoadedVehicles) -> Category:
-    """The query's category, else the one its fleet set (the checks made sure one of them is there)."""
-    category = query.category if query.category is not None else vehicles.category(query.vehicle_id)
+def _category(query: DecodedQuery, vehicles: LoadedVehicles, fleet_first: bool = False) -> Category:
+    """The query's category, else the one its fleet set (the checks made sure one of them is there); with
+    ``fleet_first``, the one its fleet set, else the query's."""
+    category = vehicles.category(query.vehicle_id) if fleet_first or query.category is None else None
+    category = category if category is not None else query.category
     assert category is not None  # a query without one was refused (service.checks)
     return category
 
@@ -122,6 +124,7 @@ class WarningService:
         stages: Stages = UNTIMED,
         errors: ItemErrors | None = None,
         documents: bool = True,
+        fleet_category_first: bool = False,
     ) -> EncodedAnswers:
         """The answers of ``queries`` of ``fleet``'s vehicles (:func:`service.keys.vehicle_key`), in order, as JSON.
 
@@ -131,7 +134,10 @@ class WarningService:
         that are None are those already in it, and each query the networks cannot answer goes into it
         instead of raising: neither is evaluated, nor is its vehicle's session touched. Without ``documents``,
         the answers are their columns (state, level, V_w, placement) and only the answers whose events or
-        forward collision warning need one get their document: for a caller that sends no JSON.
+        forward collision warning need one get their document: for a caller that sends no JSON. With
+        ``fleet_category_first`` (a JT/T 808 terminal's reports, which carry its terminal list's category), a
+        category the fleet set for a vehicle (``PUT /v1/vehicles/{id}``) wins over the query's: one vehicle has
+        one category whichever way it talks. Each answer's category is in ``category``.
 
         Raises
         ------
@@ -155,7 +161,15 @@ class WarningService:
                 indices = [i for i, query in enumerate(named) if query is not None and query.vehicle_id in vehicle_ids]
                 indices = self._checked(named, vehicles, loc, fleet, indices, errors)
             for round_indices in _rounds(named, indices):
-                self._answer_round([named[i] for i in round_indices], round_indices, vehicles, answers, fleet, stages)
+                self._answer_round(
+                    [named[i] for i in round_indices],
+                    round_indices,
+                    vehicles,
+                    answers,
+                    fleet,
+                    stages,
+                    fleet_category_first,
+                )
 
         self.registry.transact({query.vehicle_id for query in named if query is not None}, answer_vehicles, stages)
         return answers
@@ -208,15 +222,17 @@ class WarningService:
         answers: EncodedAnswers,
         fleet: str,
         stages: Stages,
+        fleet_category_first: bool = False,
     ) -> None:
-        """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]``."""
+        """Answer queries of distinct vehicles of ``fleet`` into ``answers[indices]`` (``fleet_category_first``: as
+        :meth:`answer` takes it)."""
         with stages("match"):
             placements = self.place(queries, vehicles)
         by_network: dict[int, list[int]] = defaultdict(list)
         for row, (query, placement) in enumerate(zip(queries, placements, strict=False)):
             vehicles.place(query.vehicle_id, placement.network_index)
             by_network[placement.network_index].append(row)
-        categories = [_category(query, vehicles) for query in queries]
+        categories = [_category(query, vehicles, fleet_category_first) for query in queries]
         paths: list[PathAhead | None] = [None] * len(queries)
         for network_index, rows in by_network.items():
             with stages("engine"):
@@ -354,6 +370,7 @@ class WarningService:
             trail = vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest).trail
             index = indices[row]
             answers.state[index], answers.level[index], answers.placement[index] = state, warning.level, placement
+            answers.category[index] = categories[row]
             answers.warning_speed_kmh[index] = float(target.warning_speed_kmh) if target is not None else None
             changed = changes(trail, latest.level, state, fault is Fault.NO_MAP_MATCH)
             if changed or answers.with_documents or query.objects is not None or query.forward_target is not None:

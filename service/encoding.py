@@ -16,7 +16,7 @@ import msgspec
 from pydantic import BaseModel
 
 from csws.ahead.horizon import PathAhead
-from csws.standard import Level
+from csws.standard import Category, Level
 from csws.state import Fault, SystemState
 from csws.warning.rules import CurveWarning, HmiHint, PathKind, Trigger
 
@@ -70,6 +70,8 @@ class EncodedAnswers:
         ``warning_speed_kmh`` of its document; None without a target.
     placement
         Where each query was placed, None until answered.
+    category
+        The category each query was answered for, None until answered.
     with_documents
         Whether every answer gets its document (the HTTP contract), or only those an event or the
         forward collision warning needs (a gateway reading the columns alone).
@@ -80,6 +82,7 @@ class EncodedAnswers:
     level: list[Level]
     warning_speed_kmh: list[float | None]
     placement: list[Placement | None]
+    category: list[Category | None]
     with_documents: bool = True
 
     @classmethod
@@ -87,7 +90,7 @@ class EncodedAnswers:
         """The answers of ``count`` queries before any is answered (off, level 0)."""
         return cls(
             [None] * count, [SystemState.OFF] * count, [Level.NONE] * count, [None] * count, [None] * count,
-            with_documents,
+            [None] * count, with_documents,
         )  # fmt: skip
 
     def json(self, index: int) -> bytes:

@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 from csws.gateways.jt808.latency import StageTimes
+from csws.standard import Category
 from csws.state import SystemState
 
 from .answers import WarningService
@@ -173,7 +174,9 @@ class Batcher:
     def _answer_fleet(self, items: Sequence[Item], fleet: str, stages: Stages) -> list[AnswerSummary | None]:
         queries = [query for query, _, _ in items]
         try:
-            answers = self.service.answer(queries, loc=("jt808",), fleet=fleet, stages=stages, documents=False)
+            answers = self.service.answer(
+                queries, loc=("jt808",), fleet=fleet, stages=stages, documents=False, fleet_category_first=True
+            )
         except QueryErrors as errors:
             if len(items) > 1:
                 return [answer for item in items for answer in self._answer_fleet([item], fleet, stages)]
@@ -189,7 +192,7 @@ class Batcher:
             with stages("tracking"):
                 for row, query, intervals_s in due:
                     windows[row] = _tracking_window_s(
-                        planner, query, answers.state[row], answers.placement[row], intervals_s
+                        planner, query, answers.category[row], answers.state[row], answers.placement[row], intervals_s
                     )
         return [
             AnswerSummary(str(state.value), int(level), warning_speed_kmh, window_s)
@@ -202,6 +205,7 @@ class Batcher:
 def _tracking_window_s(
     planner: TrackingPlanner,
     query: DecodedQuery,
+    category: Category | None,
     state: SystemState,
     placement: Placement | None,
     intervals_s: Sequence[float],
@@ -209,7 +213,7 @@ def _tracking_window_s(
     """The tracking window a report asks for (None: none), where a fault of the planner costs only the
     request, never the report's answer: temporary tracking is advice, the warning is not."""
     try:
-        return planner.window_s(query, state, placement, intervals_s)
+        return planner.window_s(query, category, state, placement, intervals_s)
     except Exception:  # noqa: BLE001 - one report's tracking must not take its group's answers with it
         log.exception("jt808: no tracking window for %s", query.vehicle_id)
         return None

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 from csws.ahead.horizon import PathAhead
 from csws.gateways.jt808.tracking import CurveAhead, TrackingSettings, tracking_window_s
+from csws.standard import Category
 from csws.state import SystemState
 from csws.warning.latency import fix_age_s, update_period_s
 
@@ -52,16 +53,21 @@ class TrackingPlanner:
         self.service, self.settings = service, settings
 
     def window_s(
-        self, query: DecodedQuery, state: SystemState, placement: Placement | None, intervals_s: Sequence[float]
+        self,
+        query: DecodedQuery,
+        category: Category | None,
+        state: SystemState,
+        placement: Placement | None,
+        intervals_s: Sequence[float],
     ) -> int | None:
-        """The tracking window to ask for after ``query``'s answer (its system state ``state``, the query placed at
-        ``placement``), s, for a terminal whose regular intervals are ``intervals_s``; None when its vehicle is not
-        active on a matched lane or no curve is near.
+        """The tracking window to ask for after ``query``'s answer (for a vehicle of ``category``, its system state
+        ``state``, the query placed at ``placement``), s, for a terminal whose regular intervals are
+        ``intervals_s``; None when its vehicle is not active on a matched lane or no curve is near.
 
         The path ahead is the one the engine looks along from the same lane (the most probable path), as far
         as the warning needs at the terminal's period and one regular interval more.
         """
-        if placement is None or placement.path_lane_id is None or state != SystemState.ACTIVE or query.category is None:
+        if placement is None or placement.path_lane_id is None or state != SystemState.ACTIVE or category is None:
             return None
         index = placement.network_index
         engine = self.service.networks[index].engine
@@ -75,7 +81,7 @@ class TrackingPlanner:
                 placement.path_lane_id,
                 placement.path_lane_pos_m,
                 query.speed_kmh,
-                query.category,
+                category,
                 None,
                 reach_period_s,
                 age_s,
@@ -83,4 +89,4 @@ class TrackingPlanner:
         except KeyError:  # a lane of a network reloaded since: no tracking this time
             return None
         curves = curves_ahead(path)
-        return tracking_window_s(curves, query.speed_kmh, query.category, intervals_s, age_s, warning, self.settings)
+        return tracking_window_s(curves, query.speed_kmh, category, intervals_s, age_s, warning, self.settings)

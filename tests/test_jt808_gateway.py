@@ -133,6 +133,30 @@ def test_a_vehicle_switched_off_over_http_is_told_so_once_and_never_warned(net, 
     assert [text for _, text in texts] == ["弯道预警已关闭"]
 
 
+def test_a_category_set_over_http_is_the_terminals_too(net, tmp_path):
+    """The terminal list says N; the fleet sets M1 over HTTP. At a speed above N's V_w and below M1's, the
+    vehicle is warned only while it is an N: one vehicle, one category, whichever way it talks."""
+    speed_kmh = 85.0
+    assert warning_speed(RADIUS_M, CATEGORY, 1) < speed_kmh < warning_speed(RADIUS_M, "M1", 1)
+
+    async def drive(category: str | None) -> list[tuple[float, str]]:
+        async with Rig(net, tmp_path / (category or "listed")) as rig:
+            if category is not None:
+                client = TestClient(rig.app, headers={"Authorization": f"Bearer {rig.api_key}"})
+                setting = {"switched_on": True, "category": category}
+                assert client.put("/v1/vehicles/truck-18", json=setting).status_code == 200
+            terminal = await connected(rig)
+            drive = Drive(rig, terminal, APPROACH_M - 300.0)
+            texts = []
+            while drive.x_m < APPROACH_M:
+                texts += await drive.report(speed_kmh)
+            await terminal.close()
+            return texts
+
+    assert ["前方弯道" in text for _, text in asyncio.run(drive(None))] == [True]
+    assert asyncio.run(drive("M1")) == []
+
+
 def test_a_revoked_terminal_is_refused_from_its_next_message(net, tmp_path):
     async def run() -> None:
         async with Rig(net, tmp_path) as rig:
