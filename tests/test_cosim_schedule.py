@@ -161,6 +161,88 @@ def test_vehicles_teleported_out_of_a_jam_warn_as_in_every_step_runs(tmp_path):
     _assert_same_warnings(every, scheduled, summary)
 
 
+def _fork(folder: Path) -> Path:
+    """A road that forks 560 m on: straight on to a junction 840 m further, or off 20 degrees to the right into a
+    branch whose R 60 m curve starts 150 m after the fork (its first warning point lies before the fork) and that
+    comes back to that junction; an exit road leaves it."""
+    xy, _ = sample_pieces([straight(150.0), arc(60.0, 90.0, "right"), straight(100.0)], 2.0, (560.0, 0.0), -0.35)
+    nodes = (
+        '<nodes><node id="n0" x="0" y="0"/><node id="n1" x="500" y="0"/><node id="n2" x="560" y="0"/>'
+        f'<node id="n3" x="1400" y="0"/><node id="n4" x="{xy[-1][0]:.6f}" y="{xy[-1][1]:.6f}"/>'
+        '<node id="n5" x="1700" y="0"/></nodes>'
+    )
+    road = [("a0", "n0", "n1", ""), ("a1", "n1", "n2", ""), ("straight", "n2", "n3", ""), ("back", "n4", "n3", "")]
+    road += [("branch", "n2", "n4", f' shape="{shape_text(xy)}"'), ("exit", "n3", "n5", "")]
+    edges = "".join(
+        f'<edge id="{edge}" from="{a}" to="{b}" speed="{ROAD_SPEED_MPS}"{shape}/>' for edge, a, b, shape in road
+    )
+    return netconvert(nodes, f"<edges>{edges}</edges>", folder / "fork.net.xml")
+
+
+def _fork_scenario(folder: Path, additional: str, route: str, rerouting_device: bool = False) -> Scenario:
+    """40 cars on the fork's road along ``route`` (edge ids), with ``additional`` elements (rerouters, speed signs)
+    and each car's rerouting device (every 2 s) or none."""
+    net = _fork(folder)
+    cars = "".join(
+        f'<vehicle id="v{i}" type="car" route="r" depart="{i * 3.7:.1f}" departSpeed="max"/>' for i in range(40)
+    )
+    (folder / "fork.rou.xml").write_text(
+        f'<routes><vType id="car" vClass="passenger" speedDev="0.1"/><route id="r" edges="{route}"/>{cars}</routes>',
+        encoding="utf-8",
+    )
+    (folder / "fork.add.xml").write_text(f"<additional>{additional}</additional>", encoding="utf-8")
+    routing = (
+        '<routing><device.rerouting.probability value="1"/><device.rerouting.period value="2"/></routing>'
+        if rerouting_device
+        else ""
+    )
+    config = folder / "fork.sumocfg"
+    config.write_text(
+        '<configuration><input><net-file value="fork.net.xml"/><route-files value="fork.rou.xml"/>'
+        f'<additional-files value="fork.add.xml"/></input>{routing}</configuration>',
+        encoding="utf-8",
+    )
+    return Scenario(config, net, ())
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+@pytest.mark.parametrize("how", ["rerouter", "device"])
+def test_vehicles_rerouted_while_asleep_warn_as_in_every_step_runs(tmp_path, how):
+    """Routed straight on, the cars sleep towards the junction ahead; SUMO sends them round by the branch, whose curve
+    they then near before they would wake: a rerouter before the fork that closes the straight road, or each car's
+    rerouting device once a speed sign has slowed the straight road to 1 m/s. They are woken when their route
+    changes."""
+    if how == "rerouter":
+        additional = (
+            '<rerouter id="closed" edges="a1"><interval begin="0" end="100000">'
+            '<closingReroute id="straight"/></interval></rerouter>'
+        )
+    else:
+        additional = (
+            '<variableSpeedSign id="slow" lanes="straight_0"><step time="0" speed="25"/><step time="30" speed="1"/>'
+            "</variableSpeedSign>"
+        )
+    scenario = _fork_scenario(tmp_path, additional, "a0 a1 straight exit", rerouting_device=how == "device")
+    every, scheduled, summary = _both(scenario, tmp_path, step_length_s=STEP_S, end_s=200.0, seed=3)
+    assert b"branch" in (every / "entries.csv").read_bytes()  # the cars were warned of the branch's curve
+    _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_a_speed_sign_raising_the_limit_while_vehicles_sleep_keeps_the_warnings_of_every_step_runs(tmp_path):
+    """A variable speed sign raises the limit of the road into the branch from 25 to 45 m/s at 5 s: the cars, faster
+    than any lane allowed when they departed, are still woken in time."""
+    additional = (
+        '<variableSpeedSign id="faster" lanes="a0_0 a1_0 branch_0">'
+        '<step time="0" speed="25"/><step time="5" speed="45"/></variableSpeedSign>'
+    )
+    scenario = _fork_scenario(tmp_path, additional, "a0 a1 branch back exit")
+    every, scheduled, summary = _both(scenario, tmp_path, step_length_s=STEP_S, end_s=200.0, seed=3)
+    _assert_same_warnings(every, scheduled, summary)
+
+
 @pytest.mark.slow
 @pytest.mark.sumo
 def test_scheduled_run_of_the_bundled_fleet_warns_as_every_step(tmp_path):

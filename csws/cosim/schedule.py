@@ -12,9 +12,11 @@ driven ``d - D``: it is not read or evaluated before then (:meth:`WakeSchedule.s
 
 Lanes of one road differ a little in length along a bend, so a vehicle that changes lanes may find
 the curve slightly nearer than on its old lane: :data:`LANE_CHANGE_MARGIN_M` and
-:data:`LANE_CHANGE_MARGIN_SHARE` of ``d`` are taken off. A route changed while asleep changes the
-path only beyond the vehicle's current edge, which lies on the path found; the path is followed to
-its end, so the vehicle wakes before it can come near anything the new route puts after it.
+:data:`LANE_CHANGE_MARGIN_SHARE` of ``d`` are taken off. A route SUMO changes while the vehicle
+sleeps (a rerouter, its rerouting device) can leave the path found at any junction ahead, before the
+curve it slept towards: such a vehicle is woken at the step its route id changes
+(:class:`csws.cosim.sumo.Simulation` reads the route id of the sleeping vehicles SUMO may reroute, and of
+no others).
 
 Vehicles inside a warning, held by the release rule, answered by the driver-response model or just
 departed are evaluated every step (the run keeps them awake). A vehicle SUMO starts to teleport

@@ -90,7 +90,8 @@ class RunSchedule:
             self.fcw[0].wake_due(step, everyone)
 
     def teleporting(self, vehicle_ids: tuple[str, ...]) -> None:
-        """Wake the vehicles SUMO starts to teleport (they may reappear anywhere ahead)."""
+        """Wake the vehicles SUMO starts to teleport (they may reappear anywhere ahead) or rerouted while they slept
+        (their road ahead is not the one their sleep was worked out on)."""
         if self.curve:
             self.woken.update(self.curve[0].wake(vehicle_ids))
         if self.fcw:

@@ -15,7 +15,8 @@ same API; what is read each step is the same, the way it is read is each one's c
 A route's edges are fetched once per route id (a rerouted vehicle gets a new route id),
 a type's category once per type. A scheduled run (:mod:`csws.cosim.schedule`) reads only the
 vehicles that are due: getters then cost less still, subscriptions (every vehicle's result
-built at every step) no less.
+built at every step) no less. Only a vehicle SUMO may reroute (a rerouter on the network, or the
+vehicle's rerouting device) has its route id read while it sleeps, every step: a new route wakes it.
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ _VAR_POSITION = 0x42
 _VAR_ANGLE = 0x43
 _VAR_ROUTE_ID = 0x53
 _VAR_DISTANCE = 0x84
+#: The parameter that says whether a vehicle has SUMO's rerouting device ("true" or "false").
+_REROUTING = "has.rerouting.device"
 #: What a call to the SUMO API returns.
 T = TypeVar("T")
 #: What is read of each vehicle every step; its type (and so its category) is read once, when it departs.
@@ -152,14 +155,21 @@ class Simulation:
         #: Whether every step reads x and y whatever :meth:`step` is asked (TraCI's subscriptions hold them).
         self.reads_positions = self._subscribed
         self.closed = False
-        #: The fastest lane's speed limit, m/s (read once, with ``speed_bounds``).
+        #: The fastest lane's speed limit, m/s (read once, with ``speed_bounds``; infinite with variable speed signs).
         self._fastest_lane_mps = self._fastest_lane() if speed_bounds else None
         #: The speed bound (:func:`csws.cosim.schedule.speed_bound_mps`, m/s) and maximum acceleration (m/s^2)
         #: of each vehicle evaluated that departed in the last step (with ``speed_bounds``).
         self.departed_speed_bounds: dict[str, tuple[float, float]] = {}
+        #: With ``speed_bounds`` (a scheduled run): whether SUMO may reroute every vehicle (a rerouter on the
+        #: network), and the route id each vehicle it may reroute was last read on.
+        self._rerouters = speed_bounds and bool(self._call(api.rerouter.getIDList))
+        self._reroutable: dict[str, str | None] = {}
 
     def _fastest_lane(self) -> float:
-        """The highest speed limit of the network's lanes, m/s."""
+        """The highest speed limit of the network's lanes, m/s; infinite where a variable speed sign may raise
+        one during the run (a vehicle's speed is then bounded by its type's maximum speed alone)."""
+        if self._call(self.api.variablespeedsign.getIDList):
+            return math.inf
         lane = self.api.lane
         return max(map(lane.getMaxSpeed, self._call(lane.getIDList)), default=0.0)
 
@@ -201,8 +211,9 @@ class Simulation:
     ) -> FleetState:
         """Advance one step and read every evaluated vehicle but those ``asleep``; its x, y only with
         ``positions`` (NaN otherwise: :meth:`position` reads one vehicle's when it is needed). The vehicles
-        that start to teleport in the step are given to ``teleporting`` first (which may wake them), then
-        those that departed or ended a teleport, of any class, to ``appearing`` (which may wake others).
+        that start to teleport in the step, and the sleeping ones SUMO rerouted, are given to ``teleporting``
+        first (which may wake them), then those that departed or ended a teleport, of any class, to
+        ``appearing`` (which may wake others).
 
         Raises
         ------
@@ -212,7 +223,7 @@ class Simulation:
         api = self.api
         self._call(api.simulationStep)
         if teleporting is not None:
-            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)))
+            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)) + self._rerouted(asleep))
         departed = tuple(self._call(api.simulation.getDepartedIDList))
         arrived = tuple(self._call(api.simulation.getArrivedIDList))
         skipped = []
@@ -228,12 +239,15 @@ class Simulation:
             self._types[vehicle_id] = type_id
             if self._fastest_lane_mps is not None:
                 self.departed_speed_bounds[vehicle_id] = self._speed_bound(vehicle_id)
+                if self._rerouters or self._call(api.vehicle.getParameter, vehicle_id, _REROUTING) == "true":
+                    self._reroutable[vehicle_id] = None
             if self._subscribed:
                 self._call(api.vehicle.subscribe, vehicle_id, self._variables())
         self._skipped.difference_update(arrived)
         for vehicle_id in arrived:
             self._evaluated.pop(vehicle_id, None)
             self._types.pop(vehicle_id, None)
+            self._reroutable.pop(vehicle_id, None)
         if appearing is not None:
             appeared = departed + tuple(self._call(api.simulation.getEndingTeleportIDList))
             appearing(tuple(vehicle_id for vehicle_id in appeared if vehicle_id not in arrived))
@@ -242,6 +256,8 @@ class Simulation:
         )
         if not position:
             position = [(math.nan, math.nan)] * len(ids)
+        if self._reroutable:
+            self._note_routes(ids, route_id)
         evaluated, headings = self._evaluated, self._headings and len(angle_deg) == len(ids)
         return FleetState(
             time_s=float(self._call(api.simulation.getTime)),
@@ -260,6 +276,22 @@ class Simulation:
             type_id=[self._types[vehicle_id] for vehicle_id in ids] if headings else None,
             angle_deg=np.array(angle_deg, dtype=float) if headings else None,
         )
+
+    def _rerouted(self, asleep: Container[str]) -> tuple[str, ...]:
+        """The sleeping vehicles SUMO may reroute whose route id is no longer the one they were last read on."""
+        reroutable = self._reroutable
+        sleeping = [vehicle_id for vehicle_id in reroutable if vehicle_id in asleep]
+        if not sleeping:
+            return ()
+        route_ids = self._call(lambda: list(map(self.api.vehicle.getRouteID, sleeping)))
+        return tuple(v for v, route_id in zip(sleeping, route_ids, strict=True) if route_id != reroutable[v])
+
+    def _note_routes(self, vehicle_ids: Sequence[str], route_ids: Sequence[str]) -> None:
+        """Keep the route id each vehicle SUMO may reroute was read on."""
+        reroutable = self._reroutable
+        for vehicle_id, route_id in zip(vehicle_ids, route_ids, strict=True):
+            if vehicle_id in reroutable:
+                reroutable[vehicle_id] = route_id
 
     def _variables(self) -> tuple[int, ...]:
         """The variables a vehicle is subscribed to (TraCI): with headings, its angle too."""
