@@ -180,6 +180,29 @@ def test_dead_reckoning_ends_after_its_time(town: RoadMap, matcher: SequenceMatc
     assert beyond.tracks[0] == track  # the sequence is kept: a fix on the road later continues it
 
 
+def test_a_fix_that_comes_late_leaves_the_sequence_where_the_newest_fix_put_it(
+    town: RoadMap, matcher: SequenceMatcher
+) -> None:
+    # 10 m/s along the main road, fixes at t = 10..13; then the fix of t = 2 arrives late. It is placed by itself
+    # (where it was), and the next fix, 40 m off the road at t = 14, is dead-reckoned from t = 13, not from the late
+    # fix (12 s before it: beyond the dead reckoning's 10 s), and confirms the fix of t = 13.
+    def fix(x_m: float, y_m: float, time_s: float) -> Fixes:
+        return Fixes.of(Probes.everywhere(np.array([[x_m, y_m]])), [time_s], [90.0], [10.0])
+
+    track: Track | None = None
+    for time_s in (10.0, 11.0, 12.0, 13.0):
+        track = matcher.match(fix(10.0 * time_s, 0.0, time_s), [track]).tracks[0]
+    assert track is not None and track.state.lane_id == "WJ_0"
+    late = matcher.match(fix(20.0, 0.0, 2.0), [track])
+    assert late.lane_id == ["WJ_0"] and late.lane_pos_m[0] == pytest.approx(track.state.lane_pos_m - 110.0, abs=0.5)
+    assert late.placed == [Placed.MATCHED] and late.tracks == [track] and late.confirmed == [None]
+    after = matcher.match(fix(140.0, 40.0, 14.0), late.tracks)
+    assert after.placed == [Placed.DEAD_RECKONED]
+    assert after.lane_pos_m[0] == pytest.approx(track.state.lane_pos_m + 10.0)
+    on_road = matcher.match(fix(150.0, 0.0, 15.0), [track])
+    assert on_road.confirmed[0] is not None and on_road.confirmed[0].time_s == 13.0
+
+
 def test_a_gap_without_fixes_continues_the_sequence(town: RoadMap, matcher: SequenceMatcher) -> None:
     route = drive(town, ["WJ_0", "JE_0"], 14.0, seed=3, start_m=150.0)
     keep = np.r_[0:4, 14 : len(route.time_s)]  # no fix for 10 s, across the junction

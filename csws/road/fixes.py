@@ -4,7 +4,7 @@
 was placed and how (:class:`Placed`); :class:`Track` what a vehicle keeps for its next fix, its
 :class:`MatchState` a small MessagePack array stored with its session. A fix that repeats its
 vehicle's last matched fix (a resent message) is answered from the track (:func:`repeats`,
-:func:`with_repeats`).
+:func:`with_repeats`); one taken before it (a late message) is placed by itself and leaves the track as it was.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ __all__ = [
     "Confirmed",
     "SequenceMatches",
     "subset",
+    "last_times_s",
     "repeats",
     "with_repeats",
 ]
@@ -198,9 +199,14 @@ def subset(fixes: Fixes, rows: np.ndarray) -> Fixes:
     return Fixes(subset, *(column[rows] for column in columns))
 
 
-def repeats(fixes: Fixes, tracks: Sequence[Track | None]) -> np.ndarray:
-    """Which fixes repeat their vehicle's last matched fix: the same time, a probe at the same place on its map."""
-    last_time_s = np.array([math.nan if t is None else t.state.time_s for t in tracks])
+def last_times_s(tracks: Sequence[Track | None]) -> np.ndarray:
+    """When each vehicle's last matched fix was taken, s (NaN without a track)."""
+    return np.array([math.nan if t is None else t.state.time_s for t in tracks])
+
+
+def repeats(fixes: Fixes, tracks: Sequence[Track | None], last_time_s: np.ndarray) -> np.ndarray:
+    """Which fixes repeat their vehicle's last matched fix (taken at ``last_time_s``, :func:`last_times_s`): the
+    same time, a probe at the same place on its map."""
     if not (fixes.time_s == last_time_s).any():  # the common case: every fix is new
         return np.zeros(fixes.probes.count, dtype=bool)
     states = [
@@ -214,9 +220,12 @@ def repeats(fixes: Fixes, tracks: Sequence[Track | None]) -> np.ndarray:
     return (np.bincount(probes.fix[same], minlength=probes.count) > 0) & (fixes.time_s == time_s)
 
 
-def with_repeats(matches: SequenceMatches | None, fresh: np.ndarray, tracks: Sequence[Track | None]) -> SequenceMatches:
+def with_repeats(
+    matches: SequenceMatches | None, fresh: np.ndarray, tracks: Sequence[Track | None], late: np.ndarray
+) -> SequenceMatches:
     """The matches of all fixes: those of the ``fresh`` ones (None: there are none), the repeated ones where
-    their track placed them."""
+    their track placed them; a ``late`` fix (taken before its vehicle's last matched one) keeps the track as it
+    was, the sequence going on from the newest fix."""
     count = len(tracks)
     map_index = np.array([-1 if t is None else t.map_index for t in tracks], dtype=np.intp)
     lane_id: list[str | None] = [None if t is None else t.state.lane_id for t in tracks]
@@ -230,11 +239,7 @@ def with_repeats(matches: SequenceMatches | None, fresh: np.ndarray, tracks: Seq
         return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept, confirmed)
     map_index[fresh], pos_m[fresh], distance_m[fresh] = matches.map_index, matches.lane_pos_m, matches.distance_m
     for k, row in enumerate(fresh.tolist()):
-        lane_id[row], placed[row], reason[row], kept[row], confirmed[row] = (
-            matches.lane_id[k],
-            matches.placed[k],
-            matches.reason[k],
-            matches.tracks[k],
-            matches.confirmed[k],
-        )
+        lane_id[row], placed[row], reason[row] = matches.lane_id[k], matches.placed[k], matches.reason[k]
+        if not late[row]:
+            kept[row], confirmed[row] = matches.tracks[k], matches.confirmed[k]
     return SequenceMatches(map_index, lane_id, pos_m, distance_m, placed, reason, kept, confirmed)

@@ -54,6 +54,7 @@ from csws.road.fixes import (
     Placed,
     SequenceMatches,
     Track,
+    last_times_s,
     repeats,
     subset,
     with_repeats,
@@ -119,16 +120,22 @@ class SequenceMatcher:
         (None for a vehicle seen first, or whose sequence is lost).
 
         A fix that repeats its vehicle's last matched fix (the same time and place: a resent
-        message) brings nothing new: it is placed where that one was, and the track is kept.
+        message) brings nothing new: it is placed where that one was, and the track is kept. A fix
+        taken before that one (a message that came late, behind a newer one) is placed by itself, as a
+        vehicle's first fix is, and the track is kept too: the sequence, and dead reckoning from it, go on
+        from the newest fix.
         """
-        repeated = repeats(fixes, tracks)
-        if not repeated.any():
+        last_time_s = last_times_s(tracks)
+        repeated = repeats(fixes, tracks, last_time_s)
+        late = fixes.time_s < last_time_s
+        if not repeated.any() and not late.any():
             return self._advance(fixes, tracks)[0]
         fresh = (~repeated).nonzero()[0]
         if not fresh.size:
-            return with_repeats(None, fresh, tracks)
-        matches = self._advance(subset(fixes, fresh), [tracks[row] for row in fresh.tolist()])[0]
-        return with_repeats(matches, fresh, tracks)
+            return with_repeats(None, fresh, tracks, late)
+        continued = [None if late[row] else tracks[row] for row in fresh.tolist()]
+        matches = self._advance(subset(fixes, fresh), continued)[0]
+        return with_repeats(matches, fresh, tracks, late)
 
     def match_trace(self, fixes: Fixes, track: Track | None = None, lag: int | None = None) -> SequenceMatches:
         """Place the fixes of one vehicle, in time order, each on the path the fixes up to ``lag`` after it
