@@ -118,6 +118,9 @@ def _share(
     # The work (queries and batches with their round trips to the state store, the curve index,
     # horizons) runs on a thread of its own, in arrival order (service.work).
     state.work = WorkThread()
+    # Whole traces (POST /v1/match: thousands of fixes, seconds of work) on a thread of their own, so that the
+    # warnings never queue behind one; the two share the interpreter, each getting its turns.
+    state.traces = WorkThread("csws-traces", pause_gc=False)
     state.answering = Answering(state.service, state.work, state.metrics)
     state.keyring = KeyRing(settings.api_keys_file) if settings.api_keys_file is not None else None
 
@@ -134,6 +137,7 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     stop_push()
     gc.unfreeze()
     app.state.work.close()
+    app.state.traces.close()
     app.state.store.close()
 
 

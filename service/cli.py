@@ -61,8 +61,9 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         "--update-period-s",
         type=float,
         default=None,
-        help="how often a vehicle's fixes arrive, s: the warning comes that much earlier "
-        "(default: the warning settings' update period)",
+        help="how often a vehicle's fixes arrive, s, until its own period is learnt from its timestamps "
+        "(CSWS_LEARN_UPDATE_PERIOD=false: always); the warning comes that much earlier "
+        "(default: the warning settings' update period, 0.1 s)",
     )
     parser.add_argument(
         "--api-keys",

@@ -29,6 +29,7 @@ __all__ = [
     "metrics",
     "served_networks",
     "state_store",
+    "trace_thread",
     "work_thread",
     "raw_body",
     "map_data",
@@ -38,6 +39,7 @@ __all__ = [
     "MetricsDep",
     "NetworksDep",
     "StoreDep",
+    "TraceWorkDep",
     "WorkDep",
     "BodyDep",
     "MapDataDep",
@@ -88,6 +90,12 @@ async def work_thread(request: Request) -> WorkThread:
     return work
 
 
+async def trace_thread(request: Request) -> WorkThread:
+    """The thread that matches whole traces (``POST /v1/match``), beside the warnings' (:mod:`service.app`)."""
+    traces: WorkThread = request.app.state.traces
+    return traces
+
+
 async def map_data(request: Request) -> MapData:
     """What the map routes draw (the page, the curves' and roads' features)."""
     data: MapData = request.app.state.map_data
@@ -106,5 +114,6 @@ MetricsDep = Annotated[Metrics, Depends(metrics)]
 NetworksDep = Annotated[list[ServedNetwork], Depends(served_networks)]
 StoreDep = Annotated[StateStore, Depends(state_store)]
 WorkDep = Annotated[WorkThread, Depends(work_thread)]
+TraceWorkDep = Annotated[WorkThread, Depends(trace_thread)]
 BodyDep = Annotated[bytes, Depends(raw_body)]
 MapDataDep = Annotated[MapData, Depends(map_data)]

@@ -9,7 +9,8 @@ the same way as ``csws serve``:
 ``CSWS_MATCH_TOLERANCE_M``, ``CSWS_HEADING_TOLERANCE_DEG``, ``CSWS_MATCH_ACCURACY_M``, ``CSWS_MATCH_SEARCH_SIGMAS``,
 ``CSWS_MATCH_HEADING_SIGMA_DEG``, ``CSWS_MATCH_LANE_CHANGE_LOG_P``, ``CSWS_MATCH_DEAD_RECKONING_S``,
 ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``, ``CSWS_ACTIVATION_SPEED_KMH``,
-``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``,
+``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``, ``CSWS_RELEASE_MARGIN_KMH``, ``CSWS_RELEASE_HOLD_S``,
+``CSWS_RELEASE_HOLD_INTERVALS``,
 ``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``,
 ``CSWS_MQTT``, ``CSWS_WEBHOOKS_FILE``, ``CSWS_WEBHOOK_ALLOW_PRIVATE``, ``CSWS_PUSH_DB`` (push, docs/push.md).
@@ -158,6 +159,24 @@ class ServiceSettings(BaseSettings):
         default=_WARNING.max_update_period_s, ge=0, description="the longest update period learnt, s"
     )
     system_delay_s: float = Field(default=_WARNING.system_delay_s, ge=0, description="processing and display delay, s")
+    release_margin_kmh: float = Field(
+        default=_WARNING.release_margin_kmh,
+        ge=0,
+        le=50,
+        description="the release rule's margin: a level that is on goes off this far below V_w, km/h",
+    )
+    release_hold_s: float = Field(
+        default=_WARNING.release_hold_s,
+        ge=0,
+        le=60,
+        description="the release rule's hold: a level stays on at least this long after it was last kept on, s",
+    )
+    release_hold_intervals: float = Field(
+        default=_WARNING.release_hold_intervals,
+        ge=0,
+        le=10,
+        description="and at least this many of the vehicle's update periods",
+    )
     activation_speed_kmh: float = Field(
         default=_ENGINE.activation.activation_speed_kmh,
         ge=0,
@@ -274,6 +293,9 @@ class ServiceSettings(BaseSettings):
             system_delay_s=self.system_delay_s,
             learn_update_period=self.learn_update_period,
             max_update_period_s=self.max_update_period_s,
+            release_margin_kmh=self.release_margin_kmh,
+            release_hold_s=self.release_hold_s,
+            release_hold_intervals=self.release_hold_intervals,
         )
         activation = replace(_ENGINE.activation, activation_speed_kmh=self.activation_speed_kmh)
         return replace(_ENGINE, warning=warning, activation=activation)

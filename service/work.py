@@ -10,12 +10,12 @@ A piece is handed over through a queue and its result handed back with
 ``loop.call_soon_threadsafe``: one wake-up each way, without the futures, locks and callbacks
 an executor adds for every submission (a few tens of microseconds per query).
 
-The cyclic garbage collector is held off while a piece runs. A batch of 10,000 queries makes
-and frees hundreds of thousands of objects, almost none of them in cycles; counted as they
-are made, they set off a collection every 700, each going through every object still alive
-(the engines' caches of paths ahead among them): 100 to 200 ms of a batch that takes 400 ms
-on Bad Hersfeld. Reference counting frees them anyway; the collections that are due run
-once the piece is done, over what is left.
+The cyclic garbage collector is held off while a piece of the warnings' thread runs
+(``pause_gc``). A batch of 10,000 queries makes and frees hundreds of thousands of objects,
+almost none of them in cycles; counted as they are made, they set off a collection every 700,
+each going through every object still alive (the engines' caches of paths ahead among them):
+100 to 200 ms of a batch that takes 400 ms on Bad Hersfeld. Reference counting frees them
+anyway; the collections that are due run once the piece is done, over what is left.
 """
 
 from __future__ import annotations
@@ -50,10 +50,13 @@ class WorkThread:
     ----------
     name
         The thread's name.
+    pause_gc
+        Whether the garbage collector waits while a piece runs (the collector is the process's: one
+        thread only may hold it off, the one answering the warnings).
     """
 
-    def __init__(self, name: str = "csws-work") -> None:
-        self.name = name
+    def __init__(self, name: str = "csws-work", pause_gc: bool = True) -> None:
+        self.name, self.pause_gc = name, pause_gc
         self._pieces: queue.SimpleQueue = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
 
@@ -76,13 +79,15 @@ class WorkThread:
     def _serve(self) -> None:
         while (piece := self._pieces.get()) is not None:
             loop, done, function, args = piece
-            gc.disable()
+            if self.pause_gc:
+                gc.disable()
             try:
                 result, error = function(*args), None
             except BaseException as raised:  # noqa: BLE001 - handed to the request that awaits it
                 result, error = None, raised
             finally:
-                gc.enable()
+                if self.pause_gc:
+                    gc.enable()
             if not loop.is_closed():  # a loop that ended meanwhile (a shutdown) awaits nothing more
                 loop.call_soon_threadsafe(_settle, done, result, error)
 

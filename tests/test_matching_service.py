@@ -5,8 +5,10 @@ truth is the path each constructed drive takes (σ 3 m fixes at 1 Hz, fixed seed
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
+import httpx
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
@@ -84,6 +86,34 @@ def test_a_trace_is_matched_on_the_path_driven(client, town: RoadMap, to_lane: s
         # The matched point of the last fix lies on its lane within the noise of the fix.
         assert np.hypot(*(point - route.xy[-1])) == pytest.approx(matched[-1]["distance_m"], abs=1e-6)
         assert matched[-1]["distance_m"] < 4 * 3.0
+
+
+def test_a_long_trace_never_holds_up_the_warnings(client, town: RoadMap, monkeypatch) -> None:
+    """A trace is matched on a thread of its own: a warning asked while a trace is being matched is answered
+    before the trace is (here the trace waits until the warning has been answered)."""
+    import service.routes.match as match_route
+
+    started, release = threading.Event(), threading.Event()
+    original = match_route.match_trace
+
+    def held(placer, trace):
+        started.set()
+        assert release.wait(30.0), "the warning was not answered while the trace was matched"
+        return original(placer, trace)
+
+    monkeypatch.setattr(match_route, "match_trace", held)
+    route = drive(town, ["WJ_0", "JE_0"], SPEED_MPS, 0)
+    traced: dict[str, httpx.Response] = {}
+    thread = threading.Thread(
+        target=lambda: traced.update(answer=client.post("/v1/match", json={"fixes": _trace_fixes(route)}))
+    )
+    thread.start()
+    assert started.wait(30.0)
+    warned = client.post("/v1/warning", json=_query("while-tracing", route, 0))
+    assert warned.status_code == 200 and thread.is_alive()
+    release.set()
+    thread.join(30.0)
+    assert traced["answer"].status_code == 200 and len(traced["answer"].json()["matched"]) == len(route.time_s)
 
 
 def test_a_trace_matching_nothing_says_why(client) -> None:

@@ -22,6 +22,7 @@ from csws.sumo.netbuild import netconvert
 from csws.warning.latency import KEPT_INTERVALS, MIN_INTERVALS, fix_age_s, next_intervals, update_period_s
 from csws.warning.rules import WarningSettings
 from service.sessions import Session, SessionRecord
+from service.settings import ServiceSettings
 
 #: The road: a straight, then an arc turning left, then a straight.
 APPROACH_M = 800.0
@@ -191,6 +192,19 @@ def test_one_noisy_fix_between_1_s_fixes_does_not_switch_the_warning_off_and_on(
     # With the hold of 1 s and no period learnt, the same fix switches it off and on again.
     pinned = _levels_with_one_noisy_fix(road, WarningSettings(learn_update_period=False), batch)
     assert pinned[8] >= 1 and pinned[9] == 0 and pinned[10] >= 1
+
+
+@pytest.mark.sumo
+def test_the_service_settings_pin_the_release_rule(road, monkeypatch):
+    """CSWS_RELEASE_HOLD_S and CSWS_RELEASE_HOLD_INTERVALS at 0 turn the hold off: the noisy fix then switches the
+    warning off and on again, as the service's engine is set."""
+    monkeypatch.setenv("CSWS_RELEASE_HOLD_S", "0")
+    monkeypatch.setenv("CSWS_RELEASE_HOLD_INTERVALS", "0")
+    monkeypatch.setenv("CSWS_RELEASE_MARGIN_KMH", "2.5")
+    warning = ServiceSettings().engine_settings().warning
+    assert (warning.release_hold_s, warning.release_hold_intervals, warning.release_margin_kmh) == (0.0, 0.0, 2.5)
+    levels = _levels_with_one_noisy_fix(road, warning, batch=True)
+    assert levels[8] >= 1 and levels[9] == 0 and levels[10] >= 1
 
 
 def test_the_hold_lasts_at_least_one_and_a_half_periods():

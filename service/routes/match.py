@@ -21,7 +21,7 @@ from csws.road.matching import lane_point
 from csws.standard import kmh_to_mps
 
 from ..checks import QueryErrors
-from ..deps import CallerDep, ServiceDep, WorkDep
+from ..deps import CallerDep, ServiceDep, TraceWorkDep
 from ..match_schemas import MatchAnswer, Trace
 from ..placement import Placer
 from .common import BOUNDED, INVALID_BODY, KEYED, json_body, json_response
@@ -122,7 +122,7 @@ def _matched_fix(placer: Placer, matched: SequenceMatches, row: int) -> dict[str
 
 
 def _answer(placer: Placer, body: bytes) -> Response:
-    """Decode and match a trace's body (on the work thread)."""
+    """Decode and match a trace's body (on the traces' thread: a long trace never holds up the warnings)."""
     return json_response(match_trace(placer, _decoded(body)))
 
 
@@ -133,7 +133,7 @@ def _answer(placer: Placer, body: bytes) -> Response:
     responses={200: {"model": MatchAnswer}, **INVALID_BODY, **KEYED, **BOUNDED},
     openapi_extra=json_body(Trace),
 )
-async def match(request: Request, _principal: CallerDep, service: ServiceDep, work: WorkDep) -> Response:
+async def match(request: Request, _principal: CallerDep, service: ServiceDep, traces: TraceWorkDep) -> Response:
     """Match the trace as one sequence (OSRM's ``match``, Valhalla's ``trace_attributes``)."""
-    response: Response = await work.run(_answer, service.placer, await request.body())
+    response: Response = await traces.run(_answer, service.placer, await request.body())
     return response
