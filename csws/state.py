@@ -77,6 +77,9 @@ ACTIVATION_ON_START_KMH = 0.0
 #: fault instead of warning on where the vehicle was), s. The standard gives no figure: two update
 #: periods of a 1 Hz GNSS receiver.
 STALE_AFTER_S = 2.0
+#: A position older than the last accepted one by more than this is a new start of the vehicle's clock, s
+#: (:attr:`ActivationSettings.clock_jump_s`; the sequence matcher takes it likewise, :mod:`csws.road.hmm`).
+CLOCK_JUMP_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,7 @@ class ActivationSettings:
     activation_speed_kmh: float = ACTIVATION_ON_START_KMH
     hysteresis_kmh: float = 5.0
     stale_after_s: float = STALE_AFTER_S
-    clock_jump_s: float = 60.0
+    clock_jump_s: float = CLOCK_JUMP_S
 
     def __post_init__(self) -> None:
         for name in ("activation_speed_kmh", "hysteresis_kmh", "stale_after_s", "clock_jump_s"):

@@ -367,7 +367,9 @@ class WarningService:
                 target.warning_speed_kmh if target is not None else None,
                 answered_at_s,
             )
-            trail = vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest).trail
+            # A stale fix (taken before the vehicle's newest) leaves it where the newest put it, on the live map too.
+            lane_id = None if fault is Fault.STALE_INPUT else placement.lane_id
+            trail = vehicles.seen(vehicle_id, lane_id, placement.lane_pos_m, latest).trail
             index = indices[row]
             answers.state[index], answers.level[index], answers.placement[index] = state, warning.level, placement
             answers.category[index] = categories[row]

@@ -24,6 +24,7 @@ from csws.road.match_settings import MatchSettings
 from csws.road.matching import Probes
 from csws.road.roadmap import RoadMap
 from csws.standard import Level
+from csws.state import CLOCK_JUMP_S
 
 #: Fixed seeds of the noisy drives (each a new phase of the fixes and new noise).
 SEEDS = range(40)
@@ -201,6 +202,9 @@ def test_a_fix_that_comes_late_leaves_the_sequence_where_the_newest_fix_put_it(
     assert after.lane_pos_m[0] == pytest.approx(track.state.lane_pos_m + 10.0)
     on_road = matcher.match(fix(150.0, 0.0, 15.0), [track])
     assert on_road.confirmed[0] is not None and on_road.confirmed[0].time_s == 13.0
+    # Further back than a clock jump (as the engine takes it), the vehicle's clock started again: the fix continues.
+    restarted = matcher.match(fix(20.0, 0.0, 13.0 - CLOCK_JUMP_S - 1.0), [track])
+    assert restarted.tracks[0] is not track and restarted.tracks[0].state.time_s == 13.0 - CLOCK_JUMP_S - 1.0
 
 
 def test_a_gap_without_fixes_continues_the_sequence(town: RoadMap, matcher: SequenceMatcher) -> None:

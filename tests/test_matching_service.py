@@ -116,6 +116,21 @@ def test_a_long_trace_never_holds_up_the_warnings(client, town: RoadMap, monkeyp
     assert traced["answer"].status_code == 200 and len(traced["answer"].json()["matched"]) == len(route.time_s)
 
 
+def test_a_late_fix_is_stale_and_leaves_the_vehicle_where_its_newest_fix_put_it(client, town: RoadMap) -> None:
+    """Fixes along the main road at 1 s, then one taken 5 s before the newest (sent late): it is answered stale,
+    the live map keeps the vehicle at its newest fix, and the next fix confirms the newest, not the late one."""
+    route = drive(town, ["WJ_0", "JE_0"], SPEED_MPS, 11)
+    answers = [client.post("/v1/warning", json=_query("late", route, k)).json() for k in range(6)]
+    newest = answers[-1]["matched"]
+    late = client.post("/v1/warning", json=_query("late", route, 0)).json()
+    assert late["state"] == "fault" and late["fault_code"] is not None and "stale" in late["fault"]
+    [shown] = [f for f in client.get("/v1/fleet", params={"network": "town"}).json()["features"] if f["id"] == "late"]
+    assert shown["properties"]["lane_id"] == newest["lane_id"]
+    assert shown["geometry"]["coordinates"] == pytest.approx([newest["position"]["x"], newest["position"]["y"]])
+    following = client.post("/v1/warning", json=_query("late", route, 6)).json()
+    assert following["confirmed"]["timestamp_s"] == 1000.0 + float(route.time_s[5])
+
+
 def test_a_trace_matching_nothing_says_why(client) -> None:
     far = [{"position": {"x": 5000.0, "y": 5000.0}, "timestamp_s": 0.0}]
     (fix,) = client.post("/v1/match", json={"fixes": far}).json()["matched"]

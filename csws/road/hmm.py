@@ -65,6 +65,7 @@ from csws.road.match_settings import DEFAULT_MATCH_SETTINGS, MatchSettings
 from csws.road.matching import MapMatcher, compass_to_math_rad, lane_point
 from csws.road.roadmap import RoadMap
 from csws.road.viterbi import Candidates, Previous, Step, forward_step, kept_rows, viterbi_path
+from csws.state import CLOCK_JUMP_S
 
 __all__ = [
     "MatchState",
@@ -121,13 +122,15 @@ class SequenceMatcher:
 
         A fix that repeats its vehicle's last matched fix (the same time and place: a resent
         message) brings nothing new: it is placed where that one was, and the track is kept. A fix
-        taken before that one (a message that came late, behind a newer one) is placed by itself, as a
-        vehicle's first fix is, and the track is kept too: the sequence, and dead reckoning from it, go on
-        from the newest fix.
+        taken before that one, by at most :data:`csws.state.CLOCK_JUMP_S` (a message that came late,
+        behind a newer one; the engine answers it as stale), is placed by itself, as a vehicle's first
+        fix is, and the track is kept too: the sequence, and dead reckoning from it, go on from the
+        newest fix. Further back, the vehicle's clock started again: the fix continues the track.
         """
         last_time_s = last_times_s(tracks)
         repeated = repeats(fixes, tracks, last_time_s)
-        late = fixes.time_s < last_time_s
+        behind_s = last_time_s - fixes.time_s
+        late = (behind_s > 0.0) & (behind_s <= CLOCK_JUMP_S)
         if not repeated.any() and not late.any():
             return self._advance(fixes, tracks)[0]
         fresh = (~repeated).nonzero()[0]
