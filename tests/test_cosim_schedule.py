@@ -179,12 +179,15 @@ def _fork(folder: Path) -> Path:
     return netconvert(nodes, f"<edges>{edges}</edges>", folder / "fork.net.xml")
 
 
-def _fork_scenario(folder: Path, additional: str, route: str, rerouting_device: bool = False) -> Scenario:
-    """40 cars on the fork's road along ``route`` (edge ids), with ``additional`` elements (rerouters, speed signs)
-    and each car's rerouting device (every 2 s) or none."""
+def _fork_scenario(
+    folder: Path, additional: str, route: str, rerouting_device: bool = False, arrival: str = ""
+) -> Scenario:
+    """40 cars on the fork's road along ``route`` (edge ids), with ``additional`` elements (rerouters, speed signs),
+    each car's rerouting device (every 2 s) or none, and its ``arrival`` attributes."""
     net = _fork(folder)
     cars = "".join(
-        f'<vehicle id="v{i}" type="car" route="r" depart="{i * 3.7:.1f}" departSpeed="max"/>' for i in range(40)
+        f'<vehicle id="v{i}" type="car" route="r" depart="{i * 3.7:.1f}" departSpeed="max"{arrival}/>'
+        for i in range(40)
     )
     (folder / "fork.rou.xml").write_text(
         f'<routes><vType id="car" vClass="passenger" speedDev="0.1"/><route id="r" edges="{route}"/>{cars}</routes>',
@@ -226,6 +229,20 @@ def test_vehicles_rerouted_while_asleep_warn_as_in_every_step_runs(tmp_path, how
     scenario = _fork_scenario(tmp_path, additional, "a0 a1 straight exit", rerouting_device=how == "device")
     every, scheduled, summary = _both(scenario, tmp_path, step_length_s=STEP_S, end_s=200.0, seed=3)
     assert b"branch" in (every / "entries.csv").read_bytes()  # the cars were warned of the branch's curve
+    _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_vehicles_that_may_be_rerouted_can_arrive_asleep(tmp_path):
+    """A rerouter that never acts makes every car one SUMO may reroute; past the branch's curve the cars sleep, and
+    arrive 100 m into the road back, asleep: the run reads no route of a car that left."""
+    idle = (
+        '<rerouter id="idle" edges="exit"><interval begin="0" end="100000">'
+        '<closingReroute id="straight"/></interval></rerouter>'
+    )
+    scenario = _fork_scenario(tmp_path, idle, "a0 a1 branch back", arrival=' arrivalPos="100"')
+    every, scheduled, summary = _both(scenario, tmp_path, step_length_s=STEP_S, end_s=200.0, seed=3)
     _assert_same_warnings(every, scheduled, summary)
 
 

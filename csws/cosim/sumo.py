@@ -166,9 +166,10 @@ class Simulation:
         self._reroutable: dict[str, str | None] = {}
 
     def _fastest_lane(self) -> float:
-        """The highest speed limit of the network's lanes, m/s; infinite where a variable speed sign may raise
-        one during the run (a vehicle's speed is then bounded by its type's maximum speed alone)."""
-        if self._call(self.api.variablespeedsign.getIDList):
+        """The highest speed limit of the network's lanes, m/s; infinite where a variable speed sign or a
+        calibrator may raise one during the run (a vehicle's speed is then bounded by its type's maximum speed
+        alone)."""
+        if self._call(self.api.variablespeedsign.getIDList) or self._call(self.api.calibrator.getIDList):
             return math.inf
         lane = self.api.lane
         return max(map(lane.getMaxSpeed, self._call(lane.getIDList)), default=0.0)
@@ -222,10 +223,10 @@ class Simulation:
         """
         api = self.api
         self._call(api.simulationStep)
-        if teleporting is not None:
-            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)) + self._rerouted(asleep))
-        departed = tuple(self._call(api.simulation.getDepartedIDList))
         arrived = tuple(self._call(api.simulation.getArrivedIDList))
+        if teleporting is not None:
+            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)) + self._rerouted(asleep, arrived))
+        departed = tuple(self._call(api.simulation.getDepartedIDList))
         skipped = []
         self.departed_speed_bounds = {}
         for vehicle_id in departed:
@@ -247,7 +248,7 @@ class Simulation:
         for vehicle_id in arrived:
             self._evaluated.pop(vehicle_id, None)
             self._types.pop(vehicle_id, None)
-            self._reroutable.pop(vehicle_id, None)
+            self._reroutable.pop(vehicle_id, None)  # also where no teleporting callback looked
         if appearing is not None:
             appeared = departed + tuple(self._call(api.simulation.getEndingTeleportIDList))
             appearing(tuple(vehicle_id for vehicle_id in appeared if vehicle_id not in arrived))
@@ -277,9 +278,12 @@ class Simulation:
             angle_deg=np.array(angle_deg, dtype=float) if headings else None,
         )
 
-    def _rerouted(self, asleep: Container[str]) -> tuple[str, ...]:
-        """The sleeping vehicles SUMO may reroute whose route id is no longer the one they were last read on."""
+    def _rerouted(self, asleep: Container[str], arrived: Sequence[str]) -> tuple[str, ...]:
+        """The sleeping vehicles SUMO may reroute whose route id is no longer the one they were last read on (of
+        those still in the simulation: not ``arrived``, which also holds the vehicles removed in the step)."""
         reroutable = self._reroutable
+        for vehicle_id in arrived:
+            reroutable.pop(vehicle_id, None)
         sleeping = [vehicle_id for vehicle_id in reroutable if vehicle_id in asleep]
         if not sleeping:
             return ()
