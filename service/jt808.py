@@ -41,7 +41,7 @@ from csws.gateways.jt808.tracking import ReportPace
 
 from .answers import WarningService
 from .jt808_groups import Batcher, Waiting
-from .jt808_messages import HANDLERS, NAMING, log
+from .jt808_messages import HANDLERS, log
 from .jt808_settings import GatewaySettings
 from .jt808_tracking import TrackingPlanner
 from .work import WorkThread
@@ -179,10 +179,10 @@ class Conversation(asyncio.Protocol):
         """Answer one message; False when the terminal deregistered.
 
         Once a terminal has authenticated, the connection is its own: a frame naming another phone number
-        (other than a registration or an authentication, which name the terminal anew) is refused with failure,
-        answered to that number, and evaluated for no one.
+        (a registration or an authentication too) is refused with failure, answered to that number, and
+        evaluated for no one; the answers and texts of the connection stay addressed to its terminal.
         """
-        if self.terminal is not None and frame.message_id not in NAMING and not self.terminal.speaks_as(frame.phone):
+        if self.terminal is not None and not self.terminal.speaks_as(frame.phone):
             self.gateway.counts["dropped"] += 1
             log.warning("jt808: %s sent a frame as %s; refused", self.terminal.phone, frame.phone)
             self._outgoing.append(

@@ -42,7 +42,7 @@ from .jt808_groups import AnswerSummary, Waiting
 if TYPE_CHECKING:
     from .jt808 import Conversation
 
-__all__ = ["HANDLERS", "MAX_PENDING_REPORTS", "MAX_REPORT_AGE_S", "NAMING", "NOT_ANSWERED", "log", "report_query"]
+__all__ = ["HANDLERS", "MAX_PENDING_REPORTS", "MAX_REPORT_AGE_S", "NOT_ANSWERED", "log", "report_query"]
 
 log = logging.getLogger("csws.jt808")
 log.addFilter(OncePerInterval())
@@ -216,9 +216,6 @@ def _tell(
         gateway.counts["tracked"] += 1
     conversation.flush()
 
-
-#: The messages that name the terminal a connection speaks for (:meth:`service.jt808.Conversation.handle`).
-NAMING = frozenset((MessageId.REGISTRATION, MessageId.AUTHENTICATION))
 
 #: What each message the gateway reads is answered by; any other gets result 3, not supported.
 HANDLERS: dict[int, Callable[[Conversation, Frame], bool]] = {

@@ -112,11 +112,10 @@ class TerminalList:
             stay as they were.
         """
         try:
-            stamp = _stamp(self._path_name)
-        except OSError as exc:
+            if _stamp(self._path_name) != self._stamp:
+                self._load()
+        except OSError as exc:  # gone between the look and the read, or unreadable
             raise TerminalError(f"{self.path}: cannot be read ({exc.strerror or exc})") from None
-        if stamp != self._stamp:
-            self._load()
 
     def terminal(self, phone: str) -> Terminal | None:
         """The terminal with ``phone`` (leading zeros ignored), revoked ones included; None if not listed."""
