@@ -240,6 +240,13 @@ def test_an_authenticated_connection_speaks_for_its_terminal_alone(tmp_path):
         assert refused.phone.lstrip("0") == other and answered.phone.lstrip("0") == PHONE  # each to its sender
         assert general_response(answered) == (3, 0x0200, 0)
         assert [waiting.query.vehicle_id for waiting in queue.waiting] == [gateway.terminals.terminal(PHONE).vehicle_id]
+        renaming = wire(header_2013(0x0100, other, 4, 0)) + frame(0x0002, 5)  # a registration as the other: refused
+        assert conversation.received(renaming)
+        refused, beat = transport.frames()
+        assert (refused.message_id, general_response(refused)) == (0x8001, (4, 0x0100, 1)) and refused.phone.endswith(
+            other
+        )
+        assert general_response(beat) == (5, 0x0002, 0) and beat.phone.lstrip("0") == PHONE  # still its own
 
     asyncio.run(run())
 
