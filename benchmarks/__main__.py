@@ -32,6 +32,7 @@ from pathlib import Path
 from benchmarks import (
     citymaps,
     cosim,
+    cosim_read,
     curvature,
     fcw,
     fcw_traffic,
@@ -127,6 +128,12 @@ def benchmarks(quick: bool, osm_file: Path | None, load_seconds: float | None) -
             cosim.run,
             f"long: about 2-3 min, {cosim.VEHICLES:,} vehicles six times, {cosim.CITY_VEHICLES:,} three times",
             cosim_rows,
+        ),
+        Benchmark(
+            "cosim read",
+            lambda: cosim_read.run(duration_s=10.0, rounds=1) if quick else cosim_read.run(),
+            "about 5 minutes: the fleet road read four ways at four due shares, three rounds",
+            cosim_read.rows,
         ),
         Benchmark("fcw traffic", fcw_traffic.run, "about 1-2 minutes: two scenarios, every vehicle", fcw_traffic_rows),
         Benchmark(
