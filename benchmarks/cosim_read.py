@@ -15,8 +15,8 @@ The same values can come from SUMO's subscriptions instead:
   vehicle's four values with no call per vehicle at all; the due ones picked from it.
 
 Each run is the fleet road of :mod:`benchmarks.cosim` (1,000 vehicles placed at the start, 30 s at 0.1 s)
-in a process of its own; the due set is drawn at random with the share asked for, a tenth of the fleet drawn
-again each step (a schedule's vehicles wake and fall asleep a few at a time). The figure is the CPU time of
+in a process of its own; the due set is drawn at random with the share asked for, a hundredth of the fleet
+drawn again each step (a schedule's vehicles wake and fall asleep a few at a time). The figure is the CPU time of
 a step with its read, SUMO's step included (libsumo's SUMO runs in the process, and subscriptions make it
 build their results within its step), against the getters' at the same share (and bare SUMO's) in the same
 run, each the least of three rounds that run every configuration in turn.
@@ -45,8 +45,8 @@ METHODS = ("getters", "subscribe_all", "subscribe_due", "context")
 DUE_SHARES = (1.0, 0.44, 0.2, 0.05)
 #: libsumo's variable ids of the four values read: lane, lane position, speed, route id.
 _VARIABLES = (0x51, 0x56, 0x40, 0x53)
-#: A tenth of the fleet is drawn again each step.
-REDRAWN_SHARE = 0.1
+#: A hundredth of the fleet is drawn again each step (a vehicle stays due, or asleep, some 10 s on average).
+REDRAWN_SHARE = 0.01
 #: Rounds of every configuration; each figure is the least of its rounds.
 ROUNDS = 3
 
