@@ -31,7 +31,7 @@ from csws.ahead.horizon import PathAhead
 from csws.engine import VehicleInput
 from csws.road.match_settings import MatchSettings
 from csws.standard import Category
-from csws.state import Fault, SystemState
+from csws.state import CLOCK_JUMP_S, Fault, SystemState
 from csws.warning.rules import CurveWarning, PathKind
 
 from .batch_items import UNANSWERABLE_QUERY, ItemErrors, item_error, problems_by_query
@@ -65,6 +65,15 @@ def _category(query: DecodedQuery, vehicles: LoadedVehicles, fleet_first: bool =
     category = category if category is not None else query.category
     assert category is not None  # a query without one was refused (service.checks)
     return category
+
+
+def _late(timestamp_s: float | None, newest: LatestAnswer | None) -> bool:
+    """Whether a fix was taken before the newest one answered for its vehicle (a message that came late), by at most
+    :data:`csws.state.CLOCK_JUMP_S` (further back, the vehicle's clock started again): the vehicle's place and latest
+    answer (the live map's) stay those of the newest fix, as its map matching sequence does (:mod:`csws.road.hmm`)."""
+    if timestamp_s is None or newest is None or newest.timestamp_s is None:
+        return False
+    return 0.0 < newest.timestamp_s - timestamp_s <= CLOCK_JUMP_S
 
 
 def _event_time(query: DecodedQuery, now_s: float) -> float:
@@ -367,9 +376,10 @@ class WarningService:
                 target.warning_speed_kmh if target is not None else None,
                 answered_at_s,
             )
-            # A stale fix (taken before the vehicle's newest) leaves it where the newest put it, on the live map too.
-            lane_id = None if fault is Fault.STALE_INPUT else placement.lane_id
-            trail = vehicles.seen(vehicle_id, lane_id, placement.lane_pos_m, latest).trail
+            if _late(query.timestamp_s, vehicles.sessions[vehicle_id].latest):  # the newest stays the vehicle's
+                trail = vehicles.seen(vehicle_id, None).trail
+            else:
+                trail = vehicles.seen(vehicle_id, placement.lane_id, placement.lane_pos_m, latest).trail
             index = indices[row]
             answers.state[index], answers.level[index], answers.placement[index] = state, warning.level, placement
             answers.category[index] = categories[row]

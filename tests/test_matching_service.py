@@ -126,9 +126,24 @@ def test_a_late_fix_is_stale_and_leaves_the_vehicle_where_its_newest_fix_put_it(
     assert late["state"] == "fault" and late["fault_code"] is not None and "stale" in late["fault"]
     [shown] = [f for f in client.get("/v1/fleet", params={"network": "town"}).json()["features"] if f["id"] == "late"]
     assert shown["properties"]["lane_id"] == newest["lane_id"]
+    assert shown["properties"]["timestamp_s"] == 1000.0 + float(route.time_s[5])  # its latest answer too
     assert shown["geometry"]["coordinates"] == pytest.approx([newest["position"]["x"], newest["position"]["y"]])
     following = client.post("/v1/warning", json=_query("late", route, 6)).json()
     assert following["confirmed"]["timestamp_s"] == 1000.0 + float(route.time_s[5])
+
+
+def test_fixes_that_come_too_old_are_stale_but_still_move_the_vehicle_on_the_live_map(client, town: RoadMap) -> None:
+    """Fixes in time order whose age is over 2 s are stale (no warning from them), yet each is the vehicle's newest
+    position: the live map shows it there."""
+    route = drive(town, ["WJ_0", "JE_0"], SPEED_MPS, 12)
+    for k in range(6):
+        answer = client.post("/v1/warning", json={**_query("old", route, k), "age_s": 5.0}).json()
+        assert answer["state"] == "fault" and "stale" in answer["fault"]
+    fleet = client.get("/v1/fleet", params={"network": "town"}).json()["features"]
+    [shown] = [f for f in fleet if f["id"] == "old"]
+    assert shown["properties"]["timestamp_s"] == 1000.0 + float(route.time_s[5])
+    matched = answer["matched"]
+    assert shown["geometry"]["coordinates"] == pytest.approx([matched["position"]["x"], matched["position"]["y"]])
 
 
 def test_a_trace_matching_nothing_says_why(client) -> None:
