@@ -97,10 +97,11 @@ class TerminalList:
         self._load()
 
     def _load(self) -> None:
+        stamp = _stamp(self.path)  # before the read: a file replaced meanwhile is read again at the next look
         content = _read(self.path)
         self._secret = bytes.fromhex(content["secret"])
         self._terminals = {phone_key(t.phone): t for t in map(_terminal, content["terminals"])}
-        self._stamp = _stamp(self.path)
+        self._stamp = stamp
 
     def refresh(self) -> None:
         """Read the file again if it changed since it was read (revocations take effect at once).
