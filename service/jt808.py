@@ -4,7 +4,8 @@ Terminals connect over TCP (optionally TLS), register (``0x0100`` -> ``0x8100`` 
 authentication code), authenticate (``0x0102``) and send location reports (``0x0200``, batches
 ``0x0704``) and heartbeats. Every message is answered by the general response ``0x8001`` as the
 standard asks. Each report becomes a query of the terminal's vehicle (its fleet, vehicle id and
-category from the terminal list, :mod:`csws.gateways.jt808.terminals`) and is answered by the
+category from the terminal list, :mod:`csws.gateways.jt808.terminals`; a category the fleet set over
+HTTP comes first) and is answered by the
 same :class:`service.answers.WarningService` as ``POST /v1/warning`` (what each message does:
 :mod:`service.jt808_messages`): the same state store, so a
 vehicle switched off over HTTP is off here too, and a terminal that reconnects to another
