@@ -205,13 +205,20 @@ def _next_fields(
     """
     invalid = ((speed_kmh >= 0) & (speed_kmh < math.inf)) ^ True
     invalid = invalid | (has_timestamp & (_is_number(timestamp_s) ^ True))
-    behind_s = last_timestamp_s - timestamp_s
-    stale = has_timestamp & has_last & (behind_s > 0) & (behind_s <= settings.clock_jump_s)
+    stale = has_timestamp & has_last & overtaken(last_timestamp_s, timestamp_s, settings.clock_jump_s)
     stale = stale | (has_age & ((_is_number(age_s) & (age_s <= settings.stale_after_s)) ^ True))
     fault_code = _select(invalid, _INVALID, _select(stale, _STALE, found_fault_code))
     in_fault = fault_code > 0
     activated = _select(in_fault, was_activated, _is_activated(was_activated, speed_kmh, settings))
     return fault_code, activated, _select((in_fault ^ True) & has_timestamp, timestamp_s, last_timestamp_s)
+
+
+def overtaken(newest_s, time_s, clock_jump_s: float = CLOCK_JUMP_S):
+    """Whether a time comes before the newest one by at most ``clock_jump_s`` (further back, the clock started again):
+    a position that came late (floats or arrays; NaN is never overtaken). The engine answers such a position stale;
+    the map matcher (:mod:`csws.road.hmm`) and the service's live map keep the newest one."""
+    behind_s = newest_s - time_s
+    return (behind_s > 0) & (behind_s <= clock_jump_s)
 
 
 def _select(condition, if_true, if_false):

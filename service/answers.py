@@ -31,7 +31,7 @@ from csws.ahead.horizon import PathAhead
 from csws.engine import VehicleInput
 from csws.road.match_settings import MatchSettings
 from csws.standard import Category
-from csws.state import CLOCK_JUMP_S, Fault, SystemState
+from csws.state import Fault, SystemState, overtaken
 from csws.warning.rules import CurveWarning, PathKind
 
 from .batch_items import UNANSWERABLE_QUERY, ItemErrors, item_error, problems_by_query
@@ -73,7 +73,7 @@ def _late(timestamp_s: float | None, newest: LatestAnswer | None) -> bool:
     answer (the live map's) stay those of the newest fix, as its map matching sequence does (:mod:`csws.road.hmm`)."""
     if timestamp_s is None or newest is None or newest.timestamp_s is None:
         return False
-    return 0.0 < newest.timestamp_s - timestamp_s <= CLOCK_JUMP_S
+    return bool(overtaken(newest.timestamp_s, timestamp_s))
 
 
 def _event_time(query: DecodedQuery, now_s: float) -> float:

@@ -224,8 +224,10 @@ class Simulation:
         api = self.api
         self._call(api.simulationStep)
         arrived = tuple(self._call(api.simulation.getArrivedIDList))
+        for vehicle_id in arrived:  # gone (arrived or removed): no route of theirs to read
+            self._reroutable.pop(vehicle_id, None)
         if teleporting is not None:
-            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)) + self._rerouted(asleep, arrived))
+            teleporting(tuple(self._call(api.simulation.getStartingTeleportIDList)) + self._rerouted(asleep))
         departed = tuple(self._call(api.simulation.getDepartedIDList))
         skipped = []
         self.departed_speed_bounds = {}
@@ -248,7 +250,6 @@ class Simulation:
         for vehicle_id in arrived:
             self._evaluated.pop(vehicle_id, None)
             self._types.pop(vehicle_id, None)
-            self._reroutable.pop(vehicle_id, None)  # also where no teleporting callback looked
         if appearing is not None:
             appeared = departed + tuple(self._call(api.simulation.getEndingTeleportIDList))
             appearing(tuple(vehicle_id for vehicle_id in appeared if vehicle_id not in arrived))
@@ -278,12 +279,9 @@ class Simulation:
             angle_deg=np.array(angle_deg, dtype=float) if headings else None,
         )
 
-    def _rerouted(self, asleep: Container[str], arrived: Sequence[str]) -> tuple[str, ...]:
-        """The sleeping vehicles SUMO may reroute whose route id is no longer the one they were last read on (of
-        those still in the simulation: not ``arrived``, which also holds the vehicles removed in the step)."""
+    def _rerouted(self, asleep: Container[str]) -> tuple[str, ...]:
+        """The sleeping vehicles SUMO may reroute whose route id is no longer the one they were last read on."""
         reroutable = self._reroutable
-        for vehicle_id in arrived:
-            reroutable.pop(vehicle_id, None)
         sleeping = [vehicle_id for vehicle_id in reroutable if vehicle_id in asleep]
         if not sleeping:
             return ()

@@ -65,7 +65,7 @@ from csws.road.match_settings import DEFAULT_MATCH_SETTINGS, MatchSettings
 from csws.road.matching import MapMatcher, compass_to_math_rad, lane_point
 from csws.road.roadmap import RoadMap
 from csws.road.viterbi import Candidates, Previous, Step, forward_step, kept_rows, viterbi_path
-from csws.state import CLOCK_JUMP_S
+from csws.state import overtaken
 
 __all__ = [
     "MatchState",
@@ -129,8 +129,7 @@ class SequenceMatcher:
         """
         last_time_s = last_times_s(tracks)
         repeated = repeats(fixes, tracks, last_time_s)
-        behind_s = last_time_s - fixes.time_s
-        late = (behind_s > 0.0) & (behind_s <= CLOCK_JUMP_S)
+        late = overtaken(last_time_s, fixes.time_s)
         if not repeated.any() and not late.any():
             return self._advance(fixes, tracks)[0]
         fresh = (~repeated).nonzero()[0]
