@@ -34,7 +34,7 @@ from typing import cast
 
 from csws.gateways.jt808.frames import Frame, FrameError, FrameSplitter, FrameWriter, decode_frame
 from csws.gateways.jt808.latency import StageTimes
-from csws.gateways.jt808.messages import MessageId, ResponseResult, encode_general_response
+from csws.gateways.jt808.messages import MessageId, ResponseResult, encode_general_response, encode_package_request
 from csws.gateways.jt808.reassembly import Reassembler
 from csws.gateways.jt808.terminals import Terminal, TerminalError, TerminalList
 from csws.gateways.jt808.texts import Announcer
@@ -62,7 +62,8 @@ class Conversation(asyncio.Protocol):
     def __init__(self, gateway: Gateway) -> None:
         self.gateway = gateway
         self.transport: asyncio.Transport | None = None
-        self.splitter, self.reassembler = FrameSplitter(), Reassembler()
+        self.splitter = FrameSplitter()
+        self.reassembler = Reassembler(wait_s=gateway.settings.package_wait_s)
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
         #: Writes the frames to the terminal (its phone and edition are those of its latest frame).
@@ -76,6 +77,8 @@ class Conversation(asyncio.Protocol):
         self.allowance, self.allowance_at = gateway.settings.frames_burst, time.perf_counter()
         self._outgoing: list[bytes] = []
         self._idle: asyncio.TimerHandle | None = None
+        #: Asks for missing packages when the earliest unfinished message is due (:meth:`_ask_missing`).
+        self._asking: asyncio.TimerHandle | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         """Take the connection, or close it at once beyond :attr:`GatewaySettings.max_connections`."""
@@ -88,8 +91,9 @@ class Conversation(asyncio.Protocol):
 
     def connection_lost(self, exc: Exception | None) -> None:
         """Forget the connection: its reports not yet started are not evaluated (those started are answered)."""
-        if self._idle is not None:
-            self._idle.cancel()
+        for timer in (self._idle, self._asking):
+            if timer is not None:
+                timer.cancel()
         for waiting in self.waiting:
             waiting.shed = True
         self.gateway.release(self)
@@ -159,6 +163,7 @@ class Conversation(asyncio.Protocol):
         try:
             for escaped in self.splitter.feed(data):
                 if not self._allowed(read_at):
+                    self.gateway.counts["dropped"] += 1
                     log.warning(
                         "jt808: %s sends frames faster than %s/s; dropped",
                         self.phone,
@@ -166,8 +171,7 @@ class Conversation(asyncio.Protocol):
                     )
                     continue
                 try:
-                    frame = self.reassembler.add(decode_frame(escaped))
-                    if frame is not None and not self.handle(frame):
+                    if not self.handle(decode_frame(escaped)):
                         return False
                 except FrameError as error:  # a handler meets what its body check did not foresee: dropped too
                     self.gateway.counts["dropped"] += 1
@@ -175,6 +179,7 @@ class Conversation(asyncio.Protocol):
             return True
         finally:
             self.flush()
+            self._ask_when_due()
 
     def handle(self, frame: Frame) -> bool:
         """Answer one message; False when the terminal deregistered.
@@ -201,7 +206,52 @@ class Conversation(asyncio.Protocol):
         if handler is None:
             self.respond(frame, ResponseResult.NOT_SUPPORTED)
             return True
+        if frame.subpackaged:
+            whole = self._package(frame)
+            if whole is None:
+                return True
+            frame = whole
         return handler(self, frame)
+
+    def _package(self, frame: Frame) -> Frame | None:
+        """A package of a sub-packaged message: the whole message once it is complete (answered by its handler under
+        the completing package's serial); else None, the package answered on its own (JT/T 808-2013, 7.12: each
+        package may have its general response), with success, or with failure before the terminal has
+        authenticated, whose packages are not kept.
+
+        Raises
+        ------
+        FrameError
+            For a message of more packages than :data:`csws.gateways.jt808.reassembly.MAX_PACKAGES`.
+        """
+        if self.terminal is None:
+            self.respond(frame, ResponseResult.FAILURE)
+            return None
+        whole = self.reassembler.add(frame)
+        if whole is None:
+            self.respond(frame, ResponseResult.SUCCESS)
+        return whole
+
+    def _ask_when_due(self) -> None:
+        """Have :meth:`_ask_missing` called when the earliest unfinished message has waited for its packages."""
+        due_s = self.reassembler.next_due_s()
+        if due_s is None or self._asking is not None or self.closing():
+            return
+        self._asking = asyncio.get_running_loop().call_later(max(0.0, due_s - time.monotonic()), self._ask_missing)
+
+    def _ask_missing(self) -> None:
+        """Ask for the missing packages of the messages that have waited (the re-send request ``0x8003``, 7.12), and
+        forget those asked for in vain (:meth:`csws.gateways.jt808.reassembly.Reassembler.missing_due`)."""
+        self._asking = None
+        missing, forgotten = self.reassembler.missing_due()
+        for message in missing:
+            body = encode_package_request(message.first_serial, message.package_numbers, self.edition)
+            self.send(MessageId.PACKAGE_REQUEST, body)
+        if forgotten:
+            self.gateway.counts["dropped"] += forgotten
+            log.warning("jt808: %s left %d sub-packaged message(s) unfinished; forgotten", self.phone, forgotten)
+        self.flush()
+        self._ask_when_due()
 
 
 class Gateway:

@@ -21,11 +21,13 @@ from csws.gateways.jt808.messages import (
     BodyError,
     LocationReport,
     MessageId,
+    Registration,
     RegistrationResult,
     ResponseResult,
     decode_authentication,
     decode_location,
     decode_location_batch,
+    decode_registration,
     decode_terminal_response,
     encode_registration_response,
     encode_temporary_tracking,
@@ -75,15 +77,43 @@ def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> De
 
 
 def _register(conversation: Conversation, frame: Frame) -> bool:
-    """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for any other."""
+    """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for a terminal not listed
+    (or revoked), result 2 for a listed one whose registration names another plate than the list's
+    (:func:`_plate_differs`), and an unreadable registration a ``0x8001`` with result 2."""
     terminals = conversation.gateway.current_terminals()
+    try:
+        registration = decode_registration(frame.body, frame.edition)
+    except BodyError as error:
+        log.warning("jt808: registration of %s unreadable: %s", frame.phone, error)
+        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
+        return True
     terminal = terminals.terminal(frame.phone)
     if terminal is None or terminal.revoked:
         body = encode_registration_response(frame.serial, RegistrationResult.NO_SUCH_TERMINAL)
+    elif _plate_differs(terminal, registration):
+        log.warning("jt808: %s registers plate %r, listed with %r", frame.phone, registration.plate, terminal.plate)
+        body = encode_registration_response(frame.serial, RegistrationResult.NO_SUCH_VEHICLE)
     else:
         body = encode_registration_response(frame.serial, RegistrationResult.SUCCESS, terminals.auth_code(terminal))
     conversation.send(MessageId.REGISTRATION_RESPONSE, body)
     return True
+
+
+def _plate_differs(terminal: Terminal, registration: Registration) -> bool:
+    """Whether a registration names a plate, and the terminal list another one for its terminal: a terminal fitted
+    to another vehicle than the list says, whose reports would be warned for the listed vehicle's category.
+
+    A plate colour of 0 marks a vehicle without plates, whose identification field holds its VIN instead (the
+    registration's layout in JT/T 808): nothing to compare. Neither is an empty field on either side. Letters are
+    compared without regard to case, spaces and the separator dot some plates are written with."""
+    if registration.plate_colour == 0 or not registration.plate or not terminal.plate:
+        return False
+    return _plate_key(registration.plate) != _plate_key(terminal.plate)
+
+
+def _plate_key(plate: str) -> str:
+    """A plate as compared: upper case, without spaces and separator dots."""
+    return "".join(character for character in plate.upper() if character not in " ·.")
 
 
 def _authenticate(conversation: Conversation, frame: Frame) -> bool:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from csws.gateways.jt808.reassembly import PACKAGE_WAIT_S
 from csws.gateways.jt808.texts import DriverTexts
 from csws.gateways.jt808.tracking import TrackingSettings
 
@@ -24,6 +25,9 @@ class GatewaySettings:
         the excess is dropped (and logged, rate-limited).
     max_connections
         Connections beyond this many are closed at once.
+    package_wait_s
+        A sub-packaged message whose packages have not all come is asked for the missing ones (``0x8003``)
+        after this long without a package, a few times (:mod:`csws.gateways.jt808.reassembly`), s.
     batch_window_s
         A group of reports starts at most this often (:class:`service.jt808_groups.Batcher`): a group
         costs a few milliseconds whatever its size (map matching, the engine, the state store's round
@@ -41,6 +45,7 @@ class GatewaySettings:
     frames_per_s: float = 20.0
     frames_burst: float = 60.0
     max_connections: int = 20_000
+    package_wait_s: float = PACKAGE_WAIT_S
     batch_window_s: float = 0.02
     fleet_texts: dict[str, DriverTexts] = field(default_factory=dict)
     tracking: TrackingSettings = field(default_factory=TrackingSettings)

@@ -177,7 +177,7 @@ class Drive:
 
 async def connected(rig: Rig) -> Terminal:
     """A terminal of :data:`PHONE` connected to the rig's gateway, registered and authenticated."""
-    terminal = Terminal(PHONE)
+    terminal = Terminal(PHONE, plate="京A12345")
     await terminal.connect(rig.port)
     assert general_response(await terminal.register_and_authenticate())[2] == 0
     return terminal

@@ -46,11 +46,23 @@ def package_header_2013(message_id: int, phone: str, serial: int, body_len: int,
     return header_2013(message_id, phone, serial, body_len | 0x2000) + struct.pack(">HH", count, number)
 
 
+def package_header_2019(message_id: int, phone: str, serial: int, body_len: int, count: int, number: int) -> bytes:
+    """The 2019 header of package ``number`` of ``count``."""
+    return header_2019(message_id, phone, serial, body_len | 0x2000) + struct.pack(">HH", count, number)
+
+
 def bcd_time(time_s: float) -> bytes:
     t = time.gmtime(int(time_s) + BEIJING_S)
     return bytes.fromhex(
         f"{t.tm_year % 100:02d}{t.tm_mon:02d}{t.tm_mday:02d}{t.tm_hour:02d}{t.tm_min:02d}{t.tm_sec:02d}"
     )
+
+
+def registration_body(plate: str, plate_colour: int = 1) -> bytes:
+    """A 2013 registration: province 11, city 101, maker (5 bytes), model (20), terminal id (7), plate colour,
+    plate (GBK)."""
+    fixed = struct.pack(">HH", 11, 101) + b"CSWS1" + b"T".ljust(20, b"\x00") + b"0000001"
+    return fixed + bytes([plate_colour]) + plate.encode("gbk")
 
 
 def location_body(lat_deg: float, lon_deg: float, speed_kmh: float, heading_deg: float, time_s: float) -> bytes:
@@ -101,8 +113,8 @@ def read_frames(data: bytes) -> list[Received]:
 class Terminal:
     """One terminal's TCP connection to the gateway."""
 
-    def __init__(self, phone: str) -> None:
-        self.phone, self.serial = phone, 0
+    def __init__(self, phone: str, plate: str = "") -> None:
+        self.phone, self.serial, self.plate = phone, 0, plate
         self.auth_code = b""
         self.inbox: list[Received] = []
         self._buffer = b""
@@ -137,8 +149,7 @@ class Terminal:
 
     async def register_and_authenticate(self) -> Received:
         """0x0100 then 0x0102 with the code the 0x8100 gave; the platform's 0x8001."""
-        body = struct.pack(">HH", 11, 101) + b"CSWS1" + b"T".ljust(20, b"\x00") + b"0000001" + b"\x01" + b"TEST"
-        await self.send(0x0100, body)
+        await self.send(0x0100, registration_body(self.plate))
         [answer] = await self.receive(1)
         assert answer.message_id == 0x8100
         serial, result = struct.unpack_from(">HB", answer.body)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import asyncio
 import struct
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, cast
 
@@ -22,10 +24,13 @@ from jt808_terminal import (
     header_2019,
     location_body,
     package_header_2013,
+    package_header_2019,
     read_frames,
+    registration_body,
     wire,
 )
 
+from csws.gateways.jt808.reassembly import MAX_REQUESTS
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
 from csws.gateways.jt808.texts import DriverTexts
 from service.jt808 import Conversation, Gateway
@@ -251,6 +256,33 @@ def test_an_authenticated_connection_speaks_for_its_terminal_alone(tmp_path):
     asyncio.run(run())
 
 
+def test_a_registration_naming_another_plate_than_the_list_is_refused_as_no_such_vehicle(tmp_path):
+    async def run() -> None:
+        gateway, _ = open_gateway(tmp_path)
+        add_terminal(tmp_path / "terminals.json", "acme", "13900000000", category="N", plate="京A12345")
+        conversation, transport = Conversation(gateway), Transport()
+        conversation.connection_made(cast(Any, transport))
+
+        def register(serial: int, body: bytes) -> Received:
+            assert conversation.received(wire(header_2013(0x0100, "13900000000", serial, len(body)) + body))
+            [answer] = transport.frames()
+            return answer
+
+        def result(answer: Received) -> tuple[int, int]:
+            """The (serial answered, result) of a 0x8100."""
+            assert answer.message_id == 0x8100
+            return struct.unpack_from(">HB", answer.body)
+
+        assert result(register(1, registration_body("京B99999"))) == (1, 2)  # another vehicle: no such vehicle
+        assert result(register(2, registration_body("京a 12345"))) == (2, 0)  # the list's plate, written otherwise
+        assert result(register(3, registration_body("LSVAU2180N2183294", plate_colour=0))) == (3, 0)  # a VIN: no plate
+        assert result(register(4, registration_body(""))) == (4, 0)  # no plate named
+        unreadable = register(5, registration_body("京A12345")[:20])
+        assert (unreadable.message_id, general_response(unreadable)) == (0x8001, (5, 0x0100, 2))
+
+    asyncio.run(run())
+
+
 def test_a_report_that_cannot_be_answered_tells_the_driver_of_a_fault_once_it_lasts(tmp_path):
     async def run() -> None:
         gateway, queue = open_gateway(tmp_path)
@@ -267,23 +299,139 @@ def test_a_report_that_cannot_be_answered_tells_the_driver_of_a_fault_once_it_la
     asyncio.run(run())
 
 
-def test_a_batch_upload_in_packages_arriving_out_of_order_is_answered_once_as_one_message(tmp_path):
+def batch_packages(
+    items: int, count: int, first_serial: int, header: Callable[..., bytes] = package_header_2013
+) -> dict[int, bytes]:
+    """A batch upload (``0x0704``) of ``items`` reports, 1 s apart from :data:`T0_S`, cut into ``count`` packages
+    with serials from ``first_serial``: each package's frame by its number."""
+    reports = [location_body(50.86, 9.70 + k * 1e-4, 70.0, 90.0, T0_S + k) for k in range(items)]
+    body = struct.pack(">HB", items, 0) + b"".join(struct.pack(">H", len(r)) + r for r in reports)
+    cuts = [len(body) * k // count for k in range(count + 1)]
+    return {
+        number: wire(header(0x0704, PHONE, (first_serial + number - 1) & 0xFFFF, b - a, count, number) + body[a:b])
+        for number, (a, b) in enumerate(zip(cuts, cuts[1:], strict=False), 1)
+    }
+
+
+def package_request(received: Received, edition: int = 2013) -> tuple[int, list[int]]:
+    """The (first serial, package numbers) of a re-send request ``0x8003`` (its count a byte in 2013, a word in
+    2019)."""
+    assert received.message_id == 0x8003
+    (first_serial,) = struct.unpack_from(">H", received.body)
+    count_format = ">B" if edition == 2013 else ">H"
+    (count,) = struct.unpack_from(count_format, received.body, 2)
+    at = 2 + struct.calcsize(count_format)
+    assert len(received.body) == at + 2 * count
+    return first_serial, list(struct.unpack_from(f">{count}H", received.body, at))
+
+
+def test_each_package_of_a_batch_is_answered_once_and_the_whole_batch_when_its_last_package_comes(tmp_path):
     async def run() -> None:
         gateway, queue = open_gateway(tmp_path)
         conversation, transport = authenticated(gateway)
-        items = [location_body(50.86, 9.70 + k * 1e-4, 70.0, 90.0, T0_S + k) for k in (2, 0, 1)]  # not in time order
-        body = struct.pack(">HB", len(items), 0) + b"".join(struct.pack(">H", len(item)) + item for item in items)
-        cuts = [0, 20, 45, len(body)]
-        packages = {
-            number: wire(package_header_2013(0x0704, PHONE, 9 + number, b - a, 3, number) + body[a:b])
-            for number, (a, b) in enumerate(zip(cuts, cuts[1:], strict=False), 1)
-        }
+        packages = batch_packages(3, 3, 10)
         for number in (3, 1):
             assert conversation.received(packages[number])
-            assert transport.frames() == [] and queue.waiting == []  # not whole yet: nothing answered
+            assert [general_response(f) for f in transport.frames()] == [(9 + number, 0x0704, 0)]  # received
+            assert queue.waiting == []  # not whole yet: nothing evaluated
         assert conversation.received(packages[2])
-        assert [general_response(f) for f in transport.frames()] == [(10, 0x0704, 0)]  # the first package's serial
+        assert [general_response(f) for f in transport.frames()] == [(11, 0x0704, 0)]  # the batch's answer
         assert [waiting.query.timestamp_s for waiting in queue.waiting] == [T0_S, T0_S + 1, T0_S + 2]
+
+    asyncio.run(run())
+
+
+async def written(transport: Transport, timeout_s: float = 10.0) -> tuple[list[Received], float]:
+    """The frames the gateway writes next, as soon as it writes any, and the monotonic time they came."""
+    deadline = time.monotonic() + timeout_s
+    while not transport.writes:
+        assert time.monotonic() < deadline, "nothing was written"
+        await asyncio.sleep(0.002)
+    return transport.frames(), time.monotonic()
+
+
+#: How long the gateway waits for a package before it asks for the missing ones, in these tests, s.
+WAIT_S = 0.2
+
+
+def test_missing_packages_are_asked_for_again_and_a_message_asked_for_in_vain_is_forgotten(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path, GatewaySettings(package_wait_s=WAIT_S))
+        conversation, transport = authenticated(gateway)
+        packages = batch_packages(6, 4, 0xFFFE)  # serials 0xFFFE, 0xFFFF, 0, 1
+        conversation.received(packages[1] + packages[3])
+        sent_at = time.monotonic()
+        transport.frames()
+        [request], asked_at = await written(transport)
+        assert package_request(request) == (0xFFFE, [2, 4]) and asked_at - sent_at >= WAIT_S
+        conversation.received(packages[4])  # sent again as it was: the wait starts again
+        sent_at = time.monotonic()
+        assert [general_response(f) for f in transport.frames()] == [(1, 0x0704, 0)]
+        [request], asked_at = await written(transport)
+        assert package_request(request) == (0xFFFE, [2]) and asked_at - sent_at >= WAIT_S
+        conversation.received(packages[2])
+        assert [general_response(f) for f in transport.frames()] == [(0xFFFF, 0x0704, 0)]
+        assert len(queue.waiting) == 6
+
+        lost = batch_packages(2, 2, 40)
+        conversation.received(lost[2])
+        transport.frames()
+        deadline = time.monotonic() + 10.0
+        while gateway.counts["dropped"] == 0 and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        assert [package_request(f) for f in transport.frames()] == [(40, [1])] * MAX_REQUESTS
+        conversation.received(lost[1])  # forgotten: package 1 no longer completes it
+        assert [general_response(f) for f in transport.frames()] == [(40, 0x0704, 0)]
+        assert len(queue.waiting) == 6 and conversation.reassembler.next_due_s() is not None
+
+    asyncio.run(run())
+
+
+def test_a_2019_terminal_is_asked_for_its_packages_in_its_edition(tmp_path):
+    async def run() -> None:
+        gateway, _ = open_gateway(tmp_path, GatewaySettings(package_wait_s=WAIT_S))
+        conversation, transport = authenticated(gateway)
+        packages = batch_packages(4, 3, 7, header=package_header_2019)
+        conversation.received(packages[2])
+        transport.frames()
+        [request], _ = await written(transport)
+        assert request.edition == 2019 and package_request(request, 2019) == (7, [1, 3])
+
+    asyncio.run(run())
+
+
+def test_packages_beyond_the_burst_are_asked_for_again_and_the_message_completes(tmp_path):
+    async def run() -> None:
+        settings = GatewaySettings(package_wait_s=WAIT_S, frames_burst=10.0, frames_per_s=100.0)
+        gateway, queue = open_gateway(tmp_path, settings)
+        conversation, transport = authenticated(gateway)  # uses one frame of the burst
+        packages = batch_packages(16, 16, 100)
+        conversation.received(b"".join(packages.values()))  # 9 fit the burst
+        assert len(transport.frames()) == 9 and gateway.counts["dropped"] == 7
+        [request], _ = await written(transport)  # by then the allowance is full again
+        assert package_request(request) == (100, list(range(10, 17)))
+        conversation.received(b"".join(packages[number] for number in range(10, 17)))
+        answers = [general_response(f) for f in transport.frames()]
+        assert answers == [(99 + number, 0x0704, 0) for number in range(10, 17)]
+        assert len(queue.waiting) == 16
+
+    asyncio.run(run())
+
+
+def test_packages_before_authentication_or_of_a_message_not_handled_are_refused_and_not_kept(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        conversation, transport = Conversation(gateway), Transport()
+        conversation.connection_made(cast(Any, transport))
+        packages = batch_packages(2, 2, 1)
+        conversation.received(packages[1] + packages[2])
+        assert [general_response(f) for f in transport.frames()] == [(1, 0x0704, 1), (2, 0x0704, 1)]
+        assert conversation.reassembler.next_due_s() is None and queue.waiting == []
+        conversation, transport = authenticated(gateway)
+        photo = b"\xff" * 100  # a multimedia upload (0x0801), which the gateway does not take
+        conversation.received(wire(package_header_2013(0x0801, PHONE, 5, len(photo), 300, 1) + photo))
+        assert [general_response(f) for f in transport.frames()] == [(5, 0x0801, 3)]
+        assert conversation.reassembler.next_due_s() is None
 
     asyncio.run(run())
 

@@ -3,9 +3,9 @@
 Terminal to platform: registration ``0x0100``, authentication ``0x0102``, heartbeat ``0x0002``,
 deregistration ``0x0003``, the terminal's general response ``0x0001``, the location report
 ``0x0200`` and the batch upload ``0x0704``. Platform to terminal: the general response
-``0x8001``, the registration response ``0x8100``, the text message ``0x8300`` and temporary
-location tracking ``0x8202``. Text is GBK; times are BCD ``YYMMDDhhmmss`` in UTC+8 (Beijing
-time), turned into POSIX seconds here.
+``0x8001``, the re-send request for sub-packages ``0x8003``, the registration response ``0x8100``,
+the text message ``0x8300`` and temporary location tracking ``0x8202``. Text is GBK; times are BCD
+``YYMMDDhhmmss`` in UTC+8 (Beijing time), turned into POSIX seconds here.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import calendar
 import functools
 import struct
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import NamedTuple
@@ -36,6 +37,7 @@ __all__ = [
     "decode_terminal_response",
     "encode_general_response",
     "encode_location",
+    "encode_package_request",
     "encode_registration_response",
     "encode_temporary_tracking",
     "encode_text_message",
@@ -53,6 +55,7 @@ class MessageId(IntEnum):
     LOCATION = 0x0200
     LOCATION_BATCH = 0x0704
     PLATFORM_RESPONSE = 0x8001
+    PACKAGE_REQUEST = 0x8003
     REGISTRATION_RESPONSE = 0x8100
     TEMPORARY_TRACKING = 0x8202
     TEXT_MESSAGE = 0x8300
@@ -290,6 +293,13 @@ def decode_terminal_response(body: bytes) -> TerminalResponse:
 def encode_general_response(serial: int, message_id: int, result: ResponseResult) -> bytes:
     """The platform's general response (``0x8001``) to message ``message_id`` number ``serial``."""
     return struct.pack(">HHB", serial, message_id, result)
+
+
+def encode_package_request(first_serial: int, package_numbers: Sequence[int], edition: int) -> bytes:
+    """The re-send request for sub-packages (``0x8003``): the message's first serial, the count of packages asked
+    for (a byte in 2013, a word in 2019) and their numbers (a word each)."""
+    count = struct.pack(">B" if edition == 2013 else ">H", len(package_numbers))
+    return struct.pack(">H", first_serial) + count + struct.pack(f">{len(package_numbers)}H", *package_numbers)
 
 
 def encode_registration_response(serial: int, result: RegistrationResult, auth_code: str = "") -> bytes:
