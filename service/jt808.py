@@ -219,15 +219,19 @@ class Conversation(asyncio.Protocol):
         package may have its general response), with success, or with failure before the terminal has
         authenticated, whose packages are not kept.
 
-        Raises
-        ------
-        FrameError
-            For a message of more packages than :data:`csws.gateways.jt808.reassembly.MAX_PACKAGES`.
+        A package of a message longer than :data:`csws.gateways.jt808.reassembly.MAX_PACKAGES` packages is
+        answered with result 2 (message error) and not kept.
         """
         if self.terminal is None:
             self.respond(frame, ResponseResult.FAILURE)
             return None
-        whole = self.reassembler.add(frame)
+        try:
+            whole = self.reassembler.add(frame)
+        except FrameError as error:
+            self.gateway.counts["dropped"] += 1
+            log.warning("jt808: package dropped from %s: %s", self.phone, error)
+            self.respond(frame, ResponseResult.MESSAGE_ERROR)
+            return None
         if whole is None:
             self.respond(frame, ResponseResult.SUCCESS)
         return whole

@@ -30,7 +30,7 @@ from jt808_terminal import (
     wire,
 )
 
-from csws.gateways.jt808.reassembly import MAX_REQUESTS
+from csws.gateways.jt808.reassembly import MAX_PACKAGES, MAX_REQUESTS
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
 from csws.gateways.jt808.texts import DriverTexts
 from service.jt808 import Conversation, Gateway
@@ -418,7 +418,7 @@ def test_packages_beyond_the_burst_are_asked_for_again_and_the_message_completes
     asyncio.run(run())
 
 
-def test_packages_before_authentication_or_of_a_message_not_handled_are_refused_and_not_kept(tmp_path):
+def test_packages_before_authentication_of_a_message_not_handled_or_too_long_are_refused_and_not_kept(tmp_path):
     async def run() -> None:
         gateway, queue = open_gateway(tmp_path)
         conversation, transport = Conversation(gateway), Transport()
@@ -431,6 +431,10 @@ def test_packages_before_authentication_or_of_a_message_not_handled_are_refused_
         photo = b"\xff" * 100  # a multimedia upload (0x0801), which the gateway does not take
         conversation.received(wire(package_header_2013(0x0801, PHONE, 5, len(photo), 300, 1) + photo))
         assert [general_response(f) for f in transport.frames()] == [(5, 0x0801, 3)]
+        body = b"\x00" * 10
+        too_long = wire(package_header_2013(0x0704, PHONE, 6, len(body), MAX_PACKAGES + 1, 1) + body)
+        conversation.received(too_long)  # beyond the packages a message may have: a message error
+        assert [general_response(f) for f in transport.frames()] == [(6, 0x0704, 2)]
         assert conversation.reassembler.next_due_s() is None
 
     asyncio.run(run())
