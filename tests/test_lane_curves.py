@@ -24,11 +24,11 @@ from builders import node_xml
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from csws.curvature import ConstantRadiusPart, Curve
+from csws.curvature import ConstantRadiusPart, Curve, RadiusProfile, straight_profile
 from csws.engine import Engine, VehicleInput
 from csws.geometry import arc, clothoid, sample_pieces, straight
 from csws.road.roadmap import RoadMap
-from csws.road.sharing import Run, lateral_offsets_m, moved_curve, reference_lanes
+from csws.road.sharing import Run, kept_to_own_turn, lateral_offsets_m, moved_curve, reference_lanes
 from csws.standard import warning_speed
 from csws.sumo.netbuild import netconvert, shape_text
 
@@ -170,6 +170,34 @@ def test_a_moved_curve_keeps_its_place_and_angle_and_moves_its_radius_by_the_off
     assert moved.min_radius_m == pytest.approx(expected_m, rel=1e-9)
     assert (moved.start_s, moved.end_s) == pytest.approx((100.0 * stretch, 150.0 * stretch))
     assert moved.angle_deg == curve.angle_deg and moved.direction == direction
+
+
+def test_a_curve_borrowed_inside_a_parallel_run_keeps_its_radius_where_the_lane_turns_a_little_less():
+    """A reference fit may turn as far as its own polyline and the angle tolerance allow; a lane beside it whose
+    vertices turn a fraction of a degree less (a joint's vertex placed otherwise) still lies parallel to it, and
+    keeps the curve at R - d. Where the reference goes on before the run, the curve cut at the run's start carries
+    a turn the lane need not make, and is turned back to the lane's own turn as before."""
+    xy, _ = sample_pieces([straight(200.0), arc(100.0, 20.0, "left"), straight(200.0)], 5.0)
+    arc_m = 100.0 * math.radians(20.0)
+    angle_deg = 20.0 + 5.5  # the reference's fit: its own 20.5 degree turn and the 5 degree tolerance
+    radius_m = arc_m / math.radians(angle_deg)
+    curve = Curve(
+        200.0, 200.0 + arc_m, angle_deg, "left", radius_m, (ConstantRadiusPart(200.0, 200.0 + arc_m, radius_m, False),)
+    )
+    length_m = float(np.hypot(*np.diff(xy, axis=0).T).sum())
+
+    def source(source_length_m: float) -> RadiusProfile:
+        """The fit of the lane read (chain 1): only its length counts here."""
+        return straight_profile(np.array([0.0, source_length_m]))
+
+    whole = Run(1, np.array([0.0, length_m]), np.array([0.0, length_m]), np.array([3.2]))
+    [kept] = kept_to_own_turn([curve], xy, 1000.0, [whole], [None, source(length_m)])
+    assert kept == curve
+    [turned_back] = kept_to_own_turn([curve], xy, 1000.0)  # without runs: the lane's own turn, 20 degrees
+    assert turned_back.angle_deg == pytest.approx(20.0, abs=0.01)
+    source_goes_on = Run(1, np.array([50.0, 50.0 + length_m - 200.0]), np.array([200.0, length_m]), np.array([3.2]))
+    [cut] = kept_to_own_turn([curve], xy, 1000.0, [source_goes_on], [None, source(length_m + 100.0)])
+    assert cut.angle_deg == pytest.approx(20.0, abs=0.01)
 
 
 def test_the_lanes_of_a_road_name_its_curve_by_the_edge_and_lane_position_where_it_starts(road):

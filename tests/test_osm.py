@@ -36,6 +36,7 @@ from csws.osm.importer import (
 )
 from csws.road.export import curves_geojson
 from csws.road.roadmap import RoadMap
+from csws.standard import DEFAULT_POLICY
 from csws.sumo.binaries import sumo_binary, sumo_home
 
 #: The curve: 200 m straight, a 90 degree left arc of R = 100 m, 200 m straight; OSM nodes every 10 m.
@@ -389,6 +390,26 @@ def test_real_network_roundabouts_and_curve_index(badhersfeld: RoadMap) -> None:
     assert "OpenStreetMap contributors" in index["attribution"]
     indexed_lanes = {feature["properties"]["lane_id"] for feature in index["features"]}
     assert indexed_lanes and not any(badhersfeld.lane(lane).is_junction for lane in indexed_lanes)
+
+
+def test_the_shipped_curve_index_is_the_one_the_road_model_writes(badhersfeld: RoadMap) -> None:
+    """The curve index beside the bundled network is rebuilt with the road model: a user reading it sees the curves
+    the service warns for, curve by curve, lane by lane."""
+    shipped = json.loads((networks_dir() / "badhersfeld.curves.geojson").read_text())["features"]
+    written = curves_geojson(badhersfeld, DEFAULT_POLICY)["features"]
+
+    def curves(features: list[dict]) -> list[tuple[str, str, float, float]]:
+        return [
+            (
+                f["properties"]["curve_id"],
+                f["properties"]["lane_id"],
+                f["properties"]["radius_m"],
+                f["properties"]["angle_deg"],
+            )
+            for f in features
+        ]
+
+    assert curves(shipped) == curves(written)
 
 
 @pytest.mark.sumo

@@ -187,7 +187,11 @@ class RoadChains:
             (chain, float(warning_radius_m), id(policy), False),
             policy,
             lambda: kept_to_own_turn(
-                self._moved_curves(runs, warning_radius_m, policy), self.xy[chain], warning_radius_m
+                self._moved_curves(runs, warning_radius_m, policy),
+                self.xy[chain],
+                warning_radius_m,
+                runs,
+                self.fitted,
             ),
         )
 

@@ -19,7 +19,8 @@ would be warned for another curve. A road has one curve, so here:
 * what a lane borrows keeps to its own polyline's net turn (:func:`kept_to_own_turn`,
   :func:`csws.curvature.artefacts.kept_to_net_turn`): a curve of the reference that runs
   across the joint where the reference lane begins carries the turn the reference chain
-  makes there, which a lane beside it entered from elsewhere does not make;
+  makes there, which a lane beside it entered from elsewhere does not make; a curve that
+  lies parallel to its reference all along is kept as moved (:func:`inside_parallel_run`);
 * a chain that has no lane of its own is not fitted at all.
 
 Lanes borrowing from one reference chain in order form a **run**: a curve that crosses
@@ -42,8 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_along
+from csws.curvature import ConstantRadiusPart, Curve, ProfilePart, RadiusProfile, profile_along, profile_from_parts
 from csws.curvature.artefacts import kept_to_net_turn, polyline_turns, turned_back_scale
+from csws.curvature.corners import curve_runs
 
 __all__ = [
     "JOINT_TOLERANCE_M",
@@ -51,6 +53,7 @@ __all__ = [
     "Run",
     "chain_runs",
     "clip_curve",
+    "inside_parallel_run",
     "joined_at_run_joints",
     "kept_to_own_turn",
     "lateral_offsets_m",
@@ -76,6 +79,8 @@ _NEAR_MARGIN_M = 1e-6
 #: A lane with at most this many (point, segment) pairs is measured against every segment: cheaper than an
 #: index (so is a shape with a coordinate that is not a finite number, which an index leaves out).
 _ALL_PAIRS = 4096
+#: A curve within this of a run's end counts as reaching it, m (arc lengths of one chain, summed segment by segment).
+_RUN_END_M = 1e-6
 #: A moved curvature's denominator 1 - k d is never below this: a lane far inside a tight turn
 #: (a junction's double turn) keeps a tenth of the reference's radius at least.
 _MIN_SCALE = 0.1
@@ -369,13 +374,43 @@ def read_profile(
         source = fitted[run.source]
         assert source is not None  # every source was fitted
         moved += moved_parts(source.parts, run)
-    return kept_to_net_turn(xy, profile_along(xy, moved))
+    profile = profile_along(xy, moved)
+    return _parallel_kept_as_moved(profile, kept_to_net_turn(xy, profile), runs, fitted)
 
 
-def kept_to_own_turn(curves: Sequence[Curve], xy: np.ndarray, warning_radius_m: float) -> list[Curve]:
+def _parallel_kept_as_moved(
+    moved: RadiusProfile, kept: RadiusProfile, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
+) -> RadiusProfile:
+    """``kept`` (the ``moved`` profile turned back to the chain's own net turn, on the same parts) with each curve
+    that lies parallel to its source all along (:func:`inside_parallel_run`) as moved, as :func:`kept_to_own_turn`
+    keeps the chain's curves."""
+    if kept is moved:
+        return kept
+    bounds = np.array([part.start_s for part in moved.parts] + [moved.parts[-1].end_s])
+    start_k = np.array([part.curvature for part in moved.parts])
+    end_k = np.array([part.final_curvature for part in moved.parts])
+    kept_start_k = np.array([part.curvature for part in kept.parts])
+    kept_end_k = np.array([part.final_curvature for part in kept.parts])
+    restored = False
+    for parts in curve_runs(start_k, end_k):
+        if inside_parallel_run(float(bounds[parts[0]]), float(bounds[parts[-1] + 1]), runs, fitted):
+            kept_start_k[parts], kept_end_k[parts] = start_k[parts], end_k[parts]
+            restored = True
+    return profile_from_parts(moved.s, bounds, kept_start_k, kept_end_k) if restored else kept
+
+
+def kept_to_own_turn(
+    curves: Sequence[Curve],
+    xy: np.ndarray,
+    warning_radius_m: float,
+    runs: Sequence[Run] = (),
+    fitted: Sequence[RadiusProfile | None] = (),
+) -> list[Curve]:
     """Curves a chain borrows, each turned back to the net turn of the chain's own polyline ``xy`` over its stretch
     (:func:`csws.curvature.artefacts.turned_back_scale`: its radii widened, or the curve dropped where that turns
-    less than the tolerance, or where its smallest radius so widened exceeds R_c ``warning_radius_m``: 3.4).
+    less than the tolerance, or where its smallest radius so widened exceeds R_c ``warning_radius_m``: 3.4); a
+    curve that lies parallel to its source all along (:func:`inside_parallel_run`, by the chain's ``runs`` and the
+    ``fitted`` profiles of every chain) is kept as moved.
 
     A curve of the reference lane that runs across the joint where the reference lane begins (or ends) carries the
     turn the reference chain makes there, into its own lane; a lane beside it entered from elsewhere makes no such
@@ -386,6 +421,9 @@ def kept_to_own_turn(curves: Sequence[Curve], xy: np.ndarray, warning_radius_m: 
     turns = polyline_turns(xy)
     kept = []
     for curve in curves:
+        if inside_parallel_run(curve.start_s, curve.end_s, runs, fitted):
+            kept.append(curve)
+            continue
         side = 1.0 if curve.direction == "left" else -1.0
         scale = turned_back_scale(turns, curve.start_s, curve.end_s, side * math.radians(curve.angle_deg))
         if scale == 1.0:
@@ -393,6 +431,31 @@ def kept_to_own_turn(curves: Sequence[Curve], xy: np.ndarray, warning_radius_m: 
         elif scale > 0.0 and curve.min_radius_m / scale <= warning_radius_m:
             kept.append(_widened(curve, scale))
     return kept
+
+
+def inside_parallel_run(
+    start_s: float, end_s: float, runs: Sequence[Run], fitted: Sequence[RadiusProfile | None]
+) -> bool:
+    """Whether a borrowed curve on ``[start_s, end_s]`` of a chain lies inside one of its ``runs`` that reads
+    another chain, and touches no end of the run where that chain (its profile in ``fitted``) goes on.
+
+    Inside such a run every lane lies parallel to the lane it reads (:data:`PARALLEL_TOLERANCE_M`), so it turns as
+    its source does, and the curve is its source's, moved. The lane's own polyline would say otherwise only by the
+    difference of a few degrees its vertices make: enough to widen a curve that its source's fit turns as far as
+    the tolerance allows, so that lanes of one road had one curve at two radii. Where the source goes on beyond
+    the run, a curve cut at the run's end carries the turn the source makes there, which the lane need not.
+    """
+    for run in runs:
+        run_start_s, run_end_s = float(run.target_s[0]), float(run.target_s[-1])
+        source = fitted[run.source] if not run.is_own else None
+        if source is None or not (run_start_s - _RUN_END_M <= start_s and end_s <= run_end_s + _RUN_END_M):
+            continue
+        goes_on_before = float(run.source_s[0]) > _RUN_END_M
+        goes_on_after = float(run.source_s[-1]) < float(source.s[-1]) - _RUN_END_M
+        cut_at_start = goes_on_before and start_s <= run_start_s + _RUN_END_M
+        cut_at_end = goes_on_after and end_s >= run_end_s - _RUN_END_M
+        return not (cut_at_start or cut_at_end)
+    return False
 
 
 def _widened(curve: Curve, scale: float) -> Curve:
