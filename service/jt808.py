@@ -42,7 +42,7 @@ from csws.gateways.jt808.tracking import ReportPace
 
 from .answers import WarningService
 from .jt808_groups import Batcher, Waiting
-from .jt808_messages import HANDLERS, log
+from .jt808_messages import HANDLERS, admitted, log
 from .jt808_settings import GatewaySettings
 from .jt808_tracking import TrackingPlanner
 from .work import WorkThread
@@ -63,7 +63,7 @@ class Conversation(asyncio.Protocol):
         self.gateway = gateway
         self.transport: asyncio.Transport | None = None
         self.splitter = FrameSplitter()
-        self.reassembler = Reassembler(wait_s=gateway.settings.package_wait_s)
+        self.reassembler = Reassembler(wait_s=gateway.settings.package_wait_s, forgot=self._forgot)
         self.terminal: Terminal | None = None
         self.edition, self.phone, self.serial = 2013, "0", 0
         #: Writes the frames to the terminal (its phone and edition are those of its latest frame).
@@ -216,14 +216,14 @@ class Conversation(asyncio.Protocol):
     def _package(self, frame: Frame) -> Frame | None:
         """A package of a sub-packaged message: the whole message once it is complete (answered by its handler under
         the completing package's serial); else None, the package answered on its own (JT/T 808-2013, 7.12: each
-        package may have its general response), with success, or with failure before the terminal has
-        authenticated, whose packages are not kept.
+        package may have its general response), with success, or with failure while the terminal is not admitted
+        (not yet authenticated, or revoked since), whose packages are not kept.
 
         A package of a message longer than :data:`csws.gateways.jt808.reassembly.MAX_PACKAGES` packages is
         answered with result 2 (message error) and not kept.
         """
-        if self.terminal is None:
-            self.respond(frame, ResponseResult.FAILURE)
+        if admitted(self, frame) is None:  # answered with failure
+            self.reassembler.clear()
             return None
         try:
             whole = self.reassembler.add(frame)
@@ -247,15 +247,16 @@ class Conversation(asyncio.Protocol):
         """Ask for the missing packages of the messages that have waited (the re-send request ``0x8003``, 7.12), and
         forget those asked for in vain (:meth:`csws.gateways.jt808.reassembly.Reassembler.missing_due`)."""
         self._asking = None
-        missing, forgotten = self.reassembler.missing_due()
-        for message in missing:
+        for message in self.reassembler.missing_due():
             body = encode_package_request(message.first_serial, message.package_numbers, self.edition)
             self.send(MessageId.PACKAGE_REQUEST, body)
-        if forgotten:
-            self.gateway.counts["dropped"] += forgotten
-            log.warning("jt808: %s left %d sub-packaged message(s) unfinished; forgotten", self.phone, forgotten)
         self.flush()
         self._ask_when_due()
+
+    def _forgot(self, message_id: int) -> None:
+        """Count and log an unfinished message forgotten (its packages asked for in vain, or one too many open)."""
+        self.gateway.counts["dropped"] += 1
+        log.warning("jt808: %s left a sub-packaged 0x%04x unfinished; forgotten", self.phone, message_id)
 
 
 class Gateway:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
+import unicodedata
 from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING
@@ -44,7 +45,7 @@ from .jt808_groups import AnswerSummary, Waiting
 if TYPE_CHECKING:
     from .jt808 import Conversation
 
-__all__ = ["HANDLERS", "MAX_PENDING_REPORTS", "MAX_REPORT_AGE_S", "NOT_ANSWERED", "log", "report_query"]
+__all__ = ["HANDLERS", "MAX_PENDING_REPORTS", "MAX_REPORT_AGE_S", "NOT_ANSWERED", "admitted", "log", "report_query"]
 
 log = logging.getLogger("csws.jt808")
 log.addFilter(OncePerInterval())
@@ -105,15 +106,16 @@ def _plate_differs(terminal: Terminal, registration: Registration) -> bool:
 
     A plate colour of 0 marks a vehicle without plates, whose identification field holds its VIN instead (the
     registration's layout in JT/T 808): nothing to compare. Neither is an empty field on either side. Letters are
-    compared without regard to case, spaces and the separator dot some plates are written with."""
+    compared without regard to case, width, spaces and the separator dot some plates are written with."""
     if registration.plate_colour == 0 or not registration.plate or not terminal.plate:
         return False
     return _plate_key(registration.plate) != _plate_key(terminal.plate)
 
 
 def _plate_key(plate: str) -> str:
-    """A plate as compared: upper case, without spaces and separator dots."""
-    return "".join(character for character in plate.upper() if character not in " ·.")
+    """A plate as compared: full-width letters, digits and spaces as their ASCII forms (NFKC), upper case, without
+    spaces and separator dots."""
+    return "".join(character for character in unicodedata.normalize("NFKC", plate).upper() if character not in " ·.")
 
 
 def _authenticate(conversation: Conversation, frame: Frame) -> bool:
@@ -132,7 +134,7 @@ def _authenticate(conversation: Conversation, frame: Frame) -> bool:
 
 def _heartbeat(conversation: Conversation, frame: Frame) -> bool:
     """``0x0002`` -> ``0x8001``: success while the terminal is admitted."""
-    if _admitted(conversation, frame) is not None:
+    if admitted(conversation, frame) is not None:
         conversation.respond(frame, ResponseResult.SUCCESS)
     return True
 
@@ -157,7 +159,7 @@ def _deregister(conversation: Conversation, frame: Frame) -> bool:
     return False
 
 
-def _admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
+def admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
     """The conversation's terminal if it is still admitted; a failure response otherwise."""
     terminal = conversation.terminal
     if terminal is not None:
@@ -171,7 +173,7 @@ def _admitted(conversation: Conversation, frame: Frame) -> Terminal | None:
 
 def _locations(conversation: Conversation, frame: Frame) -> bool:
     """``0x0200`` and ``0x0704`` -> ``0x8001``, then the warning of the newest live report."""
-    terminal = _admitted(conversation, frame)
+    terminal = admitted(conversation, frame)
     if terminal is None:
         return True
     try:

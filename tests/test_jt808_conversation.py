@@ -30,7 +30,7 @@ from jt808_terminal import (
     wire,
 )
 
-from csws.gateways.jt808.reassembly import MAX_PACKAGES, MAX_REQUESTS
+from csws.gateways.jt808.reassembly import MAX_OPEN_MESSAGES, MAX_PACKAGES, MAX_REQUESTS
 from csws.gateways.jt808.terminals import TerminalList, add_terminal, revoke_terminal
 from csws.gateways.jt808.texts import DriverTexts
 from service.jt808 import Conversation, Gateway
@@ -277,8 +277,11 @@ def test_a_registration_naming_another_plate_than_the_list_is_refused_as_no_such
         assert result(register(2, registration_body("京a 12345"))) == (2, 0)  # the list's plate, written otherwise
         assert result(register(3, registration_body("LSVAU2180N2183294", plate_colour=0))) == (3, 0)  # a VIN: no plate
         assert result(register(4, registration_body(""))) == (4, 0)  # no plate named
-        unreadable = register(5, registration_body("京A12345")[:20])
-        assert (unreadable.message_id, general_response(unreadable)) == (0x8001, (5, 0x0100, 2))
+        assert result(register(5, registration_body("京Ａ　１２３４５"))) == (5, 0)  # full-width letters and space
+        padded = registration_body("京A12345").replace(b"T".ljust(20, b"\x00"), b"T\x80" + b"\xff" * 18)
+        assert result(register(6, padded)) == (6, 0)  # a model field padded with 0xFF, a byte that is not GBK
+        unreadable = register(7, registration_body("京A12345")[:20])
+        assert (unreadable.message_id, general_response(unreadable)) == (0x8001, (7, 0x0100, 2))
 
     asyncio.run(run())
 
@@ -383,6 +386,47 @@ def test_missing_packages_are_asked_for_again_and_a_message_asked_for_in_vain_is
         conversation.received(lost[1])  # forgotten: package 1 no longer completes it
         assert [general_response(f) for f in transport.frames()] == [(40, 0x0704, 0)]
         assert len(queue.waiting) == 6 and conversation.reassembler.next_due_s() is not None
+
+    asyncio.run(run())
+
+
+def test_a_package_sent_again_after_its_message_completed_is_answered_and_not_kept(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path, GatewaySettings(package_wait_s=WAIT_S))
+        conversation, transport = authenticated(gateway)
+        packages = batch_packages(3, 3, 10)
+        conversation.received(packages[1] + packages[2] + packages[3])
+        transport.frames()
+        conversation.received(packages[3])  # its answer was lost: sent again
+        assert [general_response(f) for f in transport.frames()] == [(12, 0x0704, 0)]
+        assert conversation.reassembler.next_due_s() is None and len(queue.waiting) == 3  # not a new message
+
+    asyncio.run(run())
+
+
+def test_the_packages_of_a_revoked_terminal_are_refused_and_its_unfinished_messages_forgotten(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path, GatewaySettings(package_wait_s=WAIT_S))
+        conversation, transport = authenticated(gateway)
+        packages = batch_packages(4, 4, 20)
+        conversation.received(packages[1])
+        assert [general_response(f) for f in transport.frames()] == [(20, 0x0704, 0)]
+        revoke_terminal(tmp_path / "terminals.json", PHONE)
+        await asyncio.sleep(0)  # the file is looked at once a turn of the loop
+        conversation.received(packages[2])
+        assert [general_response(f) for f in transport.frames()] == [(21, 0x0704, 1)]
+        assert conversation.reassembler.next_due_s() is None and queue.waiting == []
+
+    asyncio.run(run())
+
+
+def test_an_unfinished_message_making_way_for_a_ninth_is_counted_as_dropped(tmp_path):
+    async def run() -> None:
+        gateway, _ = open_gateway(tmp_path)
+        conversation, transport = authenticated(gateway)
+        for message in range(MAX_OPEN_MESSAGES + 1):
+            conversation.received(batch_packages(2, 2, 100 + 2 * message)[1])
+        assert len(transport.frames()) == MAX_OPEN_MESSAGES + 1 and gateway.counts["dropped"] == 1
 
     asyncio.run(run())
 

@@ -166,6 +166,12 @@ def _text(data: bytes) -> str:
         raise BodyError(f"text is not GBK: {data[:40]!r}") from error
 
 
+def _label(data: bytes) -> str:
+    """A fixed field's GBK text as far as it is GBK (each byte that is not replaced by U+FFFD): a terminal pads
+    its maker or model fields with 0xFF, or writes bytes of another code page, and is a terminal still."""
+    return data.rstrip(b"\x00 \xff").decode("gbk", errors="replace")
+
+
 @functools.lru_cache(maxsize=1024)
 def _bcd_time_s(data: bytes) -> float:
     """POSIX seconds of a BCD ``YYMMDDhhmmss`` time in UTC+8 (years 2000-2099).
@@ -266,11 +272,11 @@ def decode_registration(body: bytes, edition: int) -> Registration:
     return Registration(
         province_id=province,
         city_id=city,
-        manufacturer=_text(body[4:model_at]),
-        model=_text(body[model_at:id_at]),
-        terminal_id=_text(body[id_at : id_at + id_bytes]),
+        manufacturer=_label(body[4:model_at]),
+        model=_label(body[model_at:id_at]),
+        terminal_id=_label(body[id_at : id_at + id_bytes]),
         plate_colour=body[fixed - 1],
-        plate=_text(body[fixed:]),
+        plate=_label(body[fixed:]),
     )
 
 
