@@ -15,7 +15,7 @@ import time
 import unicodedata
 from collections.abc import Callable
 from functools import partial
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from csws.gateways.jt808.frames import Frame
 from csws.gateways.jt808.messages import (
@@ -47,6 +47,8 @@ if TYPE_CHECKING:
 
 __all__ = ["HANDLERS", "MAX_PENDING_REPORTS", "MAX_REPORT_AGE_S", "NOT_ANSWERED", "admitted", "log", "report_query"]
 
+_Body = TypeVar("_Body")
+
 log = logging.getLogger("csws.jt808")
 log.addFilter(OncePerInterval())
 
@@ -77,16 +79,24 @@ def report_query(terminal: Terminal, report: LocationReport, now_s: float) -> De
     )
 
 
+def _body(conversation: Conversation, frame: Frame, decode: Callable[[bytes, int], _Body], what: str) -> _Body | None:
+    """``decode`` of ``frame``'s body in its edition; None where the body is unreadable, answered with result 2
+    (message error) and logged as ``what``."""
+    try:
+        return decode(frame.body, frame.edition)
+    except BodyError as error:
+        log.warning("jt808: %s of %s unreadable: %s", what, frame.phone, error)
+        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
+        return None
+
+
 def _register(conversation: Conversation, frame: Frame) -> bool:
     """``0x0100`` -> ``0x8100``: the authentication code of a listed terminal; result 4 for a terminal not listed
     (or revoked), result 2 for a listed one whose registration names another plate than the list's
     (:func:`_plate_differs`), and an unreadable registration a ``0x8001`` with result 2."""
     terminals = conversation.gateway.current_terminals()
-    try:
-        registration = decode_registration(frame.body, frame.edition)
-    except BodyError as error:
-        log.warning("jt808: registration of %s unreadable: %s", frame.phone, error)
-        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
+    registration = _body(conversation, frame, decode_registration, "registration")
+    if registration is None:
         return True
     terminal = terminals.terminal(frame.phone)
     if terminal is None or terminal.revoked:
@@ -121,11 +131,8 @@ def _plate_key(plate: str) -> str:
 def _authenticate(conversation: Conversation, frame: Frame) -> bool:
     """``0x0102`` -> ``0x8001``: success for a listed terminal with its current code, failure otherwise."""
     terminals = conversation.gateway.current_terminals()
-    try:
-        code = decode_authentication(frame.body, frame.edition)
-    except BodyError as error:
-        log.warning("jt808: authentication of %s unreadable: %s", frame.phone, error)
-        conversation.respond(frame, ResponseResult.MESSAGE_ERROR)
+    code = _body(conversation, frame, decode_authentication, "authentication")
+    if code is None:
         return True
     conversation.terminal = terminals.admitted(frame.phone, code)
     conversation.respond(frame, ResponseResult.SUCCESS if conversation.terminal else ResponseResult.FAILURE)
