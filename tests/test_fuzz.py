@@ -87,9 +87,15 @@ def server(tmp_path_factory):
     running.stop()
 
 
+#: Every test here runs in the suite's one-process run (the README's ``pytest -m serial``): under pytest-xdist,
+#: schemathesis runs one operation of :func:`test_no_server_error_and_every_answer_is_documented` and passes.
+pytestmark = pytest.mark.serial
+
+
 @SCHEMA.parametrize()
 @settings(deadline=None, database=None)
 def test_no_server_error_and_every_answer_is_documented(case, server) -> None:
+    assert "PYTEST_XDIST_WORKER" not in os.environ, "run without pytest-xdist's -n: only one operation is fuzzed there"
     case.call_and_validate(base_url=server.url, headers=server.headers, checks=RESPONSE_CHECKS, timeout=TIMEOUT_S)
 
 
