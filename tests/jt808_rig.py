@@ -37,6 +37,8 @@ UTM32 = "+proj=utm +zone=32 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
 ORIGIN_E, ORIGIN_N = 550_000.0, 5_635_000.0
 REACTION_S, G_MPS2 = 0.8, 9.8  # formula (1), 6.1
 CATEGORY, PHONE, FLEET = "N", "13800138000", "acme"
+#: The plate the terminal is listed with, and registers with.
+PLATE = "京A12345"
 #: How far the fitted curve start may lie from the constructed one, m.
 START_TOLERANCE_M = 1.5
 T0_S = 1_790_000_000.0
@@ -73,7 +75,7 @@ class Rig:
 
     def __init__(self, net: Path, folder: Path, gateway_settings: GatewaySettings = ON_A_FREE_PORT) -> None:
         self.terminals_file = folder / "terminals.json"
-        add_terminal(self.terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY, plate="京A12345")
+        add_terminal(self.terminals_file, FLEET, PHONE, vehicle_id="truck-18", category=CATEGORY, plate=PLATE)
         self.api_key = add_key(folder / "keys.json", FLEET, "admin")
         settings = ServiceSettings(nets=[net], state_db=str(folder / "state.db"), api_keys_file=folder / "keys.json")
         self.app = create_app(settings)
@@ -177,7 +179,7 @@ class Drive:
 
 async def connected(rig: Rig) -> Terminal:
     """A terminal of :data:`PHONE` connected to the rig's gateway, registered and authenticated."""
-    terminal = Terminal(PHONE, plate="京A12345")
+    terminal = Terminal(PHONE, plate=PLATE)
     await terminal.connect(rig.port)
     assert general_response(await terminal.register_and_authenticate())[2] == 0
     return terminal
