@@ -286,6 +286,37 @@ def test_a_registration_naming_another_plate_than_the_list_is_refused_as_no_such
     asyncio.run(run())
 
 
+def test_a_terminal_listed_again_for_another_vehicle_registers_again_and_its_plate_is_checked(tmp_path):
+    async def run() -> None:
+        gateway, _ = open_gateway(tmp_path)
+        phone, path = "13900000000", tmp_path / "terminals.json"
+        add_terminal(path, "acme", phone, category="N", plate="京A12345")
+
+        def answers(conversation: Conversation, transport: Transport, message_id: int, body: bytes) -> Received:
+            assert conversation.received(wire(header_2013(message_id, phone, 1, len(body)) + body))
+            [answer] = transport.frames()
+            return answer
+
+        def connection() -> tuple[Conversation, Transport]:
+            conversation, transport = Conversation(gateway), Transport()
+            conversation.connection_made(cast(Any, transport))
+            return conversation, transport
+
+        registered = answers(*connection(), 0x0100, registration_body("京A12345"))
+        assert struct.unpack_from(">HB", registered.body) == (1, 0)
+        old_code = registered.body[3:]
+        add_terminal(path, "acme", phone, category="N", plate="京B99999")  # the terminal is moved to another truck
+        await asyncio.sleep(0)  # the file is looked at again from the next turn
+        assert general_response(answers(*connection(), 0x0102, old_code)) == (1, 0x0102, 1)  # the old code fails
+        refused = answers(*connection(), 0x0100, registration_body("京A12345"))
+        assert struct.unpack_from(">HB", refused.body) == (1, 2)  # still in the old truck: no such vehicle
+        again = answers(*connection(), 0x0100, registration_body("京B99999"))
+        assert struct.unpack_from(">HB", again.body) == (1, 0) and again.body[3:] != old_code
+        assert general_response(answers(*connection(), 0x0102, again.body[3:])) == (1, 0x0102, 0)
+
+    asyncio.run(run())
+
+
 def test_a_report_that_cannot_be_answered_tells_the_driver_of_a_fault_once_it_lasts(tmp_path):
     async def run() -> None:
         gateway, queue = open_gateway(tmp_path)
