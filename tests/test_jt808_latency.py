@@ -52,12 +52,15 @@ def test_a_group_counts_once_per_report_and_old_samples_are_forgotten():
     assert parse_stages("no stages here") == {}
 
 
-def _run(rate: float, gateway_cores: float, redis_cores: float, simulator_cores: float) -> dict[str, float]:
+def _run(
+    rate: float, gateway_cores: float, redis_cores: float, simulator_cores: float, offered_per_s: float = math.inf
+) -> dict[str, float]:
     return {
         "evaluated_per_s": rate,
         "gateway_cores": gateway_cores,
         "redis_cores": redis_cores,
         "simulator_cores": simulator_cores,
+        "offered_per_s": offered_per_s,
     }
 
 
@@ -68,6 +71,14 @@ def test_the_bound_is_the_cores_left_over_what_one_gateway_needed():
     assert math.isclose(scaleout_bound(one, _run(1200.0, 1.1, 0.1, 0.5), cores=2), 1.4)
     # Where the cores suffice, two single-threaded gateways at most double it.
     assert scaleout_bound(one, one, cores=8) == 2.0
+
+
+def test_the_bound_is_what_the_terminals_offered():
+    # Terminals that offer what one gateway took, 1000 reports/s, leave two gateways nothing more to
+    # evaluate however many cores they have; offering 1500/s allows 1.5 times one.
+    one = _run(1000.0, 0.5, 0.05, 0.3, offered_per_s=1000.0)
+    assert scaleout_bound(one, _run(1000.0, 0.6, 0.05, 0.3, offered_per_s=1000.0), cores=8) == 1.0
+    assert scaleout_bound(one, _run(1500.0, 0.8, 0.05, 0.4, offered_per_s=1500.0), cores=8) == 1.5
 
 
 @given(
