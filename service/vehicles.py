@@ -52,11 +52,12 @@ from .timing import UNTIMED, Stages
 
 __all__ = ["TRANSACTION_ATTEMPTS", "LoadedVehicles", "VehicleRegistry"]
 
-#: How often a request reads and answers again the vehicles other requests wrote meanwhile
-#: before it gives up with a 503. One vehicle's fixes sent at once through two workers, each
-#: written, need a second attempt for about one answer in eight and a fourth for one in four
-#: hundred on an idle machine; a worker short of CPU loses more in a row (five in a row were seen
-#: with the test suite running beside it), so the budget leaves room for twice that.
+#: How many times in all a request reads, answers and writes the vehicles other requests wrote
+#: meanwhile before it gives up with a 503. One vehicle's fixes sent at once through two workers,
+#: each written, needed a second attempt for about one answer in eight and a fourth for one in four
+#: hundred (400 answers counted on a machine with two busy cores); a worker short of CPU loses more
+#: in a row (five in a row were seen with the test suite running beside it), so the budget leaves
+#: room for twice that.
 TRANSACTION_ATTEMPTS = 10
 
 Answered = TypeVar("Answered")
