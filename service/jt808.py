@@ -90,11 +90,13 @@ class Conversation(asyncio.Protocol):
         self._idle = asyncio.get_running_loop().call_later(self.gateway.settings.idle_s, self._check_idle)
 
     def connection_lost(self, exc: Exception | None) -> None:
-        """Forget the connection: its reports not yet started are not evaluated (those started are answered)."""
+        """Forget the connection: its reports not yet started are not evaluated, and are counted as shed (those
+        started are answered)."""
         for timer in (self._idle, self._asking):
             if timer is not None:
                 timer.cancel()
         for waiting in self.waiting:
+            self.gateway.counts["shed"] += not waiting.started
             waiting.shed = True
         self.gateway.release(self)
 

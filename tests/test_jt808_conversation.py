@@ -127,6 +127,20 @@ def test_the_frames_of_one_read_are_answered_in_one_write_and_the_report_queued_
     asyncio.run(run())
 
 
+def test_reports_left_waiting_when_a_connection_ends_are_counted_as_shed(tmp_path):
+    async def run() -> None:
+        gateway, queue = open_gateway(tmp_path)
+        conversation, _ = authenticated(gateway)
+        reports = [frame(0x0200, 2 + k, location_body(50.86, 9.70, 60.0, 90.0, T0_S + k)) for k in range(3)]
+        conversation.received(b"".join(reports))
+        queue.waiting[0].started = True  # its group began: it is answered, not shed
+        conversation.connection_lost(None)
+        assert [waiting.shed for waiting in queue.waiting] == [True, True, True]
+        assert gateway.counts["shed"] == 2 and "0 report(s) evaluated, 2 shed" in gateway.summary()
+
+    asyncio.run(run())
+
+
 def test_a_frame_cut_over_reads_inside_an_escape_is_answered_once(tmp_path):
     async def run() -> None:
         gateway, _ = open_gateway(tmp_path)
@@ -305,6 +319,7 @@ def test_a_terminal_listed_again_for_another_vehicle_registers_again_and_its_pla
         registered = answers(*connection(), 0x0100, registration_body("京A12345"))
         assert struct.unpack_from(">HB", registered.body) == (1, 0)
         old_code = registered.body[3:]
+        assert general_response(answers(*connection(), 0x0102, old_code)) == (1, 0x0102, 0)  # good on a new connection
         add_terminal(path, "acme", phone, category="N", plate="京B99999")  # the terminal is moved to another truck
         await asyncio.sleep(0)  # the file is looked at again from the next turn
         assert general_response(answers(*connection(), 0x0102, old_code)) == (1, 0x0102, 1)  # the old code fails
