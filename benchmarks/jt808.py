@@ -54,6 +54,7 @@ __all__ = [
     "run_all",
     "run_scaleout",
     "scaleout_bound",
+    "summary_counts",
 ]
 
 NET = networks_dir() / "badhersfeld.net.xml.gz"
@@ -120,9 +121,21 @@ def _stopped(process: subprocess.Popen) -> tuple[int, int, dict[str, tuple[float
     last lines."""
     process.terminate()
     output, _ = process.communicate(timeout=60)
-    counts = [re.search(pattern, output) for pattern in (r"(\d+) report\(s\) evaluated", r"(\d+) shed")]
-    evaluated, shed = (int(match.group(1)) if match else 0 for match in counts)
-    return evaluated, shed, parse_stages(output)
+    return *summary_counts(output), parse_stages(output)
+
+
+def summary_counts(output: str) -> tuple[int, int]:
+    """The reports evaluated and shed that a gateway's summary line (``Gateway.summary``) in ``output`` gives.
+
+    Raises
+    ------
+    RuntimeError
+        Where ``output`` has no summary line.
+    """
+    counts = re.search(r"(\d+) report\(s\) evaluated, (\d+) shed", output)
+    if counts is None:
+        raise RuntimeError(f"csws jt808 stopped without its summary line: {output[-300:]!r}")
+    return int(counts.group(1)), int(counts.group(2))
 
 
 async def _loop_lag(lags_s: list[float], period_s: float = 0.01) -> None:
@@ -246,10 +259,11 @@ def run_scaleout(
     """Reports evaluated per second by one gateway and by two on one Redis, offered more than one can take.
 
     The terminals replay their tracks faster than recorded, each of ``speedups`` in turn until one
-    gateway sheds at least :data:`SATURATED_SHARE` of the reports offered: only then is its rate what
-    it can take rather than what the terminals offered. Two gateways are then offered the same. The
-    figure is what the gateways evaluated per second. Beside it, the CPU each kind of process used (the
-    gateways, Redis, the terminals in this process) and the best ratio the node allows
+    gateway sheds at least :data:`SATURATED_SHARE` of the reports it gets: only then is its rate what
+    it can take rather than what the terminals offered. Two gateways are then offered the same; where
+    they shed less than that share, their rate is the least two can take, not the most. The figure is
+    what the gateways evaluated per second. Beside it, the CPU each kind of process used (the gateways,
+    Redis, the terminals in this process) and the best ratio the node's cores allow
     (:func:`scaleout_bound`).
     """
     used: dict[int, dict[str, float]] = {}
@@ -261,6 +275,8 @@ def run_scaleout(
         try:
             for speedup in speedups:
                 tracks = city_tracks(VEHICLES, report_s * speedup)
+                if not tracks:
+                    raise RuntimeError(f"no vehicle of the city drove {report_s * speedup / 2:g} s for the tracks")
                 one = [_gateway(folder / "terminals.json", "--state", url)]
                 used[1] = _cores_used(_replaying(phones, tracks, report_s, speedup), one, redis_process.pid)
                 if used[1]["shed_per_s"] >= SATURATED_SHARE * used[1]["offered_per_s"]:
@@ -323,15 +339,14 @@ def scaleout_bound(one: dict[str, float], two: dict[str, float], cores: int) -> 
 
     Each report evaluated costs the gateways ``g`` and Redis ``r`` CPU seconds (as measured with one
     gateway); the terminals take ``s`` cores whatever the gateways do (they offer the same reports).
-    Two gateways then evaluate at most ``(cores - s) / (g + r)`` reports per second, at most twice what
-    one did alone (each gateway's evaluation is one thread), and at most what the terminals offered
-    them: over one gateway's rate, ``min(2, (cores - s) / ((g + r) * rate_1), offered_2 / rate_1)``.
-    Other work on the node lowers it further.
+    Two gateways then evaluate at most ``(cores - s) / (g + r)`` reports per second, and at most
+    twice what one did alone (each gateway's evaluation is one thread); over one gateway's rate:
+    ``min(2, (cores - s) / ((g + r) * rate_1))``. Other work on the node lowers it further.
     """
     rate = one["evaluated_per_s"]
     per_report_s = (one["gateway_cores"] + one["redis_cores"]) / rate
     simulator_cores = max(one["simulator_cores"], two["simulator_cores"])
-    return min(2.0, (cores - simulator_cores) / (per_report_s * rate), two["offered_per_s"] / rate)
+    return min(2.0, (cores - simulator_cores) / (per_report_s * rate))
 
 
 async def _split(simulated: list[tuple[SimulatedTerminal, int]], ports: list[int]) -> None:
@@ -400,8 +415,15 @@ def rows(figures: dict[str, Any]) -> list[Row]:
 
 
 def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
-    """The scale-out rows: the measured ratio and, beside it, the best the node allows."""
+    """The scale-out rows: the measured ratio and, beside it, the best the node's cores allow."""
     one, two = scaleout["one"], scaleout["two"]
+    saturated = [_share(used) >= SATURATED_SHARE for used in (one, two)]
+    reading = {
+        (True, True): "both saturated",
+        (True, False): "two took all they got: the least two can take",
+        (False, True): "one gateway not saturated: not a capacity ratio",
+        (False, False): "neither saturated: not a capacity ratio",
+    }[saturated[0], saturated[1]]
     return [
         at_least(
             "jt808: reports evaluated, 2 gateways on one Redis / 1",
@@ -409,11 +431,11 @@ def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
             TARGET_SCALEOUT,
             f"{scaleout['evaluated_per_s_2']:.0f} vs {scaleout['evaluated_per_s_1']:.0f} reports/s, "
             f"{scaleout['terminals']:,} terminals at {scaleout['speedup']:g} times their pace; "
-            f"shed {_share(one):.0%} by one gateway, {_share(two):.0%} by two; best the node allows "
-            f"{scaleout['bound']:.2f}",
+            f"shed {_share(one):.0%} by one gateway, {_share(two):.0%} by two ({reading}); "
+            f"best the cores allow {scaleout['bound']:.2f}",
         ),
         context(
-            "jt808: best 2-gateway ratio the node allows",
+            "jt808: best 2-gateway ratio the node's cores allow",
             scaleout["bound"],
             f"the terminals take {two['simulator_cores']:.2f} cores and offer {two['offered_per_s']:.0f} reports/s, "
             f"Redis {two['redis_cores']:.2f}, the gateways {two['gateway_cores']:.2f} "
@@ -429,7 +451,7 @@ def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
 
 
 def _share(used: dict[str, float]) -> float:
-    """The share of the reports offered that the gateways shed."""
+    """The share of the reports they got that the gateways shed."""
     return used["shed_per_s"] / used["offered_per_s"] if used["offered_per_s"] else 0.0
 
 

@@ -6,6 +6,7 @@ import math
 import sys
 from pathlib import Path
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -14,7 +15,7 @@ from csws.gateways.jt808.latency import StageTimes, parse_stages
 # The benchmarks are run from the repository, not installed: import them from there.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.jt808 import scaleout_bound  # noqa: E402
+from benchmarks.jt808 import scaleout_bound, summary_counts  # noqa: E402
 
 seconds = st.floats(min_value=0.0, max_value=5.0, allow_nan=False)
 
@@ -52,15 +53,12 @@ def test_a_group_counts_once_per_report_and_old_samples_are_forgotten():
     assert parse_stages("no stages here") == {}
 
 
-def _run(
-    rate: float, gateway_cores: float, redis_cores: float, simulator_cores: float, offered_per_s: float = math.inf
-) -> dict[str, float]:
+def _run(rate: float, gateway_cores: float, redis_cores: float, simulator_cores: float) -> dict[str, float]:
     return {
         "evaluated_per_s": rate,
         "gateway_cores": gateway_cores,
         "redis_cores": redis_cores,
         "simulator_cores": simulator_cores,
-        "offered_per_s": offered_per_s,
     }
 
 
@@ -71,14 +69,6 @@ def test_the_bound_is_the_cores_left_over_what_one_gateway_needed():
     assert math.isclose(scaleout_bound(one, _run(1200.0, 1.1, 0.1, 0.5), cores=2), 1.4)
     # Where the cores suffice, two single-threaded gateways at most double it.
     assert scaleout_bound(one, one, cores=8) == 2.0
-
-
-def test_the_bound_is_what_the_terminals_offered():
-    # Terminals that offer what one gateway took, 1000 reports/s, leave two gateways nothing more to
-    # evaluate however many cores they have; offering 1500/s allows 1.5 times one.
-    one = _run(1000.0, 0.5, 0.05, 0.3, offered_per_s=1000.0)
-    assert scaleout_bound(one, _run(1000.0, 0.6, 0.05, 0.3, offered_per_s=1000.0), cores=8) == 1.0
-    assert scaleout_bound(one, _run(1500.0, 0.8, 0.05, 0.4, offered_per_s=1500.0), cores=8) == 1.5
 
 
 @given(
@@ -94,3 +84,11 @@ def test_the_bound_falls_as_the_terminals_take_more_of_the_cores(rate, gateway_c
     assert bound <= 2.0
     heavier = _run(rate, gateway_cores, redis_cores, simulator + more)
     assert scaleout_bound(one, heavier, cores=2) <= bound + 1e-12
+
+
+def test_the_benchmark_reads_the_counts_of_the_gateways_summary_line_and_refuses_output_without_one():
+    # The summary's wording, as test_jt808_conversation holds Gateway.summary to it.
+    summary = "3 connection(s), 3558 report(s) evaluated, 2526 shed, 12 text(s) told, 0 tracking request(s), 1 ..."
+    assert summary_counts(f"jt808: a log line of 13900000001 shed\n{summary}\n") == (3558, 2526)
+    with pytest.raises(RuntimeError, match="without its summary line"):
+        summary_counts("Traceback (most recent call last):")
