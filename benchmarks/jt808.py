@@ -437,15 +437,14 @@ def _scaleout_rows(scaleout: dict[str, Any]) -> list[Row]:
         context(
             "jt808: best 2-gateway ratio the node's cores allow",
             scaleout["bound"],
-            f"the terminals take {two['simulator_cores']:.2f} cores and offer {two['offered_per_s']:.0f} reports/s, "
+            f"the terminals take {two['simulator_cores']:.2f} cores and send {two['offered_per_s']:.0f} reports/s, "
             f"Redis {two['redis_cores']:.2f}, the gateways {two['gateway_cores']:.2f} "
             f"(load {scaleout['load_1min']:.1f})",
         ),
         context(
             "jt808: gateway CPU per report, 1 gateway / 2, ms",
             f"{scaleout['gateway_ms_per_report_1']:.3f} / {scaleout['gateway_ms_per_report_2']:.3f}",
-            f"the gateways ran on {scaleout['one']['gateway_cores']:.2f} then {two['gateway_cores']:.2f} cores; "
-            "each of two forms groups half as large",
+            f"the gateways ran on {scaleout['one']['gateway_cores']:.2f} then {two['gateway_cores']:.2f} cores",
         ),
     ]
 
