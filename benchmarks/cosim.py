@@ -186,6 +186,11 @@ def _figures(runs: dict[str, dict]) -> dict:
             for name, run in runs.items()
             if "summary" in run
         },
+        "warned_share": {
+            name: run["summary"]["evaluation"]["vehicle_steps_warned_share"]
+            for name, run in runs.items()
+            if "summary" in run
+        },
         "once_s": {
             name: run["seconds"] - run["summary"]["wall_time_s"] for name, run in runs.items() if "summary" in run
         },
@@ -405,6 +410,11 @@ def _print(figures: dict) -> None:
             + (
                 f"  {figures['evaluated_share'][name]:.1%} of vehicle-steps evaluated"
                 if figures["evaluated_share"].get(name) is not None
+                else ""
+            )
+            + (
+                f", {figures['warned_share'][name]:.1%} with a curve warning on"
+                if figures["warned_share"].get(name)
                 else ""
             )
         )

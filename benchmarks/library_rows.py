@@ -270,8 +270,18 @@ def ssm_rows(figures: dict) -> list[Row]:
         context(
             "cosim: share of vehicle-steps evaluated (default / events only / both systems)",
             " / ".join(f"{share:.0%}" for share in shares_evaluated(figures)),
-        )
+            warned_text(figures["warned_share"]["events_only"]),
+        ),
+        context(
+            f"cosim: {cosim.VEHICLES:,} vehicles, peak memory MB (bare / default / events only)",
+            " / ".join(str(figures["peak_rss_mb"][name]) for name in ("bare", "default", "events_only")),
+        ),
     ]
+
+
+def warned_text(share: float | None) -> str:
+    """What any exact schedule evaluates: the vehicle-steps with a curve warning on (each evaluated every step)."""
+    return "" if share is None else f"{share:.0%} with a curve warning on (any schedule evaluates those every step)"
 
 
 def shares_evaluated(figures: dict) -> list[float]:
@@ -302,6 +312,11 @@ def city_rows(city: dict) -> list[Row]:
             f"cosim: {vehicles}, peak memory MB (bare / default / events only)",
             f"{peak['bare']} / {peak['default']} / {peak['events_only']}",
             f"by component, ms/step: {components}",
+        ),
+        context(
+            f"cosim: {vehicles}, share of vehicle-steps evaluated (default / events only)",
+            " / ".join(f"{city['evaluated_share'][name] or 1.0:.0%}" for name in ("default", "events_only")),
+            warned_text(city["warned_share"]["events_only"]),
         ),
     ]
 

@@ -12,6 +12,7 @@ Figure 2's state rule computed here.
 
 from __future__ import annotations
 
+import csv
 import math
 import random
 from pathlib import Path
@@ -96,11 +97,19 @@ def _fleet(folder: Path, edges: list[str], rng: random.Random, vehicles: int, bl
 
 
 def _both(scenario: Scenario, out: Path, **settings) -> tuple[Path, Path, dict]:
-    """Run the scenario every step and scheduled; their folders, and the scheduled run's summary."""
+    """Run the scenario every step (with its time series) and scheduled; their folders, and the scheduled run's
+    summary. Both give the share of vehicle-steps with a curve warning on that the time series shows, and the
+    scheduled run evaluated at least those (a warned vehicle is evaluated every step)."""
     every, scheduled = out / "every", out / "scheduled"
-    full = cosimulate(CosimConfig(scenario, every, evaluation="every-step", timeseries="none", **settings))
+    full = cosimulate(CosimConfig(scenario, every, evaluation="every-step", timeseries="csv", **settings))
     assert full["evaluation"]["mode"] == "every step"
     summary = cosimulate(CosimConfig(scenario, scheduled, evaluation="scheduled", timeseries="none", **settings))
+    with (every / "timeseries.csv").open(encoding="utf-8", newline="") as rows:
+        levels = [row["level"] for row in csv.DictReader(rows)]
+    warned_share = sum(level != "0" for level in levels) / len(levels)
+    assert full["evaluation"]["vehicle_steps_warned_share"] == pytest.approx(warned_share)
+    assert summary["evaluation"]["vehicle_steps_warned_share"] == pytest.approx(warned_share)
+    assert summary["evaluation"]["vehicle_steps_evaluated_share"] >= warned_share
     return every, scheduled, summary
 
 

@@ -106,6 +106,8 @@ class _Run:
         self.simulation: Simulation | None = None
         self.forward: FleetFcw | None = None
         self.schedule: RunSchedule | None = None
+        #: Vehicle-steps there were, and those with a curve warning on: a schedule evaluates the latter every step.
+        self.vehicle_steps = self.warned_steps = 0
         self.step_s = config.step_length_s  # SUMO's own, read once when it starts
         self.bar = Progress("cosim", config.end_s, "sim s", decimals=1, enabled=config.progress)
 
@@ -175,6 +177,8 @@ class _Run:
             with costs.timed("schedule"):
                 schedule.sleep(fleet, warnings, fcw, self.driver)
         self.summary.vehicles.update(fleet.vehicle_id)
+        self.vehicle_steps += simulation.vehicle_count
+        self.warned_steps += len(warnings.level) - warnings.level.count(0)
         self.summary.steps += 1
         self.summary.last_time_s = fleet.time_s
         self.bar.update(self.step_s)
@@ -316,6 +320,7 @@ def _summary_content(config: CosimConfig, run: _Run, status: str, wall_s: float)
         "evaluation": {
             "mode": "scheduled" if run.schedule is not None else "every step",
             "vehicle_steps_evaluated_share": None if run.schedule is None else run.schedule.evaluated_share(),
+            "vehicle_steps_warned_share": run.warned_steps / run.vehicle_steps if run.vehicle_steps else None,
         },
         "wall_time_s": round(wall_s, 3),
         "ms_per_step": run.costs.ms_per_step(summary.steps),
