@@ -162,14 +162,14 @@ class Engine:
         self.held.pop(vehicle_id, None)
         self.intervals.pop(vehicle_id, None)
 
-    def update_period_s(self, vehicle_id: str) -> float:
+    def update_period_s(self, vehicle_id: str, warning: WarningSettings | None = None) -> float:
         """The vehicle's update period as the warning takes it now: learnt from its timestamps, or the
-        configured one (:mod:`csws.warning.latency`), s."""
-        return latency.update_period_s(self.intervals.get(vehicle_id, ()), self.settings.warning)
+        configured one (:mod:`csws.warning.latency`; of ``warning`` where given, else the engine's), s."""
+        return latency.update_period_s(self.intervals.get(vehicle_id, ()), warning or self.settings.warning)
 
-    def _update_periods_s(self, vehicle_ids: Sequence[str]) -> np.ndarray:
+    def _update_periods_s(self, vehicle_ids: Sequence[str], warning: WarningSettings) -> np.ndarray:
         """:meth:`update_period_s` of many vehicles (:func:`csws.warning.latency.update_periods_s`), s."""
-        return np.array(latency.update_periods_s(self.intervals, vehicle_ids, self.settings.warning), dtype=float)
+        return np.array(latency.update_periods_s(self.intervals, vehicle_ids, warning), dtype=float)
 
     def _learn_interval(self, vehicle_id: str, last_timestamp_s: float | None, status: VehicleStatus) -> None:
         """Add the interval between the vehicle's last accepted fix and this one, if it was accepted."""
@@ -178,8 +178,11 @@ class Engine:
         if after is not before:
             self.intervals[vehicle_id] = after
 
-    def evaluate(self, vehicle: VehicleInput) -> Answer:
-        """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives)."""
+    def evaluate(self, vehicle: VehicleInput, warning: WarningSettings | None = None) -> Answer:
+        """The answer for one vehicle; its status is updated (the same answer :meth:`evaluate_many` gives).
+        ``warning``: the warning settings of this vehicle's fleet, where they are not the engine's
+        (:meth:`evaluate_fleet`)."""
+        settings = warning or self.settings.warning
         vehicle_id = vehicle.vehicle_id
         last_timestamp_s = self.status(vehicle_id).last_timestamp_s
         status = self._next_status(vehicle)
@@ -187,7 +190,7 @@ class Engine:
         if not status.warns:
             self.held.pop(vehicle_id, None)
             return Answer(vehicle_id, status.state, status.fault, no_warning(), None)
-        period_s = self.update_period_s(vehicle_id)
+        period_s = self.update_period_s(vehicle_id, settings)
         age_s = latency.fix_age_s(vehicle.age_s)
         path = self._lookahead_on_map()(
             _lanes_of_active((vehicle.lane_id,))[0],
@@ -198,19 +201,19 @@ class Engine:
             period_s,
             age_s,
         )
-        warning, memory = judge_one(
+        judged_warning, memory = judge_one(
             float(vehicle.speed_kmh),
             column_index(vehicle.category),
             path.cpoi_points(),
             path.kind,
             self.held.get(vehicle_id, NOT_HELD),
             vehicle.timestamp_s,
-            self.settings.warning,
+            settings,
             period_s,
             age_s,
         )
         keep_memory(self.held, vehicle_id, memory)
-        return Answer(vehicle_id, status.state, status.fault, warning, path)
+        return Answer(vehicle_id, status.state, status.fault, judged_warning, path)
 
     def _lookahead_on_map(self) -> LookAhead:
         """The look-ahead of the map; a vehicle is active (5.2) only where there is one."""
@@ -259,6 +262,7 @@ class Engine:
         *,
         timestamp_s: Sequence[float | None] | None = None,
         age_s: Sequence[float | None] | None = None,
+        warning: WarningSettings | None = None,
     ) -> FleetAnswers:
         """The answers for many vehicles given as columns (the fields of :class:`VehicleInput`), in order.
 
@@ -266,6 +270,11 @@ class Engine:
         look-ahead and the warning of every active vehicle are computed together, in one
         vectorised step each. A fleet whose vehicles keep their route objects from step to
         step (the co-simulation's) shares the look-up of their horizons.
+
+        ``warning`` are the warning settings of these vehicles' fleet where they are not the engine's:
+        its update period, whether it is learnt and up to what, and the release rule (a service's fleets
+        share one engine per network). The look-ahead's latency is the engine's; only those fields may
+        differ.
 
         Raises
         ------
@@ -300,6 +309,7 @@ class Engine:
         if active:
             rows = np.array(active, dtype=np.intp)
             ahead, judgement = self._warnings(
+                warning or self.settings.warning,
                 _of_active(vehicle_ids, active, everyone),
                 [None] * len(active) if timestamp_s is None else _of_active(timestamp_s, active, everyone),
                 [0.0] * len(active) if age_s is None else [latency.fix_age_s(age_s[i]) for i in active],
@@ -341,6 +351,7 @@ class Engine:
 
     def _warnings(
         self,
+        warning: WarningSettings,
         vehicle_ids: Sequence[str],
         now_s: Sequence[float | None],
         age_s: Sequence[float],
@@ -351,12 +362,11 @@ class Engine:
         route_edges: Sequence[Sequence[str] | None],
     ) -> tuple[BatchAhead, BatchWarnings]:
         """Look-ahead and clause 6 for active vehicles on known lanes, each in one vectorised step."""
-        periods_s = self._update_periods_s(vehicle_ids)
+        periods_s = self._update_periods_s(vehicle_ids, warning)
         ages_s = np.array(age_s, dtype=float)
         ahead = self._lookahead_on_map().many(lane_ids, lane_pos_m, speed_kmh, route_edges, periods_s, ages_s)
         kept = self.held
         held = [kept.get(vehicle_id, NOT_HELD) for vehicle_id in vehicle_ids] if kept else [NOT_HELD] * len(lane_ids)
-        warning = self.settings.warning
         ahead, recalled = with_recalled(held, now_s, speed_kmh, warning.hold_s(periods_s), ahead)
         first = np.searchsorted(ahead.cpoi_vehicle, np.arange(len(lane_ids) + 1)).tolist()
         batch, memories = judged(ahead, first, held, now_s, periods_s, ages_s, speed_kmh, columns, recalled, warning)

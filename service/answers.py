@@ -33,6 +33,7 @@ from csws.road.match_settings import MatchSettings
 from csws.standard import Category
 from csws.state import Fault, SystemState, overtaken
 from csws.warning.rules import CurveWarning, PathKind
+from csws.warning.settings import WarningSettings
 
 from .batch_items import UNANSWERABLE_QUERY, ItemErrors, item_error, problems_by_query
 from .checks import QueryCheck, QueryErrors
@@ -49,6 +50,7 @@ from .placement import LanePoints, Placement, Placer
 from .sessions import LatestAnswer
 from .timing import UNTIMED, Stages
 from .vehicles import LoadedVehicles, VehicleRegistry
+from .warning_settings import FleetWarningSettings
 
 __all__ = ["QueryErrors", "Placement", "Evaluated", "EncodedAnswers", "WarningService"]
 
@@ -108,6 +110,8 @@ class WarningService:
         Map matching tolerances.
     fcw_settings
         The forward collision warning's settings per fleet and category (default: the library's by category).
+    warning_settings
+        The curve warning's update period and release rule per fleet (default: the engines' for every fleet).
     """
 
     def __init__(
@@ -116,10 +120,12 @@ class WarningService:
         registry: VehicleRegistry,
         match_settings: MatchSettings,
         fcw_settings: FleetFcwSettings | None = None,
+        warning_settings: FleetWarningSettings | None = None,
     ) -> None:
         self.networks = list(networks)
         self.registry = registry
         self.fcw_settings = fcw_settings if fcw_settings is not None else FleetFcwSettings()
+        self.warning_settings = warning_settings
         self.cpoi_positions = [CpoiPositions(network) for network in self.networks]
         self.lane_points = [LanePoints(network.road_map) for network in self.networks]
         self.checks = QueryCheck(self.networks)
@@ -250,6 +256,7 @@ class WarningService:
                     [queries[row] for row in rows],
                     [placements[row] for row in rows],
                     [categories[row] for row in rows],
+                    fleet,
                 )
             with stages("encode"):
                 self._record(queries, categories, indices, placements, rows, evaluated, vehicles, answers, fleet)
@@ -298,27 +305,37 @@ class WarningService:
                     observed = observed_of(document, _event_time(query, now_s))
                     vehicles.observe_fcw(query.vehicle_id, answer["level"], answer.get("target_id"), observed)
 
+    def warning_of(self, fleet: str, network_index: int) -> WarningSettings:
+        """The curve warning's settings of ``fleet``'s vehicles on a network: its engine's, with what the fleet's
+        warning settings pin (:mod:`service.warning_settings`)."""
+        if self.warning_settings is None:
+            return self.networks[network_index].engine.settings.warning
+        return self.warning_settings.of(fleet)
+
     def evaluate(
         self,
         network_index: int,
         queries: Sequence[DecodedQuery],
         placements: Sequence[Placement],
         categories: Sequence[Category],
+        fleet: str = "",
     ) -> Evaluated:
-        """The engine's answers for placed queries of distinct vehicles of ``categories`` on one network, as columns.
+        """The engine's answers for placed queries of distinct vehicles of ``categories`` of ``fleet`` on one network,
+        as columns, with the fleet's warning settings (:meth:`warning_of`).
 
         One vehicle takes the engine's one-vehicle path; more are evaluated as columns in one
         :meth:`csws.engine.Engine.evaluate_fleet`, with no object per vehicle beyond its warning.
         Both give the same answers.
         """
         engine = self.networks[network_index].engine
+        warning = self.warning_of(fleet, network_index)
         if len(queries) == 1:
-            answer = engine.evaluate(self.vehicle_input(queries[0], placements[0], categories[0]))
+            answer = engine.evaluate(self.vehicle_input(queries[0], placements[0], categories[0]), warning)
             kind = None if answer.path is None else answer.path.kind
             return Evaluated(
                 [answer.vehicle_id], [answer.state], [answer.fault], [answer.warning], [kind], lambda _row: answer.path
             )
-        fleet = engine.evaluate_fleet(
+        answers = engine.evaluate_fleet(
             [query.vehicle_id for query in queries],
             categories,
             [query.speed_kmh for query in queries],
@@ -327,20 +344,23 @@ class WarningService:
             [tuple(query.route) if query.route else None for query in queries],
             timestamp_s=[query.timestamp_s for query in queries],
             age_s=[query.age_s for query in queries],
+            warning=warning,
         )
         kinds: list[PathKind | None] = [None] * len(queries)
         ahead_row = {}
-        ahead = fleet.ahead
+        ahead = answers.ahead
         if ahead is None:  # no vehicle looked ahead
-            return Evaluated(fleet.vehicle_id, fleet.state, fleet.fault, fleet.warning, kinds, lambda _row: None)
-        for k, (row, horizon) in enumerate(zip(fleet.active, ahead.horizons, strict=True)):
+            return Evaluated(
+                answers.vehicle_id, answers.state, answers.fault, answers.warning, kinds, lambda _row: None
+            )
+        for k, (row, horizon) in enumerate(zip(answers.active, ahead.horizons, strict=True)):
             kinds[row] = horizon.kind
             ahead_row[row] = k
         return Evaluated(
-            fleet.vehicle_id,
-            fleet.state,
-            fleet.fault,
-            fleet.warning,
+            answers.vehicle_id,
+            answers.state,
+            answers.fault,
+            answers.warning,
             kinds,
             lambda row: ahead.path_ahead(ahead_row[row]) if row in ahead_row else None,
         )

@@ -42,6 +42,7 @@ from .routes import docs, events, map, match, ops, traccar, vehicles, warnings, 
 from .settings import ServiceSettings
 from .store import StoreUnavailable, open_store
 from .vehicles import VehicleRegistry
+from .warning_settings import FleetWarningSettings
 from .work import WorkThread
 from .workers import leave_with_master
 
@@ -112,7 +113,11 @@ def _share(
     state = app.state
     state.settings, state.store, state.registry = settings, store, registry
     state.service = WarningService(
-        networks, registry, settings.match_settings(), FleetFcwSettings(settings.fcw_settings_file)
+        networks,
+        registry,
+        settings.match_settings(),
+        FleetFcwSettings(settings.fcw_settings_file),
+        FleetWarningSettings(settings.engine_settings().warning, settings.warning_settings_file),
     )
     state.metrics, state.map_data = Metrics(), MapData(networks)
     # The work (queries and batches with their round trips to the state store, the curve index,

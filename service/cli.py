@@ -80,6 +80,14 @@ def _add_serve(commands: argparse._SubParsersAction) -> None:
         help="the forward collision warning's settings per fleet (service.fcw_settings); default: by category",
     )
     parser.add_argument(
+        "--warning-settings",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the curve warning's update period and release rule per fleet (service.warning_settings); "
+        "default: the service's for every fleet",
+    )
+    parser.add_argument(
         "--insecure", action="store_true", default=None, help="serve without API keys on an address other than loopback"
     )
     parser.add_argument(

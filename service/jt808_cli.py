@@ -84,6 +84,13 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     gateway.add_argument("--texts", type=Path, default=None, metavar="FILE", help="the drivers' texts per fleet (JSON)")
     gateway.add_argument(
+        "--warning-settings",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the curve warning's update period and release rule per fleet, as csws serve's",
+    )
+    gateway.add_argument(
         "--no-tracking",
         action="append",
         default=[],
@@ -192,7 +199,9 @@ def main(args: argparse.Namespace) -> int:
     texts = load_fleet_texts(args.texts) if args.texts is not None else {}
     tls = _tls(args)
     factory = loop_factory(args.loop)
-    service_args = argparse.Namespace(net=args.net, state=args.state, state_db=args.state_db)
+    service_args = argparse.Namespace(
+        net=args.net, state=args.state, state_db=args.state_db, warning_settings=args.warning_settings
+    )
     # Terminals are admitted by the terminal file; the fleets' API keys are the HTTP API's, not read here.
     state = create_app(settings_from_args(service_args).model_copy(update={"api_keys_file": None})).state
     if not any(network.road_map.has_projection for network in state.service.networks):

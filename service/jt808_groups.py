@@ -192,7 +192,13 @@ class Batcher:
             with stages("tracking"):
                 for row, query, intervals_s in due:
                     windows[row] = _tracking_window_s(
-                        planner, query, answers.category[row], answers.state[row], answers.placement[row], intervals_s
+                        planner,
+                        query,
+                        answers.category[row],
+                        answers.state[row],
+                        answers.placement[row],
+                        intervals_s,
+                        fleet,
                     )
         return [
             AnswerSummary(str(state.value), int(level), warning_speed_kmh, window_s)
@@ -209,11 +215,12 @@ def _tracking_window_s(
     state: SystemState,
     placement: Placement | None,
     intervals_s: Sequence[float],
+    fleet: str,
 ) -> int | None:
-    """The tracking window a report asks for (None: none), where a fault of the planner costs only the
+    """The tracking window a report of ``fleet`` asks for (None: none), where a fault of the planner costs only the
     request, never the report's answer: temporary tracking is advice, the warning is not."""
     try:
-        return planner.window_s(query, category, state, placement, intervals_s)
+        return planner.window_s(query, category, state, placement, intervals_s, fleet)
     except Exception:  # noqa: BLE001 - one report's tracking must not take its group's answers with it
         log.exception("jt808: no tracking window for %s", query.vehicle_id)
         return None

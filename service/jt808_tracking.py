@@ -59,10 +59,12 @@ class TrackingPlanner:
         state: SystemState,
         placement: Placement | None,
         intervals_s: Sequence[float],
+        fleet: str = "",
     ) -> int | None:
-        """The tracking window to ask for after ``query``'s answer (for a vehicle of ``category``, its system state
-        ``state``, the query placed at ``placement``), s, for a terminal whose regular intervals are
-        ``intervals_s``; None when its vehicle is not active on a matched lane or no curve is near.
+        """The tracking window to ask for after ``query``'s answer (for a vehicle of ``category`` of ``fleet``, its
+        system state ``state``, the query placed at ``placement``), s, for a terminal whose regular intervals are
+        ``intervals_s``; None when its vehicle is not active on a matched lane or no curve is near. The warning's
+        settings are the fleet's (:meth:`service.answers.WarningService.warning_of`).
 
         The path ahead is the one the engine looks along from the same lane (the most probable path), as far
         as the warning needs at the terminal's period and one regular interval more.
@@ -73,7 +75,7 @@ class TrackingPlanner:
         engine = self.service.networks[index].engine
         if engine is None or engine.lookahead is None:
             return None
-        warning = engine.settings.warning
+        warning = self.service.warning_of(fleet, index)
         age_s = fix_age_s(query.age_s)
         try:
             reach_period_s = update_period_s(intervals_s, warning) + statistics.median(intervals_s)

@@ -30,6 +30,7 @@ _OPTIONS = {
     "update_period_s": "update_period_s",
     "api_keys": "api_keys_file",
     "fcw_settings": "fcw_settings_file",
+    "warning_settings": "warning_settings_file",
     "insecure": "insecure",
     "public_docs": "public_docs",
     "mqtt": "mqtt",

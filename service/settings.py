@@ -11,7 +11,8 @@ the same way as ``csws serve``:
 ``CSWS_UPDATE_PERIOD_S``, ``CSWS_LEARN_UPDATE_PERIOD``, ``CSWS_ACTIVATION_SPEED_KMH``,
 ``CSWS_MAX_UPDATE_PERIOD_S``, ``CSWS_SYSTEM_DELAY_S``, ``CSWS_RELEASE_MARGIN_KMH``, ``CSWS_RELEASE_HOLD_S``,
 ``CSWS_RELEASE_HOLD_INTERVALS``,
-``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_INSECURE``, ``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
+``CSWS_API_KEYS_FILE``, ``CSWS_FCW_SETTINGS_FILE``, ``CSWS_WARNING_SETTINGS_FILE``, ``CSWS_INSECURE``,
+``CSWS_PUBLIC_DOCS``, ``CSWS_MAX_BODY_BYTES``,
 ``CSWS_BODY_TIMEOUT_S``, ``CSWS_HEAD_TIMEOUT_S``,
 ``CSWS_MQTT``, ``CSWS_WEBHOOKS_FILE``, ``CSWS_WEBHOOK_ALLOW_PRIVATE``, ``CSWS_PUSH_DB`` (push, docs/push.md).
 
@@ -192,6 +193,11 @@ class ServiceSettings(BaseSettings):
         description="the forward collision warning's settings per fleet (service.fcw_settings); without it each "
         "vehicle's category's",
     )
+    warning_settings_file: Path | None = Field(
+        default=None,
+        description="the curve warning's update period and release rule per fleet (service.warning_settings); "
+        "without it the service's for every fleet",
+    )
     insecure: bool = Field(default=False, description="serve without API keys on an address other than loopback")
     max_body_bytes: int = Field(default=16 * 2**20, gt=0, description="the largest request body accepted, bytes")
     body_timeout_s: float = Field(default=10.0, gt=0, description="a client pausing this long in its body gets 408, s")
@@ -244,7 +250,7 @@ class ServiceSettings(BaseSettings):
             raise ValueError("give a Redis URL, redis://HOST:PORT/DB (or rediss:// or unix://), or nothing for SQLite")
         return value
 
-    @field_validator("api_keys_file", "fcw_settings_file", "webhooks_file", mode="before")
+    @field_validator("api_keys_file", "fcw_settings_file", "warning_settings_file", "webhooks_file", mode="before")
     @classmethod
     def _no_file(cls, value):
         return None if isinstance(value, str) and not value.strip() else value

@@ -48,8 +48,11 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(tmp_path: Path):
     listed = tmp_path / "listed.json"
     assert csws("terminals", "add", "acme", "13800138000", "--category", "N", "--file", str(listed)).returncode == 0
     no_lonlat = str(networks_dir() / "single_r120_left.net.xml")  # x, y only: a report's lon/lat has no place there
+    settings = tmp_path / "warning.json"
+    settings.write_text(json.dumps({"format": "csws-warning-settings/1", "fleets": {"acme": {"release_hold_s": -1}}}))
     cases = [
         ("jt808", "--terminals", str(tmp_path / "missing.json")),
+        ("jt808", "--terminals", str(listed), "--warning-settings", str(settings), "--port", "0"),
         ("jt808", "--terminals", str(listed), "--net", no_lonlat, "--port", "0"),
         ("terminals", "add", "acme", "12ab", "--category", "N", "--file", str(tmp_path / "t.json")),
         ("terminals", "add", "acme", "1380", "--category", "X9", "--file", str(tmp_path / "t.json")),
