@@ -5,12 +5,13 @@ from __future__ import annotations
 import json
 import math
 import statistics
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from csws.engine import Engine, VehicleInput
+from csws.engine import Engine, EngineSettings, VehicleInput
 from csws.networks import networks_dir
 from csws.road.roadmap import RoadMap
 from csws.state import ActivationSettings, Fault, SystemState, VehicleStatus, next_status, next_statuses, switch
@@ -153,3 +154,45 @@ def test_a_fleet_on_shared_clocks_learns_each_vehicles_own_intervals_and_answers
             if len(gaps) >= latency.MIN_INTERVALS:
                 expected_s = min(statistics.median(gaps), WarningSettings().max_update_period_s)
                 assert fleet_engine.update_period_s(vehicle_id) == expected_s
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    period_s=st.floats(0.1, 8.0),
+    learn=st.booleans(),
+    hold_s=st.floats(0.0, 3.0),
+    margin_kmh=st.floats(0.0, 5.0),
+    speeds=st.lists(st.floats(50.0, 130.0), min_size=4, max_size=10),
+)
+def test_a_fleets_warning_settings_given_per_call_answer_as_an_engine_built_with_them(
+    track, period_s, learn, hold_s, margin_kmh, speeds
+):
+    """The update period, its learning and the release rule of one fleet, passed with its vehicles, answer each
+    fix as an engine whose own settings they are, in the fleet's step and in the one-vehicle path."""
+    road_map, truth = track
+    route = tuple(truth["route"]["edges"])
+    curve_s = truth["curves"][0]["start_s"]
+    warning = replace(
+        WarningSettings(),
+        update_period_s=period_s,
+        learn_update_period=learn,
+        release_hold_s=hold_s,
+        release_margin_kmh=margin_kmh,
+    )
+    shared, single, own = Engine(road_map), Engine(road_map), Engine(road_map, EngineSettings(warning=warning))
+    for step, speed_kmh in enumerate(speeds):
+        s = curve_s - 200.0 + 25.0 * step
+        lane = next(lane for lane in reversed(truth["lanes"]) if lane["start_s"] <= s)
+        vehicles = [
+            VehicleInput(vehicle_id, category, speed_kmh, lane["lane"], s - lane["start_s"], route, 10.0 + step)
+            for vehicle_id, category in (("car", "M1"), ("truck", "N"))
+        ]
+        columns = [[getattr(v, name) for v in vehicles] for name in ("vehicle_id", "category", "speed_kmh", "lane_id")]
+        positions, routes, times = [v.lane_pos_m for v in vehicles], [route] * 2, [v.timestamp_s for v in vehicles]
+        given_settings = shared.evaluate_fleet(*columns, positions, routes, timestamp_s=times, warning=warning)
+        built_with_them = own.evaluate_fleet(*columns, positions, routes, timestamp_s=times)
+        assert given_settings.warning == built_with_them.warning
+        assert given_settings.warning == [single.evaluate(v, warning).warning for v in vehicles]
+        for vehicle in vehicles:
+            assert shared.memory(vehicle.vehicle_id) == own.memory(vehicle.vehicle_id)
+            assert shared.update_period_s(vehicle.vehicle_id, warning) == own.update_period_s(vehicle.vehicle_id)
