@@ -47,8 +47,7 @@ __all__ = [
     "SLEEP_CAP_S",
     "FcwSchedule",
     "first_meeting_steps",
-    "smallest_position_factor",
-    "widest_road_m",
+    "network_spread",
     "steps_state_kept",
 ]
 
@@ -117,25 +116,19 @@ def steps_state_kept(
     return max(1, min(steps))
 
 
-def widest_road_m(lane: Any) -> float:
-    """The widest road's width (the sum of its lanes' widths), m, read once through SUMO's ``lane`` domain."""
+def network_spread(lane: Any) -> tuple[float, float]:
+    """The widest road's width (the sum of its lanes' widths), m, and the smallest lane-length per
+    shape-length factor of the network's lanes (at most 1), read once through SUMO's ``lane`` domain."""
     widths: dict[str, float] = {}
+    factor = 1.0
     for lane_id in lane.getIDList():
         edge = lane.getEdgeID(lane_id)
         widths[edge] = widths.get(edge, 0.0) + float(lane.getWidth(lane_id))
-    return max(widths.values(), default=0.0)
-
-
-def smallest_position_factor(lane: Any) -> float:
-    """The smallest lane-length per shape-length factor of the network's lanes (at most 1), read once through
-    SUMO's ``lane`` domain."""
-    factor = 1.0
-    for lane_id in lane.getIDList():
         shape = np.asarray(lane.getShape(lane_id), dtype=float)
         shape_m = float(np.hypot(*np.diff(shape, axis=0).T).sum()) if len(shape) > 1 else 0.0
         if shape_m > 0.0:
             factor = min(factor, float(lane.getLength(lane_id)) / shape_m)
-    return factor
+    return max(widths.values(), default=0.0), factor
 
 
 class FcwSchedule:
@@ -148,7 +141,7 @@ class FcwSchedule:
     range_m
         The largest range of concern of the categories, m.
     road_width_m, position_factor
-        :func:`widest_road_m` and :func:`smallest_position_factor` of the network.
+        :func:`network_spread` of the network.
     """
 
     def __init__(self, step_s: float, range_m: float, road_width_m: float, position_factor: float) -> None:

@@ -34,7 +34,7 @@ from .config import CosimConfig, Scenario, bundled_scenario, default_timeseries_
 from .driver import DriverResponse, DriverSettings
 from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError, ServiceEvaluator
 from .fcw import FcwColumns, FleetFcw, respond_to_fcw
-from .fcw_schedule import FcwSchedule, smallest_position_factor, widest_road_m
+from .fcw_schedule import FcwSchedule, network_spread
 from .geo import network_location
 from .recording import Streams, Tracker, record_step
 from .records import StepCosts, Summary, write_summary
@@ -132,16 +132,13 @@ class _Run:
         forward = self.forward = FleetFcw(simulation.api) if config.fcw else None
         self.step_s = simulation.step_length_s
         if config.scheduled:
-            road_width_m = widest_road_m(simulation.api.lane)
             curve = None
             if isinstance(self.evaluator, LibraryEvaluator):
-                warning = self.evaluator.engine.settings.warning
-                curve = (WakeSchedule(self.step_s, warning, road_width_m), self.evaluator)
+                curve = (WakeSchedule(self.step_s, self.evaluator.engine.settings.warning), self.evaluator)
             fcw = None
             if forward is not None:
                 range_m = max(FcwSettings.for_category(category).range_m for category in Category)
-                factor = smallest_position_factor(simulation.api.lane)
-                fcw_schedule = FcwSchedule(self.step_s, range_m, road_width_m, factor)
+                fcw_schedule = FcwSchedule(self.step_s, range_m, *network_spread(simulation.api.lane))
                 fcw = (fcw_schedule, forward, simulation.fastest_lane_mps)
             self.schedule = RunSchedule(curve, fcw)
         return simulation

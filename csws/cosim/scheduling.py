@@ -14,7 +14,6 @@ from collections.abc import Container, Sequence
 import numpy as np
 
 from csws.engine import Engine, VehicleMemory
-from csws.warning.rules import column_indices
 
 from .driver import DriverResponse
 from .evaluators import FleetWarnings, LibraryEvaluator
@@ -216,11 +215,10 @@ def _sleep_curve(
         return
     rows = active[quiet]
     horizons = [ahead.horizons[k] for k in quiet.tolist()]
-    columns = column_indices([fleet.category[row] for row in rows.tolist()])
-    road = schedule.parts.ahead(horizons, ahead.vehicle_s[quiet], columns)
+    distances_m, factors = schedule.parts.distances_m(horizons, ahead.vehicle_s[quiet])
     speeds_mps = fleet.speed_mps[rows]
-    due = np.flatnonzero(~schedule.awake_next_step(speeds_mps, road))
+    due = np.flatnonzero(~schedule.awake_next_step(speeds_mps, distances_m, factors))
     if due.size:
         ids = [vehicle_ids[row] for row in rows[due].tolist()]
         periods_s = np.array([engine.update_period_s(vehicle_id) for vehicle_id in ids], dtype=float)
-        schedule.sleep(step, ids, speeds_mps[due], road.of(due), periods_s)
+        schedule.sleep(step, ids, speeds_mps[due], distances_m[due], factors[due], periods_s)
