@@ -414,7 +414,7 @@ def _print(figures: dict) -> None:
             )
             + (
                 f", {figures['warned_share'][name]:.1%} with a curve warning on"
-                if figures["warned_share"].get(name)
+                if figures["warned_share"].get(name) is not None
                 else ""
             )
         )

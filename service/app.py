@@ -103,6 +103,8 @@ def _share(
         If the state store cannot be opened, reached or read.
     """
     networks = load_networks(settings.nets, settings.engine_settings(), progress)
+    fcw_settings = FleetFcwSettings(settings.fcw_settings_file)
+    warning_settings = FleetWarningSettings(settings.engine_settings().warning, settings.warning_settings_file)
     store = open_store(settings, clock)
     try:
         store.check()
@@ -112,13 +114,7 @@ def _share(
     registry = VehicleRegistry([n.name for n in networks], [n.engine for n in networks], store)
     state = app.state
     state.settings, state.store, state.registry = settings, store, registry
-    state.service = WarningService(
-        networks,
-        registry,
-        settings.match_settings(),
-        FleetFcwSettings(settings.fcw_settings_file),
-        FleetWarningSettings(settings.engine_settings().warning, settings.warning_settings_file),
-    )
+    state.service = WarningService(networks, registry, settings.match_settings(), fcw_settings, warning_settings)
     state.metrics, state.map_data = Metrics(), MapData(networks)
     # The work (queries and batches with their round trips to the state store, the curve index,
     # horizons) runs on a thread of its own, in arrival order (service.work).

@@ -10,10 +10,10 @@ learnt, or a release rule that holds a level longer. The file::
 
 A fleet's block may set the fields of :data:`SETTABLE` (of :class:`csws.warning.settings.WarningSettings`);
 the others (the warning speeds, the system's delay, formula (1)'s g) are the service's for every fleet, as
-the look-ahead of a served network is shared by its fleets. The library's checks apply. The file is read at
-start-up by every worker alike; a file that cannot be read, or a block the library refuses, stops start-up
-with one line naming the file. A fleet not in the file, and the service without keys (the fleet ``""``), take
-the service's settings.
+the look-ahead of a served network is shared by its fleets. The library's checks apply. The file is read once
+at start-up, before the workers start, so all of them answer a fleet alike; a file that cannot be read, or a
+block the library refuses, stops start-up with one line naming the file. A fleet not in the file, and the
+service without keys (the fleet ``""``, which the file cannot name), take the service's settings.
 """
 
 from __future__ import annotations
@@ -81,6 +81,8 @@ def _read(path: Path, service: WarningSettings) -> dict[str, WarningSettings]:
     fleets = content.get("fleets", {})
     if unknown or not isinstance(fleets, dict):
         raise ValueError(f"{path}: expected format and fleets (an object by fleet name), got {unknown or fleets!r}")
+    if "" in fleets:
+        raise ValueError(f"{path}: a fleet's block needs the fleet's name (the service without keys takes its own)")
     return {str(name): _fleet_settings(f"{path}: fleet {name!r}", block, service) for name, block in fleets.items()}
 
 
@@ -96,8 +98,10 @@ def _fleet_settings(where: str, block: Any, service: WarningSettings) -> Warning
         if SETTABLE[name] != is_flag or not (is_flag or isinstance(value, int | float)):
             kind = "true or false" if SETTABLE[name] else "a number"
             raise ValueError(f"{where}: {name} must be {kind}, got {value!r}")
-    changes: dict[str, Any] = {name: value if SETTABLE[name] else float(value) for name, value in block.items()}
     try:
+        changes: dict[str, Any] = {name: value if SETTABLE[name] else float(value) for name, value in block.items()}
         return replace(service, **changes)
+    except OverflowError:
+        raise ValueError(f"{where}: a number is too large") from None
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
