@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from csws.cli import deferred
+from csws.cli.argtypes import positive_float, positive_int
 
 __all__ = [
     "EVENT_LOOPS",
@@ -97,7 +98,24 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         metavar="FLEET",
         help="never ask this fleet's slow terminals for 1 s reports near a curve (0x8202); '*' for every fleet",
     )
-    gateway.add_argument("--idle-s", type=float, default=180.0, help="close a connection silent this long, s")
+    gateway.add_argument(
+        "--idle-s", type=positive_float, default=180.0, help="close a connection silent this long, s (default 180)"
+    )
+    gateway.add_argument(
+        "--max-connections",
+        type=positive_int,
+        default=20_000,
+        help="close connections beyond this many at once (default 20,000)",
+    )
+    gateway.add_argument(
+        "--frames-per-s",
+        type=positive_float,
+        default=20.0,
+        help="frames a second one connection may send on average; the excess is dropped (default 20)",
+    )
+    gateway.add_argument(
+        "--frames-burst", type=positive_float, default=60.0, help="frames one connection may send at once (default 60)"
+    )
     gateway.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="serve TLS with this certificate")
     gateway.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="the certificate's private key")
     gateway.add_argument(
@@ -213,6 +231,9 @@ def main(args: argparse.Namespace) -> int:
         host=args.host,
         port=args.port,
         idle_s=args.idle_s,
+        frames_per_s=args.frames_per_s,
+        frames_burst=args.frames_burst,
+        max_connections=args.max_connections,
         fleet_texts=texts,
         untracked_fleets=frozenset(args.no_tracking),
     )

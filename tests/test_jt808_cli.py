@@ -53,6 +53,8 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(tmp_path: Path):
     cases = [
         ("jt808", "--terminals", str(tmp_path / "missing.json")),
         ("jt808", "--terminals", str(listed), "--warning-settings", str(settings), "--port", "0"),
+        ("jt808", "--terminals", str(listed), "--max-connections", "0"),
+        ("jt808", "--terminals", str(listed), "--frames-per-s", "nan"),
         ("jt808", "--terminals", str(listed), "--net", no_lonlat, "--port", "0"),
         ("terminals", "add", "acme", "12ab", "--category", "N", "--file", str(tmp_path / "t.json")),
         ("terminals", "add", "acme", "1380", "--category", "X9", "--file", str(tmp_path / "t.json")),
