@@ -42,7 +42,8 @@ direction for 300 s (sparse traffic, where the FCW's schedule lets vehicles slee
 vehicle-steps any exact FCW schedule must evaluate on the small fleet (a vehicle ahead on its road whose
 braking at its emergency deceleration could bring a warning at once). ``python -m benchmarks.cosim --city 10``
 runs the city alone for 10 simulated seconds, with events only evaluated every step beside the scheduled run
-(the schedule's own cost is its ``schedule`` component); ``python -m benchmarks.cosim --fleet`` the fleet road
+(the schedule's own cost is its ``schedule`` component), and says whether their ``warnings.csv`` and
+``entries.csv`` are the same bytes; ``python -m benchmarks.cosim --fleet`` the fleet road
 alone with the curve warning's runs (bare, read only, default, events only scheduled and every step). Each run
 also gives what it spends once, before its first step (``once_s``: the map's load): its whole time less the
 summary's wall time.
@@ -389,7 +390,13 @@ def _city_figures(work: Path, duration_s: float = CITY_DURATION_S, every_step: b
         )
     runs = {"bare": _in_own_process(_bare_run, scenario, duration_s)}
     runs |= {name: _in_own_process(_csws_run, config) for name, config in configs.items()}
-    return _figures(runs)
+    figures = _figures(runs)
+    if every_step:
+        scheduled, every = configs["events_only"].out, configs["events_every_step"].out
+        figures["same_events_as_every_step"] = all(
+            (scheduled / name).read_bytes() == (every / name).read_bytes() for name in ("warnings.csv", "entries.csv")
+        )
+    return figures
 
 
 def run() -> dict:
@@ -452,7 +459,8 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
         "--city",
         type=float,
         metavar="SECONDS",
-        help="the city alone for SECONDS simulated seconds, with events only evaluated every step beside scheduled",
+        help="the city alone for SECONDS simulated seconds, with events only evaluated every step beside scheduled "
+        "(and their warnings.csv and entries.csv compared)",
     )
 
 
@@ -461,7 +469,10 @@ def main() -> None:
     options = arguments("benchmarks.cosim", __doc__, _add_arguments)
     if options.city is not None:
         with tempfile.TemporaryDirectory(prefix="csws-bench-cosim-") as work:
-            _print(_city_figures(Path(work), options.city, every_step=True))
+            city = _city_figures(Path(work), options.city, every_step=True)
+        _print(city)
+        same = "the same bytes" if city["same_events_as_every_step"] else "DIFFER"
+        print("warnings.csv and entries.csv of events only, scheduled and every step:", same)
         return
     if options.fleet:
         _print(fleet_run())
