@@ -101,8 +101,11 @@ def _share(
         If a network cannot be read.
     OSError
         If the state store cannot be opened, reached or read.
+    ValueError
+        If the API key file or a settings file (FCW, warning) cannot be read; read before the store opens.
     """
     networks = load_networks(settings.nets, settings.engine_settings(), progress)
+    keyring = KeyRing(settings.api_keys_file) if settings.api_keys_file is not None else None
     fcw_settings = FleetFcwSettings(settings.fcw_settings_file)
     warning_settings = FleetWarningSettings(settings.engine_settings().warning, settings.warning_settings_file)
     store = open_store(settings, clock)
@@ -123,7 +126,7 @@ def _share(
     # warnings never queue behind one; the two share the interpreter, each getting its turns.
     state.traces = WorkThread("csws-traces", pause_gc=False)
     state.answering = Answering(state.service, state.work, state.metrics)
-    state.keyring = KeyRing(settings.api_keys_file) if settings.api_keys_file is not None else None
+    state.keyring = keyring
 
 
 @asynccontextmanager
@@ -165,7 +168,7 @@ def create_app(
     OSError
         If the state store cannot be opened, reached or read (one line naming it).
     ValueError
-        If the API key file or the FCW settings file cannot be read.
+        If the API key file, the FCW settings file or the warning settings file cannot be read.
     """
     settings = settings if settings is not None else ServiceSettings()
     app = FastAPI(

@@ -114,7 +114,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         help="frames a second one connection may send on average; the excess is dropped (default 20)",
     )
     gateway.add_argument(
-        "--frames-burst", type=positive_float, default=60.0, help="frames one connection may send at once (default 60)"
+        "--frames-burst",
+        type=_burst,
+        default=60.0,
+        help="frames one connection may send at once, 1 or more (default 60)",
     )
     gateway.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="serve TLS with this certificate")
     gateway.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="the certificate's private key")
@@ -201,6 +204,14 @@ def _tls(args: argparse.Namespace) -> ssl.SSLContext | None:
     except (OSError, ssl.SSLError) as error:
         raise ValueError(f"cannot load the TLS certificate: {error}") from None
     return context
+
+
+def _burst(text: str) -> float:
+    """``--frames-burst``: a finite number of frames, at least 1 (below, no frame is ever let through)."""
+    value = positive_float(text)
+    if value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be at least 1 frame: {text!r}")
+    return value
 
 
 def main(args: argparse.Namespace) -> int:

@@ -93,15 +93,17 @@ def _fleet_settings(where: str, block: Any, service: WarningSettings) -> Warning
     unknown = sorted(set(block) - set(SETTABLE))
     if unknown:
         raise ValueError(f"{where}: unknown setting(s) {unknown}; known: {sorted(SETTABLE)}")
+    changes: dict[str, Any] = {}
     for name, value in block.items():
         is_flag = isinstance(value, bool)
         if SETTABLE[name] != is_flag or not (is_flag or isinstance(value, int | float)):
             kind = "true or false" if SETTABLE[name] else "a number"
             raise ValueError(f"{where}: {name} must be {kind}, got {value!r}")
+        try:
+            changes[name] = value if is_flag else float(value)
+        except OverflowError:
+            raise ValueError(f"{where}: {name} is too large a number") from None
     try:
-        changes: dict[str, Any] = {name: value if SETTABLE[name] else float(value) for name, value in block.items()}
         return replace(service, **changes)
-    except OverflowError:
-        raise ValueError(f"{where}: a number is too large") from None
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None

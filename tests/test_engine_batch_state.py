@@ -195,4 +195,5 @@ def test_a_fleets_warning_settings_given_per_call_answer_as_an_engine_built_with
         assert given_settings.warning == [single.evaluate(v, warning).warning for v in vehicles]
         for vehicle in vehicles:
             assert shared.memory(vehicle.vehicle_id) == own.memory(vehicle.vehicle_id)
+            assert single.memory(vehicle.vehicle_id) == own.memory(vehicle.vehicle_id)
             assert shared.update_period_s(vehicle.vehicle_id, warning) == own.update_period_s(vehicle.vehicle_id)

@@ -55,6 +55,8 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(tmp_path: Path):
         ("jt808", "--terminals", str(listed), "--warning-settings", str(settings), "--port", "0"),
         ("jt808", "--terminals", str(listed), "--max-connections", "0"),
         ("jt808", "--terminals", str(listed), "--frames-per-s", "nan"),
+        ("jt808", "--terminals", str(listed), "--frames-burst", "0.5"),
+        ("jt808", "--terminals", str(listed), "--idle-s", "-1"),
         ("jt808", "--terminals", str(listed), "--net", no_lonlat, "--port", "0"),
         ("terminals", "add", "acme", "12ab", "--category", "N", "--file", str(tmp_path / "t.json")),
         ("terminals", "add", "acme", "1380", "--category", "X9", "--file", str(tmp_path / "t.json")),

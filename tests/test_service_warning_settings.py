@@ -103,7 +103,7 @@ def test_a_fleets_block_pins_what_it_names_over_the_services_settings(tmp_path):
         ({"format": WARNING_SETTINGS_FORMAT, "fleets": {"acme": {"update_period_s": "5"}}}, "must be a number"),
         ({"format": WARNING_SETTINGS_FORMAT, "fleets": {"acme": {"learn_update_period": 0}}}, "true or false"),
         ({"format": WARNING_SETTINGS_FORMAT, "fleets": ["acme"]}, "fleets"),
-        ({"format": WARNING_SETTINGS_FORMAT, "fleets": {"acme": {"release_hold_s": 10**400}}}, "too large"),
+        ({"format": WARNING_SETTINGS_FORMAT, "fleets": {"acme": {"release_hold_s": 10**400}}}, "release_hold_s is too"),
         ({"format": WARNING_SETTINGS_FORMAT, "fleets": {"": {"release_hold_s": 2}}}, "name"),
         ({"format": "csws-fcw-settings/1"}, "expected format"),
     ],
