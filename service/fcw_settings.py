@@ -18,7 +18,6 @@ keys is the fleet ``""``, which takes ``default``.
 
 from __future__ import annotations
 
-import json
 from dataclasses import fields
 from functools import cache
 from pathlib import Path
@@ -26,6 +25,8 @@ from typing import Any
 
 from csws.fcw.settings import FcwSettings
 from csws.standard import Category
+
+from .settings_file import read_settings_file
 
 __all__ = ["FCW_SETTINGS_FORMAT", "FleetFcwSettings"]
 
@@ -85,14 +86,7 @@ class FleetFcwSettings:
 
     def _read(self, path: Path) -> None:
         """Read and check the file."""
-        try:
-            content = json.loads(path.read_text("utf-8"))
-        except FileNotFoundError:
-            raise ValueError(f"{path}: no such FCW settings file") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ValueError(f"{path}: not an FCW settings file ({exc})") from None
-        if not isinstance(content, dict) or content.get("format") != FCW_SETTINGS_FORMAT:
-            raise ValueError(f"{path}: not an FCW settings file (expected format {FCW_SETTINGS_FORMAT!r})")
+        content = read_settings_file(path, FCW_SETTINGS_FORMAT, "an FCW settings file")
         unknown = sorted(set(content) - {"format", "default", "fleets"})
         fleets = content.get("fleets", {})
         if unknown or not isinstance(fleets, dict):

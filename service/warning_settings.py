@@ -18,12 +18,13 @@ service without keys (the fleet ``""``, which the file cannot name), take the se
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from csws.warning.settings import WarningSettings
+
+from .settings_file import read_settings_file
 
 __all__ = ["SETTABLE", "WARNING_SETTINGS_FORMAT", "FleetWarningSettings"]
 
@@ -69,14 +70,7 @@ class FleetWarningSettings:
 
 def _read(path: Path, service: WarningSettings) -> dict[str, WarningSettings]:
     """Each fleet's settings from the file at ``path``; ValueError naming it where it cannot be taken."""
-    try:
-        content = json.loads(path.read_text("utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such warning settings file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not a warning settings file ({exc})") from None
-    if not isinstance(content, dict) or content.get("format") != WARNING_SETTINGS_FORMAT:
-        raise ValueError(f"{path}: not a warning settings file (expected format {WARNING_SETTINGS_FORMAT!r})")
+    content = read_settings_file(path, WARNING_SETTINGS_FORMAT, "a warning settings file")
     unknown = sorted(set(content) - {"format", "fleets"})
     fleets = content.get("fleets", {})
     if unknown or not isinstance(fleets, dict):

@@ -1,0 +1,37 @@
+"""Settings files a service reads at start-up: a JSON object that names its format (``{"format": "csws-…/1", …}``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+__all__ = ["read_settings_file"]
+
+
+def read_settings_file(path: Path, format_name: str, kind: str) -> dict[str, Any]:
+    """The JSON object of the settings file at ``path``, which names ``format_name`` as its format.
+
+    Parameters
+    ----------
+    path
+        The file.
+    format_name
+        Its ``format`` field, e.g. ``csws-fcw-settings/1``.
+    kind
+        What it is, with its article, for the messages: ``an FCW settings file``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file: missing, unreadable, not JSON, not an object, or another format.
+    """
+    try:
+        content = json.loads(path.read_text("utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file ({kind} expected)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not {kind} ({exc})") from None
+    if not isinstance(content, dict) or content.get("format") != format_name:
+        raise ValueError(f"{path}: not {kind} (expected format {format_name!r})")
+    return content
