@@ -22,16 +22,20 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from benchmarks.cosim_routes import city_routes_xml
 from csws.cosim.driver import DriverSettings
 from csws.cosim.fcw_schedule import first_meeting_steps, steps_state_kept
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
 from csws.fcw.settings import FcwSettings
 from csws.fcw.state import ACTIVE, STANDBY, fcw_state_code
 from csws.geometry import arc, sample_pieces, straight
+from csws.networks import networks_dir
 from csws.networks.fleet import fleet_dir, fleet_routes_xml
 from csws.sumo.netbuild import netconvert, shape_text
 
 STEP_S = 0.1
+#: The bundled city.
+CITY_NET = networks_dir() / "badhersfeld.net.xml.gz"
 #: The roads' speed limit, m/s (90 km/h: curves of R 60-250 m then warn most vehicles).
 ROAD_SPEED_MPS = 25.0
 
@@ -266,6 +270,17 @@ def test_scheduled_run_of_the_bundled_fleet_warns_as_every_step(tmp_path):
     scenario = Scenario(None, fleet_dir() / "fleet.net.xml", (routes,))
     every, scheduled, summary = _both(scenario, tmp_path, step_length_s=0.2, end_s=120.0)
     _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_scheduled_run_in_the_bundled_city_warns_as_every_step(tmp_path):
+    """A real city's map, with its junctions, lanes fitted on their own and lanes that lead elsewhere: 2,000
+    vehicles of the fleet's mix on random walks through Bad Hersfeld for 20 s."""
+    routes = tmp_path / "city.rou.xml"
+    routes.write_text(city_routes_xml(CITY_NET, 2000, seed=3), encoding="utf-8")
+    every, scheduled, summary = _both(Scenario(None, CITY_NET, (routes,)), tmp_path, end_s=20.0)
+    _assert_same_warnings(every, scheduled, summary, most_evaluated=0.6)
 
 
 def _sparse_fleet_with_stops(folder: Path, edges: list[str], rng: random.Random, vehicles: int) -> Path:
