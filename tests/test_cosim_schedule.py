@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import math
 import random
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from benchmarks.cosim_routes import city_routes_xml
 from csws.cosim.driver import DriverSettings
 from csws.cosim.fcw_schedule import first_meeting_steps, steps_state_kept
 from csws.cosim.run import CosimConfig, Scenario, cosimulate
@@ -32,6 +32,11 @@ from csws.geometry import arc, sample_pieces, straight
 from csws.networks import networks_dir
 from csws.networks.fleet import fleet_dir, fleet_routes_xml
 from csws.sumo.netbuild import netconvert, shape_text
+
+# The benchmarks are run from the repository, not installed: import them from there.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.cosim_routes import city_routes_xml  # noqa: E402
 
 STEP_S = 0.1
 #: The bundled city.
