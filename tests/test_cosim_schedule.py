@@ -320,7 +320,12 @@ def _sparse_fleet_with_stops(folder: Path, edges: list[str], rng: random.Random,
 @pytest.mark.sumo
 @pytest.mark.parametrize(
     ("seed", "interface", "systems", "driver"),
-    [(15, "libsumo", ("fcw",), False), (12, "libsumo", ("csws", "fcw"), True), (14, "traci", ("csws", "fcw"), False)],
+    [
+        (15, "libsumo", ("fcw",), False),
+        (12, "libsumo", ("csws", "fcw"), True),
+        (14, "traci", ("csws", "fcw"), False),
+        (16, "traci", ("fcw",), False),
+    ],
 )
 def test_scheduled_fcw_runs_warn_as_every_step_runs_on_random_fleets(tmp_path, seed, interface, systems, driver):
     """Leaders stopping and slow mopeds ahead of faster traffic: the forward collision warnings (and the curve
