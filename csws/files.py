@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["replace_file", "replace_json"]
+__all__ = ["read_json", "replace_file", "replace_json"]
 
 
 def replace_file(path: Path, write: Callable[[IO[bytes]], object], prefix: str, suffix: str) -> None:
@@ -40,3 +40,14 @@ def replace_json(path: Path, content: Any) -> None:
     (:func:`replace_file`)."""
     text = json.dumps(content, indent=1, ensure_ascii=False) + "\n"
     replace_file(path, lambda file: file.write(text.encode("utf-8")), f".{path.stem}-", ".json")
+
+
+def read_json(path: Path, kind: str, error: type[Exception] = ValueError) -> Any:
+    """The JSON content of the file ``path``; ``error`` with one line naming the file where it is missing,
+    unreadable or not JSON. ``kind`` says what the file is, with its article, for that line ("an API key file")."""
+    try:
+        return json.loads(path.read_text("utf-8"))
+    except FileNotFoundError:
+        raise error(f"{path}: no such file ({kind} expected)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise error(f"{path}: not {kind} ({exc})") from None

@@ -28,7 +28,6 @@ none of these needs a restart.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
 import secrets
@@ -38,7 +37,7 @@ from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
 
-from csws.files import replace_json
+from csws.files import read_json, replace_json
 
 __all__ = [
     "KEYS_FORMAT",
@@ -172,12 +171,7 @@ def _principals(entries: list[dict]) -> dict[str, Principal]:
 
 def _entries(path: Path) -> list[dict]:
     """The entries of a key file, checked; ValueError naming the file otherwise."""
-    try:
-        content = json.loads(path.read_text("utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such API key file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not an API key file ({exc})") from None
+    content = read_json(path, "an API key file")
     if (
         not isinstance(content, dict)
         or content.get("format") != KEYS_FORMAT

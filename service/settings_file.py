@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
+
+from csws.files import read_json
 
 __all__ = ["read_settings_file"]
 
@@ -26,12 +27,7 @@ def read_settings_file(path: Path, format_name: str, kind: str) -> dict[str, Any
     ValueError
         One line naming the file: missing, unreadable, not JSON, not an object, or another format.
     """
-    try:
-        content = json.loads(path.read_text("utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file ({kind} expected)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not {kind} ({exc})") from None
+    content = read_json(path, kind)
     if not isinstance(content, dict) or content.get("format") != format_name:
         raise ValueError(f"{path}: not {kind} (expected format {format_name!r})")
     return content

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import json
 import os
 import re
 import secrets
@@ -32,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from csws.errors import CswsError
-from csws.files import replace_json
+from csws.files import read_json, replace_json
 from csws.standard import Category
 
 __all__ = [
@@ -146,12 +145,7 @@ def _stamp(path: str | Path) -> tuple[int, int, int]:
 
 def _read(path: Path) -> dict[str, Any]:
     """The checked content of a terminal file; TerminalError naming the file otherwise."""
-    try:
-        content = json.loads(path.read_text("utf-8"))
-    except FileNotFoundError:
-        raise TerminalError(f"{path}: no such terminal file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TerminalError(f"{path}: not a terminal file ({exc})") from None
+    content = read_json(path, "a terminal file", TerminalError)
     valid = (
         isinstance(content, dict)
         and content.get("format") == TERMINALS_FORMAT
