@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from lane_bend import lane_bend_scenario
 
 from csws.cosim.driver import DriverSettings
 from csws.cosim.fcw_schedule import first_meeting_steps, steps_state_kept
@@ -265,6 +266,23 @@ def test_a_speed_sign_raising_the_limit_while_vehicles_sleep_keeps_the_warnings_
     scenario = _fork_scenario(tmp_path, additional, "a0 a1 branch back exit")
     every, scheduled, summary = _both(scenario, tmp_path, step_length_s=STEP_S, end_s=200.0, seed=3)
     _assert_same_warnings(every, scheduled, summary)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+@pytest.mark.parametrize("interface", ["libsumo", "traci"])
+def test_cars_changing_lanes_while_asleep_onto_a_lane_with_its_own_bend_warn_as_in_every_step_runs(tmp_path, interface):
+    """The cars fall asleep on the right lane, whose path ends straight where it stops, and change to the left lane,
+    whose bends are within their warning distance before they would wake on the right lane's path: they sleep
+    towards the curves of the lanes beside their path too (csws.cosim.lanes_beside)."""
+    scenario = lane_bend_scenario(tmp_path)
+    every, scheduled, summary = _both(
+        scenario, tmp_path, step_length_s=STEP_S, end_s=250.0, seed=3, interface=interface
+    )
+    with (every / "warnings.csv").open(encoding="utf-8", newline="") as rows:
+        warned = {row["vehicle_id"] for row in csv.DictReader(rows) if row["lane_id"] == "b_1"}
+    assert len(warned) > 20  # the cars were warned of the left lane's bends
+    _assert_same_warnings(every, scheduled, summary, most_evaluated=0.5)
 
 
 @pytest.mark.slow

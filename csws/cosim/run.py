@@ -36,6 +36,7 @@ from .evaluators import Evaluator, FleetWarnings, LibraryEvaluator, ServiceError
 from .fcw import FcwColumns, FleetFcw, respond_to_fcw
 from .fcw_schedule import FcwSchedule, network_spread
 from .geo import network_location
+from .lanes_beside import LanesBeside
 from .recording import Streams, Tracker, record_step
 from .records import StepCosts, Summary, write_summary
 from .schedule import WakeSchedule
@@ -134,7 +135,9 @@ class _Run:
         if config.scheduled:
             curve = None
             if isinstance(self.evaluator, LibraryEvaluator):
-                curve = (WakeSchedule(self.step_s, self.evaluator.engine.settings.warning), self.evaluator)
+                engine = self.evaluator.engine
+                beside = LanesBeside(engine.lookahead) if engine.lookahead is not None else None
+                curve = (WakeSchedule(self.step_s, engine.settings.warning, beside), self.evaluator)
             fcw = None
             if forward is not None:
                 range_m = max(FcwSettings.for_category(category).range_m for category in Category)

@@ -45,6 +45,8 @@ from csws.standard import mps_to_kmh
 from csws.warning.latency import KEPT_INTERVALS, next_intervals
 from csws.warning.settings import WarningSettings
 
+from .lanes_beside import LanesBeside
+
 __all__ = [
     "LANE_CHANGE_MARGIN_M",
     "LANE_CHANGE_MARGIN_SHARE",
@@ -82,11 +84,13 @@ class PartsAhead:
     then one vectorised bisection away (each horizon is laid out once, at its first use).
 
     The pool keeps every horizon it holds alive (so that a horizon's ``id`` names its slot) and is emptied when it
-    would hold more than ``capacity`` of them.
+    would hold more than ``capacity`` of them. With ``beside``, the curves of the lanes beside each horizon's
+    lanes count as its parts too (a vehicle may change onto them while asleep: :mod:`csws.cosim.lanes_beside`).
     """
 
-    def __init__(self, capacity: int = 20_000) -> None:
+    def __init__(self, capacity: int = 20_000, beside: LanesBeside | None = None) -> None:
         self.capacity = capacity
+        self.beside = beside
         self.clear()
 
     def clear(self) -> None:
@@ -127,10 +131,11 @@ class PartsAhead:
 
     def _extend(self, horizons: list[Horizon]) -> None:
         """Lay out horizons' parts in new slots."""
-        orders = [np.argsort(horizon.part_end_s, kind="stable") for horizon in horizons]
+        spans = [self._spans_s(horizon) for horizon in horizons]
+        orders = [np.argsort(span_end_s, kind="stable") for _, span_end_s in spans]
         counts = np.array([order.size for order in orders], dtype=np.intp)
-        ends_s = [h.part_end_s[order] + END_MARGIN_M for h, order in zip(horizons, orders, strict=True)]
-        starts_s = [h.part_start_s[order][::-1] for h, order in zip(horizons, orders, strict=True)]
+        ends_s = [end_s[order] + END_MARGIN_M for (_, end_s), order in zip(spans, orders, strict=True)]
+        starts_s = [start_s[order][::-1] for (start_s, _), order in zip(spans, orders, strict=True)]
         nearest_s = [np.minimum.accumulate(reversed_s)[::-1] for reversed_s in starts_s]
         first = self._ends_s.size + np.cumsum(counts) - counts
         self._first, self._count = np.concatenate([self._first, first]), np.concatenate([self._count, counts])
@@ -143,6 +148,18 @@ class PartsAhead:
         for horizon in horizons:
             self._slot_of[id(horizon)] = len(self._horizons)
             self._horizons.append(horizon)
+
+    def _spans_s(self, horizon: Horizon) -> tuple[np.ndarray, np.ndarray]:
+        """Where a horizon's curve parts start and end, with the curves of the lanes beside it, m."""
+        if self.beside is None:
+            return horizon.part_start_s, horizon.part_end_s
+        beside_start_s, beside_end_s = self.beside.spans_s(horizon.path)
+        if not beside_start_s.size:
+            return horizon.part_start_s, horizon.part_end_s
+        return (
+            np.concatenate([horizon.part_start_s, beside_start_s]),
+            np.concatenate([horizon.part_end_s, beside_end_s]),
+        )
 
 
 def _bisect_right(values: np.ndarray, x: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -167,9 +184,12 @@ class WakeSchedule:
         SUMO's step length, s.
     warning
         The engine's warning settings: formula (1)'s g and the latency allowance of 6.1.
+    beside
+        The curves of the lanes beside the paths, which a vehicle may change onto while asleep
+        (:mod:`csws.cosim.lanes_beside`); None where every lane keeps to the path it slept on.
     """
 
-    def __init__(self, step_s: float, warning: WarningSettings) -> None:
+    def __init__(self, step_s: float, warning: WarningSettings, beside: LanesBeside | None = None) -> None:
         self.step_s = step_s
         self.warning = warning
         self.speed_bound_mps: dict[str, float] = {}
@@ -181,8 +201,9 @@ class WakeSchedule:
         self._waking: dict[int, list[str]] = {}
         #: The times of the last steps, s, by step: enough to catch a memory up (:func:`caught_up`).
         self._times_s: deque[tuple[int, float]] = deque(maxlen=KEPT_INTERVALS + 2)
-        #: The curve parts of the horizons of the vehicles evaluated, for their distances to the first part ahead.
-        self.parts = PartsAhead()
+        #: The curve parts of the horizons of the vehicles evaluated (and of the lanes beside them), for their
+        #: distances to the first part ahead.
+        self.parts = PartsAhead(beside=beside)
 
     def add(self, vehicle_id: str, speed_bound_mps: float, accel_mps2: float = math.inf) -> None:
         """A vehicle departed, with its speed bound (m/s) and maximum acceleration (m/s^2): awake until its

@@ -1,0 +1,80 @@
+"""A sleeping vehicle's path counts the curves of the lanes beside it (csws.cosim.lanes_beside).
+
+On a constructed road whose left lane swerves by bends its right lane does not make, the right lane's
+path ends straight, and the first curve a vehicle on it can meet is the left lane's first bend, where
+the geometry put it. On the bundled city, for lanes drawn at random and positions on them, no lane of the
+same edge open to the same vehicles has a curve nearer than the schedule's distance (each lane's curves
+found by its own horizon, the way the warning sees them there).
+"""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+from lane_bend import B_START_M, BEND_START_M, lane_bend_net
+
+from csws.ahead.lookahead import LookAhead
+from csws.cosim.lanes_beside import LanesBeside
+from csws.cosim.schedule import PartsAhead
+from csws.networks import networks_dir
+from csws.road.roadmap import RoadMap
+
+#: How far a fitted curve start may lie from where the geometry put it, m.
+START_TOLERANCE_M = 3.0
+
+
+@pytest.mark.sumo
+def test_the_right_lanes_path_ends_at_the_left_lanes_first_bend(tmp_path):
+    lookahead = LookAhead(RoadMap.load(lane_bend_net(tmp_path), cache=False))
+    horizon = lookahead.horizon("a_0", ("a", "b", "c"), 300.0)
+    assert "b_0" in horizon.path.lane_ids and not horizon.part_start_s.size  # its own path is straight
+    alone, _ = PartsAhead().distances_m([horizon], np.zeros(1))
+    beside, _ = PartsAhead(beside=LanesBeside(lookahead)).distances_m([horizon], np.zeros(1))
+    assert alone[0] == pytest.approx(horizon.path.length_m)
+    assert beside[0] == pytest.approx(B_START_M + BEND_START_M, abs=START_TOLERANCE_M)
+
+
+def _first_curve_m(lookahead: LookAhead, lane_id: str, lane_pos_m: float) -> float:
+    """How far ahead of ``lane_pos_m`` a curve of ``lane_id`` itself starts (0 inside one), in its lane positions;
+    infinite where none does."""
+    horizon = lookahead.horizon(lane_id, None, 50.0)
+    path = horizon.path
+    factor, on_lane_m = float(path.lane_position_factor[0]), float(path.lane_shape_length_m[0])
+    nearest = np.inf
+    for start_s, end_s in zip(horizon.part_start_s.tolist(), horizon.part_end_s.tolist(), strict=True):
+        if start_s < on_lane_m and end_s * factor > lane_pos_m:
+            nearest = min(nearest, max(start_s * factor - lane_pos_m, 0.0))
+    return nearest
+
+
+@pytest.mark.slow
+def test_no_lane_beside_a_path_in_the_city_has_a_curve_nearer_than_the_schedule_counts():
+    road_map = RoadMap.load(networks_dir() / "badhersfeld.net.xml.gz")
+    lookahead = LookAhead(road_map)
+    parts = PartsAhead(beside=LanesBeside(lookahead))
+    edges: dict[str, list[str]] = {}
+    for lane_id in road_map.lane_ids:
+        lane = road_map.lane(lane_id)
+        if not lane.is_internal:
+            edges.setdefault(lane.edge_id, []).append(lane_id)
+    rng = random.Random(5)
+    checked = 0
+    for lanes in edges.values():
+        for lane_id in lanes:
+            lane = road_map.lane(lane_id)
+            others = [o for o in lanes if o != lane_id and road_map.lane(o).allowed_vclasses & lane.allowed_vclasses]
+            beside_m = {other: _first_curve_m(lookahead, other, 0.0) for other in others}
+            if not any(np.isfinite(list(beside_m.values()))):
+                continue
+            horizon = lookahead.horizon(lane_id, None, 50.0)
+            for lane_pos_m in (0.0, *(rng.uniform(0.0, lane.length_m) for _ in range(3))):
+                distance_m, _ = parts.distances_m([horizon], np.array([horizon.vehicle_s(lane_pos_m)]))
+                factor = float(horizon.path.lane_position_factor[0])
+                for other in others:
+                    nearest_m = _first_curve_m(lookahead, other, lane_pos_m)
+                    if np.isfinite(nearest_m):
+                        checked += 1
+                        assert distance_m[0] <= nearest_m / factor + 1e-6, (lane_id, other, lane_pos_m)
+    assert checked > 100
