@@ -366,6 +366,47 @@ def test_scheduled_fcw_runs_warn_as_every_step_runs_on_random_fleets(tmp_path, s
     _assert_same_warnings(every, scheduled, summary, most_evaluated=0.95)
 
 
+@pytest.mark.slow
+@pytest.mark.sumo
+@pytest.mark.parametrize("interface", ["libsumo", "traci"])
+def test_a_car_appearing_close_ahead_of_a_sleeping_fcw_subject_on_a_bend_is_seen_as_in_every_step_runs(
+    tmp_path, interface
+):
+    """A car drives alone into an R 250 m bend, its FCW asleep (nothing within reach); 24 s on, a slow car is put
+    on the road 40 m ahead of it (SUMO's insertion checks off), where only the bend's path has it in the lane. The
+    subject is woken at once and warned at that step, with the yaw rate of its heading read while it slept: the
+    object's range along the bent path is that of the every-step run, to the byte."""
+    xy, _ = sample_pieces([straight(300.0), arc(250.0, 700.0, "left"), straight(300.0)], 2.0, (0.0, 0.0), 0.0)
+    nodes = f'<nodes><node id="n0" x="0" y="0"/><node id="n1" x="{xy[-1][0]:.6f}" y="{xy[-1][1]:.6f}"/></nodes>'
+    edges = f'<edges><edge id="r" from="n0" to="n1" speed="{ROAD_SPEED_MPS}" shape="{shape_text(xy)}"/></edges>'
+    net = netconvert(nodes, edges, tmp_path / "bend.net.xml")
+    appear_s = 24.0
+    routes = tmp_path / "bend.rou.xml"
+    routes.write_text(
+        '<routes><vType id="car" vClass="passenger" speedDev="0" decel="8" emergencyDecel="9"/>'
+        '<vType id="slow" vClass="passenger" maxSpeed="5" speedDev="0"/><route id="r" edges="r"/>'
+        '<vehicle id="subject" type="car" route="r" depart="0" departSpeed="max"/>'
+        f'<vehicle id="ahead" type="slow" route="r" depart="{appear_s}" '
+        f'departPos="{ROAD_SPEED_MPS * appear_s + 40.0:.1f}" departSpeed="5" insertionChecks="none"/></routes>',
+        encoding="utf-8",
+    )
+    every, scheduled, summary = _both(
+        Scenario(None, net, (routes,)),
+        tmp_path,
+        step_length_s=STEP_S,
+        end_s=40.0,
+        interface=interface,
+        systems=("fcw",),
+    )
+    onsets = [
+        row for row in csv.DictReader((every / "warnings.csv").open(encoding="utf-8")) if row["event"] == "fcw_onset"
+    ]
+    assert [(row["vehicle_id"], row["fcw_target_id"]) for row in onsets][:1] == [("subject", "ahead")]
+    assert float(onsets[0]["time_s"]) == pytest.approx(appear_s + STEP_S)  # warned at the step it appeared
+    assert (scheduled / "warnings.csv").read_bytes() == (every / "warnings.csv").read_bytes()
+    assert summary["evaluation"]["vehicle_steps_evaluated_share"] < 0.8  # the subject slept before
+
+
 @given(
     distance_m=st.floats(0.0, 5000.0),
     bound_mps=st.floats(0.0, 45.0),

@@ -141,6 +141,8 @@ class FleetFcw:
         self.distinct_settings: list[FcwSettings] = []
         self.memory = FleetMemory.new(0)
         self.last_heading_rad = np.zeros(0)
+        #: When each vehicle's heading was last read, s (a sleeping subject's too: :meth:`keep_headings`).
+        self.heading_time_s = np.zeros(0)
         self.last_time_s = -math.inf
         #: Each subject's category, and the vehicles read in the last call with the subjects' rows among them.
         self.category_of: dict[str, str] = {}
@@ -246,16 +248,33 @@ class FleetFcw:
         memory.hold_until_s = np.concatenate((memory.hold_until_s, more.hold_until_s))
         memory.last_time_s = np.concatenate((memory.last_time_s, more.last_time_s))
         self.last_heading_rad = np.concatenate((self.last_heading_rad, np.full(more.state.size, np.nan)))
+        self.heading_time_s = np.concatenate((self.heading_time_s, np.full(more.state.size, -math.inf)))
 
     def _yaw_rate_rps(self, numbers: np.ndarray, heading_rad: np.ndarray, now_s: float) -> np.ndarray:
         """The yaw rate over the last step (positive turning left; SUMO's angle turns clockwise),
-        NaN (not given) in a vehicle's first step."""
-        last_time = self.memory.last_time_s[numbers]
+        NaN (not given) where the heading was not read at the last step (a vehicle's first step)."""
+        last_time = self.heading_time_s[numbers]
         turn = (heading_rad - self.last_heading_rad[numbers] + math.pi) % (2.0 * math.pi) - math.pi
         with np.errstate(invalid="ignore", divide="ignore"):
             yaw = np.where(last_time == self.last_time_s, -turn / (now_s - last_time), np.nan)
         self.last_heading_rad[numbers] = heading_rad
+        self.heading_time_s[numbers] = now_s
         return yaw
+
+    def keep_headings(self, schedule: FcwSchedule) -> None:
+        """Read the heading of each sleeping subject not read at this step (one getter each), so that its yaw rate
+        over the step is known whenever it wakes: at its wake-up, or at once, when a vehicle appears (departs,
+        ends a teleport) already near it (:mod:`csws.cosim.fcw_schedule`)."""
+        now_s, subjects = self.last_time_s, self.category_of
+        sleeping = [vehicle_id for vehicle_id in schedule.wake_step if vehicle_id in subjects]
+        numbers = np.array([self.numbers[vehicle_id] for vehicle_id in sleeping], dtype=np.int64)
+        unread = np.flatnonzero(self.heading_time_s[numbers] != now_s)
+        if not unread.size:
+            return
+        get_angle = self.sumo.vehicle.getAngle
+        angles_deg = [get_angle(sleeping[k]) for k in unread.tolist()]
+        self.last_heading_rad[numbers[unread]] = np.radians(np.array(angles_deg, dtype=float))
+        self.heading_time_s[numbers[unread]] = now_s
 
     def _recall(self, numbers: np.ndarray) -> FleetMemory:
         """The memory of the vehicles ``numbers``, indexed as in this call."""

@@ -10,8 +10,9 @@ speed bound (SUMO's cap: the type's maximum speed, the fastest lane times its sp
 second, a lane distance that is at most that over the smallest lane-length per shape-length factor of
 the network in a straight line. So a vehicle's FCW cannot see anything before the first step at
 which any other vehicle could be within ``reach_m`` of it (:func:`first_meeting_steps`): it is not
-read or evaluated before the step before that one (one step early, so that its yaw rate, the turn of
-its heading over a step, is known when an object can first appear). The rule is symmetric, so every
+read or evaluated before that step. Its heading alone is read at every step while it sleeps
+(:meth:`csws.cosim.fcw.FleetFcw.keep_headings`), so that its yaw rate, the turn of its heading over the
+last step, is known whenever an object can first appear. The rule is symmetric, so every
 vehicle an awake one could see is awake too and read as an object. A vehicle sleeps
 :data:`SLEEP_CAP_S` at most, which bounds the grid search for the vehicles it could meet.
 
@@ -23,10 +24,8 @@ cross one (:func:`steps_state_kept`) and the state is brought up to date there.
 
 Vehicles warned, held (4.5.5), answered by the driver-response model, in fault or switched off are
 evaluated every step. A vehicle that appears (departs, or ends a teleport) is read at once and wakes
-each sleeping vehicle it could come within ``reach_m`` of (at once if it is that near already). The
-one case this does not follow to the bit: a vehicle that appears already inside a sleeping
-vehicle's range and ahead of it is seen at that step by a subject without the yaw rate of the step
-before (not read then); on a straight that rate is 0 either way, and the next step has it.
+each sleeping vehicle it could come within ``reach_m`` of (at once if it is that near already, with the
+yaw rate its heading read at the step before gives).
 """
 
 from __future__ import annotations
@@ -55,9 +54,9 @@ __all__ = [
 PAIR_MARGIN_M = 20.0
 #: The longest a vehicle's FCW sleeps, s.
 SLEEP_CAP_S = 5.0
-#: A vehicle sleeps only if no other can meet it within this many steps (:meth:`FcwSchedule.sleep`: it wakes
-#: the step before, and sleeps at least one step).
-FEW_STEPS = 3
+#: A vehicle sleeps only if no other can meet it within this many steps (:meth:`FcwSchedule.sleep`: it sleeps
+#: at least one step, and wakes at the first step another could meet it).
+FEW_STEPS = 2
 #: At most this many steps between two searches for vehicles to put to sleep.
 SEARCH_GAP_MOST_STEPS = 8
 #: A step index beyond any run.
@@ -215,7 +214,7 @@ class FcwSchedule:
             meets = np.minimum(meets, meet)
         now = []
         for vehicle_id, meet in zip(sleeping, meets.tolist(), strict=True):
-            wake = int(meet) - 1 if math.isfinite(meet) else NEVER
+            wake = int(meet) if math.isfinite(meet) else NEVER
             if wake <= step:
                 now.append(vehicle_id)
             elif wake < self.wake_step[vehicle_id]:
@@ -260,15 +259,14 @@ class FcwSchedule:
         quiet: np.ndarray,
     ) -> list[str]:
         """Note where the vehicles read at ``step`` are, and put the ``quiet`` ones (no warning or hold) to sleep
-        until the step before the first at which any vehicle could be within :attr:`reach_m` of them; those
-        put to sleep."""
+        until the first step at which any vehicle could be within :attr:`reach_m` of them; those put to sleep."""
         slots = np.array([self.slot[v] for v in vehicle_ids], dtype=np.int64)
         bounds = np.array([self.speed_bound_mps[v] for v in vehicle_ids])
         self._note(slots, x_m, y_m, np.maximum(bounds, speed_mps), step)
         subjects = slots[quiet]
         if not subjects.size or step < self._next_search:
             return []
-        wake = np.minimum(self._first_meetings(step, subjects) - 1.0, float(step + self.cap_steps))
+        wake = np.minimum(self._first_meetings(step, subjects), float(step + self.cap_steps))
         rows = np.flatnonzero(quiet)
         asleep = []
         for k in np.flatnonzero(wake >= step + 2).tolist():

@@ -127,6 +127,7 @@ class RunSchedule:
             forward.check_states(self.step, schedule)
             driven = set(driver.drivers) | set(driver.fcw_drivers) if driver is not None else set()
             forward.sleep(self.step, schedule, fcw.level, driven)
+            forward.keep_headings(schedule)
             fcw_sleeping = schedule.wake_step
         if self.curve:
             # A vehicle its FCW keeps awake is read at the next step anyway: the curve warning keeps it too.
