@@ -10,10 +10,17 @@ its road's), or an internal lane whose turn its neighbours do not make.
 
 So a vehicle sleeps towards the first curve of its path *or of the lanes beside it*
 (:meth:`LanesBeside.spans_s`): for each lane of the path, the curves of the other lanes of its edge, at
-the same lane positions (SUMO gives every lane of a normal edge the edge's length, so a lane change keeps
-the lane position), and for an internal lane the curves of the other internal lanes between the same two
-edges at the same place in the junction, taken to cover the whole internal lane (their lengths differ).
-A curve beside the path only keeps a vehicle awake sooner; it never changes an answer.
+the same lane positions (SUMO gives every lane of a normal edge the edge's length, and a lane change keeps
+the lane position), and for an internal lane the curves of every other internal lane between the same two
+edges, taken to cover the whole internal lane (their lengths differ, and a way through a junction may have
+one internal lane or two). A lane's position runs faster or slower than its own arc length (its position
+factor): a curve beside the path is placed where it starts at the larger of the two lanes' factors and ends
+at the smaller, so that it is never farther, nor ends sooner, on the path than on its own lane. Sidewalks
+(lanes open to pedestrians alone) are beside no lane. A curve beside the path only keeps a vehicle awake
+sooner; it never changes an answer.
+
+Not covered: a vehicle overtaking on the opposite direction's lane (a network with ``<neigh>`` lanes) leaves
+its route's edges for a while.
 """
 
 from __future__ import annotations
@@ -26,8 +33,8 @@ from csws.road.roadmap import RoadMap
 
 __all__ = ["LanesBeside"]
 
-#: An internal lane's place: the normal edge its connection leaves, the one it reaches, and its rank on the way.
-InternalPlace = tuple[str, str, int]
+#: The lanes a vehicle cannot change onto: open to these classes alone.
+_NO_VEHICLE = frozenset({"pedestrian"})
 #: The most internal lanes on one way through a junction (SUMO makes two at most: a via lane after the first).
 _MOST_INTERNAL = 8
 
@@ -47,7 +54,12 @@ class LanesBeside:
         self.warning_radius_m = lookahead.settings.warning_radius_m
         self.junctions = lookahead.settings.warn_at_junctions
         self._beside = _lanes_beside(self.road_map)
-        self._spans: dict[str, tuple[tuple[float, float], ...]] = {}
+        self._spans: dict[str, tuple[float, tuple[tuple[float, float], ...]]] = {}
+
+    def beside(self, lane_id: str) -> tuple[str, ...]:
+        """The lanes a vehicle on ``lane_id`` may be on instead, unseen: the other lanes of its normal edge, or
+        the other internal lanes between the same two edges (none for a lane alone on its edge)."""
+        return self._beside.get(lane_id, ())
 
     def spans_s(self, path: PathProfile) -> tuple[np.ndarray, np.ndarray]:
         """Where the curves of the lanes beside ``path``'s lanes start and end, in the path's arc length, m
@@ -61,54 +73,59 @@ class LanesBeside:
             if not others:
                 continue
             internal = self.road_map.lane(lane_id).is_internal
-            for begin_m, end_m in (span for other in others for span in self._lane_spans(other)):
-                if internal:  # another length: the curve covers the whole internal lane
-                    starts.append(start_s)
-                    ends.append(start_s + length_m)
-                elif factor > 0.0:
-                    starts.append(start_s + min(max(begin_m / factor, 0.0), length_m))
-                    ends.append(start_s + min(max(end_m / factor, 0.0), length_m))
+            for other in others:
+                other_factor, spans = self._lane_spans(other)
+                nearer, farther = max(factor, other_factor), min(factor, other_factor)
+                for begin_m, end_m in spans:
+                    if internal:  # another length: the curve covers the whole internal lane
+                        starts.append(start_s)
+                        ends.append(start_s + length_m)
+                    elif farther > 0.0:
+                        starts.append(start_s + min(max(begin_m / nearer, 0.0), length_m))
+                        ends.append(start_s + min(max(end_m / farther, 0.0), length_m))
         return np.array(starts, dtype=float), np.array(ends, dtype=float)
 
-    def _lane_spans(self, lane_id: str) -> tuple[tuple[float, float], ...]:
-        """Where the curves on ``lane_id`` start and end, in its lane positions, m (the look-ahead's curves of
-        the lane alone: those that run on from an earlier lane start at 0), worked out once per lane."""
-        spans = self._spans.get(lane_id)
-        if spans is None:
+    def _lane_spans(self, lane_id: str) -> tuple[float, tuple[tuple[float, float], ...]]:
+        """A lane's position factor (lane position per metre of its shape), and where the curves on it start and
+        end in its lane positions, m (the look-ahead's curves of the lane alone: those that run on from an
+        earlier lane start at 0), worked out once per lane."""
+        found = self._spans.get(lane_id)
+        if found is None:
             path = self.road_map.path_profile((lane_id,))
             factor = float(path.lane_position_factor[0])
-            spans = self._spans[lane_id] = tuple(
-                (curve.start_s * factor, curve.end_s * factor)
-                for curve, _, _ in path.curve_sources(self.warning_radius_m, self.junctions)
+            found = self._spans[lane_id] = (
+                factor,
+                tuple(
+                    (curve.start_s * factor, curve.end_s * factor)
+                    for curve, _, _ in path.curve_sources(self.warning_radius_m, self.junctions)
+                ),
             )
-        return spans
+        return found
 
 
 def _lanes_beside(road_map: RoadMap) -> dict[str, tuple[str, ...]]:
     """Per lane with a lane beside it, those lanes: the other lanes of its normal edge, or the other internal lanes
-    at its place in a junction (:data:`InternalPlace`), that allow a vehicle class it allows (a vehicle changes
-    only onto a lane open to it: a sidewalk is beside no carriageway)."""
+    between the same two edges, that a vehicle may drive on (not sidewalks)."""
     groups: dict[object, list[str]] = {}
     for lane_id in road_map.lane_ids:
         lane = road_map.lane(lane_id)
-        if not lane.is_internal:
+        if not lane.is_internal and not lane.allowed_vclasses <= _NO_VEHICLE:
             groups.setdefault(lane.edge_id, []).append(lane_id)
-    for place, lane_id in _internal_places(road_map):
-        groups.setdefault(place, []).append(lane_id)
-    classes = {lane_id: road_map.lane(lane_id).allowed_vclasses for lanes in groups.values() for lane_id in lanes}
-    beside = {
-        lane_id: tuple(other for other in lanes if other != lane_id and classes[lane_id] & classes[other])
+    for edges, lane_id in _internal_ways(road_map):
+        if not road_map.lane(lane_id).allowed_vclasses <= _NO_VEHICLE:
+            groups.setdefault(edges, []).append(lane_id)
+    return {
+        lane_id: tuple(other for other in lanes if other != lane_id)
         for lanes in groups.values()
         if len(lanes) > 1
         for lane_id in lanes
     }
-    return {lane_id: others for lane_id, others in beside.items() if others}
 
 
-def _internal_places(road_map: RoadMap) -> list[tuple[InternalPlace, str]]:
-    """Each internal lane reached from a normal lane with its place: the edge it leaves, the normal edge its way
-    through the junction reaches, and its rank on that way (0 first)."""
-    found: dict[str, InternalPlace] = {}
+def _internal_ways(road_map: RoadMap) -> list[tuple[tuple[str, str], str]]:
+    """Each internal lane reached from a normal lane, with the normal edge its way through the junction leaves
+    and the one it reaches."""
+    found: dict[str, tuple[str, str]] = {}
     for lane_id in road_map.lane_ids:
         lane = road_map.lane(lane_id)
         if lane.is_internal:
@@ -123,6 +140,6 @@ def _internal_places(road_map: RoadMap) -> list[tuple[InternalPlace, str]]:
             end = road_map.lane(way[-1])
             if end.is_internal:
                 continue
-            for rank, internal in enumerate(way[:-1]):
-                found.setdefault(internal, (lane.edge_id, end.edge_id, rank))
-    return [(place, lane_id) for lane_id, place in found.items()]
+            for internal in way[:-1]:
+                found.setdefault(internal, (lane.edge_id, end.edge_id))
+    return [(edges, lane_id) for lane_id, edges in found.items()]
