@@ -12,9 +12,9 @@ driven ``d - D``: it is not read or evaluated before then (:meth:`WakeSchedule.s
 
 A vehicle may change lanes while asleep, unseen: the curves of the lanes beside its path count as the
 path's (:mod:`csws.cosim.lanes_beside`), and since lanes of one road differ a little in length along a
-bend, :data:`LANE_CHANGE_MARGIN_M` and :data:`LANE_CHANGE_MARGIN_SHARE` of ``d`` are taken off. A route SUMO changes while the vehicle
-sleeps (a rerouter, its rerouting device) can leave the path found at any junction ahead, before the
-curve it slept towards: such a vehicle is woken at the step its route id changes
+bend, :data:`LANE_CHANGE_MARGIN_M` and :data:`LANE_CHANGE_MARGIN_SHARE` of ``d`` are taken off. A route
+SUMO changes while the vehicle sleeps (a rerouter, its rerouting device) can leave the path found at any
+junction ahead, before the curve it slept towards: such a vehicle is woken at the step its route id changes
 (:class:`csws.cosim.sumo.Simulation` reads the route id of the sleeping vehicles SUMO may reroute, and of
 no others).
 
