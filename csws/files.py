@@ -1,15 +1,17 @@
-"""Files the project writes whole: a reader sees the old file or the new one, never a part."""
+"""Files the project writes whole: a reader sees the old file or the new one, never a part; and the caches
+kept of such files, pruned to their own version's most recently used."""
 
 from __future__ import annotations
 
 import json
 import os
 import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["read_json", "replace_file", "replace_json"]
+__all__ = ["prune_cache", "read_json", "remove_quietly", "replace_file", "replace_json"]
 
 
 def replace_file(path: Path, write: Callable[[IO[bytes]], object], prefix: str, suffix: str) -> None:
@@ -51,3 +53,35 @@ def read_json(path: Path, kind: str, error: type[Exception] = ValueError) -> Any
         raise error(f"{path}: no such file ({kind} expected)") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise error(f"{path}: not {kind} ({exc})") from None
+
+
+def prune_cache(folder: Path, kind: str, suffix: str, version: str, kept: int, abandoned_s: float) -> None:
+    """Remove the cache files ``{kind}-*{suffix}`` in ``folder`` of other versions than ``version`` (those not named
+    ``{kind}-{version}-...``), all but the ``kept`` most recently used of its own, and the temporary files
+    (``.{kind}-*{suffix}``, :func:`replace_file`) a writer abandoned more than ``abandoned_s`` ago."""
+    own = []
+    for cached in folder.glob(f"{kind}-*{suffix}"):
+        if not cached.name.startswith(f"{kind}-{version}-"):
+            remove_quietly(cached)
+            continue
+        try:
+            own.append((cached.stat().st_mtime, cached))
+        except OSError:
+            continue
+    for _, old in sorted(own, reverse=True)[kept:]:
+        remove_quietly(old)
+    for temporary in folder.glob(f".{kind}-*{suffix}"):
+        try:
+            abandoned = time.time() - temporary.stat().st_mtime > abandoned_s
+        except OSError:
+            continue
+        if abandoned:
+            remove_quietly(temporary)
+
+
+def remove_quietly(path: Path) -> None:
+    """Remove a file, if it can be: one that cannot (another user's, a read-only folder) stays."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from csws.curvature import Curve, ProfilePart, RadiusProfile, cached_radius_profiles, curves_from_profile
+from csws.road.offsets_cache import cached_lateral_offsets_m
 from csws.road.sharing import (
     JOINT_TOLERANCE_M,
     Run,
@@ -30,7 +31,6 @@ from csws.road.sharing import (
     clip_curve,
     joined_at_run_joints,
     kept_to_own_turn,
-    lateral_offsets_m,
     moved_curve,
     read_profile,
     reference_lanes,
@@ -360,7 +360,7 @@ def fit_road_chains(
         reference, offset_m = np.arange(len(road_shapes)), np.zeros(len(road_shapes))
     else:
         reference = reference_lanes(edge_ids, lane_index, _chain_lengths(chain_xy)[lane_chain])
-        offset_m = lateral_offsets_m(road_shapes, reference)
+        offset_m = cached_lateral_offsets_m(road_shapes, reference, cache_dir)
     runs = tuple(
         tuple(chain_runs(lanes, chain, reference, offset_m, lane_chain, bounds_s))
         for chain, lanes in enumerate(members)

@@ -23,7 +23,6 @@ from __future__ import annotations
 import hashlib
 import os
 import sys
-import time
 from functools import cache
 from pathlib import Path
 
@@ -31,7 +30,7 @@ import msgspec
 import numpy as np
 import sumolib
 
-from csws.files import replace_file
+from csws.files import prune_cache, replace_file
 from csws.road import continuations, network
 from csws.road.network import Lane, NetLanes, NetworkError, net_lanes, projection_net, read_sumo_net
 
@@ -227,35 +226,4 @@ def _write(path: Path, lanes: NetLanes, reader: str) -> None:
         replace_file(path, lambda file: file.write(content), ".lanes-", ".msgpack")
     except OSError:
         return
-    _prune(path.parent, reader)
-
-
-def _prune(folder: Path, reader: str) -> None:
-    """Remove the kept networks of other readers than ``reader``, all but the most recently used of its own, and
-    temporary files a writer abandoned."""
-    own = []
-    for kept in folder.glob("lanes-*.msgpack"):
-        if not kept.name.startswith(f"lanes-{reader}-"):
-            _remove(kept)
-            continue
-        try:
-            own.append((kept.stat().st_mtime, kept))
-        except OSError:
-            continue
-    for _, old in sorted(own, reverse=True)[KEPT_NETWORKS:]:
-        _remove(old)
-    for temporary in folder.glob(".lanes-*.msgpack"):
-        try:
-            abandoned = time.time() - temporary.stat().st_mtime > _ABANDONED_S
-        except OSError:
-            continue
-        if abandoned:
-            _remove(temporary)
-
-
-def _remove(path: Path) -> None:
-    """Remove a file of the cache, if it can be: one that cannot (another user's, a read-only folder) stays."""
-    try:
-        path.unlink(missing_ok=True)
-    except OSError:
-        pass
+    prune_cache(path.parent, "lanes", ".msgpack", reader, KEPT_NETWORKS, _ABANDONED_S)
