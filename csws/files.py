@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["prune_cache", "read_json", "remove_quietly", "replace_file", "replace_json"]
+__all__ = ["prune_cache", "read_json", "replace_file", "replace_json"]
 
 
 def replace_file(path: Path, write: Callable[[IO[bytes]], object], prefix: str, suffix: str) -> None:
@@ -62,24 +62,24 @@ def prune_cache(folder: Path, kind: str, suffix: str, version: str, kept: int, a
     own = []
     for cached in folder.glob(f"{kind}-*{suffix}"):
         if not cached.name.startswith(f"{kind}-{version}-"):
-            remove_quietly(cached)
+            _remove_quietly(cached)
             continue
         try:
             own.append((cached.stat().st_mtime, cached))
         except OSError:
             continue
     for _, old in sorted(own, reverse=True)[kept:]:
-        remove_quietly(old)
+        _remove_quietly(old)
     for temporary in folder.glob(f".{kind}-*{suffix}"):
         try:
             abandoned = time.time() - temporary.stat().st_mtime > abandoned_s
         except OSError:
             continue
         if abandoned:
-            remove_quietly(temporary)
+            _remove_quietly(temporary)
 
 
-def remove_quietly(path: Path) -> None:
+def _remove_quietly(path: Path) -> None:
     """Remove a file, if it can be: one that cannot (another user's, a read-only folder) stays."""
     try:
         path.unlink(missing_ok=True)

@@ -42,15 +42,16 @@ def test_the_right_lanes_path_ends_at_the_left_lanes_first_bend(tmp_path):
 
 
 def _first_curve_m(lookahead: LookAhead, lane_id: str, lane_pos_m: float) -> float:
-    """How far ahead of ``lane_pos_m`` a curve of ``lane_id`` itself starts (0 inside one), in its lane positions;
-    infinite where none does. A curve that starts where the lane ends (to a micrometre) is the next lane's."""
+    """How far ahead of ``lane_pos_m`` a curve of ``lane_id`` itself starts (0 inside one), along the lane's own
+    shape, as the warning measures it on that lane; infinite where none does. A curve that starts where the lane
+    ends (to a micrometre) is the next lane's."""
     horizon = lookahead.horizon(lane_id, None, 50.0)
     path = horizon.path
     factor, on_lane_m = float(path.lane_position_factor[0]), float(path.lane_shape_length_m[0])
     nearest = np.inf
     for start_s, end_s in zip(horizon.part_start_s.tolist(), horizon.part_end_s.tolist(), strict=True):
         if start_s < on_lane_m - 1e-6 and end_s * factor > lane_pos_m:
-            nearest = min(nearest, max(start_s * factor - lane_pos_m, 0.0))
+            nearest = min(nearest, max(start_s - lane_pos_m / factor, 0.0))
     return nearest
 
 
@@ -76,12 +77,11 @@ def test_no_lane_beside_a_path_in_the_city_has_a_curve_nearer_than_the_schedule_
             horizon = lookahead.horizon(lane_id, None, 50.0)
             for lane_pos_m in (0.0, *(rng.uniform(0.0, lane.length_m) for _ in range(3))):
                 distance_m, _ = parts.distances_m([horizon], np.array([horizon.vehicle_s(lane_pos_m)]))
-                factor = float(horizon.path.lane_position_factor[0])
                 for other in others:
                     nearest_m = _first_curve_m(lookahead, other, lane_pos_m)
                     if np.isfinite(nearest_m):
                         checked += 1
-                        assert distance_m[0] <= nearest_m / factor + 1e-6, (lane_id, other, lane_pos_m)
+                        assert distance_m[0] <= nearest_m + 1e-6, (lane_id, other, lane_pos_m)
     assert checked > 100
 
 

@@ -10,6 +10,8 @@ the cache as without it.
 from __future__ import annotations
 
 import math
+import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,10 @@ def _lanes() -> tuple[list[np.ndarray], np.ndarray]:
     return shapes, np.zeros(len(shapes), dtype=np.int64)
 
 
+def _not_measured(*args):
+    raise AssertionError("measured again")
+
+
 def test_offsets_are_measured_once_and_read_back_to_the_bit(tmp_path: Path, monkeypatch) -> None:
     shapes, reference = _lanes()
     first = offsets_cache.cached_lateral_offsets_m(shapes, reference, tmp_path)
@@ -43,10 +49,7 @@ def test_offsets_are_measured_once_and_read_back_to_the_bit(tmp_path: Path, monk
     np.testing.assert_array_equal(first, sharing.lateral_offsets_m(shapes, reference))
     assert len(list(tmp_path.glob("offsets-*.npy"))) == 1
 
-    def unmeasured(*args):
-        raise AssertionError("measured again")
-
-    monkeypatch.setattr(sharing, "lateral_offsets_m", unmeasured)
+    monkeypatch.setattr(sharing, "lateral_offsets_m", _not_measured)
     np.testing.assert_array_equal(offsets_cache.cached_lateral_offsets_m(shapes, reference, tmp_path), first)
 
 
@@ -56,8 +59,9 @@ def test_moved_lanes_a_broken_file_and_no_folder_are_measured_anew(tmp_path: Pat
     moved = [shapes[0], shapes[0] + 2.0 * (shapes[1] - shapes[0]), *shapes[2:]]
     moved_m = offsets_cache.cached_lateral_offsets_m(moved, reference, tmp_path)[1]
     assert moved_m == pytest.approx(2 * LANE_WIDTH_M, abs=0.01)
-    for kept in tmp_path.glob("offsets-*.npy"):
-        kept.write_bytes(b"not numpy")
+    kept = list(tmp_path.glob("offsets-*.npy"))
+    kept[0].write_bytes(b"not numpy")
+    np.savez(kept[1], offsets=np.zeros(4))  # a zip of arrays under the name
     np.testing.assert_array_equal(
         offsets_cache.cached_lateral_offsets_m(shapes, reference, tmp_path),
         sharing.lateral_offsets_m(shapes, reference),
@@ -73,11 +77,21 @@ def test_moved_lanes_a_broken_file_and_no_folder_are_measured_anew(tmp_path: Pat
 def test_files_of_other_code_are_removed_and_few_maps_are_kept(tmp_path: Path) -> None:
     foreign = tmp_path / "offsets-0000000000000000-00.npy"
     np.save(foreign, np.zeros(2))
+    abandoned, writing = tmp_path / ".offsets-abandoned.npy", tmp_path / ".offsets-writing.npy"
+    others = [tmp_path / "profiles-0-0.npz", tmp_path / "lanes-0-0.msgpack", abandoned, writing]
+    for path in others:
+        path.write_bytes(b"")
+    os.utime(abandoned, (time.time() - 2 * 3600, time.time() - 2 * 3600))
     shapes, reference = _lanes()
+    written = []
     for shift_m in range(offsets_cache.KEPT_MAPS + 2):
         offsets_cache.cached_lateral_offsets_m([shape + shift_m for shape in shapes], reference, tmp_path)
-    assert not foreign.exists()
-    assert len(list(tmp_path.glob("offsets-*.npy"))) == offsets_cache.KEPT_MAPS
+        (latest,) = set(tmp_path.glob("offsets-*.npy")) - set(written) - {foreign}
+        written.append(latest)
+        os.utime(latest, (time.time() - 1000 + shift_m, time.time() - 1000 + shift_m))  # written in this order
+    assert not foreign.exists() and not abandoned.exists()
+    assert all(path.exists() for path in others if path is not abandoned)  # other caches' files, a file being written
+    assert sorted(tmp_path.glob("offsets-*.npy")) == sorted(written[-offsets_cache.KEPT_MAPS :])
 
 
 @pytest.mark.sumo
@@ -87,6 +101,7 @@ def test_lanes_side_by_side_load_the_same_road_map_with_the_cache_as_without(tmp
     measured = RoadMap.load(net, cache=False)
     RoadMap.load(net)
     assert len(list((tmp_path / "cache").glob("offsets-*.npy"))) == 1
+    monkeypatch.setattr(sharing, "lateral_offsets_m", _not_measured)
     read = RoadMap.load(net)
     for ours, theirs in zip(read.chains.runs, measured.chains.runs, strict=True):
         for run, truth in zip(ours, theirs, strict=True):

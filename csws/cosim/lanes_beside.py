@@ -33,7 +33,7 @@ from csws.road.roadmap import RoadMap
 
 __all__ = ["LanesBeside"]
 
-#: The lanes a vehicle cannot change onto: open to these classes alone.
+#: Vehicle classes that make no lane a vehicle changes onto: a lane open to these alone is a sidewalk.
 _NO_VEHICLE = frozenset({"pedestrian"})
 #: The most internal lanes on one way through a junction (SUMO makes two at most: a via lane after the first).
 _MOST_INTERNAL = 8
@@ -57,8 +57,9 @@ class LanesBeside:
         self._spans: dict[str, tuple[float, tuple[tuple[float, float], ...]]] = {}
 
     def beside(self, lane_id: str) -> tuple[str, ...]:
-        """The lanes a vehicle on ``lane_id`` may be on instead, unseen: the other lanes of its normal edge, or
-        the other internal lanes between the same two edges (none for a lane alone on its edge)."""
+        """The lanes a vehicle on ``lane_id`` may be on instead at that place of its route, unseen: the other lanes
+        of its normal edge, or the other internal lanes between the same two edges (a way's via lane among them);
+        none for a lane alone on its edge."""
         return self._beside.get(lane_id, ())
 
     def spans_s(self, path: PathProfile) -> tuple[np.ndarray, np.ndarray]:
@@ -74,18 +75,18 @@ class LanesBeside:
                 continue
             internal = self.road_map.lane(lane_id).is_internal
             for other in others:
-                other_factor, spans = self._lane_spans(other)
-                nearer, farther = max(factor, other_factor), min(factor, other_factor)
+                other_factor, spans = self._factor_and_spans(other)
+                larger, smaller = max(factor, other_factor), min(factor, other_factor)
                 for begin_m, end_m in spans:
                     if internal:  # another length: the curve covers the whole internal lane
                         starts.append(start_s)
                         ends.append(start_s + length_m)
-                    elif farther > 0.0:
-                        starts.append(start_s + min(max(begin_m / nearer, 0.0), length_m))
-                        ends.append(start_s + min(max(end_m / farther, 0.0), length_m))
+                    elif smaller > 0.0:
+                        starts.append(start_s + min(max(begin_m / larger, 0.0), length_m))
+                        ends.append(start_s + min(max(end_m / smaller, 0.0), length_m))
         return np.array(starts, dtype=float), np.array(ends, dtype=float)
 
-    def _lane_spans(self, lane_id: str) -> tuple[float, tuple[tuple[float, float], ...]]:
+    def _factor_and_spans(self, lane_id: str) -> tuple[float, tuple[tuple[float, float], ...]]:
         """A lane's position factor (lane position per metre of its shape), and where the curves on it start and
         end in its lane positions, m (the look-ahead's curves of the lane alone: those that run on from an
         earlier lane start at 0), worked out once per lane."""

@@ -6,8 +6,9 @@ points each, 0.18 s of a 0.24 s load, at every load. The offsets are a function 
 their reference lanes alone, so they are kept beside the fitted profiles (:func:`csws.curvature.profile_cache_dir`)
 in a file named by two digests:
 
-* the code's: the source of :mod:`csws.road.sharing` (which measures them) and of this module, so that a changed
-  measure is never read from an older file;
+* the code's: the source of :mod:`csws.road.sharing` (which measures them) and of this module, and the versions
+  of numpy and shapely (whose spatial index picks the segments measured), so that a changed measure is never
+  read from an older file;
 * the data's: every coordinate of every lane's shape, in order, and every lane's reference lane.
 
 A file that is missing, unreadable or not one offset per lane is measured anew and written again, atomically; a
@@ -25,6 +26,7 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+import shapely
 
 from csws.files import prune_cache, replace_file
 from csws.road import sharing
@@ -56,8 +58,8 @@ def cached_lateral_offsets_m(
 
 @cache
 def _code_digest() -> str:
-    """Digest of the code that measures the offsets: :mod:`csws.road.sharing` and this module."""
-    digest = hashlib.sha256()
+    """Digest of the code that measures the offsets: :mod:`csws.road.sharing`, this module, numpy and shapely."""
+    digest = hashlib.sha256(f"numpy {np.__version__} shapely {shapely.__version__}".encode())
     for source in (Path(sharing.__file__), Path(__file__)):
         digest.update(source.read_bytes())
     return digest.hexdigest()[:16]
@@ -72,13 +74,17 @@ def _data_digest(road_shapes: Sequence[np.ndarray], reference: np.ndarray) -> st
     return digest.hexdigest()[:32]
 
 
-def _read(path: Path, lanes: int) -> np.ndarray | None:
-    """The offsets kept in ``path``, None where it is missing or not one float per lane."""
+def _read(path: Path, lane_count: int) -> np.ndarray | None:
+    """The offsets kept in ``path``, None where it is missing or not one float per lane (another numpy file, a zip
+    of them, anything else)."""
     try:
-        offsets = np.load(path, allow_pickle=False)
+        with path.open("rb") as file:
+            offsets = np.load(file, allow_pickle=False)
+            if not isinstance(offsets, np.ndarray):
+                return None
     except (OSError, ValueError, EOFError):
         return None
-    if offsets.dtype != np.float64 or offsets.shape != (lanes,):
+    if offsets.dtype != np.float64 or offsets.shape != (lane_count,):
         return None
     try:
         os.utime(path)  # most recently used: kept when older ones are removed
