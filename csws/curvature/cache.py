@@ -37,7 +37,7 @@ from .chords import _chords, _validated
 from .fitting import radius_profiles
 from .profile import RadiusProfile, profile_from_parts, straight_profile
 
-__all__ = ["cached_radius_profiles", "profile_cache_dir"]
+__all__ = ["cached_radius_profiles", "polylines_digest", "profile_cache_dir"]
 
 #: Arrays of a cache file: per polyline the offset of its first part, and per part its
 #: start and end arc length (m) and its signed curvature at start and end (1/m).
@@ -63,8 +63,8 @@ def _model_digest() -> str:
     return digest.hexdigest()[:16]
 
 
-def _data_digest(points: Sequence[np.ndarray]) -> str:
-    """Digest of the polylines: their vertex counts and every coordinate, in order."""
+def polylines_digest(points: Sequence[np.ndarray]) -> str:
+    """Digest of polylines: their vertex counts and every coordinate, in order (a cache file's data digest)."""
     digest = hashlib.sha256(np.array([len(p) for p in points], dtype=np.int64).tobytes())
     for xy in points:
         digest.update(np.ascontiguousarray(xy, dtype=np.float64).tobytes())
@@ -105,7 +105,7 @@ def cached_radius_profiles(
         return fitted()
     model = _model_digest()
     kind = "-kept" if kept_to_polylines else ""
-    path = Path(cache_dir) / f"profiles-{model}-{_data_digest(points)}{kind}.npz"
+    path = Path(cache_dir) / f"profiles-{model}-{polylines_digest(points)}{kind}.npz"
     profiles = _read(path, points)
     if profiles is None:
         profiles = fitted()

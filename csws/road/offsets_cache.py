@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from csws.curvature.cache import polylines_digest
 from csws.files import prune_cache, replace_file
 from csws.road import sharing
 
@@ -66,11 +67,9 @@ def _code_digest() -> str:
 
 
 def _data_digest(road_shapes: Sequence[np.ndarray], reference: np.ndarray) -> str:
-    """Digest of the lanes: their vertex counts, every coordinate in order, and their reference lanes."""
-    digest = hashlib.sha256(np.array([len(shape) for shape in road_shapes], dtype=np.int64).tobytes())
+    """Digest of the lanes: their shapes (:func:`csws.curvature.cache.polylines_digest`) and reference lanes."""
+    digest = hashlib.sha256(polylines_digest(road_shapes).encode())
     digest.update(np.ascontiguousarray(reference, dtype=np.int64).tobytes())
-    for shape in road_shapes:
-        digest.update(np.ascontiguousarray(shape, dtype=np.float64).tobytes())
     return digest.hexdigest()[:32]
 
 
